@@ -1,0 +1,203 @@
+"""The direct-path / multipath / outlier mixture likelihood, in one place.
+
+A reported range ``z`` of one beacon has density
+
+``p(z) = w_dp N(z; L_direct, s_dp) + w_mp N(z; f_MP(d0), s_mp) + w_ol U(z; lo, hi)``
+
+with ``f_MP`` from :mod:`bayes_mpem.geometry` and the outlier density uniform
+over the observed window ``[lo, hi]`` of that beacon's ranges. The EM
+(:mod:`bayes_mpem.em`) and the samplers call these functions; every
+parameter broadcasts, so a column of walkers ``d0[:, None]`` evaluates all
+walkers at once.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import geometry
+from .data import BeaconData
+
+CLASSES: tuple[str, str, str] = ("dp", "mp", "ol")
+_LOG_SQRT_2PI = 0.5 * np.log(2.0 * np.pi)
+
+
+@dataclass(frozen=True)
+class BeaconGeometry:
+    """Per-range quantities of one beacon that do not depend on parameters.
+
+    Attributes
+    ----------
+    z : numpy.ndarray
+        Reported ranges (m).
+    h, dz, direct : numpy.ndarray
+        Horizontal distance, ``z_beacon - z_vehicle`` and direct-path length (m).
+    lo, hi : float
+        Outlier window: the smallest and largest reported range (m).
+    d0_min : float
+        Lowest physical plane height: the plane must lie above the vehicle for
+        every range, ``max(0, max(dz))``.
+    """
+
+    z: np.ndarray
+    h: np.ndarray
+    dz: np.ndarray
+    direct: np.ndarray
+    lo: float
+    hi: float
+    d0_min: float
+
+    @classmethod
+    def from_data(cls, data: BeaconData) -> BeaconGeometry:
+        """Precompute the geometry of ``data``.
+
+        Parameters
+        ----------
+        data : BeaconData
+
+        Returns
+        -------
+        BeaconGeometry
+        """
+        bx, by, bz = (float(v) for v in data.position)
+        h = geometry.horizontal_distance(data.x, data.y, bx, by)
+        dz = bz - np.asarray(data.depth, float)
+        z = np.asarray(data.range, float)
+        lo, hi = (float(z.min()), float(z.max())) if z.size else (0.0, 1.0)
+        return cls(
+            z=z,
+            h=h,
+            dz=dz,
+            direct=geometry.direct_path(h, dz),
+            lo=lo,
+            hi=hi,
+            d0_min=max(0.0, float(dz.max())) if z.size else 0.0,
+        )
+
+    @property
+    def n(self) -> int:
+        """Number of ranges."""
+        return int(self.z.size)
+
+    @property
+    def log_ol_density(self) -> float:
+        """Log of the uniform outlier density over ``[lo, hi]`` (1/m)."""
+        return -float(np.log(max(self.hi - self.lo, 1e-9)))
+
+    def multipath(self, d0, path: str = "triangle"):
+        """Predicted multipath ranges for plane height ``d0`` (broadcasts)."""
+        return geometry.multipath_range(self.h, self.dz, d0, path, direct=self.direct)
+
+
+def gaussian_logpdf(resid, sigma):
+    """Log of the normal density of ``resid`` with scale ``sigma`` (broadcasts).
+
+    Parameters
+    ----------
+    resid, sigma : array_like
+
+    Returns
+    -------
+    numpy.ndarray
+    """
+    sigma = np.asarray(sigma, float)
+    return -0.5 * (resid / sigma) ** 2 - np.log(sigma) - _LOG_SQRT_2PI
+
+
+def component_logpdf(geom: BeaconGeometry, d0, sigma_dp, sigma_mp, path: str = "triangle"):
+    """Log densities of every range under each class.
+
+    Parameters
+    ----------
+    geom : BeaconGeometry
+    d0, sigma_dp, sigma_mp : float or array_like
+        Plane height and the two Gaussian scales (m); arrays broadcast
+        against the ranges (use shape ``(W, 1)`` for ``W`` walkers).
+    path : {"triangle", "double"}
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        ``(log p(z|dp), log p(z|mp), log p(z|ol))``; the last is a scalar.
+    """
+    ldp = gaussian_logpdf(geom.z - geom.direct, sigma_dp)
+    lmp = gaussian_logpdf(geom.z - geom.multipath(d0, path), sigma_mp)
+    return ldp, lmp, geom.log_ol_density
+
+
+def log_mix(ldp, lmp, lol, log_weights):
+    """Weighted log densities and their log-sum-exp, without overflow.
+
+    Parameters
+    ----------
+    ldp, lmp, lol : array_like
+        Component log densities (broadcastable).
+    log_weights : sequence of three array_like
+        Log mixing weights of dp, mp, ol (broadcastable).
+
+    Returns
+    -------
+    joint : tuple of numpy.ndarray
+        The three ``log w_j + log p(z|j)``.
+    lse : numpy.ndarray
+        Per-range log-likelihood ``log sum_j w_j p(z|j)``.
+    """
+    a = ldp + log_weights[0]
+    b = lmp + log_weights[1]
+    c = np.broadcast_to(lol + log_weights[2], np.broadcast(a, b).shape)
+    m = np.maximum(np.maximum(a, b), c)
+    lse = m + np.log(np.exp(a - m) + np.exp(b - m) + np.exp(c - m))
+    return (a, b, c), lse
+
+
+def safe_log(w):
+    """``log(w)`` with ``log(0) = -inf`` and no warning."""
+    w = np.asarray(w, float)
+    with np.errstate(divide="ignore"):
+        return np.log(w)
+
+
+def e_step(geom: BeaconGeometry, d0, sigma_dp, sigma_mp, weights, path: str = "triangle"):
+    """Responsibilities and log-likelihood at the given parameters.
+
+    Parameters
+    ----------
+    geom : BeaconGeometry
+    d0, sigma_dp, sigma_mp : float
+    weights : sequence of 3 floats
+        Mixing weights of dp, mp, ol.
+    path : {"triangle", "double"}
+
+    Returns
+    -------
+    loglik : float
+        Total log-likelihood ``sum_k log p(z_k)``.
+    resp : numpy.ndarray
+        ``(n, 3)`` class probabilities (columns dp, mp, ol).
+    """
+    ldp, lmp, lol = component_logpdf(geom, d0, sigma_dp, sigma_mp, path)
+    joint, lse = log_mix(ldp, lmp, lol, safe_log(weights))
+    resp = np.empty((geom.n, 3))
+    for j in range(3):
+        resp[:, j] = np.exp(joint[j] - lse)
+    return float(lse.sum()), resp
+
+
+def loglik_per_range(geom: BeaconGeometry, d0, sigma_dp, sigma_mp, weights, path="triangle"):
+    """Pointwise log-likelihood ``log p(z_k)`` (for LOO and diagnostics).
+
+    Parameters
+    ----------
+    geom : BeaconGeometry
+    d0, sigma_dp, sigma_mp : float or array_like
+    weights : sequence of 3 floats or arrays
+    path : {"triangle", "double"}
+
+    Returns
+    -------
+    numpy.ndarray
+    """
+    ldp, lmp, lol = component_logpdf(geom, d0, sigma_dp, sigma_mp, path)
+    return log_mix(ldp, lmp, lol, [safe_log(w) for w in weights])[1]

@@ -1,0 +1,51 @@
+import numpy as np
+import pytest
+from scipy import stats
+
+from bayes_mpem.data import BeaconData
+from bayes_mpem.mixture import BeaconGeometry, e_step, loglik_per_range
+
+
+@pytest.fixture
+def geom():
+    rng = np.random.default_rng(3)
+    n = 400
+    x, y = rng.uniform(-2000, 2000, n), rng.uniform(-2000, 2000, n)
+    depth = rng.uniform(2300, 2400, n)
+    z = rng.uniform(100, 6000, n)
+    return BeaconGeometry.from_data(BeaconData.from_arrays(z, x, y, depth, [0.0, 0.0, 2450.0]))
+
+
+def test_loglik_matches_scipy(geom):
+    d0, sdp, smp, w = 2450.0, 4.0, 9.0, np.array([0.5, 0.3, 0.2])
+    ll, resp = e_step(geom, d0, sdp, smp, w)
+    dens = np.stack([
+        stats.norm.pdf(geom.z, geom.direct, sdp),
+        stats.norm.pdf(geom.z, geom.multipath(d0), smp),
+        np.full(geom.n, 1.0 / (geom.z.max() - geom.z.min())),
+    ], axis=1) * w
+    assert ll == pytest.approx(np.log(dens.sum(axis=1)).sum(), rel=1e-12)
+    np.testing.assert_allclose(resp, dens / dens.sum(axis=1, keepdims=True), atol=1e-12)
+
+
+def test_responsibilities_are_finite_far_from_everything(geom):
+    # tiny scales: densities underflow, the log-space computation must not
+    ll, resp = e_step(geom, 2450.0, 1e-3, 1e-3, [1 / 3] * 3)
+    assert np.isfinite(ll)
+    np.testing.assert_allclose(resp.sum(axis=1), 1.0)
+    assert np.all(np.isfinite(resp))
+
+
+def test_zero_weight_is_allowed(geom):
+    ll, resp = e_step(geom, 2450.0, 4.0, 9.0, [0.7, 0.3, 0.0])
+    assert np.isfinite(ll)
+    assert np.all(resp[:, 2] == 0.0)
+
+
+def test_pointwise_loglik_vectorised_over_walkers(geom):
+    d0 = np.array([[2440.0], [2450.0], [2460.0]])
+    w = [np.full((3, 1), 0.5), np.full((3, 1), 0.3), np.full((3, 1), 0.2)]
+    out = loglik_per_range(geom, d0, 4.0, 9.0, w)
+    assert out.shape == (3, geom.n)
+    ll, _ = e_step(geom, 2450.0, 4.0, 9.0, [0.5, 0.3, 0.2])
+    assert out[1].sum() == pytest.approx(ll, rel=1e-12)

@@ -205,7 +205,7 @@ def paper_e_step(geom: BeaconGeometry, d0, sigma_mp, sigma_dp, pol, path="triang
     return resp / resp.sum(axis=1, keepdims=True)
 
 
-def paper_m_step(geom: BeaconGeometry, gamma_mp, d0_prev, alpha, path="triangle"):
+def paper_m_step(geom: BeaconGeometry, gamma_mp, d0_prev, alpha, path="triangle", *, d0k=None):
     """M-step of the paper (eqs. 8, 10 and 9).
 
     Parameters
@@ -218,6 +218,10 @@ def paper_m_step(geom: BeaconGeometry, gamma_mp, d0_prev, alpha, path="triangle"
     alpha : float
         Blending factor of eq. 10.
     path : {"triangle", "double"}
+    d0k : numpy.ndarray, optional
+        Precomputed per-range plane heights
+        (:func:`~bayes_mpem.geometry.invert_plane_height`); they do not depend
+        on the parameters, so the EM loop computes them once.
 
     Returns
     -------
@@ -227,7 +231,8 @@ def paper_m_step(geom: BeaconGeometry, gamma_mp, d0_prev, alpha, path="triangle"
         ``sigma_mp`` is the square root of the weighted mean squared
         multipath residual at that ``d0``.
     """
-    d0k = geometry.invert_plane_height(geom.z, geom.h, geom.dz, path, direct=geom.direct)
+    if d0k is None:
+        d0k = geometry.invert_plane_height(geom.z, geom.h, geom.dz, path, direct=geom.direct)
     ok = np.isfinite(d0k)
     wsum = gamma_mp[ok].sum()
     d0_avg = float(np.dot(gamma_mp[ok], d0k[ok]) / wsum) if wsum > 0 else d0_prev
@@ -299,6 +304,7 @@ def fit_paper_em(
     geom = BeaconGeometry.from_data(data)
     s_dp = _check_positive("sigma_dp", sigma_dp, allow_none=True) or estimate_sigma_dp(geom)
     d0, s_mp = float(d0_init), float(np.sqrt(sigma_mp2_init))
+    d0k = geometry.invert_plane_height(geom.z, geom.h, geom.dz, path, direct=geom.direct)
     hist = {k: [] for k in ("d0", "sigma_mp", "sigma_dp", "p_dp", "p_mp", "p_ol")}
 
     def record(resp):
@@ -308,19 +314,17 @@ def fit_paper_em(
         for c, m in zip(CLASSES, _mean_resp_history(resp), strict=True):
             hist["p_" + c].append(float(m))
 
+    resp = paper_e_step(geom, d0, s_mp, s_dp, pol, path)
+    first_resp = resp
+    record(resp)  # state 0: the initial parameters and the first classification
     converged = False
-    first_resp = None
     it = 0
     for it in range(1, max_iter + 1):
-        resp = paper_e_step(geom, d0, s_mp, s_dp, pol, path)
-        if first_resp is None:
-            first_resp = resp
-            record(resp)  # state 0: initial parameters, first classification
-        d0_new, s_new = paper_m_step(geom, resp[:, 1], d0, alpha, path)
+        d0_new, s_new = paper_m_step(geom, resp[:, 1], d0, alpha, path, d0k=d0k)
         done = abs(d0_new - d0) < tol and abs(s_new - s_mp) < tol
         d0, s_mp = d0_new, s_new
         if not np.isfinite(s_mp) or s_mp <= 0:
-            break
+            break  # sigma_MP collapsed: the probabilities stay those of the last E-step
         resp = paper_e_step(geom, d0, s_mp, s_dp, pol, path)
         record(resp)
         if done:
@@ -329,11 +333,11 @@ def fit_paper_em(
     if not converged:
         warnings.warn(
             f"beacon {data.beacon}: the paper's EM did not converge in {it} iterations "
-            f"(d0={d0:.2f} m, sigma_mp={s_mp:.3g} m)",
+            f"(d0={d0:.2f} m, sigma_mp={s_mp:.3g} m"
+            + (", sigma_MP collapsed to 0)" if not s_mp > 0 else ")"),
             ConvergenceWarning,
             stacklevel=2,
         )
-    resp = paper_e_step(geom, d0, s_mp, s_dp, pol, path)
     mean = _mean_resp_history(resp)
     return EMResult(
         beacon=data.beacon,
@@ -349,7 +353,7 @@ def fit_paper_em(
         converged=converged,
         loglik=None,
         history={k: np.asarray(v) for k, v in hist.items()},
-        first_resp=first_resp if first_resp is not None else resp,
+        first_resp=first_resp,
         settings={"pol": float(pol), "alpha": float(alpha), "d0_init": float(d0_init),
                   "sigma_mp2_init": float(sigma_mp2_init), "tol": float(tol),
                   "sigma_dp_fixed": sigma_dp is not None},

@@ -1,0 +1,171 @@
+"""The ``bayes-mpem`` command line: thin wrappers around the library."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import warnings
+from pathlib import Path
+
+from . import __version__
+from .data import InputError
+
+
+def _add_fit_options(p):
+    p.add_argument("--method", choices=["mixture", "paper"], default="mixture",
+                   help="density-mixture EM (default) or the paper's EM")
+    p.add_argument("--path", choices=["triangle", "double"], default="triangle",
+                   help="multipath geometry: one reflected leg (default) or both")
+    p.add_argument("--sigma-dp", type=float, default=None, metavar="S",
+                   help="direct-path scatter in m (default: estimated from the data)")
+    p.add_argument("--pol", type=float, default=0.05, metavar="P",
+                   help="paper EM: outlier threshold Pol (default 0.05)")
+    p.add_argument("--alpha", type=float, default=0.5, metavar="A",
+                   help="paper EM: convergence factor alpha (default 0.5)")
+    p.add_argument("--weights", choices=["learned", "equal"], default="learned",
+                   help="mixture EM: learn the mixing weights (default) or fix them at 1/3")
+    p.add_argument("--min-pings", type=int, default=30, metavar="N",
+                   help="leave beacons with fewer replies unfitted (default 30)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``bayes-mpem`` (exposed for the docs)."""
+    parser = argparse.ArgumentParser(
+        prog="bayes-mpem",
+        description="Classify acoustic ranges (direct path, multipath, outlier) and identify "
+                    "each beacon's reflector.")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    p = sub.add_parser("demo", help="simulate an ABE58-like survey, fit it, write figures")
+    p.add_argument("--out", default="demo-output", metavar="DIR",
+                   help="output folder (default: demo-output)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+
+    p = sub.add_parser("simulate", help="write a simulated survey (pings, beacons, truth)")
+    p.add_argument("--preset", choices=["abe58", "random"], default="abe58")
+    p.add_argument("--out", required=True, metavar="DIR")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--path", choices=["triangle", "double"], default="triangle")
+    p.add_argument("--n-cycles", type=int, default=None, metavar="N",
+                   help="number of ping cycles (default: the preset's)")
+
+    p = sub.add_parser("fit", help="fit every beacon of a survey")
+    p.add_argument("pings", metavar="PINGS", help="pings CSV (time, beacon, range, x, y, depth)")
+    p.add_argument("--beacons", required=True, metavar="BEACONS",
+                   help="beacons CSV (beacon, x, y, depth)")
+    p.add_argument("--out", required=True, metavar="DIR")
+    p.add_argument("--figures", action="store_true", help="also write PNG figures")
+    _add_fit_options(p)
+    return parser
+
+
+def _fit_kwargs(args):
+    return dict(method=args.method, path=args.path, sigma_dp=args.sigma_dp, pol=args.pol,
+                alpha=args.alpha, weights=args.weights, min_pings=args.min_pings, rng=args.seed)
+
+
+def _write_figures(result, out):
+    import matplotlib.pyplot as plt
+
+    from . import plots
+
+    paths = []
+    fig = plots.plot_survey_classification(result)
+    paths.append(out / "classification.png")
+    fig.savefig(paths[-1], dpi=110)
+    plt.close(fig)
+    fig = plots.plot_track(result.survey)
+    paths.append(out / "track.png")
+    fig.savefig(paths[-1], dpi=110)
+    plt.close(fig)
+    return paths
+
+
+def _report(result, paths):
+    print(result.format_table())
+    for bid, res in result.results.items():
+        if not res.converged:
+            print(f"warning: beacon {bid} did not converge", file=sys.stderr)
+    n_nr = int(result.survey.no_reply.sum())
+    print(f"\n{len(result.survey)} rows, {n_nr} pings without reply (labelled no_reply)")
+    for p in paths:
+        print(f"wrote {p}")
+
+
+def cmd_demo(args):
+    from .fitting import fit
+    from .simulate import simulate_survey
+
+    out = Path(args.out)
+    sim = simulate_survey("abe58", rng=args.seed)
+    written = list(sim.write(out / "survey").values())
+    print(f"Simulated ABE58-like survey (seed {args.seed}): {len(sim.survey)} pings to "
+          f"{len(sim.truth)} beacons\n")
+    result = fit(sim.survey, rng=args.seed)
+    print("Mixture EM, per beacon (cf. Table II of the paper; truth: plane at the surface,")
+    print("HRP = beacon depth; sigma_MP = " + ", ".join(
+        f"{b['sigma_mp']:.1f}" for b in sim.truth.values()) + " m)")
+    written += list(result.write(out).values())
+    written += _write_figures(result, out)
+    paper = fit(sim.survey, method="paper", sigma_dp=sim.truth["1"]["sigma_dp"])
+    (out / "paper").mkdir(exist_ok=True)
+    written += list(paper.write(out / "paper").values())
+    _report(result, written)
+    print("\nThe paper's EM (Pol = 0.05, alpha = 0.5, sigma_DP = 3.97 m):")
+    print(paper.format_table())
+    return 0
+
+
+def cmd_simulate(args):
+    from .simulate import simulate_survey
+
+    sim = simulate_survey(args.preset, rng=args.seed, path=args.path, n_cycles=args.n_cycles)
+    paths = sim.write(args.out)
+    print(f"{len(sim.survey)} pings to {len(sim.truth)} beacons")
+    for p in paths.values():
+        print(f"wrote {p}")
+    return 0
+
+
+def cmd_fit(args):
+    from .fitting import fit
+
+    result = fit(args.pings, args.beacons, **_fit_kwargs(args))
+    out = Path(args.out)
+    paths = list(result.write(out).values())
+    if args.figures and result.results:
+        paths += _write_figures(result, out)
+    _report(result, paths)
+    return 0
+
+
+def main(argv=None) -> int:
+    """Entry point of ``bayes-mpem``.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        Arguments (default: ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        Exit status: 0 on success, 2 on invalid input.
+    """
+    args = build_parser().parse_args(argv)
+    handler = {"demo": cmd_demo, "simulate": cmd_simulate, "fit": cmd_fit}[args.command]
+    warnings.simplefilter("default")
+    try:
+        return handler(args)
+    except (InputError, ValueError, FileNotFoundError) as exc:
+        print(f"bayes-mpem {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
+
+
+__all__ = ["build_parser", "main"]

@@ -1,0 +1,80 @@
+import json
+
+import pandas as pd
+import pytest
+
+import bayes_mpem as bm
+from bayes_mpem.cli import main
+
+
+@pytest.fixture(scope="module")
+def survey_files(tmp_path_factory):
+    out = tmp_path_factory.mktemp("survey")
+    assert main(["simulate", "--preset", "abe58", "--seed", "3", "--out", str(out)]) == 0
+    return out
+
+
+def test_simulate_writes_files(survey_files):
+    truth = json.loads((survey_files / "truth.json").read_text())
+    assert set(truth["beacons"]) == {"1", "2", "3", "4"}
+    assert (survey_files / "pings.csv").exists() and (survey_files / "beacons.csv").exists()
+
+
+@pytest.mark.parametrize("method", ["mixture", "paper"])
+def test_fit_command(survey_files, tmp_path, method, capsys):
+    args = ["fit", str(survey_files / "pings.csv"), "--beacons",
+            str(survey_files / "beacons.csv"), "--out", str(tmp_path), "--method", method,
+            "--sigma-dp", "3.97", "--pol", "0.1", "--alpha", "0.5", "--path", "triangle"]
+    assert main(args) == 0
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["method"] == method
+    assert abs(summary["beacons"]["4"]["d0"] - 2472.0) < 5
+    assert summary["beacons"]["4"]["sigma_dp"] == 3.97
+    out = pd.read_csv(tmp_path / "classified.csv")
+    assert len(out) == len(pd.read_csv(survey_files / "pings.csv"))
+    assert "HRP d0 (m)" in capsys.readouterr().out
+
+
+def test_fit_command_with_figures(survey_files, tmp_path):
+    assert main(["fit", str(survey_files / "pings.csv"), "--beacons",
+                 str(survey_files / "beacons.csv"), "--out", str(tmp_path), "--figures"]) == 0
+    assert (tmp_path / "classification.png").stat().st_size > 10_000
+
+
+def test_fit_command_bad_input_exits_2_with_message(survey_files, tmp_path, capsys):
+    pings = pd.read_csv(survey_files / "pings.csv", dtype=str, keep_default_na=False)
+    pings.loc[4, "range"] = "-3.2"
+    bad = tmp_path / "bad.csv"
+    pings.to_csv(bad, index=False)
+    code = main(["fit", str(bad), "--beacons", str(survey_files / "beacons.csv"),
+                 "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "bad.csv" in err and "line 6" in err and "'range'" in err and "-3.2" in err
+    assert not (tmp_path / "o" / "summary.json").exists()
+
+
+def test_fit_command_missing_file(tmp_path, capsys):
+    code = main(["fit", str(tmp_path / "nope.csv"), "--beacons", str(tmp_path / "b.csv"),
+                 "--out", str(tmp_path)])
+    assert code == 2
+    assert "nope.csv" in capsys.readouterr().err
+
+
+def test_demo(tmp_path, capsys):
+    assert main(["demo", "--out", str(tmp_path)]) == 0
+    text = capsys.readouterr().out
+    assert "HRP d0 (m)" in text and "The paper's EM" in text
+    for name in ("summary.json", "classified.csv", "classification.png", "track.png",
+                 "survey/pings.csv", "survey/truth.json", "paper/summary.json"):
+        assert (tmp_path / name).exists(), name
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    truth = json.loads((tmp_path / "survey" / "truth.json").read_text())["beacons"]
+    for bid, b in summary["beacons"].items():
+        assert abs(b["d0"] - truth[bid]["d0"]) < 3
+
+
+def test_version(capsys):
+    with pytest.raises(SystemExit):
+        main(["--version"])
+    assert bm.__version__ in capsys.readouterr().out

@@ -1,0 +1,97 @@
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+import bayes_mpem as bm
+from bayes_mpem.fitting import SkippedBeaconWarning
+
+
+@pytest.fixture(scope="module")
+def sim():
+    return bm.simulate_survey("abe58", rng=21)
+
+
+def test_one_output_row_per_input_row(sim):
+    res = bm.fit(sim.survey, rng=0)
+    out = res.classified()
+    assert len(out) == len(sim.survey)
+    pd.testing.assert_frame_equal(out[sim.survey.table.columns], sim.survey.table)
+    assert set(out["label"]) == {"dp", "mp", "ol", "no_reply"}
+    nr = out["label"] == "no_reply"
+    assert nr.sum() == sim.survey.no_reply.sum()
+    assert out.loc[nr, ["p_dp", "p_mp", "p_ol"]].isna().all().all()
+    assert (out.loc[nr, "reason"] == "empty range: the ping got no reply").all()
+    probs = out.loc[~nr, ["p_dp", "p_mp", "p_ol"]].to_numpy()
+    np.testing.assert_allclose(probs.sum(axis=1), 1.0)
+
+
+def test_too_few_pings_warns_and_leaves_beacon_unfitted(sim):
+    table = sim.survey.table
+    keep = (table["beacon"] != "3") | (np.arange(len(table)) < 80)  # beacon 3: ~20 pings
+    pings = table[keep].reset_index(drop=True)
+    beacons = sim.survey.beacons.reset_index()
+    with pytest.warns(SkippedBeaconWarning, match=r"beacon 3 has \d+ replies .*min_pings=30"):
+        res = bm.fit(pings, beacons, rng=0)
+    assert "3" not in res.results and "3" in res.skipped
+    out = res.classified()
+    assert len(out) == len(pings)
+    b3 = (out["beacon"] == "3") & (out["label"] != "no_reply")
+    assert (out.loc[b3, "label"] == "skipped").all()
+    assert out.loc[b3, "reason"].str.contains("fewer than min_pings=30").all()
+    assert res.summary()["skipped"]["3"].startswith("beacon 3 has")
+
+
+def test_beacon_without_any_ping_is_skipped(sim):
+    beacons = sim.survey.beacons.reset_index()
+    beacons = pd.concat([beacons, pd.DataFrame([{"beacon": "9", "x": 0.0, "y": 0.0,
+                                                 "depth": 2000.0}])], ignore_index=True)
+    with pytest.warns(SkippedBeaconWarning, match="beacon 9 has 0 replies"):
+        res = bm.fit(sim.survey.table, beacons, rng=0)
+    assert res.skipped["9"]
+
+
+def test_summary_contract(sim, tmp_path):
+    res = bm.fit(sim.survey, rng=0)
+    paths = res.write(tmp_path)
+    summary = json.loads(paths["summary"].read_text())
+    for bid in "1234":
+        b = summary["beacons"][bid]
+        for key in ("d0", "sigma_mp", "sigma_dp", "n", "iterations", "converged"):
+            assert key in b
+        assert set(b["weights"]) == {"dp", "mp", "ol"}
+        assert b["n"] == sim.survey.for_beacon(bid).n
+        assert b["plane_depth"] == pytest.approx(b["beacon_depth"] - b["d0"])
+    assert summary["n_rows"] == len(sim.survey)
+    out = pd.read_csv(paths["classified"], keep_default_na=False)
+    assert len(out) == len(sim.survey)
+
+
+def test_paper_method_through_fit(sim):
+    res = bm.fit(sim.survey, method="paper", sigma_dp=3.97, pol=0.1, alpha=0.5)
+    assert res.method == "paper"
+    assert res.results["4"].settings["pol"] == 0.1
+    assert abs(res.results["4"].d0 - 2472.0) < 5
+
+
+def test_fit_from_files_equals_fit_from_frames(sim, tmp_path):
+    paths = sim.write(tmp_path)
+    a = bm.fit(paths["pings"], paths["beacons"], rng=0)
+    b = bm.fit(pd.read_csv(paths["pings"]), pd.read_csv(paths["beacons"]), rng=0)
+    for bid in "1234":
+        assert a.results[bid].d0 == pytest.approx(b.results[bid].d0, abs=1e-9)
+
+
+def test_bad_method(sim):
+    with pytest.raises(ValueError, match="method: expected one of"):
+        bm.fit(sim.survey, method="magic")
+
+
+def test_table_like_table_ii(sim):
+    res = bm.fit(sim.survey, rng=0)
+    t = res.table()
+    assert list(t["beacon"]) == ["1", "2", "3", "4"]
+    np.testing.assert_allclose(t["hrp_m"], t["beacon_depth_m"], atol=3.0)
+    text = res.format_table()
+    assert "HRP d0 (m)" in text and "2392.0" in text

@@ -131,7 +131,7 @@ def multipath_range(h, dz, d0, path: Path = "triangle", *, direct=None):
     A vehicle 3 km from a beacon 2472 m deep, both near the floor:
 
     >>> round(float(multipath_range(3000.0, 0.0, 2472.0)), 1)
-    4415.5
+    4391.5
     """
     refl = reflected_leg(h, dz, d0)
     if path == "triangle":

@@ -156,6 +156,20 @@ def test_recovery_other_geometries_and_weights(seed):
     _check_recovery(sim, result.results, result)
 
 
+def test_d0_standard_error_is_calibrated():
+    """(d0 - truth) / d0_se behaves like a standard normal over many beacons."""
+    z = []
+    for seed in range(200, 230):
+        sim = bm.simulate_survey("random", rng=seed)
+        for bid, res in bm.fit(sim.survey, rng=seed).results.items():
+            z.append((res.d0 - sim.truth[bid]["d0"]) / res.d0_se)
+    z = np.asarray(z)
+    assert len(z) > 90
+    assert abs(z.mean()) < 0.3  # no bias: ~3 standard errors of the mean
+    assert 0.8 < z.std() < 1.25
+    assert np.mean(np.abs(z) < 1.96) > 0.88
+
+
 @pytest.mark.parametrize("seed", range(3))
 def test_recovery_double_bounce(seed):
     sim = bm.simulate_survey("abe58", rng=seed, path="double")

@@ -59,6 +59,11 @@ class EMResult:
     converged : bool
     loglik : float or None
         Mixture log-likelihood at the returned parameters (mixture EM only).
+    d0_se : float or None
+        Approximate standard error of ``d0`` (m, mixture EM only):
+        ``sigma_mp / sqrt(sum_k p_mp(k) (d z_MP / d d0)_k^2)``, the Fisher
+        information of the multipath ranges given their class probabilities.
+        Calibrated on simulated surveys (``docs/recovery.md``).
     history : dict of numpy.ndarray
         Per-iteration values, index 0 being the initial state: ``d0``,
         ``sigma_mp``, ``sigma_dp``, ``p_dp``, ``p_mp``, ``p_ol`` (mean class
@@ -84,6 +89,7 @@ class EMResult:
     history: dict = field(repr=False)
     first_resp: np.ndarray = field(repr=False)
     settings: dict = field(default_factory=dict)
+    d0_se: float | None = None
 
     @property
     def n(self) -> int:
@@ -114,6 +120,7 @@ class EMResult:
             "iterations": self.n_iter,
             "converged": self.converged,
             "loglik": self.loglik,
+            "d0_se": self.d0_se,
             "method": self.method,
             "path": self.path,
             "settings": dict(self.settings),
@@ -627,6 +634,9 @@ def fit_mixture_em(
             ConvergenceWarning,
             stacklevel=2,
         )
+    jac = geometry.multipath_derivative(geom.h, geom.dz, state.d0, path)
+    info = _wdot(resp[:, 1], jac * jac)
+    d0_se = state.sigma_mp / np.sqrt(info) if info > 0 else float("inf")
     return EMResult(
         beacon=data.beacon,
         method="mixture",
@@ -644,6 +654,7 @@ def fit_mixture_em(
         first_resp=first,
         settings={"weights": weights, "sigma_dp_fixed": fixed_dp is not None,
                   "n_starts": len(starts), "tol": float(tol), "sigma_floor": float(sigma_floor)},
+        d0_se=float(d0_se),
     )
 
 

@@ -49,3 +49,20 @@ def test_pointwise_loglik_vectorised_over_walkers(geom):
     assert out.shape == (3, geom.n)
     ll, _ = e_step(geom, 2450.0, 4.0, 9.0, [0.5, 0.3, 0.2])
     assert out[1].sum() == pytest.approx(ll, rel=1e-12)
+
+
+def test_total_loglik_matches_log_space(geom):
+    from bayes_mpem.mixture import total_loglik
+
+    rng = np.random.default_rng(0)
+    d0 = rng.uniform(2400, 2500, (5, 1))
+    sdp, smp = rng.uniform(1, 10, (5, 1)), rng.uniform(1, 30, (5, 1))
+    w = rng.dirichlet([1, 1, 1], 5)
+    ws = [w[:, [j]] for j in range(3)]
+    fast = total_loglik(geom, d0, sdp, smp, ws)
+    slow = loglik_per_range(geom, d0, sdp, smp, [np.log(x) * 0 + x for x in ws]).sum(axis=1)
+    np.testing.assert_allclose(fast, slow, rtol=1e-12)
+    # a zero outlier weight with ranges far from both predictions: zero density, -inf
+    ws0 = [np.full((1, 1), 0.5), np.full((1, 1), 0.5), np.zeros((1, 1))]
+    out = total_loglik(geom, d0[:1], sdp[:1], smp[:1], ws0)
+    assert out[0] == -np.inf

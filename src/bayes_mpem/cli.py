@@ -58,6 +58,29 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, metavar="DIR")
     p.add_argument("--figures", action="store_true", help="also write PNG figures")
     _add_fit_options(p)
+
+    for name, helptext in (("sample", "sample each beacon's posterior with emcee"),
+                           ("compare", "compare equal (paper) and learned mixing priors by LOO")):
+        p = sub.add_parser(name, help=helptext)
+        p.add_argument("pings", metavar="PINGS", help="pings CSV")
+        p.add_argument("--beacons", required=True, metavar="BEACONS", help="beacons CSV")
+        p.add_argument("--out", required=True, metavar="DIR")
+        p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+        if name == "sample":
+            p.add_argument("--priors", choices=["learned", "equal"], default="learned",
+                           help="Dirichlet-learned mixing weights (default) or equal 1/3")
+            p.add_argument("--ci", type=float, default=0.95,
+                           help="probability of the highest-density intervals (default 0.95)")
+            p.add_argument("--ensembles", type=int, default=1, metavar="K",
+                           help="independent ensembles; R-hat is reported when K > 1")
+            p.add_argument("--figures", action="store_true", help="also write PNG figures")
+        p.add_argument("--path", choices=["triangle", "double"], default="triangle")
+        p.add_argument("--sigma-dp", type=float, default=None, metavar="S",
+                       help="fix sigma_DP (m) instead of sampling it")
+        p.add_argument("--concentration", type=float, default=1.0, metavar="C",
+                       help="Dirichlet concentration of the learned weights (default 1)")
+        p.add_argument("--min-pings", type=int, default=30, metavar="N")
+        p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     return parser
 
 
@@ -145,6 +168,59 @@ def cmd_fit(args):
     return 0
 
 
+def _sample_kwargs(args):
+    return dict(path=args.path, sigma_dp=args.sigma_dp, concentration=args.concentration,
+                min_pings=args.min_pings, rng=args.seed,
+                progress=False if args.no_progress else "auto")
+
+
+def cmd_sample(args):
+    from .sampling import sample
+
+    result = sample(args.pings, args.beacons, priors=args.priors, ci=args.ci,
+                    n_ensembles=args.ensembles, **_sample_kwargs(args))
+    out = Path(args.out)
+    paths = list(result.write(out).values())
+    if args.figures and result.results:
+        paths += _write_bayes_figures(result, out)
+    print(result.format_table())
+    for bid, r in result.results.items():
+        if not r.diagnostics["converged"]:
+            print(f"warning: beacon {bid}: chain shorter than {r.diagnostics['tau_factor']:g} "
+                  "autocorrelation times", file=sys.stderr)
+    for p in paths:
+        print(f"wrote {p}")
+    return 0
+
+
+def _write_bayes_figures(result, out):
+    import matplotlib.pyplot as plt
+
+    from . import bayes_plots as bp
+
+    paths = []
+    figs = [("intervals.png", bp.plot_intervals(result))]
+    for bid, r in result.results.items():
+        figs += [(f"trace_{bid}.png", bp.plot_trace(r)), (f"pair_{bid}.png", bp.plot_pair(r)),
+                 (f"classes_{bid}.png", bp.plot_class_uncertainty(result, bid))]
+    for name, fig in figs:
+        paths.append(out / name)
+        fig.savefig(paths[-1], dpi=100)
+        plt.close(fig)
+    return paths
+
+
+def cmd_compare(args):
+    from .compare import compare
+
+    result = compare(args.pings, args.beacons, **_sample_kwargs(args))
+    paths = result.write(args.out)
+    print(result.format_table())
+    for p in paths.values():
+        print(f"wrote {p}")
+    return 0
+
+
 def main(argv=None) -> int:
     """Entry point of ``bayes-mpem``.
 
@@ -159,7 +235,8 @@ def main(argv=None) -> int:
         Exit status: 0 on success, 2 on invalid input.
     """
     args = build_parser().parse_args(argv)
-    handler = {"demo": cmd_demo, "simulate": cmd_simulate, "fit": cmd_fit}[args.command]
+    handler = {"demo": cmd_demo, "simulate": cmd_simulate, "fit": cmd_fit,
+               "sample": cmd_sample, "compare": cmd_compare}[args.command]
     warnings.simplefilter("default")
     try:
         return handler(args)

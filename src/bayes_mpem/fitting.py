@@ -60,27 +60,9 @@ class SurveyFit:
             Same rows, same order as the input; labels are ``dp``, ``mp``,
             ``ol``, ``no_reply`` or ``skipped`` (``reason`` says why).
         """
-        n = len(self.survey)
-        probs = np.full((n, 3), np.nan)
-        label = np.full(n, "", dtype=object)
-        reason = np.full(n, "", dtype=object)
-        for res in self.results.values():
-            probs[res.rows] = res.resp
-            label[res.rows] = res.labels
-        ids = self.survey.beacon
-        for bid, why in self.skipped.items():
-            m = ids == bid
-            label[m] = "skipped"
-            reason[m] = why
-        nr = self.survey.no_reply
-        label[nr] = "no_reply"
-        reason[nr] = "empty range: the ping got no reply"
-        out = self.survey.table.copy()
-        for j, c in enumerate(CLASSES):
-            out["p_" + c] = probs[:, j]
-        out["label"] = label
-        out["reason"] = reason
-        return out
+        return classified_table(
+            self.survey, {bid: (r.rows, r.resp) for bid, r in self.results.items()},
+            self.skipped)
 
     def summary(self) -> dict:
         """JSON-ready summary: per-beacon parameters, counts, skipped beacons.
@@ -163,6 +145,81 @@ class SurveyFit:
         return paths
 
 
+def classified_table(survey: Survey, fitted: dict, skipped: dict, extra: dict | None = None):
+    """Every input row with its class probabilities, ``label`` and ``reason``.
+
+    Parameters
+    ----------
+    survey : Survey
+    fitted : dict
+        ``{beacon: (rows, probs)}``: positions in the input table and ``(n, 3)``
+        class probabilities (dp, mp, ol).
+    skipped : dict
+        ``{beacon: reason}`` of beacons left unfitted.
+    extra : dict, optional
+        ``{column: {beacon: (n,) values}}``: more per-range columns (NaN elsewhere).
+
+    Returns
+    -------
+    pandas.DataFrame
+        The input table, same rows and order, plus ``p_dp``, ``p_mp``, ``p_ol``,
+        any ``extra`` columns, ``label`` (``dp``, ``mp``, ``ol``, ``no_reply``,
+        ``skipped``) and ``reason``.
+    """
+    n = len(survey)
+    probs = np.full((n, 3), np.nan)
+    label = np.full(n, "", dtype=object)
+    reason = np.full(n, "", dtype=object)
+    for rows, p in fitted.values():
+        probs[rows] = p
+        label[rows] = np.asarray(CLASSES)[np.argmax(p, axis=1)]
+    for bid, why in skipped.items():
+        m = survey.beacon == bid
+        label[m] = "skipped"
+        reason[m] = why
+    nr = survey.no_reply
+    label[nr] = "no_reply"
+    reason[nr] = "empty range: the ping got no reply"
+    out = survey.table.copy()
+    for j, c in enumerate(CLASSES):
+        out["p_" + c] = probs[:, j]
+    for col, per_beacon in (extra or {}).items():
+        v = np.full(n, np.nan)
+        for bid, vals in per_beacon.items():
+            v[fitted[bid][0]] = vals
+        out[col] = v
+    out["label"] = label
+    out["reason"] = reason
+    return out
+
+
+def fittable_beacons(survey: Survey, min_pings: int):
+    """Split the beacons into those with enough replies and those left unfitted.
+
+    Parameters
+    ----------
+    survey : Survey
+    min_pings : int
+
+    Returns
+    -------
+    fittable : list of BeaconData
+    skipped : dict
+        ``{beacon: reason}``; a :class:`SkippedBeaconWarning` is issued for each.
+    """
+    fittable, skipped = [], {}
+    for bid in survey.beacon_ids:
+        data = survey.for_beacon(bid)
+        if data.n < min_pings:
+            why = (f"beacon {bid} has {data.n} replies ({data.n_no_reply} pings without reply), "
+                   f"fewer than min_pings={min_pings}")
+            warnings.warn(why + "; left unfitted", SkippedBeaconWarning, stacklevel=3)
+            skipped[bid] = why
+        else:
+            fittable.append(data)
+    return fittable, skipped
+
+
 def fit(
     pings,
     beacons=None,
@@ -230,15 +287,10 @@ def fit(
         raise ValueError(f"method: expected one of {METHODS}, got {method!r}")
     survey = load_survey(pings, beacons)
     gen = as_generator(rng)
-    results, skipped = {}, {}
-    for bid in survey.beacon_ids:
-        data = survey.for_beacon(bid)
-        if data.n < min_pings:
-            why = (f"beacon {bid} has {data.n} replies ({data.n_no_reply} pings without reply), "
-                   f"fewer than min_pings={min_pings}")
-            warnings.warn(why + "; left unfitted", SkippedBeaconWarning, stacklevel=2)
-            skipped[bid] = why
-            continue
+    results = {}
+    fittable, skipped = fittable_beacons(survey, min_pings)
+    for data in fittable:
+        bid = data.beacon
         if method == "mixture":
             results[bid] = fit_mixture_em(data, path=path, sigma_dp=sigma_dp, weights=weights,
                                           rng=gen, **kwargs)
@@ -254,4 +306,5 @@ def fit(
                      options=options)
 
 
-__all__ = ["EMResult", "SkippedBeaconWarning", "SurveyFit", "fit"]
+__all__ = ["EMResult", "SkippedBeaconWarning", "SurveyFit", "classified_table", "fit",
+           "fittable_beacons"]

@@ -1,0 +1,554 @@
+"""Bayesian variant: emcee over the mixture likelihood of one beacon.
+
+The posterior samples the same density as the mixture EM
+(:mod:`bayes_mpem.mixture`). Parameters, in the sampler's coordinates:
+
+==================  =====================================================
+``d0``              plane height above the beacon (m); prior uniform on
+                    ``[max(0, max dz), hi + max(0, max dz) + 1]``, the EM's bounds
+``log_sigma_mp``    prior uniform on ``[log 0.05, log 500]``, i.e.
+                    ``p(sigma) ~ 1 / sigma`` (scale-invariant) on 0.05-500 m
+``log_sigma_dp``    the same prior; absent when ``sigma_dp`` is fixed
+``w_dp, w_mp``      learned priors only: ``w_ol = 1 - w_dp - w_mp``, prior
+                    ``Dirichlet(c, c, c)`` (``c = concentration``, default 1:
+                    uniform on the simplex); equal priors fix all at 1/3
+==================  =====================================================
+
+The ensemble (emcee) starts in a small ball around the EM solution, runs in
+blocks until the post-burn-in chain is longer than ``tau_factor`` (default 50)
+integrated autocorrelation times, and discards ``2 * max(tau)`` steps of
+burn-in. See ``docs/bayes.md``.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+import warnings
+from dataclasses import dataclass, field
+
+import emcee
+import numpy as np
+from scipy.special import gammaln
+
+from ._rng import RNGLike, as_generator
+from .data import BeaconData
+from .em import EMResult, fit_mixture_em
+from .mixture import CLASSES, BeaconGeometry, log_mix, safe_log, total_loglik
+from .mixture import component_logpdf as _component_logpdf
+
+PRIORS = ("equal", "learned")
+PARAMS = ("d0", "sigma_mp", "sigma_dp", "w_dp", "w_mp", "w_ol")
+
+
+class SamplingWarning(UserWarning):
+    """The chain hit its step cap before it was ``tau_factor`` autocorrelation times long."""
+
+
+class BeaconPosterior:
+    """Log-posterior of one beacon, vectorised over walkers.
+
+    Parameters
+    ----------
+    data : BeaconData
+    priors : {"learned", "equal"}
+        Dirichlet-distributed mixing weights, or the paper's equal weights.
+    sigma_dp : float, optional
+        Fix the direct-path scatter (m) instead of sampling it.
+    path : {"triangle", "double"}
+    concentration : float, default 1
+        Dirichlet concentration of the learned weights.
+    sigma_bounds : tuple of float, default (0.05, 500)
+        Support (m) of the log-uniform scale priors.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from bayes_mpem.simulate import simulate_survey
+    >>> post = BeaconPosterior(simulate_survey("abe58", rng=0).survey.for_beacon("4"))
+    >>> post.names
+    ('d0', 'log_sigma_mp', 'log_sigma_dp', 'w_dp', 'w_mp')
+    >>> theta = np.array([[2472.0, np.log(7.0), np.log(4.0), 0.5, 0.35]])
+    >>> bool(np.isfinite(post(theta))[0])
+    True
+    """
+
+    def __init__(self, data: BeaconData, *, priors="learned", sigma_dp=None, path="triangle",
+                 concentration=1.0, sigma_bounds=(0.05, 500.0)):
+        if priors not in PRIORS:
+            raise ValueError(f"priors: expected one of {PRIORS}, got {priors!r}")
+        if not float(concentration) > 0:
+            raise ValueError(f"concentration: expected a positive number, got {concentration!r}")
+        self.geom = BeaconGeometry.from_data(data)
+        self.beacon = data.beacon
+        self.priors = priors
+        self.path = path
+        self.sigma_dp = None if sigma_dp is None else float(sigma_dp)
+        self.concentration = float(concentration)
+        self.log_sigma_bounds = (np.log(sigma_bounds[0]), np.log(sigma_bounds[1]))
+        self.d0_bounds = (self.geom.d0_min, self.geom.hi + self.geom.d0_min + 1.0)
+        names = ["d0", "log_sigma_mp"]
+        if self.sigma_dp is None:
+            names.append("log_sigma_dp")
+        if priors == "learned":
+            names += ["w_dp", "w_mp"]
+        self.names = tuple(names)
+        c = self.concentration
+        self._dirichlet_norm = gammaln(3 * c) - 3 * gammaln(c)
+        width = self.log_sigma_bounds[1] - self.log_sigma_bounds[0]
+        n_scales = 2 if self.sigma_dp is None else 1
+        self._log_prior_const = -np.log(self.d0_bounds[1] - self.d0_bounds[0]) - n_scales * np.log(
+            width)
+
+    @property
+    def ndim(self) -> int:
+        """Number of sampled parameters."""
+        return len(self.names)
+
+    def unpack(self, theta):
+        """Natural parameters of a ``(W, ndim)`` array, each of shape ``(W, 1)``.
+
+        Parameters
+        ----------
+        theta : numpy.ndarray
+
+        Returns
+        -------
+        dict
+            ``d0``, ``sigma_mp``, ``sigma_dp``, ``w_dp``, ``w_mp``, ``w_ol``.
+        """
+        theta = np.atleast_2d(theta)
+        col = {n: theta[:, [i]] for i, n in enumerate(self.names)}
+        out = {"d0": col["d0"], "sigma_mp": np.exp(col["log_sigma_mp"])}
+        out["sigma_dp"] = (np.exp(col["log_sigma_dp"]) if self.sigma_dp is None
+                           else np.full_like(col["d0"], self.sigma_dp))
+        if self.priors == "learned":
+            out["w_dp"], out["w_mp"] = col["w_dp"], col["w_mp"]
+            out["w_ol"] = 1.0 - col["w_dp"] - col["w_mp"]
+        else:
+            for c in CLASSES:
+                out["w_" + c] = np.full_like(col["d0"], 1.0 / 3.0)
+        return out
+
+    def log_prior(self, theta):
+        """Log prior density of a ``(W, ndim)`` array (``-inf`` outside the support)."""
+        theta = np.atleast_2d(theta)
+        p = self.unpack(theta)
+        lo, hi = self.log_sigma_bounds
+        ok = (p["d0"][:, 0] >= self.d0_bounds[0]) & (p["d0"][:, 0] <= self.d0_bounds[1])
+        for name in ("log_sigma_mp", "log_sigma_dp"):
+            if name in self.names:
+                v = theta[:, self.names.index(name)]
+                ok &= (v >= lo) & (v <= hi)
+        out = np.full(theta.shape[0], self._log_prior_const)
+        if self.priors == "learned":
+            w = np.hstack([p["w_dp"], p["w_mp"], p["w_ol"]])
+            ok &= np.all(w > 0, axis=1)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                out += self._dirichlet_norm + (self.concentration - 1.0) * np.log(
+                    np.where(w > 0, w, 1.0)).sum(axis=1)
+        out[~ok] = -np.inf
+        return out
+
+    def __call__(self, theta):
+        """Log posterior (up to a constant) of a ``(W, ndim)`` array: emcee's target."""
+        theta = np.atleast_2d(theta)
+        lp = self.log_prior(theta)
+        ok = np.isfinite(lp)
+        if ok.any():
+            p = self.unpack(theta[ok])
+            lp[ok] += total_loglik(self.geom, p["d0"], p["sigma_dp"], p["sigma_mp"],
+                                   [p["w_dp"], p["w_mp"], p["w_ol"]], self.path)
+        return lp
+
+    def joint_log(self, p):
+        """Per-range ``log w_j + log p(z|j)`` and their log-sum-exp for natural params ``p``."""
+        ldp, lmp, lol = _component_logpdf(self.geom, p["d0"], p["sigma_dp"], p["sigma_mp"],
+                                          self.path)
+        return log_mix(ldp, lmp, lol, [safe_log(p["w_" + c]) for c in CLASSES])
+
+    def theta_from(self, params: dict):
+        """Sampler coordinates of a dict of natural parameters (e.g. an EM result)."""
+        vals = {"d0": params["d0"], "log_sigma_mp": np.log(params["sigma_mp"]),
+                "log_sigma_dp": np.log(params["sigma_dp"]),
+                "w_dp": params["weights"]["dp"], "w_mp": params["weights"]["mp"]}
+        return np.array([vals[n] for n in self.names], float)
+
+
+@dataclass(frozen=True)
+class PosteriorResult:
+    """Posterior of one beacon.
+
+    Attributes
+    ----------
+    beacon : str
+    priors : {"learned", "equal"}
+    path : str
+    idata : xarray.DataTree
+        ArviZ data: ``posterior`` (chain = walker), ``log_likelihood`` (``z``
+        per range), ``sample_stats`` (``lp``), ``observed_data``.
+    summary : dict
+        Per parameter (``d0``, ``sigma_mp``, ``sigma_dp``, ``weights``):
+        ``mean``, ``sd``, ``interval`` (highest-density, probability ``ci``).
+    tau, ess : dict
+        emcee's integrated autocorrelation time (steps) and
+        ``ESS = steps x walkers / tau`` per sampled parameter.
+    rhat : dict or None
+        Rank-normalised split R-hat across independent ensembles (if several ran).
+    class_probs, class_probs_sd : numpy.ndarray
+        ``(n, 3)`` posterior mean and standard deviation of each range's class
+        probabilities (dp, mp, ol), over the kept draws.
+    rows : numpy.ndarray
+        Positions of the ranges in the input table.
+    em : EMResult
+        The EM fit the walkers started from.
+    diagnostics : dict
+        ``n_walkers``, ``n_steps``, ``burn``, ``thin``, ``n_draws``,
+        ``n_ensembles``, ``converged`` (chain longer than ``tau_factor`` tau),
+        ``acceptance``, ``seconds``, ``moves``.
+    ci : float
+    """
+
+    beacon: str
+    priors: str
+    path: str
+    idata: object = field(repr=False)
+    summary: dict
+    tau: dict
+    ess: dict
+    rhat: dict | None
+    class_probs: np.ndarray = field(repr=False)
+    class_probs_sd: np.ndarray = field(repr=False)
+    rows: np.ndarray = field(repr=False)
+    em: EMResult = field(repr=False)
+    diagnostics: dict = field(default_factory=dict)
+    ci: float = 0.95
+
+    @property
+    def labels(self) -> np.ndarray:
+        """Most probable class of each range under the posterior mean probabilities."""
+        return np.asarray(CLASSES)[np.argmax(self.class_probs, axis=1)]
+
+    @property
+    def min_ess(self) -> float:
+        """Smallest ESS over the sampled parameters."""
+        return float(min(self.ess.values()))
+
+    def to_dict(self) -> dict:
+        """JSON-ready summary."""
+        return {**self.summary, "ess": dict(self.ess), "tau": dict(self.tau),
+                "rhat": None if self.rhat is None else dict(self.rhat), "priors": self.priors,
+                "path": self.path, "ci": self.ci, "diagnostics": dict(self.diagnostics),
+                "em": {"d0": self.em.d0, "sigma_mp": self.em.sigma_mp,
+                       "sigma_dp": self.em.sigma_dp, "weights": dict(self.em.weights)}}
+
+
+# --------------------------------------------------------------------------
+
+
+def _start_ball(post: BeaconPosterior, em: EMResult, n_walkers, gen):
+    """Walkers around the EM solution, scattered by rough posterior widths, inside the prior."""
+    centre = post.theta_from(em.to_dict())
+    n = em.n
+    frac = {c: max(em.weights[c], 1e-3) for c in CLASSES}
+    width = {"d0": em.d0_se if em.d0_se and np.isfinite(em.d0_se) else 1.0,
+             "log_sigma_mp": 1.0 / np.sqrt(2 * max(frac["mp"] * n, 2)),
+             "log_sigma_dp": 1.0 / np.sqrt(2 * max(frac["dp"] * n, 2)),
+             "w_dp": np.sqrt(frac["dp"] * (1 - frac["dp"]) / n),
+             "w_mp": np.sqrt(frac["mp"] * (1 - frac["mp"]) / n)}
+    scale = np.array([0.5 * width[name] for name in post.names])
+    out = np.empty((n_walkers, post.ndim))
+    filled = 0
+    for _ in range(100):
+        cand = centre + scale * gen.standard_normal((n_walkers, post.ndim))
+        good = cand[np.isfinite(post(cand))]
+        take = min(len(good), n_walkers - filled)
+        out[filled:filled + take] = good[:take]
+        filled += take
+        if filled == n_walkers:
+            return out
+        scale *= 0.5
+    raise RuntimeError(f"beacon {post.beacon}: could not place walkers inside the prior "
+                       f"around the EM solution {dict(zip(post.names, centre, strict=True))}")
+
+
+def _default_moves():
+    # Differential evolution proposals (ter Braak & Vrugt 2008) with a snooker
+    # update: on this near-Gaussian, correlated 5-D posterior they gave shorter
+    # autocorrelation times than the default stretch move (docs/bayes.md).
+    return [(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)]
+
+
+def _progress_bar(progress, desc):
+    if progress == "auto":
+        progress = sys.stderr.isatty()
+    if not progress:
+        return None
+    try:
+        from tqdm.auto import tqdm
+    except ImportError:  # pragma: no cover - tqdm is a dependency
+        return None
+    return tqdm(desc=desc, unit="step", leave=False)
+
+
+def run_ensemble(post: BeaconPosterior, start, *, seed, moves=None, tau_factor=50.0,
+                 max_steps=20000, check_every=250, progress="auto"):
+    """Run one emcee ensemble until it is ``tau_factor`` autocorrelation times long.
+
+    Parameters
+    ----------
+    post : BeaconPosterior
+    start : numpy.ndarray
+        ``(n_walkers, ndim)`` initial positions.
+    seed : int
+        Seeds emcee's random state.
+    moves : list, optional
+        emcee moves (default: 80 % DEMove, 20 % DESnookerMove).
+    tau_factor : float, default 50
+    max_steps : int, default 20000
+    check_every : int, default 250
+    progress : bool or "auto"
+
+    Returns
+    -------
+    sampler : emcee.EnsembleSampler
+    burn : int
+        Steps discarded as burn-in: ``ceil(2 max tau)``.
+    tau : numpy.ndarray
+        Autocorrelation time of each parameter on the kept chain.
+    converged : bool
+    """
+    n_walkers, ndim = start.shape
+    sampler = emcee.EnsembleSampler(n_walkers, ndim, post, vectorize=True,
+                                    moves=moves or _default_moves())
+    sampler.random_state = np.random.RandomState(seed % 2**32).get_state()
+    bar = _progress_bar(progress, f"beacon {post.beacon} ({post.priors} priors)")
+    state, burn, tau, converged = start, 0, np.full(ndim, np.inf), False
+    try:
+        while sampler.iteration < max_steps:
+            state = sampler.run_mcmc(state, min(check_every, max_steps - sampler.iteration),
+                                     progress=False)
+            tau_all = sampler.get_autocorr_time(tol=0, quiet=True)
+            burn = int(np.ceil(2.0 * np.max(tau_all)))
+            kept = sampler.iteration - burn
+            if kept > 0:
+                tau = sampler.get_autocorr_time(discard=burn, tol=0, quiet=True)
+            if bar is not None:
+                bar.update(check_every)
+                bar.set_postfix(tau=f"{np.max(tau):.0f}",
+                                ess=f"{kept * n_walkers / np.max(tau):.0f}")
+            if kept > 0 and np.all(np.isfinite(tau)) and kept >= tau_factor * np.max(tau):
+                converged = True
+                break
+    finally:
+        if bar is not None:
+            bar.close()
+    return sampler, burn, tau, converged
+
+
+def _hdi(x, prob):
+    """Narrowest interval holding ``prob`` of the draws ``x`` (1-D)."""
+    x = np.sort(np.asarray(x).ravel())
+    n = x.size
+    k = max(int(np.floor(prob * n)), 1)
+    if k >= n:
+        return float(x[0]), float(x[-1])
+    widths = x[k:] - x[: n - k]
+    i = int(np.argmin(widths))
+    return float(x[i]), float(x[i + k])
+
+
+def _pointwise(post, draws, chunk=64):
+    """Per-range log-likelihood of every draw, and the mean and sd over draws of each
+    range's class probabilities, in one pass over chunks of draws (never a
+    draws x ranges x 3 array)."""
+    ll = np.empty((draws.shape[0], post.geom.n))
+    s1 = np.zeros((post.geom.n, 3))
+    s2 = np.zeros((post.geom.n, 3))
+    for i in range(0, draws.shape[0], chunk):
+        joint, lse = post.joint_log(post.unpack(draws[i:i + chunk]))
+        ll[i:i + chunk] = lse
+        for j in range(3):
+            r = np.exp(joint[j] - lse)
+            s1[:, j] += r.sum(axis=0)
+            s2[:, j] += (r * r).sum(axis=0)
+    m = s1 / draws.shape[0]
+    return ll, m, np.sqrt(np.maximum(s2 / draws.shape[0] - m * m, 0.0))
+
+
+def sample_beacon(
+    data: BeaconData,
+    *,
+    priors: str = "learned",
+    sigma_dp: float | None = None,
+    path: str = "triangle",
+    concentration: float = 1.0,
+    init: EMResult | None = None,
+    n_walkers: int | None = None,
+    moves=None,
+    tau_factor: float = 50.0,
+    max_steps: int = 20000,
+    n_ensembles: int = 1,
+    n_draws: int = 2000,
+    ci: float = 0.95,
+    rng: RNGLike = None,
+    progress="auto",
+) -> PosteriorResult:
+    """Sample the posterior of one beacon with emcee, started from the EM solution.
+
+    Parameters
+    ----------
+    data : BeaconData
+    priors : {"learned", "equal"}
+        Learned weights with a Dirichlet prior, or the paper's equal weights.
+    sigma_dp : float, optional
+        Fix sigma_DP (m) instead of sampling it.
+    path : {"triangle", "double"}
+    concentration : float, default 1
+        Dirichlet concentration (learned priors).
+    init : EMResult, optional
+        EM fit to start from (default: :func:`~bayes_mpem.em.fit_mixture_em` with
+        the matching weights option).
+    n_walkers : int, optional
+        Walkers per ensemble (default ``max(24, 4 ndim)``).
+    moves : list, optional
+        emcee moves; default 80 % ``DEMove`` + 20 % ``DESnookerMove``.
+    tau_factor : float, default 50
+        Stop when the kept chain is this many autocorrelation times long.
+    max_steps : int, default 20000
+        Step cap per ensemble (``SamplingWarning`` when reached).
+    n_ensembles : int, default 1
+        Independent ensembles (different seeds); R-hat is reported when > 1.
+    n_draws : int, default 2000
+        Draws kept (thinned evenly) for the ArviZ data, LOO and class probabilities.
+    ci : float, default 0.95
+        Probability of the highest-density intervals.
+    rng : None, int or numpy.random.Generator
+        The only source of randomness: same seed, same chain.
+    progress : bool or "auto"
+        Progress bar (``"auto"``: when standard error is a terminal).
+
+    Returns
+    -------
+    PosteriorResult
+
+    Warns
+    -----
+    SamplingWarning
+        When an ensemble reaches ``max_steps`` first.
+    """
+    import arviz_base as azb
+    import arviz_stats as azs
+
+    if not 0.0 < float(ci) < 1.0:
+        raise ValueError(f"ci: expected a probability in (0, 1), got {ci!r}")
+    if int(n_ensembles) < 1:
+        raise ValueError(f"n_ensembles: expected an integer >= 1, got {n_ensembles!r}")
+    gen = as_generator(rng)
+    post = BeaconPosterior(data, priors=priors, sigma_dp=sigma_dp, path=path,
+                           concentration=concentration)
+    em = init or fit_mixture_em(data, path=path, sigma_dp=sigma_dp,
+                                weights="learned" if priors == "learned" else "equal", rng=gen)
+    n_walkers = int(n_walkers or max(24, 4 * post.ndim))
+    t0 = time.perf_counter()
+    chains, lps, taus, burns, accs, steps, conv = [], [], [], [], [], [], []
+    for _ in range(int(n_ensembles)):
+        start = _start_ball(post, em, n_walkers, gen)
+        sampler, burn, tau, ok = run_ensemble(
+            post, start, seed=int(gen.integers(2**63)), moves=moves, tau_factor=tau_factor,
+            max_steps=max_steps, progress=progress)
+        chains.append(sampler.get_chain(discard=burn))
+        lps.append(sampler.get_log_prob(discard=burn))
+        taus.append(tau)
+        burns.append(burn)
+        accs.append(float(np.mean(sampler.acceptance_fraction)))
+        steps.append(sampler.iteration)
+        conv.append(ok)
+    seconds = time.perf_counter() - t0
+    if not all(conv):
+        warnings.warn(f"beacon {data.beacon}: the chain reached max_steps={max_steps} before it "
+                      f"was {tau_factor:g} autocorrelation times long (tau = "
+                      f"{np.max(taus):.0f} steps); estimates may be unreliable",
+                      SamplingWarning, stacklevel=2)
+
+    # thin evenly to about n_draws draws in all; walkers become ArviZ chains
+    n_chains = n_walkers * len(chains)
+    kept = min(c.shape[0] for c in chains)
+    per_chain = max(1, min(kept, int(np.ceil(n_draws / n_chains))))
+    thin = max(1, kept // per_chain)
+    idx = np.arange(kept - (per_chain - 1) * thin - 1, kept, thin)[-per_chain:]
+    theta = np.concatenate([c[idx] for c in chains], axis=1)  # (draw, chain, ndim)
+    lp = np.concatenate([lp_[idx] for lp_ in lps], axis=1)
+    theta = np.swapaxes(theta, 0, 1)  # (chain, draw, ndim)
+    flat = theta.reshape(-1, post.ndim)
+    nat = {k: v[:, 0].reshape(theta.shape[:2]) for k, v in post.unpack(flat).items()}
+    sampled = [k for k in PARAMS if k == "d0" or k == "sigma_mp"
+               or (k == "sigma_dp" and sigma_dp is None) or (k.startswith("w_") and
+                                                             priors == "learned")]
+    ll, probs, probs_sd = _pointwise(post, flat)
+    ll = ll.reshape(*theta.shape[:2], -1)
+    with warnings.catch_warnings():
+        # walkers are ArviZ chains by design (emcee convention); with many walkers and
+        # few kept draws each, ArviZ's dimension-name heuristic would misfire
+        warnings.filterwarnings("ignore", message="Found chain dimension to be longer")
+        idata = azb.from_dict(
+            {"posterior": {k: nat[k] for k in sampled},
+             "log_likelihood": {"z": ll},
+             "sample_stats": {"lp": lp.T},
+             "observed_data": {"z": post.geom.z}},
+            dims={"z": ["range"]}, coords={"range": np.arange(post.geom.n)})
+    idata.attrs.update({"beacon": data.beacon, "priors": priors, "path": path,
+                        "sampler": f"emcee {emcee.__version__}"})
+
+    summary = {}
+    for k in ("d0", "sigma_mp", "sigma_dp"):
+        summary[k] = _describe(nat[k], ci)
+    summary["weights"] = {c: _describe(nat["w_" + c], ci) for c in CLASSES}
+
+    # emcee's tau (steps) on the kept chain, per natural parameter; ESS = steps x walkers / tau
+    tau_d, ess_d = {}, {}
+    for k in sampled:
+        tk, ek = [], 0.0
+        for c in chains:
+            series = post.unpack(c.reshape(-1, post.ndim))[k][:, 0].reshape(c.shape[:2])
+            t = float(emcee.autocorr.integrated_time(series[:, :, None], tol=0, quiet=True)[0])
+            tk.append(t)
+            ek += c.shape[0] * c.shape[1] / t
+        tau_d[k], ess_d[k] = float(np.max(tk)), float(ek)
+    rhat = None
+    if len(chains) > 1:
+        rh = azs.rhat(_ensembles_as_chains(idata.posterior.dataset, len(chains)))
+        rhat = {k: float(rh[k]) for k in sampled}
+    return PosteriorResult(
+        beacon=data.beacon, priors=priors, path=path, idata=idata, summary=summary,
+        tau=tau_d, ess=ess_d, rhat=rhat, class_probs=probs, class_probs_sd=probs_sd,
+        rows=np.asarray(data.rows), em=em, ci=float(ci),
+        diagnostics={"n_walkers": n_walkers, "n_steps": int(max(steps)),
+                     "burn": int(max(burns)), "thin": int(thin), "n_draws": int(flat.shape[0]),
+                     "n_ensembles": len(chains), "converged": bool(all(conv)),
+                     "acceptance": float(np.mean(accs)), "seconds": float(seconds),
+                     "tau_factor": float(tau_factor),
+                     "moves": "default (DEMove 0.8, DESnookerMove 0.2)" if moves is None
+                     else repr(moves)})
+
+
+def _describe(x, ci):
+    lo, hi = _hdi(x, ci)
+    return {"mean": float(np.mean(x)), "sd": float(np.std(x, ddof=1)) if x.size > 1 else 0.0,
+            "interval": [lo, hi]}
+
+
+def _ensembles_as_chains(ds, n_ens):
+    """Regroup walker-chains into one chain per ensemble (draws = walkers x kept draws)."""
+    import xarray as xr
+
+    out = {}
+    for k, v in ds.data_vars.items():
+        a = v.values  # (chain, draw)
+        a = a.reshape(n_ens, -1, a.shape[1])  # (ensemble, walker, draw)
+        out[k] = xr.DataArray(a.transpose(0, 2, 1).reshape(n_ens, -1), dims=("chain", "draw"))
+    return xr.Dataset(out)
+
+
+__all__ = ["BeaconPosterior", "PosteriorResult", "SamplingWarning", "run_ensemble",
+           "sample_beacon"]

@@ -15,8 +15,6 @@ from __future__ import annotations
 
 import argparse
 import datetime as dt
-import os
-import platform
 import resource
 import subprocess
 import sys
@@ -30,6 +28,9 @@ import numpy as np
 import bayes_mpem as bm
 from bayes_mpem.simulate import ABE58
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _report import machine, write_section  # noqa: E402
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -40,16 +41,6 @@ def _best_of(fn, repeat):
         out = fn()
         best = min(best, time.perf_counter() - t0)
     return best, out
-
-
-def _cpu():
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown"
 
 
 def _peak_rss_mb():
@@ -109,12 +100,10 @@ def write_markdown(rows, single, path, argv):
     """Write the results table to ``path``."""
     base = rows[0]
     lines = [
-        "# Benchmarks",
+        "## EM: both methods against survey size",
         "",
         "Produced by `python " + " ".join(["benchmarks/bench_em.py", *argv]) + "` on "
-        f"{dt.date.today().isoformat()}; machine: {os.cpu_count()} cores, {_cpu()}, "
-        f"Python {platform.python_version()}, NumPy {np.__version__}, bayes_mpem "
-        f"{bm.__version__}.",
+        f"{dt.date.today().isoformat()}; machine: {machine()}, bayes_mpem {bm.__version__}.",
         "",
         "Surveys: the `abe58` preset (4 beacons, ~50 % direct path, 20-35 % multipath, "
         "10-15 % outliers), every ping answered. Wall-clock seconds of `bayes_mpem.fit` on a "
@@ -122,7 +111,7 @@ def write_markdown(rows, single, path, argv):
         "data-driven starts on a 20,000-range subsample, then runs the best to convergence on "
         "all ranges; the paper's EM uses Pol = 0.05, alpha = 0.5, sigma_DP = 3.97 m.",
         "",
-        "## Both EMs against survey size",
+        "### Both EMs against survey size",
         "",
         "| ranges | mixture EM (s) | per 1k ranges (ms) | iterations per beacon "
         "| worst d0 error (m) | paper EM (s) | per 1k ranges (ms) | iterations per beacon |",
@@ -143,7 +132,7 @@ def write_markdown(rows, single, path, argv):
         "50k on the cost per range is flat up to the iteration counts, which vary with the "
         "data (the paper's EM needs more iterations on some beacons).",
         "",
-        "## One beacon, 1M ranges",
+        "### One beacon, 1M ranges",
         "",
         "| ranges | mixture EM (s) | iterations | d0 (m, truth 2472) | paper EM (s) | iterations "
         "| d0 (m) | read + validate CSV (s) | whole `bayes-mpem fit` (s) |",
@@ -159,7 +148,7 @@ def write_markdown(rows, single, path, argv):
         f"Peak resident memory of the benchmark process: {_peak_rss_mb():,.0f} MB.",
         "",
     ]
-    path.write_text("\n".join(lines))
+    write_section(path, "bench_em", "\n".join(lines))
     print(f"wrote {path}")
 
 

@@ -708,7 +708,7 @@ def file_hash(path):
 def render(results, args, runtime, explanation):
     """The full markdown document."""
     n = args.seeds
-    argv = [sys.executable, *sys.argv]
+    argv = ["python", *sys.argv]
     try:
         argv[1] = str(Path(argv[1]).resolve().relative_to(ROOT))
     except ValueError:

@@ -5,7 +5,8 @@ import importlib
 
 import pytest
 
-MODULES = ["geometry", "mixture", "em", "simulate", "fitting", "data", "plots"]
+MODULES = ["geometry", "mixture", "em", "simulate", "fitting", "data", "plots", "bayes",
+           "sampling", "compare", "bayes_plots"]
 
 
 @pytest.mark.parametrize("name", MODULES)

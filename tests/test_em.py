@@ -118,6 +118,8 @@ def test_sigma_dp_estimate():
     ({"sigma_dp": -1.0}, "sigma_dp: expected a positive number, got -1.0"),
     ({"path": "single"}, "path: expected one of"),
     ({"n_init": 0}, "n_init: expected an integer >= 1"),
+    ({"max_iter": 0}, "max_iter: expected an integer >= 1"),
+    ({"tol": -1.0}, "tol: expected a positive number"),
 ])
 def test_mixture_bad_options(kw, msg):
     sim = bm.simulate_survey("abe58", rng=0)
@@ -249,7 +251,11 @@ def test_paper_em_fails_when_the_direct_path_dominates(seed):
 
 @pytest.mark.parametrize(("kw", "msg"), [({"pol": 0.0}, "pol: expected a number in \\(0, 1\\)"),
                                          ({"pol": 1.5}, "got 1.5"),
-                                         ({"alpha": 0.0}, "alpha: expected a number in")])
+                                         ({"alpha": 0.0}, "alpha: expected a number in"),
+                                         ({"sigma_mp2_init": -1.0}, "sigma_mp2_init: expected"),
+                                         ({"d0_init": float("nan")}, "d0_init: expected a finite"),
+                                         ({"tol": 0.0}, "tol: expected a positive"),
+                                         ({"max_iter": 0}, "max_iter: expected an integer")])
 def test_paper_bad_options(kw, msg):
     sim = bm.simulate_survey("abe58", rng=0)
     with pytest.raises(ValueError, match=msg):

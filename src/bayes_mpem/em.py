@@ -185,6 +185,11 @@ def _check_positive(name, value, *, allow_none=False):
     return v
 
 
+def _check_max_iter(max_iter):
+    if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
+        raise ValueError(f"max_iter: expected an integer >= 1, got {max_iter!r}")
+
+
 def _mean_resp_history(resp):
     return resp.mean(axis=0) if resp.size else np.full(3, np.nan)
 
@@ -322,6 +327,11 @@ def fit_paper_em(
         raise ValueError(f"pol: expected a number in (0, 1), got {pol!r}")
     if not 0.0 < float(alpha) <= 1.0:
         raise ValueError(f"alpha: expected a number in (0, 1], got {alpha!r}")
+    _check_positive("sigma_mp2_init", sigma_mp2_init)
+    _check_positive("tol", tol)
+    _check_max_iter(max_iter)
+    if not np.isfinite(float(d0_init)):
+        raise ValueError(f"d0_init: expected a finite number, got {d0_init!r}")
     geom = BeaconGeometry.from_data(data)
     s_dp = _check_positive("sigma_dp", sigma_dp, allow_none=True) or estimate_sigma_dp(geom)
     d0, s_mp = float(d0_init), float(np.sqrt(sigma_mp2_init))
@@ -577,6 +587,10 @@ def fit_mixture_em(
     fixed_dp = _check_positive("sigma_dp", sigma_dp, allow_none=True)
     if int(n_init) < 1:
         raise ValueError(f"n_init: expected an integer >= 1, got {n_init!r}")
+    _check_max_iter(max_iter)
+    _check_positive("tol", tol)
+    if not float(sigma_floor) >= 0:
+        raise ValueError(f"sigma_floor: expected a number >= 0, got {sigma_floor!r}")
     if data.n < 3:
         raise ValueError(f"beacon {data.beacon}: need at least 3 ranges to fit, got {data.n}")
     gen = as_generator(rng)

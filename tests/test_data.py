@@ -342,3 +342,22 @@ def test_from_arrays_other_errors(kwargs, pattern):
     args.update(kwargs)
     with pytest.raises(InputError, match=pattern):
         BeaconData.from_arrays(**args)
+
+
+def test_duplicated_header_in_a_plain_csv(tmp_path, beacons_csv):
+    """The fast CSV path must not let pandas rename a duplicated column (x -> x.1)."""
+    p = tmp_path / "dup.csv"
+    p.write_text("time,beacon,range,x,y,depth,x\n0,1,100,0,0,10,5\n")
+    with pytest.raises(InputError, match="duplicated column name"):
+        load_survey(p, beacons_csv)
+
+
+def test_fast_and_exact_csv_readers_agree(tmp_path, beacons_csv):
+    """Blank lines and a quoted cell (exact reader) give the same line numbers as the fast one."""
+    body = "time,beacon,range,x,y,depth\n0,1,100,0,0,10\n\n1,1,-4,0,0,10\n"
+    plain, quoted = tmp_path / "plain.csv", tmp_path / "quoted.csv"
+    plain.write_text(body)
+    quoted.write_text(body.replace("0,1,100", '0,"1",100'))
+    for path in (plain, quoted):
+        with pytest.raises(InputError, match=r"line 4, column 'range'.*got '-4'"):
+            load_survey(path, beacons_csv)

@@ -66,3 +66,33 @@ def test_total_loglik_matches_log_space(geom):
     ws0 = [np.full((1, 1), 0.5), np.full((1, 1), 0.5), np.zeros((1, 1))]
     out = total_loglik(geom, d0[:1], sdp[:1], smp[:1], ws0)
     assert out[0] == -np.inf
+
+
+@pytest.mark.parametrize("path", ["triangle", "double"])
+@pytest.mark.parametrize("spread", [0.3, 30.0])
+def test_total_loglik_screening_is_exact_on_survey_data(path, spread):
+    """The per-call screening of zero Gaussian terms leaves the sum unchanged."""
+    import bayes_mpem as bm
+    from bayes_mpem.mixture import total_loglik
+
+    sim = bm.simulate_survey("abe58", rng=1, path=path, n_cycles=800)
+    g = BeaconGeometry.from_data(sim.survey.for_beacon("4"))
+    rng = np.random.default_rng(1)
+    w_ = 12
+    d0 = 2472.0 + rng.normal(0, spread, (w_, 1))
+    sdp, smp = rng.uniform(3, 5, (w_, 1)), rng.uniform(5, 9, (w_, 1))
+    w = rng.dirichlet([5, 3, 2], w_)
+    ws = [w[:, [j]] for j in range(3)]
+    slow = loglik_per_range(g, d0, sdp, smp, ws, path).sum(axis=1)
+    np.testing.assert_allclose(total_loglik(g, d0, sdp, smp, ws, path), slow, rtol=1e-12)
+
+
+def test_weighted_densities_match_log_space(geom):
+    from bayes_mpem.mixture import e_step, weighted_densities
+
+    w = [0.5, 0.3, 0.2]
+    terms = weighted_densities(geom, 2450.0, 4.0, 9.0, w)
+    total = terms[0] + terms[1] + terms[2]
+    ll, resp = e_step(geom, 2450.0, 4.0, 9.0, w)
+    assert np.log(total).sum() == pytest.approx(ll, rel=1e-12)
+    np.testing.assert_allclose(np.stack(terms, axis=1) / total[:, None], resp, atol=1e-12)

@@ -34,8 +34,7 @@ from scipy.special import gammaln
 from ._rng import RNGLike, as_generator
 from .data import BeaconData
 from .em import EMResult, fit_mixture_em
-from .mixture import CLASSES, BeaconGeometry, log_mix, safe_log, total_loglik
-from .mixture import component_logpdf as _component_logpdf
+from .mixture import CLASSES, BeaconGeometry, total_loglik, weighted_densities
 
 PRIORS = ("equal", "learned")
 PARAMS = ("d0", "sigma_mp", "sigma_dp", "w_dp", "w_mp", "w_ol")
@@ -161,12 +160,6 @@ class BeaconPosterior:
                                    [p["w_dp"], p["w_mp"], p["w_ol"]], self.path)
         return lp
 
-    def joint_log(self, p):
-        """Per-range ``log w_j + log p(z|j)`` and their log-sum-exp for natural params ``p``."""
-        ldp, lmp, lol = _component_logpdf(self.geom, p["d0"], p["sigma_dp"], p["sigma_mp"],
-                                          self.path)
-        return log_mix(ldp, lmp, lol, [safe_log(p["w_" + c]) for c in CLASSES])
-
     def theta_from(self, params: dict):
         """Sampler coordinates of a dict of natural parameters (e.g. an EM result)."""
         vals = {"d0": params["d0"], "log_sigma_mp": np.log(params["sigma_mp"]),
@@ -193,6 +186,9 @@ class PosteriorResult:
     tau, ess : dict
         emcee's integrated autocorrelation time (steps) and
         ``ESS = steps x walkers / tau`` per sampled parameter.
+    ess_bulk : dict
+        ArviZ's rank-normalised bulk ESS of every kept (unthinned) draw, walkers
+        as chains: a second, independent estimate, comparable with other samplers.
     rhat : dict or None
         Rank-normalised split R-hat across independent ensembles (if several ran).
     class_probs, class_probs_sd : numpy.ndarray
@@ -216,6 +212,7 @@ class PosteriorResult:
     summary: dict
     tau: dict
     ess: dict
+    ess_bulk: dict
     rhat: dict | None
     class_probs: np.ndarray = field(repr=False)
     class_probs_sd: np.ndarray = field(repr=False)
@@ -236,7 +233,8 @@ class PosteriorResult:
 
     def to_dict(self) -> dict:
         """JSON-ready summary."""
-        return {**self.summary, "ess": dict(self.ess), "tau": dict(self.tau),
+        return {**self.summary, "ess": dict(self.ess), "ess_bulk": dict(self.ess_bulk),
+                "tau": dict(self.tau),
                 "rhat": None if self.rhat is None else dict(self.rhat), "priors": self.priors,
                 "path": self.path, "ci": self.ci, "diagnostics": dict(self.diagnostics),
                 "em": {"d0": self.em.d0, "sigma_mp": self.em.sigma_mp,
@@ -291,9 +289,21 @@ def _progress_bar(progress, desc):
     return tqdm(desc=desc, unit="step", leave=False)
 
 
+def _bulk_ess_min(chain):
+    """Smallest ArviZ bulk ESS over the columns of a ``(steps, walkers, ndim)`` chain."""
+    import arviz_stats as azs
+
+    arr = np.transpose(chain, (1, 0, 2))  # (walker = chain, step = draw, ndim)
+    return float(np.min(azs.ess(arr, method="bulk", chain_axis=0, draw_axis=1)))
+
+
 def run_ensemble(post: BeaconPosterior, start, *, seed, moves=None, tau_factor=50.0,
-                 max_steps=20000, check_every=250, progress="auto"):
-    """Run one emcee ensemble until it is ``tau_factor`` autocorrelation times long.
+                 min_ess=1000.0, max_steps=20000, check_every=250, progress="auto"):
+    """Run one emcee ensemble until it is long enough by three measures.
+
+    The kept chain must be ``tau_factor`` autocorrelation times long, and its
+    smallest ESS must reach ``min_ess`` both by emcee's ``steps x walkers / tau``
+    and by ArviZ's rank-normalised bulk ESS (walkers as chains).
 
     Parameters
     ----------
@@ -305,6 +315,8 @@ def run_ensemble(post: BeaconPosterior, start, *, seed, moves=None, tau_factor=5
     moves : list, optional
         emcee moves (default: 80 % DEMove, 20 % DESnookerMove).
     tau_factor : float, default 50
+    min_ess : float, default 1000
+        Per ensemble; 0 to stop on ``tau_factor`` alone.
     max_steps : int, default 20000
     check_every : int, default 250
     progress : bool or "auto"
@@ -337,7 +349,9 @@ def run_ensemble(post: BeaconPosterior, start, *, seed, moves=None, tau_factor=5
                 bar.update(check_every)
                 bar.set_postfix(tau=f"{np.max(tau):.0f}",
                                 ess=f"{kept * n_walkers / np.max(tau):.0f}")
-            if kept > 0 and np.all(np.isfinite(tau)) and kept >= tau_factor * np.max(tau):
+            if kept > 0 and np.all(np.isfinite(tau)) and kept >= tau_factor * np.max(tau) \
+                    and kept * n_walkers / np.max(tau) >= min_ess \
+                    and (min_ess <= 0 or _bulk_ess_min(sampler.get_chain(discard=burn)) >= min_ess):
                 converged = True
                 break
     finally:
@@ -361,15 +375,19 @@ def _hdi(x, prob):
 def _pointwise(post, draws, chunk=64):
     """Per-range log-likelihood of every draw, and the mean and sd over draws of each
     range's class probabilities, in one pass over chunks of draws (never a
-    draws x ranges x 3 array)."""
+    draws x ranges x 3 array). Linear-space densities: exact, as ``w_ol > 0``
+    in the posterior's support."""
     ll = np.empty((draws.shape[0], post.geom.n))
     s1 = np.zeros((post.geom.n, 3))
     s2 = np.zeros((post.geom.n, 3))
     for i in range(0, draws.shape[0], chunk):
-        joint, lse = post.joint_log(post.unpack(draws[i:i + chunk]))
-        ll[i:i + chunk] = lse
+        p = post.unpack(draws[i:i + chunk])
+        terms = weighted_densities(post.geom, p["d0"], p["sigma_dp"], p["sigma_mp"],
+                                   [p["w_dp"], p["w_mp"], p["w_ol"]], post.path)
+        total = terms[0] + terms[1] + terms[2]
+        ll[i:i + chunk] = np.log(total)
         for j in range(3):
-            r = np.exp(joint[j] - lse)
+            r = terms[j] / total
             s1[:, j] += r.sum(axis=0)
             s2[:, j] += (r * r).sum(axis=0)
     m = s1 / draws.shape[0]
@@ -387,6 +405,7 @@ def sample_beacon(
     n_walkers: int | None = None,
     moves=None,
     tau_factor: float = 50.0,
+    min_ess: float = 1000.0,
     max_steps: int = 20000,
     n_ensembles: int = 1,
     n_draws: int = 2000,
@@ -414,7 +433,10 @@ def sample_beacon(
     moves : list, optional
         emcee moves; default 80 % ``DEMove`` + 20 % ``DESnookerMove``.
     tau_factor : float, default 50
-        Stop when the kept chain is this many autocorrelation times long.
+        Stop when the kept chain is this many autocorrelation times long ...
+    min_ess : float, default 1000
+        ... and its smallest ESS reaches this, by emcee's estimate and by ArviZ's
+        bulk ESS (per ensemble; 0 to rely on ``tau_factor`` alone).
     max_steps : int, default 20000
         Step cap per ensemble (``SamplingWarning`` when reached).
     n_ensembles : int, default 1
@@ -456,7 +478,7 @@ def sample_beacon(
         start = _start_ball(post, em, n_walkers, gen)
         sampler, burn, tau, ok = run_ensemble(
             post, start, seed=int(gen.integers(2**63)), moves=moves, tau_factor=tau_factor,
-            max_steps=max_steps, progress=progress)
+            min_ess=min_ess, max_steps=max_steps, progress=progress)
         chains.append(sampler.get_chain(discard=burn))
         lps.append(sampler.get_log_prob(discard=burn))
         taus.append(tau)
@@ -467,8 +489,9 @@ def sample_beacon(
     seconds = time.perf_counter() - t0
     if not all(conv):
         warnings.warn(f"beacon {data.beacon}: the chain reached max_steps={max_steps} before it "
-                      f"was {tau_factor:g} autocorrelation times long (tau = "
-                      f"{np.max(taus):.0f} steps); estimates may be unreliable",
+                      f"was {tau_factor:g} autocorrelation times long with an ESS of "
+                      f"{min_ess:g} (tau = {np.max(taus):.0f} steps); estimates may be "
+                      "unreliable",
                       SamplingWarning, stacklevel=2)
 
     # thin evenly to about n_draws draws in all; walkers become ArviZ chains
@@ -515,19 +538,29 @@ def sample_beacon(
             tk.append(t)
             ek += c.shape[0] * c.shape[1] / t
         tau_d[k], ess_d[k] = float(np.max(tk)), float(ek)
+    full = {}
+    for k in sampled:
+        series = [post.unpack(c.reshape(-1, post.ndim))[k][:, 0].reshape(c.shape[:2]).T
+                  for c in chains]  # (walker, step) per ensemble
+        full[k] = np.concatenate(series, axis=0)
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="Found chain dimension to be longer")
+        bulk = azs.ess(azb.from_dict({"posterior": full}), method="bulk")
+    ess_bulk = {k: float(bulk[k]) for k in sampled}
     rhat = None
     if len(chains) > 1:
         rh = azs.rhat(_ensembles_as_chains(idata.posterior.dataset, len(chains)))
         rhat = {k: float(rh[k]) for k in sampled}
     return PosteriorResult(
         beacon=data.beacon, priors=priors, path=path, idata=idata, summary=summary,
-        tau=tau_d, ess=ess_d, rhat=rhat, class_probs=probs, class_probs_sd=probs_sd,
+        tau=tau_d, ess=ess_d, ess_bulk=ess_bulk, rhat=rhat, class_probs=probs,
+        class_probs_sd=probs_sd,
         rows=np.asarray(data.rows), em=em, ci=float(ci),
         diagnostics={"n_walkers": n_walkers, "n_steps": int(max(steps)),
                      "burn": int(max(burns)), "thin": int(thin), "n_draws": int(flat.shape[0]),
                      "n_ensembles": len(chains), "converged": bool(all(conv)),
                      "acceptance": float(np.mean(accs)), "seconds": float(seconds),
-                     "tau_factor": float(tau_factor),
+                     "tau_factor": float(tau_factor), "min_ess": float(min_ess),
                      "moves": "default (DEMove 0.8, DESnookerMove 0.2)" if moves is None
                      else repr(moves)})
 

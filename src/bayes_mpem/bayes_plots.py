@@ -5,13 +5,10 @@ Every function takes ``fig=`` or ``ax=`` and returns the Figure.
 
 from __future__ import annotations
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
 
-matplotlib.use("Agg", force=False)
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from .plots import class_colors  # noqa: E402
+from .plots import class_colors
 
 LABELS = {"d0": "d0 (m)", "sigma_mp": "sigma_MP (m)", "sigma_dp": "sigma_DP (m)",
           "w_dp": "w_dp", "w_mp": "w_mp", "w_ol": "w_ol"}

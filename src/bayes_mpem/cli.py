@@ -42,6 +42,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="demo-output", metavar="DIR",
                    help="output folder (default: demo-output)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--no-bayes", action="store_true",
+                   help="skip the Bayesian part (sampling and prior comparison, ~40 s)")
+
+    p = sub.add_parser("plot", help="draw the figures of a fit or sample output folder")
+    p.add_argument("result_dir", metavar="RESULT_DIR",
+                   help="output folder of 'bayes-mpem fit' or 'bayes-mpem sample'")
+    p.add_argument("--out", default=None, metavar="DIR",
+                   help="where to write (default: RESULT_DIR)")
+    p.add_argument("--beacon", default=None, metavar="ID",
+                   help="beacon of the single-beacon figures (default: the last one)")
 
     p = sub.add_parser("simulate", help="write a simulated survey (pings, beacons, truth)")
     p.add_argument("--preset", choices=["abe58", "random"], default="abe58")
@@ -56,7 +66,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--beacons", required=True, metavar="BEACONS",
                    help="beacons CSV (beacon, x, y, depth)")
     p.add_argument("--out", required=True, metavar="DIR")
-    p.add_argument("--figures", action="store_true", help="also write PNG figures")
+    p.add_argument("--figures", action="store_true",
+                   help="also write the figures (as 'bayes-mpem plot' does)")
     _add_fit_options(p)
 
     for name, helptext in (("sample", "sample each beacon's posterior with emcee"),
@@ -89,23 +100,6 @@ def _fit_kwargs(args):
                 alpha=args.alpha, weights=args.weights, min_pings=args.min_pings, rng=args.seed)
 
 
-def _write_figures(result, out):
-    import matplotlib.pyplot as plt
-
-    from . import plots
-
-    paths = []
-    fig = plots.plot_survey_classification(result)
-    paths.append(out / "classification.png")
-    fig.savefig(paths[-1], dpi=110)
-    plt.close(fig)
-    fig = plots.plot_track(result.survey)
-    paths.append(out / "track.png")
-    fig.savefig(paths[-1], dpi=110)
-    plt.close(fig)
-    return paths
-
-
 def _report(result, paths):
     print(result.format_table())
     for bid, res in result.results.items():
@@ -118,7 +112,9 @@ def _report(result, paths):
 
 
 def cmd_demo(args):
+    from . import plots
     from .fitting import fit
+    from .report import write_figures
     from .simulate import simulate_survey
 
     out = Path(args.out)
@@ -131,17 +127,55 @@ def cmd_demo(args):
     print("HRP = beacon depth; sigma_MP = " + ", ".join(
         f"{b['sigma_mp']:.1f}" for b in sim.truth.values()) + " m)")
     written += list(result.write(out).values())
-    written += _write_figures(result, out)
+    written += write_figures(result, out, truth=sim.truth)
     paper = fit(sim.survey, method="paper", sigma_dp=sim.truth["1"]["sigma_dp"])
-    (out / "paper").mkdir(exist_ok=True)
     written += list(paper.write(out / "paper").values())
-    _report(result, written)
+    written += write_figures(paper, out / "paper", truth=sim.truth, general=False)
+    print(result.format_table())
     print("\nThe paper's EM (Pol = 0.05, alpha = 0.5, sigma_DP = 3.97 m):")
     print(paper.format_table())
     missed = [b for b, r in paper.results.items() if abs(r.d0 - sim.truth[b]["d0"]) > 10.0]
     if missed:
         print(f"The paper's EM missed the plane (|HRP - truth| > 10 m) on beacon(s) "
               f"{', '.join(missed)}; docs/paper-em.md explains why.")
+    md = ["# bayes-mpem demo", "",
+          f"Simulated ABE58-like survey (seed {args.seed}): {len(sim.survey)} pings to "
+          f"{len(sim.truth)} beacons. Truth: the sea surface, i.e. HRP = beacon depth.", "",
+          "## Table II, mixture EM", "", plots.table_ii_markdown(result, truth=sim.truth), "",
+          "## Table II, the paper's EM (Pol = 0.05, alpha = 0.5)", "",
+          plots.table_ii_markdown(paper, truth=sim.truth), ""]
+    if not args.no_bayes:
+        from .compare import compare
+        from .sampling import sample
+
+        print("\nSampling the posterior of every beacon (emcee, learned priors)...")
+        post = sample(sim.survey, rng=args.seed, progress="auto")
+        written += list(post.write(out / "bayes").values())
+        written += write_figures(post, out / "bayes", truth=sim.truth)
+        print(post.format_table())
+        print("\nEqual (paper) against learned mixing priors, PSIS-LOO...")
+        cmp = compare(sim.survey, rng=args.seed, progress="auto")
+        written += list(cmp.write(out / "compare").values())
+        print(cmp.format_table())
+        md += ["## Posterior (learned priors)", "", "```", post.format_table(), "```", "",
+               "![intervals](bayes/intervals.png)", "",
+               "## Equal against learned priors", "", "```", cmp.format_table(), "```", "",
+               "![compare](compare/compare.png)", ""]
+    figs = [p for p in written if str(p).endswith(".png")]
+    md += ["## Figures", ""] + [f"![{p.stem}]({p.relative_to(out).as_posix()})" for p in figs]
+    (out / "summary.md").write_text("\n".join(md) + "\n")
+    written.append(out / "summary.md")
+    print(f"\nwrote {len(written)} files under {out}/ (summary.md links every figure)")
+    return 0
+
+
+def cmd_plot(args):
+    from .report import load_output, write_figures
+
+    result = load_output(args.result_dir)
+    paths = write_figures(result, args.out or args.result_dir, beacon=args.beacon)
+    for p in paths:
+        print(f"wrote {p}")
     return 0
 
 
@@ -162,8 +196,10 @@ def cmd_fit(args):
     result = fit(args.pings, args.beacons, **_fit_kwargs(args))
     out = Path(args.out)
     paths = list(result.write(out).values())
-    if args.figures and result.results:
-        paths += _write_figures(result, out)
+    if args.figures:
+        from .report import write_figures
+
+        paths += write_figures(result, out)
     _report(result, paths)
     return 0
 
@@ -181,8 +217,10 @@ def cmd_sample(args):
                     n_ensembles=args.ensembles, **_sample_kwargs(args))
     out = Path(args.out)
     paths = list(result.write(out).values())
-    if args.figures and result.results:
-        paths += _write_bayes_figures(result, out)
+    if args.figures:
+        from .report import write_figures
+
+        paths += write_figures(result, out)
     print(result.format_table())
     for bid, r in result.results.items():
         if not r.diagnostics["converged"]:
@@ -191,23 +229,6 @@ def cmd_sample(args):
     for p in paths:
         print(f"wrote {p}")
     return 0
-
-
-def _write_bayes_figures(result, out):
-    import matplotlib.pyplot as plt
-
-    from . import bayes_plots as bp
-
-    paths = []
-    figs = [("intervals.png", bp.plot_intervals(result))]
-    for bid, r in result.results.items():
-        figs += [(f"trace_{bid}.png", bp.plot_trace(r)), (f"pair_{bid}.png", bp.plot_pair(r)),
-                 (f"classes_{bid}.png", bp.plot_class_uncertainty(result, bid))]
-    for name, fig in figs:
-        paths.append(out / name)
-        fig.savefig(paths[-1], dpi=100)
-        plt.close(fig)
-    return paths
 
 
 def cmd_compare(args):
@@ -235,7 +256,10 @@ def main(argv=None) -> int:
         Exit status: 0 on success, 2 on invalid input.
     """
     args = build_parser().parse_args(argv)
-    handler = {"demo": cmd_demo, "simulate": cmd_simulate, "fit": cmd_fit,
+    import matplotlib
+
+    matplotlib.use("Agg")  # the command line only writes files; never opens a window
+    handler = {"demo": cmd_demo, "simulate": cmd_simulate, "fit": cmd_fit, "plot": cmd_plot,
                "sample": cmd_sample, "compare": cmd_compare}[args.command]
     warnings.simplefilter("default")
     try:

@@ -7,6 +7,7 @@ An empty ``range`` cell is a ping with no reply; any other bad cell raises one
 from __future__ import annotations
 
 import csv
+import io
 import math
 import numbers
 import os
@@ -96,7 +97,50 @@ class _Table:
         return f"{self.source} {self.row_names[pos]}, column {column!r}"
 
 
+def _read_csv_fast(path: Path, label: str) -> _Table | None:
+    """pandas' C parser, used only when line numbers stay exact; else ``None``.
+
+    Exact when no field is quoted (so no record spans lines), blank lines are
+    truly empty (pandas skips exactly those) and every other line has as many
+    commas as the header (pandas would silently pad a short row). Anything else
+    returns ``None`` and the exact reader :func:`_read_csv` takes over with its
+    diagnostics. About 5x faster on large files.
+    """
+    raw = path.read_bytes()
+    if raw.startswith(b"\xef\xbb\xbf"):
+        raw = raw[3:]
+    if b'"' in raw:
+        return None
+    lines = [ln.rstrip(b"\r") for ln in raw.split(b"\n")]
+    if lines and lines[-1] == b"":
+        lines.pop()
+    used = [i for i, ln in enumerate(lines) if ln]
+    if not used or any(not lines[i].strip() for i in used):
+        return None
+    n_commas = lines[used[0]].count(b",")
+    if any(lines[i].count(b",") != n_commas for i in used[1:]):
+        return None
+    try:
+        header = [h.strip() for h in lines[used[0]].decode("utf-8").split(",")]
+    except UnicodeDecodeError:
+        return None
+    if len(set(header)) != len(header):  # pandas would rename duplicates: let _load report
+        return None
+    try:
+        frame = pd.read_csv(io.BytesIO(raw), dtype=str, keep_default_na=False, na_values=[],
+                            skipinitialspace=True, encoding="utf-8", engine="c")
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError, ValueError):
+        return None
+    if len(frame) != len(used) - 1 or len(frame.columns) != len(header):
+        return None
+    frame.columns = header
+    return _Table(frame, label, [f"line {i + 1}" for i in used[1:]])
+
+
 def _read_csv(path: Path, label: str) -> _Table:
+    fast = _read_csv_fast(path, label)
+    if fast is not None:
+        return fast
     try:
         with open(path, newline="", encoding="utf-8-sig") as fh:
             reader = csv.reader(fh, skipinitialspace=True)

@@ -82,6 +82,7 @@ class SurveyFit:
         return {
             "method": self.method,
             "beacons": beacons,
+            "beacons_table": beacons_table(self.survey),
             "skipped": dict(self.skipped),
             "n_rows": len(self.survey),
             "n_no_reply": int(self.survey.no_reply.sum()),
@@ -139,10 +140,32 @@ class SurveyFit:
         """
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
-        paths = {"summary": out / "summary.json", "classified": out / "classified.csv"}
+        paths = {"summary": out / "summary.json", "classified": out / "classified.csv",
+                 "history": out / "history.json"}
         paths["summary"].write_text(json.dumps(self.summary(), indent=2) + "\n")
         self.classified().to_csv(paths["classified"], index=False)
+        paths["history"].write_text(json.dumps(self.history(), indent=None) + "\n")
         return paths
+
+    def history(self) -> dict:
+        """Per beacon: every iteration's parameters and the first E-step's probabilities.
+
+        Returns
+        -------
+        dict
+            ``{beacon: {"history": {name: [..]}, "first_resp": [[p_dp, p_mp, p_ol], ..]}}``,
+            ``first_resp`` in the order of that beacon's replies (what the paper's
+            Figs. 7, 10 and 11 show).
+        """
+        return {bid: {"history": {k: np.asarray(v).tolist() for k, v in r.history.items()},
+                      "first_resp": np.round(r.first_resp, 6).tolist()}
+                for bid, r in self.results.items()}
+
+
+def beacons_table(survey: Survey) -> dict:
+    """Beacon positions as ``{id: {"x", "y", "depth"}}`` (written into summaries)."""
+    return {b: {k: float(v) for k, v in row.items()}
+            for b, row in survey.beacons[["x", "y", "depth"]].iterrows()}
 
 
 def classified_table(survey: Survey, fitted: dict, skipped: dict, extra: dict | None = None):

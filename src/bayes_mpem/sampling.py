@@ -9,7 +9,7 @@ from pathlib import Path
 from ._rng import RNGLike, as_generator
 from .bayes import PosteriorResult, sample_beacon
 from .data import Survey, load_survey
-from .fitting import classified_table, fittable_beacons
+from .fitting import beacons_table, classified_table, fittable_beacons
 from .mixture import CLASSES
 
 
@@ -63,7 +63,8 @@ class SurveyPosterior:
             d["n"] = int(r.rows.size)
             beacons[bid] = d
         return {"priors": self.priors, "ci": self.ci, "beacons": beacons,
-                "skipped": dict(self.skipped), "n_rows": len(self.survey),
+                "beacons_table": beacons_table(self.survey), "skipped": dict(self.skipped),
+                "n_rows": len(self.survey),
                 "n_no_reply": int(self.survey.no_reply.sum()),
                 "pings": self.survey.pings_source, "beacons_file": self.survey.beacons_source,
                 "options": {k: v for k, v in self.options.items() if k != "rng"}}

@@ -1,0 +1,49 @@
+"""Sphinx configuration: MyST Markdown pages, notebooks executed by myst-nb, numpydoc API."""
+
+import bayes_mpem
+
+project = "bayes_mpem"
+author = "bayes_mpem developers"
+copyright = "2026, bayes_mpem developers"
+release = version = bayes_mpem.__version__
+
+extensions = [
+    "myst_nb",
+    "sphinx.ext.autodoc",
+    "sphinx.ext.autosummary",
+    "sphinx.ext.intersphinx",
+    "numpydoc",
+]
+
+# pages: Markdown (MyST) and the notebooks, which live in ../notebooks and are copied here
+# by the build (see notebooks.md); they are executed at build time, never stored with outputs
+source_suffix = {".md": "myst-nb", ".ipynb": "myst-nb"}
+exclude_patterns = ["_build", "**.ipynb_checkpoints"]
+nb_execution_mode = "force"
+nb_execution_timeout = 600
+nb_execution_raise_on_error = True
+myst_heading_anchors = 3
+suppress_warnings = ["myst.header"]
+
+autosummary_generate = True
+autodoc_typehints = "none"
+numpydoc_show_class_members = False
+numpydoc_class_members_toctree = False
+
+intersphinx_mapping = {
+    "python": ("https://docs.python.org/3", None),
+}
+intersphinx_disabled_reftypes = ["*"]
+intersphinx_timeout = 2
+
+html_theme = "alabaster"
+html_title = f"bayes_mpem {version}"
+
+# the notebooks are kept in ../notebooks (stored without outputs); copy them in for the build
+import shutil  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+_here = Path(__file__).parent
+(_here / "notebooks").mkdir(exist_ok=True)
+for _nb in sorted((_here.parent / "notebooks").glob("*.ipynb")):
+    shutil.copy2(_nb, _here / "notebooks" / _nb.name)

@@ -1,0 +1,197 @@
+"""Figures and summaries written to an output folder, and reading such a folder back.
+
+``bayes-mpem plot RESULT_DIR`` is :func:`load_output` followed by
+:func:`write_figures`; ``demo``, ``fit --figures`` and ``sample --figures``
+call :func:`write_figures` directly.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from types import SimpleNamespace
+
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+
+from . import bayes_plots, plots
+from .data import InputError, load_survey
+from .em import EMResult
+from .fitting import SurveyFit
+from .mixture import CLASSES
+from .sampling import SurveyPosterior
+
+#: Pol values of the paper's Fig. 12 as drawn here.
+POL_GRID = (0.01, 0.02, 0.05, 0.1, 0.15, 0.2, 0.3)
+_ADDED = {"p_dp", "p_mp", "p_ol", "p_dp_sd", "p_mp_sd", "p_ol_sd", "label", "reason"}
+
+
+def _save(fig, path, dpi=110):
+    fig.savefig(path, dpi=dpi)
+    plt.close(fig)
+    return Path(path)
+
+
+def write_figures(result, out_dir, *, beacon=None, truth=None, general=True) -> list:
+    """Write every figure that applies to ``result`` as PNG files.
+
+    Parameters
+    ----------
+    result : SurveyFit or SurveyPosterior
+    out_dir : str or pathlib.Path
+    beacon : str, optional
+        Beacon of the single-beacon figures of a fit (the paper's Figs. 7, 9-12);
+        default: the last fitted beacon (the paper uses its beacon 4).
+    truth : dict, optional
+        ``Simulation.truth``, marked where a figure can show it.
+    general : bool, default True
+        Also write the method-independent figures (Figs. 1, 5, 8, 12).
+
+    Returns
+    -------
+    list of pathlib.Path
+
+    Raises
+    ------
+    TypeError
+        For another kind of result.
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    if isinstance(result, SurveyFit):
+        if not result.results:
+            return paths
+        b = beacon or list(result.results)[-1]
+        if b not in result.results:
+            raise ValueError(f"beacon: expected one of {sorted(result.results)}, got {b!r}")
+        r = result.results[b]
+        if general:
+            paths.append(_save(plots.plot_ranges(result.survey), out / "fig01_ranges.png"))
+            paths.append(_save(plots.plot_track(result.survey), out / "fig05_track.png"))
+            paths.append(_save(plots.plot_colormap(), out / "fig08_colormap.png"))
+            sens = plots.pol_sensitivity(result.survey.for_beacon(b), POL_GRID,
+                                         sigma_dp=r.sigma_dp)
+            paths.append(_save(plots.plot_pol_sensitivity(
+                sens, truth=None if truth is None else truth[b]),
+                out / f"fig12_pol_sensitivity_{b}.png"))
+        t = None if truth is None else truth[b]
+        figs = [(plots.plot_classification(result, b, iteration="first"),
+                 f"fig07_first_iteration_{b}.png"),
+                (plots.plot_classification(result, b), f"fig09_last_iteration_{b}.png"),
+                (plots.plot_convergence(r, truth=t), f"fig10_11_convergence_{b}.png"),
+                (plots.plot_survey_classification(result), "fig13_classification.png"),
+                (plots.plot_table_ii(result), "table2.png")]
+        paths += [_save(fig, out / name) for fig, name in figs]
+    elif isinstance(result, SurveyPosterior):
+        if not result.results:
+            return paths
+        paths.append(_save(bayes_plots.plot_intervals(result, truth=truth), out / "intervals.png"))
+        for b, r in result.results.items():
+            paths.append(_save(bayes_plots.plot_trace(r), out / f"trace_{b}.png", dpi=90))
+            paths.append(_save(bayes_plots.plot_pair(r), out / f"pair_{b}.png", dpi=90))
+            paths.append(_save(bayes_plots.plot_class_uncertainty(result, b),
+                               out / f"classes_{b}.png"))
+    else:
+        raise TypeError(f"result: expected a SurveyFit or SurveyPosterior, got "
+                        f"{type(result).__name__}")
+    return paths
+
+
+def _read_json(path):
+    if not path.exists():
+        raise FileNotFoundError(f"{path}: not found; expected the output folder of "
+                                "'bayes-mpem fit' or 'bayes-mpem sample'")
+    return json.loads(path.read_text())
+
+
+def load_output(result_dir):
+    """Read the output folder of ``bayes-mpem fit`` or ``sample`` back into result objects.
+
+    Parameters
+    ----------
+    result_dir : str or pathlib.Path
+        Holds ``summary.json`` and ``classified.csv`` (and ``history.json`` for a
+        fit, ``posterior.nc`` for a sample).
+
+    Returns
+    -------
+    SurveyFit or SurveyPosterior
+        Rebuilt from the files. A fit without ``history.json`` gets a
+        one-entry history; a posterior's ``em`` is a namespace of the EM
+        start's parameters.
+
+    Raises
+    ------
+    FileNotFoundError
+        When a needed file is missing.
+    bayes_mpem.InputError
+        When the files do not fit together.
+    """
+    d = Path(result_dir)
+    summary = _read_json(d / "summary.json")
+    if "beacons_table" not in summary:
+        raise InputError(f"{d / 'summary.json'}: no 'beacons_table'; it was written by another "
+                         "program or an older bayes_mpem: run 'bayes-mpem fit' again")
+    classified = pd.read_csv(d / "classified.csv", dtype=str, keep_default_na=False)
+    table = classified[[c for c in classified.columns if c not in _ADDED]]
+    beacons = pd.DataFrame([{"beacon": b, **v} for b, v in summary["beacons_table"].items()])
+    survey = load_survey(table, beacons)
+    num = {c: pd.to_numeric(classified[c].replace("", np.nan)).to_numpy()
+           for c in classified.columns if c in _ADDED - {"label", "reason"}}
+    probs = np.column_stack([num["p_" + c] for c in CLASSES])
+    if "method" in summary:
+        return _load_fit(d, summary, survey, probs)
+    if "priors" in summary:
+        return _load_posterior(d, summary, survey, probs, num)
+    raise InputError(f"{d / 'summary.json'}: neither a fit ('method') nor a sample ('priors')")
+
+
+def _load_fit(d, summary, survey, probs):
+    hist_path = d / "history.json"
+    hist = json.loads(hist_path.read_text()) if hist_path.exists() else {}
+    results = {}
+    for b, s in summary["beacons"].items():
+        rows = survey.for_beacon(b).rows
+        resp = probs[rows]
+        h = hist.get(b, {})
+        history = {k: np.asarray(v) for k, v in h.get("history", {}).items()} or {
+            "d0": np.array([s["d0"]]), "sigma_mp": np.array([s["sigma_mp"]])}
+        first = np.asarray(h["first_resp"]) if "first_resp" in h else resp
+        results[b] = EMResult(
+            beacon=b, method=s["method"], path=s["path"], d0=s["d0"], sigma_mp=s["sigma_mp"],
+            sigma_dp=s["sigma_dp"], weights=s["weights"], resp=resp, rows=rows,
+            n_iter=s["iterations"], converged=s["converged"], loglik=s.get("loglik"),
+            history=history, first_resp=first, settings=s.get("settings", {}),
+            d0_se=s.get("d0_se"))
+    return SurveyFit(survey=survey, results=results, skipped=summary.get("skipped", {}),
+                     method=summary["method"], options=summary.get("options", {}))
+
+
+def _load_posterior(d, summary, survey, probs, num):
+    import xarray as xr
+
+    from .bayes import PosteriorResult
+
+    path = d / "posterior.nc"
+    if not path.exists():
+        raise FileNotFoundError(f"{path}: not found; 'bayes-mpem sample' writes it")
+    tree = xr.open_datatree(path, engine="h5netcdf").load()
+    sd = np.column_stack([num["p_" + c + "_sd"] for c in CLASSES])
+    results = {}
+    for b, s in summary["beacons"].items():
+        rows = survey.for_beacon(b).rows
+        results[b] = PosteriorResult(
+            beacon=b, priors=s["priors"], path=s["path"], idata=tree[f"beacon_{b}"],
+            summary={k: s[k] for k in ("d0", "sigma_mp", "sigma_dp", "weights")},
+            tau=s["tau"], ess=s["ess"], ess_bulk=s.get("ess_bulk", {}), rhat=s.get("rhat"),
+            class_probs=probs[rows],
+            class_probs_sd=sd[rows], rows=rows, em=SimpleNamespace(**s.get("em", {})),
+            diagnostics=s.get("diagnostics", {}), ci=s.get("ci", summary.get("ci", 0.95)))
+    return SurveyPosterior(survey=survey, results=results, skipped=summary.get("skipped", {}),
+                           priors=summary["priors"], ci=summary.get("ci", 0.95),
+                           options=summary.get("options", {}))
+
+
+__all__ = ["POL_GRID", "load_output", "write_figures"]

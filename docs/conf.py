@@ -11,7 +11,6 @@ extensions = [
     "myst_nb",
     "sphinx.ext.autodoc",
     "sphinx.ext.autosummary",
-    "sphinx.ext.intersphinx",
     "numpydoc",
 ]
 
@@ -30,11 +29,7 @@ autodoc_typehints = "none"
 numpydoc_show_class_members = False
 numpydoc_class_members_toctree = False
 
-intersphinx_mapping = {
-    "python": ("https://docs.python.org/3", None),
-}
-intersphinx_disabled_reftypes = ["*"]
-intersphinx_timeout = 2
+# no intersphinx: the build must work offline (CI has no network)
 
 html_theme = "alabaster"
 html_title = f"bayes_mpem {version}"

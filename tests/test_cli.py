@@ -38,7 +38,7 @@ def test_fit_command(survey_files, tmp_path, method, capsys):
 def test_fit_command_with_figures(survey_files, tmp_path):
     assert main(["fit", str(survey_files / "pings.csv"), "--beacons",
                  str(survey_files / "beacons.csv"), "--out", str(tmp_path), "--figures"]) == 0
-    assert (tmp_path / "classification.png").stat().st_size > 10_000
+    assert (tmp_path / "fig13_classification.png").stat().st_size > 10_000
 
 
 def test_fit_command_bad_input_exits_2_with_message(survey_files, tmp_path, capsys):
@@ -61,17 +61,34 @@ def test_fit_command_missing_file(tmp_path, capsys):
     assert "nope.csv" in capsys.readouterr().err
 
 
-def test_demo(tmp_path, capsys):
-    assert main(["demo", "--out", str(tmp_path)]) == 0
+def test_demo_without_bayes(tmp_path, capsys):
+    assert main(["demo", "--out", str(tmp_path), "--no-bayes"]) == 0
     text = capsys.readouterr().out
     assert "HRP d0 (m)" in text and "The paper's EM" in text
-    for name in ("summary.json", "classified.csv", "classification.png", "track.png",
-                 "survey/pings.csv", "survey/truth.json", "paper/summary.json"):
+    for name in ("summary.json", "classified.csv", "history.json", "summary.md",
+                 "survey/pings.csv", "survey/truth.json", "paper/summary.json",
+                 "fig01_ranges.png", "fig05_track.png", "fig07_first_iteration_4.png",
+                 "fig08_colormap.png", "fig09_last_iteration_4.png",
+                 "fig10_11_convergence_4.png", "fig12_pol_sensitivity_4.png",
+                 "fig13_classification.png", "table2.png", "paper/fig13_classification.png"):
         assert (tmp_path / name).exists(), name
     summary = json.loads((tmp_path / "summary.json").read_text())
     truth = json.loads((tmp_path / "survey" / "truth.json").read_text())["beacons"]
     for bid, b in summary["beacons"].items():
         assert abs(b["d0"] - truth[bid]["d0"]) < 3
+    md = (tmp_path / "summary.md").read_text()
+    assert "Table II" in md and "(fig13_classification.png)" in md
+
+
+@pytest.mark.slow
+def test_demo_full(tmp_path, capsys):
+    """The README's main job, end to end, including the Bayesian part."""
+    assert main(["demo", "--out", str(tmp_path)]) == 0
+    text = capsys.readouterr().out
+    assert "min ESS" in text and "verdict" in text
+    for name in ("bayes/posterior.nc", "bayes/intervals.png", "bayes/trace_4.png",
+                 "compare/compare.json", "compare/compare.png"):
+        assert (tmp_path / name).exists(), name
 
 
 def test_version(capsys):

@@ -540,8 +540,8 @@ def sample_beacon(
         tau_d[k], ess_d[k] = float(np.max(tk)), float(ek)
     full = {}
     for k in sampled:
-        series = [post.unpack(c.reshape(-1, post.ndim))[k][:, 0].reshape(c.shape[:2]).T
-                  for c in chains]  # (walker, step) per ensemble
+        series = [post.unpack(c[-kept:].reshape(-1, post.ndim))[k][:, 0].reshape(kept, -1).T
+                  for c in chains]  # (walker, step) per ensemble, common length
         full[k] = np.concatenate(series, axis=0)
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", message="Found chain dimension to be longer")

@@ -158,7 +158,7 @@ class SurveyFit:
             Figs. 7, 10 and 11 show).
         """
         return {bid: {"history": {k: np.asarray(v).tolist() for k, v in r.history.items()},
-                      "first_resp": np.round(r.first_resp, 6).tolist()}
+                      "first_resp": np.round(r.first_resp, 3).tolist()}
                 for bid, r in self.results.items()}
 
 

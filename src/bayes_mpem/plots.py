@@ -284,6 +284,9 @@ def plot_pol_sensitivity(sens, *, fig=None, truth=None):
         fig = plt.figure(figsize=(11, 3.4), layout="constrained")
     a, b, c = fig.subplots(1, 3)
     a.plot(sens["pol"], sens["d0"], "o-", color="tab:blue")
+    mid = float(np.median(sens["d0"]))
+    lo, hi = min(np.min(sens["d0"]), mid - 10.0), max(np.max(sens["d0"]), mid + 10.0)
+    a.set_ylim(lo - 1.0, hi + 1.0)  # at least 20 m: a 2 m wobble should look like one
     a.set_ylabel("d0 (m)")
     a.set_title("a: plane height", loc="left")
     b.plot(sens["pol"], sens["sigma_mp"], "o-", color="tab:red")

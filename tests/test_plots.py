@@ -1,0 +1,145 @@
+"""Figures: each function returns a Figure showing what the paper's figure shows."""
+
+import json
+
+import matplotlib.pyplot as plt
+import numpy as np
+import pytest
+from matplotlib.figure import Figure
+
+import bayes_mpem as bm
+from bayes_mpem import bayes_plots, plots
+from bayes_mpem.report import load_output, write_figures
+
+
+@pytest.fixture(scope="module")
+def sim():
+    return bm.simulate_survey("abe58", rng=0, n_cycles=400)
+
+
+@pytest.fixture(scope="module")
+def paper_fit(sim):
+    return bm.fit(sim.survey, method="paper", sigma_dp=3.97)
+
+
+@pytest.fixture(autouse=True)
+def _close():
+    yield
+    plt.close("all")
+
+
+def _scatter_colors(ax):
+    return np.concatenate([c.get_facecolors()[:, :3] for c in ax.collections])
+
+
+def test_class_colors_blend_continuously():
+    p = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [0.5, 0.5, 0], [1 / 3, 1 / 3, 1 / 3]])
+    rgb = plots.class_colors(p)
+    np.testing.assert_allclose(rgb[:3], [[0, 0, 1], [1, 0, 0], [0, 1, 0]])  # DP, MP, OL
+    np.testing.assert_allclose(rgb[3], [0.5, 0, 0.5])  # half DP, half MP: purple
+
+
+def test_fig01_ranges_one_series_per_beacon(sim):
+    fig = plots.plot_ranges(sim.survey)
+    ax = fig.axes[0]
+    assert isinstance(fig, Figure) and len(ax.lines) == 4
+    assert sum(len(line.get_xdata()) for line in ax.lines) == int((~sim.survey.no_reply).sum())
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["R1", "R2", "R3", "R4"]
+
+
+def test_fig05_track_shows_beacons(sim):
+    ax = plots.plot_track(sim.survey).axes[0]
+    assert len(ax.texts) == 4  # beacon labels
+
+
+def test_fig08_colormap_blends(sim):
+    fig = plots.plot_colormap(resolution=100)
+    img = fig.axes[0].images[0].get_array()
+    inside = img[..., 3] > 0
+    rgb = img[..., :3][inside]
+    # continuous: many distinct colours, including mixtures of all three channels
+    assert len(np.unique(np.round(rgb, 2), axis=0)) > 1000
+    assert np.any(np.all(rgb > 0.2, axis=1))
+
+
+def test_fig07_fig09_first_and_last_iteration(sim, paper_fit):
+    first = plots.plot_classification(paper_fit, "4", iteration="first")
+    last = plots.plot_classification(paper_fit, "4", iteration="last")
+    c_first, c_last = _scatter_colors(first.axes[0]), _scatter_colors(last.axes[0])
+    n = paper_fit.results["4"].n
+    assert len(c_first) == len(c_last) == n
+    # first E-step: hardly any outliers (green); last: the outliers are green
+    assert c_first[:, 1].mean() < c_last[:, 1].mean()
+    assert "first E-step" in first.axes[0].get_title()
+    with pytest.raises(ValueError, match="iteration: expected"):
+        plots.plot_classification(paper_fit, "4", iteration="middle")
+
+
+def test_fig10_11_convergence(paper_fit):
+    r = paper_fit.results["4"]
+    fig = plots.plot_convergence(r, truth={"d0": 2472.0, "sigma_mp": 6.9})
+    ax1, ax2 = fig.axes
+    np.testing.assert_allclose(ax1.lines[0].get_ydata(), r.history["d0"])
+    assert ax2.get_yscale() == "log"
+
+
+def test_fig12_pol_sensitivity(sim):
+    sens = plots.pol_sensitivity(sim.survey.for_beacon("4"), [0.05, 0.1, 0.2], sigma_dp=3.97)
+    assert np.all(np.diff(sens["sigma_mp"]) < 0)
+    fig = plots.plot_pol_sensitivity(sens, truth=sim.truth["4"])
+    assert len(fig.axes) == 3 and len(fig.axes[2].lines) >= 3
+
+
+def test_fig13_and_table_ii(sim, paper_fit):
+    fig = plots.plot_survey_classification(paper_fit)
+    assert len(fig.axes) == 4
+    md = plots.table_ii_markdown(paper_fit, truth=sim.truth)
+    assert "HRP d0 (m)" in md and "beacon depth (m)" in md and "| 2472.0 |" in md
+    assert len(plots.plot_table_ii(paper_fit).axes[0].tables) == 1
+
+
+def test_bayesian_figures(sim):
+    post = bm.sample(sim.survey, rng=0, progress=False, n_draws=500)
+    r = post.results["4"]
+    assert len(bayes_plots.plot_trace(r).axes) == 2 * 6
+    assert len(bayes_plots.plot_pair(r).axes) == 36
+    assert len(bayes_plots.plot_intervals(post, truth=sim.truth).axes) == 2
+    assert len(bayes_plots.plot_class_uncertainty(post, "4").axes) == 2
+
+
+def test_fit_output_round_trip_and_plot_command(sim, tmp_path):
+    from bayes_mpem.cli import main
+
+    res = bm.fit(sim.survey, rng=0)
+    res.write(tmp_path)
+    back = load_output(tmp_path)
+    for b, r in res.results.items():
+        assert back.results[b].d0 == r.d0
+        np.testing.assert_allclose(back.results[b].resp, r.resp, atol=1e-12)
+        np.testing.assert_allclose(back.results[b].history["d0"], r.history["d0"])
+        np.testing.assert_allclose(back.results[b].first_resp, r.first_resp, atol=5e-4)
+    assert main(["plot", str(tmp_path), "--out", str(tmp_path / "figs"), "--beacon", "3"]) == 0
+    names = {p.name for p in (tmp_path / "figs").iterdir()}
+    assert {"fig01_ranges.png", "fig05_track.png", "fig07_first_iteration_3.png",
+            "fig08_colormap.png", "fig09_last_iteration_3.png", "fig10_11_convergence_3.png",
+            "fig12_pol_sensitivity_3.png", "fig13_classification.png", "table2.png"} <= names
+
+
+def test_sample_output_round_trip_and_plot(sim, tmp_path):
+    post = bm.sample(sim.survey, rng=1, progress=False, n_draws=400)
+    post.write(tmp_path)
+    back = load_output(tmp_path)
+    assert back.results["2"].summary["d0"] == post.results["2"].summary["d0"]
+    paths = write_figures(back, tmp_path / "figs")
+    assert {p.name for p in paths} >= {"intervals.png", "trace_2.png", "pair_2.png",
+                                       "classes_2.png"}
+
+
+def test_plot_command_errors(tmp_path, capsys):
+    from bayes_mpem.cli import main
+
+    assert main(["plot", str(tmp_path)]) == 2
+    assert "summary.json: not found" in capsys.readouterr().err
+    (tmp_path / "summary.json").write_text(json.dumps({"beacons": {}}))
+    assert main(["plot", str(tmp_path)]) == 2
+    assert "no 'beacons_table'" in capsys.readouterr().err

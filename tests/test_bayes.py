@@ -229,3 +229,69 @@ def test_sample_bad_input(tmp_path, capsys):
                  "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
     assert "line 2" in err and "'range'" in err and "-5" in err
+
+
+# --- review fixes: unusable starts, early option checks, no overflow -----------
+
+
+def _misplaced_beacon_survey():
+    sim = bm.simulate_survey("abe58", rng=6, n_cycles=500)
+    beacons = sim.survey.beacons.reset_index()
+    beacons.loc[beacons["beacon"] == "4", ["x", "y"]] = 0.0  # wrong position for beacon 4
+    return sim, beacons
+
+
+def test_misplaced_beacon_is_skipped_not_a_traceback():
+    sim, beacons = _misplaced_beacon_survey()
+    with pytest.warns(UserWarning) as record:
+        post = bm.sample(sim.survey.table, beacons, rng=0, **FAST)
+    messages = [str(w.message) for w in record]
+    assert any("beacon 4: the EM solution to start from" in m for m in messages)
+    assert "4" in post.skipped and "4" not in post.results
+    assert set(post.results) == {"1", "2", "3"}
+
+
+def test_unusable_start_raises_for_one_beacon():
+    from bayes_mpem.bayes import UnusableStartError
+
+    sim, beacons = _misplaced_beacon_survey()
+    survey = bm.load_survey(sim.survey.table, beacons)
+    with pytest.warns(bm.FitQualityWarning), pytest.raises(UnusableStartError,
+                                                           match="check this beacon|Check"):
+        sample_beacon(survey.for_beacon("4"), rng=0, **FAST)
+
+
+def test_no_multipath_beacon_is_flagged_and_not_sampled():
+    sim = bm.simulate_survey("abe58", rng=7, n_cycles=500,
+                             weights={b: (0.85, 0.0, 0.15) for b in "1234"})
+    with pytest.warns(bm.FitQualityWarning) as record:
+        fit = bm.fit(sim.survey, rng=0)
+    assert all(r.flags for r in fit.results.values())
+    assert any("multipath" in str(w.message) for w in record)
+    with pytest.warns(UserWarning):
+        post = bm.sample(sim.survey, rng=0, **FAST)
+    assert not post.results and set(post.skipped) == {"1", "2", "3", "4"}
+
+
+@pytest.mark.parametrize(("kw", "msg"), [({"ci": 1.5}, "ci: expected a probability"),
+                                         ({"n_ensembles": 0}, "n_ensembles: expected"),
+                                         ({"priors": "flat"}, "priors: expected"),
+                                         ({"concentration": -1}, "concentration: expected")])
+def test_sample_options_checked_before_any_work(kw, msg):
+    sim = bm.simulate_survey("abe58", rng=0, n_cycles=20)  # every beacon has < 30 replies
+    with pytest.raises(ValueError, match=msg):
+        bm.sample(sim.survey, **kw)
+    if "ci" not in kw and "priors" not in kw:  # compare() samples both priors, no ci
+        with pytest.raises(ValueError, match=msg):
+            bm.compare(sim.survey, **kw)
+
+
+def test_far_proposals_do_not_overflow(beacon4):
+    post = BeaconPosterior(beacon4)
+    theta = np.array([[2472.0, 1e4, 1e4, 0.5, 0.3], [2472.0, -1e4, np.log(4), 0.5, 0.3]])
+    assert np.all(post(theta) == -np.inf)  # warnings are errors here: no overflow warning
+
+
+def test_step_cap_warning_says_which_test_failed(beacon4):
+    with pytest.warns(SamplingWarning, match=r"kept \d+ = .* tau \(needs 50\).*bulk ESS"):
+        sample_beacon(beacon4, rng=0, max_steps=100, **FAST)

@@ -24,7 +24,8 @@ def test_simulate_writes_files(survey_files):
 def test_fit_command(survey_files, tmp_path, method, capsys):
     args = ["fit", str(survey_files / "pings.csv"), "--beacons",
             str(survey_files / "beacons.csv"), "--out", str(tmp_path), "--method", method,
-            "--sigma-dp", "3.97", "--pol", "0.1", "--alpha", "0.5", "--path", "triangle"]
+            "--sigma-dp", "3.97", "--path", "triangle"]
+    args += ["--pol", "0.1", "--alpha", "0.5"] if method == "paper" else ["--weights", "learned"]
     assert main(args) == 0
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["method"] == method
@@ -95,3 +96,26 @@ def test_version(capsys):
     with pytest.raises(SystemExit):
         main(["--version"])
     assert bm.__version__ in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(("extra", "msg"), [
+    (["--pol", "0.2"], "--pol and --alpha apply to --method paper only"),
+    (["--method", "paper", "--weights", "equal"], "--weights applies to --method mixture"),
+])
+def test_fit_refuses_options_of_the_other_method(survey_files, tmp_path, capsys, extra, msg):
+    code = main(["fit", str(survey_files / "pings.csv"), "--beacons",
+                 str(survey_files / "beacons.csv"), "--out", str(tmp_path), *extra])
+    assert code == 2 and msg in capsys.readouterr().err
+
+
+def test_fit_bad_pol_is_refused_even_for_the_mixture(survey_files):
+    with pytest.raises(ValueError, match="pol: expected a number in"):
+        bm.fit(survey_files / "pings.csv", survey_files / "beacons.csv", pol=2.0)
+
+
+def test_plot_with_nothing_fitted(survey_files, tmp_path, capsys):
+    with pytest.warns(bm.SkippedBeaconWarning):
+        res = bm.fit(survey_files / "pings.csv", survey_files / "beacons.csv", min_pings=10**6)
+    res.write(tmp_path)
+    assert main(["plot", str(tmp_path)]) == 2
+    assert "nothing to draw" in capsys.readouterr().err

@@ -361,3 +361,10 @@ def test_fast_and_exact_csv_readers_agree(tmp_path, beacons_csv):
     for path in (plain, quoted):
         with pytest.raises(InputError, match=r"line 4, column 'range'.*got '-4'"):
             load_survey(path, beacons_csv)
+
+
+def test_reserved_output_column_names_are_refused(tmp_path, beacons_csv):
+    p = tmp_path / "p.csv"
+    p.write_text("time,beacon,range,x,y,depth,label\n0,1,100,0,0,10,mine\n")
+    with pytest.raises(InputError, match=r"'label' would be overwritten by the results"):
+        load_survey(p, beacons_csv)

@@ -7,6 +7,7 @@ from scipy import optimize, special, stats
 import bayes_mpem as bm
 from bayes_mpem.em import (
     ConvergenceWarning,
+    FitQualityWarning,
     _State,
     estimate_sigma_dp,
     fit_mixture_em,
@@ -184,8 +185,10 @@ def test_triangle_model_rejects_double_bounce_data():
     sim = bm.simulate_survey("abe58", rng=1, path="double")
     data = sim.survey.for_beacon("4")
     right = fit_mixture_em(data, path="double", rng=0)
-    wrong = fit_mixture_em(data, path="triangle", rng=0)
+    with pytest.warns(FitQualityWarning, match="above the sea surface"):
+        wrong = fit_mixture_em(data, path="triangle", rng=0)
     assert right.loglik > wrong.loglik + 100
+    assert not right.flags and wrong.flags
 
 
 # --- the paper's EM --------------------------------------------------------
@@ -242,7 +245,8 @@ def test_paper_em_fails_when_the_direct_path_dominates(seed):
     """Documented failure (docs/paper-em.md): with 70 % direct path the eq. 8 average is
     dragged towards the direct-path plane heights and settles on a broad wrong solution."""
     sim = bm.simulate_survey("abe58", rng=seed)
-    res = fit_paper_em(sim.survey.for_beacon("1"), pol=0.05, alpha=0.5, sigma_dp=3.97)
+    with pytest.warns(FitQualityWarning, match="no coherent multipath band"):
+        res = fit_paper_em(sim.survey.for_beacon("1"), pol=0.05, alpha=0.5, sigma_dp=3.97)
     assert abs(res.d0 - 2392.0) > 500.0
     assert res.sigma_mp > 100.0
     good = fit_mixture_em(sim.survey.for_beacon("1"), rng=seed)

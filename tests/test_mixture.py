@@ -96,3 +96,19 @@ def test_weighted_densities_match_log_space(geom):
     ll, resp = e_step(geom, 2450.0, 4.0, 9.0, w)
     assert np.log(total).sum() == pytest.approx(ll, rel=1e-12)
     np.testing.assert_allclose(np.stack(terms, axis=1) / total[:, None], resp, atol=1e-12)
+
+
+def test_total_loglik_zero_outlier_weight_is_finite_when_every_range_is_near():
+    """No range left for the outlier-only term: 0 * log(0) must not make a NaN."""
+    from bayes_mpem.mixture import total_loglik
+
+    rng = np.random.default_rng(0)
+    h, dz = rng.uniform(100, 2000, 50), np.full(50, 30.0)
+    z = np.hypot(h, dz) + rng.normal(0, 3, 50)  # all direct path
+    g = BeaconGeometry.from_data(BeaconData.from_arrays(z, h, np.zeros(50), np.full(50, 2370.0),
+                                                        [0.0, 0.0, 2400.0]))
+    w = [np.full((1, 1), 0.5), np.full((1, 1), 0.5), np.zeros((1, 1))]
+    out = total_loglik(g, np.full((1, 1), 2400.0), np.full((1, 1), 500.0),
+                       np.full((1, 1), 500.0), w)
+    ref = loglik_per_range(g, 2400.0, 500.0, 500.0, [0.5, 0.5, 0.0]).sum()
+    assert np.isfinite(out[0]) and out[0] == pytest.approx(ref, rel=1e-12)

@@ -12,7 +12,13 @@ __version__ = "0.1.0"
 from .bayes import PosteriorResult, SamplingWarning, sample_beacon  # noqa: E402
 from .compare import SurveyComparison, compare, compare_beacon  # noqa: E402
 from .data import BeaconData, InputError, Survey, load_survey  # noqa: E402
-from .em import ConvergenceWarning, EMResult, fit_mixture_em, fit_paper_em  # noqa: E402
+from .em import (  # noqa: E402
+    ConvergenceWarning,
+    EMResult,
+    FitQualityWarning,
+    fit_mixture_em,
+    fit_paper_em,
+)
 from .fitting import SkippedBeaconWarning, SurveyFit, fit  # noqa: E402
 from .sampling import SurveyPosterior, sample  # noqa: E402
 from .simulate import Simulation, simulate_survey  # noqa: E402
@@ -21,6 +27,7 @@ __all__ = [
     "BeaconData",
     "ConvergenceWarning",
     "EMResult",
+    "FitQualityWarning",
     "InputError",
     "PosteriorResult",
     "SamplingWarning",

@@ -44,6 +44,39 @@ class SamplingWarning(UserWarning):
     """The chain hit its step cap before it was ``tau_factor`` autocorrelation times long."""
 
 
+class UnusableStartError(ValueError):
+    """The EM solution the walkers would start from lies outside the prior, or is flagged."""
+
+
+def check_sample_options(*, priors="learned", ci=0.95, n_ensembles=1, concentration=1.0,
+                         sigma_dp=None, path="triangle", tau_factor=50.0, min_ess=1000.0,
+                         max_steps=20000, n_draws=2000):
+    """Validate the sampler's options before any work (``ValueError`` naming the option)."""
+    from .geometry import check_path
+
+    check_path(path)
+    if priors not in PRIORS:
+        raise ValueError(f"priors: expected one of {PRIORS}, got {priors!r}")
+    checks = [("ci", ci, lambda v: 0.0 < v < 1.0, "a probability in (0, 1)"),
+              ("concentration", concentration, lambda v: v > 0, "a positive number"),
+              ("tau_factor", tau_factor, lambda v: v > 0, "a positive number"),
+              ("min_ess", min_ess, lambda v: v >= 0, "a number >= 0")]
+    if sigma_dp is not None:
+        checks.append(("sigma_dp", sigma_dp, lambda v: v > 0 and np.isfinite(v),
+                       "a positive number"))
+    for name, value, good, what in checks:
+        try:
+            ok = good(float(value))
+        except (TypeError, ValueError):
+            ok = False
+        if not ok:
+            raise ValueError(f"{name}: expected {what}, got {value!r}")
+    for name, value in (("n_ensembles", n_ensembles), ("max_steps", max_steps),
+                        ("n_draws", n_draws)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+            raise ValueError(f"{name}: expected an integer >= 1, got {value!r}")
+
+
 class BeaconPosterior:
     """Log-posterior of one beacon, vectorised over walkers.
 
@@ -130,23 +163,40 @@ class BeaconPosterior:
         return out
 
     def log_prior(self, theta):
-        """Log prior density of a ``(W, ndim)`` array (``-inf`` outside the support)."""
+        """Log prior density of a ``(W, ndim)`` array (``-inf`` outside the support).
+
+        Works on the sampler's coordinates directly, so a proposal far outside
+        the support is rejected without overflowing ``exp``.
+        """
         theta = np.atleast_2d(theta)
-        p = self.unpack(theta)
+        col = {n: theta[:, i] for i, n in enumerate(self.names)}
         lo, hi = self.log_sigma_bounds
-        ok = (p["d0"][:, 0] >= self.d0_bounds[0]) & (p["d0"][:, 0] <= self.d0_bounds[1])
+        ok = (col["d0"] >= self.d0_bounds[0]) & (col["d0"] <= self.d0_bounds[1])
         for name in ("log_sigma_mp", "log_sigma_dp"):
-            if name in self.names:
-                v = theta[:, self.names.index(name)]
-                ok &= (v >= lo) & (v <= hi)
+            if name in col:
+                ok &= (col[name] >= lo) & (col[name] <= hi)
         out = np.full(theta.shape[0], self._log_prior_const)
         if self.priors == "learned":
-            w = np.hstack([p["w_dp"], p["w_mp"], p["w_ol"]])
+            w = np.column_stack([col["w_dp"], col["w_mp"], 1.0 - col["w_dp"] - col["w_mp"]])
             ok &= np.all(w > 0, axis=1)
             with np.errstate(invalid="ignore", divide="ignore"):
                 out += self._dirichlet_norm + (self.concentration - 1.0) * np.log(
                     np.where(w > 0, w, 1.0)).sum(axis=1)
         out[~ok] = -np.inf
+        return out
+
+    def outside_prior(self, params: dict) -> list:
+        """Which natural parameters of ``params`` (e.g. an EM result) lie outside the prior."""
+        lo, hi = np.exp(self.log_sigma_bounds)
+        out = []
+        if not self.d0_bounds[0] <= params["d0"] <= self.d0_bounds[1]:
+            out.append(f"d0 = {params['d0']:.1f} m outside [{self.d0_bounds[0]:.1f}, "
+                       f"{self.d0_bounds[1]:.1f}]")
+        for k in ("sigma_mp", "sigma_dp"):
+            if (k == "sigma_mp" or self.sigma_dp is None) and not lo <= params[k] <= hi:
+                out.append(f"{k} = {params[k]:.3g} m outside [{lo:g}, {hi:g}]")
+        if self.priors == "learned" and min(params["weights"].values()) <= 0:
+            out.append(f"a mixing weight is 0 ({params['weights']})")
         return out
 
     def __call__(self, theta):
@@ -329,6 +379,8 @@ def run_ensemble(post: BeaconPosterior, start, *, seed, moves=None, tau_factor=5
     tau : numpy.ndarray
         Autocorrelation time of each parameter on the kept chain.
     converged : bool
+    status : str
+        How far the run got against each stopping test (for the warning).
     """
     n_walkers, ndim = start.shape
     sampler = emcee.EnsembleSampler(n_walkers, ndim, post, vectorize=True,
@@ -336,6 +388,7 @@ def run_ensemble(post: BeaconPosterior, start, *, seed, moves=None, tau_factor=5
     sampler.random_state = np.random.RandomState(seed % 2**32).get_state()
     bar = _progress_bar(progress, f"beacon {post.beacon} ({post.priors} priors)")
     state, burn, tau, converged = start, 0, np.full(ndim, np.inf), False
+    ess_bulk = 0.0
     try:
         while sampler.iteration < max_steps:
             state = sampler.run_mcmc(state, min(check_every, max_steps - sampler.iteration),
@@ -349,15 +402,24 @@ def run_ensemble(post: BeaconPosterior, start, *, seed, moves=None, tau_factor=5
                 bar.update(check_every)
                 bar.set_postfix(tau=f"{np.max(tau):.0f}",
                                 ess=f"{kept * n_walkers / np.max(tau):.0f}")
-            if kept > 0 and np.all(np.isfinite(tau)) and kept >= tau_factor * np.max(tau) \
-                    and kept * n_walkers / np.max(tau) >= min_ess \
-                    and (min_ess <= 0 or _bulk_ess_min(sampler.get_chain(discard=burn)) >= min_ess):
-                converged = True
-                break
+            long_enough = (kept > 0 and np.all(np.isfinite(tau))
+                           and kept >= tau_factor * np.max(tau)
+                           and kept * n_walkers / np.max(tau) >= min_ess)
+            if long_enough:
+                ess_bulk = (_bulk_ess_min(sampler.get_chain(discard=burn)) if min_ess > 0
+                            else np.inf)
+                if ess_bulk >= min_ess:
+                    converged = True
+                    break
     finally:
         if bar is not None:
             bar.close()
-    return sampler, burn, tau, converged
+    kept = sampler.iteration - burn
+    status = (f"{sampler.iteration} steps, burn-in {burn}, kept {kept} = "
+              f"{kept / np.max(tau):.1f} tau (needs {tau_factor:g}), emcee ESS "
+              f"{max(kept, 0) * n_walkers / np.max(tau):.0f} and bulk ESS "
+              f"{ess_bulk:.0f} (need {min_ess:g})")
+    return sampler, burn, tau, converged, status
 
 
 def _hdi(x, prob):
@@ -412,6 +474,7 @@ def sample_beacon(
     ci: float = 0.95,
     rng: RNGLike = None,
     progress="auto",
+    allow_flagged_start: bool = False,
 ) -> PosteriorResult:
     """Sample the posterior of one beacon with emcee, started from the EM solution.
 
@@ -449,10 +512,23 @@ def sample_beacon(
         The only source of randomness: same seed, same chain.
     progress : bool or "auto"
         Progress bar (``"auto"``: when standard error is a terminal).
+    allow_flagged_start : bool, default False
+        Sample even when the EM start carries fit-quality flags
+        (:func:`~bayes_mpem.em.quality_flags`: no multipath found, a plane above
+        the sea surface, ...); by default that raises, as such a posterior
+        describes no reflector and mixes slowly.
 
     Returns
     -------
     PosteriorResult
+
+    Raises
+    ------
+    UnusableStartError
+        When the EM solution lies outside the prior support or is flagged (a
+        sign of a wrong beacon position or of a beacon without multipath).
+    ValueError
+        For invalid options.
 
     Warns
     -----
@@ -462,21 +538,29 @@ def sample_beacon(
     import arviz_base as azb
     import arviz_stats as azs
 
-    if not 0.0 < float(ci) < 1.0:
-        raise ValueError(f"ci: expected a probability in (0, 1), got {ci!r}")
-    if int(n_ensembles) < 1:
-        raise ValueError(f"n_ensembles: expected an integer >= 1, got {n_ensembles!r}")
+    check_sample_options(priors=priors, ci=ci, n_ensembles=n_ensembles,
+                         concentration=concentration, sigma_dp=sigma_dp, path=path,
+                         tau_factor=tau_factor, min_ess=min_ess, max_steps=max_steps,
+                         n_draws=n_draws)
     gen = as_generator(rng)
     post = BeaconPosterior(data, priors=priors, sigma_dp=sigma_dp, path=path,
                            concentration=concentration)
     em = init or fit_mixture_em(data, path=path, sigma_dp=sigma_dp,
                                 weights="learned" if priors == "learned" else "equal", rng=gen)
+    bad = post.outside_prior(em.to_dict())
+    if bad or (em.flags and not allow_flagged_start):
+        where = (f"lies outside the prior support ({'; '.join(bad)})" if bad
+                 else "is not a credible reflector")
+        raise UnusableStartError(
+            f"beacon {data.beacon}: the EM solution to start from {where}"
+            + (f"; the EM fit was flagged: {'; '.join(em.flags)}" if em.flags else "")
+            + ". Check this beacon's position and ranges with 'bayes-mpem fit' first.")
     n_walkers = int(n_walkers or max(24, 4 * post.ndim))
     t0 = time.perf_counter()
-    chains, lps, taus, burns, accs, steps, conv = [], [], [], [], [], [], []
+    chains, lps, taus, burns, accs, steps, conv, status = [], [], [], [], [], [], [], []
     for _ in range(int(n_ensembles)):
         start = _start_ball(post, em, n_walkers, gen)
-        sampler, burn, tau, ok = run_ensemble(
+        sampler, burn, tau, ok, st = run_ensemble(
             post, start, seed=int(gen.integers(2**63)), moves=moves, tau_factor=tau_factor,
             min_ess=min_ess, max_steps=max_steps, progress=progress)
         chains.append(sampler.get_chain(discard=burn))
@@ -486,12 +570,13 @@ def sample_beacon(
         accs.append(float(np.mean(sampler.acceptance_fraction)))
         steps.append(sampler.iteration)
         conv.append(ok)
+        status.append(st)
     seconds = time.perf_counter() - t0
     if not all(conv):
-        warnings.warn(f"beacon {data.beacon}: the chain reached max_steps={max_steps} before it "
-                      f"was {tau_factor:g} autocorrelation times long with an ESS of "
-                      f"{min_ess:g} (tau = {np.max(taus):.0f} steps); estimates may be "
-                      "unreliable",
+        warnings.warn(f"beacon {data.beacon}: the chain reached max_steps={max_steps} before "
+                      "meeting its stopping rule: "
+                      + "; ".join(s for s, c in zip(status, conv, strict=True) if not c)
+                      + "; estimates may be unreliable",
                       SamplingWarning, stacklevel=2)
 
     # thin evenly to about n_draws draws in all; walkers become ArviZ chains
@@ -583,5 +668,5 @@ def _ensembles_as_chains(ds, n_ens):
     return xr.Dataset(out)
 
 
-__all__ = ["BeaconPosterior", "PosteriorResult", "SamplingWarning", "run_ensemble",
-           "sample_beacon"]
+__all__ = ["BeaconPosterior", "PosteriorResult", "SamplingWarning", "UnusableStartError",
+           "check_sample_options", "run_ensemble", "sample_beacon"]

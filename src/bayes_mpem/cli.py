@@ -18,12 +18,12 @@ def _add_fit_options(p):
                    help="multipath geometry: one reflected leg (default) or both")
     p.add_argument("--sigma-dp", type=float, default=None, metavar="S",
                    help="direct-path scatter in m (default: estimated from the data)")
-    p.add_argument("--pol", type=float, default=0.05, metavar="P",
-                   help="paper EM: outlier threshold Pol (default 0.05)")
-    p.add_argument("--alpha", type=float, default=0.5, metavar="A",
-                   help="paper EM: convergence factor alpha (default 0.5)")
-    p.add_argument("--weights", choices=["learned", "equal"], default="learned",
-                   help="mixture EM: learn the mixing weights (default) or fix them at 1/3")
+    p.add_argument("--pol", type=float, default=None, metavar="P",
+                   help="paper EM only: outlier threshold Pol (default 0.05)")
+    p.add_argument("--alpha", type=float, default=None, metavar="A",
+                   help="paper EM only: convergence factor alpha (default 0.5)")
+    p.add_argument("--weights", choices=["learned", "equal"], default=None,
+                   help="mixture EM only: learn the mixing weights (default) or fix them at 1/3")
     p.add_argument("--min-pings", type=int, default=30, metavar="N",
                    help="leave beacons with fewer replies unfitted (default 30)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
@@ -88,16 +88,27 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--path", choices=["triangle", "double"], default="triangle")
         p.add_argument("--sigma-dp", type=float, default=None, metavar="S",
                        help="fix sigma_DP (m) instead of sampling it")
-        p.add_argument("--concentration", type=float, default=1.0, metavar="C",
+        p.add_argument("--concentration", type=float, default=None, metavar="C",
                        help="Dirichlet concentration of the learned weights (default 1)")
         p.add_argument("--min-pings", type=int, default=30, metavar="N")
         p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     return parser
 
 
+class _OptionError(ValueError):
+    """An option that does not apply to the chosen method."""
+
+
 def _fit_kwargs(args):
-    return dict(method=args.method, path=args.path, sigma_dp=args.sigma_dp, pol=args.pol,
-                alpha=args.alpha, weights=args.weights, min_pings=args.min_pings, rng=args.seed)
+    if args.method == "mixture" and (args.pol is not None or args.alpha is not None):
+        raise _OptionError("--pol and --alpha apply to --method paper only")
+    if args.method == "paper" and args.weights is not None:
+        raise _OptionError("--weights applies to --method mixture only (the paper's EM has "
+                           "no mixing weights)")
+    return dict(method=args.method, path=args.path, sigma_dp=args.sigma_dp,
+                pol=0.05 if args.pol is None else args.pol,
+                alpha=0.5 if args.alpha is None else args.alpha,
+                weights=args.weights or "learned", min_pings=args.min_pings, rng=args.seed)
 
 
 def _report(result, paths):
@@ -173,7 +184,12 @@ def cmd_plot(args):
     from .report import load_output, write_figures
 
     result = load_output(args.result_dir)
-    paths = write_figures(result, args.out or args.result_dir, beacon=args.beacon)
+    if not result.results:
+        print(f"bayes-mpem plot: {args.result_dir} holds no fitted beacon "
+              f"(skipped: {result.skipped or 'none'}); nothing to draw", file=sys.stderr)
+        return 2
+    beacon = None if args.beacon is None else args.beacon.strip()  # ids are text, as in CSVs
+    paths = write_figures(result, args.out or args.result_dir, beacon=beacon)
     for p in paths:
         print(f"wrote {p}")
     return 0
@@ -205,7 +221,10 @@ def cmd_fit(args):
 
 
 def _sample_kwargs(args):
-    return dict(path=args.path, sigma_dp=args.sigma_dp, concentration=args.concentration,
+    if getattr(args, "priors", None) == "equal" and args.concentration is not None:
+        raise _OptionError("--concentration applies to --priors learned only")
+    return dict(path=args.path, sigma_dp=args.sigma_dp,
+                concentration=1.0 if args.concentration is None else args.concentration,
                 min_pings=args.min_pings, rng=args.seed,
                 progress=False if args.no_progress else "auto")
 

@@ -24,7 +24,7 @@ import numpy as np
 import pandas as pd
 
 from ._rng import RNGLike, as_generator
-from .bayes import PosteriorResult, sample_beacon
+from .bayes import PosteriorResult, UnusableStartError, check_sample_options, sample_beacon
 from .data import BeaconData, Survey, load_survey
 from .fitting import fittable_beacons
 
@@ -270,10 +270,18 @@ def compare(pings, beacons=None, *, min_pings: int = 30, rng: RNGLike = None,
     -------
     SurveyComparison
     """
+    from .sampling import _option_subset, skip_beacon
+
+    check_sample_options(**_option_subset(kwargs))
     survey = load_survey(pings, beacons)
     gen = as_generator(rng)
     fittable, skipped = fittable_beacons(survey, min_pings)
-    results = {d.beacon: compare_beacon(d, rng=gen, **kwargs) for d in fittable}
+    results = {}
+    for d in fittable:
+        try:
+            results[d.beacon] = compare_beacon(d, rng=gen, **kwargs)
+        except UnusableStartError as exc:
+            skip_beacon(skipped, d.beacon, str(exc))
     return SurveyComparison(survey=survey, results=results, skipped=skipped)
 
 

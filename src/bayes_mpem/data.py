@@ -19,10 +19,13 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-__all__ = ["BEACON_COLUMNS", "PING_COLUMNS", "BeaconData", "InputError", "Survey",
+__all__ = ["BEACON_COLUMNS", "PING_COLUMNS", "RESERVED_COLUMNS", "BeaconData", "InputError",
+           "Survey",
            "load_survey", "read_beacons", "read_pings"]
 
 PING_COLUMNS = ("time", "beacon", "range", "x", "y", "depth")
+#: Columns the results add to every input row; an input column of that name would be lost.
+RESERVED_COLUMNS = ("p_dp", "p_mp", "p_ol", "p_dp_sd", "p_mp_sd", "p_ol_sd", "label", "reason")
 BEACON_COLUMNS = ("beacon", "x", "y", "depth")
 MAX_LISTED = 10
 _UNITS = {"time": "s", "range": "m", "x": "m", "y": "m", "depth": "m"}
@@ -275,6 +278,13 @@ def _pings(source: Any, name: str | None) -> tuple[_Table, dict[str, np.ndarray]
     """Parse pings; cell problems are collected, not raised (load_survey adds to them)."""
     table = _load(source, name, "pings")
     _check_columns(table, PING_COLUMNS, "pings")
+    taken = [c for c in RESERVED_COLUMNS if c in table.frame.columns]
+    if taken:
+        raise InputError(
+            f"{table.source}: column(s) {', '.join(map(repr, taken))} would be overwritten by "
+            f"the results, which add {', '.join(map(repr, RESERVED_COLUMNS))} to every row; "
+            "rename them (a classified.csv from an earlier run is read back by "
+            "'bayes-mpem plot', not by 'fit')")
     problems = _Problems(table.source)
     arrays = {c: _numeric_column(table, c, problems, allow_missing=c == "range",
                                  positive=c == "range")

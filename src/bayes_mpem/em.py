@@ -16,6 +16,7 @@ E-step at the returned parameters.
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 from dataclasses import dataclass, field
 
@@ -30,6 +31,56 @@ from .mixture import CLASSES, BeaconGeometry, e_step, gaussian_logpdf
 
 class ConvergenceWarning(UserWarning):
     """An EM run stopped at ``max_iter`` before meeting its stopping rule."""
+
+
+class FitQualityWarning(UserWarning):
+    """A fit converged to something that is not a credible reflector (see ``EMResult.flags``)."""
+
+
+def quality_flags(result, data: BeaconData, *, sigma_floor: float = 0.05) -> tuple:
+    """Reasons why a fitted reflector is not credible (empty when it is).
+
+    Parameters
+    ----------
+    result : EMResult
+    data : BeaconData
+    sigma_floor : float
+        The scale floor the fit used.
+
+    Returns
+    -------
+    tuple of str
+        Checked: almost no range is multipath (fewer than 10 ranges' worth), the
+        multipath scale stuck at its floor (collapsed onto a few ranges) or above
+        100 m (no coherent multipath), almost no range on the direct path (a wrong
+        beacon position or navigation), and a plane above the sea surface.
+    """
+    flags = []
+    n_mp = float(result.resp[:, 1].sum()) if result.n else 0.0
+    if n_mp < 10:
+        flags.append(f"only {n_mp:.1f} ranges' worth of multipath: no reflector identified")
+    if result.sigma_mp <= 1.05 * sigma_floor:
+        flags.append(f"sigma_MP = {result.sigma_mp:.3g} m is at its floor: the multipath "
+                     "component collapsed onto a few ranges")
+    elif result.sigma_mp > 100.0:
+        flags.append(f"sigma_MP = {result.sigma_mp:.0f} m: no coherent multipath band")
+    if result.n and float(result.resp[:, 0].mean()) < 0.01:
+        flags.append("almost no range matches the direct path: check the beacon position "
+                     "and the navigation")
+    depth = float(data.position[2])
+    if result.d0 > depth + 10.0:
+        flags.append(f"the plane is {result.d0 - depth:.0f} m above the sea surface "
+                     f"(d0 = {result.d0:.0f} m, beacon depth {depth:.0f} m)")
+    return tuple(flags)
+
+
+def _with_flags(result, data, sigma_floor):
+    """``result`` with its quality flags set, warning once if there are any."""
+    flags = quality_flags(result, data, sigma_floor=sigma_floor)
+    if flags:
+        warnings.warn(f"beacon {data.beacon} ({result.method} EM): " + "; ".join(flags),
+                      FitQualityWarning, stacklevel=3)
+    return dataclasses.replace(result, flags=flags)
 
 
 @dataclass(frozen=True)
@@ -64,6 +115,9 @@ class EMResult:
         ``sigma_mp / sqrt(sum_k p_mp(k) (d z_MP / d d0)_k^2)``, the Fisher
         information of the multipath ranges given their class probabilities.
         Calibrated on simulated surveys (``docs/recovery.md``).
+    flags : tuple of str
+        Why the result is not a credible reflector (:func:`quality_flags`);
+        empty for a good fit. A :class:`FitQualityWarning` repeats them.
     history : dict of numpy.ndarray
         Per-iteration values, index 0 being the initial state: ``d0``,
         ``sigma_mp``, ``sigma_dp``, ``p_dp``, ``p_mp``, ``p_ol`` (mean class
@@ -90,6 +144,7 @@ class EMResult:
     first_resp: np.ndarray = field(repr=False)
     settings: dict = field(default_factory=dict)
     d0_se: float | None = None
+    flags: tuple = ()
 
     @property
     def n(self) -> int:
@@ -121,6 +176,7 @@ class EMResult:
             "converged": self.converged,
             "loglik": self.loglik,
             "d0_se": self.d0_se,
+            "flags": list(self.flags),
             "method": self.method,
             "path": self.path,
             "settings": dict(self.settings),
@@ -370,7 +426,7 @@ def fit_paper_em(
             stacklevel=2,
         )
     mean = _mean_resp_history(resp)
-    return EMResult(
+    return _with_flags(EMResult(
         beacon=data.beacon,
         method="paper",
         path=path,
@@ -388,7 +444,7 @@ def fit_paper_em(
         settings={"pol": float(pol), "alpha": float(alpha), "d0_init": float(d0_init),
                   "sigma_mp2_init": float(sigma_mp2_init), "tol": float(tol),
                   "sigma_dp_fixed": sigma_dp is not None},
-    )
+    ), data, 0.0)
 
 
 # --------------------------------------------------------------------------
@@ -651,7 +707,7 @@ def fit_mixture_em(
     jac = geometry.multipath_derivative(geom.h, geom.dz, state.d0, path)
     info = _wdot(resp[:, 1], jac * jac)
     d0_se = state.sigma_mp / np.sqrt(info) if info > 0 else float("inf")
-    return EMResult(
+    return _with_flags(EMResult(
         beacon=data.beacon,
         method="mixture",
         path=path,
@@ -669,12 +725,14 @@ def fit_mixture_em(
         settings={"weights": weights, "sigma_dp_fixed": fixed_dp is not None,
                   "n_starts": len(starts), "tol": float(tol), "sigma_floor": float(sigma_floor)},
         d0_se=float(d0_se),
-    )
+    ), data, float(sigma_floor))
 
 
 __all__ = [
     "ConvergenceWarning",
     "EMResult",
+    "FitQualityWarning",
+    "quality_flags",
     "estimate_sigma_dp",
     "fit_mixture_em",
     "fit_paper_em",

@@ -300,5 +300,7 @@ def total_loglik(geom: BeaconGeometry, d0, sigma_dp, sigma_mp, weights, path="tr
         -0.5 * (rm * rm) / (sigma_mp * sigma_mp))
     n_rest = geom.n - cols.size
     with np.errstate(divide="ignore"):
-        out = np.log(dens).sum(axis=-1) + n_rest * np.log(ol).ravel()
+        out = np.log(dens).sum(axis=-1)
+        if n_rest:  # (0 * log(0) would be NaN when w_ol = 0 and nothing is left)
+            out = out + n_rest * np.log(ol).ravel()
     return out - geom.n * _LOG_SQRT_2PI

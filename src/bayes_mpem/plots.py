@@ -245,24 +245,28 @@ def pol_sensitivity(data, pols, **kwargs):
     -------
     dict of numpy.ndarray
         ``pol``, ``d0``, ``sigma_mp``, ``p_dp``, ``p_mp``, ``p_ol`` (mean class
-        probabilities) and ``converged``.
+        probabilities), ``converged`` and ``flags`` (the fit-quality flags of each
+        run, collected instead of warned about).
     """
     import warnings
 
-    from .em import ConvergenceWarning, fit_paper_em
+    from .em import ConvergenceWarning, FitQualityWarning, fit_paper_em
 
-    out = {k: [] for k in ("pol", "d0", "sigma_mp", "p_dp", "p_mp", "p_ol", "converged")}
+    out = {k: [] for k in ("pol", "d0", "sigma_mp", "p_dp", "p_mp", "p_ol", "converged",
+                           "flags")}
     for pol in pols:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ConvergenceWarning)
+            warnings.simplefilter("ignore", FitQualityWarning)
             r = fit_paper_em(data, pol=pol, **kwargs)
+        out["flags"].append(list(r.flags))
         out["pol"].append(pol)
         out["d0"].append(r.d0)
         out["sigma_mp"].append(r.sigma_mp)
         for c in ("dp", "mp", "ol"):
             out["p_" + c].append(r.weights[c])
         out["converged"].append(r.converged)
-    return {k: np.asarray(v) for k, v in out.items()}
+    return {k: (v if k == "flags" else np.asarray(v)) for k, v in out.items()}
 
 
 def plot_pol_sensitivity(sens, *, fig=None, truth=None):

@@ -16,7 +16,7 @@ import numpy as np
 import pandas as pd
 
 from . import bayes_plots, plots
-from .data import InputError, load_survey
+from .data import RESERVED_COLUMNS, InputError, load_survey
 from .em import EMResult
 from .fitting import SurveyFit
 from .mixture import CLASSES
@@ -24,7 +24,7 @@ from .sampling import SurveyPosterior
 
 #: Pol values of the paper's Fig. 12 as drawn here.
 POL_GRID = (0.01, 0.02, 0.05, 0.1, 0.15, 0.2, 0.3)
-_ADDED = {"p_dp", "p_mp", "p_ol", "p_dp_sd", "p_mp_sd", "p_ol_sd", "label", "reason"}
+_ADDED = set(RESERVED_COLUMNS)
 
 
 def _save(fig, path, dpi=110):

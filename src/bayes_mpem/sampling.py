@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import json
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from ._rng import RNGLike, as_generator
-from .bayes import PosteriorResult, sample_beacon
+from .bayes import PosteriorResult, UnusableStartError, check_sample_options, sample_beacon
 from .data import Survey, load_survey
 from .fitting import beacons_table, classified_table, fittable_beacons
 from .mixture import CLASSES
@@ -156,6 +157,17 @@ def sample(
     -------
     SurveyPosterior
 
+    Raises
+    ------
+    ValueError
+        For invalid options, before any sampling.
+
+    Warns
+    -----
+    SkippedBeaconWarning
+        For a beacon with too few replies, or whose EM solution lies outside the
+        prior (it is left unsampled, with the reason, instead of stopping the survey).
+
     Examples
     --------
     >>> import bayes_mpem
@@ -165,14 +177,32 @@ def sample(
     >>> bool(lo < 2472 < hi)
     True
     """
+    check_sample_options(priors=priors, ci=ci, **_option_subset(kwargs))
     survey = load_survey(pings, beacons)
     gen = as_generator(rng)
     fittable, skipped = fittable_beacons(survey, min_pings)
     results: dict[str, PosteriorResult] = {}
     for data in fittable:
-        results[data.beacon] = sample_beacon(data, priors=priors, ci=ci, rng=gen, **kwargs)
+        try:
+            results[data.beacon] = sample_beacon(data, priors=priors, ci=ci, rng=gen, **kwargs)
+        except UnusableStartError as exc:
+            skip_beacon(skipped, data.beacon, str(exc))
     return SurveyPosterior(survey=survey, results=results, skipped=skipped, priors=priors,
                            ci=float(ci), options={"min_pings": min_pings, **kwargs})
 
 
-__all__ = ["SurveyPosterior", "sample"]
+def _option_subset(kwargs):
+    keys = ("n_ensembles", "concentration", "sigma_dp", "path", "tau_factor", "min_ess",
+            "max_steps", "n_draws")
+    return {k: kwargs[k] for k in keys if k in kwargs}
+
+
+def skip_beacon(skipped: dict, beacon: str, why: str) -> None:
+    """Record ``beacon`` as unfitted with ``why`` and warn."""
+    from .fitting import SkippedBeaconWarning
+
+    warnings.warn(why + "; left unsampled", SkippedBeaconWarning, stacklevel=3)
+    skipped[beacon] = why
+
+
+__all__ = ["SurveyPosterior", "sample", "skip_beacon"]

@@ -422,18 +422,6 @@ def run_ensemble(post: BeaconPosterior, start, *, seed, moves=None, tau_factor=5
     return sampler, burn, tau, converged, status
 
 
-def _hdi(x, prob):
-    """Narrowest interval holding ``prob`` of the draws ``x`` (1-D)."""
-    x = np.sort(np.asarray(x).ravel())
-    n = x.size
-    k = max(int(np.floor(prob * n)), 1)
-    if k >= n:
-        return float(x[0]), float(x[-1])
-    widths = x[k:] - x[: n - k]
-    i = int(np.argmin(widths))
-    return float(x[i]), float(x[i + k])
-
-
 def _pointwise(post, draws, chunk=64):
     """Per-range log-likelihood of every draw, and the mean and sd over draws of each
     range's class probabilities, in one pass over chunks of draws (never a
@@ -651,7 +639,9 @@ def sample_beacon(
 
 
 def _describe(x, ci):
-    lo, hi = _hdi(x, ci)
+    import arviz_stats as azs
+
+    lo, hi = (float(v) for v in azs.hdi(np.ravel(x), prob=ci))  # highest-density interval
     return {"mean": float(np.mean(x)), "sd": float(np.std(x, ddof=1)) if x.size > 1 else 0.0,
             "interval": [lo, hi]}
 

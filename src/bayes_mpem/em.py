@@ -241,6 +241,24 @@ def _check_positive(name, value, *, allow_none=False):
     return v
 
 
+def check_options(*, path="triangle", weights="learned", pol=0.05, alpha=0.5, sigma_dp=None):
+    """Validate the options of both EMs (``ValueError`` naming the option); used up front.
+
+    Returns
+    -------
+    float or None
+        ``sigma_dp`` as a float (``None`` when it is to be estimated).
+    """
+    geometry.check_path(path)
+    if weights not in ("learned", "equal"):
+        raise ValueError(f"weights: expected 'learned' or 'equal', got {weights!r}")
+    if not 0.0 < float(pol) < 1.0:
+        raise ValueError(f"pol: expected a number in (0, 1), got {pol!r}")
+    if not 0.0 < float(alpha) <= 1.0:
+        raise ValueError(f"alpha: expected a number in (0, 1], got {alpha!r}")
+    return _check_positive("sigma_dp", sigma_dp, allow_none=True)
+
+
 def _check_max_iter(max_iter):
     if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
         raise ValueError(f"max_iter: expected an integer >= 1, got {max_iter!r}")
@@ -368,6 +386,8 @@ def fit_paper_em(
     -----
     ConvergenceWarning
         When ``max_iter`` is reached first.
+    FitQualityWarning
+        When the result is not a credible reflector (:func:`quality_flags`).
 
     Examples
     --------
@@ -378,18 +398,14 @@ def fit_paper_em(
     >>> abs(res.d0 - 2472) < 10
     True
     """
-    geometry.check_path(path)
-    if not 0.0 < float(pol) < 1.0:
-        raise ValueError(f"pol: expected a number in (0, 1), got {pol!r}")
-    if not 0.0 < float(alpha) <= 1.0:
-        raise ValueError(f"alpha: expected a number in (0, 1], got {alpha!r}")
+    fixed_dp = check_options(path=path, pol=pol, alpha=alpha, sigma_dp=sigma_dp)
     _check_positive("sigma_mp2_init", sigma_mp2_init)
     _check_positive("tol", tol)
     _check_max_iter(max_iter)
     if not np.isfinite(float(d0_init)):
         raise ValueError(f"d0_init: expected a finite number, got {d0_init!r}")
     geom = BeaconGeometry.from_data(data)
-    s_dp = _check_positive("sigma_dp", sigma_dp, allow_none=True) or estimate_sigma_dp(geom)
+    s_dp = fixed_dp or estimate_sigma_dp(geom)
     d0, s_mp = float(d0_init), float(np.sqrt(sigma_mp2_init))
     d0k = geometry.invert_plane_height(geom.z, geom.h, geom.dz, path, direct=geom.direct)
     hist = {k: [] for k in ("d0", "sigma_mp", "sigma_dp", "p_dp", "p_mp", "p_ol")}
@@ -627,6 +643,8 @@ def fit_mixture_em(
     -----
     ConvergenceWarning
         When ``max_iter`` is reached first.
+    FitQualityWarning
+        When the result is not a credible reflector (:func:`quality_flags`).
 
     Examples
     --------
@@ -637,10 +655,7 @@ def fit_mixture_em(
     >>> abs(res.d0 - 2472) < 3
     True
     """
-    geometry.check_path(path)
-    if weights not in ("learned", "equal"):
-        raise ValueError(f"weights: expected 'learned' or 'equal', got {weights!r}")
-    fixed_dp = _check_positive("sigma_dp", sigma_dp, allow_none=True)
+    fixed_dp = check_options(path=path, weights=weights, sigma_dp=sigma_dp)
     if int(n_init) < 1:
         raise ValueError(f"n_init: expected an integer >= 1, got {n_init!r}")
     _check_max_iter(max_iter)

@@ -18,8 +18,7 @@ import pandas as pd
 
 from ._rng import RNGLike, as_generator
 from .data import Survey, load_survey
-from .em import EMResult, fit_mixture_em, fit_paper_em
-from .geometry import check_path
+from .em import EMResult, check_options, fit_mixture_em, fit_paper_em
 from .mixture import CLASSES
 
 METHODS = ("mixture", "paper")
@@ -309,15 +308,7 @@ def fit(
     """
     if method not in METHODS:
         raise ValueError(f"method: expected one of {METHODS}, got {method!r}")
-    check_path(path)  # the rest of the options too, before any work
-    if weights not in ("learned", "equal"):
-        raise ValueError(f"weights: expected 'learned' or 'equal', got {weights!r}")
-    if not 0.0 < float(pol) < 1.0:
-        raise ValueError(f"pol: expected a number in (0, 1), got {pol!r}")
-    if not 0.0 < float(alpha) <= 1.0:
-        raise ValueError(f"alpha: expected a number in (0, 1], got {alpha!r}")
-    if sigma_dp is not None and not (float(sigma_dp) > 0 and np.isfinite(float(sigma_dp))):
-        raise ValueError(f"sigma_dp: expected a positive number, got {sigma_dp!r}")
+    check_options(path=path, weights=weights, pol=pol, alpha=alpha, sigma_dp=sigma_dp)
     survey = load_survey(pings, beacons)
     gen = as_generator(rng)
     results = {}

@@ -280,12 +280,16 @@ def main(argv=None) -> int:
     matplotlib.use("Agg")  # the command line only writes files; never opens a window
     handler = {"demo": cmd_demo, "simulate": cmd_simulate, "fit": cmd_fit, "plot": cmd_plot,
                "sample": cmd_sample, "compare": cmd_compare}[args.command]
-    warnings.simplefilter("default")
-    try:
-        return handler(args)
-    except (InputError, ValueError, FileNotFoundError) as exc:
-        print(f"bayes-mpem {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+    with warnings.catch_warnings():  # restores the caller's filters and showwarning
+        warnings.simplefilter("default")
+        # one line per warning, no source excerpt: messages for the user, not tracebacks
+        warnings.showwarning = lambda msg, cat, *args, **kwargs: print(
+            f"{cat.__name__}: {msg}", file=sys.stderr)
+        try:
+            return handler(args)
+        except (InputError, ValueError, FileNotFoundError) as exc:
+            print(f"bayes-mpem {args.command}: error: {exc}", file=sys.stderr)
+            return 2
 
 
 if __name__ == "__main__":  # pragma: no cover

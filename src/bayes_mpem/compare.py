@@ -10,7 +10,7 @@ approximation behind the SE is unreliable (Sivula, Magnusson & Vehtari 2020;
 Vehtari's cross-validation FAQ). On surveys simulated with equal weights the
 learned model loses 0.7-1.6 nats (the price of two extra parameters) with an
 SE of 0.6-1.4 (``docs/bayes-calibration.md``), so a 2-SE rule alone would
-sometimes "prefer" equal priors there (-1.4 +- 0.6 on one of six surveys).
+sometimes "prefer" equal priors there (-1.6 +- 0.6 on one of six surveys).
 """
 
 from __future__ import annotations

@@ -5,7 +5,7 @@ import importlib
 
 import pytest
 
-MODULES = ["geometry", "mixture", "em", "simulate", "fitting", "data", "plots", "bayes",
+MODULES = ["geometry", "mixture", "em", "simulate", "fitting", "data", "plots", "bayes", "readers",
            "sampling", "compare", "bayes_plots"]
 
 

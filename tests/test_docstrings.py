@@ -5,7 +5,7 @@ import importlib
 
 import pytest
 
-MODULES = ["geometry", "mixture", "em", "simulate", "fitting", "data", "plots", "bayes", "readers",
+MODULES = ["geometry", "mixture", "em", "simulate", "fitting", "data", "plots", "bayes", "readers", "locate",
            "sampling", "compare", "bayes_plots"]
 
 

@@ -70,6 +70,18 @@ def build_parser() -> argparse.ArgumentParser:
                    help="also write the figures (as 'bayes-mpem plot' does)")
     _add_fit_options(p)
 
+    p = sub.add_parser("locate", help="locate a transponder from a ranging survey (EM)")
+    p.add_argument("survey", metavar="SURVEY", help="survey file (obsdata.inp for SeaGap)")
+    p.add_argument("--format", required=True,
+                   choices=["obsrange", "obsrange-sio", "obsrange-whoi", "seagap"],
+                   help="'obsrange' detects the SIO or WHOI variant")
+    p.add_argument("--out", required=True, metavar="DIR")
+    p.add_argument("--tat", type=float, default=None, metavar="S",
+                   help="turn-around time in s (default: the file's, else 0.013; SeaGap 0)")
+    p.add_argument("--fit-tat", action="store_true",
+                   help="fit the turn-around time too (often not identifiable)")
+    p.add_argument("--ci", type=float, default=0.95, help="interval probability (default 0.95)")
+
     for name, helptext in (("sample", "sample each beacon's posterior with emcee"),
                            ("compare", "compare equal (paper) and learned mixing priors by LOO")):
         p = sub.add_parser(name, help=helptext)
@@ -250,6 +262,35 @@ def cmd_sample(args):
     return 0
 
 
+def cmd_locate(args):
+    import json
+
+    from .locate import locate_survey
+    from .readers import read_survey
+
+    fmt = args.format
+    if fmt == "obsrange":  # the WHOI variant starts with a '#' comment header
+        with open(args.survey, encoding="utf-8-sig", errors="replace") as fh:
+            first = next((ln for ln in fh if ln.strip()), "")
+        fmt = "obsrange-whoi" if first.lstrip().startswith("#") else "obsrange-sio"
+    raw = read_survey(args.survey, fmt)
+    summary, classified = locate_survey(raw, tat=args.tat, fit_tat=args.fit_tat, ci=args.ci)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    classified.to_csv(out / "classified.csv", index=False)
+    for tid, t in summary["transponders"].items():
+        lo, hi = t["depth"]["interval"]
+        where = f"lat {t['lat']:.6f} lon {t['lon']:.6f}" if t["lat"] is not None else \
+            f"east {t['east']['mean']:.2f} north {t['north']['mean']:.2f} m"
+        print(f"transponder {tid}: {where}, depth {t['depth']['mean']:.2f} m "
+              f"[{lo:.2f}, {hi:.2f}], sound speed {t['sound_speed']['mean']:.2f} m/s, "
+              f"{t['n_spurious']} spurious of {t['n']} pings, rms {t['sigma_ms']:.2f} ms")
+    print(f"{summary['n_skipped_lines']} lines skipped (reasons in classified.csv)")
+    print(f"wrote {out / 'summary.json'}\nwrote {out / 'classified.csv'}")
+    return 0
+
+
 def cmd_compare(args):
     from .compare import compare
 
@@ -279,7 +320,7 @@ def main(argv=None) -> int:
 
     matplotlib.use("Agg")  # the command line only writes files; never opens a window
     handler = {"demo": cmd_demo, "simulate": cmd_simulate, "fit": cmd_fit, "plot": cmd_plot,
-               "sample": cmd_sample, "compare": cmd_compare}[args.command]
+               "sample": cmd_sample, "compare": cmd_compare, "locate": cmd_locate}[args.command]
     with warnings.catch_warnings():  # restores the caller's filters and showwarning
         warnings.simplefilter("default")
         # one line per warning, no source excerpt: messages for the user, not tracebacks

@@ -1,0 +1,116 @@
+"""Transponder location by EM: simulated truth, OBSrange's CC03 solution, spurious pings."""
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from bayes_mpem.data import InputError
+from bayes_mpem.locate import LocateWarning, enu_to_geodetic, locate
+from bayes_mpem.readers import geodetic_to_enu, read_survey
+
+DATA = Path(__file__).resolve().parents[1] / "data" / "obsrange"
+FILES = [("SIO_CC03.txt", "obsrange-sio"), ("SIO_EC03.txt", "obsrange-sio"),
+         ("SIO_WC03.txt", "obsrange-sio"), ("WHOI_S05.txt", "obsrange-whoi")]
+
+
+def _simulated(seed, n=150, depth=4000.0, c=1505.0, tat=0.013, sigma=1e-3, p_bad=0.06):
+    rng = np.random.default_rng(seed)
+    ang = np.linspace(0, 2 * np.pi, n)
+    x, y = 3000 * np.cos(ang) + rng.normal(0, 20, n), 3000 * np.sin(ang) + rng.normal(0, 20, n)
+    truth = np.array([35.0, -60.0, depth])
+    t = 2 * np.sqrt((x - truth[0]) ** 2 + (y - truth[1]) ** 2 + depth**2) / c + tat
+    t += rng.normal(0, sigma, n)
+    bad = rng.random(n) < p_bad
+    t[bad] = rng.uniform(0.5, 8.0, bad.sum())
+    pings = pd.DataFrame({"beacon": "T", "twtt": t, "x": x, "y": y, "depth": 0.0})
+    beacons = pd.DataFrame({"beacon": ["T"], "x": [0.0], "y": [0.0], "depth": [depth + 100]})
+    return pings, beacons, truth, bad
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_recovers_a_simulated_transponder(seed):
+    pings, beacons, truth, bad = _simulated(seed)
+    r = locate(pings, beacons)
+    for k, v in zip(("east", "north", "depth"), truth, strict=True):
+        assert abs(getattr(r, k) - v) < 4 * r.sd[k], (k, getattr(r, k), v, r.sd[k])
+    assert abs(r.sound_speed - 1505.0) < 4 * r.sd["sound_speed"]
+    np.testing.assert_array_equal(r.p_true < 0.5, bad)
+    assert r.sigma == pytest.approx(1e-3, rel=0.2)
+
+
+def test_cc03_agrees_with_obsrange_within_its_2_sigma():
+    """OBSrange's published CC03 bootstrap solution (data/obsrange/CC03_obsrange_solution.txt)."""
+    raw = read_survey(DATA / "SIO_CC03.txt", "obsrange-sio")
+    r = locate(*raw.to_pings())
+    e, n, _ = geodetic_to_enu(-4.88160, -132.68895, 0.0, raw.header["lat"], raw.header["lon"])
+    assert abs(r.east - 13.36722) < 1.07463 and abs(r.north - 89.27011) < 1.50812
+    assert abs(r.depth - 4739.12772) < 3.54529
+    assert abs(r.sound_speed - 1506.86306) < 1.01580
+    lat, lon, _ = enu_to_geodetic(r.east, r.north, 0.0, raw.header["lat"], raw.header["lon"])
+    assert abs(lat - -4.88160) < 1e-5 + 5e-6 and abs(lon - -132.68895) < 1e-5 + 5e-6
+    assert r.n_spurious == 3  # OBSrange: "Bad Pings Removed: 3"
+    assert 1e3 * r.sigma == pytest.approx(1.54414, abs=0.33)  # OBSrange RMS 1.54 +- 0.33 ms
+
+
+@pytest.mark.parametrize(("name", "fmt"), FILES)
+def test_spurious_pings_match_a_robust_residual_check(name, fmt):
+    raw = read_survey(DATA / name, fmt)
+    r = locate(*raw.to_pings())
+    t = raw.pings["twtt"].to_numpy()
+    # independent check: residuals of a median-based straight-ray fit (the test's own)
+    x, y = geodetic_to_enu(raw.pings["lat"], raw.pings["lon"], 0, raw.header["lat"],
+                           raw.header["lon"])[:2]
+    pred = 2 * np.sqrt((x - r.east) ** 2 + (y - r.north) ** 2 + r.depth**2) / r.sound_speed + r.tat
+    res = t - pred
+    mad = 1.4826 * np.median(np.abs(res - np.median(res)))
+    outlying = np.abs(res - np.median(res)) > 8 * mad
+    clean = np.abs(res - np.median(res)) < 3 * mad
+    assert np.all(r.p_true[outlying] < 0.5)  # every gross outlier is found
+    assert np.all(r.p_true[clean] > 0.5)  # no true ping is lost
+    assert r.n_spurious >= 2
+
+
+def test_turn_around_time_is_not_identifiable_on_cc03():
+    raw = read_survey(DATA / "SIO_CC03.txt", "obsrange-sio")
+    with pytest.warns(LocateWarning, match="turn-around time trades off"):
+        r = locate(*raw.to_pings(), fit_tat=True)
+    assert r.sd["depth"] > 50
+
+
+def test_enu_geodetic_round_trip():
+    e, n, u = geodetic_to_enu(-4.9, -132.7, -4700.0, -4.88, -132.69)
+    lat, lon, h = enu_to_geodetic(float(e), float(n), float(u), -4.88, -132.69)
+    assert lat == pytest.approx(-4.9, abs=1e-9) and lon == pytest.approx(-132.7, abs=1e-9)
+    assert h == pytest.approx(-4700.0, abs=1e-3)
+
+
+def test_bad_input():
+    pings, beacons, *_ = _simulated(0)
+    with pytest.raises(InputError, match=r"missing column\(s\) \['twtt'\]"):
+        locate(pings.drop(columns="twtt"), beacons)
+    with pytest.raises(InputError, match="transponder 'X' not in the beacons table"):
+        locate(pings, beacons, "X")
+    with pytest.raises(InputError, match="3 pings, need at least 6"):
+        locate(pings.iloc[:3], beacons)
+
+
+def test_locate_command_writes_the_contract(tmp_path):
+    import json
+
+    from bayes_mpem.cli import main
+
+    assert main(["locate", str(DATA / "SIO_CC03.txt"), "--format", "obsrange",
+                 "--out", str(tmp_path)]) == 0
+    s = json.loads((tmp_path / "summary.json").read_text())
+    t = s["transponders"]["CC03"]
+    assert abs(t["lat"] - -4.88160) < 2e-5 and abs(t["lon"] - -132.68895) < 2e-5
+    lo, hi = t["depth"]["interval"]
+    assert lo < 4739.13 < hi and t["n_spurious"] == 3
+    assert set(t["sound_speed"]) >= {"mean", "sd", "interval"}
+    cls = pd.read_csv(tmp_path / "classified.csv", keep_default_na=False)
+    # one row per ping line and per skipped line of the file: nothing lost
+    assert len(cls) == 88 + 33 and (cls["label"] == "skipped").sum() == 33
+    assert (cls["label"] == "spurious").sum() == 3
+    assert cls["line"].is_monotonic_increasing

@@ -5,8 +5,8 @@ import importlib
 
 import pytest
 
-MODULES = ["geometry", "mixture", "em", "simulate", "fitting", "data", "plots", "bayes", "readers", "locate",
-           "sampling", "compare", "bayes_plots"]
+MODULES = ["geometry", "mixture", "em", "simulate", "fitting", "data", "plots", "bayes",
+           "readers", "locate", "sampling", "compare", "bayes_plots"]
 
 
 @pytest.mark.parametrize("name", MODULES)

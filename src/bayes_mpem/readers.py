@@ -83,6 +83,43 @@ def geodetic_to_enu(lat, lon, height, lat0, lon0, height0=0.0):
     return e, n, u
 
 
+def antenna_to_transducer(east, north, up, heading, pitch, roll, offset):
+    """Transducer positions from antenna positions, attitude and the lever arm.
+
+    SeaGap's convention (its ``anttena2tr``): the offset ``(x, y, z)`` is in the
+    local frame at zero attitude; it is rotated by ``-heading`` about the
+    vertical, then by ``pitch`` about the horizontal axis at azimuth
+    ``-heading``, then by ``roll`` about the axis at azimuth ``90 - heading``
+    tilted up by ``pitch``, and added to the antenna position.
+
+    Parameters
+    ----------
+    east, north, up : array_like
+        Antenna positions (m).
+    heading, pitch, roll : array_like
+        Degrees.
+    offset : array_like
+        The three components of ``tr-ant.inp`` (m).
+
+    Returns
+    -------
+    east, north, up : numpy.ndarray
+    """
+    from scipy.spatial.transform import Rotation
+
+    h, p, r = (np.radians(np.asarray(v, float)) for v in (heading, pitch, roll))
+    zero = np.zeros_like(h)
+    steps = [np.stack([zero, zero, -h], axis=-1),
+             p[:, None] * np.stack([np.cos(-h), np.sin(-h), zero], axis=-1),
+             r[:, None] * np.stack([np.cos(p) * np.cos(np.pi / 2 - h),
+                                    np.cos(p) * np.sin(np.pi / 2 - h), np.sin(p)], axis=-1)]
+    v = np.tile(np.asarray(offset, float), (h.size, 1))
+    for rotvec in steps:
+        v = Rotation.from_rotvec(rotvec).apply(v)
+    return (np.asarray(east, float) + v[:, 0], np.asarray(north, float) + v[:, 1],
+            np.asarray(up, float) + v[:, 2])
+
+
 def _dm(deg, minutes, hemi):
     """Degrees and decimal minutes with a hemisphere letter to signed degrees."""
     v = float(deg) + float(minutes) / 60.0
@@ -146,8 +183,9 @@ class RawSurvey:
         Notes
         -----
         SeaGap surveys are already in local metres: the vehicle position is the
-        mean of the antenna at transmit and at receive (the transducer lever arm
-        of ``tr-ant.inp`` is not applied here), its depth is minus ``up``, the
+        mean of the transducer at transmit and at receive (the antenna position
+        moved by the ``tr-ant.inp`` lever arm, rotated by the attitude:
+        :func:`antenna_to_transducer`), its depth is minus ``up``, the
         beacons are the transponders of ``pxp-ini.inp``, and the default sound
         speed is the harmonic mean of ``ss_prof.inp`` from the surface to the mean
         transponder depth (the straight-ray equivalent for vertical paths).
@@ -185,12 +223,19 @@ class RawSurvey:
             keep = prof["depth"] <= float(-tp["up"].mean())
             sound_speed = float(1.0 / np.mean(1.0 / prof.loc[keep, "sound_speed"]))
         c = float(sound_speed or 1500.0)
+        pos = {}
+        for end in ("tx", "rx"):
+            enu = (p[f"e_{end}"], p[f"n_{end}"], p[f"u_{end}"])
+            if "tr_ant" in h:  # the transducer, not the antenna
+                enu = antenna_to_transducer(*enu, p[f"head_{end}"], p[f"pitch_{end}"],
+                                            p[f"roll_{end}"], h["tr_ant"])
+            pos[end] = [np.asarray(v, float) for v in enu]
         pings = pd.DataFrame({
             "time": p["time"].to_numpy(), "beacon": p["transponder"].to_numpy(),
             "range": c * p["twtt"].to_numpy() / 2.0,
-            "x": 0.5 * (p["e_tx"] + p["e_rx"]).to_numpy(),
-            "y": 0.5 * (p["n_tx"] + p["n_rx"]).to_numpy(),
-            "depth": -0.5 * (p["u_tx"] + p["u_rx"]).to_numpy(),
+            "x": 0.5 * (pos["tx"][0] + pos["rx"][0]),
+            "y": 0.5 * (pos["tx"][1] + pos["rx"][1]),
+            "depth": -0.5 * (pos["tx"][2] + pos["rx"][2]),
             "line": p["line"].to_numpy(), "twtt": p["twtt"].to_numpy()})
         beacons = pd.DataFrame({"beacon": tp.index, "x": tp["east"].to_numpy(),
                                 "y": tp["north"].to_numpy(), "depth": -tp["up"].to_numpy()})
@@ -481,5 +526,5 @@ def read_survey(path, format: str, **kwargs) -> RawSurvey:
     return readers[format](path, **kwargs)
 
 
-__all__ = ["FORMATS", "RawSurvey", "geodetic_to_enu", "read_obsrange_sio", "read_obsrange_whoi",
-           "read_seagap", "read_survey"]
+__all__ = ["FORMATS", "RawSurvey", "antenna_to_transducer", "geodetic_to_enu",
+           "read_obsrange_sio", "read_obsrange_whoi", "read_seagap", "read_survey"]

@@ -29,6 +29,7 @@ import pandas as pd
 from scipy.optimize import least_squares
 
 from .data import InputError
+from .readers import enu_to_geodetic  # re-exported: locate reports lat/lon
 
 #: Turn-around time used when the file gives none (s): the WHOI EdgeTech log's
 #: stated TAT; with it our CC03 fit matches OBSrange's solution (docs/measured-data.md).
@@ -267,40 +268,6 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95):
                "method": "EM, straight rays; intervals approximate (Wald)",
                "tat_fitted": bool(fit_tat), "tat_given": None if fit_tat else float(tat)}
     return summary, cls
-
-
-def enu_to_geodetic(east, north, up, lat0, lon0, height0=0.0):
-    """Inverse of :func:`bayes_mpem.readers.geodetic_to_enu` (WGS84, exact to < 1 mm).
-
-    Parameters
-    ----------
-    east, north, up : float
-        Local coordinates (m).
-    lat0, lon0, height0 : float
-        The origin.
-
-    Returns
-    -------
-    lat, lon, height : float
-    """
-    from .readers import _A, _E2
-
-    la0, lo0 = np.radians(lat0), np.radians(lon0)
-    nu0 = _A / np.sqrt(1 - _E2 * np.sin(la0) ** 2)
-    x0 = (nu0 + height0) * np.cos(la0) * np.cos(lo0)
-    y0 = (nu0 + height0) * np.cos(la0) * np.sin(lo0)
-    z0 = (nu0 * (1 - _E2) + height0) * np.sin(la0)
-    x = x0 - np.sin(lo0) * east - np.sin(la0) * np.cos(lo0) * north + np.cos(la0) * np.cos(lo0) * up
-    y = y0 + np.cos(lo0) * east - np.sin(la0) * np.sin(lo0) * north + np.cos(la0) * np.sin(lo0) * up
-    z = z0 + np.cos(la0) * north + np.sin(la0) * up
-    lon = np.arctan2(y, x)
-    p = np.hypot(x, y)
-    lat = np.arctan2(z, p * (1 - _E2))
-    for _ in range(10):
-        nu = _A / np.sqrt(1 - _E2 * np.sin(lat) ** 2)
-        h = p / np.cos(lat) - nu
-        lat = np.arctan2(z, p * (1 - _E2 * nu / (nu + h)))
-    return float(np.degrees(lat)), float(np.degrees(lon)), float(h)
 
 
 __all__ = ["DEFAULT_TAT", "LocateResult", "LocateWarning", "enu_to_geodetic", "locate",

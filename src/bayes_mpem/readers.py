@@ -42,6 +42,23 @@ _F = 1.0 / 298.257223563
 _E2 = _F * (2.0 - _F)
 
 
+def _ecef(lat, lon, height):
+    """WGS84 geodetic (degrees, m) to Earth-centred Earth-fixed (m)."""
+    la, lo = np.radians(lat), np.radians(lon)
+    nu = _A / np.sqrt(1.0 - _E2 * np.sin(la) ** 2)
+    return np.array([(nu + height) * np.cos(la) * np.cos(lo),
+                     (nu + height) * np.cos(la) * np.sin(lo),
+                     (nu * (1.0 - _E2) + height) * np.sin(la)], dtype=float)
+
+
+def _enu_rotation(lat0, lon0):
+    """Rows: the local east, north and up unit vectors at the origin, in ECEF."""
+    la, lo = np.radians(lat0), np.radians(lon0)
+    return np.array([[-np.sin(lo), np.cos(lo), 0.0],
+                     [-np.sin(la) * np.cos(lo), -np.sin(la) * np.sin(lo), np.cos(la)],
+                     [np.cos(la) * np.cos(lo), np.cos(la) * np.sin(lo), np.sin(la)]])
+
+
 def geodetic_to_enu(lat, lon, height, lat0, lon0, height0=0.0):
     """Local east, north, up (m) of WGS84 points relative to an origin.
 
@@ -67,20 +84,37 @@ def geodetic_to_enu(lat, lon, height, lat0, lon0, height0=0.0):
     >>> round(float(e), 3), round(float(n), 6)
     (111.319, 0.0)
     """
-    def ecef(la, lo, h):
-        la, lo = np.radians(la), np.radians(lo)
-        nu = _A / np.sqrt(1.0 - _E2 * np.sin(la) ** 2)
-        return ((nu + h) * np.cos(la) * np.cos(lo), (nu + h) * np.cos(la) * np.sin(lo),
-                (nu * (1.0 - _E2) + h) * np.sin(la))
-
-    x, y, z = ecef(np.asarray(lat, float), np.asarray(lon, float), np.asarray(height, float))
-    x0, y0, z0 = ecef(float(lat0), float(lon0), float(height0))
-    dx, dy, dz = x - x0, y - y0, z - z0
-    la0, lo0 = np.radians(lat0), np.radians(lon0)
-    e = -np.sin(lo0) * dx + np.cos(lo0) * dy
-    n = -np.sin(la0) * np.cos(lo0) * dx - np.sin(la0) * np.sin(lo0) * dy + np.cos(la0) * dz
-    u = np.cos(la0) * np.cos(lo0) * dx + np.cos(la0) * np.sin(lo0) * dy + np.sin(la0) * dz
+    lat, lon, height = np.broadcast_arrays(*(np.asarray(v, float) for v in (lat, lon, height)))
+    d = _ecef(lat, lon, height) - _ecef(float(lat0), float(lon0), float(height0)).reshape(
+        (3,) + (1,) * lat.ndim)
+    e, n, u = np.tensordot(_enu_rotation(lat0, lon0), d, axes=1)
     return e, n, u
+
+
+def enu_to_geodetic(east, north, up, lat0, lon0, height0=0.0):
+    """Inverse of :func:`geodetic_to_enu` (WGS84, exact to < 1 mm).
+
+    Parameters
+    ----------
+    east, north, up : float
+        Local coordinates (m).
+    lat0, lon0, height0 : float
+        The origin.
+
+    Returns
+    -------
+    lat, lon, height : float
+    """
+    x, y, z = _ecef(float(lat0), float(lon0), float(height0)) + _enu_rotation(lat0, lon0).T @ \
+        np.array([east, north, up], dtype=float)
+    lon = np.arctan2(y, x)
+    p = np.hypot(x, y)
+    lat = np.arctan2(z, p * (1 - _E2))
+    for _ in range(10):
+        nu = _A / np.sqrt(1 - _E2 * np.sin(lat) ** 2)
+        h = p / np.cos(lat) - nu
+        lat = np.arctan2(z, p * (1 - _E2 * nu / (nu + h)))
+    return float(np.degrees(lat)), float(np.degrees(lon)), float(h)
 
 
 def antenna_to_transducer(east, north, up, heading, pitch, roll, offset):
@@ -526,5 +560,5 @@ def read_survey(path, format: str, **kwargs) -> RawSurvey:
     return readers[format](path, **kwargs)
 
 
-__all__ = ["FORMATS", "RawSurvey", "antenna_to_transducer", "geodetic_to_enu",
+__all__ = ["FORMATS", "RawSurvey", "antenna_to_transducer", "enu_to_geodetic", "geodetic_to_enu",
            "read_obsrange_sio", "read_obsrange_whoi", "read_seagap", "read_survey"]

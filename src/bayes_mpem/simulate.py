@@ -157,6 +157,7 @@ def simulate_lbl(
     p_no_reply: float = 0.05,
     window: tuple = (1.0, 6000.0),
     beacon_offset: float = 1.0,
+    effects: dict | None = None,
     rng: RNGLike = None,
 ) -> Simulation:
     """Simulate the replies of every beacon along a given track.
@@ -182,55 +183,166 @@ def simulate_lbl(
         Listening window (m) for the uniform outliers.
     beacon_offset : float, default 1
         Seconds between the interrogations of successive beacons in a cycle.
+    effects : dict, optional
+        Departures from the paper's assumptions to hide in the data (the
+        vocabulary of :mod:`bayes_mpem.diagnose`), ``{name: magnitude}``:
+
+        ``"range_bias"``
+            every true return (direct and multipath) is offset by this many m.
+        ``"sound_speed"``
+            true returns are scaled by ``1 + magnitude``.
+        ``"plane_drift"``
+            the reflecting plane's depth changes linearly in time by this many
+            m from the first to the last ping.
+        ``"second_reflector"``
+            depth (m) of a second plane above the vehicle; a fraction
+            ``effects.get("second_fraction", 0.15)`` of the replies, taken from
+            the direct path, become its (triangle) multipath, with the beacon's
+            multipath noise.
+        ``"early_outliers"``
+            the outlier fraction (replaces ``weights``' third entry, the
+            direct path absorbing the difference); outliers are uniform
+            between the window start and the ping's true arrival instead of
+            over the whole window (first-arrival detection).
+        ``"nav_drift"``
+            size (m) at the last ping of a horizontal navigation error growing
+            linearly in time from zero; the pings table reports the drifted
+            positions. Direction ``effects.get("nav_drift_direction", 45.0)``
+            degrees counter-clockwise from +x.
     rng : None, int or numpy.random.Generator
 
     Returns
     -------
     Simulation
+        ``truth`` gains ``"effects"``, ``{name: magnitude}`` as realised
+        (for ``early_outliers`` the fraction of replies that are outliers).
+
+    Raises
+    ------
+    ValueError
+        For an unknown effect or an impossible magnitude.
     """
     geometry.check_path(path)
+    eff = _check_effects(effects)
     gen = as_generator(rng)
     t, x, y, z = (np.asarray(track[k], float) for k in ("time", "x", "y", "depth"))
+    times = t[:, None] + np.arange(len(beacons))[None, :] * beacon_offset
+    t0, t1 = float(times.min()), float(times.max())
+    scale = 1.0 + eff.get("sound_speed", 0.0)
+    bias = eff.get("range_bias", 0.0)
     rows, truth, labels = [], {}, []
+    n_ol = n_replies = 0
     for j, (bid, b) in enumerate(beacons.items()):
         w = np.asarray(weights[bid], float)
         if w.shape != (3,) or np.any(w < 0) or abs(w.sum() - 1) > 1e-9:
             raise ValueError(f"weights[{bid!r}]: expected 3 non-negative numbers summing to 1, "
                              f"got {weights[bid]!r}")
+        tb = t + j * beacon_offset
+        tau = (tb - t0) / (t1 - t0) if t1 > t0 else np.zeros_like(tb)
+        w4 = _effect_weights(w, eff, bid)
         d0 = float(b["depth"]) - plane_depth
         h = geometry.horizontal_distance(x, y, b["x"], b["y"])
         dz = float(b["depth"]) - z
-        cls = gen.choice(3, size=t.size, p=w)
+        if w4[2] > 0:
+            cls = gen.choice(4, size=t.size, p=w4)
+        else:  # the clean stream of draws, unchanged by the effects machinery
+            cls = np.array([0, 1, 3])[gen.choice(3, size=t.size, p=w4[[0, 1, 3]])]
         direct = geometry.direct_path(h, dz)
-        mp = geometry.multipath_range(h, dz, d0, path, direct=direct)
-        rng_dp = direct + gen.normal(0.0, sigma_dp, t.size)
-        rng_mp = mp + gen.normal(0.0, sigma_mp[bid], t.size)
-        rng_ol = gen.uniform(window[0], window[1], t.size)
-        r = np.choose(cls, [rng_dp, rng_mp, rng_ol])
+        d0_t = d0 - eff.get("plane_drift", 0.0) * tau
+        mp = geometry.multipath_range(h, dz, d0_t, path, direct=direct)
+        rng_dp = scale * direct + bias + gen.normal(0.0, sigma_dp, t.size)
+        rng_mp = scale * mp + bias + gen.normal(0.0, sigma_mp[bid], t.size)
+        rng_mp2 = rng_mp
+        if "second_reflector" in eff:
+            d0_2 = float(b["depth"]) - eff["second_reflector"]
+            mp2 = geometry.multipath_range(h, dz, d0_2, "triangle", direct=direct)
+            rng_mp2 = scale * mp2 + bias + gen.normal(0.0, sigma_mp[bid], t.size)
+        if "early_outliers" in eff:
+            rng_ol = window[0] + gen.random(t.size) * np.maximum(rng_dp - window[0], 0.0)
+        else:
+            rng_ol = gen.uniform(window[0], window[1], t.size)
+        r = np.choose(cls, [rng_dp, rng_mp, rng_mp2, rng_ol])
         r = np.where(r > 0, r, rng_ol)  # a non-positive draw becomes an outlier
-        lab = np.asarray(["dp", "mp", "ol"], dtype=object)[cls]
+        lab = np.asarray(["dp", "mp", "mp2", "ol"], dtype=object)[cls]
         silent = gen.random(t.size) < p_no_reply
         r = np.where(silent, np.nan, r)
         lab[silent] = "no_reply"
+        n_ol += int(np.sum(lab == "ol"))
+        n_replies += int(np.sum(~silent))
+        xr, yr = x, y
+        if "nav_drift" in eff:
+            ang = np.deg2rad(eff.get("nav_drift_direction", 45.0))
+            xr = x + eff["nav_drift"] * tau * np.cos(ang)
+            yr = y + eff["nav_drift"] * tau * np.sin(ang)
         rows.append(pd.DataFrame({
-            "time": t + j * beacon_offset, "beacon": bid, "range": r,
-            "x": x, "y": y, "depth": z, "true_class": lab,
+            "time": tb, "beacon": bid, "range": r,
+            "x": xr, "y": yr, "depth": z, "true_class": lab,
         }))
         labels.append(lab)
         truth[bid] = {"d0": d0, "plane_depth": plane_depth, "sigma_dp": float(sigma_dp),
                       "sigma_mp": float(sigma_mp[bid]),
                       "weights": dict(zip(("dp", "mp", "ol"), map(float, w), strict=True)),
                       "path": path}
+        if eff:
+            truth[bid]["weights_with_effects"] = dict(
+                zip(("dp", "mp", "mp2", "ol"), map(float, w4), strict=True))
     pings = pd.concat(rows, ignore_index=True).sort_values("time", kind="stable")
     order = pings.index.to_numpy()
     pings = pings.reset_index(drop=True)
     bdf = pd.DataFrame([{"beacon": k, **v} for k, v in beacons.items()])
     survey = load_survey(pings, bdf)
     all_labels = np.concatenate(labels)[order]
+    realised = {k: v for k, v in eff.items() if k in EFFECTS}
+    if "early_outliers" in realised:
+        realised["early_outliers"] = n_ol / max(n_replies, 1)
+    for v in truth.values():
+        v["effects"] = realised
     config = {"beacons": beacons, "sigma_dp": sigma_dp, "sigma_mp": sigma_mp,
               "weights": {k: list(v) for k, v in weights.items()}, "plane_depth": plane_depth,
-              "path": path, "p_no_reply": p_no_reply, "window": list(window)}
+              "path": path, "p_no_reply": p_no_reply, "window": list(window),
+              "effects": dict(eff)}
     return Simulation(survey=survey, truth=truth, labels=all_labels, config=config)
+
+
+#: Effects the simulator can hide (the vocabulary of :mod:`bayes_mpem.diagnose`).
+EFFECTS = ("range_bias", "sound_speed", "plane_drift", "second_reflector", "early_outliers",
+           "nav_drift")
+_EFFECT_OPTIONS = ("second_fraction", "nav_drift_direction")
+
+
+def _check_effects(effects):
+    eff = dict(effects or {})
+    unknown = set(eff) - set(EFFECTS) - set(_EFFECT_OPTIONS)
+    if unknown:
+        raise ValueError(f"effects: unknown name(s) {sorted(unknown)}; known: {list(EFFECTS)}")
+    for k, v in eff.items():
+        if not isinstance(v, (int, float, np.integer, np.floating)) or not np.isfinite(v):
+            raise ValueError(f"effects[{k!r}]: expected a finite number, got {v!r}")
+        eff[k] = float(v)
+    if eff.get("sound_speed", 0.0) <= -1.0:
+        raise ValueError(f"effects['sound_speed']: expected > -1, got {eff['sound_speed']}")
+    if "early_outliers" in eff and not 0.0 <= eff["early_outliers"] < 1.0:
+        raise ValueError("effects['early_outliers']: expected an outlier fraction in [0, 1), "
+                         f"got {eff['early_outliers']}")
+    if not 0.0 <= eff.get("second_fraction", 0.15) < 1.0:
+        raise ValueError("effects['second_fraction']: expected a fraction in [0, 1), "
+                         f"got {eff['second_fraction']}")
+    return eff
+
+
+def _effect_weights(w, eff, bid):
+    """Class probabilities (dp, mp, mp2, ol) once the effects are applied."""
+    w_dp, w_mp, w_ol = (float(v) for v in w)
+    w_mp2 = eff.get("second_fraction", 0.15) if "second_reflector" in eff else 0.0
+    if "early_outliers" in eff:
+        w_dp += w_ol - eff["early_outliers"]
+        w_ol = eff["early_outliers"]
+    w_dp -= w_mp2
+    if w_dp <= 0:
+        raise ValueError(f"beacon {bid!r}: the effects leave no direct path "
+                         f"(w_dp = {w_dp:.3f}); lower the outlier or second-reflector fraction")
+    return np.array([w_dp, w_mp, w_mp2, w_ol])
+
 
 
 def _random_config(gen):
@@ -273,6 +385,7 @@ def simulate_survey(
     rng: RNGLike = None,
     path: str = "triangle",
     n_cycles: int | None = None,
+    effects: dict | None = None,
     **overrides,
 ) -> Simulation:
     """Simulate a bottom-following LBL survey from a preset.
@@ -292,6 +405,9 @@ def simulate_survey(
         Multipath geometry used to generate the ranges.
     n_cycles : int, optional
         Number of ping cycles (one interrogation of every beacon each).
+    effects : dict, optional
+        Departures from the paper's assumptions, ``{name: magnitude}``; see
+        :func:`simulate_lbl`.
     **overrides
         Replace any preset entry (``weights``, ``sigma_mp``, ``sigma_dp``,
         ``p_no_reply``, ``window``, ``plane_depth``, ``altitude``, ...).
@@ -324,7 +440,7 @@ def simulate_survey(
     sim = simulate_lbl(
         cfg["beacons"], track, sigma_dp=cfg["sigma_dp"], sigma_mp=cfg["sigma_mp"],
         weights=cfg["weights"], plane_depth=cfg["plane_depth"], path=path,
-        p_no_reply=cfg["p_no_reply"], window=tuple(cfg["window"]), rng=gen,
+        p_no_reply=cfg["p_no_reply"], window=tuple(cfg["window"]), effects=effects, rng=gen,
     )
     config = {**sim.config, "preset": preset, "n_cycles": cfg["n_cycles"],
               "box": list(cfg["box"]), "altitude": cfg["altitude"]}

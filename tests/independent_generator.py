@@ -164,7 +164,7 @@ def generate(effect=None, magnitude=None, *, seed, n_ranges=5000, n_beacons=4,
         rng_[m] = f * r_mp2 + bias + rng.normal(0.0, sig_mp2[b[m]])
     m = cls == 3
     hi = f * r_dp[m] + bias if "early_outliers" in effects else window[1]
-    rng_[m] = rng.uniform(window[0], np.maximum(hi, window[0] + 1.0))
+    rng_[m] = rng.uniform(window[0], np.maximum(hi, window[0] + 1.0), size=int(m.sum()))
     n_clipped = int(np.sum(rng_ < 0.1))
     rng_ = np.where(rng_ < 0.1, 0.1, rng_)
     rng_[~reply] = np.nan

@@ -447,8 +447,8 @@ class JointFit:
         return out
 
 
-def _init_second(d, p, effects, path, resp):
-    """Starting depths for a second plane: modes of the implied depths of poorly explained ranges."""
+def _implied_depths(d, p, effects, path):
+    """Per-range depth of the plane that would make each range a multipath."""
     k = 1.0 + (p.scale if "sound_speed" in effects else 0.0)
     b = p.bias if "range_bias" in effects else 0.0
     z = (d.z - b) / k
@@ -458,24 +458,67 @@ def _init_second(d, p, effects, path, resp):
     h = np.hypot(ex, ey)
     dz = d.bz[d.bi] - d.vdepth
     d0k = geometry.invert_plane_height(z, h, dz, path)
-    depth = d.bz[d.bi] - d0k
-    top = float(np.min(d.vdepth))
-    sel = (resp[:, 3] > 0.5) & np.isfinite(depth) & (depth < top) & (depth > -0.2 * top)
-    v = depth[sel]
+    return d.bz[d.bi] - d0k
+
+
+def _modes(v, k, *, width=5.0, sep=25.0):
+    """The ``k`` strongest modes of ``v`` (histogram of ``width`` bins, at least ``sep`` apart)."""
     if v.size < 10:
         return []
-    width = 5.0
     nbins = int(min(max((v.max() - v.min()) / width, 1), 5000))
     counts, edges = np.histogram(v, bins=nbins)
-    smooth = np.convolve(counts, np.ones(3), mode="same")
+    smooth = np.convolve(counts, np.ones(3), mode="same")[:counts.size] if counts.size >= 3 \
+        else counts.astype(float)
     out = []
     for i in np.argsort(smooth)[::-1]:
+        if smooth[i] < 5:
+            break
         c = 0.5 * (edges[i] + edges[i + 1])
-        if all(abs(c - o) > 25.0 for o in out):
+        if all(abs(c - o) > sep for o in out):
             out.append(float(c))
-        if len(out) >= 3:
+        if len(out) >= k:
             break
     return out
+
+
+def _second_starts(d, p, effects, path, resp):
+    """Starts for a second plane: modes of the implied depths of poorly explained ranges.
+
+    A beacon whose own plane sits on a candidate depth (its strongest multipath
+    family may be the second plane's) also gets a start with its plane moved to
+    its next mode, so that the shared plane and the beacon's own are not confused.
+    """
+    depth = _implied_depths(d, p, effects, path)
+    top = float(np.min(d.vdepth))
+    usable = np.isfinite(depth) & (depth < top) & (depth > -0.2 * top)
+    # the beacons' consensus plane (median weighted by multipath counts) is the main reflector:
+    # a candidate on it would only relabel the two families
+    n_mp = np.bincount(d.bi, weights=resp[:, 1], minlength=d.nb)
+    order = np.argsort(p.plane)
+    cum = np.cumsum(n_mp[order])
+    main = float(p.plane[order][np.searchsorted(cum, 0.5 * cum[-1])])
+    starts = []
+    for cand in _modes(depth[usable & (resp[:, 3] > 0.5)], 4):
+        if abs(cand - main) < 30.0:
+            continue
+        q = p.copy()
+        q.plane2 = cand
+        share = np.maximum(0.5 * q.weights[:, 3], 0.01)
+        q.weights[:, 2] = share
+        q.weights[:, 3] = np.maximum(q.weights[:, 3] - share, 0.005)
+        q.weights = q.weights / q.weights.sum(1, keepdims=True)
+        q.sigma[:, 2] = np.median(q.sigma[:, 1])
+        starts.append(q)
+        clash = np.abs(q.plane - cand) < 30.0
+        if clash.any():
+            r = q.copy()
+            for j in np.flatnonzero(clash):
+                own = usable & (d.bi == j) & (resp[:, 0] < 0.5)
+                alt = [m for m in _modes(depth[own], 3) if abs(m - cand) > 30.0]
+                if alt:
+                    r.plane[j] = min(alt[0], float(np.min(d.vdepth[d.bi == j])))
+            starts.append(r)
+    return starts
 
 
 def _run(d, p, effects, path, *, max_iter, tol, sigma_floor):
@@ -507,19 +550,30 @@ def _run(d, p, effects, path, *, max_iter, tol, sigma_floor):
                     converged=converged, path=path, se=se, history=hist)
 
 
-def _baseline_start(d: _Ranges, fittable, path, rng) -> _Params:
+def _baseline_start(d: _Ranges, fittable, path, rng):
+    """Per-beacon mixture-EM fits as the joint baseline's start; ``path="auto"`` picks the
+    multipath geometry with the higher total likelihood. Returns ``(params, path, logliks)``."""
     nb = d.nb
-    plane = np.empty(nb)
-    sigma = np.empty((nb, 3))
-    weights = np.zeros((nb, 4))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # flags are reported on the joint fit instead
-        for j, data in enumerate(fittable):
-            r = fit_mixture_em(data, path=path, rng=rng)
-            plane[j] = d.bz[j] - r.d0
-            sigma[j] = (r.sigma_dp, r.sigma_mp, r.sigma_mp)
-            weights[j] = (r.weights["dp"], r.weights["mp"], 0.0, r.weights["ol"])
-    return _Params(plane=plane, sigma=sigma, weights=weights)
+    paths = geometry.PATHS if path == "auto" else (path,)
+    best, logliks = None, {}
+    seed = int(as_generator(rng).integers(2**31))
+    for pth in paths:
+        plane = np.empty(nb)
+        sigma = np.empty((nb, 3))
+        weights = np.zeros((nb, 4))
+        total = 0.0
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # flags are reported on the joint fit instead
+            for j, data in enumerate(fittable):
+                r = fit_mixture_em(data, path=pth, rng=seed + j)
+                plane[j] = d.bz[j] - r.d0
+                sigma[j] = (r.sigma_dp, r.sigma_mp, r.sigma_mp)
+                weights[j] = (r.weights["dp"], r.weights["mp"], 0.0, r.weights["ol"])
+                total += float(r.loglik)
+        logliks[pth] = total
+        if best is None or total > best[2]:
+            best = (_Params(plane=plane, sigma=sigma, weights=weights), pth, total)
+    return best[0], best[1], logliks
 
 
 def _start_for(d, base: JointFit, effects, path):
@@ -527,16 +581,7 @@ def _start_for(d, base: JointFit, effects, path):
     p = base.params.copy()
     starts = []
     if "second_reflector" in effects and "second_reflector" not in base.effects:
-        for depth in _init_second(d, p, effects, path, base.resp):
-            q = p.copy()
-            q.plane2 = depth
-            share = np.maximum(0.5 * q.weights[:, 3], 0.01)
-            q.weights[:, 2] = share
-            q.weights[:, 3] -= np.minimum(share, q.weights[:, 3] * 0.9)
-            q.weights = q.weights / q.weights.sum(1, keepdims=True)
-            q.sigma[:, 2] = np.median(q.sigma[:, 1])
-            starts.append(q)
-        return starts
+        return _second_starts(d, p, effects, path, base.resp)
     return [p]
 
 
@@ -830,10 +875,10 @@ def diagnose(
     beacons=None,
     *,
     effects=EFFECTS,
-    path: str = "triangle",
+    path: str = "auto",
     n_folds: int = 5,
-    min_gain: float = 10.0,
-    min_z: float = 3.0,
+    min_gain: float = 4.0,
+    min_z: float = 2.0,
     max_effects: int = 3,
     min_pings: int = 30,
     rng: RNGLike = None,
@@ -849,14 +894,15 @@ def diagnose(
         The beacons table (not needed with a Survey).
     effects : sequence of str, default all of :data:`EFFECTS`
         The candidate extensions.
-    path : {"triangle", "double"}
-        Multipath geometry.
+    path : {"auto", "triangle", "double"}
+        Multipath geometry: one reflected leg (the paper's finding), both, or
+        (default) whichever gives the baseline the higher likelihood.
     n_folds : int, default 5
         Folds of the cross-validation (replies assigned at random).
-    min_gain : float, default 10
+    min_gain : float, default 4
         An effect is kept only if it raises the held-out log predictive
         density by more than this many nats ...
-    min_z : float, default 3
+    min_z : float, default 2
         ... and by more than ``min_z`` standard errors of that gain.
     max_effects : int, default 3
         Stop after this many effects.
@@ -880,7 +926,8 @@ def diagnose(
     """
     import sys
 
-    geometry.check_path(path)
+    if path != "auto":
+        geometry.check_path(path)
     effects = tuple(effects)
     _check_effect_names(effects, "effects")
     if int(n_folds) < 2:
@@ -901,8 +948,10 @@ def diagnose(
         if progress:
             print(f"[diagnose] {msg}", file=sys.stderr, flush=True)
 
-    base = fit_joint(d, (), _baseline_start(d, fittable, path, gen), path=path, **kw)
-    say(f"baseline: {d.n} replies, {d.nb} beacons, log-likelihood {base.loglik:.1f}")
+    start, path, path_ll = _baseline_start(d, fittable, path, gen)
+    base = fit_joint(d, (), start, path=path, **kw)
+    say(f"baseline: {d.n} replies, {d.nb} beacons, {path} multipath, "
+        f"log-likelihood {base.loglik:.1f}")
     current = base
     cur_ho = _heldout(d, (), base, folds, path, **kw)
     kept, candidates = [], []
@@ -951,7 +1000,7 @@ def diagnose(
             evidence=_evidence(name, current, d, delta, se, int(n_folds)),
             detail=_detail(name, current)))
     checks = residual_checks(current, d)
-    settings = {"path": path, "n_folds": int(n_folds), "min_gain": float(min_gain),
+    settings = {"path": path, "path_loglik": path_ll, "n_folds": int(n_folds), "min_gain": float(min_gain),
                 "min_z": float(min_z), "max_effects": int(max_effects),
                 "candidates": list(effects), "min_pings": int(min_pings)}
     return Diagnosis(effects=found, baseline=base, final=current, candidates=candidates,

@@ -579,7 +579,8 @@ def _d0_candidates(geom, sigma_dp, path, k):
     width = 5.0
     nb = int(min(max((v.max() - v.min()) / width, 1), 20000))
     counts, edges = np.histogram(v, bins=nb)
-    smooth = np.convolve(counts, np.ones(3), mode="same")
+    smooth = np.convolve(counts, np.ones(3), mode="same")[:counts.size] if counts.size >= 3 \
+        else counts.astype(float)
     order = np.argsort(smooth)[::-1]
     out = []
     for i in order:

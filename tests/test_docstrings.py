@@ -6,7 +6,7 @@ import importlib
 import pytest
 
 MODULES = ["geometry", "mixture", "em", "simulate", "fitting", "data", "plots", "bayes",
-           "readers", "locate", "sampling", "compare", "bayes_plots"]
+           "readers", "locate", "sampling", "compare", "bayes_plots", "acoustics"]
 
 
 @pytest.mark.parametrize("name", MODULES)

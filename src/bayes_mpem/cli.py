@@ -60,6 +60,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--path", choices=["triangle", "double"], default="triangle")
     p.add_argument("--n-cycles", type=int, default=None, metavar="N",
                    help="number of ping cycles (default: the preset's)")
+    p.add_argument("--effect", action="append", default=[], metavar="NAME=VALUE",
+                   help="hide an effect in the data, e.g. range_bias=5 (repeatable; names as "
+                        "in 'bayes-mpem diagnose')")
 
     p = sub.add_parser("fit", help="fit every beacon of a survey")
     p.add_argument("pings", metavar="PINGS", help="pings CSV (time, beacon, range, x, y, depth)")
@@ -69,6 +72,25 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--figures", action="store_true",
                    help="also write the figures (as 'bayes-mpem plot' does)")
     _add_fit_options(p)
+
+    p = sub.add_parser("diagnose", help="find which assumption the data break (bias, sound "
+                                        "speed, drifts, second reflector, early outliers)")
+    p.add_argument("pings", metavar="PINGS", help="pings CSV (time, beacon, range, x, y, depth)")
+    p.add_argument("--beacons", required=True, metavar="BEACONS",
+                   help="beacons CSV (beacon, x, y, depth)")
+    p.add_argument("--out", required=True, metavar="DIR")
+    p.add_argument("--seed", type=int, default=0, help="random seed of the folds (default 0)")
+    p.add_argument("--path", choices=["auto", "triangle", "double"], default="auto",
+                   help="multipath geometry (default: the likelier of the two)")
+    p.add_argument("--effects", default=None, metavar="LIST",
+                   help="comma-separated candidate effects (default: all)")
+    p.add_argument("--folds", type=int, default=5, metavar="K",
+                   help="cross-validation folds (default 5)")
+    p.add_argument("--min-gain", type=float, default=4.0, metavar="NATS",
+                   help="minimum held-out gain to keep an effect (default 4)")
+    p.add_argument("--min-pings", type=int, default=30, metavar="N")
+    p.add_argument("--no-figures", action="store_true", help="write diagnosis.json only")
+    p.add_argument("--no-progress", action="store_true", help="no progress lines on stderr")
 
     p = sub.add_parser("locate", help="locate a transponder from a ranging survey (EM)")
     p.add_argument("survey", metavar="SURVEY", help="survey file (obsdata.inp for SeaGap)")
@@ -210,7 +232,17 @@ def cmd_plot(args):
 def cmd_simulate(args):
     from .simulate import simulate_survey
 
-    sim = simulate_survey(args.preset, rng=args.seed, path=args.path, n_cycles=args.n_cycles)
+    effects = {}
+    for item in args.effect:
+        name, sep, value = item.partition("=")
+        try:
+            effects[name.strip()] = float(value)
+        except ValueError:
+            raise _OptionError(f"--effect: expected NAME=NUMBER, got {item!r}") from None
+        if not sep:
+            raise _OptionError(f"--effect: expected NAME=NUMBER, got {item!r}")
+    sim = simulate_survey(args.preset, rng=args.seed, path=args.path, n_cycles=args.n_cycles,
+                          effects=effects or None)
     paths = sim.write(args.out)
     print(f"{len(sim.survey)} pings to {len(sim.truth)} beacons")
     for p in paths.values():
@@ -258,6 +290,21 @@ def cmd_sample(args):
             print(f"warning: beacon {bid}: chain shorter than {r.diagnostics['tau_factor']:g} "
                   "autocorrelation times", file=sys.stderr)
     for p in paths:
+        print(f"wrote {p}")
+    return 0
+
+
+def cmd_diagnose(args):
+    from .diagnose import EFFECTS, diagnose
+
+    effects = EFFECTS if args.effects is None else tuple(
+        e.strip() for e in args.effects.split(",") if e.strip())
+    result = diagnose(args.pings, args.beacons, effects=effects, path=args.path,
+                      n_folds=args.folds, min_gain=args.min_gain, min_pings=args.min_pings,
+                      rng=args.seed, progress=not args.no_progress)
+    paths = result.write(args.out, figures=not args.no_figures)
+    print(result.summary())
+    for p in paths.values():
         print(f"wrote {p}")
     return 0
 
@@ -320,7 +367,8 @@ def main(argv=None) -> int:
 
     matplotlib.use("Agg")  # the command line only writes files; never opens a window
     handler = {"demo": cmd_demo, "simulate": cmd_simulate, "fit": cmd_fit, "plot": cmd_plot,
-               "sample": cmd_sample, "compare": cmd_compare, "locate": cmd_locate}[args.command]
+               "sample": cmd_sample, "compare": cmd_compare, "locate": cmd_locate,
+               "diagnose": cmd_diagnose}[args.command]
     with warnings.catch_warnings():  # restores the caller's filters and showwarning
         warnings.simplefilter("default")
         # one line per warning, no source excerpt: messages for the user, not tracebacks

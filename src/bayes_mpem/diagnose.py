@@ -61,7 +61,8 @@ from .data import Survey, load_survey
 from .em import fit_mixture_em
 from .fitting import fittable_beacons
 
-__all__ = ["EFFECTS", "UNITS", "Diagnosis", "Effect", "JointFit", "diagnose", "fit_joint"]
+__all__ = ["EFFECTS", "UNITS", "Diagnosis", "Effect", "JointFit", "covariates", "diagnose",
+           "fit_joint", "residual_checks"]
 
 #: The vocabulary of effects, in the order they are tried.
 EFFECTS = ("range_bias", "sound_speed", "plane_drift", "second_reflector", "early_outliers",
@@ -309,14 +310,37 @@ def _weighted_sse(d, p, effects, path, resp):
     return tot
 
 
+_SECOND_GAP = 50.0  # m: the second plane lies at least this far below the main reflector
+
+
+def _main_plane(p: _Params) -> float:
+    """Depth of the main reflector: the median of the beacons' planes."""
+    return float(np.median(p.plane))
+
+
 def _feasible(d, p, effects):
+    """Planes above the vehicle at every ping; the second plane below the main one."""
     plane = p.plane[d.bi] + (p.drift * d.tau if "plane_drift" in effects else 0.0)
     ok = bool(np.all(plane <= d.vdepth))
     if "second_reflector" in effects:
-        ok = ok and p.plane2 <= float(np.min(d.vdepth))
+        ok = ok and _main_plane(p) + _SECOND_GAP <= p.plane2 <= float(np.min(d.vdepth))
     if "sound_speed" in effects:
         ok = ok and abs(p.scale) < 0.5
     return ok
+
+
+def _repair(d, p, effects) -> _Params:
+    """Move an infeasible start just inside the constraints (planes 0.5 m above the vehicle)."""
+    q = p.copy()
+    drift = q.drift * d.tau if "plane_drift" in effects else np.zeros(d.n)
+    for j in range(d.nb):
+        sel = d.bi == j
+        if sel.any():
+            q.plane[j] = min(q.plane[j], float(np.min(d.vdepth[sel] - drift[sel])) - 0.5)
+    if "second_reflector" in effects:
+        lo, hi = _main_plane(q) + _SECOND_GAP, float(np.min(d.vdepth)) - 0.5
+        q.plane2 = float(np.clip(q.plane2, lo, max(lo, hi)))
+    return q
 
 
 def _gauss_newton(d, p, effects, path, resp, n_steps=2):
@@ -373,7 +397,10 @@ def _m_step(d, p, effects, path, resp, sigma_floor):
         num = np.bincount(d.bi, weights=resp[:, c] * r2, minlength=nb)
         den = np.bincount(d.bi, weights=resp[:, c], minlength=nb)
         ok = den > 1e-3
-        p.sigma[ok, c] = np.maximum(np.sqrt(num[ok] / den[ok]), sigma_floor)
+        # a second family is no sharper than the direct path (its scatter includes the
+        # direct path's): stops it from collapsing onto a handful of coincident ranges
+        floor = np.maximum(sigma_floor, p.sigma[ok, 0]) if name == "mp2" else sigma_floor
+        p.sigma[ok, c] = np.maximum(np.sqrt(num[ok] / den[ok]), floor)
     return p, names, info
 
 
@@ -579,7 +606,6 @@ def _baseline_start(d: _Ranges, fittable, path, rng):
 def _start_for(d, base: JointFit, effects, path):
     """Starting points for a model with ``effects``, from a fit of a nested model."""
     p = base.params.copy()
-    starts = []
     if "second_reflector" in effects and "second_reflector" not in base.effects:
         return _second_starts(d, p, effects, path, base.resp)
     return [p]
@@ -592,13 +618,57 @@ def fit_joint(d: _Ranges, effects, start: _Params | list, *, path="triangle", ma
     best = None
     for s in starts:
         if not _feasible(d, s, effects):
-            continue
+            s = _repair(d, s, effects)
+            if not _feasible(d, s, effects):
+                continue
         r = _run(d, s, effects, path, max_iter=max_iter, tol=tol, sigma_floor=sigma_floor)
         if best is None or r.loglik > best.loglik:
             best = r
     if best is None:
         raise ValueError(f"no feasible starting point for the model with {sorted(effects)}")
     return best
+
+
+def _replant(d: _Ranges, fit: JointFit, fittable, path, rng) -> _Params | None:
+    """A fresh start for ``fit``'s model: each beacon's plane, scales and weights re-found by
+    the per-beacon mixture EM (its multi-start over plane heights) on ranges corrected by the
+    fitted bias, scale and navigation drift. ``None`` when no plane moves by more than 5 m.
+
+    A beacon whose baseline plane was pulled to a wrong family (e.g. the direct path of a
+    mis-scaled survey) stays there when the effect is switched on; this gives it a way out.
+    """
+    p = fit.params
+    k = 1.0 + (p.scale if "sound_speed" in fit.effects else 0.0)
+    b = p.bias if "range_bias" in fit.effects else 0.0
+    q = p.copy()
+    moved = False
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for j, data in enumerate(fittable):
+            sel = d.bi == j
+            tau = d.tau[sel]
+            x, y = data.x, data.y
+            if "nav_drift" in fit.effects:
+                x, y = x + p.nav[0] * tau, y + p.nav[1] * tau
+            z = (data.range - b) / k
+            if np.any(z <= 0):
+                continue
+            corrected = replace(data, range=z, x=x, y=y)
+            try:
+                r = fit_mixture_em(corrected, path=path, rng=rng, n_init=4)
+            except ValueError:
+                continue
+            plane = float(d.bz[j] - r.d0)
+            if "plane_drift" in fit.effects:
+                plane -= p.drift * float(np.mean(tau))
+            if abs(plane - p.plane[j]) > 5.0:
+                moved = True
+            q.plane[j] = plane
+            q.sigma[j, :2] = (r.sigma_dp * k, r.sigma_mp * k)
+            w_mp2 = q.weights[j, 2]
+            q.weights[j] = (r.weights["dp"] * (1 - w_mp2), r.weights["mp"] * (1 - w_mp2), w_mp2,
+                            r.weights["ol"] * (1 - w_mp2))
+    return q if moved else None
 
 
 # --------------------------------------------------------------------------- selection
@@ -795,6 +865,30 @@ def _late_share(d, fit: JointFit):
 _COVARIATES = ("time", "range", "elevation", "vehicle_depth", "bearing")
 
 
+def covariates(d: _Ranges) -> dict:
+    """Per-reply covariates the residuals are checked against (reported navigation).
+
+    Parameters
+    ----------
+    d : _Ranges
+        ``Diagnosis.data``.
+
+    Returns
+    -------
+    dict of numpy.ndarray
+        ``time`` (s), ``range`` (direct-path length, m), ``elevation`` (deg,
+        positive when the vehicle is above the beacon), ``vehicle_depth`` (m),
+        ``bearing`` (deg clockwise from +y, of the vehicle seen from the beacon).
+    """
+    ex = d.x - d.bx[d.bi]
+    ey = d.y - d.by[d.bi]
+    h = np.hypot(ex, ey)
+    dz = d.bz[d.bi] - d.vdepth
+    return {"time": d.time, "range": np.hypot(h, dz),
+            "elevation": np.degrees(np.arctan2(dz, h)), "vehicle_depth": d.vdepth,
+            "bearing": np.degrees(np.arctan2(ex, ey)) % 360.0}
+
+
 def residual_checks(fit: JointFit, d: _Ranges, *, n_bins=10, alpha=1e-4) -> list:
     """Residual structure the model leaves, class by class, against each covariate.
 
@@ -822,13 +916,7 @@ def residual_checks(fit: JointFit, d: _Ranges, *, n_bins=10, alpha=1e-4) -> list
 
     mu = _predict(d, fit.params, fit.effects, fit.path)
     p = fit.params
-    ex = d.x - d.bx[d.bi]
-    ey = d.y - d.by[d.bi]
-    h = np.hypot(ex, ey)
-    dz = d.bz[d.bi] - d.vdepth
-    cov = {"time": d.time, "range": np.hypot(h, dz),
-           "elevation": np.degrees(np.arctan2(dz, h)), "vehicle_depth": d.vdepth,
-           "bearing": np.degrees(np.arctan2(ex, ey)) % 360.0}
+    cov = covariates(d)
     checks = []
     for c, name in enumerate(("dp", "mp")):
         for j, bid in enumerate(d.ids):
@@ -949,6 +1037,7 @@ def diagnose(
             print(f"[diagnose] {msg}", file=sys.stderr, flush=True)
 
     start, path, path_ll = _baseline_start(d, fittable, path, gen)
+    seed = int(gen.integers(2**31))
     base = fit_joint(d, (), start, path=path, **kw)
     say(f"baseline: {d.n} replies, {d.nb} beacons, {path} multipath, "
         f"log-likelihood {base.loglik:.1f}")
@@ -972,6 +1061,14 @@ def diagnose(
                 candidates.append({"round": rnd, "name": name, "delta_elpd": None, "se": None,
                                    "kept": False, "note": str(err)})
                 continue
+            fresh = _replant(d, fit_e, fittable, path, seed)
+            if fresh is not None:
+                try:
+                    alt = fit_joint(d, eff, fresh, path=path, **kw)
+                    if alt.loglik > fit_e.loglik:
+                        fit_e = alt
+                except ValueError:
+                    pass
             ho = _heldout(d, eff, fit_e, folds, path, **kw)
             diff = ho - cur_ho
             delta = float(diff.sum())
@@ -1000,7 +1097,8 @@ def diagnose(
             evidence=_evidence(name, current, d, delta, se, int(n_folds)),
             detail=_detail(name, current)))
     checks = residual_checks(current, d)
-    settings = {"path": path, "path_loglik": path_ll, "n_folds": int(n_folds), "min_gain": float(min_gain),
+    settings = {"path": path, "path_loglik": path_ll, "n_folds": int(n_folds),
+                "min_gain": float(min_gain),
                 "min_z": float(min_z), "max_effects": int(max_effects),
                 "candidates": list(effects), "min_pings": int(min_pings)}
     return Diagnosis(effects=found, baseline=base, final=current, candidates=candidates,

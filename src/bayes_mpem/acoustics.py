@@ -87,13 +87,13 @@ def _log1p_ratio(u):
 
 def _artanh_ratio(x):
     """``artanh(x) / x``, 1 at ``x = 0`` (series below ``|x| = 0.01``, error < 1e-20)."""
-    big = np.abs(x) >= 1e-2
     x2 = x * x
     if x2.size and x2.max() < 1e-8:  # |x| < 1e-4: two terms are exact to 2e-17
         x2 *= 1 / 3
         x2 += 1.0
         return x2
     out = 1.0 + x2 * (1 / 3 + x2 * (1 / 5 + x2 * (1 / 7 + x2 / 9)))
+    big = np.abs(x) >= 1e-2
     if big.any():
         out[big] = np.arctanh(x[big]) / x[big]
     return out
@@ -189,9 +189,9 @@ class SoundSpeedProfile:
         """Read a two-column text profile: depth (m), sound speed (m/s).
 
         Fields are separated by whitespace and/or commas. Blank lines and
-        everything after a ``#`` are ignored; lines before the first data line
-        whose fields are not numbers are a header (such as ``depth(m) ssp(m/s)``).
-        Further columns are ignored.
+        everything after a ``#`` are ignored. Lines before the first data line
+        whose depth or speed field is not a number are a header (column names
+        such as ``depth(m) ssp(m/s)``, a title); other columns are ignored.
 
         Parameters
         ----------
@@ -553,7 +553,6 @@ class _Legs:
             self.C.append(cc)
             self.H.append(np.diff(zc, axis=1))
         self.cmax = np.max([cc.max(axis=1) for cc in self.C], axis=0)
-        self._work = None
         m = self.cmax[:, None]
         self.A, self.B, self.R2 = [], [], []
         for cc, hh in zip(self.C, self.H, strict=True):
@@ -573,24 +572,13 @@ class _Legs:
         for name in names:
             setattr(new, name, [a[idx] for a in getattr(self, name)])
         new.cmax = self.cmax[idx]
-        new._work = None
         return new
 
-    def _buffers(self):
-        """Work arrays reused by every evaluation (no allocator churn in the loop)."""
-        if getattr(self, "_work", None) is None:
-            self._work = [(np.empty(b.shape), np.empty(a.shape), np.empty(a.shape))
-                          for a, b in zip(self.A, self.B, strict=True)]
-        return self._work
-
     def cosines(self, sin2):
-        """``s = cos(theta)`` at every knot for grazing angles with ``sin(phi)**2 = sin2``.
-
-        The arrays returned are work buffers, overwritten by the next call.
-        """
+        """``s = cos(theta)`` at every knot for grazing angles with ``sin(phi)**2 = sin2``."""
         out = []
-        for b, r2, (s, _, _) in zip(self.B, self.R2, self._buffers(), strict=True):
-            np.multiply(r2, sin2[:, None], out=s)
+        for b, r2 in zip(self.B, self.R2, strict=True):
+            s = np.multiply(r2, sin2[:, None])
             s += b
             out.append(np.sqrt(s, out=s))
         return out
@@ -607,13 +595,13 @@ class _Legs:
         """``sum A / (s0 + s1)`` (= X / p) and ``sum A / ((s0 + s1) s0 s1)`` (= dX/dp)."""
         x = np.zeros(S[0].shape[0])
         d = np.zeros_like(x) if deriv else None
-        for a, s, (_, term, prod) in zip(self.A, S, self._buffers(), strict=True):
+        for a, s in zip(self.A, S, strict=True):
             s0, s1 = s[:, :-1], s[:, 1:]
-            np.add(s0, s1, out=term)
+            term = s0 + s1
             np.divide(a, term, out=term)
             x += term.sum(axis=1)
             if deriv:
-                term /= np.multiply(s0, s1, out=prod)
+                term /= np.multiply(s0, s1)
                 d += term.sum(axis=1)
         return x, d
 

@@ -807,9 +807,13 @@ class Diagnosis:
 
     def summary(self) -> str:
         """A few lines for a terminal."""
-        if not self.effects:
+        if not self.effects and not self.unexplained:
             lines = ["No effect found: the paper's model explains these data "
                      f"({len(self.candidates)} extensions tried, none clearly better)."]
+        elif not self.effects:
+            lines = ["No effect of the vocabulary predicts these data better "
+                     f"({len(self.candidates)} extensions tried), but residual structure is "
+                     "left that the model does not explain:"]
         else:
             lines = ["Effects found:"]
             for e in self.effects:
@@ -1073,9 +1077,12 @@ def diagnose(
             diff = ho - cur_ho
             delta = float(diff.sum())
             se = float(np.sqrt(d.n * np.var(diff)))
-            trials.append((delta, se, name, fit_e, ho))
+            why_not = _not_credible(name, fit_e, d)
+            if why_not is None:
+                trials.append((delta, se, name, fit_e, ho))
             candidates.append({"round": rnd, "name": name, "delta_elpd": delta, "se": se,
-                               "magnitude": fit_e.magnitudes(d)[name], "kept": False})
+                               "magnitude": fit_e.magnitudes(d)[name], "kept": False,
+                               **({"note": why_not} if why_not else {})})
             say(f"round {rnd}: {name:16s} delta elpd {delta:+10.1f} ± {se:.1f}")
         good = [t for t in trials if t[0] > min_gain and t[0] > min_z * t[1]]
         if not good:
@@ -1104,6 +1111,25 @@ def diagnose(
     return Diagnosis(effects=found, baseline=base, final=current, candidates=candidates,
                      residual_checks=checks, skipped=skipped, survey=survey, data=d,
                      settings=settings)
+
+
+#: A second family must hold at least this share of the replies (and 20 of them).
+MIN_SECOND_SHARE = 0.01
+
+
+def _not_credible(name, fit: JointFit, d: _Ranges):
+    """Why a fitted extension is not a physical effect (``None`` if it is)."""
+    if name != "second_reflector":
+        return None
+    share = float(fit.resp[:, 2].mean())
+    if share < MIN_SECOND_SHARE or share * d.n < 20:
+        return (f"the second family holds {share * 100:.2f} % of the replies "
+                f"(< {MIN_SECOND_SHARE * 100:g} % or < 20 replies): a few coincident ranges, "
+                "not a reflector")
+    if fit.params.plane2 - (_main_plane(fit.params) + _SECOND_GAP) < 1.0:
+        return (f"the second plane sits on its bound ({_SECOND_GAP:g} m below the main "
+                "reflector): not located")
+    return None
 
 
 def _magnitude_se(name, fit: JointFit):

@@ -410,6 +410,18 @@ def test_horizontal_run_increases_with_the_ray_parameter(ssp):
         assert np.isnan(x_out).all() and np.isnan(t_out).all()
 
 
+def test_shoot_at_grazing_many_ranges_at_once():
+    z_a, z_b = np.array([1200.0, 1000.0, 0.0, 600.0]), np.array([2900.0, 1500.0, 60.0, 850.0])
+    p = 1.0 / np.array([1510.0, 1510.0, 1522.0, 1495.0])  # 1 / c_max of each range
+    x, t = shoot(LAYERED, z_a, z_b, p)
+    for i in range(3):
+        xi, ti = shoot(LAYERED, z_a[i], z_b[i], p[i])
+        assert np.isfinite(xi) and x[i] == pytest.approx(float(xi), rel=1e-14)
+        assert t[i] == pytest.approx(float(ti), rel=1e-14)
+    # at the top of a constant-speed layer the grazing ray runs along it for ever
+    assert np.isinf(x[3]) and np.isinf(t[3])
+
+
 def test_turning_rays_are_flagged_not_approximated():
     # speed increasing downward below 1200 m: a ray from 2900 m to 1200 m can only
     # reach out to X(1/c(1200)); beyond that it would have to turn

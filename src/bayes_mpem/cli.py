@@ -103,6 +103,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--fit-tat", action="store_true",
                    help="fit the turn-around time too (often not identifiable)")
     p.add_argument("--ci", type=float, default=0.95, help="interval probability (default 0.95)")
+    p.add_argument("--outliers", choices=["uniform", "first_arrival"], default="uniform",
+                   help="spurious pings uniform over the window (default) or only before the "
+                        "true arrival (a first-threshold-crossing detector)")
 
     for name, helptext in (("sample", "sample each beacon's posterior with emcee"),
                            ("compare", "compare equal (paper) and learned mixing priors by LOO")):
@@ -321,7 +324,8 @@ def cmd_locate(args):
             first = next((ln for ln in fh if ln.strip()), "")
         fmt = "obsrange-whoi" if first.lstrip().startswith("#") else "obsrange-sio"
     raw = read_survey(args.survey, fmt)
-    summary, classified = locate_survey(raw, tat=args.tat, fit_tat=args.fit_tat, ci=args.ci)
+    summary, classified = locate_survey(raw, tat=args.tat, fit_tat=args.fit_tat, ci=args.ci,
+                                        outliers=args.outliers)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")

@@ -15,8 +15,14 @@ weight in closed form. The start is a Cauchy-loss robust fit from the drop
 point. Standard deviations are from the weighted Gauss-Newton information
 (approximate; the Bayesian version is for later).
 
+Spurious pings are uniform over the listening window or, with
+``outliers="first_arrival"``, only before the true arrival (a detector that
+reports the first threshold crossing); :func:`heldout_logpdf` compares the two
+by cross-validation.
+
 Refraction (rays bending through the sound-speed profile) is not modelled yet:
-``c`` is an effective straight-ray speed.
+``c`` is an effective straight-ray speed (the eigenray solver is in
+:mod:`bayes_mpem.acoustics`).
 """
 
 from __future__ import annotations
@@ -83,6 +89,27 @@ class LocateResult:
     n_iter: int = 0
     converged: bool = True
     fit_tat: bool = False
+    outliers: str = "uniform"
+    window: tuple = (0.0, 1.0)
+
+    def logpdf(self, pings: pd.DataFrame) -> np.ndarray:
+        """Log density (1/s) of each ping's two-way travel time under this fit.
+
+        Parameters
+        ----------
+        pings : pandas.DataFrame
+            ``twtt``, ``x``, ``y``, ``depth`` of this transponder's pings (e.g. held out).
+
+        Returns
+        -------
+        numpy.ndarray
+        """
+        t = pings["twtt"].to_numpy(float)
+        x, y, z = (pings[c].to_numpy(float) for c in ("x", "y", "depth"))
+        theta = np.array([self.east, self.north, self.depth, self.sound_speed])
+        pred = _predict(theta, x, y, z, self.tat)
+        ld, lu = _log_classes(t, pred, self.sigma, self.weight, self.window, self.outliers)
+        return np.logaddexp(ld, lu)
 
     @property
     def n_spurious(self) -> int:
@@ -116,8 +143,29 @@ def _predict(theta, x, y, z, tat):
     return 2.0 * np.sqrt((x - e) ** 2 + (y - n) ** 2 + (z - d) ** 2) / c + t0
 
 
+OUTLIER_MODELS = ("uniform", "first_arrival")
+_EPS_LATE = 1e-3  # share of the first-arrival outlier density left over the whole window
+
+
+def _log_classes(t, pred, sigma, weight, window, outliers):
+    """Weighted log densities (true, spurious) of travel times ``t`` given predictions."""
+    lo, hi = window
+    ld = np.log(weight) - 0.5 * ((t - pred) / sigma) ** 2 - np.log(sigma * np.sqrt(2 * np.pi))
+    if weight >= 1:
+        return ld, np.full_like(t, -np.inf)
+    width = max(hi - lo, 1e-9)
+    if outliers == "uniform":
+        lu = np.full_like(t, -np.log(width))
+    else:  # a detector reporting the first threshold crossing: spurious before the true arrival
+        early = np.maximum(pred - lo, 1e-6)
+        lu = np.where(t <= pred, np.log((1 - _EPS_LATE) / early + _EPS_LATE / width),
+                      np.log(_EPS_LATE / width))
+    return ld, np.log1p(-weight) + lu
+
+
 def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=None,
-           fit_tat=False, sound_speed=1500.0, max_iter=200, tol=1e-10) -> LocateResult:
+           fit_tat=False, sound_speed=1500.0, outliers="uniform", window=None, max_iter=200,
+           tol=1e-10) -> LocateResult:
     """Locate one transponder by EM from pings with two-way travel times.
 
     Parameters
@@ -138,6 +186,15 @@ def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=
         depth ~290 m), and a :class:`LocateWarning` says so when that happens.
     sound_speed : float, default 1500
         Starting sound speed (m/s).
+    outliers : {"uniform", "first_arrival"}
+        Spurious pings uniform over the listening window (the simulator's
+        assumption), or uniform between the window start and the true arrival:
+        a detector that reports the first threshold crossing cannot report a
+        false detection after the true one (a share ``1e-3`` of the density
+        stays spread over the window).
+    window : tuple of float, optional
+        Listening window (s); default the smallest and largest travel time of
+        the transponder's pings.
     max_iter : int, default 200
     tol : float, default 1e-10
         Stop when sigma (s) changes by less than this.
@@ -151,6 +208,8 @@ def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=
     InputError
         For a missing column, an unknown transponder or too few pings.
     """
+    if outliers not in OUTLIER_MODELS:
+        raise ValueError(f"outliers: expected one of {OUTLIER_MODELS}, got {outliers!r}")
     need = {"beacon", "twtt", "x", "y", "depth"}
     missing = need - set(pings.columns)
     if missing:
@@ -181,12 +240,11 @@ def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=
     theta = least_squares(resid, theta, loss="cauchy", f_scale=2e-3, x_scale=scale).x
     r = resid(theta)
     sigma = max(1.4826 * float(np.median(np.abs(r - np.median(r)))), 1e-6)
-    weight, lo, hi = 0.9, float(t.min()), float(t.max())
-    log_u = -np.log(max(hi - lo, 1e-9))
+    weight = 0.9
+    window = (float(t.min()), float(t.max())) if window is None else tuple(map(float, window))
     converged, it = False, 0
     for it in range(1, max_iter + 1):
-        ld = np.log(weight) - 0.5 * (r / sigma) ** 2 - np.log(sigma * np.sqrt(2 * np.pi))
-        lu = np.log1p(-weight) + log_u if weight < 1 else -np.inf
+        ld, lu = _log_classes(t, t - r, sigma, weight, window, outliers)
         p = 1.0 / (1.0 + np.exp(np.clip(lu - ld, -700.0, 700.0)))
         fit = least_squares(resid, theta, args=(p,), x_scale=scale)
         theta = fit.x
@@ -214,10 +272,50 @@ def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=
         transponder=str(transponder), east=float(theta[0]), north=float(theta[1]),
         depth=float(theta[2]), sound_speed=float(theta[3]),
         tat=float(theta[4]) if fit_tat else tat0, sigma=sigma, weight=weight, sd=sd,
-        p_true=p, rows=rows, n_iter=it, converged=converged, fit_tat=fit_tat)
+        p_true=p, rows=rows, n_iter=it, converged=converged, fit_tat=fit_tat,
+        outliers=outliers, window=window)
 
 
-def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95):
+def heldout_logpdf(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *,
+                   outliers="uniform", n_folds=5, rng=0, **kwargs) -> np.ndarray:
+    """K-fold cross-validated log predictive density of every ping of one transponder.
+
+    Each fold is located from the other pings (same listening window: the
+    whole file's) and scores its own pings with :meth:`LocateResult.logpdf`.
+
+    Parameters
+    ----------
+    pings, beacons, transponder
+        As for :func:`locate`.
+    outliers : {"uniform", "first_arrival"}
+    n_folds : int, default 5
+    rng : None, int or numpy.random.Generator
+        Assigns the pings to folds.
+    **kwargs
+        Passed to :func:`locate` (``tat``, ``sound_speed``, ...).
+
+    Returns
+    -------
+    numpy.ndarray
+        One value (log 1/s) per ping of the transponder, in table order.
+    """
+    from ._rng import as_generator
+
+    full = locate(pings, beacons, transponder, outliers=outliers, **kwargs)
+    sub = pings.iloc[full.rows]
+    folds = as_generator(rng).permutation(np.arange(full.rows.size) % int(n_folds))
+    out = np.empty(full.rows.size)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LocateWarning)
+        for k in range(int(n_folds)):
+            test = folds == k
+            fit_k = locate(sub[~test], beacons, full.transponder, outliers=outliers,
+                           window=full.window, **kwargs)
+            out[test] = fit_k.logpdf(sub[test])
+    return out
+
+
+def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform"):
     """Locate every transponder of a :class:`~bayes_mpem.readers.RawSurvey`.
 
     Parameters
@@ -228,6 +326,8 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95):
         for SeaGap (whose travel times are already corrected).
     fit_tat : bool, default False
     ci : float, default 0.95
+    outliers : {"uniform", "first_arrival"}
+        The spurious-ping model (:func:`locate`).
 
     Returns
     -------
@@ -243,7 +343,7 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95):
     pings, beacons = raw.to_pings()
     out, probs = {}, np.full(len(pings), np.nan)
     for tid in beacons["beacon"].astype(str):
-        r = locate(pings, beacons, tid, tat=tat, fit_tat=fit_tat)
+        r = locate(pings, beacons, tid, tat=tat, fit_tat=fit_tat, outliers=outliers)
         probs[r.rows] = r.p_true
         d = r.to_dict(ci)
         if "lat" in raw.header:
@@ -266,9 +366,10 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95):
     summary = {"transponders": out, "format": raw.format, "source": raw.source,
                "n_pings": int(len(pings)), "n_skipped_lines": int(len(sk)),
                "method": "EM, straight rays; intervals approximate (Wald)",
+               "outliers": outliers,
                "tat_fitted": bool(fit_tat), "tat_given": None if fit_tat else float(tat)}
     return summary, cls
 
 
-__all__ = ["DEFAULT_TAT", "LocateResult", "LocateWarning", "enu_to_geodetic", "locate",
-           "locate_survey"]
+__all__ = ["DEFAULT_TAT", "OUTLIER_MODELS", "LocateResult", "LocateWarning", "enu_to_geodetic",
+           "heldout_logpdf", "locate", "locate_survey"]

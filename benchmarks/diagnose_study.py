@@ -176,7 +176,7 @@ def main(argv=None):
     lines.append("")
 
     # ---- plane drift detection limit
-    sizes = [1.0, 2.0, 3.0, 4.0, 6.0, 8.0]
+    sizes = [2.0, 3.0, 4.0, 6.0]
     lines += ["## Detection limit of plane_drift", "",
               "Fraction of surveys where plane_drift is named with its size within 30 % "
               f"({n_seeds} seeds per size, positive drift).", "",

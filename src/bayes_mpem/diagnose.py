@@ -382,7 +382,7 @@ def _gauss_newton(d, p, effects, path, resp, n_steps=2):
     return p, names, info
 
 
-def _m_step(d, p, effects, path, resp, sigma_floor):
+def _m_step(d, p, effects, path, resp, sigma_floor, mp2_floor):
     p = p.copy()
     nb = d.nb
     counts = np.bincount(d.bi, minlength=nb).astype(float)
@@ -398,8 +398,9 @@ def _m_step(d, p, effects, path, resp, sigma_floor):
         den = np.bincount(d.bi, weights=resp[:, c], minlength=nb)
         ok = den > 1e-3
         # a second family is no sharper than the direct path (its scatter includes the
-        # direct path's): stops it from collapsing onto a handful of coincident ranges
-        floor = np.maximum(sigma_floor, p.sigma[ok, 0]) if name == "mp2" else sigma_floor
+        # direct path's): stops it from collapsing onto a handful of coincident ranges. The
+        # floor is fixed for the whole run, so every M-step stays a conditional maximisation.
+        floor = mp2_floor[ok] if name == "mp2" else sigma_floor
         p.sigma[ok, c] = np.maximum(np.sqrt(num[ok] / den[ok]), floor)
     return p, names, info
 
@@ -549,13 +550,17 @@ def _second_starts(d, p, effects, path, resp):
 
 
 def _run(d, p, effects, path, *, max_iter, tol, sigma_floor):
+    mp2_floor = np.maximum(sigma_floor, p.sigma[:, 0])
+    if "second_reflector" in effects:
+        p = p.copy()
+        p.sigma[:, 2] = np.maximum(p.sigma[:, 2], mp2_floor)
     resp, ll_i, mu = _e_step(d, p, effects, path)
     ll = float(ll_i.sum())
     hist = [ll]
     converged = False
     info, names = None, _mean_names(effects, d.nb)
     for it in range(1, max_iter + 1):
-        p, names, info = _m_step(d, p, effects, path, resp, sigma_floor)
+        p, names, info = _m_step(d, p, effects, path, resp, sigma_floor, mp2_floor)
         resp, ll_i, mu = _e_step(d, p, effects, path)
         new = float(ll_i.sum())
         hist.append(new)

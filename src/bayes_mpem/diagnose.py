@@ -58,7 +58,7 @@ import numpy as np
 from . import geometry
 from ._rng import RNGLike, as_generator
 from .data import Survey, load_survey
-from .em import fit_mixture_em
+from .em import fit_mixture_em, histogram_modes
 from .fitting import fittable_beacons
 
 __all__ = ["EFFECTS", "UNITS", "Diagnosis", "Effect", "JointFit", "covariates", "diagnose",
@@ -489,24 +489,9 @@ def _implied_depths(d, p, effects, path):
     return d.bz[d.bi] - d0k
 
 
-def _modes(v, k, *, width=5.0, sep=25.0):
-    """The ``k`` strongest modes of ``v`` (histogram of ``width`` bins, at least ``sep`` apart)."""
-    if v.size < 10:
-        return []
-    nbins = int(min(max((v.max() - v.min()) / width, 1), 5000))
-    counts, edges = np.histogram(v, bins=nbins)
-    smooth = np.convolve(counts, np.ones(3), mode="same")[:counts.size] if counts.size >= 3 \
-        else counts.astype(float)
-    out = []
-    for i in np.argsort(smooth)[::-1]:
-        if smooth[i] < 5:
-            break
-        c = 0.5 * (edges[i] + edges[i + 1])
-        if all(abs(c - o) > sep for o in out):
-            out.append(float(c))
-        if len(out) >= k:
-            break
-    return out
+def _modes(v, k):
+    """The ``k`` strongest modes of the depths ``v`` (5 m bins, 25 m apart, > 4 ranges)."""
+    return histogram_modes(v, k, min_count=4) if v.size >= 10 else []
 
 
 def _second_starts(d, p, effects, path, resp):

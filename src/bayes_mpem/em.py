@@ -569,6 +569,26 @@ def _run_mixture(geom, state, path, *, fit_sigma_dp, fit_weights, sigma_floor, t
     return state, ll, resp, first, hist, it, converged
 
 
+def histogram_modes(v, k, *, width=5.0, sep=25.0, min_count=-1):
+    """The ``k`` strongest modes of ``v``: centres of ``width`` bins of a 3-bin smoothed
+    histogram, at least ``sep`` apart, with a smoothed count above ``min_count`` (default:
+    any bin, empty ones included)."""
+    nb = int(min(max((v.max() - v.min()) / width, 1), 20000))
+    counts, edges = np.histogram(v, bins=nb)
+    smooth = np.convolve(counts, np.ones(3), mode="same")[:counts.size] if counts.size >= 3 \
+        else counts.astype(float)
+    out = []
+    for i in np.argsort(smooth)[::-1]:
+        if smooth[i] <= min_count:
+            break
+        c = 0.5 * (edges[i] + edges[i + 1])
+        if all(abs(c - o) > sep for o in out):
+            out.append(float(c))
+        if len(out) >= k:
+            break
+    return out
+
+
 def _d0_candidates(geom, sigma_dp, path, k):
     """Modes of the per-range plane heights, ranges near the direct path left out."""
     d0k = geometry.invert_plane_height(geom.z, geom.h, geom.dz, path, direct=geom.direct)
@@ -576,20 +596,7 @@ def _d0_candidates(geom, sigma_dp, path, k):
     v = d0k[np.isfinite(d0k) & far & (d0k >= geom.d0_min)]
     if v.size < 3:
         return []
-    width = 5.0
-    nb = int(min(max((v.max() - v.min()) / width, 1), 20000))
-    counts, edges = np.histogram(v, bins=nb)
-    smooth = np.convolve(counts, np.ones(3), mode="same")[:counts.size] if counts.size >= 3 \
-        else counts.astype(float)
-    order = np.argsort(smooth)[::-1]
-    out = []
-    for i in order:
-        c = 0.5 * (edges[i] + edges[i + 1])
-        if all(abs(c - o) > 25.0 for o in out):
-            out.append(float(c))
-        if len(out) >= k:
-            break
-    return out
+    return histogram_modes(v, k)
 
 
 def fit_mixture_em(

@@ -235,7 +235,6 @@ def _predict(d: _Ranges, p: _Params, effects, path, names=None):
     safe_r = np.maximum(refl, 1e-9)
     half = 0.5 if tri else 1.0
     dmp_dd0 = half * 2.0 * lever / safe_r  # d mp / d d0 (d0 = bz - plane)
-    rows = np.arange(n)
     for col, (key, j) in enumerate(names):
         if key == "plane":
             sel = d.bi == j
@@ -261,7 +260,6 @@ def _predict(d: _Ranges, p: _Params, effects, path, names=None):
             if second:
                 dr2 = e * d.tau / np.maximum(refl2, 1e-9)
                 jac["mp2"][:, col] = k * (0.5 * (dd + dr2) if tri else dr2)
-    del rows
     return mu, jac
 
 
@@ -603,7 +601,31 @@ def _start_for(d, base: JointFit, effects, path):
 
 def fit_joint(d: _Ranges, effects, start: _Params | list, *, path="triangle", max_iter=300,
               tol=1e-7, sigma_floor=0.05) -> JointFit:
-    """Fit the joint model with ``effects`` from one or several starting points (best kept)."""
+    """Fit the joint model with ``effects`` from one or several starting points (best kept).
+
+    Parameters
+    ----------
+    d : _Ranges
+        The replies (``Diagnosis.data``).
+    effects : tuple of str
+        Extensions switched on (names of :data:`EFFECTS`).
+    start : parameters or list of them
+        Starting points; infeasible ones are moved just inside the constraints.
+    path : {"triangle", "double"}
+    max_iter : int, default 300
+    tol : float, default 1e-7
+        Stop when the log-likelihood gains less than ``tol`` per reply.
+    sigma_floor : float, default 0.05
+
+    Returns
+    -------
+    JointFit
+
+    Raises
+    ------
+    ValueError
+        When no start can be made feasible.
+    """
     starts = start if isinstance(start, list) else [start]
     best = None
     for s in starts:

@@ -202,16 +202,21 @@ def _set_vector(p: _Params, names, v) -> _Params:
     return q
 
 
-def _predict(d: _Ranges, p: _Params, effects, path, names=None):
-    """Class means ``{"dp", "mp"[, "mp2"]}`` and, with ``names``, their Jacobians."""
+def _offsets(d: _Ranges, p: _Params | None = None, effects=()):
+    """Vehicle minus beacon ``(ex, ey)``, horizontal distance ``h`` and ``dz = z_beacon -
+    z_vehicle`` of every reply; navigation corrected when ``nav_drift`` is switched on."""
     ex = d.x - d.bx[d.bi]
     ey = d.y - d.by[d.bi]
     if "nav_drift" in effects:
         ex = ex + p.nav[0] * d.tau
         ey = ey + p.nav[1] * d.tau
-    h = np.hypot(ex, ey)
+    return ex, ey, np.hypot(ex, ey), d.bz[d.bi] - d.vdepth
+
+
+def _predict(d: _Ranges, p: _Params, effects, path, names=None):
+    """Class means ``{"dp", "mp"[, "mp2"]}`` and, with ``names``, their Jacobians."""
+    ex, ey, h, dz = _offsets(d, p, effects)
     bz = d.bz[d.bi]
-    dz = bz - d.vdepth
     direct = np.hypot(h, dz)
     plane = p.plane[d.bi] + (p.drift * d.tau if "plane_drift" in effects else 0.0)
     lever = 2.0 * (bz - plane) - dz
@@ -478,11 +483,7 @@ def _implied_depths(d, p, effects, path):
     k = 1.0 + (p.scale if "sound_speed" in effects else 0.0)
     b = p.bias if "range_bias" in effects else 0.0
     z = (d.z - b) / k
-    ex, ey = d.x - d.bx[d.bi], d.y - d.by[d.bi]
-    if "nav_drift" in effects:
-        ex, ey = ex + p.nav[0] * d.tau, ey + p.nav[1] * d.tau
-    h = np.hypot(ex, ey)
-    dz = d.bz[d.bi] - d.vdepth
+    _, _, h, dz = _offsets(d, p, effects)
     d0k = geometry.invert_plane_height(z, h, dz, path)
     return d.bz[d.bi] - d0k
 
@@ -896,10 +897,7 @@ def covariates(d: _Ranges) -> dict:
         positive when the vehicle is above the beacon), ``vehicle_depth`` (m),
         ``bearing`` (deg clockwise from +y, of the vehicle seen from the beacon).
     """
-    ex = d.x - d.bx[d.bi]
-    ey = d.y - d.by[d.bi]
-    h = np.hypot(ex, ey)
-    dz = d.bz[d.bi] - d.vdepth
+    ex, ey, h, dz = _offsets(d)
     return {"time": d.time, "range": np.hypot(h, dz),
             "elevation": np.degrees(np.arctan2(dz, h)), "vehicle_depth": d.vdepth,
             "bearing": np.degrees(np.arctan2(ex, ey)) % 360.0}

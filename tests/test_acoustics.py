@@ -213,7 +213,12 @@ def test_woa09_at_the_obsrange_cc03_site():
 
 
 def test_woa09_directory_from_the_environment(monkeypatch):
+    import bayes_mpem.acoustics as ac
+
     monkeypatch.delenv(WOA09_ENV, raising=False)
+    # installed (or in the source tree) the atlas is found without being told where
+    assert SoundSpeedProfile.from_woa09(*CC03).speeds.size == 33
+    monkeypatch.setattr(ac, "_bundled_woa09", lambda: None)
     with pytest.raises(FileNotFoundError, match=f"pass directory=.*{WOA09_ENV}"):
         SoundSpeedProfile.from_woa09(*CC03)
     monkeypatch.setenv(WOA09_ENV, str(WOA09))

@@ -48,8 +48,9 @@ check and one for the travel time. Interior knots on a straight line (equal
 gradients) are skipped by the tracer.
 
 The WOA09 annual climatology (:meth:`SoundSpeedProfile.from_woa09`) is in the
-source repository's ``data/woa09`` (see ``data/README.md``); an installed package
-finds it through ``directory=`` or the ``BAYES_MPEM_WOA09`` environment variable.
+source repository's ``data/woa09`` (see ``data/README.md``) and is installed with
+the package; ``directory=`` or the ``BAYES_MPEM_WOA09`` environment variable
+point elsewhere.
 """
 
 from __future__ import annotations
@@ -282,7 +283,8 @@ class SoundSpeedProfile:
         directory : str or pathlib.Path, optional
             Folder with ``lev_latlonZ.mat`` and ``lev_ann.mat`` (in the source
             repository: ``data/woa09``). Default: the ``BAYES_MPEM_WOA09``
-            environment variable.
+            environment variable, else the copy installed with the package
+            (or the source repository's, in a development install).
         max_distance_km : float, default 150
             Refuse a cell farther than this.
 
@@ -294,7 +296,8 @@ class SoundSpeedProfile:
         Raises
         ------
         FileNotFoundError
-            No directory given and ``BAYES_MPEM_WOA09`` unset, or a file missing.
+            No directory given, ``BAYES_MPEM_WOA09`` unset and no installed copy, or a
+            file missing.
         InputError
             A file without the expected variables or shapes.
         ValueError
@@ -306,7 +309,7 @@ class SoundSpeedProfile:
             raise ValueError(f"from_woa09: expected -90 <= lat <= 90 and a finite lon, got "
                              f"lat={lat}, lon={lon}")
         if directory is None:
-            directory = os.environ.get(WOA09_ENV)
+            directory = os.environ.get(WOA09_ENV) or _bundled_woa09()
             if not directory:
                 raise FileNotFoundError(
                     "from_woa09: no WOA09 directory: pass directory=... (the folder holding "
@@ -472,6 +475,15 @@ def _numbers(parts):
 
 
 @functools.lru_cache(maxsize=4)
+def _bundled_woa09():
+    """The atlas shipped with the package (wheel), else the source repository's copy."""
+    here = Path(__file__).resolve().parent
+    for d in (here / "_woa09", here.parents[1] / "data" / "woa09"):
+        if (d / "lev_ann.mat").is_file() and (d / "lev_latlonZ.mat").is_file():
+            return str(d)
+    return None
+
+
 def _load_woa09(directory: str):
     """The WOA09 grid: cell lat, lon (0-360), level depths, speeds, valid levels per cell."""
     from scipy.io import loadmat

@@ -106,6 +106,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--outliers", choices=["uniform", "first_arrival"], default="uniform",
                    help="spurious pings uniform over the window (default) or only before the "
                         "true arrival (a first-threshold-crossing detector)")
+    p.add_argument("--ssp", default=None, metavar="FILE|woa09|survey",
+                   help="refracted rays through a sound-speed profile: a two-column file "
+                        "(depth m, speed m/s), 'woa09' (the atlas at the drop point) or "
+                        "'survey' (the survey's own, SeaGap's ss_prof.inp); default straight rays")
+    p.add_argument("--speed-intervals", type=int, default=0, metavar="N",
+                   help="let the sound speed vary in time (cubic B-spline, N intervals over "
+                        "the survey; default 0: one speed)")
 
     for name, helptext in (("sample", "sample each beacon's posterior with emcee"),
                            ("compare", "compare equal (paper) and learned mixing priors by LOO")):
@@ -325,7 +332,8 @@ def cmd_locate(args):
         fmt = "obsrange-whoi" if first.lstrip().startswith("#") else "obsrange-sio"
     raw = read_survey(args.survey, fmt)
     summary, classified = locate_survey(raw, tat=args.tat, fit_tat=args.fit_tat, ci=args.ci,
-                                        outliers=args.outliers)
+                                        outliers=args.outliers, ssp=args.ssp,
+                                        speed_intervals=args.speed_intervals)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")

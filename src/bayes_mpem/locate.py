@@ -56,7 +56,9 @@ class LocateResult:
     east, north, depth : float
         Position in the survey's local frame (m; depth positive down).
     sound_speed : float
-        Effective straight-ray sound speed (m/s).
+        Effective straight-ray sound speed (m/s); with a profile, the scaled
+        profile's harmonic mean from the transducer to the transponder; when
+        the speed varies in time, its mean over the pings.
     tat : float
         Turn-around time (s), fitted or as given.
     sigma : float
@@ -73,6 +75,16 @@ class LocateResult:
     n_iter : int
     converged : bool
     fit_tat : bool
+    outliers : str
+    window : tuple of float
+        The listening window of the spurious-ping density (s).
+    model : dict
+        How travel times were predicted: ``ssp`` (profile or None),
+        ``surface_depth``, ``earth_radius``, ``speed_intervals``, ``time_range``.
+    speed_coef : numpy.ndarray
+        The fitted speed parameter(s): the sound speed (m/s), or with a profile
+        the factor its speeds are scaled by; one per B-spline coefficient when
+        the speed varies in time.
     """
 
     transponder: str
@@ -91,6 +103,38 @@ class LocateResult:
     fit_tat: bool = False
     outliers: str = "uniform"
     window: tuple = (0.0, 1.0)
+    model: dict = field(default_factory=dict, repr=False)
+    speed_coef: np.ndarray = field(default=None, repr=False)
+
+    @property
+    def refracted(self) -> bool:
+        """Whether travel times follow refracted rays through a profile."""
+        return self.model.get("ssp") is not None
+
+    def _model(self, pings):
+        x, y, z = (pings[c].to_numpy(float) for c in ("x", "y", "depth"))
+        m = self.model
+        basis = _speed_basis(pings, m.get("speed_intervals", 0), m.get("time_range"))
+        tt = _TravelTimes(x, y, z, self.tat, basis=basis, profile=m.get("ssp"),
+                          surface_depth=m.get("surface_depth", 0.0),
+                          earth_radius=m.get("earth_radius"))
+        coef = np.atleast_1d(self.sound_speed if self.speed_coef is None else self.speed_coef)
+        return tt, np.concatenate([[self.east, self.north, self.depth], coef])
+
+    def predict(self, pings: pd.DataFrame) -> np.ndarray:
+        """Predicted two-way travel time (s) of a true arrival for each ping.
+
+        Parameters
+        ----------
+        pings : pandas.DataFrame
+            ``x``, ``y``, ``depth`` of the ship transducer.
+
+        Returns
+        -------
+        numpy.ndarray
+        """
+        model, theta = self._model(pings)
+        return model.predict(theta)
 
     def logpdf(self, pings: pd.DataFrame) -> np.ndarray:
         """Log density (1/s) of each ping's two-way travel time under this fit.
@@ -105,9 +149,7 @@ class LocateResult:
         numpy.ndarray
         """
         t = pings["twtt"].to_numpy(float)
-        x, y, z = (pings[c].to_numpy(float) for c in ("x", "y", "depth"))
-        theta = np.array([self.east, self.north, self.depth, self.sound_speed])
-        pred = _predict(theta, x, y, z, self.tat)
+        pred = self.predict(pings)
         ld, lu = _log_classes(t, pred, self.sigma, self.weight, self.window, self.outliers)
         return np.logaddexp(ld, lu)
 
@@ -137,10 +179,125 @@ class LocateResult:
         return out
 
 
-def _predict(theta, x, y, z, tat):
-    e, n, d, c = theta[:4]
-    t0 = theta[4] if theta.size > 4 else tat
-    return 2.0 * np.sqrt((x - e) ** 2 + (y - n) ** 2 + (z - d) ** 2) / c + t0
+class _TravelTimes:
+    """Two-way travel times of true arrivals, and their derivatives, for one transponder.
+
+    ``theta = [east, north, depth, *speed, (tat)]``. The speed is one value, or the
+    coefficients of a cubic B-spline in time (:func:`_speed_basis`; a partition of
+    unity, so equal coefficients are a constant speed). Without a profile the
+    speed is the straight-ray sound speed (m/s); with one it is the factor the
+    profile's speeds are scaled by, which leaves the rays where they are and divides
+    their times by it.
+
+    Geometry: ``earth_radius=None`` takes ``x, y, depth`` as Cartesian (a local
+    tangent plane); with a radius, ``x, y`` are distances along the sphere and
+    ``depth`` is below it (SeaGap's convention), and the straight-line distance is
+    the chord between the two radii. The refracted ray runs between the profile
+    depths ``depth - surface_depth`` over the horizontal distance that makes a
+    constant profile give that same chord.
+    """
+
+    def __init__(self, x, y, z, tat, *, basis=None, fit_tat=False, profile=None,
+                 surface_depth=0.0, earth_radius=None):
+        self.x, self.y, self.z, self.tat = x, y, z, tat
+        self.basis = np.ones((x.size, 1)) if basis is None else basis
+        self.k = self.basis.shape[1]
+        self.fit_tat = fit_tat
+        self.profile, self.surface_depth, self.R = profile, float(surface_depth), earth_radius
+        self._key = None
+
+    def _speed(self, theta):
+        return self.basis @ theta[3:3 + self.k]
+
+    def _tat(self, theta):
+        return theta[-1] if self.fit_tat else self.tat
+
+    def _chord(self, e, n, d):
+        """Straight-line distance ``L`` and ``dL/de, dL/dn, dL/dd``."""
+        dx, dy = self.x - e, self.y - n
+        h = np.sqrt(dx * dx + dy * dy)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            ux, uy = np.where(h > 0, dx / h, 0.0), np.where(h > 0, dy / h, 0.0)
+        if self.R is None:
+            dz = self.z - d
+            L = np.maximum(np.sqrt(h * h + dz * dz), 1e-9)
+            return L, -dx / L, -dy / L, -dz / L
+        R = self.R
+        rb, rc = R - self.z, R - d
+        phi = h / R
+        L = np.maximum(np.sqrt((rb - rc) ** 2 + 4 * rb * rc * np.sin(phi / 2) ** 2), 1e-9)
+        dLdh = rb * rc * np.sin(phi) / (R * L)
+        return L, -dLdh * ux, -dLdh * uy, -((rc - rb) + 2 * rb * np.sin(phi / 2) ** 2) / L
+
+    def _rays(self, theta):
+        """One-way times ``T`` (unscaled) and ``dT/de, dT/dn, dT/dd`` at ``theta``'s position."""
+        key = tuple(float(v) for v in theta[:3])
+        if key == self._key:
+            return self._cache
+        e, n, d = key
+        L, Le, Ln, Ld = self._chord(e, n, d)
+        if self.profile is None:
+            out = (L, Le, Ln, Ld, 0)
+        else:
+            from .acoustics import direct_ray
+
+            za, zb = self.z - self.surface_depth, np.full_like(L, d - self.surface_depth)
+            dz = zb - za
+            h = np.sqrt(np.maximum(L * L - dz * dz, 0.0))
+            ray = direct_ray(self.profile, za, zb, h)
+            T, p, bad = ray.time, ray.p, ~ray.valid
+            if bad.any():  # no eigenray without a turning point: the chord at the mean speed
+                hm = self.profile.harmonic_mean(za[bad], zb[bad])
+                T, p = T.copy(), p.copy()
+                T[bad] = L[bad] / hm
+                p[bad] = h[bad] / L[bad] / hm
+            cb = self.profile.speed(zb)
+            eta = np.sqrt(np.maximum(1.0 / cb**2 - p * p, 0.0)) * np.sign(dz)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                q = np.where(h > 1e-9, p / h, 0.0)  # dT/dh / h
+            # dT/dd = dT/dzb + dT/dh * dh/dd, with h^2 = L^2 - dz^2 (dh/dd = 0 on a plane)
+            Td = eta + q * (L * Ld - dz)
+            out = (T, q * L * Le, q * L * Ln, Td, int(bad.sum()))
+        self._key, self._cache = key, out
+        return out
+
+    def n_invalid(self, theta):
+        return self._rays(theta)[4]
+
+    def predict(self, theta):
+        return 2.0 * self._rays(theta)[0] / self._speed(theta) + self._tat(theta)
+
+    def jac(self, theta):
+        """d(prediction)/d(theta), one row per ping."""
+        T, Te, Tn, Td, _ = self._rays(theta)
+        s = self._speed(theta)
+        cols = [2 * Te / s, 2 * Tn / s, 2 * Td / s]
+        J = np.column_stack(cols + [(-2 * T / s**2)[:, None] * self.basis]
+                            + ([np.ones_like(T)[:, None]] if self.fit_tat else []))
+        return J
+
+
+def _speed_basis(pings, n_intervals, time_range):
+    """Design matrix of the sound speed in time: ones, or a cubic B-spline basis.
+
+    ``n_intervals`` equal intervals over ``time_range`` (default: the pings' own
+    span); times outside it take the value at the nearer end.
+    """
+    n = len(pings)
+    if not n_intervals:
+        return np.ones((n, 1))
+    from scipy.interpolate import BSpline
+
+    if "time" not in pings.columns:
+        raise InputError("pings: a time-varying sound speed needs a 'time' column (s)")
+    t = pings["time"].to_numpy(float)
+    lo, hi = (float(t.min()), float(t.max())) if time_range is None else time_range
+    if not hi > lo:
+        raise InputError(f"time_range: expected start < end, got ({lo}, {hi})")
+    k = 3
+    knots = np.concatenate([[lo] * k, np.linspace(lo, hi, int(n_intervals) + 1), [hi] * k])
+    tc = np.clip(t, lo, hi)
+    return BSpline.design_matrix(tc, knots, k).toarray()
 
 
 OUTLIER_MODELS = ("uniform", "first_arrival")
@@ -164,15 +321,17 @@ def _log_classes(t, pred, sigma, weight, window, outliers):
 
 
 def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=None,
-           fit_tat=False, sound_speed=1500.0, outliers="uniform", window=None, max_iter=200,
-           tol=1e-10) -> LocateResult:
+           fit_tat=False, sound_speed=1500.0, outliers="uniform", window=None, ssp=None,
+           surface_depth=0.0, earth_radius=None, speed_intervals=0, time_range=None,
+           max_iter=200, tol=1e-10) -> LocateResult:
     """Locate one transponder by EM from pings with two-way travel times.
 
     Parameters
     ----------
     pings : pandas.DataFrame
         ``beacon``, ``twtt`` (s), ``x``, ``y``, ``depth`` (ship transducer, m),
-        as :meth:`bayes_mpem.readers.RawSurvey.to_pings` returns.
+        as :meth:`bayes_mpem.readers.RawSurvey.to_pings` returns (and ``time``,
+        s, for a time-varying sound speed).
     beacons : pandas.DataFrame
         ``beacon``, ``x``, ``y``, ``depth``: the starting position (drop point).
     transponder : str, optional
@@ -195,6 +354,25 @@ def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=
     window : tuple of float, optional
         Listening window (s); default the smallest and largest travel time of
         the transponder's pings.
+    ssp : SoundSpeedProfile, optional
+        Travel times along refracted eigenrays through this profile
+        (:mod:`bayes_mpem.acoustics`), its speeds scaled by one fitted factor,
+        instead of straight rays at one speed. ``sound_speed`` is then reported
+        as the scaled profile's harmonic mean from the mean transducer depth to
+        the transponder. The start is the straight-ray fit.
+    surface_depth : float, default 0
+        Depth, in the pings' frame, of the profile's 0 m (the sea surface).
+        SeaGap's heights are ellipsoidal: :func:`locate_survey` sets it.
+    earth_radius : float, optional
+        Take ``x, y`` as distances along a sphere of this radius (m) and depth
+        as below it, as SeaGap does; default: a Cartesian local frame.
+    speed_intervals : int, default 0
+        Let the sound speed (or the profile's scale) vary in time as a cubic
+        B-spline with this many equal intervals over ``time_range`` (0: one
+        constant speed). The ocean's sound speed changes over hours; GNSS-acoustic
+        processing models it the same way.
+    time_range : tuple of float, optional
+        Span of the B-spline (s); default the pings' own.
     max_iter : int, default 200
     tol : float, default 1e-10
         Stop when sigma (s) changes by less than this.
@@ -210,6 +388,8 @@ def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=
     """
     if outliers not in OUTLIER_MODELS:
         raise ValueError(f"outliers: expected one of {OUTLIER_MODELS}, got {outliers!r}")
+    if not (isinstance(speed_intervals, (int, np.integer)) and speed_intervals >= 0):
+        raise ValueError(f"speed_intervals: expected an integer >= 0, got {speed_intervals!r}")
     need = {"beacon", "twtt", "x", "y", "depth"}
     missing = need - set(pings.columns)
     if missing:
@@ -224,20 +404,40 @@ def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=
     start = beacons.loc[[i == str(transponder) for i in ids]].iloc[0]
     sel = (pings["beacon"].astype(str) == str(transponder)).to_numpy()
     rows = np.flatnonzero(sel)
-    if rows.size < 6:
-        raise InputError(f"transponder {transponder}: {rows.size} pings, need at least 6")
-    t = pings["twtt"].to_numpy(float)[sel]
-    x, y, z = (pings[c].to_numpy(float)[sel] for c in ("x", "y", "depth"))
+    if rows.size < 6 + speed_intervals:
+        raise InputError(f"transponder {transponder}: {rows.size} pings, need at least "
+                         f"{6 + speed_intervals}")
+    sub = pings.iloc[rows]
+    t = sub["twtt"].to_numpy(float)
+    x, y, z = (sub[c].to_numpy(float) for c in ("x", "y", "depth"))
+    if time_range is None and speed_intervals:
+        time_range = (float(sub["time"].min()), float(sub["time"].max()))
+    basis = _speed_basis(sub, speed_intervals, time_range)
+    k = basis.shape[1]
     tat0 = DEFAULT_TAT if tat is None else float(tat)
+    geo = dict(fit_tat=fit_tat, surface_depth=surface_depth, earth_radius=earth_radius)
+    # the robust start: straight rays at one speed
+    model = _TravelTimes(x, y, z, tat0, **geo)
     theta = np.array([start["x"], start["y"], start["depth"], sound_speed]
                      + ([tat0] if fit_tat else []), float)
-    scale = np.array([10.0, 10.0, 10.0, 1.0] + ([1e-3] if fit_tat else []))
 
     def resid(th, w=None):
-        r = t - _predict(th, x, y, z, tat0)
+        r = t - model.predict(th)
         return r if w is None else np.sqrt(w) * r
 
-    theta = least_squares(resid, theta, loss="cauchy", f_scale=2e-3, x_scale=scale).x
+    def jac(th, w=None):
+        J = -model.jac(th)
+        return J if w is None else np.sqrt(w)[:, None] * J
+
+    x_scale = [10.0, 10.0, 10.0, 1.0] + ([1e-3] if fit_tat else [])
+    theta = least_squares(resid, theta, jac=jac, loss="cauchy", f_scale=2e-3,
+                          x_scale=np.array(x_scale)).x
+    speed0 = theta[3]
+    if ssp is not None:  # refracted rays from the straight-ray solution: c -> profile scale
+        speed0 /= float(ssp.harmonic_mean(np.mean(z) - surface_depth, theta[2] - surface_depth))
+    theta = np.concatenate([theta[:3], np.full(k, speed0), theta[4:]])
+    x_scale = np.array([10.0] * 3 + [abs(speed0) / 1500.0] * k + ([1e-3] if fit_tat else []))
+    model = _TravelTimes(x, y, z, tat0, basis=basis, profile=ssp, **geo)
     r = resid(theta)
     sigma = max(1.4826 * float(np.median(np.abs(r - np.median(r)))), 1e-6)
     weight = 0.9
@@ -246,8 +446,7 @@ def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=
     for it in range(1, max_iter + 1):
         ld, lu = _log_classes(t, t - r, sigma, weight, window, outliers)
         p = 1.0 / (1.0 + np.exp(np.clip(lu - ld, -700.0, 700.0)))
-        fit = least_squares(resid, theta, args=(p,), x_scale=scale)
-        theta = fit.x
+        theta = least_squares(resid, theta, jac=jac, args=(p,), x_scale=x_scale).x
         r = resid(theta)
         new = float(np.sqrt(np.sum(p * r * r) / p.sum()))
         weight = float(np.clip(p.mean(), 1e-6, 1 - 1e-6))
@@ -256,10 +455,25 @@ def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=
         if done:
             converged = True
             break
-    jac = fit.jac
-    cov = np.linalg.pinv(jac.T @ jac) * sigma**2
-    names = ["east", "north", "depth", "sound_speed"] + (["tat"] if fit_tat else [])
-    sd = {k: float(np.sqrt(max(cov[i, i], 0.0))) for i, k in enumerate(names)}
+    J = jac(theta, p)
+    cov = np.linalg.pinv(J.T @ J) * sigma**2
+    sd = {name: float(np.sqrt(max(cov[i, i], 0.0)))
+          for i, name in enumerate(("east", "north", "depth"))}
+    # the reported speed: the mean over the pings (scaled profile: its harmonic mean)
+    g = basis.mean(axis=0)
+    unit = 1.0
+    if ssp is not None:
+        unit = float(ssp.harmonic_mean(np.mean(z) - surface_depth, theta[2] - surface_depth))
+    coef = theta[3:3 + k]
+    speed = float(g @ coef) * unit
+    sd["sound_speed"] = float(np.sqrt(max(g @ cov[3:3 + k, 3:3 + k] @ g, 0.0))) * unit
+    if fit_tat:
+        sd["tat"] = float(np.sqrt(max(cov[-1, -1], 0.0)))
+    n_bad = model.n_invalid(theta)
+    if n_bad:
+        warnings.warn(f"transponder {transponder}: {n_bad} of {t.size} pings have no refracted "
+                      "eigenray without a turning point; their travel times are the straight "
+                      "chord at the profile's mean speed", LocateWarning, stacklevel=2)
     if not converged:
         warnings.warn(f"transponder {transponder}: location EM did not converge in {it} "
                       "iterations", LocateWarning, stacklevel=2)
@@ -270,14 +484,18 @@ def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=
                       LocateWarning, stacklevel=2)
     return LocateResult(
         transponder=str(transponder), east=float(theta[0]), north=float(theta[1]),
-        depth=float(theta[2]), sound_speed=float(theta[3]),
-        tat=float(theta[4]) if fit_tat else tat0, sigma=sigma, weight=weight, sd=sd,
+        depth=float(theta[2]), sound_speed=speed,
+        tat=float(theta[-1]) if fit_tat else tat0, sigma=sigma, weight=weight, sd=sd,
         p_true=p, rows=rows, n_iter=it, converged=converged, fit_tat=fit_tat,
-        outliers=outliers, window=window)
+        outliers=outliers, window=window,
+        model={"ssp": ssp, "surface_depth": float(surface_depth), "earth_radius": earth_radius,
+               "speed_intervals": int(speed_intervals), "time_range": time_range},
+        speed_coef=coef.copy())
 
 
 def heldout_logpdf(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *,
-                   outliers="uniform", n_folds=5, rng=0, **kwargs) -> np.ndarray:
+                   outliers="uniform", n_folds=5, folds="random", rng=0,
+                   **kwargs) -> np.ndarray:
     """K-fold cross-validated log predictive density of every ping of one transponder.
 
     Each fold is located from the other pings (same listening window: the
@@ -289,8 +507,12 @@ def heldout_logpdf(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None,
         As for :func:`locate`.
     outliers : {"uniform", "first_arrival"}
     n_folds : int, default 5
+    folds : {"random", "blocked"}
+        Pings assigned to folds at random, or in contiguous blocks of time (a
+        harder test for anything that varies in time: each block is predicted
+        from the others, not from its neighbours).
     rng : None, int or numpy.random.Generator
-        Assigns the pings to folds.
+        Assigns the pings to random folds.
     **kwargs
         Passed to :func:`locate` (``tat``, ``sound_speed``, ...).
 
@@ -303,19 +525,62 @@ def heldout_logpdf(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None,
 
     full = locate(pings, beacons, transponder, outliers=outliers, **kwargs)
     sub = pings.iloc[full.rows]
-    folds = as_generator(rng).permutation(np.arange(full.rows.size) % int(n_folds))
+    if folds == "random":
+        fold = as_generator(rng).permutation(np.arange(full.rows.size) % int(n_folds))
+    elif folds == "blocked":
+        if "time" not in sub.columns:
+            raise InputError("folds='blocked' needs a 'time' column in pings")
+        order = np.argsort(sub["time"].to_numpy(float), kind="stable")
+        fold = np.empty(full.rows.size, int)
+        fold[order] = np.arange(full.rows.size) * int(n_folds) // full.rows.size
+    else:
+        raise ValueError(f"folds: expected 'random' or 'blocked', got {folds!r}")
     out = np.empty(full.rows.size)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", LocateWarning)
         for k in range(int(n_folds)):
-            test = folds == k
+            test = fold == k
             fit_k = locate(sub[~test], beacons, full.transponder, outliers=outliers,
-                           window=full.window, **kwargs)
+                           window=full.window, time_range=full.model["time_range"], **kwargs)
             out[test] = fit_k.logpdf(sub[test])
     return out
 
 
-def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform"):
+#: SeaGap's default depth of the ship's transducer below the sea surface (m)
+#: (``XDUCER_DEPTH`` in SeaGap); it places the profile against the ellipsoidal heights.
+SEAGAP_TRANSDUCER_DEPTH = 3.0
+
+
+def earth_radius(lat: float) -> float:
+    """Gaussian mean radius of the WGS84 ellipsoid at latitude ``lat`` (m)."""
+    a, b = 6378137.0, 6356752.314245
+    e2 = 1.0 - (b / a) ** 2
+    s2 = np.sin(np.radians(lat)) ** 2
+    return float(a * np.sqrt(1.0 - e2) / (1.0 - e2 * s2))
+
+
+def survey_profile(raw, ssp):
+    """The sound-speed profile ``ssp`` names for a survey (see :func:`locate_survey`)."""
+    from .acoustics import SoundSpeedProfile
+
+    if ssp is None or isinstance(ssp, SoundSpeedProfile):
+        return ssp
+    if str(ssp) == "survey":
+        prof = raw.header.get("ss_prof")
+        if prof is None:
+            raise InputError(f"ssp='survey': {raw.source} came with no sound-speed profile "
+                             "(SeaGap's ss_prof.inp); give a file or 'woa09'")
+        return SoundSpeedProfile(prof["depth"], prof["sound_speed"], source="ss_prof.inp")
+    if str(ssp) == "woa09":
+        if "lat" not in raw.header:
+            raise InputError(f"ssp='woa09': {raw.source} has no latitude/longitude to look the "
+                             "atlas up at; give a profile file")
+        return SoundSpeedProfile.from_woa09(raw.header["lat"], raw.header["lon"])
+    return SoundSpeedProfile.from_file(ssp)
+
+
+def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", ssp=None,
+                  speed_intervals=0):
     """Locate every transponder of a :class:`~bayes_mpem.readers.RawSurvey`.
 
     Parameters
@@ -328,6 +593,13 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform"):
     ci : float, default 0.95
     outliers : {"uniform", "first_arrival"}
         The spurious-ping model (:func:`locate`).
+    ssp : None, SoundSpeedProfile, str or path
+        Refracted rays through a profile: a :class:`~bayes_mpem.acoustics.SoundSpeedProfile`,
+        a two-column file (depth m, speed m/s), ``"woa09"`` (the atlas at the drop
+        point) or ``"survey"`` (the profile that came with the survey, SeaGap's
+        ``ss_prof.inp``). Default: straight rays.
+    speed_intervals : int, default 0
+        A sound speed varying in time (:func:`locate`).
 
     Returns
     -------
@@ -337,13 +609,27 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform"):
         One row per ping line and per skipped line of the file, in file order:
         ``line``, ``transponder``, ``twtt``, ``p_true``, ``p_spurious``, ``label``
         (``true``, ``spurious`` or ``skipped``) and ``reason``.
+
+    Notes
+    -----
+    SeaGap positions are distances along the Earth and ellipsoidal heights, so
+    its surveys are located on a sphere (:func:`earth_radius`, at the header's
+    latitude, else 6,371 km), with the sea surface
+    :data:`SEAGAP_TRANSDUCER_DEPTH` above the mean transducer.
     """
     if tat is None:
         tat = raw.header.get("tat", 0.0 if raw.format == "seagap" else DEFAULT_TAT)
     pings, beacons = raw.to_pings()
+    prof = survey_profile(raw, ssp)
+    geo = {}
+    if raw.format == "seagap":
+        geo = {"earth_radius": earth_radius(raw.header["lat"]) if "lat" in raw.header
+               else 6371000.0,
+               "surface_depth": float(pings["depth"].mean()) - SEAGAP_TRANSDUCER_DEPTH}
     out, probs = {}, np.full(len(pings), np.nan)
     for tid in beacons["beacon"].astype(str):
-        r = locate(pings, beacons, tid, tat=tat, fit_tat=fit_tat, outliers=outliers)
+        r = locate(pings, beacons, tid, tat=tat, fit_tat=fit_tat, outliers=outliers, ssp=prof,
+                   speed_intervals=speed_intervals, **geo)
         probs[r.rows] = r.p_true
         d = r.to_dict(ci)
         if "lat" in raw.header:
@@ -363,13 +649,16 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform"):
                                             "p_spurious": np.nan, "label": "skipped",
                                             "reason": sk["reason"]})], ignore_index=True)
     cls = cls.sort_values("line", kind="stable").reset_index(drop=True)
+    rays = "straight rays" if prof is None else f"refracted rays ({prof.source or 'profile'})"
     summary = {"transponders": out, "format": raw.format, "source": raw.source,
                "n_pings": int(len(pings)), "n_skipped_lines": int(len(sk)),
-               "method": "EM, straight rays; intervals approximate (Wald)",
-               "outliers": outliers,
+               "method": f"EM, {rays}; intervals approximate (Wald)",
+               "outliers": outliers, "ssp": None if prof is None else prof.source,
+               "speed_intervals": int(speed_intervals), "geometry": geo,
                "tat_fitted": bool(fit_tat), "tat_given": None if fit_tat else float(tat)}
     return summary, cls
 
 
-__all__ = ["DEFAULT_TAT", "OUTLIER_MODELS", "LocateResult", "LocateWarning", "enu_to_geodetic",
-           "heldout_logpdf", "locate", "locate_survey"]
+__all__ = ["DEFAULT_TAT", "OUTLIER_MODELS", "SEAGAP_TRANSDUCER_DEPTH", "LocateResult",
+           "LocateWarning", "earth_radius", "enu_to_geodetic", "heldout_logpdf", "locate",
+           "locate_survey", "survey_profile"]

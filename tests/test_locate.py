@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 
 from bayes_mpem.data import InputError
-from bayes_mpem.locate import LocateWarning, enu_to_geodetic, locate
+from bayes_mpem.locate import LocateWarning, enu_to_geodetic, heldout_logpdf, locate
 from bayes_mpem.readers import geodetic_to_enu, read_survey
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "obsrange"
@@ -150,3 +150,91 @@ def test_outlier_model_is_checked():
     pings, beacons, _, _ = _simulated(0)
     with pytest.raises(ValueError, match="outliers"):
         locate(pings, beacons, outliers="late")
+
+
+# ------------------------------------------------------------------ travel-time models
+
+@pytest.mark.parametrize("refracted", [False, True])
+@pytest.mark.parametrize("radius", [None, 6.371e6])
+def test_travel_time_jacobian_matches_finite_differences(refracted, radius):
+    from bayes_mpem.acoustics import SoundSpeedProfile
+    from bayes_mpem.locate import _speed_basis, _TravelTimes
+
+    rng = np.random.default_rng(3)
+    n = 40
+    x, y = rng.uniform(-2500, 2500, n), rng.uniform(-2500, 2500, n)
+    z = rng.uniform(-16, -14, n)
+    prof = SoundSpeedProfile.from_file(DATA.parent / "seagap" / "ss_prof.inp") if refracted \
+        else None
+    basis = _speed_basis(pd.DataFrame({"time": np.linspace(0, 1e3, n)}), 3, None)
+    tt = _TravelTimes(x, y, z, 0.0, basis=basis, fit_tat=True, profile=prof,
+                      surface_depth=-18.0, earth_radius=radius)
+    speed = 1.0 if refracted else 1489.0
+    theta = np.r_[120.0, -40.0, 2700.0, speed * (1 + rng.normal(0, 1e-3, 6)), 0.01]
+    steps = np.r_[1e-3, 1e-3, 1e-3, np.full(6, 1e-6 * speed), 1e-6]
+    J = tt.jac(theta)
+    for i, h in enumerate(steps):
+        up, dn = theta.copy(), theta.copy()
+        up[i] += h
+        dn[i] -= h
+        num = (tt.predict(up) - tt.predict(dn)) / (2 * h)
+        np.testing.assert_allclose(J[:, i], num, rtol=1e-5, atol=1e-9 * np.abs(J).max())
+
+
+def test_a_constant_profile_gives_the_straight_ray_fit():
+    from bayes_mpem.acoustics import SoundSpeedProfile
+
+    pings, beacons, truth, _ = _simulated(0)
+    a = locate(pings, beacons)
+    b = locate(pings, beacons, ssp=SoundSpeedProfile.constant(1500.0))
+    for k in ("east", "north", "depth", "sound_speed", "sigma"):
+        assert getattr(b, k) == pytest.approx(getattr(a, k), rel=1e-7, abs=1e-6), k
+    assert b.refracted and not a.refracted
+    np.testing.assert_allclose(b.logpdf(pings), a.logpdf(pings), atol=1e-4)
+
+
+def test_refracted_fit_recovers_a_transponder_simulated_through_a_profile():
+    from bayes_mpem.acoustics import SoundSpeedProfile, direct_ray
+
+    prof = SoundSpeedProfile([0, 200, 1000, 5000], [1535.0, 1520.0, 1482.0, 1510.0])
+    pings, beacons, truth, bad = _simulated(1, sigma=2e-4)
+    h = np.hypot(pings["x"] - truth[0], pings["y"] - truth[1])
+    t = 2 * direct_ray(prof, 0.0, truth[2], h).time + 0.013
+    t += np.random.default_rng(9).normal(0, 2e-4, t.size)
+    t[bad] = pings["twtt"].to_numpy()[bad]
+    pings = pings.assign(twtt=t)
+    straight, refr = locate(pings, beacons), locate(pings, beacons, ssp=prof)
+    err = lambda r: np.abs([r.east - truth[0], r.north - truth[1], r.depth - truth[2]])  # noqa: E731
+    assert np.all(err(refr) < 4 * np.array([refr.sd[k] for k in ("east", "north", "depth")]))
+    assert refr.model["ssp"] is prof and refr.sigma < straight.sigma
+    assert err(refr)[2] < err(straight)[2]
+
+
+def test_speed_varying_in_time_is_recovered():
+    pings, beacons, truth, bad = _simulated(2, n=400, sigma=2e-4)
+    # visited in random order: time must not be a function of the position on the circle
+    time = np.random.default_rng(5).permutation(np.linspace(0, 7200.0, len(pings)))
+    c = 1505.0 + 2.0 * np.sin(2 * np.pi * time / 7200.0)
+    L = np.sqrt((pings["x"] - truth[0]) ** 2 + (pings["y"] - truth[1]) ** 2 + truth[2] ** 2)
+    t = 2 * L / c + 0.013 + np.random.default_rng(4).normal(0, 2e-4, len(pings))
+    t[bad] = pings["twtt"].to_numpy()[bad]
+    pings = pings.assign(twtt=t, time=time)
+    with pytest.warns(LocateWarning, match="depth poorly constrained"):
+        one = locate(pings, beacons)  # one speed: ms residuals, depth and speed trade off
+    timed = locate(pings, beacons, speed_intervals=6)
+    assert timed.sigma == pytest.approx(2e-4, rel=0.2) and one.sigma > 2 * timed.sigma
+    assert abs(timed.sound_speed - c.mean()) < 4 * timed.sd["sound_speed"]
+    assert abs(timed.depth - truth[2]) < 4 * timed.sd["depth"]
+    with pytest.warns(LocateWarning):
+        base = heldout_logpdf(pings, beacons)
+    assert (heldout_logpdf(pings, beacons, speed_intervals=6) - base).sum() > 50
+
+
+def test_bad_model_options_are_refused():
+    pings, beacons, _, _ = _simulated(0)
+    with pytest.raises(ValueError, match="speed_intervals"):
+        locate(pings, beacons, speed_intervals=-1)
+    with pytest.raises(InputError, match="'time' column"):
+        locate(pings, beacons, speed_intervals=2)
+    with pytest.raises(ValueError, match="folds"):
+        heldout_logpdf(pings, beacons, folds="sideways")

@@ -410,6 +410,8 @@ def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=
     sub = pings.iloc[rows]
     t = sub["twtt"].to_numpy(float)
     x, y, z = (sub[c].to_numpy(float) for c in ("x", "y", "depth"))
+    if speed_intervals and "time" not in sub.columns:
+        raise InputError("pings: a time-varying sound speed needs a 'time' column (s)")
     if time_range is None and speed_intervals:
         time_range = (float(sub["time"].min()), float(sub["time"].max()))
     basis = _speed_basis(sub, speed_intervals, time_range)

@@ -539,6 +539,42 @@ def read_seagap(obsdata, *, pxp=None, tr_ant=None, ss_prof=None, strict=False) -
     return RawSurvey("seagap", str(obsdata), pings, header, skipped_df)
 
 
+def sample_file(name: str) -> Path:
+    """Path of a measured sample survey shipped with the package.
+
+    The OBSrange samples (``"obsrange/SIO_CC03.txt"``, ``SIO_EC03.txt``,
+    ``SIO_WC03.txt``, ``WHOI_S05.txt``, ``CC03_ssp.txt``,
+    ``CC03_obsrange_solution.txt``) and the SeaGap example (``"seagap/obsdata.inp"``
+    with its companion files); their sources and licences are in the ``README.md``
+    beside them (``data/README.md`` in the source repository).
+
+    Parameters
+    ----------
+    name : str
+        Path relative to the sample folder.
+
+    Returns
+    -------
+    pathlib.Path
+
+    Raises
+    ------
+    FileNotFoundError
+        If there is no such sample.
+
+    Examples
+    --------
+    >>> sample_file("obsrange/SIO_CC03.txt").name
+    'SIO_CC03.txt'
+    """
+    here = Path(__file__).resolve().parent
+    for root in (here / "_samples", here.parents[1] / "data"):
+        if (root / name).is_file():
+            return root / name
+    raise FileNotFoundError(f"no sample file {name!r} (expected e.g. 'obsrange/SIO_CC03.txt' or "
+                            "'seagap/obsdata.inp')")
+
+
 def read_survey(path, format: str, **kwargs) -> RawSurvey:
     """Read a survey file of the given ``format`` (one of :data:`FORMATS`).
 
@@ -561,4 +597,4 @@ def read_survey(path, format: str, **kwargs) -> RawSurvey:
 
 
 __all__ = ["FORMATS", "RawSurvey", "antenna_to_transducer", "enu_to_geodetic", "geodetic_to_enu",
-           "read_obsrange_sio", "read_obsrange_whoi", "read_seagap", "read_survey"]
+           "read_obsrange_sio", "read_obsrange_whoi", "read_seagap", "read_survey", "sample_file"]

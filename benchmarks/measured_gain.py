@@ -60,7 +60,8 @@ def models(raw, pings, prof):
                "surface_depth": float(pings["depth"].mean()) - SEAGAP_TRANSDUCER_DEPTH}
     k = intervals_for(pings)
     out = {"baseline (simulation's assumptions)": {},
-           "first-arrival outliers": {"outliers": "first_arrival"}}
+           "first-arrival outliers": {"outliers": "first_arrival"},
+           "position lag along the track": {"fit_lag": True}}
     if geo:
         out["sphere + sea-surface datum"] = dict(geo)
     out[f"refraction ({prof.source.split('(')[0].strip() or 'profile'})"] = dict(geo, ssp=prof)

@@ -80,7 +80,8 @@ class LocateResult:
         The listening window of the spurious-ping density (s).
     model : dict
         How travel times were predicted: ``ssp`` (profile or None),
-        ``surface_depth``, ``earth_radius``, ``speed_intervals``, ``time_range``.
+        ``surface_depth``, ``earth_radius``, ``speed_intervals``, ``time_range``,
+        ``lag`` (s) and ``fit_lag``.
     speed_coef : numpy.ndarray
         The fitted speed parameter(s): the sound speed (m/s), or with a profile
         the factor its speeds are scaled by; one per B-spline coefficient when
@@ -115,9 +116,11 @@ class LocateResult:
         x, y, z = (pings[c].to_numpy(float) for c in ("x", "y", "depth"))
         m = self.model
         basis = _speed_basis(pings, m.get("speed_intervals", 0), m.get("time_range"))
+        lag = m.get("lag", 0.0)
         tt = _TravelTimes(x, y, z, self.tat, basis=basis, profile=m.get("ssp"),
                           surface_depth=m.get("surface_depth", 0.0),
-                          earth_radius=m.get("earth_radius"))
+                          earth_radius=m.get("earth_radius"), lag=lag,
+                          velocity=ship_velocity(pings) if lag else None)
         coef = np.atleast_1d(self.sound_speed if self.speed_coef is None else self.speed_coef)
         return tt, np.concatenate([[self.east, self.north, self.depth], coef])
 
@@ -173,6 +176,8 @@ class LocateResult:
                    "interval": self.interval(k, ci)}
                for k in ("east", "north", "depth", "sound_speed")}
         out["tat"] = {"mean": self.tat, "sd": self.sd.get("tat", 0.0), "fitted": self.fit_tat}
+        if self.model.get("fit_lag"):
+            out["lag"] = {"mean": self.model["lag"], "sd": self.sd.get("lag", 0.0)}
         out.update(sigma_ms=1e3 * self.sigma, weight_true=self.weight,
                    n_spurious=self.n_spurious, n=int(self.p_true.size),
                    iterations=self.n_iter, converged=self.converged, ci=ci)
@@ -198,8 +203,12 @@ class _TravelTimes:
     """
 
     def __init__(self, x, y, z, tat, *, basis=None, fit_tat=False, profile=None,
-                 surface_depth=0.0, earth_radius=None):
+                 surface_depth=0.0, earth_radius=None, velocity=None, lag=0.0,
+                 fit_lag=False):
         self.x, self.y, self.z, self.tat = x, y, z, tat
+        # the ship's velocity (m/s) and a time lag (s) of the acoustic position behind the
+        # logged one: the ship is at (x, y) + lag * velocity (fitted when fit_lag)
+        self.vel, self.lag, self.fit_lag = velocity, float(lag), bool(fit_lag)
         self.basis = np.ones((x.size, 1)) if basis is None else basis
         self.k = self.basis.shape[1]
         self.fit_tat = fit_tat
@@ -212,9 +221,18 @@ class _TravelTimes:
     def _tat(self, theta):
         return theta[-1] if self.fit_tat else self.tat
 
-    def _chord(self, e, n, d):
+    def _lag(self, theta):
+        return theta[3 + self.k] if self.fit_lag else self.lag
+
+    def _ship(self, lag):
+        if self.vel is None or lag == 0.0:
+            return self.x, self.y
+        return self.x + lag * self.vel[0], self.y + lag * self.vel[1]
+
+    def _chord(self, e, n, d, lag=0.0):
         """Straight-line distance ``L`` and ``dL/de, dL/dn, dL/dd``."""
-        dx, dy = self.x - e, self.y - n
+        sx, sy = self._ship(lag)
+        dx, dy = sx - e, sy - n
         h = np.sqrt(dx * dx + dy * dy)
         with np.errstate(invalid="ignore", divide="ignore"):
             ux, uy = np.where(h > 0, dx / h, 0.0), np.where(h > 0, dy / h, 0.0)
@@ -231,11 +249,11 @@ class _TravelTimes:
 
     def _rays(self, theta):
         """One-way times ``T`` (unscaled) and ``dT/de, dT/dn, dT/dd`` at ``theta``'s position."""
-        key = tuple(float(v) for v in theta[:3])
+        key = tuple(float(v) for v in theta[:3]) + (float(self._lag(theta)),)
         if key == self._key:
             return self._cache
-        e, n, d = key
-        L, Le, Ln, Ld = self._chord(e, n, d)
+        e, n, d, lag = key
+        L, Le, Ln, Ld = self._chord(e, n, d, lag)
         if self.profile is None:
             out = (L, Le, Ln, Ld, 0)
         else:
@@ -272,9 +290,45 @@ class _TravelTimes:
         T, Te, Tn, Td, _ = self._rays(theta)
         s = self._speed(theta)
         cols = [2 * Te / s, 2 * Tn / s, 2 * Td / s]
-        J = np.column_stack(cols + [(-2 * T / s**2)[:, None] * self.basis]
-                            + ([np.ones_like(T)[:, None]] if self.fit_tat else []))
-        return J
+        extra = []
+        if self.fit_lag:  # moving the ship by lag * v is moving the transponder back
+            extra.append(-(cols[0] * self.vel[0] + cols[1] * self.vel[1])[:, None])
+        if self.fit_tat:
+            extra.append(np.ones_like(T)[:, None])
+        return np.column_stack(cols + [(-2 * T / s**2)[:, None] * self.basis] + extra)
+
+
+def ship_velocity(pings: pd.DataFrame) -> tuple:
+    """The ship's velocity (m/s) at each ping, from the track: ``(vx, vy)``.
+
+    Columns ``vx``, ``vy`` if the table has them, else central differences of
+    ``x``, ``y`` in ``time`` over the pings in time order (pings at the same time
+    share a velocity).
+
+    Parameters
+    ----------
+    pings : pandas.DataFrame
+        ``time``, ``x``, ``y`` (or ``vx``, ``vy``).
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+    """
+    if {"vx", "vy"} <= set(pings.columns):
+        return pings["vx"].to_numpy(float), pings["vy"].to_numpy(float)
+    if "time" not in pings.columns:
+        raise InputError("pings: the ship's velocity needs a 'time' column (s)")
+    t = pings["time"].to_numpy(float)
+    ut, inv = np.unique(t, return_inverse=True)
+    if ut.size < 3:
+        raise InputError(f"pings: the ship's velocity needs pings at 3 or more times, got "
+                         f"{ut.size}")
+    out = []
+    for c in ("x", "y"):
+        v = pings[c].to_numpy(float)
+        mean = np.bincount(inv, v) / np.bincount(inv)
+        out.append(np.gradient(mean, ut)[inv])
+    return tuple(out)
 
 
 def _speed_basis(pings, n_intervals, time_range):
@@ -323,7 +377,7 @@ def _log_classes(t, pred, sigma, weight, window, outliers):
 def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=None,
            fit_tat=False, sound_speed=1500.0, outliers="uniform", window=None, ssp=None,
            surface_depth=0.0, earth_radius=None, speed_intervals=0, time_range=None,
-           max_iter=200, tol=1e-10) -> LocateResult:
+           fit_lag=False, max_iter=200, tol=1e-10) -> LocateResult:
     """Locate one transponder by EM from pings with two-way travel times.
 
     Parameters
@@ -373,6 +427,12 @@ def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=
         processing models it the same way.
     time_range : tuple of float, optional
         Span of the B-spline (s); default the pings' own.
+    fit_lag : bool, default False
+        Fit a time lag (s) of the acoustic position behind the logged one: the
+        ship is taken at ``(x, y) + lag * velocity`` (:func:`ship_velocity`). It
+        stands for a position fix logged at another moment than the ping, or a
+        transducer ahead of the GPS antenna on a ship holding its course (the
+        two cannot be told apart on such a track).
     max_iter : int, default 200
     tol : float, default 1e-10
         Stop when sigma (s) changes by less than this.
@@ -418,6 +478,8 @@ def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=
     k = basis.shape[1]
     tat0 = DEFAULT_TAT if tat is None else float(tat)
     geo = dict(fit_tat=fit_tat, surface_depth=surface_depth, earth_radius=earth_radius)
+    if fit_lag:
+        geo["velocity"] = ship_velocity(sub)
     # the robust start: straight rays at one speed
     model = _TravelTimes(x, y, z, tat0, **geo)
     theta = np.array([start["x"], start["y"], start["depth"], sound_speed]
@@ -437,9 +499,11 @@ def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=
     speed0 = theta[3]
     if ssp is not None:  # refracted rays from the straight-ray solution: c -> profile scale
         speed0 /= float(ssp.harmonic_mean(np.mean(z) - surface_depth, theta[2] - surface_depth))
-    theta = np.concatenate([theta[:3], np.full(k, speed0), theta[4:]])
-    x_scale = np.array([10.0] * 3 + [abs(speed0) / 1500.0] * k + ([1e-3] if fit_tat else []))
-    model = _TravelTimes(x, y, z, tat0, basis=basis, profile=ssp, **geo)
+    theta = np.concatenate([theta[:3], np.full(k, speed0), [0.0] if fit_lag else [],
+                            theta[4:]])
+    x_scale = np.array([10.0] * 3 + [abs(speed0) / 1500.0] * k + ([1.0] if fit_lag else [])
+                       + ([1e-3] if fit_tat else []))
+    model = _TravelTimes(x, y, z, tat0, basis=basis, profile=ssp, fit_lag=fit_lag, **geo)
     r = resid(theta)
     sigma = max(1.4826 * float(np.median(np.abs(r - np.median(r)))), 1e-6)
     weight = 0.9
@@ -471,6 +535,9 @@ def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=
     sd["sound_speed"] = float(np.sqrt(max(g @ cov[3:3 + k, 3:3 + k] @ g, 0.0))) * unit
     if fit_tat:
         sd["tat"] = float(np.sqrt(max(cov[-1, -1], 0.0)))
+    lag = float(theta[3 + k]) if fit_lag else 0.0
+    if fit_lag:
+        sd["lag"] = float(np.sqrt(max(cov[3 + k, 3 + k], 0.0)))
     n_bad = model.n_invalid(theta)
     if n_bad:
         warnings.warn(f"transponder {transponder}: {n_bad} of {t.size} pings have no refracted "
@@ -491,7 +558,8 @@ def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=
         p_true=p, rows=rows, n_iter=it, converged=converged, fit_tat=fit_tat,
         outliers=outliers, window=window,
         model={"ssp": ssp, "surface_depth": float(surface_depth), "earth_radius": earth_radius,
-               "speed_intervals": int(speed_intervals), "time_range": time_range},
+               "speed_intervals": int(speed_intervals), "time_range": time_range,
+               "lag": lag, "fit_lag": bool(fit_lag)},
         speed_coef=coef.copy())
 
 
@@ -527,6 +595,9 @@ def heldout_logpdf(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None,
 
     full = locate(pings, beacons, transponder, outliers=outliers, **kwargs)
     sub = pings.iloc[full.rows]
+    if kwargs.get("fit_lag"):  # each fold's velocities from the whole track, not its own pings
+        vx, vy = ship_velocity(sub)
+        sub = sub.assign(vx=vx, vy=vy)
     if folds == "random":
         fold = as_generator(rng).permutation(np.arange(full.rows.size) % int(n_folds))
     elif folds == "blocked":
@@ -663,4 +734,4 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
 
 __all__ = ["DEFAULT_TAT", "OUTLIER_MODELS", "SEAGAP_TRANSDUCER_DEPTH", "LocateResult",
            "LocateWarning", "earth_radius", "enu_to_geodetic", "heldout_logpdf", "locate",
-           "locate_survey", "survey_profile"]
+           "locate_survey", "ship_velocity", "survey_profile"]

@@ -8,7 +8,9 @@
   density mixture of :mod:`bayes_mpem.mixture`. Each iteration is a
   generalised EM step (the plane height is improved by safeguarded
   Gauss-Newton, the rest in closed form), so the log-likelihood never
-  decreases.
+  decreases. With ``ssp=`` it predicts the ranges through a sound-speed
+  profile (refracted rays, :mod:`bayes_mpem.refraction`) instead of straight
+  lines.
 
 Both return an :class:`EMResult` whose class probabilities come from a final
 E-step at the returned parameters.
@@ -53,7 +55,9 @@ def quality_flags(result, data: BeaconData, *, sigma_floor: float = 0.05) -> tup
         Checked: almost no range is multipath (fewer than 10 ranges' worth), the
         multipath scale stuck at its floor (collapsed onto a few ranges) or above
         100 m (no coherent multipath), almost no range on the direct path (a wrong
-        beacon position or navigation), and a plane above the sea surface.
+        beacon position or navigation), a plane above the sea surface, and (for a
+        fit through a sound-speed profile) more than 1 % of the ranges with no
+        eigenray at all.
     """
     flags = []
     n_mp = float(result.resp[:, 1].sum()) if result.n else 0.0
@@ -71,6 +75,11 @@ def quality_flags(result, data: BeaconData, *, sigma_floor: float = 0.05) -> tup
     if result.d0 > depth + 10.0:
         flags.append(f"the plane is {result.d0 - depth:.0f} m above the sea surface "
                      f"(d0 = {result.d0:.0f} m, beacon depth {depth:.0f} m)")
+    rays = result.settings.get("refraction") if result.settings else None
+    if rays and result.n and rays["no_ray"] > 0.01 * result.n:
+        flags.append(f"{rays['no_ray']} of {result.n} ranges have no eigenray through the "
+                     "sound-speed profile (neither direct nor multipath at the fitted plane): "
+                     "they can only be outliers")
     return tuple(flags)
 
 
@@ -484,7 +493,7 @@ def _update_d0(geom, r, d0, path, lo, hi, max_steps=5):
     """Safeguarded Gauss-Newton on the weighted SSE: never increases it."""
     sse, res = _weighted_sse(geom, r, d0, path)
     for _ in range(max_steps):
-        jac = geometry.multipath_derivative(geom.h, geom.dz, d0, path)
+        jac = geom.multipath_derivative(d0, path)
         den = float(_wdot(r, jac * jac))
         if den <= 0:
             break
@@ -591,7 +600,7 @@ def histogram_modes(v, k, *, width=5.0, sep=25.0, min_count=-1):
 
 def _d0_candidates(geom, sigma_dp, path, k):
     """Modes of the per-range plane heights, ranges near the direct path left out."""
-    d0k = geometry.invert_plane_height(geom.z, geom.h, geom.dz, path, direct=geom.direct)
+    d0k = geom.invert_plane_height(path)
     far = np.abs(geom.z - geom.direct) > max(6.0 * sigma_dp, 10.0)
     v = d0k[np.isfinite(d0k) & far & (d0k >= geom.d0_min)]
     if v.size < 3:
@@ -612,6 +621,8 @@ def fit_mixture_em(
     sigma_floor: float = 0.05,
     subsample: int = 20000,
     rng: RNGLike = None,
+    ssp=None,
+    sound_speed: float | None = None,
 ) -> EMResult:
     """Maximum-likelihood fit of the density mixture for one beacon.
 
@@ -642,10 +653,29 @@ def fit_mixture_em(
         ranges; only the best is run on all of them.
     rng : None, int or numpy.random.Generator
         Seeds the subsample.
+    ssp : SoundSpeedProfile, optional
+        Predict the direct and multipath ranges through this profile (refracted
+        eigenrays, :mod:`bayes_mpem.refraction`) instead of straight lines;
+        ``d0`` stays the height of the reflecting plane above the beacon. It
+        must reach the deepest beacon or vehicle. Ranges with no eigenray of a
+        class get zero density under it (with neither, they can only be
+        outliers); the counts are in ``settings["refraction"]``.
+    sound_speed : float, optional
+        With ``ssp``, required: the nominal speed (m/s) the navigation used to
+        turn travel times into ranges.
 
     Returns
     -------
     EMResult
+
+    Raises
+    ------
+    ValueError
+        A bad option, fewer than 3 ranges, ``sound_speed`` without ``ssp`` or
+        ``ssp`` without ``sound_speed``, a profile that does not reach the beacon
+        or vehicle.
+    TypeError
+        ``ssp`` not a :class:`~bayes_mpem.acoustics.SoundSpeedProfile`.
 
     Warns
     -----
@@ -673,7 +703,14 @@ def fit_mixture_em(
     if data.n < 3:
         raise ValueError(f"beacon {data.beacon}: need at least 3 ranges to fit, got {data.n}")
     gen = as_generator(rng)
-    geom = BeaconGeometry.from_data(data)
+    if ssp is None:
+        if sound_speed is not None:
+            raise ValueError("sound_speed: only used with a sound-speed profile (ssp=...)")
+        geom = BeaconGeometry.from_data(data)
+    else:
+        from .refraction import RefractedBeaconGeometry
+
+        geom = RefractedBeaconGeometry.from_data(data, ssp, sound_speed)
     s_dp0 = fixed_dp or estimate_sigma_dp(geom)
     d0_bounds = (geom.d0_min, geom.hi + geom.d0_min + 1.0)
     opts = dict(fit_sigma_dp=fixed_dp is None, fit_weights=weights == "learned",
@@ -701,8 +738,7 @@ def fit_mixture_em(
         sub, full = geom, geom.n <= subsample
         if not full:
             idx = np.sort(gen.choice(geom.n, size=int(subsample), replace=False))
-            sub = BeaconGeometry(geom.z[idx], geom.h[idx], geom.dz[idx], geom.direct[idx],
-                                 geom.lo, geom.hi, geom.d0_min)
+            sub = geom.take(idx)
         runs = [_run_mixture(sub, s, path, tol=1e-6, max_iter=min(100, int(max_iter)), **opts)
                 for s in starts]
         best_run = max(runs, key=lambda run: run[1])
@@ -727,9 +763,14 @@ def fit_mixture_em(
             ConvergenceWarning,
             stacklevel=2,
         )
-    jac = geometry.multipath_derivative(geom.h, geom.dz, state.d0, path)
+    jac = geom.multipath_derivative(state.d0, path)
     info = _wdot(resp[:, 1], jac * jac)
     d0_se = state.sigma_mp / np.sqrt(info) if info > 0 else float("inf")
+    settings = {"weights": weights, "sigma_dp_fixed": fixed_dp is not None,
+                "n_starts": len(starts), "tol": float(tol), "sigma_floor": float(sigma_floor)}
+    if not geom.straight:
+        settings.update(ssp=geom.ssp.source or repr(geom.ssp), sound_speed=geom.sound_speed,
+                        refraction=geom.ray_counts(state.d0, path))
     return _with_flags(EMResult(
         beacon=data.beacon,
         method="mixture",
@@ -745,8 +786,7 @@ def fit_mixture_em(
         loglik=ll,
         history={k: np.asarray(v) for k, v in hist.items()},
         first_resp=first,
-        settings={"weights": weights, "sigma_dp_fixed": fixed_dp is not None,
-                  "n_starts": len(starts), "tol": float(tol), "sigma_floor": float(sigma_floor)},
+        settings=settings,
         d0_se=float(d0_se),
     ), data, float(sigma_floor))
 

@@ -14,6 +14,7 @@ walkers at once.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
@@ -40,7 +41,15 @@ class BeaconGeometry:
     d0_min : float
         Lowest physical plane height: the plane must lie above the vehicle for
         every range, ``max(0, max(dz))``.
+
+    Notes
+    -----
+    Predictions are straight-ray (:mod:`bayes_mpem.geometry`); the subclass
+    :class:`~bayes_mpem.refraction.RefractedBeaconGeometry` predicts through a
+    sound-speed profile with the same interface (``straight`` is False there).
     """
+
+    straight: ClassVar[bool] = True
 
     z: np.ndarray
     h: np.ndarray
@@ -90,6 +99,19 @@ class BeaconGeometry:
     def multipath(self, d0, path: str = "triangle"):
         """Predicted multipath ranges for plane height ``d0`` (broadcasts)."""
         return geometry.multipath_range(self.h, self.dz, d0, path, direct=self.direct)
+
+    def multipath_derivative(self, d0, path: str = "triangle"):
+        """``d z_MP / d d0`` of every range (:func:`~bayes_mpem.geometry.multipath_derivative`)."""
+        return geometry.multipath_derivative(self.h, self.dz, d0, path)
+
+    def invert_plane_height(self, path: str = "triangle"):
+        """Per-range plane heights (:func:`~bayes_mpem.geometry.invert_plane_height`)."""
+        return geometry.invert_plane_height(self.z, self.h, self.dz, path, direct=self.direct)
+
+    def take(self, idx) -> BeaconGeometry:
+        """The ranges ``idx``, with the same outlier window and ``d0_min``."""
+        return BeaconGeometry(self.z[idx], self.h[idx], self.dz[idx], self.direct[idx],
+                              self.lo, self.hi, self.d0_min)
 
 
 def gaussian_logpdf(resid, sigma):
@@ -262,6 +284,7 @@ def total_loglik(geom: BeaconGeometry, d0, sigma_dp, sigma_mp, weights, path="tr
     Parameters
     ----------
     geom : BeaconGeometry
+        Straight-ray only.
     d0, sigma_dp, sigma_mp : numpy.ndarray
         Shape ``(W, 1)`` for ``W`` parameter sets.
     weights : sequence of 3 numpy.ndarray
@@ -272,7 +295,16 @@ def total_loglik(geom: BeaconGeometry, d0, sigma_dp, sigma_mp, weights, path="tr
     -------
     numpy.ndarray
         ``(W,)`` log-likelihoods; ``-inf`` where a range has zero density.
+
+    Raises
+    ------
+    NotImplementedError
+        For a refracted geometry (``geom.straight`` False).
     """
+    if not geom.straight:
+        raise NotImplementedError("total_loglik: straight-ray geometry only (its multipath bound "
+                                  "is the image method's); use loglik_per_range for a "
+                                  "refracted geometry")
     d0 = np.asarray(d0, float)
     sigma_dp = np.asarray(sigma_dp, float)
     sigma_mp = np.asarray(sigma_mp, float)

@@ -8,7 +8,10 @@ around the image-method prediction of :mod:`bayes_mpem.geometry`), or an
 outlier (uniform over the listening window).
 
 The simulator's assumptions are the paper's: straight rays, one sound speed,
-a static reflector, exact navigation, constant noise.
+a static reflector, exact navigation, constant noise. With ``ssp=`` (a
+:class:`~bayes_mpem.acoustics.SoundSpeedProfile`) the rays are refracted
+instead (:mod:`bayes_mpem.refraction`) and the travel times are turned into
+ranges with a nominal sound speed, as an LBL system does.
 
 Examples
 --------
@@ -29,8 +32,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from . import geometry
+from . import geometry, refraction
 from ._rng import RNGLike, as_generator
+from .acoustics import SoundSpeedProfile
 from .data import Survey, load_survey
 
 PRESETS = ("abe58", "random")
@@ -159,6 +163,8 @@ def simulate_lbl(
     beacon_offset: float = 1.0,
     effects: dict | None = None,
     rng: RNGLike = None,
+    ssp: SoundSpeedProfile | None = None,
+    sound_speed: float | None = None,
 ) -> Simulation:
     """Simulate the replies of every beacon along a given track.
 
@@ -210,22 +216,49 @@ def simulate_lbl(
             positions. Direction ``effects.get("nav_drift_direction", 45.0)``
             degrees counter-clockwise from +x.
     rng : None, int or numpy.random.Generator
+    ssp : SoundSpeedProfile, optional
+        Refract the rays through this profile (:mod:`bayes_mpem.refraction`):
+        a direct return is ``sound_speed * T_direct`` (one-way eigenray time,
+        turning below or above the ends where it has to), a multipath
+        ``sound_speed * (T_direct + T_bounce) / 2`` on the triangle path and
+        ``sound_speed * T_bounce`` on the double bounce, ``T_bounce`` the
+        one-way time of the ray reflected by the plane at ``plane_depth``
+        (both legs refracted). Noise, outliers and effects are applied as
+        without a profile (``effects["sound_speed"]`` scales on top of the
+        nominal speed). A reply drawn from a class whose eigenray does not
+        exist becomes an outlier (labelled ``"ol"``) and is counted in
+        ``truth[id]["no_ray"]``. The profile must reach the deepest beacon or
+        vehicle. Default: straight rays, exactly as without this option (same
+        random stream, same output).
+    sound_speed : float, optional
+        Nominal speed (m/s) that turns travel times into ranges; only with
+        ``ssp``. Default: the profile's harmonic mean from the surface down to
+        the mean beacon depth (:func:`~bayes_mpem.refraction.nominal_sound_speed`),
+        which turns vertical travel times to the beacons into exact depths.
 
     Returns
     -------
     Simulation
         ``truth`` gains ``"effects"``, ``{name: magnitude}`` as realised
-        (for ``early_outliers`` the fraction of replies that are outliers).
+        (for ``early_outliers`` the fraction of replies that are outliers);
+        with ``ssp`` also ``"sound_speed"`` (the nominal speed), ``"ssp"``
+        (the profile's source) and ``"no_ray"`` (replies per class turned
+        into outliers for want of an eigenray).
 
     Raises
     ------
     ValueError
-        For an unknown effect or an impossible magnitude.
+        For an unknown effect or an impossible magnitude; ``sound_speed``
+        without ``ssp``; a profile that does not reach the beacons or the
+        vehicle; a reflector below the vehicle or the beacon with ``ssp``.
+    TypeError
+        ``ssp`` is not a :class:`~bayes_mpem.acoustics.SoundSpeedProfile`.
     """
     geometry.check_path(path)
     eff = _check_effects(effects)
     gen = as_generator(rng)
     t, x, y, z = (np.asarray(track[k], float) for k in ("time", "x", "y", "depth"))
+    refr = _check_ssp(ssp, sound_speed, beacons, z, plane_depth, eff)
     times = t[:, None] + np.arange(len(beacons))[None, :] * beacon_offset
     t0, t1 = float(times.min()), float(times.max())
     scale = 1.0 + eff.get("sound_speed", 0.0)
@@ -247,24 +280,40 @@ def simulate_lbl(
             cls = gen.choice(4, size=t.size, p=w4)
         else:  # the clean stream of draws, unchanged by the effects machinery
             cls = np.array([0, 1, 3])[gen.choice(3, size=t.size, p=w4[[0, 1, 3]])]
-        direct = geometry.direct_path(h, dz)
         d0_t = d0 - eff.get("plane_drift", 0.0) * tau
-        mp = geometry.multipath_range(h, dz, d0_t, path, direct=direct)
+        if refr is None:
+            direct = geometry.direct_path(h, dz)
+            mp = geometry.multipath_range(h, dz, d0_t, path, direct=direct)
+        else:
+            rays = refraction.direct_times(refr[0], z, float(b["depth"]), h)
+            direct = refr[1] * rays.time
+            mp = refraction.lbl_ranges(refr[0], refr[1], h, z, float(b["depth"]),
+                                       float(b["depth"]) - d0_t, path, direct=rays).multipath
         rng_dp = scale * direct + bias + gen.normal(0.0, sigma_dp, t.size)
         rng_mp = scale * mp + bias + gen.normal(0.0, sigma_mp[bid], t.size)
         rng_mp2 = rng_mp
         if "second_reflector" in eff:
             d0_2 = float(b["depth"]) - eff["second_reflector"]
-            mp2 = geometry.multipath_range(h, dz, d0_2, "triangle", direct=direct)
+            if refr is None:
+                mp2 = geometry.multipath_range(h, dz, d0_2, "triangle", direct=direct)
+            else:
+                mp2 = refraction.lbl_ranges(refr[0], refr[1], h, z, float(b["depth"]),
+                                            eff["second_reflector"], "triangle",
+                                            direct=rays).multipath
             rng_mp2 = scale * mp2 + bias + gen.normal(0.0, sigma_mp[bid], t.size)
         if "early_outliers" in eff:
-            rng_ol = window[0] + gen.random(t.size) * np.maximum(rng_dp - window[0], 0.0)
+            # (with a profile, a ping with no direct eigenray: uniform over the whole window)
+            arrival = rng_dp if refr is None else np.where(np.isnan(rng_dp), window[1], rng_dp)
+            rng_ol = window[0] + gen.random(t.size) * np.maximum(arrival - window[0], 0.0)
         else:
             rng_ol = gen.uniform(window[0], window[1], t.size)
         r = np.choose(cls, [rng_dp, rng_mp, rng_mp2, rng_ol])
+        no_ray = np.isnan(r)  # (only with a profile: a class whose eigenray does not exist)
         r = np.where(r > 0, r, rng_ol)  # a non-positive draw becomes an outlier
         lab = np.asarray(["dp", "mp", "mp2", "ol"], dtype=object)[cls]
         silent = gen.random(t.size) < p_no_reply
+        no_ray_counts = {c: int(np.sum(no_ray & ~silent & (lab == c))) for c in ("dp", "mp", "mp2")}
+        lab[no_ray] = "ol"
         r = np.where(silent, np.nan, r)
         lab[silent] = "no_reply"
         n_ol += int(np.sum(lab == "ol"))
@@ -286,6 +335,11 @@ def simulate_lbl(
         if eff:
             truth[bid]["weights_with_effects"] = dict(
                 zip(("dp", "mp", "mp2", "ol"), map(float, w4), strict=True))
+        if refr is not None:
+            truth[bid].update(sound_speed=refr[1], ssp=refr[0].source or repr(refr[0]),
+                              no_ray={c: n for c, n in no_ray_counts.items()
+                                      if c != "mp2" or "second_reflector" in eff},
+                              turning_direct=int(np.sum(~silent & rays.turning)))
     pings = pd.concat(rows, ignore_index=True).sort_values("time", kind="stable")
     order = pings.index.to_numpy()
     pings = pings.reset_index(drop=True)
@@ -301,6 +355,10 @@ def simulate_lbl(
               "weights": {k: list(v) for k, v in weights.items()}, "plane_depth": plane_depth,
               "path": path, "p_no_reply": p_no_reply, "window": list(window),
               "effects": dict(eff)}
+    if refr is not None:
+        config["ssp"] = {"source": refr[0].source, "depth": refr[0].depths.tolist(),
+                         "speed": refr[0].speeds.tolist()}
+        config["sound_speed"] = refr[1]
     return Simulation(survey=survey, truth=truth, labels=all_labels, config=config)
 
 
@@ -308,6 +366,30 @@ def simulate_lbl(
 EFFECTS = ("range_bias", "sound_speed", "plane_drift", "second_reflector", "early_outliers",
            "nav_drift")
 _EFFECT_OPTIONS = ("second_fraction", "nav_drift_direction")
+
+
+def _check_ssp(ssp, sound_speed, beacons, z, plane_depth, eff):
+    """``(profile, nominal speed)`` for a refracted simulation, or None for straight rays."""
+    if ssp is None:
+        if sound_speed is not None:
+            raise ValueError("sound_speed: only used with a sound-speed profile (ssp=...); "
+                             "to scale straight-ray ranges use effects={'sound_speed': ...}")
+        return None
+    depths = np.array([float(b["depth"]) for b in beacons.values()])
+    deepest = max(float(depths.max()), float(z.max()) if z.size else 0.0)
+    refraction.check_profile(ssp, deepest)
+    c_nom = (refraction.nominal_sound_speed(ssp, float(depths.mean())) if sound_speed is None
+             else refraction.check_sound_speed(sound_speed))
+    top = min(float(depths.min()), float(z.min()) if z.size else np.inf)
+    planes = {"plane_depth": float(plane_depth) + max(0.0, eff.get("plane_drift", 0.0))}
+    if "second_reflector" in eff:
+        planes["effects['second_reflector']"] = eff["second_reflector"]
+    for name, zp in planes.items():
+        if zp > top:
+            raise ValueError(f"{name}: a refracted multipath needs the reflector above the "
+                             f"vehicle and the beacons; it reaches {zp:g} m but the shallowest "
+                             f"beacon or vehicle depth is {top:g} m")
+    return ssp, c_nom
 
 
 def _check_effects(effects):
@@ -386,6 +468,8 @@ def simulate_survey(
     path: str = "triangle",
     n_cycles: int | None = None,
     effects: dict | None = None,
+    ssp: SoundSpeedProfile | None = None,
+    sound_speed: float | None = None,
     **overrides,
 ) -> Simulation:
     """Simulate a bottom-following LBL survey from a preset.
@@ -408,6 +492,11 @@ def simulate_survey(
     effects : dict, optional
         Departures from the paper's assumptions, ``{name: magnitude}``; see
         :func:`simulate_lbl`.
+    ssp : SoundSpeedProfile, optional
+        Refracted rays through this profile; see :func:`simulate_lbl`.
+    sound_speed : float, optional
+        Nominal speed that turns travel times into ranges (only with ``ssp``;
+        default: the harmonic mean down to the mean beacon depth).
     **overrides
         Replace any preset entry (``weights``, ``sigma_mp``, ``sigma_dp``,
         ``p_no_reply``, ``window``, ``plane_depth``, ``altitude``, ...).
@@ -441,6 +530,7 @@ def simulate_survey(
         cfg["beacons"], track, sigma_dp=cfg["sigma_dp"], sigma_mp=cfg["sigma_mp"],
         weights=cfg["weights"], plane_depth=cfg["plane_depth"], path=path,
         p_no_reply=cfg["p_no_reply"], window=tuple(cfg["window"]), effects=effects, rng=gen,
+        ssp=ssp, sound_speed=sound_speed,
     )
     config = {**sim.config, "preset": preset, "n_cycles": cfg["n_cycles"],
               "box": list(cfg["box"]), "altitude": cfg["altitude"]}

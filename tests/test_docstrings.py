@@ -6,7 +6,8 @@ import importlib
 import pytest
 
 MODULES = ["geometry", "mixture", "em", "simulate", "fitting", "data", "plots", "bayes",
-           "readers", "locate", "sampling", "compare", "bayes_plots", "acoustics"]
+           "readers", "locate", "sampling", "compare", "bayes_plots", "acoustics", "refraction",
+           "simcheck"]
 
 
 @pytest.mark.parametrize("name", MODULES)

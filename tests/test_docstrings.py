@@ -6,7 +6,8 @@ import importlib
 import pytest
 
 MODULES = ["geometry", "mixture", "em", "simulate", "fitting", "data", "plots", "bayes",
-           "readers", "locate", "sampling", "compare", "bayes_plots", "acoustics", "refraction",
+           "readers", "locate", "locate_bayes", "sampling", "compare", "bayes_plots", "acoustics",
+           "refraction",
            "simcheck"]
 
 

@@ -116,6 +116,22 @@ def test_locate_command_writes_the_contract(tmp_path):
     assert cls["line"].is_monotonic_increasing
 
 
+def test_locate_command_with_the_model_options(tmp_path):
+    """--ssp, --speed-intervals and --fit-lag reach the fit and are recorded in summary.json."""
+    import json
+
+    from bayes_mpem.cli import main
+
+    assert main(["locate", str(DATA / "WHOI_S05.txt"), "--format", "obsrange", "--ssp", "woa09",
+                 "--fit-lag", "--out", str(tmp_path)]) == 0
+    s = json.loads((tmp_path / "summary.json").read_text())
+    t = s["transponders"]["S05"]
+    assert s["fit_lag"] and s["ssp"].startswith("WOA09") and "refracted" in s["method"]
+    assert 4.5 < t["lag"]["mean"] < 6.5 and t["sigma_ms"] < 2.0
+    assert main(["locate", str(DATA / "WHOI_S05.txt"), "--format", "obsrange", "--fit-lag",
+                 "--sample", "--out", str(tmp_path)]) == 2  # a clear error, not a wrong posterior
+
+
 def _cv_gain(name, fmt):
     from bayes_mpem.locate import heldout_logpdf
 

@@ -92,7 +92,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-figures", action="store_true", help="write diagnosis.json only")
     p.add_argument("--no-progress", action="store_true", help="no progress lines on stderr")
 
-    p = sub.add_parser("locate", help="locate a transponder from a ranging survey (EM)")
+    p = sub.add_parser("locate", help="locate a transponder from a ranging survey (EM, and "
+                                      "optionally its posterior)")
     p.add_argument("survey", metavar="SURVEY", help="survey file (obsdata.inp for SeaGap)")
     p.add_argument("--format", required=True,
                    choices=["obsrange", "obsrange-sio", "obsrange-whoi", "seagap"],
@@ -113,6 +114,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--speed-intervals", type=int, default=0, metavar="N",
                    help="let the sound speed vary in time (cubic B-spline, N intervals over "
                         "the survey; default 0: one speed)")
+    p.add_argument("--fit-lag", action="store_true",
+                   help="fit a time lag of the acoustic position along the track (a position "
+                        "fix logged at another moment, or a transducer ahead of the antenna)")
+    p.add_argument("--sample", action="store_true",
+                   help="after each EM fit, sample the posterior of the location and the ping "
+                        "classes (emcee); intervals and classes from the posterior")
+    p.add_argument("--walkers", type=int, default=None, metavar="N",
+                   help="--sample: walkers (default max(32, 2 x parameters + 2))")
+    p.add_argument("--min-ess", type=float, default=None, metavar="N",
+                   help="--sample: run until the smallest effective sample size reaches N "
+                        "(default 1000)")
+    p.add_argument("--seed", type=int, default=None,
+                   help="--sample: random seed (default 0); same seed, same chain")
+    p.add_argument("--no-progress", action="store_true", help="--sample: hide the progress bar")
 
     for name, helptext in (("sample", "sample each beacon's posterior with emcee"),
                            ("compare", "compare equal (paper) and learned mixing priors by LOO")):
@@ -330,10 +345,34 @@ def cmd_locate(args):
         with open(args.survey, encoding="utf-8-sig", errors="replace") as fh:
             first = next((ln for ln in fh if ln.strip()), "")
         fmt = "obsrange-whoi" if first.lstrip().startswith("#") else "obsrange-sio"
+    sample_opts = (("--walkers", args.walkers), ("--min-ess", args.min_ess),
+                   ("--seed", args.seed), ("--no-progress", args.no_progress or None))
+    given = [name for name, v in sample_opts if v is not None]
+    if given and not args.sample:
+        raise _OptionError(f"{', '.join(given)} apply with --sample only")
+    if args.sample:
+        from .locate_bayes import check_location_options
+
+        check_location_options(n_walkers=args.walkers, ci=args.ci,
+                               min_ess=1000.0 if args.min_ess is None else args.min_ess)
     raw = read_survey(args.survey, fmt)
-    summary, classified = locate_survey(raw, tat=args.tat, fit_tat=args.fit_tat, ci=args.ci,
-                                        outliers=args.outliers, ssp=args.ssp,
-                                        speed_intervals=args.speed_intervals)
+    model = dict(tat=args.tat, fit_tat=args.fit_tat, ci=args.ci, outliers=args.outliers,
+                 ssp=args.ssp, speed_intervals=args.speed_intervals)
+    if args.fit_lag:
+        if args.sample:
+            raise _OptionError("--fit-lag with --sample is not implemented: the posterior has "
+                               "no lag parameter yet")
+        model["fit_lag"] = True
+    if args.sample:
+        from .locate_bayes import locate_survey_bayes
+
+        summary, classified, _ = locate_survey_bayes(
+            raw, **model, n_walkers=args.walkers,
+            min_ess=1000.0 if args.min_ess is None else args.min_ess,
+            rng=0 if args.seed is None else args.seed,
+            progress=False if args.no_progress else "auto")
+    else:
+        summary, classified = locate_survey(raw, **model)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
@@ -345,6 +384,14 @@ def cmd_locate(args):
         print(f"transponder {tid}: {where}, depth {t['depth']['mean']:.2f} m "
               f"[{lo:.2f}, {hi:.2f}], sound speed {t['sound_speed']['mean']:.2f} m/s, "
               f"{t['n_spurious']} spurious of {t['n']} pings, rms {t['sigma_ms']:.2f} ms")
+        if args.sample:
+            elo, ehi = t["em"]["depth"]["interval"]
+            d = t["posterior"]["diagnostics"]
+            ess = min(v for k in ("ess", "ess_bulk") for v in t["posterior"][k].values())
+            print(f"  depth {100 * args.ci:g} % interval: posterior [{lo:.2f}, {hi:.2f}] m, "
+                  f"EM (Wald) [{elo:.2f}, {ehi:.2f}] m; min ESS {ess:.0f}, "
+                  f"{d['n_steps']} steps x {d['n_walkers']} walkers, {d['seconds']:.1f} s"
+                  + ("" if d["converged"] else " (NOT converged: max_steps reached)"))
     print(f"{summary['n_skipped_lines']} lines skipped (reasons in classified.csv)")
     print(f"wrote {out / 'summary.json'}\nwrote {out / 'classified.csv'}")
     return 0

@@ -653,7 +653,7 @@ def survey_profile(raw, ssp):
 
 
 def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", ssp=None,
-                  speed_intervals=0):
+                  speed_intervals=0, fit_lag=False):
     """Locate every transponder of a :class:`~bayes_mpem.readers.RawSurvey`.
 
     Parameters
@@ -673,6 +673,8 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
         ``ss_prof.inp``). Default: straight rays.
     speed_intervals : int, default 0
         A sound speed varying in time (:func:`locate`).
+    fit_lag : bool, default False
+        Fit a lag of the acoustic position along the track (:func:`locate`).
 
     Returns
     -------
@@ -702,7 +704,7 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
     out, probs = {}, np.full(len(pings), np.nan)
     for tid in beacons["beacon"].astype(str):
         r = locate(pings, beacons, tid, tat=tat, fit_tat=fit_tat, outliers=outliers, ssp=prof,
-                   speed_intervals=speed_intervals, **geo)
+                   speed_intervals=speed_intervals, fit_lag=fit_lag, **geo)
         probs[r.rows] = r.p_true
         d = r.to_dict(ci)
         if "lat" in raw.header:
@@ -727,7 +729,8 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
                "n_pings": int(len(pings)), "n_skipped_lines": int(len(sk)),
                "method": f"EM, {rays}; intervals approximate (Wald)",
                "outliers": outliers, "ssp": None if prof is None else prof.source,
-               "speed_intervals": int(speed_intervals), "geometry": geo,
+               "speed_intervals": int(speed_intervals), "fit_lag": bool(fit_lag),
+               "geometry": geo,
                "tat_fitted": bool(fit_tat), "tat_given": None if fit_tat else float(tat)}
     return summary, cls
 

@@ -22,8 +22,8 @@ import time
 from pathlib import Path
 
 import bayes_mpem as bm
-from bayes_mpem.bayes import sample_beacon
-from bayes_mpem.compare import compare_beacon
+from bayes_mpem.lbl.beacon_sampling import sample_beacon
+from bayes_mpem.lbl.loo import compare_beacon
 
 ROOT = Path(__file__).resolve().parents[1]
 KW = {"progress": False, "n_draws": 1000}

@@ -30,8 +30,9 @@ import numpy as np
 from scipy import special, stats
 
 import bayes_mpem as bm
-from bayes_mpem.bayes import BeaconPosterior, sample_beacon
-from bayes_mpem.simulate import ABE58
+from bayes_mpem.lbl.beacon_sampling import sample_beacon
+from bayes_mpem.lbl.posterior import BeaconPosterior
+from bayes_mpem.lbl.presets import ABE58
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _report import machine, write_section  # noqa: E402

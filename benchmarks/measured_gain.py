@@ -27,14 +27,10 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _report import machine, write_section  # noqa: E402
 
-from bayes_mpem.locate import (  # noqa: E402
-    SEAGAP_TRANSDUCER_DEPTH,
-    LocateWarning,
-    heldout_logpdf,
-    locate,
-    survey_profile,
-)
-from bayes_mpem.readers import read_survey  # noqa: E402
+from bayes_mpem.exceptions import LocateWarning  # noqa: E402
+from bayes_mpem.io.formats import read_survey  # noqa: E402
+from bayes_mpem.survey_in.location import heldout_logpdf, locate  # noqa: E402
+from bayes_mpem.survey_in.survey import SEAGAP_TRANSDUCER_DEPTH, survey_profile  # noqa: E402
 
 DATA = ROOT / "data"
 SURVEYS = [  # file, format, profile (the survey's own cast where there is one, else the atlas)

@@ -55,8 +55,9 @@ import pandas as pd
 from scipy import special
 
 import bayes_mpem as bm
-from bayes_mpem import em, geometry
-from bayes_mpem.mixture import BeaconGeometry
+from bayes_mpem.lbl import geometry
+from bayes_mpem.lbl.beacon_geometry import BeaconGeometry
+from bayes_mpem.lbl.em_paper import paper_e_step, paper_m_step
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_OUT = ROOT / "docs" / "paper-em-regimes.md"
@@ -310,7 +311,7 @@ def trace_paper_em(data, labels, *, pol=0.05, alpha=0.5, sigma_dp=SIGMA_DP, tol=
     d0, s = 4000.0, float(np.sqrt(1e7))
     rows = []
     for it in range(max_iter + 1):
-        resp = em.paper_e_step(geom, d0, s, sigma_dp, pol)
+        resp = paper_e_step(geom, d0, s, sigma_dp, pol)
         g = resp[:, 1]
         w = np.where(ok, g, 0.0)
         rows.append({
@@ -319,7 +320,7 @@ def trace_paper_em(data, labels, *, pol=0.05, alpha=0.5, sigma_dp=SIGMA_DP, tol=
             "dp_share": float(w[labels == "dp"].sum() / w.sum()),
             "eq8_avg": float(np.dot(w, np.where(ok, d0k, 0.0)) / w.sum()),
         })
-        d0_new, s_new = em.paper_m_step(geom, g, d0, alpha)
+        d0_new, s_new = paper_m_step(geom, g, d0, alpha)
         done = abs(d0_new - d0) < tol and abs(s_new - s) < tol
         d0, s = d0_new, s_new
         if done or not np.isfinite(s) or s <= 0:

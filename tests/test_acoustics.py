@@ -15,15 +15,10 @@ import numpy as np
 import pytest
 from scipy import integrate
 
-from bayes_mpem import geometry
-from bayes_mpem.acoustics import (
-    WOA09_ENV,
-    SoundSpeedProfile,
-    direct_ray,
-    shoot,
-    surface_bounce_ray,
-)
-from bayes_mpem.data import InputError
+from bayes_mpem.acoustics.eigenray import direct_ray, shoot, surface_bounce_ray
+from bayes_mpem.acoustics.profile import WOA09_ENV, SoundSpeedProfile
+from bayes_mpem.exceptions import InputError
+from bayes_mpem.lbl import geometry
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 WOA09 = DATA / "woa09"
@@ -213,12 +208,12 @@ def test_woa09_at_the_obsrange_cc03_site():
 
 
 def test_woa09_directory_from_the_environment(monkeypatch):
-    import bayes_mpem.acoustics as ac
+    from bayes_mpem.acoustics import profile as woa09
 
     monkeypatch.delenv(WOA09_ENV, raising=False)
     # installed (or in the source tree) the atlas is found without being told where
     assert SoundSpeedProfile.from_woa09(*CC03).speeds.size == 33
-    monkeypatch.setattr(ac, "_bundled_woa09", lambda: None)
+    monkeypatch.setattr(woa09, "bundled_woa09", lambda: None)
     with pytest.raises(FileNotFoundError, match=f"pass directory=.*{WOA09_ENV}"):
         SoundSpeedProfile.from_woa09(*CC03)
     monkeypatch.setenv(WOA09_ENV, str(WOA09))

@@ -7,9 +7,11 @@ import pytest
 from scipy import stats
 
 import bayes_mpem as bm
-from bayes_mpem.bayes import BeaconPosterior, SamplingWarning, sample_beacon
-from bayes_mpem.compare import compare_beacon, psis_loo
-from bayes_mpem.mixture import loglik_per_range
+from bayes_mpem.exceptions import SamplingWarning
+from bayes_mpem.lbl.beacon_sampling import sample_beacon
+from bayes_mpem.lbl.likelihood import loglik_per_range
+from bayes_mpem.lbl.loo import compare_beacon, psis_loo
+from bayes_mpem.lbl.posterior import BeaconPosterior
 
 FAST = {"progress": False, "n_draws": 1000}
 
@@ -182,7 +184,7 @@ def survey_files(tmp_path_factory):
 def test_sample_command_writes_the_contract(survey_files, tmp_path):
     import xarray as xr
 
-    from bayes_mpem.cli import main
+    from bayes_mpem.cli.main import main
 
     assert main(["sample", str(survey_files["pings"]), "--beacons",
                  str(survey_files["beacons"]), "--out", str(tmp_path), "--seed", "1",
@@ -206,7 +208,7 @@ def test_sample_command_writes_the_contract(survey_files, tmp_path):
 
 
 def test_compare_command(survey_files, tmp_path):
-    from bayes_mpem.cli import main
+    from bayes_mpem.cli.main import main
 
     assert main(["compare", str(survey_files["pings"]), "--beacons",
                  str(survey_files["beacons"]), "--out", str(tmp_path), "--seed", "2",
@@ -221,7 +223,7 @@ def test_compare_command(survey_files, tmp_path):
 
 
 def test_sample_bad_input(tmp_path, capsys):
-    from bayes_mpem.cli import main
+    from bayes_mpem.cli.main import main
 
     (tmp_path / "p.csv").write_text("time,beacon,range,x,y,depth\n0,1,-5,0,0,10\n")
     (tmp_path / "b.csv").write_text("beacon,x,y,depth\n1,0,0,100\n")
@@ -252,7 +254,7 @@ def test_misplaced_beacon_is_skipped_not_a_traceback():
 
 
 def test_unusable_start_raises_for_one_beacon():
-    from bayes_mpem.bayes import UnusableStartError
+    from bayes_mpem.exceptions import UnusableStartError
 
     sim, beacons = _misplaced_beacon_survey()
     survey = bm.load_survey(sim.survey.table, beacons)

@@ -9,16 +9,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from bayes_mpem.data import (
-    BEACON_COLUMNS,
-    PING_COLUMNS,
-    BeaconData,
-    InputError,
-    Survey,
-    load_survey,
-    read_beacons,
-    read_pings,
-)
+from bayes_mpem.exceptions import InputError
+from bayes_mpem.io.survey import BeaconData, Survey, load_survey
+from bayes_mpem.io.tables import BEACON_COLUMNS, PING_COLUMNS, read_beacons, read_pings
 
 HEADER = "time,beacon,range,x,y,depth"
 BEACONS = "beacon,x,y,depth\n1,0,0,50\n2,100,0,50\n3,0,100,50\n"

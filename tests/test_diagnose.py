@@ -15,12 +15,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bayes_mpem.cli import main
-from bayes_mpem.data import InputError
-from bayes_mpem.diagnose import EFFECTS, _ranges, diagnose, fit_joint
-from bayes_mpem.em import fit_mixture_em
-from bayes_mpem.fitting import fittable_beacons
-from bayes_mpem.simulate import simulate_survey
+from bayes_mpem.cli.main import main
+from bayes_mpem.exceptions import InputError
+from bayes_mpem.lbl.diagnosis.driver import diagnose
+from bayes_mpem.lbl.diagnosis.ecm import fit_joint
+from bayes_mpem.lbl.diagnosis.model import EFFECTS, ranges
+from bayes_mpem.lbl.em_mixture import fit_mixture_em
+from bayes_mpem.lbl.simulate import simulate_survey
+from bayes_mpem.lbl.survey import fittable_beacons
 
 sys.path.insert(0, str(Path(__file__).parent))
 import independent_generator as indep  # noqa: E402
@@ -143,7 +145,7 @@ def test_baseline_is_the_per_beacon_mixture_fit():
     """With no effect the joint model factorises over beacons: same optimum as fit_mixture_em."""
     sim = simulate_survey("abe58", rng=8, n_cycles=600)
     fittable, _ = fittable_beacons(sim.survey, 30)
-    d = _ranges(sim.survey, fittable)
+    d = ranges(sim.survey, fittable)
     result = diagnose(sim.survey, rng=0, progress=False, effects=())
     base = result.baseline.beacons(d)
     for data in fittable:
@@ -159,7 +161,7 @@ def test_ecm_log_likelihood_never_decreases(effects):
     sim = simulate_survey("abe58", rng=9, n_cycles=500,
                           effects={"range_bias": 3.0, "second_reflector": 700.0})
     fittable, _ = fittable_beacons(sim.survey, 30)
-    d = _ranges(sim.survey, fittable)
+    d = ranges(sim.survey, fittable)
     start = diagnose(sim.survey, rng=0, progress=False, effects=()).baseline.params.copy()
     start.plane2 = 650.0
     start.weights[:, 2] = 0.05

@@ -5,17 +5,12 @@ import pytest
 from scipy import optimize, special, stats
 
 import bayes_mpem as bm
-from bayes_mpem.em import (
-    ConvergenceWarning,
-    FitQualityWarning,
-    _State,
-    estimate_sigma_dp,
-    fit_mixture_em,
-    fit_paper_em,
-    mixture_m_step,
-    paper_e_step,
-)
-from bayes_mpem.mixture import CLASSES, BeaconGeometry
+from bayes_mpem.exceptions import ConvergenceWarning, FitQualityWarning
+from bayes_mpem.lbl.beacon_geometry import BeaconGeometry
+from bayes_mpem.lbl.em_mixture import _State, fit_mixture_em, mixture_m_step
+from bayes_mpem.lbl.em_paper import fit_paper_em, paper_e_step
+from bayes_mpem.lbl.em_result import estimate_sigma_dp
+from bayes_mpem.mixture.densities import CLASSES
 
 ONE_HOT = {"dp": 0, "mp": 1, "ol": 2}
 
@@ -84,7 +79,7 @@ def test_final_probabilities_match_parameters():
     sim = bm.simulate_survey("abe58", rng=4)
     data = sim.survey.for_beacon("4")
     res = fit_mixture_em(data, rng=0)
-    from bayes_mpem.mixture import e_step
+    from bayes_mpem.lbl.likelihood import e_step
 
     ll, resp = e_step(BeaconGeometry.from_data(data), res.d0, res.sigma_dp, res.sigma_mp,
                       [res.weights[c] for c in CLASSES])

@@ -5,7 +5,7 @@ import pandas as pd
 import pytest
 
 import bayes_mpem as bm
-from bayes_mpem.fitting import SkippedBeaconWarning
+from bayes_mpem.exceptions import SkippedBeaconWarning
 
 
 @pytest.fixture(scope="module")

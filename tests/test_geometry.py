@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 from scipy import optimize
 
-from bayes_mpem import geometry
+from bayes_mpem.lbl import geometry
 
 
 def _image_free_triangle(h, dz, d0):

@@ -6,9 +6,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from bayes_mpem.data import InputError
-from bayes_mpem.locate import LocateWarning, enu_to_geodetic, heldout_logpdf, locate
-from bayes_mpem.readers import geodetic_to_enu, read_survey
+from bayes_mpem.exceptions import InputError, LocateWarning
+from bayes_mpem.io.formats import read_survey
+from bayes_mpem.io.geodesy import enu_to_geodetic, geodetic_to_enu
+from bayes_mpem.survey_in.location import heldout_logpdf, locate
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "obsrange"
 FILES = [("SIO_CC03.txt", "obsrange-sio"), ("SIO_EC03.txt", "obsrange-sio"),
@@ -99,7 +100,7 @@ def test_bad_input():
 def test_locate_command_writes_the_contract(tmp_path):
     import json
 
-    from bayes_mpem.cli import main
+    from bayes_mpem.cli.main import main
 
     assert main(["locate", str(DATA / "SIO_CC03.txt"), "--format", "obsrange",
                  "--out", str(tmp_path)]) == 0
@@ -120,7 +121,7 @@ def test_locate_command_with_the_model_options(tmp_path):
     """--ssp, --speed-intervals and --fit-lag reach the fit and are recorded in summary.json."""
     import json
 
-    from bayes_mpem.cli import main
+    from bayes_mpem.cli.main import main
 
     assert main(["locate", str(DATA / "WHOI_S05.txt"), "--format", "obsrange", "--ssp", "woa09",
                  "--fit-lag", "--out", str(tmp_path)]) == 0
@@ -133,7 +134,7 @@ def test_locate_command_with_the_model_options(tmp_path):
 
 
 def _cv_gain(name, fmt):
-    from bayes_mpem.locate import heldout_logpdf
+    from bayes_mpem.survey_in.location import heldout_logpdf
 
     raw = read_survey(DATA / name, fmt)
     pings, beacons = raw.to_pings()
@@ -173,8 +174,8 @@ def test_outlier_model_is_checked():
 @pytest.mark.parametrize("refracted", [False, True])
 @pytest.mark.parametrize("radius", [None, 6.371e6])
 def test_travel_time_jacobian_matches_finite_differences(refracted, radius):
-    from bayes_mpem.acoustics import SoundSpeedProfile
-    from bayes_mpem.locate import _speed_basis, _TravelTimes
+    from bayes_mpem.acoustics.profile import SoundSpeedProfile
+    from bayes_mpem.survey_in.travel_times import TravelTimes, speed_basis
 
     rng = np.random.default_rng(3)
     n = 40
@@ -182,8 +183,8 @@ def test_travel_time_jacobian_matches_finite_differences(refracted, radius):
     z = rng.uniform(-16, -14, n)
     prof = SoundSpeedProfile.from_file(DATA.parent / "seagap" / "ss_prof.inp") if refracted \
         else None
-    basis = _speed_basis(pd.DataFrame({"time": np.linspace(0, 1e3, n)}), 3, None)
-    tt = _TravelTimes(x, y, z, 0.0, basis=basis, fit_tat=True, profile=prof,
+    basis = speed_basis(pd.DataFrame({"time": np.linspace(0, 1e3, n)}), 3, None)
+    tt = TravelTimes(x, y, z, 0.0, basis=basis, fit_tat=True, profile=prof,
                       surface_depth=-18.0, earth_radius=radius)
     speed = 1.0 if refracted else 1489.0
     theta = np.r_[120.0, -40.0, 2700.0, speed * (1 + rng.normal(0, 1e-3, 6)), 0.01]
@@ -198,7 +199,7 @@ def test_travel_time_jacobian_matches_finite_differences(refracted, radius):
 
 
 def test_a_constant_profile_gives_the_straight_ray_fit():
-    from bayes_mpem.acoustics import SoundSpeedProfile
+    from bayes_mpem.acoustics.profile import SoundSpeedProfile
 
     pings, beacons, truth, _ = _simulated(0)
     a = locate(pings, beacons)
@@ -210,7 +211,8 @@ def test_a_constant_profile_gives_the_straight_ray_fit():
 
 
 def test_refracted_fit_recovers_a_transponder_simulated_through_a_profile():
-    from bayes_mpem.acoustics import SoundSpeedProfile, direct_ray
+    from bayes_mpem.acoustics.eigenray import direct_ray
+    from bayes_mpem.acoustics.profile import SoundSpeedProfile
 
     prof = SoundSpeedProfile([0, 200, 1000, 5000], [1535.0, 1520.0, 1482.0, 1510.0])
     pings, beacons, truth, bad = _simulated(1, sigma=2e-4)

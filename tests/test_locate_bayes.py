@@ -8,15 +8,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from bayes_mpem.bayes import SamplingWarning
-from bayes_mpem.locate import SEAGAP_TRANSDUCER_DEPTH, locate, survey_profile
-from bayes_mpem.locate_bayes import (
-    LocationLogPosterior,
-    LocationPosterior,
-    _chord,
-    sample_location,
-)
-from bayes_mpem.readers import read_survey
+from bayes_mpem.exceptions import SamplingWarning
+from bayes_mpem.io.formats import read_survey
+from bayes_mpem.survey_in.location import locate
+from bayes_mpem.survey_in.location_sampling import LocationPosterior, sample_location
+from bayes_mpem.survey_in.posterior import LocationLogPosterior, _chord
+from bayes_mpem.survey_in.survey import SEAGAP_TRANSDUCER_DEPTH, survey_profile
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 CC03 = DATA / "obsrange" / "SIO_CC03.txt"
@@ -71,11 +68,11 @@ def test_log_likelihood_at_the_em_solution_is_the_em_s(outliers, fit_tat):
 
 @pytest.mark.parametrize("radius", [None, 6.371e6])
 def test_vectorised_chord_is_the_travel_time_model_s(radius):
-    from bayes_mpem.locate import _TravelTimes
+    from bayes_mpem.survey_in.travel_times import TravelTimes
 
     rng = np.random.default_rng(1)
     x, y, z = rng.uniform(-3e3, 3e3, 30), rng.uniform(-3e3, 3e3, 30), rng.uniform(-20, 0, 30)
-    tt = _TravelTimes(x, y, z, 0.0, earth_radius=radius)
+    tt = TravelTimes(x, y, z, 0.0, earth_radius=radius)
     pos = np.column_stack([rng.normal(0, 50, 5), rng.normal(0, 50, 5), 4000 + rng.normal(0, 5, 5)])
     got = _chord(tt, pos[:, [0]], pos[:, [1]], pos[:, [2]])
     for i, p in enumerate(pos):
@@ -192,7 +189,7 @@ def test_ray_bending_correction_on_seagap():
 
 
 def test_locate_command_with_sample(tmp_path):
-    from bayes_mpem.cli import main
+    from bayes_mpem.cli.main import main
 
     assert main(["locate", str(CC03), "--format", "obsrange", "--out", str(tmp_path),
                  "--sample", "--walkers", "16", "--min-ess", "200", "--seed", "3",
@@ -229,7 +226,7 @@ def test_locate_command_with_sample(tmp_path):
 def test_locate_command_refuses_bad_sample_options(tmp_path, capsys, extra, message):
     import re
 
-    from bayes_mpem.cli import main
+    from bayes_mpem.cli.main import main
 
     assert main(["locate", str(CC03), "--format", "obsrange", "--out", str(tmp_path)]
                 + extra) == 2

@@ -9,8 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bayes_mpem.locate import SEAGAP_TRANSDUCER_DEPTH, heldout_logpdf, locate, survey_profile
-from bayes_mpem.readers import read_survey
+from bayes_mpem.io.formats import read_survey
+from bayes_mpem.survey_in.location import heldout_logpdf, locate
+from bayes_mpem.survey_in.survey import SEAGAP_TRANSDUCER_DEPTH, survey_profile
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 
@@ -75,7 +76,7 @@ def test_seagap_geometry_and_refraction_move_the_depths_towards_seagap_s_own():
     +0.7-1.1 m on SeaGap's sphere (the default), +0.16-0.51 m with refraction and time."""
     raw = read_survey(DATA / "seagap" / "obsdata.inp", "seagap")
     pings, beacons = raw.to_pings()
-    from bayes_mpem.locate import locate_survey
+    from bayes_mpem.survey_in.survey import locate_survey
 
     before, _ = locate_survey(raw)
     after, _ = locate_survey(raw, ssp="survey", speed_intervals=15)

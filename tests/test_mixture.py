@@ -2,8 +2,9 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from bayes_mpem.data import BeaconData
-from bayes_mpem.mixture import BeaconGeometry, e_step, loglik_per_range
+from bayes_mpem.io.survey import BeaconData
+from bayes_mpem.lbl.beacon_geometry import BeaconGeometry
+from bayes_mpem.lbl.likelihood import e_step, loglik_per_range
 
 
 @pytest.fixture
@@ -52,7 +53,7 @@ def test_pointwise_loglik_vectorised_over_walkers(geom):
 
 
 def test_total_loglik_matches_log_space(geom):
-    from bayes_mpem.mixture import total_loglik
+    from bayes_mpem.lbl.likelihood import total_loglik
 
     rng = np.random.default_rng(0)
     d0 = rng.uniform(2400, 2500, (5, 1))
@@ -73,7 +74,7 @@ def test_total_loglik_matches_log_space(geom):
 def test_total_loglik_screening_is_exact_on_survey_data(path, spread):
     """The per-call screening of zero Gaussian terms leaves the sum unchanged."""
     import bayes_mpem as bm
-    from bayes_mpem.mixture import total_loglik
+    from bayes_mpem.lbl.likelihood import total_loglik
 
     sim = bm.simulate_survey("abe58", rng=1, path=path, n_cycles=800)
     g = BeaconGeometry.from_data(sim.survey.for_beacon("4"))
@@ -88,7 +89,7 @@ def test_total_loglik_screening_is_exact_on_survey_data(path, spread):
 
 
 def test_weighted_densities_match_log_space(geom):
-    from bayes_mpem.mixture import e_step, weighted_densities
+    from bayes_mpem.lbl.likelihood import e_step, weighted_densities
 
     w = [0.5, 0.3, 0.2]
     terms = weighted_densities(geom, 2450.0, 4.0, 9.0, w)
@@ -100,7 +101,7 @@ def test_weighted_densities_match_log_space(geom):
 
 def test_total_loglik_zero_outlier_weight_is_finite_when_every_range_is_near():
     """No range left for the outlier-only term: 0 * log(0) must not make a NaN."""
-    from bayes_mpem.mixture import total_loglik
+    from bayes_mpem.lbl.likelihood import total_loglik
 
     rng = np.random.default_rng(0)
     h, dz = rng.uniform(100, 2000, 50), np.full(50, 30.0)

@@ -8,7 +8,20 @@ import pytest
 from matplotlib.figure import Figure
 
 import bayes_mpem as bm
-from bayes_mpem import bayes_plots, plots
+from bayes_mpem.lbl.pol_sensitivity import pol_sensitivity
+from bayes_mpem.plots import bayes as bayes_plots
+from bayes_mpem.plots.lbl import (
+    plot_classification,
+    plot_colormap,
+    plot_convergence,
+    plot_pol_sensitivity,
+    plot_ranges,
+    plot_survey_classification,
+    plot_table_ii,
+    plot_track,
+    table_ii_markdown,
+)
+from bayes_mpem.plots.style import class_colors
 from bayes_mpem.report import load_output, write_figures
 
 
@@ -40,13 +53,13 @@ def _scatter_colors(ax):
 
 def test_class_colors_blend_continuously():
     p = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [0.5, 0.5, 0], [1 / 3, 1 / 3, 1 / 3]])
-    rgb = plots.class_colors(p)
+    rgb = class_colors(p)
     np.testing.assert_allclose(rgb[:3], [[0, 0, 1], [1, 0, 0], [0, 1, 0]])  # DP, MP, OL
     np.testing.assert_allclose(rgb[3], [0.5, 0, 0.5])  # half DP, half MP: purple
 
 
 def test_fig01_ranges_one_series_per_beacon(sim):
-    fig = plots.plot_ranges(sim.survey)
+    fig = plot_ranges(sim.survey)
     ax = fig.axes[0]
     assert isinstance(fig, Figure) and len(ax.lines) == 4
     assert sum(len(line.get_xdata()) for line in ax.lines) == int((~sim.survey.no_reply).sum())
@@ -54,12 +67,12 @@ def test_fig01_ranges_one_series_per_beacon(sim):
 
 
 def test_fig05_track_shows_beacons(sim):
-    ax = plots.plot_track(sim.survey).axes[0]
+    ax = plot_track(sim.survey).axes[0]
     assert len(ax.texts) == 4  # beacon labels
 
 
 def test_fig08_colormap_blends(sim):
-    fig = plots.plot_colormap(resolution=100)
+    fig = plot_colormap(resolution=100)
     img = fig.axes[0].images[0].get_array()
     inside = img[..., 3] > 0
     rgb = img[..., :3][inside]
@@ -69,8 +82,8 @@ def test_fig08_colormap_blends(sim):
 
 
 def test_fig07_fig09_first_and_last_iteration(sim, paper_fit):
-    first = plots.plot_classification(paper_fit, "4", iteration="first")
-    last = plots.plot_classification(paper_fit, "4", iteration="last")
+    first = plot_classification(paper_fit, "4", iteration="first")
+    last = plot_classification(paper_fit, "4", iteration="last")
     c_first, c_last = _scatter_colors(first.axes[0]), _scatter_colors(last.axes[0])
     n = paper_fit.results["4"].n
     assert len(c_first) == len(c_last) == n
@@ -78,12 +91,12 @@ def test_fig07_fig09_first_and_last_iteration(sim, paper_fit):
     assert c_first[:, 1].mean() < c_last[:, 1].mean()
     assert "first E-step" in first.axes[0].get_title()
     with pytest.raises(ValueError, match="iteration: expected"):
-        plots.plot_classification(paper_fit, "4", iteration="middle")
+        plot_classification(paper_fit, "4", iteration="middle")
 
 
 def test_fig10_11_convergence(paper_fit):
     r = paper_fit.results["4"]
-    fig = plots.plot_convergence(r, truth={"d0": 2472.0, "sigma_mp": 6.9})
+    fig = plot_convergence(r, truth={"d0": 2472.0, "sigma_mp": 6.9})
     ax1, ax2 = fig.axes
     np.testing.assert_allclose(ax1.lines[0].get_ydata(), r.history["d0"])
     assert ax2.get_yscale() == "log"
@@ -91,19 +104,19 @@ def test_fig10_11_convergence(paper_fit):
 
 def test_fig12_pol_sensitivity(sim):
     full = bm.simulate_survey("abe58", rng=0)
-    sens = plots.pol_sensitivity(full.survey.for_beacon("4"), [0.05, 0.1, 0.2], sigma_dp=3.97)
+    sens = pol_sensitivity(full.survey.for_beacon("4"), [0.05, 0.1, 0.2], sigma_dp=3.97)
     assert np.all(np.diff(sens["sigma_mp"]) < 0)
     assert len(sens["flags"]) == 3
-    fig = plots.plot_pol_sensitivity(sens, truth=sim.truth["4"])
+    fig = plot_pol_sensitivity(sens, truth=sim.truth["4"])
     assert len(fig.axes) == 3 and len(fig.axes[2].lines) >= 3
 
 
 def test_fig13_and_table_ii(sim, paper_fit):
-    fig = plots.plot_survey_classification(paper_fit)
+    fig = plot_survey_classification(paper_fit)
     assert len(fig.axes) == 4
-    md = plots.table_ii_markdown(paper_fit, truth=sim.truth)
+    md = table_ii_markdown(paper_fit, truth=sim.truth)
     assert "HRP d0 (m)" in md and "beacon depth (m)" in md and "| 2472.0 |" in md
-    assert len(plots.plot_table_ii(paper_fit).axes[0].tables) == 1
+    assert len(plot_table_ii(paper_fit).axes[0].tables) == 1
 
 
 def test_bayesian_figures(sim):
@@ -116,7 +129,7 @@ def test_bayesian_figures(sim):
 
 
 def test_fit_output_round_trip_and_plot_command(sim, tmp_path):
-    from bayes_mpem.cli import main
+    from bayes_mpem.cli.main import main
 
     res = bm.fit(sim.survey, rng=0)
     res.write(tmp_path)
@@ -144,7 +157,7 @@ def test_sample_output_round_trip_and_plot(sim, tmp_path):
 
 
 def test_plot_command_errors(tmp_path, capsys):
-    from bayes_mpem.cli import main
+    from bayes_mpem.cli.main import main
 
     assert main(["plot", str(tmp_path)]) == 2
     assert "summary.json: not found" in capsys.readouterr().err

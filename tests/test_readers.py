@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 import bayes_mpem as bm
-from bayes_mpem.data import InputError
-from bayes_mpem.readers import geodetic_to_enu, read_survey
+from bayes_mpem.exceptions import InputError
+from bayes_mpem.io.formats import read_survey
+from bayes_mpem.io.geodesy import geodetic_to_enu
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 SAMPLES = [("obsrange/SIO_CC03.txt", "obsrange-sio", 88, 33),
@@ -150,7 +151,7 @@ def test_geodetic_to_enu_known_distances():
 
 
 def test_antenna_to_transducer_rotations():
-    from bayes_mpem.readers import antenna_to_transducer
+    from bayes_mpem.io.geodesy import antenna_to_transducer
 
     z = np.zeros(1)
     # zero attitude: the offset is added as it is
@@ -176,7 +177,7 @@ def test_seagap_lever_arm_is_what_makes_the_straight_ray_fit_work():
     import dataclasses
     import warnings
 
-    from bayes_mpem.locate import locate
+    from bayes_mpem.survey_in.location import locate
 
     raw = read_survey(DATA / "seagap/obsdata.inp", "seagap")
     pxp = raw.header["transponders"]

@@ -7,7 +7,6 @@ The sizes of the straight-ray biases asserted here were measured with
 ``benchmarks/ridge_refraction.py`` (``docs/refraction.md``).
 """
 
-import doctest
 import warnings
 from pathlib import Path
 
@@ -16,11 +15,17 @@ import pandas as pd
 import pytest
 
 import bayes_mpem as bm
-from bayes_mpem import geometry, mixture, refraction
-from bayes_mpem.acoustics import SoundSpeedProfile, surface_bounce_ray
-from bayes_mpem.em import FitQualityWarning, fit_mixture_em
-from bayes_mpem.refraction import RefractedBeaconGeometry, direct_times
-from bayes_mpem.simulate import ABE58, simulate_lbl
+from bayes_mpem.acoustics.eigenray import surface_bounce_ray
+from bayes_mpem.acoustics.profile import SoundSpeedProfile
+from bayes_mpem.acoustics.profile_checks import nominal_sound_speed
+from bayes_mpem.acoustics.turning import direct_times
+from bayes_mpem.exceptions import FitQualityWarning
+from bayes_mpem.lbl import geometry
+from bayes_mpem.lbl.em_mixture import fit_mixture_em
+from bayes_mpem.lbl.likelihood import total_loglik
+from bayes_mpem.lbl.presets import ABE58
+from bayes_mpem.lbl.refracted import RefractedBeaconGeometry, lbl_ranges
+from bayes_mpem.lbl.simulate import simulate_lbl
 
 WOA09 = Path(__file__).resolve().parents[1] / "data" / "woa09"
 ENDEAVOUR = (47.95, -129.10)
@@ -37,10 +42,6 @@ def endeavour():
 def kairei():
     return SoundSpeedProfile.from_woa09(*KAIREI, directory=WOA09)
 
-
-def test_doctests():
-    res = doctest.testmod(refraction, optionflags=doctest.ELLIPSIS)
-    assert res.attempted > 0 and res.failed == 0
 
 
 # --------------------------------------------------------------------------- rays
@@ -90,7 +91,7 @@ def test_lbl_ranges_in_a_homogeneous_medium_are_the_straight_ranges():
     rng = np.random.default_rng(2)
     h, zv = rng.uniform(0.0, 5000.0, 200), rng.uniform(2000.0, 2500.0, 200)
     for path in ("triangle", "double"):
-        r = refraction.lbl_ranges(CONST, 1500.0, h, zv, 2472.0, 0.0, path)
+        r = lbl_ranges(CONST, 1500.0, h, zv, 2472.0, 0.0, path)
         assert r.direct_valid.all() and r.multipath_valid.all()
         np.testing.assert_allclose(r.direct, np.hypot(h, 2472.0 - zv), rtol=0, atol=1e-8)
         np.testing.assert_allclose(r.multipath, geometry.multipath_range(h, 2472.0 - zv, 2472.0,
@@ -137,7 +138,7 @@ def test_a_homogeneous_profile_reproduces_the_straight_ray_simulator(preset, see
 
 def test_refracted_simulation_records_its_profile_and_nominal_speed(kairei):
     sim = bm.simulate_survey("abe58", rng=0, ssp=kairei)
-    c_default = refraction.nominal_sound_speed(kairei, np.mean([2392, 2491, 2395, 2472]))
+    c_default = nominal_sound_speed(kairei, np.mean([2392, 2491, 2395, 2472]))
     assert sim.config["sound_speed"] == c_default
     assert sim.config["ssp"]["depth"] == kairei.depths.tolist()
     for bid, t in sim.truth.items():
@@ -239,7 +240,7 @@ def test_ranges_without_an_eigenray_become_outliers_and_are_counted():
     t = sim.truth["1"]
     assert t["no_ray"]["mp"] > 20 and t["no_ray"]["dp"] == 0
     data = sim.survey.for_beacon("1")
-    r = refraction.lbl_ranges(prof, 1500.0, data.x, data.depth, 1000.0, 0.0)
+    r = lbl_ranges(prof, 1500.0, data.x, data.depth, 1000.0, 0.0)
     assert (~r.multipath_valid).sum() > 100 and r.direct_valid.all()
     # in the fit those ranges cannot be multipath; the count is reported
     res = fit_mixture_em(data, rng=0, ssp=prof, sound_speed=1500.0)
@@ -293,7 +294,7 @@ def test_bad_input_gives_clear_errors(kairei):
     geom = RefractedBeaconGeometry.from_data(data, kairei, 1500.0)
     one = np.ones((1, 1))
     with pytest.raises(NotImplementedError, match="straight-ray geometry only"):
-        mixture.total_loglik(geom, 2491.0 * one, 4.0 * one, 10.0 * one, [one / 3] * 3)
+        total_loglik(geom, 2491.0 * one, 4.0 * one, 10.0 * one, [one / 3] * 3)
     # a one-knot profile is homogeneous at every depth: accepted
     assert RefractedBeaconGeometry.from_data(data, CONST, 1500.0).n == data.n
 

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 import bayes_mpem as bm
-from bayes_mpem import geometry
+from bayes_mpem.lbl import geometry
 
 
 def test_abe58_preset_matches_the_paper():

@@ -15,12 +15,25 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
-from . import bayes_plots, plots
-from .data import RESERVED_COLUMNS, InputError, load_survey
-from .em import EMResult
-from .fitting import SurveyFit
-from .mixture import CLASSES
-from .sampling import SurveyPosterior
+from .exceptions import InputError
+from .io.survey import load_survey
+from .io.tables import RESERVED_COLUMNS
+from .lbl.em_result import EMResult
+from .lbl.fitting import SurveyFit
+from .lbl.pol_sensitivity import pol_sensitivity
+from .lbl.sampling import SurveyPosterior
+from .mixture.densities import CLASSES
+from .plots import bayes as bayes_plots
+from .plots.lbl import (
+    plot_classification,
+    plot_colormap,
+    plot_convergence,
+    plot_pol_sensitivity,
+    plot_ranges,
+    plot_survey_classification,
+    plot_table_ii,
+    plot_track,
+)
 
 #: Pol values of the paper's Fig. 12 as drawn here.
 POL_GRID = (0.01, 0.02, 0.05, 0.1, 0.15, 0.2, 0.3)
@@ -68,21 +81,21 @@ def write_figures(result, out_dir, *, beacon=None, truth=None, general=True) -> 
             raise ValueError(f"beacon: expected one of {sorted(result.results)}, got {b!r}")
         r = result.results[b]
         if general:
-            paths.append(_save(plots.plot_ranges(result.survey), out / "fig01_ranges.png"))
-            paths.append(_save(plots.plot_track(result.survey), out / "fig05_track.png"))
-            paths.append(_save(plots.plot_colormap(), out / "fig08_colormap.png"))
-            sens = plots.pol_sensitivity(result.survey.for_beacon(b), POL_GRID,
+            paths.append(_save(plot_ranges(result.survey), out / "fig01_ranges.png"))
+            paths.append(_save(plot_track(result.survey), out / "fig05_track.png"))
+            paths.append(_save(plot_colormap(), out / "fig08_colormap.png"))
+            sens = pol_sensitivity(result.survey.for_beacon(b), POL_GRID,
                                          sigma_dp=r.sigma_dp)
-            paths.append(_save(plots.plot_pol_sensitivity(
+            paths.append(_save(plot_pol_sensitivity(
                 sens, truth=None if truth is None else truth[b]),
                 out / f"fig12_pol_sensitivity_{b}.png"))
         t = None if truth is None else truth[b]
-        figs = [(plots.plot_classification(result, b, iteration="first"),
+        figs = [(plot_classification(result, b, iteration="first"),
                  f"fig07_first_iteration_{b}.png"),
-                (plots.plot_classification(result, b), f"fig09_last_iteration_{b}.png"),
-                (plots.plot_convergence(r, truth=t), f"fig10_11_convergence_{b}.png"),
-                (plots.plot_survey_classification(result), "fig13_classification.png"),
-                (plots.plot_table_ii(result), "table2.png")]
+                (plot_classification(result, b), f"fig09_last_iteration_{b}.png"),
+                (plot_convergence(r, truth=t), f"fig10_11_convergence_{b}.png"),
+                (plot_survey_classification(result), "fig13_classification.png"),
+                (plot_table_ii(result), "table2.png")]
         paths += [_save(fig, out / name) for fig, name in figs]
     elif isinstance(result, SurveyPosterior):
         if not result.results:
@@ -172,7 +185,7 @@ def _load_fit(d, summary, survey, probs):
 def _load_posterior(d, summary, survey, probs, num):
     import xarray as xr
 
-    from .bayes import PosteriorResult
+    from .lbl.beacon_sampling import PosteriorResult
 
     path = d / "posterior.nc"
     if not path.exists():
@@ -192,6 +205,3 @@ def _load_posterior(d, summary, survey, probs, num):
     return SurveyPosterior(survey=survey, results=results, skipped=summary.get("skipped", {}),
                            priors=summary["priors"], ci=summary.get("ci", 0.95),
                            options=summary.get("options", {}))
-
-
-__all__ = ["POL_GRID", "load_output", "write_figures"]

@@ -1,0 +1,397 @@
+"""Profile (moved from ``acoustics``)."""
+
+from __future__ import annotations
+
+import os
+import re
+from pathlib import Path
+
+import numpy as np
+
+from ..exceptions import InputError
+from ..io.geodesy import EARTH_RADIUS_KM
+from .woa09 import bundled_woa09, load_woa09, number_parts
+
+WOA09_ENV = "BAYES_MPEM_WOA09"
+
+
+# --------------------------------------------------------------------------- profile
+
+def _as_1d(values, name):
+    try:
+        arr = np.array(values, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"SoundSpeedProfile: {name}: expected a 1-D sequence of numbers, "
+                         f"got {values!r:.60}") from None
+    if arr.ndim != 1:
+        raise ValueError(f"SoundSpeedProfile: {name}: expected a 1-D sequence, got shape "
+                         f"{arr.shape}")
+    bad = np.flatnonzero(~np.isfinite(arr))
+    if bad.size:
+        raise ValueError(f"SoundSpeedProfile: {name}[{bad[0]}] = {arr[bad[0]]}: expected a "
+                         "finite number")
+    return arr
+
+
+def log1p_ratio(u):
+    """``log1p(u) / u``, 1 at ``u = 0`` (no cancellation for tiny ``u``)."""
+    u = np.asarray(u, float)
+    small = np.abs(u) < 1e-6
+    safe = np.where(small, 1.0, u)
+    return np.where(small, 1.0 - u / 2.0 + u * u / 3.0, np.log1p(safe) / safe)
+
+
+class SoundSpeedProfile:
+    """Sound speed against depth: linear between knots, constant beyond the ends.
+
+    Parameters
+    ----------
+    depth : array_like
+        Knot depths (m, positive down), strictly increasing, at least one.
+    speed : array_like
+        Sound speed at the knots (m/s), positive.
+    source : str, optional
+        Where the profile came from (file, atlas cell, ...), for messages and ``repr``.
+
+    Raises
+    ------
+    ValueError
+        Not 1-D, different lengths, empty, a non-finite value, depths not strictly
+        increasing or a speed not positive; the message names the index and value.
+
+    Examples
+    --------
+    >>> prof = SoundSpeedProfile([0.0, 1000.0, 3000.0], [1520.0, 1480.0, 1510.0])
+    >>> prof.speed([500.0, 4000.0]).tolist()
+    [1500.0, 1510.0]
+    >>> round(float(prof.harmonic_mean(0.0, 1000.0)), 3)
+    1499.911
+    """
+
+    __slots__ = ("_depth", "_speed", "_grad", "_cum", "_rz", "_rc", "source")
+
+    def __init__(self, depth, speed, *, source: str = ""):
+        z = _as_1d(depth, "depth")
+        c = _as_1d(speed, "speed")
+        if z.size != c.size:
+            raise ValueError(f"SoundSpeedProfile: depth and speed must have the same length, "
+                             f"got {z.size} and {c.size}")
+        if z.size == 0:
+            raise ValueError("SoundSpeedProfile: expected at least one knot, got none")
+        bad = np.flatnonzero(np.diff(z) <= 0)
+        if bad.size:
+            i = bad[0] + 1
+            raise ValueError(f"SoundSpeedProfile: depth[{i}] = {z[i]} is not greater than "
+                             f"depth[{i - 1}] = {z[i - 1]}: depths must be strictly increasing "
+                             "(positive down)")
+        bad = np.flatnonzero(c <= 0)
+        if bad.size:
+            raise ValueError(f"SoundSpeedProfile: speed[{bad[0]}] = {c[bad[0]]}: expected a "
+                             "positive sound speed (m/s)")
+        h = np.diff(z)
+        grad = np.diff(c) / h
+        # vertical slowness integral from the first knot to every knot
+        layer = h / c[:-1] * log1p_ratio(np.diff(c) / c[:-1])
+        cum = np.concatenate([[0.0], np.cumsum(layer)])
+        # knots the ray tracer needs: drop interior knots on a straight line (same gradient
+        # on both sides to 1e-12 relative), which changes the medium by nothing
+        same = np.abs(np.diff(grad)) <= 1e-12 * np.maximum(np.abs(grad[1:]), np.abs(grad[:-1]))
+        keep = np.concatenate([[True], ~same, [True]]) if z.size > 1 else np.ones(1, bool)
+        rz, rc = z[keep], c[keep]
+        for a in (z, c, grad, cum, rz, rc):
+            a.setflags(write=False)
+        self._depth, self._speed, self._grad, self._cum = z, c, grad, cum
+        self._rz, self._rc = rz, rc
+        self.source = str(source)
+
+    # ----------------------------------------------------------------- constructors
+    @classmethod
+    def constant(cls, c: float) -> SoundSpeedProfile:
+        """A homogeneous medium.
+
+        Parameters
+        ----------
+        c : float
+            Sound speed (m/s), positive.
+
+        Returns
+        -------
+        SoundSpeedProfile
+            One knot at 0 m; the speed is ``c`` at every depth.
+
+        Examples
+        --------
+        >>> float(SoundSpeedProfile.constant(1500.0).speed(4000.0))
+        1500.0
+        """
+        return cls([0.0], [c], source=f"constant {c} m/s")
+
+    @classmethod
+    def from_file(cls, path, *, columns=(0, 1)) -> SoundSpeedProfile:
+        """Read a two-column text profile: depth (m), sound speed (m/s).
+
+        Fields are separated by whitespace and/or commas. Blank lines and
+        everything after a ``#`` are ignored. Lines before the first data line
+        whose depth or speed field is not a number are a header (column names
+        such as ``depth(m) ssp(m/s)``, a title); other columns are ignored.
+
+        Parameters
+        ----------
+        path : str or pathlib.Path
+        columns : tuple of int, default (0, 1)
+            Zero-based columns holding depth and sound speed.
+
+        Returns
+        -------
+        SoundSpeedProfile
+
+        Raises
+        ------
+        FileNotFoundError
+        InputError
+            A data line with too few fields, a field that is not a number (after
+            the data began), no data at all, depths not strictly increasing or a
+            speed not positive; the message names the file and line.
+        """
+        path = Path(path)
+        ci, cj = (int(k) for k in columns)
+        need = max(ci, cj) + 1
+        depths, speeds, lines = [], [], []
+        with path.open(encoding="utf-8-sig", errors="replace") as fh:
+            for n, text in enumerate(fh, start=1):
+                s = text.split("#", 1)[0].strip()
+                if not s:
+                    continue
+                parts = [f for f in re.split(r"[,\s]+", s) if f]
+                if not depths and not number_parts([parts[k] for k in (ci, cj) if k < len(parts)]):
+                    continue  # header (column names, units, a title) before the data
+                if len(parts) < need:
+                    raise InputError(f"{path} line {n}: expected at least {need} fields (depth "
+                                     f"in column {ci}, speed in column {cj}, counting from 0), "
+                                     f"got {len(parts)}: {text.strip()!r}")
+                try:
+                    z, c = float(parts[ci]), float(parts[cj])
+                except ValueError:
+                    raise InputError(f"{path} line {n}: expected numbers in columns {ci} and {cj} "
+                                     f"(depth, sound speed), got {text.strip()!r}") from None
+                if not (np.isfinite(z) and np.isfinite(c)):
+                    raise InputError(f"{path} line {n}: expected finite numbers, got "
+                                     f"{text.strip()!r}")
+                if depths and z <= depths[-1]:
+                    raise InputError(f"{path} line {n}: depth {z} is not greater than the "
+                                     f"previous depth {depths[-1]} (line {lines[-1]}): depths "
+                                     "must be strictly increasing (positive down)")
+                if c <= 0:
+                    raise InputError(f"{path} line {n}: sound speed {c}: expected a positive "
+                                     "number (m/s)")
+                depths.append(z)
+                speeds.append(c)
+                lines.append(n)
+        if not depths:
+            raise InputError(f"{path}: no data lines found (expected depth and sound speed "
+                             "columns)")
+        return cls(depths, speeds, source=str(path))
+
+    @classmethod
+    def from_woa09(cls, lat: float, lon: float, directory=None, *,
+                   max_distance_km: float = 150.0) -> SoundSpeedProfile:
+        """Annual climatological profile from the World Ocean Atlas 2009 (1 degree grid).
+
+        Takes the nearest grid cell (great-circle distance between cell centres)
+        that has data, keeps its levels down to the first missing one, and
+        converts ``c = 1000 + 0.01 * stored value`` (m/s).
+
+        The copy shipped with OBSrange (``lev_latlonZ.mat``, ``lev_ann.mat``) has
+        a value in every one of its 64,800 cells and 33 levels (0-5500 m), land
+        included: it cannot tell where the seafloor is, so levels deeper than the
+        water at the site are extrapolations. Missing values (NaN, or an integer
+        fill value 0 or the type's maximum) are nevertheless handled.
+
+        Parameters
+        ----------
+        lat, lon : float
+            Degrees; longitude east, either -180-180 or 0-360.
+        directory : str or pathlib.Path, optional
+            Folder with ``lev_latlonZ.mat`` and ``lev_ann.mat`` (in the source
+            repository: ``data/woa09``). Default: the ``BAYES_MPEM_WOA09``
+            environment variable, else the copy installed with the package
+            (or the source repository's, in a development install).
+        max_distance_km : float, default 150
+            Refuse a cell farther than this.
+
+        Returns
+        -------
+        SoundSpeedProfile
+            ``source`` names the cell and its distance.
+
+        Raises
+        ------
+        FileNotFoundError
+            No directory given, ``BAYES_MPEM_WOA09`` unset and no installed copy, or a
+            file missing.
+        InputError
+            A file without the expected variables or shapes.
+        ValueError
+            Latitude outside [-90, 90], non-finite input, or no cell with data
+            within ``max_distance_km``.
+        """
+        lat, lon = float(lat), float(lon)
+        if not (np.isfinite(lat) and np.isfinite(lon)) or abs(lat) > 90:
+            raise ValueError(f"from_woa09: expected -90 <= lat <= 90 and a finite lon, got "
+                             f"lat={lat}, lon={lon}")
+        if directory is None:
+            directory = os.environ.get(WOA09_ENV) or bundled_woa09()
+            if not directory:
+                raise FileNotFoundError(
+                    "from_woa09: no WOA09 directory: pass directory=... (the folder holding "
+                    "lev_latlonZ.mat and lev_ann.mat; data/woa09 in the source repository) or "
+                    f"set the environment variable {WOA09_ENV}")
+        glat, glon, z, c, nlev = load_woa09(str(Path(directory).expanduser().resolve()))
+        la1, la2 = np.radians(lat), np.radians(glat)
+        dlon = np.radians((glon - lon) % 360.0)
+        hav = np.sin((la2 - la1) / 2) ** 2 + np.cos(la1) * np.cos(la2) * np.sin(dlon / 2) ** 2
+        dist = 2 * EARTH_RADIUS_KM * np.arcsin(np.sqrt(np.clip(hav, 0.0, 1.0)))
+        dist = np.where(nlev > 0, dist, np.inf)
+        k = int(np.argmin(dist))
+        if not dist[k] <= max_distance_km:
+            near = "no cell has data" if not np.isfinite(dist[k]) else (
+                f"the nearest cell with data, ({glat[k]}, {glon[k]}), is {dist[k]:.0f} km away")
+            raise ValueError(f"from_woa09: no WOA09 cell with data within {max_distance_km} km "
+                             f"of lat={lat}, lon={lon}: {near}")
+        n = int(nlev[k])
+        return cls(z[:n], c[k, :n], source=f"WOA09 annual, cell ({glat[k]:g}, {glon[k]:g}), "
+                   f"{dist[k]:.1f} km from ({lat:g}, {lon:g})")
+
+    @classmethod
+    def from_ctd(cls, pressure_dbar, SP, t, lat: float, lon: float) -> SoundSpeedProfile:
+        """Sound speed from a CTD cast with TEOS-10 (the optional ``gsw`` package).
+
+        Parameters
+        ----------
+        pressure_dbar : array_like
+            Sea pressure (dbar), strictly increasing (bin-average a cast first).
+        SP : array_like
+            Practical salinity.
+        t : array_like
+            In-situ temperature (deg C, ITS-90).
+        lat, lon : float
+            Position of the cast (degrees).
+
+        Returns
+        -------
+        SoundSpeedProfile
+            Depth ``-gsw.z_from_p(p, lat)``, speed ``gsw.sound_speed(SA, CT, p)``.
+
+        Raises
+        ------
+        ImportError
+            ``gsw`` is not installed.
+        ValueError
+            Arrays not 1-D or of different lengths, pressure not strictly
+            increasing, or values for which TEOS-10 gives no speed.
+        """
+        try:
+            import gsw
+        except ImportError as exc:
+            raise ImportError("SoundSpeedProfile.from_ctd needs the TEOS-10 package gsw: "
+                              "pip install gsw") from exc
+        p = _as_1d(pressure_dbar, "pressure_dbar")
+        sp = _as_1d(SP, "SP")
+        temp = _as_1d(t, "t")
+        if not p.size == sp.size == temp.size:
+            raise ValueError(f"from_ctd: pressure_dbar, SP and t must have the same length, got "
+                             f"{p.size}, {sp.size} and {temp.size}")
+        bad = np.flatnonzero(np.diff(p) <= 0)
+        if bad.size:
+            i = bad[0] + 1
+            raise ValueError(f"from_ctd: pressure_dbar[{i}] = {p[i]} is not greater than "
+                             f"pressure_dbar[{i - 1}] = {p[i - 1]}: expected a strictly "
+                             "increasing (bin-averaged, down-cast) pressure")
+        sa = gsw.SA_from_SP(sp, p, lon, lat)
+        ct = gsw.CT_from_t(sa, temp, p)
+        c = np.asarray(gsw.sound_speed(sa, ct, p), float)
+        depth = -np.asarray(gsw.z_from_p(p, lat), float)
+        return cls(depth, c, source=f"CTD at ({lat:g}, {lon:g}), TEOS-10 (gsw)")
+
+    # ----------------------------------------------------------------- queries
+    @property
+    def depths(self) -> np.ndarray:
+        """Knot depths (m), read-only."""
+        return self._depth
+
+    @property
+    def speeds(self) -> np.ndarray:
+        """Knot sound speeds (m/s), read-only."""
+        return self._speed
+
+    def __len__(self) -> int:
+        return self._depth.size
+
+    def __repr__(self) -> str:
+        z, c = self._depth, self._speed
+        src = f", source={self.source!r}" if self.source else ""
+        return (f"SoundSpeedProfile({z.size} knots, {z[0]:g}-{z[-1]:g} m, "
+                f"{c.min():.2f}-{c.max():.2f} m/s{src})")
+
+    def speed(self, z):
+        """Sound speed at depth(s) ``z`` (m/s).
+
+        Parameters
+        ----------
+        z : array_like
+            Depth (m, positive down).
+
+        Returns
+        -------
+        numpy.ndarray
+            Linear between knots, constant beyond the first and last knot.
+        """
+        return np.interp(z, self._depth, self._speed)
+
+    def _vertical_time(self, z):
+        """``(k, r)``: the vertical time from the first knot to ``z`` is ``cum[k] + r``."""
+        z = np.asarray(z, float)
+        zk, ck = self._depth, self._speed
+        k = np.clip(np.searchsorted(zk, z, side="right") - 1, 0, zk.size - 1)
+        g = np.append(self._grad, 0.0)[k]
+        dz = z - zk[k]
+        g = np.where(dz < 0, 0.0, g)  # above the first knot: constant speed
+        return k, dz / ck[k] * log1p_ratio(g * dz / ck[k])
+
+    def harmonic_mean(self, z_top, z_bottom):
+        """Time-averaged (harmonic mean) sound speed along a vertical path.
+
+        ``|z_bottom - z_top| / integral(dz / c)``, exact for the linear layers;
+        at ``z_top == z_bottom`` the speed there.
+
+        Parameters
+        ----------
+        z_top, z_bottom : array_like
+            The ends of the vertical path (m), broadcast together; either order.
+
+        Returns
+        -------
+        numpy.ndarray
+            m/s.
+
+        Examples
+        --------
+        >>> prof = SoundSpeedProfile([0.0, 100.0], [1500.0, 1510.0])
+        >>> round(float(prof.harmonic_mean(0.0, 100.0)), 6)  # 100 * 0.1 / ln(1510 / 1500)
+        1504.994463
+        """
+        zt, zb = np.broadcast_arrays(np.asarray(z_top, float), np.asarray(z_bottom, float))
+        kt, rt = self._vertical_time(zt)
+        kb, rb = self._vertical_time(zb)
+        dt = np.abs((self._cum[kb] - self._cum[kt]) + (rb - rt))
+        dz = np.abs(zb - zt)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(dz > 0, dz / dt, self.speed(zt))
+
+    def _flat_at(self, z):
+        """True where the speed is constant on both sides of depth ``z``."""
+        gext = np.concatenate([[0.0], self._grad, [0.0]])
+        z = np.asarray(z, float)
+        right = gext[np.searchsorted(self._depth, z, side="right")]
+        left = gext[np.searchsorted(self._depth, z, side="left")]
+        return (right == 0) & (left == 0)

@@ -1,0 +1,98 @@
+"""Profile checks (moved from ``refraction``)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .profile import SoundSpeedProfile
+
+# --------------------------------------------------------------------------- checks
+
+def check_profile(ssp, deepest: float | None = None, *, name: str = "ssp") -> SoundSpeedProfile:
+    """Validate a sound-speed profile for ranges down to ``deepest``.
+
+    Parameters
+    ----------
+    ssp : SoundSpeedProfile
+    deepest : float, optional
+        Deepest point a ray has to reach (m): the deepest beacon or vehicle.
+    name : str
+        Argument name used in messages.
+
+    Returns
+    -------
+    SoundSpeedProfile
+
+    Raises
+    ------
+    TypeError
+        ``ssp`` is not a :class:`~bayes_mpem.acoustics.SoundSpeedProfile`.
+    ValueError
+        The profile has more than one knot and ends above ``deepest``: below its
+        last knot it would be extended at a constant speed, which is no
+        measurement. A one-knot profile is homogeneous by construction and is
+        accepted at any depth.
+    """
+    if not isinstance(ssp, SoundSpeedProfile):
+        raise TypeError(f"{name}: expected a SoundSpeedProfile (bayes_mpem.acoustics), got "
+                        f"{type(ssp).__name__}")
+    if deepest is not None and len(ssp) > 1 and float(ssp.depths[-1]) < float(deepest):
+        raise ValueError(
+            f"{name}: the profile ends at {ssp.depths[-1]:g} m but the rays reach "
+            f"{float(deepest):g} m (deepest beacon or vehicle); extend it below the beacons "
+            "(e.g. SoundSpeedProfile.from_woa09) or pass SoundSpeedProfile.constant(c)"
+            + (f" [{ssp.source}]" if ssp.source else ""))
+    return ssp
+
+
+def check_sound_speed(sound_speed, name: str = "sound_speed") -> float:
+    """``sound_speed`` as a float, if it is a plausible speed (m/s).
+
+    Parameters
+    ----------
+    sound_speed : float
+    name : str
+        Argument name used in messages.
+
+    Returns
+    -------
+    float
+
+    Raises
+    ------
+    ValueError
+        Not a finite positive number.
+    """
+    try:
+        c = float(sound_speed)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: expected a sound speed in m/s, got {sound_speed!r}") from None
+    if not np.isfinite(c) or c <= 0:
+        raise ValueError(f"{name}: expected a positive sound speed in m/s, got {sound_speed!r}")
+    return c
+
+
+def nominal_sound_speed(ssp: SoundSpeedProfile, depth) -> float:
+    """Harmonic-mean sound speed from the sea surface down to ``depth`` (m/s).
+
+    The speed that turns vertical travel times from ``depth`` to the surface
+    into exact distances; the simulator's default nominal speed (with ``depth``
+    the mean beacon depth).
+
+    Parameters
+    ----------
+    ssp : SoundSpeedProfile
+    depth : float
+        m, positive down.
+
+    Returns
+    -------
+    float
+
+    Examples
+    --------
+    >>> prof = SoundSpeedProfile([0.0, 100.0], [1500.0, 1510.0])
+    >>> round(nominal_sound_speed(prof, 100.0), 6)
+    1504.994463
+    """
+    return float(ssp.harmonic_mean(0.0, float(depth)))

@@ -1,0 +1,31 @@
+"""Exceptions (moved from ``data``, ``em``, ``bayes``, ``fitting``, ``locate``)."""
+
+from __future__ import annotations
+
+
+class InputError(ValueError):
+    """Invalid user input (pings/beacons tables or arrays); the message says where and why."""
+
+
+class ConvergenceWarning(UserWarning):
+    """An EM run stopped at ``max_iter`` before meeting its stopping rule."""
+
+
+class FitQualityWarning(UserWarning):
+    """A fit converged to something that is not a credible reflector (see ``EMResult.flags``)."""
+
+
+class SamplingWarning(UserWarning):
+    """The chain hit its step cap before it was ``tau_factor`` autocorrelation times long."""
+
+
+class UnusableStartError(ValueError):
+    """The EM solution the walkers would start from lies outside the prior, or is flagged."""
+
+
+class SkippedBeaconWarning(UserWarning):
+    """A beacon has too few replies to fit and is left unfitted."""
+
+
+class LocateWarning(UserWarning):
+    """A location fit is poorly constrained or did not converge."""

@@ -1,0 +1,12 @@
+"""Files in, validated objects out; files out. No science here.
+
+* :mod:`~bayes_mpem.io.tables`: the pings and beacons tables (CSV or DataFrame),
+  with row and column errors;
+* :mod:`~bayes_mpem.io.survey`: :class:`~bayes_mpem.io.survey.Survey` and
+  :class:`~bayes_mpem.io.survey.BeaconData`, the validated LBL survey;
+* :mod:`~bayes_mpem.io.geodesy`: WGS84 and the local east-north-up frame;
+* :mod:`~bayes_mpem.io.raw`, :mod:`~bayes_mpem.io.obsrange`,
+  :mod:`~bayes_mpem.io.seagap`, :mod:`~bayes_mpem.io.formats`: measured
+  survey-in files (OBSrange deck-box logs, SeaGap) as a
+  :class:`~bayes_mpem.io.raw.RawSurvey`.
+"""

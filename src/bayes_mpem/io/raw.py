@@ -1,0 +1,178 @@
+"""Readers for real acoustic ranging surveys, and conversion to the project's input.
+
+Formats (see ``data/README.md`` for the sample files and their sources):
+
+* ``obsrange-sio``: EdgeTech deck-box text as logged by SIO (OBSrange sample
+  surveys): a ``Key: value`` header up to a line of ``=``, then ping lines such
+  as ``6306 msec. Lat: 4 52.9270 S  Lon: 132 41.4272 W  Alt: 29.42
+  Time(UTC): 2018:114:06:04:30`` (two-way travel time in ms, ship GPS in degrees
+  and decimal minutes, day-of-year time) and ``Event skipped - ...`` lines;
+* ``obsrange-whoi``: the WHOI EdgeTech CSV: ``#`` comment header (drop point,
+  ``TAT``, deck-box sound speed), then ``date time, rng m, rng ms, lat, lon, GPS
+  time, heading``; ``rng ms`` is the two-way travel time;
+* ``seagap``: SeaGap GNSS-acoustic ``obsdata.inp`` (18 columns, local E/N/U in m),
+  with ``pxp-ini.inp`` (transponder positions), ``tr-ant.inp`` and ``ss_prof.inp``.
+
+Every line of a file is accounted for: a ping, a header or comment line, or a
+*skipped* line with its reason (``Event skipped`` in the deck-box log, or a line
+that does not parse). ``strict=True`` turns a line that does not parse into an
+:class:`~bayes_mpem.data.InputError` naming the file and line.
+
+Latitude/longitude go to a local metric frame with the exact WGS84
+geodetic -> ECEF -> local east-north-up transform (:func:`geodetic_to_enu`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ..exceptions import InputError
+from .geodesy import antenna_to_transducer, geodetic_to_enu
+
+
+@dataclass(frozen=True)
+class RawSurvey:
+    """A survey file as read: pings, header, and every line that was not a ping.
+
+    Attributes
+    ----------
+    format : str
+    source : str
+    pings : pandas.DataFrame
+        One row per ping: ``line`` (1-based file line), ``transponder``,
+        ``twtt`` (two-way travel time, s), ``time`` (s since the first ping),
+        ``lat``, ``lon`` (degrees) or ``east``, ``north``, ``up`` (m, SeaGap),
+        plus format-specific columns.
+    header : dict
+        Drop point (``lat``, ``lon``, ``depth``), ``tat`` (turn-around time, s)
+        and ``sound_speed`` (m/s) where the file gives them.
+    skipped : pandas.DataFrame
+        ``line``, ``text``, ``reason`` of every line that is neither a ping nor header.
+    """
+
+    format: str
+    source: str
+    pings: pd.DataFrame = field(repr=False)
+    header: dict
+    skipped: pd.DataFrame = field(repr=False)
+
+    def to_pings(self, *, sound_speed=None, tat=None, origin=None, transducer_depth=0.0):
+        """Convert to the project's pings and beacons tables (one-way ranges, local metres).
+
+        ``range = sound_speed * (twtt - tat) / 2``. Pings are kept in file order;
+        skipped lines are not pings and are not included (see :attr:`skipped`).
+
+        Parameters
+        ----------
+        sound_speed : float, optional
+            Mean sound speed (m/s); default: the file's deck-box value, else 1500.
+        tat : float, optional
+            Turn-around time (s); default: the file's, else 0.
+        origin : tuple of float, optional
+            ``(lat, lon)`` of the local frame; default: the drop point.
+        transducer_depth : float, default 0
+            Depth of the ship's transducer (m, positive down).
+
+        Returns
+        -------
+        pings, beacons : pandas.DataFrame
+            Ready for :func:`bayes_mpem.load_survey`; the beacon is the
+            transponder at its drop point (the position a survey-in refines).
+
+        Raises
+        ------
+        InputError
+            For a deck-box survey without a drop point and no ``origin``.
+
+        Notes
+        -----
+        SeaGap surveys are already in local metres: the vehicle position is the
+        mean of the transducer at transmit and at receive (the antenna position
+        moved by the ``tr-ant.inp`` lever arm, rotated by the attitude:
+        :func:`antenna_to_transducer`), its depth is minus ``up``, the
+        beacons are the transponders of ``pxp-ini.inp``, and the default sound
+        speed is the harmonic mean of ``ss_prof.inp`` from the surface to the mean
+        transponder depth (the straight-ray equivalent for vertical paths).
+        """
+        if self.format == "seagap":
+            return self._to_pings_seagap(sound_speed)
+        c = float(sound_speed or self.header.get("sound_speed") or 1500.0)
+        t0 = float(self.header.get("tat", 0.0) if tat is None else tat)
+        if origin is None:
+            if "lat" not in self.header:
+                raise InputError(f"{self.source}: no drop point in the header; pass origin=")
+            origin = (self.header["lat"], self.header["lon"])
+        e, n, _ = geodetic_to_enu(self.pings["lat"], self.pings["lon"], 0.0, *origin)
+        p = pd.DataFrame({
+            "time": self.pings["time"].to_numpy(), "beacon": self.pings["transponder"],
+            "range": c * (self.pings["twtt"].to_numpy() - t0) / 2.0, "x": e, "y": n,
+            "depth": float(transducer_depth), "line": self.pings["line"].to_numpy(),
+            "twtt": self.pings["twtt"].to_numpy()})
+        de, dn, _ = geodetic_to_enu(self.header.get("lat", origin[0]),
+                                    self.header.get("lon", origin[1]), 0.0, *origin)
+        b = pd.DataFrame([{"beacon": str(self.pings["transponder"].iloc[0]) if len(self.pings)
+                           else "1", "x": float(de), "y": float(dn),
+                           "depth": float(self.header.get("depth", np.nan))}])
+        return p, b
+
+
+    def _to_pings_seagap(self, sound_speed):
+        p, h = self.pings, self.header
+        if "transponders" not in h:
+            raise InputError(f"{self.source}: no pxp-ini.inp was read; the transponder "
+                             "positions are needed")
+        tp = h["transponders"]
+        if sound_speed is None and "ss_prof" in h:
+            prof = h["ss_prof"]
+            keep = prof["depth"] <= float(-tp["up"].mean())
+            sound_speed = float(1.0 / np.mean(1.0 / prof.loc[keep, "sound_speed"]))
+        c = float(sound_speed or 1500.0)
+        pos = {}
+        for end in ("tx", "rx"):
+            enu = (p[f"e_{end}"], p[f"n_{end}"], p[f"u_{end}"])
+            if "tr_ant" in h:  # the transducer, not the antenna
+                enu = antenna_to_transducer(*enu, p[f"head_{end}"], p[f"pitch_{end}"],
+                                            p[f"roll_{end}"], h["tr_ant"])
+            pos[end] = [np.asarray(v, float) for v in enu]
+        pings = pd.DataFrame({
+            "time": p["time"].to_numpy(), "beacon": p["transponder"].to_numpy(),
+            "range": c * p["twtt"].to_numpy() / 2.0,
+            "x": 0.5 * (pos["tx"][0] + pos["rx"][0]),
+            "y": 0.5 * (pos["tx"][1] + pos["rx"][1]),
+            "depth": -0.5 * (pos["tx"][2] + pos["rx"][2]),
+            "line": p["line"].to_numpy(), "twtt": p["twtt"].to_numpy()})
+        beacons = pd.DataFrame({"beacon": tp.index, "x": tp["east"].to_numpy(),
+                                "y": tp["north"].to_numpy(), "depth": -tp["up"].to_numpy()})
+        return pings, beacons
+
+
+def read_lines(path):
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"survey file not found: {str(path)!r}")
+    try:
+        return path.read_text(encoding="utf-8-sig", errors="strict").splitlines()
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{path}: not UTF-8 text ({exc.reason})") from None
+
+
+def finish(fmt, source, rows, header, skipped, transponder):
+    pings = pd.DataFrame(rows)
+    if pings.empty:
+        raise InputError(f"{source}: no ping lines found (expected the {fmt} format; "
+                         f"{len(skipped)} lines skipped)")
+    pings.insert(1, "transponder", transponder)
+    epoch = pings.pop("_epoch")
+    pings.insert(2, "time", epoch - epoch.iloc[0])
+    skipped = pd.DataFrame(skipped, columns=["line", "text", "reason"])
+    return RawSurvey(fmt, source, pings, header, skipped)
+
+
+def bad(strict, source, line, text, reason, skipped):
+    if strict:
+        raise InputError(f"{source} line {line}: {reason}: {text.strip()[:80]!r}")
+    skipped.append((line, text, reason))

@@ -1,0 +1,99 @@
+"""Beacon geometry (moved from ``mixture``)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from ..io.survey import BeaconData
+from . import geometry
+
+
+@dataclass(frozen=True)
+class BeaconGeometry:
+    """Per-range quantities of one beacon that do not depend on parameters.
+
+    Attributes
+    ----------
+    z : numpy.ndarray
+        Reported ranges (m).
+    h, dz, direct : numpy.ndarray
+        Horizontal distance, ``z_beacon - z_vehicle`` and direct-path length (m).
+    lo, hi : float
+        Outlier window: the smallest and largest reported range (m).
+    d0_min : float
+        Lowest physical plane height: the plane must lie above the vehicle for
+        every range, ``max(0, max(dz))``.
+
+    Notes
+    -----
+    Predictions are straight-ray (:mod:`bayes_mpem.geometry`); the subclass
+    :class:`~bayes_mpem.refraction.RefractedBeaconGeometry` predicts through a
+    sound-speed profile with the same interface (``straight`` is False there).
+    """
+
+    straight: ClassVar[bool] = True
+
+    z: np.ndarray
+    h: np.ndarray
+    dz: np.ndarray
+    direct: np.ndarray
+    lo: float
+    hi: float
+    d0_min: float
+
+    @classmethod
+    def from_data(cls, data: BeaconData) -> BeaconGeometry:
+        """Precompute the geometry of ``data``.
+
+        Parameters
+        ----------
+        data : BeaconData
+
+        Returns
+        -------
+        BeaconGeometry
+        """
+        bx, by, bz = (float(v) for v in data.position)
+        h = geometry.horizontal_distance(data.x, data.y, bx, by)
+        dz = bz - np.asarray(data.depth, float)
+        z = np.asarray(data.range, float)
+        lo, hi = (float(z.min()), float(z.max())) if z.size else (0.0, 1.0)
+        return cls(
+            z=z,
+            h=h,
+            dz=dz,
+            direct=geometry.direct_path(h, dz),
+            lo=lo,
+            hi=hi,
+            d0_min=max(0.0, float(dz.max())) if z.size else 0.0,
+        )
+
+    @property
+    def n(self) -> int:
+        """Number of ranges."""
+        return int(self.z.size)
+
+    @property
+    def log_ol_density(self) -> float:
+        """Log of the uniform outlier density over ``[lo, hi]`` (1/m)."""
+        return -float(np.log(max(self.hi - self.lo, 1e-9)))
+
+    def multipath(self, d0, path: str = "triangle"):
+        """Predicted multipath ranges for plane height ``d0`` (broadcasts)."""
+        return geometry.multipath_range(self.h, self.dz, d0, path, direct=self.direct)
+
+    def multipath_derivative(self, d0, path: str = "triangle"):
+        """``d z_MP / d d0`` of every range (:func:`~bayes_mpem.geometry.multipath_derivative`)."""
+        return geometry.multipath_derivative(self.h, self.dz, d0, path)
+
+    def invert_plane_height(self, path: str = "triangle"):
+        """Per-range plane heights (:func:`~bayes_mpem.geometry.invert_plane_height`)."""
+        return geometry.invert_plane_height(self.z, self.h, self.dz, path, direct=self.direct)
+
+    def take(self, idx) -> BeaconGeometry:
+        """The ranges ``idx``, with the same outlier window and ``d0_min``."""
+        return BeaconGeometry(self.z[idx], self.h[idx], self.dz[idx], self.direct[idx],
+                              self.lo, self.hi, self.d0_min)

@@ -1,0 +1,414 @@
+"""Find the effect hidden in a survey: which of the paper's assumptions the data break.
+
+The paper's model assumes one static reflector, a homogeneous medium, exact
+navigation and a calibrated system. :func:`diagnose` fits that model to every
+beacon at once (the *baseline*), then each extension of a fixed vocabulary
+(:data:`EFFECTS`), and keeps an extension only when it predicts held-out ranges
+clearly better (K-fold cross-validated log predictive density). Effects are
+added greedily, so two effects present at once are both found.
+
+The joint model
+---------------
+For range ``i`` of beacon ``b`` at normalised time ``tau_i`` (0 at the first
+ping of the survey, 1 at the last), with the vehicle at the reported position
+plus the navigation correction ``tau_i (e_x, e_y)``:
+
+* direct path ``mu_dp = k D_i + beta``, multipath ``mu_mp = k M_i(P_b + delta
+  tau_i) + beta`` off a plane at depth ``P_b + delta tau_i``, a second
+  multipath ``mu_mp2 = k M_i(P_2) + beta``, with ``k = 1 + f``;
+* Gaussian scatter per beacon and class; outliers uniform over the beacon's
+  listening window, or, with first-arrival detection, uniform between the
+  window start and the direct path;
+* learned mixing weights per beacon.
+
+Each effect switches on one part: ``range_bias`` (``beta``, m),
+``sound_speed`` (``f = factor - 1``), ``plane_drift`` (``delta``, m from the
+first to the last ping), ``second_reflector`` (``P_2``, m, with its weight and
+scatter per beacon), ``early_outliers`` (the first-arrival outlier density;
+magnitude = fraction of replies that are outliers) and ``nav_drift`` (``|(e_x,
+e_y)|``, m at the last ping). The baseline, all switched off, is the mixture
+model of :mod:`bayes_mpem.mixture`, fitted to all beacons together.
+
+Fitting is an ECM algorithm: E-step; closed-form weights; a safeguarded
+Gauss-Newton step on the mean parameters (plane depths and effect parameters,
+analytic Jacobian) that never increases the weighted squared error; closed-form
+scatters.
+
+Examples
+--------
+>>> from bayes_mpem.simulate import simulate_survey
+>>> from bayes_mpem.diagnose import diagnose
+>>> sim = simulate_survey("abe58", rng=2, n_cycles=700, effects={"range_bias": 6.0})
+>>> dx = diagnose(sim.survey, rng=0, progress=False)
+>>> [e.name for e in dx.effects]
+['range_bias']
+>>> abs(dx.effects[0].magnitude - 6.0) < 0.5
+True
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ..._rng import as_generator
+from .. import geometry
+from ..em_mixture import fit_mixture_em, histogram_modes
+from .model import (
+    Params,
+    Ranges,
+    e_step,
+    get_vector,
+    implied_depths,
+    is_feasible,
+    mean_names,
+    predict,
+    repair,
+    set_vector,
+    weighted_sse,
+)
+
+
+def _gauss_newton(d, p, effects, path, resp, n_steps=2):
+    """Safeguarded Gauss-Newton on the mean parameters; never increases the weighted SSE."""
+    names = mean_names(effects, d.nb)
+    sig = p.sigma[d.bi]
+    q0 = weighted_sse(d, p, effects, path, resp)
+    info = None
+    for _ in range(n_steps):
+        mu, jac = predict(d, p, effects, path, names)
+        m = len(names)
+        a = np.zeros((m, m))
+        g = np.zeros(m)
+        for c, name in enumerate(("dp", "mp", "mp2")):
+            if name not in mu:
+                continue
+            w = resp[:, c] / (sig[:, c] * sig[:, c])
+            jw = jac[name] * w[:, None]
+            a += np.einsum("ni,nj->ij", jw, jac[name])
+            g += np.einsum("ni,n->i", jw, d.z - mu[name])
+        info = a
+        ridge = 1e-9 * np.maximum(np.diag(a), 1e-12) + 1e-12
+        try:
+            step = np.linalg.solve(a + np.diag(ridge), g)
+        except np.linalg.LinAlgError:
+            break
+        v0 = get_vector(p, names)
+        accepted = False
+        for _half in range(30):
+            cand = set_vector(p, names, v0 + step)
+            if is_feasible(d, cand, effects):
+                q1 = weighted_sse(d, cand, effects, path, resp)
+                if q1 <= q0:
+                    p, q0, accepted = cand, q1, True
+                    break
+            step = 0.5 * step
+        if not accepted or np.max(np.abs(step)) < 1e-10:
+            break
+    return p, names, info
+
+
+def _m_step(d, p, effects, path, resp, sigma_floor, mp2_floor):
+    p = p.copy()
+    nb = d.nb
+    counts = np.bincount(d.bi, minlength=nb).astype(float)
+    w = np.stack([np.bincount(d.bi, weights=resp[:, c], minlength=nb) for c in range(4)], 1)
+    p.weights = w / np.maximum(counts, 1.0)[:, None]
+    p, names, info = _gauss_newton(d, p, effects, path, resp)
+    mu = predict(d, p, effects, path)
+    for c, name in enumerate(("dp", "mp", "mp2")):
+        if name not in mu:
+            continue
+        r2 = (d.z - mu[name]) ** 2
+        num = np.bincount(d.bi, weights=resp[:, c] * r2, minlength=nb)
+        den = np.bincount(d.bi, weights=resp[:, c], minlength=nb)
+        ok = den > 1e-3
+        # a second family is no sharper than the direct path (its scatter includes the
+        # direct path's): stops it from collapsing onto a handful of coincident ranges. The
+        # floor is fixed for the whole run, so every M-step stays a conditional maximisation.
+        floor = mp2_floor[ok] if name == "mp2" else sigma_floor
+        p.sigma[ok, c] = np.maximum(np.sqrt(num[ok] / den[ok]), floor)
+    return p, names, info
+
+
+@dataclass
+class JointFit:
+    """A fit of the joint model (baseline or extended) to all beacons.
+
+    Attributes
+    ----------
+    effects : tuple of str
+        The extensions switched on.
+    params : object
+        Fitted parameters (internal layout; use :meth:`beacons` and :meth:`magnitudes`).
+    resp : numpy.ndarray
+        ``(n, 4)`` class probabilities (dp, mp, mp2, ol) of every reply.
+    loglik : float
+    n_iter : int
+    converged : bool
+    se : dict
+        Approximate standard errors of the mean parameters (Gauss-Newton
+        information given the class probabilities).
+    """
+
+    effects: tuple
+    params: Params
+    resp: np.ndarray
+    loglik: float
+    n_iter: int
+    converged: bool
+    path: str
+    se: dict = field(default_factory=dict)
+    history: list = field(default_factory=list)
+
+    def magnitudes(self, data: Ranges) -> dict:
+        """Signed magnitude of every effect switched on (see :data:`UNITS`)."""
+        p, out = self.params, {}
+        if "range_bias" in self.effects:
+            out["range_bias"] = p.bias
+        if "sound_speed" in self.effects:
+            out["sound_speed"] = p.scale
+        if "plane_drift" in self.effects:
+            out["plane_drift"] = p.drift
+        if "second_reflector" in self.effects:
+            out["second_reflector"] = p.plane2
+        if "early_outliers" in self.effects:
+            out["early_outliers"] = float(self.resp[:, 3].mean())
+        if "nav_drift" in self.effects:
+            out["nav_drift"] = float(np.hypot(*p.nav))
+        return {k: float(v) for k, v in out.items()}
+
+    def beacons(self, data: Ranges) -> dict:
+        """Per-beacon parameters: ``d0`` (plane height above the beacon at the first ping), ..."""
+        p, out = self.params, {}
+        for j, bid in enumerate(data.ids):
+            sel = data.bi == j
+            entry = {
+                "n_ranges": int(sel.sum()),
+                "d0": float(data.bz[j] - p.plane[j]),
+                "plane_depth": float(p.plane[j]),
+                "sigma_dp": float(p.sigma[j, 0]),
+                "sigma_mp": float(p.sigma[j, 1]),
+                "weights": {"dp": float(p.weights[j, 0]), "mp": float(p.weights[j, 1]),
+                            "ol": float(p.weights[j, 3])},
+            }
+            if "plane_drift" in self.effects:
+                entry["d0_last"] = float(data.bz[j] - p.plane[j] - p.drift)
+            if "second_reflector" in self.effects:
+                entry["weights"]["mp2"] = float(p.weights[j, 2])
+                entry["sigma_mp2"] = float(p.sigma[j, 2])
+            out[bid] = entry
+        return out
+
+
+def _modes(v, k):
+    """The ``k`` strongest modes of the depths ``v`` (5 m bins, 25 m apart, > 4 ranges)."""
+    return histogram_modes(v, k, min_count=4) if v.size >= 10 else []
+
+
+def _second_starts(d, p, effects, path, resp):
+    """Starts for a second plane: modes of the implied depths of poorly explained ranges.
+
+    A beacon whose own plane sits on a candidate depth (its strongest multipath
+    family may be the second plane's) also gets a start with its plane moved to
+    its next mode, so that the shared plane and the beacon's own are not confused.
+    """
+    depth = implied_depths(d, p, effects, path)
+    top = float(np.min(d.vdepth))
+    usable = np.isfinite(depth) & (depth < top) & (depth > -0.2 * top)
+    # the beacons' consensus plane (median weighted by multipath counts) is the main reflector:
+    # a candidate on it would only relabel the two families
+    n_mp = np.bincount(d.bi, weights=resp[:, 1], minlength=d.nb)
+    order = np.argsort(p.plane)
+    cum = np.cumsum(n_mp[order])
+    main = float(p.plane[order][np.searchsorted(cum, 0.5 * cum[-1])])
+    starts = []
+    for cand in _modes(depth[usable & (resp[:, 3] > 0.5)], 4):
+        if abs(cand - main) < 30.0:
+            continue
+        q = p.copy()
+        q.plane2 = cand
+        share = np.maximum(0.5 * q.weights[:, 3], 0.01)
+        q.weights[:, 2] = share
+        q.weights[:, 3] = np.maximum(q.weights[:, 3] - share, 0.005)
+        q.weights = q.weights / q.weights.sum(1, keepdims=True)
+        q.sigma[:, 2] = np.median(q.sigma[:, 1])
+        starts.append(q)
+        clash = np.abs(q.plane - cand) < 30.0
+        if clash.any():
+            r = q.copy()
+            for j in np.flatnonzero(clash):
+                own = usable & (d.bi == j) & (resp[:, 0] < 0.5)
+                alt = [m for m in _modes(depth[own], 3) if abs(m - cand) > 30.0]
+                if alt:
+                    r.plane[j] = min(alt[0], float(np.min(d.vdepth[d.bi == j])))
+            starts.append(r)
+    return starts
+
+
+def _run(d, p, effects, path, *, max_iter, tol, sigma_floor):
+    mp2_floor = np.maximum(sigma_floor, p.sigma[:, 0])
+    if "second_reflector" in effects:
+        p = p.copy()
+        p.sigma[:, 2] = np.maximum(p.sigma[:, 2], mp2_floor)
+    resp, ll_i, mu = e_step(d, p, effects, path)
+    ll = float(ll_i.sum())
+    hist = [ll]
+    converged = False
+    info, names = None, mean_names(effects, d.nb)
+    for it in range(1, max_iter + 1):
+        p, names, info = _m_step(d, p, effects, path, resp, sigma_floor, mp2_floor)
+        resp, ll_i, mu = e_step(d, p, effects, path)
+        new = float(ll_i.sum())
+        hist.append(new)
+        if abs(new - ll) < tol * d.n:
+            ll = new
+            converged = True
+            break
+        ll = new
+    se = {}
+    if info is not None:
+        try:
+            cov = np.linalg.inv(info + np.diag(1e-12 + 1e-9 * np.abs(np.diag(info))))
+            for i, (k, j) in enumerate(names):
+                key = f"plane[{d.ids[j]}]" if k == "plane" else k
+                se[key] = float(np.sqrt(max(cov[i, i], 0.0)))
+        except np.linalg.LinAlgError:
+            pass
+    return JointFit(effects=tuple(effects), params=p, resp=resp, loglik=ll, n_iter=it,
+                    converged=converged, path=path, se=se, history=hist)
+
+
+def baseline_start(d: Ranges, fittable, path, rng):
+    """Per-beacon mixture-EM fits as the joint baseline's start; ``path="auto"`` picks the
+    multipath geometry with the higher total likelihood. Returns ``(params, path, logliks)``."""
+    nb = d.nb
+    paths = geometry.PATHS if path == "auto" else (path,)
+    best, logliks = None, {}
+    seed = int(as_generator(rng).integers(2**31))
+    for pth in paths:
+        plane = np.empty(nb)
+        sigma = np.empty((nb, 3))
+        weights = np.zeros((nb, 4))
+        total = 0.0
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # flags are reported on the joint fit instead
+            for j, data in enumerate(fittable):
+                r = fit_mixture_em(data, path=pth, rng=seed + j)
+                plane[j] = d.bz[j] - r.d0
+                sigma[j] = (r.sigma_dp, r.sigma_mp, r.sigma_mp)
+                weights[j] = (r.weights["dp"], r.weights["mp"], 0.0, r.weights["ol"])
+                total += float(r.loglik)
+        logliks[pth] = total
+        if best is None or total > best[2]:
+            best = (Params(plane=plane, sigma=sigma, weights=weights), pth, total)
+    return best[0], best[1], logliks
+
+
+def start_for(d, base: JointFit, effects, path):
+    """Starting points for a model with ``effects``, from a fit of a nested model."""
+    p = base.params.copy()
+    if "second_reflector" in effects and "second_reflector" not in base.effects:
+        return _second_starts(d, p, effects, path, base.resp)
+    return [p]
+
+
+def fit_joint(d: Ranges, effects, start: Params | list, *, path="triangle", max_iter=300,
+              tol=1e-7, sigma_floor=0.05) -> JointFit:
+    """Fit the joint model with ``effects`` from one or several starting points (best kept).
+
+    Parameters
+    ----------
+    d : Ranges
+        The replies (``Diagnosis.data``).
+    effects : tuple of str
+        Extensions switched on (names of :data:`EFFECTS`).
+    start : parameters or list of them
+        Starting points; infeasible ones are moved just inside the constraints.
+    path : {"triangle", "double"}
+    max_iter : int, default 300
+    tol : float, default 1e-7
+        Stop when the log-likelihood gains less than ``tol`` per reply.
+    sigma_floor : float, default 0.05
+
+    Returns
+    -------
+    JointFit
+
+    Raises
+    ------
+    ValueError
+        When no start can be made feasible.
+    """
+    starts = start if isinstance(start, list) else [start]
+    best = None
+    for s in starts:
+        if not is_feasible(d, s, effects):
+            s = repair(d, s, effects)
+            if not is_feasible(d, s, effects):
+                continue
+        r = _run(d, s, effects, path, max_iter=max_iter, tol=tol, sigma_floor=sigma_floor)
+        if best is None or r.loglik > best.loglik:
+            best = r
+    if best is None:
+        raise ValueError(f"no feasible starting point for the model with {sorted(effects)}")
+    return best
+
+
+def replant(d: Ranges, fit: JointFit, fittable, path, rng) -> Params | None:
+    """A fresh start for ``fit``'s model: each beacon's plane, scales and weights re-found by
+    the per-beacon mixture EM (its multi-start over plane heights) on ranges corrected by the
+    fitted bias, scale and navigation drift. ``None`` when no plane moves by more than 5 m.
+
+    A beacon whose baseline plane was pulled to a wrong family (e.g. the direct path of a
+    mis-scaled survey) stays there when the effect is switched on; this gives it a way out.
+    """
+    p = fit.params
+    k = 1.0 + (p.scale if "sound_speed" in fit.effects else 0.0)
+    b = p.bias if "range_bias" in fit.effects else 0.0
+    q = p.copy()
+    moved = False
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for j, data in enumerate(fittable):
+            sel = d.bi == j
+            tau = d.tau[sel]
+            x, y = data.x, data.y
+            if "nav_drift" in fit.effects:
+                x, y = x + p.nav[0] * tau, y + p.nav[1] * tau
+            z = (data.range - b) / k
+            if np.any(z <= 0):
+                continue
+            corrected = replace(data, range=z, x=x, y=y)
+            try:
+                r = fit_mixture_em(corrected, path=path, rng=rng, n_init=4)
+            except ValueError:
+                continue
+            plane = float(d.bz[j] - r.d0)
+            if "plane_drift" in fit.effects:
+                plane -= p.drift * float(np.mean(tau))
+            if abs(plane - p.plane[j]) > 5.0:
+                moved = True
+            q.plane[j] = plane
+            q.sigma[j, :2] = (r.sigma_dp * k, r.sigma_mp * k)
+            w_mp2 = q.weights[j, 2]
+            q.weights[j] = (r.weights["dp"] * (1 - w_mp2), r.weights["mp"] * (1 - w_mp2), w_mp2,
+                            r.weights["ol"] * (1 - w_mp2))
+    return q if moved else None
+
+
+# --------------------------------------------------------------------------- selection
+
+
+def heldout(d: Ranges, effects, full: JointFit, folds, path, **kw):
+    """Per-range held-out log predictive density, K-fold, each fold warm-started at ``full``."""
+    out = np.empty(d.n)
+    for k in np.unique(folds):
+        test = folds == k
+        fit_k = _run(d.subset(~test), full.params.copy(), full.effects, path, **kw)
+        dt = d.subset(test)
+        _, ll_i, _ = e_step(dt, fit_k.params, effects, path)
+        out[test] = ll_i
+    return out

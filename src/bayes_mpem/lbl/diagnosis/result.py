@@ -1,0 +1,169 @@
+"""Result (moved from ``diagnose``)."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ...io.survey import Survey
+from .ecm import JointFit
+from .model import Ranges
+
+_DESCRIPTION = {
+    "range_bias": "every returned range is offset by a constant (e.g. a wrong turn-around time)",
+    "sound_speed": "ranges are scaled by a constant factor (a wrong sound speed)",
+    "plane_drift": "the reflecting plane's depth changes during the dive (tide, depth-sensor "
+                   "drift)",
+    "second_reflector": "a second family of multipath from another plane",
+    "early_outliers": "spurious returns arrive only before the true one (first-arrival "
+                      "detection)",
+    "nav_drift": "the navigation drifts away from the truth over the dive",
+}
+
+
+@dataclass(frozen=True)
+class Effect:
+    """One effect found in the data.
+
+    Attributes
+    ----------
+    name : str
+        One of :data:`EFFECTS`.
+    magnitude : float
+        Signed size in :attr:`unit` (see :data:`UNITS`).
+    unit : str
+    beacons : list of str
+        Beacons it was fitted on (all fitted beacons: every effect is shared).
+    delta_elpd, delta_elpd_se : float
+        Gain in held-out log predictive density (nats) over the model without
+        it when it was added, and its standard error.
+    magnitude_se : float or None
+        Approximate standard error of the magnitude.
+    evidence : str
+        A sentence a person can read.
+    detail : dict
+        Extra numbers (e.g. the drift's direction).
+    """
+
+    name: str
+    magnitude: float
+    unit: str
+    beacons: list
+    delta_elpd: float
+    delta_elpd_se: float
+    magnitude_se: float | None
+    evidence: str
+    detail: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        """JSON-ready dict."""
+        return {"name": self.name, "magnitude": self.magnitude, "unit": self.unit,
+                "beacons": list(self.beacons), "delta_elpd": self.delta_elpd,
+                "delta_elpd_se": self.delta_elpd_se, "magnitude_se": self.magnitude_se,
+                "evidence": self.evidence, **({"detail": self.detail} if self.detail else {})}
+
+
+@dataclass
+class Diagnosis:
+    """What :func:`diagnose` found.
+
+    Attributes
+    ----------
+    effects : list of Effect
+        Effects kept, in the order they were added; empty for clean data.
+    baseline, final : JointFit
+        The paper's model fitted to all beacons, and the model with the effects.
+    candidates : list of dict
+        Every extension tried: ``round``, ``name``, ``delta_elpd``, ``se``, ``kept``.
+    residual_checks : list of dict
+        Residual structure left by the final model (:func:`residual_checks`);
+        ``unexplained`` lists the significant ones.
+    skipped : dict
+        Beacons left out, with the reason.
+    survey : Survey
+    settings : dict
+    """
+
+    effects: list
+    baseline: JointFit
+    final: JointFit
+    candidates: list
+    residual_checks: list
+    skipped: dict
+    survey: Survey = field(repr=False)
+    data: Ranges = field(repr=False)
+    settings: dict = field(default_factory=dict)
+
+    @property
+    def unexplained(self) -> list:
+        """Residual checks that fail under the final model."""
+        return [c for c in self.residual_checks if c["significant"]]
+
+    def to_dict(self) -> dict:
+        """The content of ``diagnosis.json``."""
+        d = self.data
+        return {
+            "effects": [e.to_dict() for e in self.effects],
+            "beacons": self.baseline.beacons(d),
+            "final_model": {"effects": self.final.magnitudes(d),
+                            "beacons": self.final.beacons(d),
+                            "loglik": self.final.loglik},
+            "baseline_loglik": self.baseline.loglik,
+            "candidates": self.candidates,
+            "unexplained": self.unexplained,
+            "residual_checks": self.residual_checks,
+            "skipped_beacons": self.skipped,
+            "settings": self.settings,
+        }
+
+    def write(self, out_dir, *, figures: bool = True) -> dict:
+        """Write ``diagnosis.json`` (and the figures) to ``out_dir``.
+
+        Parameters
+        ----------
+        out_dir : str or pathlib.Path
+            Created if missing.
+        figures : bool, default True
+
+        Returns
+        -------
+        dict
+            Paths written.
+        """
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        paths = {"diagnosis": out / "diagnosis.json"}
+        paths["diagnosis"].write_text(json.dumps(self.to_dict(), indent=2, default=_json) + "\n")
+        if figures:
+            from ...plots.diagnose import write_figures
+
+            paths.update(write_figures(self, out))
+        return paths
+
+    def summary(self) -> str:
+        """A few lines for a terminal."""
+        if not self.effects and not self.unexplained:
+            lines = ["No effect found: the paper's model explains these data "
+                     f"({len(self.candidates)} extensions tried, none clearly better)."]
+        elif not self.effects:
+            lines = ["No effect of the vocabulary predicts these data better "
+                     f"({len(self.candidates)} extensions tried), but residual structure is "
+                     "left that the model does not explain:"]
+        else:
+            lines = ["Effects found:"]
+            for e in self.effects:
+                lines.append(f"  {e.name}: {e.magnitude:+.4g} {e.unit}  ({e.evidence})")
+        for c in self.unexplained:
+            lines.append(f"  unexplained: {c['message']}")
+        return "\n".join(lines)
+
+
+def _json(v):
+    if isinstance(v, (np.floating, np.integer)):
+        return v.item()
+    if isinstance(v, np.ndarray):
+        return v.tolist()
+    raise TypeError(f"not JSON serialisable: {type(v)}")

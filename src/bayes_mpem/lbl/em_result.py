@@ -1,0 +1,253 @@
+"""Em result (moved from ``em``)."""
+
+from __future__ import annotations
+
+import dataclasses
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..exceptions import FitQualityWarning
+from ..io.survey import BeaconData
+from ..mixture.densities import CLASSES
+from . import geometry
+from .beacon_geometry import BeaconGeometry
+
+
+def quality_flags(result, data: BeaconData, *, sigma_floor: float = 0.05) -> tuple:
+    """Reasons why a fitted reflector is not credible (empty when it is).
+
+    Parameters
+    ----------
+    result : EMResult
+    data : BeaconData
+    sigma_floor : float
+        The scale floor the fit used.
+
+    Returns
+    -------
+    tuple of str
+        Checked: almost no range is multipath (fewer than 10 ranges' worth), the
+        multipath scale stuck at its floor (collapsed onto a few ranges) or above
+        100 m (no coherent multipath), almost no range on the direct path (a wrong
+        beacon position or navigation), a plane above the sea surface, and (for a
+        fit through a sound-speed profile) more than 1 % of the ranges with no
+        eigenray at all.
+    """
+    flags = []
+    n_mp = float(result.resp[:, 1].sum()) if result.n else 0.0
+    if n_mp < 10:
+        flags.append(f"only {n_mp:.1f} ranges' worth of multipath: no reflector identified")
+    if result.sigma_mp <= 1.05 * sigma_floor:
+        flags.append(f"sigma_MP = {result.sigma_mp:.3g} m is at its floor: the multipath "
+                     "component collapsed onto a few ranges")
+    elif result.sigma_mp > 100.0:
+        flags.append(f"sigma_MP = {result.sigma_mp:.0f} m: no coherent multipath band")
+    if result.n and float(result.resp[:, 0].mean()) < 0.01:
+        flags.append("almost no range matches the direct path: check the beacon position "
+                     "and the navigation")
+    depth = float(data.position[2])
+    if result.d0 > depth + 10.0:
+        flags.append(f"the plane is {result.d0 - depth:.0f} m above the sea surface "
+                     f"(d0 = {result.d0:.0f} m, beacon depth {depth:.0f} m)")
+    rays = result.settings.get("refraction") if result.settings else None
+    if rays and result.n and rays["no_ray"] > 0.01 * result.n:
+        flags.append(f"{rays['no_ray']} of {result.n} ranges have no eigenray through the "
+                     "sound-speed profile (neither direct nor multipath at the fitted plane): "
+                     "they can only be outliers")
+    return tuple(flags)
+
+
+def with_flags(result, data, sigma_floor):
+    """``result`` with its quality flags set, warning once if there are any."""
+    flags = quality_flags(result, data, sigma_floor=sigma_floor)
+    if flags:
+        warnings.warn(f"beacon {data.beacon} ({result.method} EM): " + "; ".join(flags),
+                      FitQualityWarning, stacklevel=3)
+    return dataclasses.replace(result, flags=flags)
+
+
+@dataclass(frozen=True)
+class EMResult:
+    """Fit of one beacon.
+
+    Attributes
+    ----------
+    beacon : str
+        Beacon id.
+    method : {"mixture", "paper"}
+    path : {"triangle", "double"}
+        Multipath geometry.
+    d0 : float
+        Height of the reflecting plane above the beacon (m).
+    sigma_mp, sigma_dp : float
+        Multipath and direct-path range scatter (m).
+    weights : dict
+        Mixing weights ``{"dp", "mp", "ol"}``. The paper's EM has none (its
+        priors are equal and dropped); there they are the mean class
+        probabilities, the quantity of the paper's Fig. 12c.
+    resp : numpy.ndarray
+        ``(n, 3)`` class probabilities of every range (dp, mp, ol).
+    rows : numpy.ndarray
+        Positions of these ranges in the input table.
+    n_iter : int
+    converged : bool
+    loglik : float or None
+        Mixture log-likelihood at the returned parameters (mixture EM only).
+    d0_se : float or None
+        Approximate standard error of ``d0`` (m, mixture EM only):
+        ``sigma_mp / sqrt(sum_k p_mp(k) (d z_MP / d d0)_k^2)``, the Fisher
+        information of the multipath ranges given their class probabilities.
+        Calibrated on simulated surveys (``docs/recovery.md``).
+    flags : tuple of str
+        Why the result is not a credible reflector (:func:`quality_flags`);
+        empty for a good fit. A :class:`FitQualityWarning` repeats them.
+    history : dict of numpy.ndarray
+        Per-iteration values, index 0 being the initial state: ``d0``,
+        ``sigma_mp``, ``sigma_dp``, ``p_dp``, ``p_mp``, ``p_ol`` (mean class
+        probabilities) and, for the mixture EM, ``loglik``.
+    first_resp : numpy.ndarray
+        Class probabilities after the first E-step (the paper's Fig. 7).
+    settings : dict
+        The options the fit ran with.
+    """
+
+    beacon: str
+    method: str
+    path: str
+    d0: float
+    sigma_mp: float
+    sigma_dp: float
+    weights: dict
+    resp: np.ndarray = field(repr=False)
+    rows: np.ndarray = field(repr=False)
+    n_iter: int
+    converged: bool
+    loglik: float | None
+    history: dict = field(repr=False)
+    first_resp: np.ndarray = field(repr=False)
+    settings: dict = field(default_factory=dict)
+    d0_se: float | None = None
+    flags: tuple = ()
+
+    @property
+    def n(self) -> int:
+        """Number of ranges used."""
+        return int(self.resp.shape[0])
+
+    @property
+    def labels(self) -> np.ndarray:
+        """Most probable class of every range (``"dp"``, ``"mp"`` or ``"ol"``)."""
+        return np.asarray(CLASSES)[np.argmax(self.resp, axis=1)]
+
+    @property
+    def class_fractions(self) -> dict:
+        """Fraction of ranges labelled dp, mp and ol."""
+        lab = np.argmax(self.resp, axis=1)
+        return {c: float(np.mean(lab == j)) if self.n else float("nan")
+                for j, c in enumerate(CLASSES)}
+
+    def to_dict(self) -> dict:
+        """JSON-ready summary (no per-range arrays)."""
+        return {
+            "d0": self.d0,
+            "sigma_mp": self.sigma_mp,
+            "sigma_dp": self.sigma_dp,
+            "weights": dict(self.weights),
+            "class_fractions": self.class_fractions,
+            "n": self.n,
+            "iterations": self.n_iter,
+            "converged": self.converged,
+            "loglik": self.loglik,
+            "d0_se": self.d0_se,
+            "flags": list(self.flags),
+            "method": self.method,
+            "path": self.path,
+            "settings": dict(self.settings),
+        }
+
+
+# --------------------------------------------------------------------------
+# shared helpers
+
+
+def estimate_sigma_dp(geom: BeaconGeometry, *, window: float = 50.0) -> float:
+    """Robust direct-path scatter from residuals ``z - L_direct``.
+
+    Residuals within ``window`` m of the direct path are trimmed iteratively
+    at 3 sigma (starting from the MAD), a robust stand-in for the paper's
+    least-squares fit of sigma_DP.
+
+    Parameters
+    ----------
+    geom : BeaconGeometry
+    window : float
+        Initial half-width (m) of the residuals considered.
+
+    Returns
+    -------
+    float
+        Standard deviation (m); 1.0 if fewer than 5 ranges fall in the window.
+    """
+    r = geom.z - geom.direct
+    r = r[np.abs(r) < window]
+    if r.size < 5:
+        return 1.0
+    s = 1.4826 * np.median(np.abs(r - np.median(r)))
+    for _ in range(20):
+        keep = r[np.abs(r - r.mean()) < 3.0 * max(s, 1e-3)]
+        s_new = float(keep.std()) if keep.size >= 5 else s
+        if abs(s_new - s) < 1e-6:
+            break
+        s = s_new
+    return max(float(s), 1e-3)
+
+
+def wdot(w, x):
+    """``sum(w * x)`` without BLAS.
+
+    ``np.dot`` on 1-D arrays calls a multi-threaded BLAS ``ddot`` that spin-waits
+    for a busy core: on 2 cores with another process running it made the EM 40x
+    slower (measured, ``benchmarks/bench_em.py``). A NumPy reduction does not.
+    """
+    return float(np.add.reduce(w * x))
+
+
+def check_positive(name, value, *, allow_none=False):
+    if value is None and allow_none:
+        return None
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: expected a positive number, got {value!r}") from None
+    if not np.isfinite(v) or v <= 0:
+        raise ValueError(f"{name}: expected a positive number, got {value!r}")
+    return v
+
+
+def check_options(*, path="triangle", weights="learned", pol=0.05, alpha=0.5, sigma_dp=None):
+    """Validate the options of both EMs (``ValueError`` naming the option); used up front.
+
+    Returns
+    -------
+    float or None
+        ``sigma_dp`` as a float (``None`` when it is to be estimated).
+    """
+    geometry.check_path(path)
+    if weights not in ("learned", "equal"):
+        raise ValueError(f"weights: expected 'learned' or 'equal', got {weights!r}")
+    if not 0.0 < float(pol) < 1.0:
+        raise ValueError(f"pol: expected a number in (0, 1), got {pol!r}")
+    if not 0.0 < float(alpha) <= 1.0:
+        raise ValueError(f"alpha: expected a number in (0, 1], got {alpha!r}")
+    return check_positive("sigma_dp", sigma_dp, allow_none=True)
+
+
+def check_max_iter(max_iter):
+    if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
+        raise ValueError(f"max_iter: expected an integer >= 1, got {max_iter!r}")
+
+
+def mean_resp_history(resp):
+    return resp.mean(axis=0) if resp.size else np.full(3, np.nan)

@@ -1,0 +1,246 @@
+"""Fit every beacon of a survey and write the results.
+
+:func:`fit` is what ``bayes-mpem fit`` calls: it validates the input, fits
+each beacon on its own (the paper's practice) with the mixture EM or the
+paper's EM, and returns a :class:`SurveyFit` that writes ``summary.json``
+and ``classified.csv`` (one row per input row, nothing dropped).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from .._rng import RNGLike, as_generator
+from ..io.survey import Survey, load_survey
+from .em_mixture import fit_mixture_em
+from .em_paper import fit_paper_em
+from .em_result import check_options
+from .survey import beacons_table, classified_table, fittable_beacons
+
+METHODS = ("mixture", "paper")
+
+
+@dataclass(frozen=True)
+class SurveyFit:
+    """Fits of every beacon of a survey.
+
+    Attributes
+    ----------
+    survey : Survey
+        The validated input.
+    results : dict of str to EMResult
+        One fit per fitted beacon.
+    skipped : dict of str to str
+        Beacons left unfitted, with the reason.
+    method : str
+    options : dict
+        The options passed to the per-beacon fits.
+    """
+
+    survey: Survey
+    results: dict
+    skipped: dict
+    method: str
+    options: dict = field(default_factory=dict)
+
+    def classified(self) -> pd.DataFrame:
+        """Every input row with ``p_dp``, ``p_mp``, ``p_ol``, ``label`` and ``reason``.
+
+        Returns
+        -------
+        pandas.DataFrame
+            Same rows, same order as the input; labels are ``dp``, ``mp``,
+            ``ol``, ``no_reply`` or ``skipped`` (``reason`` says why).
+        """
+        return classified_table(
+            self.survey, {bid: (r.rows, r.resp) for bid, r in self.results.items()},
+            self.skipped)
+
+    def summary(self) -> dict:
+        """JSON-ready summary: per-beacon parameters, counts, skipped beacons.
+
+        Returns
+        -------
+        dict
+        """
+        beacons = {}
+        for bid, res in self.results.items():
+            d = res.to_dict()
+            depth = float(self.survey.beacons.loc[bid, "depth"])
+            d["beacon_depth"] = depth
+            d["plane_depth"] = depth - res.d0
+            d["n_no_reply"] = int(np.sum(self.survey.no_reply & (self.survey.beacon == bid)))
+            beacons[bid] = d
+        return {
+            "method": self.method,
+            "beacons": beacons,
+            "beacons_table": beacons_table(self.survey),
+            "skipped": dict(self.skipped),
+            "n_rows": len(self.survey),
+            "n_no_reply": int(self.survey.no_reply.sum()),
+            "pings": self.survey.pings_source,
+            "beacons_file": self.survey.beacons_source,
+            "options": {k: v for k, v in self.options.items() if k != "rng"},
+        }
+
+    def table(self) -> pd.DataFrame:
+        """Per-beacon table in the spirit of the paper's Table II.
+
+        Returns
+        -------
+        pandas.DataFrame
+            Columns ``beacon``, ``hrp_m`` (fitted plane height d0),
+            ``sigma_mp_m``, ``beacon_depth_m``, ``plane_depth_m``, ``sigma_dp_m``,
+            ``dp``, ``mp``, ``ol`` (fractions of ranges per label), ``n``,
+            ``converged``.
+        """
+        rows = []
+        for bid, res in self.results.items():
+            depth = float(self.survey.beacons.loc[bid, "depth"])
+            fr = res.class_fractions
+            rows.append({"beacon": bid, "hrp_m": res.d0, "sigma_mp_m": res.sigma_mp,
+                         "beacon_depth_m": depth, "plane_depth_m": depth - res.d0,
+                         "sigma_dp_m": res.sigma_dp, **fr, "n": res.n,
+                         "converged": res.converged})
+        return pd.DataFrame(rows)
+
+    def format_table(self) -> str:
+        """The :meth:`table` as aligned text for a terminal."""
+        t = self.table()
+        lines = [f"{'beacon':>6} {'HRP d0 (m)':>11} {'sigma_MP (m)':>12} {'depth (m)':>10} "
+                 f"{'plane (m)':>9} {'DP':>6} {'MP':>6} {'OL':>6} {'n':>6}"]
+        for r in t.itertuples():
+            lines.append(f"{r.beacon:>6} {r.hrp_m:11.1f} {r.sigma_mp_m:12.2f} "
+                         f"{r.beacon_depth_m:10.1f} {r.plane_depth_m:9.1f} {r.dp:6.3f} "
+                         f"{r.mp:6.3f} {r.ol:6.3f} {r.n:6d}")
+        for bid, why in self.skipped.items():
+            lines.append(f"{bid:>6} skipped: {why}")
+        return "\n".join(lines)
+
+    def write(self, out_dir) -> dict:
+        """Write ``summary.json`` and ``classified.csv`` into ``out_dir``.
+
+        Parameters
+        ----------
+        out_dir : str or pathlib.Path
+            Created if missing.
+
+        Returns
+        -------
+        dict
+            Paths written, keyed ``summary`` and ``classified``.
+        """
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        paths = {"summary": out / "summary.json", "classified": out / "classified.csv",
+                 "history": out / "history.json"}
+        paths["summary"].write_text(json.dumps(self.summary(), indent=2) + "\n")
+        self.classified().to_csv(paths["classified"], index=False)
+        paths["history"].write_text(json.dumps(self.history(), indent=None) + "\n")
+        return paths
+
+    def history(self) -> dict:
+        """Per beacon: every iteration's parameters and the first E-step's probabilities.
+
+        Returns
+        -------
+        dict
+            ``{beacon: {"history": {name: [..]}, "first_resp": [[p_dp, p_mp, p_ol], ..]}}``,
+            ``first_resp`` in the order of that beacon's replies (what the paper's
+            Figs. 7, 10 and 11 show).
+        """
+        return {bid: {"history": {k: np.asarray(v).tolist() for k, v in r.history.items()},
+                      "first_resp": np.round(r.first_resp, 3).tolist()}
+                for bid, r in self.results.items()}
+
+
+def fit(
+    pings,
+    beacons=None,
+    *,
+    method: str = "mixture",
+    path: str = "triangle",
+    sigma_dp: float | None = None,
+    pol: float = 0.05,
+    alpha: float = 0.5,
+    weights: str = "learned",
+    min_pings: int = 30,
+    rng: RNGLike = None,
+    **kwargs,
+) -> SurveyFit:
+    """Classify every range and identify each beacon's reflector.
+
+    Parameters
+    ----------
+    pings : str, pathlib.Path, pandas.DataFrame or Survey
+        The pings table (see ``docs/input.md``), or an already loaded survey.
+    beacons : str, pathlib.Path or pandas.DataFrame, optional
+        The beacons table (not needed when ``pings`` is a Survey).
+    method : {"mixture", "paper"}
+        The density-mixture EM (default) or the paper's EM.
+    path : {"triangle", "double"}
+        Multipath geometry: one reflected leg (default) or both.
+    sigma_dp : float, optional
+        Direct-path scatter (m); estimated from the data if omitted.
+    pol, alpha : float
+        The paper's EM knobs (``method="paper"`` only).
+    weights : {"learned", "equal"}
+        Mixing weights of the mixture EM.
+    min_pings : int, default 30
+        Beacons with fewer replies are left unfitted, with a warning.
+    rng : None, int or numpy.random.Generator
+    **kwargs
+        Passed to :func:`~bayes_mpem.em.fit_mixture_em` or
+        :func:`~bayes_mpem.em.fit_paper_em`.
+
+    Returns
+    -------
+    SurveyFit
+
+    Raises
+    ------
+    bayes_mpem.data.InputError
+        For invalid input (the message names the file, row and column).
+    ValueError
+        For invalid options.
+
+    Warns
+    -----
+    SkippedBeaconWarning
+        For every beacon left unfitted.
+
+    Examples
+    --------
+    >>> import bayes_mpem
+    >>> sim = bayes_mpem.simulate_survey("abe58", rng=3)
+    >>> res = bayes_mpem.fit(sim.survey, rng=0)
+    >>> sorted(res.results)
+    ['1', '2', '3', '4']
+    """
+    if method not in METHODS:
+        raise ValueError(f"method: expected one of {METHODS}, got {method!r}")
+    check_options(path=path, weights=weights, pol=pol, alpha=alpha, sigma_dp=sigma_dp)
+    survey = load_survey(pings, beacons)
+    gen = as_generator(rng)
+    results = {}
+    fittable, skipped = fittable_beacons(survey, min_pings)
+    for data in fittable:
+        bid = data.beacon
+        if method == "mixture":
+            results[bid] = fit_mixture_em(data, path=path, sigma_dp=sigma_dp, weights=weights,
+                                          rng=gen, **kwargs)
+        else:
+            results[bid] = fit_paper_em(data, path=path, sigma_dp=sigma_dp, pol=pol,
+                                        alpha=alpha, **kwargs)
+    options = {"path": path, "sigma_dp": sigma_dp, "min_pings": min_pings, **kwargs}
+    if method == "mixture":
+        options["weights"] = weights
+    else:
+        options.update(pol=pol, alpha=alpha)
+    return SurveyFit(survey=survey, results=results, skipped=skipped, method=method,
+                     options=options)

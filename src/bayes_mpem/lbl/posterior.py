@@ -1,0 +1,214 @@
+"""Posterior (moved from ``bayes``)."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.special import gammaln
+
+from ..io.survey import BeaconData
+from ..mixture.densities import CLASSES
+from .beacon_geometry import BeaconGeometry
+from .em_result import EMResult
+from .likelihood import total_loglik
+
+PRIORS = ("equal", "learned")
+PARAMS = ("d0", "sigma_mp", "sigma_dp", "w_dp", "w_mp", "w_ol")
+
+
+def check_sample_options(*, priors="learned", ci=0.95, n_ensembles=1, concentration=1.0,
+                         sigma_dp=None, path="triangle", tau_factor=50.0, min_ess=1000.0,
+                         max_steps=20000, n_draws=2000):
+    """Validate the sampler's options before any work (``ValueError`` naming the option)."""
+    from .geometry import check_path
+
+    check_path(path)
+    if priors not in PRIORS:
+        raise ValueError(f"priors: expected one of {PRIORS}, got {priors!r}")
+    checks = [("ci", ci, lambda v: 0.0 < v < 1.0, "a probability in (0, 1)"),
+              ("concentration", concentration, lambda v: v > 0, "a positive number"),
+              ("tau_factor", tau_factor, lambda v: v > 0, "a positive number"),
+              ("min_ess", min_ess, lambda v: v >= 0, "a number >= 0")]
+    if sigma_dp is not None:
+        checks.append(("sigma_dp", sigma_dp, lambda v: v > 0 and np.isfinite(v),
+                       "a positive number"))
+    for name, value, good, what in checks:
+        try:
+            ok = good(float(value))
+        except (TypeError, ValueError):
+            ok = False
+        if not ok:
+            raise ValueError(f"{name}: expected {what}, got {value!r}")
+    for name, value in (("n_ensembles", n_ensembles), ("max_steps", max_steps),
+                        ("n_draws", n_draws)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+            raise ValueError(f"{name}: expected an integer >= 1, got {value!r}")
+
+
+class BeaconPosterior:
+    """Log-posterior of one beacon, vectorised over walkers.
+
+    Parameters
+    ----------
+    data : BeaconData
+    priors : {"learned", "equal"}
+        Dirichlet-distributed mixing weights, or the paper's equal weights.
+    sigma_dp : float, optional
+        Fix the direct-path scatter (m) instead of sampling it.
+    path : {"triangle", "double"}
+    concentration : float, default 1
+        Dirichlet concentration of the learned weights.
+    sigma_bounds : tuple of float, default (0.05, 500)
+        Support (m) of the log-uniform scale priors.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from bayes_mpem.simulate import simulate_survey
+    >>> post = BeaconPosterior(simulate_survey("abe58", rng=0).survey.for_beacon("4"))
+    >>> post.names
+    ('d0', 'log_sigma_mp', 'log_sigma_dp', 'w_dp', 'w_mp')
+    >>> theta = np.array([[2472.0, np.log(7.0), np.log(4.0), 0.5, 0.35]])
+    >>> bool(np.isfinite(post(theta))[0])
+    True
+    """
+
+    def __init__(self, data: BeaconData, *, priors="learned", sigma_dp=None, path="triangle",
+                 concentration=1.0, sigma_bounds=(0.05, 500.0)):
+        if priors not in PRIORS:
+            raise ValueError(f"priors: expected one of {PRIORS}, got {priors!r}")
+        if not float(concentration) > 0:
+            raise ValueError(f"concentration: expected a positive number, got {concentration!r}")
+        self.geom = BeaconGeometry.from_data(data)
+        self.beacon = data.beacon
+        self.priors = priors
+        self.path = path
+        self.sigma_dp = None if sigma_dp is None else float(sigma_dp)
+        self.concentration = float(concentration)
+        self.log_sigma_bounds = (np.log(sigma_bounds[0]), np.log(sigma_bounds[1]))
+        self.d0_bounds = (self.geom.d0_min, self.geom.hi + self.geom.d0_min + 1.0)
+        names = ["d0", "log_sigma_mp"]
+        if self.sigma_dp is None:
+            names.append("log_sigma_dp")
+        if priors == "learned":
+            names += ["w_dp", "w_mp"]
+        self.names = tuple(names)
+        c = self.concentration
+        self._dirichlet_norm = gammaln(3 * c) - 3 * gammaln(c)
+        width = self.log_sigma_bounds[1] - self.log_sigma_bounds[0]
+        n_scales = 2 if self.sigma_dp is None else 1
+        self._log_prior_const = -np.log(self.d0_bounds[1] - self.d0_bounds[0]) - n_scales * np.log(
+            width)
+
+    @property
+    def ndim(self) -> int:
+        """Number of sampled parameters."""
+        return len(self.names)
+
+    def unpack(self, theta):
+        """Natural parameters of a ``(W, ndim)`` array, each of shape ``(W, 1)``.
+
+        Parameters
+        ----------
+        theta : numpy.ndarray
+
+        Returns
+        -------
+        dict
+            ``d0``, ``sigma_mp``, ``sigma_dp``, ``w_dp``, ``w_mp``, ``w_ol``.
+        """
+        theta = np.atleast_2d(theta)
+        col = {n: theta[:, [i]] for i, n in enumerate(self.names)}
+        out = {"d0": col["d0"], "sigma_mp": np.exp(col["log_sigma_mp"])}
+        out["sigma_dp"] = (np.exp(col["log_sigma_dp"]) if self.sigma_dp is None
+                           else np.full_like(col["d0"], self.sigma_dp))
+        if self.priors == "learned":
+            out["w_dp"], out["w_mp"] = col["w_dp"], col["w_mp"]
+            out["w_ol"] = 1.0 - col["w_dp"] - col["w_mp"]
+        else:
+            for c in CLASSES:
+                out["w_" + c] = np.full_like(col["d0"], 1.0 / 3.0)
+        return out
+
+    def log_prior(self, theta):
+        """Log prior density of a ``(W, ndim)`` array (``-inf`` outside the support).
+
+        Works on the sampler's coordinates directly, so a proposal far outside
+        the support is rejected without overflowing ``exp``.
+        """
+        theta = np.atleast_2d(theta)
+        col = {n: theta[:, i] for i, n in enumerate(self.names)}
+        lo, hi = self.log_sigma_bounds
+        ok = (col["d0"] >= self.d0_bounds[0]) & (col["d0"] <= self.d0_bounds[1])
+        for name in ("log_sigma_mp", "log_sigma_dp"):
+            if name in col:
+                ok &= (col[name] >= lo) & (col[name] <= hi)
+        out = np.full(theta.shape[0], self._log_prior_const)
+        if self.priors == "learned":
+            w = np.column_stack([col["w_dp"], col["w_mp"], 1.0 - col["w_dp"] - col["w_mp"]])
+            ok &= np.all(w > 0, axis=1)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                out += self._dirichlet_norm + (self.concentration - 1.0) * np.log(
+                    np.where(w > 0, w, 1.0)).sum(axis=1)
+        out[~ok] = -np.inf
+        return out
+
+    def outside_prior(self, params: dict) -> list:
+        """Which natural parameters of ``params`` (e.g. an EM result) lie outside the prior."""
+        lo, hi = np.exp(self.log_sigma_bounds)
+        out = []
+        if not self.d0_bounds[0] <= params["d0"] <= self.d0_bounds[1]:
+            out.append(f"d0 = {params['d0']:.1f} m outside [{self.d0_bounds[0]:.1f}, "
+                       f"{self.d0_bounds[1]:.1f}]")
+        for k in ("sigma_mp", "sigma_dp"):
+            if (k == "sigma_mp" or self.sigma_dp is None) and not lo <= params[k] <= hi:
+                out.append(f"{k} = {params[k]:.3g} m outside [{lo:g}, {hi:g}]")
+        if self.priors == "learned" and min(params["weights"].values()) <= 0:
+            out.append(f"a mixing weight is 0 ({params['weights']})")
+        return out
+
+    def __call__(self, theta):
+        """Log posterior (up to a constant) of a ``(W, ndim)`` array: emcee's target."""
+        theta = np.atleast_2d(theta)
+        lp = self.log_prior(theta)
+        ok = np.isfinite(lp)
+        if ok.any():
+            p = self.unpack(theta[ok])
+            lp[ok] += total_loglik(self.geom, p["d0"], p["sigma_dp"], p["sigma_mp"],
+                                   [p["w_dp"], p["w_mp"], p["w_ol"]], self.path)
+        return lp
+
+    def theta_from(self, params: dict):
+        """Sampler coordinates of a dict of natural parameters (e.g. an EM result)."""
+        vals = {"d0": params["d0"], "log_sigma_mp": np.log(params["sigma_mp"]),
+                "log_sigma_dp": np.log(params["sigma_dp"]),
+                "w_dp": params["weights"]["dp"], "w_mp": params["weights"]["mp"]}
+        return np.array([vals[n] for n in self.names], float)
+
+
+# --------------------------------------------------------------------------
+
+
+def start_ball(post: BeaconPosterior, em: EMResult, n_walkers, gen):
+    """Walkers around the EM solution, scattered by rough posterior widths, inside the prior."""
+    centre = post.theta_from(em.to_dict())
+    n = em.n
+    frac = {c: max(em.weights[c], 1e-3) for c in CLASSES}
+    width = {"d0": em.d0_se if em.d0_se and np.isfinite(em.d0_se) else 1.0,
+             "log_sigma_mp": 1.0 / np.sqrt(2 * max(frac["mp"] * n, 2)),
+             "log_sigma_dp": 1.0 / np.sqrt(2 * max(frac["dp"] * n, 2)),
+             "w_dp": np.sqrt(frac["dp"] * (1 - frac["dp"]) / n),
+             "w_mp": np.sqrt(frac["mp"] * (1 - frac["mp"]) / n)}
+    scale = np.array([0.5 * width[name] for name in post.names])
+    out = np.empty((n_walkers, post.ndim))
+    filled = 0
+    for _ in range(100):
+        cand = centre + scale * gen.standard_normal((n_walkers, post.ndim))
+        good = cand[np.isfinite(post(cand))]
+        take = min(len(good), n_walkers - filled)
+        out[filled:filled + take] = good[:take]
+        filled += take
+        if filled == n_walkers:
+            return out
+        scale *= 0.5
+    raise RuntimeError(f"beacon {post.beacon}: could not place walkers inside the prior "
+                       f"around the EM solution {dict(zip(post.names, centre, strict=True))}")

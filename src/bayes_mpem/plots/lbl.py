@@ -1,0 +1,311 @@
+"""Figures. Every function takes ``ax=`` (or ``fig=``) and returns the Figure.
+
+The class colour follows the paper's Fig. 8: blue = direct path, red =
+multipath, green = outlier, mixed by the class probabilities, so a range that
+is half direct path, half multipath is drawn purple.
+"""
+
+from __future__ import annotations
+
+import matplotlib.pyplot as plt
+import numpy as np
+
+from ..lbl.beacon_geometry import BeaconGeometry
+from .style import class_colors
+
+
+def _ax(ax, figsize=(8, 4)):
+    if ax is None:
+        fig, ax = plt.subplots(figsize=figsize, layout="constrained")
+    return ax.figure, ax
+
+
+def plot_classification(survey_fit, beacon, *, ax=None, iteration="last", lines=True,
+                        title=None):
+    """Range against time for one beacon, coloured by class probability.
+
+    The paper's Figs. 7 (``iteration="first"``: after the first E-step), 9
+    (``"last"``) and, per beacon, 13; with the fitted direct-path and
+    multipath predictions.
+
+    Parameters
+    ----------
+    survey_fit : SurveyFit
+    beacon : str
+    ax : matplotlib.axes.Axes, optional
+    iteration : {"last", "first"}
+        Colour by the final class probabilities or by those of the first E-step.
+    lines : bool, default True
+        Draw the predicted direct path and multipath.
+    title : str, optional
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    if iteration not in ("first", "last"):
+        raise ValueError(f"iteration: expected 'first' or 'last', got {iteration!r}")
+    fig, ax = _ax(ax)
+    res = survey_fit.results[beacon]
+    data = survey_fit.survey.for_beacon(beacon)
+    resp = res.first_resp if iteration == "first" else res.resp
+    ax.scatter(data.time, data.range, c=class_colors(resp), s=4, linewidths=0)
+    if lines:
+        geom = BeaconGeometry.from_data(data)
+        d0 = res.history["d0"][0] if iteration == "first" else res.d0
+        order = np.argsort(data.time)
+        ax.plot(data.time[order], geom.direct[order], color="0.3", lw=0.5, label="direct path")
+        ax.plot(data.time[order], geom.multipath(d0, res.path)[order], color="0.6", lw=0.5,
+                ls="--", label=f"multipath, d0 = {d0:.1f} m")
+        ax.legend(loc="upper right", fontsize="small")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("one-way range (m)")
+    if title is None:
+        if iteration == "first":
+            s0 = res.history["sigma_mp"][0]
+            title = (f"beacon {beacon}: {res.method} EM, first E-step "
+                     f"(d0 = {res.history['d0'][0]:.0f} m, sigma_MP = {s0:.0f} m)")
+        else:
+            title = (f"beacon {beacon}: {res.method} EM, last iteration ({res.n_iter}): "
+                     f"d0 = {res.d0:.1f} m, sigma_MP = {res.sigma_mp:.2f} m")
+    ax.set_title(title, fontsize="medium")
+    return fig
+
+
+def plot_survey_classification(survey_fit, *, fig=None):
+    """Every beacon's classification in one figure (the paper's Fig. 13).
+
+    Parameters
+    ----------
+    survey_fit : SurveyFit
+    fig : matplotlib.figure.Figure, optional
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    ids = list(survey_fit.results)
+    if fig is None:
+        fig = plt.figure(figsize=(10, 2.6 * max(len(ids), 1)), layout="constrained")
+    axes = fig.subplots(max(len(ids), 1), 1, squeeze=False, sharex=True)[:, 0]
+    for ax, bid in zip(axes, ids, strict=False):
+        plot_classification(survey_fit, bid, ax=ax)
+    return fig
+
+
+def plot_track(survey, *, ax=None):
+    """Vehicle track in the x-y plane with the beacons (the paper's Fig. 5).
+
+    Parameters
+    ----------
+    survey : Survey
+    ax : matplotlib.axes.Axes, optional
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    fig, ax = _ax(ax, figsize=(6, 6))
+    ax.plot(survey.x, survey.y, ".", ms=1.5, color="0.4", label="vehicle")
+    b = survey.beacons
+    ax.plot(b["x"], b["y"], "s", color="tab:red", label="beacons")
+    for bid, row in b.iterrows():
+        ax.annotate(f" {bid}", (row["x"], row["y"]), color="tab:red")
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.legend(loc="best", fontsize="small")
+    return fig
+
+
+def plot_ranges(survey, *, ax=None):
+    """Range against time for every beacon, coloured by beacon (the paper's Fig. 1).
+
+    Parameters
+    ----------
+    survey : Survey
+    ax : matplotlib.axes.Axes, optional
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    fig, ax = _ax(ax, figsize=(10, 4))
+    for i, bid in enumerate(survey.beacon_ids):
+        m = (survey.beacon == bid) & ~survey.no_reply
+        ax.plot(survey.time[m], survey.range[m], ".", ms=2, color=f"C{i}", label=f"R{bid}")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("one-way range (m)")
+    ax.legend(loc="upper right", markerscale=5, fontsize="small")
+    ax.set_title("LBL ranges by beacon")
+    return fig
+
+
+def plot_colormap(*, ax=None, resolution=400):
+    """The three-value colour map of class probabilities (the paper's Fig. 8).
+
+    Every point of the triangle is a probability vector (p_dp, p_mp, p_ol),
+    coloured as :func:`class_colors` colours ranges: the corners are pure
+    direct path (blue), multipath (red) and outlier (green), and the colours
+    blend continuously in between.
+
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes, optional
+    resolution : int, default 400
+        Pixels along each side.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    fig, ax = _ax(ax, figsize=(5, 4.6))
+    h = np.sqrt(3) / 2
+    x, y = np.meshgrid(np.linspace(0, 1, resolution), np.linspace(0, h, resolution))
+    p_ol = y / h
+    p_mp = x - 0.5 * p_ol
+    p_dp = 1.0 - p_mp - p_ol
+    probs = np.stack([p_dp, p_mp, p_ol], axis=-1)
+    inside = np.all(probs >= -1e-9, axis=-1)
+    rgba = np.zeros((*x.shape, 4))
+    rgba[..., :3] = class_colors(np.clip(probs, 0, 1).reshape(-1, 3)).reshape(*x.shape, 3)
+    rgba[..., 3] = inside
+    ax.imshow(rgba, origin="lower", extent=(0, 1, 0, h), interpolation="bilinear")
+    ax.plot([0, 1, 0.5, 0], [0, 0, h, 0], color="k", lw=0.8)
+    for (px, py), text, va in (((0, 0), "direct path", "top"), ((1, 0), "multipath", "top"),
+                               ((0.5, h), "outlier", "bottom")):
+        ax.annotate(text, (px, py), ha="center", va=va, xytext=(0, -6 if va == "top" else 6),
+                    textcoords="offset points")
+    ax.set_xlim(-0.12, 1.12)
+    ax.set_ylim(-0.1, h + 0.1)
+    ax.set_aspect("equal")
+    ax.set_axis_off()
+    ax.set_title("class probability colour map")
+    return fig
+
+
+def plot_convergence(result, *, fig=None, truth=None):
+    """d0 and sigma_MP over the EM iterations (the paper's Figs. 10 and 11).
+
+    Parameters
+    ----------
+    result : EMResult
+    fig : matplotlib.figure.Figure, optional
+    truth : dict, optional
+        ``{"d0": .., "sigma_mp": ..}`` drawn as dashed lines.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    if fig is None:
+        fig = plt.figure(figsize=(9, 3.4), layout="constrained")
+    ax1, ax2 = fig.subplots(1, 2)
+    it = np.arange(len(result.history["d0"]))
+    ax1.plot(it, result.history["d0"], ".-", color="tab:blue")
+    ax1.set_ylabel("d0, plane height above the beacon (m)")
+    ax2.semilogy(it, result.history["sigma_mp"], ".-", color="tab:red")
+    ax2.set_ylabel("sigma_MP (m)")
+    for ax, key in ((ax1, "d0"), (ax2, "sigma_mp")):
+        ax.set_xlabel("iteration")
+        if truth is not None and key in truth:
+            ax.axhline(truth[key], color="0.4", ls="--", lw=0.8, label="truth")
+            ax.legend(fontsize="small")
+    fig.suptitle(f"beacon {result.beacon}: convergence of the {result.method} EM")
+    return fig
+
+
+def plot_pol_sensitivity(sens, *, fig=None, truth=None):
+    """d0, sigma_MP and mean class probabilities against ``Pol`` (the paper's Fig. 12).
+
+    Parameters
+    ----------
+    sens : dict
+        From :func:`pol_sensitivity`.
+    fig : matplotlib.figure.Figure, optional
+    truth : dict, optional
+        ``{"d0": .., "sigma_mp": .., "weights": {..}}`` drawn as dashed lines.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    if fig is None:
+        fig = plt.figure(figsize=(11, 3.4), layout="constrained")
+    a, b, c = fig.subplots(1, 3)
+    a.plot(sens["pol"], sens["d0"], "o-", color="tab:blue")
+    mid = float(np.median(sens["d0"]))
+    lo, hi = min(np.min(sens["d0"]), mid - 10.0), max(np.max(sens["d0"]), mid + 10.0)
+    a.set_ylim(lo - 1.0, hi + 1.0)  # at least 20 m: a 2 m wobble should look like one
+    a.set_ylabel("d0 (m)")
+    a.set_title("a: plane height", loc="left")
+    b.plot(sens["pol"], sens["sigma_mp"], "o-", color="tab:red")
+    b.set_ylabel("sigma_MP (m)")
+    b.set_title("b: multipath scatter", loc="left")
+    for cls, col in (("dp", "tab:blue"), ("mp", "tab:red"), ("ol", "tab:green")):
+        c.plot(sens["pol"], sens["p_" + cls], "o-", color=col, label=f"mean P({cls.upper()})")
+    c.set_ylabel("mean class probability")
+    c.set_ylim(0, 1)
+    c.set_title("c: class probabilities", loc="left")
+    c.legend(fontsize="small")
+    if truth is not None:
+        a.axhline(truth["d0"], color="0.4", ls="--", lw=0.8, label="truth")
+        b.axhline(truth["sigma_mp"], color="0.4", ls="--", lw=0.8, label="truth")
+        for cls, col in (("dp", "tab:blue"), ("mp", "tab:red"), ("ol", "tab:green")):
+            c.axhline(truth["weights"][cls], color=col, ls=":", lw=0.8)
+        a.legend(fontsize="small")
+    for ax in (a, b, c):
+        ax.set_xlabel("Pol")
+    fig.suptitle("Sensitivity of the paper's EM to Pol")
+    return fig
+
+
+def table_ii_markdown(survey_fit, *, truth=None) -> str:
+    """The per-beacon results as a Markdown table in the layout of the paper's Table II.
+
+    Parameters
+    ----------
+    survey_fit : SurveyFit
+    truth : dict, optional
+        ``Simulation.truth``: adds the true sigma_MP.
+
+    Returns
+    -------
+    str
+    """
+    t = survey_fit.table()
+    head = "| | " + " | ".join(f"beacon {b}" for b in t["beacon"]) + " |"
+    rows = [head, "|---|" + "---:|" * len(t),
+            "| HRP d0 (m) | " + " | ".join(f"{v:.1f}" for v in t["hrp_m"]) + " |",
+            "| sigma_MP (m) | " + " | ".join(f"{v:.2f}" for v in t["sigma_mp_m"]) + " |"]
+    if truth is not None:
+        rows.append("| true sigma_MP (m) | " + " | ".join(
+            f"{truth[b]['sigma_mp']:.2f}" for b in t["beacon"]) + " |")
+    rows += ["| beacon depth (m) | " + " | ".join(f"{v:.1f}" for v in t["beacon_depth_m"])
+             + " |",
+             "| fraction DP / MP / OL | " + " | ".join(
+                 f"{r.dp:.2f} / {r.mp:.2f} / {r.ol:.2f}" for r in t.itertuples()) + " |"]
+    return "\n".join(rows)
+
+
+def plot_table_ii(survey_fit, *, ax=None):
+    """Table II as a figure: fitted plane heights and sigma_MP beside the beacon depths.
+
+    Parameters
+    ----------
+    survey_fit : SurveyFit
+    ax : matplotlib.axes.Axes, optional
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    fig, ax = _ax(ax, figsize=(7, 1.8))
+    t = survey_fit.table()
+    cells = [[f"{v:.1f}" for v in t["hrp_m"]], [f"{v:.2f}" for v in t["sigma_mp_m"]],
+             [f"{v:.1f}" for v in t["beacon_depth_m"]]]
+    ax.table(cellText=cells, rowLabels=["HRP (m)", "sigma_MP (m)", "beacon depth (m)"],
+             colLabels=[f"beacon {b}" for b in t["beacon"]], loc="center", cellLoc="center")
+    ax.set_axis_off()
+    ax.set_title(f"Multipath identification results ({survey_fit.method} EM)")
+    return fig

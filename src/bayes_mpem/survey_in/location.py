@@ -1,0 +1,445 @@
+"""Locating a seafloor transponder from a ranging survey, by EM (straight rays).
+
+The survey-in every LBL deployment starts with, and what OBSrange does: the
+transponder position ``(east, north, depth)`` and the mean sound speed ``c``
+(and the turn-around time ``tat`` where it is not known) are estimated jointly
+with the class of every ping. Each two-way travel time is either a true
+arrival, ``N(2 |ship - transponder| / c + tat, sigma)``, or spurious, uniform
+over the observed window; spurious pings are weighted by their probability
+instead of cut by a threshold.
+
+E-step: class probabilities in log space. M-step: weighted nonlinear least
+squares for the geometry (``scipy.optimize.least_squares`` from the current
+point, so the weighted sum of squares does not increase), then ``sigma`` and the
+weight in closed form. The start is a Cauchy-loss robust fit from the drop
+point. Standard deviations are from the weighted Gauss-Newton information
+(approximate; the Bayesian version is for later).
+
+Spurious pings are uniform over the listening window or, with
+``outliers="first_arrival"``, only before the true arrival (a detector that
+reports the first threshold crossing); :func:`heldout_logpdf` compares the two
+by cross-validation.
+
+Refraction (rays bending through the sound-speed profile) is not modelled yet:
+``c`` is an effective straight-ray speed (the eigenray solver is in
+:mod:`bayes_mpem.acoustics`).
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+from scipy.optimize import least_squares
+
+from ..exceptions import InputError, LocateWarning
+from .travel_times import TravelTimes, ship_velocity, speed_basis
+
+#: Turn-around time used when the file gives none (s): the WHOI EdgeTech log's
+#: stated TAT; with it our CC03 fit matches OBSrange's solution (docs/measured-data.md).
+DEFAULT_TAT = 0.013
+
+
+@dataclass(frozen=True)
+class LocateResult:
+    """Transponder location from one survey.
+
+    Attributes
+    ----------
+    transponder : str
+    east, north, depth : float
+        Position in the survey's local frame (m; depth positive down).
+    sound_speed : float
+        Effective straight-ray sound speed (m/s); with a profile, the scaled
+        profile's harmonic mean from the transducer to the transponder; when
+        the speed varies in time, its mean over the pings.
+    tat : float
+        Turn-around time (s), fitted or as given.
+    sigma : float
+        Scatter of the true arrivals (s).
+    weight : float
+        Fraction of true arrivals.
+    sd : dict
+        Approximate standard deviations of ``east``, ``north``, ``depth``,
+        ``sound_speed`` (and ``tat`` when fitted).
+    p_true : numpy.ndarray
+        Probability that each ping is a true arrival (file order).
+    rows : numpy.ndarray
+        Positions of the pings in the input table.
+    n_iter : int
+    converged : bool
+    fit_tat : bool
+    outliers : str
+    window : tuple of float
+        The listening window of the spurious-ping density (s).
+    model : dict
+        How travel times were predicted: ``ssp`` (profile or None),
+        ``surface_depth``, ``earth_radius``, ``speed_intervals``, ``time_range``,
+        ``lag`` (s) and ``fit_lag``.
+    speed_coef : numpy.ndarray
+        The fitted speed parameter(s): the sound speed (m/s), or with a profile
+        the factor its speeds are scaled by; one per B-spline coefficient when
+        the speed varies in time.
+    """
+
+    transponder: str
+    east: float
+    north: float
+    depth: float
+    sound_speed: float
+    tat: float
+    sigma: float
+    weight: float
+    sd: dict
+    p_true: np.ndarray = field(repr=False)
+    rows: np.ndarray = field(repr=False)
+    n_iter: int = 0
+    converged: bool = True
+    fit_tat: bool = False
+    outliers: str = "uniform"
+    window: tuple = (0.0, 1.0)
+    model: dict = field(default_factory=dict, repr=False)
+    speed_coef: np.ndarray = field(default=None, repr=False)
+
+    @property
+    def refracted(self) -> bool:
+        """Whether travel times follow refracted rays through a profile."""
+        return self.model.get("ssp") is not None
+
+    def _model(self, pings):
+        x, y, z = (pings[c].to_numpy(float) for c in ("x", "y", "depth"))
+        m = self.model
+        basis = speed_basis(pings, m.get("speed_intervals", 0), m.get("time_range"))
+        lag = m.get("lag", 0.0)
+        tt = TravelTimes(x, y, z, self.tat, basis=basis, profile=m.get("ssp"),
+                          surface_depth=m.get("surface_depth", 0.0),
+                          earth_radius=m.get("earth_radius"), lag=lag,
+                          velocity=ship_velocity(pings) if lag else None)
+        coef = np.atleast_1d(self.sound_speed if self.speed_coef is None else self.speed_coef)
+        return tt, np.concatenate([[self.east, self.north, self.depth], coef])
+
+    def predict(self, pings: pd.DataFrame) -> np.ndarray:
+        """Predicted two-way travel time (s) of a true arrival for each ping.
+
+        Parameters
+        ----------
+        pings : pandas.DataFrame
+            ``x``, ``y``, ``depth`` of the ship transducer.
+
+        Returns
+        -------
+        numpy.ndarray
+        """
+        model, theta = self._model(pings)
+        return model.predict(theta)
+
+    def logpdf(self, pings: pd.DataFrame) -> np.ndarray:
+        """Log density (1/s) of each ping's two-way travel time under this fit.
+
+        Parameters
+        ----------
+        pings : pandas.DataFrame
+            ``twtt``, ``x``, ``y``, ``depth`` of this transponder's pings (e.g. held out).
+
+        Returns
+        -------
+        numpy.ndarray
+        """
+        t = pings["twtt"].to_numpy(float)
+        pred = self.predict(pings)
+        ld, lu = log_classes(t, pred, self.sigma, self.weight, self.window, self.outliers)
+        return np.logaddexp(ld, lu)
+
+    @property
+    def n_spurious(self) -> int:
+        """Pings more likely spurious than true."""
+        return int(np.sum(self.p_true < 0.5))
+
+    def interval(self, name: str, ci: float = 0.95) -> list:
+        """Approximate (Wald) interval of a parameter with probability ``ci``."""
+        from scipy.stats import norm
+
+        v = {"east": self.east, "north": self.north, "depth": self.depth,
+             "sound_speed": self.sound_speed, "tat": self.tat}[name]
+        half = norm.ppf(0.5 + ci / 2) * self.sd.get(name, 0.0)
+        return [v - half, v + half]
+
+    def to_dict(self, ci: float = 0.95) -> dict:
+        """JSON-ready summary; intervals are approximate (Wald, from the EM)."""
+        out = {k: {"mean": getattr(self, k), "sd": self.sd.get(k, 0.0),
+                   "interval": self.interval(k, ci)}
+               for k in ("east", "north", "depth", "sound_speed")}
+        out["tat"] = {"mean": self.tat, "sd": self.sd.get("tat", 0.0), "fitted": self.fit_tat}
+        if self.model.get("fit_lag"):
+            out["lag"] = {"mean": self.model["lag"], "sd": self.sd.get("lag", 0.0)}
+        out.update(sigma_ms=1e3 * self.sigma, weight_true=self.weight,
+                   n_spurious=self.n_spurious, n=int(self.p_true.size),
+                   iterations=self.n_iter, converged=self.converged, ci=ci)
+        return out
+
+
+OUTLIER_MODELS = ("uniform", "first_arrival")
+_EPS_LATE = 1e-3  # share of the first-arrival outlier density left over the whole window
+
+
+def log_classes(t, pred, sigma, weight, window, outliers):
+    """Weighted log densities (true, spurious) of travel times ``t`` given predictions."""
+    lo, hi = window
+    ld = np.log(weight) - 0.5 * ((t - pred) / sigma) ** 2 - np.log(sigma * np.sqrt(2 * np.pi))
+    if weight >= 1:
+        return ld, np.full_like(t, -np.inf)
+    width = max(hi - lo, 1e-9)
+    if outliers == "uniform":
+        lu = np.full_like(t, -np.log(width))
+    else:  # a detector reporting the first threshold crossing: spurious before the true arrival
+        early = np.maximum(pred - lo, 1e-6)
+        lu = np.where(t <= pred, np.log((1 - _EPS_LATE) / early + _EPS_LATE / width),
+                      np.log(_EPS_LATE / width))
+    return ld, np.log1p(-weight) + lu
+
+
+def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=None,
+           fit_tat=False, sound_speed=1500.0, outliers="uniform", window=None, ssp=None,
+           surface_depth=0.0, earth_radius=None, speed_intervals=0, time_range=None,
+           fit_lag=False, max_iter=200, tol=1e-10) -> LocateResult:
+    """Locate one transponder by EM from pings with two-way travel times.
+
+    Parameters
+    ----------
+    pings : pandas.DataFrame
+        ``beacon``, ``twtt`` (s), ``x``, ``y``, ``depth`` (ship transducer, m),
+        as :meth:`bayes_mpem.readers.RawSurvey.to_pings` returns (and ``time``,
+        s, for a time-varying sound speed).
+    beacons : pandas.DataFrame
+        ``beacon``, ``x``, ``y``, ``depth``: the starting position (drop point).
+    transponder : str, optional
+        Which beacon (default: the only one).
+    tat : float, optional
+        Turn-around time (s); default :data:`DEFAULT_TAT`. The start value when
+        ``fit_tat`` is true.
+    fit_tat : bool, default False
+        Fit the turn-around time too. On the OBSrange samples it is not
+        identifiable (it trades off against depth and sound speed: 2 sd of
+        depth ~290 m), and a :class:`LocateWarning` says so when that happens.
+    sound_speed : float, default 1500
+        Starting sound speed (m/s).
+    outliers : {"uniform", "first_arrival"}
+        Spurious pings uniform over the listening window (the simulator's
+        assumption), or uniform between the window start and the true arrival:
+        a detector that reports the first threshold crossing cannot report a
+        false detection after the true one (a share ``1e-3`` of the density
+        stays spread over the window).
+    window : tuple of float, optional
+        Listening window (s); default the smallest and largest travel time of
+        the transponder's pings.
+    ssp : SoundSpeedProfile, optional
+        Travel times along refracted eigenrays through this profile
+        (:mod:`bayes_mpem.acoustics`), its speeds scaled by one fitted factor,
+        instead of straight rays at one speed. ``sound_speed`` is then reported
+        as the scaled profile's harmonic mean from the mean transducer depth to
+        the transponder. The start is the straight-ray fit.
+    surface_depth : float, default 0
+        Depth, in the pings' frame, of the profile's 0 m (the sea surface).
+        SeaGap's heights are ellipsoidal: :func:`locate_survey` sets it.
+    earth_radius : float, optional
+        Take ``x, y`` as distances along a sphere of this radius (m) and depth
+        as below it, as SeaGap does; default: a Cartesian local frame.
+    speed_intervals : int, default 0
+        Let the sound speed (or the profile's scale) vary in time as a cubic
+        B-spline with this many equal intervals over ``time_range`` (0: one
+        constant speed). The ocean's sound speed changes over hours; GNSS-acoustic
+        processing models it the same way.
+    time_range : tuple of float, optional
+        Span of the B-spline (s); default the pings' own.
+    fit_lag : bool, default False
+        Fit a time lag (s) of the acoustic position behind the logged one: the
+        ship is taken at ``(x, y) + lag * velocity`` (:func:`ship_velocity`). It
+        stands for a position fix logged at another moment than the ping, or a
+        transducer ahead of the GPS antenna on a ship holding its course (the
+        two cannot be told apart on such a track).
+    max_iter : int, default 200
+    tol : float, default 1e-10
+        Stop when sigma (s) changes by less than this.
+
+    Returns
+    -------
+    LocateResult
+
+    Raises
+    ------
+    InputError
+        For a missing column, an unknown transponder or too few pings.
+    """
+    if outliers not in OUTLIER_MODELS:
+        raise ValueError(f"outliers: expected one of {OUTLIER_MODELS}, got {outliers!r}")
+    if not (isinstance(speed_intervals, (int, np.integer)) and speed_intervals >= 0):
+        raise ValueError(f"speed_intervals: expected an integer >= 0, got {speed_intervals!r}")
+    need = {"beacon", "twtt", "x", "y", "depth"}
+    missing = need - set(pings.columns)
+    if missing:
+        raise InputError(f"pings: missing column(s) {sorted(missing)} (expected {sorted(need)})")
+    ids = [str(b) for b in beacons["beacon"]]
+    if transponder is None:
+        if len(ids) != 1:
+            raise InputError(f"transponder: several in the beacons table ({ids}); name one")
+        transponder = ids[0]
+    if str(transponder) not in ids:
+        raise InputError(f"transponder {transponder!r} not in the beacons table {ids}")
+    start = beacons.loc[[i == str(transponder) for i in ids]].iloc[0]
+    sel = (pings["beacon"].astype(str) == str(transponder)).to_numpy()
+    rows = np.flatnonzero(sel)
+    if rows.size < 6 + speed_intervals:
+        raise InputError(f"transponder {transponder}: {rows.size} pings, need at least "
+                         f"{6 + speed_intervals}")
+    sub = pings.iloc[rows]
+    t = sub["twtt"].to_numpy(float)
+    x, y, z = (sub[c].to_numpy(float) for c in ("x", "y", "depth"))
+    if speed_intervals and "time" not in sub.columns:
+        raise InputError("pings: a time-varying sound speed needs a 'time' column (s)")
+    if time_range is None and speed_intervals:
+        time_range = (float(sub["time"].min()), float(sub["time"].max()))
+    basis = speed_basis(sub, speed_intervals, time_range)
+    k = basis.shape[1]
+    tat0 = DEFAULT_TAT if tat is None else float(tat)
+    geo = dict(fit_tat=fit_tat, surface_depth=surface_depth, earth_radius=earth_radius)
+    if fit_lag:
+        geo["velocity"] = ship_velocity(sub)
+    # the robust start: straight rays at one speed
+    model = TravelTimes(x, y, z, tat0, **geo)
+    theta = np.array([start["x"], start["y"], start["depth"], sound_speed]
+                     + ([tat0] if fit_tat else []), float)
+
+    def resid(th, w=None):
+        r = t - model.predict(th)
+        return r if w is None else np.sqrt(w) * r
+
+    def jac(th, w=None):
+        J = -model.jac(th)
+        return J if w is None else np.sqrt(w)[:, None] * J
+
+    x_scale = [10.0, 10.0, 10.0, 1.0] + ([1e-3] if fit_tat else [])
+    theta = least_squares(resid, theta, jac=jac, loss="cauchy", f_scale=2e-3,
+                          x_scale=np.array(x_scale)).x
+    speed0 = theta[3]
+    if ssp is not None:  # refracted rays from the straight-ray solution: c -> profile scale
+        speed0 /= float(ssp.harmonic_mean(np.mean(z) - surface_depth, theta[2] - surface_depth))
+    theta = np.concatenate([theta[:3], np.full(k, speed0), [0.0] if fit_lag else [],
+                            theta[4:]])
+    x_scale = np.array([10.0] * 3 + [abs(speed0) / 1500.0] * k + ([1.0] if fit_lag else [])
+                       + ([1e-3] if fit_tat else []))
+    model = TravelTimes(x, y, z, tat0, basis=basis, profile=ssp, fit_lag=fit_lag, **geo)
+    r = resid(theta)
+    sigma = max(1.4826 * float(np.median(np.abs(r - np.median(r)))), 1e-6)
+    weight = 0.9
+    window = (float(t.min()), float(t.max())) if window is None else tuple(map(float, window))
+    converged, it = False, 0
+    for it in range(1, max_iter + 1):
+        ld, lu = log_classes(t, t - r, sigma, weight, window, outliers)
+        p = 1.0 / (1.0 + np.exp(np.clip(lu - ld, -700.0, 700.0)))
+        theta = least_squares(resid, theta, jac=jac, args=(p,), x_scale=x_scale).x
+        r = resid(theta)
+        new = float(np.sqrt(np.sum(p * r * r) / p.sum()))
+        weight = float(np.clip(p.mean(), 1e-6, 1 - 1e-6))
+        done = abs(new - sigma) < tol
+        sigma = new
+        if done:
+            converged = True
+            break
+    J = jac(theta, p)
+    cov = np.linalg.pinv(J.T @ J) * sigma**2
+    sd = {name: float(np.sqrt(max(cov[i, i], 0.0)))
+          for i, name in enumerate(("east", "north", "depth"))}
+    # the reported speed: the mean over the pings (scaled profile: its harmonic mean)
+    g = basis.mean(axis=0)
+    unit = 1.0
+    if ssp is not None:
+        unit = float(ssp.harmonic_mean(np.mean(z) - surface_depth, theta[2] - surface_depth))
+    coef = theta[3:3 + k]
+    speed = float(g @ coef) * unit
+    sd["sound_speed"] = float(np.sqrt(max(g @ cov[3:3 + k, 3:3 + k] @ g, 0.0))) * unit
+    if fit_tat:
+        sd["tat"] = float(np.sqrt(max(cov[-1, -1], 0.0)))
+    lag = float(theta[3 + k]) if fit_lag else 0.0
+    if fit_lag:
+        sd["lag"] = float(np.sqrt(max(cov[3 + k, 3 + k], 0.0)))
+    n_bad = model.n_invalid(theta)
+    if n_bad:
+        warnings.warn(f"transponder {transponder}: {n_bad} of {t.size} pings have no refracted "
+                      "eigenray without a turning point; their travel times are the straight "
+                      "chord at the profile's mean speed", LocateWarning, stacklevel=2)
+    if not converged:
+        warnings.warn(f"transponder {transponder}: location EM did not converge in {it} "
+                      "iterations", LocateWarning, stacklevel=2)
+    if sd["depth"] > 50.0:
+        warnings.warn(f"transponder {transponder}: depth poorly constrained (sd {sd['depth']:.0f}"
+                      " m)" + ("; the turn-around time trades off against depth and sound "
+                               "speed: fix it (tat=...)" if fit_tat else ""),
+                      LocateWarning, stacklevel=2)
+    return LocateResult(
+        transponder=str(transponder), east=float(theta[0]), north=float(theta[1]),
+        depth=float(theta[2]), sound_speed=speed,
+        tat=float(theta[-1]) if fit_tat else tat0, sigma=sigma, weight=weight, sd=sd,
+        p_true=p, rows=rows, n_iter=it, converged=converged, fit_tat=fit_tat,
+        outliers=outliers, window=window,
+        model={"ssp": ssp, "surface_depth": float(surface_depth), "earth_radius": earth_radius,
+               "speed_intervals": int(speed_intervals), "time_range": time_range,
+               "lag": lag, "fit_lag": bool(fit_lag)},
+        speed_coef=coef.copy())
+
+
+def heldout_logpdf(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *,
+                   outliers="uniform", n_folds=5, folds="random", rng=0,
+                   **kwargs) -> np.ndarray:
+    """K-fold cross-validated log predictive density of every ping of one transponder.
+
+    Each fold is located from the other pings (same listening window: the
+    whole file's) and scores its own pings with :meth:`LocateResult.logpdf`.
+
+    Parameters
+    ----------
+    pings, beacons, transponder
+        As for :func:`locate`.
+    outliers : {"uniform", "first_arrival"}
+    n_folds : int, default 5
+    folds : {"random", "blocked"}
+        Pings assigned to folds at random, or in contiguous blocks of time (a
+        harder test for anything that varies in time: each block is predicted
+        from the others, not from its neighbours).
+    rng : None, int or numpy.random.Generator
+        Assigns the pings to random folds.
+    **kwargs
+        Passed to :func:`locate` (``tat``, ``sound_speed``, ...).
+
+    Returns
+    -------
+    numpy.ndarray
+        One value (log 1/s) per ping of the transponder, in table order.
+    """
+    from .._rng import as_generator
+
+    full = locate(pings, beacons, transponder, outliers=outliers, **kwargs)
+    sub = pings.iloc[full.rows]
+    if kwargs.get("fit_lag"):  # each fold's velocities from the whole track, not its own pings
+        vx, vy = ship_velocity(sub)
+        sub = sub.assign(vx=vx, vy=vy)
+    if folds == "random":
+        fold = as_generator(rng).permutation(np.arange(full.rows.size) % int(n_folds))
+    elif folds == "blocked":
+        if "time" not in sub.columns:
+            raise InputError("folds='blocked' needs a 'time' column in pings")
+        order = np.argsort(sub["time"].to_numpy(float), kind="stable")
+        fold = np.empty(full.rows.size, int)
+        fold[order] = np.arange(full.rows.size) * int(n_folds) // full.rows.size
+    else:
+        raise ValueError(f"folds: expected 'random' or 'blocked', got {folds!r}")
+    out = np.empty(full.rows.size)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LocateWarning)
+        for k in range(int(n_folds)):
+            test = fold == k
+            fit_k = locate(sub[~test], beacons, full.transponder, outliers=outliers,
+                           window=full.window, time_range=full.model["time_range"], **kwargs)
+            out[test] = fit_k.logpdf(sub[test])
+    return out

@@ -1,0 +1,412 @@
+"""Posterior of a transponder location jointly with the class of every ping (emcee).
+
+The same model as the location EM (:func:`bayes_mpem.locate.locate`): each two-way
+travel time is a true arrival, ``N(prediction, sigma)``, with probability
+``weight``, or spurious (uniform over the listening window, or before the true
+arrival); the walkers start from the EM solution. Parameters and priors:
+
+=====================  ========================================================
+``east, north, depth``  flat (improper)
+``speed`` (``_0...``)   the sound speed (m/s) or the profile's scale factor, one
+                        per B-spline coefficient when it varies in time; flat
+                        within +-10 % of the EM's value
+``tat``                 only when fitted: flat on ``[0, 1]`` s
+``log_sigma``           flat, i.e. ``p(sigma) ~ 1/sigma`` on ``[1e-6, 1]`` s
+``weight``              flat on ``(0, 1)``: ``Beta(1, 1)``, a ``Dirichlet(1, 1)``
+                        on the true and spurious weights
+=====================  ========================================================
+
+Travel times, vectorised over walkers and pings: straight rays are exact. Through
+a profile, the eigenray solve per walker and step is replaced by a ray-bending
+correction computed once, at the EM solution ``theta_0``: the one-way time is
+``L(theta) / v + delta``, ``L`` the straight chord (flat or on the sphere), ``v``
+the profile's harmonic mean at ``theta_0`` and ``delta = T_refracted - L / v``
+per ping. OBSrange holds ``delta`` fixed (``bending="fixed"``); by default
+(``bending="linear"``) it also follows its gradient at ``theta_0``, ``delta_0 +
+(grad T_refracted - grad L / v) . (position - position_0)``, from the same ray
+solve. On SeaGap (sigma 0.05 ms) the fixed correction is not enough: the
+log-likelihood at posterior draws is off by up to 2.7 nats, against 2e-4 with
+the gradient (:meth:`LocationLogPosterior.exact_loglik` solves the rays at any
+draw; ``tests/test_locate_bayes.py`` checks it).
+
+Sampling reuses :func:`bayes_mpem.bayes.run_ensemble`: it runs until the chain is
+50 autocorrelation times long and the smallest ESS, by emcee and by ArviZ's bulk
+estimate, reaches ``min_ess``; with differential-evolution moves only (emcee
+3.1.6's snooker move is biased, see ``_moves``).
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from dataclasses import dataclass, field
+
+import emcee
+import numpy as np
+import pandas as pd
+
+from .._rng import RNGLike, as_generator
+from ..exceptions import LocateWarning, SamplingWarning
+from ..mcmc import run_ensemble
+from .location import LocateResult
+from .posterior import (
+    PARAMS,
+    SIGMA_BOUNDS,
+    TAT_BOUNDS,
+    LocationLogPosterior,
+    check_location_options,
+)
+
+
+@dataclass(frozen=True)
+class LocationPosterior:
+    """Posterior of one transponder's location and of the class of each of its pings.
+
+    Attributes
+    ----------
+    transponder : str
+    names : tuple of str
+        The sampler's coordinates.
+    draws : dict
+        Thinned draws of each reported parameter (``east``, ``north``, ``depth``,
+        ``sound_speed`` m/s, ``sigma`` s, ``weight``, ``tat`` when fitted), shape
+        ``(walker, draw)``, and ``theta``: ``(walker, draw, ndim)`` in the
+        sampler's coordinates.
+    p_true, p_true_sd : numpy.ndarray
+        Per ping (table order of ``rows``): posterior mean and standard deviation
+        over the draws of the probability of being a true arrival.
+    rows : numpy.ndarray
+        Positions of the pings in the input table.
+    tau, ess, ess_bulk : dict
+        Per reported parameter, on the whole kept chain: emcee's integrated
+        autocorrelation time (steps), ``steps x walkers / tau``, and ArviZ's
+        rank-normalised bulk ESS (walkers as chains).
+    em : LocateResult
+        The EM fit the walkers started from.
+    diagnostics : dict
+        ``n_walkers``, ``n_steps``, ``burn``, ``thin``, ``n_draws``, ``converged``,
+        ``acceptance``, ``seconds``, ``min_ess``, ``travel_times``.
+    ci : float
+    """
+
+    transponder: str
+    names: tuple
+    draws: dict = field(repr=False)
+    p_true: np.ndarray = field(repr=False)
+    p_true_sd: np.ndarray = field(repr=False)
+    rows: np.ndarray = field(repr=False)
+    tau: dict = field(default_factory=dict)
+    ess: dict = field(default_factory=dict)
+    ess_bulk: dict = field(default_factory=dict)
+    em: LocateResult = field(default=None, repr=False)
+    diagnostics: dict = field(default_factory=dict)
+    ci: float = 0.95
+
+    @property
+    def params(self) -> tuple:
+        """The reported parameters present (``tat`` only when fitted)."""
+        return tuple(k for k in PARAMS if k in self.draws)
+
+    @property
+    def n_spurious(self) -> int:
+        """Pings whose posterior mean probability of being true is below 1/2."""
+        return int(np.sum(self.p_true < 0.5))
+
+    @property
+    def converged(self) -> bool:
+        """Whether the chain met its stopping rule before ``max_steps``."""
+        return bool(self.diagnostics.get("converged", False))
+
+    @property
+    def min_ess(self) -> float:
+        """Smallest ESS (emcee's and ArviZ's bulk) over the reported parameters."""
+        return float(min(min(self.ess.values()), min(self.ess_bulk.values())))
+
+    def mean(self, name: str) -> float:
+        """Posterior mean of a reported parameter."""
+        return float(np.mean(self.draws[name]))
+
+    def sd(self, name: str) -> float:
+        """Posterior standard deviation of a reported parameter."""
+        return float(np.std(self.draws[name], ddof=1))
+
+    def interval(self, name: str, ci: float | None = None) -> list:
+        """Equal-tailed posterior interval of a reported parameter with probability ``ci``."""
+        ci = self.ci if ci is None else float(ci)
+        lo, hi = np.quantile(np.ravel(self.draws[name]), [0.5 - ci / 2, 0.5 + ci / 2])
+        return [float(lo), float(hi)]
+
+    def describe(self, name: str, ci: float | None = None) -> dict:
+        """``mean``, ``sd`` and ``interval`` of a reported parameter."""
+        return {"mean": self.mean(name), "sd": self.sd(name), "interval": self.interval(name, ci)}
+
+    def to_dict(self, ci: float | None = None) -> dict:
+        """JSON-ready summary (equal-tailed intervals with probability ``ci``)."""
+        ci = self.ci if ci is None else float(ci)
+        out = {k: self.describe(k, ci) for k in ("east", "north", "depth", "sound_speed")}
+        if "tat" in self.draws:
+            out["tat"] = {**self.describe("tat", ci), "fitted": True}
+        else:
+            out["tat"] = {"mean": self.em.tat, "sd": 0.0, "fitted": False}
+        s = self.describe("sigma", ci)
+        out["sigma_ms"] = {"mean": 1e3 * s["mean"], "sd": 1e3 * s["sd"],
+                           "interval": [1e3 * v for v in s["interval"]]}
+        out["weight_true"] = self.describe("weight", ci)
+        out.update(n_spurious=self.n_spurious, n=int(self.p_true.size), ci=ci,
+                   interval_method="posterior", ess=dict(self.ess),
+                   ess_bulk=dict(self.ess_bulk), tau=dict(self.tau),
+                   diagnostics=dict(self.diagnostics))
+        return out
+
+    def to_inference_data(self):
+        """ArviZ data: ``posterior`` (walkers as chains) of the reported parameters.
+
+        Returns
+        -------
+        xarray.DataTree
+        """
+        import arviz_base as azb
+
+        with warnings.catch_warnings():
+            # walkers are ArviZ chains by design (emcee convention)
+            warnings.filterwarnings("ignore", message="Found chain dimension to be longer")
+            idata = azb.from_dict({"posterior": {k: self.draws[k] for k in self.params}})
+        idata.attrs.update({"transponder": self.transponder,
+                            "sampler": f"emcee {emcee.__version__}",
+                            "travel_times": self.diagnostics.get("travel_times", "")})
+        return idata
+
+
+def _moves():
+    # Differential evolution only. emcee 3.1.6's DESnookerMove (in bayes.py's default mix)
+    # weighs its Metropolis factor by (ndim - 1) / 2 instead of ndim - 1 and scales its
+    # step wrongly (fixed upstream in dfm/emcee#531): on SeaGap's 23-parameter posterior
+    # the mix gave depth sd 0.055 m where DE alone, the stretch move and the Laplace
+    # approximation give 0.066-0.067 m.
+    return [(emcee.moves.DEMove(), 1.0)]
+
+
+def _class_probs(post, flat, chunk=64):
+    """Mean and sd over draws of each ping's probability of being a true arrival."""
+    s1 = np.zeros(post.n)
+    s2 = np.zeros(post.n)
+    for i in range(0, flat.shape[0], chunk):
+        ld, lu = post._classes(flat[i:i + chunk])
+        p = 1.0 / (1.0 + np.exp(np.clip(lu - ld, -700.0, 700.0)))
+        s1 += p.sum(axis=0)
+        s2 += (p * p).sum(axis=0)
+    m = s1 / flat.shape[0]
+    return m, np.sqrt(np.maximum(s2 / flat.shape[0] - m * m, 0.0))
+
+
+def sample_location(pings: pd.DataFrame, fit: LocateResult, *, n_walkers: int | None = None,
+                    ci: float = 0.95, min_ess: float = 1000.0, max_steps: int = 20000,
+                    n_draws: int = 4000, bending: str = "linear", rng: RNGLike = None,
+                    progress="auto") -> LocationPosterior:
+    """Sample the posterior of a transponder location and its ping classes, from the EM fit.
+
+    Parameters
+    ----------
+    pings : pandas.DataFrame
+        The pings table ``fit`` was located from (``beacon``, ``twtt``, ``x``, ``y``,
+        ``depth``, and ``time`` for a time-varying speed).
+    fit : LocateResult
+        The EM fit (:func:`~bayes_mpem.locate.locate`): the model and the start.
+    n_walkers : int, optional
+        Default ``max(32, 2 ndim + 2)``, the least that lets differential
+        evolution reach every direction.
+    ci : float, default 0.95
+        Probability of the equal-tailed intervals.
+    min_ess : float, default 1000
+        Run until the smallest ESS of the sampled coordinates reaches this (by
+        emcee's ``steps x walkers / tau`` and ArviZ's bulk ESS) and the kept
+        chain is 50 autocorrelation times long; 0 for the second test alone.
+    max_steps : int, default 20000
+        Step cap (``SamplingWarning`` when reached first).
+    n_draws : int, default 4000
+        Draws kept (thinned evenly) for the summaries and the class probabilities.
+    bending : {"linear", "fixed"}
+        Refracted rays only: the ray-bending correction held fixed at the EM
+        solution (OBSrange's), or with its gradient there too (the default; see
+        :class:`LocationLogPosterior`).
+    rng : None, int or numpy.random.Generator
+        The only source of randomness: same seed, same chain.
+    progress : bool or "auto"
+        Progress bar (``"auto"``: when standard error is a terminal).
+
+    Returns
+    -------
+    LocationPosterior
+
+    Raises
+    ------
+    ValueError
+        For invalid options, or an EM solution outside the prior's support.
+
+    Warns
+    -----
+    SamplingWarning
+        When the chain reaches ``max_steps`` before its stopping rule.
+    """
+    import arviz_stats as azs
+
+    check_location_options(n_walkers=n_walkers, ci=ci, min_ess=min_ess, max_steps=max_steps,
+                           n_draws=n_draws)
+    if not isinstance(fit, LocateResult):
+        raise TypeError(f"fit: expected a LocateResult, got {type(fit).__name__}")
+    if fit.model.get("fit_lag") or fit.model.get("lag", 0.0):
+        raise ValueError(f"transponder {fit.transponder}: the posterior of a fit with a position "
+                         "lag (fit_lag=True) is not implemented; sample the fit without it")
+    gen = as_generator(rng)
+    post = LocationLogPosterior(pings, fit, bending=bending)
+    centre = post.theta_em()
+    if not np.isfinite(post.log_prior(centre[None]))[0]:
+        raise ValueError(f"transponder {fit.transponder}: the EM solution lies outside the "
+                         f"prior (sigma {fit.sigma:.3g} s in {SIGMA_BOUNDS}, weight "
+                         f"{fit.weight:.3g} in (0, 1), tat {fit.tat:.3g} s in {TAT_BOUNDS})")
+    least = 2 * post.ndim + 2  # each half's proposals span the other half's differences
+    n_walkers = int(max(32, least) if n_walkers is None else n_walkers)
+    if n_walkers < least:
+        raise ValueError(f"n_walkers: expected at least 2 x ({post.ndim} parameters + 1) = "
+                         f"{least} for transponder {fit.transponder}, got {n_walkers}")
+    t0 = time.perf_counter()
+    start = post.start(n_walkers, gen)
+    sampler, burn, _, converged, status = run_ensemble(
+        post, start, seed=int(gen.integers(2**63)), moves=_moves(), min_ess=float(min_ess),
+        max_steps=int(max_steps), progress=progress)
+    seconds = time.perf_counter() - t0
+    if not converged:
+        warnings.warn(f"transponder {fit.transponder}: the chain reached max_steps={max_steps} "
+                      f"before meeting its stopping rule: {status}; estimates may be unreliable",
+                      SamplingWarning, stacklevel=2)
+    chain = sampler.get_chain(discard=burn)  # (steps, walkers, ndim)
+    kept = chain.shape[0]
+
+    # per reported parameter, on the whole kept chain
+    nat = post.natural(chain)
+    tau, ess = {}, {}
+    for k, v in nat.items():
+        tau[k] = float(emcee.autocorr.integrated_time(v[:, :, None], tol=0, quiet=True)[0])
+        ess[k] = float(kept * n_walkers / tau[k])
+    names = [k for k in PARAMS if k in nat]
+    stack = np.stack([nat[k].T for k in names], axis=-1)  # (walker, step, param)
+    bulk = np.atleast_1d(azs.ess(stack, method="bulk", chain_axis=0, draw_axis=1))
+    ess_bulk = {k: float(b) for k, b in zip(names, bulk, strict=True)}
+
+    # thin evenly to about n_draws draws in all
+    per_chain = max(1, min(kept, int(np.ceil(n_draws / n_walkers))))
+    thin = max(1, kept // per_chain)
+    idx = np.arange(kept - (per_chain - 1) * thin - 1, kept, thin)[-per_chain:]
+    theta = np.swapaxes(chain[idx], 0, 1)  # (walker, draw, ndim)
+    draws = {k: np.ascontiguousarray(nat[k][idx].T) for k in names}
+    draws["theta"] = theta
+    flat = theta.reshape(-1, post.ndim)
+    p, p_sd = _class_probs(post, flat)
+    travel = ("straight rays (exact)" if post.profile is None else
+              "refracted rays: fixed ray-bending correction at the EM solution")
+    return LocationPosterior(
+        transponder=fit.transponder, names=post.names, draws=draws, p_true=p, p_true_sd=p_sd,
+        rows=np.asarray(fit.rows), tau=tau, ess=ess, ess_bulk=ess_bulk, em=fit,
+        diagnostics={"n_walkers": n_walkers, "n_steps": int(sampler.iteration),
+                     "burn": int(burn), "thin": int(thin), "n_draws": int(flat.shape[0]),
+                     "converged": bool(converged),
+                     "acceptance": float(np.mean(sampler.acceptance_fraction)),
+                     "seconds": float(seconds), "min_ess": float(min_ess),
+                     "travel_times": travel},
+        ci=float(ci))
+
+
+def _merge(em: dict, post: LocationPosterior, ci: float, header: dict) -> dict:
+    """A transponder's summary entry: the posterior's, the EM's kept under ``em``."""
+    from ..io.geodesy import enu_to_geodetic
+
+    d = post.to_dict(ci)
+    out = {k: {**d[k], "interval_method": "posterior"}
+           for k in ("east", "north", "depth", "sound_speed")}
+    out["tat"] = {**d["tat"], **({"interval_method": "posterior"} if post.em.fit_tat else {})}
+    out.update(sigma_ms=d["sigma_ms"]["mean"], weight_true=d["weight_true"]["mean"],
+               n_spurious=d["n_spurious"], n=d["n"], ci=ci, interval_method="posterior",
+               converged=post.converged)
+    if em.get("lat") is not None:
+        out["lat"], out["lon"], _ = enu_to_geodetic(d["east"]["mean"], d["north"]["mean"], 0.0,
+                                                    header["lat"], header["lon"])
+    else:
+        out["lat"] = out["lon"] = None
+    out["posterior"] = {"sigma_ms": d["sigma_ms"], "weight_true": d["weight_true"],
+                        "ess": d["ess"], "ess_bulk": d["ess_bulk"], "tau": d["tau"],
+                        "diagnostics": d["diagnostics"]}
+    out["em"] = em
+    return out
+
+
+def locate_survey_bayes(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", ssp=None,
+                        speed_intervals=0, n_walkers=None, min_ess=1000.0, max_steps=20000,
+                        rng: RNGLike = None, progress="auto"):
+    """Locate every transponder of a survey by EM, then sample each one's posterior.
+
+    Parameters
+    ----------
+    raw : RawSurvey
+    tat, fit_tat, ci, outliers, ssp, speed_intervals
+        As for :func:`~bayes_mpem.locate.locate_survey`.
+    n_walkers, min_ess, max_steps, progress
+        As for :func:`sample_location`.
+    rng : None, int or numpy.random.Generator
+        Seeds every transponder's chain (one stream, in table order).
+
+    Returns
+    -------
+    summary : dict
+        As :func:`~bayes_mpem.locate.locate_survey`'s, each transponder's
+        ``east``, ``north``, ``depth``, ``sound_speed`` (posterior mean, sd and
+        equal-tailed interval, ``"interval_method": "posterior"``), ``n_spurious``,
+        ``sigma_ms``, ``weight_true`` from the posterior, its ESS and
+        diagnostics under ``posterior`` and the EM's entry under ``em``.
+    classified : pandas.DataFrame
+        As ``locate_survey``'s, with ``p_true``, ``p_spurious`` and ``label`` from
+        the posterior and a ``p_true_sd`` column.
+    posteriors : dict
+        :class:`LocationPosterior` per transponder.
+    """
+    from .location import DEFAULT_TAT, locate
+    from .survey import locate_survey, survey_profile
+
+    check_location_options(n_walkers=n_walkers, ci=ci, min_ess=min_ess, max_steps=max_steps)
+    gen = as_generator(rng)
+    summary, cls = locate_survey(raw, tat=tat, fit_tat=fit_tat, ci=ci, outliers=outliers,
+                                 ssp=ssp, speed_intervals=speed_intervals)
+    # the EM fits again, with locate_survey's own settings (it returns no LocateResult)
+    if tat is None:
+        tat = raw.header.get("tat", 0.0 if raw.format == "seagap" else DEFAULT_TAT)
+    pings, beacons = raw.to_pings()
+    prof = survey_profile(raw, ssp)
+    geo = summary["geometry"]
+    p_true = cls["p_true"].to_numpy(float).copy()
+    p_sd = np.full(len(cls), np.nan)
+    line_pos = pd.Series(np.arange(len(cls)), index=cls["line"].to_numpy())
+    posteriors = {}
+    for tid in beacons["beacon"].astype(str):
+        with warnings.catch_warnings():  # locate_survey has already warned
+            warnings.simplefilter("ignore", LocateWarning)
+            fit = locate(pings, beacons, tid, tat=tat, fit_tat=fit_tat, outliers=outliers,
+                         ssp=prof, speed_intervals=speed_intervals, **geo)
+        em = summary["transponders"][tid]
+        if abs(fit.depth - em["depth"]["mean"]) > 1e-6 * max(1.0, abs(fit.depth)):
+            raise RuntimeError(f"transponder {tid}: the EM refit differs from locate_survey's "
+                               f"({fit.depth} against {em['depth']['mean']} m)")
+        post = sample_location(pings, fit, n_walkers=n_walkers, ci=ci, min_ess=min_ess,
+                               max_steps=max_steps, rng=gen, progress=progress)
+        posteriors[tid] = post
+        summary["transponders"][tid] = _merge(em, post, ci, raw.header)
+        at = line_pos.loc[pings["line"].to_numpy()[post.rows]].to_numpy()
+        p_true[at], p_sd[at] = post.p_true, post.p_true_sd
+    cls = cls.copy()
+    pinged = cls["label"] != "skipped"
+    cls["p_true"], cls["p_spurious"] = p_true, 1.0 - p_true
+    cls.loc[pinged, "label"] = np.where(p_true[pinged] >= 0.5, "true", "spurious")
+    cls.insert(cls.columns.get_loc("p_spurious") + 1, "p_true_sd", p_sd)
+    summary["method"] = (summary["method"].split(";")[0]
+                         + "; emcee posterior from the EM solution, equal-tailed intervals")
+    summary["interval_method"] = "posterior"
+    summary["ci"] = ci
+    return summary, cls, posteriors

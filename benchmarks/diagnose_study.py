@@ -34,7 +34,7 @@ import independent_generator as indep  # noqa: E402
 from _report import machine  # noqa: E402
 
 from bayes_mpem.lbl.diagnosis.driver import diagnose  # noqa: E402
-from bayes_mpem.lbl.diagnosis.model import EFFECTS  # noqa: E402
+from bayes_mpem.lbl.effects import EFFECTS  # noqa: E402
 from bayes_mpem.lbl.simulate import simulate_survey  # noqa: E402
 
 RANGES = {"range_bias": (1.0, 15.0), "sound_speed": (0.002, 0.02), "plane_drift": (3.0, 12.0),

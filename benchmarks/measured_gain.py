@@ -4,7 +4,7 @@ For every transponder of the OBSrange samples and of the SeaGap example, the
 simulation's assumptions (straight rays, one sound speed, spurious pings uniform
 over the window; a flat local frame) are the baseline, and each extension is
 scored against it by 5-fold cross-validated log predictive density per ping
-(:func:`bayes_mpem.locate.heldout_logpdf`; paired differences summed over the
+(:func:`bayes_mpem.survey_in.heldout.heldout_logpdf`; paired differences summed over the
 pings, with their standard error), with random folds and with folds that are
 contiguous blocks of time. Also: residual rms, pings that change class, and how
 far the transponder estimate moves.
@@ -29,7 +29,8 @@ from _report import machine, write_section  # noqa: E402
 
 from bayes_mpem.exceptions import LocateWarning  # noqa: E402
 from bayes_mpem.io.formats import read_survey  # noqa: E402
-from bayes_mpem.survey_in.location import heldout_logpdf, locate  # noqa: E402
+from bayes_mpem.survey_in.heldout import heldout_logpdf  # noqa: E402
+from bayes_mpem.survey_in.location import locate  # noqa: E402
 from bayes_mpem.survey_in.survey import SEAGAP_TRANSDUCER_DEPTH, survey_profile  # noqa: E402
 
 DATA = ROOT / "data"

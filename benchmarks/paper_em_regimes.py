@@ -726,9 +726,10 @@ def render(results, args, runtime, explanation):
         f"- Runtime: {runtime:.0f} s on 1 core; {n_fits} fits",
         f"- Seeds: {args.seed0} .. {args.seed0 + n - 1} ({n} per cell); random preset seeds "
         f"{args.seed0} .. {args.seed0 + args.random_seeds - 1}",
-        f"- bayes_mpem {bm.__version__}, numpy {np.__version__}; em.py sha256 "
-        f"{file_hash(src / 'em.py')}, simulate.py {file_hash(src / 'simulate.py')}, "
-        f"geometry.py {file_hash(src / 'geometry.py')}",
+        f"- bayes_mpem {bm.__version__}, numpy {np.__version__}; lbl/em_paper.py sha256 "
+        f"{file_hash(src / 'lbl' / 'em_paper.py')}, lbl/simulate.py "
+        f"{file_hash(src / 'lbl' / 'simulate.py')}, lbl/geometry.py "
+        f"{file_hash(src / 'lbl' / 'geometry.py')}",
         f"- Success: |d0 - true d0| < {SUCCESS_M:g} m. Failure modes (first rule that "
         f"matches): **broad** = broad fixed point, sigma_MP > {BROAD_M:g} m; **captured** = "
         f"captured by the direct path, d0 within {CAPTURE_M:g} m of the median of "

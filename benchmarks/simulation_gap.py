@@ -8,9 +8,9 @@ Run from the repository root::
 For each measured survey (the four OBSrange deck-box logs and the four SeaGap
 transponders) every transponder is located by EM with straight rays and one
 sound speed, ``N`` replicates are simulated under the simulator's assumptions
-from the located fit (same track; ``bayes_mpem.simcheck.simulate_like``), each
+from the located fit (same track; ``bayes_mpem.survey_in.simcheck.simulate_like``), each
 replicate is located in the same way, and the statistics of
-``bayes_mpem.simcheck.gap_statistics`` are compared (Monte-Carlo p-values).
+``bayes_mpem.survey_in.gap_statistics.gap_statistics`` are compared (Monte-Carlo p-values).
 Beside that, the part of refracted travel times (through the survey's profile)
 that a straight-ray fit cannot absorb is computed for every ping
 (``simcheck.refracted_twtt`` and ``simcheck.unabsorbed``).
@@ -409,7 +409,7 @@ def main(argv=None):
     L = ["# What the simulation gets wrong: measured against simulated residuals", "",
          f"Produced by `{cmd}` on {dt.date.today().isoformat()} ({total:.0f} s on this machine; "
          f"{n_sim} replicates per survey, seeds {SEED}-{SEED + len(SURVEYS) - 1}). Library: "
-         "`bayes_mpem.simcheck`; tests: `tests/test_simcheck.py`.", "",
+         "`bayes_mpem.survey_in.simcheck`; tests: `tests/test_simcheck.py`.", "",
          "## Method", "",
          "Every transponder of the five measured surveys is located by `locate` (EM, straight "
          "rays, one sound speed, spurious pings uniform over the listening window). The "
@@ -437,7 +437,7 @@ def main(argv=None):
          "`sum n_b mean_b^2 / s^2`, with `s^2` the mean squared residual. For independent "
          f"noise before any fit it would be chi-square with {N_BINS} degrees of freedom; "
          "the simulated column shows what it is after the fit. Full definitions are in the "
-         "`bayes_mpem.simcheck` docstring.", "",
+         "`bayes_mpem.survey_in.simcheck` docstring.", "",
          "Refraction is computed for every ping: the two-way time along the refracted "
          "eigenray, at the located position, through the survey's profile. The profiles are "
          "SeaGap's `ss_prof.inp` (the sea surface 3 m above the mean transducer), OBSrange's "

@@ -19,10 +19,12 @@ from bayes_mpem.cli.main import main
 from bayes_mpem.exceptions import InputError
 from bayes_mpem.lbl.diagnosis.driver import diagnose
 from bayes_mpem.lbl.diagnosis.ecm import fit_joint
-from bayes_mpem.lbl.diagnosis.model import EFFECTS, ranges
+from bayes_mpem.lbl.diagnosis.model import ranges
+from bayes_mpem.lbl.effects import EFFECTS
 from bayes_mpem.lbl.em_mixture import fit_mixture_em
 from bayes_mpem.lbl.simulate import simulate_survey
 from bayes_mpem.lbl.survey import fittable_beacons
+from bayes_mpem.report import write_figures
 
 sys.path.insert(0, str(Path(__file__).parent))
 import independent_generator as indep  # noqa: E402
@@ -118,6 +120,8 @@ def test_nav_drift_direction_and_json(tmp_path):
     (e,) = result.effects
     assert e.detail["direction_deg"] == pytest.approx(120.0, abs=5.0)
     paths = result.write(tmp_path)
+    assert set(paths) == {"diagnosis"}  # data only: the figures are the report's job
+    paths.update({p.stem: p for p in write_figures(result, tmp_path)})
     doc = json.loads(paths["diagnosis"].read_text())
     eff = doc["effects"][0]
     assert {"name", "magnitude", "unit", "beacons", "delta_elpd", "evidence"} <= set(eff)

@@ -99,3 +99,35 @@ def test_table_like_table_ii(sim):
     np.testing.assert_allclose(t["hrp_m"], t["beacon_depth_m"], atol=3.0)
     text = res.format_table()
     assert "HRP d0 (m)" in text and "2392.0" in text
+
+
+def test_one_survey_loop_skips_with_reason_and_warns_at_the_caller(sim):
+    """over_beacons: too few replies first ("left unfitted"), then skip_on ("left unsampled")."""
+    from bayes_mpem.exceptions import UnusableStartError
+    from bayes_mpem.lbl.survey import over_beacons
+
+    def analyse(data):
+        if data.beacon == "2":
+            raise UnusableStartError("beacon 2: EM start outside the prior")
+        return data.n
+
+    with pytest.warns(SkippedBeaconWarning) as record:
+        results, skipped = over_beacons(sim.survey, 30, analyse, skip_on=(UnusableStartError,))
+    assert list(results) == ["1", "3", "4"] and list(skipped) == ["2"]
+    assert skipped["2"] == "beacon 2: EM start outside the prior"
+    assert str(record[0].message).endswith("; left unsampled")
+    with pytest.raises(UnusableStartError):
+        over_beacons(sim.survey, 30, analyse)
+    with pytest.warns(SkippedBeaconWarning, match="left unfitted") as record:
+        bm.fit(sim.survey, min_pings=10**6)
+    assert {r.filename for r in record} == {__file__}  # points at the caller of fit
+
+
+def test_results_write_the_same_bytes_through_the_one_writer(sim, tmp_path):
+    import json as json_
+
+    res = bm.fit(sim.survey, rng=0)
+    paths = res.write(tmp_path)
+    assert paths["summary"].read_text() == json_.dumps(res.summary(), indent=2) + "\n"
+    assert paths["history"].read_text() == json_.dumps(res.history(), indent=None) + "\n"
+    assert res.to_dict() == res.summary()

@@ -9,7 +9,8 @@ import pytest
 from bayes_mpem.exceptions import InputError, LocateWarning
 from bayes_mpem.io.formats import read_survey
 from bayes_mpem.io.geodesy import enu_to_geodetic, geodetic_to_enu
-from bayes_mpem.survey_in.location import heldout_logpdf, locate
+from bayes_mpem.survey_in.heldout import heldout_logpdf
+from bayes_mpem.survey_in.location import locate
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "obsrange"
 FILES = [("SIO_CC03.txt", "obsrange-sio"), ("SIO_EC03.txt", "obsrange-sio"),
@@ -134,7 +135,7 @@ def test_locate_command_with_the_model_options(tmp_path):
 
 
 def _cv_gain(name, fmt):
-    from bayes_mpem.survey_in.location import heldout_logpdf
+    from bayes_mpem.survey_in.heldout import heldout_logpdf
 
     raw = read_survey(DATA / name, fmt)
     pings, beacons = raw.to_pings()
@@ -256,3 +257,67 @@ def test_bad_model_options_are_refused():
         locate(pings, beacons, speed_intervals=2)
     with pytest.raises(ValueError, match="folds"):
         heldout_logpdf(pings, beacons, folds="sideways")
+
+
+# ------------------------------------------------------- travel times: chord and turning rays
+
+def test_chord_forms_agree():
+    from bayes_mpem.survey_in.travel_times import chord
+
+    rng = np.random.default_rng(4)
+    x, y, z = rng.uniform(-3000, 3000, 50), rng.uniform(-3000, 3000, 50), rng.uniform(0, 10, 50)
+    for R in (None, 6.37e6):
+        L = chord(x, y, z, 12.0, -30.0, 4000.0, R)
+        L2, *d = chord(x, y, z, 12.0, -30.0, 4000.0, R, derivatives=True)
+        np.testing.assert_allclose(L, L2, rtol=1e-14)
+        eps = 1e-3
+        for i, grad in enumerate(d):
+            hi, lo = [12.0, -30.0, 4000.0], [12.0, -30.0, 4000.0]
+            hi[i] += eps
+            lo[i] -= eps
+            num = (chord(x, y, z, *hi, R) - chord(x, y, z, *lo, R)) / (2 * eps)
+            np.testing.assert_allclose(grad, num, atol=1e-7)
+    # vectorised over walkers: (W, 1) columns give (W, n)
+    W = chord(x, y, z, np.zeros((3, 1)), np.zeros((3, 1)), np.full((3, 1), 4000.0))
+    assert W.shape == (3, 50)
+
+
+def test_travel_times_turning_rays():
+    """Rays that must turn are solved (not the chord at the mean speed), with exact slopes."""
+    from bayes_mpem.acoustics.profile import SoundSpeedProfile
+    from bayes_mpem.acoustics.turning import direct_times
+    from bayes_mpem.survey_in.travel_times import TravelTimes
+
+    prof = SoundSpeedProfile([0.0, 5000.0], [1450.0, 1530.0])
+    x = np.array([3000.0, 2500.0, 200.0])
+    y = np.array([0.0, 400.0, 100.0])
+    z = np.array([2390.0, 2395.0, 2000.0])
+    tt = TravelTimes(x, y, z, 0.0, profile=prof)
+    theta = np.array([10.0, -20.0, 2400.0, 1.0])
+    rays = direct_times(prof, z, 2400.0, np.hypot(x - 10.0, y + 20.0))
+    assert rays.turning[:2].all() and not rays.turning[2]
+    assert tt.n_invalid(theta) == 0
+    np.testing.assert_allclose(tt.predict(theta), 2 * rays.time, rtol=1e-12)
+    J = tt.jac(theta)
+    for i in range(3):
+        step = np.zeros(4)
+        step[i] = 0.05  # the rays are solved to 1e-9 of their run: keep the step large
+        num = (TravelTimes(x, y, z, 0.0, profile=prof).predict(theta + step)
+               - TravelTimes(x, y, z, 0.0, profile=prof).predict(theta - step)) / 0.1
+        np.testing.assert_allclose(J[:, i], num, rtol=1e-4, atol=2e-8)
+    # the depth slope of a turning ray: moving the transponder down, towards the turning
+    # point, shortens it (the ray arrives from below)
+    assert J[0, 2] < 0
+
+
+def test_travel_times_no_ray_is_counted():
+    """A pair no eigenray joins (a speed maximum between the ends) is counted, not hidden."""
+    from bayes_mpem.acoustics.profile import SoundSpeedProfile
+    from bayes_mpem.survey_in.travel_times import TravelTimes
+
+    prof = SoundSpeedProfile([0.0, 1000.0, 2000.0], [1480.0, 1540.0, 1480.0])
+    tt = TravelTimes(np.array([20000.0, 100.0]), np.zeros(2), np.array([100.0, 100.0]), 0.0,
+                     profile=prof)
+    theta = np.array([0.0, 0.0, 1900.0, 1.0])
+    assert tt.n_invalid(theta) == 1
+    assert np.all(np.isfinite(tt.predict(theta)))

@@ -12,7 +12,7 @@ from bayes_mpem.exceptions import SamplingWarning
 from bayes_mpem.io.formats import read_survey
 from bayes_mpem.survey_in.location import locate
 from bayes_mpem.survey_in.location_sampling import LocationPosterior, sample_location
-from bayes_mpem.survey_in.posterior import LocationLogPosterior, _chord
+from bayes_mpem.survey_in.posterior import LocationLogPosterior
 from bayes_mpem.survey_in.survey import SEAGAP_TRANSDUCER_DEPTH, survey_profile
 
 DATA = Path(__file__).resolve().parents[1] / "data"
@@ -68,15 +68,17 @@ def test_log_likelihood_at_the_em_solution_is_the_em_s(outliers, fit_tat):
 
 @pytest.mark.parametrize("radius", [None, 6.371e6])
 def test_vectorised_chord_is_the_travel_time_model_s(radius):
-    from bayes_mpem.survey_in.travel_times import TravelTimes
+    """The chord over walkers (distance alone) is the ray model's (with derivatives)."""
+    from bayes_mpem.survey_in.travel_times import TravelTimes, chord
 
     rng = np.random.default_rng(1)
     x, y, z = rng.uniform(-3e3, 3e3, 30), rng.uniform(-3e3, 3e3, 30), rng.uniform(-20, 0, 30)
     tt = TravelTimes(x, y, z, 0.0, earth_radius=radius)
     pos = np.column_stack([rng.normal(0, 50, 5), rng.normal(0, 50, 5), 4000 + rng.normal(0, 5, 5)])
-    got = _chord(tt, pos[:, [0]], pos[:, [1]], pos[:, [2]])
+    got = chord(tt.x, tt.y, tt.z, pos[:, [0]], pos[:, [1]], pos[:, [2]], tt.R)
     for i, p in enumerate(pos):
-        np.testing.assert_allclose(got[i], tt._chord(*p)[0], rtol=1e-13)
+        np.testing.assert_allclose(got[i], chord(tt.x, tt.y, tt.z, *p, tt.R, derivatives=True)[0],
+                                   rtol=1e-13)
 
 
 # ------------------------------------------------------------------ simulated truth

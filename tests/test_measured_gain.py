@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from bayes_mpem.io.formats import read_survey
-from bayes_mpem.survey_in.location import heldout_logpdf, locate
+from bayes_mpem.survey_in.heldout import heldout_logpdf
+from bayes_mpem.survey_in.location import locate
 from bayes_mpem.survey_in.survey import SEAGAP_TRANSDUCER_DEPTH, survey_profile
 
 DATA = Path(__file__).resolve().parents[1] / "data"
@@ -78,8 +79,12 @@ def test_seagap_geometry_and_refraction_move_the_depths_towards_seagap_s_own():
     pings, beacons = raw.to_pings()
     from bayes_mpem.survey_in.survey import locate_survey
 
-    before, _ = locate_survey(raw)
-    after, _ = locate_survey(raw, ssp="survey", speed_intervals=15)
+    before = locate_survey(raw).summary
+    after_res = locate_survey(raw, ssp="survey", speed_intervals=15)
+    after = after_res.summary
+    with pytest.warns(DeprecationWarning, match="unpacking"):
+        summary, classified = after_res  # the old (summary, classified) pair still unpacks
+    assert summary is after and classified is after_res.classified
     for tid, b in beacons.set_index("beacon").iterrows():
         d0 = before["transponders"][str(tid)]["depth"]["mean"] - b["depth"]
         d1 = after["transponders"][str(tid)]["depth"]["mean"] - b["depth"]

@@ -164,3 +164,27 @@ def test_plot_command_errors(tmp_path, capsys):
     (tmp_path / "summary.json").write_text(json.dumps({"beacons": {}}))
     assert main(["plot", str(tmp_path)]) == 2
     assert "no 'beacons_table'" in capsys.readouterr().err
+
+
+def test_write_figures_dispatches_on_the_result_type(tmp_path):
+    import pandas as pd
+
+    from bayes_mpem.survey_in.result import SurveyInResult
+
+    located = SurveyInResult({"transponders": {}}, pd.DataFrame({"line": [1]}))
+    assert write_figures(located, tmp_path) == []
+    with pytest.raises(TypeError, match="got dict"):
+        write_figures({}, tmp_path)
+
+
+def test_results_and_library_never_import_plots_or_report():
+    import subprocess
+    import sys
+
+    code = ("import sys, bayes_mpem.lbl.comparison, bayes_mpem.lbl.diagnosis.result, "
+            "bayes_mpem.survey_in.survey; "
+            "print(sorted(m for m in sys.modules if m.startswith(('bayes_mpem.plots', "
+            "'bayes_mpem.report', 'bayes_mpem.cli'))))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout
+    assert out.strip() == "[]"

@@ -6,7 +6,7 @@ the multipath scatter ``sigma_MP``), with the paper's EM or a proper
 mixture-likelihood EM; sample the same likelihood with emcee for posterior
 intervals, and compare equal with learned mixing priors by PSIS-LOO; find which
 assumption a survey breaks (:func:`diagnose`); locate a transponder from a
-survey-in (:func:`locate`).
+survey-in (:func:`bayes_mpem.survey_in.location.locate`).
 
 The package has two wings, which never import each other: :mod:`bayes_mpem.lbl`
 (the paper's problem: one-way ranges to beacons at known positions) and
@@ -41,6 +41,13 @@ from .lbl.sampling import SurveyPosterior, sample  # noqa: E402
 from .lbl.simulate import Simulation, simulate_survey  # noqa: E402
 
 _deprecated.install()
+
+
+def __getattr__(name):
+    """Serve ``bayes_mpem.em`` and the other old module paths as attributes too."""
+    if name in _deprecated.MOVED:
+        return _deprecated.old_module(name)
+    raise AttributeError(f"module 'bayes_mpem' has no attribute {name!r}")
 
 __all__ = [
     "BeaconData",

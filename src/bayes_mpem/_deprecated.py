@@ -59,11 +59,11 @@ MOVED: dict[str, dict[str, str]] = {
     },
     'diagnose': {
         'Diagnosis': 'lbl.diagnosis.result',
-        'EFFECTS': 'lbl.diagnosis.model',
+        'EFFECTS': 'lbl.effects',
         'Effect': 'lbl.diagnosis.result',
         'JointFit': 'lbl.diagnosis.ecm',
         'MIN_SECOND_SHARE': 'lbl.diagnosis.evidence',
-        'UNITS': 'lbl.diagnosis.model',
+        'UNITS': 'lbl.effects',
         'covariates': 'lbl.diagnosis.residuals',
         'diagnose': 'lbl.diagnosis.driver',
         'fit_joint': 'lbl.diagnosis.ecm',
@@ -118,7 +118,7 @@ MOVED: dict[str, dict[str, str]] = {
         'SEAGAP_TRANSDUCER_DEPTH': 'survey_in.survey',
         'earth_radius': 'io.geodesy',
         'enu_to_geodetic': 'io.geodesy',
-        'heldout_logpdf': 'survey_in.location',
+        'heldout_logpdf': 'survey_in.heldout',
         'locate': 'survey_in.location',
         'locate_survey': 'survey_in.survey',
         'ship_velocity': 'survey_in.travel_times',
@@ -181,7 +181,7 @@ MOVED: dict[str, dict[str, str]] = {
     },
     'simulate': {
         'ABE58': 'lbl.presets',
-        'EFFECTS': 'lbl.simulate',
+        'EFFECTS': 'lbl.effects',
         'PRESETS': 'lbl.presets',
         'Simulation': 'lbl.simulate',
         'lawnmower_track': 'lbl.simulate',
@@ -192,7 +192,7 @@ MOVED: dict[str, dict[str, str]] = {
 
 
 def moved_attribute(old: str, name: str, new: str):
-    """The object ``name`` from its new module ``new``, warning that ``old`` moved.
+    """Return ``name`` from its new module ``new``, warning that ``old`` moved.
 
     Parameters
     ----------
@@ -227,6 +227,21 @@ class _MovedModule(types.ModuleType):
 
     def __dir__(self):
         return sorted(self._table)
+
+
+def old_module(old: str) -> types.ModuleType:
+    """Return the module object registered for the old path ``bayes_mpem.<old>``.
+
+    Parameters
+    ----------
+    old : str
+        A key of :data:`MOVED`, e.g. ``"em"``.
+
+    Returns
+    -------
+    types.ModuleType
+    """
+    return sys.modules.setdefault(f"bayes_mpem.{old}", _MovedModule(old))
 
 
 def install() -> None:

@@ -1,4 +1,10 @@
-"""Exceptions (moved from ``data``, ``em``, ``bayes``, ``fitting``, ``locate``)."""
+"""Every public exception and warning class of the package.
+
+Errors derive from ``ValueError`` (bad input, an unusable start); warnings from
+``UserWarning`` (a fit that did not converge or is not credible, a short
+chain, a skipped beacon, a poorly constrained location), so that callers can
+filter them by class.
+"""
 
 from __future__ import annotations
 

@@ -1,8 +1,11 @@
 """Figures and summaries written to an output folder, and reading such a folder back.
 
-``bayes-mpem plot RESULT_DIR`` is :func:`load_output` followed by
-:func:`write_figures`; ``demo``, ``fit --figures`` and ``sample --figures``
-call :func:`write_figures` directly.
+The command line writes a result's data with its ``write()`` and then its
+figures with :func:`write_figures`, which dispatches on the kind of result
+(fit, posterior, prior comparison, diagnosis). ``bayes-mpem plot RESULT_DIR``
+is :func:`load_output` followed by :func:`write_figures`; :func:`demo_markdown`
+is the ``summary.md`` of ``bayes-mpem demo``. Nothing here fits a model: data
+that figures need beyond the result (the paper's Fig. 12) are passed in.
 """
 
 from __future__ import annotations
@@ -18,12 +21,15 @@ import pandas as pd
 from .exceptions import InputError
 from .io.survey import load_survey
 from .io.tables import RESERVED_COLUMNS
+from .lbl.comparison import SurveyComparison
+from .lbl.diagnosis.result import Diagnosis
 from .lbl.em_result import EMResult
 from .lbl.fitting import SurveyFit
-from .lbl.pol_sensitivity import pol_sensitivity
+from .lbl.pol_sensitivity import POL_GRID
 from .lbl.sampling import SurveyPosterior
 from .mixture.densities import CLASSES
 from .plots import bayes as bayes_plots
+from .plots.diagnose import write_figures as write_diagnosis_figures
 from .plots.lbl import (
     plot_classification,
     plot_colormap,
@@ -33,10 +39,12 @@ from .plots.lbl import (
     plot_survey_classification,
     plot_table_ii,
     plot_track,
+    table_ii_markdown,
 )
+from .survey_in.result import SurveyInResult
 
-#: Pol values of the paper's Fig. 12 as drawn here.
-POL_GRID = (0.01, 0.02, 0.05, 0.1, 0.15, 0.2, 0.3)
+__all__ = ["POL_GRID", "demo_markdown", "figure_beacon", "load_output", "write_figures"]
+
 _ADDED = set(RESERVED_COLUMNS)
 
 
@@ -46,20 +54,52 @@ def _save(fig, path, dpi=110):
     return Path(path)
 
 
-def write_figures(result, out_dir, *, beacon=None, truth=None, general=True) -> list:
+def figure_beacon(survey_fit, beacon=None) -> str:
+    """Return the beacon of a fit's single-beacon figures (the paper's Figs. 7, 9-12).
+
+    Parameters
+    ----------
+    survey_fit : SurveyFit
+        With at least one fitted beacon.
+    beacon : str, optional
+        Default: the last fitted beacon (the paper uses its beacon 4).
+
+    Returns
+    -------
+    str
+
+    Raises
+    ------
+    ValueError
+        When ``beacon`` was not fitted.
+    """
+    b = beacon or list(survey_fit.results)[-1]
+    if b not in survey_fit.results:
+        raise ValueError(f"beacon: expected one of {sorted(survey_fit.results)}, got {b!r}")
+    return b
+
+
+def write_figures(result, out_dir, *, beacon=None, truth=None, general=True,
+                  sensitivity=None) -> list:
     """Write every figure that applies to ``result`` as PNG files.
 
     Parameters
     ----------
-    result : SurveyFit or SurveyPosterior
+    result : SurveyFit, SurveyPosterior, SurveyComparison, Diagnosis or SurveyInResult
+        A result with nothing to draw (no fitted beacon; a located survey)
+        writes no figure.
     out_dir : str or pathlib.Path
+        Created if missing.
     beacon : str, optional
-        Beacon of the single-beacon figures of a fit (the paper's Figs. 7, 9-12);
-        default: the last fitted beacon (the paper uses its beacon 4).
+        Beacon of the single-beacon figures of a fit (:func:`figure_beacon`).
     truth : dict, optional
-        ``Simulation.truth``, marked where a figure can show it.
+        ``Simulation.truth``, marked where a figure can show it (fits, posteriors).
     general : bool, default True
-        Also write the method-independent figures (Figs. 1, 5, 8, 12).
+        Fits: also write the method-independent figures (Figs. 1, 5, 8, and
+        12 when ``sensitivity`` is given).
+    sensitivity : dict, optional
+        Fits: :func:`~bayes_mpem.lbl.pol_sensitivity.survey_pol_sensitivity`
+        of the figure beacon, drawn as the paper's Fig. 12.
 
     Returns
     -------
@@ -69,47 +109,103 @@ def write_figures(result, out_dir, *, beacon=None, truth=None, general=True) -> 
     ------
     TypeError
         For another kind of result.
+    ValueError
+        When ``beacon`` was not fitted.
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    paths = []
     if isinstance(result, SurveyFit):
+        return _fit_figures(result, out, beacon=beacon, truth=truth, general=general,
+                            sensitivity=sensitivity)
+    if isinstance(result, SurveyPosterior):
+        return _posterior_figures(result, out, truth=truth)
+    if isinstance(result, SurveyComparison):
         if not result.results:
-            return paths
-        b = beacon or list(result.results)[-1]
-        if b not in result.results:
-            raise ValueError(f"beacon: expected one of {sorted(result.results)}, got {b!r}")
-        r = result.results[b]
-        if general:
-            paths.append(_save(plot_ranges(result.survey), out / "fig01_ranges.png"))
-            paths.append(_save(plot_track(result.survey), out / "fig05_track.png"))
-            paths.append(_save(plot_colormap(), out / "fig08_colormap.png"))
-            sens = pol_sensitivity(result.survey.for_beacon(b), POL_GRID,
-                                         sigma_dp=r.sigma_dp)
-            paths.append(_save(plot_pol_sensitivity(
-                sens, truth=None if truth is None else truth[b]),
-                out / f"fig12_pol_sensitivity_{b}.png"))
-        t = None if truth is None else truth[b]
-        figs = [(plot_classification(result, b, iteration="first"),
-                 f"fig07_first_iteration_{b}.png"),
-                (plot_classification(result, b), f"fig09_last_iteration_{b}.png"),
-                (plot_convergence(r, truth=t), f"fig10_11_convergence_{b}.png"),
-                (plot_survey_classification(result), "fig13_classification.png"),
-                (plot_table_ii(result), "table2.png")]
-        paths += [_save(fig, out / name) for fig, name in figs]
-    elif isinstance(result, SurveyPosterior):
-        if not result.results:
-            return paths
-        paths.append(_save(bayes_plots.plot_intervals(result, truth=truth), out / "intervals.png"))
-        for b, r in result.results.items():
-            paths.append(_save(bayes_plots.plot_trace(r), out / f"trace_{b}.png", dpi=90))
-            paths.append(_save(bayes_plots.plot_pair(r), out / f"pair_{b}.png", dpi=90))
-            paths.append(_save(bayes_plots.plot_class_uncertainty(result, b),
-                               out / f"classes_{b}.png"))
-    else:
-        raise TypeError(f"result: expected a SurveyFit or SurveyPosterior, got "
-                        f"{type(result).__name__}")
+            return []
+        return [_save(bayes_plots.plot_prior_comparison(result), out / "compare.png")]
+    if isinstance(result, Diagnosis):
+        return list(write_diagnosis_figures(result, out).values())
+    if isinstance(result, SurveyInResult):
+        return []
+    raise TypeError(f"result: expected a SurveyFit, SurveyPosterior, SurveyComparison, "
+                    f"Diagnosis or SurveyInResult, got {type(result).__name__}")
+
+
+def _fit_figures(result, out, *, beacon, truth, general, sensitivity):
+    if not result.results:
+        return []
+    b = figure_beacon(result, beacon)
+    r = result.results[b]
+    t = None if truth is None else truth[b]
+    paths = []
+    if general:
+        paths.append(_save(plot_ranges(result.survey), out / "fig01_ranges.png"))
+        paths.append(_save(plot_track(result.survey), out / "fig05_track.png"))
+        paths.append(_save(plot_colormap(), out / "fig08_colormap.png"))
+        if sensitivity is not None:
+            paths.append(_save(plot_pol_sensitivity(sensitivity, truth=t),
+                               out / f"fig12_pol_sensitivity_{b}.png"))
+    figs = [(plot_classification(result, b, iteration="first"),
+             f"fig07_first_iteration_{b}.png"),
+            (plot_classification(result, b), f"fig09_last_iteration_{b}.png"),
+            (plot_convergence(r, truth=t), f"fig10_11_convergence_{b}.png"),
+            (plot_survey_classification(result), "fig13_classification.png"),
+            (plot_table_ii(result), "table2.png")]
+    return paths + [_save(fig, out / name) for fig, name in figs]
+
+
+def _posterior_figures(result, out, *, truth):
+    if not result.results:
+        return []
+    paths = [_save(bayes_plots.plot_intervals(result, truth=truth), out / "intervals.png")]
+    for b, r in result.results.items():
+        paths.append(_save(bayes_plots.plot_trace(r), out / f"trace_{b}.png", dpi=90))
+        paths.append(_save(bayes_plots.plot_pair(r), out / f"pair_{b}.png", dpi=90))
+        paths.append(_save(bayes_plots.plot_class_uncertainty(result, b),
+                           out / f"classes_{b}.png"))
     return paths
+
+
+def demo_markdown(simulation, fit, paper, out_dir, figures, *, seed, posterior=None,
+                  comparison=None) -> str:
+    """Return the ``summary.md`` of ``bayes-mpem demo``.
+
+    Parameters
+    ----------
+    simulation : Simulation
+        The simulated survey (its ``survey`` and ``truth``).
+    fit, paper : SurveyFit
+        The mixture EM's and the paper's EM's fits.
+    out_dir : str or pathlib.Path
+        The demo's output folder; figure links are relative to it.
+    figures : sequence of pathlib.Path
+        Every figure written, linked in this order.
+    seed : int
+    posterior : SurveyPosterior, optional
+    comparison : SurveyComparison, optional
+        With ``posterior``: the Bayesian part, when it ran.
+
+    Returns
+    -------
+    str
+        Markdown, ending with a newline.
+    """
+    sim = simulation
+    md = ["# bayes-mpem demo", "",
+          f"Simulated ABE58-like survey (seed {seed}): {len(sim.survey)} pings to "
+          f"{len(sim.truth)} beacons. Truth: the sea surface, i.e. HRP = beacon depth.", "",
+          "## Table II, mixture EM", "", table_ii_markdown(fit, truth=sim.truth), "",
+          "## Table II, the paper's EM (Pol = 0.05, alpha = 0.5)", "",
+          table_ii_markdown(paper, truth=sim.truth), ""]
+    if posterior is not None:
+        md += ["## Posterior (learned priors)", "", "```", posterior.format_table(), "```", "",
+               "![intervals](bayes/intervals.png)", "",
+               "## Equal against learned priors", "", "```", comparison.format_table(), "```",
+               "", "![compare](compare/compare.png)", ""]
+    out = Path(out_dir)
+    md += ["## Figures", ""] + [f"![{p.stem}]({p.relative_to(out).as_posix()})"
+                                for p in figures]
+    return "\n".join(md) + "\n"
 
 
 def _read_json(path):

@@ -1,4 +1,4 @@
-"""Sound-speed profiles and refracted eigenrays through a layered ocean.
+"""Refracted eigenrays without a turning point through a layered ocean.
 
 Conventions: depth ``z`` positive down (m), sound speed ``c`` (m/s), times in
 seconds, horizontal distances in metres. A :class:`SoundSpeedProfile` is a list
@@ -22,7 +22,9 @@ The eigenray solvers find, for every source/receiver pair at once, the ``p``
 whose summed ``X`` equals the horizontal distance. ``X(p)`` increases with
 ``p`` up to ``1 / c_max`` (``c_max`` the fastest speed on the path, where the
 ray would turn horizontal); a longer horizontal distance needs a turning point
-and is reported as invalid (NaN), never approximated. The unknown is the
+and is reported as invalid (NaN), never approximated; such rays are solved by
+:func:`bayes_mpem.acoustics.turning.direct_times`, the solver the rest of the
+package calls for direct rays. The unknown is the
 grazing angle ``phi`` at the fastest point, ``p = cos(phi) / c_max``, so that
 both near-vertical and near-horizontal rays are resolved to full precision;
 the step is Newton's (from the analytic ``dX/dp``) inside a bisection bracket.
@@ -59,25 +61,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._validate import check_int, check_positive
+from .layers import Legs
 from .profile import SoundSpeedProfile
 
 _CHUNK = 1 << 15  # array elements per block of rays (keeps the temporaries in cache)
 
 
-
-
-def _artanh_ratio(x):
-    """``artanh(x) / x``, 1 at ``x = 0`` (series below ``|x| = 0.01``, error < 1e-20)."""
-    x2 = x * x
-    if x2.size and x2.max() < 1e-8:  # |x| < 1e-4: two terms are exact to 2e-17
-        x2 *= 1 / 3
-        x2 += 1.0
-        return x2
-    out = 1.0 + x2 * (1 / 3 + x2 * (1 / 5 + x2 * (1 / 7 + x2 / 9)))
-    big = np.abs(x) >= 1e-2
-    if big.any():
-        out[big] = np.arctanh(x[big]) / x[big]
-    return out
 
 
 # --------------------------------------------------------------------------- eigenrays
@@ -107,126 +97,6 @@ class Eigenray:
     arrival_angle: np.ndarray = field(repr=False)
     valid: np.ndarray = field(repr=False)
     kind: str = "direct"
-
-
-class _Legs:
-    """Vertical legs ``[top, bot]`` of a block of rays, as per-ray knot arrays.
-
-    For each leg: ``C`` (rays x knots) the speeds at the leg's knots (its ends and
-    the profile knots strictly inside, the rest clipped to an end, giving layers
-    of zero thickness), ``H`` the layer thicknesses, ``A = H (c0 + c1)``, and
-    ``B = 1 - (c/c_max)**2`` (exactly 0 at the fastest knot), ``R2 = (c/c_max)**2``
-    so that ``s = sqrt(B + R2 sin(phi)**2)`` with no cancellation at grazing.
-    """
-
-    def __init__(self, profile, legs):
-        self.C, self.H = [], []
-        z, c = profile._rz, profile._rc
-        for top, bot in legs:
-            inside = (z > top.min()) & (z < bot.max())
-            zk, ck = z[inside], c[inside]
-            n, m = top.size, zk.size
-            t, b = top[:, None], bot[:, None]
-            zc = np.empty((n, m + 2))
-            zc[:, :1], zc[:, -1:] = t, b
-            np.clip(zk, t, b, out=zc[:, 1:-1])
-            cc = np.empty((n, m + 2))
-            cc[:, 0], cc[:, -1] = profile.speed(top), profile.speed(bot)
-            mid = cc[:, 1:-1]
-            mid[:] = ck
-            np.copyto(mid, cc[:, :1], where=zk <= t)
-            np.copyto(mid, cc[:, -1:], where=zk >= b)
-            self.C.append(cc)
-            self.H.append(np.diff(zc, axis=1))
-        self.cmax = np.max([cc.max(axis=1) for cc in self.C], axis=0)
-        m = self.cmax[:, None]
-        self.A, self.B, self.R2 = [], [], []
-        for cc, hh in zip(self.C, self.H, strict=True):
-            a = cc[:, :-1] + cc[:, 1:]
-            a *= hh
-            self.A.append(a)
-            bb = m - cc
-            bb *= m + cc
-            bb *= 1.0 / (m * m)
-            self.B.append(bb)
-            r2 = cc * (1.0 / m)
-            r2 *= r2
-            self.R2.append(r2)
-
-    def take(self, idx, names=("C", "H", "A", "B", "R2")):
-        new = object.__new__(_Legs)
-        for name in names:
-            setattr(new, name, [a[idx] for a in getattr(self, name)])
-        new.cmax = self.cmax[idx]
-        return new
-
-    def cosines(self, sin2):
-        """``s = cos(theta)`` at every knot for grazing angles with ``sin(phi)**2 = sin2``."""
-        out = []
-        for b, r2 in zip(self.B, self.R2, strict=True):
-            s = np.multiply(r2, sin2[:, None])
-            s += b
-            out.append(np.sqrt(s, out=s))
-        return out
-
-    def cosines_from_p(self, p):
-        """``s`` at every knot for ray parameters ``p`` (0 where ``p c >= 1``)."""
-        out = []
-        for cc in self.C:
-            pc = p[:, None] * cc
-            out.append(np.sqrt(np.maximum((1.0 - pc) * (1.0 + pc), 0.0)))
-        return out
-
-    def sums(self, S, deriv=True, safe=False):
-        """``sum A / (s0 + s1)`` (= X / p) and ``sum A / ((s0 + s1) s0 s1)`` (= dX/dp).
-
-        ``safe``: count zero-thickness layers as 0 even where both their ends
-        graze (``s0 = s1 = 0``, 0/0); needed only at ``p = 1 / c_max``.
-        """
-        x = np.zeros(S[0].shape[0])
-        d = np.zeros_like(x) if deriv else None
-        for a, s in zip(self.A, S, strict=True):
-            s0, s1 = s[:, :-1], s[:, 1:]
-            term = s0 + s1
-            np.divide(a, term, out=term)
-            if safe:
-                term[a == 0] = 0.0
-            x += term.sum(axis=1)
-            if deriv:
-                term /= np.multiply(s0, s1)
-                d += term.sum(axis=1)
-        return x, d
-
-    def x_grazing(self):
-        """``X`` at ``p = 1 / c_max`` (inf if the fastest speed holds over a finite layer)."""
-        with np.errstate(divide="ignore", invalid="ignore"):
-            x, _ = self.sums(self.cosines(np.zeros(self.cmax.size)), deriv=False, safe=True)
-        return x / self.cmax
-
-    def times(self, S):
-        """Travel time summed over the layers, for knot cosines ``S``."""
-        t = np.zeros(S[0].shape[0])
-        with np.errstate(divide="ignore", invalid="ignore"):
-            for cc, hh, s in zip(self.C, self.H, S, strict=True):
-                c0, c1, s0, s1 = cc[:, :-1], cc[:, 1:], s[:, :-1], s[:, 1:]
-                den = c0 * s1
-                den *= den
-                den += c1 * c1
-                den *= s0 + s1
-                w = s0 * s1
-                w += 1.0
-                w *= c0 + c1
-                w /= den
-                x = c1 - c0
-                x *= w
-                w *= hh
-                w *= _artanh_ratio(x)
-                tt = w.sum(axis=1)
-                bad = np.isnan(tt)  # 0/0 of zero-thickness layers at grazing incidence
-                if bad.any():
-                    tt[bad] = np.where(hh[bad] > 0, w[bad], 0.0).sum(axis=1)
-                t += tt
-        return t
 
 
 def _solve_block(legs, H, V, c_mean, tol, max_iter):
@@ -309,10 +179,8 @@ def _as_rays(z_a, z_b, horizontal, extra=(),
 
 def _trace(profile, legs, H, V, tol, max_iter):
     """Solve every ray in blocks; return ``p``, ``time`` (NaN where impossible)."""
-    if not (tol > 0):
-        raise ValueError(f"tol: expected a positive number, got {tol}")
-    if not (isinstance(max_iter, (int, np.integer)) and max_iter >= 1):
-        raise ValueError(f"max_iter: expected a positive integer, got {max_iter!r}")
+    check_positive("tol", tol)
+    check_int("max_iter", max_iter, minimum=1)
     n = H.size
     p = np.full(n, np.nan)
     time = np.full(n, np.nan)
@@ -324,17 +192,15 @@ def _trace(profile, legs, H, V, tol, max_iter):
     # first guess: the straight chord in the harmonic-mean (vertical time-averaged) speed
     t_vert = 0.0
     for t, b in legs:
-        kt, rt = profile._vertical_time(t)
-        kb, rb = profile._vertical_time(b)
-        t_vert = t_vert + ((profile._cum[kb] - profile._cum[kt]) + (rb - rt))
+        t_vert = t_vert + profile.vertical_time(t, b)
     with np.errstate(divide="ignore", invalid="ignore"):
         c_mean = np.where(V > 0, V / t_vert, profile.speed(shallowest))
-    span = np.count_nonzero((profile._rz > shallowest.min())
-                            & (profile._rz < deepest.max())) + 2
+    knots = profile.ray_knots[0]
+    span = np.count_nonzero((knots > shallowest.min()) & (knots < deepest.max())) + 2
     rows = max(16, _CHUNK // (span * len(legs)))
     for start in range(0, n, rows):
         sel = order[start:start + rows]
-        block = _Legs(profile, [(t[sel], b[sel]) for t, b in legs])
+        block = Legs(profile, [(t[sel], b[sel]) for t, b in legs])
         phi = _solve_block(block, H[sel], V[sel], c_mean[sel], tol, max_iter)
         ok = np.isfinite(phi)
         if not ok.any():
@@ -401,7 +267,7 @@ def direct_ray(profile: SoundSpeedProfile, z_a, z_b, horizontal, *, tol: float =
     shape, (za, zb, H) = _as_rays(z_a, z_b, horizontal)
     top, bot = np.minimum(za, zb), np.maximum(za, zb)
     p, time = _trace(profile, [(top, bot)], H, bot - top, tol, max_iter)
-    flat = (za == zb) & (H > 0) & profile._flat_at(za)
+    flat = (za == zb) & (H > 0) & profile.flat_at(za)
     c = profile.speed(za[flat])
     p[flat], time[flat] = 1.0 / c, H[flat] / c
     valid = np.isfinite(time)
@@ -418,9 +284,9 @@ def surface_bounce_ray(profile: SoundSpeedProfile, z_a, z_b, horizontal, plane_d
 
     The ray leaves ``z_a`` upward, reflects specularly at ``plane_depth`` and
     goes down to ``z_b``; its horizontal run is the sum of the two legs. In a
-    homogeneous medium this is the image method of :mod:`bayes_mpem.geometry`:
-    ``c * time == multipath_range(h, dz, d0, "double")`` with
-    ``d0 = z_beacon - plane_depth``.
+    homogeneous medium this is the image method (the LBL wing's double-bounce
+    multipath range): ``c * time`` is the distance from ``z_a`` to the mirror
+    image of ``z_b`` in the plane.
 
     Parameters
     ----------
@@ -448,9 +314,8 @@ def surface_bounce_ray(profile: SoundSpeedProfile, z_a, z_b, horizontal, plane_d
 
     Examples
     --------
-    >>> from bayes_mpem.geometry import multipath_range
     >>> ray = surface_bounce_ray(SoundSpeedProfile.constant(1500.0), 2400.0, 10.0, 3000.0)
-    >>> d = float(multipath_range(3000.0, 2390.0, 2400.0, "double"))
+    >>> d = float(np.hypot(3000.0, 2400.0 + 10.0))  # to the image of z_b above the surface
     >>> abs(float(ray.time) * 1500.0 - d) < 1e-9
     True
     """
@@ -463,7 +328,7 @@ def surface_bounce_ray(profile: SoundSpeedProfile, z_a, z_b, horizontal, plane_d
                          "m")
     V = (za - zp) + (zb - zp)
     p, time = _trace(profile, [(zp, za), (zp, zb)], H, V, tol, max_iter)
-    flat = (V == 0) & (H > 0) & profile._flat_at(zp)
+    flat = (V == 0) & (H > 0) & profile.flat_at(zp)
     c = profile.speed(zp[flat])
     p[flat], time[flat] = 1.0 / c, H[flat] / c
     valid = np.isfinite(time)
@@ -508,7 +373,7 @@ def shoot(profile: SoundSpeedProfile, z_a, z_b, p):
     x = np.full(za.size, np.nan)
     t = np.full(za.size, np.nan)
     if za.size:
-        legs = _Legs(profile, [(top, bot)])
+        legs = Legs(profile, [(top, bot)])
         ok = np.isfinite(pp) & (pp >= 0) & (pp * legs.cmax <= 1.0)
         if ok.any():
             sub = legs.take(ok)

@@ -1,4 +1,12 @@
-"""Profile (moved from ``acoustics``)."""
+"""Sound-speed profiles: speed against depth in constant-gradient layers.
+
+:class:`SoundSpeedProfile` holds the knots of a profile (linear between knots,
+constant beyond the ends), with its constructors (a constant speed, a text file,
+the WOA09 climatology, a CTD cast) and the quantities the ray tracers and the
+fits need: the speed at any depth and the harmonic mean (vertical travel-time
+average) between two depths. The rays themselves are in
+:mod:`bayes_mpem.acoustics.eigenray` and :mod:`bayes_mpem.acoustics.turning`.
+"""
 
 from __future__ import annotations
 
@@ -9,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ..exceptions import InputError
-from ..io.geodesy import EARTH_RADIUS_KM
+from ..io.geodesy import MEAN_EARTH_RADIUS_KM
 from .woa09 import bundled_woa09, load_woa09, number_parts
 
 WOA09_ENV = "BAYES_MPEM_WOA09"
@@ -107,7 +115,7 @@ class SoundSpeedProfile:
     # ----------------------------------------------------------------- constructors
     @classmethod
     def constant(cls, c: float) -> SoundSpeedProfile:
-        """A homogeneous medium.
+        """Make a homogeneous medium.
 
         Parameters
         ----------
@@ -250,7 +258,7 @@ class SoundSpeedProfile:
         la1, la2 = np.radians(lat), np.radians(glat)
         dlon = np.radians((glon - lon) % 360.0)
         hav = np.sin((la2 - la1) / 2) ** 2 + np.cos(la1) * np.cos(la2) * np.sin(dlon / 2) ** 2
-        dist = 2 * EARTH_RADIUS_KM * np.arcsin(np.sqrt(np.clip(hav, 0.0, 1.0)))
+        dist = 2 * MEAN_EARTH_RADIUS_KM * np.arcsin(np.sqrt(np.clip(hav, 0.0, 1.0)))
         dist = np.where(nlev > 0, dist, np.inf)
         k = int(np.argmin(dist))
         if not dist[k] <= max_distance_km:
@@ -325,9 +333,11 @@ class SoundSpeedProfile:
         return self._speed
 
     def __len__(self) -> int:
+        """Return the number of knots."""
         return self._depth.size
 
     def __repr__(self) -> str:
+        """Short summary (sizes and source), not the data."""
         z, c = self._depth, self._speed
         src = f", source={self.source!r}" if self.source else ""
         return (f"SoundSpeedProfile({z.size} knots, {z[0]:g}-{z[-1]:g} m, "
@@ -347,6 +357,36 @@ class SoundSpeedProfile:
             Linear between knots, constant beyond the first and last knot.
         """
         return np.interp(z, self._depth, self._speed)
+
+    @property
+    def ray_knots(self) -> tuple[np.ndarray, np.ndarray]:
+        """Depths and speeds of the knots a ray tracer needs (collinear ones dropped)."""
+        return self._rz, self._rc
+
+    def vertical_time(self, z_top, z_bottom):
+        """Signed one-way vertical travel time from ``z_top`` to ``z_bottom`` (s).
+
+        Exact for the linear layers; arrays broadcast together.
+
+        Parameters
+        ----------
+        z_top, z_bottom : array_like
+            Depths (m).
+
+        Returns
+        -------
+        numpy.ndarray
+            Positive where ``z_bottom`` is deeper.
+
+        Examples
+        --------
+        >>> prof = SoundSpeedProfile([0.0, 100.0], [1500.0, 1500.0])
+        >>> float(prof.vertical_time(0.0, 150.0))
+        0.1
+        """
+        kt, rt = self._vertical_time(z_top)
+        kb, rb = self._vertical_time(z_bottom)
+        return (self._cum[kb] - self._cum[kt]) + (rb - rt)
 
     def _vertical_time(self, z):
         """``(k, r)``: the vertical time from the first knot to ``z`` is ``cum[k] + r``."""
@@ -381,15 +421,13 @@ class SoundSpeedProfile:
         1504.994463
         """
         zt, zb = np.broadcast_arrays(np.asarray(z_top, float), np.asarray(z_bottom, float))
-        kt, rt = self._vertical_time(zt)
-        kb, rb = self._vertical_time(zb)
-        dt = np.abs((self._cum[kb] - self._cum[kt]) + (rb - rt))
+        dt = np.abs(self.vertical_time(zt, zb))
         dz = np.abs(zb - zt)
         with np.errstate(divide="ignore", invalid="ignore"):
             return np.where(dz > 0, dz / dt, self.speed(zt))
 
-    def _flat_at(self, z):
-        """True where the speed is constant on both sides of depth ``z``."""
+    def flat_at(self, z):
+        """Tell where the speed is constant on both sides of depth ``z`` (bool array)."""
         gext = np.concatenate([[0.0], self._grad, [0.0]])
         z = np.asarray(z, float)
         right = gext[np.searchsorted(self._depth, z, side="right")]

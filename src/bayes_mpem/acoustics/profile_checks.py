@@ -1,4 +1,12 @@
-"""Profile checks (moved from ``refraction``)."""
+"""Checks of a profile and a nominal sound speed before rays are traced through them.
+
+:func:`check_profile` makes sure an argument is a
+:class:`~bayes_mpem.acoustics.profile.SoundSpeedProfile` reaching the deepest end
+of every ray, :func:`check_sound_speed` that a nominal speed is a positive
+number, and :func:`nominal_sound_speed` gives the default nominal speed (the
+harmonic mean from the surface to a depth, which turns vertical travel times
+into exact depths). Used by the LBL refracted model and the simulator.
+"""
 
 from __future__ import annotations
 

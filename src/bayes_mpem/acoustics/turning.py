@@ -1,4 +1,17 @@
-"""Turning (moved from ``refraction``)."""
+"""The package's direct-ray solver: eigenrays with or without a turning point.
+
+:func:`~bayes_mpem.acoustics.eigenray.direct_ray` solves only rays that do not
+turn, and leaves NaN where the ends need a turning point (near the seafloor,
+where the speed grows with depth, a far receiver at about the source's depth).
+:func:`direct_times` solves those too, as two legs meeting at the turning depth,
+and is the one solver the rest of the package uses for direct rays (the LBL
+refracted ranges and simulator, the transponder location's travel times, the
+simulation-gap checks): a pair it cannot join is marked invalid
+(``DirectRays.valid``), never approximated. :func:`bounce_times` gives the
+ray reflected once by a plane, with its derivative with respect to the plane,
+and :data:`NO_RAY` is the range that stands for "no eigenray" in a mixture
+model.
+"""
 
 from __future__ import annotations
 

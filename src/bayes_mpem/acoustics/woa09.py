@@ -1,4 +1,10 @@
-"""Woa09 (moved from ``acoustics``)."""
+"""The World Ocean Atlas 2009 annual sound-speed climatology: locating and loading it.
+
+The atlas (``lev_latlonZ.mat``, ``lev_ann.mat``) ships with the package, or is
+found in the source repository's ``data/woa09``; :func:`load_woa09` reads the
+grid that :meth:`~bayes_mpem.acoustics.profile.SoundSpeedProfile.from_woa09`
+interpolates.
+"""
 
 from __future__ import annotations
 
@@ -11,6 +17,21 @@ from ..exceptions import InputError
 
 
 def number_parts(parts):
+    """Tell whether every string of ``parts`` parses as a number.
+
+    Parameters
+    ----------
+    parts : sequence of str
+
+    Returns
+    -------
+    bool
+
+    Examples
+    --------
+    >>> number_parts(["1.5", "-2"]), number_parts(["1.5", "x"])
+    (True, False)
+    """
     try:
         [float(p) for p in parts]
     except ValueError:
@@ -20,7 +41,13 @@ def number_parts(parts):
 
 @functools.lru_cache(maxsize=4)
 def bundled_woa09():
-    """The atlas shipped with the package (wheel), else the source repository's copy."""
+    """Find the WOA09 atlas: the package's copy (wheel), else the source repository's.
+
+    Returns
+    -------
+    str or None
+        The folder holding ``lev_ann.mat`` and ``lev_latlonZ.mat``; None if neither has them.
+    """
     here = Path(__file__).resolve().parents[1]  # the bayes_mpem package
     for d in (here / "_woa09", here.parents[1] / "data" / "woa09"):
         if (d / "lev_ann.mat").is_file() and (d / "lev_latlonZ.mat").is_file():
@@ -29,7 +56,24 @@ def bundled_woa09():
 
 
 def load_woa09(directory: str):
-    """The WOA09 grid: cell lat, lon (0-360), level depths, speeds, valid levels per cell."""
+    """Load the WOA09 grid from ``directory``.
+
+    Parameters
+    ----------
+    directory : str
+        Folder with ``lev_latlonZ.mat`` and ``lev_ann.mat``.
+
+    Returns
+    -------
+    tuple
+        Cell latitudes, longitudes (0-360), level depths, speeds, and the number
+        of valid levels per cell.
+
+    Raises
+    ------
+    FileNotFoundError
+        A file is missing.
+    """
     from scipy.io import loadmat
 
     d = Path(directory)

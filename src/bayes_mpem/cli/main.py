@@ -1,15 +1,21 @@
-"""The ``bayes-mpem`` command line: thin wrappers around the library."""
+"""The ``bayes-mpem`` command line: the parser, the dispatch and the error handling.
+
+The sub-commands themselves live in :mod:`.lbl` (``demo``, ``simulate``,
+``fit``, ``sample``, ``compare``, ``plot``, ``diagnose``) and
+:mod:`.survey_in` (``locate``); each parses nothing, calls the library and
+reports. Invalid input ends a command with one ``error:`` line and exit
+status 2.
+"""
 
 from __future__ import annotations
 
 import argparse
 import sys
 import warnings
-from pathlib import Path
 
 from .. import __version__
 from ..exceptions import InputError
-from ..plots.lbl import table_ii_markdown
+from . import lbl, survey_in
 
 
 def _add_fit_options(p):
@@ -30,15 +36,7 @@ def _add_fit_options(p):
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The argument parser of ``bayes-mpem`` (exposed for the docs)."""
-    parser = argparse.ArgumentParser(
-        prog="bayes-mpem",
-        description="Classify acoustic ranges (direct path, multipath, outlier) and identify "
-                    "each beacon's reflector.")
-    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
-    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-
+def _add_demo_plot_simulate(sub):
     p = sub.add_parser("demo", help="simulate an ABE58-like survey, fit it, write figures")
     p.add_argument("--out", default="demo-output", metavar="DIR",
                    help="output folder (default: demo-output)")
@@ -65,6 +63,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="hide an effect in the data, e.g. range_bias=5 (repeatable; names as "
                         "in 'bayes-mpem diagnose')")
 
+
+def _add_fit_diagnose(sub):
     p = sub.add_parser("fit", help="fit every beacon of a survey")
     p.add_argument("pings", metavar="PINGS", help="pings CSV (time, beacon, range, x, y, depth)")
     p.add_argument("--beacons", required=True, metavar="BEACONS",
@@ -93,6 +93,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-figures", action="store_true", help="write diagnosis.json only")
     p.add_argument("--no-progress", action="store_true", help="no progress lines on stderr")
 
+
+def _add_locate(sub):
     p = sub.add_parser("locate", help="locate a transponder from a ranging survey (EM, and "
                                       "optionally its posterior)")
     p.add_argument("survey", metavar="SURVEY", help="survey file (obsdata.inp for SeaGap)")
@@ -130,6 +132,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="--sample: random seed (default 0); same seed, same chain")
     p.add_argument("--no-progress", action="store_true", help="--sample: hide the progress bar")
 
+
+def _add_sample_compare(sub):
     for name, helptext in (("sample", "sample each beacon's posterior with emcee"),
                            ("compare", "compare equal (paper) and learned mixing priors by LOO")):
         p = sub.add_parser(name, help=helptext)
@@ -152,261 +156,32 @@ def build_parser() -> argparse.ArgumentParser:
                        help="Dirichlet concentration of the learned weights (default 1)")
         p.add_argument("--min-pings", type=int, default=30, metavar="N")
         p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Build the argument parser of ``bayes-mpem`` (exposed for the docs).
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        With one sub-parser per command, in the order ``--help`` lists them.
+
+    Examples
+    --------
+    >>> build_parser().parse_args(["fit", "p.csv", "--beacons", "b.csv", "--out", "o"]).method
+    'mixture'
+    """
+    parser = argparse.ArgumentParser(
+        prog="bayes-mpem",
+        description="Classify acoustic ranges (direct path, multipath, outlier) and identify "
+                    "each beacon's reflector.")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    _add_demo_plot_simulate(sub)
+    _add_fit_diagnose(sub)
+    _add_locate(sub)
+    _add_sample_compare(sub)
     return parser
-
-
-class _OptionError(ValueError):
-    """An option that does not apply to the chosen method."""
-
-
-def _fit_kwargs(args):
-    if args.method == "mixture" and (args.pol is not None or args.alpha is not None):
-        raise _OptionError("--pol and --alpha apply to --method paper only")
-    if args.method == "paper" and args.weights is not None:
-        raise _OptionError("--weights applies to --method mixture only (the paper's EM has "
-                           "no mixing weights)")
-    return dict(method=args.method, path=args.path, sigma_dp=args.sigma_dp,
-                pol=0.05 if args.pol is None else args.pol,
-                alpha=0.5 if args.alpha is None else args.alpha,
-                weights=args.weights or "learned", min_pings=args.min_pings, rng=args.seed)
-
-
-def _report(result, paths):
-    print(result.format_table())
-    for bid, res in result.results.items():
-        if not res.converged:
-            print(f"warning: beacon {bid} did not converge", file=sys.stderr)
-    n_nr = int(result.survey.no_reply.sum())
-    print(f"\n{len(result.survey)} rows, {n_nr} pings without reply (labelled no_reply)")
-    for p in paths:
-        print(f"wrote {p}")
-
-
-def cmd_demo(args):
-    from ..lbl.fitting import fit
-    from ..lbl.simulate import simulate_survey
-    from ..report import write_figures
-
-    out = Path(args.out)
-    sim = simulate_survey("abe58", rng=args.seed)
-    written = list(sim.write(out / "survey").values())
-    print(f"Simulated ABE58-like survey (seed {args.seed}): {len(sim.survey)} pings to "
-          f"{len(sim.truth)} beacons\n")
-    result = fit(sim.survey, rng=args.seed)
-    print("Mixture EM, per beacon (cf. Table II of the paper; truth: plane at the surface,")
-    print("HRP = beacon depth; sigma_MP = " + ", ".join(
-        f"{b['sigma_mp']:.1f}" for b in sim.truth.values()) + " m)")
-    written += list(result.write(out).values())
-    written += write_figures(result, out, truth=sim.truth)
-    paper = fit(sim.survey, method="paper", sigma_dp=sim.truth["1"]["sigma_dp"])
-    written += list(paper.write(out / "paper").values())
-    written += write_figures(paper, out / "paper", truth=sim.truth, general=False)
-    print(result.format_table())
-    print("\nThe paper's EM (Pol = 0.05, alpha = 0.5, sigma_DP = 3.97 m):")
-    print(paper.format_table())
-    missed = [b for b, r in paper.results.items() if abs(r.d0 - sim.truth[b]["d0"]) > 10.0]
-    if missed:
-        print(f"The paper's EM missed the plane (|HRP - truth| > 10 m) on beacon(s) "
-              f"{', '.join(missed)}; docs/paper-em.md explains why.")
-    md = ["# bayes-mpem demo", "",
-          f"Simulated ABE58-like survey (seed {args.seed}): {len(sim.survey)} pings to "
-          f"{len(sim.truth)} beacons. Truth: the sea surface, i.e. HRP = beacon depth.", "",
-          "## Table II, mixture EM", "", table_ii_markdown(result, truth=sim.truth), "",
-          "## Table II, the paper's EM (Pol = 0.05, alpha = 0.5)", "",
-          table_ii_markdown(paper, truth=sim.truth), ""]
-    if not args.no_bayes:
-        from ..lbl.comparison import compare
-        from ..lbl.sampling import sample
-
-        print("\nSampling the posterior of every beacon (emcee, learned priors)...")
-        post = sample(sim.survey, rng=args.seed, progress="auto")
-        written += list(post.write(out / "bayes").values())
-        written += write_figures(post, out / "bayes", truth=sim.truth)
-        print(post.format_table())
-        print("\nEqual (paper) against learned mixing priors, PSIS-LOO...")
-        cmp = compare(sim.survey, rng=args.seed, progress="auto")
-        written += list(cmp.write(out / "compare").values())
-        print(cmp.format_table())
-        md += ["## Posterior (learned priors)", "", "```", post.format_table(), "```", "",
-               "![intervals](bayes/intervals.png)", "",
-               "## Equal against learned priors", "", "```", cmp.format_table(), "```", "",
-               "![compare](compare/compare.png)", ""]
-    figs = [p for p in written if str(p).endswith(".png")]
-    md += ["## Figures", ""] + [f"![{p.stem}]({p.relative_to(out).as_posix()})" for p in figs]
-    (out / "summary.md").write_text("\n".join(md) + "\n")
-    written.append(out / "summary.md")
-    print(f"\nwrote {len(written)} files under {out}/ (summary.md links every figure)")
-    return 0
-
-
-def cmd_plot(args):
-    from ..report import load_output, write_figures
-
-    result = load_output(args.result_dir)
-    if not result.results:
-        print(f"bayes-mpem plot: {args.result_dir} holds no fitted beacon "
-              f"(skipped: {result.skipped or 'none'}); nothing to draw", file=sys.stderr)
-        return 2
-    beacon = None if args.beacon is None else args.beacon.strip()  # ids are text, as in CSVs
-    paths = write_figures(result, args.out or args.result_dir, beacon=beacon)
-    for p in paths:
-        print(f"wrote {p}")
-    return 0
-
-
-def cmd_simulate(args):
-    from ..lbl.simulate import simulate_survey
-
-    effects = {}
-    for item in args.effect:
-        name, sep, value = item.partition("=")
-        try:
-            effects[name.strip()] = float(value)
-        except ValueError:
-            raise _OptionError(f"--effect: expected NAME=NUMBER, got {item!r}") from None
-        if not sep:
-            raise _OptionError(f"--effect: expected NAME=NUMBER, got {item!r}")
-    sim = simulate_survey(args.preset, rng=args.seed, path=args.path, n_cycles=args.n_cycles,
-                          effects=effects or None)
-    paths = sim.write(args.out)
-    print(f"{len(sim.survey)} pings to {len(sim.truth)} beacons")
-    for p in paths.values():
-        print(f"wrote {p}")
-    return 0
-
-
-def cmd_fit(args):
-    from ..lbl.fitting import fit
-
-    result = fit(args.pings, args.beacons, **_fit_kwargs(args))
-    out = Path(args.out)
-    paths = list(result.write(out).values())
-    if args.figures:
-        from ..report import write_figures
-
-        paths += write_figures(result, out)
-    _report(result, paths)
-    return 0
-
-
-def _sample_kwargs(args):
-    if getattr(args, "priors", None) == "equal" and args.concentration is not None:
-        raise _OptionError("--concentration applies to --priors learned only")
-    return dict(path=args.path, sigma_dp=args.sigma_dp,
-                concentration=1.0 if args.concentration is None else args.concentration,
-                min_pings=args.min_pings, rng=args.seed,
-                progress=False if args.no_progress else "auto")
-
-
-def cmd_sample(args):
-    from ..lbl.sampling import sample
-
-    result = sample(args.pings, args.beacons, priors=args.priors, ci=args.ci,
-                    n_ensembles=args.ensembles, **_sample_kwargs(args))
-    out = Path(args.out)
-    paths = list(result.write(out).values())
-    if args.figures:
-        from ..report import write_figures
-
-        paths += write_figures(result, out)
-    print(result.format_table())
-    for bid, r in result.results.items():
-        if not r.diagnostics["converged"]:
-            print(f"warning: beacon {bid}: chain shorter than {r.diagnostics['tau_factor']:g} "
-                  "autocorrelation times", file=sys.stderr)
-    for p in paths:
-        print(f"wrote {p}")
-    return 0
-
-
-def cmd_diagnose(args):
-    from ..lbl.diagnosis.driver import diagnose
-    from ..lbl.diagnosis.model import EFFECTS
-
-    effects = EFFECTS if args.effects is None else tuple(
-        e.strip() for e in args.effects.split(",") if e.strip())
-    result = diagnose(args.pings, args.beacons, effects=effects, path=args.path,
-                      n_folds=args.folds, min_gain=args.min_gain, min_pings=args.min_pings,
-                      rng=args.seed, progress=not args.no_progress)
-    paths = result.write(args.out, figures=not args.no_figures)
-    print(result.summary())
-    for p in paths.values():
-        print(f"wrote {p}")
-    return 0
-
-
-def cmd_locate(args):
-    import json
-
-    from ..io.formats import read_survey
-    from ..survey_in.survey import locate_survey
-
-    fmt = args.format
-    if fmt == "obsrange":  # the WHOI variant starts with a '#' comment header
-        with open(args.survey, encoding="utf-8-sig", errors="replace") as fh:
-            first = next((ln for ln in fh if ln.strip()), "")
-        fmt = "obsrange-whoi" if first.lstrip().startswith("#") else "obsrange-sio"
-    sample_opts = (("--walkers", args.walkers), ("--min-ess", args.min_ess),
-                   ("--seed", args.seed), ("--no-progress", args.no_progress or None))
-    given = [name for name, v in sample_opts if v is not None]
-    if given and not args.sample:
-        raise _OptionError(f"{', '.join(given)} apply with --sample only")
-    if args.sample:
-        from ..survey_in.posterior import check_location_options
-
-        check_location_options(n_walkers=args.walkers, ci=args.ci,
-                               min_ess=1000.0 if args.min_ess is None else args.min_ess)
-    raw = read_survey(args.survey, fmt)
-    model = dict(tat=args.tat, fit_tat=args.fit_tat, ci=args.ci, outliers=args.outliers,
-                 ssp=args.ssp, speed_intervals=args.speed_intervals)
-    if args.fit_lag:
-        if args.sample:
-            raise _OptionError("--fit-lag with --sample is not implemented: the posterior has "
-                               "no lag parameter yet")
-        model["fit_lag"] = True
-    if args.sample:
-        from ..survey_in.location_sampling import locate_survey_bayes
-
-        summary, classified, _ = locate_survey_bayes(
-            raw, **model, n_walkers=args.walkers,
-            min_ess=1000.0 if args.min_ess is None else args.min_ess,
-            rng=0 if args.seed is None else args.seed,
-            progress=False if args.no_progress else "auto")
-    else:
-        summary, classified = locate_survey(raw, **model)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
-    classified.to_csv(out / "classified.csv", index=False)
-    for tid, t in summary["transponders"].items():
-        lo, hi = t["depth"]["interval"]
-        where = f"lat {t['lat']:.6f} lon {t['lon']:.6f}" if t["lat"] is not None else \
-            f"east {t['east']['mean']:.2f} north {t['north']['mean']:.2f} m"
-        print(f"transponder {tid}: {where}, depth {t['depth']['mean']:.2f} m "
-              f"[{lo:.2f}, {hi:.2f}], sound speed {t['sound_speed']['mean']:.2f} m/s, "
-              f"{t['n_spurious']} spurious of {t['n']} pings, rms {t['sigma_ms']:.2f} ms")
-        if args.sample:
-            elo, ehi = t["em"]["depth"]["interval"]
-            d = t["posterior"]["diagnostics"]
-            ess = min(v for k in ("ess", "ess_bulk") for v in t["posterior"][k].values())
-            print(f"  depth {100 * args.ci:g} % interval: posterior [{lo:.2f}, {hi:.2f}] m, "
-                  f"EM (Wald) [{elo:.2f}, {ehi:.2f}] m; min ESS {ess:.0f}, "
-                  f"{d['n_steps']} steps x {d['n_walkers']} walkers, {d['seconds']:.1f} s"
-                  + ("" if d["converged"] else " (NOT converged: max_steps reached)"))
-    print(f"{summary['n_skipped_lines']} lines skipped (reasons in classified.csv)")
-    print(f"wrote {out / 'summary.json'}\nwrote {out / 'classified.csv'}")
-    return 0
-
-
-def cmd_compare(args):
-    from ..lbl.comparison import compare
-
-    result = compare(args.pings, args.beacons, **_sample_kwargs(args))
-    paths = result.write(args.out)
-    print(result.format_table())
-    for p in paths.values():
-        print(f"wrote {p}")
-    return 0
 
 
 def main(argv=None) -> int:
@@ -426,9 +201,9 @@ def main(argv=None) -> int:
     import matplotlib
 
     matplotlib.use("Agg")  # the command line only writes files; never opens a window
-    handler = {"demo": cmd_demo, "simulate": cmd_simulate, "fit": cmd_fit, "plot": cmd_plot,
-               "sample": cmd_sample, "compare": cmd_compare, "locate": cmd_locate,
-               "diagnose": cmd_diagnose}[args.command]
+    handler = {"demo": lbl.cmd_demo, "simulate": lbl.cmd_simulate, "fit": lbl.cmd_fit,
+               "plot": lbl.cmd_plot, "sample": lbl.cmd_sample, "compare": lbl.cmd_compare,
+               "locate": survey_in.cmd_locate, "diagnose": lbl.cmd_diagnose}[args.command]
     with warnings.catch_warnings():  # restores the caller's filters and showwarning
         warnings.simplefilter("default")
         # one line per warning, no source excerpt: messages for the user, not tracebacks

@@ -1,9 +1,15 @@
-"""Formats (moved from ``readers``)."""
+"""The survey file formats by name, and the sample surveys shipped with the package.
+
+:func:`read_survey` dispatches a path to the reader of one of :data:`FORMATS`
+(:mod:`bayes_mpem.io.obsrange`, :mod:`bayes_mpem.io.seagap`), and
+:func:`sample_file` finds a measured sample survey.
+"""
 
 from __future__ import annotations
 
 from pathlib import Path
 
+from .._validate import check_choice
 from .obsrange import read_obsrange_sio, read_obsrange_whoi
 from .raw import RawSurvey
 from .seagap import read_seagap
@@ -63,6 +69,5 @@ def read_survey(path, format: str, **kwargs) -> RawSurvey:
     """
     readers = {"obsrange-sio": read_obsrange_sio, "obsrange-whoi": read_obsrange_whoi,
                "seagap": read_seagap}
-    if format not in readers:
-        raise ValueError(f"format: expected one of {FORMATS}, got {format!r}")
+    check_choice("format", format, FORMATS)
     return readers[format](path, **kwargs)

@@ -1,8 +1,42 @@
-"""Geodesy (moved from ``locate``, ``acoustics``, ``readers``)."""
+"""Geodesy: the WGS84 ellipsoid, local east-north-up frames, and the transducer lever arm.
+
+Every constant of the Earth's figure used by the package is defined here (and
+imported from here):
+
+* :data:`WGS84_A`, :data:`WGS84_F`, :data:`WGS84_E2`: the WGS84 semi-major axis
+  (m), flattening and first eccentricity squared, for the exact geodetic <->
+  ECEF <-> local east-north-up transforms (:func:`geodetic_to_enu`,
+  :func:`enu_to_geodetic`);
+* :data:`WGS84_B`: the semi-minor axis (m) to the precision SeaGap uses, for
+  :func:`earth_radius` (the local Gaussian mean radius);
+* :data:`MEAN_EARTH_RADIUS_M` (and :data:`MEAN_EARTH_RADIUS_KM`): the mean
+  radius of a spherical Earth, 6,371 km, for great-circle distances between
+  profile casts and as the default radius of a spherical survey frame.
+
+Examples
+--------
+>>> round(earth_radius(0.0) / 1000.0, 3)
+6356.752
+>>> MEAN_EARTH_RADIUS_M == 1000.0 * MEAN_EARTH_RADIUS_KM
+True
+"""
 
 from __future__ import annotations
 
 import numpy as np
+
+#: WGS84 semi-major axis (m).
+WGS84_A = 6378137.0
+#: WGS84 flattening.
+WGS84_F = 1.0 / 298.257223563
+#: WGS84 first eccentricity squared, ``f (2 - f)``.
+WGS84_E2 = WGS84_F * (2.0 - WGS84_F)
+#: WGS84 semi-minor axis (m), as SeaGap writes it (``a (1 - f)`` rounded to 1e-6 m).
+WGS84_B = 6356752.314245
+#: Mean radius of a spherical Earth (km).
+MEAN_EARTH_RADIUS_KM = 6371.0
+#: Mean radius of a spherical Earth (m).
+MEAN_EARTH_RADIUS_M = 6371000.0
 
 
 def antenna_to_transducer(east, north, up, heading, pitch, roll, offset):
@@ -43,26 +77,39 @@ def antenna_to_transducer(east, north, up, heading, pitch, roll, offset):
 
 
 def earth_radius(lat: float) -> float:
-    """Gaussian mean radius of the WGS84 ellipsoid at latitude ``lat`` (m)."""
-    a, b = 6378137.0, 6356752.314245
+    """Gaussian mean radius of the WGS84 ellipsoid at latitude ``lat`` (m).
+
+    ``a sqrt(1 - e2) / (1 - e2 sin(lat)**2)`` with ``e2 = 1 - (b / a)**2``
+    from :data:`WGS84_A` and :data:`WGS84_B` (SeaGap's radius of its spherical
+    frame).
+
+    Parameters
+    ----------
+    lat : float
+        Latitude (degrees).
+
+    Returns
+    -------
+    float
+        Radius (m).
+
+    Examples
+    --------
+    >>> round(earth_radius(45.0), 1)
+    6378101.0
+    """
+    a, b = WGS84_A, WGS84_B
     e2 = 1.0 - (b / a) ** 2
     s2 = np.sin(np.radians(lat)) ** 2
     return float(a * np.sqrt(1.0 - e2) / (1.0 - e2 * s2))
-EARTH_RADIUS_KM = 6371.0
-
-# WGS84
-_A = 6378137.0
-_F = 1.0 / 298.257223563
-_E2 = _F * (2.0 - _F)
-
 
 def _ecef(lat, lon, height):
     """WGS84 geodetic (degrees, m) to Earth-centred Earth-fixed (m)."""
     la, lo = np.radians(lat), np.radians(lon)
-    nu = _A / np.sqrt(1.0 - _E2 * np.sin(la) ** 2)
+    nu = WGS84_A / np.sqrt(1.0 - WGS84_E2 * np.sin(la) ** 2)
     return np.array([(nu + height) * np.cos(la) * np.cos(lo),
                      (nu + height) * np.cos(la) * np.sin(lo),
-                     (nu * (1.0 - _E2) + height) * np.sin(la)], dtype=float)
+                     (nu * (1.0 - WGS84_E2) + height) * np.sin(la)], dtype=float)
 
 
 def _enu_rotation(lat0, lon0):
@@ -123,9 +170,9 @@ def enu_to_geodetic(east, north, up, lat0, lon0, height0=0.0):
         np.array([east, north, up], dtype=float)
     lon = np.arctan2(y, x)
     p = np.hypot(x, y)
-    lat = np.arctan2(z, p * (1 - _E2))
+    lat = np.arctan2(z, p * (1 - WGS84_E2))
     for _ in range(10):
-        nu = _A / np.sqrt(1 - _E2 * np.sin(lat) ** 2)
+        nu = WGS84_A / np.sqrt(1 - WGS84_E2 * np.sin(lat) ** 2)
         h = p / np.cos(lat) - nu
-        lat = np.arctan2(z, p * (1 - _E2 * nu / (nu + h)))
+        lat = np.arctan2(z, p * (1 - WGS84_E2 * nu / (nu + h)))
     return float(np.degrees(lat)), float(np.degrees(lon)), float(h)

@@ -1,4 +1,8 @@
-"""Obsrange (moved from ``readers``)."""
+"""Readers of OBSrange EdgeTech deck-box logs (SIO text and WHOI CSV).
+
+Each returns a :class:`~bayes_mpem.io.raw.RawSurvey` that accounts for every
+line of the file (see :mod:`bayes_mpem.io.raw` for the formats).
+"""
 
 from __future__ import annotations
 

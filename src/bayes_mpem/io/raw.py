@@ -1,4 +1,4 @@
-"""Readers for real acoustic ranging surveys, and conversion to the project's input.
+"""A survey file as read (:class:`RawSurvey`), its conversion to pings, and reader helpers.
 
 Formats (see ``data/README.md`` for the sample files and their sources):
 
@@ -16,7 +16,8 @@ Formats (see ``data/README.md`` for the sample files and their sources):
 Every line of a file is accounted for: a ping, a header or comment line, or a
 *skipped* line with its reason (``Event skipped`` in the deck-box log, or a line
 that does not parse). ``strict=True`` turns a line that does not parse into an
-:class:`~bayes_mpem.data.InputError` naming the file and line.
+:class:`~bayes_mpem.exceptions.InputError` naming the file and line. The readers
+are in :mod:`bayes_mpem.io.obsrange` and :mod:`bayes_mpem.io.seagap`.
 
 Latitude/longitude go to a local metric frame with the exact WGS84
 geodetic -> ECEF -> local east-north-up transform (:func:`geodetic_to_enu`).
@@ -151,6 +152,23 @@ class RawSurvey:
 
 
 def read_lines(path):
+    """Read a survey file as text lines (UTF-8, a byte-order mark allowed).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+
+    Returns
+    -------
+    list of str
+
+    Raises
+    ------
+    FileNotFoundError
+        No such file.
+    InputError
+        Not UTF-8 text.
+    """
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"survey file not found: {str(path)!r}")
@@ -161,6 +179,32 @@ def read_lines(path):
 
 
 def finish(fmt, source, rows, header, skipped, transponder):
+    """Assemble a reader's parsed lines into a :class:`RawSurvey`.
+
+    Parameters
+    ----------
+    fmt : str
+        The format's name.
+    source : str
+        The file, for messages.
+    rows : list of dict
+        One per ping, with an ``_epoch`` (s) that becomes ``time`` from the first ping.
+    header : dict
+        Header values.
+    skipped : list of tuple
+        ``(line, text, reason)`` of every skipped line.
+    transponder : str
+        The transponder's name.
+
+    Returns
+    -------
+    RawSurvey
+
+    Raises
+    ------
+    InputError
+        No ping line in the file.
+    """
     pings = pd.DataFrame(rows)
     if pings.empty:
         raise InputError(f"{source}: no ping lines found (expected the {fmt} format; "
@@ -173,6 +217,28 @@ def finish(fmt, source, rows, header, skipped, transponder):
 
 
 def bad(strict, source, line, text, reason, skipped):
+    """Record a line that does not parse, or raise if ``strict``.
+
+    Parameters
+    ----------
+    strict : bool
+        Raise instead of recording.
+    source : str
+        The file, for messages.
+    line : int
+        Line number (1-based).
+    text : str
+        The line.
+    reason : str
+        Why it does not parse.
+    skipped : list
+        Receives ``(line, text, reason)``.
+
+    Raises
+    ------
+    InputError
+        With ``strict``, naming the file and line.
+    """
     if strict:
         raise InputError(f"{source} line {line}: {reason}: {text.strip()[:80]!r}")
     skipped.append((line, text, reason))

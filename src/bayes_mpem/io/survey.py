@@ -62,6 +62,7 @@ class BeaconData:
         return int(self.range.shape[0])
 
     def __repr__(self) -> str:
+        """Short summary (sizes and source), not the data."""
         return (f"BeaconData(beacon={self.beacon!r}, n={self.n}, n_no_reply={self.n_no_reply}, "
                 f"position={self.position.tolist()})")
 
@@ -179,14 +180,16 @@ class Survey:
         return [str(b) for b in self.beacons.index]
 
     def __len__(self) -> int:
+        """Return the number of pings."""
         return int(self.range.shape[0])
 
     def __repr__(self) -> str:
+        """Short summary (sizes and source), not the data."""
         return (f"Survey({len(self)} pings, {int(self.no_reply.sum())} without reply, "
                 f"beacons {self.beacon_ids}, from {self.pings_source!r})")
 
     def for_beacon(self, beacon_id: Any) -> BeaconData:
-        """Replies of one beacon.
+        """Select the replies of one beacon.
 
         Parameters
         ----------

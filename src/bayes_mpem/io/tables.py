@@ -1,4 +1,10 @@
-"""Tables (moved from ``data``)."""
+"""Reading and checking the pings and beacons tables (CSV files or DataFrames).
+
+The boundary where tabular user input is validated: every problem is reported
+with its column and row ("column 'range' row 17: expected a positive number,
+got -3.2"), all of a table's problems at once, as one
+:class:`~bayes_mpem.exceptions.InputError`.
+"""
 
 from __future__ import annotations
 
@@ -91,7 +97,7 @@ class _Table:
 
 
 def _read_csv_fast(path: Path, label: str) -> _Table | None:
-    """pandas' C parser, used only when line numbers stay exact; else ``None``.
+    """Read with pandas' C parser, used only when line numbers stay exact; else ``None``.
 
     Exact when no field is quoted (so no record spans lines), blank lines are
     truly empty (pandas skips exactly those) and every other line has as many
@@ -322,6 +328,27 @@ def read_pings(source: Any, *, name: str | None = None
 
 
 def beacons_frame(source: Any, name: str | None) -> tuple[pd.DataFrame, str]:
+    """Read and check a beacons table (the work of :func:`read_beacons`).
+
+    Parameters
+    ----------
+    source : Any
+        As :func:`read_beacons`.
+    name : str or None
+        Label of the source in messages.
+
+    Returns
+    -------
+    frame : pandas.DataFrame
+        Columns ``beacon``, ``x``, ``y``, ``depth``.
+    source : str
+        The source's label.
+
+    Raises
+    ------
+    InputError
+        Missing columns, bad values or repeated beacon ids (naming the rows).
+    """
     table = _load(source, name, "beacons")
     _check_columns(table, BEACON_COLUMNS, "beacons")
     problems = _Problems(table.source)

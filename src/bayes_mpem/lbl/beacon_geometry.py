@@ -1,4 +1,20 @@
-"""Beacon geometry (moved from ``mixture``)."""
+"""What the likelihood of one beacon needs of its geometry, computed once.
+
+:class:`BeaconGeometry` holds the per-range quantities of one beacon that do
+not depend on the parameters (reported ranges, horizontal distances, depth
+differences, direct-path lengths, the outlier window) and predicts the
+multipath ranges for a plane height through :mod:`bayes_mpem.lbl.geometry`.
+The EMs and samplers take one instead of the raw data.
+
+Examples
+--------
+>>> import numpy as np
+>>> g = BeaconGeometry(z=np.array([5.0, 9.0]), h=np.array([3.0, 3.0]),
+...                    dz=np.array([4.0, 4.0]), direct=np.array([5.0, 5.0]),
+...                    lo=5.0, hi=9.0, d0_min=4.0)
+>>> round(g.log_ol_density, 6)
+-1.386294
+"""
 
 from __future__ import annotations
 
@@ -8,6 +24,7 @@ from typing import ClassVar
 import numpy as np
 
 from ..io.survey import BeaconData
+from ..mixture.densities import uniform_logpdf
 from . import geometry
 
 
@@ -29,8 +46,8 @@ class BeaconGeometry:
 
     Notes
     -----
-    Predictions are straight-ray (:mod:`bayes_mpem.geometry`); the subclass
-    :class:`~bayes_mpem.refraction.RefractedBeaconGeometry` predicts through a
+    Predictions are straight-ray (:mod:`bayes_mpem.lbl.geometry`); the subclass
+    :class:`~bayes_mpem.lbl.refracted.RefractedBeaconGeometry` predicts through a
     sound-speed profile with the same interface (``straight`` is False there).
     """
 
@@ -79,21 +96,21 @@ class BeaconGeometry:
     @property
     def log_ol_density(self) -> float:
         """Log of the uniform outlier density over ``[lo, hi]`` (1/m)."""
-        return -float(np.log(max(self.hi - self.lo, 1e-9)))
+        return float(uniform_logpdf(self.lo, self.hi))
 
     def multipath(self, d0, path: str = "triangle"):
         """Predicted multipath ranges for plane height ``d0`` (broadcasts)."""
         return geometry.multipath_range(self.h, self.dz, d0, path, direct=self.direct)
 
     def multipath_derivative(self, d0, path: str = "triangle"):
-        """``d z_MP / d d0`` of every range (:func:`~bayes_mpem.geometry.multipath_derivative`)."""
+        """``d z_MP / d d0`` of every range (:func:`.geometry.multipath_derivative`)."""
         return geometry.multipath_derivative(self.h, self.dz, d0, path)
 
     def invert_plane_height(self, path: str = "triangle"):
-        """Per-range plane heights (:func:`~bayes_mpem.geometry.invert_plane_height`)."""
+        """Per-range plane heights (:func:`~bayes_mpem.lbl.geometry.invert_plane_height`)."""
         return geometry.invert_plane_height(self.z, self.h, self.dz, path, direct=self.direct)
 
     def take(self, idx) -> BeaconGeometry:
-        """The ranges ``idx``, with the same outlier window and ``d0_min``."""
+        """Keep the ranges ``idx``, with the same outlier window and ``d0_min``."""
         return BeaconGeometry(self.z[idx], self.h[idx], self.dz[idx], self.direct[idx],
                               self.lo, self.hi, self.d0_min)

@@ -1,38 +1,63 @@
-"""Comparison (moved from ``compare``)."""
+"""Equal against learned mixing priors on every beacon of a survey (``bayes-mpem compare``).
+
+:func:`compare` runs :func:`~.loo.compare_beacon` (PSIS-LOO of the two
+posteriors) on each beacon and returns a :class:`SurveyComparison`, which
+writes ``compare.json`` and ``changed.csv``; its figure is drawn by
+:func:`bayes_mpem.report.write_figures`.
+"""
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
-from pathlib import Path
 
 import pandas as pd
 
 from .._rng import RNGLike, as_generator
 from ..exceptions import UnusableStartError
+from ..io.results import output_folder, write_csv, write_json
 from ..io.survey import Survey, load_survey
 from .loo import CLEAR, MIN_DIFF, compare_beacon
 from .posterior import check_sample_options
-from .survey import fittable_beacons
+from .survey import option_subset, over_beacons
 
 
 @dataclass(frozen=True)
 class SurveyComparison:
-    """:class:`PriorComparison` of every beacon of a survey."""
+    """:class:`~.loo.PriorComparison` of every beacon of a survey.
+
+    Attributes
+    ----------
+    survey : Survey
+        The validated input.
+    results : dict of str to PriorComparison
+        One comparison per beacon.
+    skipped : dict of str to str
+        Beacons left out, with the reason.
+    """
 
     survey: Survey
     results: dict
     skipped: dict
 
     def to_dict(self) -> dict:
-        """The ``compare.json`` content."""
+        """Return the content of ``compare.json``.
+
+        Returns
+        -------
+        dict
+        """
         return {"beacons": {b: r.to_dict() for b, r in self.results.items()},
                 "skipped": dict(self.skipped),
                 "rule": f"a difference is clear when |elpd_diff| > {CLEAR:g} elpd_diff_se "
                         f"and > {MIN_DIFF:g}"}
 
     def format_table(self) -> str:
-        """ELPD difference per beacon, as text."""
+        """Format the ELPD difference per beacon as text.
+
+        Returns
+        -------
+        str
+        """
         lines = [f"{'beacon':>6} {'elpd equal':>11} {'elpd learned':>12} {'diff':>8} "
                  f"{'se':>6} {'verdict':>20} {'d0 shift (m)':>12} {'changed':>7}"]
         for b, r in self.results.items():
@@ -41,25 +66,36 @@ class SurveyComparison:
                          f"{r.shifts['d0']['mean_shift']:12.2f} {len(r.changed):7d}")
         return "\n".join(lines)
 
-    def write(self, out_dir, *, figure=True) -> dict:
-        """Write ``compare.json``, ``changed.csv`` and ``compare.png`` to ``out_dir``."""
-        out = Path(out_dir)
-        out.mkdir(parents=True, exist_ok=True)
-        paths = {"compare": out / "compare.json", "changed": out / "changed.csv"}
-        paths["compare"].write_text(json.dumps(self.to_dict(), indent=2) + "\n")
+    def changed(self) -> pd.DataFrame:
+        """Ranges whose label changes between the two priors, every beacon in one table.
+
+        Returns
+        -------
+        pandas.DataFrame
+            Each beacon's :attr:`~.loo.PriorComparison.changed` rows with a
+            ``beacon`` column; empty when no beacon was compared.
+        """
         frames = [r.changed.assign(beacon=b) for b, r in self.results.items()]
-        (pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()).to_csv(
-            paths["changed"], index=False)
-        if figure and self.results:
-            import matplotlib.pyplot as plt
+        return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
 
-            from ..plots.bayes import plot_prior_comparison
+    def write(self, out_dir) -> dict:
+        """Write ``compare.json`` and ``changed.csv`` to ``out_dir``.
 
-            fig = plot_prior_comparison(self)
-            paths["figure"] = out / "compare.png"
-            fig.savefig(paths["figure"], dpi=110)
-            plt.close(fig)
-        return paths
+        The figure (``compare.png``) is drawn by :func:`bayes_mpem.report.write_figures`.
+
+        Parameters
+        ----------
+        out_dir : str or pathlib.Path
+            Created if missing.
+
+        Returns
+        -------
+        dict
+            Paths written, keyed ``compare`` and ``changed``.
+        """
+        out = output_folder(out_dir)
+        return {"compare": write_json(out / "compare.json", self.to_dict()),
+                "changed": write_csv(out / "changed.csv", self.changed())}
 
 
 def compare(pings, beacons=None, *, min_pings: int = 30, rng: RNGLike = None,
@@ -78,17 +114,24 @@ def compare(pings, beacons=None, *, min_pings: int = 30, rng: RNGLike = None,
     Returns
     -------
     SurveyComparison
-    """
-    from .survey import option_subset, skip_beacon
 
+    Raises
+    ------
+    ValueError
+        For invalid options, before any sampling.
+
+    Warns
+    -----
+    SkippedBeaconWarning
+        For a beacon with too few replies or an unusable EM start.
+    """
     check_sample_options(**option_subset(kwargs))
     survey = load_survey(pings, beacons)
     gen = as_generator(rng)
-    fittable, skipped = fittable_beacons(survey, min_pings)
-    results = {}
-    for d in fittable:
-        try:
-            results[d.beacon] = compare_beacon(d, rng=gen, **kwargs)
-        except UnusableStartError as exc:
-            skip_beacon(skipped, d.beacon, str(exc))
+
+    def compare_one(data):
+        return compare_beacon(data, rng=gen, **kwargs)
+
+    results, skipped = over_beacons(survey, min_pings, compare_one,
+                                    skip_on=(UnusableStartError,))
     return SurveyComparison(survey=survey, results=results, skipped=skipped)

@@ -1,19 +1,21 @@
-"""Expectation-Maximization for one beacon: the paper's EM and a mixture EM.
+"""The mixture EM for one beacon: maximum likelihood of the dp / mp / outlier mixture.
 
-* :func:`fit_paper_em` follows eqs. 3-10 of the paper as written: chi-square
-  tail probabilities in the E-step, the ``Pol`` rule for outliers, the
-  per-range plane-height average of eq. 8 blended by ``alpha`` (eq. 10), and
-  eq. 9 (as a variance). Every interpretation is listed in ``docs/paper-em.md``.
-* :func:`fit_mixture_em` (the default) maximises the likelihood of the
-  density mixture of :mod:`bayes_mpem.mixture`. Each iteration is a
-  generalised EM step (the plane height is improved by safeguarded
-  Gauss-Newton, the rest in closed form), so the log-likelihood never
-  decreases. With ``ssp=`` it predicts the ranges through a sound-speed
-  profile (refracted rays, :mod:`bayes_mpem.refraction`) instead of straight
-  lines.
+:func:`fit_mixture_em` (the package's default fit) maximises the likelihood of
+the density mixture of :mod:`bayes_mpem.lbl.likelihood`: a Gaussian around
+the direct path, a Gaussian around the multipath off a horizontal plane at
+height ``d0`` above the beacon, and outliers uniform over the observed window.
+Each iteration is a generalised EM step: the E-step of
+:func:`bayes_mpem.lbl.likelihood.e_step`, then the plane height improved by a
+safeguarded Gauss-Newton step (:mod:`bayes_mpem.mixture.gauss_newton`) and the
+scales and weights in closed form (:func:`mixture_m_step`), so the
+log-likelihood never decreases. The starts are the modes of the per-range
+plane heights (:func:`histogram_modes`), compared on a subsample. With
+``ssp=`` the ranges are predicted through a sound-speed profile (refracted
+rays, :mod:`bayes_mpem.lbl.refracted`) instead of straight lines.
 
-Both return an :class:`EMResult` whose class probabilities come from a final
-E-step at the returned parameters.
+The paper's own EM is :mod:`bayes_mpem.lbl.em_paper`; both return an
+:class:`~bayes_mpem.lbl.em_result.EMResult` whose class probabilities come
+from a final E-step at the returned parameters.
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ from .._rng import RNGLike, as_generator
 from ..exceptions import ConvergenceWarning
 from ..io.survey import BeaconData
 from ..mixture.densities import CLASSES
+from ..mixture.gauss_newton import safeguarded_step
 from .beacon_geometry import BeaconGeometry
 from .em_result import (
     EMResult,
@@ -65,16 +68,12 @@ def _update_d0(geom, r, d0, path, lo, hi, max_steps=5):
         if den <= 0:
             break
         step = float(wdot(r, res * jac)) / den
-        for _ in range(30):
-            cand = min(max(d0 + step, lo), hi)
-            sse_c, res_c = _weighted_sse(geom, r, cand, path)
-            if sse_c <= sse:
-                break
-            step *= 0.5
-        else:
+        out = safeguarded_step(lambda x: _weighted_sse(geom, r, x, path), d0, step, sse,
+                               bounds=(lo, hi))
+        if out is None:
             break
-        moved = abs(cand - d0)
-        d0, sse, res = cand, sse_c, res_c
+        moved = abs(out.x - d0)
+        d0, sse, res = out.x, out.value, out.aux
         if moved < 1e-6:
             break
     return d0, sse
@@ -146,9 +145,33 @@ def _run_mixture(geom, state, path, *, fit_sigma_dp, fit_weights, sigma_floor, t
 
 
 def histogram_modes(v, k, *, width=5.0, sep=25.0, min_count=-1):
-    """The ``k`` strongest modes of ``v``: centres of ``width`` bins of a 3-bin smoothed
-    histogram, at least ``sep`` apart, with a smoothed count above ``min_count`` (default:
-    any bin, empty ones included)."""
+    """Return the ``k`` strongest modes of ``v`` from a smoothed histogram.
+
+    Parameters
+    ----------
+    v : numpy.ndarray
+        Values (e.g. per-range plane heights).
+    k : int
+        Number of modes wanted.
+    width : float, default 5
+        Bin width.
+    sep : float, default 25
+        Smallest separation of two modes.
+    min_count : float, default -1
+        A mode's 3-bin smoothed count must exceed this (default: any bin,
+        empty ones included).
+
+    Returns
+    -------
+    list of float
+        Bin centres, strongest first (at most ``k``).
+
+    Examples
+    --------
+    >>> v = np.r_[np.full(50, 100.0), np.full(20, 300.0)]
+    >>> histogram_modes(v, 2)
+    [102.5, 297.5]
+    """
     nb = int(min(max((v.max() - v.min()) / width, 1), 20000))
     counts, edges = np.histogram(v, bins=nb)
     smooth = np.convolve(counts, np.ones(3), mode="same")[:counts.size] if counts.size >= 3 \
@@ -209,7 +232,7 @@ def fit_mixture_em(
         (keys ``d0``, ``sigma_mp``, ``sigma_dp``, ``weights``).
     n_init : int, default 4
         Number of data-driven starts: the strongest modes of the per-range
-        plane heights :func:`~bayes_mpem.geometry.invert_plane_height`.
+        plane heights :func:`~bayes_mpem.lbl.geometry.invert_plane_height`.
     max_iter : int, default 500
     tol : float, default 1e-8
         Stop when the log-likelihood gains less than ``tol`` per range.
@@ -222,7 +245,7 @@ def fit_mixture_em(
         Seeds the subsample.
     ssp : SoundSpeedProfile, optional
         Predict the direct and multipath ranges through this profile (refracted
-        eigenrays, :mod:`bayes_mpem.refraction`) instead of straight lines;
+        eigenrays, :mod:`bayes_mpem.lbl.refracted`) instead of straight lines;
         ``d0`` stays the height of the reflecting plane above the beacon. It
         must reach the deepest beacon or vehicle. Ranges with no eigenray of a
         class get zero density under it (with neither, they can only be
@@ -253,8 +276,8 @@ def fit_mixture_em(
 
     Examples
     --------
-    >>> from bayes_mpem.simulate import simulate_survey
-    >>> from bayes_mpem.em import fit_mixture_em
+    >>> from bayes_mpem.lbl.simulate import simulate_survey
+    >>> from bayes_mpem.lbl.em_mixture import fit_mixture_em
     >>> sim = simulate_survey("abe58", rng=1)
     >>> res = fit_mixture_em(sim.survey.for_beacon("4"), rng=0)
     >>> abs(res.d0 - 2472) < 3
@@ -270,51 +293,14 @@ def fit_mixture_em(
     if data.n < 3:
         raise ValueError(f"beacon {data.beacon}: need at least 3 ranges to fit, got {data.n}")
     gen = as_generator(rng)
-    if ssp is None:
-        if sound_speed is not None:
-            raise ValueError("sound_speed: only used with a sound-speed profile (ssp=...)")
-        geom = BeaconGeometry.from_data(data)
-    else:
-        from .refracted import RefractedBeaconGeometry
-
-        geom = RefractedBeaconGeometry.from_data(data, ssp, sound_speed)
+    geom = _geometry(data, ssp, sound_speed)
     s_dp0 = fixed_dp or estimate_sigma_dp(geom)
     d0_bounds = (geom.d0_min, geom.hi + geom.d0_min + 1.0)
     opts = dict(fit_sigma_dp=fixed_dp is None, fit_weights=weights == "learned",
                 sigma_floor=float(sigma_floor), d0_bounds=d0_bounds)
-
-    starts = []
-    if init is not None:
-        w = init.get("weights", {})
-        starts.append(_State(
-            float(init["d0"]),
-            fixed_dp or float(init.get("sigma_dp", s_dp0)),
-            float(init.get("sigma_mp", max(3 * s_dp0, 5.0))),
-            np.array([w.get(c, 1 / 3) for c in CLASSES], float)
-            if weights == "learned" else np.full(3, 1 / 3),
-        ))
-    for d0 in _d0_candidates(geom, s_dp0, path, int(n_init)):
-        starts.append(_State(d0, s_dp0, float(np.clip(3 * s_dp0, 5.0, 50.0)), np.full(3, 1 / 3)))
-    if not starts:  # no multipath-like ranges at all: start at the data window
-        starts.append(_State(float(np.clip(geom.hi, *d0_bounds)), s_dp0, 50.0, np.full(3, 1 / 3)))
-    for s in starts:
-        s.d0 = float(np.clip(s.d0, *d0_bounds))
-
-    prefix = None
-    if len(starts) > 1:
-        sub, full = geom, geom.n <= subsample
-        if not full:
-            idx = np.sort(gen.choice(geom.n, size=int(subsample), replace=False))
-            sub = geom.take(idx)
-        runs = [_run_mixture(sub, s, path, tol=1e-6, max_iter=min(100, int(max_iter)), **opts)
-                for s in starts]
-        best_run = max(runs, key=lambda run: run[1])
-        best = best_run[0]
-        if full:  # the comparison ran on all the data: continue that run
-            prefix, first = best_run[4], best_run[3]
-    else:
-        best = starts[0]
-
+    starts = _starts(geom, init, s_dp0, fixed_dp, weights, path, int(n_init), d0_bounds)
+    best, prefix, first = _best_start(geom, starts, path, opts, subsample=subsample,
+                                      max_iter=max_iter, gen=gen)
     used = len(prefix["d0"]) - 1 if prefix is not None else 0
     state, ll, resp, first_new, hist, it, converged = _run_mixture(
         geom, best, path, tol=float(tol), max_iter=int(max_iter) - used, **opts)
@@ -356,3 +342,56 @@ def fit_mixture_em(
         settings=settings,
         d0_se=float(d0_se),
     ), data, float(sigma_floor))
+
+
+def _geometry(data, ssp, sound_speed):
+    """Straight-ray geometry, or refracted through ``ssp`` (then ``sound_speed`` is needed)."""
+    if ssp is None:
+        if sound_speed is not None:
+            raise ValueError("sound_speed: only used with a sound-speed profile (ssp=...)")
+        return BeaconGeometry.from_data(data)
+    from .refracted import RefractedBeaconGeometry
+
+    return RefractedBeaconGeometry.from_data(data, ssp, sound_speed)
+
+
+def _starts(geom, init, s_dp0, fixed_dp, weights, path, n_init, d0_bounds):
+    """List the starting states: ``init``, then the modes of the per-range plane heights."""
+    starts = []
+    if init is not None:
+        w = init.get("weights", {})
+        starts.append(_State(
+            float(init["d0"]),
+            fixed_dp or float(init.get("sigma_dp", s_dp0)),
+            float(init.get("sigma_mp", max(3 * s_dp0, 5.0))),
+            np.array([w.get(c, 1 / 3) for c in CLASSES], float)
+            if weights == "learned" else np.full(3, 1 / 3),
+        ))
+    for d0 in _d0_candidates(geom, s_dp0, path, n_init):
+        starts.append(_State(d0, s_dp0, float(np.clip(3 * s_dp0, 5.0, 50.0)), np.full(3, 1 / 3)))
+    if not starts:  # no multipath-like ranges at all: start at the data window
+        starts.append(_State(float(np.clip(geom.hi, *d0_bounds)), s_dp0, 50.0, np.full(3, 1 / 3)))
+    for s in starts:
+        s.d0 = float(np.clip(s.d0, *d0_bounds))
+    return starts
+
+
+def _best_start(geom, starts, path, opts, *, subsample, max_iter, gen):
+    """Compare the starts by short runs on a subsample of at most ``subsample`` ranges.
+
+    Returns ``(best state, history, first responsibilities)``; the last two are
+    the winning run's, to be continued, when the comparison ran on all the
+    data, else ``None``.
+    """
+    if len(starts) == 1:
+        return starts[0], None, None
+    sub, full = geom, geom.n <= subsample
+    if not full:
+        idx = np.sort(gen.choice(geom.n, size=int(subsample), replace=False))
+        sub = geom.take(idx)
+    runs = [_run_mixture(sub, s, path, tol=1e-6, max_iter=min(100, int(max_iter)), **opts)
+            for s in starts]
+    best_run = max(runs, key=lambda run: run[1])
+    if full:  # the comparison ran on all the data: continue that run
+        return best_run[0], best_run[4], best_run[3]
+    return best_run[0], None, None

@@ -1,4 +1,17 @@
-"""Em paper (moved from ``em``)."""
+"""The paper's EM for one beacon, as written (eqs. 3-10).
+
+:func:`fit_paper_em` follows the paper's algorithm: chi-square tail
+probabilities in the E-step (:func:`paper_e_step`) with the ``Pol`` rule for
+outliers and equal priors, then (:func:`paper_m_step`) the gamma_MP-weighted
+average of the per-range plane heights of eq. 8, blended with the previous
+one by ``alpha`` (eq. 10), and eq. 9 (as a variance) for the multipath
+scatter. It maximises no likelihood, so it reports none. Every
+interpretation is listed in ``docs/paper-em.md``.
+
+The maximum-likelihood alternative (the package's default) is
+:mod:`bayes_mpem.lbl.em_mixture`; both return an
+:class:`~bayes_mpem.lbl.em_result.EMResult`.
+"""
 
 from __future__ import annotations
 
@@ -75,7 +88,7 @@ def paper_m_step(geom: BeaconGeometry, gamma_mp, d0_prev, alpha, path="triangle"
     path : {"triangle", "double"}
     d0k : numpy.ndarray, optional
         Precomputed per-range plane heights
-        (:func:`~bayes_mpem.geometry.invert_plane_height`); they do not depend
+        (:func:`~bayes_mpem.lbl.geometry.invert_plane_height`); they do not depend
         on the parameters, so the EM loop computes them once.
 
     Returns
@@ -98,6 +111,40 @@ def paper_m_step(geom: BeaconGeometry, gamma_mp, d0_prev, alpha, path="triangle"
     return d0, float(np.sqrt(var))
 
 
+def _run_paper(geom, d0, s_mp, s_dp, pol, alpha, path, *, tol, max_iter):
+    """Run the paper's iterations from ``(d0, s_mp)``.
+
+    Returns ``(d0, sigma_mp, resp, first_resp, history, n_iter, converged)``.
+    """
+    d0k = geometry.invert_plane_height(geom.z, geom.h, geom.dz, path, direct=geom.direct)
+    hist = {k: [] for k in ("d0", "sigma_mp", "sigma_dp", "p_dp", "p_mp", "p_ol")}
+
+    def record(resp):
+        hist["d0"].append(d0)
+        hist["sigma_mp"].append(s_mp)
+        hist["sigma_dp"].append(s_dp)
+        for c, m in zip(CLASSES, mean_resp_history(resp), strict=True):
+            hist["p_" + c].append(float(m))
+
+    resp = paper_e_step(geom, d0, s_mp, s_dp, pol, path)
+    first_resp = resp
+    record(resp)  # state 0: the initial parameters and the first classification
+    converged = False
+    it = 0
+    for it in range(1, max_iter + 1):
+        d0_new, s_new = paper_m_step(geom, resp[:, 1], d0, alpha, path, d0k=d0k)
+        done = abs(d0_new - d0) < tol and abs(s_new - s_mp) < tol
+        d0, s_mp = d0_new, s_new
+        if not np.isfinite(s_mp) or s_mp <= 0:
+            break  # sigma_MP collapsed: the probabilities stay those of the last E-step
+        resp = paper_e_step(geom, d0, s_mp, s_dp, pol, path)
+        record(resp)
+        if done:
+            converged = True
+            break
+    return d0, s_mp, resp, first_resp, hist, it, converged
+
+
 def fit_paper_em(
     data: BeaconData,
     *,
@@ -110,7 +157,7 @@ def fit_paper_em(
     tol: float = 1e-3,
     max_iter: int = 2000,
 ) -> EMResult:
-    """The paper's EM, as written (eqs. 3-10).
+    """Fit one beacon with the paper's EM, as written (eqs. 3-10).
 
     Parameters
     ----------
@@ -146,8 +193,8 @@ def fit_paper_em(
 
     Examples
     --------
-    >>> from bayes_mpem.simulate import simulate_survey
-    >>> from bayes_mpem.em import fit_paper_em
+    >>> from bayes_mpem.lbl.simulate import simulate_survey
+    >>> from bayes_mpem.lbl.em_paper import fit_paper_em
     >>> sim = simulate_survey("abe58", rng=1)
     >>> res = fit_paper_em(sim.survey.for_beacon("4"), sigma_dp=3.97)
     >>> abs(res.d0 - 2472) < 10
@@ -161,33 +208,9 @@ def fit_paper_em(
         raise ValueError(f"d0_init: expected a finite number, got {d0_init!r}")
     geom = BeaconGeometry.from_data(data)
     s_dp = fixed_dp or estimate_sigma_dp(geom)
-    d0, s_mp = float(d0_init), float(np.sqrt(sigma_mp2_init))
-    d0k = geometry.invert_plane_height(geom.z, geom.h, geom.dz, path, direct=geom.direct)
-    hist = {k: [] for k in ("d0", "sigma_mp", "sigma_dp", "p_dp", "p_mp", "p_ol")}
-
-    def record(resp):
-        hist["d0"].append(d0)
-        hist["sigma_mp"].append(s_mp)
-        hist["sigma_dp"].append(s_dp)
-        for c, m in zip(CLASSES, mean_resp_history(resp), strict=True):
-            hist["p_" + c].append(float(m))
-
-    resp = paper_e_step(geom, d0, s_mp, s_dp, pol, path)
-    first_resp = resp
-    record(resp)  # state 0: the initial parameters and the first classification
-    converged = False
-    it = 0
-    for it in range(1, max_iter + 1):
-        d0_new, s_new = paper_m_step(geom, resp[:, 1], d0, alpha, path, d0k=d0k)
-        done = abs(d0_new - d0) < tol and abs(s_new - s_mp) < tol
-        d0, s_mp = d0_new, s_new
-        if not np.isfinite(s_mp) or s_mp <= 0:
-            break  # sigma_MP collapsed: the probabilities stay those of the last E-step
-        resp = paper_e_step(geom, d0, s_mp, s_dp, pol, path)
-        record(resp)
-        if done:
-            converged = True
-            break
+    d0, s_mp, resp, first_resp, hist, it, converged = _run_paper(
+        geom, float(d0_init), float(np.sqrt(sigma_mp2_init)), s_dp, pol, alpha, path,
+        tol=tol, max_iter=max_iter)
     if not converged:
         warnings.warn(
             f"beacon {data.beacon}: the paper's EM did not converge in {it} iterations "

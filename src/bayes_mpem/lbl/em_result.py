@@ -1,4 +1,27 @@
-"""Em result (moved from ``em``)."""
+"""The result of a one-beacon EM and what both EMs share.
+
+:class:`EMResult` is the frozen result of :func:`~bayes_mpem.lbl.em_mixture.fit_mixture_em`
+and :func:`~bayes_mpem.lbl.em_paper.fit_paper_em`: the fitted plane height,
+scales and weights, the class probabilities of every range from a final
+E-step, the iteration history and the settings. :func:`quality_flags` says
+why a fitted reflector is not credible, and :func:`with_flags` attaches those
+flags (with a :class:`~bayes_mpem.exceptions.FitQualityWarning`).
+
+The helpers both EMs use are here too: option checks (:func:`check_options`,
+:func:`check_positive`, :func:`check_max_iter`), the robust direct-path
+scatter (:func:`estimate_sigma_dp`) and a BLAS-free weighted sum
+(:func:`wdot`).
+
+Examples
+--------
+>>> import numpy as np
+>>> wdot(np.array([1.0, 2.0]), np.array([3.0, 4.0]))
+11.0
+>>> check_positive("tol", 0.0)
+Traceback (most recent call last):
+...
+ValueError: tol: expected a positive number, got 0.0
+"""
 
 from __future__ import annotations
 
@@ -60,7 +83,26 @@ def quality_flags(result, data: BeaconData, *, sigma_floor: float = 0.05) -> tup
 
 
 def with_flags(result, data, sigma_floor):
-    """``result`` with its quality flags set, warning once if there are any."""
+    """Set the quality flags of ``result``, warning once if there are any.
+
+    Parameters
+    ----------
+    result : EMResult
+    data : BeaconData
+        The beacon's replies.
+    sigma_floor : float
+        The scale floor the fit used.
+
+    Returns
+    -------
+    EMResult
+        A copy with ``flags`` set (:func:`quality_flags`).
+
+    Warns
+    -----
+    FitQualityWarning
+        When there are flags.
+    """
     flags = quality_flags(result, data, sigma_floor=sigma_floor)
     if flags:
         warnings.warn(f"beacon {data.beacon} ({result.method} EM): " + "; ".join(flags),
@@ -205,16 +247,44 @@ def estimate_sigma_dp(geom: BeaconGeometry, *, window: float = 50.0) -> float:
 
 
 def wdot(w, x):
-    """``sum(w * x)`` without BLAS.
+    """Return ``sum(w * x)``, computed without BLAS.
 
     ``np.dot`` on 1-D arrays calls a multi-threaded BLAS ``ddot`` that spin-waits
     for a busy core: on 2 cores with another process running it made the EM 40x
     slower (measured, ``benchmarks/bench_em.py``). A NumPy reduction does not.
+
+    Parameters
+    ----------
+    w, x : numpy.ndarray
+        Weights and values (broadcastable).
+
+    Returns
+    -------
+    float
     """
     return float(np.add.reduce(w * x))
 
 
 def check_positive(name, value, *, allow_none=False):
+    """Check that option ``name`` is a finite positive number.
+
+    Parameters
+    ----------
+    name : str
+        The option's name, for the message.
+    value : object
+    allow_none : bool, default False
+        Accept ``None`` (returned as is).
+
+    Returns
+    -------
+    float or None
+
+    Raises
+    ------
+    ValueError
+        For anything else.
+    """
     if value is None and allow_none:
         return None
     try:
@@ -227,12 +297,28 @@ def check_positive(name, value, *, allow_none=False):
 
 
 def check_options(*, path="triangle", weights="learned", pol=0.05, alpha=0.5, sigma_dp=None):
-    """Validate the options of both EMs (``ValueError`` naming the option); used up front.
+    """Validate the options of both EMs up front.
+
+    Parameters
+    ----------
+    path : {"triangle", "double"}
+    weights : {"learned", "equal"}
+    pol : float
+        In (0, 1).
+    alpha : float
+        In (0, 1].
+    sigma_dp : float, optional
+        Positive when given.
 
     Returns
     -------
     float or None
         ``sigma_dp`` as a float (``None`` when it is to be estimated).
+
+    Raises
+    ------
+    ValueError
+        Naming the first bad option.
     """
     geometry.check_path(path)
     if weights not in ("learned", "equal"):
@@ -245,9 +331,32 @@ def check_options(*, path="triangle", weights="learned", pol=0.05, alpha=0.5, si
 
 
 def check_max_iter(max_iter):
+    """Check that ``max_iter`` is an integer >= 1.
+
+    Parameters
+    ----------
+    max_iter : int
+
+    Raises
+    ------
+    ValueError
+        For anything else (``bool`` included).
+    """
     if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
         raise ValueError(f"max_iter: expected an integer >= 1, got {max_iter!r}")
 
 
 def mean_resp_history(resp):
+    """Mean class probabilities of ``resp`` (NaN for no ranges).
+
+    Parameters
+    ----------
+    resp : numpy.ndarray
+        ``(n, 3)`` class probabilities.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(3,)``.
+    """
     return resp.mean(axis=0) if resp.size else np.full(3, np.nan)

@@ -8,19 +8,18 @@ and ``classified.csv`` (one row per input row, nothing dropped).
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from .._rng import RNGLike, as_generator
+from ..io.results import output_folder, write_csv, write_json
 from ..io.survey import Survey, load_survey
 from .em_mixture import fit_mixture_em
 from .em_paper import fit_paper_em
 from .em_result import check_options
-from .survey import beacons_table, classified_table, fittable_beacons
+from .survey import beacons_table, classified_table, over_beacons
 
 METHODS = ("mixture", "paper")
 
@@ -88,6 +87,15 @@ class SurveyFit:
             "options": {k: v for k, v in self.options.items() if k != "rng"},
         }
 
+    def to_dict(self) -> dict:
+        """Return the content of ``summary.json`` (the same as :meth:`summary`).
+
+        Returns
+        -------
+        dict
+        """
+        return self.summary()
+
     def table(self) -> pd.DataFrame:
         """Per-beacon table in the spirit of the paper's Table II.
 
@@ -110,7 +118,12 @@ class SurveyFit:
         return pd.DataFrame(rows)
 
     def format_table(self) -> str:
-        """The :meth:`table` as aligned text for a terminal."""
+        """Format the :meth:`table` as aligned text for a terminal.
+
+        Returns
+        -------
+        str
+        """
         t = self.table()
         lines = [f"{'beacon':>6} {'HRP d0 (m)':>11} {'sigma_MP (m)':>12} {'depth (m)':>10} "
                  f"{'plane (m)':>9} {'DP':>6} {'MP':>6} {'OL':>6} {'n':>6}"]
@@ -133,16 +146,12 @@ class SurveyFit:
         Returns
         -------
         dict
-            Paths written, keyed ``summary`` and ``classified``.
+            Paths written, keyed ``summary``, ``classified`` and ``history``.
         """
-        out = Path(out_dir)
-        out.mkdir(parents=True, exist_ok=True)
-        paths = {"summary": out / "summary.json", "classified": out / "classified.csv",
-                 "history": out / "history.json"}
-        paths["summary"].write_text(json.dumps(self.summary(), indent=2) + "\n")
-        self.classified().to_csv(paths["classified"], index=False)
-        paths["history"].write_text(json.dumps(self.history(), indent=None) + "\n")
-        return paths
+        out = output_folder(out_dir)
+        return {"summary": write_json(out / "summary.json", self.summary()),
+                "classified": write_csv(out / "classified.csv", self.classified()),
+                "history": write_json(out / "history.json", self.history(), indent=None)}
 
     def history(self) -> dict:
         """Per beacon: every iteration's parameters and the first E-step's probabilities.
@@ -227,16 +236,14 @@ def fit(
     check_options(path=path, weights=weights, pol=pol, alpha=alpha, sigma_dp=sigma_dp)
     survey = load_survey(pings, beacons)
     gen = as_generator(rng)
-    results = {}
-    fittable, skipped = fittable_beacons(survey, min_pings)
-    for data in fittable:
-        bid = data.beacon
+
+    def fit_one(data):
         if method == "mixture":
-            results[bid] = fit_mixture_em(data, path=path, sigma_dp=sigma_dp, weights=weights,
-                                          rng=gen, **kwargs)
-        else:
-            results[bid] = fit_paper_em(data, path=path, sigma_dp=sigma_dp, pol=pol,
-                                        alpha=alpha, **kwargs)
+            return fit_mixture_em(data, path=path, sigma_dp=sigma_dp, weights=weights, rng=gen,
+                                  **kwargs)
+        return fit_paper_em(data, path=path, sigma_dp=sigma_dp, pol=pol, alpha=alpha, **kwargs)
+
+    results, skipped = over_beacons(survey, min_pings, fit_one)
     options = {"path": path, "sigma_dp": sigma_dp, "min_pings": min_pings, **kwargs}
     if method == "mixture":
         options["weights"] = weights

@@ -145,7 +145,7 @@ def multipath_range(h, dz, d0, path: Path = "triangle", *, direct=None):
 
 
 def multipath_derivative(h, dz, d0, path: Path = "triangle"):
-    """Derivative of :func:`multipath_range` with respect to ``d0``.
+    """Differentiate :func:`multipath_range` with respect to ``d0``.
 
     Parameters
     ----------

@@ -4,9 +4,11 @@ A reported range ``z`` of one beacon has density
 
 ``p(z) = w_dp N(z; L_direct, s_dp) + w_mp N(z; f_MP(d0), s_mp) + w_ol U(z; lo, hi)``
 
-with ``f_MP`` from :mod:`bayes_mpem.geometry` and the outlier density uniform
-over the observed window ``[lo, hi]`` of that beacon's ranges. The EM
-(:mod:`bayes_mpem.em`) and the samplers call these functions; every
+with ``f_MP`` from :mod:`bayes_mpem.lbl.geometry` and the outlier density uniform
+over the observed window ``[lo, hi]`` of that beacon's ranges (the
+component densities and their log-sum-exp are those of
+:mod:`bayes_mpem.mixture.densities`). The EM
+(:mod:`bayes_mpem.lbl.em_mixture`) and the samplers call these functions; every
 parameter broadcasts, so a column of walkers ``d0[:, None]`` evaluates all
 walkers at once.
 """
@@ -125,7 +127,7 @@ _ZERO_SIGMAS = 40.0
 
 
 def total_loglik(geom: BeaconGeometry, d0, sigma_dp, sigma_mp, weights, path="triangle"):
-    """Summed log-likelihood for many parameter sets at once (the sampler's kernel).
+    """Sum the log-likelihood for many parameter sets at once (the sampler's kernel).
 
     The same density as :func:`loglik_per_range`, evaluated in linear space:
     two exponentials and one logarithm per range instead of log-sum-exp. The

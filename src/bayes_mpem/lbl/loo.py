@@ -11,6 +11,13 @@ Vehtari's cross-validation FAQ). On surveys simulated with equal weights the
 learned model loses 0.7-1.6 nats (the price of two extra parameters) with an
 SE of 0.6-1.4 (``docs/bayes-calibration.md``), so a 2-SE rule alone would
 sometimes "prefer" equal priors there (-1.6 +- 0.6 on one of six surveys).
+
+:func:`psis_loo` computes the LOO of one :class:`~bayes_mpem.lbl.beacon_sampling.PosteriorResult`
+(its ``log_likelihood`` group), handling ranges whose importance ratios have a
+tied tail by plain importance sampling; :func:`compare_beacon` samples both
+posteriors of one beacon and returns a :class:`PriorComparison` (ELPD
+difference, Pareto k, interval shifts, ranges whose class changes). The survey
+loop is :func:`bayes_mpem.lbl.comparison.compare`.
 """
 
 from __future__ import annotations
@@ -171,7 +178,7 @@ def compare_beacon(data: BeaconData, *, rng: RNGLike = None, **kwargs) -> PriorC
     data : BeaconData
     rng : None, int or numpy.random.Generator
     **kwargs
-        Passed to :func:`~bayes_mpem.bayes.sample_beacon` for both runs.
+        Passed to :func:`~bayes_mpem.lbl.beacon_sampling.sample_beacon` for both runs.
 
     Returns
     -------

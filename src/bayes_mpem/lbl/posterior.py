@@ -1,4 +1,26 @@
-"""Posterior (moved from ``bayes``)."""
+"""The posterior of one beacon: parameters, priors and log-density, vectorised over walkers.
+
+:class:`BeaconPosterior` samples the same density as the mixture EM
+(:mod:`bayes_mpem.lbl.em_mixture`, :mod:`bayes_mpem.lbl.likelihood`) and
+satisfies :class:`bayes_mpem.mcmc.LogPosterior`. Parameters, in the sampler's
+coordinates:
+
+==================  =====================================================
+``d0``              plane height above the beacon (m); prior uniform on
+                    ``[max(0, max dz), hi + max(0, max dz) + 1]``, the EM's bounds
+``log_sigma_mp``    prior uniform on ``[log 0.05, log 500]``, i.e.
+                    ``p(sigma) ~ 1 / sigma`` (scale-invariant) on 0.05-500 m
+``log_sigma_dp``    the same prior; absent when ``sigma_dp`` is fixed
+``w_dp, w_mp``      learned priors only: ``w_ol = 1 - w_dp - w_mp``, prior
+                    ``Dirichlet(c, c, c)`` (``c = concentration``, default 1:
+                    uniform on the simplex); equal priors fix all at 1/3
+==================  =====================================================
+
+The walkers start in a small ball around the EM solution
+(:meth:`BeaconPosterior.start`); :func:`check_sample_options` validates the
+sampler's options before any work. Sampling itself is
+:func:`bayes_mpem.lbl.beacon_sampling.sample_beacon`.
+"""
 
 from __future__ import annotations
 
@@ -9,7 +31,7 @@ from ..io.survey import BeaconData
 from ..mixture.densities import CLASSES
 from .beacon_geometry import BeaconGeometry
 from .em_result import EMResult
-from .likelihood import total_loglik
+from .likelihood import total_loglik, weighted_densities
 
 PRIORS = ("equal", "learned")
 PARAMS = ("d0", "sigma_mp", "sigma_dp", "w_dp", "w_mp", "w_ol")
@@ -59,11 +81,22 @@ class BeaconPosterior:
         Dirichlet concentration of the learned weights.
     sigma_bounds : tuple of float, default (0.05, 500)
         Support (m) of the log-uniform scale priors.
+    em : EMResult, optional
+        The EM fit :meth:`start` centres the walkers on (or set :attr:`em` later).
+
+    Attributes
+    ----------
+    names : tuple of str
+        The sampler's coordinates, in the order of the columns of ``theta``.
+    label : str
+        ``"beacon <name> (<priors> priors)"``, for the progress bar.
+    em : EMResult or None
+        The start of the walkers.
 
     Examples
     --------
     >>> import numpy as np
-    >>> from bayes_mpem.simulate import simulate_survey
+    >>> from bayes_mpem.lbl.simulate import simulate_survey
     >>> post = BeaconPosterior(simulate_survey("abe58", rng=0).survey.for_beacon("4"))
     >>> post.names
     ('d0', 'log_sigma_mp', 'log_sigma_dp', 'w_dp', 'w_mp')
@@ -73,7 +106,7 @@ class BeaconPosterior:
     """
 
     def __init__(self, data: BeaconData, *, priors="learned", sigma_dp=None, path="triangle",
-                 concentration=1.0, sigma_bounds=(0.05, 500.0)):
+                 concentration=1.0, sigma_bounds=(0.05, 500.0), em: EMResult | None = None):
         if priors not in PRIORS:
             raise ValueError(f"priors: expected one of {PRIORS}, got {priors!r}")
         if not float(concentration) > 0:
@@ -81,6 +114,8 @@ class BeaconPosterior:
         self.geom = BeaconGeometry.from_data(data)
         self.beacon = data.beacon
         self.priors = priors
+        self.label = f"beacon {self.beacon} ({priors} priors)"
+        self.em = em
         self.path = path
         self.sigma_dp = None if sigma_dp is None else float(sigma_dp)
         self.concentration = float(concentration)
@@ -177,6 +212,29 @@ class BeaconPosterior:
                                    [p["w_dp"], p["w_mp"], p["w_ol"]], self.path)
         return lp
 
+    def loglik_and_classes(self, theta):
+        """Log-likelihood and class probabilities of every range, at each row of ``theta``.
+
+        Linear-space densities: exact, as ``w_ol > 0`` in the posterior's support.
+
+        Parameters
+        ----------
+        theta : numpy.ndarray
+            ``(W, ndim)``, inside the support.
+
+        Returns
+        -------
+        loglik : numpy.ndarray
+            ``(W, n)``.
+        probs : list of numpy.ndarray
+            Per class (dp, mp, ol), ``(W, n)``.
+        """
+        p = self.unpack(theta)
+        terms = weighted_densities(self.geom, p["d0"], p["sigma_dp"], p["sigma_mp"],
+                                   [p["w_dp"], p["w_mp"], p["w_ol"]], self.path)
+        total = terms[0] + terms[1] + terms[2]
+        return np.log(total), [terms[j] / total for j in range(3)]
+
     def theta_from(self, params: dict):
         """Sampler coordinates of a dict of natural parameters (e.g. an EM result)."""
         vals = {"d0": params["d0"], "log_sigma_mp": np.log(params["sigma_mp"]),
@@ -184,31 +242,54 @@ class BeaconPosterior:
                 "w_dp": params["weights"]["dp"], "w_mp": params["weights"]["mp"]}
         return np.array([vals[n] for n in self.names], float)
 
+    def start(self, n_walkers, gen):
+        """Walkers around the EM solution, scattered by rough posterior widths, inside the prior.
 
-# --------------------------------------------------------------------------
+        Each parameter is scattered by half its large-sample standard error at the
+        EM solution :attr:`em`; candidates outside the prior are redrawn, at half
+        the scatter each time.
 
+        Parameters
+        ----------
+        n_walkers : int
+        gen : numpy.random.Generator
 
-def start_ball(post: BeaconPosterior, em: EMResult, n_walkers, gen):
-    """Walkers around the EM solution, scattered by rough posterior widths, inside the prior."""
-    centre = post.theta_from(em.to_dict())
-    n = em.n
-    frac = {c: max(em.weights[c], 1e-3) for c in CLASSES}
-    width = {"d0": em.d0_se if em.d0_se and np.isfinite(em.d0_se) else 1.0,
-             "log_sigma_mp": 1.0 / np.sqrt(2 * max(frac["mp"] * n, 2)),
-             "log_sigma_dp": 1.0 / np.sqrt(2 * max(frac["dp"] * n, 2)),
-             "w_dp": np.sqrt(frac["dp"] * (1 - frac["dp"]) / n),
-             "w_mp": np.sqrt(frac["mp"] * (1 - frac["mp"]) / n)}
-    scale = np.array([0.5 * width[name] for name in post.names])
-    out = np.empty((n_walkers, post.ndim))
-    filled = 0
-    for _ in range(100):
-        cand = centre + scale * gen.standard_normal((n_walkers, post.ndim))
-        good = cand[np.isfinite(post(cand))]
-        take = min(len(good), n_walkers - filled)
-        out[filled:filled + take] = good[:take]
-        filled += take
-        if filled == n_walkers:
-            return out
-        scale *= 0.5
-    raise RuntimeError(f"beacon {post.beacon}: could not place walkers inside the prior "
-                       f"around the EM solution {dict(zip(post.names, centre, strict=True))}")
+        Returns
+        -------
+        numpy.ndarray
+            ``(n_walkers, ndim)``.
+
+        Raises
+        ------
+        ValueError
+            When no EM solution was given.
+        RuntimeError
+            When 100 rounds of candidates leave walkers unplaced.
+        """
+        em = self.em
+        if em is None:
+            raise ValueError(f"beacon {self.beacon}: start needs the EM solution to start "
+                             "from (BeaconPosterior(..., em=...)), got None")
+        centre = self.theta_from(em.to_dict())
+        n = em.n
+        frac = {c: max(em.weights[c], 1e-3) for c in CLASSES}
+        width = {"d0": em.d0_se if em.d0_se and np.isfinite(em.d0_se) else 1.0,
+                 "log_sigma_mp": 1.0 / np.sqrt(2 * max(frac["mp"] * n, 2)),
+                 "log_sigma_dp": 1.0 / np.sqrt(2 * max(frac["dp"] * n, 2)),
+                 "w_dp": np.sqrt(frac["dp"] * (1 - frac["dp"]) / n),
+                 "w_mp": np.sqrt(frac["mp"] * (1 - frac["mp"]) / n)}
+        scale = np.array([0.5 * width[name] for name in self.names])
+        out = np.empty((n_walkers, self.ndim))
+        filled = 0
+        for _ in range(100):
+            cand = centre + scale * gen.standard_normal((n_walkers, self.ndim))
+            good = cand[np.isfinite(self(cand))]
+            take = min(len(good), n_walkers - filled)
+            out[filled:filled + take] = good[:take]
+            filled += take
+            if filled == n_walkers:
+                return out
+            scale *= 0.5
+        raise RuntimeError(f"beacon {self.beacon}: could not place walkers inside the prior "
+                           "around the EM solution "
+                           f"{dict(zip(self.names, centre, strict=True))}")

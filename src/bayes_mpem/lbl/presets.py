@@ -1,4 +1,9 @@
-"""Presets (moved from ``simulate``)."""
+"""Survey presets of the LBL simulator: the ABE dive 58 survey and random surveys.
+
+:data:`ABE58` is the configuration of the paper's dive (beacons, noise, class
+weights, track); :func:`random_config` draws a plausible random one. Both are
+dictionaries of :func:`~bayes_mpem.lbl.simulate.simulate_survey`'s settings.
+"""
 
 from __future__ import annotations
 
@@ -37,6 +42,23 @@ ABE58 = {
 
 
 def random_config(gen):
+    """Draw a random survey configuration (3-5 beacons, depths 800-4,500 m).
+
+    Parameters
+    ----------
+    gen : numpy.random.Generator
+
+    Returns
+    -------
+    dict
+        The keys of :data:`ABE58`.
+
+    Examples
+    --------
+    >>> cfg = random_config(np.random.default_rng(0))
+    >>> sorted(cfg) == sorted(ABE58)
+    True
+    """
     nb = int(gen.integers(3, 6))
     seafloor = float(gen.uniform(800.0, 4500.0))
     half = float(gen.uniform(600.0, 2000.0))

@@ -1,6 +1,6 @@
 """Refracted LBL ranges: direct and multipath returns through a sound-speed profile.
 
-The straight-ray model of :mod:`bayes_mpem.geometry` turns geometry into ranges
+The straight-ray model of :mod:`bayes_mpem.lbl.geometry` turns geometry into ranges
 with straight lines; an LBL system measures travel times and turns them into
 ranges with one nominal sound speed ``c_nom``. Through a layered ocean
 (:class:`~bayes_mpem.acoustics.SoundSpeedProfile`) the reported one-way ranges are
@@ -280,7 +280,7 @@ class RefractedBeaconGeometry(BeaconGeometry):
                    cols=np.arange(base.z.size))
 
     def take(self, idx) -> RefractedBeaconGeometry:
-        """The ranges ``idx`` (same window, ``d0_min`` and bounce table)."""
+        """Select the ranges ``idx`` (same window, ``d0_min`` and bounce table)."""
         return dataclasses.replace(
             self, z=self.z[idx], h=self.h[idx], dz=self.dz[idx], direct=self.direct[idx],
             direct_valid=self.direct_valid[idx], turning=self.turning[idx],

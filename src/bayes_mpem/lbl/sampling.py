@@ -2,17 +2,16 @@
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
-from pathlib import Path
 
 from .._rng import RNGLike, as_generator
 from ..exceptions import UnusableStartError
+from ..io.results import output_folder, write_csv, write_json
 from ..io.survey import Survey, load_survey
 from ..mixture.densities import CLASSES
 from .beacon_sampling import PosteriorResult, sample_beacon
 from .posterior import check_sample_options
-from .survey import beacons_table, classified_table, fittable_beacons, option_subset, skip_beacon
+from .survey import beacons_table, classified_table, option_subset, over_beacons
 
 
 @dataclass(frozen=True)
@@ -53,7 +52,12 @@ class SurveyPosterior:
             self.skipped, extra)
 
     def summary(self) -> dict:
-        """JSON-ready summary (see ``docs/cli.md``)."""
+        """JSON-ready summary (see ``docs/cli.md``).
+
+        Returns
+        -------
+        dict
+        """
         beacons = {}
         for bid, r in self.results.items():
             d = r.to_dict()
@@ -71,8 +75,22 @@ class SurveyPosterior:
                 "pings": self.survey.pings_source, "beacons_file": self.survey.beacons_source,
                 "options": {k: v for k, v in self.options.items() if k != "rng"}}
 
+    def to_dict(self) -> dict:
+        """Return the content of ``summary.json`` (the same as :meth:`summary`).
+
+        Returns
+        -------
+        dict
+        """
+        return self.summary()
+
     def format_table(self) -> str:
-        """Posterior means and intervals per beacon, as text."""
+        """Posterior means and intervals per beacon, as text.
+
+        Returns
+        -------
+        str
+        """
         pct = f"{100 * self.ci:g}%"
         lines = [f"{'beacon':>6} {'d0 (m)':>9} {pct + ' interval':>21} {'sigma_MP (m)':>12} "
                  f"{pct + ' interval':>15} {'depth':>7} {'w_dp':>5} {'w_mp':>5} {'w_ol':>5} "
@@ -93,7 +111,12 @@ class SurveyPosterior:
         return "\n".join(lines)
 
     def datatree(self):
-        """All beacons in one ``xarray.DataTree``: a child ``beacon_<id>`` per beacon."""
+        """All beacons in one ``xarray.DataTree``: a child ``beacon_<id>`` per beacon.
+
+        Returns
+        -------
+        xarray.DataTree
+        """
         import xarray as xr
 
         root = xr.DataTree()
@@ -114,18 +137,16 @@ class SurveyPosterior:
         dict
             Paths written.
         """
-        out = Path(out_dir)
-        out.mkdir(parents=True, exist_ok=True)
-        paths = {"posterior": out / "posterior.nc", "classified": out / "classified.csv",
-                 "summary": out / "summary.json"}
+        out = output_folder(out_dir)
+        paths = {"posterior": out / "posterior.nc"}
         # the per-range log-likelihood dominates the file: gzip'd float32 (7 significant
         # digits, ample for LOO) took the abe58 demo file from 81 to 29 MB (measured)
         enc = {f"/beacon_{b}/log_likelihood": {"z": {"dtype": "float32", "compression": "gzip",
                                                      "compression_opts": 4, "shuffle": True}}
                for b in self.results}
         self.datatree().to_netcdf(paths["posterior"], engine="h5netcdf", encoding=enc)
-        self.classified().to_csv(paths["classified"], index=False)
-        paths["summary"].write_text(json.dumps(self.summary(), indent=2) + "\n")
+        paths["classified"] = write_csv(out / "classified.csv", self.classified())
+        paths["summary"] = write_json(out / "summary.json", self.summary())
         return paths
 
 
@@ -181,12 +202,10 @@ def sample(
     check_sample_options(priors=priors, ci=ci, **option_subset(kwargs))
     survey = load_survey(pings, beacons)
     gen = as_generator(rng)
-    fittable, skipped = fittable_beacons(survey, min_pings)
-    results: dict[str, PosteriorResult] = {}
-    for data in fittable:
-        try:
-            results[data.beacon] = sample_beacon(data, priors=priors, ci=ci, rng=gen, **kwargs)
-        except UnusableStartError as exc:
-            skip_beacon(skipped, data.beacon, str(exc))
+
+    def sample_one(data) -> PosteriorResult:
+        return sample_beacon(data, priors=priors, ci=ci, rng=gen, **kwargs)
+
+    results, skipped = over_beacons(survey, min_pings, sample_one, skip_on=(UnusableStartError,))
     return SurveyPosterior(survey=survey, results=results, skipped=skipped, priors=priors,
                            ci=float(ci), options={"min_pings": min_pings, **kwargs})

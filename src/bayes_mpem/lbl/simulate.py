@@ -4,18 +4,18 @@ A survey is a set of seafloor beacons, a vehicle track, and for every ping
 cycle one reply (or none) from each beacon. Each reply is, at random with the
 beacon's mixing weights, the direct path (Gaussian around the straight line),
 a multipath from a horizontal plane (by default the sea surface; Gaussian
-around the image-method prediction of :mod:`bayes_mpem.geometry`), or an
+around the image-method prediction of :mod:`bayes_mpem.lbl.geometry`), or an
 outlier (uniform over the listening window).
 
 The simulator's assumptions are the paper's: straight rays, one sound speed,
 a static reflector, exact navigation, constant noise. With ``ssp=`` (a
 :class:`~bayes_mpem.acoustics.SoundSpeedProfile`) the rays are refracted
-instead (:mod:`bayes_mpem.refraction`) and the travel times are turned into
+instead (:mod:`bayes_mpem.lbl.refracted`) and the travel times are turned into
 ranges with a nominal sound speed, as an LBL system does.
 
 Examples
 --------
->>> from bayes_mpem.simulate import simulate_survey
+>>> from bayes_mpem.lbl.simulate import simulate_survey
 >>> sim = simulate_survey("abe58", rng=0)
 >>> sorted(sim.truth)
 ['1', '2', '3', '4']
@@ -33,11 +33,13 @@ import numpy as np
 import pandas as pd
 
 from .._rng import RNGLike, as_generator
+from .._validate import check_choice
 from ..acoustics.profile import SoundSpeedProfile
 from ..acoustics.profile_checks import check_profile, check_sound_speed, nominal_sound_speed
 from ..acoustics.turning import direct_times
 from ..io.survey import Survey, load_survey
 from . import geometry
+from .effects import EFFECTS, check_effects, effect_weights
 from .presets import ABE58, PRESETS, random_config
 from .refracted import lbl_ranges
 
@@ -165,7 +167,7 @@ def simulate_lbl(
         Seconds between the interrogations of successive beacons in a cycle.
     effects : dict, optional
         Departures from the paper's assumptions to hide in the data (the
-        vocabulary of :mod:`bayes_mpem.diagnose`), ``{name: magnitude}``:
+        vocabulary of :mod:`bayes_mpem.lbl.diagnosis`), ``{name: magnitude}``:
 
         ``"range_bias"``
             every true return (direct and multipath) is offset by this many m.
@@ -191,7 +193,7 @@ def simulate_lbl(
             degrees counter-clockwise from +x.
     rng : None, int or numpy.random.Generator
     ssp : SoundSpeedProfile, optional
-        Refract the rays through this profile (:mod:`bayes_mpem.refraction`):
+        Refract the rays through this profile (:mod:`bayes_mpem.lbl.refracted`):
         a direct return is ``sound_speed * T_direct`` (one-way eigenray time,
         turning below or above the ends where it has to), a multipath
         ``sound_speed * (T_direct + T_bounce) / 2`` on the triangle path and
@@ -207,7 +209,7 @@ def simulate_lbl(
     sound_speed : float, optional
         Nominal speed (m/s) that turns travel times into ranges; only with
         ``ssp``. Default: the profile's harmonic mean from the surface down to
-        the mean beacon depth (:func:`~bayes_mpem.refraction.nominal_sound_speed`),
+        the mean beacon depth (:func:`~bayes_mpem.acoustics.profile_checks.nominal_sound_speed`),
         which turns vertical travel times to the beacons into exact depths.
 
     Returns
@@ -229,14 +231,15 @@ def simulate_lbl(
         ``ssp`` is not a :class:`~bayes_mpem.acoustics.SoundSpeedProfile`.
     """
     geometry.check_path(path)
-    eff = _check_effects(effects)
+    eff = check_effects(effects)
     gen = as_generator(rng)
     t, x, y, z = (np.asarray(track[k], float) for k in ("time", "x", "y", "depth"))
     refr = _check_ssp(ssp, sound_speed, beacons, z, plane_depth, eff)
     times = t[:, None] + np.arange(len(beacons))[None, :] * beacon_offset
-    t0, t1 = float(times.min()), float(times.max())
-    scale = 1.0 + eff.get("sound_speed", 0.0)
-    bias = eff.get("range_bias", 0.0)
+    opts = {"eff": eff, "refr": refr, "t0": float(times.min()), "t1": float(times.max()),
+            "scale": 1.0 + eff.get("sound_speed", 0.0), "bias": eff.get("range_bias", 0.0),
+            "sigma_dp": sigma_dp, "plane_depth": plane_depth, "path": path,
+            "p_no_reply": p_no_reply, "window": window}
     rows, truth, labels = [], {}, []
     n_ol = n_replies = 0
     for j, (bid, b) in enumerate(beacons.items()):
@@ -244,76 +247,12 @@ def simulate_lbl(
         if w.shape != (3,) or np.any(w < 0) or abs(w.sum() - 1) > 1e-9:
             raise ValueError(f"weights[{bid!r}]: expected 3 non-negative numbers summing to 1, "
                              f"got {weights[bid]!r}")
-        tb = t + j * beacon_offset
-        tau = (tb - t0) / (t1 - t0) if t1 > t0 else np.zeros_like(tb)
-        w4 = _effect_weights(w, eff, bid)
-        d0 = float(b["depth"]) - plane_depth
-        h = geometry.horizontal_distance(x, y, b["x"], b["y"])
-        dz = float(b["depth"]) - z
-        if w4[2] > 0:
-            cls = gen.choice(4, size=t.size, p=w4)
-        else:  # the clean stream of draws, unchanged by the effects machinery
-            cls = np.array([0, 1, 3])[gen.choice(3, size=t.size, p=w4[[0, 1, 3]])]
-        d0_t = d0 - eff.get("plane_drift", 0.0) * tau
-        if refr is None:
-            direct = geometry.direct_path(h, dz)
-            mp = geometry.multipath_range(h, dz, d0_t, path, direct=direct)
-        else:
-            rays = direct_times(refr[0], z, float(b["depth"]), h)
-            direct = refr[1] * rays.time
-            mp = lbl_ranges(refr[0], refr[1], h, z, float(b["depth"]),
-                                       float(b["depth"]) - d0_t, path, direct=rays).multipath
-        rng_dp = scale * direct + bias + gen.normal(0.0, sigma_dp, t.size)
-        rng_mp = scale * mp + bias + gen.normal(0.0, sigma_mp[bid], t.size)
-        rng_mp2 = rng_mp
-        if "second_reflector" in eff:
-            d0_2 = float(b["depth"]) - eff["second_reflector"]
-            if refr is None:
-                mp2 = geometry.multipath_range(h, dz, d0_2, "triangle", direct=direct)
-            else:
-                mp2 = lbl_ranges(refr[0], refr[1], h, z, float(b["depth"]),
-                                            eff["second_reflector"], "triangle",
-                                            direct=rays).multipath
-            rng_mp2 = scale * mp2 + bias + gen.normal(0.0, sigma_mp[bid], t.size)
-        if "early_outliers" in eff:
-            # (with a profile, a ping with no direct eigenray: uniform over the whole window)
-            arrival = rng_dp if refr is None else np.where(np.isnan(rng_dp), window[1], rng_dp)
-            rng_ol = window[0] + gen.random(t.size) * np.maximum(arrival - window[0], 0.0)
-        else:
-            rng_ol = gen.uniform(window[0], window[1], t.size)
-        r = np.choose(cls, [rng_dp, rng_mp, rng_mp2, rng_ol])
-        no_ray = np.isnan(r)  # (only with a profile: a class whose eigenray does not exist)
-        r = np.where(r > 0, r, rng_ol)  # a non-positive draw becomes an outlier
-        lab = np.asarray(["dp", "mp", "mp2", "ol"], dtype=object)[cls]
-        silent = gen.random(t.size) < p_no_reply
-        no_ray_counts = {c: int(np.sum(no_ray & ~silent & (lab == c))) for c in ("dp", "mp", "mp2")}
-        lab[no_ray] = "ol"
-        r = np.where(silent, np.nan, r)
-        lab[silent] = "no_reply"
-        n_ol += int(np.sum(lab == "ol"))
-        n_replies += int(np.sum(~silent))
-        xr, yr = x, y
-        if "nav_drift" in eff:
-            ang = np.deg2rad(eff.get("nav_drift_direction", 45.0))
-            xr = x + eff["nav_drift"] * tau * np.cos(ang)
-            yr = y + eff["nav_drift"] * tau * np.sin(ang)
-        rows.append(pd.DataFrame({
-            "time": tb, "beacon": bid, "range": r,
-            "x": xr, "y": yr, "depth": z, "true_class": lab,
-        }))
-        labels.append(lab)
-        truth[bid] = {"d0": d0, "plane_depth": plane_depth, "sigma_dp": float(sigma_dp),
-                      "sigma_mp": float(sigma_mp[bid]),
-                      "weights": dict(zip(("dp", "mp", "ol"), map(float, w), strict=True)),
-                      "path": path}
-        if eff:
-            truth[bid]["weights_with_effects"] = dict(
-                zip(("dp", "mp", "mp2", "ol"), map(float, w4), strict=True))
-        if refr is not None:
-            truth[bid].update(sound_speed=refr[1], ssp=refr[0].source or repr(refr[0]),
-                              no_ray={c: n for c, n in no_ray_counts.items()
-                                      if c != "mp2" or "second_reflector" in eff},
-                              turning_direct=int(np.sum(~silent & rays.turning)))
+        frame, truth[bid] = _beacon_replies(gen, bid, b, w, sigma_mp[bid],
+                                            (t + j * beacon_offset, x, y, z), opts)
+        rows.append(frame)
+        labels.append(frame["true_class"].to_numpy())
+        n_ol += int(np.sum(labels[-1] == "ol"))
+        n_replies += int(np.sum(labels[-1] != "no_reply"))
     pings = pd.concat(rows, ignore_index=True).sort_values("time", kind="stable")
     order = pings.index.to_numpy()
     pings = pings.reset_index(drop=True)
@@ -336,10 +275,103 @@ def simulate_lbl(
     return Simulation(survey=survey, truth=truth, labels=all_labels, config=config)
 
 
-#: Effects the simulator can hide (the vocabulary of :mod:`bayes_mpem.diagnose`).
-EFFECTS = ("range_bias", "sound_speed", "plane_drift", "second_reflector", "early_outliers",
-           "nav_drift")
-_EFFECT_OPTIONS = ("second_fraction", "nav_drift_direction")
+def _model_ranges(refr, h, z, depth, d0_t, path, second):
+    """Noise-free direct, multipath and second-reflector ranges, and the direct rays.
+
+    Straight rays when ``refr`` is None, else refracted through ``refr = (profile,
+    nominal speed)`` (NaN where no eigenray exists); ``second`` is the second
+    reflector's depth or None.
+    """
+    dz = depth - z
+    rays = mp2 = None
+    if refr is None:
+        direct = geometry.direct_path(h, dz)
+        mp = geometry.multipath_range(h, dz, d0_t, path, direct=direct)
+    else:
+        rays = direct_times(refr[0], z, depth, h)
+        direct = refr[1] * rays.time
+        mp = lbl_ranges(refr[0], refr[1], h, z, depth, depth - d0_t, path,
+                        direct=rays).multipath
+    if second is not None:
+        if refr is None:
+            mp2 = geometry.multipath_range(h, dz, depth - second, "triangle", direct=direct)
+        else:
+            mp2 = lbl_ranges(refr[0], refr[1], h, z, depth, second, "triangle",
+                             direct=rays).multipath
+    return direct, mp, mp2, rays
+
+
+def _draw_ranges(gen, w4, model, sigma_mp, opts):
+    """Draw each ping's class and range, in the simulator's fixed order of random draws.
+
+    Returns the range (NaN for no reply or a class without an eigenray, which becomes
+    an outlier), the labels (``dp``, ``mp``, ``mp2``, ``ol``, ``no_reply``), and per
+    class the replies turned into outliers for want of an eigenray.
+    """
+    direct, mp, mp2, _ = model
+    eff, n, window = opts["eff"], direct.size, opts["window"]
+    scale, bias = opts["scale"], opts["bias"]
+    if w4[2] > 0:
+        cls = gen.choice(4, size=n, p=w4)
+    else:  # the clean stream of draws, unchanged by the effects machinery
+        cls = np.array([0, 1, 3])[gen.choice(3, size=n, p=w4[[0, 1, 3]])]
+    rng_dp = scale * direct + bias + gen.normal(0.0, opts["sigma_dp"], n)
+    rng_mp = scale * mp + bias + gen.normal(0.0, sigma_mp, n)
+    rng_mp2 = rng_mp
+    if mp2 is not None:
+        rng_mp2 = scale * mp2 + bias + gen.normal(0.0, sigma_mp, n)
+    if "early_outliers" in eff:
+        # (with a profile, a ping with no direct eigenray: uniform over the whole window)
+        arrival = (rng_dp if opts["refr"] is None
+                   else np.where(np.isnan(rng_dp), window[1], rng_dp))
+        rng_ol = window[0] + gen.random(n) * np.maximum(arrival - window[0], 0.0)
+    else:
+        rng_ol = gen.uniform(window[0], window[1], n)
+    r = np.choose(cls, [rng_dp, rng_mp, rng_mp2, rng_ol])
+    no_ray = np.isnan(r)  # (only with a profile: a class whose eigenray does not exist)
+    r = np.where(r > 0, r, rng_ol)  # a non-positive draw becomes an outlier
+    lab = np.asarray(["dp", "mp", "mp2", "ol"], dtype=object)[cls]
+    silent = gen.random(n) < opts["p_no_reply"]
+    no_ray_counts = {c: int(np.sum(no_ray & ~silent & (lab == c))) for c in ("dp", "mp", "mp2")}
+    lab[no_ray] = "ol"
+    r = np.where(silent, np.nan, r)
+    lab[silent] = "no_reply"
+    return r, lab, no_ray_counts
+
+
+def _beacon_replies(gen, bid, b, w, sigma_mp, ping, opts):
+    """Simulate one beacon: its pings table and its ``truth`` entry (without ``effects``)."""
+    eff, refr, plane_depth = opts["eff"], opts["refr"], opts["plane_depth"]
+    tb, x, y, z = ping
+    t0, t1 = opts["t0"], opts["t1"]
+    tau = (tb - t0) / (t1 - t0) if t1 > t0 else np.zeros_like(tb)
+    w4 = effect_weights(w, eff, bid)
+    d0 = float(b["depth"]) - plane_depth
+    h = geometry.horizontal_distance(x, y, b["x"], b["y"])
+    d0_t = d0 - eff.get("plane_drift", 0.0) * tau
+    model = _model_ranges(refr, h, z, float(b["depth"]), d0_t, opts["path"],
+                          eff.get("second_reflector"))
+    r, lab, no_ray_counts = _draw_ranges(gen, w4, model, sigma_mp, opts)
+    xr, yr = x, y
+    if "nav_drift" in eff:
+        ang = np.deg2rad(eff.get("nav_drift_direction", 45.0))
+        xr = x + eff["nav_drift"] * tau * np.cos(ang)
+        yr = y + eff["nav_drift"] * tau * np.sin(ang)
+    frame = pd.DataFrame({"time": tb, "beacon": bid, "range": r,
+                          "x": xr, "y": yr, "depth": z, "true_class": lab})
+    truth = {"d0": d0, "plane_depth": plane_depth, "sigma_dp": float(opts["sigma_dp"]),
+             "sigma_mp": float(sigma_mp),
+             "weights": dict(zip(("dp", "mp", "ol"), map(float, w), strict=True)),
+             "path": opts["path"]}
+    if eff:
+        truth["weights_with_effects"] = dict(
+            zip(("dp", "mp", "mp2", "ol"), map(float, w4), strict=True))
+    if refr is not None:
+        truth.update(sound_speed=refr[1], ssp=refr[0].source or repr(refr[0]),
+                     no_ray={c: n for c, n in no_ray_counts.items()
+                             if c != "mp2" or "second_reflector" in eff},
+                     turning_direct=int(np.sum((lab != "no_reply") & model[3].turning)))
+    return frame, truth
 
 
 def _check_ssp(ssp, sound_speed, beacons, z, plane_depth, eff):
@@ -364,40 +396,6 @@ def _check_ssp(ssp, sound_speed, beacons, z, plane_depth, eff):
                              f"vehicle and the beacons; it reaches {zp:g} m but the shallowest "
                              f"beacon or vehicle depth is {top:g} m")
     return ssp, c_nom
-
-
-def _check_effects(effects):
-    eff = dict(effects or {})
-    unknown = set(eff) - set(EFFECTS) - set(_EFFECT_OPTIONS)
-    if unknown:
-        raise ValueError(f"effects: unknown name(s) {sorted(unknown)}; known: {list(EFFECTS)}")
-    for k, v in eff.items():
-        if not isinstance(v, (int, float, np.integer, np.floating)) or not np.isfinite(v):
-            raise ValueError(f"effects[{k!r}]: expected a finite number, got {v!r}")
-        eff[k] = float(v)
-    if eff.get("sound_speed", 0.0) <= -1.0:
-        raise ValueError(f"effects['sound_speed']: expected > -1, got {eff['sound_speed']}")
-    if "early_outliers" in eff and not 0.0 <= eff["early_outliers"] < 1.0:
-        raise ValueError("effects['early_outliers']: expected an outlier fraction in [0, 1), "
-                         f"got {eff['early_outliers']}")
-    if not 0.0 <= eff.get("second_fraction", 0.15) < 1.0:
-        raise ValueError("effects['second_fraction']: expected a fraction in [0, 1), "
-                         f"got {eff['second_fraction']}")
-    return eff
-
-
-def _effect_weights(w, eff, bid):
-    """Class probabilities (dp, mp, mp2, ol) once the effects are applied."""
-    w_dp, w_mp, w_ol = (float(v) for v in w)
-    w_mp2 = eff.get("second_fraction", 0.15) if "second_reflector" in eff else 0.0
-    if "early_outliers" in eff:
-        w_dp += w_ol - eff["early_outliers"]
-        w_ol = eff["early_outliers"]
-    w_dp -= w_mp2
-    if w_dp <= 0:
-        raise ValueError(f"beacon {bid!r}: the effects leave no direct path "
-                         f"(w_dp = {w_dp:.3f}); lower the outlier or second-reflector fraction")
-    return np.array([w_dp, w_mp, w_mp2, w_ol])
 
 
 def simulate_survey(
@@ -449,8 +447,7 @@ def simulate_survey(
     ValueError
         For an unknown preset or override.
     """
-    if preset not in PRESETS:
-        raise ValueError(f"preset: expected one of {PRESETS}, got {preset!r}")
+    check_choice("preset", preset, PRESETS)
     gen = as_generator(rng)
     cfg = dict(ABE58) if preset == "abe58" else random_config(gen)
     cfg.setdefault("plane_depth", 0.0)

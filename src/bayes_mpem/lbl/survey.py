@@ -1,4 +1,11 @@
-"""Survey (moved from ``fitting``, ``sampling``)."""
+"""The per-beacon survey loop and the tables every survey result shares.
+
+:func:`fit`, :func:`sample` and :func:`compare` all work beacon by beacon:
+:func:`over_beacons` is their one loop (leave out beacons with too few
+replies, run the per-beacon analysis on the others, leave out with a reason
+any beacon whose analysis cannot start). :func:`classified_table` and
+:func:`beacons_table` build the parts of their output files they share.
+"""
 
 from __future__ import annotations
 
@@ -65,13 +72,15 @@ def classified_table(survey: Survey, fitted: dict, skipped: dict, extra: dict | 
     return out
 
 
-def fittable_beacons(survey: Survey, min_pings: int):
+def fittable_beacons(survey: Survey, min_pings: int, *, stacklevel: int = 3):
     """Split the beacons into those with enough replies and those left unfitted.
 
     Parameters
     ----------
     survey : Survey
     min_pings : int
+    stacklevel : int, default 3
+        Of the warnings (3: the caller of the function that calls this one).
 
     Returns
     -------
@@ -85,22 +94,98 @@ def fittable_beacons(survey: Survey, min_pings: int):
         if data.n < min_pings:
             why = (f"beacon {bid} has {data.n} replies ({data.n_no_reply} pings without reply), "
                    f"fewer than min_pings={min_pings}")
-            warnings.warn(why + "; left unfitted", SkippedBeaconWarning, stacklevel=3)
+            warnings.warn(why + "; left unfitted", SkippedBeaconWarning, stacklevel=stacklevel)
             skipped[bid] = why
         else:
             fittable.append(data)
     return fittable, skipped
 
 
-def option_subset(kwargs):
+def option_subset(kwargs: dict) -> dict:
+    """Pick the options of ``kwargs`` that :func:`~.posterior.check_sample_options` checks.
+
+    Parameters
+    ----------
+    kwargs : dict
+        Keyword arguments meant for the per-beacon sampler.
+
+    Returns
+    -------
+    dict
+        ``n_ensembles``, ``concentration``, ``sigma_dp``, ``path``, ``tau_factor``,
+        ``min_ess``, ``max_steps`` and ``n_draws`` where given.
+
+    Examples
+    --------
+    >>> option_subset({"path": "double", "progress": False})
+    {'path': 'double'}
+    """
     keys = ("n_ensembles", "concentration", "sigma_dp", "path", "tau_factor", "min_ess",
             "max_steps", "n_draws")
     return {k: kwargs[k] for k in keys if k in kwargs}
 
 
-def skip_beacon(skipped: dict, beacon: str, why: str) -> None:
-    """Record ``beacon`` as unfitted with ``why`` and warn."""
-    from ..exceptions import SkippedBeaconWarning
+def skip_beacon(skipped: dict, beacon: str, why: str, *, stacklevel: int = 3) -> None:
+    """Record ``beacon`` as left unsampled with ``why``, and warn.
 
-    warnings.warn(why + "; left unsampled", SkippedBeaconWarning, stacklevel=3)
+    Parameters
+    ----------
+    skipped : dict
+        ``{beacon: reason}``, updated in place.
+    beacon : str
+    why : str
+    stacklevel : int, default 3
+        Of the :class:`SkippedBeaconWarning`.
+    """
+    warnings.warn(why + "; left unsampled", SkippedBeaconWarning, stacklevel=stacklevel)
     skipped[beacon] = why
+
+
+def over_beacons(survey: Survey, min_pings: int, analyse, *, skip_on=()):
+    """Run ``analyse`` on every beacon with enough replies: the one survey loop.
+
+    Beacons with fewer than ``min_pings`` replies are left out first (each with
+    a :class:`SkippedBeaconWarning`, "left unfitted"); then ``analyse(data)``
+    runs on the others in table order. A beacon whose analysis raises one of
+    ``skip_on`` is left out too, with the exception's message as the reason
+    ("left unsampled"), instead of stopping the survey.
+
+    Parameters
+    ----------
+    survey : Survey
+    min_pings : int
+    analyse : callable
+        ``analyse(BeaconData) -> result`` for one beacon.
+    skip_on : tuple of exception classes, default ()
+        Exceptions that leave one beacon out; any other propagates.
+
+    Returns
+    -------
+    results : dict
+        ``{beacon: result}`` in table order.
+    skipped : dict
+        ``{beacon: reason}``: the beacons with too few replies first, then those
+        ``skip_on`` left out.
+
+    Warns
+    -----
+    SkippedBeaconWarning
+        For every beacon left out.
+
+    Examples
+    --------
+    >>> import bayes_mpem
+    >>> sim = bayes_mpem.simulate_survey("abe58", rng=0, n_cycles=40)
+    >>> res, skipped = over_beacons(sim.survey, 30, lambda data: data.n)
+    >>> sorted(res), skipped
+    (['1', '2', '3', '4'], {})
+    """
+    # stacklevel 4: past the helper, this function and fit/sample/compare, to their caller
+    fittable, skipped = fittable_beacons(survey, min_pings, stacklevel=4)
+    results = {}
+    for data in fittable:
+        try:
+            results[data.beacon] = analyse(data)
+        except skip_on as exc:
+            skip_beacon(skipped, data.beacon, str(exc), stacklevel=4)
+    return results, skipped

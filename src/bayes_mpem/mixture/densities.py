@@ -1,12 +1,43 @@
-"""Densities (moved from ``mixture``)."""
+"""Component log-densities of a mixture and their log-sum-exp, problem-independent.
+
+Both problems classify each measurement as one of a few classes with a
+Gaussian around a predicted value or an outlier density over the observed
+window. The pieces, written once here and used by :mod:`bayes_mpem.lbl`
+(ranges to beacons) and :mod:`bayes_mpem.survey_in` (two-way travel times):
+
+* :func:`gaussian_logpdf`, the normal log-density of a residual;
+* :func:`uniform_logpdf`, outliers uniform over the window ``[lo, hi]``;
+* :func:`first_arrival_logpdf`, outliers from a detector that reports the
+  first threshold crossing: uniform between the window start and the true
+  arrival, with a share :data:`EPS_LATE` spread over the whole window;
+* :func:`log_mix` (three classes) and :func:`responsibilities` (any number):
+  the log-sum-exp of weighted components and the class probabilities.
+
+Everything broadcasts and stays in log space.
+
+Examples
+--------
+>>> import numpy as np
+>>> round(float(gaussian_logpdf(0.0, 1.0)), 6)
+-0.918939
+>>> resp, lse = responsibilities(np.log([[0.25, 0.75]]))
+>>> np.round(resp, 12).tolist(), round(float(lse[0]), 12)
+([[0.25, 0.75]], 0.0)
+"""
 
 from __future__ import annotations
 
 import numpy as np
 
+#: The three classes of the LBL mixture: direct path, multipath, outlier.
 CLASSES: tuple[str, str, str] = ("dp", "mp", "ol")
+#: ``log(sqrt(2 pi))``, the normalising constant of the standard normal.
 LOG_SQRT_2PI = 0.5 * np.log(2.0 * np.pi)
-LOG_TINY = -700.0  # exp(-700) ~ 1e-304, just above the smallest normal float64
+#: ``exp(-700) ~ 1e-304``, just above the smallest normal float64.
+LOG_TINY = -700.0
+#: Share of the first-arrival outlier density spread over the whole window
+#: (outliers after the true arrival are rare, not impossible).
+EPS_LATE = 1e-3
 
 
 def gaussian_logpdf(resid, sigma):
@@ -14,18 +45,89 @@ def gaussian_logpdf(resid, sigma):
 
     Parameters
     ----------
-    resid, sigma : array_like
+    resid : array_like
+        Measurement minus prediction.
+    sigma : array_like
+        Standard deviation (same unit as ``resid``).
 
     Returns
     -------
     numpy.ndarray
+        ``-(resid / sigma)**2 / 2 - log(sigma) - log(sqrt(2 pi))``.
+
+    Examples
+    --------
+    >>> round(float(gaussian_logpdf(2.0, 2.0)), 6)
+    -2.112086
     """
     sigma = np.asarray(sigma, float)
     return -0.5 * (resid / sigma) ** 2 - np.log(sigma) - LOG_SQRT_2PI
 
 
+def uniform_logpdf(lo, hi, *, min_width=1e-9):
+    """Log-density of outliers uniform over the window ``[lo, hi]`` (broadcasts).
+
+    Parameters
+    ----------
+    lo, hi : array_like
+        Window bounds.
+    min_width : float, default 1e-9
+        Floor on the width, so that a window of one value stays finite.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``-log(max(hi - lo, min_width))``.
+
+    Examples
+    --------
+    >>> round(float(uniform_logpdf(10.0, 20.0)), 6)
+    -2.302585
+    """
+    return -np.log(np.maximum(np.subtract(hi, lo), min_width))
+
+
+def first_arrival_logpdf(x, arrival, lo, hi, *, min_early, min_width=1e-9):
+    """Log-density of outliers reported by a first-arrival detector (broadcasts).
+
+    A detector reporting the first threshold crossing cannot report a false
+    detection after the true arrival: outliers are uniform between the window
+    start ``lo`` and the true ``arrival``, with a share :data:`EPS_LATE` of the
+    density spread over the whole window ``[lo, hi]``.
+
+    Parameters
+    ----------
+    x : array_like
+        Measured values.
+    arrival : array_like
+        Predicted true arrival of each measurement.
+    lo, hi : array_like
+        Window bounds.
+    min_early : float
+        Floor on ``arrival - lo`` (the early part's width).
+    min_width : float, default 1e-9
+        Floor on ``hi - lo``.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``log((1 - EPS_LATE) / (arrival - lo) + EPS_LATE / (hi - lo))`` where
+        ``x <= arrival``, ``log(EPS_LATE / (hi - lo))`` after it.
+
+    Examples
+    --------
+    >>> out = first_arrival_logpdf([1.0, 5.0], 2.0, 0.0, 10.0, min_early=1e-6)
+    >>> [round(float(v), 4) for v in out]
+    [-0.6939, -9.2103]
+    """
+    width = np.maximum(np.subtract(hi, lo), min_width)
+    early = np.maximum(np.subtract(arrival, lo), min_early)
+    return np.where(np.less_equal(x, arrival), np.log((1.0 - EPS_LATE) / early + EPS_LATE / width),
+                    np.log(EPS_LATE / width))
+
+
 def log_mix(ldp, lmp, lol, log_weights):
-    """Weighted log densities and their log-sum-exp, without overflow.
+    """Weighted log densities of three classes and their log-sum-exp, without overflow.
 
     Parameters
     ----------
@@ -40,6 +142,12 @@ def log_mix(ldp, lmp, lol, log_weights):
         The three ``log w_j + log p(z|j)``.
     lse : numpy.ndarray
         Per-range log-likelihood ``log sum_j w_j p(z|j)``.
+
+    Examples
+    --------
+    >>> _, lse = log_mix(np.log(0.2), np.log(0.3), np.log(0.5), [0.0, 0.0, 0.0])
+    >>> round(float(lse), 12)
+    0.0
     """
     a = ldp + log_weights[0]
     b = lmp + log_weights[1]
@@ -49,8 +157,51 @@ def log_mix(ldp, lmp, lol, log_weights):
     return (a, b, c), lse
 
 
+def responsibilities(log_joint):
+    """Class probabilities and log-sum-exp of weighted log densities (last axis).
+
+    Parameters
+    ----------
+    log_joint : numpy.ndarray
+        ``log w_j + log p(x|j)``, one column per class; every row needs one
+        finite entry.
+
+    Returns
+    -------
+    resp : numpy.ndarray
+        Class probabilities, same shape, rows summing to 1.
+    log_norm : numpy.ndarray
+        ``log sum_j w_j p(x|j)`` of every row.
+
+    Examples
+    --------
+    >>> resp, log_norm = responsibilities(np.log([[0.1, 0.3], [0.2, 0.2]]))
+    >>> np.round(resp, 6).tolist(), np.round(log_norm, 6).tolist()
+    ([[0.25, 0.75], [0.5, 0.5]], [-0.916291, -0.916291])
+    """
+    m = np.max(log_joint, axis=-1)
+    e = np.exp(log_joint - m[..., None])
+    s = e.sum(axis=-1)
+    return e / s[..., None], m + np.log(s)
+
+
 def safe_log(w):
-    """``log(w)`` with ``log(0) = -inf`` and no warning."""
+    """``log(w)`` with ``log(0) = -inf`` and no warning.
+
+    Parameters
+    ----------
+    w : array_like
+        Non-negative values (mixing weights).
+
+    Returns
+    -------
+    numpy.ndarray
+
+    Examples
+    --------
+    >>> safe_log([1.0, 0.0]).tolist()
+    [0.0, -inf]
+    """
     w = np.asarray(w, float)
     with np.errstate(divide="ignore"):
         return np.log(w)

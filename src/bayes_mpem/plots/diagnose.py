@@ -87,7 +87,7 @@ def plot_residuals(diagnosis, *, model="baseline", fig=None, max_points=4000):
 
 
 def plot_classes_vs_time(diagnosis, *, model="final", fig=None, window=101):
-    """Running mean of each class probability against time, one panel per beacon.
+    """Plot the running mean of each class probability against time, one panel per beacon.
 
     Parameters
     ----------

@@ -142,7 +142,7 @@ def plot_ranges(survey, *, ax=None):
 
 
 def plot_colormap(*, ax=None, resolution=400):
-    """The three-value colour map of class probabilities (the paper's Fig. 8).
+    """Draw the three-value colour map of class probabilities (the paper's Fig. 8).
 
     Every point of the triangle is a probability vector (p_dp, p_mp, p_ol),
     coloured as :func:`class_colors` colours ranges: the corners are pure
@@ -261,7 +261,7 @@ def plot_pol_sensitivity(sens, *, fig=None, truth=None):
 
 
 def table_ii_markdown(survey_fit, *, truth=None) -> str:
-    """The per-beacon results as a Markdown table in the layout of the paper's Table II.
+    """Format the per-beacon results as a Markdown table laid out as the paper's Table II.
 
     Parameters
     ----------

@@ -1,9 +1,19 @@
-"""Gap statistics (moved from ``simcheck``)."""
+"""Statistics of a transponder's travel-time residuals, for the simulation-gap check.
+
+:func:`gap_statistics` computes the statistics of :data:`STATISTICS` from a
+residual frame (:func:`~bayes_mpem.survey_in.simcheck.residual_frame`),
+:func:`remove_common_drift` the part of each residual that the other
+transponders pinged at the same time predict (a common change of sound speed),
+and :func:`mc_pvalue` a Monte-Carlo p-value of a measured statistic among its
+simulated values. Their definitions are in :mod:`bayes_mpem.survey_in.simcheck`.
+"""
 
 from __future__ import annotations
 
 import numpy as np
 import pandas as pd
+
+from .._validate import check_int
 
 #: Statistic name -> (residual column, Monte-Carlo side, description).
 STATISTICS = {
@@ -93,7 +103,7 @@ def _lag1(t, r):
 
 
 def gap_statistics(frame: pd.DataFrame, *, n_bins: int = 6) -> dict:
-    """The statistics of :data:`STATISTICS` for one transponder's residuals.
+    """Compute the statistics of :data:`STATISTICS` for one transponder's residuals.
 
     Parameters
     ----------
@@ -110,9 +120,7 @@ def gap_statistics(frame: pd.DataFrame, *, n_bins: int = 6) -> dict:
         Statistic name -> value (NaN where undefined: too few pings, no
         spurious ping, no detrended column).
     """
-    if int(n_bins) < 2:
-        raise ValueError(f"n_bins: expected an integer >= 2, got {n_bins!r}")
-    n_bins = int(n_bins)
+    n_bins = check_int("n_bins", n_bins, minimum=2)
     tr = frame["true"].to_numpy(bool)
     f = frame.loc[tr]
     r = f["residual"].to_numpy(float)

@@ -1,28 +1,29 @@
-"""Locating a seafloor transponder from a ranging survey, by EM (straight rays).
+"""Locating a seafloor transponder from a ranging survey, by EM.
 
 The survey-in every LBL deployment starts with, and what OBSrange does: the
-transponder position ``(east, north, depth)`` and the mean sound speed ``c``
-(and the turn-around time ``tat`` where it is not known) are estimated jointly
-with the class of every ping. Each two-way travel time is either a true
-arrival, ``N(2 |ship - transponder| / c + tat, sigma)``, or spurious, uniform
-over the observed window; spurious pings are weighted by their probability
-instead of cut by a threshold.
+transponder position ``(east, north, depth)`` and the sound speed (and the
+turn-around time ``tat`` where it is not known) are estimated jointly with the
+class of every ping. Each two-way travel time is either a true arrival,
+``N(T(ship, transponder) + tat, sigma)``, or spurious; spurious pings are
+weighted by their probability instead of cut by a threshold. The travel time
+``T`` is :class:`~bayes_mpem.survey_in.travel_times.TravelTimes`: a straight
+chord at one speed, or refracted rays through a scaled sound-speed profile
+(``ssp=``), with a speed that may vary in time (``speed_intervals=``) and a lag
+of the acoustic position along the track (``fit_lag=True``).
 
 E-step: class probabilities in log space. M-step: weighted nonlinear least
 squares for the geometry (``scipy.optimize.least_squares`` from the current
 point, so the weighted sum of squares does not increase), then ``sigma`` and the
 weight in closed form. The start is a Cauchy-loss robust fit from the drop
 point. Standard deviations are from the weighted Gauss-Newton information
-(approximate; the Bayesian version is for later).
+(approximate; :mod:`bayes_mpem.survey_in.location_sampling` samples the
+posterior).
 
 Spurious pings are uniform over the listening window or, with
 ``outliers="first_arrival"``, only before the true arrival (a detector that
-reports the first threshold crossing); :func:`heldout_logpdf` compares the two
-by cross-validation.
-
-Refraction (rays bending through the sound-speed profile) is not modelled yet:
-``c`` is an effective straight-ray speed (the eigenray solver is in
-:mod:`bayes_mpem.acoustics`).
+reports the first threshold crossing);
+:func:`~bayes_mpem.survey_in.heldout.heldout_logpdf` compares the two by
+cross-validation.
 """
 
 from __future__ import annotations
@@ -35,6 +36,7 @@ import pandas as pd
 from scipy.optimize import least_squares
 
 from ..exceptions import InputError, LocateWarning
+from ..mixture.densities import first_arrival_logpdf, uniform_logpdf
 from .travel_times import TravelTimes, ship_velocity, speed_basis
 
 #: Turn-around time used when the file gives none (s): the WHOI EdgeTech log's
@@ -108,7 +110,20 @@ class LocateResult:
         """Whether travel times follow refracted rays through a profile."""
         return self.model.get("ssp") is not None
 
-    def _model(self, pings):
+    def travel_times(self, pings):
+        """Return the travel-time model of this fit on ``pings``, and its parameters.
+
+        Parameters
+        ----------
+        pings : pandas.DataFrame
+            ``x``, ``y``, ``depth`` (and ``time`` for a lag or a time-varying speed).
+
+        Returns
+        -------
+        model : TravelTimes
+        theta : numpy.ndarray
+            ``(east, north, depth, speed coefficients...)`` of the fit.
+        """
         x, y, z = (pings[c].to_numpy(float) for c in ("x", "y", "depth"))
         m = self.model
         basis = speed_basis(pings, m.get("speed_intervals", 0), m.get("time_range"))
@@ -132,7 +147,7 @@ class LocateResult:
         -------
         numpy.ndarray
         """
-        model, theta = self._model(pings)
+        model, theta = self.travel_times(pings)
         return model.predict(theta)
 
     def logpdf(self, pings: pd.DataFrame) -> np.ndarray:
@@ -181,22 +196,43 @@ class LocateResult:
 
 
 OUTLIER_MODELS = ("uniform", "first_arrival")
-_EPS_LATE = 1e-3  # share of the first-arrival outlier density left over the whole window
 
 
 def log_classes(t, pred, sigma, weight, window, outliers):
-    """Weighted log densities (true, spurious) of travel times ``t`` given predictions."""
+    """Weighted log densities (true, spurious) of travel times ``t`` given predictions.
+
+    Parameters
+    ----------
+    t : numpy.ndarray
+        Two-way travel times (s).
+    pred : numpy.ndarray
+        Predicted travel time of a true arrival for each ping (s).
+    sigma : float
+        Scatter of the true arrivals (s).
+    weight : float
+        Fraction of true arrivals.
+    window : tuple of float
+        The listening window ``(lo, hi)`` (s).
+    outliers : {"uniform", "first_arrival"}
+        Spurious pings uniform over the window, or reported by a first-arrival
+        detector (:func:`~bayes_mpem.mixture.densities.first_arrival_logpdf`).
+
+    Returns
+    -------
+    ld, lu : numpy.ndarray
+        ``log(weight) + log N(t; pred, sigma)`` and ``log(1 - weight) + log
+        p_spurious(t)``; ``lu`` is ``-inf`` when ``weight >= 1``.
+    """
     lo, hi = window
+    # the Gaussian in this operation order (log of sigma sqrt(2 pi) in one piece), not
+    # gaussian_logpdf's: it differs in the last bit, and the recorded fits use this one
     ld = np.log(weight) - 0.5 * ((t - pred) / sigma) ** 2 - np.log(sigma * np.sqrt(2 * np.pi))
     if weight >= 1:
         return ld, np.full_like(t, -np.inf)
-    width = max(hi - lo, 1e-9)
     if outliers == "uniform":
-        lu = np.full_like(t, -np.log(width))
+        lu = np.full_like(t, uniform_logpdf(lo, hi))
     else:  # a detector reporting the first threshold crossing: spurious before the true arrival
-        early = np.maximum(pred - lo, 1e-6)
-        lu = np.where(t <= pred, np.log((1 - _EPS_LATE) / early + _EPS_LATE / width),
-                      np.log(_EPS_LATE / width))
+        lu = first_arrival_logpdf(t, pred, lo, hi, min_early=1e-6)
     return ld, np.log1p(-weight) + lu
 
 
@@ -210,7 +246,7 @@ def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=
     ----------
     pings : pandas.DataFrame
         ``beacon``, ``twtt`` (s), ``x``, ``y``, ``depth`` (ship transducer, m),
-        as :meth:`bayes_mpem.readers.RawSurvey.to_pings` returns (and ``time``,
+        as :meth:`bayes_mpem.io.raw.RawSurvey.to_pings` returns (and ``time``,
         s, for a time-varying sound speed).
     beacons : pandas.DataFrame
         ``beacon``, ``x``, ``y``, ``depth``: the starting position (drop point).
@@ -276,24 +312,7 @@ def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=
         raise ValueError(f"outliers: expected one of {OUTLIER_MODELS}, got {outliers!r}")
     if not (isinstance(speed_intervals, (int, np.integer)) and speed_intervals >= 0):
         raise ValueError(f"speed_intervals: expected an integer >= 0, got {speed_intervals!r}")
-    need = {"beacon", "twtt", "x", "y", "depth"}
-    missing = need - set(pings.columns)
-    if missing:
-        raise InputError(f"pings: missing column(s) {sorted(missing)} (expected {sorted(need)})")
-    ids = [str(b) for b in beacons["beacon"]]
-    if transponder is None:
-        if len(ids) != 1:
-            raise InputError(f"transponder: several in the beacons table ({ids}); name one")
-        transponder = ids[0]
-    if str(transponder) not in ids:
-        raise InputError(f"transponder {transponder!r} not in the beacons table {ids}")
-    start = beacons.loc[[i == str(transponder) for i in ids]].iloc[0]
-    sel = (pings["beacon"].astype(str) == str(transponder)).to_numpy()
-    rows = np.flatnonzero(sel)
-    if rows.size < 6 + speed_intervals:
-        raise InputError(f"transponder {transponder}: {rows.size} pings, need at least "
-                         f"{6 + speed_intervals}")
-    sub = pings.iloc[rows]
+    transponder, start, rows, sub = _select_pings(pings, beacons, transponder, speed_intervals)
     t = sub["twtt"].to_numpy(float)
     x, y, z = (sub[c].to_numpy(float) for c in ("x", "y", "depth"))
     if speed_intervals and "time" not in sub.columns:
@@ -307,19 +326,10 @@ def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=
     if fit_lag:
         geo["velocity"] = ship_velocity(sub)
     # the robust start: straight rays at one speed
-    model = TravelTimes(x, y, z, tat0, **geo)
     theta = np.array([start["x"], start["y"], start["depth"], sound_speed]
                      + ([tat0] if fit_tat else []), float)
-
-    def resid(th, w=None):
-        r = t - model.predict(th)
-        return r if w is None else np.sqrt(w) * r
-
-    def jac(th, w=None):
-        J = -model.jac(th)
-        return J if w is None else np.sqrt(w)[:, None] * J
-
     x_scale = [10.0, 10.0, 10.0, 1.0] + ([1e-3] if fit_tat else [])
+    resid, jac = _weighted_residuals(t, TravelTimes(x, y, z, tat0, **geo))
     theta = least_squares(resid, theta, jac=jac, loss="cauchy", f_scale=2e-3,
                           x_scale=np.array(x_scale)).x
     speed0 = theta[3]
@@ -330,23 +340,10 @@ def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=
     x_scale = np.array([10.0] * 3 + [abs(speed0) / 1500.0] * k + ([1.0] if fit_lag else [])
                        + ([1e-3] if fit_tat else []))
     model = TravelTimes(x, y, z, tat0, basis=basis, profile=ssp, fit_lag=fit_lag, **geo)
-    r = resid(theta)
-    sigma = max(1.4826 * float(np.median(np.abs(r - np.median(r)))), 1e-6)
-    weight = 0.9
+    resid, jac = _weighted_residuals(t, model)
     window = (float(t.min()), float(t.max())) if window is None else tuple(map(float, window))
-    converged, it = False, 0
-    for it in range(1, max_iter + 1):
-        ld, lu = log_classes(t, t - r, sigma, weight, window, outliers)
-        p = 1.0 / (1.0 + np.exp(np.clip(lu - ld, -700.0, 700.0)))
-        theta = least_squares(resid, theta, jac=jac, args=(p,), x_scale=x_scale).x
-        r = resid(theta)
-        new = float(np.sqrt(np.sum(p * r * r) / p.sum()))
-        weight = float(np.clip(p.mean(), 1e-6, 1 - 1e-6))
-        done = abs(new - sigma) < tol
-        sigma = new
-        if done:
-            converged = True
-            break
+    theta, sigma, weight, p, it, converged = _em(t, theta, resid, jac, x_scale, window,
+                                                 outliers, max_iter=max_iter, tol=tol)
     J = jac(theta, p)
     cov = np.linalg.pinv(J.T @ J) * sigma**2
     sd = {name: float(np.sqrt(max(cov[i, i], 0.0)))
@@ -364,19 +361,7 @@ def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=
     lag = float(theta[3 + k]) if fit_lag else 0.0
     if fit_lag:
         sd["lag"] = float(np.sqrt(max(cov[3 + k, 3 + k], 0.0)))
-    n_bad = model.n_invalid(theta)
-    if n_bad:
-        warnings.warn(f"transponder {transponder}: {n_bad} of {t.size} pings have no refracted "
-                      "eigenray without a turning point; their travel times are the straight "
-                      "chord at the profile's mean speed", LocateWarning, stacklevel=2)
-    if not converged:
-        warnings.warn(f"transponder {transponder}: location EM did not converge in {it} "
-                      "iterations", LocateWarning, stacklevel=2)
-    if sd["depth"] > 50.0:
-        warnings.warn(f"transponder {transponder}: depth poorly constrained (sd {sd['depth']:.0f}"
-                      " m)" + ("; the turn-around time trades off against depth and sound "
-                               "speed: fix it (tat=...)" if fit_tat else ""),
-                      LocateWarning, stacklevel=2)
+    _warn(transponder, model.n_invalid(theta), t.size, converged, it, sd, fit_tat)
     return LocateResult(
         transponder=str(transponder), east=float(theta[0]), north=float(theta[1]),
         depth=float(theta[2]), sound_speed=speed,
@@ -389,57 +374,75 @@ def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=
         speed_coef=coef.copy())
 
 
-def heldout_logpdf(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *,
-                   outliers="uniform", n_folds=5, folds="random", rng=0,
-                   **kwargs) -> np.ndarray:
-    """K-fold cross-validated log predictive density of every ping of one transponder.
+def _select_pings(pings, beacons, transponder, speed_intervals):
+    """Check the tables; return ``(transponder, start row, ping rows, its pings)``."""
+    need = {"beacon", "twtt", "x", "y", "depth"}
+    missing = need - set(pings.columns)
+    if missing:
+        raise InputError(f"pings: missing column(s) {sorted(missing)} (expected {sorted(need)})")
+    ids = [str(b) for b in beacons["beacon"]]
+    if transponder is None:
+        if len(ids) != 1:
+            raise InputError(f"transponder: several in the beacons table ({ids}); name one")
+        transponder = ids[0]
+    if str(transponder) not in ids:
+        raise InputError(f"transponder {transponder!r} not in the beacons table {ids}")
+    start = beacons.loc[[i == str(transponder) for i in ids]].iloc[0]
+    sel = (pings["beacon"].astype(str) == str(transponder)).to_numpy()
+    rows = np.flatnonzero(sel)
+    if rows.size < 6 + speed_intervals:
+        raise InputError(f"transponder {transponder}: {rows.size} pings, need at least "
+                         f"{6 + speed_intervals}")
+    return transponder, start, rows, pings.iloc[rows]
 
-    Each fold is located from the other pings (same listening window: the
-    whole file's) and scores its own pings with :meth:`LocateResult.logpdf`.
 
-    Parameters
-    ----------
-    pings, beacons, transponder
-        As for :func:`locate`.
-    outliers : {"uniform", "first_arrival"}
-    n_folds : int, default 5
-    folds : {"random", "blocked"}
-        Pings assigned to folds at random, or in contiguous blocks of time (a
-        harder test for anything that varies in time: each block is predicted
-        from the others, not from its neighbours).
-    rng : None, int or numpy.random.Generator
-        Assigns the pings to random folds.
-    **kwargs
-        Passed to :func:`locate` (``tat``, ``sound_speed``, ...).
+def _weighted_residuals(t, model):
+    """Residual and Jacobian functions of ``model`` for :func:`least_squares` (optional weights)."""
 
-    Returns
-    -------
-    numpy.ndarray
-        One value (log 1/s) per ping of the transponder, in table order.
-    """
-    from .._rng import as_generator
+    def resid(th, w=None):
+        r = t - model.predict(th)
+        return r if w is None else np.sqrt(w) * r
 
-    full = locate(pings, beacons, transponder, outliers=outliers, **kwargs)
-    sub = pings.iloc[full.rows]
-    if kwargs.get("fit_lag"):  # each fold's velocities from the whole track, not its own pings
-        vx, vy = ship_velocity(sub)
-        sub = sub.assign(vx=vx, vy=vy)
-    if folds == "random":
-        fold = as_generator(rng).permutation(np.arange(full.rows.size) % int(n_folds))
-    elif folds == "blocked":
-        if "time" not in sub.columns:
-            raise InputError("folds='blocked' needs a 'time' column in pings")
-        order = np.argsort(sub["time"].to_numpy(float), kind="stable")
-        fold = np.empty(full.rows.size, int)
-        fold[order] = np.arange(full.rows.size) * int(n_folds) // full.rows.size
-    else:
-        raise ValueError(f"folds: expected 'random' or 'blocked', got {folds!r}")
-    out = np.empty(full.rows.size)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", LocateWarning)
-        for k in range(int(n_folds)):
-            test = fold == k
-            fit_k = locate(sub[~test], beacons, full.transponder, outliers=outliers,
-                           window=full.window, time_range=full.model["time_range"], **kwargs)
-            out[test] = fit_k.logpdf(sub[test])
-    return out
+    def jac(th, w=None):
+        J = -model.jac(th)
+        return J if w is None else np.sqrt(w)[:, None] * J
+
+    return resid, jac
+
+
+def _em(t, theta, resid, jac, x_scale, window, outliers, *, max_iter, tol):
+    """Run the EM loop; return ``(theta, sigma, weight, p_true, n_iter, converged)``."""
+    r = resid(theta)
+    sigma = max(1.4826 * float(np.median(np.abs(r - np.median(r)))), 1e-6)
+    weight = 0.9
+    converged, it = False, 0
+    for it in range(1, max_iter + 1):
+        ld, lu = log_classes(t, t - r, sigma, weight, window, outliers)
+        p = 1.0 / (1.0 + np.exp(np.clip(lu - ld, -700.0, 700.0)))
+        theta = least_squares(resid, theta, jac=jac, args=(p,), x_scale=x_scale).x
+        r = resid(theta)
+        new = float(np.sqrt(np.sum(p * r * r) / p.sum()))
+        weight = float(np.clip(p.mean(), 1e-6, 1 - 1e-6))
+        done = abs(new - sigma) < tol
+        sigma = new
+        if done:
+            converged = True
+            break
+    return theta, sigma, weight, p, it, converged
+
+
+def _warn(transponder, n_bad, n, converged, it, sd, fit_tat):
+    """Emit the :class:`LocateWarning` of a fit (invalid rays, no convergence, depth)."""
+    if n_bad:
+        warnings.warn(f"transponder {transponder}: {n_bad} of {n} pings have no direct "
+                      "eigenray through the profile, even a turning one; their travel times "
+                      "are the straight chord at the profile's mean speed", LocateWarning,
+                      stacklevel=3)
+    if not converged:
+        warnings.warn(f"transponder {transponder}: location EM did not converge in {it} "
+                      "iterations", LocateWarning, stacklevel=3)
+    if sd["depth"] > 50.0:
+        warnings.warn(f"transponder {transponder}: depth poorly constrained (sd {sd['depth']:.0f}"
+                      " m)" + ("; the turn-around time trades off against depth and sound "
+                               "speed: fix it (tat=...)" if fit_tat else ""),
+                      LocateWarning, stacklevel=3)

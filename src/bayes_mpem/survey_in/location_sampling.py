@@ -1,6 +1,6 @@
 """Posterior of a transponder location jointly with the class of every ping (emcee).
 
-The same model as the location EM (:func:`bayes_mpem.locate.locate`): each two-way
+The same model as the location EM (:func:`bayes_mpem.survey_in.location.locate`): each two-way
 travel time is a true arrival, ``N(prediction, sigma)``, with probability
 ``weight``, or spurious (uniform over the listening window, or before the true
 arrival); the walkers start from the EM solution. Parameters and priors:
@@ -29,10 +29,14 @@ log-likelihood at posterior draws is off by up to 2.7 nats, against 2e-4 with
 the gradient (:meth:`LocationLogPosterior.exact_loglik` solves the rays at any
 draw; ``tests/test_locate_bayes.py`` checks it).
 
-Sampling reuses :func:`bayes_mpem.bayes.run_ensemble`: it runs until the chain is
-50 autocorrelation times long and the smallest ESS, by emcee and by ArviZ's bulk
-estimate, reaches ``min_ess``; with differential-evolution moves only (emcee
-3.1.6's snooker move is biased, see ``_moves``).
+Sampling (:func:`sample_location`) uses the shared driver of :mod:`bayes_mpem.mcmc`:
+the posterior satisfies :class:`bayes_mpem.mcmc.LogPosterior`, and the chain runs
+until it is 50 autocorrelation times long and the smallest ESS, by emcee and by
+ArviZ's bulk estimate, reaches ``min_ess``; with differential-evolution moves only
+(:func:`bayes_mpem.mcmc.de_moves`: emcee 3.1.6's snooker move is biased). The
+result, :class:`LocationPosterior`, holds thinned draws, each ping's probability
+of being a true arrival and equal-tailed intervals; :func:`locate_survey_bayes`
+does it for every transponder of a survey.
 """
 
 from __future__ import annotations
@@ -46,8 +50,17 @@ import numpy as np
 import pandas as pd
 
 from .._rng import RNGLike, as_generator
-from ..exceptions import LocateWarning, SamplingWarning
-from ..mcmc import run_ensemble
+from ..exceptions import LocateWarning
+from ..mcmc import (
+    autocorr_ess,
+    bulk_ess,
+    de_moves,
+    draw_moments,
+    equal_tailed,
+    run_ensembles,
+    thin_index,
+    to_datatree,
+)
 from .location import LocateResult
 from .posterior import (
     PARAMS,
@@ -132,9 +145,7 @@ class LocationPosterior:
 
     def interval(self, name: str, ci: float | None = None) -> list:
         """Equal-tailed posterior interval of a reported parameter with probability ``ci``."""
-        ci = self.ci if ci is None else float(ci)
-        lo, hi = np.quantile(np.ravel(self.draws[name]), [0.5 - ci / 2, 0.5 + ci / 2])
-        return [float(lo), float(hi)]
+        return equal_tailed(self.draws[name], self.ci if ci is None else float(ci))
 
     def describe(self, name: str, ci: float | None = None) -> dict:
         """``mean``, ``sd`` and ``interval`` of a reported parameter."""
@@ -165,38 +176,45 @@ class LocationPosterior:
         -------
         xarray.DataTree
         """
-        import arviz_base as azb
-
-        with warnings.catch_warnings():
-            # walkers are ArviZ chains by design (emcee convention)
-            warnings.filterwarnings("ignore", message="Found chain dimension to be longer")
-            idata = azb.from_dict({"posterior": {k: self.draws[k] for k in self.params}})
+        idata = to_datatree({"posterior": {k: self.draws[k] for k in self.params}})
         idata.attrs.update({"transponder": self.transponder,
                             "sampler": f"emcee {emcee.__version__}",
                             "travel_times": self.diagnostics.get("travel_times", "")})
         return idata
 
 
-def _moves():
-    # Differential evolution only. emcee 3.1.6's DESnookerMove (in bayes.py's default mix)
-    # weighs its Metropolis factor by (ndim - 1) / 2 instead of ndim - 1 and scales its
-    # step wrongly (fixed upstream in dfm/emcee#531): on SeaGap's 23-parameter posterior
-    # the mix gave depth sd 0.055 m where DE alone, the stretch move and the Laplace
-    # approximation give 0.066-0.067 m.
-    return [(emcee.moves.DEMove(), 1.0)]
+def _true_probability(post: LocationLogPosterior, theta):
+    """Each ping's probability of being a true arrival, ``(W, n)``, for :func:`draw_moments`."""
+    ld, lu = post.class_log_densities(theta)
+    return None, [1.0 / (1.0 + np.exp(np.clip(lu - ld, -700.0, 700.0)))]
 
 
-def _class_probs(post, flat, chunk=64):
-    """Mean and sd over draws of each ping's probability of being a true arrival."""
-    s1 = np.zeros(post.n)
-    s2 = np.zeros(post.n)
-    for i in range(0, flat.shape[0], chunk):
-        ld, lu = post._classes(flat[i:i + chunk])
-        p = 1.0 / (1.0 + np.exp(np.clip(lu - ld, -700.0, 700.0)))
-        s1 += p.sum(axis=0)
-        s2 += (p * p).sum(axis=0)
-    m = s1 / flat.shape[0]
-    return m, np.sqrt(np.maximum(s2 / flat.shape[0] - m * m, 0.0))
+def _location_posterior(pings, fit, *, n_walkers, bending):
+    """Build the log-posterior of ``fit``'s transponder; check it and the number of walkers."""
+    if not isinstance(fit, LocateResult):
+        raise TypeError(f"fit: expected a LocateResult, got {type(fit).__name__}")
+    if fit.model.get("fit_lag") or fit.model.get("lag", 0.0):
+        raise ValueError(f"transponder {fit.transponder}: the posterior of a fit with a position "
+                         "lag (fit_lag=True) is not implemented; sample the fit without it")
+    post = LocationLogPosterior(pings, fit, bending=bending)
+    if not np.isfinite(post.log_prior(post.theta_em()[None]))[0]:
+        raise ValueError(f"transponder {fit.transponder}: the EM solution lies outside the "
+                         f"prior (sigma {fit.sigma:.3g} s in {SIGMA_BOUNDS}, weight "
+                         f"{fit.weight:.3g} in (0, 1), tat {fit.tat:.3g} s in {TAT_BOUNDS})")
+    least = 2 * post.ndim + 2  # each half's proposals span the other half's differences
+    n_walkers = int(max(32, least) if n_walkers is None else n_walkers)
+    if n_walkers < least:
+        raise ValueError(f"n_walkers: expected at least 2 x ({post.ndim} parameters + 1) = "
+                         f"{least} for transponder {fit.transponder}, got {n_walkers}")
+    return post, n_walkers
+
+
+def _chain_diagnostics(nat: dict):
+    """Autocorrelation time and ESS (emcee) and bulk ESS (ArviZ) of each ``(steps, walkers)``."""
+    tau, ess = {}, {}
+    for k, v in nat.items():
+        tau[k], ess[k] = autocorr_ess(v)
+    return tau, ess, bulk_ess({k: nat[k].T for k in PARAMS if k in nat})
 
 
 def sample_location(pings: pd.DataFrame, fit: LocateResult, *, n_walkers: int | None = None,
@@ -211,7 +229,7 @@ def sample_location(pings: pd.DataFrame, fit: LocateResult, *, n_walkers: int | 
         The pings table ``fit`` was located from (``beacon``, ``twtt``, ``x``, ``y``,
         ``depth``, and ``time`` for a time-varying speed).
     fit : LocateResult
-        The EM fit (:func:`~bayes_mpem.locate.locate`): the model and the start.
+        The EM fit (:func:`~bayes_mpem.survey_in.location.locate`): the model and the start.
     n_walkers : int, optional
         Default ``max(32, 2 ndim + 2)``, the least that lets differential
         evolution reach every direction.
@@ -240,84 +258,52 @@ def sample_location(pings: pd.DataFrame, fit: LocateResult, *, n_walkers: int | 
 
     Raises
     ------
+    TypeError
+        When ``fit`` is not a :class:`LocateResult`.
     ValueError
-        For invalid options, or an EM solution outside the prior's support.
+        For invalid options, a fit with a position lag, or an EM solution outside
+        the prior's support.
 
     Warns
     -----
     SamplingWarning
         When the chain reaches ``max_steps`` before its stopping rule.
     """
-    import arviz_stats as azs
-
     check_location_options(n_walkers=n_walkers, ci=ci, min_ess=min_ess, max_steps=max_steps,
                            n_draws=n_draws)
-    if not isinstance(fit, LocateResult):
-        raise TypeError(f"fit: expected a LocateResult, got {type(fit).__name__}")
-    if fit.model.get("fit_lag") or fit.model.get("lag", 0.0):
-        raise ValueError(f"transponder {fit.transponder}: the posterior of a fit with a position "
-                         "lag (fit_lag=True) is not implemented; sample the fit without it")
+    post, n_walkers = _location_posterior(pings, fit, n_walkers=n_walkers, bending=bending)
     gen = as_generator(rng)
-    post = LocationLogPosterior(pings, fit, bending=bending)
-    centre = post.theta_em()
-    if not np.isfinite(post.log_prior(centre[None]))[0]:
-        raise ValueError(f"transponder {fit.transponder}: the EM solution lies outside the "
-                         f"prior (sigma {fit.sigma:.3g} s in {SIGMA_BOUNDS}, weight "
-                         f"{fit.weight:.3g} in (0, 1), tat {fit.tat:.3g} s in {TAT_BOUNDS})")
-    least = 2 * post.ndim + 2  # each half's proposals span the other half's differences
-    n_walkers = int(max(32, least) if n_walkers is None else n_walkers)
-    if n_walkers < least:
-        raise ValueError(f"n_walkers: expected at least 2 x ({post.ndim} parameters + 1) = "
-                         f"{least} for transponder {fit.transponder}, got {n_walkers}")
     t0 = time.perf_counter()
-    start = post.start(n_walkers, gen)
-    sampler, burn, _, converged, status = run_ensemble(
-        post, start, seed=int(gen.integers(2**63)), moves=_moves(), min_ess=float(min_ess),
-        max_steps=int(max_steps), progress=progress)
+    [run] = run_ensembles(post, n_walkers=n_walkers, gen=gen,
+                          where=f"transponder {fit.transponder}", stacklevel=2,
+                          moves=de_moves(), min_ess=float(min_ess), max_steps=int(max_steps),
+                          progress=progress)
     seconds = time.perf_counter() - t0
-    if not converged:
-        warnings.warn(f"transponder {fit.transponder}: the chain reached max_steps={max_steps} "
-                      f"before meeting its stopping rule: {status}; estimates may be unreliable",
-                      SamplingWarning, stacklevel=2)
-    chain = sampler.get_chain(discard=burn)  # (steps, walkers, ndim)
-    kept = chain.shape[0]
-
-    # per reported parameter, on the whole kept chain
-    nat = post.natural(chain)
-    tau, ess = {}, {}
-    for k, v in nat.items():
-        tau[k] = float(emcee.autocorr.integrated_time(v[:, :, None], tol=0, quiet=True)[0])
-        ess[k] = float(kept * n_walkers / tau[k])
-    names = [k for k in PARAMS if k in nat]
-    stack = np.stack([nat[k].T for k in names], axis=-1)  # (walker, step, param)
-    bulk = np.atleast_1d(azs.ess(stack, method="bulk", chain_axis=0, draw_axis=1))
-    ess_bulk = {k: float(b) for k, b in zip(names, bulk, strict=True)}
-
-    # thin evenly to about n_draws draws in all
-    per_chain = max(1, min(kept, int(np.ceil(n_draws / n_walkers))))
-    thin = max(1, kept // per_chain)
-    idx = np.arange(kept - (per_chain - 1) * thin - 1, kept, thin)[-per_chain:]
+    chain = run.chain  # (steps, walkers, ndim)
+    nat = post.natural(chain)  # per reported parameter, on the whole kept chain
+    tau, ess, ess_bulk = _chain_diagnostics(nat)
+    idx, thin = thin_index(chain.shape[0], n_walkers, n_draws)
     theta = np.swapaxes(chain[idx], 0, 1)  # (walker, draw, ndim)
-    draws = {k: np.ascontiguousarray(nat[k][idx].T) for k in names}
+    draws = {k: np.ascontiguousarray(nat[k][idx].T) for k in PARAMS if k in nat}
     draws["theta"] = theta
     flat = theta.reshape(-1, post.ndim)
-    p, p_sd = _class_probs(post, flat)
+    _, p, p_sd = draw_moments(flat, lambda t: _true_probability(post, t))
     travel = ("straight rays (exact)" if post.profile is None else
               "refracted rays: fixed ray-bending correction at the EM solution")
     return LocationPosterior(
-        transponder=fit.transponder, names=post.names, draws=draws, p_true=p, p_true_sd=p_sd,
-        rows=np.asarray(fit.rows), tau=tau, ess=ess, ess_bulk=ess_bulk, em=fit,
-        diagnostics={"n_walkers": n_walkers, "n_steps": int(sampler.iteration),
-                     "burn": int(burn), "thin": int(thin), "n_draws": int(flat.shape[0]),
-                     "converged": bool(converged),
-                     "acceptance": float(np.mean(sampler.acceptance_fraction)),
+        transponder=fit.transponder, names=post.names, draws=draws, p_true=p[:, 0],
+        p_true_sd=p_sd[:, 0], rows=np.asarray(fit.rows), tau=tau, ess=ess, ess_bulk=ess_bulk,
+        em=fit,
+        diagnostics={"n_walkers": n_walkers, "n_steps": run.n_steps, "burn": int(run.burn),
+                     "thin": int(thin), "n_draws": int(flat.shape[0]),
+                     "converged": bool(run.converged), "acceptance": run.acceptance,
                      "seconds": float(seconds), "min_ess": float(min_ess),
                      "travel_times": travel},
         ci=float(ci))
 
 
 def _merge(em: dict, post: LocationPosterior, ci: float, header: dict) -> dict:
-    """A transponder's summary entry: the posterior's, the EM's kept under ``em``."""
+    """Build a transponder's summary entry: the posterior's, the EM's kept under ``em``."""
     from ..io.geodesy import enu_to_geodetic
 
     d = post.to_dict(ci)
@@ -348,7 +334,7 @@ def locate_survey_bayes(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="unif
     ----------
     raw : RawSurvey
     tat, fit_tat, ci, outliers, ssp, speed_intervals
-        As for :func:`~bayes_mpem.locate.locate_survey`.
+        As for :func:`~bayes_mpem.survey_in.survey.locate_survey`.
     n_walkers, min_ess, max_steps, progress
         As for :func:`sample_location`.
     rng : None, int or numpy.random.Generator
@@ -357,7 +343,7 @@ def locate_survey_bayes(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="unif
     Returns
     -------
     summary : dict
-        As :func:`~bayes_mpem.locate.locate_survey`'s, each transponder's
+        As :func:`~bayes_mpem.survey_in.survey.locate_survey`'s, each transponder's
         ``east``, ``north``, ``depth``, ``sound_speed`` (posterior mean, sd and
         equal-tailed interval, ``"interval_method": "posterior"``), ``n_spurious``,
         ``sigma_ms``, ``weight_true`` from the posterior, its ESS and

@@ -5,7 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from .._validate import check_choice, check_int, check_probability
 from .location import LocateResult, log_classes
+from .travel_times import chord
 
 #: Support of the log-uniform prior on sigma (s).
 SIGMA_BOUNDS = (1e-6, 1.0)
@@ -34,12 +36,7 @@ def check_location_options(*, n_walkers=None, ci=0.95, min_ess=1000.0, max_steps
     ------
     ValueError
     """
-    try:
-        ok = 0.0 < float(ci) < 1.0
-    except (TypeError, ValueError):
-        ok = False
-    if not ok:
-        raise ValueError(f"ci: expected a probability in (0, 1), got {ci!r}")
+    check_probability("ci", ci)
     try:
         ok = float(min_ess) >= 0
     except (TypeError, ValueError):
@@ -50,21 +47,7 @@ def check_location_options(*, n_walkers=None, ci=0.95, min_ess=1000.0, max_steps
     if n_walkers is not None:
         ints.append(("n_walkers", n_walkers, 4))
     for name, value, least in ints:
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
-            raise ValueError(f"{name}: expected an integer >= {least}, got {value!r}")
-
-
-def _chord(tt, e, n, d):
-    """Straight-line distance only, as ``tt._chord`` (its derivatives would triple the cost);
-    ``e, n, d`` of shape ``(W, 1)`` give ``(W, n)``."""
-    dx, dy = tt.x - e, tt.y - n
-    h2 = dx * dx + dy * dy
-    if tt.R is None:
-        dz = tt.z - d
-        return np.maximum(np.sqrt(h2 + dz * dz), 1e-9)
-    rb, rc = tt.R - tt.z, tt.R - d
-    s = np.sin(np.sqrt(h2) / (2.0 * tt.R))
-    return np.maximum(np.sqrt((rb - rc) ** 2 + 4.0 * rb * rc * s * s), 1e-9)
+        check_int(name, value, minimum=least)
 
 
 class LocationLogPosterior:
@@ -85,16 +68,24 @@ class LocationLogPosterior:
     Attributes
     ----------
     names : tuple of str
-        The sampler's coordinates.
+        The sampler's coordinates, in ``theta`` order.
+    ndim : int
+        ``len(names)``.
+    label : str
+        Short description for the sampler's progress bar.
     beacon : str
-        The transponder (the name :func:`~bayes_mpem.bayes.run_ensemble` labels it by).
-    priors : str
-        ``"flat"`` (for the progress label).
+        The transponder.
+
+    Notes
+    -----
+    The sampler's protocol (:mod:`bayes_mpem.mcmc`): ``names``, ``ndim``,
+    ``label``, :meth:`start` (walkers inside the prior) and the call on a
+    ``(W, ndim)`` array returning ``W`` log-probabilities.
 
     Examples
     --------
     >>> import numpy as np, pandas as pd
-    >>> from bayes_mpem.locate import locate
+    >>> from bayes_mpem.survey_in.location import locate
     >>> rng = np.random.default_rng(0)
     >>> a = np.linspace(0, 2 * np.pi, 60)
     >>> x, y = 3000 * np.cos(a), 3000 * np.sin(a)
@@ -112,15 +103,13 @@ class LocationLogPosterior:
     """
 
     def __init__(self, pings: pd.DataFrame, fit: LocateResult, *, bending="linear"):
-        if bending not in BENDING:
-            raise ValueError(f"bending: expected one of {BENDING}, got {bending!r}")
+        check_choice("bending", bending, BENDING)
         sub = pings.iloc[fit.rows]
         self.fit = fit
         self.beacon = fit.transponder
-        self.priors = "flat"
         self.t = sub["twtt"].to_numpy(float)
         self.n = self.t.size
-        self.tt, theta = fit._model(sub)  # exact travel times (tat fixed at fit.tat)
+        self.tt, theta = fit.travel_times(sub)  # exact travel times (tat fixed at fit.tat)
         self.theta_geo = theta  # [east, north, depth, *speed_coef] at the EM solution
         self.k = self.tt.basis.shape[1]
         self.basis_t = np.ascontiguousarray(self.tt.basis.T)  # (k, n)
@@ -131,10 +120,12 @@ class LocationLogPosterior:
         self.z_mean = float(np.mean(self.tt.z))
         self.bending = bending
         self.pos0 = np.asarray(theta[:3], float)
+        self.sx, self.sy = self.tt.ship()  # at the fit's lag (the logged track when 0)
         self.v, self.delta, self.grad = 1.0, np.zeros(self.n), None
         if self.profile is not None:  # the ray-bending correction, at the EM solution
-            L, *dL = self.tt._chord(*theta[:3])
-            T, *dT = self.tt._rays(theta)[:4]
+            L, *dL = chord(self.sx, self.sy, self.tt.z, *theta[:3], self.tt.R,
+                           derivatives=True)
+            T, *dT = self.tt.rays(theta)[:4]
             self.v = float(self._unit(theta[2]))
             self.delta = T - L / self.v
             if bending == "linear":  # (3, n): d(delta)/d(east, north, depth)
@@ -152,16 +143,24 @@ class LocationLogPosterior:
         """Number of sampled parameters."""
         return len(self.names)
 
+    @property
+    def label(self) -> str:
+        """Progress-bar label: the transponder."""
+        return f"transponder {self.beacon}"
+
     def _unit(self, depth):
-        """Speed of a unit coefficient (m/s): 1 for straight rays, else the profile's
-        harmonic mean from the mean transducer to ``depth`` (as :func:`locate` reports it)."""
+        """Speed of a unit coefficient (m/s).
+
+        1 for straight rays, else the profile's harmonic mean from the mean
+        transducer to ``depth`` (as :func:`locate` reports it).
+        """
         if self.profile is None:
             return np.ones_like(np.asarray(depth, float))
         return self.profile.harmonic_mean(self.z_mean - self.surface_depth,
                                           np.asarray(depth, float) - self.surface_depth)
 
     def theta_em(self) -> np.ndarray:
-        """The EM solution in the sampler's coordinates."""
+        """Return the EM solution in the sampler's coordinates."""
         f = self.fit
         return np.concatenate([self.theta_geo, [f.tat] if self.fit_tat else [],
                                [np.log(f.sigma), f.weight]]).astype(float)
@@ -190,7 +189,7 @@ class LocationLogPosterior:
     def predict(self, theta):
         """Predicted two-way travel times, ``(W, n)``, with the ray-bending correction."""
         pos, coef, tat, _, _ = self._split(theta)
-        L = _chord(self.tt, pos[:, [0]], pos[:, [1]], pos[:, [2]])
+        L = chord(self.sx, self.sy, self.tt.z, pos[:, [0]], pos[:, [1]], pos[:, [2]], self.tt.R)
         if self.profile is None:
             T = L
         elif self.grad is None:
@@ -199,7 +198,7 @@ class LocationLogPosterior:
             T = L / self.v + self.delta + (pos - self.pos0) @ self.grad
         return 2.0 * T / (coef @ self.basis_t) + tat
 
-    def _classes(self, theta):
+    def class_log_densities(self, theta):
         """Log densities (true, spurious), each ``(W, n)``."""
         _, _, _, sigma, w = self._split(theta)
         # log_classes with a scalar weight of 1/2, re-weighted here: the same densities
@@ -210,7 +209,7 @@ class LocationLogPosterior:
 
     def pointwise(self, theta):
         """Log-likelihood of every ping, ``(W, n)``."""
-        return np.logaddexp(*self._classes(theta))
+        return np.logaddexp(*self.class_log_densities(theta))
 
     def loglik(self, theta):
         """Log-likelihood of a ``(W, ndim)`` array (travel times as the sampler uses them)."""
@@ -227,14 +226,25 @@ class LocationLogPosterior:
             pos, coef, tat, sigma, w = self._split(row)
             geo = np.concatenate([pos[0], coef[0]])
             tat = float(np.ravel(tat)[0])
-            pred = 2.0 * self.tt._rays(geo)[0] / self.tt._speed(geo) + tat
+            pred = 2.0 * self.tt.rays(geo)[0] / self.tt.speed(geo) + tat
             ld, lu = log_classes(self.t, pred, float(sigma[0, 0]), float(w[0, 0]), self.window,
                                   self.outliers)
             out[i] = np.logaddexp(ld, lu).sum()
         return out
 
     def __call__(self, theta):
-        """Log posterior (up to a constant) of a ``(W, ndim)`` array: emcee's target."""
+        """Log posterior (up to a constant) of a ``(W, ndim)`` array: emcee's target.
+
+        Parameters
+        ----------
+        theta : numpy.ndarray
+            ``(W, ndim)`` (a single ``(ndim,)`` row is taken as ``W = 1``).
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(W,)``; ``-inf`` outside the prior.
+        """
         theta = np.atleast_2d(theta)
         lp = self.log_prior(theta)
         ok = np.isfinite(lp)
@@ -243,7 +253,7 @@ class LocationLogPosterior:
         return lp
 
     def natural(self, theta):
-        """Reported parameters of a ``(..., ndim)`` array, each of shape ``(...)``.
+        """Convert a ``(..., ndim)`` array to the reported parameters, each of shape ``(...)``.
 
         Returns
         -------
@@ -262,11 +272,26 @@ class LocationLogPosterior:
         return out
 
     def start(self, n_walkers, gen):
-        """Walkers in a small ball around the EM solution, inside the prior.
+        """Place walkers in a small ball around the EM solution, inside the prior.
 
         Position, speed (and tat) from the Gauss-Newton covariance at the EM
         solution (so the depth-speed correlation is respected), sigma and weight
         from their large-sample widths; half those widths.
+
+        Parameters
+        ----------
+        n_walkers : int
+        gen : numpy.random.Generator
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(n_walkers, ndim)``.
+
+        Raises
+        ------
+        RuntimeError
+            No place inside the prior was found after 60 halvings of the ball.
         """
         f = self.fit
         centre = self.theta_em()

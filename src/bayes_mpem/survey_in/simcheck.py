@@ -1,6 +1,6 @@
 """What the simulation gets wrong: measured survey residuals against simulated ones.
 
-The simulator (and :func:`bayes_mpem.locate.locate`) assumes straight rays at one
+The simulator (and :func:`bayes_mpem.survey_in.location.locate`) assumes straight rays at one
 sound speed, a constant turn-around time, independent Gaussian noise of constant
 size on the true arrivals, and spurious returns uniform over the listening
 window. This module simulates a measured survey under exactly those assumptions
@@ -76,6 +76,7 @@ import numpy as np
 import pandas as pd
 
 from .._rng import as_generator
+from .._validate import check_int
 from ..exceptions import InputError, LocateWarning
 from .gap_statistics import STATISTICS, gap_statistics, mc_pvalue, remove_common_drift
 from .location import LocateResult, locate
@@ -85,6 +86,19 @@ TRACK_COLUMNS = ("beacon", "x", "y", "depth", "time", "line")
 
 
 def check_straight(fit):
+    """Check that ``fit`` is a straight-ray, one-speed, flat-frame :class:`LocateResult`.
+
+    Parameters
+    ----------
+    fit : LocateResult
+
+    Raises
+    ------
+    TypeError
+        Not a LocateResult.
+    ValueError
+        A fit with refracted rays, a time-varying sound speed or a spherical frame.
+    """
     if not isinstance(fit, LocateResult):
         raise TypeError(f"fit: expected a LocateResult, got {type(fit).__name__}")
     m = getattr(fit, "model", None) or {}
@@ -109,7 +123,25 @@ def _fits(fit):
 
 
 def ping_rows(pings, fit):
-    """The fit's pings in ``pings``, checked."""
+    """Find the fit's pings in ``pings``, checking that the table is the fit's.
+
+    Parameters
+    ----------
+    pings : pandas.DataFrame
+    fit : LocateResult
+
+    Returns
+    -------
+    numpy.ndarray
+        Row positions of the fit's pings.
+
+    Raises
+    ------
+    InputError
+        A missing column, or rows that are not the fit's transponder's.
+    ValueError
+        ``fit.rows`` and ``fit.p_true`` differ in size.
+    """
     need = {"beacon", "x", "y", "depth"}
     missing = need - set(pings.columns)
     if missing:
@@ -204,7 +236,7 @@ def residual_frame(pings: pd.DataFrame, fit: LocateResult) -> pd.DataFrame:
         The table the fit was located from (``beacon``, ``twtt``, ``x``, ``y``,
         ``depth``, ``time``).
     fit : LocateResult
-        A straight-ray, one-speed fit (:func:`bayes_mpem.locate.locate`).
+        A straight-ray, one-speed fit (:func:`bayes_mpem.survey_in.location.locate`).
 
     Returns
     -------
@@ -227,7 +259,7 @@ def residual_frame(pings: pd.DataFrame, fit: LocateResult) -> pd.DataFrame:
     Examples
     --------
     >>> import pandas as pd
-    >>> from bayes_mpem.locate import locate
+    >>> from bayes_mpem.survey_in.location import locate
     >>> import numpy as np
     >>> a = np.linspace(0, 2 * np.pi, 24, endpoint=False)
     >>> pings = pd.DataFrame({"beacon": "T", "x": np.r_[0.0, 3000 * np.cos(a)],
@@ -278,7 +310,7 @@ class GapResult:
     Attributes
     ----------
     fits : dict
-        Transponder -> the measured :class:`~bayes_mpem.locate.LocateResult`.
+        Transponder -> the measured :class:`~bayes_mpem.survey_in.location.LocateResult`.
     frames : dict
         Transponder -> measured :func:`residual_frame` (with ``detrended`` when
         the common drift was removed).
@@ -295,7 +327,7 @@ class GapResult:
         pings classified spurious.
     n_sim : int
     n_warned : int
-        Replicate fits that raised a :class:`~bayes_mpem.locate.LocateWarning`
+        Replicate fits that raised a :class:`~bayes_mpem.exceptions.LocateWarning`
         (kept; the warning is not shown).
     """
 
@@ -325,7 +357,7 @@ def simulation_gap(pings: pd.DataFrame, beacons: pd.DataFrame, transponders=None
                    progress=None, **locate_kwargs) -> GapResult:
     """Compare a measured survey's residual statistics with simulated replicates.
 
-    Each transponder is located (:func:`~bayes_mpem.locate.locate`); ``n_sim``
+    Each transponder is located (:func:`~bayes_mpem.survey_in.location.locate`); ``n_sim``
     replicates are drawn from the fits (:func:`simulate_like`, all transponders
     of a replicate together) and each is located again in the same way; the
     statistics (:func:`gap_statistics`) of the measured survey are compared with
@@ -334,7 +366,7 @@ def simulation_gap(pings: pd.DataFrame, beacons: pd.DataFrame, transponders=None
     Parameters
     ----------
     pings, beacons : pandas.DataFrame
-        As for :func:`~bayes_mpem.locate.locate` (with ``time``).
+        As for :func:`~bayes_mpem.survey_in.location.locate` (with ``time``).
     transponders : sequence of str, optional
         Default: every beacon with pings.
     n_sim : int, default 200
@@ -347,7 +379,7 @@ def simulation_gap(pings: pd.DataFrame, beacons: pd.DataFrame, transponders=None
     progress : callable, optional
         Called with the replicate number after each replicate.
     **locate_kwargs
-        Passed to every :func:`~bayes_mpem.locate.locate` call (``tat``,
+        Passed to every :func:`~bayes_mpem.survey_in.location.locate` call (``tat``,
         ``outliers``, ...); not ``ssp``, ``speed_intervals`` or ``earth_radius``
         (the simulator's straight rays at one speed).
 
@@ -358,12 +390,11 @@ def simulation_gap(pings: pd.DataFrame, beacons: pd.DataFrame, transponders=None
     Raises
     ------
     InputError
-        No transponder with pings, or as :func:`~bayes_mpem.locate.locate`.
+        No transponder with pings, or as :func:`~bayes_mpem.survey_in.location.locate`.
     ValueError
         ``n_sim`` < 1 or a non-straight-ray option.
     """
-    if not (isinstance(n_sim, (int, np.integer)) and n_sim >= 1):
-        raise ValueError(f"n_sim: expected an integer >= 1, got {n_sim!r}")
+    check_int("n_sim", n_sim, minimum=1)
     for k in ("ssp", "speed_intervals", "earth_radius", "transponder"):
         if locate_kwargs.get(k):
             raise ValueError(f"{k}: not supported here (the simulator's straight rays at one "

@@ -1,4 +1,11 @@
-"""Survey (moved from ``locate``)."""
+"""Locate every transponder of a ranging survey file (``bayes-mpem locate``).
+
+:func:`locate_survey` takes a :class:`~bayes_mpem.io.raw.RawSurvey` (a deck-box
+log or a SeaGap folder), picks the sound-speed profile it names
+(:func:`survey_profile`) and the geometry of its format, runs
+:func:`~.location.locate` on each transponder and returns a
+:class:`~.result.SurveyInResult`.
+"""
 
 from __future__ import annotations
 
@@ -6,8 +13,9 @@ import numpy as np
 import pandas as pd
 
 from ..exceptions import InputError
-from ..io.geodesy import earth_radius, enu_to_geodetic
+from ..io.geodesy import MEAN_EARTH_RADIUS_M, earth_radius, enu_to_geodetic
 from .location import DEFAULT_TAT, locate
+from .result import SurveyInResult
 
 #: SeaGap's default depth of the ship's transducer below the sea surface (m)
 #: (``XDUCER_DEPTH`` in SeaGap); it places the profile against the ellipsoidal heights.
@@ -15,7 +23,24 @@ SEAGAP_TRANSDUCER_DEPTH = 3.0
 
 
 def survey_profile(raw, ssp):
-    """The sound-speed profile ``ssp`` names for a survey (see :func:`locate_survey`)."""
+    """Return the sound-speed profile ``ssp`` names for a survey.
+
+    Parameters
+    ----------
+    raw : RawSurvey
+    ssp : None, SoundSpeedProfile, str or path
+        As for :func:`locate_survey`.
+
+    Returns
+    -------
+    SoundSpeedProfile or None
+        ``None`` for straight rays.
+
+    Raises
+    ------
+    bayes_mpem.InputError
+        When the survey lacks what ``ssp`` asks for (its own profile, a position).
+    """
     from ..acoustics.profile import SoundSpeedProfile
 
     if ssp is None or isinstance(ssp, SoundSpeedProfile):
@@ -60,12 +85,13 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
 
     Returns
     -------
-    summary : dict
-        ``{"transponders": {id: {"lat", "lon", "depth", "sound_speed", ...}}, ...}``.
-    classified : pandas.DataFrame
-        One row per ping line and per skipped line of the file, in file order:
-        ``line``, ``transponder``, ``twtt``, ``p_true``, ``p_spurious``, ``label``
-        (``true``, ``spurious`` or ``skipped``) and ``reason``.
+    SurveyInResult
+        ``summary`` (``{"transponders": {id: {"lat", "lon", "depth",
+        "sound_speed", ...}}, ...}``) and ``classified`` (one row per ping line
+        and per skipped line of the file, in file order: ``line``,
+        ``transponder``, ``twtt``, ``p_true``, ``p_spurious``, ``label``
+        (``true``, ``spurious`` or ``skipped``) and ``reason``); it writes
+        both with ``write(out_dir)``.
 
     Notes
     -----
@@ -81,7 +107,7 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
     geo = {}
     if raw.format == "seagap":
         geo = {"earth_radius": earth_radius(raw.header["lat"]) if "lat" in raw.header
-               else 6371000.0,
+               else MEAN_EARTH_RADIUS_M,
                "surface_depth": float(pings["depth"].mean()) - SEAGAP_TRANSDUCER_DEPTH}
     out, probs = {}, np.full(len(pings), np.nan)
     for tid in beacons["beacon"].astype(str):
@@ -95,23 +121,27 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
         else:
             d["lat"] = d["lon"] = None  # SeaGap: local frame only
         out[tid] = d
-    lab = np.where(probs >= 0.5, "true", "spurious").astype(object)
-    cls = pd.DataFrame({"line": pings["line"], "transponder": pings["beacon"].astype(str),
-                        "twtt": pings["twtt"], "p_true": probs, "p_spurious": 1.0 - probs,
-                        "label": lab, "reason": ""})
-    sk = raw.skipped
-    if len(sk):
-        cls = pd.concat([cls, pd.DataFrame({"line": sk["line"], "transponder": "",
-                                            "twtt": np.nan, "p_true": np.nan,
-                                            "p_spurious": np.nan, "label": "skipped",
-                                            "reason": sk["reason"]})], ignore_index=True)
-    cls = cls.sort_values("line", kind="stable").reset_index(drop=True)
+    cls = _classified(pings, probs, raw.skipped)
     rays = "straight rays" if prof is None else f"refracted rays ({prof.source or 'profile'})"
     summary = {"transponders": out, "format": raw.format, "source": raw.source,
-               "n_pings": int(len(pings)), "n_skipped_lines": int(len(sk)),
+               "n_pings": int(len(pings)), "n_skipped_lines": int(len(raw.skipped)),
                "method": f"EM, {rays}; intervals approximate (Wald)",
                "outliers": outliers, "ssp": None if prof is None else prof.source,
                "speed_intervals": int(speed_intervals), "fit_lag": bool(fit_lag),
                "geometry": geo,
                "tat_fitted": bool(fit_tat), "tat_given": None if fit_tat else float(tat)}
-    return summary, cls
+    return SurveyInResult(summary=summary, classified=cls)
+
+
+def _classified(pings, probs, skipped):
+    """Per line of the file: the ping's class probabilities, or why it was skipped."""
+    lab = np.where(probs >= 0.5, "true", "spurious").astype(object)
+    cls = pd.DataFrame({"line": pings["line"], "transponder": pings["beacon"].astype(str),
+                        "twtt": pings["twtt"], "p_true": probs, "p_spurious": 1.0 - probs,
+                        "label": lab, "reason": ""})
+    if len(skipped):
+        cls = pd.concat([cls, pd.DataFrame({"line": skipped["line"], "transponder": "",
+                                            "twtt": np.nan, "p_true": np.nan,
+                                            "p_spurious": np.nan, "label": "skipped",
+                                            "reason": skipped["reason"]})], ignore_index=True)
+    return cls.sort_values("line", kind="stable").reset_index(drop=True)

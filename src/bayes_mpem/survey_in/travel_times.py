@@ -1,17 +1,95 @@
-"""Travel times (moved from ``locate``)."""
+"""Two-way travel times of a transponder's true replies, and their derivatives.
+
+:class:`TravelTimes` predicts the two-way travel time of every ping of one
+transponder from its position, the sound speed (one value, or a B-spline in
+time from :func:`speed_basis`), the turn-around time and optionally a time lag
+of the acoustic position behind the logged one (the ship's velocity from
+:func:`ship_velocity`), with the Jacobian for Gauss-Newton fits.
+
+The straight-line distance between ship and transponder, flat or on a sphere,
+is :func:`chord` (shared with the sampler's vectorised posterior). Refracted
+rays through a sound-speed profile are the direct eigenrays of
+:func:`bayes_mpem.acoustics.turning.direct_times`, turning rays included, so a
+ping is modelled by the same solver as the LBL wing's ranges; a ping that no
+eigenray reaches at all is counted by :meth:`TravelTimes.n_invalid` (and
+reported by the fit), never hidden.
+"""
 
 from __future__ import annotations
 
 import numpy as np
 import pandas as pd
 
+from ..acoustics.turning import direct_times
 from ..exceptions import InputError
+
+
+def chord(x, y, z, e, n, d, R=None, *, derivatives=False):
+    """Straight-line distance between ship points and a transponder, flat or spherical.
+
+    Parameters
+    ----------
+    x, y, z : array_like
+        Ship (transducer) positions: horizontal coordinates and depth (m).
+    e, n, d : array_like
+        Transponder east, north and depth (m); broadcast with ``x, y, z`` (e.g.
+        ``(W, 1)`` columns against ``(n,)`` pings give ``(W, n)``).
+    R : float, optional
+        ``None``: Cartesian (a local tangent plane). A radius (m): ``x, y`` are
+        distances along the sphere and depths are below it (SeaGap's frame);
+        the distance is the chord between the two radii.
+    derivatives : bool, default False
+        Also return ``dL/de, dL/dn, dL/dd``.
+
+    Returns
+    -------
+    L : numpy.ndarray
+        Distance (m), at least 1e-9.
+    dL_de, dL_dn, dL_dd : numpy.ndarray
+        Only with ``derivatives=True``.
+
+    Notes
+    -----
+    The two forms keep the floating-point operations of the code they replace
+    (the distance alone sums ``dx**2 + dy**2`` once; the form with derivatives
+    squares the horizontal distance ``h``), so their ``L`` may differ in the last
+    bit.
+
+    Examples
+    --------
+    >>> float(chord(3.0, 4.0, 0.0, 0.0, 0.0, 12.0))
+    13.0
+    >>> L, de, dn, dd = chord(3.0, 4.0, 0.0, 0.0, 0.0, 12.0, derivatives=True)
+    >>> float(L), round(float(dd), 6)
+    (13.0, 0.923077)
+    """
+    dx, dy = x - e, y - n
+    if not derivatives:
+        h2 = dx * dx + dy * dy
+        if R is None:
+            dz = z - d
+            return np.maximum(np.sqrt(h2 + dz * dz), 1e-9)
+        rb, rc = R - z, R - d
+        s = np.sin(np.sqrt(h2) / (2.0 * R))
+        return np.maximum(np.sqrt((rb - rc) ** 2 + 4.0 * rb * rc * s * s), 1e-9)
+    h = np.sqrt(dx * dx + dy * dy)
+    if R is None:
+        dz = z - d
+        L = np.maximum(np.sqrt(h * h + dz * dz), 1e-9)
+        return L, -dx / L, -dy / L, -dz / L
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ux, uy = np.where(h > 0, dx / h, 0.0), np.where(h > 0, dy / h, 0.0)
+    rb, rc = R - z, R - d
+    phi = h / R
+    L = np.maximum(np.sqrt((rb - rc) ** 2 + 4 * rb * rc * np.sin(phi / 2) ** 2), 1e-9)
+    dLdh = rb * rc * np.sin(phi) / (R * L)
+    return L, -dLdh * ux, -dLdh * uy, -((rc - rb) + 2 * rb * np.sin(phi / 2) ** 2) / L
 
 
 class TravelTimes:
     """Two-way travel times of true arrivals, and their derivatives, for one transponder.
 
-    ``theta = [east, north, depth, *speed, (tat)]``. The speed is one value, or the
+    ``theta = [east, north, depth, *speed, (lag), (tat)]``. The speed is one value, or the
     coefficients of a cubic B-spline in time (:func:`speed_basis`; a partition of
     unity, so equal coefficients are a constant speed). Without a profile the
     speed is the straight-ray sound speed (m/s); with one it is the factor the
@@ -21,9 +99,36 @@ class TravelTimes:
     Geometry: ``earth_radius=None`` takes ``x, y, depth`` as Cartesian (a local
     tangent plane); with a radius, ``x, y`` are distances along the sphere and
     ``depth`` is below it (SeaGap's convention), and the straight-line distance is
-    the chord between the two radii. The refracted ray runs between the profile
-    depths ``depth - surface_depth`` over the horizontal distance that makes a
-    constant profile give that same chord.
+    the chord between the two radii (:func:`chord`). The refracted ray runs between
+    the profile depths ``depth - surface_depth`` over the horizontal distance that
+    makes a constant profile give that same chord; it may turn
+    (:func:`~bayes_mpem.acoustics.turning.direct_times`). A ping no eigenray
+    reaches (a speed maximum between the ends, or a turning depth beyond the
+    profile) takes the chord at the profile's harmonic-mean speed so that a fit can
+    go on, and is counted by :meth:`n_invalid`.
+
+    Parameters
+    ----------
+    x, y, z : numpy.ndarray
+        Ship (transducer) positions of the pings (m).
+    tat : float
+        Turn-around time (s), when not fitted.
+    basis : numpy.ndarray, optional
+        ``(n, k)`` design matrix of the speed in time; default one column of ones.
+    fit_tat : bool, default False
+        ``theta`` ends with the turn-around time.
+    profile : SoundSpeedProfile, optional
+        Refracted rays through it; ``None`` for straight rays.
+    surface_depth : float, default 0
+        Depth, in the pings' frame, of the profile's 0 m.
+    earth_radius : float, optional
+        Spherical frame of that radius (m); ``None`` for a flat one.
+    velocity : tuple of numpy.ndarray, optional
+        The ship's velocity (m/s) at each ping (:func:`ship_velocity`).
+    lag : float, default 0
+        Time lag (s) of the acoustic position behind the logged one.
+    fit_lag : bool, default False
+        ``theta`` holds the lag after the speed coefficients.
     """
 
     def __init__(self, x, y, z, tat, *, basis=None, fit_tat=False, profile=None,
@@ -39,7 +144,8 @@ class TravelTimes:
         self.profile, self.surface_depth, self.R = profile, float(surface_depth), earth_radius
         self._key = None
 
-    def _speed(self, theta):
+    def speed(self, theta):
+        """Speed (or profile scale) at each ping from ``theta``'s coefficients."""
         return self.basis @ theta[3:3 + self.k]
 
     def _tat(self, theta):
@@ -48,71 +154,86 @@ class TravelTimes:
     def _lag(self, theta):
         return theta[3 + self.k] if self.fit_lag else self.lag
 
-    def _ship(self, lag):
+    def ship(self, lag=None):
+        """Ship positions ``(x, y)`` shifted by ``lag`` times its velocity.
+
+        Parameters
+        ----------
+        lag : float, optional
+            Seconds; default the fixed ``lag`` this model was built with.
+
+        Returns
+        -------
+        x, y : numpy.ndarray
+        """
+        lag = self.lag if lag is None else lag
         if self.vel is None or lag == 0.0:
             return self.x, self.y
         return self.x + lag * self.vel[0], self.y + lag * self.vel[1]
 
-    def _chord(self, e, n, d, lag=0.0):
-        """Straight-line distance ``L`` and ``dL/de, dL/dn, dL/dd``."""
-        sx, sy = self._ship(lag)
-        dx, dy = sx - e, sy - n
-        h = np.sqrt(dx * dx + dy * dy)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            ux, uy = np.where(h > 0, dx / h, 0.0), np.where(h > 0, dy / h, 0.0)
-        if self.R is None:
-            dz = self.z - d
-            L = np.maximum(np.sqrt(h * h + dz * dz), 1e-9)
-            return L, -dx / L, -dy / L, -dz / L
-        R = self.R
-        rb, rc = R - self.z, R - d
-        phi = h / R
-        L = np.maximum(np.sqrt((rb - rc) ** 2 + 4 * rb * rc * np.sin(phi / 2) ** 2), 1e-9)
-        dLdh = rb * rc * np.sin(phi) / (R * L)
-        return L, -dLdh * ux, -dLdh * uy, -((rc - rb) + 2 * rb * np.sin(phi / 2) ** 2) / L
+    def rays(self, theta):
+        """One-way times ``T`` (unscaled) and their position derivatives at ``theta``.
 
-    def _rays(self, theta):
-        """One-way times ``T`` (unscaled) and ``dT/de, dT/dn, dT/dd`` at ``theta``'s position."""
+        Parameters
+        ----------
+        theta : numpy.ndarray
+            The model's parameters (only position and lag are used).
+
+        Returns
+        -------
+        tuple
+            ``(T, dT/de, dT/dn, dT/dd, n_invalid)``: arrays over the pings (s and
+            s/m; for straight rays the distance, m) and the number of pings no
+            eigenray reaches.
+        """
         key = tuple(float(v) for v in theta[:3]) + (float(self._lag(theta)),)
         if key == self._key:
             return self._cache
         e, n, d, lag = key
-        L, Le, Ln, Ld = self._chord(e, n, d, lag)
+        sx, sy = self.ship(lag)
+        L, Le, Ln, Ld = chord(sx, sy, self.z, e, n, d, self.R, derivatives=True)
         if self.profile is None:
             out = (L, Le, Ln, Ld, 0)
         else:
-            from ..acoustics.eigenray import direct_ray
-
-            za, zb = self.z - self.surface_depth, np.full_like(L, d - self.surface_depth)
-            dz = zb - za
-            h = np.sqrt(np.maximum(L * L - dz * dz, 0.0))
-            ray = direct_ray(self.profile, za, zb, h)
-            T, p, bad = ray.time, ray.p, ~ray.valid
-            if bad.any():  # no eigenray without a turning point: the chord at the mean speed
-                hm = self.profile.harmonic_mean(za[bad], zb[bad])
-                T, p = T.copy(), p.copy()
-                T[bad] = L[bad] / hm
-                p[bad] = h[bad] / L[bad] / hm
-            cb = self.profile.speed(zb)
-            eta = np.sqrt(np.maximum(1.0 / cb**2 - p * p, 0.0)) * np.sign(dz)
-            with np.errstate(invalid="ignore", divide="ignore"):
-                q = np.where(h > 1e-9, p / h, 0.0)  # dT/dh / h
-            # dT/dd = dT/dzb + dT/dh * dh/dd, with h^2 = L^2 - dz^2 (dh/dd = 0 on a plane)
-            Td = eta + q * (L * Ld - dz)
-            out = (T, q * L * Le, q * L * Ln, Td, int(bad.sum()))
+            out = self._refracted(L, Le, Ln, Ld, d)
         self._key, self._cache = key, out
         return out
 
+    def _refracted(self, L, Le, Ln, Ld, d):
+        """:meth:`rays` through the profile, from the chord and its derivatives."""
+        za, zb = self.z - self.surface_depth, np.full_like(L, d - self.surface_depth)
+        dz = zb - za
+        h = np.sqrt(np.maximum(L * L - dz * dz, 0.0))
+        ray = direct_times(self.profile, za, zb, h)
+        T, p, bad = ray.time, ray.p, ~ray.valid
+        if bad.any():  # no eigenray at all, even turning: flagged (n_invalid)
+            hm = self.profile.harmonic_mean(za[bad], zb[bad])
+            T, p = T.copy(), p.copy()
+            T[bad] = L[bad] / hm
+            p[bad] = h[bad] / L[bad] / hm
+        cb = self.profile.speed(zb)
+        # the vertical slowness at the transponder, signed by the direction the ray
+        # arrives in: from the ship's side, or from the turning point
+        side = np.where(ray.turning, zb - ray.turning_depth, dz)
+        eta = np.sqrt(np.maximum(1.0 / cb**2 - p * p, 0.0)) * np.sign(side)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            q = np.where(h > 1e-9, p / h, 0.0)  # dT/dh / h
+        # dT/dd = dT/dzb + dT/dh * dh/dd, with h^2 = L^2 - dz^2 (dh/dd = 0 on a plane)
+        Td = eta + q * (L * Ld - dz)
+        return T, q * L * Le, q * L * Ln, Td, int(bad.sum())
+
     def n_invalid(self, theta):
-        return self._rays(theta)[4]
+        """Count the pings that no eigenray reaches at ``theta`` (0 for straight rays)."""
+        return self.rays(theta)[4]
 
     def predict(self, theta):
-        return 2.0 * self._rays(theta)[0] / self._speed(theta) + self._tat(theta)
+        """Two-way travel times (s) of true arrivals at ``theta``, one per ping."""
+        return 2.0 * self.rays(theta)[0] / self.speed(theta) + self._tat(theta)
 
     def jac(self, theta):
         """d(prediction)/d(theta), one row per ping."""
-        T, Te, Tn, Td, _ = self._rays(theta)
-        s = self._speed(theta)
+        T, Te, Tn, Td, _ = self.rays(theta)
+        s = self.speed(theta)
         cols = [2 * Te / s, 2 * Tn / s, 2 * Td / s]
         extra = []
         if self.fit_lag:  # moving the ship by lag * v is moving the transponder back
@@ -123,7 +244,7 @@ class TravelTimes:
 
 
 def ship_velocity(pings: pd.DataFrame) -> tuple:
-    """The ship's velocity (m/s) at each ping, from the track: ``(vx, vy)``.
+    """Estimate the ship's velocity (m/s) at each ping from the track: ``(vx, vy)``.
 
     Columns ``vx``, ``vy`` if the table has them, else central differences of
     ``x``, ``y`` in ``time`` over the pings in time order (pings at the same time

@@ -1,4 +1,14 @@
-"""Unabsorbed (moved from ``simcheck``)."""
+"""What a straight-ray fit cannot absorb of another travel-time model.
+
+A straight-ray location (position, depth, one sound speed) absorbs most of a
+refraction effect: the fitted speed takes its mean, the depth and position take
+more. :func:`unabsorbed` fits the straight-ray model to noise-free travel times
+of another model and returns what is left, the pattern that model would leave
+in the residuals of :mod:`bayes_mpem.survey_in.simcheck`; :func:`refracted_twtt`
+gives such travel times for refracted rays through a sound-speed profile (the
+direct eigenrays of :func:`bayes_mpem.acoustics.turning.direct_times`, turning
+rays included).
+"""
 
 from __future__ import annotations
 
@@ -6,12 +16,13 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import least_squares
 
+from ..acoustics.turning import direct_times
 from .location import LocateResult
 from .simcheck import check_straight, ping_rows
 
 
 def unabsorbed(pings: pd.DataFrame, fit: LocateResult, twtt) -> tuple:
-    """The part of noise-free travel times that a straight-ray fit cannot absorb.
+    """Find the part of noise-free travel times that a straight-ray fit cannot absorb.
 
     The straight-ray model (position, depth, sound speed; ``fit.tat`` fixed) is
     fitted by least squares to ``twtt`` from the fit's values; what is left is
@@ -39,7 +50,7 @@ def unabsorbed(pings: pd.DataFrame, fit: LocateResult, twtt) -> tuple:
     Straight-ray times from another position are absorbed completely:
 
     >>> import numpy as np, pandas as pd
-    >>> from bayes_mpem.locate import locate
+    >>> from bayes_mpem.survey_in.location import locate
     >>> a = np.linspace(0, 2 * np.pi, 40, endpoint=False)
     >>> rad = np.linspace(300.0, 3000.0, 40)
     >>> pings = pd.DataFrame({"beacon": "T", "x": rad * np.cos(a), "y": rad * np.sin(a),
@@ -95,14 +106,26 @@ def refracted_twtt(pings: pd.DataFrame, fit: LocateResult, profile, *,
     -------
     numpy.ndarray
         ``2 T + fit.tat`` (s) for the fit's pings (``fit.rows`` order), ``T`` the
-        one-way time of the direct ray (:func:`bayes_mpem.acoustics.direct_ray`);
-        NaN where no direct eigenray exists without a turning point.
-    """
-    from ..acoustics.eigenray import direct_ray
+        one-way time of the direct eigenray
+        (:func:`bayes_mpem.acoustics.turning.direct_times`, with a turning point
+        where the straight-through ray does not reach).
 
+    Raises
+    ------
+    ValueError
+        Some ping is reached by no direct eigenray at all (a speed maximum
+        between the ends, or a turning depth beyond the profile); the message
+        gives how many and the first.
+    """
     rows = ping_rows(pings, fit)
     sub = pings.iloc[rows]
     x, y, z = (sub[c].to_numpy(float) for c in ("x", "y", "depth"))
     h = np.hypot(x - fit.east, y - fit.north)
-    ray = direct_ray(profile, z - surface_depth, fit.depth - surface_depth, h)
+    ray = direct_times(profile, z - surface_depth, fit.depth - surface_depth, h)
+    bad = np.flatnonzero(~ray.valid)
+    if bad.size:
+        i = bad[0]
+        raise ValueError(f"transponder {fit.transponder}: {bad.size} of {rows.size} pings have "
+                         f"no direct eigenray through the profile, even turning (first: row "
+                         f"{rows[i]}, horizontal {h[i]:.1f} m, depth {z[i]:g} m)")
     return 2.0 * ray.time + fit.tat

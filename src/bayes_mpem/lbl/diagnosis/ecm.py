@@ -1,48 +1,34 @@
-"""Find the effect hidden in a survey: which of the paper's assumptions the data break.
+"""Fitting the joint model of the diagnosis by ECM, and its held-out predictive density.
 
-The paper's model assumes one static reflector, a homogeneous medium, exact
-navigation and a calibrated system. :func:`diagnose` fits that model to every
-beacon at once (the *baseline*), then each extension of a fixed vocabulary
-(:data:`EFFECTS`), and keeps an extension only when it predicts held-out ranges
-clearly better (K-fold cross-validated log predictive density). Effects are
-added greedily, so two effects present at once are both found.
+The joint model (:mod:`.model`) is fitted to all beacons at once by an ECM
+algorithm: an E-step; closed-form mixing weights; a safeguarded Gauss-Newton
+step on the mean parameters (plane depths and effect parameters, analytic
+Jacobian; :func:`bayes_mpem.mixture.gauss_newton.safeguarded_step`) that never
+increases the weighted squared error; closed-form scatters. The
+log-likelihood therefore never decreases.
 
-The joint model
----------------
-For range ``i`` of beacon ``b`` at normalised time ``tau_i`` (0 at the first
-ping of the survey, 1 at the last), with the vehicle at the reported position
-plus the navigation correction ``tau_i (e_x, e_y)``:
-
-* direct path ``mu_dp = k D_i + beta``, multipath ``mu_mp = k M_i(P_b + delta
-  tau_i) + beta`` off a plane at depth ``P_b + delta tau_i``, a second
-  multipath ``mu_mp2 = k M_i(P_2) + beta``, with ``k = 1 + f``;
-* Gaussian scatter per beacon and class; outliers uniform over the beacon's
-  listening window, or, with first-arrival detection, uniform between the
-  window start and the direct path;
-* learned mixing weights per beacon.
-
-Each effect switches on one part: ``range_bias`` (``beta``, m),
-``sound_speed`` (``f = factor - 1``), ``plane_drift`` (``delta``, m from the
-first to the last ping), ``second_reflector`` (``P_2``, m, with its weight and
-scatter per beacon), ``early_outliers`` (the first-arrival outlier density;
-magnitude = fraction of replies that are outliers) and ``nav_drift`` (``|(e_x,
-e_y)|``, m at the last ping). The baseline, all switched off, is the mixture
-model of :mod:`bayes_mpem.mixture`, fitted to all beacons together.
-
-Fitting is an ECM algorithm: E-step; closed-form weights; a safeguarded
-Gauss-Newton step on the mean parameters (plane depths and effect parameters,
-analytic Jacobian) that never increases the weighted squared error; closed-form
-scatters.
+* :func:`baseline_start` starts the baseline (no effect) from the per-beacon
+  mixture EM (:func:`bayes_mpem.lbl.em_mixture.fit_mixture_em`), and picks
+  the multipath geometry;
+* :func:`start_for` and :func:`replant` give starting points for a model
+  with more effects;
+* :func:`fit_joint` runs the ECM from several starts and keeps the best, a
+  :class:`JointFit`;
+* :func:`heldout` scores each reply by K-fold cross-validation, the
+  criterion the driver (:func:`bayes_mpem.lbl.diagnosis.driver.diagnose`)
+  keeps an effect by.
 
 Examples
 --------
->>> from bayes_mpem.simulate import simulate_survey
->>> from bayes_mpem.diagnose import diagnose
->>> sim = simulate_survey("abe58", rng=2, n_cycles=700, effects={"range_bias": 6.0})
->>> dx = diagnose(sim.survey, rng=0, progress=False)
->>> [e.name for e in dx.effects]
-['range_bias']
->>> abs(dx.effects[0].magnitude - 6.0) < 0.5
+>>> from bayes_mpem.lbl.simulate import simulate_survey
+>>> from bayes_mpem.lbl.survey import fittable_beacons
+>>> from bayes_mpem.lbl.diagnosis.model import ranges
+>>> sim = simulate_survey("abe58", rng=2, n_cycles=300, effects={"range_bias": 6.0})
+>>> fittable, _ = fittable_beacons(sim.survey, 30)
+>>> d = ranges(sim.survey, fittable)
+>>> start, path, _ = baseline_start(d, fittable, "triangle", 0)
+>>> fit = fit_joint(d, ("range_bias",), start, path=path)
+>>> abs(fit.magnitudes(d)["range_bias"] - 6.0) < 0.5
 True
 """
 
@@ -50,10 +36,12 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass, field, replace
+from functools import partial
 
 import numpy as np
 
 from ..._rng import as_generator
+from ...mixture.gauss_newton import safeguarded_step
 from .. import geometry
 from ..em_mixture import fit_mixture_em, histogram_modes
 from .model import (
@@ -69,6 +57,14 @@ from .model import (
     set_vector,
     weighted_sse,
 )
+
+
+def _feasible_sse(d, p, names, effects, path, resp, v):
+    """``(weighted SSE, parameters)`` at mean vector ``v``; ``None`` where infeasible."""
+    cand = set_vector(p, names, v)
+    if not is_feasible(d, cand, effects):
+        return None
+    return weighted_sse(d, cand, effects, path, resp), cand
 
 
 def _gauss_newton(d, p, effects, path, resp, n_steps=2):
@@ -95,17 +91,12 @@ def _gauss_newton(d, p, effects, path, resp, n_steps=2):
             step = np.linalg.solve(a + np.diag(ridge), g)
         except np.linalg.LinAlgError:
             break
-        v0 = get_vector(p, names)
-        accepted = False
-        for _half in range(30):
-            cand = set_vector(p, names, v0 + step)
-            if is_feasible(d, cand, effects):
-                q1 = weighted_sse(d, cand, effects, path, resp)
-                if q1 <= q0:
-                    p, q0, accepted = cand, q1, True
-                    break
-            step = 0.5 * step
-        if not accepted or np.max(np.abs(step)) < 1e-10:
+        objective = partial(_feasible_sse, d, p, names, effects, path, resp)
+        out = safeguarded_step(objective, get_vector(p, names), step, q0)
+        if out is None:
+            break
+        p, q0 = out.aux, out.value
+        if np.max(np.abs(out.step)) < 1e-10:
             break
     return p, names, info
 
@@ -204,12 +195,12 @@ class JointFit:
 
 
 def _modes(v, k):
-    """The ``k`` strongest modes of the depths ``v`` (5 m bins, 25 m apart, > 4 ranges)."""
+    """Return the ``k`` strongest modes of the depths ``v`` (5 m bins, 25 m apart, > 4 ranges)."""
     return histogram_modes(v, k, min_count=4) if v.size >= 10 else []
 
 
 def _second_starts(d, p, effects, path, resp):
-    """Starts for a second plane: modes of the implied depths of poorly explained ranges.
+    """Give starts for a second plane: modes of the implied depths of poorly explained ranges.
 
     A beacon whose own plane sits on a candidate depth (its strongest multipath
     family may be the second plane's) also gets a start with its plane moved to
@@ -282,8 +273,26 @@ def _run(d, p, effects, path, *, max_iter, tol, sigma_floor):
 
 
 def baseline_start(d: Ranges, fittable, path, rng):
-    """Per-beacon mixture-EM fits as the joint baseline's start; ``path="auto"`` picks the
-    multipath geometry with the higher total likelihood. Returns ``(params, path, logliks)``."""
+    """Start the joint baseline from per-beacon mixture-EM fits.
+
+    Parameters
+    ----------
+    d : Ranges
+    fittable : list of BeaconData
+        The beacons of ``d``, in order.
+    path : {"auto", "triangle", "double"}
+        ``"auto"`` picks the multipath geometry with the higher total likelihood.
+    rng : None, int or numpy.random.Generator
+        Seeds the per-beacon fits.
+
+    Returns
+    -------
+    params : Params
+    path : str
+        The multipath geometry chosen.
+    logliks : dict
+        Total log-likelihood of the per-beacon fits for each geometry tried.
+    """
     nb = d.nb
     paths = geometry.PATHS if path == "auto" else (path,)
     best, logliks = None, {}
@@ -308,7 +317,22 @@ def baseline_start(d: Ranges, fittable, path, rng):
 
 
 def start_for(d, base: JointFit, effects, path):
-    """Starting points for a model with ``effects``, from a fit of a nested model."""
+    """Give starting points for a model with ``effects``, from a fit of a nested model.
+
+    Parameters
+    ----------
+    d : Ranges
+    base : JointFit
+        The fit of a model with fewer effects.
+    effects : tuple of str
+    path : {"triangle", "double"}
+
+    Returns
+    -------
+    list of Params
+        ``base``'s parameters; for a new ``second_reflector``, one start per
+        candidate plane (possibly none).
+    """
     p = base.params.copy()
     if "second_reflector" in effects and "second_reflector" not in base.effects:
         return _second_starts(d, p, effects, path, base.resp)
@@ -324,7 +348,7 @@ def fit_joint(d: Ranges, effects, start: Params | list, *, path="triangle", max_
     d : Ranges
         The replies (``Diagnosis.data``).
     effects : tuple of str
-        Extensions switched on (names of :data:`EFFECTS`).
+        Extensions switched on (names of :data:`~bayes_mpem.lbl.effects.EFFECTS`).
     start : parameters or list of them
         Starting points; infeasible ones are moved just inside the constraints.
     path : {"triangle", "double"}
@@ -358,12 +382,28 @@ def fit_joint(d: Ranges, effects, start: Params | list, *, path="triangle", max_
 
 
 def replant(d: Ranges, fit: JointFit, fittable, path, rng) -> Params | None:
-    """A fresh start for ``fit``'s model: each beacon's plane, scales and weights re-found by
-    the per-beacon mixture EM (its multi-start over plane heights) on ranges corrected by the
-    fitted bias, scale and navigation drift. ``None`` when no plane moves by more than 5 m.
+    """Re-find each beacon's plane for ``fit``'s model: a fresh start.
 
-    A beacon whose baseline plane was pulled to a wrong family (e.g. the direct path of a
-    mis-scaled survey) stays there when the effect is switched on; this gives it a way out.
+    Each beacon's plane, scales and weights are re-found by the per-beacon
+    mixture EM (its multi-start over plane heights) on ranges corrected by the
+    fitted bias, scale and navigation drift. A beacon whose baseline plane was
+    pulled to a wrong family (e.g. the direct path of a mis-scaled survey)
+    stays there when the effect is switched on; this gives it a way out.
+
+    Parameters
+    ----------
+    d : Ranges
+    fit : JointFit
+    fittable : list of BeaconData
+        The beacons of ``d``, in order.
+    path : {"triangle", "double"}
+    rng : None, int or numpy.random.Generator
+        Seeds the per-beacon fits.
+
+    Returns
+    -------
+    Params or None
+        ``None`` when no plane moves by more than 5 m.
     """
     p = fit.params
     k = 1.0 + (p.scale if "sound_speed" in fit.effects else 0.0)
@@ -403,7 +443,25 @@ def replant(d: Ranges, fit: JointFit, fittable, path, rng) -> Params | None:
 
 
 def heldout(d: Ranges, effects, full: JointFit, folds, path, **kw):
-    """Per-range held-out log predictive density, K-fold, each fold warm-started at ``full``."""
+    """Score every range by K-fold cross-validation, each fold warm-started at ``full``.
+
+    Parameters
+    ----------
+    d : Ranges
+    effects : tuple of str
+    full : JointFit
+        The fit to all ranges (its parameters start every fold).
+    folds : numpy.ndarray
+        Fold number of every range.
+    path : {"triangle", "double"}
+    **kw
+        ``max_iter``, ``tol`` and ``sigma_floor`` of the ECM.
+
+    Returns
+    -------
+    numpy.ndarray
+        Held-out log predictive density of every range.
+    """
     out = np.empty(d.n)
     for k in np.unique(folds):
         test = folds == k

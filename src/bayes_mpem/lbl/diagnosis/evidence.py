@@ -1,14 +1,53 @@
-"""Evidence (moved from ``diagnose``)."""
+"""What a kept effect means, in words and numbers, and which fits are not credible.
+
+For every effect of :data:`~bayes_mpem.lbl.effects.EFFECTS` the driver
+(:func:`~bayes_mpem.lbl.diagnosis.driver.diagnose`) asks this module for
+
+* :func:`effect_evidence`: one sentence with the size of the effect in the
+  survey's terms and the held-out gain that supports it;
+* :func:`effect_magnitude_se` and :func:`effect_detail`: its standard error
+  and extra numbers (a drift's direction, a second family's share);
+* :func:`not_credible`: why a fitted extension is not a physical effect (a
+  second family of a few coincident ranges, or stuck on its bound);
+
+and validates effect names with :func:`check_effect_names`.
+
+Examples
+--------
+>>> check_effect_names(("range_bias", "tide"), "effects")
+Traceback (most recent call last):
+...
+ValueError: effects: unknown effect(s) ['tide']; known: ['range_bias', 'sound_speed', \
+'plane_drift', 'second_reflector', 'early_outliers', 'nav_drift']
+"""
 
 from __future__ import annotations
 
 import numpy as np
 
+from ..effects import EFFECTS
 from .ecm import JointFit
-from .model import EFFECTS, SECOND_GAP, Ranges, main_plane, predict
+from .model import SECOND_GAP, Ranges, main_plane, predict
 
 
 def effect_evidence(name, fit: JointFit, d: Ranges, delta, se, n_folds):
+    """Describe a kept effect and the held-out gain that supports it.
+
+    Parameters
+    ----------
+    name : str
+        The effect (one of :data:`~bayes_mpem.lbl.effects.EFFECTS`).
+    fit : JointFit
+        The fit with the effect switched on.
+    d : Ranges
+    delta, se : float
+        Held-out log predictive density gain (nats) and its standard error.
+    n_folds : int
+
+    Returns
+    -------
+    str
+    """
     mag = fit.magnitudes(d)[name]
     gain = f"held-out log predictive density +{delta:.1f} ± {se:.1f} nats ({n_folds}-fold CV)"
     p = fit.params
@@ -45,6 +84,19 @@ def _late_share(d, fit: JointFit):
 
 
 def check_effect_names(names, what):
+    """Check that every name is an effect of the vocabulary.
+
+    Parameters
+    ----------
+    names : sequence of str
+    what : str
+        The option's name, for the message.
+
+    Raises
+    ------
+    ValueError
+        For a name not in :data:`~bayes_mpem.lbl.effects.EFFECTS`.
+    """
     bad = [e for e in names if e not in EFFECTS]
     if bad:
         raise ValueError(f"{what}: unknown effect(s) {bad}; known: {list(EFFECTS)}")
@@ -55,7 +107,18 @@ MIN_SECOND_SHARE = 0.01
 
 
 def not_credible(name, fit: JointFit, d: Ranges):
-    """Why a fitted extension is not a physical effect (``None`` if it is)."""
+    """Say why a fitted extension is not a physical effect (``None`` if it is).
+
+    Parameters
+    ----------
+    name : str
+    fit : JointFit
+    d : Ranges
+
+    Returns
+    -------
+    str or None
+    """
     if name != "second_reflector":
         return None
     share = float(fit.resp[:, 2].mean())
@@ -70,6 +133,18 @@ def not_credible(name, fit: JointFit, d: Ranges):
 
 
 def effect_magnitude_se(name, fit: JointFit):
+    """Approximate standard error of an effect's magnitude.
+
+    Parameters
+    ----------
+    name : str
+    fit : JointFit
+
+    Returns
+    -------
+    float or None
+        ``None`` where the fit gives none (``early_outliers``).
+    """
     se = fit.se
     if name == "range_bias":
         return se.get("bias")
@@ -85,6 +160,19 @@ def effect_magnitude_se(name, fit: JointFit):
 
 
 def effect_detail(name, fit: JointFit):
+    """Extra numbers of an effect for the report.
+
+    Parameters
+    ----------
+    name : str
+    fit : JointFit
+
+    Returns
+    -------
+    dict
+        ``nav_drift``: the error at the last ping (east, north, direction);
+        ``second_reflector``: the share of replies; others: empty.
+    """
     p = fit.params
     if name == "nav_drift":
         err = -p.nav

@@ -1,4 +1,29 @@
-"""Model (moved from ``diagnose``)."""
+"""The joint model of the diagnosis: all beacons' replies, the effects, the class densities.
+
+:class:`Ranges` holds the replies of every fitted beacon, concatenated, and
+:func:`ranges` builds it from a survey. :class:`Params` holds the parameters
+of the joint model: per beacon a plane depth, three scales (direct path,
+multipath, second multipath) and four mixing weights (those and outliers),
+plus the shared effect parameters. The effects
+(:data:`~bayes_mpem.lbl.effects.EFFECTS`) switch parts of the model on:
+
+* :func:`predict` gives the class means ``k D + beta`` (direct path) and
+  ``k M(plane) + beta`` (multipath off the beacon's plane, drifting in time,
+  or off a second plane), with the navigation corrected by a drift, and their
+  Jacobians with respect to the mean parameters; the multipath ranges are
+  :func:`bayes_mpem.lbl.geometry.multipath_range`;
+* :func:`log_densities` and :func:`e_step` give the class log-densities and
+  probabilities (:mod:`bayes_mpem.mixture.densities`);
+* :func:`is_feasible` and :func:`repair` keep the planes physical.
+
+The fitting (ECM) is in :mod:`.ecm`.
+
+Examples
+--------
+>>> from bayes_mpem.lbl.diagnosis.model import mean_names
+>>> mean_names(("range_bias",), 2)
+[('plane', 0), ('plane', 1), ('bias', None)]
+"""
 
 from __future__ import annotations
 
@@ -7,17 +32,14 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ...io.survey import Survey
-from ...mixture.densities import LOG_SQRT_2PI
+from ...mixture.densities import (
+    first_arrival_logpdf,
+    gaussian_logpdf,
+    responsibilities,
+    safe_log,
+    uniform_logpdf,
+)
 from .. import geometry
-
-#: The vocabulary of effects, in the order they are tried.
-EFFECTS = ("range_bias", "sound_speed", "plane_drift", "second_reflector", "early_outliers",
-           "nav_drift")
-#: Unit of each effect's magnitude.
-UNITS = {"range_bias": "m", "sound_speed": "1", "plane_drift": "m", "second_reflector": "m",
-         "early_outliers": "1", "nav_drift": "m"}
-_EPS_LATE = 1e-3  # share of the early-outlier density left over the whole window
-
 
 # --------------------------------------------------------------------------- data
 
@@ -43,19 +65,46 @@ class Ranges:
 
     @property
     def n(self) -> int:
+        """Number of replies."""
         return int(self.z.size)
 
     @property
     def nb(self) -> int:
+        """Number of beacons."""
         return len(self.ids)
 
     def subset(self, mask) -> Ranges:
-        """The same survey restricted to ``mask`` (windows and beacons kept)."""
+        """Restrict the replies to ``mask`` (windows and beacons kept).
+
+        Parameters
+        ----------
+        mask : numpy.ndarray
+            Boolean mask or indices of the replies to keep.
+
+        Returns
+        -------
+        Ranges
+        """
         return replace(self, **{k: getattr(self, k)[mask] for k in
                                 ("z", "x", "y", "vdepth", "time", "tau", "bi", "rows")})
 
 
 def ranges(survey: Survey, fittable) -> Ranges:
+    """Concatenate the replies of the fitted beacons.
+
+    Parameters
+    ----------
+    survey : Survey
+        The whole survey (its first and last ping set the normalised time ``tau``).
+    fittable : list of BeaconData
+        The beacons to fit.
+
+    Returns
+    -------
+    Ranges
+        With each beacon's outlier window ``[lo, hi]`` (its smallest and
+        largest range, at least 1e-6 m wide).
+    """
     t_all = survey.time
     t0, t1 = float(np.min(t_all)), float(np.max(t_all))
     span = t1 - t0 if t1 > t0 else 1.0
@@ -85,6 +134,8 @@ def ranges(survey: Survey, fittable) -> Ranges:
 
 @dataclass
 class Params:
+    """Parameters of the joint model (effect parameters unused while switched off)."""
+
     plane: np.ndarray       # (B,) plane depth at the first ping
     sigma: np.ndarray       # (B, 3) dp, mp, mp2
     weights: np.ndarray     # (B, 4) dp, mp, mp2, ol
@@ -95,11 +146,27 @@ class Params:
     nav: np.ndarray = field(default_factory=lambda: np.zeros(2))  # correction at the last ping
 
     def copy(self) -> Params:
+        """Return a deep copy (arrays copied)."""
         return Params(self.plane.copy(), self.sigma.copy(), self.weights.copy(), self.bias,
                        self.scale, self.drift, self.plane2, self.nav.copy())
 
 
 def mean_names(effects, nb):
+    """Names of the mean parameters fitted by Gauss-Newton.
+
+    Parameters
+    ----------
+    effects : tuple of str
+    nb : int
+        Number of beacons.
+
+    Returns
+    -------
+    list of tuple
+        ``("plane", j)`` for every beacon, then ``(name, None)`` for the
+        effects' parameters (``bias``, ``scale``, ``drift``, ``plane2``,
+        ``nav_x``, ``nav_y``).
+    """
     names = [("plane", j) for j in range(nb)]
     for e, keys in (("range_bias", ["bias"]), ("sound_speed", ["scale"]),
                     ("plane_drift", ["drift"]), ("second_reflector", ["plane2"]),
@@ -110,6 +177,17 @@ def mean_names(effects, nb):
 
 
 def get_vector(p: Params, names):
+    """Gather the mean parameters ``names`` (:func:`mean_names`) into a vector.
+
+    Parameters
+    ----------
+    p : Params
+    names : list of tuple
+
+    Returns
+    -------
+    numpy.ndarray
+    """
     out = []
     for k, j in names:
         if k == "plane":
@@ -124,6 +202,18 @@ def get_vector(p: Params, names):
 
 
 def set_vector(p: Params, names, v) -> Params:
+    """Copy ``p`` with the mean parameters ``names`` set from the vector ``v``.
+
+    Parameters
+    ----------
+    p : Params
+    names : list of tuple
+    v : array_like
+
+    Returns
+    -------
+    Params
+    """
     q = p.copy()
     for (k, j), val in zip(names, v, strict=True):
         if k == "plane":
@@ -138,8 +228,22 @@ def set_vector(p: Params, names, v) -> Params:
 
 
 def offsets(d: Ranges, p: Params | None = None, effects=()):
-    """Vehicle minus beacon ``(ex, ey)``, horizontal distance ``h`` and ``dz = z_beacon -
-    z_vehicle`` of every reply; navigation corrected when ``nav_drift`` is switched on."""
+    """Offsets of the vehicle from the beacon at every reply.
+
+    Parameters
+    ----------
+    d : Ranges
+    p : Params, optional
+        Needed when ``nav_drift`` is in ``effects``.
+    effects : tuple of str
+        With ``nav_drift`` the navigation is corrected by ``tau * p.nav``.
+
+    Returns
+    -------
+    ex, ey, h, dz : numpy.ndarray
+        Vehicle minus beacon (east, north), horizontal distance and ``dz =
+        z_beacon - z_vehicle`` (m).
+    """
     ex = d.x - d.bx[d.bi]
     ey = d.y - d.by[d.bi]
     if "nav_drift" in effects:
@@ -149,32 +253,42 @@ def offsets(d: Ranges, p: Params | None = None, effects=()):
 
 
 def predict(d: Ranges, p: Params, effects, path, names=None):
-    """Class means ``{"dp", "mp"[, "mp2"]}`` and, with ``names``, their Jacobians."""
+    """Class means and, with ``names``, their Jacobians.
+
+    Parameters
+    ----------
+    d : Ranges
+    p : Params
+    effects : tuple of str
+    path : {"triangle", "double"}
+    names : list of tuple, optional
+        Mean parameters (:func:`mean_names`) to differentiate by.
+
+    Returns
+    -------
+    mu : dict of numpy.ndarray
+        ``"dp"``, ``"mp"`` and (with ``second_reflector``) ``"mp2"``.
+    jac : dict of numpy.ndarray
+        Only with ``names``: per class, ``(n, len(names))`` derivatives.
+    """
     ex, ey, h, dz = offsets(d, p, effects)
     bz = d.bz[d.bi]
     direct = np.hypot(h, dz)
     plane = p.plane[d.bi] + (p.drift * d.tau if "plane_drift" in effects else 0.0)
-    lever = 2.0 * (bz - plane) - dz
-    refl = np.hypot(h, lever)
+    d0 = bz - plane
     k = 1.0 + (p.scale if "sound_speed" in effects else 0.0)
     b = p.bias if "range_bias" in effects else 0.0
-    tri = path == "triangle"
-    mp = 0.5 * (direct + refl) if tri else refl
+    mp = geometry.multipath_range(h, dz, d0, path, direct=direct)
     mu = {"dp": k * direct + b, "mp": k * mp + b}
     second = "second_reflector" in effects
     if second:
-        lever2 = 2.0 * (bz - p.plane2) - dz
-        refl2 = np.hypot(h, lever2)
-        mp2 = 0.5 * (direct + refl2) if tri else refl2
+        d02 = bz - p.plane2
+        mp2 = geometry.multipath_range(h, dz, d02, path, direct=direct)
         mu["mp2"] = k * mp2 + b
     if names is None:
         return mu
-    n, m = d.n, len(names)
-    jac = {c: np.zeros((n, m)) for c in mu}
-    safe_d = np.maximum(direct, 1e-9)
-    safe_r = np.maximum(refl, 1e-9)
-    half = 0.5 if tri else 1.0
-    dmp_dd0 = half * 2.0 * lever / safe_r  # d mp / d d0 (d0 = bz - plane)
+    jac = {c: np.zeros((d.n, len(names))) for c in mu}
+    dmp_dd0 = geometry.multipath_derivative(h, dz, d0, path)
     for col, (key, j) in enumerate(names):
         if key == "plane":
             sel = d.bi == j
@@ -190,54 +304,121 @@ def predict(d: Ranges, p: Params, effects, path, names=None):
         elif key == "drift":
             jac["mp"][:, col] = -k * dmp_dd0 * d.tau
         elif key == "plane2":
-            jac["mp2"][:, col] = -k * half * 2.0 * lever2 / np.maximum(refl2, 1e-9)
+            jac["mp2"][:, col] = _plane2_derivative(h, dz, d02, path, k)
         elif key in ("nav_x", "nav_y"):
-            e = ex if key == "nav_x" else ey
-            dd = e * d.tau / safe_d
-            dr = e * d.tau / safe_r
-            jac["dp"][:, col] = k * dd
-            jac["mp"][:, col] = k * (0.5 * (dd + dr) if tri else dr)
-            if second:
-                dr2 = e * d.tau / np.maximum(refl2, 1e-9)
-                jac["mp2"][:, col] = k * (0.5 * (dd + dr2) if tri else dr2)
+            _nav_columns(jac, col, ex if key == "nav_x" else ey, d.tau, direct,
+                         [geometry.reflected_leg(h, dz, d0)]
+                         + ([geometry.reflected_leg(h, dz, d02)] if second else []),
+                         path, k)
     return mu, jac
 
 
-def _log_dens(d: Ranges, p: Params, effects, path, mu=None):
-    """(n, 4) log densities of every range under dp, mp, mp2, ol (mp2 = -inf when off)."""
+def _plane2_derivative(h, dz, d02, path, k):
+    """``d mu_mp2 / d plane2 = -k d z_MP / d d0`` at the second plane.
+
+    :func:`~bayes_mpem.lbl.geometry.multipath_derivative` up to rounding; kept
+    in this operation order (``-k`` times the lever arm, then divided by the
+    reflected leg) so that the fits stay bit-identical.
+    """
+    half = 0.5 if path == "triangle" else 1.0
+    lever2 = 2.0 * d02 - dz
+    return -k * half * 2.0 * lever2 / np.maximum(np.hypot(h, lever2), 1e-9)
+
+
+def _nav_columns(jac, col, e, tau, direct, refl, path, k):
+    """Fill column ``col`` of every class with ``d mu / d nav`` along offset ``e``.
+
+    ``refl`` lists the reflected legs of the main plane and (if on) the second one.
+    """
+    dd = e * tau / np.maximum(direct, 1e-9)
+    jac["dp"][:, col] = k * dd
+    for name, r in zip(("mp", "mp2"), refl, strict=False):
+        dr = e * tau / np.maximum(r, 1e-9)
+        jac[name][:, col] = k * (0.5 * (dd + dr) if path == "triangle" else dr)
+
+
+def log_densities(d: Ranges, p: Params, effects, path, mu=None):
+    """Log densities of every range under each class.
+
+    Parameters
+    ----------
+    d : Ranges
+    p : Params
+    effects : tuple of str
+    path : {"triangle", "double"}
+    mu : dict, optional
+        The class means (:func:`predict`), when already computed.
+
+    Returns
+    -------
+    logdens : numpy.ndarray
+        ``(n, 4)`` log densities under dp, mp, mp2 and ol (mp2 ``-inf`` when
+        ``second_reflector`` is off). Outliers are uniform over the beacon's
+        window, or with ``early_outliers`` the first-arrival density (below a
+        direct path at least 1 m after the window start).
+    mu : dict
+        The class means.
+    """
     if mu is None:
         mu = predict(d, p, effects, path)
     sig = p.sigma[d.bi]
     out = np.empty((d.n, 4))
     for c, name in enumerate(("dp", "mp", "mp2")):
         if name in mu:
-            r = (d.z - mu[name]) / sig[:, c]
-            out[:, c] = -0.5 * r * r - np.log(sig[:, c]) - LOG_SQRT_2PI
+            out[:, c] = gaussian_logpdf(d.z - mu[name], sig[:, c])
         else:
             out[:, c] = -np.inf
-    width = d.hi[d.bi] - d.lo[d.bi]
+    lo, hi = d.lo[d.bi], d.hi[d.bi]
     if "early_outliers" in effects:
-        cut = np.maximum(mu["dp"] - d.lo[d.bi], 1.0)
-        inside = d.z <= mu["dp"]
-        out[:, 3] = np.where(inside, np.log((1.0 - _EPS_LATE) / cut + _EPS_LATE / width),
-                             np.log(_EPS_LATE / width))
+        out[:, 3] = first_arrival_logpdf(d.z, mu["dp"], lo, hi, min_early=1.0)
     else:
-        out[:, 3] = -np.log(width)
+        out[:, 3] = uniform_logpdf(lo, hi)
     return out, mu
 
 
 def e_step(d, p, effects, path, mu=None):
-    ld, mu = _log_dens(d, p, effects, path, mu)
-    with np.errstate(divide="ignore"):
-        lw = np.log(p.weights)[d.bi]
-    a = ld + lw
-    m = np.max(a, axis=1)
-    e = np.exp(a - m[:, None])
-    s = e.sum(axis=1)
-    return e / s[:, None], m + np.log(s), mu
+    """Class probabilities and per-range log-likelihood at ``p``.
+
+    Parameters
+    ----------
+    d : Ranges
+    p : Params
+    effects : tuple of str
+    path : {"triangle", "double"}
+    mu : dict, optional
+        The class means (:func:`predict`), when already computed.
+
+    Returns
+    -------
+    resp : numpy.ndarray
+        ``(n, 4)`` class probabilities (dp, mp, mp2, ol).
+    loglik : numpy.ndarray
+        ``(n,)`` log-likelihood of every range.
+    mu : dict
+        The class means.
+    """
+    ld, mu = log_densities(d, p, effects, path, mu)
+    resp, loglik = responsibilities(ld + safe_log(p.weights)[d.bi])
+    return resp, loglik, mu
 
 
 def weighted_sse(d, p, effects, path, resp):
+    """Weighted squared error of the Gaussian classes: the ECM's mean objective.
+
+    Parameters
+    ----------
+    d : Ranges
+    p : Params
+    effects : tuple of str
+    path : {"triangle", "double"}
+    resp : numpy.ndarray
+        ``(n, 4)`` class probabilities.
+
+    Returns
+    -------
+    float
+        ``sum_i sum_c resp_ic (z_i - mu_ic)**2 / sigma_c**2`` over dp, mp (and mp2).
+    """
     mu = predict(d, p, effects, path)
     sig = p.sigma[d.bi]
     tot = 0.0
@@ -282,7 +463,21 @@ def repair(d, p, effects) -> Params:
 
 
 def implied_depths(d, p, effects, path):
-    """Per-range depth of the plane that would make each range a multipath."""
+    """Per-range depth of the plane that would make each range a multipath.
+
+    Parameters
+    ----------
+    d : Ranges
+    p : Params
+    effects : tuple of str
+        The bias, scale and navigation drift are removed first when switched on.
+    path : {"triangle", "double"}
+
+    Returns
+    -------
+    numpy.ndarray
+        NaN where no plane can produce the range.
+    """
     k = 1.0 + (p.scale if "sound_speed" in effects else 0.0)
     b = p.bias if "range_bias" in effects else 0.0
     z = (d.z - b) / k

@@ -1,4 +1,12 @@
-"""Residuals (moved from ``diagnose``)."""
+"""Residual structure the fitted joint model leaves: a check for effects outside the vocabulary.
+
+After the diagnosis has kept its effects, :func:`residual_checks` bins the
+standardised residuals of the confidently classified direct-path and
+multipath replies of every beacon against each covariate of
+:func:`covariates` (time, range, elevation, vehicle depth, bearing) and tests
+the bin means against zero. A significant check is structure no effect of
+:data:`~bayes_mpem.lbl.effects.EFFECTS` explains.
+"""
 
 from __future__ import annotations
 

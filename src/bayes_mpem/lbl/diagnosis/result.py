@@ -1,13 +1,16 @@
-"""Result (moved from ``diagnose``)."""
+"""What :func:`~.driver.diagnose` returns: the effects found and the fits behind them.
+
+:class:`Effect` is one effect of the vocabulary found in the data;
+:class:`Diagnosis` holds them with the baseline and final joint fits, every
+extension tried and the residual checks, and writes ``diagnosis.json``. Its
+figures are drawn by :func:`bayes_mpem.report.write_figures`.
+"""
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
-from pathlib import Path
 
-import numpy as np
-
+from ...io.results import output_folder, write_json
 from ...io.survey import Survey
 from .ecm import JointFit
 from .model import Ranges
@@ -31,7 +34,7 @@ class Effect:
     Attributes
     ----------
     name : str
-        One of :data:`EFFECTS`.
+        One of :data:`~bayes_mpem.lbl.effects.EFFECTS`.
     magnitude : float
         Signed size in :attr:`unit` (see :data:`UNITS`).
     unit : str
@@ -59,14 +62,19 @@ class Effect:
     detail: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
-        """JSON-ready dict."""
+        """Return the effect as a JSON-ready dict.
+
+        Returns
+        -------
+        dict
+        """
         return {"name": self.name, "magnitude": self.magnitude, "unit": self.unit,
                 "beacons": list(self.beacons), "delta_elpd": self.delta_elpd,
                 "delta_elpd_se": self.delta_elpd_se, "magnitude_se": self.magnitude_se,
                 "evidence": self.evidence, **({"detail": self.detail} if self.detail else {})}
 
 
-@dataclass
+@dataclass(frozen=True)
 class Diagnosis:
     """What :func:`diagnose` found.
 
@@ -84,6 +92,8 @@ class Diagnosis:
     skipped : dict
         Beacons left out, with the reason.
     survey : Survey
+    data : Ranges
+        The replies of every fitted beacon, as the joint fits saw them.
     settings : dict
     """
 
@@ -99,11 +109,21 @@ class Diagnosis:
 
     @property
     def unexplained(self) -> list:
-        """Residual checks that fail under the final model."""
+        """Residual checks that fail under the final model.
+
+        Returns
+        -------
+        list of dict
+        """
         return [c for c in self.residual_checks if c["significant"]]
 
     def to_dict(self) -> dict:
-        """The content of ``diagnosis.json``."""
+        """Return the content of ``diagnosis.json``.
+
+        Returns
+        -------
+        dict
+        """
         d = self.data
         return {
             "effects": [e.to_dict() for e in self.effects],
@@ -119,32 +139,31 @@ class Diagnosis:
             "settings": self.settings,
         }
 
-    def write(self, out_dir, *, figures: bool = True) -> dict:
-        """Write ``diagnosis.json`` (and the figures) to ``out_dir``.
+    def write(self, out_dir) -> dict:
+        """Write ``diagnosis.json`` to ``out_dir``.
+
+        The figures are drawn by :func:`bayes_mpem.report.write_figures`.
 
         Parameters
         ----------
         out_dir : str or pathlib.Path
             Created if missing.
-        figures : bool, default True
 
         Returns
         -------
         dict
-            Paths written.
+            Paths written, keyed ``diagnosis``.
         """
-        out = Path(out_dir)
-        out.mkdir(parents=True, exist_ok=True)
-        paths = {"diagnosis": out / "diagnosis.json"}
-        paths["diagnosis"].write_text(json.dumps(self.to_dict(), indent=2, default=_json) + "\n")
-        if figures:
-            from ...plots.diagnose import write_figures
-
-            paths.update(write_figures(self, out))
-        return paths
+        out = output_folder(out_dir)
+        return {"diagnosis": write_json(out / "diagnosis.json", self.to_dict(), numpy=True)}
 
     def summary(self) -> str:
-        """A few lines for a terminal."""
+        """Describe what was found in a few lines for a terminal.
+
+        Returns
+        -------
+        str
+        """
         if not self.effects and not self.unexplained:
             lines = ["No effect found: the paper's model explains these data "
                      f"({len(self.candidates)} extensions tried, none clearly better)."]
@@ -160,10 +179,3 @@ class Diagnosis:
             lines.append(f"  unexplained: {c['message']}")
         return "\n".join(lines)
 
-
-def _json(v):
-    if isinstance(v, (np.floating, np.integer)):
-        return v.item()
-    if isinstance(v, np.ndarray):
-        return v.tolist()
-    raise TypeError(f"not JSON serialisable: {type(v)}")

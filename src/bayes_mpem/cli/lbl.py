@@ -1,0 +1,327 @@
+"""The LBL sub-commands: demo, simulate, fit, sample, compare, plot and diagnose.
+
+Each ``cmd_*`` takes the parsed arguments (:func:`~bayes_mpem.cli.main.build_parser`),
+calls the library, writes the result's data with its ``write()`` and its
+figures with :func:`bayes_mpem.report.write_figures`, prints what it found and
+returns the exit status.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from ..lbl.comparison import compare
+from ..lbl.diagnosis.driver import diagnose
+from ..lbl.effects import EFFECTS
+from ..lbl.fitting import SurveyFit, fit
+from ..lbl.pol_sensitivity import survey_pol_sensitivity
+from ..lbl.sampling import sample
+from ..lbl.simulate import simulate_survey
+from ..report import demo_markdown, figure_beacon, load_output, write_figures
+from .errors import OptionError
+
+
+def draw_figures(result, out_dir, *, beacon=None, truth=None, general=True) -> list:
+    """Write the figures of ``result``, running what the paper's Fig. 12 needs first.
+
+    Parameters
+    ----------
+    result : SurveyFit, SurveyPosterior, SurveyComparison or Diagnosis
+    out_dir : str or pathlib.Path
+    beacon, truth, general
+        As for :func:`bayes_mpem.report.write_figures`.
+
+    Returns
+    -------
+    list of pathlib.Path
+    """
+    sensitivity = None
+    if isinstance(result, SurveyFit) and general and result.results:
+        Path(out_dir).mkdir(parents=True, exist_ok=True)
+        sensitivity = survey_pol_sensitivity(result, figure_beacon(result, beacon))
+    return write_figures(result, out_dir, beacon=beacon, truth=truth, general=general,
+                         sensitivity=sensitivity)
+
+
+def fit_kwargs(args) -> dict:
+    """Keyword arguments of :func:`~bayes_mpem.lbl.fitting.fit` from ``bayes-mpem fit``'s options.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+
+    Returns
+    -------
+    dict
+
+    Raises
+    ------
+    OptionError
+        For an option of the other method.
+    """
+    if args.method == "mixture" and (args.pol is not None or args.alpha is not None):
+        raise OptionError("--pol and --alpha apply to --method paper only")
+    if args.method == "paper" and args.weights is not None:
+        raise OptionError("--weights applies to --method mixture only (the paper's EM has "
+                          "no mixing weights)")
+    return dict(method=args.method, path=args.path, sigma_dp=args.sigma_dp,
+                pol=0.05 if args.pol is None else args.pol,
+                alpha=0.5 if args.alpha is None else args.alpha,
+                weights=args.weights or "learned", min_pings=args.min_pings, rng=args.seed)
+
+
+def sample_kwargs(args) -> dict:
+    """Keyword arguments of ``sample`` and ``compare`` from their shared options.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+
+    Returns
+    -------
+    dict
+
+    Raises
+    ------
+    OptionError
+        For ``--concentration`` with ``--priors equal``.
+    """
+    if getattr(args, "priors", None) == "equal" and args.concentration is not None:
+        raise OptionError("--concentration applies to --priors learned only")
+    return dict(path=args.path, sigma_dp=args.sigma_dp,
+                concentration=1.0 if args.concentration is None else args.concentration,
+                min_pings=args.min_pings, rng=args.seed,
+                progress=False if args.no_progress else "auto")
+
+
+def _print_written(paths) -> None:
+    for p in paths:
+        print(f"wrote {p}")
+
+
+def _report_fit(result, paths):
+    print(result.format_table())
+    for bid, res in result.results.items():
+        if not res.converged:
+            print(f"warning: beacon {bid} did not converge", file=sys.stderr)
+    n_nr = int(result.survey.no_reply.sum())
+    print(f"\n{len(result.survey)} rows, {n_nr} pings without reply (labelled no_reply)")
+    _print_written(paths)
+
+
+def _demo_fits(sim, out, seed):
+    """Fit the demo's survey with both EMs, write the fits and figures: ``(fit, paper, paths)``."""
+    result = fit(sim.survey, rng=seed)
+    print("Mixture EM, per beacon (cf. Table II of the paper; truth: plane at the surface,")
+    print("HRP = beacon depth; sigma_MP = " + ", ".join(
+        f"{b['sigma_mp']:.1f}" for b in sim.truth.values()) + " m)")
+    written = list(result.write(out).values())
+    written += draw_figures(result, out, truth=sim.truth)
+    paper = fit(sim.survey, method="paper", sigma_dp=sim.truth["1"]["sigma_dp"])
+    written += list(paper.write(out / "paper").values())
+    written += draw_figures(paper, out / "paper", truth=sim.truth, general=False)
+    print(result.format_table())
+    print("\nThe paper's EM (Pol = 0.05, alpha = 0.5, sigma_DP = 3.97 m):")
+    print(paper.format_table())
+    missed = [b for b, r in paper.results.items() if abs(r.d0 - sim.truth[b]["d0"]) > 10.0]
+    if missed:
+        print(f"The paper's EM missed the plane (|HRP - truth| > 10 m) on beacon(s) "
+              f"{', '.join(missed)}; docs/paper-em.md explains why.")
+    return result, paper, written
+
+
+def _demo_bayes(sim, out, seed):
+    """Sample and compare the demo's priors, write them: ``(posterior, comparison, paths)``."""
+    print("\nSampling the posterior of every beacon (emcee, learned priors)...")
+    post = sample(sim.survey, rng=seed, progress="auto")
+    written = list(post.write(out / "bayes").values())
+    written += draw_figures(post, out / "bayes", truth=sim.truth)
+    print(post.format_table())
+    print("\nEqual (paper) against learned mixing priors, PSIS-LOO...")
+    cmp = compare(sim.survey, rng=seed, progress="auto")
+    written += list(cmp.write(out / "compare").values())
+    written += draw_figures(cmp, out / "compare")
+    print(cmp.format_table())
+    return post, cmp, written
+
+
+def cmd_demo(args) -> int:
+    """Run ``bayes-mpem demo``: simulate, fit, sample, compare, write figures and summary.md.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+
+    Returns
+    -------
+    int
+        Exit status 0.
+    """
+    out = Path(args.out)
+    sim = simulate_survey("abe58", rng=args.seed)
+    written = list(sim.write(out / "survey").values())
+    print(f"Simulated ABE58-like survey (seed {args.seed}): {len(sim.survey)} pings to "
+          f"{len(sim.truth)} beacons\n")
+    result, paper, paths = _demo_fits(sim, out, args.seed)
+    written += paths
+    post = cmp = None
+    if not args.no_bayes:
+        post, cmp, paths = _demo_bayes(sim, out, args.seed)
+        written += paths
+    figs = [p for p in written if str(p).endswith(".png")]
+    md = demo_markdown(sim, result, paper, out, figs, seed=args.seed, posterior=post,
+                       comparison=cmp)
+    (out / "summary.md").write_text(md)
+    written.append(out / "summary.md")
+    print(f"\nwrote {len(written)} files under {out}/ (summary.md links every figure)")
+    return 0
+
+
+def cmd_plot(args) -> int:
+    """Run ``bayes-mpem plot``: the figures of a fit or sample output folder.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+
+    Returns
+    -------
+    int
+        Exit status: 0, or 2 when the folder holds no fitted beacon.
+    """
+    result = load_output(args.result_dir)
+    if not result.results:
+        print(f"bayes-mpem plot: {args.result_dir} holds no fitted beacon "
+              f"(skipped: {result.skipped or 'none'}); nothing to draw", file=sys.stderr)
+        return 2
+    beacon = None if args.beacon is None else args.beacon.strip()  # ids are text, as in CSVs
+    _print_written(draw_figures(result, args.out or args.result_dir, beacon=beacon))
+    return 0
+
+
+def cmd_simulate(args) -> int:
+    """Run ``bayes-mpem simulate``: write a simulated survey.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+
+    Returns
+    -------
+    int
+        Exit status 0.
+
+    Raises
+    ------
+    OptionError
+        For an ``--effect`` that is not ``NAME=NUMBER``.
+    """
+    effects = {}
+    for item in args.effect:
+        name, sep, value = item.partition("=")
+        try:
+            effects[name.strip()] = float(value)
+        except ValueError:
+            raise OptionError(f"--effect: expected NAME=NUMBER, got {item!r}") from None
+        if not sep:
+            raise OptionError(f"--effect: expected NAME=NUMBER, got {item!r}")
+    sim = simulate_survey(args.preset, rng=args.seed, path=args.path, n_cycles=args.n_cycles,
+                          effects=effects or None)
+    paths = sim.write(args.out)
+    print(f"{len(sim.survey)} pings to {len(sim.truth)} beacons")
+    _print_written(paths.values())
+    return 0
+
+
+def cmd_fit(args) -> int:
+    """Run ``bayes-mpem fit``.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+
+    Returns
+    -------
+    int
+        Exit status 0.
+    """
+    result = fit(args.pings, args.beacons, **fit_kwargs(args))
+    out = Path(args.out)
+    paths = list(result.write(out).values())
+    if args.figures:
+        paths += draw_figures(result, out)
+    _report_fit(result, paths)
+    return 0
+
+
+def cmd_sample(args) -> int:
+    """Run ``bayes-mpem sample``.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+
+    Returns
+    -------
+    int
+        Exit status 0.
+    """
+    result = sample(args.pings, args.beacons, priors=args.priors, ci=args.ci,
+                    n_ensembles=args.ensembles, **sample_kwargs(args))
+    out = Path(args.out)
+    paths = list(result.write(out).values())
+    if args.figures:
+        paths += draw_figures(result, out)
+    print(result.format_table())
+    for bid, r in result.results.items():
+        if not r.diagnostics["converged"]:
+            print(f"warning: beacon {bid}: chain shorter than {r.diagnostics['tau_factor']:g} "
+                  "autocorrelation times", file=sys.stderr)
+    _print_written(paths)
+    return 0
+
+
+def cmd_compare(args) -> int:
+    """Run ``bayes-mpem compare``.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+
+    Returns
+    -------
+    int
+        Exit status 0.
+    """
+    result = compare(args.pings, args.beacons, **sample_kwargs(args))
+    paths = list(result.write(args.out).values())
+    paths += draw_figures(result, args.out)
+    print(result.format_table())
+    _print_written(paths)
+    return 0
+
+
+def cmd_diagnose(args) -> int:
+    """Run ``bayes-mpem diagnose``.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+
+    Returns
+    -------
+    int
+        Exit status 0.
+    """
+    effects = EFFECTS if args.effects is None else tuple(
+        e.strip() for e in args.effects.split(",") if e.strip())
+    result = diagnose(args.pings, args.beacons, effects=effects, path=args.path,
+                      n_folds=args.folds, min_gain=args.min_gain, min_pings=args.min_pings,
+                      rng=args.seed, progress=not args.no_progress)
+    paths = list(result.write(args.out).values())
+    if not args.no_figures:
+        paths += draw_figures(result, args.out)
+    print(result.summary())
+    _print_written(paths)
+    return 0

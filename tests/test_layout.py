@@ -1,0 +1,234 @@
+"""The package layout keeps its promises (docs/architecture.md).
+
+Read from the source files with :mod:`ast`, without importing anything: imports
+point down the layers only, the two wings never import each other, results
+never import plots, there is no import cycle and no private name crosses a
+module boundary; modules and functions stay small. Old import paths keep
+working, with a DeprecationWarning.
+"""
+
+import ast
+import importlib
+import warnings
+from pathlib import Path
+
+import pytest
+
+import bayes_mpem
+
+PKG = Path(bayes_mpem.__file__).resolve().parent
+
+#: layer of each top-level part; a module may import only from its own part or lower layers
+LAYER = {"_rng": 0, "exceptions": 0, "_validate": 0, "_deprecated": 0,
+         "io": 1,
+         "acoustics": 2, "mixture": 2, "mcmc": 2,
+         "lbl": 3, "survey_in": 3,
+         "plots": 4, "report": 5, "cli": 6}
+WINGS = {"lbl", "survey_in"}
+MAX_MODULE_LINES = 500
+MAX_FUNCTION_LINES = 100
+#: modules allowed over MAX_MODULE_LINES, with the reason (docs/architecture.md)
+LONG_MODULES: dict[str, str] = {}
+
+
+def _modules():
+    out = {}
+    for path in sorted(PKG.rglob("*.py")):
+        parts = path.relative_to(PKG).with_suffix("").parts
+        name = ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+        out[name] = path
+    return out
+
+
+MODULES = _modules()
+
+
+def _imports(name, path, *, top_level_only):
+    """``(module imported, names imported, line)`` for each relative import of ``name``."""
+    tree = ast.parse(path.read_text())
+    is_pkg = path.name == "__init__.py"
+    nodes = tree.body if top_level_only else ast.walk(tree)
+    out = []
+    for node in nodes:
+        if isinstance(node, ast.ImportFrom) and node.level >= 1:
+            base = name.split(".") if is_pkg else name.split(".")[:-1]
+            if node.level > 1:
+                base = base[:len(base) - (node.level - 1)]
+            target = ".".join(base + ([node.module] if node.module else []))
+            for alias in node.names:
+                sub = f"{target}.{alias.name}" if target else alias.name
+                out.append((sub if sub in MODULES else target, alias.name, node.lineno))
+        elif isinstance(node, ast.ImportFrom) and (node.module or "").startswith("bayes_mpem"):
+            out.append((node.module[len("bayes_mpem."):], None, node.lineno))
+    return out
+
+
+def _part(module):
+    return module.split(".")[0] if module else ""
+
+
+def test_imports_point_down_and_wings_stay_apart():
+    bad = []
+    for name, path in MODULES.items():
+        if not name:
+            continue  # the package __init__ gathers the public API from everywhere
+        for target, _, line in _imports(name, path, top_level_only=False):
+            src, dst = _part(name), _part(target)
+            if not dst or src == dst:
+                continue
+            if LAYER[dst] > LAYER[src] or (LAYER[dst] == LAYER[src] and {src, dst} <= WINGS):
+                bad.append(f"{path.relative_to(PKG)}:{line} imports {target}")
+            elif LAYER[dst] == LAYER[src]:
+                bad.append(f"{path.relative_to(PKG)}:{line} imports {target} (same layer)")
+    assert not bad, "\n".join(bad)
+
+
+def test_no_import_cycle():
+    graph = {name: {t for t, _, _ in _imports(name, path, top_level_only=False)
+                    if t in MODULES and t != name and not name.startswith(t + ".")
+                    and t != ""}
+             for name, path in MODULES.items() if name}
+    # a package __init__ re-exporting its own submodules is not a cycle
+    state, stack, cycles = {}, [], []
+
+    def visit(v):
+        state[v] = 1
+        stack.append(v)
+        for w in graph.get(v, ()):
+            if state.get(w) == 1:
+                cycles.append(stack[stack.index(w):] + [w])
+            elif w not in state:
+                visit(w)
+        stack.pop()
+        state[v] = 2
+
+    for v in graph:
+        if v not in state:
+            visit(v)
+    assert not cycles, "\n".join(" -> ".join(c) for c in cycles)
+
+
+def test_no_private_name_crosses_a_module():
+    bad = [f"{path.relative_to(PKG)}:{line} imports {alias} from {target}"
+           for name, path in MODULES.items()
+           for target, alias, line in _imports(name, path, top_level_only=False)
+           if alias and alias.startswith("_") and not alias.startswith("__")
+           and alias not in MODULES.get(target, Path()).stem]
+    assert not bad, "\n".join(bad)
+
+
+def test_modules_are_small():
+    big = {str(p.relative_to(PKG)): n for name, p in MODULES.items()
+           if (n := len(p.read_text().splitlines())) > MAX_MODULE_LINES
+           and name not in LONG_MODULES}
+    assert not big, big
+
+
+def _code_lines(node, source_lines):
+    """Lines of a function that are neither blank, comments nor its docstring."""
+    doc = ast.get_docstring(node, clean=False)
+    skip = set()
+    if doc is not None:
+        d = node.body[0]
+        skip = set(range(d.lineno, d.end_lineno + 1))
+    n = 0
+    for i in range(node.lineno, node.end_lineno + 1):
+        text = source_lines[i - 1].strip()
+        if i not in skip and text and not text.startswith("#"):
+            n += 1
+    return n
+
+
+def test_functions_are_short_or_say_why():
+    long = []
+    for _, path in MODULES.items():
+        source = path.read_text()
+        lines = source.splitlines()
+        for node in ast.walk(ast.parse(source)):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                n = _code_lines(node, lines)
+                above = lines[node.lineno - 2] if node.lineno > 1 else ""
+                if n > MAX_FUNCTION_LINES and "long function:" not in above:
+                    long.append(f"{path.relative_to(PKG)}:{node.lineno} {node.name} ({n} lines)")
+    assert not long, "\n".join(long)
+
+
+def test_results_never_import_plots():
+    bad = [f"{p.relative_to(PKG)}:{line} imports {t}"
+           for name, p in MODULES.items()
+           if _part(name) in {"io", "acoustics", "mixture", "mcmc", "lbl", "survey_in"}
+           for t, _, line in _imports(name, p, top_level_only=False)
+           if _part(t) in {"plots", "report", "cli"}]
+    assert not bad, "\n".join(bad)
+
+
+# ----------------------------------------------------------------------- old import paths
+
+OLD_PATHS = [(old, name) for old, table in bayes_mpem._deprecated.MOVED.items()
+             for name in sorted(table)]
+
+
+@pytest.mark.parametrize(("old", "name"), OLD_PATHS)
+def test_old_import_paths_work_with_a_warning(old, name):
+    module = importlib.import_module(f"bayes_mpem.{old}")
+    with pytest.warns(DeprecationWarning, match=f"bayes_mpem.{old}.{name} has moved"):
+        obj = getattr(module, name)
+    new = bayes_mpem._deprecated.MOVED[old][name]
+    assert obj is getattr(importlib.import_module(f"bayes_mpem.{new}"), name)
+
+
+def test_old_from_import_and_unknown_names():
+    with pytest.warns(DeprecationWarning):
+        from bayes_mpem.em import fit_mixture_em  # noqa: F401
+    with pytest.raises(AttributeError, match="no attribute 'nope'"):
+        importlib.import_module("bayes_mpem.em").nope  # noqa: B018
+    with pytest.raises(ImportError):
+        from bayes_mpem.em import nope  # noqa: F401
+
+
+def test_old_module_paths_as_attributes():
+    import bayes_mpem.locate
+
+    with pytest.warns(DeprecationWarning, match="survey_in.location.locate"):
+        assert callable(bayes_mpem.locate.locate)
+    with pytest.warns(DeprecationWarning):
+        assert bayes_mpem.em.EMResult is bayes_mpem.EMResult
+    with pytest.raises(AttributeError):
+        bayes_mpem.nope  # noqa: B018
+
+
+def test_public_functions_are_not_shadowed_by_modules():
+    """``bayes_mpem.compare`` and ``bayes_mpem.diagnose`` stay the functions after the old
+    module paths of the same names are imported."""
+    import bayes_mpem.compare
+    import bayes_mpem.diagnose  # noqa: F401
+
+    assert callable(bayes_mpem.compare) and callable(bayes_mpem.diagnose)
+    assert bayes_mpem.compare.__module__ == "bayes_mpem.lbl.comparison"
+
+
+def test_old_cli_command_functions():
+    import bayes_mpem.cli
+
+    with pytest.warns(DeprecationWarning, match="cli.lbl.cmd_fit"):
+        assert callable(bayes_mpem.cli.cmd_fit)
+    with pytest.warns(DeprecationWarning, match="cli.survey_in.cmd_locate"):
+        assert callable(bayes_mpem.cli.cmd_locate)
+
+
+@pytest.mark.parametrize("package", ["acoustics", "mixture", "plots"])
+def test_packages_that_kept_an_old_name_serve_its_old_names(package):
+    mod = importlib.import_module(f"bayes_mpem.{package}")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        for name in mod.__all__:
+            assert getattr(mod, name) is not None
+
+
+def test_importing_the_package_warns_nothing():
+    code = ("import warnings, importlib, sys; warnings.simplefilter('error'); "
+            "import bayes_mpem; import bayes_mpem.cli")
+    import subprocess
+    import sys
+
+    subprocess.run([sys.executable, "-c", code], check=True)

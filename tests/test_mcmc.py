@@ -1,0 +1,108 @@
+"""The shared emcee driver: the protocol, the loop and the chain summaries."""
+
+import numpy as np
+import pytest
+
+import bayes_mpem as bm
+from bayes_mpem import mcmc
+from bayes_mpem.exceptions import SamplingWarning
+from bayes_mpem.lbl.em_mixture import fit_mixture_em
+from bayes_mpem.lbl.posterior import BeaconPosterior
+
+
+class Gauss:
+    """A correlated 2-D Gaussian satisfying the protocol."""
+
+    names, ndim, label = ("a", "b"), 2, "test gaussian"
+    prec = np.linalg.inv(np.array([[1.0, 0.8], [0.8, 1.0]]))
+
+    def start(self, n_walkers, gen):
+        return 0.1 * gen.standard_normal((n_walkers, 2))
+
+    def __call__(self, theta):
+        return -0.5 * np.einsum("wi,ij,wj->w", theta, self.prec, theta)
+
+
+@pytest.fixture(scope="module")
+def beacon4():
+    return bm.simulate_survey("abe58", rng=0, n_cycles=700).survey.for_beacon("4")
+
+
+def test_both_posteriors_satisfy_the_protocol(beacon4):
+    post = BeaconPosterior(beacon4, em=fit_mixture_em(beacon4, rng=0))
+    assert isinstance(post, mcmc.LogPosterior)
+    assert post.label == "beacon 4 (learned priors)"
+    start = post.start(24, np.random.default_rng(0))
+    assert start.shape == (24, post.ndim) and np.all(np.isfinite(post(start)))
+    assert isinstance(Gauss(), mcmc.LogPosterior)
+
+
+def test_start_needs_the_em_solution(beacon4):
+    with pytest.raises(ValueError, match="start needs the EM solution"):
+        BeaconPosterior(beacon4).start(24, np.random.default_rng(0))
+
+
+def test_same_seed_same_chain_and_order_of_draws():
+    def run(seed):
+        gen = np.random.default_rng(seed)
+        [r] = mcmc.run_ensembles(Gauss(), n_walkers=16, gen=gen, min_ess=0, tau_factor=5,
+                                 max_steps=3000, progress=False)
+        return r, gen.random()
+
+    (a, ga), (b, gb), (c, _) = run(1), run(1), run(2)
+    np.testing.assert_array_equal(a.chain, b.chain)
+    assert ga == gb  # the generator advanced the same way
+    assert not np.array_equal(a.chain[-1], c.chain[-1])
+    assert a.converged and a.chain.shape[1:] == (16, 2)
+    assert a.log_prob.shape == a.chain.shape[:2]
+
+
+def test_step_cap_warns_with_the_label():
+    with pytest.warns(SamplingWarning, match=r"test gaussian: the chain reached max_steps=50"):
+        [r] = mcmc.run_ensembles(Gauss(), n_walkers=16, gen=np.random.default_rng(0),
+                                 max_steps=50, progress=False)
+    assert not r.converged and r.n_steps == 50
+
+
+def test_move_policies():
+    assert [type(m).__name__ for m, _ in mcmc.default_moves()] == ["DEMove", "DESnookerMove"]
+    assert [w for _, w in mcmc.default_moves()] == [0.8, 0.2]
+    assert [(type(m).__name__, w) for m, w in mcmc.de_moves()] == [("DEMove", 1.0)]
+
+
+@pytest.mark.parametrize(("kept", "n_chains", "n_draws"), [(1000, 50, 400), (7, 4, 1000),
+                                                          (500, 24, 1)])
+def test_thin_index_ends_at_the_last_step(kept, n_chains, n_draws):
+    idx, thin = mcmc.thin_index(kept, n_chains, n_draws)
+    assert idx[-1] == kept - 1 and idx[0] >= 0
+    assert np.all(np.diff(idx) == thin)
+    assert len(idx) == max(1, min(kept, int(np.ceil(n_draws / n_chains))))
+
+
+def test_draw_moments_match_a_direct_computation():
+    rng = np.random.default_rng(3)
+    flat = rng.uniform(size=(150, 2))
+    x = np.linspace(0, 1, 7)
+
+    def fn(theta):
+        p = 1 / (1 + np.exp(-(theta[:, [0]] * x - theta[:, [1]])))
+        return np.log(p), [p, 1 - p]
+
+    ll, m, s = mcmc.draw_moments(flat, fn, chunk=32)
+    p = 1 / (1 + np.exp(-(flat[:, [0]] * x - flat[:, [1]])))
+    np.testing.assert_allclose(ll, np.log(p), rtol=1e-14)
+    np.testing.assert_allclose(m, np.column_stack([p.mean(0), 1 - p.mean(0)]), rtol=1e-12)
+    np.testing.assert_allclose(s[:, 0], p.std(0), rtol=1e-9)
+    assert mcmc.draw_moments(flat, lambda t: (None, fn(t)[1]))[0] is None
+
+
+def test_intervals_and_ess():
+    rng = np.random.default_rng(0)
+    x = rng.normal(size=20000)
+    lo, hi = mcmc.hdi(x, 0.9)
+    assert np.mean((x >= lo) & (x <= hi)) == pytest.approx(0.9, abs=2e-3)
+    assert mcmc.equal_tailed(x, 0.9) == pytest.approx(list(np.quantile(x, [0.05, 0.95])))
+    series = rng.normal(size=(2000, 8))  # (steps, walkers), independent draws
+    tau, ess = mcmc.autocorr_ess(series)
+    assert ess == pytest.approx(16000 / tau) and 0.5 < tau < 2
+    assert mcmc.bulk_ess({"x": series.T})["x"] == pytest.approx(16000, rel=0.1)

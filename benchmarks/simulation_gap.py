@@ -409,7 +409,7 @@ def main(argv=None):
     L = ["# What the simulation gets wrong: measured against simulated residuals", "",
          f"Produced by `{cmd}` on {dt.date.today().isoformat()} ({total:.0f} s on this machine; "
          f"{n_sim} replicates per survey, seeds {SEED}-{SEED + len(SURVEYS) - 1}). Library: "
-         "`bayes_mpem.survey_in.simcheck`; tests: `tests/test_simcheck.py`.", "",
+         "`bayes_mpem.survey_in.simcheck`; tests: `tests/survey_in/test_simcheck.py`.", "",
          "## Method", "",
          "Every transponder of the five measured surveys is located by `locate` (EM, straight "
          "rays, one sound speed, spurious pings uniform over the listening window). The "

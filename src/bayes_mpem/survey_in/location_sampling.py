@@ -27,7 +27,7 @@ per ping. OBSrange holds ``delta`` fixed (``bending="fixed"``); by default
 solve. On SeaGap (sigma 0.05 ms) the fixed correction is not enough: the
 log-likelihood at posterior draws is off by up to 2.7 nats, against 2e-4 with
 the gradient (:meth:`LocationLogPosterior.exact_loglik` solves the rays at any
-draw; ``tests/test_locate_bayes.py`` checks it).
+draw; ``tests/survey_in/test_location_sampling.py`` checks it).
 
 Sampling (:func:`sample_location`) uses the shared driver of :mod:`bayes_mpem.mcmc`:
 the posterior satisfies :class:`bayes_mpem.mcmc.LogPosterior`, and the chain runs

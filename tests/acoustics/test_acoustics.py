@@ -20,7 +20,7 @@ from bayes_mpem.acoustics.profile import WOA09_ENV, SoundSpeedProfile
 from bayes_mpem.exceptions import InputError
 from bayes_mpem.lbl import geometry
 
-DATA = Path(__file__).resolve().parents[1] / "data"
+DATA = Path(__file__).resolve().parents[2] / "data"
 WOA09 = DATA / "woa09"
 CC03 = (-4.8816, -132.68895)
 

@@ -26,7 +26,7 @@ from bayes_mpem.lbl.simulate import simulate_survey
 from bayes_mpem.lbl.survey import fittable_beacons
 from bayes_mpem.report import write_figures
 
-sys.path.insert(0, str(Path(__file__).parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # tests/, for independent_generator
 import independent_generator as indep  # noqa: E402
 
 #: Realistic magnitudes for the project simulator's abe58 survey (|value|; signed ones get a

@@ -10,7 +10,7 @@ from bayes_mpem.exceptions import InputError
 from bayes_mpem.io.formats import read_survey
 from bayes_mpem.io.geodesy import geodetic_to_enu
 
-DATA = Path(__file__).resolve().parents[1] / "data"
+DATA = Path(__file__).resolve().parents[2] / "data"
 SAMPLES = [("obsrange/SIO_CC03.txt", "obsrange-sio", 88, 33),
            ("obsrange/SIO_EC03.txt", "obsrange-sio", 49, 40),
            ("obsrange/SIO_WC03.txt", "obsrange-sio", 49, 74),

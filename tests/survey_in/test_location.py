@@ -12,7 +12,7 @@ from bayes_mpem.io.geodesy import enu_to_geodetic, geodetic_to_enu
 from bayes_mpem.survey_in.heldout import heldout_logpdf
 from bayes_mpem.survey_in.location import locate
 
-DATA = Path(__file__).resolve().parents[1] / "data" / "obsrange"
+DATA = Path(__file__).resolve().parents[2] / "data" / "obsrange"
 FILES = [("SIO_CC03.txt", "obsrange-sio"), ("SIO_EC03.txt", "obsrange-sio"),
          ("SIO_WC03.txt", "obsrange-sio"), ("WHOI_S05.txt", "obsrange-whoi")]
 

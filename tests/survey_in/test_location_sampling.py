@@ -15,7 +15,7 @@ from bayes_mpem.survey_in.location_sampling import LocationPosterior, sample_loc
 from bayes_mpem.survey_in.posterior import LocationLogPosterior
 from bayes_mpem.survey_in.survey import SEAGAP_TRANSDUCER_DEPTH, survey_profile
 
-DATA = Path(__file__).resolve().parents[1] / "data"
+DATA = Path(__file__).resolve().parents[2] / "data"
 CC03 = DATA / "obsrange" / "SIO_CC03.txt"
 
 

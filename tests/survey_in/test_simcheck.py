@@ -15,7 +15,7 @@ from bayes_mpem.survey_in.location import LocateResult, locate
 from bayes_mpem.survey_in.simcheck import residual_frame, simulate_like, simulation_gap
 from bayes_mpem.survey_in.unabsorbed import refracted_twtt, unabsorbed
 
-DATA = Path(__file__).resolve().parents[1] / "data"
+DATA = Path(__file__).resolve().parents[2] / "data"
 TRUTH = {"east": 35.0, "north": -60.0, "depth": 4000.0, "c": 1505.0, "tat": 0.013}
 
 

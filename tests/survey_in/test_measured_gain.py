@@ -14,7 +14,7 @@ from bayes_mpem.survey_in.heldout import heldout_logpdf
 from bayes_mpem.survey_in.location import locate
 from bayes_mpem.survey_in.survey import SEAGAP_TRANSDUCER_DEPTH, survey_profile
 
-DATA = Path(__file__).resolve().parents[1] / "data"
+DATA = Path(__file__).resolve().parents[2] / "data"
 
 
 @pytest.fixture(scope="module")

@@ -244,6 +244,38 @@ def old_module(old: str) -> types.ModuleType:
     return sys.modules.setdefault(f"bayes_mpem.{old}", _MovedModule(old))
 
 
+def figures_keyword(result, out_dir, value, where: str) -> dict:
+    """Honour the old ``figures=``/``figure=`` keyword of a result's ``write()``.
+
+    Results used to draw their own figures; now ``write()`` writes data and
+    :func:`bayes_mpem.report.write_figures` the figures. The keyword still works,
+    with a DeprecationWarning; ``True`` draws the figures through the report,
+    looked up by name (results may not import it).
+
+    Parameters
+    ----------
+    result : object
+        The result being written.
+    out_dir : str or pathlib.Path
+    value : bool
+        The keyword's value.
+    where : str
+        The call, for the message, e.g. ``"Diagnosis.write(figures=...)"``.
+
+    Returns
+    -------
+    dict
+        Figure paths keyed by file stem (empty for ``False``).
+    """
+    warnings.warn(f"{where} is deprecated: write() writes the data and "
+                  "bayes_mpem.report.write_figures(result, out_dir) the figures",
+                  DeprecationWarning, stacklevel=3)
+    if not value:
+        return {}
+    report = importlib.import_module("bayes_mpem.report")
+    return {p.stem: p for p in report.write_figures(result, out_dir)}
+
+
 def install() -> None:
     """Register the old module paths (``import bayes_mpem.em`` keeps working)."""
     for old in MOVED:

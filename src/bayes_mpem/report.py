@@ -4,8 +4,11 @@ The command line writes a result's data with its ``write()`` and then its
 figures with :func:`write_figures`, which dispatches on the kind of result
 (fit, posterior, prior comparison, diagnosis). ``bayes-mpem plot RESULT_DIR``
 is :func:`load_output` followed by :func:`write_figures`; :func:`demo_markdown`
-is the ``summary.md`` of ``bayes-mpem demo``. Nothing here fits a model: data
-that figures need beyond the result (the paper's Fig. 12) are passed in.
+is the ``summary.md`` of ``bayes-mpem demo``. One figure needs more than the
+result: the paper's Fig. 12 re-fits the figure beacon with the paper's EM over a
+grid of ``Pol`` (:func:`~bayes_mpem.lbl.pol_sensitivity.survey_pol_sensitivity`),
+which :func:`write_figures` runs unless it is given; the plotting functions
+themselves only draw.
 """
 
 from __future__ import annotations
@@ -25,7 +28,7 @@ from .lbl.comparison import SurveyComparison
 from .lbl.diagnosis.result import Diagnosis
 from .lbl.em_result import EMResult
 from .lbl.fitting import SurveyFit
-from .lbl.pol_sensitivity import POL_GRID
+from .lbl.pol_sensitivity import POL_GRID, survey_pol_sensitivity
 from .lbl.sampling import SurveyPosterior
 from .mixture.densities import CLASSES
 from .plots import bayes as bayes_plots
@@ -95,11 +98,11 @@ def write_figures(result, out_dir, *, beacon=None, truth=None, general=True,
     truth : dict, optional
         ``Simulation.truth``, marked where a figure can show it (fits, posteriors).
     general : bool, default True
-        Fits: also write the method-independent figures (Figs. 1, 5, 8, and
-        12 when ``sensitivity`` is given).
+        Fits: also write the method-independent figures (Figs. 1, 5, 8 and 12).
     sensitivity : dict, optional
         Fits: :func:`~bayes_mpem.lbl.pol_sensitivity.survey_pol_sensitivity`
-        of the figure beacon, drawn as the paper's Fig. 12.
+        of the figure beacon, drawn as the paper's Fig. 12; computed here
+        (seconds) when not given.
 
     Returns
     -------
@@ -115,6 +118,8 @@ def write_figures(result, out_dir, *, beacon=None, truth=None, general=True,
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     if isinstance(result, SurveyFit):
+        if sensitivity is None and general and result.results:
+            sensitivity = survey_pol_sensitivity(result, figure_beacon(result, beacon))
         return _fit_figures(result, out, beacon=beacon, truth=truth, general=general,
                             sensitivity=sensitivity)
     if isinstance(result, SurveyPosterior):

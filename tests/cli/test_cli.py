@@ -4,7 +4,7 @@ import pandas as pd
 import pytest
 
 import bayes_mpem as bm
-from bayes_mpem.cli.main import main
+from bayes_mpem.cli import main
 
 
 @pytest.fixture(scope="module")

@@ -184,7 +184,7 @@ def survey_files(tmp_path_factory):
 def test_sample_command_writes_the_contract(survey_files, tmp_path):
     import xarray as xr
 
-    from bayes_mpem.cli.main import main
+    from bayes_mpem.cli import main
 
     assert main(["sample", str(survey_files["pings"]), "--beacons",
                  str(survey_files["beacons"]), "--out", str(tmp_path), "--seed", "1",
@@ -208,7 +208,7 @@ def test_sample_command_writes_the_contract(survey_files, tmp_path):
 
 
 def test_compare_command(survey_files, tmp_path):
-    from bayes_mpem.cli.main import main
+    from bayes_mpem.cli import main
 
     assert main(["compare", str(survey_files["pings"]), "--beacons",
                  str(survey_files["beacons"]), "--out", str(tmp_path), "--seed", "2",
@@ -223,7 +223,7 @@ def test_compare_command(survey_files, tmp_path):
 
 
 def test_sample_bad_input(tmp_path, capsys):
-    from bayes_mpem.cli.main import main
+    from bayes_mpem.cli import main
 
     (tmp_path / "p.csv").write_text("time,beacon,range,x,y,depth\n0,1,-5,0,0,10\n")
     (tmp_path / "b.csv").write_text("beacon,x,y,depth\n1,0,0,100\n")

@@ -129,7 +129,7 @@ def test_bayesian_figures(sim):
 
 
 def test_fit_output_round_trip_and_plot_command(sim, tmp_path):
-    from bayes_mpem.cli.main import main
+    from bayes_mpem.cli import main
 
     res = bm.fit(sim.survey, rng=0)
     res.write(tmp_path)
@@ -157,7 +157,7 @@ def test_sample_output_round_trip_and_plot(sim, tmp_path):
 
 
 def test_plot_command_errors(tmp_path, capsys):
-    from bayes_mpem.cli.main import main
+    from bayes_mpem.cli import main
 
     assert main(["plot", str(tmp_path)]) == 2
     assert "summary.json: not found" in capsys.readouterr().err

@@ -101,7 +101,7 @@ def test_bad_input():
 def test_locate_command_writes_the_contract(tmp_path):
     import json
 
-    from bayes_mpem.cli.main import main
+    from bayes_mpem.cli import main
 
     assert main(["locate", str(DATA / "SIO_CC03.txt"), "--format", "obsrange",
                  "--out", str(tmp_path)]) == 0
@@ -122,7 +122,7 @@ def test_locate_command_with_the_model_options(tmp_path):
     """--ssp, --speed-intervals and --fit-lag reach the fit and are recorded in summary.json."""
     import json
 
-    from bayes_mpem.cli.main import main
+    from bayes_mpem.cli import main
 
     assert main(["locate", str(DATA / "WHOI_S05.txt"), "--format", "obsrange", "--ssp", "woa09",
                  "--fit-lag", "--out", str(tmp_path)]) == 0

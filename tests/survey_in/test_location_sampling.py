@@ -191,7 +191,7 @@ def test_ray_bending_correction_on_seagap():
 
 
 def test_locate_command_with_sample(tmp_path):
-    from bayes_mpem.cli.main import main
+    from bayes_mpem.cli import main
 
     assert main(["locate", str(CC03), "--format", "obsrange", "--out", str(tmp_path),
                  "--sample", "--walkers", "16", "--min-ess", "200", "--seed", "3",
@@ -228,7 +228,7 @@ def test_locate_command_with_sample(tmp_path):
 def test_locate_command_refuses_bad_sample_options(tmp_path, capsys, extra, message):
     import re
 
-    from bayes_mpem.cli.main import main
+    from bayes_mpem.cli import main
 
     assert main(["locate", str(CC03), "--format", "obsrange", "--out", str(tmp_path)]
                 + extra) == 2

@@ -12,6 +12,6 @@ from __future__ import annotations
 class OptionError(ValueError):
     """An option that does not apply to the chosen method or mode.
 
-    :func:`~bayes_mpem.cli.main.main` reports it as ``bayes-mpem COMMAND:
+    :func:`~bayes_mpem.cli.main` reports it as ``bayes-mpem COMMAND:
     error: MESSAGE`` with exit status 2, as any other invalid value.
     """

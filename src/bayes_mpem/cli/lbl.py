@@ -1,6 +1,6 @@
 """The LBL sub-commands: demo, simulate, fit, sample, compare, plot and diagnose.
 
-Each ``cmd_*`` takes the parsed arguments (:func:`~bayes_mpem.cli.main.build_parser`),
+Each ``cmd_*`` takes the parsed arguments (:func:`~bayes_mpem.cli.build_parser`),
 calls the library, writes the result's data with its ``write()`` and its
 figures with :func:`bayes_mpem.report.write_figures`, prints what it found and
 returns the exit status.
@@ -14,34 +14,11 @@ from pathlib import Path
 from ..lbl.comparison import compare
 from ..lbl.diagnosis.driver import diagnose
 from ..lbl.effects import EFFECTS
-from ..lbl.fitting import SurveyFit, fit
-from ..lbl.pol_sensitivity import survey_pol_sensitivity
+from ..lbl.fitting import fit
 from ..lbl.sampling import sample
 from ..lbl.simulate import simulate_survey
-from ..report import demo_markdown, figure_beacon, load_output, write_figures
+from ..report import demo_markdown, load_output, write_figures
 from .errors import OptionError
-
-
-def draw_figures(result, out_dir, *, beacon=None, truth=None, general=True) -> list:
-    """Write the figures of ``result``, running what the paper's Fig. 12 needs first.
-
-    Parameters
-    ----------
-    result : SurveyFit, SurveyPosterior, SurveyComparison or Diagnosis
-    out_dir : str or pathlib.Path
-    beacon, truth, general
-        As for :func:`bayes_mpem.report.write_figures`.
-
-    Returns
-    -------
-    list of pathlib.Path
-    """
-    sensitivity = None
-    if isinstance(result, SurveyFit) and general and result.results:
-        Path(out_dir).mkdir(parents=True, exist_ok=True)
-        sensitivity = survey_pol_sensitivity(result, figure_beacon(result, beacon))
-    return write_figures(result, out_dir, beacon=beacon, truth=truth, general=general,
-                         sensitivity=sensitivity)
 
 
 def fit_kwargs(args) -> dict:
@@ -117,10 +94,10 @@ def _demo_fits(sim, out, seed):
     print("HRP = beacon depth; sigma_MP = " + ", ".join(
         f"{b['sigma_mp']:.1f}" for b in sim.truth.values()) + " m)")
     written = list(result.write(out).values())
-    written += draw_figures(result, out, truth=sim.truth)
+    written += write_figures(result, out, truth=sim.truth)
     paper = fit(sim.survey, method="paper", sigma_dp=sim.truth["1"]["sigma_dp"])
     written += list(paper.write(out / "paper").values())
-    written += draw_figures(paper, out / "paper", truth=sim.truth, general=False)
+    written += write_figures(paper, out / "paper", truth=sim.truth, general=False)
     print(result.format_table())
     print("\nThe paper's EM (Pol = 0.05, alpha = 0.5, sigma_DP = 3.97 m):")
     print(paper.format_table())
@@ -136,12 +113,12 @@ def _demo_bayes(sim, out, seed):
     print("\nSampling the posterior of every beacon (emcee, learned priors)...")
     post = sample(sim.survey, rng=seed, progress="auto")
     written = list(post.write(out / "bayes").values())
-    written += draw_figures(post, out / "bayes", truth=sim.truth)
+    written += write_figures(post, out / "bayes", truth=sim.truth)
     print(post.format_table())
     print("\nEqual (paper) against learned mixing priors, PSIS-LOO...")
     cmp = compare(sim.survey, rng=seed, progress="auto")
     written += list(cmp.write(out / "compare").values())
-    written += draw_figures(cmp, out / "compare")
+    written += write_figures(cmp, out / "compare")
     print(cmp.format_table())
     return post, cmp, written
 
@@ -196,7 +173,7 @@ def cmd_plot(args) -> int:
               f"(skipped: {result.skipped or 'none'}); nothing to draw", file=sys.stderr)
         return 2
     beacon = None if args.beacon is None else args.beacon.strip()  # ids are text, as in CSVs
-    _print_written(draw_figures(result, args.out or args.result_dir, beacon=beacon))
+    _print_written(write_figures(result, args.out or args.result_dir, beacon=beacon))
     return 0
 
 
@@ -250,7 +227,7 @@ def cmd_fit(args) -> int:
     out = Path(args.out)
     paths = list(result.write(out).values())
     if args.figures:
-        paths += draw_figures(result, out)
+        paths += write_figures(result, out)
     _report_fit(result, paths)
     return 0
 
@@ -272,7 +249,7 @@ def cmd_sample(args) -> int:
     out = Path(args.out)
     paths = list(result.write(out).values())
     if args.figures:
-        paths += draw_figures(result, out)
+        paths += write_figures(result, out)
     print(result.format_table())
     for bid, r in result.results.items():
         if not r.diagnostics["converged"]:
@@ -296,7 +273,7 @@ def cmd_compare(args) -> int:
     """
     result = compare(args.pings, args.beacons, **sample_kwargs(args))
     paths = list(result.write(args.out).values())
-    paths += draw_figures(result, args.out)
+    paths += write_figures(result, args.out)
     print(result.format_table())
     _print_written(paths)
     return 0
@@ -321,7 +298,7 @@ def cmd_diagnose(args) -> int:
                       rng=args.seed, progress=not args.no_progress)
     paths = list(result.write(args.out).values())
     if not args.no_figures:
-        paths += draw_figures(result, args.out)
+        paths += write_figures(result, args.out)
     print(result.summary())
     _print_written(paths)
     return 0

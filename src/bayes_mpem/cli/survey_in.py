@@ -8,7 +8,6 @@ transponder.
 
 from __future__ import annotations
 
-import warnings
 from pathlib import Path
 
 from ..io.formats import read_survey
@@ -63,15 +62,11 @@ def _locate(args, raw) -> SurveyInResult:
         model["fit_lag"] = True
     if not args.sample:
         return locate_survey(raw, **model)
-    with warnings.catch_warnings():
-        # until locate_survey_bayes reads locate_survey's result by attribute
-        warnings.filterwarnings("ignore", "unpacking the result of locate_survey",
-                                DeprecationWarning)
-        summary, classified, posteriors = locate_survey_bayes(
-            raw, **model, n_walkers=args.walkers,
-            min_ess=1000.0 if args.min_ess is None else args.min_ess,
-            rng=0 if args.seed is None else args.seed,
-            progress=False if args.no_progress else "auto")
+    summary, classified, posteriors = locate_survey_bayes(
+        raw, **model, n_walkers=args.walkers,
+        min_ess=1000.0 if args.min_ess is None else args.min_ess,
+        rng=0 if args.seed is None else args.seed,
+        progress=False if args.no_progress else "auto")
     return SurveyInResult(summary=summary, classified=classified, posteriors=posteriors)
 
 
@@ -98,7 +93,7 @@ def cmd_locate(args) -> int:
     Parameters
     ----------
     args : argparse.Namespace
-        Parsed by :func:`~bayes_mpem.cli.main.build_parser`.
+        Parsed by :func:`~bayes_mpem.cli.build_parser`.
 
     Returns
     -------

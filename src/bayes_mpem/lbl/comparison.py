@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import pandas as pd
 
+from .._deprecated import figures_keyword
 from .._rng import RNGLike, as_generator
 from ..exceptions import UnusableStartError
 from ..io.results import output_folder, write_csv, write_json
@@ -78,7 +79,7 @@ class SurveyComparison:
         frames = [r.changed.assign(beacon=b) for b, r in self.results.items()]
         return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
 
-    def write(self, out_dir) -> dict:
+    def write(self, out_dir, *, figure=None) -> dict:
         """Write ``compare.json`` and ``changed.csv`` to ``out_dir``.
 
         The figure (``compare.png``) is drawn by :func:`bayes_mpem.report.write_figures`.
@@ -87,6 +88,9 @@ class SurveyComparison:
         ----------
         out_dir : str or pathlib.Path
             Created if missing.
+        figure : bool, optional
+            Deprecated (figures are the report's job); ``True`` still draws it,
+            with a DeprecationWarning.
 
         Returns
         -------
@@ -94,8 +98,11 @@ class SurveyComparison:
             Paths written, keyed ``compare`` and ``changed``.
         """
         out = output_folder(out_dir)
-        return {"compare": write_json(out / "compare.json", self.to_dict()),
-                "changed": write_csv(out / "changed.csv", self.changed())}
+        paths = {"compare": write_json(out / "compare.json", self.to_dict()),
+                 "changed": write_csv(out / "changed.csv", self.changed())}
+        if figure is not None:
+            paths.update(figures_keyword(self, out, figure, "SurveyComparison.write(figure=...)"))
+        return paths
 
 
 def compare(pings, beacons=None, *, min_pings: int = 30, rng: RNGLike = None,

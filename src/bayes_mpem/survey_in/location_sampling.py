@@ -42,7 +42,6 @@ does it for every transponder of a survey.
 from __future__ import annotations
 
 import time
-import warnings
 from dataclasses import dataclass, field
 
 import emcee
@@ -50,7 +49,6 @@ import numpy as np
 import pandas as pd
 
 from .._rng import RNGLike, as_generator
-from ..exceptions import LocateWarning
 from ..mcmc import (
     autocorr_ess,
     bulk_ess,
@@ -354,32 +352,20 @@ def locate_survey_bayes(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="unif
     posteriors : dict
         :class:`LocationPosterior` per transponder.
     """
-    from .location import DEFAULT_TAT, locate
-    from .survey import locate_survey, survey_profile
+    from .survey import locate_survey
 
     check_location_options(n_walkers=n_walkers, ci=ci, min_ess=min_ess, max_steps=max_steps)
     gen = as_generator(rng)
-    summary, cls = locate_survey(raw, tat=tat, fit_tat=fit_tat, ci=ci, outliers=outliers,
-                                 ssp=ssp, speed_intervals=speed_intervals)
-    # the EM fits again, with locate_survey's own settings (it returns no LocateResult)
-    if tat is None:
-        tat = raw.header.get("tat", 0.0 if raw.format == "seagap" else DEFAULT_TAT)
-    pings, beacons = raw.to_pings()
-    prof = survey_profile(raw, ssp)
-    geo = summary["geometry"]
+    located = locate_survey(raw, tat=tat, fit_tat=fit_tat, ci=ci, outliers=outliers, ssp=ssp,
+                            speed_intervals=speed_intervals)
+    summary, cls = located.summary, located.classified
+    pings, _ = raw.to_pings()
     p_true = cls["p_true"].to_numpy(float).copy()
     p_sd = np.full(len(cls), np.nan)
     line_pos = pd.Series(np.arange(len(cls)), index=cls["line"].to_numpy())
     posteriors = {}
-    for tid in beacons["beacon"].astype(str):
-        with warnings.catch_warnings():  # locate_survey has already warned
-            warnings.simplefilter("ignore", LocateWarning)
-            fit = locate(pings, beacons, tid, tat=tat, fit_tat=fit_tat, outliers=outliers,
-                         ssp=prof, speed_intervals=speed_intervals, **geo)
+    for tid, fit in located.fits.items():
         em = summary["transponders"][tid]
-        if abs(fit.depth - em["depth"]["mean"]) > 1e-6 * max(1.0, abs(fit.depth)):
-            raise RuntimeError(f"transponder {tid}: the EM refit differs from locate_survey's "
-                               f"({fit.depth} against {em['depth']['mean']} m)")
         post = sample_location(pings, fit, n_walkers=n_walkers, ci=ci, min_ess=min_ess,
                                max_steps=max_steps, rng=gen, progress=progress)
         posteriors[tid] = post

@@ -31,6 +31,8 @@ class SurveyInResult:
         (``true``, ``spurious`` or ``skipped``) and ``reason``.
     posteriors : dict
         ``{id: LocationPosterior}`` when the posterior was sampled, else empty.
+    fits : dict
+        ``{id: LocateResult}``, the EM fit of each transponder (not written).
 
     Notes
     -----
@@ -49,6 +51,7 @@ class SurveyInResult:
     summary: dict
     classified: pd.DataFrame
     posteriors: dict = field(default_factory=dict, repr=False)
+    fits: dict = field(default_factory=dict, repr=False)
 
     def to_dict(self) -> dict:
         """Return the content of ``summary.json``.
@@ -76,9 +79,16 @@ class SurveyInResult:
         return {"summary": write_json(out / "summary.json", self.summary),
                 "classified": write_csv(out / "classified.csv", self.classified)}
 
+    def _as_pair(self):
+        warnings.warn("using the result of locate_survey as a (summary, classified) pair is "
+                      "deprecated; use its .summary and .classified attributes",
+                      DeprecationWarning, stacklevel=3)
+        return (self.summary, self.classified)
+
     def __iter__(self):
         """Yield ``summary`` then ``classified`` (deprecated pair unpacking)."""
-        warnings.warn("unpacking the result of locate_survey into (summary, classified) is "
-                      "deprecated; use its .summary and .classified attributes",
-                      DeprecationWarning, stacklevel=2)
-        return iter((self.summary, self.classified))
+        return iter(self._as_pair())
+
+    def __getitem__(self, index):
+        """``summary`` at 0, ``classified`` at 1 (deprecated pair indexing)."""
+        return self._as_pair()[index]

@@ -61,7 +61,7 @@ def survey_profile(raw, ssp):
 
 def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", ssp=None,
                   speed_intervals=0, fit_lag=False):
-    """Locate every transponder of a :class:`~bayes_mpem.readers.RawSurvey`.
+    """Locate every transponder of a :class:`~bayes_mpem.io.raw.RawSurvey`.
 
     Parameters
     ----------
@@ -91,7 +91,8 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
         and per skipped line of the file, in file order: ``line``,
         ``transponder``, ``twtt``, ``p_true``, ``p_spurious``, ``label``
         (``true``, ``spurious`` or ``skipped``) and ``reason``); it writes
-        both with ``write(out_dir)``.
+        both with ``write(out_dir)``; ``fits`` holds each transponder's
+        :class:`~bayes_mpem.survey_in.location.LocateResult`.
 
     Notes
     -----
@@ -109,10 +110,10 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
         geo = {"earth_radius": earth_radius(raw.header["lat"]) if "lat" in raw.header
                else MEAN_EARTH_RADIUS_M,
                "surface_depth": float(pings["depth"].mean()) - SEAGAP_TRANSDUCER_DEPTH}
-    out, probs = {}, np.full(len(pings), np.nan)
+    out, fits, probs = {}, {}, np.full(len(pings), np.nan)
     for tid in beacons["beacon"].astype(str):
-        r = locate(pings, beacons, tid, tat=tat, fit_tat=fit_tat, outliers=outliers, ssp=prof,
-                   speed_intervals=speed_intervals, fit_lag=fit_lag, **geo)
+        fits[tid] = r = locate(pings, beacons, tid, tat=tat, fit_tat=fit_tat, outliers=outliers,
+                               ssp=prof, speed_intervals=speed_intervals, fit_lag=fit_lag, **geo)
         probs[r.rows] = r.p_true
         d = r.to_dict(ci)
         if "lat" in raw.header:
@@ -130,7 +131,7 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
                "speed_intervals": int(speed_intervals), "fit_lag": bool(fit_lag),
                "geometry": geo,
                "tat_fitted": bool(fit_tat), "tat_given": None if fit_tat else float(tat)}
-    return SurveyInResult(summary=summary, classified=cls)
+    return SurveyInResult(summary=summary, classified=cls, fits=fits)
 
 
 def _classified(pings, probs, skipped):

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bayes_mpem.cli.main import main
+from bayes_mpem.cli import main
 from bayes_mpem.exceptions import InputError
 from bayes_mpem.lbl.diagnosis.driver import diagnose
 from bayes_mpem.lbl.diagnosis.ecm import fit_joint
@@ -130,6 +130,9 @@ def test_nav_drift_direction_and_json(tmp_path):
     assert {"d0", "sigma_dp", "sigma_mp", "weights"} <= set(doc["beacons"]["1"])
     for key in ("residuals_baseline", "residuals_final", "classes_vs_time", "candidates"):
         assert paths[key].stat().st_size > 10_000
+    with pytest.warns(DeprecationWarning, match=r"write\(figures=\.\.\.\) is deprecated"):
+        old_style = result.write(tmp_path / "old", figures=True)  # the old keyword still draws
+    assert {"diagnosis", "residuals_baseline", "candidates"} <= set(old_style)
 
 
 def test_effect_outside_the_vocabulary_shows_as_unexplained_structure():

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from ..._deprecated import figures_keyword
 from ...io.results import output_folder, write_json
 from ...io.survey import Survey
 from .ecm import JointFit
@@ -139,7 +140,7 @@ class Diagnosis:
             "settings": self.settings,
         }
 
-    def write(self, out_dir) -> dict:
+    def write(self, out_dir, *, figures=None) -> dict:
         """Write ``diagnosis.json`` to ``out_dir``.
 
         The figures are drawn by :func:`bayes_mpem.report.write_figures`.
@@ -148,6 +149,9 @@ class Diagnosis:
         ----------
         out_dir : str or pathlib.Path
             Created if missing.
+        figures : bool, optional
+            Deprecated (figures are the report's job); ``True`` still draws
+            them, with a DeprecationWarning.
 
         Returns
         -------
@@ -155,7 +159,10 @@ class Diagnosis:
             Paths written, keyed ``diagnosis``.
         """
         out = output_folder(out_dir)
-        return {"diagnosis": write_json(out / "diagnosis.json", self.to_dict(), numpy=True)}
+        paths = {"diagnosis": write_json(out / "diagnosis.json", self.to_dict(), numpy=True)}
+        if figures is not None:
+            paths.update(figures_keyword(self, out, figures, "Diagnosis.write(figures=...)"))
+        return paths
 
     def summary(self) -> str:
         """Describe what was found in a few lines for a terminal.

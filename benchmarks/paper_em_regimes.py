@@ -294,8 +294,8 @@ def trace_paper_em(data, labels, *, pol=0.05, alpha=0.5, sigma_dp=SIGMA_DP, tol=
                    max_iter=2000):
     """Re-run the paper's EM step by step, splitting eq. 8 by the true class.
 
-    Uses the library's own :func:`bayes_mpem.em.paper_e_step` and
-    :func:`~bayes_mpem.em.paper_m_step`, with the stopping rule of
+    Uses the library's own :func:`bayes_mpem.lbl.em_paper.paper_e_step` and
+    :func:`~bayes_mpem.lbl.em_paper.paper_m_step`, with the stopping rule of
     :func:`bayes_mpem.fit_paper_em`.
 
     Returns

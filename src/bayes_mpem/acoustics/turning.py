@@ -7,7 +7,10 @@ where the speed grows with depth, a far receiver at about the source's depth).
 and is the one solver the rest of the package uses for direct rays (the LBL
 refracted ranges and simulator, the transponder location's travel times, the
 simulation-gap checks): a pair it cannot join is marked invalid
-(``DirectRays.valid``), never approximated. :func:`bounce_times` gives the
+(``DirectRays.valid``), never approximated here; each caller says what it does
+with such a pair (the transponder location counts them, warns, and keeps the fit
+going on the straight chord at the profile's mean speed; the simulation-gap
+check raises). :func:`bounce_times` gives the
 ray reflected once by a plane, with its derivative with respect to the plane,
 and :data:`NO_RAY` is the range that stands for "no eigenray" in a mixture
 model.

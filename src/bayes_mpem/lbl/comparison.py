@@ -116,7 +116,7 @@ def compare(pings, beacons=None, *, min_pings: int = 30, rng: RNGLike = None,
     min_pings : int, default 30
     rng : None, int or numpy.random.Generator
     **kwargs
-        Passed to :func:`~bayes_mpem.bayes.sample_beacon`.
+        Passed to :func:`~bayes_mpem.lbl.beacon_sampling.sample_beacon`.
 
     Returns
     -------

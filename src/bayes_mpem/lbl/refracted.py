@@ -203,7 +203,7 @@ class _BounceTable:
 
 @dataclass(frozen=True)
 class RefractedBeaconGeometry(BeaconGeometry):
-    """:class:`~bayes_mpem.mixture.BeaconGeometry` whose predictions go through a profile.
+    """A :class:`~bayes_mpem.lbl.beacon_geometry.BeaconGeometry` predicting through a profile.
 
     ``direct`` is ``c_nom * T_direct`` (:data:`NO_RAY` where no direct eigenray
     exists), and :meth:`multipath` is ``c_nom (T_direct + T_bounce(d0)) / 2``

@@ -172,7 +172,7 @@ def sample(
     min_pings : int, default 30
     rng : None, int or numpy.random.Generator
     **kwargs
-        Passed to :func:`~bayes_mpem.bayes.sample_beacon` (``sigma_dp``,
+        Passed to :func:`~bayes_mpem.lbl.beacon_sampling.sample_beacon` (``sigma_dp``,
         ``path``, ``concentration``, ``n_ensembles``, ``progress``, ...).
 
     Returns

@@ -1,6 +1,6 @@
-"""Figures of :func:`bayes_mpem.diagnose.diagnose`.
+"""Figures of :func:`bayes_mpem.diagnose`.
 
-Every function takes a :class:`~bayes_mpem.diagnose.Diagnosis` and ``fig=``,
+Every function takes a :class:`~bayes_mpem.lbl.diagnosis.result.Diagnosis` and ``fig=``,
 and returns the Figure.
 """
 

@@ -21,6 +21,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
+from ._validate import check_choice
 from .exceptions import InputError
 from .io.survey import load_survey
 from .io.tables import RESERVED_COLUMNS
@@ -32,18 +33,8 @@ from .lbl.pol_sensitivity import POL_GRID, survey_pol_sensitivity
 from .lbl.sampling import SurveyPosterior
 from .mixture.densities import CLASSES
 from .plots import bayes as bayes_plots
+from .plots import lbl as lbl_plots
 from .plots.diagnose import write_figures as write_diagnosis_figures
-from .plots.lbl import (
-    plot_classification,
-    plot_colormap,
-    plot_convergence,
-    plot_pol_sensitivity,
-    plot_ranges,
-    plot_survey_classification,
-    plot_table_ii,
-    plot_track,
-    table_ii_markdown,
-)
 from .survey_in.result import SurveyInResult
 
 __all__ = ["POL_GRID", "demo_markdown", "figure_beacon", "load_output", "write_figures"]
@@ -77,9 +68,7 @@ def figure_beacon(survey_fit, beacon=None) -> str:
         When ``beacon`` was not fitted.
     """
     b = beacon or list(survey_fit.results)[-1]
-    if b not in survey_fit.results:
-        raise ValueError(f"beacon: expected one of {sorted(survey_fit.results)}, got {b!r}")
-    return b
+    return check_choice("beacon", b, sorted(survey_fit.results))
 
 
 def write_figures(result, out_dir, *, beacon=None, truth=None, general=True,
@@ -144,18 +133,18 @@ def _fit_figures(result, out, *, beacon, truth, general, sensitivity):
     t = None if truth is None else truth[b]
     paths = []
     if general:
-        paths.append(_save(plot_ranges(result.survey), out / "fig01_ranges.png"))
-        paths.append(_save(plot_track(result.survey), out / "fig05_track.png"))
-        paths.append(_save(plot_colormap(), out / "fig08_colormap.png"))
+        paths.append(_save(lbl_plots.plot_ranges(result.survey), out / "fig01_ranges.png"))
+        paths.append(_save(lbl_plots.plot_track(result.survey), out / "fig05_track.png"))
+        paths.append(_save(lbl_plots.plot_colormap(), out / "fig08_colormap.png"))
         if sensitivity is not None:
-            paths.append(_save(plot_pol_sensitivity(sensitivity, truth=t),
+            paths.append(_save(lbl_plots.plot_pol_sensitivity(sensitivity, truth=t),
                                out / f"fig12_pol_sensitivity_{b}.png"))
-    figs = [(plot_classification(result, b, iteration="first"),
+    figs = [(lbl_plots.plot_classification(result, b, iteration="first"),
              f"fig07_first_iteration_{b}.png"),
-            (plot_classification(result, b), f"fig09_last_iteration_{b}.png"),
-            (plot_convergence(r, truth=t), f"fig10_11_convergence_{b}.png"),
-            (plot_survey_classification(result), "fig13_classification.png"),
-            (plot_table_ii(result), "table2.png")]
+            (lbl_plots.plot_classification(result, b), f"fig09_last_iteration_{b}.png"),
+            (lbl_plots.plot_convergence(r, truth=t), f"fig10_11_convergence_{b}.png"),
+            (lbl_plots.plot_survey_classification(result), "fig13_classification.png"),
+            (lbl_plots.plot_table_ii(result), "table2.png")]
     return paths + [_save(fig, out / name) for fig, name in figs]
 
 
@@ -199,9 +188,9 @@ def demo_markdown(simulation, fit, paper, out_dir, figures, *, seed, posterior=N
     md = ["# bayes-mpem demo", "",
           f"Simulated ABE58-like survey (seed {seed}): {len(sim.survey)} pings to "
           f"{len(sim.truth)} beacons. Truth: the sea surface, i.e. HRP = beacon depth.", "",
-          "## Table II, mixture EM", "", table_ii_markdown(fit, truth=sim.truth), "",
+          "## Table II, mixture EM", "", lbl_plots.table_ii_markdown(fit, truth=sim.truth), "",
           "## Table II, the paper's EM (Pol = 0.05, alpha = 0.5)", "",
-          table_ii_markdown(paper, truth=sim.truth), ""]
+          lbl_plots.table_ii_markdown(paper, truth=sim.truth), ""]
     if posterior is not None:
         md += ["## Posterior (learned priors)", "", "```", posterior.format_table(), "```", "",
                "![intervals](bayes/intervals.png)", "",

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._validate import check_increasing
 from ..exceptions import InputError
 from ..io.geodesy import MEAN_EARTH_RADIUS_KM
 from .woa09 import bundled_woa09, load_woa09, number_parts
@@ -86,12 +87,8 @@ class SoundSpeedProfile:
                              f"got {z.size} and {c.size}")
         if z.size == 0:
             raise ValueError("SoundSpeedProfile: expected at least one knot, got none")
-        bad = np.flatnonzero(np.diff(z) <= 0)
-        if bad.size:
-            i = bad[0] + 1
-            raise ValueError(f"SoundSpeedProfile: depth[{i}] = {z[i]} is not greater than "
-                             f"depth[{i - 1}] = {z[i - 1]}: depths must be strictly increasing "
-                             "(positive down)")
+        check_increasing("depth", z, context="SoundSpeedProfile: ",
+                         what="strictly increasing depths (positive down)")
         bad = np.flatnonzero(c <= 0)
         if bad.size:
             raise ValueError(f"SoundSpeedProfile: speed[{bad[0]}] = {c[bad[0]]}: expected a "
@@ -309,12 +306,8 @@ class SoundSpeedProfile:
         if not p.size == sp.size == temp.size:
             raise ValueError(f"from_ctd: pressure_dbar, SP and t must have the same length, got "
                              f"{p.size}, {sp.size} and {temp.size}")
-        bad = np.flatnonzero(np.diff(p) <= 0)
-        if bad.size:
-            i = bad[0] + 1
-            raise ValueError(f"from_ctd: pressure_dbar[{i}] = {p[i]} is not greater than "
-                             f"pressure_dbar[{i - 1}] = {p[i - 1]}: expected a strictly "
-                             "increasing (bin-averaged, down-cast) pressure")
+        check_increasing("pressure_dbar", p, context="from_ctd: ",
+                         what="a strictly increasing (bin-averaged, down-cast) pressure")
         sa = gsw.SA_from_SP(sp, p, lon, lat)
         ct = gsw.CT_from_t(sa, temp, p)
         c = np.asarray(gsw.sound_speed(sa, ct, p), float)

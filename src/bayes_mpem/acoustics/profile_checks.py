@@ -10,8 +10,7 @@ into exact depths). Used by the LBL refracted model and the simulator.
 
 from __future__ import annotations
 
-import numpy as np
-
+from .._validate import check_positive
 from .profile import SoundSpeedProfile
 
 # --------------------------------------------------------------------------- checks
@@ -71,13 +70,7 @@ def check_sound_speed(sound_speed, name: str = "sound_speed") -> float:
     ValueError
         Not a finite positive number.
     """
-    try:
-        c = float(sound_speed)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name}: expected a sound speed in m/s, got {sound_speed!r}") from None
-    if not np.isfinite(c) or c <= 0:
-        raise ValueError(f"{name}: expected a positive sound speed in m/s, got {sound_speed!r}")
-    return c
+    return check_positive(name, sound_speed, what="a positive sound speed in m/s")
 
 
 def nominal_sound_speed(ssp: SoundSpeedProfile, depth) -> float:

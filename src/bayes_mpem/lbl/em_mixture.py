@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._rng import RNGLike, as_generator
+from .._validate import check_int, check_positive, check_range
 from ..exceptions import ConvergenceWarning
 from ..io.survey import BeaconData
 from ..mixture.densities import CLASSES
@@ -35,7 +36,6 @@ from .em_result import (
     EMResult,
     check_max_iter,
     check_options,
-    check_positive,
     estimate_sigma_dp,
     wdot,
     with_flags,
@@ -284,12 +284,10 @@ def fit_mixture_em(
     True
     """
     fixed_dp = check_options(path=path, weights=weights, sigma_dp=sigma_dp)
-    if int(n_init) < 1:
-        raise ValueError(f"n_init: expected an integer >= 1, got {n_init!r}")
+    check_int("n_init", n_init, minimum=1)
     check_max_iter(max_iter)
     check_positive("tol", tol)
-    if not float(sigma_floor) >= 0:
-        raise ValueError(f"sigma_floor: expected a number >= 0, got {sigma_floor!r}")
+    check_range("sigma_floor", sigma_floor, low=0, include_low=True)
     if data.n < 3:
         raise ValueError(f"beacon {data.beacon}: need at least 3 ranges to fit, got {data.n}")
     gen = as_generator(rng)

@@ -20,6 +20,7 @@ import warnings
 import numpy as np
 from scipy import special
 
+from .._validate import check_finite, check_positive
 from ..exceptions import ConvergenceWarning
 from ..io.survey import BeaconData
 from ..mixture.densities import CLASSES
@@ -29,7 +30,6 @@ from .em_result import (
     EMResult,
     check_max_iter,
     check_options,
-    check_positive,
     estimate_sigma_dp,
     mean_resp_history,
     wdot,
@@ -204,8 +204,7 @@ def fit_paper_em(
     check_positive("sigma_mp2_init", sigma_mp2_init)
     check_positive("tol", tol)
     check_max_iter(max_iter)
-    if not np.isfinite(float(d0_init)):
-        raise ValueError(f"d0_init: expected a finite number, got {d0_init!r}")
+    check_finite("d0_init", d0_init)
     geom = BeaconGeometry.from_data(data)
     s_dp = fixed_dp or estimate_sigma_dp(geom)
     d0, s_mp, resp, first_resp, hist, it, converged = _run_paper(

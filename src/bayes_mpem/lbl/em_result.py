@@ -8,8 +8,8 @@ why a fitted reflector is not credible, and :func:`with_flags` attaches those
 flags (with a :class:`~bayes_mpem.exceptions.FitQualityWarning`).
 
 The helpers both EMs use are here too: option checks (:func:`check_options`,
-:func:`check_positive`, :func:`check_max_iter`), the robust direct-path
-scatter (:func:`estimate_sigma_dp`) and a BLAS-free weighted sum
+:func:`check_max_iter`, built on :mod:`bayes_mpem._validate`), the robust
+direct-path scatter (:func:`estimate_sigma_dp`) and a BLAS-free weighted sum
 (:func:`wdot`).
 
 Examples
@@ -17,10 +17,10 @@ Examples
 >>> import numpy as np
 >>> wdot(np.array([1.0, 2.0]), np.array([3.0, 4.0]))
 11.0
->>> check_positive("tol", 0.0)
+>>> check_max_iter(0)
 Traceback (most recent call last):
 ...
-ValueError: tol: expected a positive number, got 0.0
+ValueError: max_iter: expected an integer >= 1, got 0
 """
 
 from __future__ import annotations
@@ -31,11 +31,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._validate import check_choice, check_int, check_positive, check_range
 from ..exceptions import FitQualityWarning
 from ..io.survey import BeaconData
 from ..mixture.densities import CLASSES
 from . import geometry
 from .beacon_geometry import BeaconGeometry
+
+#: The mixing weights of both EMs: learned, or the paper's equal thirds.
+WEIGHTS = ("learned", "equal")
 
 
 def quality_flags(result, data: BeaconData, *, sigma_floor: float = 0.05) -> tuple:
@@ -265,37 +269,6 @@ def wdot(w, x):
     return float(np.add.reduce(w * x))
 
 
-def check_positive(name, value, *, allow_none=False):
-    """Check that option ``name`` is a finite positive number.
-
-    Parameters
-    ----------
-    name : str
-        The option's name, for the message.
-    value : object
-    allow_none : bool, default False
-        Accept ``None`` (returned as is).
-
-    Returns
-    -------
-    float or None
-
-    Raises
-    ------
-    ValueError
-        For anything else.
-    """
-    if value is None and allow_none:
-        return None
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name}: expected a positive number, got {value!r}") from None
-    if not np.isfinite(v) or v <= 0:
-        raise ValueError(f"{name}: expected a positive number, got {value!r}")
-    return v
-
-
 def check_options(*, path="triangle", weights="learned", pol=0.05, alpha=0.5, sigma_dp=None):
     """Validate the options of both EMs up front.
 
@@ -321,13 +294,10 @@ def check_options(*, path="triangle", weights="learned", pol=0.05, alpha=0.5, si
         Naming the first bad option.
     """
     geometry.check_path(path)
-    if weights not in ("learned", "equal"):
-        raise ValueError(f"weights: expected 'learned' or 'equal', got {weights!r}")
-    if not 0.0 < float(pol) < 1.0:
-        raise ValueError(f"pol: expected a number in (0, 1), got {pol!r}")
-    if not 0.0 < float(alpha) <= 1.0:
-        raise ValueError(f"alpha: expected a number in (0, 1], got {alpha!r}")
-    return check_positive("sigma_dp", sigma_dp, allow_none=True)
+    check_choice("weights", weights, WEIGHTS, words=True)
+    check_range("pol", pol, low=0, high=1)
+    check_range("alpha", alpha, low=0, high=1, include_high=True)
+    return check_positive("sigma_dp", sigma_dp, allow_none=True, what="a positive number")
 
 
 def check_max_iter(max_iter):
@@ -342,8 +312,7 @@ def check_max_iter(max_iter):
     ValueError
         For anything else (``bool`` included).
     """
-    if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
-        raise ValueError(f"max_iter: expected an integer >= 1, got {max_iter!r}")
+    check_int("max_iter", max_iter, minimum=1)
 
 
 def mean_resp_history(resp):

@@ -14,6 +14,7 @@ import numpy as np
 import pandas as pd
 
 from .._rng import RNGLike, as_generator
+from .._validate import check_choice
 from ..io.results import output_folder, write_csv, write_json
 from ..io.survey import Survey, load_survey
 from .em_mixture import fit_mixture_em
@@ -231,8 +232,7 @@ def fit(
     >>> sorted(res.results)
     ['1', '2', '3', '4']
     """
-    if method not in METHODS:
-        raise ValueError(f"method: expected one of {METHODS}, got {method!r}")
+    check_choice("method", method, METHODS)
     check_options(path=path, weights=weights, pol=pol, alpha=alpha, sigma_dp=sigma_dp)
     survey = load_survey(pings, beacons)
     gen = as_generator(rng)

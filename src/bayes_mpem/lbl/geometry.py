@@ -25,6 +25,8 @@ from typing import Literal
 
 import numpy as np
 
+from .._validate import check_choice
+
 Path = Literal["triangle", "double"]
 PATHS: tuple[str, ...] = ("triangle", "double")
 
@@ -46,9 +48,7 @@ def check_path(path: str) -> str:
     ValueError
         For any other value.
     """
-    if path not in PATHS:
-        raise ValueError(f"path: expected one of {PATHS}, got {path!r}")
-    return path
+    return check_choice("path", path, PATHS)
 
 
 def horizontal_distance(x, y, beacon_x, beacon_y):

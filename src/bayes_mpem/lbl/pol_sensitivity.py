@@ -13,6 +13,7 @@ import warnings
 
 import numpy as np
 
+from .._validate import check_choice
 from ..exceptions import ConvergenceWarning, FitQualityWarning
 from .em_paper import fit_paper_em
 
@@ -74,7 +75,6 @@ def survey_pol_sensitivity(survey_fit, beacon, *, pols=POL_GRID):
     ValueError
         When ``beacon`` was not fitted.
     """
-    if beacon not in survey_fit.results:
-        raise ValueError(f"beacon: expected one of {sorted(survey_fit.results)}, got {beacon!r}")
+    check_choice("beacon", beacon, sorted(survey_fit.results))
     return pol_sensitivity(survey_fit.survey.for_beacon(beacon), pols,
                            sigma_dp=survey_fit.results[beacon].sigma_dp)

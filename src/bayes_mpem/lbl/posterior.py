@@ -27,6 +27,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.special import gammaln
 
+from .._validate import check_choice, check_int, check_positive, check_probability, check_range
 from ..io.survey import BeaconData
 from ..mixture.densities import CLASSES
 from .beacon_geometry import BeaconGeometry
@@ -44,26 +45,15 @@ def check_sample_options(*, priors="learned", ci=0.95, n_ensembles=1, concentrat
     from .geometry import check_path
 
     check_path(path)
-    if priors not in PRIORS:
-        raise ValueError(f"priors: expected one of {PRIORS}, got {priors!r}")
-    checks = [("ci", ci, lambda v: 0.0 < v < 1.0, "a probability in (0, 1)"),
-              ("concentration", concentration, lambda v: v > 0, "a positive number"),
-              ("tau_factor", tau_factor, lambda v: v > 0, "a positive number"),
-              ("min_ess", min_ess, lambda v: v >= 0, "a number >= 0")]
-    if sigma_dp is not None:
-        checks.append(("sigma_dp", sigma_dp, lambda v: v > 0 and np.isfinite(v),
-                       "a positive number"))
-    for name, value, good, what in checks:
-        try:
-            ok = good(float(value))
-        except (TypeError, ValueError):
-            ok = False
-        if not ok:
-            raise ValueError(f"{name}: expected {what}, got {value!r}")
+    check_choice("priors", priors, PRIORS)
+    check_probability("ci", ci)
+    check_positive("concentration", concentration)
+    check_range("tau_factor", tau_factor, low=0)  # inf: stop on max_steps only
+    check_range("min_ess", min_ess, low=0, include_low=True)
+    check_positive("sigma_dp", sigma_dp, allow_none=True, what="a positive number")
     for name, value in (("n_ensembles", n_ensembles), ("max_steps", max_steps),
                         ("n_draws", n_draws)):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-            raise ValueError(f"{name}: expected an integer >= 1, got {value!r}")
+        check_int(name, value, minimum=1)
 
 
 class BeaconPosterior:
@@ -107,10 +97,8 @@ class BeaconPosterior:
 
     def __init__(self, data: BeaconData, *, priors="learned", sigma_dp=None, path="triangle",
                  concentration=1.0, sigma_bounds=(0.05, 500.0), em: EMResult | None = None):
-        if priors not in PRIORS:
-            raise ValueError(f"priors: expected one of {PRIORS}, got {priors!r}")
-        if not float(concentration) > 0:
-            raise ValueError(f"concentration: expected a positive number, got {concentration!r}")
+        check_choice("priors", priors, PRIORS)
+        check_positive("concentration", concentration)
         self.geom = BeaconGeometry.from_data(data)
         self.beacon = data.beacon
         self.priors = priors

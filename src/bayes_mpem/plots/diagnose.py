@@ -11,6 +11,7 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 
+from .._validate import check_choice
 from ..lbl.diagnosis.model import predict
 from ..lbl.diagnosis.residuals import covariates
 
@@ -49,8 +50,7 @@ def plot_residuals(diagnosis, *, model="baseline", fig=None, max_points=4000):
     -------
     matplotlib.figure.Figure
     """
-    if model not in ("baseline", "final"):
-        raise ValueError(f"model: expected 'baseline' or 'final', got {model!r}")
+    check_choice("model", model, ("baseline", "final"), words=True)
     fit = diagnosis.baseline if model == "baseline" else diagnosis.final
     d = diagnosis.data
     mu = predict(d, fit.params, fit.effects, fit.path)

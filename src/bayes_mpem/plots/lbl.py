@@ -10,6 +10,7 @@ from __future__ import annotations
 import matplotlib.pyplot as plt
 import numpy as np
 
+from .._validate import check_choice
 from ..lbl.beacon_geometry import BeaconGeometry
 from .style import class_colors
 
@@ -43,8 +44,7 @@ def plot_classification(survey_fit, beacon, *, ax=None, iteration="last", lines=
     -------
     matplotlib.figure.Figure
     """
-    if iteration not in ("first", "last"):
-        raise ValueError(f"iteration: expected 'first' or 'last', got {iteration!r}")
+    check_choice("iteration", iteration, ("first", "last"), words=True)
     fig, ax = _ax(ax)
     res = survey_fit.results[beacon]
     data = survey_fit.survey.for_beacon(beacon)

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from .._validate import check_int
+from .._validate import check_choice, check_int
 
 #: Statistic name -> (residual column, Monte-Carlo side, description).
 STATISTICS = {
@@ -182,8 +182,7 @@ def mc_pvalue(measured: float, simulated, side: str = "two-sided") -> float:
     >>> mc_pvalue(1.5, [0.0, 1.0, 2.0, 3.0])
     1.0
     """
-    if side not in ("upper", "lower", "two-sided"):
-        raise ValueError(f"side: expected 'upper', 'lower' or 'two-sided', got {side!r}")
+    check_choice("side", side, ("upper", "lower", "two-sided"), words=True)
     sim = np.asarray(simulated, float)
     sim = sim[np.isfinite(sim)]
     if not np.isfinite(measured) or sim.size == 0:

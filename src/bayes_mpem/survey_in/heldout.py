@@ -14,6 +14,7 @@ import numpy as np
 import pandas as pd
 
 from .._rng import as_generator
+from .._validate import check_choice
 from ..exceptions import InputError, LocateWarning
 from .location import locate
 from .travel_times import ship_velocity
@@ -47,6 +48,7 @@ def heldout_logpdf(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None,
     numpy.ndarray
         One value (log 1/s) per ping of the transponder, in table order.
     """
+    check_choice("folds", folds, ("random", "blocked"), words=True)
     full = locate(pings, beacons, transponder, outliers=outliers, **kwargs)
     sub = pings.iloc[full.rows]
     if kwargs.get("fit_lag"):  # each fold's velocities from the whole track, not its own pings
@@ -54,14 +56,12 @@ def heldout_logpdf(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None,
         sub = sub.assign(vx=vx, vy=vy)
     if folds == "random":
         fold = as_generator(rng).permutation(np.arange(full.rows.size) % int(n_folds))
-    elif folds == "blocked":
+    else:
         if "time" not in sub.columns:
             raise InputError("folds='blocked' needs a 'time' column in pings")
         order = np.argsort(sub["time"].to_numpy(float), kind="stable")
         fold = np.empty(full.rows.size, int)
         fold[order] = np.arange(full.rows.size) * int(n_folds) // full.rows.size
-    else:
-        raise ValueError(f"folds: expected 'random' or 'blocked', got {folds!r}")
     out = np.empty(full.rows.size)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", LocateWarning)

@@ -35,6 +35,7 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import least_squares
 
+from .._validate import check_choice, check_int
 from ..exceptions import InputError, LocateWarning
 from ..mixture.densities import first_arrival_logpdf, uniform_logpdf
 from .travel_times import TravelTimes, ship_velocity, speed_basis
@@ -308,10 +309,8 @@ def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=
     InputError
         For a missing column, an unknown transponder or too few pings.
     """
-    if outliers not in OUTLIER_MODELS:
-        raise ValueError(f"outliers: expected one of {OUTLIER_MODELS}, got {outliers!r}")
-    if not (isinstance(speed_intervals, (int, np.integer)) and speed_intervals >= 0):
-        raise ValueError(f"speed_intervals: expected an integer >= 0, got {speed_intervals!r}")
+    check_choice("outliers", outliers, OUTLIER_MODELS)
+    check_int("speed_intervals", speed_intervals, minimum=0)
     transponder, start, rows, sub = _select_pings(pings, beacons, transponder, speed_intervals)
     t = sub["twtt"].to_numpy(float)
     x, y, z = (sub[c].to_numpy(float) for c in ("x", "y", "depth"))

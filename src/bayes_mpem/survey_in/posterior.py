@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from .._validate import check_choice, check_int, check_probability
+from .._validate import check_choice, check_int, check_probability, check_range
 from .location import LocateResult, log_classes
 from .travel_times import chord
 
@@ -37,12 +37,7 @@ def check_location_options(*, n_walkers=None, ci=0.95, min_ess=1000.0, max_steps
     ValueError
     """
     check_probability("ci", ci)
-    try:
-        ok = float(min_ess) >= 0
-    except (TypeError, ValueError):
-        ok = False
-    if not ok:
-        raise ValueError(f"min_ess: expected a number >= 0, got {min_ess!r}")
+    check_range("min_ess", min_ess, low=0, include_low=True)
     ints = [("max_steps", max_steps, 1), ("n_draws", n_draws, 1)]
     if n_walkers is not None:
         ints.append(("n_walkers", n_walkers, 4))

@@ -55,6 +55,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..._rng import RNGLike, as_generator
+from ..._validate import check_choice, check_int
 from ...io.survey import load_survey
 from .. import geometry
 from ..effects import EFFECTS, UNITS
@@ -126,12 +127,10 @@ def diagnose(
     ValueError
         For invalid options, or fewer than two beacons to fit.
     """
-    if path != "auto":
-        geometry.check_path(path)
+    check_choice("path", path, ("auto", *geometry.PATHS))
     effects = tuple(effects)
     check_effect_names(effects, "effects")
-    if int(n_folds) < 2:
-        raise ValueError(f"n_folds: expected an integer >= 2, got {n_folds!r}")
+    check_int("n_folds", n_folds, minimum=2)
     survey = load_survey(pings, beacons)
     gen = as_generator(rng)
     with warnings.catch_warnings():

@@ -29,6 +29,7 @@ from scipy.special import gammaln
 
 from .._validate import check_choice, check_int, check_positive, check_probability, check_range
 from ..io.survey import BeaconData
+from ..mcmc.driver import place_walkers
 from ..mixture.densities import CLASSES
 from .beacon_geometry import BeaconGeometry
 from .em_result import EMResult
@@ -267,17 +268,11 @@ class BeaconPosterior:
                  "w_dp": np.sqrt(frac["dp"] * (1 - frac["dp"]) / n),
                  "w_mp": np.sqrt(frac["mp"] * (1 - frac["mp"]) / n)}
         scale = np.array([0.5 * width[name] for name in self.names])
-        out = np.empty((n_walkers, self.ndim))
-        filled = 0
-        for _ in range(100):
-            cand = centre + scale * gen.standard_normal((n_walkers, self.ndim))
-            good = cand[np.isfinite(self(cand))]
-            take = min(len(good), n_walkers - filled)
-            out[filled:filled + take] = good[:take]
-            filled += take
-            if filled == n_walkers:
-                return out
-            scale *= 0.5
+        out = place_walkers(lambda sc: centre + sc * gen.standard_normal((n_walkers, self.ndim)),
+                            lambda cand: np.isfinite(self(cand)), n_walkers, self.ndim,
+                            scale=scale, rounds=100)
+        if out is not None:
+            return out
         raise RuntimeError(f"beacon {self.beacon}: could not place walkers inside the prior "
                            "around the EM solution "
                            f"{dict(zip(self.names, centre, strict=True))}")

@@ -237,6 +237,28 @@ def log_classes(t, pred, sigma, weight, window, outliers):
     return ld, np.log1p(-weight) + lu
 
 
+def true_probability(ld, lu):
+    """Probability of a true arrival from the two class log-densities (broadcasts).
+
+    Parameters
+    ----------
+    ld, lu : array_like
+        Weighted log-densities of the true and the spurious class
+        (:func:`log_classes`).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``1 / (1 + exp(lu - ld))``, with the exponent clipped to +-700.
+
+    Examples
+    --------
+    >>> float(true_probability(0.0, 0.0))
+    0.5
+    """
+    return 1.0 / (1.0 + np.exp(np.clip(lu - ld, -700.0, 700.0)))
+
+
 def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=None,
            fit_tat=False, sound_speed=1500.0, outliers="uniform", window=None, ssp=None,
            surface_depth=0.0, earth_radius=None, speed_intervals=0, time_range=None,
@@ -417,7 +439,7 @@ def _em(t, theta, resid, jac, x_scale, window, outliers, *, max_iter, tol):
     converged, it = False, 0
     for it in range(1, max_iter + 1):
         ld, lu = log_classes(t, t - r, sigma, weight, window, outliers)
-        p = 1.0 / (1.0 + np.exp(np.clip(lu - ld, -700.0, 700.0)))
+        p = true_probability(ld, lu)
         theta = least_squares(resid, theta, jac=jac, args=(p,), x_scale=x_scale).x
         r = resid(theta)
         new = float(np.sqrt(np.sum(p * r * r) / p.sum()))

@@ -1,33 +1,7 @@
 """Posterior of a transponder location jointly with the class of every ping (emcee).
 
-The same model as the location EM (:func:`bayes_mpem.survey_in.location.locate`): each two-way
-travel time is a true arrival, ``N(prediction, sigma)``, with probability
-``weight``, or spurious (uniform over the listening window, or before the true
-arrival); the walkers start from the EM solution. Parameters and priors:
-
-=====================  ========================================================
-``east, north, depth``  flat (improper)
-``speed`` (``_0...``)   the sound speed (m/s) or the profile's scale factor, one
-                        per B-spline coefficient when it varies in time; flat
-                        within +-10 % of the EM's value
-``tat``                 only when fitted: flat on ``[0, 1]`` s
-``log_sigma``           flat, i.e. ``p(sigma) ~ 1/sigma`` on ``[1e-6, 1]`` s
-``weight``              flat on ``(0, 1)``: ``Beta(1, 1)``, a ``Dirichlet(1, 1)``
-                        on the true and spurious weights
-=====================  ========================================================
-
-Travel times, vectorised over walkers and pings: straight rays are exact. Through
-a profile, the eigenray solve per walker and step is replaced by a ray-bending
-correction computed once, at the EM solution ``theta_0``: the one-way time is
-``L(theta) / v + delta``, ``L`` the straight chord (flat or on the sphere), ``v``
-the profile's harmonic mean at ``theta_0`` and ``delta = T_refracted - L / v``
-per ping. OBSrange holds ``delta`` fixed (``bending="fixed"``); by default
-(``bending="linear"``) it also follows its gradient at ``theta_0``, ``delta_0 +
-(grad T_refracted - grad L / v) . (position - position_0)``, from the same ray
-solve. On SeaGap (sigma 0.05 ms) the fixed correction is not enough: the
-log-likelihood at posterior draws is off by up to 2.7 nats, against 2e-4 with
-the gradient (:meth:`LocationLogPosterior.exact_loglik` solves the rays at any
-draw; ``tests/survey_in/test_location_sampling.py`` checks it).
+The model, its priors and its travel times are those of
+:class:`bayes_mpem.survey_in.posterior.LocationLogPosterior`.
 
 Sampling (:func:`sample_location`) uses the shared driver of :mod:`bayes_mpem.mcmc`:
 the posterior satisfies :class:`bayes_mpem.mcmc.LogPosterior`, and the chain runs
@@ -59,7 +33,7 @@ from ..mcmc import (
     thin_index,
     to_datatree,
 )
-from .location import LocateResult
+from .location import LocateResult, true_probability
 from .posterior import (
     PARAMS,
     SIGMA_BOUNDS,
@@ -184,7 +158,7 @@ class LocationPosterior:
 def _true_probability(post: LocationLogPosterior, theta):
     """Each ping's probability of being a true arrival, ``(W, n)``, for :func:`draw_moments`."""
     ld, lu = post.class_log_densities(theta)
-    return None, [1.0 / (1.0 + np.exp(np.clip(lu - ld, -700.0, 700.0)))]
+    return None, [true_probability(ld, lu)]
 
 
 def _location_posterior(pings, fit, *, n_walkers, bending):

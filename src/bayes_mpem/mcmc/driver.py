@@ -1,40 +1,9 @@
-"""The emcee driver shared by both posteriors: one protocol, one loop, one set of summaries.
+"""The emcee driver: the :class:`LogPosterior` protocol, the moves and the sampling loop.
 
-Both problems sample a log-posterior vectorised over walkers: the beacon of
-:class:`bayes_mpem.lbl.posterior.BeaconPosterior` and the transponder location
-of :class:`bayes_mpem.survey_in.posterior.LocationLogPosterior`. Each satisfies
-:class:`LogPosterior` (parameter ``names``, ``ndim``, a ``label``, a
-``start`` ball and ``__call__``), and this module does the rest:
-
-- :func:`run_ensemble` runs one ensemble in blocks until the kept chain is
-  ``tau_factor`` autocorrelation times long and its smallest ESS, by emcee's
-  ``steps x walkers / tau`` and by ArviZ's bulk estimate, reaches ``min_ess``;
-  :func:`run_ensembles` runs several, each from its own start ball and seed;
-- the move policy: :func:`default_moves` (LBL) and :func:`de_moves` (location);
-- the summaries of a kept chain: :func:`thin_index`, :func:`autocorr_ess`,
-  :func:`bulk_ess`, :func:`hdi`, :func:`equal_tailed`, :func:`draw_moments`,
-  :func:`to_datatree` and :func:`rhat_across_ensembles`.
-
-Walkers are ArviZ chains throughout (the emcee convention). Same ``seed``,
-same chain: emcee's random state is set from the seed, never from global state.
-
-Examples
---------
->>> import numpy as np
->>> class Gauss:
-...     names, ndim, label = ("x",), 1, "a unit Gaussian"
-...     def start(self, n_walkers, gen):
-...         return gen.standard_normal((n_walkers, 1))
-...     def __call__(self, theta):
-...         return -0.5 * theta[:, 0] ** 2
->>> post = Gauss()
->>> isinstance(post, LogPosterior)
-True
->>> gen = np.random.default_rng(0)
->>> [run] = run_ensembles(post, n_walkers=8, gen=gen, min_ess=0, tau_factor=5,
-...                       max_steps=2000, progress=False)
->>> run.converged, run.chain.shape[1:]
-(True, (8, 1))
+:func:`run_ensemble` runs one ensemble in blocks until the kept chain is long
+enough, :func:`run_ensembles` several from their own start balls and seeds, and
+:func:`place_walkers` fills a start ball inside the prior. See
+:mod:`bayes_mpem.mcmc`.
 """
 
 from __future__ import annotations
@@ -47,12 +16,10 @@ from typing import Protocol, runtime_checkable
 import emcee
 import numpy as np
 
-from .exceptions import SamplingWarning
+from ..exceptions import SamplingWarning
 
 #: How :func:`default_moves` is reported in a result's diagnostics.
 DEFAULT_MOVES_LABEL = "default (DEMove 0.8, DESnookerMove 0.2)"
-#: ArviZ's warning when there are more chains (walkers) than draws: expected here.
-_CHAINS_WARNING = "Found chain dimension to be longer"
 
 
 @runtime_checkable
@@ -189,6 +156,48 @@ class EnsembleRun:
         return int(self.sampler.iteration)
 
 
+def place_walkers(draw, inside, n_walkers: int, ndim: int, *, scale, rounds: int):
+    """Fill a start ball with candidates inside the support, halving the scatter each round.
+
+    Parameters
+    ----------
+    draw : callable
+        ``draw(scale)`` returns ``(n_walkers, ndim)`` candidates scattered by ``scale``.
+    inside : callable
+        ``inside(candidates)`` returns a boolean mask of those inside the support.
+    n_walkers, ndim : int
+    scale : float or numpy.ndarray
+        The first round's scatter (an array is halved in place).
+    rounds : int
+        Rounds of candidates before giving up.
+
+    Returns
+    -------
+    numpy.ndarray or None
+        ``(n_walkers, ndim)``, or None when ``rounds`` rounds left walkers unplaced.
+
+    Examples
+    --------
+    >>> gen = np.random.default_rng(0)
+    >>> ball = place_walkers(lambda s: s * gen.standard_normal((8, 2)),
+    ...                      lambda c: np.all(c > -1.0, axis=1), 8, 2, scale=2.0, rounds=20)
+    >>> ball.shape, bool(np.all(ball > -1.0))
+    ((8, 2), True)
+    """
+    out = np.empty((n_walkers, ndim))
+    filled = 0
+    for _ in range(rounds):
+        cand = draw(scale)
+        good = cand[inside(cand)]
+        take = min(len(good), n_walkers - filled)
+        out[filled:filled + take] = good[:take]
+        filled += take
+        if filled == n_walkers:
+            return out
+        scale *= 0.5
+    return None
+
+
 def run_ensemble(post: LogPosterior, start, *, seed, moves=None, tau_factor=50.0,
                  min_ess=1000.0, max_steps=20000, check_every=250,
                  progress="auto"):
@@ -321,175 +330,3 @@ def run_ensembles(post: LogPosterior, *, n_walkers: int, gen: np.random.Generato
                       + "; estimates may be unreliable",
                       SamplingWarning, stacklevel=stacklevel + 1)
     return runs
-
-
-# ------------------------------------------------------------------ summaries of a chain
-
-
-def thin_index(kept: int, n_chains: int, n_draws: int) -> tuple[np.ndarray, int]:
-    """Evenly spaced steps, ending at the last, giving about ``n_draws`` draws over all chains.
-
-    Parameters
-    ----------
-    kept : int
-        Steps in the kept chain.
-    n_chains : int
-        Chains (walkers, over all ensembles) sharing the draws.
-    n_draws : int
-        Draws wanted in all.
-
-    Returns
-    -------
-    idx : numpy.ndarray
-        Steps to keep.
-    thin : int
-        Their spacing.
-
-    Examples
-    --------
-    >>> idx, thin = thin_index(1000, 50, 400)
-    >>> idx.tolist(), thin
-    ([124, 249, 374, 499, 624, 749, 874, 999], 125)
-    """
-    per_chain = max(1, min(kept, int(np.ceil(n_draws / n_chains))))
-    thin = max(1, kept // per_chain)
-    idx = np.arange(kept - (per_chain - 1) * thin - 1, kept, thin)[-per_chain:]
-    return idx, thin
-
-
-def autocorr_ess(series) -> tuple[float, float]:
-    """Integrated autocorrelation time (emcee, steps) of a ``(steps, walkers)`` series.
-
-    Returns ``(tau, ess)``, with ``ess = steps x walkers / tau``.
-    """
-    tau = float(emcee.autocorr.integrated_time(series[:, :, None], tol=0, quiet=True)[0])
-    return tau, float(series.shape[0] * series.shape[1] / tau)
-
-
-def bulk_ess(series: dict) -> dict:
-    """ArviZ's rank-normalised bulk ESS of each ``(chain, draw)`` array of a dict.
-
-    Walkers as chains; returns name -> float.
-    """
-    import arviz_stats as azs
-
-    return {k: float(azs.ess(np.asarray(v), method="bulk", chain_axis=0, draw_axis=1))
-            for k, v in series.items()}
-
-
-def hdi(x, ci: float) -> list:
-    """Highest-density interval ``[lower, upper]`` (ArviZ) of all values of ``x``.
-
-    With probability ``ci``.
-    """
-    import arviz_stats as azs
-
-    return [float(v) for v in azs.hdi(np.ravel(x), prob=ci)]
-
-
-def equal_tailed(x, ci: float) -> list:
-    """Equal-tailed interval ``[lower, upper]`` of all values of ``x``, probability ``ci``.
-
-    The ``(1 - ci) / 2`` and ``(1 + ci) / 2`` quantiles.
-
-    Examples
-    --------
-    >>> equal_tailed(range(101), 0.5)
-    [25.0, 75.0]
-    """
-    lo, hi = np.quantile(np.ravel(x), [0.5 - ci / 2, 0.5 + ci / 2])
-    return [float(lo), float(hi)]
-
-
-def draw_moments(flat, fn, *, chunk: int = 64):
-    """Pointwise values and the mean and sd of per-item probabilities over draws, in chunks.
-
-    One pass over chunks of draws: never a draws x items x classes array.
-
-    Parameters
-    ----------
-    flat : numpy.ndarray
-        ``(draws, ndim)``.
-    fn : callable
-        ``fn(theta)`` of a ``(W, ndim)`` chunk returns ``(pointwise, probs)``:
-        a ``(W, n)`` array (e.g. the log-likelihood of each item) or None, and a
-        sequence of ``k`` probability arrays, each ``(W, n)``.
-    chunk : int, default 64
-        Draws per call of ``fn``.
-
-    Returns
-    -------
-    pointwise : numpy.ndarray or None
-        ``(draws, n)``, when ``fn`` returns one.
-    mean, sd : numpy.ndarray
-        ``(n, k)``, over the draws.
-
-    Examples
-    --------
-    >>> flat = np.array([[0.2], [0.4]])
-    >>> _, m, s = draw_moments(flat, lambda t: (None, [np.repeat(t, 3, axis=1)]))
-    >>> m[:, 0].round(3).tolist(), s[:, 0].round(3).tolist()
-    ([0.3, 0.3, 0.3], [0.1, 0.1, 0.1])
-    """
-    n_draws = flat.shape[0]
-    pointwise = s1 = s2 = None
-    for i in range(0, n_draws, chunk):
-        values, probs = fn(flat[i:i + chunk])
-        if s1 is None:
-            n = probs[0].shape[1]
-            s1, s2 = np.zeros((n, len(probs))), np.zeros((n, len(probs)))
-            if values is not None:
-                pointwise = np.empty((n_draws, n))
-        if values is not None:
-            pointwise[i:i + chunk] = values
-        for j, r in enumerate(probs):
-            s1[:, j] += r.sum(axis=0)
-            s2[:, j] += (r * r).sum(axis=0)
-    m = s1 / n_draws
-    return pointwise, m, np.sqrt(np.maximum(s2 / n_draws - m * m, 0.0))
-
-
-def to_datatree(groups: dict, **kwargs):
-    """ArviZ data from a dict of groups, walkers as chains.
-
-    ``groups`` and ``kwargs`` as for :func:`arviz_base.from_dict`: group name ->
-    {variable -> ``(chain, draw, ...)`` array}; ArviZ's warning about more chains
-    than draws is silenced. Returns an ``xarray.DataTree``.
-    """
-    import arviz_base as azb
-
-    with warnings.catch_warnings():
-        # walkers are ArviZ chains by design (emcee convention); with many walkers and
-        # few kept draws each, ArviZ's dimension-name heuristic would misfire
-        warnings.filterwarnings("ignore", message=_CHAINS_WARNING)
-        return azb.from_dict(groups, **kwargs)
-
-
-def rhat_across_ensembles(ds, n_ens: int) -> dict:
-    """Rank-normalised split R-hat (ArviZ) across independent ensembles.
-
-    The walkers of one ensemble are not independent chains: each ensemble's
-    walkers are regrouped into one chain (draws = walkers x kept draws) first.
-
-    Parameters
-    ----------
-    ds : xarray.Dataset
-        ``(chain, draw)`` variables, the walkers of each ensemble consecutive.
-    n_ens : int
-        Number of ensembles (at least 2).
-
-    Returns
-    -------
-    dict
-        Variable -> R-hat.
-    """
-    import arviz_stats as azs
-    import xarray as xr
-
-    out = {}
-    for k, v in ds.data_vars.items():
-        a = v.values  # (chain, draw)
-        a = a.reshape(n_ens, -1, a.shape[1])  # (ensemble, walker, draw)
-        out[k] = xr.DataArray(a.transpose(0, 2, 1).reshape(n_ens, -1), dims=("chain", "draw"))
-    rh = azs.rhat(xr.Dataset(out))
-    return {k: float(rh[k]) for k in out}

@@ -1,0 +1,183 @@
+"""Summaries of a kept chain: thinning, ESS, intervals, moments over draws, ArviZ objects.
+
+Used by both posteriors after :func:`bayes_mpem.mcmc.driver.run_ensembles`.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import emcee
+import numpy as np
+
+#: ArviZ's warning when there are more chains (walkers) than draws: expected here.
+_CHAINS_WARNING = "Found chain dimension to be longer"
+
+
+def thin_index(kept: int, n_chains: int, n_draws: int) -> tuple[np.ndarray, int]:
+    """Evenly spaced steps, ending at the last, giving about ``n_draws`` draws over all chains.
+
+    Parameters
+    ----------
+    kept : int
+        Steps in the kept chain.
+    n_chains : int
+        Chains (walkers, over all ensembles) sharing the draws.
+    n_draws : int
+        Draws wanted in all.
+
+    Returns
+    -------
+    idx : numpy.ndarray
+        Steps to keep.
+    thin : int
+        Their spacing.
+
+    Examples
+    --------
+    >>> idx, thin = thin_index(1000, 50, 400)
+    >>> idx.tolist(), thin
+    ([124, 249, 374, 499, 624, 749, 874, 999], 125)
+    """
+    per_chain = max(1, min(kept, int(np.ceil(n_draws / n_chains))))
+    thin = max(1, kept // per_chain)
+    idx = np.arange(kept - (per_chain - 1) * thin - 1, kept, thin)[-per_chain:]
+    return idx, thin
+
+
+def autocorr_ess(series) -> tuple[float, float]:
+    """Integrated autocorrelation time (emcee, steps) of a ``(steps, walkers)`` series.
+
+    Returns ``(tau, ess)``, with ``ess = steps x walkers / tau``.
+    """
+    tau = float(emcee.autocorr.integrated_time(series[:, :, None], tol=0, quiet=True)[0])
+    return tau, float(series.shape[0] * series.shape[1] / tau)
+
+
+def bulk_ess(series: dict) -> dict:
+    """ArviZ's rank-normalised bulk ESS of each ``(chain, draw)`` array of a dict.
+
+    Walkers as chains; returns name -> float.
+    """
+    import arviz_stats as azs
+
+    return {k: float(azs.ess(np.asarray(v), method="bulk", chain_axis=0, draw_axis=1))
+            for k, v in series.items()}
+
+
+def hdi(x, ci: float) -> list:
+    """Highest-density interval ``[lower, upper]`` (ArviZ) of all values of ``x``.
+
+    With probability ``ci``.
+    """
+    import arviz_stats as azs
+
+    return [float(v) for v in azs.hdi(np.ravel(x), prob=ci)]
+
+
+def equal_tailed(x, ci: float) -> list:
+    """Equal-tailed interval ``[lower, upper]`` of all values of ``x``, probability ``ci``.
+
+    The ``(1 - ci) / 2`` and ``(1 + ci) / 2`` quantiles.
+
+    Examples
+    --------
+    >>> equal_tailed(range(101), 0.5)
+    [25.0, 75.0]
+    """
+    lo, hi = np.quantile(np.ravel(x), [0.5 - ci / 2, 0.5 + ci / 2])
+    return [float(lo), float(hi)]
+
+
+def draw_moments(flat, fn, *, chunk: int = 64):
+    """Pointwise values and the mean and sd of per-item probabilities over draws, in chunks.
+
+    One pass over chunks of draws: never a draws x items x classes array.
+
+    Parameters
+    ----------
+    flat : numpy.ndarray
+        ``(draws, ndim)``.
+    fn : callable
+        ``fn(theta)`` of a ``(W, ndim)`` chunk returns ``(pointwise, probs)``:
+        a ``(W, n)`` array (e.g. the log-likelihood of each item) or None, and a
+        sequence of ``k`` probability arrays, each ``(W, n)``.
+    chunk : int, default 64
+        Draws per call of ``fn``.
+
+    Returns
+    -------
+    pointwise : numpy.ndarray or None
+        ``(draws, n)``, when ``fn`` returns one.
+    mean, sd : numpy.ndarray
+        ``(n, k)``, over the draws.
+
+    Examples
+    --------
+    >>> flat = np.array([[0.2], [0.4]])
+    >>> _, m, s = draw_moments(flat, lambda t: (None, [np.repeat(t, 3, axis=1)]))
+    >>> m[:, 0].round(3).tolist(), s[:, 0].round(3).tolist()
+    ([0.3, 0.3, 0.3], [0.1, 0.1, 0.1])
+    """
+    n_draws = flat.shape[0]
+    pointwise = s1 = s2 = None
+    for i in range(0, n_draws, chunk):
+        values, probs = fn(flat[i:i + chunk])
+        if s1 is None:
+            n = probs[0].shape[1]
+            s1, s2 = np.zeros((n, len(probs))), np.zeros((n, len(probs)))
+            if values is not None:
+                pointwise = np.empty((n_draws, n))
+        if values is not None:
+            pointwise[i:i + chunk] = values
+        for j, r in enumerate(probs):
+            s1[:, j] += r.sum(axis=0)
+            s2[:, j] += (r * r).sum(axis=0)
+    m = s1 / n_draws
+    return pointwise, m, np.sqrt(np.maximum(s2 / n_draws - m * m, 0.0))
+
+
+def to_datatree(groups: dict, **kwargs):
+    """ArviZ data from a dict of groups, walkers as chains.
+
+    ``groups`` and ``kwargs`` as for :func:`arviz_base.from_dict`: group name ->
+    {variable -> ``(chain, draw, ...)`` array}; ArviZ's warning about more chains
+    than draws is silenced. Returns an ``xarray.DataTree``.
+    """
+    import arviz_base as azb
+
+    with warnings.catch_warnings():
+        # walkers are ArviZ chains by design (emcee convention); with many walkers and
+        # few kept draws each, ArviZ's dimension-name heuristic would misfire
+        warnings.filterwarnings("ignore", message=_CHAINS_WARNING)
+        return azb.from_dict(groups, **kwargs)
+
+
+def rhat_across_ensembles(ds, n_ens: int) -> dict:
+    """Rank-normalised split R-hat (ArviZ) across independent ensembles.
+
+    The walkers of one ensemble are not independent chains: each ensemble's
+    walkers are regrouped into one chain (draws = walkers x kept draws) first.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        ``(chain, draw)`` variables, the walkers of each ensemble consecutive.
+    n_ens : int
+        Number of ensembles (at least 2).
+
+    Returns
+    -------
+    dict
+        Variable -> R-hat.
+    """
+    import arviz_stats as azs
+    import xarray as xr
+
+    out = {}
+    for k, v in ds.data_vars.items():
+        a = v.values  # (chain, draw)
+        a = a.reshape(n_ens, -1, a.shape[1])  # (ensemble, walker, draw)
+        out[k] = xr.DataArray(a.transpose(0, 2, 1).reshape(n_ens, -1), dims=("chain", "draw"))
+    rh = azs.rhat(xr.Dataset(out))
+    return {k: float(rh[k]) for k in out}

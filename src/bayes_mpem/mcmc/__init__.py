@@ -5,13 +5,14 @@ Both problems sample a log-posterior vectorised over walkers: the beacon of
 of :class:`bayes_mpem.survey_in.posterior.LocationLogPosterior`. Each satisfies
 :class:`LogPosterior` (parameter ``names``, ``ndim``, a ``label``, a
 ``start`` ball and ``__call__``), and this package does the rest
-(:mod:`.driver`, :mod:`.summaries`):
+(:mod:`.driver`, :mod:`.moves`, :mod:`.summaries`):
 
 - :func:`run_ensemble` runs one ensemble in blocks until the kept chain is
   ``tau_factor`` autocorrelation times long and its smallest ESS, by emcee's
   ``steps x walkers / tau`` and by ArviZ's bulk estimate, reaches ``min_ess``;
   :func:`run_ensembles` runs several, each from its own start ball and seed;
-- the move policy: :func:`default_moves` (LBL) and :func:`de_moves` (location);
+- the move policy, :func:`default_moves` (differential evolution, for both), and an exact
+  snooker update, :class:`SnookerMove`;
 - the summaries of a kept chain: :func:`thin_index`, :func:`autocorr_ess`,
   :func:`bulk_ess`, :func:`hdi`, :func:`equal_tailed`, :func:`draw_moments`,
   :func:`to_datatree` and :func:`rhat_across_ensembles`.
@@ -39,16 +40,14 @@ True
 """
 
 from .driver import (
-    DEFAULT_MOVES_LABEL,
     EnsembleRun,
     LogPosterior,
-    de_moves,
-    default_moves,
     place_walkers,
     progress_bar,
     run_ensemble,
     run_ensembles,
 )
+from .moves import DEFAULT_MOVES_LABEL, SnookerMove, default_moves
 from .summaries import (
     autocorr_ess,
     bulk_ess,
@@ -61,6 +60,6 @@ from .summaries import (
 )
 
 __all__ = ["DEFAULT_MOVES_LABEL", "EnsembleRun", "LogPosterior", "autocorr_ess", "bulk_ess",
-           "de_moves", "default_moves", "draw_moments", "equal_tailed", "hdi",
-           "place_walkers", "progress_bar", "rhat_across_ensembles", "run_ensemble",
+           "default_moves", "draw_moments", "equal_tailed", "hdi",
+           "place_walkers", "progress_bar", "SnookerMove", "rhat_across_ensembles", "run_ensemble",
            "run_ensembles", "thin_index", "to_datatree"]

@@ -17,9 +17,7 @@ import emcee
 import numpy as np
 
 from ..exceptions import SamplingWarning
-
-#: How :func:`default_moves` is reported in a result's diagnostics.
-DEFAULT_MOVES_LABEL = "default (DEMove 0.8, DESnookerMove 0.2)"
+from .moves import default_moves
 
 
 @runtime_checkable
@@ -47,42 +45,6 @@ class LogPosterior(Protocol):
     def __call__(self, theta: np.ndarray) -> np.ndarray:
         """Return the log posterior (up to a constant) of ``(W, ndim)``: ``(W,)``, -inf outside."""
         ...  # pragma: no cover
-
-
-# ------------------------------------------------------------------ move policy
-
-
-def default_moves() -> list:
-    """Differential evolution with a snooker update: the LBL posterior's moves.
-
-    Differential evolution proposals (ter Braak & Vrugt 2008) with a snooker
-    update: on the near-Gaussian, correlated 5-D beacon posterior they gave
-    shorter autocorrelation times than emcee's default stretch move
-    (``docs/bayes.md``).
-
-    Returns
-    -------
-    list
-        ``[(DEMove, 0.8), (DESnookerMove, 0.2)]``, emcee's ``moves`` argument.
-    """
-    return [(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)]
-
-
-def de_moves() -> list:
-    """Differential evolution only: the location posterior's moves.
-
-    emcee 3.1.6's ``DESnookerMove`` (in :func:`default_moves`) weighs its
-    Metropolis factor by ``(ndim - 1) / 2`` instead of ``ndim - 1`` and scales
-    its step wrongly (fixed upstream in dfm/emcee#531): on SeaGap's
-    23-parameter location posterior the mix gave depth sd 0.055 m where DE
-    alone, the stretch move and the Laplace approximation give 0.066-0.067 m.
-
-    Returns
-    -------
-    list
-        ``[(DEMove, 1.0)]``, emcee's ``moves`` argument.
-    """
-    return [(emcee.moves.DEMove(), 1.0)]
 
 
 # ------------------------------------------------------------------ the loop

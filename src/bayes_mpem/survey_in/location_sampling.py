@@ -7,7 +7,7 @@ Sampling (:func:`sample_location`) uses the shared driver of :mod:`bayes_mpem.mc
 the posterior satisfies :class:`bayes_mpem.mcmc.LogPosterior`, and the chain runs
 until it is 50 autocorrelation times long and the smallest ESS, by emcee and by
 ArviZ's bulk estimate, reaches ``min_ess``; with differential-evolution moves only
-(:func:`bayes_mpem.mcmc.de_moves`: emcee 3.1.6's snooker move is biased). The
+(:func:`bayes_mpem.mcmc.default_moves`: emcee 3.1.6's snooker move is biased). The
 result, :class:`LocationPosterior`, holds thinned draws, each ping's probability
 of being a true arrival and equal-tailed intervals; :func:`locate_survey_bayes`
 does it for every transponder of a survey.
@@ -26,7 +26,7 @@ from .._rng import RNGLike, as_generator
 from ..mcmc import (
     autocorr_ess,
     bulk_ess,
-    de_moves,
+    default_moves,
     draw_moments,
     equal_tailed,
     run_ensembles,
@@ -248,7 +248,7 @@ def sample_location(pings: pd.DataFrame, fit: LocateResult, *, n_walkers: int | 
     t0 = time.perf_counter()
     [run] = run_ensembles(post, n_walkers=n_walkers, gen=gen,
                           where=f"transponder {fit.transponder}", stacklevel=2,
-                          moves=de_moves(), min_ess=float(min_ess), max_steps=int(max_steps),
+                          moves=default_moves(), min_ess=float(min_ess), max_steps=int(max_steps),
                           progress=progress)
     seconds = time.perf_counter() - t0
     chain = run.chain  # (steps, walkers, ndim)

@@ -103,6 +103,40 @@ class PathChoice:
         return {"requested": self.requested, "path": self.path, "margin": self.margin,
                 "loglik": dict(self.loglik), "rule": RULE}
 
+    @classmethod
+    def from_dict(cls, beacon: str, d: dict) -> PathChoice:
+        """Rebuild a choice from its :meth:`to_dict` record (without the fits).
+
+        Parameters
+        ----------
+        beacon : str
+        d : dict
+            A ``path_choice`` entry of ``summary.json``.
+
+        Returns
+        -------
+        PathChoice
+        """
+        return cls(beacon=beacon, requested=d["requested"], path=d["path"],
+                   loglik={p: float(v) for p, v in d["loglik"].items()})
+
+
+def choices_from_summary(beacons: dict) -> dict:
+    """Rebuild the :class:`PathChoice` of every beacon of a summary that records one.
+
+    Parameters
+    ----------
+    beacons : dict
+        The ``beacons`` entry of a ``summary.json``.
+
+    Returns
+    -------
+    dict of str to PathChoice
+        Empty for output written before ``path="auto"`` existed.
+    """
+    return {b: PathChoice.from_dict(b, s["path_choice"]) for b, s in beacons.items()
+            if "path_choice" in s}
+
 
 def _score(ll) -> float:
     return float(ll) if ll is not None and not math.isnan(ll) else -math.inf

@@ -24,6 +24,7 @@ from .exceptions import (  # noqa: E402
     FitQualityWarning,
     InputError,
     LocateWarning,
+    PathChoiceWarning,
     SamplingWarning,
     SkippedBeaconWarning,
 )
@@ -57,6 +58,7 @@ __all__ = [
     "FitQualityWarning",
     "InputError",
     "LocateWarning",
+    "PathChoiceWarning",
     "PosteriorResult",
     "SamplingWarning",
     "Simulation",

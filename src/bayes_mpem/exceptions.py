@@ -35,3 +35,7 @@ class SkippedBeaconWarning(UserWarning):
 
 class LocateWarning(UserWarning):
     """A location fit is poorly constrained or did not converge."""
+
+
+class PathChoiceWarning(FitQualityWarning):
+    """A forced multipath geometry fits clearly worse than the other one (see ``path="auto"``)."""

@@ -29,6 +29,7 @@ from .lbl.comparison import SurveyComparison
 from .lbl.diagnosis.result import Diagnosis
 from .lbl.em_result import EMResult
 from .lbl.fitting import SurveyFit
+from .lbl.path_choice import choices_from_summary
 from .lbl.pol_sensitivity import POL_GRID, survey_pol_sensitivity
 from .lbl.sampling import SurveyPosterior
 from .mixture.densities import CLASSES
@@ -269,7 +270,8 @@ def _load_fit(d, summary, survey, probs):
             history=history, first_resp=first, settings=s.get("settings", {}),
             d0_se=s.get("d0_se"))
     return SurveyFit(survey=survey, results=results, skipped=summary.get("skipped", {}),
-                     method=summary["method"], options=summary.get("options", {}))
+                     method=summary["method"], options=summary.get("options", {}),
+                     path_choices=choices_from_summary(summary["beacons"]))
 
 
 def _load_posterior(d, summary, survey, probs, num):
@@ -294,4 +296,5 @@ def _load_posterior(d, summary, survey, probs, num):
             diagnostics=s.get("diagnostics", {}), ci=s.get("ci", summary.get("ci", 0.95)))
     return SurveyPosterior(survey=survey, results=results, skipped=summary.get("skipped", {}),
                            priors=summary["priors"], ci=summary.get("ci", 0.95),
-                           options=summary.get("options", {}))
+                           options=summary.get("options", {}),
+                           path_choices=choices_from_summary(summary["beacons"]))

@@ -21,8 +21,9 @@ from . import lbl, survey_in
 def _add_fit_options(p):
     p.add_argument("--method", choices=["mixture", "paper"], default="mixture",
                    help="density-mixture EM (default) or the paper's EM")
-    p.add_argument("--path", choices=["triangle", "double"], default="triangle",
-                   help="multipath geometry: one reflected leg (default) or both")
+    p.add_argument("--path", choices=["auto", "triangle", "double"], default="auto",
+                   help="multipath geometry: one reflected leg, both, or per beacon the "
+                        "likelier of the two (default auto)")
     p.add_argument("--sigma-dp", type=float, default=None, metavar="S",
                    help="direct-path scatter in m (default: estimated from the data)")
     p.add_argument("--pol", type=float, default=None, metavar="P",
@@ -149,7 +150,9 @@ def _add_sample_compare(sub):
             p.add_argument("--ensembles", type=int, default=1, metavar="K",
                            help="independent ensembles; R-hat is reported when K > 1")
             p.add_argument("--figures", action="store_true", help="also write PNG figures")
-        p.add_argument("--path", choices=["triangle", "double"], default="triangle")
+        p.add_argument("--path", choices=["auto", "triangle", "double"], default="auto",
+                       help="multipath geometry (default auto: per beacon the one the mixture "
+                            "EM finds likelier)")
         p.add_argument("--sigma-dp", type=float, default=None, metavar="S",
                        help="fix sigma_DP (m) instead of sampling it")
         p.add_argument("--concentration", type=float, default=None, metavar="C",

@@ -8,7 +8,7 @@ writes ``compare.json`` and ``changed.csv``; its figure is drawn by
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import pandas as pd
 
@@ -18,6 +18,7 @@ from ..exceptions import UnusableStartError
 from ..io.results import output_folder, write_csv, write_json
 from ..io.survey import Survey, load_survey
 from .loo import CLEAR, MIN_DIFF, compare_beacon
+from .path_choice import AUTO, check_path_choice, choose_path
 from .posterior import check_sample_options
 from .survey import option_subset, over_beacons
 
@@ -34,11 +35,15 @@ class SurveyComparison:
         One comparison per beacon.
     skipped : dict of str to str
         Beacons left out, with the reason.
+    path_choices : dict of str to PathChoice
+        Per beacon, the multipath geometry sampled and its EM margin over the
+        other (:func:`~bayes_mpem.lbl.path_choice.choose_path`).
     """
 
     survey: Survey
     results: dict
     skipped: dict
+    path_choices: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
         """Return the content of ``compare.json``.
@@ -47,7 +52,11 @@ class SurveyComparison:
         -------
         dict
         """
-        return {"beacons": {b: r.to_dict() for b, r in self.results.items()},
+        beacons = {b: r.to_dict() for b, r in self.results.items()}
+        for b, entry in beacons.items():
+            if b in self.path_choices:
+                entry["path_choice"] = self.path_choices[b].to_dict()
+        return {"beacons": beacons,
                 "skipped": dict(self.skipped),
                 "rule": f"a difference is clear when |elpd_diff| > {CLEAR:g} elpd_diff_se "
                         f"and > {MIN_DIFF:g}"}
@@ -60,11 +69,12 @@ class SurveyComparison:
         str
         """
         lines = [f"{'beacon':>6} {'elpd equal':>11} {'elpd learned':>12} {'diff':>8} "
-                 f"{'se':>6} {'verdict':>20} {'d0 shift (m)':>12} {'changed':>7}"]
+                 f"{'se':>6} {'verdict':>20} {'d0 shift (m)':>12} {'changed':>7} {'path':>8}"]
         for b, r in self.results.items():
             lines.append(f"{b:>6} {r.elpd['equal'][0]:11.1f} {r.elpd['learned'][0]:12.1f} "
                          f"{r.elpd_diff:8.1f} {r.elpd_diff_se:6.1f} {r.verdict:>20} "
-                         f"{r.shifts['d0']['mean_shift']:12.2f} {len(r.changed):7d}")
+                         f"{r.shifts['d0']['mean_shift']:12.2f} {len(r.changed):7d} "
+                         f"{r.learned.path:>8}")
         return "\n".join(lines)
 
     def changed(self) -> pd.DataFrame:
@@ -116,7 +126,11 @@ def compare(pings, beacons=None, *, min_pings: int = 30, rng: RNGLike = None,
     min_pings : int, default 30
     rng : None, int or numpy.random.Generator
     **kwargs
-        Passed to :func:`~bayes_mpem.lbl.beacon_sampling.sample_beacon`.
+        Passed to :func:`~bayes_mpem.lbl.beacon_sampling.sample_beacon`. ``path``
+        may also be ``"auto"`` (the default): per beacon the geometry is chosen
+        by the mixture EM with learned weights
+        (:func:`~bayes_mpem.lbl.path_choice.choose_path`), then both priors are
+        sampled with it; a forced geometry that loses by more than 10 nats warns.
 
     Returns
     -------
@@ -131,14 +145,24 @@ def compare(pings, beacons=None, *, min_pings: int = 30, rng: RNGLike = None,
     -----
     SkippedBeaconWarning
         For a beacon with too few replies or an unusable EM start.
+    PathChoiceWarning
+        For a beacon whose forced ``path`` is clearly worse than the other.
     """
+    path = check_path_choice(kwargs.pop("path", AUTO))
     check_sample_options(**option_subset(kwargs))
     survey = load_survey(pings, beacons)
     gen = as_generator(rng)
+    choices = {}
 
     def compare_one(data):
-        return compare_beacon(data, rng=gen, **kwargs)
+        # stacklevel 5: choose_path, compare_one, over_beacons, compare, then its caller;
+        # the fit itself only chooses (each prior's run fits its own EM start)
+        choice = choose_path(data, path, sigma_dp=kwargs.get("sigma_dp"), rng=gen,
+                             fit_warnings=False, stacklevel=5)
+        choices[data.beacon] = choice
+        return compare_beacon(data, rng=gen, path=choice.path, **kwargs)
 
     results, skipped = over_beacons(survey, min_pings, compare_one,
                                     skip_on=(UnusableStartError,))
-    return SurveyComparison(survey=survey, results=results, skipped=skipped)
+    return SurveyComparison(survey=survey, results=results, skipped=skipped,
+                            path_choices=choices)

@@ -17,9 +17,9 @@ from .._rng import RNGLike, as_generator
 from .._validate import check_choice
 from ..io.results import output_folder, write_csv, write_json
 from ..io.survey import Survey, load_survey
-from .em_mixture import fit_mixture_em
 from .em_paper import fit_paper_em
 from .em_result import check_options
+from .path_choice import AUTO, check_path_choice, choose_path
 from .survey import beacons_table, classified_table, over_beacons
 
 METHODS = ("mixture", "paper")
@@ -40,6 +40,9 @@ class SurveyFit:
     method : str
     options : dict
         The options passed to the per-beacon fits.
+    path_choices : dict of str to PathChoice
+        Per fitted beacon, the multipath geometry used and its margin over the
+        other (:func:`~bayes_mpem.lbl.path_choice.choose_path`).
     """
 
     survey: Survey
@@ -47,6 +50,7 @@ class SurveyFit:
     skipped: dict
     method: str
     options: dict = field(default_factory=dict)
+    path_choices: dict = field(default_factory=dict)
 
     def classified(self) -> pd.DataFrame:
         """Every input row with ``p_dp``, ``p_mp``, ``p_ol``, ``label`` and ``reason``.
@@ -75,6 +79,8 @@ class SurveyFit:
             d["beacon_depth"] = depth
             d["plane_depth"] = depth - res.d0
             d["n_no_reply"] = int(np.sum(self.survey.no_reply & (self.survey.beacon == bid)))
+            if bid in self.path_choices:
+                d["path_choice"] = self.path_choices[bid].to_dict()
             beacons[bid] = d
         return {
             "method": self.method,
@@ -106,7 +112,8 @@ class SurveyFit:
             Columns ``beacon``, ``hrp_m`` (fitted plane height d0),
             ``sigma_mp_m``, ``beacon_depth_m``, ``plane_depth_m``, ``sigma_dp_m``,
             ``dp``, ``mp``, ``ol`` (fractions of ranges per label), ``n``,
-            ``converged``.
+            ``converged``, ``path`` and ``path_margin`` (log-likelihood of the
+            geometry used minus the other's, nats; NaN when not measured).
         """
         rows = []
         for bid, res in self.results.items():
@@ -115,7 +122,9 @@ class SurveyFit:
             rows.append({"beacon": bid, "hrp_m": res.d0, "sigma_mp_m": res.sigma_mp,
                          "beacon_depth_m": depth, "plane_depth_m": depth - res.d0,
                          "sigma_dp_m": res.sigma_dp, **fr, "n": res.n,
-                         "converged": res.converged})
+                         "converged": res.converged, "path": res.path,
+                         "path_margin": (self.path_choices[bid].margin
+                                         if bid in self.path_choices else float("nan"))})
         return pd.DataFrame(rows)
 
     def format_table(self) -> str:
@@ -127,11 +136,12 @@ class SurveyFit:
         """
         t = self.table()
         lines = [f"{'beacon':>6} {'HRP d0 (m)':>11} {'sigma_MP (m)':>12} {'depth (m)':>10} "
-                 f"{'plane (m)':>9} {'DP':>6} {'MP':>6} {'OL':>6} {'n':>6}"]
+                 f"{'plane (m)':>9} {'DP':>6} {'MP':>6} {'OL':>6} {'n':>6} {'path':>8} "
+                 f"{'margin':>7}"]
         for r in t.itertuples():
             lines.append(f"{r.beacon:>6} {r.hrp_m:11.1f} {r.sigma_mp_m:12.2f} "
                          f"{r.beacon_depth_m:10.1f} {r.plane_depth_m:9.1f} {r.dp:6.3f} "
-                         f"{r.mp:6.3f} {r.ol:6.3f} {r.n:6d}")
+                         f"{r.mp:6.3f} {r.ol:6.3f} {r.n:6d} {r.path:>8} {r.path_margin:7.0f}")
         for bid, why in self.skipped.items():
             lines.append(f"{bid:>6} skipped: {why}")
         return "\n".join(lines)
@@ -174,7 +184,7 @@ def fit(
     beacons=None,
     *,
     method: str = "mixture",
-    path: str = "triangle",
+    path: str = AUTO,
     sigma_dp: float | None = None,
     pol: float = 0.05,
     alpha: float = 0.5,
@@ -193,8 +203,13 @@ def fit(
         The beacons table (not needed when ``pings`` is a Survey).
     method : {"mixture", "paper"}
         The density-mixture EM (default) or the paper's EM.
-    path : {"triangle", "double"}
-        Multipath geometry: one reflected leg (default) or both.
+    path : {"auto", "triangle", "double"}
+        Multipath geometry: one reflected leg, both, or (default) per beacon the
+        one whose mixture-EM fit has the higher log-likelihood
+        (:func:`~bayes_mpem.lbl.path_choice.choose_path`). Both are fitted in
+        every case; a forced geometry that loses by more than 10 nats warns. With
+        ``method="paper"`` the geometry is chosen by the mixture EM too (the
+        paper's EM has no likelihood of its own), then the paper's EM runs on it.
     sigma_dp : float, optional
         Direct-path scatter (m); estimated from the data if omitted.
     pol, alpha : float
@@ -223,6 +238,8 @@ def fit(
     -----
     SkippedBeaconWarning
         For every beacon left unfitted.
+    PathChoiceWarning
+        For a beacon whose forced ``path`` is clearly worse than the other.
 
     Examples
     --------
@@ -233,15 +250,24 @@ def fit(
     ['1', '2', '3', '4']
     """
     check_choice("method", method, METHODS)
-    check_options(path=path, weights=weights, pol=pol, alpha=alpha, sigma_dp=sigma_dp)
+    check_path_choice(path)
+    check_options(weights=weights, pol=pol, alpha=alpha, sigma_dp=sigma_dp)
     survey = load_survey(pings, beacons)
     gen = as_generator(rng)
+    choices = {}
 
     def fit_one(data):
+        # stacklevel 5: choose_path, fit_one, over_beacons, fit, then fit's caller
         if method == "mixture":
-            return fit_mixture_em(data, path=path, sigma_dp=sigma_dp, weights=weights, rng=gen,
-                                  **kwargs)
-        return fit_paper_em(data, path=path, sigma_dp=sigma_dp, pol=pol, alpha=alpha, **kwargs)
+            choice = choose_path(data, path, sigma_dp=sigma_dp, weights=weights, rng=gen,
+                                 stacklevel=5, **kwargs)
+            choices[data.beacon] = choice
+            return choice.fit
+        choice = choose_path(data, path, sigma_dp=sigma_dp, rng=gen, fit_warnings=False,
+                             stacklevel=5)
+        choices[data.beacon] = choice
+        return fit_paper_em(data, path=choice.path, sigma_dp=sigma_dp, pol=pol, alpha=alpha,
+                            **kwargs)
 
     results, skipped = over_beacons(survey, min_pings, fit_one)
     options = {"path": path, "sigma_dp": sigma_dp, "min_pings": min_pings, **kwargs}
@@ -250,4 +276,4 @@ def fit(
     else:
         options.update(pol=pol, alpha=alpha)
     return SurveyFit(survey=survey, results=results, skipped=skipped, method=method,
-                     options=options)
+                     options=options, path_choices=choices)

@@ -10,6 +10,7 @@ from ..io.results import output_folder, write_csv, write_json
 from ..io.survey import Survey, load_survey
 from ..mixture.densities import CLASSES
 from .beacon_sampling import PosteriorResult, sample_beacon
+from .path_choice import AUTO, check_path_choice, choose_path
 from .posterior import check_sample_options
 from .survey import beacons_table, classified_table, option_subset, over_beacons
 
@@ -27,6 +28,9 @@ class SurveyPosterior:
     priors : str
     ci : float
     options : dict
+    path_choices : dict of str to PathChoice
+        Per beacon, the multipath geometry sampled and its EM margin over the
+        other (:func:`~bayes_mpem.lbl.path_choice.choose_path`).
     """
 
     survey: Survey
@@ -35,6 +39,7 @@ class SurveyPosterior:
     priors: str
     ci: float
     options: dict = field(default_factory=dict)
+    path_choices: dict = field(default_factory=dict)
 
     def classified(self):
         """Every input row with posterior class probabilities, their sd, ``label``, ``reason``.
@@ -67,6 +72,8 @@ class SurveyPosterior:
             d["plane_depth"] = {"mean": depth - r.summary["d0"]["mean"],
                                 "interval": [depth - hi, depth - lo]}
             d["n"] = int(r.rows.size)
+            if bid in self.path_choices:
+                d["path_choice"] = self.path_choices[bid].to_dict()
             beacons[bid] = d
         return {"priors": self.priors, "ci": self.ci, "beacons": beacons,
                 "beacons_table": beacons_table(self.survey), "skipped": dict(self.skipped),
@@ -94,7 +101,7 @@ class SurveyPosterior:
         pct = f"{100 * self.ci:g}%"
         lines = [f"{'beacon':>6} {'d0 (m)':>9} {pct + ' interval':>21} {'sigma_MP (m)':>12} "
                  f"{pct + ' interval':>15} {'depth':>7} {'w_dp':>5} {'w_mp':>5} {'w_ol':>5} "
-                 f"{'min ESS':>7}"]
+                 f"{'min ESS':>7} {'path':>8}"]
         for bid, r in self.results.items():
             s = r.summary
             d_lo, d_hi = s["d0"]["interval"]
@@ -105,7 +112,7 @@ class SurveyPosterior:
                 f"{s['sigma_mp']['mean']:12.2f} [{m_lo:5.2f}, {m_hi:6.2f}] "
                 f"{float(self.survey.beacons.loc[bid, 'depth']):7.1f} "
                 f"{w['dp']['mean']:5.3f} {w['mp']['mean']:5.3f} {w['ol']['mean']:5.3f} "
-                f"{r.min_ess:7.0f}")
+                f"{r.min_ess:7.0f} {r.path:>8}")
         for bid, why in self.skipped.items():
             lines.append(f"{bid:>6} skipped: {why}")
         return "\n".join(lines)
@@ -173,7 +180,11 @@ def sample(
     rng : None, int or numpy.random.Generator
     **kwargs
         Passed to :func:`~bayes_mpem.lbl.beacon_sampling.sample_beacon` (``sigma_dp``,
-        ``path``, ``concentration``, ``n_ensembles``, ``progress``, ...).
+        ``concentration``, ``n_ensembles``, ``progress``, ...). ``path`` may also be
+        ``"auto"`` (the default): per beacon, the mixture EM is fitted with both
+        geometries, the likelier is kept (:func:`~bayes_mpem.lbl.path_choice.choose_path`)
+        and its fit starts the walkers; a forced geometry that loses by more than 10
+        nats warns.
 
     Returns
     -------
@@ -189,6 +200,8 @@ def sample(
     SkippedBeaconWarning
         For a beacon with too few replies, or whose EM solution lies outside the
         prior (it is left unsampled, with the reason, instead of stopping the survey).
+    PathChoiceWarning
+        For a beacon whose forced ``path`` is clearly worse than the other.
 
     Examples
     --------
@@ -199,13 +212,22 @@ def sample(
     >>> bool(lo < 2472 < hi)
     True
     """
+    path = check_path_choice(kwargs.pop("path", AUTO))
     check_sample_options(priors=priors, ci=ci, **option_subset(kwargs))
     survey = load_survey(pings, beacons)
     gen = as_generator(rng)
+    choices = {}
 
     def sample_one(data) -> PosteriorResult:
-        return sample_beacon(data, priors=priors, ci=ci, rng=gen, **kwargs)
+        # stacklevel 5: choose_path, sample_one, over_beacons, sample, then sample's caller
+        choice = choose_path(data, path, sigma_dp=kwargs.get("sigma_dp"),
+                             weights="learned" if priors == "learned" else "equal",
+                             rng=gen, stacklevel=5)
+        choices[data.beacon] = choice
+        return sample_beacon(data, priors=priors, ci=ci, rng=gen, path=choice.path,
+                             **{"init": choice.fit, **kwargs})
 
     results, skipped = over_beacons(survey, min_pings, sample_one, skip_on=(UnusableStartError,))
     return SurveyPosterior(survey=survey, results=results, skipped=skipped, priors=priors,
-                           ci=float(ci), options={"min_pings": min_pings, **kwargs})
+                           ci=float(ci), options={"min_pings": min_pings, "path": path, **kwargs},
+                           path_choices=choices)

@@ -8,8 +8,8 @@ increases the weighted squared error; closed-form scatters. The
 log-likelihood therefore never decreases.
 
 * :func:`baseline_start` starts the baseline (no effect) from the per-beacon
-  mixture EM (:func:`bayes_mpem.lbl.em_mixture.fit_mixture_em`), and picks
-  the multipath geometry;
+  mixture EM with both geometries (:func:`bayes_mpem.lbl.path_choice.choose_path`),
+  and picks the multipath geometry of the joint model;
 * :func:`start_for` and :func:`replant` give starting points for a model
   with more effects;
 * :func:`fit_joint` runs the ECM from several starts and keeps the best, a
@@ -44,6 +44,7 @@ from ..._rng import as_generator
 from ...mixture.gauss_newton import safeguarded_step
 from .. import geometry
 from ..em_mixture import fit_mixture_em, histogram_modes
+from ..path_choice import choose_path
 from .model import (
     Params,
     Ranges,
@@ -297,19 +298,22 @@ def baseline_start(d: Ranges, fittable, path, rng):
     paths = geometry.PATHS if path == "auto" else (path,)
     best, logliks = None, {}
     seed = int(as_generator(rng).integers(2**31))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # flags are reported on the joint fit instead
+        # both geometries per beacon, the fits fit/sample/compare choose from; the joint
+        # model shares one geometry, so the choice here is by the summed log-likelihoods
+        choices = [choose_path(data, "auto", rng=seed + j) for j, data in enumerate(fittable)]
     for pth in paths:
         plane = np.empty(nb)
         sigma = np.empty((nb, 3))
         weights = np.zeros((nb, 4))
         total = 0.0
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # flags are reported on the joint fit instead
-            for j, data in enumerate(fittable):
-                r = fit_mixture_em(data, path=pth, rng=seed + j)
-                plane[j] = d.bz[j] - r.d0
-                sigma[j] = (r.sigma_dp, r.sigma_mp, r.sigma_mp)
-                weights[j] = (r.weights["dp"], r.weights["mp"], 0.0, r.weights["ol"])
-                total += float(r.loglik)
+        for j, choice in enumerate(choices):
+            r = choice.fits[pth]
+            plane[j] = d.bz[j] - r.d0
+            sigma[j] = (r.sigma_dp, r.sigma_mp, r.sigma_mp)
+            weights[j] = (r.weights["dp"], r.weights["mp"], 0.0, r.weights["ol"])
+            total += choice.loglik[pth]
         logliks[pth] = total
         if best is None or total > best[2]:
             best = (Params(plane=plane, sigma=sigma, weights=weights), pth, total)

@@ -165,7 +165,7 @@ def diagnose(
                 "candidates": list(effects), "min_pings": int(min_pings)}
     return Diagnosis(effects=found, baseline=base, final=current, candidates=candidates,
                      residual_checks=checks, skipped=skipped, survey=survey, data=d,
-                     settings=settings)
+                     settings=settings, beacon_flags=current.flags(d, kw["sigma_floor"]))
 
 
 def _progress(msg):

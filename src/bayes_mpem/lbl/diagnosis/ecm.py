@@ -193,55 +193,6 @@ class JointFit:
             out[bid] = entry
         return out
 
-    def flags(self, data: Ranges, sigma_floor: float = 0.05) -> dict:
-        """Why each beacon's fit is not credible: the per-beacon EM's quality checks, jointly.
-
-        The checks of :func:`bayes_mpem.lbl.em_result.quality_flags`, on this
-        joint fit's per-beacon parameters, and one more: the multipath family
-        lying on the direct path (its median separation from it below twice the
-        multipath scatter), where a plane near the vehicle mimics a range bias.
-
-        Parameters
-        ----------
-        data : Ranges
-            The replies the fit saw.
-        sigma_floor : float, default 0.05
-            The scale floor of the fit.
-
-        Returns
-        -------
-        dict
-            Beacon id to a list of reasons; empty lists for credible beacons.
-        """
-        p = self.params
-        mu = predict(data, p, self.effects, self.path)
-        out = {}
-        for j, bid in enumerate(data.ids):
-            sel = data.bi == j
-            flags = []
-            n_mp = float(self.resp[sel, 1].sum())
-            s_mp = float(p.sigma[j, 1])
-            if n_mp < 10:
-                flags.append(f"only {n_mp:.1f} ranges' worth of multipath: no reflector "
-                             "identified")
-            if s_mp <= 1.05 * sigma_floor:
-                flags.append(f"sigma_MP = {s_mp:.3g} m is at its floor: the multipath "
-                             "component collapsed onto a few ranges")
-            elif s_mp > 100.0:
-                flags.append(f"sigma_MP = {s_mp:.0f} m: no coherent multipath band")
-            if sel.any() and float(self.resp[sel, 0].mean()) < 0.01:
-                flags.append("almost no range matches the direct path: check the beacon "
-                             "position and the navigation")
-            gap = float(np.median(mu["mp"][sel] - mu["dp"][sel])) if sel.any() else np.inf
-            if gap < 2.0 * s_mp:
-                flags.append(f"the multipath family lies on the direct path (median "
-                             f"separation {gap:.1f} m, sigma_MP = {s_mp:.1f} m; plane depth "
-                             f"{p.plane[j]:.0f} m)")
-            if p.plane[j] < -10.0:
-                flags.append(f"the plane is {-p.plane[j]:.0f} m above the sea surface")
-            out[bid] = flags
-        return out
-
 
 def _modes(v, k):
     """Return the ``k`` strongest modes of the depths ``v`` (5 m bins, 25 m apart, > 4 ranges)."""
@@ -352,7 +303,7 @@ def baseline_start(d: Ranges, fittable, path, rng):
         weights = np.zeros((nb, 4))
         total = 0.0
         with warnings.catch_warnings():
-            # flags are reported on the final joint fit instead (JointFit.flags)
+            # flags are reported on the final joint fit instead (residuals.beacon_flags)
             warnings.simplefilter("ignore")
             for j, data in enumerate(fittable):
                 r = fit_mixture_em(data, path=pth, rng=seed + j)

@@ -98,7 +98,7 @@ class Diagnosis:
     settings : dict
     beacon_flags : dict
         Beacon id to the reasons its final fit is not credible
-        (:meth:`~bayes_mpem.lbl.diagnosis.ecm.JointFit.flags`); empty lists when it is.
+        (:func:`~bayes_mpem.lbl.diagnosis.residuals.beacon_flags`); empty lists when it is.
     """
 
     effects: list

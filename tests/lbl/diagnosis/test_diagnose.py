@@ -10,6 +10,7 @@ ranges; the ranges for the project simulator are listed in ``SIM_RANGES``.
 
 import json
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -17,8 +18,9 @@ import pytest
 
 from bayes_mpem.cli import main
 from bayes_mpem.exceptions import InputError
+from bayes_mpem.io.survey import load_survey
 from bayes_mpem.lbl.diagnosis.driver import diagnose
-from bayes_mpem.lbl.diagnosis.ecm import fit_joint
+from bayes_mpem.lbl.diagnosis.ecm import baseline_start, fit_joint, replant
 from bayes_mpem.lbl.diagnosis.model import ranges
 from bayes_mpem.lbl.effects import EFFECTS
 from bayes_mpem.lbl.em_mixture import fit_mixture_em
@@ -240,3 +242,42 @@ def test_simulator_effects():
     with pytest.raises(ValueError, match="no direct path"):
         simulate_survey("abe58", rng=0, effects={"second_reflector": 500.0,
                                                  "second_fraction": 0.9})
+
+
+def test_replant_drops_replies_shorter_than_the_bias():
+    """A beacon with a reply shorter than the fitted bias is replanted without that reply.
+
+    The old replant skipped such a beacon, so a plane pulled onto the direct path stayed there.
+    """
+    sim = simulate_survey("abe58", rng=2, n_cycles=300, effects={"range_bias": 6.0})
+    pings = sim.survey.table.drop(columns="true_class").copy()
+    first = np.flatnonzero((pings.beacon.astype(str) == "1") & pings["range"].notna())[0]
+    pings.loc[first, "range"] = 2.0  # an outlier shorter than the 6 m bias
+    beacons = sim.survey.beacons.reset_index()
+    survey = load_survey(pings, beacons)
+    fittable, _ = fittable_beacons(survey, 30)
+    d = ranges(survey, fittable)
+    start, path, _ = baseline_start(d, fittable, "triangle", 0)
+    fit = fit_joint(d, ("range_bias",), start, path=path)
+    good = fit.params.plane[0]
+    bad = replace(fit, params=fit.params.copy())
+    bad.params.plane[0] = float(np.min(d.vdepth[d.bi == 0])) - 0.5  # on the direct path
+    fresh = replant(d, bad, fittable, path, 0)
+    assert fresh is not None
+    assert abs(fresh.plane[0] - good) < 3.0, (fresh.plane[0], good)
+
+
+def test_a_plane_kilometres_off_is_reported():
+    """Independent generator, seed 19, +13 m bias: beacon D's plane stays ~3 km off (multipath on
+    the direct path, w_dp = 0); the final fit's quality checks name it, in the summary and JSON.
+    """
+    g = indep.generate("range_bias", 12.997951186567962, seed=19)
+    result = diagnose(g["pings"], g["beacons"], rng=19, progress=False)
+    final = result.to_dict()["final_model"]["beacons"]
+    off = {b for b, v in final.items() if abs(v["plane_depth"]) > 1000.0}
+    assert off == {"D"}
+    flagged = {b for b, v in final.items() if v["flags"]}
+    assert off <= flagged, (off, flagged)
+    assert all(f"beacon {b}: fit not credible" in result.summary() for b in off)
+    clean = diagnose(*GENERATORS["independent"]([], 0)[:2], rng=0, progress=False)
+    assert not any(clean.beacon_flags.values()), clean.beacon_flags

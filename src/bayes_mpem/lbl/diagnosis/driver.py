@@ -69,7 +69,7 @@ from .evidence import (
     not_credible,
 )
 from .model import Ranges, ranges
-from .residuals import residual_checks
+from .residuals import beacon_flags, residual_checks
 from .result import Diagnosis, Effect
 
 
@@ -165,7 +165,7 @@ def diagnose(
                 "candidates": list(effects), "min_pings": int(min_pings)}
     return Diagnosis(effects=found, baseline=base, final=current, candidates=candidates,
                      residual_checks=checks, skipped=skipped, survey=survey, data=d,
-                     settings=settings)
+                     settings=settings, beacon_flags=beacon_flags(current, d, kw["sigma_floor"]))
 
 
 def _progress(msg):

@@ -299,7 +299,7 @@ def baseline_start(d: Ranges, fittable, path, rng):
     best, logliks = None, {}
     seed = int(as_generator(rng).integers(2**31))
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # flags are reported on the joint fit instead
+        warnings.simplefilter("ignore")  # flags: on the final joint fit (residuals.beacon_flags)
         # both geometries per beacon, the fits fit/sample/compare choose from; the joint
         # model shares one geometry, so the choice here is by the summed log-likelihoods
         choices = [choose_path(data, "auto", rng=seed + j) for j, data in enumerate(fittable)]
@@ -423,12 +423,15 @@ def replant(d: Ranges, fit: JointFit, fittable, path, rng) -> Params | None:
             if "nav_drift" in fit.effects:
                 x, y = x + p.nav[0] * tau, y + p.nav[1] * tau
             z = (data.range - b) / k
-            if np.any(z <= 0):
-                continue
-            corrected = replace(data, range=z, x=x, y=y)
+            # a reply shorter than the fitted bias is no path at all: leave it out of this
+            # beacon's restart (the joint fit still scores it, as an outlier)
+            keep = z > 0
+            corrected = replace(data, range=z[keep], x=x[keep], y=y[keep],
+                                depth=data.depth[keep], time=data.time[keep],
+                                rows=data.rows[keep])
             try:
                 r = fit_mixture_em(corrected, path=path, rng=rng, n_init=4)
-            except ValueError:
+            except ValueError:  # fewer than 3 replies left: the beacon keeps its plane
                 continue
             plane = float(d.bz[j] - r.d0)
             if "plane_drift" in fit.effects:

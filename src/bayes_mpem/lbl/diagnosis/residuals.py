@@ -5,7 +5,9 @@ standardised residuals of the confidently classified direct-path and
 multipath replies of every beacon against each covariate of
 :func:`covariates` (time, range, elevation, vehicle depth, bearing) and tests
 the bin means against zero. A significant check is structure no effect of
-:data:`~bayes_mpem.lbl.effects.EFFECTS` explains.
+:data:`~bayes_mpem.lbl.effects.EFFECTS` explains. :func:`beacon_flags` runs the
+per-beacon EM's quality checks on the final joint fit: a beacon whose fit is not
+credible (e.g. its multipath on the direct path) is named, not left silent.
 """
 
 from __future__ import annotations
@@ -99,3 +101,55 @@ def residual_checks(fit: JointFit, d: Ranges, *, n_bins=10, alpha=1e-4) -> list:
                          f"{ch['against']} (bin means up to {ch['max_bin_mean']:.2f} m, "
                          f"p = {ch['p_value']:.1e})")
     return checks
+
+
+def beacon_flags(fit, data, sigma_floor: float = 0.05) -> dict:
+    """Why each beacon's fit is not credible: the per-beacon EM's quality checks, jointly.
+
+    The checks of :func:`bayes_mpem.lbl.em_result.quality_flags`, on this
+    joint fit's per-beacon parameters, and one more: the multipath family
+    lying on the direct path (its median separation from it below twice the
+    multipath scatter), where a plane near the vehicle mimics a range bias.
+
+    Parameters
+    ----------
+    fit : JointFit
+        The final joint fit.
+    data : Ranges
+        The replies the fit saw.
+    sigma_floor : float, default 0.05
+        The scale floor of the fit.
+
+    Returns
+    -------
+    dict
+        Beacon id to a list of reasons; empty lists for credible beacons.
+    """
+    p = fit.params
+    mu = predict(data, p, fit.effects, fit.path)
+    out = {}
+    for j, bid in enumerate(data.ids):
+        sel = data.bi == j
+        flags = []
+        n_mp = float(fit.resp[sel, 1].sum())
+        s_mp = float(p.sigma[j, 1])
+        if n_mp < 10:
+            flags.append(f"only {n_mp:.1f} ranges' worth of multipath: no reflector "
+                         "identified")
+        if s_mp <= 1.05 * sigma_floor:
+            flags.append(f"sigma_MP = {s_mp:.3g} m is at its floor: the multipath "
+                         "component collapsed onto a few ranges")
+        elif s_mp > 100.0:
+            flags.append(f"sigma_MP = {s_mp:.0f} m: no coherent multipath band")
+        if sel.any() and float(fit.resp[sel, 0].mean()) < 0.01:
+            flags.append("almost no range matches the direct path: check the beacon "
+                         "position and the navigation")
+        gap = float(np.median(mu["mp"][sel] - mu["dp"][sel])) if sel.any() else np.inf
+        if gap < 2.0 * s_mp:
+            flags.append(f"the multipath family lies on the direct path (median "
+                         f"separation {gap:.1f} m, sigma_MP = {s_mp:.1f} m; plane depth "
+                         f"{p.plane[j]:.0f} m)")
+        if p.plane[j] < -10.0:
+            flags.append(f"the plane is {-p.plane[j]:.0f} m above the sea surface")
+        out[bid] = flags
+    return out

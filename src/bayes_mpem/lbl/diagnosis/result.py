@@ -96,6 +96,9 @@ class Diagnosis:
     data : Ranges
         The replies of every fitted beacon, as the joint fits saw them.
     settings : dict
+    beacon_flags : dict
+        Beacon id to the reasons its final fit is not credible
+        (:func:`~bayes_mpem.lbl.diagnosis.residuals.beacon_flags`); empty lists when it is.
     """
 
     effects: list
@@ -107,6 +110,7 @@ class Diagnosis:
     survey: Survey = field(repr=False)
     data: Ranges = field(repr=False)
     settings: dict = field(default_factory=dict)
+    beacon_flags: dict = field(default_factory=dict)
 
     @property
     def unexplained(self) -> list:
@@ -126,11 +130,14 @@ class Diagnosis:
         dict
         """
         d = self.data
+        final = self.final.beacons(d)
+        for bid, entry in final.items():
+            entry["flags"] = list(self.beacon_flags.get(bid, []))
         return {
             "effects": [e.to_dict() for e in self.effects],
             "beacons": self.baseline.beacons(d),
             "final_model": {"effects": self.final.magnitudes(d),
-                            "beacons": self.final.beacons(d),
+                            "beacons": final,
                             "loglik": self.final.loglik},
             "baseline_loglik": self.baseline.loglik,
             "candidates": self.candidates,
@@ -171,18 +178,22 @@ class Diagnosis:
         -------
         str
         """
-        if not self.effects and not self.unexplained:
+        flagged = {b: f for b, f in self.beacon_flags.items() if f}
+        if not self.effects and not self.unexplained and not flagged:
             lines = ["No effect found: the paper's model explains these data "
                      f"({len(self.candidates)} extensions tried, none clearly better)."]
         elif not self.effects:
             lines = ["No effect of the vocabulary predicts these data better "
-                     f"({len(self.candidates)} extensions tried), but residual structure is "
-                     "left that the model does not explain:"]
+                     f"({len(self.candidates)} extensions tried), but "
+                     + ("residual structure is left that the model does not explain:"
+                        if self.unexplained else "some beacons' fits are not credible:")]
         else:
             lines = ["Effects found:"]
             for e in self.effects:
                 lines.append(f"  {e.name}: {e.magnitude:+.4g} {e.unit}  ({e.evidence})")
         for c in self.unexplained:
             lines.append(f"  unexplained: {c['message']}")
+        for bid, reasons in flagged.items():
+            lines.append(f"  beacon {bid}: fit not credible: {'; '.join(reasons)}")
         return "\n".join(lines)
 

@@ -15,13 +15,14 @@ import warnings
 
 from .. import __version__
 from ..exceptions import InputError
+from ..lbl.path_choice import PATH_CHOICES
 from . import lbl, survey_in
 
 
 def _add_fit_options(p):
     p.add_argument("--method", choices=["mixture", "paper"], default="mixture",
                    help="density-mixture EM (default) or the paper's EM")
-    p.add_argument("--path", choices=["auto", "triangle", "double"], default="auto",
+    p.add_argument("--path", choices=PATH_CHOICES, default="auto",
                    help="multipath geometry: one reflected leg, both, or per beacon the "
                         "likelier of the two (default auto)")
     p.add_argument("--sigma-dp", type=float, default=None, metavar="S",
@@ -82,7 +83,7 @@ def _add_fit_diagnose(sub):
                    help="beacons CSV (beacon, x, y, depth)")
     p.add_argument("--out", required=True, metavar="DIR")
     p.add_argument("--seed", type=int, default=0, help="random seed of the folds (default 0)")
-    p.add_argument("--path", choices=["auto", "triangle", "double"], default="auto",
+    p.add_argument("--path", choices=PATH_CHOICES, default="auto",
                    help="multipath geometry (default: the likelier of the two)")
     p.add_argument("--effects", default=None, metavar="LIST",
                    help="comma-separated candidate effects (default: all)")
@@ -150,7 +151,7 @@ def _add_sample_compare(sub):
             p.add_argument("--ensembles", type=int, default=1, metavar="K",
                            help="independent ensembles; R-hat is reported when K > 1")
             p.add_argument("--figures", action="store_true", help="also write PNG figures")
-        p.add_argument("--path", choices=["auto", "triangle", "double"], default="auto",
+        p.add_argument("--path", choices=PATH_CHOICES, default="auto",
                        help="multipath geometry (default auto: per beacon the one the mixture "
                             "EM finds likelier)")
         p.add_argument("--sigma-dp", type=float, default=None, metavar="S",

@@ -136,6 +136,9 @@ def _sd_z(moves, ndim, seed, n_steps=6000, n_walkers=32):
 
     The error of a sample sd is about ``1 / sqrt(2 ESS)``; ESS from emcee's
     integrated autocorrelation time of the squared coordinates (what sd depends on).
+    The walkers of an ensemble are not independent chains, nor are the coordinates
+    independent under DE moves, so this z overstates the precision: over 40 seeds its sd
+    was 1.1-1.9 instead of 1 (an independent review's measurement), hence the bands below.
     """
     sampler = emcee.EnsembleSampler(n_walkers, ndim, lambda th: -0.5 * np.sum(th * th, axis=1),
                                     vectorize=True, moves=moves)
@@ -154,11 +157,12 @@ def _sd_z(moves, ndim, seed, n_steps=6000, n_walkers=32):
 @pytest.mark.slow
 @pytest.mark.parametrize("ndim", [5, 16])
 def test_shipped_moves_sample_a_standard_normal_exactly(ndim):
-    """The shipped moves and the exact snooker keep N(0, I): sd within 4 MC errors of 1."""
+    """The shipped moves and the exact snooker keep N(0, I): |z| < 8, i.e. about 4 standard
+    deviations of z itself (sd up to ~1.9); the released snooker sits at z -11 to -42."""
     for moves in (mcmc.default_moves(),
                   [(emcee.moves.DEMove(), 0.8), (mcmc.SnookerMove(), 0.2)]):
         z, sd = _sd_z(moves, ndim, seed=ndim)
-        assert abs(z) < 4.0, (moves, sd)
+        assert abs(z) < 8.0, (moves, sd)
 
 
 @pytest.mark.slow
@@ -166,4 +170,4 @@ def test_shipped_moves_sample_a_standard_normal_exactly(ndim):
 def test_the_check_catches_emcee_3_1_6_snooker(ndim):
     """The released snooker in the same mix is too narrow (sd 0.96 at 5-D, 0.91 at 16-D)."""
     z, sd = _sd_z([(emcee.moves.DEMove(), 0.8), (ReleasedSnooker(), 0.2)], ndim, seed=ndim)
-    assert z < -6.0, sd
+    assert z < -8.0, sd

@@ -57,6 +57,26 @@ def test_auto_equals_the_old_triangle_default_on_triangle_data():
         assert r.loglik == forced.results[b].loglik
 
 
+def test_the_forced_fit_and_the_callers_stream_are_those_of_a_single_fit():
+    """Above 20,000 replies the EM subsamples its starts (it draws from ``rng``): the path
+    asked for draws as one ``fit_mixture_em`` did, the other geometry from a child stream, so
+    the caller's next draw (the next beacon, the sampler) is the same as before path choice."""
+    import numpy as np
+
+    from bayes_mpem.lbl.em_mixture import fit_mixture_em
+
+    data = bm.simulate_survey("abe58", rng=3, n_cycles=22_500).survey.for_beacon("4")
+    assert data.n > 20_000
+    for path in ("triangle", "double"):
+        gen_a, gen_b = np.random.default_rng(7), np.random.default_rng(7)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            choice = choose_path(data, path, rng=gen_a)
+            alone = fit_mixture_em(data, path=path, rng=gen_b)
+        assert choice.fit.d0 == alone.d0 and choice.fit.loglik == alone.loglik
+        assert gen_a.random() == gen_b.random()
+
+
 def test_summary_records_choice_and_reads_back(double, tmp_path):
     res = bm.fit(double.survey, rng=0)
     res.write(tmp_path)

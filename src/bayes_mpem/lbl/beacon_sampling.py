@@ -163,8 +163,8 @@ def sample_beacon(
     n_walkers : int, optional
         Walkers per ensemble (default ``max(24, 4 ndim)``).
     moves : list, optional
-        emcee moves; default :func:`~bayes_mpem.mcmc.default_moves` (80 %
-        ``DEMove``; differential evolution alone).
+        emcee moves; default :func:`~bayes_mpem.mcmc.default_moves`
+        (differential evolution alone).
     tau_factor : float, default 50
         Stop when the kept chain is this many autocorrelation times long ...
     min_ess : float, default 1000

@@ -100,8 +100,12 @@ class PathChoice:
         -------
         dict
         """
-        return {"requested": self.requested, "path": self.path, "margin": self.margin,
-                "loglik": dict(self.loglik), "rule": RULE}
+        def finite(v):  # JSON has no infinity: a failed fit's -inf is written as null
+            return v if math.isfinite(v) else None
+
+        return {"requested": self.requested, "path": self.path,
+                "margin": finite(self.margin),
+                "loglik": {p: finite(v) for p, v in self.loglik.items()}, "rule": RULE}
 
     @classmethod
     def from_dict(cls, beacon: str, d: dict) -> PathChoice:
@@ -118,7 +122,7 @@ class PathChoice:
         PathChoice
         """
         return cls(beacon=beacon, requested=d["requested"], path=d["path"],
-                   loglik={p: float(v) for p, v in d["loglik"].items()})
+                   loglik={p: _score(v) for p, v in d["loglik"].items()})
 
 
 def choices_from_summary(beacons: dict) -> dict:
@@ -140,6 +144,14 @@ def choices_from_summary(beacons: dict) -> dict:
 
 def _score(ll) -> float:
     return float(ll) if ll is not None and not math.isnan(ll) else -math.inf
+
+
+def _child(gen):
+    """Return an independent stream from ``gen`` that leaves the draws of ``gen`` unchanged."""
+    try:
+        return gen.spawn(1)[0]
+    except (TypeError, ValueError, AttributeError):  # a generator without a seed sequence
+        return gen
 
 
 def choose_path(
@@ -195,12 +207,16 @@ def choose_path(
     """
     check_path_choice(path)
     gen = as_generator(rng)
-    order = PATHS if path == AUTO else (path, *(p for p in PATHS if p != path))
+    # the geometry asked for (triangle under auto) draws from ``gen`` exactly as a single
+    # fit did before path choice existed; the other one from a child stream, so that the
+    # caller's stream (the next beacon, the sampler) is the same whichever path is chosen
+    first = PATHS[0] if path == AUTO else path
+    streams = {first: gen, **{p: _child(gen) for p in PATHS if p != first}}
     fits, caught = {}, {}
-    for pth in order:
+    for pth in (first, *(p for p in PATHS if p != first)):
         with warnings.catch_warnings(record=True) as seen:
             warnings.simplefilter("always")
-            fits[pth] = fit_mixture_em(data, path=pth, rng=gen, **kwargs)
+            fits[pth] = fit_mixture_em(data, path=pth, rng=streams[pth], **kwargs)
         caught[pth] = seen
     loglik = {p: _score(fits[p].loglik) for p in PATHS}
     chosen = max(PATHS, key=lambda p: loglik[p]) if path == AUTO else path

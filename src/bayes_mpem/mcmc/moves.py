@@ -10,8 +10,9 @@ upstream after the release: it scales the direction ``x - z`` by
 ``1 / sqrt(|x - z|)`` instead of ``1 / |x - z|`` (so the projections of the
 helper walkers are not projections), and it multiplies the Jacobian term
 ``log(|x' - z| / |x - z|)`` by ``(ndim - 1) / 2`` instead of ``ndim - 1``. The
-second error leaves the chain's stationary distribution too narrow: a 5-D
-standard normal sampled with DE 0.8 + that snooker 0.2 has sd 0.96 (16-D: 0.91).
+two errors together (the scaled direction also breaks the move's reversibility) leave
+the chain's stationary distribution too narrow: a 5-D
+standard normal sampled with DE 0.8 + that snooker 0.2 has sd 0.96 (16-D: 0.90).
 :class:`SnookerMove` is ter Braak & Vrugt's (2008) snooker update as published:
 a unit direction, and the factor ``(ndim - 1) log(|x' - z| / |x - z|)`` that
 makes the move reversible; it is exact but, a Python loop over walkers, slower
@@ -96,8 +97,9 @@ def default_moves() -> list:
     """Differential evolution alone: the moves of both posteriors.
 
     Measured on beacon 4 of abe58 (``benchmarks/bench_moves.py``, 3 seeds,
-    interleaved, two runs on a loaded machine): 667-868 ESS/s against 566-600
-    for DE 0.8 + :class:`SnookerMove` 0.2, with the same posterior widths;
+    interleaved, on a loaded machine): 667 ESS/s against 566 for DE 0.8 +
+    :class:`SnookerMove` 0.2, with the same posterior widths (an earlier run of the
+    same script: 868 against 600);
     emcee 3.1.6's own snooker in that mix gave intervals about 9 % too narrow
     (sd of d0 0.367 m against 0.399-0.404 m).
     On SeaGap's 23-parameter location posterior the released snooker mix gave a

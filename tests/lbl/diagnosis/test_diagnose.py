@@ -275,7 +275,9 @@ def test_a_plane_kilometres_off_is_reported():
     result = diagnose(g["pings"], g["beacons"], rng=19, progress=False)
     final = result.to_dict()["final_model"]["beacons"]
     off = {b for b, v in final.items() if abs(v["plane_depth"]) > 1000.0}
-    assert off == {"D"}
+    # today beacon D stays off (a stuck bias step, docs/diagnose-study.md); whatever is off
+    # must be flagged, and once the step is fixed nothing should be off at all
+    assert off <= {"D"}, off
     flagged = {b for b, v in final.items() if v["flags"]}
     assert off <= flagged, (off, flagged)
     assert all(f"beacon {b}: fit not credible" in result.summary() for b in off)

@@ -62,28 +62,63 @@ def quality_flags(result, data: BeaconData, *, sigma_floor: float = 0.05) -> tup
         fit through a sound-speed profile) more than 1 % of the ranges with no
         eigenray at all.
     """
-    flags = []
-    n_mp = float(result.resp[:, 1].sum()) if result.n else 0.0
-    if n_mp < 10:
-        flags.append(f"only {n_mp:.1f} ranges' worth of multipath: no reflector identified")
-    if result.sigma_mp <= 1.05 * sigma_floor:
-        flags.append(f"sigma_MP = {result.sigma_mp:.3g} m is at its floor: the multipath "
-                     "component collapsed onto a few ranges")
-    elif result.sigma_mp > 100.0:
-        flags.append(f"sigma_MP = {result.sigma_mp:.0f} m: no coherent multipath band")
-    if result.n and float(result.resp[:, 0].mean()) < 0.01:
-        flags.append("almost no range matches the direct path: check the beacon position "
-                     "and the navigation")
     depth = float(data.position[2])
-    if result.d0 > depth + 10.0:
-        flags.append(f"the plane is {result.d0 - depth:.0f} m above the sea surface "
-                     f"(d0 = {result.d0:.0f} m, beacon depth {depth:.0f} m)")
+    flags = reflector_flags(result.resp, result.sigma_mp, depth - result.d0,
+                            sigma_floor=sigma_floor,
+                            plane_note=f" (d0 = {result.d0:.0f} m, beacon depth {depth:.0f} m)")
     rays = result.settings.get("refraction") if result.settings else None
     if rays and result.n and rays["no_ray"] > 0.01 * result.n:
         flags.append(f"{rays['no_ray']} of {result.n} ranges have no eigenray through the "
                      "sound-speed profile (neither direct nor multipath at the fitted plane): "
                      "they can only be outliers")
     return tuple(flags)
+
+
+def reflector_flags(resp, sigma_mp, plane_depth, *, sigma_floor=0.05, plane_note=""):
+    """Check a fitted reflector: the tests shared by the per-beacon EMs and the diagnosis.
+
+    Parameters
+    ----------
+    resp : numpy.ndarray
+        ``(n, k)`` class probabilities of the beacon's ranges, direct path in
+        column 0 and multipath in column 1.
+    sigma_mp : float
+        The multipath scale (m).
+    plane_depth : float
+        Depth of the reflecting plane (m, positive down; the sea surface is 0).
+    sigma_floor : float, default 0.05
+        The scale floor of the fit.
+    plane_note : str, optional
+        Appended to the message of a plane above the sea surface.
+
+    Returns
+    -------
+    list of str
+        Almost no multipath, sigma_MP at its floor or above 100 m, almost no
+        direct path, a plane more than 10 m above the sea surface.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> reflector_flags(np.tile([0.7, 0.3], (100, 1)), 5.0, -20.0)
+    ['the plane is 20 m above the sea surface']
+    """
+    flags = []
+    n = resp.shape[0]
+    n_mp = float(resp[:, 1].sum()) if n else 0.0
+    if n_mp < 10:
+        flags.append(f"only {n_mp:.1f} ranges' worth of multipath: no reflector identified")
+    if sigma_mp <= 1.05 * sigma_floor:
+        flags.append(f"sigma_MP = {sigma_mp:.3g} m is at its floor: the multipath "
+                     "component collapsed onto a few ranges")
+    elif sigma_mp > 100.0:
+        flags.append(f"sigma_MP = {sigma_mp:.0f} m: no coherent multipath band")
+    if n and float(resp[:, 0].mean()) < 0.01:
+        flags.append("almost no range matches the direct path: check the beacon position "
+                     "and the navigation")
+    if plane_depth < -10.0:
+        flags.append(f"the plane is {-plane_depth:.0f} m above the sea surface{plane_note}")
+    return flags
 
 
 def with_flags(result, data, sigma_floor):

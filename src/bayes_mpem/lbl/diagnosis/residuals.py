@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..em_result import reflector_flags
 from .ecm import JointFit
 from .model import Ranges, offsets, predict
 
@@ -130,26 +131,12 @@ def beacon_flags(fit, data, sigma_floor: float = 0.05) -> dict:
     out = {}
     for j, bid in enumerate(data.ids):
         sel = data.bi == j
-        flags = []
-        n_mp = float(fit.resp[sel, 1].sum())
         s_mp = float(p.sigma[j, 1])
-        if n_mp < 10:
-            flags.append(f"only {n_mp:.1f} ranges' worth of multipath: no reflector "
-                         "identified")
-        if s_mp <= 1.05 * sigma_floor:
-            flags.append(f"sigma_MP = {s_mp:.3g} m is at its floor: the multipath "
-                         "component collapsed onto a few ranges")
-        elif s_mp > 100.0:
-            flags.append(f"sigma_MP = {s_mp:.0f} m: no coherent multipath band")
-        if sel.any() and float(fit.resp[sel, 0].mean()) < 0.01:
-            flags.append("almost no range matches the direct path: check the beacon "
-                         "position and the navigation")
+        flags = reflector_flags(fit.resp[sel], s_mp, float(p.plane[j]), sigma_floor=sigma_floor)
         gap = float(np.median(mu["mp"][sel] - mu["dp"][sel])) if sel.any() else np.inf
         if gap < 2.0 * s_mp:
             flags.append(f"the multipath family lies on the direct path (median "
                          f"separation {gap:.1f} m, sigma_MP = {s_mp:.1f} m; plane depth "
                          f"{p.plane[j]:.0f} m)")
-        if p.plane[j] < -10.0:
-            flags.append(f"the plane is {-p.plane[j]:.0f} m above the sea surface")
         out[bid] = flags
     return out

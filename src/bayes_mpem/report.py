@@ -23,7 +23,9 @@ import pandas as pd
 
 from ._validate import check_choice
 from .exceptions import InputError
+from .io.results import MARKER, read_marker, write_file
 from .io.survey import load_survey
+from .io.table_files import read_table_file
 from .io.tables import RESERVED_COLUMNS
 from .lbl.comparison import SurveyComparison
 from .lbl.diagnosis.result import Diagnosis
@@ -44,9 +46,10 @@ _ADDED = set(RESERVED_COLUMNS)
 
 
 def _save(fig, path, dpi=110):
-    fig.savefig(path, dpi=dpi)
-    plt.close(fig)
-    return Path(path)
+    try:
+        return write_file(path, lambda tmp: fig.savefig(tmp, dpi=dpi))
+    finally:
+        plt.close(fig)
 
 
 def figure_beacon(survey_fit, beacon=None) -> str:
@@ -204,10 +207,28 @@ def demo_markdown(simulation, fit, paper, out_dir, figures, *, seed, posterior=N
 
 
 def _read_json(path):
-    if not path.exists():
-        raise FileNotFoundError(f"{path}: not found; expected the output folder of "
-                                "'bayes-mpem fit' or 'bayes-mpem sample'")
-    return json.loads(path.read_text())
+    try:
+        return json.loads(path.read_text())
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise InputError(f"{path}: not valid JSON ({exc}); the file is damaged") from None
+
+
+def _classified(d, summary):
+    """Read the classified table of an output folder as text, checked against its summary."""
+    files = summary.get("files", [])
+    name = next((f for f in ("classified.parquet", "classified.csv") if f in files),
+                "classified.csv")
+    text = read_table_file(d / name, str(d / name), "classified table")
+    frame = text.frame
+    n_rows = summary.get("n_rows")
+    if n_rows is not None and len(frame) != n_rows:
+        raise InputError(f"{d / name}: {len(frame)} rows, but {d / MARKER} says n_rows = "
+                         f"{n_rows}: the table is truncated or from another run")
+    missing = [c for c in ("p_dp", "p_mp", "p_ol", "label") if c not in frame.columns]
+    if missing:
+        raise InputError(f"{d / name}: missing column(s) {', '.join(missing)}; not a "
+                         "classified table of 'bayes-mpem fit' or 'sample'")
+    return frame.astype(str) if name.endswith(".parquet") else frame
 
 
 def load_output(result_dir):
@@ -234,27 +255,39 @@ def load_output(result_dir):
         When the files do not fit together.
     """
     d = Path(result_dir)
-    summary = _read_json(d / "summary.json")
+    summary = read_marker(d)
     if "beacons_table" not in summary:
         raise InputError(f"{d / 'summary.json'}: no 'beacons_table'; it was written by another "
                          "program or an older bayes_mpem: run 'bayes-mpem fit' again")
-    classified = pd.read_csv(d / "classified.csv", dtype=str, keep_default_na=False)
+    if "method" not in summary and "priors" not in summary:
+        raise InputError(f"{d / 'summary.json'}: neither a fit ('method') nor a sample "
+                         "('priors')")
+    classified = _classified(d, summary)
     table = classified[[c for c in classified.columns if c not in _ADDED]]
     beacons = pd.DataFrame([{"beacon": b, **v} for b, v in summary["beacons_table"].items()])
     survey = load_survey(table, beacons)
-    num = {c: pd.to_numeric(classified[c].replace("", np.nan)).to_numpy()
-           for c in classified.columns if c in _ADDED - {"label", "reason"}}
+    num = {}
+    for c in sorted(_ADDED - {"label", "reason"}):
+        if c in classified.columns:
+            num[c] = pd.to_numeric(classified[c].replace("", np.nan), errors="coerce").to_numpy()
+            bad = np.flatnonzero(np.isnan(num[c]) & (classified[c] != "").to_numpy()
+                                 | (num[c] < 0) | (num[c] > 1))
+            if bad.size:
+                raise InputError(f"{d} classified table, row {int(bad[0]) + 1}, column {c!r}: "
+                                 f"expected a probability, got {classified[c].iloc[bad[0]]!r}")
     probs = np.column_stack([num["p_" + c] for c in CLASSES])
-    if "method" in summary:
-        return _load_fit(d, summary, survey, probs)
-    if "priors" in summary:
+    try:
+        if "method" in summary:
+            return _load_fit(d, summary, survey, probs)
         return _load_posterior(d, summary, survey, probs, num)
-    raise InputError(f"{d / 'summary.json'}: neither a fit ('method') nor a sample ('priors')")
+    except (KeyError, TypeError, IndexError) as exc:
+        raise InputError(f"{d / MARKER}: the output files do not fit together "
+                         f"({type(exc).__name__}: {exc})") from None
 
 
 def _load_fit(d, summary, survey, probs):
     hist_path = d / "history.json"
-    hist = json.loads(hist_path.read_text()) if hist_path.exists() else {}
+    hist = _read_json(hist_path) if hist_path.exists() else {}
     results = {}
     for b, s in summary["beacons"].items():
         rows = survey.for_beacon(b).rows
@@ -282,7 +315,10 @@ def _load_posterior(d, summary, survey, probs, num):
     path = d / "posterior.nc"
     if not path.exists():
         raise FileNotFoundError(f"{path}: not found; 'bayes-mpem sample' writes it")
-    tree = xr.open_datatree(path, engine="h5netcdf").load()
+    try:
+        tree = xr.open_datatree(path, engine="h5netcdf").load()
+    except (OSError, ValueError) as exc:
+        raise InputError(f"{path}: not a readable NetCDF file ({exc})") from None
     sd = np.column_stack([num["p_" + c + "_sd"] for c in CLASSES])
     results = {}
     for b, s in summary["beacons"].items():

@@ -8,9 +8,11 @@ returns the exit status.
 
 from __future__ import annotations
 
+import math
 import sys
 from pathlib import Path
 
+from ..io.results import write_file
 from ..lbl.comparison import compare
 from ..lbl.diagnosis.driver import diagnose
 from ..lbl.effects import EFFECTS
@@ -149,8 +151,7 @@ def cmd_demo(args) -> int:
     figs = [p for p in written if str(p).endswith(".png")]
     md = demo_markdown(sim, result, paper, out, figs, seed=args.seed, posterior=post,
                        comparison=cmp)
-    (out / "summary.md").write_text(md)
-    written.append(out / "summary.md")
+    written.append(write_file(out / "summary.md", lambda tmp: tmp.write_text(md)))
     print(f"\nwrote {len(written)} files under {out}/ (summary.md links every figure)")
     return 0
 
@@ -201,8 +202,8 @@ def cmd_simulate(args) -> int:
             effects[name.strip()] = float(value)
         except ValueError:
             raise OptionError(f"--effect: expected NAME=NUMBER, got {item!r}") from None
-        if not sep:
-            raise OptionError(f"--effect: expected NAME=NUMBER, got {item!r}")
+        if not sep or not math.isfinite(effects[name.strip()]):
+            raise OptionError(f"--effect: expected NAME=NUMBER (a finite number), got {item!r}")
     sim = simulate_survey(args.preset, rng=args.seed, path=args.path, n_cycles=args.n_cycles,
                           effects=effects or None)
     paths = sim.write(args.out)
@@ -225,7 +226,7 @@ def cmd_fit(args) -> int:
     """
     result = fit(args.pings, args.beacons, **fit_kwargs(args))
     out = Path(args.out)
-    paths = list(result.write(out).values())
+    paths = list(result.write(out, table_format=args.table_format).values())
     if args.figures:
         paths += write_figures(result, out)
     _report_fit(result, paths)
@@ -247,7 +248,7 @@ def cmd_sample(args) -> int:
     result = sample(args.pings, args.beacons, priors=args.priors, ci=args.ci,
                     n_ensembles=args.ensembles, **sample_kwargs(args))
     out = Path(args.out)
-    paths = list(result.write(out).values())
+    paths = list(result.write(out, table_format=args.table_format).values())
     if args.figures:
         paths += write_figures(result, out)
     print(result.format_table())

@@ -10,13 +10,19 @@ status 2.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import os
+import signal
 import sys
 import warnings
 
 from .. import __version__
 from ..exceptions import InputError
+from ..io.results import check_output_folder, writing
+from ..io.table_files import TABLE_FORMATS
 from ..lbl.path_choice import PATH_CHOICES
 from . import lbl, survey_in
+from . import options as opt
 
 
 def _add_fit_options(p):
@@ -25,24 +31,30 @@ def _add_fit_options(p):
     p.add_argument("--path", choices=PATH_CHOICES, default="auto",
                    help="multipath geometry: one reflected leg, both, or per beacon the "
                         "likelier of the two (default auto)")
-    p.add_argument("--sigma-dp", type=float, default=None, metavar="S",
+    p.add_argument("--sigma-dp", type=opt.positive, default=None, metavar="S",
                    help="direct-path scatter in m (default: estimated from the data)")
-    p.add_argument("--pol", type=float, default=None, metavar="P",
+    p.add_argument("--pol", type=opt.probability, default=None, metavar="P",
                    help="paper EM only: outlier threshold Pol (default 0.05)")
-    p.add_argument("--alpha", type=float, default=None, metavar="A",
+    p.add_argument("--alpha", type=opt.fraction, default=None, metavar="A",
                    help="paper EM only: convergence factor alpha (default 0.5)")
     p.add_argument("--weights", choices=["learned", "equal"], default=None,
                    help="mixture EM only: learn the mixing weights (default) or fix them at 1/3")
-    p.add_argument("--min-pings", type=int, default=30, metavar="N",
+    p.add_argument("--min-pings", type=opt.min_pings, default=30, metavar="N",
                    help="leave beacons with fewer replies unfitted (default 30)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--seed", type=opt.seed, default=0, help="random seed (default 0)")
+
+
+def _add_table_format(p):
+    p.add_argument("--table-format", choices=list(TABLE_FORMATS), default="csv",
+                   help="classified.csv (default) or classified.parquet; the input table "
+                        "may be either (by its extension)")
 
 
 def _add_demo_plot_simulate(sub):
     p = sub.add_parser("demo", help="simulate an ABE58-like survey, fit it, write figures")
     p.add_argument("--out", default="demo-output", metavar="DIR",
                    help="output folder (default: demo-output)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--seed", type=opt.seed, default=0, help="random seed (default 0)")
     p.add_argument("--no-bayes", action="store_true",
                    help="skip the Bayesian part (sampling and prior comparison, ~40 s)")
 
@@ -57,9 +69,9 @@ def _add_demo_plot_simulate(sub):
     p = sub.add_parser("simulate", help="write a simulated survey (pings, beacons, truth)")
     p.add_argument("--preset", choices=["abe58", "random"], default="abe58")
     p.add_argument("--out", required=True, metavar="DIR")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--seed", type=opt.seed, default=0, help="random seed (default 0)")
     p.add_argument("--path", choices=["triangle", "double"], default="triangle")
-    p.add_argument("--n-cycles", type=int, default=None, metavar="N",
+    p.add_argument("--n-cycles", type=opt.at_least(1, 10**7), default=None, metavar="N",
                    help="number of ping cycles (default: the preset's)")
     p.add_argument("--effect", action="append", default=[], metavar="NAME=VALUE",
                    help="hide an effect in the data, e.g. range_bias=5 (repeatable; names as "
@@ -74,6 +86,7 @@ def _add_fit_diagnose(sub):
     p.add_argument("--out", required=True, metavar="DIR")
     p.add_argument("--figures", action="store_true",
                    help="also write the figures (as 'bayes-mpem plot' does)")
+    _add_table_format(p)
     _add_fit_options(p)
 
     p = sub.add_parser("diagnose", help="find which assumption the data break (bias, sound "
@@ -82,16 +95,16 @@ def _add_fit_diagnose(sub):
     p.add_argument("--beacons", required=True, metavar="BEACONS",
                    help="beacons CSV (beacon, x, y, depth)")
     p.add_argument("--out", required=True, metavar="DIR")
-    p.add_argument("--seed", type=int, default=0, help="random seed of the folds (default 0)")
+    p.add_argument("--seed", type=opt.seed, default=0, help="random seed of the folds (default 0)")
     p.add_argument("--path", choices=PATH_CHOICES, default="auto",
                    help="multipath geometry (default: the likelier of the two)")
     p.add_argument("--effects", default=None, metavar="LIST",
                    help="comma-separated candidate effects (default: all)")
-    p.add_argument("--folds", type=int, default=5, metavar="K",
+    p.add_argument("--folds", type=opt.at_least(2), default=5, metavar="K",
                    help="cross-validation folds (default 5)")
-    p.add_argument("--min-gain", type=float, default=4.0, metavar="NATS",
+    p.add_argument("--min-gain", type=opt.non_negative, default=4.0, metavar="NATS",
                    help="minimum held-out gain to keep an effect (default 4)")
-    p.add_argument("--min-pings", type=int, default=30, metavar="N")
+    p.add_argument("--min-pings", type=opt.min_pings, default=30, metavar="N")
     p.add_argument("--no-figures", action="store_true", help="write diagnosis.json only")
     p.add_argument("--no-progress", action="store_true", help="no progress lines on stderr")
 
@@ -104,11 +117,12 @@ def _add_locate(sub):
                    choices=["obsrange", "obsrange-sio", "obsrange-whoi", "seagap"],
                    help="'obsrange' detects the SIO or WHOI variant")
     p.add_argument("--out", required=True, metavar="DIR")
-    p.add_argument("--tat", type=float, default=None, metavar="S",
+    p.add_argument("--tat", type=opt.non_negative, default=None, metavar="S",
                    help="turn-around time in s (default: the file's, else 0.013; SeaGap 0)")
     p.add_argument("--fit-tat", action="store_true",
                    help="fit the turn-around time too (often not identifiable)")
-    p.add_argument("--ci", type=float, default=0.95, help="interval probability (default 0.95)")
+    p.add_argument("--ci", type=opt.probability, default=0.95,
+                   help="interval probability (default 0.95)")
     p.add_argument("--outliers", choices=["uniform", "first_arrival"], default="uniform",
                    help="spurious pings uniform over the window (default) or only before the "
                         "true arrival (a first-threshold-crossing detector)")
@@ -116,7 +130,7 @@ def _add_locate(sub):
                    help="refracted rays through a sound-speed profile: a two-column file "
                         "(depth m, speed m/s), 'woa09' (the atlas at the drop point) or "
                         "'survey' (the survey's own, SeaGap's ss_prof.inp); default straight rays")
-    p.add_argument("--speed-intervals", type=int, default=0, metavar="N",
+    p.add_argument("--speed-intervals", type=opt.at_least(0, 1000), default=0, metavar="N",
                    help="let the sound speed vary in time (cubic B-spline, N intervals over "
                         "the survey; default 0: one speed)")
     p.add_argument("--fit-lag", action="store_true",
@@ -125,12 +139,12 @@ def _add_locate(sub):
     p.add_argument("--sample", action="store_true",
                    help="after each EM fit, sample the posterior of the location and the ping "
                         "classes (emcee); intervals and classes from the posterior")
-    p.add_argument("--walkers", type=int, default=None, metavar="N",
+    p.add_argument("--walkers", type=opt.at_least(2), default=None, metavar="N",
                    help="--sample: walkers (default max(32, 2 x parameters + 2))")
-    p.add_argument("--min-ess", type=float, default=None, metavar="N",
+    p.add_argument("--min-ess", type=opt.positive, default=None, metavar="N",
                    help="--sample: run until the smallest effective sample size reaches N "
                         "(default 1000)")
-    p.add_argument("--seed", type=int, default=None,
+    p.add_argument("--seed", type=opt.seed, default=None,
                    help="--sample: random seed (default 0); same seed, same chain")
     p.add_argument("--no-progress", action="store_true", help="--sample: hide the progress bar")
 
@@ -142,23 +156,24 @@ def _add_sample_compare(sub):
         p.add_argument("pings", metavar="PINGS", help="pings CSV")
         p.add_argument("--beacons", required=True, metavar="BEACONS", help="beacons CSV")
         p.add_argument("--out", required=True, metavar="DIR")
-        p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+        p.add_argument("--seed", type=opt.seed, default=0, help="random seed (default 0)")
         if name == "sample":
             p.add_argument("--priors", choices=["learned", "equal"], default="learned",
                            help="Dirichlet-learned mixing weights (default) or equal 1/3")
-            p.add_argument("--ci", type=float, default=0.95,
+            p.add_argument("--ci", type=opt.probability, default=0.95,
                            help="probability of the highest-density intervals (default 0.95)")
-            p.add_argument("--ensembles", type=int, default=1, metavar="K",
+            p.add_argument("--ensembles", type=opt.at_least(1, 64), default=1, metavar="K",
                            help="independent ensembles; R-hat is reported when K > 1")
             p.add_argument("--figures", action="store_true", help="also write PNG figures")
+            _add_table_format(p)
         p.add_argument("--path", choices=PATH_CHOICES, default="auto",
                        help="multipath geometry (default auto: per beacon the one the mixture "
                             "EM finds likelier)")
-        p.add_argument("--sigma-dp", type=float, default=None, metavar="S",
+        p.add_argument("--sigma-dp", type=opt.positive, default=None, metavar="S",
                        help="fix sigma_DP (m) instead of sampling it")
-        p.add_argument("--concentration", type=float, default=None, metavar="C",
+        p.add_argument("--concentration", type=opt.positive, default=None, metavar="C",
                        help="Dirichlet concentration of the learned weights (default 1)")
-        p.add_argument("--min-pings", type=int, default=30, metavar="N")
+        p.add_argument("--min-pings", type=opt.min_pings, default=30, metavar="N")
         p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
 
 
@@ -188,8 +203,56 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _output_folder(args):
+    """Return the folder a command writes (checked before any work), or ``None``."""
+    out = getattr(args, "out", None)
+    if args.command == "plot" and out is None:
+        out = args.result_dir
+    if out is None:
+        return None
+    check_output_folder(out, "--out" if getattr(args, "out", None) is not None else "RESULT_DIR")
+    return out
+
+
+class _Failed(Exception):
+    """A command returned a non-zero status: its files are not committed."""
+
+
+def _on_sigterm(signum, frame):
+    raise SystemExit(128 + signum)
+
+
+def _run(handler, args) -> int:
+    """Run ``handler`` with its output folder checked first and written all or nothing."""
+    out = _output_folder(args)
+    if out is None:
+        return handler(args)
+    try:
+        with writing(out, extend=args.command == "plot", create=False):
+            code = handler(args)
+            if code:
+                raise _Failed(code)
+    except _Failed as failed:
+        return failed.args[0]
+    return code
+
+
+def _message(exc: BaseException) -> str:
+    if isinstance(exc, OSError) and not isinstance(exc, FileNotFoundError) and exc.filename:
+        return f"{exc.filename}: {exc.strerror or exc}"
+    return str(exc)
+
+
 def main(argv=None) -> int:
     """Entry point of ``bayes-mpem``.
+
+    Every option is checked by the parser; the output folder (``--out``) before any
+    work; the files of a run are committed together at its end
+    (:func:`bayes_mpem.io.results.writing`), so an error, Ctrl-C or ``SIGTERM``
+    leaves the previous results. Invalid input or options end with one ``error:``
+    line naming the file, line, column or option, and exit status 2; an unexpected
+    failure with one ``internal error:`` line and status 1 (set
+    ``BAYES_MPEM_TRACEBACK=1`` to see the traceback).
 
     Parameters
     ----------
@@ -199,7 +262,8 @@ def main(argv=None) -> int:
     Returns
     -------
     int
-        Exit status: 0 on success, 2 on invalid input.
+        Exit status: 0 on success, 2 on invalid input, 1 on an internal error,
+        128 + signal number when terminated.
     """
     args = build_parser().parse_args(argv)
     import matplotlib
@@ -208,16 +272,32 @@ def main(argv=None) -> int:
     handler = {"demo": lbl.cmd_demo, "simulate": lbl.cmd_simulate, "fit": lbl.cmd_fit,
                "plot": lbl.cmd_plot, "sample": lbl.cmd_sample, "compare": lbl.cmd_compare,
                "locate": survey_in.cmd_locate, "diagnose": lbl.cmd_diagnose}[args.command]
+    previous = None
+    with contextlib.suppress(ValueError):  # not the main thread: no handler
+        previous = signal.signal(signal.SIGTERM, _on_sigterm)
     with warnings.catch_warnings():  # restores the caller's filters and showwarning
         warnings.simplefilter("default")
         # one line per warning, no source excerpt: messages for the user, not tracebacks
         warnings.showwarning = lambda msg, cat, *args, **kwargs: print(
             f"{cat.__name__}: {msg}", file=sys.stderr)
         try:
-            return handler(args)
-        except (InputError, ValueError, FileNotFoundError) as exc:
-            print(f"bayes-mpem {args.command}: error: {exc}", file=sys.stderr)
+            return _run(handler, args)
+        except (InputError, ValueError, OSError) as exc:
+            print(f"bayes-mpem {args.command}: error: {_message(exc)}", file=sys.stderr)
             return 2
+        except KeyboardInterrupt:
+            print(f"bayes-mpem {args.command}: interrupted; no result written", file=sys.stderr)
+            return 130
+        except Exception as exc:
+            if os.environ.get("BAYES_MPEM_TRACEBACK"):
+                raise
+            print(f"bayes-mpem {args.command}: internal error: {type(exc).__name__}: {exc} "
+                  "(a bug: please report it with the command; BAYES_MPEM_TRACEBACK=1 shows "
+                  "where)", file=sys.stderr)
+            return 1
+        finally:
+            if previous is not None:
+                signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -1,23 +1,61 @@
-"""Writing result files: the one JSON and CSV writer behind every result's ``write()``.
+"""Writing result files: the one writer behind every result's ``write()`` and every figure.
 
 Every output folder of ``bayes-mpem`` holds JSON documents (``summary.json``,
-``compare.json``, ``diagnosis.json``, ...) and CSV tables (``classified.csv``,
-``changed.csv``). They are all written here, with one set of serialisation
-settings, so the files of every command look alike and stay byte-identical
-from one release to the next.
+``compare.json``, ``diagnosis.json``, ...), tables (``classified.csv`` or
+``.parquet``), NetCDF and PNG files. They are all written here, with one set of
+serialisation settings and one convention that makes an interrupted run safe:
+
+* **Check first.** :func:`check_output_folder` (the command line calls it on
+  ``--out`` before any work) refuses a path that is a file, lies under a file,
+  or cannot be created or written, naming the option.
+* **Temporary name, then rename.** Each file is written to a hidden temporary
+  name in its own folder (``.classified.partial-<pid>.csv``) and renamed into
+  place when complete; a file never exists half-written under its real name.
+* **One run, one commit.** Inside ``with writing(out_dir):`` (what every
+  ``write()`` and the command line use) the renames wait until the whole run
+  has succeeded. At the commit the old ``summary.json`` is removed first, the
+  new files are renamed in, files listed by the old marker that the new run did
+  not write are removed, and ``summary.json`` is written **last**, listing the
+  files of the run under ``"files"``. It is the completion marker: a folder is
+  complete when its ``summary.json`` parses and every file it lists exists
+  (:func:`read_marker`, which ``bayes-mpem plot`` uses). A run killed at any
+  moment leaves either the previous complete results or no ``summary.json``;
+  an exception leaves the previous results and removes its temporary files. A
+  folder whose result has no summary of its own (``diagnose``, ``compare``,
+  ``simulate``) gets a ``summary.json`` with only ``"files"``; a run that adds
+  files to a complete folder (``bayes-mpem plot``, ``writing(extend=True)``)
+  keeps its marker's content and lists the new files too.
+* **Valid JSON.** NaN and infinities are written as ``null`` and listed, with
+  what they were, under ``"non_finite"`` (``{"beacons.4.sigma_mp": "nan"}``); no
+  ``NaN``/``Infinity`` token is ever written.
+* **Timings apart.** Wall-clock seconds are not reproducible, so they never go
+  into ``summary.json`` (byte-identical for the same seed): results write them
+  to ``timings.json``.
+
+New results and commands get all of this by writing through :func:`write_json`,
+:func:`write_csv`, :func:`write_table` and :func:`write_file` inside
+``with writing(out_dir) as out:``.
 
 Examples
 --------
->>> import tempfile
+>>> import json, tempfile
 >>> import pandas as pd
 >>> with tempfile.TemporaryDirectory() as tmp:
-...     out = output_folder(tmp + "/run")
-...     p = write_json(out / "summary.json", {"n": 1})
-...     print(p.read_text(), end="")
-...     q = write_csv(out / "t.csv", pd.DataFrame({"a": [1, 2]}))
-...     print(q.read_text(), end="")
+...     with writing(tmp + "/run") as out:
+...         _ = write_json(out / "summary.json", {"n": 1, "sd": float("nan")})
+...         _ = write_csv(out / "t.csv", pd.DataFrame({"a": [1, 2]}))
+...     print((out / "summary.json").read_text(), end="")
+...     print((out / "t.csv").read_text(), end="")
 {
-  "n": 1
+  "n": 1,
+  "sd": null,
+  "non_finite": {
+    "sd": "nan"
+  },
+  "files": [
+    "summary.json",
+    "t.csv"
+  ]
 }
 a
 1
@@ -26,14 +64,207 @@ a
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import json
+import math
+import os
+import tempfile
 from pathlib import Path
 
 import numpy as np
 
+from ..exceptions import InputError
+from .table_files import write_table_file
+
+MARKER = "summary.json"
+TIMINGS = "timings.json"
+_RUNS: contextvars.ContextVar = contextvars.ContextVar("bayes_mpem_runs", default=())
+
+
+def check_output_folder(out_dir, option: str = "--out") -> Path:
+    """Check that ``out_dir`` is (or can become) a writable folder, without creating it.
+
+    Parameters
+    ----------
+    out_dir : str or os.PathLike
+    option : str, default "--out"
+        The option's name, for the message.
+
+    Returns
+    -------
+    pathlib.Path
+
+    Raises
+    ------
+    InputError
+        The path is a file, lies under a file, or its nearest existing folder
+        cannot be written (permissions, a read-only file system).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> with tempfile.NamedTemporaryFile() as f:
+    ...     check_output_folder(f.name + "/sub")
+    Traceback (most recent call last):
+    ...
+    bayes_mpem.exceptions.InputError: --out ...: lies under the file ...; expected a folder
+    """
+    out = Path(out_dir)
+    if str(out_dir).strip() == "":
+        raise InputError(f"{option}: expected a folder name, got an empty string")
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{option} {str(out)!r}: is a file; expected a folder")
+    base = out
+    while not base.exists():
+        if base.parent == base:
+            break
+        base = base.parent
+    if base.exists() and not base.is_dir():
+        raise InputError(f"{option} {str(out)!r}: lies under the file {str(base)!r}; "
+                         "expected a folder")
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".write-check-", dir=base)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise InputError(f"{option} {str(out)!r}: cannot be written ({exc.strerror or exc} in "
+                         f"{str(base)!r})") from None
+    return out
+
+
+class _Run:
+    """The files staged by one ``writing()`` block, renamed into place at its commit."""
+
+    def __init__(self, root: Path, extend: bool) -> None:
+        self.root, self.extend = root, extend
+        self.staged: dict[Path, Path] = {}  # final path -> temporary path
+        self.markers: dict[Path, dict] = {}  # final path of a summary.json -> its document
+
+    def owns(self, path: Path) -> bool:
+        return path.parent.resolve().is_relative_to(self.root.resolve())
+
+    def commit(self) -> None:
+        if not self.staged and not self.markers:
+            return  # nothing written: nothing to mark
+        for path, doc in list(self.markers.items()):
+            doc, timings = split_timings(doc)
+            self.markers[path] = doc
+            if timings:
+                write_json(path.with_name(TIMINGS), timings)
+        marker = self.root / MARKER
+        old = read_marker(self.root, check=False) if marker.exists() else None
+        for path in sorted(self.markers, key=lambda p: -len(p.parts)):
+            path.unlink(missing_ok=True)
+        marker.unlink(missing_ok=True)  # first: from here on the folder is not complete
+        for final, tmp in self.staged.items():
+            os.replace(tmp, final)
+        new = {self._rel(p) for p in [*self.staged, *self.markers]} | {MARKER}
+        doc = self.markers.pop(marker, None)
+        old_files = set((old or {}).get("files", []))
+        if doc is None and old is not None:
+            doc = {k: v for k, v in old.items() if k != "files"}
+            new |= {f for f in old_files if (self.root / f).exists()}
+        elif not self.extend:
+            for stale in sorted(old_files - new):
+                target = self.root / stale
+                if self._inside(target) and target.is_file():
+                    target.unlink()
+        for path in sorted(self.markers, key=lambda p: -len(p.parts)):  # nested, deepest first
+            sub = path.parent
+            files = sorted(self._rel(p, sub) for p in [*self.staged, *self.markers]
+                           if p.parent.resolve().is_relative_to(sub.resolve()))
+            _atomic_text(path, _json_text({**self.markers[path], "files": files}, 2))
+        _atomic_text(marker, _json_text({**(doc or {}), "files": sorted(new)}, 2))
+        self._clean_dead_partials()
+
+    def abort(self) -> None:
+        for tmp in self.staged.values():
+            with contextlib.suppress(OSError):
+                tmp.unlink()
+
+    def _rel(self, path: Path, base: Path | None = None) -> str:
+        return path.resolve().relative_to((base or self.root).resolve()).as_posix()
+
+    def _inside(self, path: Path) -> bool:
+        return path.resolve().is_relative_to(self.root.resolve())
+
+    def _clean_dead_partials(self) -> None:
+        folders = {self.root} | {p.parent for p in self.staged}
+        for folder in folders:
+            for tmp in folder.glob(".*.partial-*"):
+                pid = tmp.name.split(".partial-")[-1].split(".")[0]
+                if pid.isdigit() and not _alive(int(pid)):
+                    with contextlib.suppress(OSError):
+                        tmp.unlink()
+
+
+def _alive(pid: int) -> bool:
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+@contextlib.contextmanager
+def writing(out_dir, *, extend: bool = False, option: str = "--out", create: bool = True):
+    """Write one run's files into ``out_dir``, all or nothing (see the module's description).
+
+    Blocks nest: a ``writing()`` inside another whose folder contains it joins the
+    outer run, so a command's data files, figures and sub-folders are committed
+    together, when the outermost block ends without an exception.
+
+    Parameters
+    ----------
+    out_dir : str or os.PathLike
+        Checked (:func:`check_output_folder`) and created.
+    extend : bool, default False
+        Add files to a complete folder, keeping its ``summary.json`` content
+        (``bayes-mpem plot``); by default the run replaces the folder's results.
+    option : str, default "--out"
+        The option named in the messages of :func:`check_output_folder`.
+    create : bool, default True
+        Create the folder now; ``False`` leaves it to the first file written (a run
+        that fails before writing anything leaves no folder behind).
+
+    Yields
+    ------
+    pathlib.Path
+        The folder.
+
+    Raises
+    ------
+    InputError
+        For an unusable folder.
+    """
+    out = check_output_folder(out_dir, option)
+    if create:
+        out.mkdir(parents=True, exist_ok=True)
+    if any(run.owns(out / "x") for run in _RUNS.get()):
+        yield out
+        return
+    run = _Run(out, extend)
+    token = _RUNS.set((*_RUNS.get(), run))
+    try:
+        yield out
+        run.commit()
+    except BaseException:
+        run.abort()
+        raise
+    finally:
+        _RUNS.reset(token)
+
 
 def output_folder(out_dir) -> Path:
-    """Create ``out_dir`` (and its parents) if missing.
+    """Create ``out_dir`` (and its parents) if missing, after :func:`check_output_folder`.
+
+    Files written into it outside a :func:`writing` block are still written under
+    a temporary name and renamed, one by one.
 
     Parameters
     ----------
@@ -43,9 +274,59 @@ def output_folder(out_dir) -> Path:
     -------
     pathlib.Path
     """
-    out = Path(out_dir)
+    out = check_output_folder(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     return out
+
+
+def _current_run(path: Path):
+    for run in reversed(_RUNS.get()):
+        if run.owns(path):
+            return run
+    return None
+
+
+def _temp_name(path: Path) -> Path:
+    return path.with_name(f".{path.stem}.partial-{os.getpid()}{path.suffix}")
+
+
+def _atomic_text(path: Path, text: str) -> None:
+    tmp = _temp_name(path)
+    tmp.write_text(text)
+    os.replace(tmp, path)
+
+
+def write_file(path, write) -> Path:
+    """Write a file through ``write(temporary_path)``, then rename it (or stage it in the run).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The final name; its folder must exist.
+    write : callable
+        ``write(tmp)`` writes the whole file at ``tmp`` (same folder and suffix).
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = _temp_name(path)
+    try:
+        write(tmp)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise
+    run = _current_run(path)
+    if run is None:
+        os.replace(tmp, path)
+    else:
+        run.staged.pop(path, None)
+        run.staged[path] = tmp
+    return path
 
 
 def numpy_to_json(value):
@@ -70,15 +351,100 @@ def numpy_to_json(value):
     >>> numpy_to_json(np.float64(1.5)), numpy_to_json(np.arange(2))
     (1.5, [0, 1])
     """
-    if isinstance(value, (np.floating, np.integer)):
+    if isinstance(value, (np.floating, np.integer, np.bool_)):
         return value.item()
     if isinstance(value, np.ndarray):
         return value.tolist()
     raise TypeError(f"not JSON serialisable: {type(value)}")
 
 
+def finite_json(document, numpy: bool = False):
+    """Replace every NaN and infinity in ``document`` by ``None``, saying where.
+
+    Parameters
+    ----------
+    document : dict, list or scalar
+    numpy : bool, default False
+        Also convert NumPy scalars and arrays.
+
+    Returns
+    -------
+    clean : same structure
+        With ``None`` for every non-finite float.
+    replaced : dict
+        ``{"dotted.path[i]": "nan" | "inf" | "-inf"}``.
+
+    Examples
+    --------
+    >>> finite_json({"a": [1.0, float("inf")], "b": {"c": float("nan")}})
+    ({'a': [1.0, None], 'b': {'c': None}}, {'a[1]': 'inf', 'b.c': 'nan'})
+    """
+    replaced = {}
+
+    def clean(v, where):
+        if numpy and isinstance(v, (np.generic, np.ndarray)):
+            v = numpy_to_json(v)
+        if isinstance(v, float) and not math.isfinite(v):
+            replaced[where] = repr(v)
+            return None
+        if isinstance(v, dict):
+            return {k: clean(x, f"{where}.{k}" if where else str(k)) for k, x in v.items()}
+        if isinstance(v, (list, tuple)):
+            return [clean(x, f"{where}[{i}]") for i, x in enumerate(v)]
+        return v
+
+    return clean(document, ""), replaced
+
+
+def split_timings(document):
+    """Move wall-clock timings (keys ``seconds`` or ``*_seconds``) out of a document.
+
+    Parameters
+    ----------
+    document : dict
+
+    Returns
+    -------
+    document : dict
+        Without the timing keys (a copy; the input is not changed).
+    timings : dict
+        The timings at the same places (empty if none).
+
+    Examples
+    --------
+    >>> split_timings({"a": {"seconds": 2.5, "n": 1}, "b": 3})
+    ({'a': {'n': 1}, 'b': 3}, {'a': {'seconds': 2.5}})
+    """
+    def is_timing(key):
+        return isinstance(key, str) and (key == "seconds" or key.endswith("_seconds"))
+
+    if not isinstance(document, dict):
+        return document, {}
+    kept, timings = {}, {}
+    for k, v in document.items():
+        if is_timing(k):
+            timings[k] = v
+        elif isinstance(v, dict):
+            kept[k], sub = split_timings(v)
+            if sub:
+                timings[k] = sub
+        else:
+            kept[k] = v
+    return kept, timings
+
+
+def _json_text(document, indent, numpy=False) -> str:
+    clean, replaced = finite_json(document, numpy)
+    if replaced and isinstance(clean, dict):
+        clean = {**clean, "non_finite": {**clean.get("non_finite", {}), **replaced}}
+    return json.dumps(clean, indent=indent, allow_nan=False) + "\n"
+
+
 def write_json(path, document, *, indent: int | None = 2, numpy: bool = False) -> Path:
-    """Write ``document`` as JSON followed by a newline.
+    """Write ``document`` as valid JSON followed by a newline (see :func:`finite_json`).
+
+    A ``summary.json`` inside a :func:`writing` block is the run's completion
+    marker: it is written last, at the commit, with ``"files"`` added.
 
     Parameters
     ----------
@@ -95,13 +461,20 @@ def write_json(path, document, *, indent: int | None = 2, numpy: bool = False) -
         ``path``.
     """
     path = Path(path)
-    text = json.dumps(document, indent=indent, default=numpy_to_json if numpy else None)
-    path.write_text(text + "\n")
-    return path
+    run = _current_run(path)
+    if run is not None and path.name == MARKER:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        clean, replaced = finite_json(document, numpy)
+        if replaced and isinstance(clean, dict):
+            clean = {**clean, "non_finite": replaced}
+        run.markers[path] = clean
+        return path
+    text = _json_text(document, indent, numpy)
+    return write_file(path, lambda tmp: tmp.write_text(text))
 
 
-def write_csv(path, table) -> Path:
-    """Write a table as CSV without its index.
+def write_table(path, table) -> Path:
+    """Write a table without its index: CSV, or Parquet for a ``.parquet`` path.
 
     Parameters
     ----------
@@ -113,6 +486,62 @@ def write_csv(path, table) -> Path:
     pathlib.Path
         ``path``.
     """
-    path = Path(path)
-    table.to_csv(path, index=False)
-    return path
+    return write_file(path, lambda tmp: write_table_file(tmp, table))
+
+
+def write_csv(path, table) -> Path:
+    """Write a table as CSV without its index (as ``DataFrame.to_csv``, but vectorised).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+    table : pandas.DataFrame
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+    """
+    return write_table(path, table)
+
+
+def read_marker(folder, *, check: bool = True) -> dict:
+    """Read a folder's ``summary.json`` and check that the run it describes is complete.
+
+    Parameters
+    ----------
+    folder : str or os.PathLike
+    check : bool, default True
+        Check that every file listed under ``"files"`` exists.
+
+    Returns
+    -------
+    dict
+        The document. Folders written before the marker existed have no
+        ``"files"``; they are taken as they are.
+
+    Raises
+    ------
+    FileNotFoundError
+        No ``summary.json``: the folder holds no complete run.
+    InputError
+        ``summary.json`` is not valid JSON (truncated, edited), or a listed file is
+        missing; the message names the file.
+    """
+    path = Path(folder) / MARKER
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: not found; the folder holds no complete output "
+                                "(an interrupted run leaves none)")
+    try:
+        doc = json.loads(path.read_text())
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise InputError(f"{path}: not valid JSON ({exc}); the file is damaged") from None
+    if not isinstance(doc, dict):
+        raise InputError(f"{path}: expected a JSON object, got {type(doc).__name__}")
+    if check:
+        missing = [f for f in doc.get("files", []) if not (Path(folder) / f).exists()]
+        if missing:
+            raise InputError(f"{path}: lists {', '.join(missing[:5])}, which "
+                             f"{'is' if len(missing) == 1 else 'are'} missing: the folder is "
+                             "not a complete output")
+    return doc

@@ -266,9 +266,10 @@ def load_survey(pings: Any, beacons: Any = None) -> Survey:
     beacon_table, beacons_source = beacons_frame(beacons, None)
     known = [str(b) for b in beacon_table.index]
     known_text = ", ".join(map(repr, known[:20])) + (" ..." if len(known) > 20 else "")
-    for pos in np.flatnonzero(~np.isin(arr["beacon"], known + [""])):
-        problems.add(int(pos), f"{table.where(pos, 'beacon')}: beacon {arr['beacon'][pos]!r} is "
-                               f"not in {beacons_source}; known beacon ids: {known_text}")
+    unknown = ~pd.Series(arr["beacon"]).isin(known + [""]).to_numpy()
+    problems.add_mask(unknown, lambda pos: (
+        f"{table.where(pos, 'beacon')}: beacon {arr['beacon'][pos]!r} is not in "
+        f"{beacons_source}; known beacon ids: {known_text}"))
     problems.raise_if_any()
     return Survey(table.frame, _frozen(arr["beacon"], object),
                   *(_frozen(arr[k]) for k in ("time", "range", "x", "y", "depth")),

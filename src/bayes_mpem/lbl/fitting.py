@@ -15,12 +15,13 @@ import pandas as pd
 
 from .._rng import RNGLike, as_generator
 from .._validate import check_choice
-from ..io.results import output_folder, write_csv, write_json
+from ..io.results import write_json, write_table, writing
 from ..io.survey import Survey, load_survey
+from ..io.table_files import TABLE_FORMATS
 from .em_paper import fit_paper_em
 from .em_result import check_options
 from .path_choice import AUTO, check_path_choice, choose_path
-from .survey import beacons_table, classified_table, over_beacons
+from .survey import beacons_table, check_min_pings, classified_table, over_beacons
 
 METHODS = ("mixture", "paper")
 
@@ -146,23 +147,30 @@ class SurveyFit:
             lines.append(f"{bid:>6} skipped: {why}")
         return "\n".join(lines)
 
-    def write(self, out_dir) -> dict:
-        """Write ``summary.json`` and ``classified.csv`` into ``out_dir``.
+    def write(self, out_dir, *, table_format: str = "csv") -> dict:
+        """Write ``classified.csv``, ``history.json`` and, last, ``summary.json`` to ``out_dir``.
+
+        Through :func:`bayes_mpem.io.results.writing`: all or nothing, ``summary.json``
+        (the completion marker) last.
 
         Parameters
         ----------
         out_dir : str or pathlib.Path
             Created if missing.
+        table_format : {"csv", "parquet"}, default "csv"
+            Of the classified table (``classified.csv`` or ``classified.parquet``).
 
         Returns
         -------
         dict
             Paths written, keyed ``summary``, ``classified`` and ``history``.
         """
-        out = output_folder(out_dir)
-        return {"summary": write_json(out / "summary.json", self.summary()),
-                "classified": write_csv(out / "classified.csv", self.classified()),
-                "history": write_json(out / "history.json", self.history(), indent=None)}
+        check_choice("table_format", table_format, TABLE_FORMATS)
+        with writing(out_dir) as out:
+            return {"classified": write_table(out / f"classified.{table_format}",
+                                              self.classified()),
+                    "history": write_json(out / "history.json", self.history(), indent=None),
+                    "summary": write_json(out / "summary.json", self.summary())}
 
     def history(self) -> dict:
         """Per beacon: every iteration's parameters and the first E-step's probabilities.
@@ -251,6 +259,7 @@ def fit(
     """
     check_choice("method", method, METHODS)
     check_path_choice(path)
+    check_min_pings(min_pings)
     check_options(weights=weights, pol=pol, alpha=alpha, sigma_dp=sigma_dp)
     survey = load_survey(pings, beacons)
     gen = as_generator(rng)

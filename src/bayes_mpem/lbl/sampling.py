@@ -5,14 +5,16 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from .._rng import RNGLike, as_generator
+from .._validate import check_choice
 from ..exceptions import UnusableStartError
-from ..io.results import output_folder, write_csv, write_json
+from ..io.results import write_file, write_json, write_table, writing
 from ..io.survey import Survey, load_survey
+from ..io.table_files import TABLE_FORMATS
 from ..mixture.densities import CLASSES
 from .beacon_sampling import PosteriorResult, sample_beacon
 from .path_choice import AUTO, check_path_choice, choose_path
 from .posterior import check_sample_options
-from .survey import beacons_table, classified_table, option_subset, over_beacons
+from .survey import beacons_table, check_min_pings, classified_table, option_subset, over_beacons
 
 
 @dataclass(frozen=True)
@@ -132,28 +134,35 @@ class SurveyPosterior:
         root.attrs.update({"priors": self.priors, "ci": self.ci})
         return root
 
-    def write(self, out_dir) -> dict:
-        """Write ``posterior.nc``, ``classified.csv`` and ``summary.json`` to ``out_dir``.
+    def write(self, out_dir, *, table_format: str = "csv") -> dict:
+        """Write ``posterior.nc``, ``classified.csv`` and, last, ``summary.json`` to ``out_dir``.
+
+        Through :func:`bayes_mpem.io.results.writing`: all or nothing, ``summary.json``
+        (the completion marker) last, sampling times in ``timings.json``.
 
         Parameters
         ----------
         out_dir : str or pathlib.Path
+        table_format : {"csv", "parquet"}, default "csv"
+            Of the classified table.
 
         Returns
         -------
         dict
             Paths written.
         """
-        out = output_folder(out_dir)
-        paths = {"posterior": out / "posterior.nc"}
+        check_choice("table_format", table_format, TABLE_FORMATS)
         # the per-range log-likelihood dominates the file: gzip'd float32 (7 significant
         # digits, ample for LOO) took the abe58 demo file from 81 to 29 MB (measured)
         enc = {f"/beacon_{b}/log_likelihood": {"z": {"dtype": "float32", "compression": "gzip",
                                                      "compression_opts": 4, "shuffle": True}}
                for b in self.results}
-        self.datatree().to_netcdf(paths["posterior"], engine="h5netcdf", encoding=enc)
-        paths["classified"] = write_csv(out / "classified.csv", self.classified())
-        paths["summary"] = write_json(out / "summary.json", self.summary())
+        with writing(out_dir) as out:
+            paths = {"posterior": write_file(out / "posterior.nc", lambda tmp: self.datatree()
+                                             .to_netcdf(tmp, engine="h5netcdf", encoding=enc))}
+            paths["classified"] = write_table(out / f"classified.{table_format}",
+                                              self.classified())
+            paths["summary"] = write_json(out / "summary.json", self.summary())
         return paths
 
 
@@ -214,6 +223,7 @@ def sample(
     """
     path = check_path_choice(kwargs.pop("path", AUTO))
     check_sample_options(priors=priors, ci=ci, **option_subset(kwargs))
+    check_min_pings(min_pings)
     survey = load_survey(pings, beacons)
     gen = as_generator(rng)
     choices = {}

@@ -13,9 +13,39 @@ import warnings
 
 import numpy as np
 
+from .._validate import check_int
 from ..exceptions import SkippedBeaconWarning
 from ..io.survey import Survey
 from ..mixture.densities import CLASSES
+
+#: The fewest replies a beacon can be fitted with (both EMs need 3 ranges).
+MIN_PINGS = 3
+
+
+def check_min_pings(min_pings) -> int:
+    """Check ``min_pings`` before any work: an integer >= :data:`MIN_PINGS`.
+
+    Parameters
+    ----------
+    min_pings : int
+
+    Returns
+    -------
+    int
+
+    Raises
+    ------
+    ValueError
+        Naming ``min_pings``.
+
+    Examples
+    --------
+    >>> check_min_pings(2)
+    Traceback (most recent call last):
+    ...
+    ValueError: min_pings: expected an integer >= 3, got 2
+    """
+    return check_int("min_pings", min_pings, minimum=MIN_PINGS)
 
 
 def beacons_table(survey: Survey) -> dict:

@@ -6,12 +6,11 @@ and returns the Figure.
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import matplotlib.pyplot as plt
 import numpy as np
 
 from .._validate import check_choice
+from ..io.results import write_file, writing
 from ..lbl.diagnosis.model import predict
 from ..lbl.diagnosis.residuals import covariates
 
@@ -174,15 +173,16 @@ def write_figures(diagnosis, out_dir) -> dict:
     dict
         Paths keyed by figure name.
     """
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     paths = {}
-    for key, make in (("residuals_baseline", lambda: plot_residuals(diagnosis)),
-                      ("residuals_final", lambda: plot_residuals(diagnosis, model="final")),
-                      ("classes_vs_time", lambda: plot_classes_vs_time(diagnosis)),
-                      ("candidates", lambda: plot_candidates(diagnosis))):
-        fig = make()
-        paths[key] = out / f"{key}.png"
-        fig.savefig(paths[key], dpi=100)
-        plt.close(fig)
+    with writing(out_dir) as out:
+        for key, make in (("residuals_baseline", lambda: plot_residuals(diagnosis)),
+                          ("residuals_final", lambda: plot_residuals(diagnosis, model="final")),
+                          ("classes_vs_time", lambda: plot_classes_vs_time(diagnosis)),
+                          ("candidates", lambda: plot_candidates(diagnosis))):
+            fig = make()
+            try:
+                paths[key] = write_file(out / f"{key}.png",
+                                        lambda tmp, f=fig: f.savefig(tmp, dpi=100))
+            finally:
+                plt.close(fig)
     return paths

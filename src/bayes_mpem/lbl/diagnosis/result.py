@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from ..._deprecated import figures_keyword
-from ...io.results import output_folder, write_json
+from ...io.results import write_json, writing
 from ...io.survey import Survey
 from .ecm import JointFit
 from .model import Ranges
@@ -165,10 +165,10 @@ class Diagnosis:
         dict
             Paths written, keyed ``diagnosis``.
         """
-        out = output_folder(out_dir)
-        paths = {"diagnosis": write_json(out / "diagnosis.json", self.to_dict(), numpy=True)}
-        if figures is not None:
-            paths.update(figures_keyword(self, out, figures, "Diagnosis.write(figures=...)"))
+        with writing(out_dir) as out:
+            paths = {"diagnosis": write_json(out / "diagnosis.json", self.to_dict(), numpy=True)}
+            if figures is not None:
+                paths.update(figures_keyword(self, out, figures, "Diagnosis.write(figures=...)"))
         return paths
 
     def summary(self) -> str:

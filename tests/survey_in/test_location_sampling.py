@@ -222,7 +222,7 @@ def test_locate_command_with_sample(tmp_path):
     (["--seed", "0", "--no-progress"], "--seed, --no-progress apply with --sample only"),
     (["--sample", "--walkers", "3"], "n_walkers: expected an integer >= 4"),
     (["--sample", "--walkers", "10"], r"n_walkers: expected at least 2 x \(6 parameters"),
-    (["--sample", "--min-ess", "-1"], "min_ess: expected a number >= 0"),
+    (["--sample", "--min-ess", "-1"], "--min-ess: expected a number >= 0"),
     (["--sample", "--ci", "1.5"], "ci: expected a probability"),
 ])
 def test_locate_command_refuses_bad_sample_options(tmp_path, capsys, extra, message):

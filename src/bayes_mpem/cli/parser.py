@@ -141,7 +141,7 @@ def _add_locate(sub):
                         "classes (emcee); intervals and classes from the posterior")
     p.add_argument("--walkers", type=opt.at_least(2), default=None, metavar="N",
                    help="--sample: walkers (default max(32, 2 x parameters + 2))")
-    p.add_argument("--min-ess", type=opt.positive, default=None, metavar="N",
+    p.add_argument("--min-ess", type=opt.non_negative, default=None, metavar="N",
                    help="--sample: run until the smallest effective sample size reaches N "
                         "(default 1000)")
     p.add_argument("--seed", type=opt.seed, default=None,
@@ -265,7 +265,12 @@ def main(argv=None) -> int:
         Exit status: 0 on success, 2 on invalid input, 1 on an internal error,
         128 + signal number when terminated.
     """
-    args = build_parser().parse_args(argv)
+    try:
+        args = build_parser().parse_args(argv)
+    except SystemExit as exc:  # an option error (status 2) returns; --help, --version exit
+        if exc.code == 2:
+            return 2
+        raise
     import matplotlib
 
     matplotlib.use("Agg")  # the command line only writes files; never opens a window

@@ -98,7 +98,7 @@ LIMITS = {
     "lat": Limit("latitude", "degrees", -90.0, 90.0),
     "lon": Limit("longitude", "degrees", -180.0, 180.0),
     "minutes": Limit("arc-minutes", "minutes", 0.0, 60.0),
-    "heading": Limit("heading", "degrees", -360.0, 360.0),
+    "heading": Limit("heading", "degrees", -1.0e5, 1.0e5),  # SeaGap unwraps its heading
     "angle": Limit("attitude angle", "degrees", -360.0, 360.0),
     "sound_speed": Limit("sound speed", "m/s", 1300.0, 1800.0),
     "tat": Limit("turn-around time", "s", 0.0, 10.0),

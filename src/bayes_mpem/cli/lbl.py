@@ -86,6 +86,9 @@ def _report_fit(result, paths):
             print(f"warning: beacon {bid} did not converge", file=sys.stderr)
     n_nr = int(result.survey.no_reply.sum())
     print(f"\n{len(result.survey)} rows, {n_nr} pings without reply (labelled no_reply)")
+    if result.survey.comment_lines:
+        print(f"{result.survey.comment_lines} comment line(s) (starting with #) in "
+              f"{result.survey.pings_source} were not read as rows")
     _print_written(paths)
 
 

@@ -21,7 +21,7 @@ from ..io.table_files import TABLE_FORMATS
 from .em_paper import fit_paper_em
 from .em_result import check_options
 from .path_choice import AUTO, check_path_choice, choose_path
-from .survey import beacons_table, check_min_pings, classified_table, over_beacons
+from .survey import beacons_table, check_min_pings, classified_table, non_finite, over_beacons
 
 METHODS = ("mixture", "paper")
 
@@ -187,6 +187,13 @@ class SurveyFit:
                 for bid, r in self.results.items()}
 
 
+def _non_finite_fit(res) -> list:
+    """Names of a fit's values that are not finite (the fit then failed)."""
+    doc = {"d0": res.d0, "sigma_mp": res.sigma_mp, "sigma_dp": res.sigma_dp,
+           "weights": res.weights, "loglik": res.loglik if res.loglik is not None else 0.0}
+    return non_finite(doc) + ([] if np.isfinite(res.resp).all() else ["class probabilities"])
+
+
 def fit(
     pings,
     beacons=None,
@@ -278,7 +285,7 @@ def fit(
         return fit_paper_em(data, path=choice.path, sigma_dp=sigma_dp, pol=pol, alpha=alpha,
                             **kwargs)
 
-    results, skipped = over_beacons(survey, min_pings, fit_one)
+    results, skipped = over_beacons(survey, min_pings, fit_one, check=_non_finite_fit)
     options = {"path": path, "sigma_dp": sigma_dp, "min_pings": min_pings, **kwargs}
     if method == "mixture":
         options["weights"] = weights

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from .._rng import RNGLike, as_generator
 from .._validate import check_choice
 from ..exceptions import UnusableStartError
@@ -14,7 +16,14 @@ from ..mixture.densities import CLASSES
 from .beacon_sampling import PosteriorResult, sample_beacon
 from .path_choice import AUTO, check_path_choice, choose_path
 from .posterior import check_sample_options
-from .survey import beacons_table, check_min_pings, classified_table, option_subset, over_beacons
+from .survey import (
+    beacons_table,
+    check_min_pings,
+    classified_table,
+    non_finite,
+    option_subset,
+    over_beacons,
+)
 
 
 @dataclass(frozen=True)
@@ -166,6 +175,12 @@ class SurveyPosterior:
         return paths
 
 
+def _non_finite_posterior(res) -> list:
+    """Names of a posterior's summaries that are not finite (the beacon then failed)."""
+    return non_finite(res.summary) + (
+        [] if np.isfinite(res.class_probs).all() else ["class probabilities"])
+
+
 def sample(
     pings,
     beacons=None,
@@ -237,7 +252,8 @@ def sample(
         return sample_beacon(data, priors=priors, ci=ci, rng=gen, path=choice.path,
                              **{"init": choice.fit, **kwargs})
 
-    results, skipped = over_beacons(survey, min_pings, sample_one, skip_on=(UnusableStartError,))
+    results, skipped = over_beacons(survey, min_pings, sample_one, skip_on=(UnusableStartError,),
+                                    check=_non_finite_posterior)
     return SurveyPosterior(survey=survey, results=results, skipped=skipped, priors=priors,
                            ci=float(ci), options={"min_pings": min_pings, "path": path, **kwargs},
                            path_choices=choices)

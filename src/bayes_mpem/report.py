@@ -25,7 +25,7 @@ from ._validate import check_choice
 from .exceptions import InputError
 from .io.results import MARKER, read_marker, write_file
 from .io.survey import load_survey
-from .io.table_files import read_table_file
+from .io.table_files import frame_as_text, read_table_file
 from .io.tables import RESERVED_COLUMNS
 from .lbl.comparison import SurveyComparison
 from .lbl.diagnosis.result import Diagnosis
@@ -228,7 +228,7 @@ def _classified(d, summary):
     if missing:
         raise InputError(f"{d / name}: missing column(s) {', '.join(missing)}; not a "
                          "classified table of 'bayes-mpem fit' or 'sample'")
-    return frame.astype(str) if name.endswith(".parquet") else frame
+    return frame_as_text(frame) if name.endswith(".parquet") else frame
 
 
 def load_output(result_dir):
@@ -288,6 +288,9 @@ def load_output(result_dir):
 def _load_fit(d, summary, survey, probs):
     hist_path = d / "history.json"
     hist = _read_json(hist_path) if hist_path.exists() else {}
+    if not isinstance(hist, dict):
+        raise InputError(f"{hist_path}: expected a JSON object of beacons, got "
+                         f"{type(hist).__name__}")
     results = {}
     for b, s in summary["beacons"].items():
         rows = survey.for_beacon(b).rows

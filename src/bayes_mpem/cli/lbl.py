@@ -177,6 +177,9 @@ def cmd_plot(args) -> int:
               f"(skipped: {result.skipped or 'none'}); nothing to draw", file=sys.stderr)
         return 2
     beacon = None if args.beacon is None else args.beacon.strip()  # ids are text, as in CSVs
+    if beacon is not None and beacon not in result.results:
+        raise OptionError(f"--beacon: expected one of the fitted beacons "
+                          f"{', '.join(map(repr, result.results))}, got {args.beacon!r}")
     _print_written(write_figures(result, args.out or args.result_dir, beacon=beacon))
     return 0
 
@@ -297,6 +300,10 @@ def cmd_diagnose(args) -> int:
     """
     effects = EFFECTS if args.effects is None else tuple(
         e.strip() for e in args.effects.split(",") if e.strip())
+    unknown = [e for e in effects if e not in EFFECTS]
+    if unknown or not effects:
+        raise OptionError(f"--effects: expected a comma-separated list of {', '.join(EFFECTS)}; "
+                          f"got {args.effects!r}")
     result = diagnose(args.pings, args.beacons, effects=effects, path=args.path,
                       n_folds=args.folds, min_gain=args.min_gain, min_pings=args.min_pings,
                       rng=args.seed, progress=not args.no_progress)

@@ -25,6 +25,8 @@ from __future__ import annotations
 import argparse
 import math
 
+from ..io.boundary import limit_problem
+
 #: The fewest replies a beacon can be fitted with (the EMs need 3 ranges).
 MIN_PINGS = 3
 
@@ -178,6 +180,30 @@ def at_least(minimum: int, maximum: int | None = None):
 
     parse.__name__ = "integer"
     return parse
+
+
+def turn_around(text: str) -> float:
+    """Parse a turn-around time in s, within the limits of :data:`bayes_mpem.io.boundary.LIMITS`.
+
+    Parameters
+    ----------
+    text : str
+
+    Returns
+    -------
+    float
+
+    Raises
+    ------
+    argparse.ArgumentTypeError
+        Otherwise.
+    """
+    v = non_negative(text)
+    why = limit_problem("tat", v)
+    if why:
+        raise argparse.ArgumentTypeError(f"expected a turn-around time in [0, 10] s, "
+                                         f"got {text!r}")
+    return v
 
 
 #: ``--seed``: a non-negative integer (NumPy's seeds).

@@ -117,7 +117,7 @@ def _add_locate(sub):
                    choices=["obsrange", "obsrange-sio", "obsrange-whoi", "seagap"],
                    help="'obsrange' detects the SIO or WHOI variant")
     p.add_argument("--out", required=True, metavar="DIR")
-    p.add_argument("--tat", type=opt.non_negative, default=None, metavar="S",
+    p.add_argument("--tat", type=opt.turn_around, default=None, metavar="S",
                    help="turn-around time in s (default: the file's, else 0.013; SeaGap 0)")
     p.add_argument("--fit-tat", action="store_true",
                    help="fit the turn-around time too (often not identifiable)")
@@ -139,7 +139,7 @@ def _add_locate(sub):
     p.add_argument("--sample", action="store_true",
                    help="after each EM fit, sample the posterior of the location and the ping "
                         "classes (emcee); intervals and classes from the posterior")
-    p.add_argument("--walkers", type=opt.at_least(2), default=None, metavar="N",
+    p.add_argument("--walkers", type=opt.at_least(4), default=None, metavar="N",
                    help="--sample: walkers (default max(32, 2 x parameters + 2))")
     p.add_argument("--min-ess", type=opt.non_negative, default=None, metavar="N",
                    help="--sample: run until the smallest effective sample size reaches N "

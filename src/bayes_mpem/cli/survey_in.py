@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..io.boundary import read_text_lines
 from ..io.formats import read_survey
 from ..survey_in.location_sampling import locate_survey_bayes
 from ..survey_in.posterior import check_location_options
@@ -36,8 +37,7 @@ def survey_format(path, fmt: str) -> str:
     """
     if fmt != "obsrange":
         return fmt
-    with open(path, encoding="utf-8-sig", errors="replace") as fh:
-        first = next((ln for ln in fh if ln.strip()), "")
+    first = next((ln for ln in read_text_lines(path) if ln.strip()), "")
     return "obsrange-whoi" if first.lstrip().startswith("#") else "obsrange-sio"
 
 

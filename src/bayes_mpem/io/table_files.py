@@ -317,6 +317,38 @@ def _column_text(col: pd.Series) -> pa.Array:
     return arr
 
 
+def frame_as_text(frame: pd.DataFrame) -> pd.DataFrame:
+    """Return every cell as the text CSV would hold ('' for missing; floats as ``repr``).
+
+    What a Parquet table becomes when it is read back like a CSV file.
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+
+    Returns
+    -------
+    pandas.DataFrame
+        Same columns, text cells.
+
+    Examples
+    --------
+    >>> frame_as_text(pd.DataFrame({"p": [0.5, float("nan")], "s": ["a", None]}))["p"].tolist()
+    ['0.5', '']
+    """
+    cols = {}
+    for j, name in enumerate(frame.columns):
+        col = frame.iloc[:, j]
+        if pd.api.types.is_float_dtype(col.dtype):
+            arr = _float_text(col.to_numpy(dtype=float, na_value=np.nan))
+            cols[j] = pd.Series(arr.to_pylist(), dtype="str")
+        else:
+            cols[j] = col.astype(object).where(col.notna(), "").astype(str)
+    out = pd.DataFrame(cols)
+    out.columns = list(frame.columns)
+    return out
+
+
 def table_to_csv_bytes(frame: pd.DataFrame) -> bytes:
     """Return the bytes ``frame.to_csv(index=False)`` writes, formatted by pyarrow kernels.
 

@@ -112,8 +112,14 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
                "surface_depth": float(pings["depth"].mean()) - SEAGAP_TRANSDUCER_DEPTH}
     out, fits, probs = {}, {}, np.full(len(pings), np.nan)
     for tid in beacons["beacon"].astype(str):
-        fits[tid] = r = locate(pings, beacons, tid, tat=tat, fit_tat=fit_tat, outliers=outliers,
-                               ssp=prof, speed_intervals=speed_intervals, fit_lag=fit_lag, **geo)
+        try:
+            fits[tid] = r = locate(pings, beacons, tid, tat=tat, fit_tat=fit_tat,
+                                   outliers=outliers, ssp=prof, speed_intervals=speed_intervals,
+                                   fit_lag=fit_lag, **geo)
+        except InputError as exc:
+            hint = (f" (speed_intervals={speed_intervals} needs {speed_intervals} more)"
+                    if speed_intervals and "need at least" in str(exc) else "")
+            raise InputError(f"{raw.source}: {exc}{hint}") from None
         probs[r.rows] = r.p_true
         d = r.to_dict(ci)
         if "lat" in raw.header:

@@ -157,13 +157,14 @@ def _check_survey_lines(case: Case, out: Path, problems: list) -> None:
     if len(set(got)) != len(got):
         problems.append("a line number appears twice in classified.csv")
     seen_ping = False
+    pinged = set(int(x) for x in cls.loc[cls["label"].isin(["true", "spurious"]), "line"])
+    listed = set(got)
     for i, ln in enumerate(lines, start=1):
         if not ln.strip():
             continue
         head = _HEADER_LINE.fullmatch(ln) is not None
-        if i in set(got):
-            seen_ping = True
-        elif not (head and not seen_ping) and not ln.lstrip().startswith("#"):
+        seen_ping = seen_ping or i in pinged
+        if i not in listed and not (head and not seen_ping) and not ln.lstrip().startswith("#"):
             problems.append(f"line {i} is neither header nor in classified.csv: {ln[:60]!r}")
             break
     for _, row in cls[cls["label"].isin(["true", "spurious"])].iterrows():

@@ -13,17 +13,11 @@ import pandas as pd
 import pytest
 
 from bayes_mpem.exceptions import InputError
-from bayes_mpem.io.boundary import (
-    LIMITS,
-    Shape,
-    classify,
-    limit_problem,
-    out_of_limits,
-    read_text_lines,
-    split_lines,
-)
 from bayes_mpem.io.formats import read_survey, sample_file
 from bayes_mpem.io.survey import load_survey
+
+# the tests of the problem classes use only the public readers, so that they also run
+# (and fail) on the code before the boundary; the boundary's own tests import it
 
 HEADER = "time,beacon,range,x,y,depth"
 BEACONS = "beacon,x,y,depth\n1,0,0,50\n2,100,0,50\n"
@@ -37,6 +31,8 @@ def _grep_n(path, pattern):
 
 @pytest.mark.parametrize("sep", ["\f", "\v", "\x1c", "\x85", "\u2028", "\r"])
 def test_line_numbers_are_grep_n_numbers(tmp_path, sep):
+    from bayes_mpem.io.boundary import read_text_lines
+
     p = tmp_path / "f.txt"
     p.write_text(f"a\njunk{sep}more\nb\r\nc\n")
     lines = read_text_lines(p)
@@ -44,10 +40,14 @@ def test_line_numbers_are_grep_n_numbers(tmp_path, sep):
 
 
 def test_split_lines_keeps_a_final_line_without_newline():
+    from bayes_mpem.io.boundary import split_lines
+
     assert split_lines("a\nb") == ["a", "b"] and split_lines("") == []
 
 
 def test_unreadable_inputs_name_the_file(tmp_path):
+    from bayes_mpem.io.boundary import read_text_lines
+
     with pytest.raises(InputError, match="is a folder; expected a file"):
         read_text_lines(tmp_path)
     with pytest.raises(FileNotFoundError, match="nope.txt"):
@@ -63,6 +63,8 @@ def test_unreadable_inputs_name_the_file(tmp_path):
 
 
 def test_limits_refuse_the_impossible_and_keep_the_possible():
+    from bayes_mpem.io.boundary import LIMITS, limit_problem, out_of_limits
+
     assert out_of_limits("range", [1e-3, 5000.0, 1e5]).tolist() == [False, False, False]
     assert out_of_limits("range", [0.0, -1.0, 1e5 + 1, 1e300, np.nan, np.inf]).all()
     assert out_of_limits("lat", [-90.0, 90.0]).sum() == 0 and out_of_limits("lat", [95.0]).all()
@@ -72,6 +74,8 @@ def test_limits_refuse_the_impossible_and_keep_the_possible():
 
 
 def test_a_line_is_classified_by_its_whole_shape_not_by_a_character():
+    from bayes_mpem.io.boundary import Shape, classify
+
     shapes = [Shape("ping", r"\d+ msec\..*"), Shape("header", r"[A-Za-z][^:]*:.*")]
     kinds = [k for _, k, _ in classify(["Site: A", "6306 msec. Time(UTC): 12:00", "x:y:"],
                                         shapes)]

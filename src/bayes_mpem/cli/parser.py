@@ -18,7 +18,7 @@ import warnings
 
 from .. import __version__
 from ..exceptions import InputError
-from ..io.results import check_output_folder, writing
+from ..io.results import abort_open_runs, check_output_folder, writing
 from ..io.table_files import TABLE_FORMATS
 from ..lbl.path_choice import PATH_CHOICES
 from . import lbl, survey_in
@@ -219,7 +219,10 @@ class _Failed(Exception):
 
 
 def _on_sigterm(signum, frame):
-    raise SystemExit(128 + signum)
+    # not an exception: third-party code on the stack (emcee) would print it as a traceback
+    abort_open_runs()
+    print("bayes-mpem: terminated; no result written", file=sys.stderr, flush=True)
+    os._exit(128 + signum)
 
 
 def _run(handler, args) -> int:

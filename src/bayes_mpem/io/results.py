@@ -260,6 +260,23 @@ def writing(out_dir, *, extend: bool = False, option: str = "--out", create: boo
         _RUNS.reset(token)
 
 
+def abort_open_runs() -> int:
+    """Remove the temporary files of every open run (a process being terminated).
+
+    For a signal handler: the folders keep their previous results (or, killed
+    during a commit, no ``summary.json``), and no ``.partial`` file is left.
+
+    Returns
+    -------
+    int
+        The number of runs aborted.
+    """
+    runs = _RUNS.get()
+    for run in runs:
+        run.abort()
+    return len(runs)
+
+
 def output_folder(out_dir) -> Path:
     """Create ``out_dir`` (and its parents) if missing, after :func:`check_output_folder`.
 

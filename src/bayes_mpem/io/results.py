@@ -451,6 +451,11 @@ def split_timings(document):
 
 
 def _json_text(document, indent, numpy=False) -> str:
+    try:  # the common case, in C: nothing to replace
+        return json.dumps(document, indent=indent, allow_nan=False,
+                          default=numpy_to_json if numpy else None) + "\n"
+    except ValueError:
+        pass
     clean, replaced = finite_json(document, numpy)
     if replaced and isinstance(clean, dict):
         clean = {**clean, "non_finite": {**clean.get("non_finite", {}), **replaced}}

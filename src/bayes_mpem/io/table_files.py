@@ -287,13 +287,33 @@ def _float_text(values: np.ndarray) -> pa.Array:
     finite = np.isfinite(v)
     same = finite & np.where(positional, has_dot & ~has_e, has_e & two_digit_exp)
     integral = finite & positional & ~has_e & ~has_dot
+    one_digit_exp = finite & ~positional & has_e & ~two_digit_exp  # 1e-7 -> 1e-07
     out = pc.if_else(pa.array(integral), pc.binary_join_element_wise(arrow, ".0", ""), arrow)
-    fix = np.flatnonzero(~same & ~integral)
+    if one_digit_exp.any():
+        out = pc.if_else(pa.array(one_digit_exp),
+                         pc.replace_substring_regex(out, r"e([+-])(\d)$", r"e\10\2"), out)
+    fix = np.flatnonzero(~same & ~integral & ~one_digit_exp)
     if fix.size:
         text = np.asarray(out.to_numpy(zero_copy_only=False), dtype=object)
         text[fix] = ["" if np.isnan(x) else repr(float(x)) for x in v[fix]]
         out = pa.array(text, type=pa.string())
     return out
+
+
+def _quoted_characters() -> str:
+    """The characters that make Python's csv writer quote a field (as pandas writes CSV)."""
+    import io
+
+    chars = []
+    for c in ",\"\r\n\t;":
+        buf = io.StringIO()
+        csv.writer(buf, lineterminator="\n").writerow(["a" + c, "b"])
+        if buf.getvalue().startswith('"'):
+            chars.append({"\r": "\\r", "\n": "\\n", "\t": "\\t"}.get(c, c))
+    return "[" + "".join(chars) + "]"
+
+
+_NEEDS_QUOTES = _quoted_characters()
 
 
 def _column_text(col: pd.Series) -> pa.Array:
@@ -310,7 +330,7 @@ def _column_text(col: pd.Series) -> pa.Array:
         values = values.map(lambda x: x if isinstance(x, str) else
                             (repr(x) if isinstance(x, float) else str(x)))
     arr = pa.array(values.to_numpy(dtype=object), type=pa.string())
-    need = pc.match_substring_regex(arr, '[,"\r\n]')
+    need = pc.match_substring_regex(arr, _NEEDS_QUOTES)
     if pc.any(need).as_py():
         quoted = pc.binary_join_element_wise('"', pc.replace_substring(arr, '"', '""'), '"', "")
         arr = pc.if_else(need, quoted, arr)
@@ -371,7 +391,10 @@ def table_to_csv_bytes(frame: pd.DataFrame) -> bytes:
     if len(frame) == 0:
         return header
     cols = [_column_text(frame.iloc[:, j]) for j in range(frame.shape[1])]
-    joined = pc.binary_join_element_wise(*cols, ",") if len(cols) > 1 else cols[0]
+    if len(cols) == 1:  # csv quotes a row's only field when it is empty
+        joined = pc.if_else(pc.equal(cols[0], ""), '""', cols[0])
+    else:
+        joined = pc.binary_join_element_wise(*cols, ",")
     lines = pc.binary_join_element_wise(joined, "", "\n")
     if isinstance(lines, pa.ChunkedArray):
         lines = lines.combine_chunks()

@@ -67,14 +67,12 @@ from __future__ import annotations
 import contextlib
 import contextvars
 import json
-import math
 import os
 import tempfile
 from pathlib import Path
 
-import numpy as np
-
 from ..exceptions import InputError
+from .documents import finite_json, json_text, split_timings
 from .table_files import write_table_file
 
 MARKER = "summary.json"
@@ -174,8 +172,8 @@ class _Run:
             sub = path.parent
             files = sorted(self._rel(p, sub) for p in [*self.staged, *self.markers]
                            if p.parent.resolve().is_relative_to(sub.resolve()))
-            _atomic_text(path, _json_text({**self.markers[path], "files": files}, 2))
-        _atomic_text(marker, _json_text({**(doc or {}), "files": sorted(new)}, 2))
+            _atomic_text(path, json_text({**self.markers[path], "files": files}, 2))
+        _atomic_text(marker, json_text({**(doc or {}), "files": sorted(new)}, 2))
         self._clean_dead_partials()
 
     def abort(self) -> None:
@@ -346,124 +344,8 @@ def write_file(path, write) -> Path:
     return path
 
 
-def numpy_to_json(value):
-    """Turn a NumPy scalar or array into a JSON-ready value (a ``json`` ``default=``).
-
-    Parameters
-    ----------
-    value : object
-
-    Returns
-    -------
-    int, float, bool or list
-
-    Raises
-    ------
-    TypeError
-        For any other type.
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> numpy_to_json(np.float64(1.5)), numpy_to_json(np.arange(2))
-    (1.5, [0, 1])
-    """
-    if isinstance(value, (np.floating, np.integer, np.bool_)):
-        return value.item()
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    raise TypeError(f"not JSON serialisable: {type(value)}")
-
-
-def finite_json(document, numpy: bool = False):
-    """Replace every NaN and infinity in ``document`` by ``None``, saying where.
-
-    Parameters
-    ----------
-    document : dict, list or scalar
-    numpy : bool, default False
-        Also convert NumPy scalars and arrays.
-
-    Returns
-    -------
-    clean : same structure
-        With ``None`` for every non-finite float.
-    replaced : dict
-        ``{"dotted.path[i]": "nan" | "inf" | "-inf"}``.
-
-    Examples
-    --------
-    >>> finite_json({"a": [1.0, float("inf")], "b": {"c": float("nan")}})
-    ({'a': [1.0, None], 'b': {'c': None}}, {'a[1]': 'inf', 'b.c': 'nan'})
-    """
-    replaced = {}
-
-    def clean(v, where):
-        if numpy and isinstance(v, (np.generic, np.ndarray)):
-            v = numpy_to_json(v)
-        if isinstance(v, float) and not math.isfinite(v):
-            replaced[where] = repr(v)
-            return None
-        if isinstance(v, dict):
-            return {k: clean(x, f"{where}.{k}" if where else str(k)) for k, x in v.items()}
-        if isinstance(v, (list, tuple)):
-            return [clean(x, f"{where}[{i}]") for i, x in enumerate(v)]
-        return v
-
-    return clean(document, ""), replaced
-
-
-def split_timings(document):
-    """Move wall-clock timings (keys ``seconds`` or ``*_seconds``) out of a document.
-
-    Parameters
-    ----------
-    document : dict
-
-    Returns
-    -------
-    document : dict
-        Without the timing keys (a copy; the input is not changed).
-    timings : dict
-        The timings at the same places (empty if none).
-
-    Examples
-    --------
-    >>> split_timings({"a": {"seconds": 2.5, "n": 1}, "b": 3})
-    ({'a': {'n': 1}, 'b': 3}, {'a': {'seconds': 2.5}})
-    """
-    def is_timing(key):
-        return isinstance(key, str) and (key == "seconds" or key.endswith("_seconds"))
-
-    if not isinstance(document, dict):
-        return document, {}
-    kept, timings = {}, {}
-    for k, v in document.items():
-        if is_timing(k):
-            timings[k] = v
-        elif isinstance(v, dict):
-            kept[k], sub = split_timings(v)
-            if sub:
-                timings[k] = sub
-        else:
-            kept[k] = v
-    return kept, timings
-
-
-def _json_text(document, indent, numpy=False) -> str:
-    try:  # the common case, in C: nothing to replace
-        return json.dumps(document, indent=indent, allow_nan=False,
-                          default=numpy_to_json if numpy else None) + "\n"
-    except ValueError:
-        pass
-    clean, replaced = finite_json(document, numpy)
-    if replaced and isinstance(clean, dict):
-        clean = {**clean, "non_finite": {**clean.get("non_finite", {}), **replaced}}
-    return json.dumps(clean, indent=indent, allow_nan=False) + "\n"
-
-
 def write_json(path, document, *, indent: int | None = 2, numpy: bool = False) -> Path:
-    """Write ``document`` as valid JSON followed by a newline (see :func:`finite_json`).
+    """Write ``document`` as strict JSON and a newline (:mod:`~bayes_mpem.io.documents`).
 
     A ``summary.json`` inside a :func:`writing` block is the run's completion
     marker: it is written last, at the commit, with ``"files"`` added.
@@ -475,7 +357,7 @@ def write_json(path, document, *, indent: int | None = 2, numpy: bool = False) -
     indent : int or None, default 2
         ``None`` writes one line (used for the large ``history.json``).
     numpy : bool, default False
-        Also accept NumPy scalars and arrays (:func:`numpy_to_json`).
+        Also accept NumPy scalars and arrays (:func:`~bayes_mpem.io.documents.numpy_to_json`).
 
     Returns
     -------
@@ -491,7 +373,7 @@ def write_json(path, document, *, indent: int | None = 2, numpy: bool = False) -
             clean = {**clean, "non_finite": replaced}
         run.markers[path] = clean
         return path
-    text = _json_text(document, indent, numpy)
+    text = json_text(document, indent, numpy)
     return write_file(path, lambda tmp: tmp.write_text(text))
 
 

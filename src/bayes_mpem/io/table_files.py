@@ -301,7 +301,7 @@ def _float_text(values: np.ndarray) -> pa.Array:
 
 
 def _quoted_characters() -> str:
-    """The characters that make Python's csv writer quote a field (as pandas writes CSV)."""
+    """Return the characters that make the csv writer quote a field (as pandas writes)."""
     import io
 
     chars = []

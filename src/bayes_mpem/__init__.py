@@ -28,27 +28,39 @@ from .exceptions import (  # noqa: E402
     SamplingWarning,
     SkippedBeaconWarning,
 )
-from .io.survey import BeaconData, Survey, load_survey  # noqa: E402
-from .lbl.beacon_sampling import PosteriorResult, sample_beacon  # noqa: E402
-from .lbl.comparison import SurveyComparison, compare  # noqa: E402
-from .lbl.diagnosis.driver import diagnose  # noqa: E402
-from .lbl.diagnosis.result import Diagnosis  # noqa: E402
-from .lbl.em_mixture import fit_mixture_em  # noqa: E402
-from .lbl.em_paper import fit_paper_em  # noqa: E402
-from .lbl.em_result import EMResult  # noqa: E402
-from .lbl.fitting import SurveyFit, fit  # noqa: E402
-from .lbl.loo import compare_beacon  # noqa: E402
-from .lbl.sampling import SurveyPosterior, sample  # noqa: E402
-from .lbl.simulate import Simulation, simulate_survey  # noqa: E402
+
+#: The public names and the modules they live in, imported on first use (PEP 562), so that
+#: ``bayes-mpem fit`` does not pay for emcee, ArviZ and matplotlib it never calls.
+_LAZY = {
+    "BeaconData": "io.survey", "Survey": "io.survey", "load_survey": "io.survey",
+    "PosteriorResult": "lbl.beacon_sampling", "sample_beacon": "lbl.beacon_sampling",
+    "SurveyComparison": "lbl.comparison", "compare": "lbl.comparison",
+    "diagnose": "lbl.diagnosis.driver", "Diagnosis": "lbl.diagnosis.result",
+    "fit_mixture_em": "lbl.em_mixture", "fit_paper_em": "lbl.em_paper",
+    "EMResult": "lbl.em_result", "SurveyFit": "lbl.fitting", "fit": "lbl.fitting",
+    "compare_beacon": "lbl.loo", "SurveyPosterior": "lbl.sampling", "sample": "lbl.sampling",
+    "Simulation": "lbl.simulate", "simulate_survey": "lbl.simulate",
+}
 
 _deprecated.install()
 
 
 def __getattr__(name):
-    """Serve ``bayes_mpem.em`` and the other old module paths as attributes too."""
+    """Import a public name on first use; serve the old module paths as attributes too."""
+    if name in _LAZY:
+        import importlib
+
+        value = getattr(importlib.import_module(f"{__name__}.{_LAZY[name]}"), name)
+        globals()[name] = value
+        return value
     if name in _deprecated.MOVED:
         return _deprecated.old_module(name)
     raise AttributeError(f"module 'bayes_mpem' has no attribute {name!r}")
+
+def __dir__():
+    """List the public names, imported or not yet."""
+    return sorted(set(globals()) | set(_LAZY))
+
 
 __all__ = [
     "BeaconData",

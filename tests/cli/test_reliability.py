@@ -68,7 +68,7 @@ def test_output_problems_are_found_before_the_work(small, tmp_path, monkeypatch,
     """An --out that is a file, under a file or unwritable raised after all the work."""
     def no_work(*args, **kwargs):
         raise AssertionError("the work started")
-    monkeypatch.setattr("bayes_mpem.cli.lbl.sample", no_work)
+    monkeypatch.setattr("bayes_mpem.lbl.sampling.sample", no_work)
     f = tmp_path / "file"
     f.write_text("x")
     for out, words in ((f, "is a file"), (f / "sub", "lies under the file"),

@@ -13,14 +13,30 @@ import sys
 from pathlib import Path
 
 from ..io.results import write_file
-from ..lbl.comparison import compare
-from ..lbl.diagnosis.driver import diagnose
 from ..lbl.effects import EFFECTS
 from ..lbl.fitting import fit
-from ..lbl.sampling import sample
 from ..lbl.simulate import simulate_survey
-from ..report import demo_markdown, load_output, write_figures
 from .errors import OptionError
+
+# sample, compare, diagnose and the report (emcee, ArviZ, matplotlib) are imported by the
+# commands that use them: `fit` starts without them
+
+
+def write_figures(*args, **kwargs):
+    """Call :func:`bayes_mpem.report.write_figures` (imported on first use).
+
+    Parameters
+    ----------
+    *args, **kwargs
+        As :func:`bayes_mpem.report.write_figures`.
+
+    Returns
+    -------
+    list of pathlib.Path
+    """
+    from ..report import write_figures as draw
+
+    return draw(*args, **kwargs)
 
 
 def fit_kwargs(args) -> dict:
@@ -115,6 +131,9 @@ def _demo_fits(sim, out, seed):
 
 def _demo_bayes(sim, out, seed):
     """Sample and compare the demo's priors, write them: ``(posterior, comparison, paths)``."""
+    from ..lbl.comparison import compare
+    from ..lbl.sampling import sample
+
     print("\nSampling the posterior of every beacon (emcee, learned priors)...")
     post = sample(sim.survey, rng=seed, progress="auto")
     written = list(post.write(out / "bayes").values())
@@ -152,6 +171,8 @@ def cmd_demo(args) -> int:
         post, cmp, paths = _demo_bayes(sim, out, args.seed)
         written += paths
     figs = [p for p in written if str(p).endswith(".png")]
+    from ..report import demo_markdown
+
     md = demo_markdown(sim, result, paper, out, figs, seed=args.seed, posterior=post,
                        comparison=cmp)
     written.append(write_file(out / "summary.md", lambda tmp: tmp.write_text(md)))
@@ -171,6 +192,8 @@ def cmd_plot(args) -> int:
     int
         Exit status: 0, or 2 when the folder holds no fitted beacon.
     """
+    from ..report import load_output
+
     result = load_output(args.result_dir)
     if not result.results:
         print(f"bayes-mpem plot: {args.result_dir} holds no fitted beacon "
@@ -251,6 +274,8 @@ def cmd_sample(args) -> int:
     int
         Exit status 0.
     """
+    from ..lbl.sampling import sample
+
     result = sample(args.pings, args.beacons, priors=args.priors, ci=args.ci,
                     n_ensembles=args.ensembles, **sample_kwargs(args))
     out = Path(args.out)
@@ -278,6 +303,8 @@ def cmd_compare(args) -> int:
     int
         Exit status 0.
     """
+    from ..lbl.comparison import compare
+
     result = compare(args.pings, args.beacons, **sample_kwargs(args))
     paths = list(result.write(args.out).values())
     paths += write_figures(result, args.out)
@@ -304,6 +331,8 @@ def cmd_diagnose(args) -> int:
     if unknown or not effects:
         raise OptionError(f"--effects: expected a comma-separated list of {', '.join(EFFECTS)}; "
                           f"got {args.effects!r}")
+    from ..lbl.diagnosis.driver import diagnose
+
     result = diagnose(args.pings, args.beacons, effects=effects, path=args.path,
                       n_folds=args.folds, min_gain=args.min_gain, min_pings=args.min_pings,
                       rng=args.seed, progress=not args.no_progress)

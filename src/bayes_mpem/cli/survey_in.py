@@ -12,8 +12,6 @@ from pathlib import Path
 
 from ..io.boundary import read_text_lines
 from ..io.formats import read_survey
-from ..survey_in.location_sampling import locate_survey_bayes
-from ..survey_in.posterior import check_location_options
 from ..survey_in.result import SurveyInResult
 from ..survey_in.survey import locate_survey
 from .errors import OptionError
@@ -48,6 +46,8 @@ def _check_sample_options(args):
     if given and not args.sample:
         raise OptionError(f"{', '.join(given)} apply with --sample only")
     if args.sample:
+        from ..survey_in.posterior import check_location_options
+
         check_location_options(n_walkers=args.walkers, ci=args.ci,
                                min_ess=1000.0 if args.min_ess is None else args.min_ess)
 
@@ -62,6 +62,8 @@ def _locate(args, raw) -> SurveyInResult:
         model["fit_lag"] = True
     if not args.sample:
         return locate_survey(raw, **model)
+    from ..survey_in.location_sampling import locate_survey_bayes
+
     summary, classified, posteriors = locate_survey_bayes(
         raw, **model, n_walkers=args.walkers,
         min_ess=1000.0 if args.min_ess is None else args.min_ess,

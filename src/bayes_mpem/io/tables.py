@@ -251,6 +251,9 @@ def _beacon_column(table: _Table, problems: _Problems) -> np.ndarray:
         arr = pc.utf8_trim_whitespace(_as_text_array(col)).dictionary_encode()
         uniques = np.asarray(arr.dictionary.to_pylist(), dtype=object)
         ids = uniques[np.asarray(arr.indices.to_numpy(zero_copy_only=False), dtype=np.intp)]
+    elif pd.api.types.is_numeric_dtype(col.dtype) and not pd.api.types.is_bool_dtype(col.dtype):
+        codes, uniques = pd.factorize(col)  # numeric ids (Parquet): one conversion per id
+        ids = np.asarray([as_beacon_id(u) for u in uniques] + [""], dtype=object)[codes]
     else:
         ids = np.array([as_beacon_id(v) for v in col], dtype=object)
     problems.add_mask(ids == "", lambda pos: f"{table.where(pos, 'beacon')}: expected a beacon "

@@ -1,10 +1,10 @@
 """Types of the command-line options: every value checked by argparse, before any work.
 
-Each function here is an ``argparse`` ``type=``: it turns the option's text into
-a value or raises :class:`argparse.ArgumentTypeError`, which argparse reports
-as ``bayes-mpem COMMAND: error: argument --ci: expected a probability in (0,
-1), got '1.5'`` with exit status 2, naming the option, before any file is read.
-No NaN, infinity or out-of-range value gets through.
+Each name here is an ``argparse`` ``type=``: it turns the option's text into a value or
+raises :class:`argparse.ArgumentTypeError`, which argparse reports as ``bayes-mpem
+COMMAND: error: argument --ci: expected a probability in (0, 1), got '1.5'`` with exit
+status 2, naming the option, before any file is read. No NaN, infinity or out-of-range
+value gets through.
 
 Examples
 --------
@@ -25,133 +25,45 @@ from __future__ import annotations
 import argparse
 import math
 
-from ..io.boundary import limit_problem
-
-#: The fewest replies a beacon can be fitted with (the EMs need 3 ranges).
-MIN_PINGS = 3
+from ..lbl.survey import MIN_PINGS
 
 
-def _number(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not math.isfinite(v):
-        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
-    return v
-
-
-def finite(text: str) -> float:
-    """Parse a finite number.
+def number(what: str, low: float = -math.inf, high: float = math.inf, *,
+           include_low: bool = True, include_high: bool = True):
+    """Make the ``type=`` of a finite number option within bounds.
 
     Parameters
     ----------
-    text : str
+    what : str
+        What the message says is expected (``"a probability in (0, 1)"``).
+    low, high : float
+        The bounds (infinite: none).
+    include_low, include_high : bool, default True
+        Whether a bound itself is allowed.
 
     Returns
     -------
-    float
+    callable
+        ``parse(text) -> float``, raising :class:`argparse.ArgumentTypeError`.
 
-    Raises
-    ------
-    argparse.ArgumentTypeError
-        NaN, an infinity, or not a number.
+    Examples
+    --------
+    >>> number("a number >= 1", 1.0)("1")
+    1.0
     """
-    return _number(text)
+    def parse(text: str) -> float:
+        try:
+            v = float(text)
+        except ValueError:
+            v = math.nan
+        ok = (math.isfinite(v) and (v >= low if include_low else v > low)
+              and (v <= high if include_high else v < high))
+        if not ok:
+            raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}")
+        return v
 
-
-def positive(text: str) -> float:
-    """Parse a finite number > 0.
-
-    Parameters
-    ----------
-    text : str
-
-    Returns
-    -------
-    float
-
-    Raises
-    ------
-    argparse.ArgumentTypeError
-        Otherwise.
-    """
-    v = _number(text)
-    if not v > 0:
-        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
-    return v
-
-
-def non_negative(text: str) -> float:
-    """Parse a finite number >= 0.
-
-    Parameters
-    ----------
-    text : str
-
-    Returns
-    -------
-    float
-
-    Raises
-    ------
-    argparse.ArgumentTypeError
-        Otherwise.
-    """
-    v = _number(text)
-    if not v >= 0:
-        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {text!r}")
-    return v
-
-
-def probability(text: str) -> float:
-    """Parse a probability strictly between 0 and 1 (an interval's coverage, ``--pol``).
-
-    Parameters
-    ----------
-    text : str
-
-    Returns
-    -------
-    float
-
-    Raises
-    ------
-    argparse.ArgumentTypeError
-        Otherwise.
-    """
-    try:
-        v = float(text)
-    except ValueError:
-        v = math.nan
-    if not 0.0 < v < 1.0:
-        raise argparse.ArgumentTypeError(f"expected a probability in (0, 1), got {text!r}")
-    return v
-
-
-def fraction(text: str) -> float:
-    """Parse a number in (0, 1] (the paper's ``--alpha``).
-
-    Parameters
-    ----------
-    text : str
-
-    Returns
-    -------
-    float
-
-    Raises
-    ------
-    argparse.ArgumentTypeError
-        Otherwise.
-    """
-    try:
-        v = float(text)
-    except ValueError:
-        v = math.nan
-    if not 0.0 < v <= 1.0:
-        raise argparse.ArgumentTypeError(f"expected a number in (0, 1], got {text!r}")
-    return v
+    parse.__name__ = "number"
+    return parse
 
 
 def at_least(minimum: int, maximum: int | None = None):
@@ -165,7 +77,7 @@ def at_least(minimum: int, maximum: int | None = None):
     Returns
     -------
     callable
-        The ``type=`` function.
+        ``parse(text) -> int``, raising :class:`argparse.ArgumentTypeError`.
     """
     def parse(text: str) -> int:
         try:
@@ -182,31 +94,20 @@ def at_least(minimum: int, maximum: int | None = None):
     return parse
 
 
-def turn_around(text: str) -> float:
-    """Parse a turn-around time in s, within the limits of :data:`bayes_mpem.io.boundary.LIMITS`.
-
-    Parameters
-    ----------
-    text : str
-
-    Returns
-    -------
-    float
-
-    Raises
-    ------
-    argparse.ArgumentTypeError
-        Otherwise.
-    """
-    v = non_negative(text)
-    why = limit_problem("tat", v)
-    if why:
-        raise argparse.ArgumentTypeError(f"expected a turn-around time in [0, 10] s, "
-                                         f"got {text!r}")
-    return v
-
-
+#: A finite number.
+finite = number("a finite number")
+#: A finite number > 0 (scales, ``--sigma-dp``, ``--concentration``).
+positive = number("a positive number", 0.0, include_low=False)
+#: A finite number >= 0 (``--min-gain``, ``--min-ess``).
+non_negative = number("a number >= 0", 0.0)
+#: A probability strictly between 0 and 1 (an interval's coverage, ``--pol``).
+probability = number("a probability in (0, 1)", 0.0, 1.0, include_low=False,
+                     include_high=False)
+#: A number in (0, 1] (the paper's ``--alpha``).
+fraction = number("a number in (0, 1]", 0.0, 1.0, include_low=False)
+#: A turn-around time in s (the limits of :data:`bayes_mpem.io.boundary.LIMITS`).
+turn_around = number("a turn-around time in [0, 10] s", 0.0, 10.0)
 #: ``--seed``: a non-negative integer (NumPy's seeds).
 seed = at_least(0)
-#: ``--min-pings``: the EMs need at least :data:`MIN_PINGS` replies.
+#: ``--min-pings``: the EMs need at least :data:`bayes_mpem.lbl.survey.MIN_PINGS` replies.
 min_pings = at_least(MIN_PINGS)

@@ -119,6 +119,41 @@ def split_timings(document):
     return kept, timings
 
 
+#: Float arrays at least this large are formatted in one vectorised pass (one-line JSON).
+BIG_ARRAY = 10_000
+
+
+def _array_text(a: np.ndarray) -> str:
+    """``json.dumps(a.tolist())`` of a finite 1-D or 2-D float array, formatted vectorised."""
+    import pyarrow.compute as pc
+
+    from .table_files import format_floats
+
+    cells = format_floats(a.ravel())
+    if a.ndim == 1:
+        return "[" + ", ".join(cells.to_pylist()) + "]"
+    cols = [cells.take(np.arange(j, a.size, a.shape[1])) for j in range(a.shape[1])]
+    rows = pc.binary_join_element_wise(*cols, ", ") if len(cols) > 1 else cols[0]
+    return "[[" + "], [".join(rows.to_pylist()) + "]]"
+
+
+def _with_arrays(document) -> str:
+    """One-line JSON of ``document``, its big finite float arrays formatted vectorised."""
+    arrays = []
+
+    def default(value):
+        if (isinstance(value, np.ndarray) and value.dtype.kind == "f" and value.ndim in (1, 2)
+                and value.size >= BIG_ARRAY and np.isfinite(value).all()):
+            arrays.append(value)
+            return f"\x00{len(arrays) - 1}\x00"
+        return numpy_to_json(value)
+
+    text = json.dumps(document, allow_nan=False, default=default)
+    for i, a in enumerate(arrays):
+        text = text.replace(f'"\\u0000{i}\\u0000"', _array_text(a), 1)
+    return text
+
+
 def json_text(document, indent, numpy=False) -> str:
     r"""Return ``document`` as strict JSON text and a newline (see :func:`finite_json`).
 
@@ -139,6 +174,8 @@ def json_text(document, indent, numpy=False) -> str:
     '{"a": null, "non_finite": {"a": "nan"}}\n'
     """
     try:  # the common case, in C: nothing to replace
+        if numpy and indent is None:
+            return _with_arrays(document) + "\n"
         return json.dumps(document, indent=indent, allow_nan=False,
                           default=numpy_to_json if numpy else None) + "\n"
     except ValueError:

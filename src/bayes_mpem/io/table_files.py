@@ -270,16 +270,31 @@ def _check_shape(label, header, records, where, kept):
 # --------------------------------------------------------------------------- writing
 
 
-def _float_text(values: np.ndarray) -> pa.Array:
+def format_floats(values) -> pa.Array:
     """Format floats as ``repr`` does ('' for NaN), vectorised.
 
-    pyarrow's shortest digits; Python's ``repr`` only where pyarrow lays them out otherwise.
+    pyarrow's shortest digits; Python's ``repr`` only where pyarrow lays them out otherwise
+    (``1e-05``, ``1000000000000000.0``). What ``DataFrame.to_csv`` and ``json.dumps`` write.
+
+    Parameters
+    ----------
+    values : array_like
+        Floats.
+
+    Returns
+    -------
+    pyarrow.StringArray
+
+    Examples
+    --------
+    >>> format_floats([0.0, 1e-5, 2.5, float("nan")]).to_pylist()
+    ['0.0', '1e-05', '2.5', '']
     """
     v = np.asarray(values, dtype=float)
     arrow = pc.cast(pa.array(v), pa.string())
     mag = np.abs(v)
     with np.errstate(invalid="ignore"):
-        positional = (mag >= 1e-4) & (mag < 1e16)
+        positional = ((mag >= 1e-4) & (mag < 1e16)) | (mag == 0)  # repr: '0.0', '1e-05'
     has_e = np.asarray(pc.match_substring(arrow, "e").to_numpy(zero_copy_only=False), bool)
     has_dot = np.asarray(pc.match_substring(arrow, ".").to_numpy(zero_copy_only=False), bool)
     two_digit_exp = np.asarray(pc.match_substring_regex(arrow, r"e[+-]\d\d").to_numpy(
@@ -293,10 +308,11 @@ def _float_text(values: np.ndarray) -> pa.Array:
         out = pc.if_else(pa.array(one_digit_exp),
                          pc.replace_substring_regex(out, r"e([+-])(\d)$", r"e\10\2"), out)
     fix = np.flatnonzero(~same & ~integral & ~one_digit_exp)
-    if fix.size:
-        text = np.asarray(out.to_numpy(zero_copy_only=False), dtype=object)
-        text[fix] = ["" if np.isnan(x) else repr(float(x)) for x in v[fix]]
-        out = pa.array(text, type=pa.string())
+    if fix.size:  # NaN, infinities and the few layouts pyarrow writes otherwise
+        mask = np.zeros(v.size, bool)
+        mask[fix] = True
+        fixed = pa.array(["" if np.isnan(x) else repr(float(x)) for x in v[fix]], pa.string())
+        out = pc.replace_with_mask(out, pa.array(mask), fixed)
     return out
 
 
@@ -317,8 +333,17 @@ _NEEDS_QUOTES = _quoted_characters()
 
 
 def _column_text(col: pd.Series) -> pa.Array:
+    if isinstance(col.dtype, pd.StringDtype) or isinstance(col.dtype, pd.ArrowDtype):
+        try:  # pyarrow-backed text: no Python string per cell
+            arr = pa.array(col.array, from_pandas=True)
+            if isinstance(arr, pa.ChunkedArray):
+                arr = arr.combine_chunks()
+            if pa.types.is_string(arr.type) or pa.types.is_large_string(arr.type):
+                return _quote(pc.fill_null(arr.cast(pa.string()), ""))
+        except (pa.ArrowInvalid, pa.ArrowTypeError):
+            pass
     if pd.api.types.is_float_dtype(col.dtype):
-        return _float_text(col.to_numpy(dtype=float, na_value=np.nan))
+        return format_floats(col.to_numpy(dtype=float, na_value=np.nan))
     if pd.api.types.is_integer_dtype(col.dtype) and not col.isna().any():
         return pc.cast(pa.array(col.to_numpy()), pa.string())
     if pd.api.types.is_bool_dtype(col.dtype) or not (
@@ -329,7 +354,10 @@ def _column_text(col: pd.Series) -> pa.Array:
     if pd.api.types.infer_dtype(values, skipna=False) not in ("string", "empty"):
         values = values.map(lambda x: x if isinstance(x, str) else
                             (repr(x) if isinstance(x, float) else str(x)))
-    arr = pa.array(values.to_numpy(dtype=object), type=pa.string())
+    return _quote(pa.array(values.to_numpy(dtype=object), type=pa.string()))
+
+
+def _quote(arr: pa.Array) -> pa.Array:
     need = pc.match_substring_regex(arr, _NEEDS_QUOTES)
     if pc.any(need).as_py():
         quoted = pc.binary_join_element_wise('"', pc.replace_substring(arr, '"', '""'), '"', "")
@@ -360,7 +388,7 @@ def frame_as_text(frame: pd.DataFrame) -> pd.DataFrame:
     for j, name in enumerate(frame.columns):
         col = frame.iloc[:, j]
         if pd.api.types.is_float_dtype(col.dtype):
-            arr = _float_text(col.to_numpy(dtype=float, na_value=np.nan))
+            arr = format_floats(col.to_numpy(dtype=float, na_value=np.nan))
             cols[j] = pd.Series(arr.to_pylist(), dtype="str")
         else:
             cols[j] = col.astype(object).where(col.notna(), "").astype(str)

@@ -169,11 +169,18 @@ class SurveyFit:
         with writing(out_dir) as out:
             return {"classified": write_table(out / f"classified.{table_format}",
                                               self.classified()),
-                    "history": write_json(out / "history.json", self.history(), indent=None),
+                    "history": write_json(out / "history.json", self.history(as_arrays=True),
+                                          indent=None, numpy=True),
                     "summary": write_json(out / "summary.json", self.summary())}
 
-    def history(self) -> dict:
+    def history(self, *, as_arrays: bool = False) -> dict:
         """Per beacon: every iteration's parameters and the first E-step's probabilities.
+
+        Parameters
+        ----------
+        as_arrays : bool, default False
+            Give ``first_resp`` as a NumPy array (what ``write()`` serialises, vectorised)
+            instead of nested lists.
 
         Returns
         -------
@@ -182,8 +189,12 @@ class SurveyFit:
             ``first_resp`` in the order of that beacon's replies (what the paper's
             Figs. 7, 10 and 11 show).
         """
+        def first(r):
+            rounded = np.round(r.first_resp, 3)
+            return rounded if as_arrays else rounded.tolist()
+
         return {bid: {"history": {k: np.asarray(v).tolist() for k, v in r.history.items()},
-                      "first_resp": np.round(r.first_resp, 3).tolist()}
+                      "first_resp": first(r)}
                 for bid, r in self.results.items()}
 
 

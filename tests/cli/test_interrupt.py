@@ -42,12 +42,13 @@ def _check_folder(folder: Path, previous: dict, where: str) -> str:
             assert all((folder / base / f).exists() for f in doc.get("files", [])), where
         return "incomplete"
     doc = json.loads(top)  # valid JSON
-    assert all((folder / f).exists() for f in doc["files"]), f"{where}: listed file missing"
     if now == previous:
         return "previous"
-    listed = {f: now[f] for f in doc["files"] if f in now}
-    # a complete new run: every listed file is readable and was written by this run
-    assert set(listed) == set(doc["files"]), where
+    files = doc.get("files")
+    changed = sorted(k for k in now if now[k] != previous.get(k))
+    assert files is not None, (f"{where}: the folder changed ({changed}) but its summary.json "
+                               "still looks complete")
+    assert all((folder / f).exists() for f in files), f"{where}: a listed file is missing"
     return "new"
 
 

@@ -67,17 +67,33 @@ def survey(tmp_path_factory):
     return two
 
 
+def _touched(folder: Path, since: float) -> bool:
+    for p in folder.rglob("*"):
+        try:
+            if p.is_file() and p.stat().st_mtime >= since:
+                return True
+        except FileNotFoundError:  # renamed meanwhile: the run is writing
+            return True
+    return False
+
+
 def _kill_runs(argv, folder: Path, fractions, full_seconds):
     """Run ``argv`` (writing ``folder``) and kill it at each fraction of its full run time."""
     previous = _snapshot(folder)
     seen = []
     for sig in (signal.SIGTERM, signal.SIGKILL):
-        for frac in fractions:
+        for frac in [*fractions, "writing"]:
+            start = time.time()
             proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-            time.sleep(frac * full_seconds)
+            if frac == "writing":  # the moment the first file of the new run appears
+                while proc.poll() is None and not _touched(folder, start):
+                    time.sleep(0.002)
+            else:
+                time.sleep(frac * full_seconds)
             proc.send_signal(sig)
             _, err = proc.communicate(timeout=120)
-            where = f"{sig.name} at {frac:.2f} of the run (exit {proc.returncode})"
+            when = frac if isinstance(frac, str) else f"{frac:.2f} of the run"
+            where = f"{sig.name} at {when} (exit {proc.returncode})"
             assert b"Traceback" not in err, where
             state = _check_folder(folder, previous, where)
             seen.append(state)

@@ -249,7 +249,8 @@ def _message(exc: BaseException) -> str:
 def main(argv=None) -> int:
     """Entry point of ``bayes-mpem``.
 
-    Every option is checked by the parser; the output folder (``--out``) before any
+    Every option is checked by the parser (an invalid value exits there, through
+    :class:`SystemExit` with status 2, as argparse does); the output folder (``--out``) before any
     work; the files of a run are committed together at its end
     (:func:`bayes_mpem.io.results.writing`), so an error, Ctrl-C or ``SIGTERM``
     leaves the previous results. Invalid input or options end with one ``error:``
@@ -268,12 +269,7 @@ def main(argv=None) -> int:
         Exit status: 0 on success, 2 on invalid input, 1 on an internal error,
         128 + signal number when terminated.
     """
-    try:
-        args = build_parser().parse_args(argv)
-    except SystemExit as exc:  # an option error (status 2) returns; --help, --version exit
-        if exc.code == 2:
-            return 2
-        raise
+    args = build_parser().parse_args(argv)  # an invalid option exits here, with status 2
     import matplotlib
 
     matplotlib.use("Agg")  # the command line only writes files; never opens a window

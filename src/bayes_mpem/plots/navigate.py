@@ -45,7 +45,7 @@ def ellipse_axes(cov, *, q=CHI2_95):
     >>> import numpy as np
     >>> w, h, a = ellipse_axes(np.array([[[4.0, 0.0], [0.0, 1.0]]]), q=1.0)
     >>> w.tolist(), h.tolist(), a.tolist()
-    ([4.0, 2.0], [2.0], [0.0])
+    ([4.0], [2.0], [0.0])
     """
     vals, vecs = np.linalg.eigh(cov)
     w = 2.0 * np.sqrt(np.maximum(vals[:, 1], 0.0) * q)
@@ -55,7 +55,7 @@ def ellipse_axes(cov, *, q=CHI2_95):
 
 
 def magnification(size, target):
-    """A round factor (1, 2 or 5 times a power of 10) that brings ``size`` up to about ``target``.
+    """Return a round factor (1, 2 or 5 times a power of 10) taking ``size`` up to ``target``.
 
     Parameters
     ----------

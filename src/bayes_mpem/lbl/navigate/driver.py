@@ -30,8 +30,20 @@ from ..path_choice import AUTO, check_path_choice, choose_path
 from . import ecm, observability
 from .dive import Dive, build_dive
 from .normal import global_covariance, marginal_covariances, solve
-from .objective import Priors, State, motion_residuals, motion_weights, normal_equations
+from .objective import (
+    Priors,
+    State,
+    motion_residuals,
+    motion_weights,
+    normal_equations,
+    predictions,
+)
 from .result import Navigation
+
+#: A beacon whose sea-surface bounce would lag the direct path by less than this (m, median
+#: over its replies, on the dead reckoning) gets no multipath class: the vehicle is at the
+#: surface and the two arrivals are one.
+MIN_SEPARATION = 1.0
 
 
 def _check_reflectors(reflectors, dive: Dive) -> dict:
@@ -114,10 +126,37 @@ def _uncertainty(dive, run, settings):
     return marginal_covariances(ne, step), out
 
 
+def surface_separation(dive: Dive) -> np.ndarray:
+    """Return the median lag (m) of a surface bounce behind the direct path, per beacon.
+
+    Evaluated on the dead reckoning with the plane at the sea surface (depth 0);
+    a reply from a vehicle at or above depth 0 counts as no lag.
+
+    Parameters
+    ----------
+    dive : Dive
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(B,)``; 0 for a vehicle at the surface (the bounce is the direct path),
+        NaN for a beacon without replies.
+    """
+    d0 = dive.beacon_xyz[:, 2]
+    st = State(dive.dr, 0.0, 1.0, d0, np.zeros(d0.size, bool), 1.0, np.ones(d0.size),
+               np.full((d0.size, 3), 1 / 3))
+    pred = predictions(dive, st)
+    lag = np.where(dive.zdepth > 0, pred.multipath - pred.direct, 0.0)
+    return np.array([np.median(lag[dive.beacon == j]) if np.any(dive.beacon == j) else np.nan
+                     for j in range(d0.size)])
+
+
 def _settings(dive, opts, fixed, fixed_resp) -> ecm.Settings:
     counts = dive.replies_per_beacon()
+    lag = surface_separation(dive)
     mp = np.array([opts["multipath"] == "signal" and opts["model"] == "mixture"
                    and (counts[j] >= opts["min_pings"] or bid in fixed)
+                   and (lag[j] >= MIN_SEPARATION or bid in fixed)
                    for j, bid in enumerate(dive.beacon_ids)], bool)
     if fixed_resp is not None:  # the oracle: multipath where the classes say so
         mp = np.bincount(dive.beacon, weights=fixed_resp[:, 1], minlength=mp.size) > 0
@@ -133,8 +172,21 @@ def _settings(dive, opts, fixed, fixed_resp) -> ecm.Settings:
                         tol=opts["tol"])
 
 
+def _no_mp_reason(multipath, model, count, min_pings, lag) -> str:
+    if model != "mixture":
+        return f"no multipath class in model={model!r}"
+    if multipath == "outlier":
+        return "multipath treated as outliers (multipath='outlier')"
+    if count < min_pings:
+        return f"{count} replies, fewer than min_pings={min_pings}: no multipath class"
+    return (f"a sea-surface bounce would lag the direct path by {lag:.2g} m (median): the "
+            "vehicle is at the surface, so multipath cannot be told from the direct path; "
+            "no multipath class")
+
+
 def _beacon_info(dive, run, settings, fixed, records, min_pings, multipath):
     counts = dive.replies_per_beacon()
+    lag = surface_separation(dive)
     info = {}
     for j, bid in enumerate(dive.beacon_ids):
         d = {"mp": bool(settings.mp_beacons[j]), "d0_free": j in settings.free_d0,
@@ -145,11 +197,7 @@ def _beacon_info(dive, run, settings, fixed, records, min_pings, multipath):
                                          float(dive.beacon_xyz[j, 2] - st.d0[j]),
                                          sigma_floor=settings.sigma_floor)
         if not d["mp"]:
-            d["reason"] = ("multipath treated as outliers (multipath='outlier')"
-                           if multipath == "outlier" else
-                           f"{counts[j]} replies, fewer than min_pings={min_pings}: no "
-                           "multipath class" if counts[j] < min_pings else
-                           "no multipath class in this model")
+            d["reason"] = _no_mp_reason(multipath, settings.model, counts[j], min_pings, lag[j])
         if bid in fixed:
             d["reason_fixed"] = "reflector given (not estimated)"
         info[bid] = d

@@ -133,7 +133,7 @@ def class_log_joint(z, direct, multipath, sigma_dp, sigma_mp, log_ol, log_weight
     >>> resp, lse = class_log_joint(100.0, 100.0, 300.0, 2.0, 5.0, np.log(1 / 1000),
     ...                             np.log([0.6, 0.3, 0.1]))
     >>> np.round(resp, 4).tolist()
-    [0.9981, 0.0, 0.0019]
+    [0.9992, 0.0, 0.0008]
     """
     z = np.asarray(z, float)
     ldp = gaussian_logpdf(z - direct, sigma_dp)
@@ -223,7 +223,7 @@ def dr_noise_var(dt, q):
 
     Examples
     --------
-    >>> float(dr_noise_var(100.0, 0.1))
+    >>> round(float(dr_noise_var(100.0, 0.1)), 12)
     1.0
     """
     return q * q * np.asarray(dt, float)

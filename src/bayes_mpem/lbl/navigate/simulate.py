@@ -94,15 +94,91 @@ class DiveSimulation:
         return paths
 
 
-def _dead_reckoning(gen, track, beta, scale, q, start_error):
-    """Dead-reckoned positions: the true steps less a random walk, rotated and rescaled."""
-    p = np.column_stack([track["x"], track["y"]])
-    dt = np.diff(track["time"])
-    w = gen.normal(0.0, 1.0, (dt.size, 2)) * (q * np.sqrt(dt))[:, None]
-    R, _ = rotation(-beta)
-    delta = (np.diff(p, axis=0) - w) @ R.T / scale
+def degrade(time, x, y, *, heading_bias, speed_scale, dr_noise, start_error, rng=None):
+    """Make a dead reckoning from a true track, with the errors the navigation model assumes.
+
+    The true step between consecutive points, less a random walk ``w_k ~ N(0,
+    q^2 dt I)``, rotated by ``-heading_bias`` and divided by ``speed_scale``;
+    started at the true first point plus a Gaussian error. Then
+    ``p_k = p_{k-1} + s R(beta) Delta_k + w_k`` holds exactly (:mod:`.model`).
+
+    Parameters
+    ----------
+    time, x, y : array_like
+        The true track (s, m), times increasing.
+    heading_bias : float
+        Degrees, counter-clockwise.
+    speed_scale : float
+        True over dead-reckoned displacement.
+    dr_noise : float
+        Random-walk level ``q`` (m / sqrt(s)).
+    start_error : float
+        Standard deviation (m, per axis) of the first fix's error.
+    rng : None, int or numpy.random.Generator
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(K, 2)`` dead-reckoned positions.
+
+    Examples
+    --------
+    >>> dr = degrade([0, 10, 20], [0, 10, 20], [0, 0, 0], heading_bias=90.0, speed_scale=1.0,
+    ...              dr_noise=1e-9, start_error=0.0, rng=0)
+    >>> np.round(dr, 6).tolist()
+    [[0.0, 0.0], [0.0, -10.0], [0.0, -20.0]]
+    """
+    gen = as_generator(rng)
+    p = np.column_stack([np.asarray(x, float), np.asarray(y, float)])
+    dt = np.diff(np.asarray(time, float))
+    w = gen.normal(0.0, 1.0, (dt.size, 2)) * (dr_noise * np.sqrt(dt))[:, None]
+    R, _ = rotation(-np.deg2rad(heading_bias))
+    delta = (np.diff(p, axis=0) - w) @ R.T / speed_scale
     start = p[0] + gen.normal(0.0, start_error, 2)
     return np.vstack([start, start + np.cumsum(delta, axis=0)])
+
+
+def degrade_pings(pings, *, heading_bias, speed_scale=1.0, dr_noise=0.1, start_error=10.0,
+                  rng=None):
+    """Replace a pings table's true positions by a dead reckoning made from them (:func:`degrade`).
+
+    For measured surveys whose positions are a truth (GPS): the track at the
+    distinct ping times becomes a drifting dead reckoning, and the truth is
+    returned beside it.
+
+    Parameters
+    ----------
+    pings : pandas.DataFrame
+        Columns ``time``, ``x``, ``y`` (the truth) and the rest of a pings table;
+        pings of one time share one position (their mean is taken).
+    heading_bias, speed_scale, dr_noise, start_error, rng
+        As :func:`degrade`.
+
+    Returns
+    -------
+    pings : pandas.DataFrame
+        A copy with ``x``, ``y`` dead-reckoned.
+    truth : pandas.DataFrame
+        One row per distinct time: ``time``, ``x``, ``y`` (the truth), ``dr_x``, ``dr_y``.
+
+    Examples
+    --------
+    >>> p = pd.DataFrame({"time": [0.0, 0.0, 60.0], "x": [0.0, 0.0, 60.0], "y": [0.0] * 3})
+    >>> dr, truth = degrade_pings(p, heading_bias=0.0, dr_noise=1e-9, start_error=0.0, rng=0)
+    >>> dr["x"].round(6).tolist(), len(truth)
+    ([0.0, 0.0, 60.0], 2)
+    """
+    t = np.asarray(pings["time"], float)
+    times, inv = np.unique(t, return_inverse=True)
+    cnt = np.bincount(inv)
+    x = np.bincount(inv, weights=np.asarray(pings["x"], float)) / cnt
+    y = np.bincount(inv, weights=np.asarray(pings["y"], float)) / cnt
+    dr = degrade(times, x, y, heading_bias=heading_bias, speed_scale=speed_scale,
+                 dr_noise=dr_noise, start_error=start_error, rng=rng)
+    out = pings.copy()
+    out["x"], out["y"] = dr[inv, 0], dr[inv, 1]
+    return out, pd.DataFrame({"time": times, "x": x, "y": y, "dr_x": dr[:, 0],
+                              "dr_y": dr[:, 1]})
 
 
 def _block(gen, table, cfg, truth, shadow_range, windows):
@@ -213,8 +289,8 @@ def simulate_dive(
     beta = float(gen.uniform(-2.0, 2.0)) if heading_bias is None else float(heading_bias)
     scale = float(gen.uniform(0.98, 1.02)) if speed_scale is None else check_positive(
         "speed_scale", speed_scale)
-    dr = _dead_reckoning(gen, track, np.deg2rad(beta), scale, float(dr_noise),
-                         float(start_error))
+    dr = degrade(track["time"], track["x"], track["y"], heading_bias=beta, speed_scale=scale,
+                 dr_noise=float(dr_noise), start_error=float(start_error), rng=gen)
     table = sim.survey.table.copy()
     cycle = np.searchsorted(track["time"], table["time"].to_numpy())
     table["true_x"], table["true_y"] = track["x"][cycle], track["y"][cycle]

@@ -2,7 +2,7 @@
 
 Run from the repository root::
 
-    python benchmarks/navigate_baselines.py           # writes docs/benchmarks.md and docs/navigate.md
+    python benchmarks/navigate_baselines.py           # writes docs/benchmarks.md, docs/navigate.md
     python benchmarks/navigate_baselines.py --quick   # 2 dives per preset, prints only
 
 Dives are ``simulate_dive(preset, rng=seed)`` (``bayes_mpem.lbl.navigate``): the

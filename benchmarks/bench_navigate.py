@@ -73,7 +73,8 @@ def main(argv=None):
              "`simulate_dive(\"abe58\", rng=0, n_cycles=N / 3.8)` (about N ranges); "
              "wall-clock seconds of `navigate(survey)` (best of 3; one run at 400k), its "
              "stages from `Navigation.timings`; load: the 1-minute load average before the "
-             "size was run (the machine was shared: times measured under load are inflated by it).", "",
+             "size was run (the machine was shared: times measured under load are inflated "
+             "by it).", "",
              "| ranges (goal) | pings | ranges | epochs | total (s) | ECM (s) | path choice (s) "
              "| covariances (s) | iterations | us per range per iteration | track RMSE (m) "
              "| load |",

@@ -121,8 +121,9 @@ def _epoch_dr(survey: Survey, inverse: np.ndarray, k: int) -> np.ndarray:
         e = inverse[bad[0]]
         rows = np.flatnonzero(inverse == e)[:6] + 1
         raise InputError(
-            f"{survey.pings_source}: the pings at time {survey.time[bad[0]]!r} s (data rows "
-            f"{', '.join(map(str, rows))}) give dead-reckoned positions up to "
+            f"{survey.pings_source}: the pings at time {float(survey.time[bad[0]])!r} s (data "
+            f"rows {', '.join(map(str, rows))}, counted from 1 after the header) give "
+            f"dead-reckoned positions up to "
             f"{2 * off[inverse == e].max():.3g} m apart; expected one position per ping time "
             "(columns 'x', 'y')")
     return mean
@@ -137,9 +138,9 @@ def _table_dr(survey: Survey, times: np.ndarray, first_xy, source) -> tuple[np.n
     if out.size:
         i = out[0]
         raise InputError(
-            f"{survey.pings_source} data row {i + 1}, column 'time': {survey.time[i]!r} s is "
-            f"outside the dead-reckoning table's span [{t[0]!r}, {t[-1]!r}] s ({label}); "
-            f"{out.size} ping(s) are")
+            f"{survey.pings_source} data row {i + 1} (counted from 1 after the header), column "
+            f"'time': {float(survey.time[i])!r} s is outside the dead-reckoning table's span "
+            f"[{float(t[0])!r}, {float(t[-1])!r}] s ({label}); {out.size} ping(s) are")
     if form == "position":
         pos = table[["x", "y"]].to_numpy()
     else:

@@ -375,7 +375,8 @@ def test_reserved_output_column_names_are_refused(tmp_path, beacons_csv):
 def test_dead_reckoning_positions_and_velocities(tmp_path):
     t, form = read_dead_reckoning(write(tmp_path, "dr.csv", "time,x,y,depth\n0,1,2,5\n10,3,4,5\n"))
     assert form == "position" and t.columns.tolist() == ["time", "x", "y", "depth"]
-    t, form = read_dead_reckoning(write(tmp_path, "v.csv", "time, ve ,vn,extra\n0,1,0,a\n5,1,0,b\n"))
+    t, form = read_dead_reckoning(write(tmp_path, "v.csv",
+                                        "time, ve ,vn,extra\n0,1,0,a\n5,1,0,b\n"))
     assert form == "velocity" and t["ve"].tolist() == [1.0, 1.0]
 
 

@@ -74,7 +74,7 @@ def test_bad_options(kw, match):
 
 def test_degrade_pings_keeps_every_row_and_returns_the_truth():
     p = pd.DataFrame({"time": [0.0, 0.0, 30.0, 60.0], "beacon": ["1", "2", "1", "2"],
-                      "x": [0.0, 0.0, 30.0, 60.0], "y": [5.0, 5.0, 5.0, 5.0], "extra": list("abcd")})
+                      "x": [0.0, 0.0, 30.0, 60.0], "y": [5.0] * 4, "extra": list("abcd")})
     out, truth = degrade_pings(p, heading_bias=90.0, dr_noise=1e-9, start_error=0.0, rng=0)
     assert out["extra"].tolist() == list("abcd") and len(truth) == 3
     np.testing.assert_allclose(out[["x", "y"]].to_numpy()[[0, 2, 3]],

@@ -33,8 +33,6 @@ from .normal import global_covariance, marginal_covariances, solve
 from .objective import (
     Priors,
     State,
-    motion_residuals,
-    motion_weights,
     normal_equations,
     predictions,
 )
@@ -359,7 +357,6 @@ def navigate(
                       "max_iter or loosen tol", ConvergenceWarning, stacklevel=2)
     t0 = time.perf_counter()
     cov, gsd = _uncertainty(dive, run, settings)
-    pri = settings.priors
     flags = observability.assess(
         dive, cov, run.resp,
         {"heading_bias": (np.rad2deg(gsd["beta"]), opts["heading_sd"], "deg"),
@@ -367,9 +364,6 @@ def navigate(
     if flags:
         warnings.warn("navigate: " + observability.describe(flags), NavigationWarning,
                       stacklevel=2)
-    ratio = observability.dr_noise_ratio(
-        motion_residuals(dive, run.state.track, run.state.beta, run.state.scale),
-        motion_weights(dive, pri))
     timings["uncertainty"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_start
     skipped = {bid: f"beacon {bid} has no reply" for bid, c in
@@ -379,4 +373,4 @@ def navigate(
     return Navigation(dive=dive, state=run.state, cov=cov, global_sd=gsd, resp=run.resp,
                       beacons=info, skipped=skipped, flags=flags, n_iter=n_iter,
                       converged=run.converged, loglik=run.loglik, history=run.history,
-                      options=opts, dr_noise_ratio=ratio, timings=timings)
+                      options=opts, timings=timings)

@@ -8,8 +8,7 @@ flags a user can read: every stretch of epochs whose position standard
 deviation (major axis of the 2x2 covariance) exceeds ``max_sd``, with the reason
 (no usable reply, replies from one beacon only, or a geometry that leaves a
 direction open), and each dead-reckoning nuisance the ranges did not identify
-(posterior sd more than half the prior's). :func:`dr_noise_ratio` checks the
-random-walk level against the smoothed track.
+(posterior sd more than half the prior's).
 
 Examples
 --------
@@ -124,30 +123,3 @@ def describe(flags: list) -> str:
         parts.append(f"and {len(track) - 3} more stretches")
     parts += [f["reason"] for f in flags if f["kind"] != "track"]
     return "; ".join(parts)
-
-
-def dr_noise_ratio(u, lam) -> float:
-    """Mean squared standardised step of the smoothed track, per axis.
-
-    Parameters
-    ----------
-    u : numpy.ndarray
-        ``(K - 1, 2)`` motion residuals ``p_k - p_{k-1} - s R(beta) Delta_k``.
-    lam : numpy.ndarray
-        ``(K - 1,)`` their weights ``1 / (q^2 dt)``.
-
-    Returns
-    -------
-    float
-        ``sum lam |u|^2 / (2 (K - 1))``: below 1 when the random-walk level is
-        right (a smoothed track moves less than the truth); well above 1 when it
-        is too small for the data. NaN for a single epoch.
-
-    Examples
-    --------
-    >>> dr_noise_ratio(np.ones((2, 2)), np.array([1.0, 1.0]))
-    1.0
-    """
-    if u.shape[0] == 0:
-        return float("nan")
-    return float(np.add.reduce(lam * (u * u).sum(axis=1)) / (2 * u.shape[0]))

@@ -97,8 +97,6 @@ class Navigation:
     loglik : float
     history : dict
     options : dict
-    dr_noise_ratio : float
-        :func:`.observability.dr_noise_ratio` of the estimate.
     timings : dict
         Wall-clock seconds per stage (``timings.json`` only).
     """
@@ -116,7 +114,6 @@ class Navigation:
     loglik: float
     history: dict = field(repr=False)
     options: dict = field(default_factory=dict)
-    dr_noise_ratio: float = float("nan")
     timings: dict = field(default_factory=dict, repr=False)
 
     @property
@@ -207,8 +204,7 @@ class Navigation:
         dr = {"heading_bias_deg": estimate(np.rad2deg(st.beta),
                                            np.rad2deg(self.global_sd["beta"]), z),
               "speed_scale": estimate(st.scale, self.global_sd["scale"], z, lo=0.0),
-              "dr_noise": self.options.get("dr_noise"), "source": d.dr_source,
-              "dr_noise_ratio": finite(self.dr_noise_ratio)}
+              "dr_noise": self.options.get("dr_noise"), "source": d.dr_source}
         return {
             "model": self.options.get("model"), "multipath": self.options.get("multipath"),
             "beacons": beacons, "sigma_dp": beacons[next(iter(beacons))]["sigma_dp"]

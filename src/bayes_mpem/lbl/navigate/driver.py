@@ -22,7 +22,7 @@ import numpy as np
 
 from ..._rng import RNGLike, as_generator
 from ..._validate import check_choice, check_int, check_positive, check_probability
-from ...exceptions import InputError, NavigationWarning
+from ...exceptions import ConvergenceWarning, InputError, NavigationWarning
 from ...io.survey import BeaconData, load_survey
 from ...mixture.densities import CLASSES
 from ..em_result import reflector_flags
@@ -351,8 +351,6 @@ def navigate(
             n_iter += run.n_iter
             timings["ecm_after_path_choice"] = time.perf_counter() - t0
     if not run.converged:
-        from ...exceptions import ConvergenceWarning
-
         warnings.warn(f"navigate: the ECM did not converge in {n_iter} iterations; raise "
                       "max_iter or loosen tol", ConvergenceWarning, stacklevel=2)
     t0 = time.perf_counter()

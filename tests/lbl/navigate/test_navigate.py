@@ -175,6 +175,8 @@ def test_a_dead_reckoning_table_replaces_the_pings_positions(dives, navs):
     ({"classes": ["dp"] * 3}, InputError, "one label per input row"),
     ({"reflectors": {"9": {"d0": 1.0, "sigma_mp": 1.0}}}, InputError, "unknown beacon '9'"),
     ({"reflectors": {"1": {"d0": 1.0}}}, InputError, "'d0' and 'sigma_mp'"),
+    ({"reflectors": {"1": {"d0": 1.0, "sigma_mp": 2.0, "path": "auto"}}}, ValueError,
+     r"reflectors\['1'\]\['path'\]: expected one of \('triangle', 'double'\)"),
 ])
 def test_bad_options_are_named(dives, kw, err, match):
     with pytest.raises(err, match=match):

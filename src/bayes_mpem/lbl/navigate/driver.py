@@ -26,6 +26,7 @@ from ...exceptions import ConvergenceWarning, InputError, NavigationWarning
 from ...io.survey import BeaconData, load_survey
 from ...mixture.densities import CLASSES
 from ..em_result import reflector_flags
+from ..geometry import PATHS
 from ..path_choice import AUTO, check_path_choice, choose_path
 from . import ecm, observability
 from .dive import Dive, build_dive
@@ -53,7 +54,8 @@ def _check_reflectors(reflectors, dive: Dive) -> dict:
         try:
             out[bid] = {"d0": float(r["d0"]), "sigma_mp": check_positive(
                 f"reflectors[{bid!r}]['sigma_mp']", r["sigma_mp"]),
-                "path": check_path_choice(r.get("path", "triangle"))}
+                "path": check_choice(f"reflectors[{bid!r}]['path']",
+                                     r.get("path", "triangle"), PATHS)}
         except (KeyError, TypeError):
             raise InputError(f"reflectors[{bid!r}]: expected a mapping with 'd0' and "
                              f"'sigma_mp' (and 'path'), got {r!r}") from None

@@ -5,8 +5,10 @@ identify each beacon's reflector (height of the reflecting plane ``d0`` and
 the multipath scatter ``sigma_MP``), with the paper's EM or a proper
 mixture-likelihood EM; sample the same likelihood with emcee for posterior
 intervals, and compare equal with learned mixing priors by PSIS-LOO; find which
-assumption a survey breaks (:func:`diagnose`); locate a transponder from a
-survey-in (:func:`bayes_mpem.survey_in.location.locate`).
+assumption a survey breaks (:func:`diagnose`); estimate the vehicle's track from
+the ranges and a drifting dead reckoning, using multipath as signal
+(:func:`navigate`); locate a transponder from a survey-in
+(:func:`bayes_mpem.survey_in.location.locate`).
 
 The package has two wings, which never import each other: :mod:`bayes_mpem.lbl`
 (the paper's problem: one-way ranges to beacons at known positions) and
@@ -24,6 +26,7 @@ from .exceptions import (  # noqa: E402
     FitQualityWarning,
     InputError,
     LocateWarning,
+    NavigationWarning,
     PathChoiceWarning,
     SamplingWarning,
     SkippedBeaconWarning,
@@ -40,6 +43,8 @@ _LAZY = {
     "EMResult": "lbl.em_result", "SurveyFit": "lbl.fitting", "fit": "lbl.fitting",
     "compare_beacon": "lbl.loo", "SurveyPosterior": "lbl.sampling", "sample": "lbl.sampling",
     "Simulation": "lbl.simulate", "simulate_survey": "lbl.simulate",
+    "DiveSimulation": "lbl.navigate", "Navigation": "lbl.navigate", "navigate": "lbl.navigate",
+    "simulate_dive": "lbl.navigate",
 }
 
 _deprecated.install()
@@ -66,10 +71,13 @@ __all__ = [
     "BeaconData",
     "ConvergenceWarning",
     "Diagnosis",
+    "DiveSimulation",
     "EMResult",
     "FitQualityWarning",
     "InputError",
     "LocateWarning",
+    "Navigation",
+    "NavigationWarning",
     "PathChoiceWarning",
     "PosteriorResult",
     "SamplingWarning",
@@ -87,7 +95,9 @@ __all__ = [
     "fit_mixture_em",
     "fit_paper_em",
     "load_survey",
+    "navigate",
     "sample",
     "sample_beacon",
+    "simulate_dive",
     "simulate_survey",
 ]

@@ -1,10 +1,10 @@
 """The ``bayes-mpem`` command line: the parser, the dispatch and the error handling.
 
 The sub-commands themselves live in :mod:`.lbl` (``demo``, ``simulate``,
-``fit``, ``sample``, ``compare``, ``plot``, ``diagnose``) and
-:mod:`.survey_in` (``locate``); each parses nothing, calls the library and
-reports. Invalid input ends a command with one ``error:`` line and exit
-status 2.
+``fit``, ``sample``, ``compare``, ``plot``, ``diagnose``), :mod:`.navigate`
+(``navigate``, ``simulate --navigation``) and :mod:`.survey_in` (``locate``);
+each parses nothing, calls the library and reports. Invalid input ends a
+command with one ``error:`` line and exit status 2.
 """
 
 from __future__ import annotations
@@ -21,8 +21,9 @@ from ..exceptions import InputError
 from ..io.results import abort_open_runs, check_output_folder, writing
 from ..io.table_files import TABLE_FORMATS
 from ..lbl.path_choice import PATH_CHOICES
-from . import lbl, survey_in
+from . import lbl, navigate, survey_in
 from . import options as opt
+from .errors import OptionError
 
 
 def _add_fit_options(p):
@@ -76,6 +77,7 @@ def _add_demo_plot_simulate(sub):
     p.add_argument("--effect", action="append", default=[], metavar="NAME=VALUE",
                    help="hide an effect in the data, e.g. range_bias=5 (repeatable; names as "
                         "in 'bayes-mpem diagnose')")
+    navigate.add_simulate_navigation(p)
 
 
 def _add_fit_diagnose(sub):
@@ -177,6 +179,21 @@ def _add_sample_compare(sub):
         p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
 
 
+def _simulate_handler(args):
+    """``simulate`` writes a survey, or a dive with ``--navigation``; refuse mixed options."""
+    if args.navigation:
+        return navigate.cmd_simulate_navigation
+    given = [o for o in navigate.NAVIGATION_ONLY if getattr(args, o) is not None]
+    if given:
+        names = ", ".join("--" + o.replace("_", "-") for o in given)
+
+        def refuse(_args):
+            raise OptionError(f"{names}: only with --navigation")
+
+        return refuse
+    return lbl.cmd_simulate
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Build the argument parser of ``bayes-mpem`` (exposed for the docs).
 
@@ -200,6 +217,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_fit_diagnose(sub)
     _add_locate(sub)
     _add_sample_compare(sub)
+    navigate.add_navigate(sub)
     return parser
 
 
@@ -275,7 +293,10 @@ def main(argv=None) -> int:
     matplotlib.use("Agg")  # the command line only writes files; never opens a window
     handler = {"demo": lbl.cmd_demo, "simulate": lbl.cmd_simulate, "fit": lbl.cmd_fit,
                "plot": lbl.cmd_plot, "sample": lbl.cmd_sample, "compare": lbl.cmd_compare,
-               "locate": survey_in.cmd_locate, "diagnose": lbl.cmd_diagnose}[args.command]
+               "locate": survey_in.cmd_locate, "diagnose": lbl.cmd_diagnose,
+               "navigate": navigate.cmd_navigate}[args.command]
+    if args.command == "simulate":
+        handler = _simulate_handler(args)
     previous = None
     with contextlib.suppress(ValueError):  # not the main thread: no handler
         previous = signal.signal(signal.SIGTERM, _on_sigterm)

@@ -102,6 +102,8 @@ LIMITS = {
     "angle": Limit("attitude angle", "degrees", -360.0, 360.0),
     "sound_speed": Limit("sound speed", "m/s", 1300.0, 1800.0),
     "tat": Limit("turn-around time", "s", 0.0, 10.0),
+    "ve": Limit("velocity east", "m/s", -100.0, 100.0),
+    "vn": Limit("velocity north", "m/s", -100.0, 100.0),
 }
 
 

@@ -238,7 +238,7 @@ def _numeric_column(table: _Table, column: str, problems: _Problems, *,
     lim = LIMITS[kind]
     beyond = ~wrong & ~missing & out_of_limits(kind, vals)
     problems.add_mask(beyond, lambda pos: (
-        f"{table.where(pos, column)}: expected {lim.what} within {lim.describe()} (a "
+        f"{table.where(pos, column)}: expected {column} within {lim.describe()} (a "
         f"physically possible value), got {show(col.iloc[pos])}"))
     vals[missing] = np.nan
     return vals
@@ -388,3 +388,64 @@ def read_beacons(source: Any, *, name: str | None = None) -> pd.DataFrame:
     ['1', '2']
     """
     return beacons_frame(source, name)[0]
+
+
+#: The two forms of a dead-reckoning table: positions or velocities (east, north).
+DR_FORMS = {"position": ("x", "y"), "velocity": ("ve", "vn")}
+
+
+def read_dead_reckoning(source: Any, *, name: str | None = None) -> tuple[pd.DataFrame, str]:
+    """Read and validate a dead-reckoning table (positions or velocities at its own rate).
+
+    Parameters
+    ----------
+    source : str, os.PathLike or pandas.DataFrame
+        Columns ``time`` (s, strictly increasing) and either ``x``, ``y``
+        (dead-reckoned position, m) or ``ve``, ``vn`` (velocity east and north,
+        m/s); an optional ``depth`` column is checked and kept; others are ignored.
+    name : str, optional
+        Label for error messages; default the path or ``"dead-reckoning DataFrame"``.
+
+    Returns
+    -------
+    table : pandas.DataFrame
+        float64 columns ``time`` and the two of the form (and ``depth`` if given).
+    form : {"position", "velocity"}
+
+    Raises
+    ------
+    FileNotFoundError
+        If the path does not exist.
+    InputError
+        Missing or ambiguous columns, fewer than two rows, a bad cell, or a
+        time not after the previous one (naming the line and column).
+
+    Examples
+    --------
+    >>> t, form = read_dead_reckoning(pd.DataFrame({"time": [0, 10], "ve": [1.0, 1.0],
+    ...                                             "vn": [0.0, 0.5]}))
+    >>> form, t["vn"].tolist()
+    ('velocity', [0.0, 0.5])
+    """
+    table = _load(source, name, "dead-reckoning")
+    cols = set(table.frame.columns)
+    forms = [f for f, c in DR_FORMS.items() if set(c) <= cols]
+    if len(forms) != 1:
+        found = ", ".join(map(repr, table.frame.columns)) or "no columns"
+        what = "both" if forms else "neither"
+        raise InputError(f"{table.source}: expected columns 'time' and either 'x', 'y' "
+                         f"(positions) or 've', 'vn' (velocities), found {what}: {found}")
+    form = forms[0]
+    need = ("time", *DR_FORMS[form]) + (("depth",) if "depth" in cols else ())
+    _check_columns(table, need, "dead-reckoning")
+    problems = _Problems(table.source)
+    out = pd.DataFrame({c: _numeric_column(table, c, problems) for c in need})
+    problems.raise_if_any()
+    if len(out) < 2:
+        raise InputError(f"{table.source}: the dead-reckoning table needs at least two rows, "
+                         f"got {len(out)}")
+    t = out["time"].to_numpy()
+    for pos in np.flatnonzero(np.diff(t) <= 0)[:1] + 1:
+        raise InputError(f"{table.where(int(pos), 'time')}: expected a time after the previous "
+                         f"row's {t[pos - 1]!r} s, got {t[pos]!r}")
+    return out, form

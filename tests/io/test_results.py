@@ -155,3 +155,21 @@ def test_table_rows_keep_their_file_line_numbers(tmp_path_factory, kinds, crlf):
     t = read_table_file(path, "t.csv")
     assert t.lines.tolist() == expect and t.frame["b"].tolist() == [
         str(2 * int(a)) for a in t.frame["a"]]
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.floats(allow_nan=False, allow_infinity=False, width=64), min_size=3,
+                max_size=60), st.sampled_from([1, 3]))
+def test_big_arrays_are_dumped_as_json_dumps_would(values, width):
+    """history.json's first_resp is formatted vectorised: the same bytes as json.dumps."""
+    import bayes_mpem.io.documents as documents
+
+    a = np.asarray(values[: len(values) // width * width]).reshape(-1, width)
+    a = a.ravel() if width == 1 else a
+    doc = {"b": {"first_resp": a, "n": 1}, "x": [1.5]}
+    old, documents.BIG_ARRAY = documents.BIG_ARRAY, 1
+    try:
+        got = documents.json_text(doc, None, numpy=True)
+    finally:
+        documents.BIG_ARRAY = old
+    assert got == json.dumps({"b": {"first_resp": a.tolist(), "n": 1}, "x": [1.5]}) + "\n"

@@ -292,21 +292,28 @@ def format_floats(values) -> pa.Array:
     """
     v = np.asarray(values, dtype=float)
     arrow = pc.cast(pa.array(v), pa.string())
+    if isinstance(arrow, pa.ChunkedArray):
+        arrow = arrow.combine_chunks()
     mag = np.abs(v)
     with np.errstate(invalid="ignore"):
         positional = ((mag >= 1e-4) & (mag < 1e16)) | (mag == 0)  # repr: '0.0', '1e-05'
-    has_e = np.asarray(pc.match_substring(arrow, "e").to_numpy(zero_copy_only=False), bool)
-    has_dot = np.asarray(pc.match_substring(arrow, ".").to_numpy(zero_copy_only=False), bool)
-    two_digit_exp = np.asarray(pc.match_substring_regex(arrow, r"e[+-]\d\d").to_numpy(
-        zero_copy_only=False), bool)
+    offsets, data = _string_buffers(arrow)
+    has_e, after_e = _where_byte(offsets, data, b"e")
+    has_dot, _ = _where_byte(offsets, data, b".")
+    two_digit_exp = has_e & (after_e >= 4)  # 'e', the sign, two digits or more
     finite = np.isfinite(v)
     same = finite & np.where(positional, has_dot & ~has_e, has_e & two_digit_exp)
     integral = finite & positional & ~has_e & ~has_dot
     one_digit_exp = finite & ~positional & has_e & ~two_digit_exp  # 1e-7 -> 1e-07
-    out = pc.if_else(pa.array(integral), pc.binary_join_element_wise(arrow, ".0", ""), arrow)
-    if one_digit_exp.any():
-        out = pc.if_else(pa.array(one_digit_exp),
-                         pc.replace_substring_regex(out, r"e([+-])(\d)$", r"e\10\2"), out)
+    out = arrow
+    if integral.any():  # '1' -> '1.0', on those strings only
+        part = out.take(pa.array(np.flatnonzero(integral)))
+        out = pc.replace_with_mask(out, pa.array(integral),
+                                   pc.binary_join_element_wise(part, ".0", ""))
+    if one_digit_exp.any():  # '1e-7' -> '1e-07'
+        part = out.take(pa.array(np.flatnonzero(one_digit_exp)))
+        out = pc.replace_with_mask(out, pa.array(one_digit_exp),
+                                   pc.replace_substring_regex(part, r"e([+-])(\d)$", r"e\10\2"))
     fix = np.flatnonzero(~same & ~integral & ~one_digit_exp)
     if fix.size:  # NaN, infinities and the few layouts pyarrow writes otherwise
         mask = np.zeros(v.size, bool)
@@ -330,6 +337,26 @@ def _quoted_characters() -> str:
 
 
 _NEEDS_QUOTES = _quoted_characters()
+
+
+def _string_buffers(arr: pa.Array):
+    """Offsets (n + 1) and the bytes of a string array without nulls."""
+    offsets = np.frombuffer(arr.buffers()[1], dtype=np.int32)[arr.offset:arr.offset + len(arr)
+                                                                + 1]
+    data = np.frombuffer(arr.buffers()[2], dtype=np.uint8) if len(arr) else np.zeros(0, np.uint8)
+    return offsets, data
+
+
+def _where_byte(offsets, data, byte: bytes):
+    """Per string: holds ``byte``; the length from its last occurrence to the string's end."""
+    n = offsets.size - 1
+    pos = np.flatnonzero(data[offsets[0]:offsets[-1]] == byte[0]) + offsets[0]
+    owner = np.searchsorted(offsets, pos, side="right") - 1
+    has = np.zeros(n, bool)
+    has[owner] = True
+    tail = np.zeros(n, np.int64)
+    tail[owner] = offsets[owner + 1] - pos  # the last occurrence wins (positions ascend)
+    return has, tail
 
 
 def _column_text(col: pd.Series) -> pa.Array:
@@ -358,6 +385,14 @@ def _column_text(col: pd.Series) -> pa.Array:
 
 
 def _quote(arr: pa.Array) -> pa.Array:
+    if isinstance(arr, pa.ChunkedArray):
+        arr = arr.combine_chunks()
+    if arr.null_count == 0 and pa.types.is_string(arr.type):
+        offsets, data = _string_buffers(arr)
+        special = np.frombuffer(_NEEDS_QUOTES[1:-1].encode().decode("unicode_escape").encode(),
+                                np.uint8)
+        if not np.isin(data[offsets[0]:offsets[-1]], special).any():
+            return arr  # nothing to quote: the usual case, found on the raw bytes
     need = pc.match_substring_regex(arr, _NEEDS_QUOTES)
     if pc.any(need).as_py():
         quoted = pc.binary_join_element_wise('"', pc.replace_substring(arr, '"', '""'), '"', "")

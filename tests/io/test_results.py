@@ -66,16 +66,17 @@ def test_a_failed_run_leaves_the_previous_results(tmp_path):
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
 
 
-def test_stale_files_of_the_previous_run_go_and_dead_partials_are_cleaned(tmp_path):
+def test_earlier_files_stay_unlisted_and_dead_partials_are_cleaned(tmp_path):
+    """A run into a folder with inputs (fit into simulate's folder) never deletes them."""
     out = tmp_path / "run"
     with writing(out) as d:
-        write_csv(d / "old.csv", pd.DataFrame({"a": [1]}))
+        write_csv(d / "pings.csv", pd.DataFrame({"a": [1]}))
         write_json(d / "summary.json", {"run": 1})
     (out / ".x.partial-999999999.csv").write_text("left by a killed run")
-    (out / "mine.txt").write_text("not ours")
     with writing(out) as d:
         write_json(d / "summary.json", {"run": 2})
-    assert sorted(p.name for p in out.iterdir()) == ["mine.txt", "summary.json"]
+    assert sorted(p.name for p in out.iterdir()) == ["pings.csv", "summary.json"]
+    assert read_marker(out) == {"run": 2, "files": ["summary.json"]}
 
 
 def test_extending_a_complete_folder_keeps_its_marker(tmp_path):

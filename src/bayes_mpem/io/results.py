@@ -14,10 +14,11 @@ serialisation settings and one convention that makes an interrupted run safe:
 * **One run, one commit.** Inside ``with writing(out_dir):`` (what every
   ``write()`` and the command line use) the renames wait until the whole run
   has succeeded. At the commit the old ``summary.json`` is removed first, the
-  new files are renamed in, files listed by the old marker that the new run did
-  not write are removed, and ``summary.json`` is written **last**, listing the
-  files of the run under ``"files"``. It is the completion marker: a folder is
-  complete when its ``summary.json`` parses and every file it lists exists
+  new files are renamed in, and ``summary.json`` is written **last**, listing the
+  files of the run under ``"files"`` (files of an earlier run that this one did not
+  write are left in place, unlisted: they may be the user's inputs). It is the
+  completion marker: a folder is complete when its ``summary.json`` parses and
+  every file it lists exists
   (:func:`read_marker`, which ``bayes-mpem plot`` uses). A run killed at any
   moment leaves either the previous complete results or no ``summary.json``;
   an exception leaves the previous results and removes its temporary files. A
@@ -163,11 +164,8 @@ class _Run:
         if doc is None and old is not None:
             doc = {k: v for k, v in old.items() if k != "files"}
             new |= {f for f in old_files if (self.root / f).exists()}
-        elif not self.extend:
-            for stale in sorted(old_files - new):
-                target = self.root / stale
-                if self._inside(target) and target.is_file():
-                    target.unlink()
+        # files of an earlier run that this one did not write stay (they may be the user's
+        # inputs: `fit` into the folder `simulate` wrote), unlisted: not part of this result
         for path in sorted(self.markers, key=lambda p: -len(p.parts)):  # nested, deepest first
             sub = path.parent
             files = sorted(self._rel(p, sub) for p in [*self.staged, *self.markers]
@@ -183,9 +181,6 @@ class _Run:
 
     def _rel(self, path: Path, base: Path | None = None) -> str:
         return path.resolve().relative_to((base or self.root).resolve()).as_posix()
-
-    def _inside(self, path: Path) -> bool:
-        return path.resolve().is_relative_to(self.root.resolve())
 
     def _clean_dead_partials(self) -> None:
         folders = {self.root} | {p.parent for p in self.staged}

@@ -10,13 +10,22 @@ status 2.
 from __future__ import annotations
 
 import argparse
+import importlib
 import sys
 import warnings
 
 from .. import __version__
 from ..exceptions import InputError
-from ..lbl.path_choice import PATH_CHOICES
-from . import lbl, survey_in
+from ..lbl.paths import PATH_CHOICES
+
+#: sub-command -> the module of its ``cmd_<name>`` function, imported only when the command
+#: runs: building the parser loads no numpy, so ``bayes-mpem --help`` answers at once
+#: (``benchmarks/bench_startup.py``).
+COMMANDS: dict[str, str] = {
+    **dict.fromkeys(("demo", "simulate", "fit", "plot", "sample", "compare", "diagnose"),
+                    "lbl"),
+    "locate": "survey_in",
+}
 
 
 def _add_fit_options(p):
@@ -205,9 +214,8 @@ def main(argv=None) -> int:
     import matplotlib
 
     matplotlib.use("Agg")  # the command line only writes files; never opens a window
-    handler = {"demo": lbl.cmd_demo, "simulate": lbl.cmd_simulate, "fit": lbl.cmd_fit,
-               "plot": lbl.cmd_plot, "sample": lbl.cmd_sample, "compare": lbl.cmd_compare,
-               "locate": survey_in.cmd_locate, "diagnose": lbl.cmd_diagnose}[args.command]
+    module = importlib.import_module(f"{__package__}.{COMMANDS[args.command]}")
+    handler = getattr(module, f"cmd_{args.command}")
     with warnings.catch_warnings():  # restores the caller's filters and showwarning
         warnings.simplefilter("default")
         # one line per warning, no source excerpt: messages for the user, not tracebacks

@@ -38,7 +38,23 @@ def _is_missing(v: Any) -> bool:
 
 
 def show(v: Any) -> str:
-    """Describe an offending cell for an error message."""
+    """Describe an offending cell for an error message.
+
+    Parameters
+    ----------
+    v : object
+        The cell's value.
+
+    Returns
+    -------
+    str
+        Its ``repr`` (cut at 40 characters), or words for an empty or missing cell.
+
+    Examples
+    --------
+    >>> show(" "), show(-3.2)
+    ('an empty cell', '-3.2')
+    """
     if isinstance(v, str):
         return repr(v) if v.strip() else "an empty cell"
     if isinstance(v, np.generic):
@@ -50,7 +66,22 @@ def show(v: Any) -> str:
 
 
 def as_beacon_id(v: Any) -> str:
-    """Canonical string form of a beacon id ('' if missing); integral floats print as ints."""
+    """Canonical string form of a beacon id ('' if missing); integral floats print as ints.
+
+    Parameters
+    ----------
+    v : object
+        A beacon id as read (str, int, float, missing).
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> as_beacon_id(4.0), as_beacon_id(" B2 "), as_beacon_id(float("nan"))
+    ('4', 'B2', '')
+    """
     if _is_missing(v):
         return ""
     if isinstance(v, str):
@@ -271,7 +302,29 @@ def _beacon_column(table: _Table, problems: _Problems) -> np.ndarray:
 
 
 def pings_table(source: Any, name: str | None) -> tuple[_Table, dict[str, np.ndarray], _Problems]:
-    """Parse pings; cell problems are collected, not raised (load_survey adds to them)."""
+    """Parse pings; cell problems are collected, not raised (load_survey adds to them).
+
+    Parameters
+    ----------
+    source : str, pathlib.Path or pandas.DataFrame
+        The pings table.
+    name : str or None
+        The name to use in messages (default: the file's).
+
+    Returns
+    -------
+    table : object
+        The table as read, with its source name, for messages.
+    arrays : dict of str to ndarray
+        One array per column of ``PING_COLUMNS``.
+    problems : object
+        The cell problems found so far (row -> message).
+
+    Raises
+    ------
+    InputError
+        When the file cannot be read, a column is missing or a reserved column is present.
+    """
     table = _load(source, name, "pings")
     _check_columns(table, PING_COLUMNS, "pings")
     taken = [c for c in RESERVED_COLUMNS if c in table.frame.columns]

@@ -39,7 +39,18 @@ class LogPosterior(Protocol):
     label: str
 
     def start(self, n_walkers: int, gen: np.random.Generator) -> np.ndarray:
-        """Return initial positions, ``(n_walkers, ndim)``, inside the support."""
+        """Return initial positions, ``(n_walkers, ndim)``, inside the support.
+
+        Parameters
+        ----------
+        n_walkers : int
+        gen : numpy.random.Generator
+            The stream to draw the positions from.
+
+        Returns
+        -------
+        numpy.ndarray
+        """
         ...  # pragma: no cover
 
     def __call__(self, theta: np.ndarray) -> np.ndarray:

@@ -141,7 +141,8 @@ def _add_locate(sub):
                         "(default 1000)")
     p.add_argument("--seed", type=int, default=None,
                    help="--sample: random seed (default 0); same seed, same chain")
-    p.add_argument("--no-progress", action="store_true", help="--sample: hide the progress bar")
+    p.add_argument("--no-progress", action="store_true",
+                   help="--sample: no progress bar (terminal) or progress lines (log file)")
 
 
 def _add_sample_compare(sub):
@@ -168,7 +169,8 @@ def _add_sample_compare(sub):
         p.add_argument("--concentration", type=float, default=None, metavar="C",
                        help="Dirichlet concentration of the learned weights (default 1)")
         p.add_argument("--min-pings", type=int, default=30, metavar="N")
-        p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+        p.add_argument("--no-progress", action="store_true",
+                       help="no progress bar (terminal) or progress lines (log file)")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -10,6 +10,7 @@ status 2.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import sys
 import warnings
@@ -26,6 +27,9 @@ COMMANDS: dict[str, str] = {
                     "lbl"),
     "locate": "survey_in",
 }
+#: the sub-commands that draw figures take ``--palette`` (the class colours)
+FIGURE_COMMANDS = ("demo", "fit", "sample", "compare", "plot", "diagnose")
+PALETTES = ("okabe-ito", "paper")  # bayes_mpem.plots.style.PALETTES, without numpy
 
 
 def _add_fit_options(p):
@@ -196,6 +200,11 @@ def build_parser() -> argparse.ArgumentParser:
     _add_fit_diagnose(sub)
     _add_locate(sub)
     _add_sample_compare(sub)
+    for name in FIGURE_COMMANDS:
+        sub.choices[name].add_argument(
+            "--palette", choices=PALETTES, default="okabe-ito",
+            help="class colours of the figures: colour-blind safe (default) or the "
+                 "paper's blue, red and green")
     return parser
 
 
@@ -218,7 +227,12 @@ def main(argv=None) -> int:
     matplotlib.use("Agg")  # the command line only writes files; never opens a window
     module = importlib.import_module(f"{__package__}.{COMMANDS[args.command]}")
     handler = getattr(module, f"cmd_{args.command}")
-    with warnings.catch_warnings():  # restores the caller's filters and showwarning
+    colours = contextlib.nullcontext()
+    if getattr(args, "palette", None):  # the figures' class colours, restored on return
+        from ..plots.style import palette_context
+
+        colours = palette_context(args.palette)
+    with colours, warnings.catch_warnings():  # restores the caller's filters and showwarning
         warnings.simplefilter("default")
         # one line per warning, no source excerpt: messages for the user, not tracebacks
         warnings.showwarning = lambda msg, cat, *args, **kwargs: print(

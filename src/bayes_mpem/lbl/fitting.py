@@ -109,7 +109,8 @@ class SurveyFit:
         Returns
         -------
         pandas.DataFrame
-            Columns ``beacon``, ``hrp_m`` (fitted plane height d0),
+            Columns ``beacon``, ``d0_m`` (height of the reflecting plane above the
+            beacon, the paper's HRP),
             ``sigma_mp_m``, ``beacon_depth_m``, ``plane_depth_m``, ``sigma_dp_m``,
             ``dp``, ``mp``, ``ol`` (fractions of ranges per label), ``n``,
             ``converged``, ``path`` and ``path_margin`` (log-likelihood of the
@@ -119,7 +120,7 @@ class SurveyFit:
         for bid, res in self.results.items():
             depth = float(self.survey.beacons.loc[bid, "depth"])
             fr = res.class_fractions
-            rows.append({"beacon": bid, "hrp_m": res.d0, "sigma_mp_m": res.sigma_mp,
+            rows.append({"beacon": bid, "d0_m": res.d0, "sigma_mp_m": res.sigma_mp,
                          "beacon_depth_m": depth, "plane_depth_m": depth - res.d0,
                          "sigma_dp_m": res.sigma_dp, **fr, "n": res.n,
                          "converged": res.converged, "path": res.path,
@@ -135,11 +136,11 @@ class SurveyFit:
         str
         """
         t = self.table()
-        lines = [f"{'beacon':>6} {'HRP d0 (m)':>11} {'sigma_MP (m)':>12} {'depth (m)':>10} "
+        lines = [f"{'beacon':>6} {'d0 (m)':>11} {'sigma_MP (m)':>12} {'depth (m)':>10} "
                  f"{'plane (m)':>9} {'DP':>6} {'MP':>6} {'OL':>6} {'n':>6} {'path':>8} "
                  f"{'margin':>7}"]
         for r in t.itertuples():
-            lines.append(f"{r.beacon:>6} {r.hrp_m:11.1f} {r.sigma_mp_m:12.2f} "
+            lines.append(f"{r.beacon:>6} {r.d0_m:11.1f} {r.sigma_mp_m:12.2f} "
                          f"{r.beacon_depth_m:10.1f} {r.plane_depth_m:9.1f} {r.dp:6.3f} "
                          f"{r.mp:6.3f} {r.ol:6.3f} {r.n:6d} {r.path:>8} {r.path_margin:7.0f}")
         for bid, why in self.skipped.items():

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import pandas as pd
+
 from .._rng import RNGLike, as_generator
 from ..exceptions import UnusableStartError
 from ..io.results import output_folder, write_csv, write_json
@@ -126,6 +128,30 @@ class SurveyPosterior:
         for bid, why in self.skipped.items():
             lines.append(f"{bid:>6} skipped: {why}")
         return "\n".join(lines)
+
+    def table(self) -> pd.DataFrame:
+        """Per-beacon table with the columns of :meth:`SurveyFit.table` and the intervals.
+
+        Returns
+        -------
+        pandas.DataFrame
+            Columns ``beacon``, ``d0_m`` (posterior mean height of the reflecting plane),
+            ``d0_lo_m``, ``d0_hi_m`` (its interval), ``sigma_mp_m``, ``sigma_mp_lo_m``,
+            ``sigma_mp_hi_m``, ``beacon_depth_m``, ``plane_depth_m``, ``sigma_dp_m``, ``dp``,
+            ``mp``, ``ol`` (fractions of ranges by most probable class), ``n``,
+            ``converged``, ``path`` and ``min_ess``.
+        """
+        rows = []
+        for bid, r in self.results.items():
+            depth = float(self.survey.beacons.loc[bid, "depth"])
+            (d_lo, d_hi), (s_lo, s_hi) = r.summary["d0"]["interval"], r.summary["sigma_mp"][
+                "interval"]
+            rows.append({"beacon": bid, "d0_m": r.d0, "d0_lo_m": d_lo, "d0_hi_m": d_hi,
+                         "sigma_mp_m": r.sigma_mp, "sigma_mp_lo_m": s_lo, "sigma_mp_hi_m": s_hi,
+                         "beacon_depth_m": depth, "plane_depth_m": depth - r.d0,
+                         "sigma_dp_m": r.sigma_dp, **r.class_fractions, "n": r.n,
+                         "converged": r.converged, "path": r.path, "min_ess": r.min_ess})
+        return pd.DataFrame(rows)
 
     def datatree(self):
         """All beacons in one ``xarray.DataTree``: a child ``beacon_<id>`` per beacon.

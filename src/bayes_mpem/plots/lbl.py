@@ -56,10 +56,11 @@ def plot_classification(survey_fit, beacon, *, ax=None, iteration="last", lines=
         geom = BeaconGeometry.from_data(data)
         d0 = res.history["d0"][0] if iteration == "first" else res.d0
         order = np.argsort(data.time)
+        # under the ranges (zorder), so the class colours stay visible
         ax.plot(data.time[order], geom.direct[order], color="k", lw=0.6, alpha=0.6,
-                label="predicted direct path")
+                label="predicted direct path", zorder=0.8)
         ax.plot(data.time[order], geom.multipath(d0, res.path)[order], color="k", lw=0.6,
-                ls="--", alpha=0.6, label=f"predicted {res.path} multipath")
+                ls="--", alpha=0.6, label=f"predicted {res.path} multipath", zorder=0.8)
     if key:
         # beside the panel, where it hides no range
         class_key(ax, extra=ax.get_lines(), where="upper left", bbox_to_anchor=(1.01, 1.0))

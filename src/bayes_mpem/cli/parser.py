@@ -57,7 +57,8 @@ def _add_demo_plot_simulate(sub):
                    help="output folder (default: demo-output)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--no-bayes", action="store_true",
-                   help="skip the Bayesian part (sampling and prior comparison, ~40 s)")
+                   help="skip the Bayesian part (sampling and prior comparison: most of the "
+                        "demo's ~30 s)")
 
     p = sub.add_parser("plot", help="draw the figures of a fit or sample output folder")
     p.add_argument("result_dir", metavar="RESULT_DIR",

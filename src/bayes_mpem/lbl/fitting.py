@@ -248,8 +248,8 @@ def fit(
         Beacons with fewer replies are left unfitted, with a warning.
     rng : None, int or numpy.random.Generator
     **kwargs
-        Passed to :func:`~bayes_mpem.em.fit_mixture_em` or
-        :func:`~bayes_mpem.em.fit_paper_em`.
+        Passed to :func:`~bayes_mpem.lbl.em_mixture.fit_mixture_em` or
+        :func:`~bayes_mpem.lbl.em_paper.fit_paper_em`.
 
     Returns
     -------
@@ -257,7 +257,7 @@ def fit(
 
     Raises
     ------
-    bayes_mpem.data.InputError
+    bayes_mpem.exceptions.InputError
         For invalid input (the message names the file, row and column).
     ValueError
         For invalid options.

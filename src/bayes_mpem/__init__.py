@@ -20,51 +20,50 @@ transponder). What they share lives below them: :mod:`bayes_mpem.io`,
 
 __version__ = "0.1.0"
 
-from . import _deprecated  # noqa: E402
-from .exceptions import (  # noqa: E402
-    ConvergenceWarning,
-    FitQualityWarning,
-    InputError,
-    LocateWarning,
-    NavigationWarning,
-    PathChoiceWarning,
-    SamplingWarning,
-    SkippedBeaconWarning,
-)
+import importlib  # noqa: E402
 
-#: The public names and the modules they live in, imported on first use (PEP 562), so that
-#: ``bayes-mpem fit`` does not pay for emcee, ArviZ and matplotlib it never calls.
-_LAZY = {
-    "BeaconData": "io.survey", "Survey": "io.survey", "load_survey": "io.survey",
-    "PosteriorResult": "lbl.beacon_sampling", "sample_beacon": "lbl.beacon_sampling",
-    "SurveyComparison": "lbl.comparison", "compare": "lbl.comparison",
-    "diagnose": "lbl.diagnosis.driver", "Diagnosis": "lbl.diagnosis.result",
-    "fit_mixture_em": "lbl.em_mixture", "fit_paper_em": "lbl.em_paper",
-    "EMResult": "lbl.em_result", "SurveyFit": "lbl.fitting", "fit": "lbl.fitting",
-    "compare_beacon": "lbl.loo", "SurveyPosterior": "lbl.sampling", "sample": "lbl.sampling",
-    "Simulation": "lbl.simulate", "simulate_survey": "lbl.simulate",
-    "DiveSimulation": "lbl.navigate", "Navigation": "lbl.navigate", "navigate": "lbl.navigate",
-    "simulate_dive": "lbl.navigate",
+from . import _deprecated  # noqa: E402
+
+#: public name -> the module that defines it (relative to ``bayes_mpem``). The names are
+#: imported on first use (PEP 562), so ``import bayes_mpem`` and ``bayes-mpem --help``
+#: stay fast: numpy, scipy, pandas, emcee, ArviZ and matplotlib load only when needed.
+_PUBLIC: dict[str, str] = {
+    **dict.fromkeys(("ConvergenceWarning", "FitQualityWarning", "InputError", "LocateWarning",
+                     "NavigationWarning", "PathChoiceWarning", "SamplingWarning",
+                     "SkippedBeaconWarning"),
+                    "exceptions"),
+    **dict.fromkeys(("BeaconData", "Survey", "load_survey"), "io.survey"),
+    **dict.fromkeys(("PosteriorResult", "sample_beacon"), "lbl.beacon_sampling"),
+    **dict.fromkeys(("SurveyComparison", "compare"), "lbl.comparison"),
+    "diagnose": "lbl.diagnosis.driver",
+    "Diagnosis": "lbl.diagnosis.result",
+    "fit_mixture_em": "lbl.em_mixture",
+    "fit_paper_em": "lbl.em_paper",
+    "EMResult": "lbl.em_result",
+    **dict.fromkeys(("SurveyFit", "fit"), "lbl.fitting"),
+    "compare_beacon": "lbl.loo",
+    **dict.fromkeys(("SurveyPosterior", "sample"), "lbl.sampling"),
+    **dict.fromkeys(("Simulation", "simulate_survey"), "lbl.simulate"),
+    **dict.fromkeys(("DiveSimulation", "Navigation", "navigate", "simulate_dive"),
+                    "lbl.navigate"),
 }
 
 _deprecated.install()
 
 
 def __getattr__(name):
-    """Import a public name on first use; serve the old module paths as attributes too."""
-    if name in _LAZY:
-        import importlib
-
-        value = getattr(importlib.import_module(f"{__name__}.{_LAZY[name]}"), name)
-        globals()[name] = value
+    """Import a public name on first use; serve ``bayes_mpem.em`` and the other old paths."""
+    if name in _PUBLIC:
+        value = getattr(importlib.import_module(f"{__name__}.{_PUBLIC[name]}"), name)
+        globals()[name] = value  # later look-ups skip this function
         return value
     if name in _deprecated.MOVED:
         return _deprecated.old_module(name)
     raise AttributeError(f"module 'bayes_mpem' has no attribute {name!r}")
 
+
 def __dir__():
-    """List the public names, imported or not yet."""
-    return sorted(set(globals()) | set(_LAZY))
+    return sorted({*globals(), *_PUBLIC})
 
 
 __all__ = [

@@ -181,3 +181,12 @@ def test_parquet_in_and_out(small, tmp_path):
                                pd.to_numeric(b["p_dp"]).to_numpy(), rtol=0, atol=0)
     assert main(["plot", str(out), "--out", str(tmp_path / "figs")]) == 0
     assert (tmp_path / "figs" / "fig13_classification.png").exists()
+
+
+def test_the_parser_repeats_the_library_constants_faithfully():
+    from bayes_mpem.cli import options
+    from bayes_mpem.io.table_files import TABLE_FORMATS
+    from bayes_mpem.lbl.survey import MIN_PINGS
+
+    assert options.MIN_PINGS == MIN_PINGS and options.TABLE_FORMATS == TABLE_FORMATS
+

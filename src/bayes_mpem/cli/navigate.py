@@ -13,9 +13,8 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from ..lbl.navigate import navigate, simulate_dive
-from ..lbl.navigate.ecm import MODELS, MULTIPATH
-from ..lbl.path_choice import PATH_CHOICES
+from ..lbl.navigate.options import MODELS, MULTIPATH
+from ..lbl.paths import PATH_CHOICES
 from . import options as opt
 from .errors import OptionError
 
@@ -124,6 +123,8 @@ def cmd_simulate_navigation(args) -> int:
     OptionError
         For ``--effect`` (not simulated in dives) or a malformed ``--shadow-window``.
     """
+    from ..lbl.navigate import simulate_dive
+
     if args.effect:
         raise OptionError("--effect does not apply with --navigation")
     kw = {k: getattr(args, k) for k in ("heading_bias", "speed_scale", "dr_noise",
@@ -154,6 +155,9 @@ def cmd_navigate(args) -> int:
     int
         Exit status 0.
     """
+    from ..lbl.navigate import navigate
+    from ..report import write_figures
+
     nav = navigate(args.pings, args.beacons, dead_reckoning=args.dead_reckoning,
                    multipath=args.multipath, model=args.model, path=args.path,
                    dr_noise=args.dr_noise, start_sd=args.start_sd, heading_sd=args.heading_sd,
@@ -162,8 +166,6 @@ def cmd_navigate(args) -> int:
     out = Path(args.out)
     paths = list(nav.write(out).values())
     if args.figures:
-        from ..report import write_figures
-
         paths += write_figures(nav, out)
     print(nav.format_table())
     print(f"\n{nav.dive.n_epochs} epochs, {nav.dive.n} replies, {len(nav.dive.survey)} rows; "

@@ -25,7 +25,12 @@ from __future__ import annotations
 import argparse
 import math
 
-from ..lbl.survey import MIN_PINGS
+# the parser loads no numpy (`bayes-mpem --help` answers at once): these two are repeated
+# from where they live, and tests/cli/test_reliability.py checks that they agree
+#: :data:`bayes_mpem.lbl.survey.MIN_PINGS`: the fewest replies a beacon can be fitted with.
+MIN_PINGS = 3
+#: :data:`bayes_mpem.io.table_files.TABLE_FORMATS`: the formats of a result's tables.
+TABLE_FORMATS = ("csv", "parquet")
 
 
 def number(what: str, low: float = -math.inf, high: float = math.inf, *,

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import importlib
 import os
 import signal
 import sys
@@ -18,12 +19,23 @@ import warnings
 
 from .. import __version__
 from ..exceptions import InputError
-from ..io.results import abort_open_runs, check_output_folder, writing
-from ..io.table_files import TABLE_FORMATS
-from ..lbl.path_choice import PATH_CHOICES
-from . import lbl, navigate, survey_in
+from ..lbl.paths import PATH_CHOICES
+from . import navigate
 from . import options as opt
 from .errors import OptionError
+
+#: sub-command -> the module of its ``cmd_<name>`` function, imported only when the command
+#: runs: building the parser loads no numpy, so ``bayes-mpem --help`` answers at once
+#: (``benchmarks/bench_startup.py``).
+COMMANDS: dict[str, str] = {
+    **dict.fromkeys(("demo", "simulate", "fit", "plot", "sample", "compare", "diagnose"),
+                    "lbl"),
+    "locate": "survey_in",
+    "navigate": "navigate",
+}
+#: the sub-commands that draw figures take ``--palette`` (the class colours)
+FIGURE_COMMANDS = ("demo", "fit", "sample", "compare", "plot", "diagnose", "navigate")
+PALETTES = ("okabe-ito", "paper")  # bayes_mpem.plots.style.PALETTES, without numpy
 
 
 def _add_fit_options(p):
@@ -46,7 +58,7 @@ def _add_fit_options(p):
 
 
 def _add_table_format(p):
-    p.add_argument("--table-format", choices=list(TABLE_FORMATS), default="csv",
+    p.add_argument("--table-format", choices=opt.TABLE_FORMATS, default="csv",
                    help="classified.csv (default) or classified.parquet; the input table "
                         "may be either (by its extension)")
 
@@ -57,7 +69,8 @@ def _add_demo_plot_simulate(sub):
                    help="output folder (default: demo-output)")
     p.add_argument("--seed", type=opt.seed, default=0, help="random seed (default 0)")
     p.add_argument("--no-bayes", action="store_true",
-                   help="skip the Bayesian part (sampling and prior comparison, ~40 s)")
+                   help="skip the Bayesian part (sampling and prior comparison: most of the "
+                        "demo's ~30 s)")
 
     p = sub.add_parser("plot", help="draw the figures of a fit or sample output folder")
     p.add_argument("result_dir", metavar="RESULT_DIR",
@@ -148,7 +161,8 @@ def _add_locate(sub):
                         "(default 1000)")
     p.add_argument("--seed", type=opt.seed, default=None,
                    help="--sample: random seed (default 0); same seed, same chain")
-    p.add_argument("--no-progress", action="store_true", help="--sample: hide the progress bar")
+    p.add_argument("--no-progress", action="store_true",
+                   help="--sample: no progress bar (terminal) or progress lines (log file)")
 
 
 def _add_sample_compare(sub):
@@ -176,10 +190,11 @@ def _add_sample_compare(sub):
         p.add_argument("--concentration", type=opt.positive, default=None, metavar="C",
                        help="Dirichlet concentration of the learned weights (default 1)")
         p.add_argument("--min-pings", type=opt.min_pings, default=30, metavar="N")
-        p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+        p.add_argument("--no-progress", action="store_true",
+                       help="no progress bar (terminal) or progress lines (log file)")
 
 
-def _simulate_handler(args):
+def _simulate_handler(args, cmd_simulate):
     """``simulate`` writes a survey, or a dive with ``--navigation``; refuse mixed options."""
     if args.navigation:
         return navigate.cmd_simulate_navigation
@@ -191,7 +206,7 @@ def _simulate_handler(args):
             raise OptionError(f"{names}: only with --navigation")
 
         return refuse
-    return lbl.cmd_simulate
+    return cmd_simulate
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -218,6 +233,11 @@ def build_parser() -> argparse.ArgumentParser:
     _add_locate(sub)
     _add_sample_compare(sub)
     navigate.add_navigate(sub)
+    for name in FIGURE_COMMANDS:
+        sub.choices[name].add_argument(
+            "--palette", choices=PALETTES, default="okabe-ito",
+            help="class colours of the figures: colour-blind safe (default) or the "
+                 "paper's blue, red and green")
     return parser
 
 
@@ -228,6 +248,8 @@ def _output_folder(args):
         out = args.result_dir
     if out is None:
         return None
+    from ..io.results import check_output_folder  # not at import: `--help` loads no numpy
+
     check_output_folder(out, "--out" if getattr(args, "out", None) is not None else "RESULT_DIR")
     return out
 
@@ -238,6 +260,8 @@ class _Failed(Exception):
 
 def _on_sigterm(signum, frame):
     # not an exception: third-party code on the stack (emcee) would print it as a traceback
+    from ..io.results import abort_open_runs
+
     abort_open_runs()
     print("bayes-mpem: terminated; no result written", file=sys.stderr, flush=True)
     os._exit(128 + signum)
@@ -248,6 +272,8 @@ def _run(handler, args) -> int:
     out = _output_folder(args)
     if out is None:
         return handler(args)
+    from ..io.results import writing
+
     try:
         with writing(out, extend=args.command == "plot", create=False):
             code = handler(args)
@@ -291,16 +317,19 @@ def main(argv=None) -> int:
     import matplotlib
 
     matplotlib.use("Agg")  # the command line only writes files; never opens a window
-    handler = {"demo": lbl.cmd_demo, "simulate": lbl.cmd_simulate, "fit": lbl.cmd_fit,
-               "plot": lbl.cmd_plot, "sample": lbl.cmd_sample, "compare": lbl.cmd_compare,
-               "locate": survey_in.cmd_locate, "diagnose": lbl.cmd_diagnose,
-               "navigate": navigate.cmd_navigate}[args.command]
+    module = importlib.import_module(f"{__package__}.{COMMANDS[args.command]}")
+    handler = getattr(module, f"cmd_{args.command}")
     if args.command == "simulate":
-        handler = _simulate_handler(args)
+        handler = _simulate_handler(args, handler)
+    colours = contextlib.nullcontext()
+    if getattr(args, "palette", None):  # the figures' class colours, restored on return
+        from ..plots.style import palette_context
+
+        colours = palette_context(args.palette)
     previous = None
     with contextlib.suppress(ValueError):  # not the main thread: no handler
         previous = signal.signal(signal.SIGTERM, _on_sigterm)
-    with warnings.catch_warnings():  # restores the caller's filters and showwarning
+    with colours, warnings.catch_warnings():  # restores the caller's filters and showwarning
         warnings.simplefilter("default")
         # one line per warning, no source excerpt: messages for the user, not tracebacks
         warnings.showwarning = lambda msg, cat, *args, **kwargs: print(

@@ -44,7 +44,23 @@ def _is_missing(v: Any) -> bool:
 
 
 def show(v: Any) -> str:
-    """Describe an offending cell for an error message."""
+    """Describe an offending cell for an error message.
+
+    Parameters
+    ----------
+    v : object
+        The cell's value.
+
+    Returns
+    -------
+    str
+        Its ``repr`` (cut at 40 characters), or words for an empty or missing cell.
+
+    Examples
+    --------
+    >>> show(" "), show(-3.2)
+    ('an empty cell', '-3.2')
+    """
     if isinstance(v, str):
         return repr(v) if v.strip() else "an empty cell"
     if isinstance(v, np.generic):
@@ -56,7 +72,22 @@ def show(v: Any) -> str:
 
 
 def as_beacon_id(v: Any) -> str:
-    """Canonical string form of a beacon id ('' if missing); integral floats print as ints."""
+    """Canonical string form of a beacon id ('' if missing); integral floats print as ints.
+
+    Parameters
+    ----------
+    v : object
+        A beacon id as read (str, int, float, missing).
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> as_beacon_id(4.0), as_beacon_id(" B2 "), as_beacon_id(float("nan"))
+    ('4', 'B2', '')
+    """
     if _is_missing(v):
         return ""
     if isinstance(v, str):
@@ -71,27 +102,35 @@ def as_beacon_id(v: Any) -> str:
     return str(v).strip()
 
 
-class _Problems:
+class Problems:
     """Collects problems by row position and raises one InputError for all of them.
 
     Vectorised checks hand over whole masks (:meth:`add_mask`); only the first
     :data:`MAX_LISTED` flagged cells of each check are worded, the rest counted.
+
+    Parameters
+    ----------
+    source : str
+        The file or table named in the message.
     """
 
     def __init__(self, source: str) -> None:
         self.source, self.items, self.count = source, [], 0
 
     def add(self, pos: int, message: str) -> None:
+        """Record a problem of the row at position ``pos`` (messages are sorted by row)."""
         self.items.append((pos, len(self.items), message))
         self.count += 1
 
     def add_mask(self, mask: np.ndarray, word) -> None:
+        """Record the rows flagged by ``mask``; ``word(pos)`` words the first few."""
         flagged = np.flatnonzero(mask)
         for pos in flagged[:MAX_LISTED]:
             self.items.append((int(pos), len(self.items), word(int(pos))))
         self.count += int(flagged.size)
 
     def raise_if_any(self) -> None:
+        """Raise one :class:`InputError` listing the problems (the first ten), if any."""
         if not self.items:
             return
         msgs = [m for _, _, m in sorted(self.items)][:MAX_LISTED]
@@ -123,7 +162,27 @@ class _Table:
         return f"{self.source} {self.row_name(pos)}, column {column!r}"
 
 
-def _load(source: Any, name: str | None, kind: str) -> _Table:
+def load_table(source: Any, name: str | None, kind: str) -> _Table:
+    """Read a CSV or Parquet file, or take a DataFrame, as a table with row names for messages.
+
+    Parameters
+    ----------
+    source : str, os.PathLike or pandas.DataFrame
+    name : str or None
+        Label for messages (default: the path, or ``"<kind> DataFrame"``).
+    kind : str
+        What the table is (``"pings"``, ``"beacons"``, ...), for messages.
+
+    Returns
+    -------
+    _Table
+        ``frame``, ``source``, and the file ``lines`` or DataFrame ``labels`` of its rows.
+
+    Raises
+    ------
+    FileNotFoundError, InputError, TypeError
+        As :func:`~bayes_mpem.io.table_files.read_table_file`; duplicated column names.
+    """
     if isinstance(source, pd.DataFrame):
         label = name or f"{kind} DataFrame"
         frame = source.copy()
@@ -143,7 +202,21 @@ def _load(source: Any, name: str | None, kind: str) -> _Table:
     return table
 
 
-def _check_columns(table: _Table, required: tuple[str, ...], kind: str) -> None:
+def check_columns(table: _Table, required: tuple[str, ...], kind: str) -> None:
+    """Check that ``table`` has the ``required`` columns and at least one row.
+
+    Parameters
+    ----------
+    table : _Table
+    required : tuple of str
+    kind : str
+        What the table is, for messages.
+
+    Raises
+    ------
+    InputError
+        Naming the missing columns (and what the header looks like) or the empty table.
+    """
     missing = [c for c in required if c not in table.frame.columns]
     if missing:
         found = ", ".join(map(repr, table.frame.columns)) or "no columns"
@@ -212,8 +285,27 @@ def _parse_numbers(col: pd.Series) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return vals, missing, grammar
 
 
-def _numeric_column(table: _Table, column: str, problems: _Problems, *,
-                    allow_missing: bool = False, positive: bool = False) -> np.ndarray:
+def numeric_column(table: _Table, column: str, problems: Problems, *,
+                   allow_missing: bool = False, positive: bool = False) -> np.ndarray:
+    """Parse and check one numeric column, vectorised; problems go to ``problems``.
+
+    Parameters
+    ----------
+    table : _Table
+    column : str
+    problems : Problems
+        Receives every bad cell (not a number, not finite, not positive, missing, or
+        beyond the physical limits of :data:`~bayes_mpem.io.boundary.LIMITS`).
+    allow_missing : bool, default False
+        An empty cell is allowed (NaN: the ``range`` of a ping with no reply).
+    positive : bool, default False
+        Values must be > 0.
+
+    Returns
+    -------
+    numpy.ndarray
+        float64, NaN where missing or bad.
+    """
     col = table.frame[column]
     vals, missing, bad = _parse_numbers(col)
     unit = _UNITS.get(column, "m")
@@ -244,7 +336,7 @@ def _numeric_column(table: _Table, column: str, problems: _Problems, *,
     return vals
 
 
-def _beacon_column(table: _Table, problems: _Problems) -> np.ndarray:
+def _beacon_column(table: _Table, problems: Problems) -> np.ndarray:
     col = table.frame["beacon"]
     if pd.api.types.is_string_dtype(col.dtype) or pd.api.types.infer_dtype(
             col, skipna=False) == "string":  # text (CSV, Parquet): ids as written
@@ -261,10 +353,10 @@ def _beacon_column(table: _Table, problems: _Problems) -> np.ndarray:
     return ids
 
 
-def pings_table(source: Any, name: str | None) -> tuple[_Table, dict[str, np.ndarray], _Problems]:
+def pings_table(source: Any, name: str | None) -> tuple[_Table, dict[str, np.ndarray], Problems]:
     """Parse pings; cell problems are collected, not raised (load_survey adds to them)."""
-    table = _load(source, name, "pings")
-    _check_columns(table, PING_COLUMNS, "pings")
+    table = load_table(source, name, "pings")
+    check_columns(table, PING_COLUMNS, "pings")
     taken = [c for c in RESERVED_COLUMNS if c in table.frame.columns]
     if taken:
         raise InputError(
@@ -272,8 +364,8 @@ def pings_table(source: Any, name: str | None) -> tuple[_Table, dict[str, np.nda
             f"the results, which add {', '.join(map(repr, RESERVED_COLUMNS))} to every row; "
             "rename them (a classified.csv from an earlier run is read back by "
             "'bayes-mpem plot', not by 'fit')")
-    problems = _Problems(table.source)
-    arrays = {c: _numeric_column(table, c, problems, allow_missing=c == "range",
+    problems = Problems(table.source)
+    arrays = {c: numeric_column(table, c, problems, allow_missing=c == "range",
                                  positive=c == "range")
               for c in PING_COLUMNS if c != "beacon"}
     arrays["beacon"] = _beacon_column(table, problems)
@@ -340,10 +432,10 @@ def beacons_frame(source: Any, name: str | None) -> tuple[pd.DataFrame, str]:
     InputError
         Missing columns, bad values or repeated beacon ids (naming the rows).
     """
-    table = _load(source, name, "beacons")
-    _check_columns(table, BEACON_COLUMNS, "beacons")
-    problems = _Problems(table.source)
-    xyz = {c: _numeric_column(table, c, problems) for c in ("x", "y", "depth")}
+    table = load_table(source, name, "beacons")
+    check_columns(table, BEACON_COLUMNS, "beacons")
+    problems = Problems(table.source)
+    xyz = {c: numeric_column(table, c, problems) for c in ("x", "y", "depth")}
     ids = _beacon_column(table, problems)
     seen: dict[str, list[int]] = {}
     for pos, b in enumerate(ids):
@@ -388,64 +480,3 @@ def read_beacons(source: Any, *, name: str | None = None) -> pd.DataFrame:
     ['1', '2']
     """
     return beacons_frame(source, name)[0]
-
-
-#: The two forms of a dead-reckoning table: positions or velocities (east, north).
-DR_FORMS = {"position": ("x", "y"), "velocity": ("ve", "vn")}
-
-
-def read_dead_reckoning(source: Any, *, name: str | None = None) -> tuple[pd.DataFrame, str]:
-    """Read and validate a dead-reckoning table (positions or velocities at its own rate).
-
-    Parameters
-    ----------
-    source : str, os.PathLike or pandas.DataFrame
-        Columns ``time`` (s, strictly increasing) and either ``x``, ``y``
-        (dead-reckoned position, m) or ``ve``, ``vn`` (velocity east and north,
-        m/s); an optional ``depth`` column is checked and kept; others are ignored.
-    name : str, optional
-        Label for error messages; default the path or ``"dead-reckoning DataFrame"``.
-
-    Returns
-    -------
-    table : pandas.DataFrame
-        float64 columns ``time`` and the two of the form (and ``depth`` if given).
-    form : {"position", "velocity"}
-
-    Raises
-    ------
-    FileNotFoundError
-        If the path does not exist.
-    InputError
-        Missing or ambiguous columns, fewer than two rows, a bad cell, or a
-        time not after the previous one (naming the line and column).
-
-    Examples
-    --------
-    >>> t, form = read_dead_reckoning(pd.DataFrame({"time": [0, 10], "ve": [1.0, 1.0],
-    ...                                             "vn": [0.0, 0.5]}))
-    >>> form, t["vn"].tolist()
-    ('velocity', [0.0, 0.5])
-    """
-    table = _load(source, name, "dead-reckoning")
-    cols = set(table.frame.columns)
-    forms = [f for f, c in DR_FORMS.items() if set(c) <= cols]
-    if len(forms) != 1:
-        found = ", ".join(map(repr, table.frame.columns)) or "no columns"
-        what = "both" if forms else "neither"
-        raise InputError(f"{table.source}: expected columns 'time' and either 'x', 'y' "
-                         f"(positions) or 've', 'vn' (velocities), found {what}: {found}")
-    form = forms[0]
-    need = ("time", *DR_FORMS[form]) + (("depth",) if "depth" in cols else ())
-    _check_columns(table, need, "dead-reckoning")
-    problems = _Problems(table.source)
-    out = pd.DataFrame({c: _numeric_column(table, c, problems) for c in need})
-    problems.raise_if_any()
-    if len(out) < 2:
-        raise InputError(f"{table.source}: the dead-reckoning table needs at least two rows, "
-                         f"got {len(out)}")
-    t = out["time"].to_numpy()
-    for pos in np.flatnonzero(np.diff(t) <= 0)[:1] + 1:
-        raise InputError(f"{table.where(int(pos), 'time')}: expected a time after the previous "
-                         f"row's {t[pos - 1]!r} s, got {t[pos]!r}")
-    return out, form

@@ -114,7 +114,16 @@ def culprit_rows(survey: Survey, data, *, factor: float = 100.0) -> list:
 
 
 def beacons_table(survey: Survey) -> dict:
-    """Beacon positions as ``{id: {"x", "y", "depth"}}`` (written into summaries)."""
+    """Beacon positions as ``{id: {"x", "y", "depth"}}`` (written into summaries).
+
+    Parameters
+    ----------
+    survey : Survey
+
+    Returns
+    -------
+    dict
+    """
     return {b: {k: float(v) for k, v in row.items()}
             for b, row in survey.beacons[["x", "y", "depth"]].iterrows()}
 

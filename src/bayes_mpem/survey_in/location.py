@@ -85,6 +85,9 @@ class LocateResult:
         The fitted speed parameter(s): the sound speed (m/s), or with a profile
         the factor its speeds are scaled by; one per B-spline coefficient when
         the speed varies in time.
+    cov : numpy.ndarray
+        ``(3, 3)`` approximate covariance of ``east``, ``north``, ``depth`` (the
+        drift's and azimuth's intervals, the solution ellipse).
     """
 
     transponder: str
@@ -105,6 +108,7 @@ class LocateResult:
     window: tuple = (0.0, 1.0)
     model: dict = field(default_factory=dict, repr=False)
     speed_coef: np.ndarray = field(default=None, repr=False)
+    cov: np.ndarray = field(default=None, repr=False)
 
     @property
     def refracted(self) -> bool:
@@ -392,7 +396,7 @@ def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=
         model={"ssp": ssp, "surface_depth": float(surface_depth), "earth_radius": earth_radius,
                "speed_intervals": int(speed_intervals), "time_range": time_range,
                "lag": lag, "fit_lag": bool(fit_lag)},
-        speed_coef=coef.copy())
+        speed_coef=coef.copy(), cov=cov[:3, :3].copy())
 
 
 def _select_pings(pings, beacons, transponder, speed_intervals):

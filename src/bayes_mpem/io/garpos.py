@@ -143,7 +143,7 @@ def _values(ini, path, section, key, n, names, ranges=None):
         raise InputError(f"{where(path, line, name=key)}: expected {n} numbers, got "
                          f"{len(parts)}: {text!r}")
     try:
-        return [number(v, f"{key} {nm}", **(ranges or {}).get(nm, {}))
+        return [number(v, key if n == 1 else f"{key} {nm}", **(ranges or {}).get(nm, {}))
                 for v, nm in zip(parts[:n], names, strict=True)]
     except ValueError as exc:
         raise InputError(f"{where(path, line, name=key)}: {exc}") from None

@@ -131,7 +131,11 @@ class ArrayLocateResult:
     enu : numpy.ndarray
         ``(K, 3)`` east, north, up (m) in the survey's frame.
     cov : numpy.ndarray
-        Covariance of all parameters (positions first, then the speed coefficients).
+        Covariance of all parameters (positions first, then the speed
+        coefficients): cluster-robust, replies to one interrogation as a cluster
+        (:func:`robust_covariance`).
+    cov_model : numpy.ndarray
+        The model-based ``sigma^2 (J^T W J)^-1``, for comparison.
     start : numpy.ndarray
         ``(K, 3)`` the prior positions the fit started from.
     sound_speed, sound_speed_sd : float
@@ -167,6 +171,7 @@ class ArrayLocateResult:
     enu: np.ndarray
     cov: np.ndarray = field(repr=False)
     start: np.ndarray = field(repr=False)
+    cov_model: np.ndarray = field(default=None, repr=False)
     sound_speed: float = 0.0
     sound_speed_sd: float = 0.0
     speed_coef: np.ndarray = field(default=None, repr=False)
@@ -359,13 +364,16 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
     theta, sigma, weights, p, it, converged = _em(t, theta, resid, jac, x_scale, windows,
                                                   index, outliers, max_iter=max_iter, tol=tol)
     clusters = sub["t_tx"].to_numpy() if "t_tx" in sub.columns else np.arange(len(sub))
-    cov = robust_covariance(jac(theta, p), resid(theta, p), clusters)
+    J = jac(theta, p)
+    cov = robust_covariance(J, resid(theta, p), clusters)
+    cov_model = np.linalg.pinv(J.T @ J) * sigma**2
     g = basis.mean(axis=0)
     kk = slice(3 * K, None)
     n_bad = model.n_invalid(theta)
     _warn(n_bad, 2 * t.size, converged, it)
     return ArrayLocateResult(
         ids=tuple(ids), enu=theta[:3 * K].reshape(K, 3).copy(), cov=cov, start=start,
+        cov_model=cov_model,
         sound_speed=float(g @ theta[kk]) * unit,
         sound_speed_sd=float(np.sqrt(max(g @ cov[kk, kk] @ g, 0.0))) * unit,
         speed_coef=theta[kk].copy(), sigma=sigma, weights=weights, p_true=p,

@@ -100,7 +100,8 @@ def test_summary_keeps_the_locate_shape_and_adds_enu(located):
     t = s["transponders"]["M01"]
     for key in ("east", "north", "depth", "sound_speed"):
         assert set(t[key]) == {"mean", "sd", "interval"}
-    assert set(t["enu"]) == {"east", "north", "up"} and t["depth"]["mean"] == -t["enu"]["up"]["mean"]
+    assert set(t["enu"]) == {"east", "north", "up"}
+    assert t["depth"]["mean"] == -t["enu"]["up"]["mean"]
     assert {"lat", "lon", "n_spurious", "sigma_ms", "tat", "prior", "moved_m"} <= set(t)
     centre = s["array_centre"]["enu"]
     truth = sim.truth["transponders"].mean()

@@ -41,6 +41,7 @@ import pandas as pd
 from ..exceptions import InputError
 from .fields import flag, number, where
 from .raw import RawSurvey, bad, read_lines
+from .results import output_folder
 
 #: obs.csv column -> RawSurvey.pings column (the antenna and attitude at transmit and receive)
 OBS_COLUMNS = {"MT": "transponder", "TT": "twtt", "ST": "t_tx",
@@ -417,8 +418,7 @@ def write_garpos(out_dir, pings, header, *, site="SIM", campaign="0000.sim",
     pathlib.Path
         The site file.
     """
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = output_folder(out_dir)
     stem = f"{site}.{campaign}"
     site_file, obs_file, svp_file = (out / f"{stem}-{k}" for k in ("initcfg.ini", "obs.csv",
                                                                     "svp.csv"))

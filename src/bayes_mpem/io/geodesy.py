@@ -183,11 +183,7 @@ def geodetic_to_enu(lat, lon, height, lat0, lon0, height0=0.0):
     >>> round(float(e), 3), round(float(n), 6)
     (111.319, 0.0)
     """
-    lat, lon, height = np.broadcast_arrays(*(np.asarray(v, float) for v in (lat, lon, height)))
-    d = _ecef(lat, lon, height) - _ecef(float(lat0), float(lon0), float(height0)).reshape(
-        (3,) + (1,) * lat.ndim)
-    e, n, u = np.tensordot(_enu_rotation(lat0, lon0), d, axes=1)
-    return e, n, u
+    return ecef_to_enu(*geodetic_to_ecef(lat, lon, height), lat0, lon0, height0)
 
 
 def geodetic_to_ecef(lat, lon, height):

@@ -48,6 +48,7 @@ from .fields import number, where
 from .garpos import profile_frame, resolve_path
 from .geodesy import atd_offset_enu, ecef_to_enu, enu_to_ecef, enu_to_geodetic, geodetic_to_enu
 from .raw import RawSurvey, bad, read_lines
+from .results import output_folder
 
 #: The J2000 epoch GNATSS counts its times from (2000-01-01 12:00:00, no leap seconds).
 J2000 = datetime(2000, 1, 1, 12, 0, 0)
@@ -166,36 +167,41 @@ def _read_profile(paths):
     return profile_frame(prof["depth"], prof["sound_speed"], ", ".join(map(str, paths)))
 
 
-def _read_positions(paths, std_dev, strict, skipped):
-    """Map times (J2000 s, rounded) to (x, y, z, 3-D sigma) from POS_FREED_TRANS_TWTT files."""
-    out = {}
+def _data_lines(paths):
+    """Yield ``(path, line number, text, fields)`` of every line that is not blank or a comment."""
     for path in paths:
         for i, text in enumerate(read_lines(path), start=1):
             parts = text.split()
-            if not parts or parts[0].startswith("#"):
-                continue
-            try:
-                if len(parts) != 13:
-                    raise ValueError(f"expected 13 numbers (time, X Y Z, 9 covariances), got "
-                                     f"{len(parts)} fields")
-                v = []
-                for j, s in enumerate(parts):
-                    try:
-                        v.append(number(s, "time" if j == 0 else "XYZ"[j - 1] if j < 4
-                                        else "covariance"))
-                    except ValueError as exc:
-                        raise ValueError(f"column {j + 1} ({exc})") from None
-                r = float(np.sqrt(v[1] ** 2 + v[2] ** 2 + v[3] ** 2))
-                if not 6.2e6 < r < 6.5e6:
-                    raise ValueError(f"columns 2-4: {r:.0f} m from the Earth's centre, not "
-                                     "at the sea surface (6.2e6-6.5e6 m)")
-            except ValueError as exc:
-                bad(strict, str(path), i, text, str(exc), skipped)
-                skipped[-1] = (*skipped[-1], str(path))
-                continue
-            diag = np.array([v[4], v[8], v[12]])
-            sig = float(np.sqrt(np.sum(diag**2) if std_dev else np.sum(np.abs(diag))))
-            out[round(v[0], TIME_DECIMALS)] = (v[1], v[2], v[3], sig)
+            if parts and not parts[0].startswith("#"):
+                yield path, i, text, parts
+
+
+def _read_positions(paths, std_dev, strict, skipped):
+    """Map times (J2000 s, rounded) to (x, y, z, 3-D sigma) from POS_FREED_TRANS_TWTT files."""
+    out = {}
+    for path, i, text, parts in _data_lines(paths):
+        try:
+            if len(parts) != 13:
+                raise ValueError(f"expected 13 numbers (time, X Y Z, 9 covariances), got "
+                                 f"{len(parts)} fields")
+            v = []
+            for j, s in enumerate(parts):
+                try:
+                    v.append(number(s, "time" if j == 0 else "XYZ"[j - 1] if j < 4
+                                    else "covariance"))
+                except ValueError as exc:
+                    raise ValueError(f"column {j + 1} ({exc})") from None
+            r = float(np.sqrt(v[1] ** 2 + v[2] ** 2 + v[3] ** 2))
+            if not 6.2e6 < r < 6.5e6:
+                raise ValueError(f"columns 2-4: {r:.0f} m from the Earth's centre, not "
+                                 "at the sea surface (6.2e6-6.5e6 m)")
+        except ValueError as exc:
+            bad(strict, str(path), i, text, str(exc), skipped)
+            skipped[-1] = (*skipped[-1], str(path))
+            continue
+        diag = np.array([v[4], v[8], v[12]])
+        sig = float(np.sqrt(np.sum(diag**2) if std_dev else np.sum(np.abs(diag))))
+        out[round(v[0], TIME_DECIMALS)] = (v[1], v[2], v[3], sig)
     return out
 
 
@@ -222,45 +228,41 @@ def _read_travel_times(paths, tp, cfg, positions, strict, skipped):
     limit = cfg.number("solver", "gps_sigma_limit", default=0.05, lo=0.0, lo_open=True)
     ids, delays, n = list(tp.index), tp["internal_delay"].to_numpy(), len(tp)
     rows = []
-    for path in paths:
-        for i, text in enumerate(read_lines(path), start=1):
-            parts = text.split()
-            if not parts or parts[0].startswith("#"):
+    for path, i, text, parts in _data_lines(paths):
+        try:
+            t0, j0 = _interrogation_time(parts, n)
+            tts = [number(parts[j0 + k], f"column {j0 + k + 1} (transponder {ids[k]}, "
+                          "microseconds)", lo=0.0, hi=6e7) for k in range(n)]
+        except ValueError as exc:
+            bad(strict, str(path), i, text, str(exc), skipped)
+            skipped[-1] = (*skipped[-1], str(path))
+            continue
+        replies = [(k, tt * 1e-6) for k, tt in enumerate(tts) if tt > 0]
+        if not replies:
+            skipped.append((i, text, "no reply from any transponder", str(path)))
+            continue
+        st = t0 + shift
+        for k, tt in replies:
+            reason = None
+            rt = st + tt
+            tx, rx = (positions.get(round(t, TIME_DECIMALS)) for t in (st, rt))
+            if tt - delays[k] <= 0:
+                reason = (f"travel time {tt:.6f} s is not longer than the internal delay "
+                          f"{delays[k]:g} s")
+            elif tx is None or rx is None:
+                reason = (f"no position at the {'transmit' if tx is None else 'receive'} "
+                          f"time {st if tx is None else rt:.6f} (J2000 s) in the positions "
+                          "file")
+            elif max(tx[3], rx[3]) > limit:
+                reason = (f"position sigma {max(tx[3], rx[3]):.3f} m above "
+                          f"gps_sigma_limit {limit:g} m")
+            if reason is not None:
+                skipped.append((i, text, f"transponder {ids[k]}: {reason}", str(path)))
                 continue
-            try:
-                t0, j0 = _interrogation_time(parts, n)
-                tts = [number(parts[j0 + k], f"column {j0 + k + 1} (transponder {ids[k]}, "
-                              "microseconds)", lo=0.0, hi=6e7) for k in range(n)]
-            except ValueError as exc:
-                bad(strict, str(path), i, text, str(exc), skipped)
-                skipped[-1] = (*skipped[-1], str(path))
-                continue
-            replies = [(k, tt * 1e-6) for k, tt in enumerate(tts) if tt > 0]
-            if not replies:
-                skipped.append((i, text, "no reply from any transponder", str(path)))
-                continue
-            st = t0 + shift
-            for k, tt in replies:
-                reason = None
-                rt = st + tt
-                tx, rx = (positions.get(round(t, TIME_DECIMALS)) for t in (st, rt))
-                if tt - delays[k] <= 0:
-                    reason = (f"travel time {tt:.6f} s is not longer than the internal delay "
-                              f"{delays[k]:g} s")
-                elif tx is None or rx is None:
-                    reason = (f"no position at the {'transmit' if tx is None else 'receive'} "
-                              f"time {st if tx is None else rt:.6f} (J2000 s) in the positions "
-                              "file")
-                elif max(tx[3], rx[3]) > limit:
-                    reason = (f"position sigma {max(tx[3], rx[3]):.3f} m above "
-                              f"gps_sigma_limit {limit:g} m")
-                if reason is not None:
-                    skipped.append((i, text, f"transponder {ids[k]}: {reason}", str(path)))
-                    continue
-                rows.append({"line": i, "file": str(path), "transponder": ids[k],
-                             "twtt": tt - delays[k], "t_tx": st, "t_rx": rt,
-                             "x_tx": tx[0], "y_tx": tx[1], "z_tx": tx[2],
-                             "x_rx": rx[0], "y_rx": rx[1], "z_rx": rx[2]})
+            rows.append({"line": i, "file": str(path), "transponder": ids[k],
+                         "twtt": tt - delays[k], "t_tx": st, "t_rx": rt,
+                         "x_tx": tx[0], "y_tx": tx[1], "z_tx": tx[2],
+                         "x_rx": rx[0], "y_rx": rx[1], "z_rx": rx[2]})
     return rows
 
 
@@ -386,8 +388,7 @@ def write_gnatss(out_dir, pings, header, *, site="SIM", internal_delays=None,
     """
     import yaml
 
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = output_folder(out_dir)
     tp = header["transponders"]
     geoid_undulation = float(header["height"]) - float(header.get("surface_depth", 0.0))
     ids = [str(i) for i in tp.index]

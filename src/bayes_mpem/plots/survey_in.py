@@ -131,13 +131,19 @@ def _closeup(ax, s, tid, t):
     ax.legend(loc="lower right", fontsize="x-small")
 
 
-def _limits(cls, summary):
-    """Residual axis limit (ms): the true pings' spread, at least 5 sigma."""
+def _pinged(result):
+    """Return the pings classified (not skipped), the residual axis limit and sigma (ms).
+
+    The limit covers the true pings' spread, and at least 5 sigma.
+    """
+    cls = result.classified
+    cls = cls[cls["label"].isin(["true", "spurious"])]
     true = cls.loc[cls["label"] == "true", "residual_ms"].to_numpy(float)
-    sig = np.median([t["sigma_ms"] if not isinstance(t["sigma_ms"], dict)
-                     else t["sigma_ms"]["mean"] for t in summary["transponders"].values()])
+    sig = float(np.median([t["sigma_ms"] if not isinstance(t["sigma_ms"], dict)
+                           else t["sigma_ms"]["mean"]
+                           for t in result.summary["transponders"].values()]))
     top = np.nanmax(np.abs(true)) if true.size else 1.0
-    return float(max(5.0 * sig, 1.1 * top)), float(sig)
+    return cls, float(max(5.0 * sig, 1.1 * top)), sig
 
 
 def _scatter_classes(ax, cls, x, lim, *, key=True):
@@ -170,9 +176,7 @@ def plot_residuals(result, *, fig=None):
     -------
     matplotlib.figure.Figure
     """
-    s, cls = result.summary, result.classified
-    cls = cls[cls["label"].isin(["true", "spurious"])]
-    lim, _ = _limits(cls, s)
+    cls, lim, _ = _pinged(result)
     if fig is None:
         fig = plt.figure(figsize=(11, 4.2), layout="constrained")
     a1, a2 = fig.subplots(1, 2, sharey=True)
@@ -201,9 +205,7 @@ def plot_residual_histogram(result, *, fig=None):
     -------
     matplotlib.figure.Figure
     """
-    s, cls = result.summary, result.classified
-    cls = cls[cls["label"].isin(["true", "spurious"])]
-    lim, sig = _limits(cls, s)
+    cls, lim, sig = _pinged(result)
     if fig is None:
         fig = plt.figure(figsize=(6.5, 4.2), layout="constrained")
     ax = fig.subplots()

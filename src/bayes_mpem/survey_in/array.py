@@ -35,7 +35,7 @@ from scipy.stats import norm
 
 from .._validate import check_choice, check_int
 from ..exceptions import InputError, LocateWarning
-from .location import OUTLIER_MODELS, log_classes, true_probability
+from .location import OUTLIER_MODELS, log_classes, true_probability, weighted_residuals
 from .travel_times import TravelTimes, speed_basis
 
 #: Fewest shots a transponder needs to be located.
@@ -349,7 +349,7 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
     c0 = float(sound_speed or (unit if profile is not None else 1500.0))
     # the robust start: straight rays, one speed
     straight = ArrayTravelTimes(sub, index, K, np.ones((len(sub), 1)))
-    resid, jac = _weighted(t, straight)
+    resid, jac = weighted_residuals(t, straight)
     theta = least_squares(resid, np.concatenate([start.ravel(), [c0]]), jac=jac,
                           loss="cauchy", f_scale=1e-3,
                           x_scale=np.array([10.0] * 3 * K + [1.0])).x
@@ -359,7 +359,7 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
     coef0 = theta[-1] / unit
     theta = np.concatenate([theta[:3 * K], np.full(basis.shape[1], coef0)])
     x_scale = np.array([1.0] * 3 * K + [abs(coef0) / 1500.0] * basis.shape[1])
-    resid, jac = _weighted(t, model)
+    resid, jac = weighted_residuals(t, model)
     windows = np.array([[t[index == k].min(), t[index == k].max()] for k in range(K)])
     theta, sigma, weights, p, it, converged = _em(t, theta, resid, jac, x_scale, windows,
                                                   index, outliers, max_iter=max_iter, tol=tol)
@@ -424,20 +424,6 @@ def robust_covariance(J, r, clusters) -> np.ndarray:
     np.add.at(S, codes, J * r[:, None])
     Ainv = np.linalg.pinv(J.T @ J)
     return Ainv @ (S.T @ S) @ Ainv * (G / max(G - P, 1))
-
-
-def _weighted(t, model):
-    """Residual and Jacobian functions of ``model`` for :func:`least_squares` (optional weights)."""
-
-    def resid(th, w=None):
-        r = t - model.predict(th)
-        return r if w is None else np.sqrt(w) * r
-
-    def jac(th, w=None):
-        J = -model.jac(th)
-        return J if w is None else np.sqrt(w)[:, None] * J
-
-    return resid, jac
 
 
 def _warn(n_bad, n_legs, converged, it):

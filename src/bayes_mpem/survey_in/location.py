@@ -354,7 +354,7 @@ def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=
     theta = np.array([start["x"], start["y"], start["depth"], sound_speed]
                      + ([tat0] if fit_tat else []), float)
     x_scale = [10.0, 10.0, 10.0, 1.0] + ([1e-3] if fit_tat else [])
-    resid, jac = _weighted_residuals(t, TravelTimes(x, y, z, tat0, **geo))
+    resid, jac = weighted_residuals(t, TravelTimes(x, y, z, tat0, **geo))
     theta = least_squares(resid, theta, jac=jac, loss="cauchy", f_scale=2e-3,
                           x_scale=np.array(x_scale)).x
     speed0 = theta[3]
@@ -365,7 +365,7 @@ def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=
     x_scale = np.array([10.0] * 3 + [abs(speed0) / 1500.0] * k + ([1.0] if fit_lag else [])
                        + ([1e-3] if fit_tat else []))
     model = TravelTimes(x, y, z, tat0, basis=basis, profile=ssp, fit_lag=fit_lag, **geo)
-    resid, jac = _weighted_residuals(t, model)
+    resid, jac = weighted_residuals(t, model)
     window = (float(t.min()), float(t.max())) if window is None else tuple(map(float, window))
     theta, sigma, weight, p, it, converged = _em(t, theta, resid, jac, x_scale, window,
                                                  outliers, max_iter=max_iter, tol=tol)
@@ -421,8 +421,23 @@ def _select_pings(pings, beacons, transponder, speed_intervals):
     return transponder, start, rows, pings.iloc[rows]
 
 
-def _weighted_residuals(t, model):
-    """Residual and Jacobian functions of ``model`` for :func:`least_squares` (optional weights)."""
+def weighted_residuals(t, model):
+    """Residual and Jacobian functions of a travel-time model for ``least_squares``.
+
+    Parameters
+    ----------
+    t : numpy.ndarray
+        Observed two-way travel times (s).
+    model : object
+        With ``predict(theta)`` and ``jac(theta)`` (:class:`TravelTimes`, or an
+        array's :class:`~bayes_mpem.survey_in.array.ArrayTravelTimes`).
+
+    Returns
+    -------
+    resid, jac : callable
+        ``resid(theta, w=None)`` (observed minus predicted, times ``sqrt(w)``
+        when weights are given) and ``jac(theta, w=None)`` its Jacobian.
+    """
 
     def resid(th, w=None):
         r = t - model.predict(th)

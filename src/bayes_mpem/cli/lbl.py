@@ -156,7 +156,7 @@ def cmd_demo(args) -> int:
 
 
 def cmd_plot(args) -> int:
-    """Run ``bayes-mpem plot``: the figures of a fit or sample output folder.
+    """Run ``bayes-mpem plot``: the figures of an output folder of any kind.
 
     Parameters
     ----------
@@ -165,15 +165,18 @@ def cmd_plot(args) -> int:
     Returns
     -------
     int
-        Exit status: 0, or 2 when the folder holds no fitted beacon.
+        Exit status: 0, or 2 when the folder holds nothing to draw (no fitted
+        beacon or located transponder).
     """
     result = load_output(args.result_dir)
-    if not result.results:
-        print(f"bayes-mpem plot: {args.result_dir} holds no fitted beacon "
-              f"(skipped: {result.skipped or 'none'}); nothing to draw", file=sys.stderr)
-        return 2
     beacon = None if args.beacon is None else args.beacon.strip()  # ids are text, as in CSVs
-    _print_written(write_figures(result, args.out or args.result_dir, beacon=beacon))
+    paths = write_figures(result, args.out or args.result_dir, beacon=beacon)
+    if not paths:
+        skipped = getattr(result, "skipped", None)
+        print(f"bayes-mpem plot: {args.result_dir} holds no fitted beacon or located "
+              f"transponder (skipped: {skipped or 'none'}); nothing to draw", file=sys.stderr)
+        return 2
+    _print_written(paths)
     return 0
 
 

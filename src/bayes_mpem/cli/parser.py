@@ -31,7 +31,7 @@ COMMANDS: dict[str, str] = {
     "navigate": "navigate",
 }
 #: the sub-commands that draw figures take ``--palette`` (the class colours)
-FIGURE_COMMANDS = ("demo", "fit", "sample", "compare", "plot", "diagnose", "navigate")
+FIGURE_COMMANDS = ("demo", "fit", "sample", "compare", "plot", "diagnose", "navigate", "locate")
 PALETTES = ("okabe-ito", "paper")  # bayes_mpem.plots.style.PALETTES, without numpy
 
 
@@ -63,13 +63,16 @@ def _add_demo_plot_simulate(sub):
                    help="skip the Bayesian part (sampling and prior comparison: most of the "
                         "demo's ~30 s)")
 
-    p = sub.add_parser("plot", help="draw the figures of a fit or sample output folder")
+    p = sub.add_parser("plot", help="draw the figures of an output folder (fit, sample, "
+                                    "compare, diagnose, locate)")
     p.add_argument("result_dir", metavar="RESULT_DIR",
-                   help="output folder of 'bayes-mpem fit' or 'bayes-mpem sample'")
+                   help="output folder of 'bayes-mpem fit', 'sample', 'compare', 'diagnose' "
+                        "or 'locate'")
     p.add_argument("--out", default=None, metavar="DIR",
                    help="where to write (default: RESULT_DIR)")
     p.add_argument("--beacon", default=None, metavar="ID",
-                   help="beacon of the single-beacon figures (default: the last one)")
+                   help="fit folders: beacon of the single-beacon figures (default: the last "
+                        "one)")
 
     p = sub.add_parser("simulate", help="write a simulated survey (pings, beacons, truth)")
     p.add_argument("--preset", choices=["abe58", "random"], default="abe58")
@@ -115,13 +118,22 @@ def _add_fit_diagnose(sub):
 
 
 def _add_locate(sub):
-    p = sub.add_parser("locate", help="locate a transponder from a ranging survey (EM, and "
-                                      "optionally its posterior)")
-    p.add_argument("survey", metavar="SURVEY", help="survey file (obsdata.inp for SeaGap)")
-    p.add_argument("--format", required=True,
-                   choices=["obsrange", "obsrange-sio", "obsrange-whoi", "seagap"],
-                   help="'obsrange' detects the SIO or WHOI variant")
+    p = sub.add_parser("locate", help="locate the transponders of a ranging survey (EM, and "
+                                      "optionally the posterior)")
+    p.add_argument("survey", metavar="SURVEY",
+                   help="survey file: a deck-box log, SeaGap's obsdata.inp, GARPOS's "
+                        "*-initcfg.ini or GNATSS's config.yaml")
+    p.add_argument("--format", default="auto",
+                   choices=["auto", "obsrange", "obsrange-sio", "obsrange-whoi", "seagap",
+                            "garpos", "gnatss"],
+                   help="default auto: recognised from the file; 'obsrange' detects the SIO "
+                        "or WHOI variant")
     p.add_argument("--out", required=True, metavar="DIR")
+    p.add_argument("--figures", action="store_true",
+                   help="also write the figures (map, residuals; as 'bayes-mpem plot' does)")
+    p.add_argument("--no-lag-check", action="store_true",
+                   help="deck-box logs: do not test whether a lag along the track would fit "
+                        "better (a few tenths of a second)")
     p.add_argument("--tat", type=float, default=None, metavar="S",
                    help="turn-around time in s (default: the file's, else 0.013; SeaGap 0)")
     p.add_argument("--fit-tat", action="store_true",
@@ -130,13 +142,15 @@ def _add_locate(sub):
     p.add_argument("--outliers", choices=["uniform", "first_arrival"], default="uniform",
                    help="spurious pings uniform over the window (default) or only before the "
                         "true arrival (a first-threshold-crossing detector)")
-    p.add_argument("--ssp", default=None, metavar="FILE|woa09|survey",
+    p.add_argument("--ssp", default=None, metavar="FILE|woa09|survey|straight",
                    help="refracted rays through a sound-speed profile: a two-column file "
                         "(depth m, speed m/s), 'woa09' (the atlas at the drop point) or "
-                        "'survey' (the survey's own, SeaGap's ss_prof.inp); default straight rays")
+                        "'survey' (the survey's own: SeaGap's ss_prof.inp, GARPOS's svp.csv, "
+                        "GNATSS's sound_speed); 'straight' for straight rays; default straight "
+                        "rays, except the survey's own profile for GARPOS and GNATSS")
     p.add_argument("--speed-intervals", type=int, default=0, metavar="N",
                    help="let the sound speed vary in time (cubic B-spline, N intervals over "
-                        "the survey; default 0: one speed)")
+                        "the survey; default 0: one speed); GNSS-A surveys: one per 15-30 min")
     p.add_argument("--fit-lag", action="store_true",
                    help="fit a time lag of the acoustic position along the track (a position "
                         "fix logged at another moment, or a transducer ahead of the antenna)")

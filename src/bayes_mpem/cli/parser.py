@@ -2,7 +2,8 @@
 
 The sub-commands themselves live in :mod:`.lbl` (``demo``, ``simulate``,
 ``fit``, ``sample``, ``compare``, ``plot``, ``diagnose``), :mod:`.navigate`
-(``navigate``, ``simulate --navigation``) and :mod:`.survey_in` (``locate``);
+(``navigate``, ``simulate --navigation``), :mod:`.stream` (``stream``) and
+:mod:`.survey_in` (``locate``);
 each parses nothing, calls the library and reports. Invalid input ends a
 command with one ``error:`` line and exit status 2.
 """
@@ -16,7 +17,7 @@ import warnings
 from .. import __version__
 from ..exceptions import InputError
 from ..lbl.path_choice import PATH_CHOICES
-from . import lbl, navigate, survey_in
+from . import lbl, navigate, stream, survey_in
 from .errors import OptionError
 
 
@@ -203,6 +204,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_locate(sub)
     _add_sample_compare(sub)
     navigate.add_navigate(sub)
+    stream.add_stream(sub)
     return parser
 
 
@@ -226,7 +228,7 @@ def main(argv=None) -> int:
     handler = {"demo": lbl.cmd_demo, "simulate": lbl.cmd_simulate, "fit": lbl.cmd_fit,
                "plot": lbl.cmd_plot, "sample": lbl.cmd_sample, "compare": lbl.cmd_compare,
                "locate": survey_in.cmd_locate, "diagnose": lbl.cmd_diagnose,
-               "navigate": navigate.cmd_navigate}[args.command]
+               "navigate": navigate.cmd_navigate, "stream": stream.cmd_stream}[args.command]
     if args.command == "simulate":
         handler = _simulate_handler(args)
     with warnings.catch_warnings():  # restores the caller's filters and showwarning

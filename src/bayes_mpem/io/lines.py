@@ -74,7 +74,7 @@ class Ping(NamedTuple):
 
 
 def _number(value, column, where, *, positive=False, optional=False):
-    """A finite float from a JSON value or a CSV cell, or an InputError naming the cell."""
+    """Return a finite float from a JSON value or a CSV cell, or raise an InputError naming it."""
     missing = value is None or (isinstance(value, str) and not value.strip())
     if missing:
         if optional:

@@ -166,7 +166,7 @@ class PositionFilter:
         return math.sqrt(max(p[0], 0.0)), math.sqrt(max(p[4], 0.0)), p[1]
 
     def to_dict(self) -> dict:
-        """The state as a JSON-ready mapping (floats round-trip exactly).
+        """Return the state as a JSON-ready mapping (floats round-trip exactly).
 
         Returns
         -------

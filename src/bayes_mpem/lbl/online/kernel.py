@@ -69,7 +69,7 @@ def ranges(x, y, depth, bx, by, bz, d0, double):
 
 
 def gaussian_logpdf(resid, sigma):
-    """Normal log-density of a residual (:func:`bayes_mpem.mixture.densities.gaussian_logpdf`).
+    """Return the normal log-density of a residual (as ``mixture.densities.gaussian_logpdf``).
 
     Parameters
     ----------
@@ -147,7 +147,7 @@ def log_weight(w):
 
 
 def dr_step(dx, dy, beta, scale):
-    """The dead-reckoning step ``s R(beta) Delta`` and its derivatives (as ``dr_step``).
+    """Return the dead-reckoning step ``s R(beta) Delta`` and its derivatives (as ``dr_step``).
 
     Parameters
     ----------

@@ -105,7 +105,7 @@ class PingResult:
     reason: str | None = None
 
     def to_dict(self) -> dict:
-        """The answer as a JSON-ready mapping (non-finite numbers as None).
+        """Return the answer as a JSON-ready mapping (non-finite numbers as None).
 
         Returns
         -------
@@ -306,7 +306,7 @@ class Navigator:
         return out
 
     def _new_beacon(self, bid: str, ping: Ping) -> BeaconModel:
-        """A beacon first heard after the warm-up: :func:`.warmup.prior_model`."""
+        """Start a beacon first heard after the warm-up (:func:`.warmup.prior_model`)."""
         o = self.options
         bx, by, bz = xyz = self._xyz[bid]
         direct, mp, *_ = ranges(ping.x, ping.y, ping.depth, bx, by, bz, bz, False)
@@ -407,9 +407,11 @@ class Navigator:
             rows.append(self.update(Ping(float(a["time"][i]), a["beacon"][i],
                                          None if z != z else z, float(a["x"][i]),
                                          float(a["y"][i]), float(a["depth"][i]))))
-        fields = list(PingResult.__slots__)
-        get = attrgetter(*fields)
-        return pd.DataFrame([get(r) for r in rows], columns=fields)
+        cols = zip(*map(attrgetter(*PingResult.__slots__), rows), strict=True) if rows else ()
+        cols = dict(zip(PingResult.__slots__, cols, strict=False))
+        text = ("beacon", "label", "phase", "reason")  # object columns, None kept as None
+        return pd.DataFrame({k: pd.Series(cols.get(k, ()), dtype=object if k in text else float)
+                             for k in PingResult.__slots__})
 
     # ------------------------------------------------------------------ reading the state
     def reflectors(self) -> dict:
@@ -428,7 +430,7 @@ class Navigator:
                 for bid, m in self.models.items()}
 
     def nuisances(self) -> dict:
-        """The dead reckoning's heading bias (degrees) and speed scale, with their sd.
+        """Return the dead reckoning's heading bias (degrees) and speed scale, with their sd.
 
         Returns
         -------
@@ -444,7 +446,7 @@ class Navigator:
 
     # ------------------------------------------------------------------ saving
     def to_dict(self) -> dict:
-        """The whole state as a JSON-ready document (floats round-trip exactly).
+        """Return the whole state as a JSON-ready document (floats round-trip exactly).
 
         Returns
         -------
@@ -536,7 +538,7 @@ class Navigator:
 
 
 def _label(p) -> str:
-    """The likeliest class (first on a tie, as ``fit``)."""
+    """Return the likeliest class (the first on a tie, as ``fit``)."""
     i = 0
     if p[1] > p[i]:
         i = 1

@@ -113,7 +113,7 @@ class BeaconModel:
     @classmethod
     def start(cls, *, d0, sigma_mp, weights, n, double, mp_on, xyz, d0_min, window,
               stats=None):
-        """A beacon whose first ``n`` replies had these parameters (or these statistics).
+        """Start a beacon whose first ``n`` replies had these parameters (or these statistics).
 
         Parameters
         ----------
@@ -256,7 +256,7 @@ class BeaconModel:
             self.sigma_mp = max(math.sqrt(max(var, 0.0)), floor)
 
     def to_dict(self) -> dict:
-        """The beacon's model as a JSON-ready mapping.
+        """Return the beacon's model as a JSON-ready mapping.
 
         Returns
         -------

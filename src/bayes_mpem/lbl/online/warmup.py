@@ -79,7 +79,7 @@ def provisional_classes(ping, xyz, window, sd):
 
 
 def beacon_stats(z, xy, depth, xyz, d0, double, resp):
-    """A beacon's batch sufficient statistics (:data:`.reflector.BEACON_STATS`, ``d0_ref = d0``).
+    """Compute a beacon's batch sufficient statistics (:data:`.reflector.BEACON_STATS`).
 
     Parameters
     ----------
@@ -107,7 +107,7 @@ def beacon_stats(z, xy, depth, xyz, d0, double, resp):
 
 
 def _alternative(model, data, xy, depth, seed):
-    """The other geometry's mixture-EM fit at the batch track, as a :class:`BeaconModel`."""
+    """Fit the other geometry (mixture EM at the batch track) as a :class:`BeaconModel`."""
     choice = choose_path(data, AUTO, rng=seed, fit_warnings=False)
     fit = choice.fits["triangle" if model.double else "double"]
     w = tuple(fit.weights[c] for c in CLASSES)
@@ -120,7 +120,7 @@ def _alternative(model, data, xy, depth, seed):
 
 
 def prior_model(xyz, prior, *, mp_on, path, d0_min, window):
-    """A beacon without a fit: the plane at the sea surface, the prior's scale, equal weights.
+    """Start a beacon without a fit: plane at the sea surface, the prior's scale, equal weights.
 
     Parameters
     ----------
@@ -220,7 +220,8 @@ def batch_start(buffer, beacons: pd.DataFrame, opts: dict, seed: int, prior: dic
                                       d0_min=common["d0_min"], window=common["window"])
     r_dp = dive.z - predictions(dive, st).direct
     g = nav.resp[:, 0]
-    dp = DirectPathScale(st.sigma_dp, dive.n, stats=(float(g.mean()), float(np.mean(g * r_dp ** 2))),
+    dp = DirectPathScale(st.sigma_dp, dive.n,
+                         stats=(float(g.mean()), float(np.mean(g * r_dp ** 2))),
                          fixed=opts["sigma_dp"] is not None)
     record = {"replies": dive.n, "epochs": dive.n_epochs, "iterations": nav.n_iter,
               "converged": nav.converged, "corrected": nav.corrected,

@@ -123,8 +123,9 @@ def report(rows) -> str:
     out = [f"*{dt.date.today().isoformat()}, {machine()}; {n} dives "
            f"({', '.join(f'{(df.preset == p).sum()} {p}' for p in PRESETS)}).*", "",
            "| acceptance | measure | median | worst | dives meeting it |", "|---|---|---|---|---|",
-           f"| plane heights within 3 m of the batch EM's after 500 replies per beacon | largest "
-           f"|online - batch d0| over the beacons (m) | {df.d0_vs_batch.median():.2f} | "
+           "| plane heights within 3 m of the batch EM's after 500 replies per beacon | largest "
+           "difference online - batch in d0 over the beacons (m) | "
+           f"{df.d0_vs_batch.median():.2f} | "
            f"{df.d0_vs_batch.max():.2f} | {ok('d0_vs_batch', lambda s: s < 3)} / {n} |",
            f"| labels agree with the batch labels on >= 98 % of replies after the warm-up | "
            f"agreement | {df.labels_vs_batch.median():.4f} | {df.labels_vs_batch.min():.4f} | "

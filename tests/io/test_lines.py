@@ -33,6 +33,7 @@ def test_csv_json_no_reply_and_dead_reckoning():
     ("1,1,10,0,0,", "column 'depth': expected a number, got an empty cell"),
     ('{"time": 1, "beacon": "1", "range": 10, "x": 0, "y": 0', "invalid JSON"),
     ('{"time": true, "beacon": "1", "range": 10, "x": 0, "y": 0, "depth": 1}', "column 'time'"),
+    ('{"time": 1, "beacon": "1", "range": NaN, "x": 0, "y": 0, "depth": 1}', "NaN is not a JSON"),
 ])
 def test_malformed_lines_say_where_and_what(line, match):
     p = LineParser({"1"})
@@ -49,3 +50,6 @@ def test_a_header_without_the_columns_is_refused():
     assert p.header is None
     with pytest.raises(InputError, match="line 2, column 'x'"):
         make_ping({"time": 1, "x": "?", "y": 0}, "line 2")
+    # a float NaN (pandas' missing value) is an empty cell: no reply
+    assert make_ping({"time": 1, "beacon": "1", "range": float("nan"), "x": 0, "y": 0,
+                      "depth": 1}, "row 1").kind == "no_reply"

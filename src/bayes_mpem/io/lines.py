@@ -75,7 +75,8 @@ class Ping(NamedTuple):
 
 def _number(value, column, where, *, positive=False, optional=False):
     """Return a finite float from a JSON value or a CSV cell, or raise an InputError naming it."""
-    missing = value is None or (isinstance(value, str) and not value.strip())
+    missing = value is None or (isinstance(value, str) and not value.strip()) or (
+        isinstance(value, float) and math.isnan(value))  # NaN: pandas' missing value
     if missing:
         if optional:
             return None
@@ -138,6 +139,11 @@ def make_ping(values: dict, where: str, beacons=None) -> Ping:
     return Ping(t, beacon, rng, x, y, depth)
 
 
+def _no_constant(name):
+    """Refuse ``NaN`` and ``Infinity``, which are not JSON."""
+    raise ValueError(f"{name} is not a JSON number")
+
+
 class LineParser:
     """Turns lines into pings; remembers the CSV header.
 
@@ -186,10 +192,11 @@ class LineParser:
             return "comment", None
         if s.startswith("{"):
             try:
-                obj = json.loads(s)
+                obj = json.loads(s, parse_constant=_no_constant)
             except ValueError as err:
+                at = f" at column {err.colno}" if hasattr(err, "colno") else ""
                 raise InputError(f"{where}: expected a JSON object, got invalid JSON "
-                                 f"({err.msg} at column {err.colno})") from None
+                                 f"({getattr(err, 'msg', err)}{at})") from None
             if not isinstance(obj, dict):  # pragma: no cover - "{" starts an object
                 raise InputError(f"{where}: expected a JSON object")
             return "ping", make_ping(obj, where, self.beacons)

@@ -25,6 +25,8 @@ import math
 
 from ...mixture.densities import LOG_SQRT_2PI, LOG_TINY
 
+_LOG_SQRT_2PI = float(LOG_SQRT_2PI)  # a Python float: no NumPy scalar in the arithmetic
+
 
 def ranges(x, y, depth, bx, by, bz, d0, double):
     """Direct and multipath range of one position, with their derivatives.
@@ -85,7 +87,7 @@ def gaussian_logpdf(resid, sigma):
     -2.112086
     """
     u = resid / sigma
-    return -0.5 * u * u - math.log(sigma) - LOG_SQRT_2PI
+    return -0.5 * u * u - math.log(sigma) - _LOG_SQRT_2PI
 
 
 def class_probabilities(z, direct, multipath, sigma_dp, sigma_mp, log_ol, lw_dp, lw_mp, lw_ol):

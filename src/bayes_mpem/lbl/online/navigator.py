@@ -34,7 +34,6 @@ import json
 import math
 import os
 import warnings
-from dataclasses import dataclass
 from operator import attrgetter
 
 import pandas as pd
@@ -51,6 +50,7 @@ from ..path_choice import CLEAR_MARGIN, check_path_choice
 from .ekf import PositionFilter
 from .kernel import class_probabilities, log_weight, ranges
 from .reflector import BeaconModel, DirectPathScale
+from .result import PingResult, label_of
 from .warmup import batch_start, prior_model, provisional_classes
 
 #: Written into every saved state; a state of another format is refused.
@@ -63,59 +63,6 @@ PATH_MARGIN = CLEAR_MARGIN
 MIN_CLASS_PROB = 1e-9
 _REPLY_REASON = {"no_reply": "empty range: the ping got no reply",
                  "dead_reckoning": "dead-reckoning line: no beacon"}
-
-
-@dataclass(frozen=True, slots=True)
-class PingResult:
-    """The answer to one input line.
-
-    Attributes
-    ----------
-    time : float
-    beacon : str or None
-    range : float or None
-    label : str or None
-        ``dp``, ``mp``, ``ol`` (the likeliest class), ``no_reply``, or None
-        for a dead-reckoning line.
-    p_dp, p_mp, p_ol : float or None
-        Class probabilities from the model as it stood when the range arrived.
-    x, y : float
-        Filtered position after the line (m).
-    sd_x, sd_y, cov_xy : float
-        Its uncertainty (m, m, m^2).
-    phase : str
-        ``"warmup"`` (provisional) or ``"online"``.
-    reason : str or None
-        Why a line has no class.
-    """
-
-    time: float
-    beacon: str | None
-    range: float | None
-    label: str | None
-    p_dp: float | None
-    p_mp: float | None
-    p_ol: float | None
-    x: float
-    y: float
-    sd_x: float
-    sd_y: float
-    cov_xy: float
-    phase: str
-    reason: str | None = None
-
-    def to_dict(self) -> dict:
-        """Return the answer as a JSON-ready mapping (non-finite numbers as None).
-
-        Returns
-        -------
-        dict
-        """
-        out = {}
-        for k in self.__slots__:
-            v = getattr(self, k)
-            out[k] = None if isinstance(v, float) and not math.isfinite(v) else v
-        return out
 
 
 def _options(o: dict) -> dict:
@@ -287,7 +234,7 @@ class Navigator:
         if len(self.buffer) >= self.options["warmup"]:
             return self._finish_warmup(ping)
         p = provisional_classes(ping, self._xyz[ping.beacon], w, self.options["provisional_sd"])
-        return PingResult(ping.time, ping.beacon, z, _label(p), *p, ping.x, ping.y, sd, sd, 0.0,
+        return PingResult(ping.time, ping.beacon, z, label_of(p), *p, ping.x, ping.y, sd, sd, 0.0,
                           "warmup")
 
     def _finish_warmup(self, ping: Ping) -> PingResult:
@@ -297,7 +244,7 @@ class Navigator:
             {"sigma_mp": o["prior_sigma_mp"], "n": o["prior_pings"]})
         self.buffer, self.windows, self.phase = [], {}, "online"
         f = self.filter
-        out = PingResult(ping.time, ping.beacon, ping.range, _label(p), *p, f.x, f.y,
+        out = PingResult(ping.time, ping.beacon, ping.range, label_of(p), *p, f.x, f.y,
                          *f.position_sd(), "warmup")
         if self.warmup_record["warnings"]:
             warnings.warn("the warm-up's batch fit warned: "
@@ -368,7 +315,7 @@ class Navigator:
                       self._floor)
             self.models[ping.beacon] = m.weigh(a_p[3] - lse, self._alpha, PATH_MARGIN)
         sd_x, sd_y, cxy = f.position_sd()
-        return PingResult(ping.time, ping.beacon, z, _label((p_dp, p_mp, p_ol)), p_dp, p_mp,
+        return PingResult(ping.time, ping.beacon, z, label_of((p_dp, p_mp, p_ol)), p_dp, p_mp,
                           p_ol, f.x, f.y, sd_x, sd_y, cxy, "online")
 
     def _classify(self, m, z, direct, pred, sd_dp):
@@ -535,13 +482,3 @@ class Navigator:
             raise InputError(f"{os.fspath(path)}: not a navigator state (invalid JSON: "
                              f"{err})") from None
         return cls.from_dict(d)
-
-
-def _label(p) -> str:
-    """Return the likeliest class (the first on a tie, as ``fit``)."""
-    i = 0
-    if p[1] > p[i]:
-        i = 1
-    if p[2] > p[i]:
-        i = 2
-    return CLASSES[i]

@@ -65,10 +65,10 @@ def provisional_classes(ping, xyz, window, sd):
     Examples
     --------
     >>> from bayes_mpem.io.lines import Ping
-    >>> p = provisional_classes(Ping(0.0, "1", 1000.0, 0.0, 0.0, 1500.0),
+    >>> p = provisional_classes(Ping(0.0, "1", 1414.0, 0.0, 0.0, 1500.0),
     ...                         (0.0, 1000.0, 2500.0), (500.0, 5000.0), 100.0)
     >>> [round(v, 3) for v in p]
-    [1.0, 0.0, 0.0]
+    [0.947, 0.0, 0.053]
     """
     bx, by, bz = xyz
     direct, mp, *_ = ranges(ping.x, ping.y, ping.depth, bx, by, bz, bz, False)

@@ -85,7 +85,18 @@ def measure(sim, method):
     d0 = [abs(nav.state.d0[j] - sim.simulation.truth[b]["d0"])
           for j, b in enumerate(nav.dive.beacon_ids) if nav.beacons[b]["mp"]]
     three = method in ("this model", "oracle")
-    return {"rmse": _rmse(err), "rmse_blocked": _rmse(err[blocked]) if blocked.any() else np.nan,
+    z = {}
+    if method == "this model":  # errors of the reported estimates over their reported sd
+        summ, nav_truth = nav.summary(), sim.truth["navigation"]
+        z["d0"] = [(v["d0"]["estimate"] - sim.simulation.truth[b]["d0"]) / v["d0"]["sd"]
+                   for b, v in summ["beacons"].items() if v["d0"] is not None]
+        dr = summ["dead_reckoning"]
+        z["heading bias"] = [(dr["heading_bias_deg"]["estimate"]
+                              - nav_truth["heading_bias_deg"]) / dr["heading_bias_deg"]["sd"]]
+        z["speed scale"] = [(dr["speed_scale"]["estimate"] - nav_truth["speed_scale"])
+                            / dr["speed_scale"]["sd"]]
+    return {"z": z, "rmse": _rmse(err),
+            "rmse_blocked": _rmse(err[blocked]) if blocked.any() else np.nan,
             "plane": max(d0) if d0 and method == "this model" else np.nan,
             "labels3": float(np.mean(pred == lab)) if three else np.nan,
             "labels_dp": float(np.mean((pred == "dp") == (lab == "dp"))),
@@ -181,6 +192,15 @@ def acceptance(rows):
             f"{ok(0.90 <= cov <= 0.98)}."]
 
 
+def intervals(rows):
+    out = []
+    for name in ("d0", "heading bias", "speed scale"):
+        z = np.concatenate([r[3]["this model"]["z"][name] for r in rows])
+        out.append(f"{name}: {np.mean(np.abs(z) < 1.96):.0%} of {z.size} within their 95 % "
+                   f"interval (sd of error / reported sd {z.std():.2f})")
+    return ["Intervals of the summary (this model): " + "; ".join(out) + "."]
+
+
 def table2(rows, fractions):
     out = ["| blocked | dives | DR (m) | gate (m) | multipath as outliers (m) | this model (m) | "
            "oracle (m) | cut against outliers, median (min) |",
@@ -222,6 +242,7 @@ def main(argv=None):
             "95 % error ellipse (from the Laplace covariance) holds the true position. Flagged: "
             "dives with a `NavigationWarning` stretch (position sd above 10 m).", "",
             *table1(rows1), "", "Acceptance (this model):", "", *acceptance(rows1), "",
+            *intervals(rows1), "",
             "### Direct path blocked", "",
             f"The direct path of every beacon blocked over the middle part of the dive (the "
             f"surface bounce still arrives), seeds 0 to {n2 - 1} of each preset; median RMSE "

@@ -118,7 +118,7 @@ def main(argv=None):
             rows.append((sname, cname, nav.dive.n, nav.dive.n_epochs, line, flagged, len(res),
                          n_ol))
             print(sname, cname, {k: round(v[0], 2) for k, v in line.items()}, flush=True)
-    text = ["## Measured surveys", "",
+    text = ["### Track error against the ship's GPS", "",
             f"`python benchmarks/navigate_measured.py` on {dt.date.today()} ({machine()}); "
             f"seeds 0 to {len(seeds) - 1} of the dead reckoning's errors, medians over them. "
             "RMSE: horizontal error of the track against the ship's GPS; coverage: epochs "

@@ -13,6 +13,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..lbl.navigate import navigate, simulate_dive
+from ..lbl.navigate.ecm import MODELS, MULTIPATH
+from ..lbl.path_choice import PATH_CHOICES
 from ..report import write_figures
 from .errors import OptionError
 
@@ -39,12 +41,12 @@ def add_navigate(sub) -> None:
     p.add_argument("--dead-reckoning", default=None, metavar="FILE",
                    help="a dead-reckoning CSV at its own rate (time, x, y or time, ve, vn) "
                         "instead of the pings' x, y")
-    p.add_argument("--multipath", choices=["signal", "outlier"], default="signal",
+    p.add_argument("--multipath", choices=MULTIPATH, default="signal",
                    help="multipath replies carry position information (default) or are "
                         "outliers")
-    p.add_argument("--model", choices=["mixture", "huber", "gate", "gaussian"],
-                   default="mixture", help="the mixture (default) or a baseline smoother")
-    p.add_argument("--path", choices=["auto", "triangle", "double"], default="auto",
+    p.add_argument("--model", choices=MODELS, default="mixture",
+                   help="the mixture (default) or a baseline smoother")
+    p.add_argument("--path", choices=PATH_CHOICES, default="auto",
                    help="multipath geometry per beacon (default auto)")
     p.add_argument("--dr-noise", type=float, default=0.1, metavar="Q",
                    help="random-walk level of the dead reckoning, m/sqrt(s) (default 0.1)")

@@ -175,6 +175,8 @@ def test_a_dead_reckoning_table_replaces_the_pings_positions(dives, navs):
     ({"classes": ["dp"] * 3}, InputError, "one label per input row"),
     ({"reflectors": {"9": {"d0": 1.0, "sigma_mp": 1.0}}}, InputError, "unknown beacon '9'"),
     ({"reflectors": {"1": {"d0": 1.0}}}, InputError, "'d0' and 'sigma_mp'"),
+    ({"reflectors": {"1": {"d0": 1.0, "sigma_mp": 2.0, "path": "auto"}}}, ValueError,
+     r"reflectors\['1'\]\['path'\]: expected one of \('triangle', 'double'\)"),
 ])
 def test_bad_options_are_named(dives, kw, err, match):
     with pytest.raises(err, match=match):
@@ -187,3 +189,18 @@ def test_bad_classes_name_the_row(dives):
     lab[row] = "xx"
     with pytest.raises(InputError, match=rf"classes\[{row}\]: expected 'dp', 'mp' or 'ol'"):
         navigate(dives[0].survey, classes=lab)
+
+
+def test_a_few_replies_and_a_beacon_without_any():
+    """Two replies in one epoch: direct paths (not outliers for want of a window); the silent
+    beacon is listed as skipped and its row kept; the single epoch is flagged, not failed."""
+    beacons = pd.DataFrame({"beacon": ["A", "B", "C"], "x": [0.0, 800.0, 0.0],
+                            "y": [0.0, 0.0, 800.0], "depth": [1000.0] * 3})
+    pings = pd.DataFrame({"time": [0.0] * 3, "beacon": ["A", "B", "C"],
+                          "range": [1000.5, 1290.0, np.nan], "x": [0.0] * 3, "y": [0.0] * 3,
+                          "depth": [10.0] * 3})
+    with pytest.warns(NavigationWarning, match="not corrected"):
+        nav = navigate(pings, beacons)
+    assert nav.classified()["label"].tolist() == ["dp", "dp", "no_reply"]
+    assert nav.skipped == {"C": "beacon C has no reply"}
+    json.dumps(nav.summary(), allow_nan=False)

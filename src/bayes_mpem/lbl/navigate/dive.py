@@ -28,6 +28,9 @@ from ...mixture.densities import uniform_logpdf
 
 #: Pings of one epoch whose dead-reckoned positions differ by more than this (m) are refused.
 SAME_EPOCH_TOLERANCE = 0.01
+#: A beacon with fewer replies takes the outlier window of all replies (its own few ranges
+#: would make a window too narrow, and every reply an outlier).
+MIN_WINDOW_REPLIES = 10
 
 
 @dataclass(frozen=True, eq=False)
@@ -55,7 +58,9 @@ class Dive:
     beacon_xyz : numpy.ndarray
         ``(B, 3)`` beacon x, y, depth.
     window : numpy.ndarray
-        ``(B, 2)`` outlier window of each beacon (smallest and largest range).
+        ``(B, 2)`` outlier window of each beacon: its smallest and largest range
+        (with fewer than :data:`MIN_WINDOW_REPLIES` replies, those of all replies,
+        at least 1 m wide).
     d0_min : numpy.ndarray
         ``(B,)`` lowest physical plane height (above every vehicle position).
     dr_source : str
@@ -206,12 +211,13 @@ def build_dive(survey: Survey, dead_reckoning=None) -> Dive:
     beacon = np.array([index[b] for b in survey.beacon[rows]], dtype=np.int64)
     z, zdepth = np.asarray(survey.range)[rows], np.asarray(survey.depth)[rows]
     xyz = survey.beacons[["x", "y", "depth"]].to_numpy(float)
-    window = np.zeros((len(ids), 2))
+    window = np.tile([z.min(), max(z.max(), z.min() + 1.0)], (len(ids), 1))
     d0_min = np.zeros(len(ids))
     for j in range(len(ids)):
         mine = beacon == j
-        if mine.any():
+        if mine.sum() >= MIN_WINDOW_REPLIES:
             window[j] = z[mine].min(), z[mine].max()
+        if mine.any():
             d0_min[j] = max(0.0, float((xyz[j, 2] - zdepth[mine]).max()))
     return Dive(survey, times, dr, depth, inverse.astype(np.int64), rows, inverse[rows],
                 beacon, z, zdepth, ids, xyz, window, d0_min, source)

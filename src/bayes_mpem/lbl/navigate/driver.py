@@ -22,10 +22,11 @@ import numpy as np
 
 from ..._rng import RNGLike, as_generator
 from ..._validate import check_choice, check_int, check_positive, check_probability
-from ...exceptions import InputError, NavigationWarning
+from ...exceptions import ConvergenceWarning, InputError, NavigationWarning
 from ...io.survey import BeaconData, load_survey
 from ...mixture.densities import CLASSES
 from ..em_result import reflector_flags
+from ..geometry import PATHS
 from ..path_choice import AUTO, check_path_choice, choose_path
 from . import ecm, observability
 from .dive import Dive, build_dive
@@ -53,7 +54,8 @@ def _check_reflectors(reflectors, dive: Dive) -> dict:
         try:
             out[bid] = {"d0": float(r["d0"]), "sigma_mp": check_positive(
                 f"reflectors[{bid!r}]['sigma_mp']", r["sigma_mp"]),
-                "path": check_path_choice(r.get("path", "triangle"))}
+                "path": check_choice(f"reflectors[{bid!r}]['path']",
+                                     r.get("path", "triangle"), PATHS)}
         except (KeyError, TypeError):
             raise InputError(f"reflectors[{bid!r}]: expected a mapping with 'd0' and "
                              f"'sigma_mp' (and 'path'), got {r!r}") from None
@@ -351,8 +353,6 @@ def navigate(
             n_iter += run.n_iter
             timings["ecm_after_path_choice"] = time.perf_counter() - t0
     if not run.converged:
-        from ...exceptions import ConvergenceWarning
-
         warnings.warn(f"navigate: the ECM did not converge in {n_iter} iterations; raise "
                       "max_iter or loosen tol", ConvergenceWarning, stacklevel=2)
     t0 = time.perf_counter()

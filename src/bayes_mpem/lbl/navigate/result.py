@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
+from scipy.stats import norm
 
 from ...io.results import output_folder, write_csv, write_json
 from ...mixture.densities import CLASSES
@@ -193,8 +194,6 @@ class Navigation:
         -------
         dict
         """
-        from scipy.stats import norm
-
         ci = float(self.options.get("ci", 0.95))
         z = float(norm.ppf(0.5 + ci / 2))
         d, st = self.dive, self.state

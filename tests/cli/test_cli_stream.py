@@ -9,6 +9,7 @@ import signal
 import socket
 import subprocess
 import sys
+import threading
 import time
 
 import numpy as np
@@ -94,12 +95,15 @@ def test_sigterm_mid_stream_answers_what_was_read_and_saves(dive, tmp_path):
     proc = subprocess.Popen([*CMD, "--beacons", str(folder / "beacons.csv"), "--warmup", "100",
                              "--state", str(state)], stdin=subprocess.PIPE,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    watchdog = threading.Timer(90, proc.kill)  # bounds the blocking reads below
+    watchdog.start()
     sent = lines[:150]
     proc.stdin.write("\n".join(sent) + "\n")
     proc.stdin.flush()
     got = [proc.stdout.readline() for _ in range(len(sent) - 1)]  # blocks until answered
     proc.send_signal(signal.SIGTERM)  # stdin still open
     out, err = proc.communicate(timeout=30)
+    watchdog.cancel()
     assert proc.returncode == 0
     assert all(got) and out == ""
     counts = json.loads(err.strip().splitlines()[-1])

@@ -90,6 +90,8 @@ def _navigator(args) -> Navigator:
         if not (list(mine.index) == list(nav.beacons.index)
                 and (mine.to_numpy() == nav.beacons.to_numpy()).all()):
             raise InputError(f"--state {args.state}: its beacons differ from {args.beacons}")
+        print(f"resuming from {args.state} (phase {nav.phase}; the saved state's options are "
+              "kept)", file=sys.stderr, flush=True)
         return nav
     return Navigator(args.beacons, warmup=args.warmup, alpha=args.alpha,
                      multipath=args.multipath, path=args.path, dr_noise=args.dr_noise,

@@ -197,7 +197,7 @@ def demo_markdown(simulation, fit, paper, out_dir, figures, *, seed, posterior=N
     sim = simulation
     md = ["# bayes-mpem demo", "",
           f"Simulated ABE58-like survey (seed {seed}): {len(sim.survey)} pings to "
-          f"{len(sim.truth)} beacons. Truth: the sea surface, i.e. HRP = beacon depth.", "",
+          f"{len(sim.truth)} beacons. Truth: the sea surface, i.e. d0 = beacon depth.", "",
           "## Table II, mixture EM", "", lbl_plots.table_ii_markdown(fit, truth=sim.truth), "",
           "## Table II, the paper's EM (Pol = 0.05, alpha = 0.5)", "",
           lbl_plots.table_ii_markdown(paper, truth=sim.truth), ""]

@@ -10,14 +10,9 @@ import pandas as pd
 import pytest
 
 from bayes_mpem.exceptions import InputError
+from bayes_mpem.io.dead_reckoning import read_dead_reckoning
 from bayes_mpem.io.survey import BeaconData, Survey, load_survey
-from bayes_mpem.io.tables import (
-    BEACON_COLUMNS,
-    PING_COLUMNS,
-    read_beacons,
-    read_dead_reckoning,
-    read_pings,
-)
+from bayes_mpem.io.tables import BEACON_COLUMNS, PING_COLUMNS, read_beacons, read_pings
 
 HEADER = "time,beacon,range,x,y,depth"
 BEACONS = "beacon,x,y,depth\n1,0,0,50\n2,100,0,50\n3,0,100,50\n"

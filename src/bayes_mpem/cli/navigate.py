@@ -12,10 +12,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..lbl.navigate import navigate, simulate_dive
-from ..lbl.navigate.ecm import MODELS, MULTIPATH
-from ..lbl.path_choice import PATH_CHOICES
-from ..report import write_figures
+from ..lbl.navigate.options import MODELS, MULTIPATH
+from ..lbl.paths import PATH_CHOICES
 from .errors import OptionError
 
 #: ``simulate`` options that only apply with ``--navigation``.
@@ -120,6 +118,8 @@ def cmd_simulate_navigation(args) -> int:
     OptionError
         For ``--effect`` (not simulated in dives) or a malformed ``--shadow-window``.
     """
+    from ..lbl.navigate import simulate_dive
+
     if args.effect:
         raise OptionError("--effect does not apply with --navigation")
     kw = {k: getattr(args, k) for k in ("heading_bias", "speed_scale", "dr_noise",
@@ -150,6 +150,9 @@ def cmd_navigate(args) -> int:
     int
         Exit status 0.
     """
+    from ..lbl.navigate import navigate
+    from ..report import write_figures
+
     nav = navigate(args.pings, args.beacons, dead_reckoning=args.dead_reckoning,
                    multipath=args.multipath, model=args.model, path=args.path,
                    dr_noise=args.dr_noise, start_sd=args.start_sd, heading_sd=args.heading_sd,

@@ -11,14 +11,30 @@ command with one ``error:`` line and exit status 2.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import importlib
 import sys
 import warnings
 
 from .. import __version__
 from ..exceptions import InputError
-from ..lbl.path_choice import PATH_CHOICES
-from . import lbl, navigate, stream, survey_in
+from ..lbl.paths import PATH_CHOICES
+from . import navigate, stream
 from .errors import OptionError
+
+#: sub-command -> the module of its ``cmd_<name>`` function, imported only when the command
+#: runs: building the parser loads no numpy, so ``bayes-mpem --help`` answers at once
+#: (``benchmarks/bench_startup.py``).
+COMMANDS: dict[str, str] = {
+    **dict.fromkeys(("demo", "simulate", "fit", "plot", "sample", "compare", "diagnose"),
+                    "lbl"),
+    "locate": "survey_in",
+    "navigate": "navigate",
+    "stream": "stream",
+}
+#: the sub-commands that draw figures take ``--palette`` (the class colours)
+FIGURE_COMMANDS = ("demo", "fit", "sample", "compare", "plot", "diagnose", "navigate")
+PALETTES = ("okabe-ito", "paper")  # bayes_mpem.plots.style.PALETTES, without numpy
 
 
 def _add_fit_options(p):
@@ -46,7 +62,8 @@ def _add_demo_plot_simulate(sub):
                    help="output folder (default: demo-output)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--no-bayes", action="store_true",
-                   help="skip the Bayesian part (sampling and prior comparison, ~40 s)")
+                   help="skip the Bayesian part (sampling and prior comparison: most of the "
+                        "demo's ~30 s)")
 
     p = sub.add_parser("plot", help="draw the figures of a fit or sample output folder")
     p.add_argument("result_dir", metavar="RESULT_DIR",
@@ -135,7 +152,8 @@ def _add_locate(sub):
                         "(default 1000)")
     p.add_argument("--seed", type=int, default=None,
                    help="--sample: random seed (default 0); same seed, same chain")
-    p.add_argument("--no-progress", action="store_true", help="--sample: hide the progress bar")
+    p.add_argument("--no-progress", action="store_true",
+                   help="--sample: no progress bar (terminal) or progress lines (log file)")
 
 
 def _add_sample_compare(sub):
@@ -162,10 +180,11 @@ def _add_sample_compare(sub):
         p.add_argument("--concentration", type=float, default=None, metavar="C",
                        help="Dirichlet concentration of the learned weights (default 1)")
         p.add_argument("--min-pings", type=int, default=30, metavar="N")
-        p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+        p.add_argument("--no-progress", action="store_true",
+                       help="no progress bar (terminal) or progress lines (log file)")
 
 
-def _simulate_handler(args):
+def _simulate_handler(args, cmd_simulate):
     """``simulate`` writes a survey, or a dive with ``--navigation``; refuse mixed options."""
     if args.navigation:
         return navigate.cmd_simulate_navigation
@@ -177,7 +196,7 @@ def _simulate_handler(args):
             raise OptionError(f"{names}: only with --navigation")
 
         return refuse
-    return lbl.cmd_simulate
+    return cmd_simulate
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -205,6 +224,11 @@ def build_parser() -> argparse.ArgumentParser:
     _add_sample_compare(sub)
     navigate.add_navigate(sub)
     stream.add_stream(sub)
+    for name in FIGURE_COMMANDS:
+        sub.choices[name].add_argument(
+            "--palette", choices=PALETTES, default="okabe-ito",
+            help="class colours of the figures: colour-blind safe (default) or the "
+                 "paper's blue, red and green")
     return parser
 
 
@@ -225,13 +249,16 @@ def main(argv=None) -> int:
     import matplotlib
 
     matplotlib.use("Agg")  # the command line only writes files; never opens a window
-    handler = {"demo": lbl.cmd_demo, "simulate": lbl.cmd_simulate, "fit": lbl.cmd_fit,
-               "plot": lbl.cmd_plot, "sample": lbl.cmd_sample, "compare": lbl.cmd_compare,
-               "locate": survey_in.cmd_locate, "diagnose": lbl.cmd_diagnose,
-               "navigate": navigate.cmd_navigate, "stream": stream.cmd_stream}[args.command]
+    module = importlib.import_module(f"{__package__}.{COMMANDS[args.command]}")
+    handler = getattr(module, f"cmd_{args.command}")
     if args.command == "simulate":
-        handler = _simulate_handler(args)
-    with warnings.catch_warnings():  # restores the caller's filters and showwarning
+        handler = _simulate_handler(args, handler)
+    colours = contextlib.nullcontext()
+    if getattr(args, "palette", None):  # the figures' class colours, restored on return
+        from ..plots.style import palette_context
+
+        colours = palette_context(args.palette)
+    with colours, warnings.catch_warnings():  # restores the caller's filters and showwarning
         warnings.simplefilter("default")
         # one line per warning, no source excerpt: messages for the user, not tracebacks
         warnings.showwarning = lambda msg, cat, *args, **kwargs: print(

@@ -21,11 +21,12 @@ import time
 import traceback
 
 from ..exceptions import InputError
-from ..io.lines import LineParser
-from ..io.stream import FdLines, LineSink, ReplayLines, UdpLines, parse_address
-from ..io.tables import read_beacons
-from ..lbl.online import Navigator
+from ..lbl.navigate.options import MULTIPATH
+from ..lbl.paths import PATH_CHOICES
 from .errors import OptionError
+
+# the library (numpy, pandas) is imported when the command runs, not when the parser is
+# built: ``bayes-mpem --help`` loads no heavy module (tests/test_layout.py)
 
 #: The counts printed on exit, in order.
 COUNTS = ("read", "answered", "malformed", "header", "blank", "comment", "internal_errors")
@@ -60,8 +61,11 @@ def add_stream(sub) -> None:
                         "(default 200)")
     p.add_argument("--alpha", type=float, default=1.0, metavar="A",
                    help="online-EM step size n^-A, 1/2 < A <= 1 (default 1)")
-    p.add_argument("--multipath", choices=["signal", "outlier"], default="signal")
-    p.add_argument("--path", choices=["auto", "triangle", "double"], default="auto")
+    p.add_argument("--multipath", choices=MULTIPATH, default="signal",
+                   help="multipath replies update the position (default) or are outliers")
+    p.add_argument("--path", choices=PATH_CHOICES, default="auto",
+                   help="multipath geometry: chosen by the warm-up and revised online "
+                        "(default auto), or forced")
     p.add_argument("--dr-noise", type=float, default=0.1, metavar="Q",
                    help="random-walk level of the dead reckoning, m/sqrt(s) (default 0.1)")
     p.add_argument("--sigma-dp", type=float, default=None, metavar="S",
@@ -83,7 +87,10 @@ def _speed(text: str):
     return v
 
 
-def _navigator(args) -> Navigator:
+def _navigator(args):
+    from ..io.tables import read_beacons
+    from ..lbl.online import Navigator
+
     if args.state and os.path.exists(args.state):
         nav = Navigator.load(args.state)
         mine = read_beacons(args.beacons)
@@ -99,6 +106,8 @@ def _navigator(args) -> Navigator:
 
 
 def _source(args, stop):
+    from ..io.stream import FdLines, ReplayLines, UdpLines, parse_address
+
     if args.replay is not None:
         if args.source != "-":
             raise OptionError("--replay and --in: give one source")
@@ -150,6 +159,9 @@ def cmd_stream(args) -> int:
     """
     if args.save_every < 0:
         raise OptionError(f"--save-every: expected a count >= 0, got {args.save_every}")
+    from ..io.lines import LineParser
+    from ..io.stream import LineSink
+
     nav = _navigator(args)
     parser = LineParser(nav.beacons.index)
     stop = threading.Event()

@@ -26,9 +26,9 @@ from typing import Literal
 import numpy as np
 
 from .._validate import check_choice
+from .paths import PATHS
 
 Path = Literal["triangle", "double"]
-PATHS: tuple[str, ...] = ("triangle", "double")
 
 
 def check_path(path: str) -> str:

@@ -11,8 +11,26 @@ objective and its sparse normal equations in :mod:`.objective` and
 :mod:`.simulate`.
 """
 
-from .driver import navigate
-from .result import Navigation
-from .simulate import DiveSimulation, simulate_dive
+import importlib
+
+#: public name -> its module; loaded on first use (PEP 562), so the command line can read
+#: :mod:`.options` without loading numpy
+_PUBLIC = {"navigate": "driver", "Navigation": "result", "DiveSimulation": "simulate",
+           "simulate_dive": "simulate"}
+
+
+def __getattr__(name):
+    """Load a public name of the package on first use."""
+    if name in _PUBLIC:
+        value = getattr(importlib.import_module(f"{__name__}.{_PUBLIC[name]}"), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__():
+    """List the public names with the module's own."""
+    return sorted({*globals(), *_PUBLIC})
+
 
 __all__ = ["DiveSimulation", "Navigation", "navigate", "simulate_dive"]

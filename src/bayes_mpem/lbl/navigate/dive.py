@@ -9,7 +9,7 @@ dead-reckoned position at each epoch, and per reply its epoch, beacon, depth
 and the beacon's outlier window. No-reply pings define epochs too (the
 vehicle was somewhere then), but carry no range.
 
-A dead-reckoning table (:func:`bayes_mpem.io.tables.read_dead_reckoning`) at
+A dead-reckoning table (:func:`bayes_mpem.io.dead_reckoning.read_dead_reckoning`) at
 its own rate replaces the pings' ``x``, ``y``: positions are interpolated
 linearly to the epochs; velocities are integrated (trapezoids) from the pings'
 first position. Every epoch must lie within the table's time span.
@@ -22,8 +22,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...exceptions import InputError
+from ...io.dead_reckoning import read_dead_reckoning
 from ...io.survey import Survey
-from ...io.tables import read_dead_reckoning
 from ...mixture.densities import uniform_logpdf
 
 #: Pings of one epoch whose dead-reckoned positions differ by more than this (m) are refused.
@@ -166,7 +166,7 @@ def build_dive(survey: Survey, dead_reckoning=None) -> Dive:
     survey : Survey
         Pings (``x``, ``y``: dead-reckoned; ``depth``: pressure) and beacons.
     dead_reckoning : str, os.PathLike or pandas.DataFrame, optional
-        A separate dead-reckoning table (:func:`~bayes_mpem.io.tables.read_dead_reckoning`);
+        A separate dead-reckoning table (:func:`~bayes_mpem.io.dead_reckoning.read_dead_reckoning`);
         default: the pings' own ``x``, ``y``.
 
     Returns

@@ -255,7 +255,7 @@ def navigate(
         The beacons table (not needed when ``pings`` is a Survey).
     dead_reckoning : str, pathlib.Path or pandas.DataFrame, optional
         A dead-reckoning table at its own rate (``time, x, y`` or ``time, ve,
-        vn``, :func:`~bayes_mpem.io.tables.read_dead_reckoning`), used instead of
+        vn``, :func:`~bayes_mpem.io.dead_reckoning.read_dead_reckoning`), used instead of
         the pings' ``x``, ``y``.
     multipath : {"signal", "outlier"}
         Multipath replies carry position information (default) or are outliers.

@@ -39,11 +39,7 @@ from .dive import Dive
 from .model import class_log_joint
 from .normal import solve
 from .objective import Priors, State, normal_equations, objective, predictions, prior_penalty
-
-#: What stands for the ranges' likelihood: the mixture, or a baseline's weights.
-MODELS = ("mixture", "huber", "gate", "gaussian")
-#: What the multipath replies are for the mixture: position information, or outliers.
-MULTIPATH = ("signal", "outlier")
+from .options import MODELS, MULTIPATH  # noqa: F401 (re-exported)
 
 
 @dataclass(frozen=True)

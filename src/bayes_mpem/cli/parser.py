@@ -2,7 +2,8 @@
 
 The sub-commands themselves live in :mod:`.lbl` (``demo``, ``simulate``,
 ``fit``, ``sample``, ``compare``, ``plot``, ``diagnose``), :mod:`.navigate`
-(``navigate``, ``simulate --navigation``) and :mod:`.survey_in` (``locate``);
+(``navigate``, ``simulate --navigation``), :mod:`.stream` (``stream``) and
+:mod:`.survey_in` (``locate``);
 each parses nothing, calls the library and reports. Invalid input ends a
 command with one ``error:`` line and exit status 2.
 """
@@ -18,7 +19,7 @@ import warnings
 from .. import __version__
 from ..exceptions import InputError
 from ..lbl.paths import PATH_CHOICES
-from . import navigate
+from . import navigate, stream
 from .errors import OptionError
 
 #: sub-command -> the module of its ``cmd_<name>`` function, imported only when the command
@@ -29,6 +30,7 @@ COMMANDS: dict[str, str] = {
                     "lbl"),
     "locate": "survey_in",
     "navigate": "navigate",
+    "stream": "stream",
 }
 #: the sub-commands that draw figures take ``--palette`` (the class colours)
 FIGURE_COMMANDS = ("demo", "fit", "sample", "compare", "plot", "diagnose", "navigate", "locate")
@@ -235,6 +237,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_locate(sub)
     _add_sample_compare(sub)
     navigate.add_navigate(sub)
+    stream.add_stream(sub)
     for name in FIGURE_COMMANDS:
         sub.choices[name].add_argument(
             "--palette", choices=PALETTES, default="okabe-ito",

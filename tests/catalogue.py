@@ -688,7 +688,7 @@ def plot_cases(base: Base, work: Path) -> list[Case]:
         damaged(f"{kind}_beacon_missing_key", src, edit_json(
             "summary.json", lambda doc: next(iter(doc["beacons"].values())).pop("sigma_mp")))
         damaged(f"{kind}_listed_file_missing", src, edit_json(
-            "summary.json", lambda doc: doc["files"].append("gone.png")))
+            "summary.json", lambda doc: doc["files"].append("gone.csv")))
         damaged(f"{kind}_unknown_beacon", src, lambda d: None, ["--beacon", "99"])
         damaged(f"{kind}_no_kind", src, edit_json("summary.json",
                                                   lambda doc: doc.pop("method", doc.pop("priors",

@@ -2,8 +2,10 @@
 
 The command line writes a result's data with its ``write()`` and then its
 figures with :func:`write_figures`, which dispatches on the kind of result
-(fit, posterior, prior comparison, diagnosis, navigation). ``bayes-mpem plot RESULT_DIR``
-is :func:`load_output` followed by :func:`write_figures`; :func:`demo_markdown`
+(fit, posterior, prior comparison, diagnosis, located survey, navigation). ``bayes-mpem plot
+RESULT_DIR`` is :func:`load_output` followed by :func:`write_figures`; the
+folder kinds it reads are :data:`FOLDER_KINDS` (another command's folder is one
+more entry, :func:`folder_kind`); :func:`demo_markdown`
 is the ``summary.md`` of ``bayes-mpem demo``. One figure needs more than the
 result: the paper's Fig. 12 re-fits the figure beacon with the paper's EM over a
 grid of ``Pol`` (:func:`~bayes_mpem.lbl.pol_sensitivity.survey_pol_sensitivity`),
@@ -14,6 +16,7 @@ themselves only draw.
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -28,7 +31,7 @@ from .io.survey import load_survey
 from .io.table_files import frame_as_text, read_table_file
 from .io.tables import RESERVED_COLUMNS
 from .lbl.comparison import SurveyComparison
-from .lbl.diagnosis.result import Diagnosis
+from .lbl.diagnosis.result import Diagnosis, DiagnosisRecord
 from .lbl.em_result import EMResult
 from .lbl.fitting import SurveyFit
 from .lbl.navigate.result import Navigation
@@ -39,10 +42,12 @@ from .mixture.densities import CLASSES
 from .plots import bayes as bayes_plots
 from .plots import lbl as lbl_plots
 from .plots import navigate as nav_plots
+from .plots import survey_in as survey_in_plots
 from .plots.diagnose import write_figures as write_diagnosis_figures
 from .survey_in.result import SurveyInResult
 
-__all__ = ["POL_GRID", "demo_markdown", "figure_beacon", "load_output", "write_figures"]
+__all__ = ["FOLDER_KINDS", "POL_GRID", "demo_markdown", "figure_beacon", "folder_kind",
+           "load_output", "write_figures"]
 
 _ADDED = set(RESERVED_COLUMNS)
 
@@ -84,8 +89,9 @@ def write_figures(result, out_dir, *, beacon=None, truth=None, general=True,
     Parameters
     ----------
     result : SurveyFit, SurveyPosterior, SurveyComparison, Diagnosis, SurveyInResult or Navigation
-        A result with nothing to draw (no fitted beacon; a located survey)
-        writes no figure. A navigation writes ``nav_track.png``, ``nav_ranges.png``
+        Or the record of one read back by :func:`load_output`. A result with nothing to
+        draw (no fitted beacon or transponder) writes no figure. A navigation writes
+        ``nav_track.png``, ``nav_ranges.png``
         and ``nav_correction.png``.
     out_dir : str or pathlib.Path
         Created if missing.
@@ -121,14 +127,19 @@ def write_figures(result, out_dir, *, beacon=None, truth=None, general=True,
                             sensitivity=sensitivity)
     if isinstance(result, SurveyPosterior):
         return _posterior_figures(result, out, truth=truth)
-    if isinstance(result, SurveyComparison):
+    if isinstance(result, (SurveyComparison, ComparisonRecord)):
         if not result.results:
             return []
         return [_save(bayes_plots.plot_prior_comparison(result), out / "compare.png")]
-    if isinstance(result, Diagnosis):
+    if isinstance(result, (Diagnosis, DiagnosisRecord)):
         return list(write_diagnosis_figures(result, out).values())
     if isinstance(result, SurveyInResult):
-        return []
+        if not result.summary.get("transponders"):
+            return []
+        return [_save(survey_in_plots.plot_survey_map(result), out / "survey_map.png"),
+                _save(survey_in_plots.plot_residuals(result), out / "residuals.png"),
+                _save(survey_in_plots.plot_residual_histogram(result),
+                      out / "residual_histogram.png")]
     if isinstance(result, Navigation):
         return [_save(nav_plots.plot_nav_track(result, truth=truth), out / "nav_track.png"),
                 _save(nav_plots.plot_nav_ranges(result), out / "nav_ranges.png"),
@@ -215,6 +226,101 @@ def demo_markdown(simulation, fit, paper, out_dir, figures, *, seed, posterior=N
     return "\n".join(md) + "\n"
 
 
+@dataclass(frozen=True)
+class ComparisonRecord:
+    """A prior comparison read back from ``compare.json``: what its figure draws.
+
+    Attributes
+    ----------
+    results : dict
+        Per beacon, a namespace with ``elpd_diff``, ``elpd_diff_se``, ``shifts``
+        and ``learned.em.d0`` (as :class:`~bayes_mpem.lbl.loo.PriorComparison`).
+    """
+
+    results: dict
+
+
+#: Output folder kinds ``bayes-mpem plot`` reads, tried in order: ``(kind, file, test,
+#: loader)``; a folder is of the first kind whose ``file`` exists and whose JSON passes
+#: ``test``; ``loader(folder, document)`` returns what :func:`write_figures` draws.
+FOLDER_KINDS: list = []
+
+
+def folder_kind(kind: str, marker: str, test=None):
+    """Register a loader of an output folder kind for :func:`load_output` (a decorator).
+
+    Parameters
+    ----------
+    kind : str
+        Its name, for messages (``"fit"``, ``"locate"``, ...).
+    marker : str
+        The JSON file that identifies the folder (``"summary.json"``, ...).
+    test : callable, optional
+        ``test(document) -> bool``: the folder is of this kind (default: any).
+
+    Returns
+    -------
+    callable
+        The decorator; it returns the loader unchanged.
+    """
+    def register(loader):
+        FOLDER_KINDS.append((kind, marker, test or (lambda doc: True), loader))
+        return loader
+    return register
+
+
+def load_output(result_dir):
+    """Read an output folder of ``bayes-mpem`` back into what its figures draw.
+
+    Parameters
+    ----------
+    result_dir : str or pathlib.Path
+        The output folder of ``fit``, ``sample``, ``compare``, ``diagnose`` or
+        ``locate`` (:data:`FOLDER_KINDS`).
+
+    Returns
+    -------
+    SurveyFit, SurveyPosterior, ComparisonRecord, DiagnosisRecord or SurveyInResult
+        Rebuilt from the files. A fit without ``history.json`` gets a
+        one-entry history; a posterior's ``em`` is a namespace of the EM
+        start's parameters.
+
+    Raises
+    ------
+    FileNotFoundError
+        When a needed file is missing.
+    bayes_mpem.InputError
+        When the files do not fit together, or are of no known kind.
+    """
+    d = Path(result_dir)
+    if (d / MARKER).exists():  # valid JSON, and every data file of the run there (figures
+        marker = read_marker(d, check=False)  # are drawn again from the data: not needed)
+        missing = [f for f in marker.get("files", []) if not f.endswith(".png")
+                   and not (d / f).exists()]
+        if missing:
+            raise InputError(f"{d / MARKER}: lists {', '.join(missing[:5])}, missing: the folder "
+                             "is not a complete output")
+    seen = []
+    for kind, marker, test, loader in FOLDER_KINDS:
+        path = d / marker
+        if not path.exists():
+            continue
+        doc = _read_json(path)
+        if not isinstance(doc, dict):
+            raise InputError(f"{path}: expected a JSON object, got {type(doc).__name__}")
+        if test(doc):
+            return loader(d, doc)
+        seen.append(marker)
+    if "summary.json" in seen:
+        raise InputError(f"{d / 'summary.json'}: no 'beacons_table' or 'transponders'; it was "
+                         "written by another program or an older bayes_mpem: run the command "
+                         "again")
+    markers = sorted({m for _, m, _, _ in FOLDER_KINDS})
+    raise FileNotFoundError(f"{d / 'summary.json'}: not found; expected the output folder of "
+                            f"'bayes-mpem {' | '.join(k for k, *_ in FOLDER_KINDS)}' (one of "
+                            f"{', '.join(markers)})")
+
+
 def _read_json(path):
     try:
         return json.loads(path.read_text())
@@ -227,8 +333,7 @@ def _classified(d, summary):
     files = summary.get("files", [])
     name = next((f for f in ("classified.parquet", "classified.csv") if f in files),
                 "classified.csv")
-    text = read_table_file(d / name, str(d / name), "classified table")
-    frame = text.frame
+    frame = read_table_file(d / name, str(d / name), "classified table").frame
     n_rows = summary.get("n_rows")
     if n_rows is not None and len(frame) != n_rows:
         raise InputError(f"{d / name}: {len(frame)} rows, but {d / MARKER} says n_rows = "
@@ -240,37 +345,7 @@ def _classified(d, summary):
     return frame_as_text(frame) if name.endswith(".parquet") else frame
 
 
-def load_output(result_dir):
-    """Read the output folder of ``bayes-mpem fit`` or ``sample`` back into result objects.
-
-    Parameters
-    ----------
-    result_dir : str or pathlib.Path
-        Holds ``summary.json`` and ``classified.csv`` (and ``history.json`` for a
-        fit, ``posterior.nc`` for a sample).
-
-    Returns
-    -------
-    SurveyFit or SurveyPosterior
-        Rebuilt from the files. A fit without ``history.json`` gets a
-        one-entry history; a posterior's ``em`` is a namespace of the EM
-        start's parameters.
-
-    Raises
-    ------
-    FileNotFoundError
-        When a needed file is missing.
-    bayes_mpem.InputError
-        When the files do not fit together.
-    """
-    d = Path(result_dir)
-    summary = read_marker(d)
-    if "beacons_table" not in summary:
-        raise InputError(f"{d / 'summary.json'}: no 'beacons_table'; it was written by another "
-                         "program or an older bayes_mpem: run 'bayes-mpem fit' again")
-    if "method" not in summary and "priors" not in summary:
-        raise InputError(f"{d / 'summary.json'}: neither a fit ('method') nor a sample "
-                         "('priors')")
+def _fit_or_sample(d, summary):
     classified = _classified(d, summary)
     table = classified[[c for c in classified.columns if c not in _ADDED]]
     beacons = pd.DataFrame([{"beacon": b, **v} for b, v in summary["beacons_table"].items()])
@@ -285,13 +360,65 @@ def load_output(result_dir):
                 raise InputError(f"{d} classified table, row {int(bad[0]) + 1}, column {c!r}: "
                                  f"expected a probability, got {classified[c].iloc[bad[0]]!r}")
     probs = np.column_stack([num["p_" + c] for c in CLASSES])
+    return survey, probs, num
+
+
+@folder_kind("fit", "summary.json", lambda doc: "beacons_table" in doc and "method" in doc)
+def _folder_fit(d, summary):
+    survey, probs, _ = _fit_or_sample(d, summary)
     try:
-        if "method" in summary:
-            return _load_fit(d, summary, survey, probs)
+        return _load_fit(d, summary, survey, probs)
+    except (KeyError, TypeError, IndexError) as exc:
+        raise InputError(f"{d / MARKER}: the output files do not fit together "
+                         f"({type(exc).__name__}: {exc})") from None
+
+
+@folder_kind("sample", "summary.json", lambda doc: "beacons_table" in doc and "priors" in doc)
+def _folder_sample(d, summary):
+    survey, probs, num = _fit_or_sample(d, summary)
+    try:
         return _load_posterior(d, summary, survey, probs, num)
     except (KeyError, TypeError, IndexError) as exc:
         raise InputError(f"{d / MARKER}: the output files do not fit together "
                          f"({type(exc).__name__}: {exc})") from None
+
+
+@folder_kind("locate", "summary.json", lambda doc: "transponders" in doc)
+def _folder_locate(d, summary):
+    path = d / "classified.csv"
+    if not path.exists():
+        raise FileNotFoundError(f"{path}: not found; 'bayes-mpem locate' writes it")
+    cls = pd.read_csv(path, keep_default_na=False, na_values=[""],
+                      dtype={"transponder": str, "label": str, "reason": str})
+    cls["transponder"] = cls["transponder"].fillna("")
+    missing = [c for c in ("residual_ms", "azimuth_deg", "east", "north", "time")
+               if c not in cls.columns]
+    if missing:
+        raise InputError(f"{path}: no column(s) {missing}; it was written by an older "
+                         "bayes_mpem: run 'bayes-mpem locate' again")
+    return SurveyInResult(summary=summary, classified=cls)
+
+
+@folder_kind("compare", "compare.json")
+def _folder_compare(d, doc):
+    results = {}
+    for b, r in doc["beacons"].items():
+        if "em_d0" not in r:
+            raise InputError(f"{d / 'compare.json'}: no 'em_d0'; it was written by an older "
+                             "bayes_mpem: run 'bayes-mpem compare' again")
+        results[b] = SimpleNamespace(
+            elpd_diff=r["elpd_diff"], elpd_diff_se=r["elpd_diff_se"], shifts=r["shifts"],
+            learned=SimpleNamespace(em=SimpleNamespace(d0=r["em_d0"])))
+    return ComparisonRecord(results=results)
+
+
+@folder_kind("diagnose", "diagnosis.json")
+def _folder_diagnose(d, doc):
+    path = d / "replies.csv"
+    if not path.exists() or "figures" not in doc:
+        raise FileNotFoundError(f"{path}: not found; 'bayes-mpem diagnose' writes it (a folder "
+                                "of an older bayes_mpem: run it again)")
+    return DiagnosisRecord(document=doc, table=pd.read_csv(path, dtype={"beacon": str}))
 
 
 def _load_fit(d, summary, survey, probs):

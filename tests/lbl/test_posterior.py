@@ -227,6 +227,9 @@ def test_compare_command(survey_files, tmp_path, capsys):
             assert key in b
         assert b["elpd_diff"] == pytest.approx(b["elpd_learned"] - b["elpd_equal"], rel=1e-9)
     assert (tmp_path / "compare.png").stat().st_size > 10_000
+    # bayes-mpem plot redraws it from compare.json alone
+    assert main(["plot", str(tmp_path), "--out", str(tmp_path / "again")]) == 0
+    assert (tmp_path / "again" / "compare.png").stat().st_size > 10_000
 
 
 def test_sample_bad_input(tmp_path, capsys):

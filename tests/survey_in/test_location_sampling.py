@@ -207,6 +207,12 @@ def test_locate_command_with_sample(tmp_path):
     assert t["n_spurious"] == t["em"]["n_spurious"] == 3
     assert t["posterior"]["diagnostics"]["n_walkers"] == 16
     assert abs(t["lat"] - -4.88160) < 2e-5 and abs(t["lon"] - -132.68895) < 2e-5
+    # the drift from the drop point: from the draws, close to the EM's delta-method interval
+    for key in ("drift", "azimuth", "depth_change"):
+        lo, hi = t[key]["interval"]
+        elo, ehi = t["em"][key]["interval"]
+        assert lo < t[key]["mean"] < hi and t[key] != t["em"][key]
+        assert 0.7 < (hi - lo) / (ehi - elo) < 1.4, key
     cls = pd.read_csv(tmp_path / "classified.csv", keep_default_na=False)
     assert len(cls) == 88 + 33 and (cls["label"] == "skipped").sum() == 33
     assert (cls["label"] == "spurious").sum() == 3

@@ -181,7 +181,7 @@ def cmd_demo(args) -> int:
 
 
 def cmd_plot(args) -> int:
-    """Run ``bayes-mpem plot``: the figures of a fit or sample output folder.
+    """Run ``bayes-mpem plot``: the figures of an output folder of any kind.
 
     Parameters
     ----------
@@ -190,20 +190,24 @@ def cmd_plot(args) -> int:
     Returns
     -------
     int
-        Exit status: 0, or 2 when the folder holds no fitted beacon.
+        Exit status: 0, or 2 when the folder holds nothing to draw (no fitted
+        beacon or located transponder).
     """
     from ..report import load_output
 
     result = load_output(args.result_dir)
-    if not result.results:
-        print(f"bayes-mpem plot: {args.result_dir} holds no fitted beacon "
-              f"(skipped: {result.skipped or 'none'}); nothing to draw", file=sys.stderr)
-        return 2
     beacon = None if args.beacon is None else args.beacon.strip()  # ids are text, as in CSVs
-    if beacon is not None and beacon not in result.results:
+    if beacon is not None and beacon not in getattr(result, "results", {}):
         raise OptionError(f"--beacon: expected one of the fitted beacons "
-                          f"{', '.join(map(repr, result.results))}, got {args.beacon!r}")
-    _print_written(write_figures(result, args.out or args.result_dir, beacon=beacon))
+                          f"{', '.join(map(repr, getattr(result, 'results', {})))}, "
+                          f"got {args.beacon!r}")
+    paths = write_figures(result, args.out or args.result_dir, beacon=beacon)
+    if not paths:
+        skipped = getattr(result, "skipped", None)
+        print(f"bayes-mpem plot: {args.result_dir} holds no fitted beacon or located "
+              f"transponder (skipped: {skipped or 'none'}); nothing to draw", file=sys.stderr)
+        return 2
+    _print_written(paths)
     return 0
 
 

@@ -2,7 +2,8 @@
 
 The sub-commands themselves live in :mod:`.lbl` (``demo``, ``simulate``,
 ``fit``, ``sample``, ``compare``, ``plot``, ``diagnose``), :mod:`.navigate`
-(``navigate``, ``simulate --navigation``) and :mod:`.survey_in` (``locate``);
+(``navigate``, ``simulate --navigation``), :mod:`.stream` (``stream``) and
+:mod:`.survey_in` (``locate``);
 each parses nothing, calls the library and reports. Invalid input ends a
 command with one ``error:`` line and exit status 2.
 """
@@ -20,7 +21,7 @@ import warnings
 from .. import __version__
 from ..exceptions import InputError
 from ..lbl.paths import PATH_CHOICES
-from . import navigate
+from . import navigate, stream
 from . import options as opt
 from .errors import OptionError
 
@@ -32,9 +33,10 @@ COMMANDS: dict[str, str] = {
                     "lbl"),
     "locate": "survey_in",
     "navigate": "navigate",
+    "stream": "stream",
 }
 #: the sub-commands that draw figures take ``--palette`` (the class colours)
-FIGURE_COMMANDS = ("demo", "fit", "sample", "compare", "plot", "diagnose", "navigate")
+FIGURE_COMMANDS = ("demo", "fit", "sample", "compare", "plot", "diagnose", "navigate", "locate")
 PALETTES = ("okabe-ito", "paper")  # bayes_mpem.plots.style.PALETTES, without numpy
 
 
@@ -72,13 +74,16 @@ def _add_demo_plot_simulate(sub):
                    help="skip the Bayesian part (sampling and prior comparison: most of the "
                         "demo's ~30 s)")
 
-    p = sub.add_parser("plot", help="draw the figures of a fit or sample output folder")
+    p = sub.add_parser("plot", help="draw the figures of an output folder (fit, sample, "
+                                    "compare, diagnose, locate)")
     p.add_argument("result_dir", metavar="RESULT_DIR",
-                   help="output folder of 'bayes-mpem fit' or 'bayes-mpem sample'")
+                   help="output folder of 'bayes-mpem fit', 'sample', 'compare', 'diagnose' "
+                        "or 'locate'")
     p.add_argument("--out", default=None, metavar="DIR",
                    help="where to write (default: RESULT_DIR)")
     p.add_argument("--beacon", default=None, metavar="ID",
-                   help="beacon of the single-beacon figures (default: the last one)")
+                   help="fit folders: beacon of the single-beacon figures (default: the last "
+                        "one)")
 
     p = sub.add_parser("simulate", help="write a simulated survey (pings, beacons, truth)")
     p.add_argument("--preset", choices=["abe58", "random"], default="abe58")
@@ -125,13 +130,22 @@ def _add_fit_diagnose(sub):
 
 
 def _add_locate(sub):
-    p = sub.add_parser("locate", help="locate a transponder from a ranging survey (EM, and "
-                                      "optionally its posterior)")
-    p.add_argument("survey", metavar="SURVEY", help="survey file (obsdata.inp for SeaGap)")
-    p.add_argument("--format", required=True,
-                   choices=["obsrange", "obsrange-sio", "obsrange-whoi", "seagap"],
-                   help="'obsrange' detects the SIO or WHOI variant")
+    p = sub.add_parser("locate", help="locate the transponders of a ranging survey (EM, and "
+                                      "optionally the posterior)")
+    p.add_argument("survey", metavar="SURVEY",
+                   help="survey file: a deck-box log, SeaGap's obsdata.inp, GARPOS's "
+                        "*-initcfg.ini or GNATSS's config.yaml")
+    p.add_argument("--format", default="auto",
+                   choices=["auto", "obsrange", "obsrange-sio", "obsrange-whoi", "seagap",
+                            "garpos", "gnatss"],
+                   help="default auto: recognised from the file; 'obsrange' detects the SIO "
+                        "or WHOI variant")
     p.add_argument("--out", required=True, metavar="DIR")
+    p.add_argument("--figures", action="store_true",
+                   help="also write the figures (map, residuals; as 'bayes-mpem plot' does)")
+    p.add_argument("--no-lag-check", action="store_true",
+                   help="deck-box logs: do not test whether a lag along the track would fit "
+                        "better (a few tenths of a second)")
     p.add_argument("--tat", type=opt.turn_around, default=None, metavar="S",
                    help="turn-around time in s (default: the file's, else 0.013; SeaGap 0)")
     p.add_argument("--fit-tat", action="store_true",
@@ -141,13 +155,15 @@ def _add_locate(sub):
     p.add_argument("--outliers", choices=["uniform", "first_arrival"], default="uniform",
                    help="spurious pings uniform over the window (default) or only before the "
                         "true arrival (a first-threshold-crossing detector)")
-    p.add_argument("--ssp", default=None, metavar="FILE|woa09|survey",
+    p.add_argument("--ssp", default=None, metavar="FILE|woa09|survey|straight",
                    help="refracted rays through a sound-speed profile: a two-column file "
                         "(depth m, speed m/s), 'woa09' (the atlas at the drop point) or "
-                        "'survey' (the survey's own, SeaGap's ss_prof.inp); default straight rays")
+                        "'survey' (the survey's own: SeaGap's ss_prof.inp, GARPOS's svp.csv, "
+                        "GNATSS's sound_speed); 'straight' for straight rays; default straight "
+                        "rays, except the survey's own profile for GARPOS and GNATSS")
     p.add_argument("--speed-intervals", type=opt.at_least(0, 1000), default=0, metavar="N",
                    help="let the sound speed vary in time (cubic B-spline, N intervals over "
-                        "the survey; default 0: one speed)")
+                        "the survey; default 0: one speed); GNSS-A surveys: one per 15-30 min")
     p.add_argument("--fit-lag", action="store_true",
                    help="fit a time lag of the acoustic position along the track (a position "
                         "fix logged at another moment, or a transducer ahead of the antenna)")
@@ -233,6 +249,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_locate(sub)
     _add_sample_compare(sub)
     navigate.add_navigate(sub)
+    stream.add_stream(sub)
     for name in FIGURE_COMMANDS:
         sub.choices[name].add_argument(
             "--palette", choices=PALETTES, default="okabe-ito",

@@ -118,7 +118,13 @@ class Problems:
         self.source, self.items, self.count = source, [], 0
 
     def add(self, pos: int, message: str) -> None:
-        """Record a problem of the row at position ``pos`` (messages are sorted by row)."""
+        """Record ``message`` for the row at position ``pos`` (listed in row order).
+
+        Parameters
+        ----------
+        pos : int
+        message : str
+        """
         self.items.append((pos, len(self.items), message))
         self.count += 1
 

@@ -1,7 +1,8 @@
 """Figures of :func:`bayes_mpem.diagnose`.
 
-Every function takes a :class:`~bayes_mpem.lbl.diagnosis.result.Diagnosis` and ``fig=``,
-and returns the Figure.
+Every function takes a :class:`~bayes_mpem.lbl.diagnosis.result.Diagnosis` (or a
+:class:`~bayes_mpem.lbl.diagnosis.result.DiagnosisRecord` read back from its folder)
+and ``fig=``, and returns the Figure.
 """
 
 from __future__ import annotations
@@ -12,8 +13,6 @@ from matplotlib.ticker import FuncFormatter
 
 from .._validate import check_choice
 from ..io.results import write_file, writing
-from ..lbl.diagnosis.model import predict
-from ..lbl.diagnosis.residuals import covariates
 from .style import CLASS_NAMES, class_color
 
 _COV_LABELS = {"time": "time (s)", "range": "direct-path length (m)",
@@ -82,8 +81,9 @@ def plot_residuals(diagnosis, *, model="baseline", fig=None, max_points=4000):
     check_choice("model", model, ("baseline", "final"), words=True)
     fit = diagnosis.baseline if model == "baseline" else diagnosis.final
     d = diagnosis.data
-    mu = predict(d, fit.params, fit.effects, fit.path)
-    cov = covariates(d)
+    tab, info = diagnosis.replies(), diagnosis.figure_info()[model]
+    cov = {name: tab[name].to_numpy(float) for name in _COV_LABELS}
+    res = {cls: tab[f"{model}_residual_{cls}"].to_numpy(float) for cls in ("dp", "mp")}
     names = list(_COV_LABELS)
     if fig is None:
         fig = plt.figure(figsize=(15, 5.6), layout="constrained")
@@ -97,7 +97,7 @@ def plot_residuals(diagnosis, *, model="baseline", fig=None, max_points=4000):
                 continue
             show = sel if sel.size <= max_points // d.nb else gen.choice(
                 sel, max_points // d.nb, replace=False)
-            r = d.z - mu[cls]
+            r = res[cls]
             for ax, name in zip(axes[row], names, strict=True):
                 ax.plot(cov[name][show], r[show], ".", ms=1.5, alpha=0.35, color=f"C{j}")
                 xm, ym = _binned(cov[name][sel], r[sel])
@@ -106,7 +106,7 @@ def plot_residuals(diagnosis, *, model="baseline", fig=None, max_points=4000):
             ax.axhline(0.0, color="k", lw=0.6)
             if row == 1:
                 ax.set_xlabel(_COV_LABELS[name])
-        sig = np.median(fit.params.sigma[:, col_c])
+        sig = info[f"sigma_{cls}"]
         axes[row, 0].set_ylim(-6 * sig, 6 * sig)
         axes[row, 0].set_ylabel(f"{'direct-path' if cls == 'dp' else 'multipath'} residual (m)")
     axes[0, -1].legend(fontsize="small", markerscale=4)

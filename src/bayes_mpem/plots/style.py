@@ -14,7 +14,9 @@ A range's colour mixes its class colours by its class probabilities
 (``bayes-mpem ... --palette paper`` on the command line);
 :func:`class_key` adds the colour key every class-coloured figure carries. ``d0`` is the
 height of the reflecting plane above the beacon (the paper's HRP): :data:`PARAM_LABELS`
-names it and the other parameters the same way on every figure.
+names it and the other parameters the same way on every figure. The survey-in figures
+colour a ping true or spurious (:data:`SURVEY_IN_COLORS`, colour-blind safe, with a marker
+per class: :data:`SURVEY_IN_MARKERS`).
 """
 
 from __future__ import annotations
@@ -197,3 +199,10 @@ def plain_log_axis(axis) -> None:
     axis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
     axis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
     axis.set_minor_formatter(FuncFormatter(minor))
+
+
+#: Colours of a survey-in's ping classes (Okabe-Ito blue and vermillion: told apart with
+#: every common colour-vision deficiency), and of lines that were not pings.
+SURVEY_IN_COLORS = {"true": "#0072B2", "spurious": "#D55E00", "skipped": "#999999"}
+#: Markers of the same classes, so that the figures read in grey too.
+SURVEY_IN_MARKERS = {"true": "o", "spurious": "X", "skipped": "."}

@@ -33,7 +33,9 @@ from ..mcmc import (
     thin_index,
     to_datatree,
 )
-from .location import LocateResult, true_probability
+from .classes import true_probability
+from .drift import drift_from_draws
+from .location import LocateResult
 from .posterior import (
     PARAMS,
     SIGMA_BOUNDS,
@@ -343,6 +345,9 @@ def _merge(em: dict, post: LocationPosterior, ci: float, header: dict) -> dict:
                                                     header["lat"], header["lon"])
     else:
         out["lat"] = out["lon"] = None
+    if "drift" in em:  # a deck-box log: the drift from the drop point, from the draws
+        out.update(drift_from_draws(post.draws["east"], post.draws["north"], post.draws["depth"],
+                                    header.get("depth"), ci=ci))
     out["posterior"] = {"sigma_ms": d["sigma_ms"], "weight_true": d["weight_true"],
                         "ess": d["ess"], "ess_bulk": d["ess_bulk"], "tau": d["tau"],
                         "diagnostics": d["diagnostics"]}

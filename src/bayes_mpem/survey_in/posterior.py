@@ -37,7 +37,8 @@ import pandas as pd
 
 from .._validate import check_choice, check_int, check_probability, check_range
 from ..mcmc.driver import place_walkers
-from .location import LocateResult, log_classes
+from .classes import log_classes
+from .location import LocateResult
 from .travel_times import chord
 
 #: Support of the log-uniform prior on sigma (s).

@@ -4,7 +4,8 @@ Every reflecting plane lies above the vehicle at every ping (with its drift in t
 second reflector lies at least :data:`SECOND_GAP` below the main one (:func:`main_plane`,
 the median of the beacons' planes) and above the vehicle's shallowest depth; a sound-speed
 scale stays within 50 %. :func:`is_feasible` tells whether parameters satisfy them and
-:func:`repair` moves a start just inside. Used by the ECM (:mod:`.ecm`) and the evidence
+:func:`repair` moves a start just inside. Used by the ECM (:mod:`~bayes_mpem.lbl.diagnosis.ecm`)
+and the evidence
 rules (:mod:`.evidence`).
 """
 

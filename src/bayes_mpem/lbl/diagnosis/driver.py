@@ -30,7 +30,8 @@ magnitude = fraction of replies that are outliers) and ``nav_drift`` (``|(e_x,
 e_y)|``, m at the last ping). The baseline, all switched off, is the mixture
 model of :mod:`bayes_mpem.lbl.likelihood`, fitted to all beacons together.
 
-The model is :mod:`.model`, its fit (ECM) :mod:`.ecm`, the wording of the
+The model is :mod:`~bayes_mpem.lbl.diagnosis.model`, its fit (ECM)
+:mod:`~bayes_mpem.lbl.diagnosis.ecm`, the wording of the
 evidence :mod:`.evidence`, the residual checks :mod:`.residuals` and the
 result :class:`~bayes_mpem.lbl.diagnosis.result.Diagnosis`.
 

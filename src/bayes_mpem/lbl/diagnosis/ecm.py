@@ -1,6 +1,6 @@
 """Fitting the joint model of the diagnosis by ECM, and its held-out predictive density.
 
-The joint model (:mod:`.model`) is fitted to all beacons at once by an ECM
+The joint model (:mod:`~bayes_mpem.lbl.diagnosis.model`) is fitted to all beacons at once by an ECM
 algorithm: an E-step; closed-form mixing weights; a safeguarded Gauss-Newton
 step on the mean parameters (plane depths and effect parameters, analytic
 Jacobian; :func:`bayes_mpem.mixture.gauss_newton.safeguarded_step`) that never

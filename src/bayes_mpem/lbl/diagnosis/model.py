@@ -18,7 +18,7 @@ plus the shared effect parameters. The effects
   multipath.
 
 The constraints that keep the planes physical are in :mod:`.constraints`;
-the fitting (ECM) is in :mod:`.ecm`.
+the fitting (ECM) is in :mod:`~bayes_mpem.lbl.diagnosis.ecm`.
 
 Examples
 --------

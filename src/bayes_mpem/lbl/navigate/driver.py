@@ -3,7 +3,8 @@
 The pings' ``x``, ``y`` are a drifting dead reckoning and ``depth`` the trusted
 pressure depth. :func:`navigate` estimates the horizontal track at every ping
 epoch, the dead reckoning's heading bias and speed scale, per beacon the plane
-height, sigma_MP and mixing weights, and sigma_DP, by the ECM of :mod:`.ecm`,
+height, sigma_MP and mixing weights, and sigma_DP, by the ECM of
+:mod:`~bayes_mpem.lbl.navigate.ecm`,
 started from the dead reckoning with annealed scales and the planes at the sea
 surface; then (``path="auto"``) each beacon's multipath geometry is chosen as
 :func:`~bayes_mpem.lbl.path_choice.choose_path` does, on the corrected track,

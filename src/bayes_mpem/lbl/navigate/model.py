@@ -1,6 +1,6 @@
 """The per-ping pieces of the navigation model, as small pure functions.
 
-Everything the batch estimator (:mod:`.ecm`) needs of one range or one
+Everything the batch estimator (:mod:`~bayes_mpem.lbl.navigate.ecm`) needs of one range or one
 dead-reckoning step, written once so that a recursive (streaming) estimator
 can call the same functions one ping at a time:
 

@@ -1,12 +1,12 @@
 """The M-step's objective of the navigation model, and its Gauss-Newton normal equations.
 
 Given the class probabilities of every reply (the E-step) and the scales, the
-unknowns ``theta = (p_1 .. p_K, beta, s, d0_1 .. d0_B)`` minimise
+unknowns ``theta = (p_1 .. p_K, beta, s, d0_1 .. d0_B)`` minimise::
 
-``Phi = 1/2 sum_i [a_i (f_dp,i - z_i)^2 + b_i (f_mp,i - z_i)^2]``
-``    + 1/2 sum_k lambda_k |p_k - p_{k-1} - s R(beta) Delta_k|^2``
-``    + 1/2 |p_1 - d_1|^2 / s_start^2 + 1/2 beta^2 / s_beta^2 + 1/2 (s - 1)^2 / s_scale^2``
-``    + 1/2 sum_b (d0_b - z_b)^2 / s_plane^2``
+    Phi = 1/2 sum_i [a_i (f_dp,i - z_i)^2 + b_i (f_mp,i - z_i)^2]
+        + 1/2 sum_k lambda_k |p_k - p_{k-1} - s R(beta) Delta_k|^2
+        + 1/2 |p_1 - d_1|^2 / s_start^2 + 1/2 beta^2 / s_beta^2 + 1/2 (s - 1)^2 / s_scale^2
+        + 1/2 sum_b (d0_b - z_b)^2 / s_plane^2
 
 with ``a_i = P(dp)_i / sigma_DP^2``, ``b_i = P(mp)_i / sigma_MP,b^2``,
 ``lambda_k = 1 / (q^2 dt_k)`` (the dead-reckoning random walk), ``d_1`` the

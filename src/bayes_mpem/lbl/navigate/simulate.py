@@ -5,7 +5,7 @@ along a preset's true track (one interrogation of every beacon per cycle, all
 at the same time), then
 
 * makes the **dead reckoning** the navigation model assumes
-  (:mod:`.model`): the true displacement between cycles, less a random walk
+  (:mod:`~bayes_mpem.lbl.navigate.model`): the true displacement between cycles, less a random walk
   ``w_k ~ N(0, q^2 dt I)``, rotated by ``-beta`` and divided by the speed scale
   ``s`` (so that ``p_k = p_{k-1} + s R(beta) Delta_k + w_k``), started at the
   true first position plus an error; the pings table reports it in ``x``, ``y``
@@ -100,7 +100,8 @@ def degrade(time, x, y, *, heading_bias, speed_scale, dr_noise, start_error, rng
     The true step between consecutive points, less a random walk ``w_k ~ N(0,
     q^2 dt I)``, rotated by ``-heading_bias`` and divided by ``speed_scale``;
     started at the true first point plus a Gaussian error. Then
-    ``p_k = p_{k-1} + s R(beta) Delta_k + w_k`` holds exactly (:mod:`.model`).
+    ``p_k = p_{k-1} + s R(beta) Delta_k + w_k`` holds exactly
+    (:mod:`~bayes_mpem.lbl.navigate.model`).
 
     Parameters
     ----------

@@ -260,11 +260,27 @@ class LoglikKernel:
                 out += n_rest * np.log(ol)
         return out - self.geom.n * LOG_SQRT_2PI
 
-    def densities(self, d0, sigma_dp, sigma_mp, w_dp, w_mp, w_ol):
-        """``w_j p(z_k | j)`` of every range for each class, in float64.
+    def _full(self, d0, dtype) -> _Screen:
+        """Return the screen of every range in input order (valid for any parameters)."""
+        key = ("all", dtype)
+        if key not in self._screens:
+            g = self.geom
+            d_ref = float(np.median(d0))
+            l_ref = np.sqrt(g.h * g.h + (2.0 * d_ref - g.dz) ** 2)
+            r_ref = g.z - self._share * l_ref - (1.0 - self._share) * g.direct
+            self._screens[key] = _Screen(
+                sigma_dp=np.inf, sigma_mp=np.inf, d0_lo=-np.inf, d0_hi=np.inf, d_ref=d_ref,
+                n_dp=g.n, mp_from=0, n_cols=g.n, cols=np.arange(g.n),
+                r2_dp=(self._r_dp ** 2).astype(dtype), u_ref=(2.0 * d_ref - g.dz).astype(dtype),
+                l_ref=l_ref.astype(dtype), h2=(g.h * g.h).astype(dtype),
+                r_ref=r_ref.astype(dtype))
+        return self._screens[key]
 
-        As :func:`~bayes_mpem.lbl.likelihood.weighted_densities`, for a batch,
-        with the screen (terms that are exactly 0 are not computed).
+    def pointwise(self, d0, sigma_dp, sigma_mp, w_dp, w_mp, w_ol):
+        """Log-likelihood and class probabilities of every range, for each parameter set.
+
+        In the kernel's precision (float32 values carry the error analysed above:
+        ample for PSIS-LOO and for class probabilities); every range is evaluated.
 
         Parameters
         ----------
@@ -273,18 +289,26 @@ class LoglikKernel:
 
         Returns
         -------
-        tuple of numpy.ndarray
-            ``(dp, mp, ol)``, each ``(W, n)``.
+        loglik : numpy.ndarray
+            ``(W, n)``: ``log p(z_k)``.
+        probs : list of numpy.ndarray
+            Per class (dp, mp, ol), ``(W, n)``.
         """
         d0, sigma_dp, sigma_mp, w_dp, w_mp, w_ol = (
             np.asarray(v, float).ravel() for v in (d0, sigma_dp, sigma_mp, w_dp, w_mp, w_ol))
         ol = w_ol * self._c_ol
-        sc = self._screen(d0, sigma_dp, sigma_mp, np.dtype(np.float64))
-        buf = np.empty((d0.size, sc.n_cols))
-        dp_s, mp_s = self._terms(sc, buf.dtype, d0, sigma_dp, sigma_mp, w_dp, w_mp, buf)
-        n = self.geom.n
-        c = np.exp(-LOG_SQRT_2PI)
-        dp, mp = np.zeros((d0.size, n)), np.zeros((d0.size, n))
-        dp[:, sc.cols[:sc.n_dp]] = c * dp_s
-        mp[:, sc.cols[sc.mp_from:]] = c * mp_s
-        return dp, mp, np.broadcast_to((c * ol)[:, None], dp.shape)
+        dtype = self._dtype_for(ol)
+        sc = self._full(d0, dtype)
+        dp, mp = self._terms(sc, dtype, d0, sigma_dp, sigma_mp, w_dp, w_mp,
+                             np.empty((d0.size, sc.n_cols), dtype))
+        total = dp + mp
+        ol_col = np.asarray(ol, dtype)[:, None]
+        total += ol_col
+        with np.errstate(divide="ignore"):
+            loglik = np.log(total)
+        loglik -= dtype.type(LOG_SQRT_2PI)
+        inv = np.divide(1.0, total, out=total)
+        dp *= inv
+        mp *= inv
+        inv *= ol_col
+        return loglik, [dp, mp, inv]

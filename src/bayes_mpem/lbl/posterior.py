@@ -211,7 +211,8 @@ class BeaconPosterior:
     def loglik_and_classes(self, theta):
         """Log-likelihood and class probabilities of every range, at each row of ``theta``.
 
-        Linear-space densities: exact, as ``w_ol > 0`` in the posterior's support.
+        Linear-space densities (:meth:`LoglikKernel.pointwise`), in the kernel's
+        precision: exact to rounding, as ``w_ol > 0`` in the posterior's support.
 
         Parameters
         ----------
@@ -226,10 +227,8 @@ class BeaconPosterior:
             Per class (dp, mp, ol), ``(W, n)``.
         """
         p = self.unpack(theta)
-        terms = self.kernel.densities(p["d0"], p["sigma_dp"], p["sigma_mp"], p["w_dp"],
-                                      p["w_mp"], p["w_ol"])
-        total = terms[0] + terms[1] + terms[2]
-        return np.log(total), [terms[j] / total for j in range(3)]
+        return self.kernel.pointwise(p["d0"], p["sigma_dp"], p["sigma_mp"], p["w_dp"],
+                                     p["w_mp"], p["w_ol"])
 
     def theta_from(self, params: dict):
         """Sampler coordinates of a dict of natural parameters (e.g. an EM result)."""

@@ -14,9 +14,10 @@ import sys
 import warnings
 
 from .. import __version__
+from ..batch import COMMANDS
 from ..exceptions import InputError
 from ..lbl.path_choice import PATH_CHOICES
-from . import lbl, survey_in
+from . import batch, lbl, survey_in
 
 
 def _add_fit_options(p):
@@ -162,13 +163,30 @@ def _add_sample_compare(sub):
         p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
 
 
+def _add_batch(sub):
+    p = sub.add_parser("batch", help="run a command on every survey of a manifest (Dask)")
+    p.add_argument("manifest", metavar="MANIFEST",
+                   help="CSV: name, pings, beacons (or name, survey, format for locate), then "
+                        "option columns named as the command's options (e.g. sigma_dp)")
+    p.add_argument("--out", required=True, metavar="DIR")
+    p.add_argument("--command", dest="batch_command", choices=list(COMMANDS), default="fit",
+                   help="the command run on each survey (default fit)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="address of a running Dask scheduler (default: a local cluster)")
+    p.add_argument("--workers", type=int, default=None, metavar="N",
+                   help="workers of the local cluster (default 1)")
+    p.add_argument("--no-progress", action="store_true", help="no progress lines on stderr")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Build the argument parser of ``bayes-mpem`` (exposed for the docs).
 
     Returns
     -------
     argparse.ArgumentParser
-        With one sub-parser per command, in the order ``--help`` lists them.
+        With one sub-parser per command, in the order ``--help`` lists them; the
+        parsed arguments carry them as ``subparsers`` (``bayes-mpem batch`` checks
+        the option columns of a manifest with the command's own sub-parser).
 
     Examples
     --------
@@ -185,7 +203,10 @@ def build_parser() -> argparse.ArgumentParser:
     _add_fit_diagnose(sub)
     _add_locate(sub)
     _add_sample_compare(sub)
+    _add_batch(sub)
+    parser.set_defaults(subparsers=sub.choices)
     return parser
+
 
 
 def main(argv=None) -> int:
@@ -207,7 +228,8 @@ def main(argv=None) -> int:
     matplotlib.use("Agg")  # the command line only writes files; never opens a window
     handler = {"demo": lbl.cmd_demo, "simulate": lbl.cmd_simulate, "fit": lbl.cmd_fit,
                "plot": lbl.cmd_plot, "sample": lbl.cmd_sample, "compare": lbl.cmd_compare,
-               "locate": survey_in.cmd_locate, "diagnose": lbl.cmd_diagnose}[args.command]
+               "locate": survey_in.cmd_locate, "diagnose": lbl.cmd_diagnose,
+               "batch": batch.cmd_batch}[args.command]
     with warnings.catch_warnings():  # restores the caller's filters and showwarning
         warnings.simplefilter("default")
         # one line per warning, no source excerpt: messages for the user, not tracebacks

@@ -2,19 +2,17 @@
 
 Parses nothing itself (:mod:`.main` does): checks that the options go
 together, calls :func:`~bayes_mpem.survey_in.survey.locate_survey` (or its
-posterior-sampling sibling), writes the result and prints one line per
-transponder.
+posterior-sampling sibling, through :func:`bayes_mpem.batch.locate_raw`),
+writes the result and prints one line per transponder.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
+from ..batch import locate_raw
 from ..io.formats import read_survey
-from ..survey_in.location_sampling import locate_survey_bayes
 from ..survey_in.posterior import check_location_options
-from ..survey_in.result import SurveyInResult
-from ..survey_in.survey import locate_survey
 from .errors import OptionError
 
 
@@ -52,7 +50,27 @@ def _check_sample_options(args):
                                min_ess=1000.0 if args.min_ess is None else args.min_ess)
 
 
-def _locate(args, raw) -> SurveyInResult:
+def locate_kwargs(args) -> dict:
+    """Options of the location from ``bayes-mpem locate``'s, after checking they go together.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+
+    Returns
+    -------
+    dict
+        The keyword arguments of :func:`~bayes_mpem.survey_in.survey.locate_survey`,
+        plus ``sample``: those of the posterior sampling
+        (:func:`~bayes_mpem.survey_in.location_sampling.locate_survey_bayes`) with
+        ``--sample``, else None.
+
+    Raises
+    ------
+    OptionError
+        For options that do not go together (e.g. ``--seed`` without ``--sample``).
+    """
+    _check_sample_options(args)
     model = dict(tat=args.tat, fit_tat=args.fit_tat, ci=args.ci, outliers=args.outliers,
                  ssp=args.ssp, speed_intervals=args.speed_intervals)
     if args.fit_lag:
@@ -60,14 +78,11 @@ def _locate(args, raw) -> SurveyInResult:
             raise OptionError("--fit-lag with --sample is not implemented: the posterior has "
                               "no lag parameter yet")
         model["fit_lag"] = True
-    if not args.sample:
-        return locate_survey(raw, **model)
-    summary, classified, posteriors = locate_survey_bayes(
-        raw, **model, n_walkers=args.walkers,
-        min_ess=1000.0 if args.min_ess is None else args.min_ess,
+    model["sample"] = None if not args.sample else dict(
+        n_walkers=args.walkers, min_ess=1000.0 if args.min_ess is None else args.min_ess,
         rng=0 if args.seed is None else args.seed,
         progress=False if args.no_progress else "auto")
-    return SurveyInResult(summary=summary, classified=classified, posteriors=posteriors)
+    return model
 
 
 def _print_transponder(tid, t, *, ci, sampled):
@@ -106,9 +121,9 @@ def cmd_locate(args) -> int:
         For options that do not go together (e.g. ``--seed`` without ``--sample``).
     """
     fmt = survey_format(args.survey, args.format)
-    _check_sample_options(args)
+    locate_kwargs(args)  # options checked before the file is read
     raw = read_survey(args.survey, fmt)
-    result = _locate(args, raw)
+    result = locate_raw(raw, locate_kwargs(args))
     out = Path(args.out)
     paths = result.write(out)
     summary = result.summary

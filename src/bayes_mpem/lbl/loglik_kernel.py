@@ -279,8 +279,10 @@ class LoglikKernel:
     def pointwise(self, d0, sigma_dp, sigma_mp, w_dp, w_mp, w_ol):
         """Log-likelihood and class probabilities of every range, for each parameter set.
 
-        In the kernel's precision (float32 values carry the error analysed above:
-        ample for PSIS-LOO and for class probabilities); every range is evaluated.
+        Always in float64: these are outputs, and PSIS-LOO needs them exact (a
+        range whose log-likelihood is the same in every draw must give exact
+        ties, which float32's rounding would break into steps of 1e-6); every
+        range is evaluated.
 
         Parameters
         ----------
@@ -297,7 +299,7 @@ class LoglikKernel:
         d0, sigma_dp, sigma_mp, w_dp, w_mp, w_ol = (
             np.asarray(v, float).ravel() for v in (d0, sigma_dp, sigma_mp, w_dp, w_mp, w_ol))
         ol = w_ol * self._c_ol
-        dtype = self._dtype_for(ol)
+        dtype = np.dtype(np.float64)
         sc = self._full(d0, dtype)
         dp, mp = self._terms(sc, dtype, d0, sigma_dp, sigma_mp, w_dp, w_mp,
                              np.empty((d0.size, sc.n_cols), dtype))

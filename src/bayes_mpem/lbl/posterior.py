@@ -211,8 +211,8 @@ class BeaconPosterior:
     def loglik_and_classes(self, theta):
         """Log-likelihood and class probabilities of every range, at each row of ``theta``.
 
-        Linear-space densities (:meth:`LoglikKernel.pointwise`), in the kernel's
-        precision: exact to rounding, as ``w_ol > 0`` in the posterior's support.
+        Linear-space densities in float64 (:meth:`LoglikKernel.pointwise`): exact
+        to rounding, as ``w_ol > 0`` in the posterior's support.
 
         Parameters
         ----------

@@ -17,10 +17,13 @@ ArviZ's bulk ESS; bayes_mpem runs ``sample_beacon`` with its defaults (EM start,
 sampling to min bulk ESS 1,000 with the shipped moves, post-processing:
 pointwise log-likelihood, class probabilities, ArviZ data).
 
-Columns: *wall* is the whole process; *sampling* is the sampler alone (for
-bayes_mpem the emcee run, for nutpie ``nutpie.sample`` after compilation, for
-PyMC its reported ``sampling_time``, for NumPyro a second ``mcmc.run`` in the
-same process, compiled). ESS/s is min bulk ESS over wall or over sampling. The
+Columns: *wall* is the whole process; *CPU* its processor time (user and
+system, threads and child processes included: the NUTS samplers run their two
+chains on both cores), a measure that a loaded machine inflates less;
+*sampling* is the sampler alone (for bayes_mpem the emcee run, for nutpie
+``nutpie.sample`` after compilation, for PyMC its reported ``sampling_time``,
+for NumPyro a second ``mcmc.run`` in the same process, compiled). ESS/s is min
+bulk ESS over wall or over sampling. The
 posterior means and sds of every parameter are compared with bayes_mpem's.
 """
 
@@ -245,15 +248,20 @@ def spawn(method, data_file, seed, caches):
                NUMBA_CACHE_DIR=caches["numba"], PYTHONWARNINGS="ignore")
     cmd = [sys.executable, str(Path(__file__).resolve()), "--worker", method, "--data",
            str(data_file), "--seed", str(seed), "--cache", caches["jax"]]
+    import resource
+
+    cpu0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     proc = subprocess.run(cmd, capture_output=True, text=True, env=env, cwd=ROOT)
     wall = time.perf_counter() - t0
+    cpu1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (cpu1.ru_utime - cpu0.ru_utime) + (cpu1.ru_stime - cpu0.ru_stime)
     line = [ln for ln in proc.stdout.splitlines() if ln.startswith("RESULT ")]
     if proc.returncode or not line:
         print(f"{method} failed:\n{proc.stderr[-3000:]}", file=sys.stderr)
         return None
-    return json.loads(line[-1][len("RESULT "):]) | {"wall": wall, "method": method,
-                                                     "seed": seed}
+    return json.loads(line[-1][len("RESULT "):]) | {"wall": wall, "cpu": cpu,
+                                                     "method": method, "seed": seed}
 
 
 def loadavg():
@@ -317,12 +325,13 @@ def report(results, n, rounds, load_before, load_after):
              f"beacon, {n:,d} ranges (beacon 4 of `abe58`), learned priors (5 free "
              "parameters). Every row is a fresh process, the methods interleaved; round 0 is "
              "cold (empty compile caches), the others warm.", "",
-             "| method | round | wall (s) | sampling (s) | min bulk ESS | ESS/s (wall) "
-             "| ESS/s (sampling) |", "|---|---|---:|---:|---:|---:|---:|"]
+             "| method | round | wall (s) | CPU (s) | sampling (s) | min bulk ESS "
+             "| ESS/s (wall) | ESS/s (sampling) | ESS per CPU s |",
+             "|---|---|---:|---:|---:|---:|---:|---:|---:|"]
     for r in results:
-        lines.append(f"| {r['method']} | {r['round']} | {r['wall']:.2f} | {r['sampling']:.2f} "
-                     f"| {r['ess']:.0f} | {r['ess'] / r['wall']:.0f} "
-                     f"| {r['ess'] / r['sampling']:.0f} |")
+        lines.append(f"| {r['method']} | {r['round']} | {r['wall']:.2f} | {r['cpu']:.1f} "
+                     f"| {r['sampling']:.2f} | {r['ess']:.0f} | {r['ess'] / r['wall']:.0f} "
+                     f"| {r['ess'] / r['sampling']:.0f} | {r['ess'] / r['cpu']:.0f} |")
     rate = {}
     for m in METHODS:
         for rnd in ("cold", "warm"):

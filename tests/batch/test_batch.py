@@ -175,3 +175,12 @@ def test_flatten_keeps_every_field():
                    "weights": {"dp": 0.5}, "flags": ["a"], "n": 3, "path_choice": None})
     assert row == {"d0_mean": 1.0, "d0_sd": 0.1, "d0_interval_0": 0.8, "d0_interval_1": 1.2,
                    "weights_dp": 0.5, "flags": '["a"]', "n": 3, "path_choice": None}
+
+
+def test_every_batch_command_has_its_option_builder():
+    """Adding a command (navigate) is one entry of COMMANDS and one of the CLI's KWARGS."""
+    from bayes_mpem.batch import COMMANDS
+    from bayes_mpem.cli.batch import KWARGS
+
+    assert set(KWARGS) == set(COMMANDS) == {"fit", "sample", "diagnose", "locate"}
+    assert build_parser().parse_args(["batch", "m.csv", "--out", "o"]).batch_command == "fit"

@@ -43,6 +43,8 @@ def run_task(task: BatchTask, out_dir: str, key: str | None = None) -> dict:
     folder = out / "surveys" / task.name
     done = folder / "batch.json"
     done.unlink(missing_ok=True)
+    part = out / "classified" / f"name={task.name}"
+    (part / "part-0.parquet").unlink(missing_ok=True)  # no stale rows if this run fails
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
@@ -52,8 +54,7 @@ def run_task(task: BatchTask, out_dir: str, key: str | None = None) -> dict:
             rows = [{"name": task.name, "beacon": str(b), **flatten(v)}
                     for b, v in spec.beacons(result).items()]
             if spec.classified is not None:
-                part = output_folder(out / "classified" / f"name={task.name}")
-                write_parquet(part / "part-0.parquet", spec.classified(result))
+                write_parquet(output_folder(part) / "part-0.parquet", spec.classified(result))
         except Exception as exc:  # noqa: BLE001 - a failed survey is a result of the batch
             return {"name": task.name, "status": "failed",
                     "reason": f"{type(exc).__name__}: {exc}",

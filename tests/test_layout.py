@@ -244,3 +244,27 @@ def test_importing_the_package_warns_nothing():
     import sys
 
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_import_and_help_load_no_heavy_library():
+    """``import bayes_mpem`` and every ``--help`` import no numpy, pandas, SciPy, emcee, ArviZ
+    or matplotlib (the public names and the sub-commands load on first use, PEP 562), so
+    ``bayes-mpem --help`` answers at once (benchmarks/bench_startup.py times it)."""
+    code = (
+        "import sys, warnings; warnings.simplefilter('error')\n"
+        "import bayes_mpem\n"
+        "from bayes_mpem.cli.parser import COMMANDS, build_parser\n"
+        "parser = build_parser(); parser.format_help()\n"
+        "sub = parser._subparsers._group_actions[0].choices\n"
+        "assert set(sub) == set(COMMANDS), (set(sub), set(COMMANDS))\n"
+        "[p.format_help() for p in sub.values()]\n"
+        "heavy = {'numpy', 'pandas', 'scipy', 'emcee', 'arviz_base', 'xarray', 'matplotlib'}\n"
+        "assert not heavy & set(sys.modules), heavy & set(sys.modules)\n"
+        "from bayes_mpem import fit, SurveyFit\n"
+        "assert fit.__module__ == 'bayes_mpem.lbl.fitting' and 'numpy' in sys.modules\n"
+        "assert set(bayes_mpem.__all__) <= set(dir(bayes_mpem))\n"
+        "assert all(getattr(bayes_mpem, n) is not None for n in bayes_mpem.__all__)\n")
+    import subprocess
+    import sys
+
+    subprocess.run([sys.executable, "-c", code], check=True)

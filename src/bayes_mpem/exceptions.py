@@ -39,3 +39,7 @@ class LocateWarning(UserWarning):
 
 class PathChoiceWarning(FitQualityWarning):
     """A forced multipath geometry fits clearly worse than the other one (see ``path="auto"``)."""
+
+
+class NavigationWarning(UserWarning):
+    """Part of a navigated track (or a dead-reckoning nuisance) is not corrected by the ranges."""

@@ -2,7 +2,7 @@
 
 The command line writes a result's data with its ``write()`` and then its
 figures with :func:`write_figures`, which dispatches on the kind of result
-(fit, posterior, prior comparison, diagnosis). ``bayes-mpem plot RESULT_DIR``
+(fit, posterior, prior comparison, diagnosis, navigation). ``bayes-mpem plot RESULT_DIR``
 is :func:`load_output` followed by :func:`write_figures`; :func:`demo_markdown`
 is the ``summary.md`` of ``bayes-mpem demo``. One figure needs more than the
 result: the paper's Fig. 12 re-fits the figure beacon with the paper's EM over a
@@ -29,12 +29,14 @@ from .lbl.comparison import SurveyComparison
 from .lbl.diagnosis.result import Diagnosis
 from .lbl.em_result import EMResult
 from .lbl.fitting import SurveyFit
+from .lbl.navigate.result import Navigation
 from .lbl.path_choice import choices_from_summary
 from .lbl.pol_sensitivity import POL_GRID, survey_pol_sensitivity
 from .lbl.sampling import SurveyPosterior
 from .mixture.densities import CLASSES
 from .plots import bayes as bayes_plots
 from .plots import lbl as lbl_plots
+from .plots import navigate as nav_plots
 from .plots.diagnose import write_figures as write_diagnosis_figures
 from .survey_in.result import SurveyInResult
 
@@ -78,15 +80,17 @@ def write_figures(result, out_dir, *, beacon=None, truth=None, general=True,
 
     Parameters
     ----------
-    result : SurveyFit, SurveyPosterior, SurveyComparison, Diagnosis or SurveyInResult
+    result : SurveyFit, SurveyPosterior, SurveyComparison, Diagnosis, SurveyInResult or Navigation
         A result with nothing to draw (no fitted beacon; a located survey)
-        writes no figure.
+        writes no figure. A navigation writes ``nav_track.png``, ``nav_ranges.png``
+        and ``nav_correction.png``.
     out_dir : str or pathlib.Path
         Created if missing.
     beacon : str, optional
         Beacon of the single-beacon figures of a fit (:func:`figure_beacon`).
-    truth : dict, optional
-        ``Simulation.truth``, marked where a figure can show it (fits, posteriors).
+    truth : dict or pandas.DataFrame, optional
+        ``Simulation.truth``, marked where a figure can show it (fits, posteriors);
+        for a navigation, the true track (``DiveSimulation.true_track``).
     general : bool, default True
         Fits: also write the method-independent figures (Figs. 1, 5, 8 and 12).
     sensitivity : dict, optional
@@ -122,8 +126,13 @@ def write_figures(result, out_dir, *, beacon=None, truth=None, general=True,
         return list(write_diagnosis_figures(result, out).values())
     if isinstance(result, SurveyInResult):
         return []
+    if isinstance(result, Navigation):
+        return [_save(nav_plots.plot_nav_track(result, truth=truth), out / "nav_track.png"),
+                _save(nav_plots.plot_nav_ranges(result), out / "nav_ranges.png"),
+                _save(nav_plots.plot_nav_correction(result, truth=truth),
+                      out / "nav_correction.png")]
     raise TypeError(f"result: expected a SurveyFit, SurveyPosterior, SurveyComparison, "
-                    f"Diagnosis or SurveyInResult, got {type(result).__name__}")
+                    f"Diagnosis, SurveyInResult or Navigation, got {type(result).__name__}")
 
 
 def _fit_figures(result, out, *, beacon, truth, general, sensitivity):
@@ -188,7 +197,7 @@ def demo_markdown(simulation, fit, paper, out_dir, figures, *, seed, posterior=N
     sim = simulation
     md = ["# bayes-mpem demo", "",
           f"Simulated ABE58-like survey (seed {seed}): {len(sim.survey)} pings to "
-          f"{len(sim.truth)} beacons. Truth: the sea surface, i.e. HRP = beacon depth.", "",
+          f"{len(sim.truth)} beacons. Truth: the sea surface, i.e. d0 = beacon depth.", "",
           "## Table II, mixture EM", "", lbl_plots.table_ii_markdown(fit, truth=sim.truth), "",
           "## Table II, the paper's EM (Pol = 0.05, alpha = 0.5)", "",
           lbl_plots.table_ii_markdown(paper, truth=sim.truth), ""]

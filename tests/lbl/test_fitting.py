@@ -96,9 +96,9 @@ def test_table_like_table_ii(sim):
     res = bm.fit(sim.survey, rng=0)
     t = res.table()
     assert list(t["beacon"]) == ["1", "2", "3", "4"]
-    np.testing.assert_allclose(t["hrp_m"], t["beacon_depth_m"], atol=3.0)
+    np.testing.assert_allclose(t["d0_m"], t["beacon_depth_m"], atol=3.0)
     text = res.format_table()
-    assert "HRP d0 (m)" in text and "2392.0" in text
+    assert "d0 (m)" in text and "2392.0" in text
 
 
 def test_one_survey_loop_skips_with_reason_and_warns_at_the_caller(sim):

@@ -1,6 +1,7 @@
 """Bayesian variant: posterior, sampler, calibration, prior comparison, outputs."""
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -213,12 +214,18 @@ def test_sample_command_writes_the_contract(survey_files, tmp_path):
         assert (tmp_path / name).stat().st_size > 10_000
 
 
-def test_compare_command(survey_files, tmp_path):
+def test_compare_command(survey_files, tmp_path, capsys):
     from bayes_mpem.cli import main
 
     assert main(["compare", str(survey_files["pings"]), "--beacons",
-                 str(survey_files["beacons"]), "--out", str(tmp_path), "--seed", "2",
-                 "--no-progress"]) == 0
+                 str(survey_files["beacons"]), "--out", str(tmp_path), "--seed", "2"]) == 0
+    # standard error is not a terminal here: progress comes as plain lines, per beacon and
+    # priors, ending with the steps run, the ESS against its target and the seconds
+    err = capsys.readouterr().err
+    for bid in ("1", "2", "3", "4"):
+        for priors in ("equal", "learned"):
+            assert re.search(rf"^\[sampler\] beacon {bid} \({priors} priors\): done, \d+ "
+                             r"steps, ESS \d+ \(bulk \d+\) of 1000, \d+\.\d s$", err, re.M), err
     c = json.loads((tmp_path / "compare.json").read_text())
     for b in c["beacons"].values():
         for key in ("elpd_equal", "elpd_learned", "elpd_diff", "elpd_diff_se", "shifts",

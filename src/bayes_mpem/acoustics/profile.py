@@ -43,7 +43,22 @@ def _as_1d(values, name):
 
 
 def log1p_ratio(u):
-    """``log1p(u) / u``, 1 at ``u = 0`` (no cancellation for tiny ``u``)."""
+    """``log1p(u) / u``, 1 at ``u = 0`` (no cancellation for tiny ``u``).
+
+    Parameters
+    ----------
+    u : array_like
+        Values greater than -1.
+
+    Returns
+    -------
+    ndarray
+
+    Examples
+    --------
+    >>> float(log1p_ratio(0.0)), round(float(log1p_ratio(1.0)), 6)
+    (1.0, 0.693147)
+    """
     u = np.asarray(u, float)
     small = np.abs(u) < 1e-6
     safe = np.where(small, 1.0, u)
@@ -420,7 +435,18 @@ class SoundSpeedProfile:
             return np.where(dz > 0, dz / dt, self.speed(zt))
 
     def flat_at(self, z):
-        """Tell where the speed is constant on both sides of depth ``z`` (bool array)."""
+        """Tell where the speed is constant on both sides of depth ``z``.
+
+        Parameters
+        ----------
+        z : array_like
+            Depths (m).
+
+        Returns
+        -------
+        ndarray of bool
+            True where the gradient is zero just above and just below ``z``.
+        """
         gext = np.concatenate([[0.0], self._grad, [0.0]])
         z = np.asarray(z, float)
         right = gext[np.searchsorted(self._depth, z, side="right")]

@@ -123,7 +123,7 @@ def _demo_fits(sim, out, seed):
     """Fit the demo's survey with both EMs, write the fits and figures: ``(fit, paper, paths)``."""
     result = fit(sim.survey, rng=seed)
     print("Mixture EM, per beacon (cf. Table II of the paper; truth: plane at the surface,")
-    print("HRP = beacon depth; sigma_MP = " + ", ".join(
+    print("d0 = beacon depth; sigma_MP = " + ", ".join(
         f"{b['sigma_mp']:.1f}" for b in sim.truth.values()) + " m)")
     written = list(result.write(out).values())
     written += write_figures(result, out, truth=sim.truth)
@@ -135,7 +135,7 @@ def _demo_fits(sim, out, seed):
     print(paper.format_table())
     missed = [b for b, r in paper.results.items() if abs(r.d0 - sim.truth[b]["d0"]) > 10.0]
     if missed:
-        print(f"The paper's EM missed the plane (|HRP - truth| > 10 m) on beacon(s) "
+        print(f"The paper's EM missed the plane (|d0 - truth| > 10 m) on beacon(s) "
               f"{', '.join(missed)}; docs/paper-em.md explains why.")
     return result, paper, written
 

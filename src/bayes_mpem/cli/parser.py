@@ -1,23 +1,43 @@
 """The ``bayes-mpem`` command line: the parser, the dispatch and the error handling.
 
 The sub-commands themselves live in :mod:`.lbl` (``demo``, ``simulate``,
-``fit``, ``sample``, ``compare``, ``plot``, ``diagnose``) and
-:mod:`.survey_in` (``locate``); each parses nothing, calls the library and
-reports. Invalid input ends a command with one ``error:`` line and exit
-status 2.
+``fit``, ``sample``, ``compare``, ``plot``, ``diagnose``), :mod:`.navigate`
+(``navigate``, ``simulate --navigation``) and :mod:`.survey_in` (``locate``);
+each parses nothing, calls the library and reports. Invalid input ends a
+command with one ``error:`` line and exit status 2.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import importlib
 import sys
 import warnings
 
 from .. import __version__
-from ..batch import COMMANDS
 from ..exceptions import InputError
-from ..lbl.path_choice import PATH_CHOICES
-from . import batch, lbl, survey_in
+from ..lbl.paths import PATH_CHOICES
+from . import navigate
+from .errors import OptionError
+
+#: sub-command -> the module of its ``cmd_<name>`` function, imported only when the command
+#: runs: building the parser loads no numpy, so ``bayes-mpem --help`` answers at once
+#: (``benchmarks/bench_startup.py``).
+COMMANDS: dict[str, str] = {
+    **dict.fromkeys(("demo", "simulate", "fit", "plot", "sample", "compare", "diagnose"),
+                    "lbl"),
+    "locate": "survey_in",
+    "navigate": "navigate",
+    "batch": "batch",
+}
+#: the commands ``bayes-mpem batch --command`` runs: the keys of ``bayes_mpem.batch.COMMANDS``
+#: (spelled out here so that building the parser imports neither pandas nor Dask; a test
+#: keeps the two equal)
+BATCH_COMMANDS = ("fit", "sample", "diagnose", "locate")
+#: the sub-commands that draw figures take ``--palette`` (the class colours)
+FIGURE_COMMANDS = ("demo", "fit", "sample", "compare", "plot", "diagnose", "navigate")
+PALETTES = ("okabe-ito", "paper")  # bayes_mpem.plots.style.PALETTES, without numpy
 
 
 def _add_fit_options(p):
@@ -45,7 +65,8 @@ def _add_demo_plot_simulate(sub):
                    help="output folder (default: demo-output)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--no-bayes", action="store_true",
-                   help="skip the Bayesian part (sampling and prior comparison, ~40 s)")
+                   help="skip the Bayesian part (sampling and prior comparison: most of the "
+                        "demo's ~30 s)")
 
     p = sub.add_parser("plot", help="draw the figures of a fit or sample output folder")
     p.add_argument("result_dir", metavar="RESULT_DIR",
@@ -65,6 +86,7 @@ def _add_demo_plot_simulate(sub):
     p.add_argument("--effect", action="append", default=[], metavar="NAME=VALUE",
                    help="hide an effect in the data, e.g. range_bias=5 (repeatable; names as "
                         "in 'bayes-mpem diagnose')")
+    navigate.add_simulate_navigation(p)
 
 
 def _add_fit_diagnose(sub):
@@ -133,7 +155,8 @@ def _add_locate(sub):
                         "(default 1000)")
     p.add_argument("--seed", type=int, default=None,
                    help="--sample: random seed (default 0); same seed, same chain")
-    p.add_argument("--no-progress", action="store_true", help="--sample: hide the progress bar")
+    p.add_argument("--no-progress", action="store_true",
+                   help="--sample: no progress bar (terminal) or progress lines (log file)")
 
 
 def _add_sample_compare(sub):
@@ -160,7 +183,23 @@ def _add_sample_compare(sub):
         p.add_argument("--concentration", type=float, default=None, metavar="C",
                        help="Dirichlet concentration of the learned weights (default 1)")
         p.add_argument("--min-pings", type=int, default=30, metavar="N")
-        p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+        p.add_argument("--no-progress", action="store_true",
+                       help="no progress bar (terminal) or progress lines (log file)")
+
+
+def _simulate_handler(args, cmd_simulate):
+    """``simulate`` writes a survey, or a dive with ``--navigation``; refuse mixed options."""
+    if args.navigation:
+        return navigate.cmd_simulate_navigation
+    given = [o for o in navigate.NAVIGATION_ONLY if getattr(args, o) is not None]
+    if given:
+        names = ", ".join("--" + o.replace("_", "-") for o in given)
+
+        def refuse(_args):
+            raise OptionError(f"{names}: only with --navigation")
+
+        return refuse
+    return cmd_simulate
 
 
 def _add_batch(sub):
@@ -169,7 +208,7 @@ def _add_batch(sub):
                    help="CSV: name, pings, beacons (or name, survey, format for locate), then "
                         "option columns named as the command's options (e.g. sigma_dp)")
     p.add_argument("--out", required=True, metavar="DIR")
-    p.add_argument("--command", dest="batch_command", choices=list(COMMANDS), default="fit",
+    p.add_argument("--command", dest="batch_command", choices=BATCH_COMMANDS, default="fit",
                    help="the command run on each survey (default fit)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="address of a running Dask scheduler (default: a local cluster)")
@@ -203,10 +242,15 @@ def build_parser() -> argparse.ArgumentParser:
     _add_fit_diagnose(sub)
     _add_locate(sub)
     _add_sample_compare(sub)
+    navigate.add_navigate(sub)
     _add_batch(sub)
+    for name in FIGURE_COMMANDS:
+        sub.choices[name].add_argument(
+            "--palette", choices=PALETTES, default="okabe-ito",
+            help="class colours of the figures: colour-blind safe (default) or the "
+                 "paper's blue, red and green")
     parser.set_defaults(subparsers=sub.choices)
     return parser
-
 
 
 def main(argv=None) -> int:
@@ -226,11 +270,16 @@ def main(argv=None) -> int:
     import matplotlib
 
     matplotlib.use("Agg")  # the command line only writes files; never opens a window
-    handler = {"demo": lbl.cmd_demo, "simulate": lbl.cmd_simulate, "fit": lbl.cmd_fit,
-               "plot": lbl.cmd_plot, "sample": lbl.cmd_sample, "compare": lbl.cmd_compare,
-               "locate": survey_in.cmd_locate, "diagnose": lbl.cmd_diagnose,
-               "batch": batch.cmd_batch}[args.command]
-    with warnings.catch_warnings():  # restores the caller's filters and showwarning
+    module = importlib.import_module(f"{__package__}.{COMMANDS[args.command]}")
+    handler = getattr(module, f"cmd_{args.command}")
+    if args.command == "simulate":
+        handler = _simulate_handler(args, handler)
+    colours = contextlib.nullcontext()
+    if getattr(args, "palette", None):  # the figures' class colours, restored on return
+        from ..plots.style import palette_context
+
+        colours = palette_context(args.palette)
+    with colours, warnings.catch_warnings():  # restores the caller's filters and showwarning
         warnings.simplefilter("default")
         # one line per warning, no source excerpt: messages for the user, not tracebacks
         warnings.showwarning = lambda msg, cat, *args, **kwargs: print(

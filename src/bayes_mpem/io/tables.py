@@ -38,7 +38,23 @@ def _is_missing(v: Any) -> bool:
 
 
 def show(v: Any) -> str:
-    """Describe an offending cell for an error message."""
+    """Describe an offending cell for an error message.
+
+    Parameters
+    ----------
+    v : object
+        The cell's value.
+
+    Returns
+    -------
+    str
+        Its ``repr`` (cut at 40 characters), or words for an empty or missing cell.
+
+    Examples
+    --------
+    >>> show(" "), show(-3.2)
+    ('an empty cell', '-3.2')
+    """
     if isinstance(v, str):
         return repr(v) if v.strip() else "an empty cell"
     if isinstance(v, np.generic):
@@ -50,7 +66,22 @@ def show(v: Any) -> str:
 
 
 def as_beacon_id(v: Any) -> str:
-    """Canonical string form of a beacon id ('' if missing); integral floats print as ints."""
+    """Canonical string form of a beacon id ('' if missing); integral floats print as ints.
+
+    Parameters
+    ----------
+    v : object
+        A beacon id as read (str, int, float, missing).
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> as_beacon_id(4.0), as_beacon_id(" B2 "), as_beacon_id(float("nan"))
+    ('4', 'B2', '')
+    """
     if _is_missing(v):
         return ""
     if isinstance(v, str):
@@ -65,16 +96,24 @@ def as_beacon_id(v: Any) -> str:
     return str(v).strip()
 
 
-class _Problems:
-    """Collects (row position, message) pairs and raises one InputError for all of them."""
+class Problems:
+    """Collects (row position, message) pairs and raises one InputError for all of them.
+
+    Parameters
+    ----------
+    source : str
+        The file or table named in the message.
+    """
 
     def __init__(self, source: str) -> None:
         self.source, self.items = source, []
 
     def add(self, pos: int, message: str) -> None:
+        """Record a problem of the row at position ``pos`` (messages are sorted by row)."""
         self.items.append((pos, len(self.items), message))
 
     def raise_if_any(self) -> None:
+        """Raise one :class:`InputError` listing the problems (the first ten), if any."""
         if not self.items:
             return
         msgs = [m for _, _, m in sorted(self.items)]
@@ -155,7 +194,7 @@ def _read_csv(path: Path, label: str) -> _Table:
     header = [h.strip() for h in read[keep[0]][0]]
     records = [read[i][0] for i in keep[1:]]
     lines = [starts[i] for i in keep[1:]]
-    problems = _Problems(label)
+    problems = Problems(label)
     for pos, (rec, line) in enumerate(zip(records, lines, strict=True)):
         if len(rec) != len(header):
             problems.add(pos, f"{label} line {line}: expected {len(header)} fields "
@@ -167,7 +206,22 @@ def _read_csv(path: Path, label: str) -> _Table:
     return _Table(frame, label, [f"line {n}" for n in lines])
 
 
-def _load(source: Any, name: str | None, kind: str) -> _Table:
+def load_table(source: Any, name: str | None, kind: str) -> _Table:
+    """Read a CSV file or take a DataFrame as a table of text cells with row names for messages.
+
+    Parameters
+    ----------
+    source : str, os.PathLike or pandas.DataFrame
+    name : str or None
+        Label for messages (default: the path, or ``"<kind> DataFrame"``).
+    kind : str
+        What the table is (``"pings"``, ``"beacons"``, ...), for messages.
+
+    Returns
+    -------
+    _Table
+        ``frame``, ``source`` and ``row_names`` (``"line 17"`` or ``"row 15"``).
+    """
     if isinstance(source, pd.DataFrame):
         label = name or f"{kind} DataFrame"
         frame = source.copy()
@@ -190,7 +244,15 @@ def _load(source: Any, name: str | None, kind: str) -> _Table:
     return table
 
 
-def _check_columns(table: _Table, required: tuple[str, ...], kind: str) -> None:
+def check_columns(table: _Table, required: tuple[str, ...], kind: str) -> None:
+    """Raise :class:`InputError` naming missing required columns, or an empty table.
+
+    Parameters
+    ----------
+    table : _Table
+    required : tuple of str
+    kind : str
+    """
     missing = [c for c in required if c not in table.frame.columns]
     if missing:
         raise InputError(
@@ -235,8 +297,24 @@ def _parse_numbers(col: pd.Series) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return vals, missing, ~missing & ~np.isfinite(vals)  # "nan"/"inf" text is not a number
 
 
-def _numeric_column(table: _Table, column: str, problems: _Problems, *,
-                    allow_missing: bool = False, positive: bool = False) -> np.ndarray:
+def numeric_column(table: _Table, column: str, problems: Problems, *,
+                   allow_missing: bool = False, positive: bool = False) -> np.ndarray:
+    """Parse a column as finite numbers (or positive ones); each bad cell goes to ``problems``.
+
+    Parameters
+    ----------
+    table : _Table
+    column : str
+    problems : Problems
+    allow_missing : bool, default False
+        Empty cells are NaN instead of a problem.
+    positive : bool, default False
+
+    Returns
+    -------
+    numpy.ndarray
+        float64 values, NaN where missing or bad.
+    """
     col = table.frame[column]
     vals, missing, bad = _parse_numbers(col)
     unit = _UNITS.get(column, "m")
@@ -258,7 +336,7 @@ def _numeric_column(table: _Table, column: str, problems: _Problems, *,
     return vals
 
 
-def _beacon_column(table: _Table, problems: _Problems) -> np.ndarray:
+def _beacon_column(table: _Table, problems: Problems) -> np.ndarray:
     col = table.frame["beacon"].astype(object)
     if pd.api.types.infer_dtype(col, skipna=False) == "string":  # fast path (CSV)
         ids = col.str.strip().to_numpy(dtype=object)
@@ -270,10 +348,32 @@ def _beacon_column(table: _Table, problems: _Problems) -> np.ndarray:
     return ids
 
 
-def pings_table(source: Any, name: str | None) -> tuple[_Table, dict[str, np.ndarray], _Problems]:
-    """Parse pings; cell problems are collected, not raised (load_survey adds to them)."""
-    table = _load(source, name, "pings")
-    _check_columns(table, PING_COLUMNS, "pings")
+def pings_table(source: Any, name: str | None) -> tuple[_Table, dict[str, np.ndarray], Problems]:
+    """Parse pings; cell problems are collected, not raised (load_survey adds to them).
+
+    Parameters
+    ----------
+    source : str, pathlib.Path or pandas.DataFrame
+        The pings table.
+    name : str or None
+        The name to use in messages (default: the file's).
+
+    Returns
+    -------
+    table : object
+        The table as read, with its source name, for messages.
+    arrays : dict of str to ndarray
+        One array per column of ``PING_COLUMNS``.
+    problems : object
+        The cell problems found so far (row -> message).
+
+    Raises
+    ------
+    InputError
+        When the file cannot be read, a column is missing or a reserved column is present.
+    """
+    table = load_table(source, name, "pings")
+    check_columns(table, PING_COLUMNS, "pings")
     taken = [c for c in RESERVED_COLUMNS if c in table.frame.columns]
     if taken:
         raise InputError(
@@ -281,8 +381,8 @@ def pings_table(source: Any, name: str | None) -> tuple[_Table, dict[str, np.nda
             f"the results, which add {', '.join(map(repr, RESERVED_COLUMNS))} to every row; "
             "rename them (a classified.csv from an earlier run is read back by "
             "'bayes-mpem plot', not by 'fit')")
-    problems = _Problems(table.source)
-    arrays = {c: _numeric_column(table, c, problems, allow_missing=c == "range",
+    problems = Problems(table.source)
+    arrays = {c: numeric_column(table, c, problems, allow_missing=c == "range",
                                  positive=c == "range")
               for c in PING_COLUMNS if c != "beacon"}
     arrays["beacon"] = _beacon_column(table, problems)
@@ -349,10 +449,10 @@ def beacons_frame(source: Any, name: str | None) -> tuple[pd.DataFrame, str]:
     InputError
         Missing columns, bad values or repeated beacon ids (naming the rows).
     """
-    table = _load(source, name, "beacons")
-    _check_columns(table, BEACON_COLUMNS, "beacons")
-    problems = _Problems(table.source)
-    xyz = {c: _numeric_column(table, c, problems) for c in ("x", "y", "depth")}
+    table = load_table(source, name, "beacons")
+    check_columns(table, BEACON_COLUMNS, "beacons")
+    problems = Problems(table.source)
+    xyz = {c: numeric_column(table, c, problems) for c in ("x", "y", "depth")}
     ids = _beacon_column(table, problems)
     seen: dict[str, list[int]] = {}
     for pos, b in enumerate(ids):

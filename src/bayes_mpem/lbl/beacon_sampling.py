@@ -84,6 +84,13 @@ class PosteriorResult:
         ``n_ensembles``, ``converged`` (chain longer than ``tau_factor`` tau),
         ``acceptance``, ``seconds``, ``moves``, ``precision`` (of the kernel).
     ci : float
+
+    Notes
+    -----
+    ``d0``, ``sigma_mp``, ``sigma_dp``, ``weights``, ``n``, ``converged``,
+    ``class_fractions`` and ``labels`` answer as the same names of
+    :class:`~bayes_mpem.lbl.em_result.EMResult` do (here from the posterior means), so a
+    fit's and a sample's per-beacon results read alike; ``summary`` has the intervals.
     """
 
     beacon: str
@@ -111,6 +118,45 @@ class PosteriorResult:
     def min_ess(self) -> float:
         """Smallest ESS over the sampled parameters."""
         return float(min(self.ess.values()))
+
+    # the names an EMResult answers to, as posterior means: fit and sample results read alike
+
+    @property
+    def d0(self) -> float:
+        """Posterior mean height of the reflecting plane above the beacon (m)."""
+        return float(self.summary["d0"]["mean"])
+
+    @property
+    def sigma_mp(self) -> float:
+        """Posterior mean multipath scatter (m)."""
+        return float(self.summary["sigma_mp"]["mean"])
+
+    @property
+    def sigma_dp(self) -> float:
+        """Posterior mean direct-path scatter (m; the fixed value when it was fixed)."""
+        return float(self.summary["sigma_dp"]["mean"])
+
+    @property
+    def weights(self) -> dict:
+        """Posterior mean mixing weights ``{"dp", "mp", "ol"}``."""
+        return {k: float(v["mean"]) for k, v in self.summary["weights"].items()}
+
+    @property
+    def n(self) -> int:
+        """Number of ranges."""
+        return int(self.class_probs.shape[0])
+
+    @property
+    def converged(self) -> bool:
+        """Whether every ensemble met its stopping rule before ``max_steps``."""
+        return bool(self.diagnostics.get("converged", True))
+
+    @property
+    def class_fractions(self) -> dict:
+        """Fraction of ranges whose most probable class is dp, mp and ol."""
+        lab = np.argmax(self.class_probs, axis=1)
+        return {c: float(np.mean(lab == j)) if self.n else float("nan")
+                for j, c in enumerate(CLASSES)}
 
     def to_dict(self) -> dict:
         """JSON-ready summary."""

@@ -8,6 +8,7 @@ and ``classified.csv`` (one row per input row, nothing dropped).
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -23,6 +24,32 @@ from .path_choice import AUTO, check_path_choice, choose_path
 from .survey import beacons_table, classified_table, over_beacons
 
 METHODS = ("mixture", "paper")
+#: table columns renamed for one vocabulary (docs/model.md): old name -> new name
+RENAMED_COLUMNS = {"hrp_m": "d0_m"}
+
+
+class _FitTable(pd.DataFrame):
+    """:meth:`SurveyFit.table`: still answers to the old column names, with a warning."""
+
+    @property
+    def _constructor(self):
+        return pd.DataFrame  # anything derived is a plain DataFrame
+
+    def _renamed(self, key):
+        if isinstance(key, str) and key in RENAMED_COLUMNS:
+            warnings.warn(f"the table column {key!r} is now {RENAMED_COLUMNS[key]!r} "
+                          "(docs/model.md, 'Names'); the old name will be removed",
+                          DeprecationWarning, stacklevel=3)
+            return RENAMED_COLUMNS[key]
+        return key
+
+    def __getitem__(self, key):
+        return super().__getitem__(self._renamed(key))
+
+    def __getattr__(self, name):
+        if name in RENAMED_COLUMNS:
+            return super().__getitem__(self._renamed(name))
+        return super().__getattr__(name)
 
 
 @dataclass(frozen=True)
@@ -109,7 +136,8 @@ class SurveyFit:
         Returns
         -------
         pandas.DataFrame
-            Columns ``beacon``, ``hrp_m`` (fitted plane height d0),
+            Columns ``beacon``, ``d0_m`` (height of the reflecting plane above the
+            beacon, the paper's HRP),
             ``sigma_mp_m``, ``beacon_depth_m``, ``plane_depth_m``, ``sigma_dp_m``,
             ``dp``, ``mp``, ``ol`` (fractions of ranges per label), ``n``,
             ``converged``, ``path`` and ``path_margin`` (log-likelihood of the
@@ -119,13 +147,13 @@ class SurveyFit:
         for bid, res in self.results.items():
             depth = float(self.survey.beacons.loc[bid, "depth"])
             fr = res.class_fractions
-            rows.append({"beacon": bid, "hrp_m": res.d0, "sigma_mp_m": res.sigma_mp,
+            rows.append({"beacon": bid, "d0_m": res.d0, "sigma_mp_m": res.sigma_mp,
                          "beacon_depth_m": depth, "plane_depth_m": depth - res.d0,
                          "sigma_dp_m": res.sigma_dp, **fr, "n": res.n,
                          "converged": res.converged, "path": res.path,
                          "path_margin": (self.path_choices[bid].margin
                                          if bid in self.path_choices else float("nan"))})
-        return pd.DataFrame(rows)
+        return _FitTable(rows)
 
     def format_table(self) -> str:
         """Format the :meth:`table` as aligned text for a terminal.
@@ -135,11 +163,11 @@ class SurveyFit:
         str
         """
         t = self.table()
-        lines = [f"{'beacon':>6} {'HRP d0 (m)':>11} {'sigma_MP (m)':>12} {'depth (m)':>10} "
+        lines = [f"{'beacon':>6} {'d0 (m)':>11} {'sigma_MP (m)':>12} {'depth (m)':>10} "
                  f"{'plane (m)':>9} {'DP':>6} {'MP':>6} {'OL':>6} {'n':>6} {'path':>8} "
                  f"{'margin':>7}"]
         for r in t.itertuples():
-            lines.append(f"{r.beacon:>6} {r.hrp_m:11.1f} {r.sigma_mp_m:12.2f} "
+            lines.append(f"{r.beacon:>6} {r.d0_m:11.1f} {r.sigma_mp_m:12.2f} "
                          f"{r.beacon_depth_m:10.1f} {r.plane_depth_m:9.1f} {r.dp:6.3f} "
                          f"{r.mp:6.3f} {r.ol:6.3f} {r.n:6d} {r.path:>8} {r.path_margin:7.0f}")
         for bid, why in self.skipped.items():
@@ -220,8 +248,8 @@ def fit(
         Beacons with fewer replies are left unfitted, with a warning.
     rng : None, int or numpy.random.Generator
     **kwargs
-        Passed to :func:`~bayes_mpem.em.fit_mixture_em` or
-        :func:`~bayes_mpem.em.fit_paper_em`.
+        Passed to :func:`~bayes_mpem.lbl.em_mixture.fit_mixture_em` or
+        :func:`~bayes_mpem.lbl.em_paper.fit_paper_em`.
 
     Returns
     -------
@@ -229,7 +257,7 @@ def fit(
 
     Raises
     ------
-    bayes_mpem.data.InputError
+    bayes_mpem.exceptions.InputError
         For invalid input (the message names the file, row and column).
     ValueError
         For invalid options.

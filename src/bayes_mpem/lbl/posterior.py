@@ -42,7 +42,27 @@ PARAMS = ("d0", "sigma_mp", "sigma_dp", "w_dp", "w_mp", "w_ol")
 def check_sample_options(*, priors="learned", ci=0.95, n_ensembles=1, concentration=1.0,
                          sigma_dp=None, path="triangle", tau_factor=50.0, min_ess=1000.0,
                          max_steps=20000, n_draws=2000):
-    """Validate the sampler's options before any work (``ValueError`` naming the option)."""
+    """Validate the sampler's options before any work (``ValueError`` naming the option).
+
+    Parameters
+    ----------
+    priors, ci, n_ensembles, concentration, sigma_dp, path, tau_factor, min_ess, max_steps, \
+n_draws
+        As for :func:`~bayes_mpem.lbl.beacon_sampling.sample_beacon`.
+
+    Raises
+    ------
+    ValueError
+        For the first invalid option, naming it.
+
+    Examples
+    --------
+    >>> check_sample_options(ci=0.9)
+    >>> check_sample_options(priors="flat")
+    Traceback (most recent call last):
+    ...
+    ValueError: priors: expected one of ('equal', 'learned'), got 'flat'
+    """
     from .geometry import check_path
 
     check_path(path)
@@ -165,6 +185,16 @@ class BeaconPosterior:
 
         Works on the sampler's coordinates directly, so a proposal far outside
         the support is rejected without overflowing ``exp``.
+
+        Parameters
+        ----------
+        theta : array_like
+            ``(W, ndim)`` walkers in the order of :attr:`names` (or one ``(ndim,)`` point).
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(W,)`` log prior densities.
         """
         theta = np.atleast_2d(theta)
         col = {n: theta[:, i] for i, n in enumerate(self.names)}
@@ -184,7 +214,18 @@ class BeaconPosterior:
         return out
 
     def outside_prior(self, params: dict) -> list:
-        """Which natural parameters of ``params`` (e.g. an EM result) lie outside the prior."""
+        """Which natural parameters of ``params`` (e.g. an EM result) lie outside the prior.
+
+        Parameters
+        ----------
+        params : dict
+            ``d0``, ``sigma_mp``, ``sigma_dp`` and ``weights`` (as ``EMResult.params``).
+
+        Returns
+        -------
+        list of str
+            One message per parameter outside the prior's support (empty when none is).
+        """
         lo, hi = np.exp(self.log_sigma_bounds)
         out = []
         if not self.d0_bounds[0] <= params["d0"] <= self.d0_bounds[1]:
@@ -231,7 +272,18 @@ class BeaconPosterior:
                                      p["w_mp"], p["w_ol"])
 
     def theta_from(self, params: dict):
-        """Sampler coordinates of a dict of natural parameters (e.g. an EM result)."""
+        """Sampler coordinates of a dict of natural parameters (e.g. an EM result).
+
+        Parameters
+        ----------
+        params : dict
+            ``d0``, ``sigma_mp``, ``sigma_dp`` and ``weights`` (as ``EMResult.params``).
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(ndim,)``, in the order of :attr:`names`.
+        """
         vals = {"d0": params["d0"], "log_sigma_mp": np.log(params["sigma_mp"]),
                 "log_sigma_dp": np.log(params["sigma_dp"]),
                 "w_dp": params["weights"]["dp"], "w_mp": params["weights"]["mp"]}

@@ -19,7 +19,16 @@ from ..mixture.densities import CLASSES
 
 
 def beacons_table(survey: Survey) -> dict:
-    """Beacon positions as ``{id: {"x", "y", "depth"}}`` (written into summaries)."""
+    """Beacon positions as ``{id: {"x", "y", "depth"}}`` (written into summaries).
+
+    Parameters
+    ----------
+    survey : Survey
+
+    Returns
+    -------
+    dict
+    """
     return {b: {k: float(v) for k, v in row.items()}
             for b, row in survey.beacons[["x", "y", "depth"]].iterrows()}
 

@@ -8,7 +8,6 @@ enough, :func:`run_ensembles` several from their own start balls and seeds, and
 
 from __future__ import annotations
 
-import sys
 import warnings
 from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
@@ -18,6 +17,7 @@ import numpy as np
 
 from ..exceptions import SamplingWarning
 from .moves import default_moves
+from .progress import SamplingProgress
 
 
 @runtime_checkable
@@ -39,7 +39,18 @@ class LogPosterior(Protocol):
     label: str
 
     def start(self, n_walkers: int, gen: np.random.Generator) -> np.ndarray:
-        """Return initial positions, ``(n_walkers, ndim)``, inside the support."""
+        """Return initial positions, ``(n_walkers, ndim)``, inside the support.
+
+        Parameters
+        ----------
+        n_walkers : int
+        gen : numpy.random.Generator
+            The stream to draw the positions from.
+
+        Returns
+        -------
+        numpy.ndarray
+        """
         ...  # pragma: no cover
 
     def __call__(self, theta: np.ndarray) -> np.ndarray:
@@ -48,22 +59,6 @@ class LogPosterior(Protocol):
 
 
 # ------------------------------------------------------------------ the loop
-
-
-def progress_bar(progress, desc: str):
-    """Open a tqdm bar counting steps labelled ``desc``; None unless ``progress``.
-
-    ``progress="auto"``: only when standard error is a terminal.
-    """
-    if progress == "auto":
-        progress = sys.stderr.isatty()
-    if not progress:
-        return None
-    try:
-        from tqdm.auto import tqdm
-    except ImportError:  # pragma: no cover - tqdm is a dependency
-        return None
-    return tqdm(desc=desc, unit="step", leave=False)
 
 
 def _bulk_ess_min(chain):
@@ -240,8 +235,11 @@ def run_ensemble(post: LogPosterior, start, *, seed, moves=None, tau_factor=50.0
         The most steps between two checks of the stopping rule; after the first
         block, the next check is planned where the rule should hold
         (:func:`next_block`).
-    progress : bool or "auto"
-        Progress bar (``"auto"``: when standard error is a terminal).
+    progress : bool or {"auto", "bar", "log"}
+        A bar with the expected steps as its total (``"bar"``, True), one line of
+        progress every few seconds on standard error (``"log"``), either as standard
+        error is a terminal or not (``"auto"``), or nothing (False); see
+        :mod:`bayes_mpem.mcmc.progress`.
 
     Returns
     -------
@@ -262,9 +260,11 @@ def run_ensemble(post: LogPosterior, start, *, seed, moves=None, tau_factor=50.0
     sampler = emcee.EnsembleSampler(n_walkers, ndim, post, vectorize=True,
                                     moves=moves or default_moves())
     sampler.random_state = np.random.RandomState(seed % 2**32).get_state()
-    bar = progress_bar(progress, post.label)
+    report = SamplingProgress(progress, post.label, n_walkers=n_walkers,
+                              tau_factor=tau_factor, min_ess=min_ess, max_steps=max_steps,
+                              check_every=check_every)
     state, burn, tau, converged = start, 0, np.full(ndim, np.inf), False
-    ess_bulk, block = 0.0, check_every
+    ess_bulk, block = None, check_every
     try:
         while sampler.iteration < max_steps:
             block = min(block, max_steps - sampler.iteration)
@@ -274,10 +274,7 @@ def run_ensemble(post: LogPosterior, start, *, seed, moves=None, tau_factor=50.0
             kept = sampler.iteration - burn
             if kept > 0:
                 tau = sampler.get_autocorr_time(discard=burn, tol=0, quiet=True)
-            if bar is not None:
-                bar.update(block)
-                bar.set_postfix(tau=f"{np.max(tau):.0f}",
-                                ess=f"{kept * n_walkers / np.max(tau):.0f}")
+            report.update(sampler.iteration, burn, float(np.max(tau)))
             long_enough = (kept > 0 and np.all(np.isfinite(tau))
                            and kept >= tau_factor * np.max(tau)
                            and kept * n_walkers / np.max(tau) >= min_ess)
@@ -288,16 +285,16 @@ def run_ensemble(post: LogPosterior, start, *, seed, moves=None, tau_factor=50.0
                     converged = True
                     break
             block = next_block(sampler.iteration, burn, np.max(tau), n_walkers,
-                               tau_factor=tau_factor, min_ess=min_ess, ess_bulk=ess_bulk,
-                               check_every=check_every)
+                               tau_factor=tau_factor, min_ess=min_ess,
+                               ess_bulk=ess_bulk or 0.0, check_every=check_every)
     finally:
-        if bar is not None:
-            bar.close()
+        report.close()
     kept = sampler.iteration - burn
+    ess = max(kept, 0) * n_walkers / np.max(tau)
+    report.finish(step=sampler.iteration, converged=converged, ess=ess, ess_bulk=ess_bulk)
     status = (f"{sampler.iteration} steps, burn-in {burn}, kept {kept} = "
               f"{kept / np.max(tau):.1f} tau (needs {tau_factor:g}), emcee ESS "
-              f"{max(kept, 0) * n_walkers / np.max(tau):.0f} and bulk ESS "
-              f"{ess_bulk:.0f} (need {min_ess:g})")
+              f"{ess:.0f} and bulk ESS {ess_bulk or 0:.0f} (need {min_ess:g})")
     return sampler, burn, tau, converged, status
 
 

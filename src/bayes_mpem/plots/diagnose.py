@@ -10,15 +10,45 @@ from pathlib import Path
 
 import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.ticker import FuncFormatter
 
 from .._validate import check_choice
 from ..lbl.diagnosis.model import predict
 from ..lbl.diagnosis.residuals import covariates
+from .style import CLASS_NAMES, class_color
 
 _COV_LABELS = {"time": "time (s)", "range": "direct-path length (m)",
                "elevation": "elevation angle (deg)", "vehicle_depth": "vehicle depth (m)",
                "bearing": "bearing from beacon (deg)"}
-_CLASS_COLORS = {"dp": "tab:blue", "mp": "tab:red", "mp2": "tab:purple", "ol": "0.5"}
+
+
+def running_mean(p, window: int):
+    """Centred running mean over ``window`` values, over fewer at the ends (no dip there).
+
+    Parameters
+    ----------
+    p : array_like
+        Values in order (e.g. class probabilities sorted by time).
+    window : int
+        Values averaged; at the ends the window shrinks to those that exist.
+
+    Returns
+    -------
+    numpy.ndarray
+
+    Examples
+    --------
+    >>> running_mean([1.0, 1.0, 1.0, 1.0], 3).tolist()
+    [1.0, 1.0, 1.0, 1.0]
+    >>> running_mean([0.0, 3.0, 6.0], 3).tolist()
+    [1.5, 3.0, 4.5]
+    """
+    p = np.asarray(p, float)
+    c = np.concatenate([[0.0], np.cumsum(p)])
+    i = np.arange(p.size)
+    half = int(window) // 2
+    lo, hi = np.maximum(i - half, 0), np.minimum(i + half + 1, p.size)
+    return (c[hi] - c[lo]) / (hi - lo)
 
 
 def _binned(x, r, n_bins=12):
@@ -106,7 +136,6 @@ def plot_classes_vs_time(diagnosis, *, model="final", fig=None, window=101):
     if fig is None:
         fig = plt.figure(figsize=(10, 1.9 * d.nb + 0.6), layout="constrained")
     axes = fig.subplots(d.nb, 1, squeeze=False, sharex=True)[:, 0]
-    kernel = np.ones(window) / window
     for j, (ax, bid) in enumerate(zip(axes, d.ids, strict=True)):
         sel = np.flatnonzero(d.bi == j)
         sel = sel[np.argsort(d.time[sel], kind="stable")]
@@ -114,12 +143,12 @@ def plot_classes_vs_time(diagnosis, *, model="final", fig=None, window=101):
             p = fit.resp[sel, c]
             if name == "mp2" and not p.any():
                 continue
-            w = min(window, p.size)
-            run = np.convolve(p, kernel[:w] * window / w, mode="same") if w > 0 else p
-            ax.plot(d.time[sel], run, color=_CLASS_COLORS[name], label=name)
+            ax.plot(d.time[sel], running_mean(p, window), color=class_color(name),
+                    label=CLASS_NAMES[name])
         ax.set_ylim(0, 1)
         ax.set_ylabel(f"beacon {bid}")
-    axes[0].legend(ncol=4, fontsize="small")
+    fig.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", ncol=4,
+               fontsize="small")
     axes[-1].set_xlabel("time (s)")
     fig.suptitle(f"Class probabilities against time ({model} model, running mean of {window})")
     return fig
@@ -155,6 +184,7 @@ def plot_candidates(diagnosis, *, fig=None):
         ax.axvline(diagnosis.settings["min_gain"], color="k", ls=":", lw=0.8)
         ax.axvline(0.0, color="k", lw=0.6)
         ax.set_xscale("symlog", linthresh=10.0)
+        ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))  # 1000, not 10^3
         ax.set_xlabel("held-out log predictive density gain (nats)")
         ax.set_title(f"round {rnd}", fontsize="medium")
     fig.suptitle("Extensions tried (green: kept; bars ± 2 SE; dotted: minimum gain)")

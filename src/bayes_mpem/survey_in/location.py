@@ -174,7 +174,19 @@ class LocateResult:
         return int(np.sum(self.p_true < 0.5))
 
     def interval(self, name: str, ci: float = 0.95) -> list:
-        """Approximate (Wald) interval of a parameter with probability ``ci``."""
+        """Approximate (Wald) interval of a parameter with probability ``ci``.
+
+        Parameters
+        ----------
+        name : str
+            A reported parameter (``east``, ``north``, ``depth``, ``sound_speed``, ...).
+        ci : float
+
+        Returns
+        -------
+        list of float
+            ``[lower, upper]``.
+        """
         from scipy.stats import norm
 
         v = {"east": self.east, "north": self.north, "depth": self.depth,
@@ -183,7 +195,17 @@ class LocateResult:
         return [v - half, v + half]
 
     def to_dict(self, ci: float = 0.95) -> dict:
-        """JSON-ready summary; intervals are approximate (Wald, from the EM)."""
+        """JSON-ready summary; intervals are approximate (Wald, from the EM).
+
+        Parameters
+        ----------
+        ci : float
+            Probability of the intervals.
+
+        Returns
+        -------
+        dict
+        """
         out = {k: {"mean": getattr(self, k), "sd": self.sd.get(k, 0.0),
                    "interval": self.interval(k, ci)}
                for k in ("east", "north", "depth", "sound_speed")}

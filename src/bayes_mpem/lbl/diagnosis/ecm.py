@@ -45,16 +45,15 @@ from ...mixture.gauss_newton import safeguarded_step
 from .. import geometry
 from ..em_mixture import fit_mixture_em, histogram_modes
 from ..path_choice import choose_path
+from .constraints import is_feasible, repair
 from .model import (
     Params,
     Ranges,
     e_step,
     get_vector,
     implied_depths,
-    is_feasible,
     mean_names,
     predict,
-    repair,
     set_vector,
     weighted_sse,
 )
@@ -156,7 +155,17 @@ class JointFit:
     history: list = field(default_factory=list)
 
     def magnitudes(self, data: Ranges) -> dict:
-        """Signed magnitude of every effect switched on (see :data:`UNITS`)."""
+        """Signed magnitude of every effect switched on (see :data:`UNITS`).
+
+        Parameters
+        ----------
+        data : Ranges
+            The replies the fit was made on.
+
+        Returns
+        -------
+        dict of str to float
+        """
         p, out = self.params, {}
         if "range_bias" in self.effects:
             out["range_bias"] = p.bias
@@ -173,7 +182,19 @@ class JointFit:
         return {k: float(v) for k, v in out.items()}
 
     def beacons(self, data: Ranges) -> dict:
-        """Per-beacon parameters: ``d0`` (plane height above the beacon at the first ping), ..."""
+        """Per-beacon parameters: ``d0`` (plane height above the beacon at the first ping), ...
+
+        Parameters
+        ----------
+        data : Ranges
+            The replies the fit was made on.
+
+        Returns
+        -------
+        dict
+            Per beacon id: ``n_ranges``, ``d0``, ``plane_depth``, ``sigma_dp``,
+            ``sigma_mp``, ``weights`` (``d0_last``, ``sigma_mp2`` with the effects).
+        """
         p, out = self.params, {}
         for j, bid in enumerate(data.ids):
             sel = data.bi == j

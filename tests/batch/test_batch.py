@@ -178,9 +178,29 @@ def test_flatten_keeps_every_field():
 
 
 def test_every_batch_command_has_its_option_builder():
-    """Adding a command (navigate) is one entry of COMMANDS and one of the CLI's KWARGS."""
+    """A command is one entry of COMMANDS, one of the CLI's KWARGS and one parser choice."""
     from bayes_mpem.batch import COMMANDS
     from bayes_mpem.cli.batch import KWARGS
+    from bayes_mpem.cli.parser import BATCH_COMMANDS
 
-    assert set(KWARGS) == set(COMMANDS) == {"fit", "sample", "diagnose", "locate"}
+    assert set(KWARGS) == set(COMMANDS) == set(BATCH_COMMANDS) == {
+        "fit", "sample", "diagnose", "locate", "navigate"}
     assert build_parser().parse_args(["batch", "m.csv", "--out", "o"]).batch_command == "fit"
+
+
+def test_navigate_in_a_batch_gives_the_same_files_as_alone(scheduler, tmp_path):
+    dive = tmp_path / "dive"
+    assert main(["simulate", "--navigation", "--seed", "2", "--n-cycles", "200",
+                 "--out", str(dive)]) == 0
+    manifest = tmp_path / "m.csv"
+    manifest.write_text(f"name,pings,beacons,model\nd,{dive / 'pings.csv'},"
+                        f"{dive / 'beacons.csv'},mixture\n")
+    result = run_batch(_tasks(manifest, "navigate"), tmp_path / "out", scheduler=scheduler,
+                       progress=False)
+    assert result.failures.empty, result.failures
+    assert main(["navigate", str(dive / "pings.csv"), "--beacons", str(dive / "beacons.csv"),
+                 "--out", str(tmp_path / "alone")]) == 0
+    for name in ("summary.json", "classified.csv", "track.csv"):
+        assert ((tmp_path / "out" / "surveys" / "d" / name).read_bytes()
+                == (tmp_path / "alone" / name).read_bytes()), name
+    assert {"name", "beacon", "d0_estimate"} <= set(result.beacons)

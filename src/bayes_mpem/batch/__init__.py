@@ -2,7 +2,7 @@
 
 A *manifest* (CSV with a header) lists the surveys of an archive, one a row:
 ``name``, ``pings``, ``beacons`` for the LBL commands (``fit``, ``sample``,
-``diagnose``), or ``name``, ``survey``, ``format`` for the survey-in command
+``diagnose``, ``navigate``), or ``name``, ``survey``, ``format`` for the survey-in command
 (``locate``); relative paths are relative to the manifest's folder. Other
 columns are options of the command (the command line checks them as it checks
 its own options, :mod:`bayes_mpem.cli.batch`).
@@ -31,8 +31,8 @@ When every task is done the tables are gathered under ``DIR``:
 A remote scheduler's workers must see ``DIR`` and the input files at the same
 paths (a shared file system). See ``docs/cli.md``.
 
-The commands are the entries of :data:`COMMANDS`; adding one (``navigate``, when
-it lands) is one more entry.
+The commands are the entries of :data:`COMMANDS` (``navigate`` was added as one
+more entry, with its option builder in :mod:`bayes_mpem.cli.batch`).
 """
 
 from .commands import COMMANDS, Command, flatten, locate_raw

@@ -1,7 +1,8 @@
 """The commands a batch runs, one entry each: how to run one on a survey, and what to keep.
 
 Adding a command to ``bayes-mpem batch`` is one more entry of :data:`COMMANDS`
-(``navigate``, when it lands).
+(``navigate`` was added so: this entry, its option builder in
+:data:`bayes_mpem.cli.batch.KWARGS` and its name in the parser's choices).
 """
 
 from __future__ import annotations
@@ -30,6 +31,12 @@ def _run_diagnose(inputs, options):
     from ..lbl.diagnosis.driver import diagnose
 
     return diagnose(inputs["pings"], inputs["beacons"], **{"progress": False, **options})
+
+
+def _run_navigate(inputs, options):
+    from ..lbl.navigate import navigate
+
+    return navigate(inputs["pings"], inputs["beacons"], **options)
 
 
 def locate_raw(raw, options: dict):
@@ -105,6 +112,8 @@ COMMANDS = {
     "sample": Command("sample", LBL_INPUTS, LBL_INPUTS, _run_sample,
                       lambda r: r.summary()["beacons"], lambda r: r.classified()),
     "diagnose": Command("diagnose", LBL_INPUTS, LBL_INPUTS, _run_diagnose, _diagnosis_beacons),
+    "navigate": Command("navigate", LBL_INPUTS, LBL_INPUTS, _run_navigate,
+                        lambda r: r.summary()["beacons"], lambda r: r.classified()),
     "locate": Command("locate", SURVEY_INPUTS, ("survey",), _run_locate,
                       lambda r: r.summary["transponders"], lambda r: r.classified),
 }

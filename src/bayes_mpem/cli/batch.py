@@ -18,15 +18,17 @@ from dataclasses import replace
 
 from ..batch import read_manifest, run_batch
 from ..exceptions import InputError
-from . import lbl, survey_in
+from . import lbl, navigate, survey_in
 from .errors import OptionError
 
 #: per command, the library keyword arguments from the parsed options
 KWARGS = {"fit": lbl.fit_kwargs, "sample": lbl.sample_command_kwargs,
-          "diagnose": lbl.diagnose_kwargs, "locate": survey_in.locate_kwargs}
+          "diagnose": lbl.diagnose_kwargs, "locate": survey_in.locate_kwargs,
+          "navigate": navigate.navigate_kwargs}
 #: options a batch sets itself (or never uses): not allowed as manifest columns
+#: (``dead_reckoning`` names a file: a batch hashes only the manifest's input columns)
 NOT_OPTIONS = {"help", "out", "pings", "beacons", "survey", "format", "figures", "no_figures",
-               "no_progress"}
+               "no_progress", "palette", "dead_reckoning"}
 TRUE, FALSE = {"true", "yes", "1"}, {"false", "no", "0", ""}
 
 

@@ -34,7 +34,7 @@ COMMANDS: dict[str, str] = {
 #: the commands ``bayes-mpem batch --command`` runs: the keys of ``bayes_mpem.batch.COMMANDS``
 #: (spelled out here so that building the parser imports neither pandas nor Dask; a test
 #: keeps the two equal)
-BATCH_COMMANDS = ("fit", "sample", "diagnose", "locate")
+BATCH_COMMANDS = ("fit", "sample", "diagnose", "locate", "navigate")
 #: the sub-commands that draw figures take ``--palette`` (the class colours)
 FIGURE_COMMANDS = ("demo", "fit", "sample", "compare", "plot", "diagnose", "navigate")
 PALETTES = ("okabe-ito", "paper")  # bayes_mpem.plots.style.PALETTES, without numpy

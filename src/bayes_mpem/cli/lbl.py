@@ -90,6 +90,42 @@ def sample_kwargs(args) -> dict:
                 progress=False if args.no_progress else "auto")
 
 
+def sample_command_kwargs(args) -> dict:
+    """Keyword arguments of :func:`~bayes_mpem.lbl.sampling.sample` from ``bayes-mpem sample``.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+
+    Returns
+    -------
+    dict
+    """
+    return dict(priors=args.priors, ci=args.ci, n_ensembles=args.ensembles,
+                **sample_kwargs(args))
+
+
+def diagnose_kwargs(args) -> dict:
+    """Keyword arguments of :func:`~bayes_mpem.lbl.diagnosis.driver.diagnose` from its options.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+
+    Returns
+    -------
+    dict
+    """
+    effects = EFFECTS if args.effects is None else tuple(
+        e.strip() for e in args.effects.split(",") if e.strip())
+    unknown = [e for e in effects if e not in EFFECTS]
+    if unknown or not effects:
+        raise OptionError(f"--effects: expected a comma-separated list of {', '.join(EFFECTS)}; "
+                          f"got {args.effects!r}")
+    return dict(effects=effects, path=args.path, n_folds=args.folds, min_gain=args.min_gain,
+                min_pings=args.min_pings, rng=args.seed, progress=not args.no_progress)
+
+
 def _print_written(paths) -> None:
     for p in paths:
         print(f"wrote {p}")
@@ -280,8 +316,7 @@ def cmd_sample(args) -> int:
     """
     from ..lbl.sampling import sample
 
-    result = sample(args.pings, args.beacons, priors=args.priors, ci=args.ci,
-                    n_ensembles=args.ensembles, **sample_kwargs(args))
+    result = sample(args.pings, args.beacons, **sample_command_kwargs(args))
     out = Path(args.out)
     paths = list(result.write(out, table_format=args.table_format).values())
     if args.figures:
@@ -329,17 +364,9 @@ def cmd_diagnose(args) -> int:
     int
         Exit status 0.
     """
-    effects = EFFECTS if args.effects is None else tuple(
-        e.strip() for e in args.effects.split(",") if e.strip())
-    unknown = [e for e in effects if e not in EFFECTS]
-    if unknown or not effects:
-        raise OptionError(f"--effects: expected a comma-separated list of {', '.join(EFFECTS)}; "
-                          f"got {args.effects!r}")
     from ..lbl.diagnosis.driver import diagnose
 
-    result = diagnose(args.pings, args.beacons, effects=effects, path=args.path,
-                      n_folds=args.folds, min_gain=args.min_gain, min_pings=args.min_pings,
-                      rng=args.seed, progress=not args.no_progress)
+    result = diagnose(args.pings, args.beacons, **diagnose_kwargs(args))
     paths = list(result.write(args.out).values())
     if not args.no_figures:
         paths += write_figures(result, args.out)

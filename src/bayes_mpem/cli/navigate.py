@@ -143,6 +143,23 @@ def cmd_simulate_navigation(args) -> int:
     return 0
 
 
+def navigate_kwargs(args) -> dict:
+    """Keyword arguments of :func:`~bayes_mpem.lbl.navigate.navigate` from its options.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+
+    Returns
+    -------
+    dict
+    """
+    return dict(dead_reckoning=args.dead_reckoning, multipath=args.multipath, model=args.model,
+                path=args.path, dr_noise=args.dr_noise, start_sd=args.start_sd,
+                heading_sd=args.heading_sd, scale_sd=args.scale_sd, sigma_dp=args.sigma_dp,
+                min_pings=args.min_pings, max_sd=args.max_sd, rng=args.seed)
+
+
 def cmd_navigate(args) -> int:
     """Run ``bayes-mpem navigate``.
 
@@ -158,11 +175,7 @@ def cmd_navigate(args) -> int:
     from ..lbl.navigate import navigate
     from ..report import write_figures
 
-    nav = navigate(args.pings, args.beacons, dead_reckoning=args.dead_reckoning,
-                   multipath=args.multipath, model=args.model, path=args.path,
-                   dr_noise=args.dr_noise, start_sd=args.start_sd, heading_sd=args.heading_sd,
-                   scale_sd=args.scale_sd, sigma_dp=args.sigma_dp, min_pings=args.min_pings,
-                   max_sd=args.max_sd, rng=args.seed)
+    nav = navigate(args.pings, args.beacons, **navigate_kwargs(args))
     out = Path(args.out)
     paths = list(nav.write(out).values())
     if args.figures:

@@ -34,7 +34,12 @@ COMMANDS: dict[str, str] = {
     "locate": "survey_in",
     "navigate": "navigate",
     "stream": "stream",
+    "batch": "batch",
 }
+#: the commands ``bayes-mpem batch --command`` runs: the keys of ``bayes_mpem.batch.COMMANDS``
+#: (spelled out here so that building the parser imports neither pandas nor Dask; a test
+#: keeps the two equal)
+BATCH_COMMANDS = ("fit", "sample", "diagnose", "locate", "navigate")
 #: the sub-commands that draw figures take ``--palette`` (the class colours)
 FIGURE_COMMANDS = ("demo", "fit", "sample", "compare", "plot", "diagnose", "navigate", "locate")
 PALETTES = ("okabe-ito", "paper")  # bayes_mpem.plots.style.PALETTES, without numpy
@@ -225,13 +230,30 @@ def _simulate_handler(args, cmd_simulate):
     return cmd_simulate
 
 
+def _add_batch(sub):
+    p = sub.add_parser("batch", help="run a command on every survey of a manifest (Dask)")
+    p.add_argument("manifest", metavar="MANIFEST",
+                   help="CSV: name, pings, beacons (or name, survey, format for locate), then "
+                        "option columns named as the command's options (e.g. sigma_dp)")
+    p.add_argument("--out", required=True, metavar="DIR")
+    p.add_argument("--command", dest="batch_command", choices=BATCH_COMMANDS, default="fit",
+                   help="the command run on each survey (default fit)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="address of a running Dask scheduler (default: a local cluster)")
+    p.add_argument("--workers", type=int, default=None, metavar="N",
+                   help="workers of the local cluster (default 1)")
+    p.add_argument("--no-progress", action="store_true", help="no progress lines on stderr")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Build the argument parser of ``bayes-mpem`` (exposed for the docs).
 
     Returns
     -------
     argparse.ArgumentParser
-        With one sub-parser per command, in the order ``--help`` lists them.
+        With one sub-parser per command, in the order ``--help`` lists them; the
+        parsed arguments carry them as ``subparsers`` (``bayes-mpem batch`` checks
+        the option columns of a manifest with the command's own sub-parser).
 
     Examples
     --------
@@ -250,11 +272,13 @@ def build_parser() -> argparse.ArgumentParser:
     _add_sample_compare(sub)
     navigate.add_navigate(sub)
     stream.add_stream(sub)
+    _add_batch(sub)
     for name in FIGURE_COMMANDS:
         sub.choices[name].add_argument(
             "--palette", choices=PALETTES, default="okabe-ito",
             help="class colours of the figures: colour-blind safe (default) or the "
                  "paper's blue, red and green")
+    parser.set_defaults(subparsers=sub.choices)
     return parser
 
 

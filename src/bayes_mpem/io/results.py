@@ -72,8 +72,10 @@ import os
 import tempfile
 from pathlib import Path
 
+import numpy as np
+
 from ..exceptions import InputError
-from .documents import finite_json, json_text, split_timings
+from .documents import finite_json, json_text, numpy_to_json, split_timings
 from .table_files import write_table_file
 
 MARKER = "summary.json"
@@ -444,3 +446,48 @@ def read_marker(folder, *, check: bool = True) -> dict:
                              f"{'is' if len(missing) == 1 else 'are'} missing: the folder is "
                              "not a complete output")
     return doc
+
+
+def _uniform_column(col):
+    """Return a column Parquet can store: mixed kinds of values become JSON text."""
+    values = [v for v in col if v is not None and not (isinstance(v, float) and v != v)]
+    kinds = {"text" if isinstance(v, str) else
+             "number" if isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(
+                 v, bool) else "bool" if isinstance(v, (bool, np.bool_)) else "other"
+             for v in values}
+    if len(kinds) <= 1 and "other" not in kinds:
+        return col
+    return col.map(lambda v: None if v is None else
+                   v if isinstance(v, str) else json.dumps(v, default=numpy_to_json))
+
+
+def write_parquet(path, table) -> Path:
+    """Write a table as Parquet (pyarrow) without its index, through :func:`write_file`.
+
+    Object columns that mix kinds of values (text and numbers, lists) are stored
+    as JSON text, so that every column has one Parquet type.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+    table : pandas.DataFrame
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> import pandas as pd
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     p = write_parquet(tmp + "/t.parquet", pd.DataFrame({"a": [1, None], "b": ["x", 2]}))
+    ...     pd.read_parquet(p)["b"].tolist()
+    ['x', '2']
+    """
+    table = table.copy()
+    for name in table.columns:
+        if table[name].dtype == object:
+            table[name] = _uniform_column(table[name])
+    return write_file(path, lambda tmp: table.to_parquet(tmp, index=False))

@@ -39,3 +39,7 @@ class LocateWarning(UserWarning):
 
 class PathChoiceWarning(FitQualityWarning):
     """A forced multipath geometry fits clearly worse than the other one (see ``path="auto"``)."""
+
+
+class ModelCheckWarning(FitQualityWarning):
+    """The ranges depart from the fitted model in a way its checks see (``bayes-mpem diagnose``)."""

@@ -20,8 +20,9 @@ from bayes_mpem.cli import main
 from bayes_mpem.exceptions import InputError
 from bayes_mpem.io.survey import load_survey
 from bayes_mpem.lbl.diagnosis.driver import diagnose
-from bayes_mpem.lbl.diagnosis.ecm import baseline_start, fit_joint, replant
+from bayes_mpem.lbl.diagnosis.ecm import fit_joint
 from bayes_mpem.lbl.diagnosis.model import ranges
+from bayes_mpem.lbl.diagnosis.starts import baseline_start, replant
 from bayes_mpem.lbl.effects import EFFECTS
 from bayes_mpem.lbl.em_mixture import fit_mixture_em
 from bayes_mpem.lbl.simulate import simulate_survey
@@ -35,8 +36,9 @@ import independent_generator as indep  # noqa: E402
 #: random sign). plane_drift starts at 4 m: docs/diagnose.md measures the detection limit.
 SIM_RANGES = {"range_bias": (1.0, 15.0), "sound_speed": (0.002, 0.02),
               "plane_drift": (4.0, 10.0), "second_reflector": (150.0, 1500.0),
-              "early_outliers": (0.05, 0.2), "nav_drift": (10.0, 60.0)}
-SIGNED = {"range_bias", "sound_speed", "plane_drift"}
+              "early_outliers": (0.05, 0.2), "nav_drift": (10.0, 60.0),
+              "beacon_bias": (2.0, 15.0), "beacon_position": (10.0, 60.0)}
+SIGNED = {"range_bias", "sound_speed", "plane_drift", "beacon_bias"}
 D0_LIMIT = 3.0  # the clean-data recovery limit of the mixture EM (docs/recovery.md)
 
 
@@ -51,10 +53,14 @@ def _sim(names, seed):
     eff = {n: _draw(n, gen) for n in names}
     if "nav_drift" in eff:
         eff["nav_drift_direction"] = float(gen.uniform(0.0, 360.0))
+    target = None
+    if {"beacon_bias", "beacon_position"} & set(eff):
+        target = str(gen.integers(1, 5))
+        eff.update(beacon=target, beacon_position_direction=float(gen.uniform(0.0, 360.0)))
     sim = simulate_survey("abe58", rng=seed, effects=eff)
     truth = sim.truth["1"]["effects"]
     d0 = {k: v["d0"] for k, v in sim.truth.items()}
-    return sim.survey, None, truth, d0
+    return sim.survey, None, truth, d0, target
 
 
 def _indep(names, seed):
@@ -64,15 +70,19 @@ def _indep(names, seed):
     if len(names) > 1:
         kw["second_effect"] = names[1]
     g = indep.generate(seed=seed, **kw)
-    return g["pings"], g["beacons"], dict(g["truth"]["effects"]), g["truth"]["d0"]
+    t = g["truth"]
+    return g["pings"], g["beacons"], dict(t["effects"]), t["d0"], t["effect_beacon"]
 
 
 GENERATORS = {"simulator": _sim, "independent": _indep}
 
 
-def _check(result, truth, d0):
+def _check(result, truth, d0, target=None):
     found = {e.name: e.magnitude for e in result.effects}
     assert set(found) == set(truth), (found, truth, result.candidates)
+    for e in result.effects:  # a per-beacon effect names its beacon
+        if e.name in ("beacon_bias", "beacon_position"):
+            assert e.beacons == [target], (e, target)
     for name, value in truth.items():
         assert abs(found[name] - value) <= 0.3 * abs(value), (name, found[name], value)
     final = result.final.beacons(result.data)
@@ -83,7 +93,7 @@ def _check(result, truth, d0):
 @pytest.mark.parametrize("gen_name", list(GENERATORS))
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_clean_survey_gives_no_effect(gen_name, seed):
-    pings, beacons, truth, d0 = GENERATORS[gen_name]([], seed)
+    pings, beacons, truth, d0, _ = GENERATORS[gen_name]([], seed)
     result = diagnose(pings, beacons, rng=seed, progress=False)
     assert truth == {}
     assert result.effects == []
@@ -96,13 +106,14 @@ def test_clean_survey_gives_no_effect(gen_name, seed):
 @pytest.mark.parametrize("effect", EFFECTS)
 @pytest.mark.parametrize("seed", [3, 4])
 def test_one_hidden_effect_is_found_and_sized(gen_name, effect, seed):
-    pings, beacons, truth, d0 = GENERATORS[gen_name]([effect], seed)
+    pings, beacons, truth, d0, target = GENERATORS[gen_name]([effect], seed)
     result = diagnose(pings, beacons, rng=seed, progress=False)
-    _check(result, truth, d0)
+    _check(result, truth, d0, target)
     (e,) = result.effects
     assert e.delta_elpd > 4.0 and e.delta_elpd > 2 * e.delta_elpd_se
     assert e.unit == {"range_bias": "m", "sound_speed": "1", "plane_drift": "m",
-                      "second_reflector": "m", "early_outliers": "1", "nav_drift": "m"}[effect]
+                      "second_reflector": "m", "early_outliers": "1", "nav_drift": "m",
+                      "beacon_bias": "m", "beacon_position": "m"}[effect]
 
 
 @pytest.mark.slow
@@ -110,9 +121,9 @@ def test_one_hidden_effect_is_found_and_sized(gen_name, effect, seed):
                                   ("second_reflector", "early_outliers")])
 @pytest.mark.parametrize("gen_name", list(GENERATORS))
 def test_two_effects_at_once_are_both_found(pair, gen_name):
-    pings, beacons, truth, d0 = GENERATORS[gen_name](list(pair), 7)
+    pings, beacons, truth, d0, target = GENERATORS[gen_name](list(pair), 7)
     result = diagnose(pings, beacons, rng=0, progress=False)
-    _check(result, truth, d0)
+    _check(result, truth, d0, target)
 
 
 def test_nav_drift_direction_and_json(tmp_path):
@@ -137,17 +148,31 @@ def test_nav_drift_direction_and_json(tmp_path):
     assert {"diagnosis", "residuals_baseline", "candidates"} <= set(old_style)
 
 
-def test_effect_outside_the_vocabulary_shows_as_unexplained_structure():
-    """A beacon surveyed 25 m off (not in the vocabulary) leaves bearing-dependent residuals."""
+def test_a_beacon_surveyed_off_is_found_with_its_beacon():
+    """A beacon reported 25 m east of where it is: beacon_position on that beacon alone."""
     sim = simulate_survey("abe58", rng=6)
     beacons = sim.survey.beacons.reset_index()
     beacons.loc[beacons.beacon == "3", "x"] += 25.0
     result = diagnose(sim.survey.table.drop(columns="true_class"), beacons, rng=0,
                       progress=False)
-    flagged = {(c["beacon"], c["class"]) for c in result.unexplained}
-    assert ("3", "dp") in flagged, result.residual_checks
+    (e,) = result.effects
+    assert (e.name, e.beacons) == ("beacon_position", ["3"])
+    assert e.magnitude == pytest.approx(25.0, rel=0.1)
+    assert e.detail["east"] == pytest.approx(25.0, abs=3.0)
+    assert result.unexplained == []
+
+
+def test_effect_outside_the_vocabulary_shows_as_unexplained_structure():
+    """A clock drift (a range bias growing with time) is no effect of the vocabulary: the
+    residuals the final model leaves vary with time."""
+    sim = simulate_survey("abe58", rng=6)
+    table = sim.survey.table.drop(columns="true_class").copy()
+    tau = (table.time - table.time.min()) / (table.time.max() - table.time.min())
+    table["range"] = table["range"] + 10.0 * tau
+    result = diagnose(table, sim.survey.beacons.reset_index(), rng=0, progress=False)
+    assert any(c["class"] == "dp" and c["against"] == "time" for c in result.unexplained)
     clean = diagnose(sim.survey, rng=0, progress=False)
-    assert clean.unexplained == []
+    assert clean.unexplained == [] and clean.effects == []
 
 
 def test_baseline_is_the_per_beacon_mixture_fit():

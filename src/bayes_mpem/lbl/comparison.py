@@ -156,11 +156,14 @@ def compare(pings, beacons=None, *, min_pings: int = 30, rng: RNGLike = None,
 
     def compare_one(data):
         # stacklevel 5: choose_path, compare_one, over_beacons, compare, then its caller;
-        # the fit itself only chooses (each prior's run fits its own EM start)
+        # the chosen geometry's learned-weights fit starts the learned run (the equal
+        # run fits its own, with equal weights)
         choice = choose_path(data, path, sigma_dp=kwargs.get("sigma_dp"), rng=gen,
                              fit_warnings=False, stacklevel=5)
         choices[data.beacon] = choice
-        return compare_beacon(data, rng=gen, path=choice.path, **kwargs)
+        learned_init = None if "init" in kwargs else choice.fit
+        return compare_beacon(data, rng=gen, path=choice.path, learned_init=learned_init,
+                              **kwargs)
 
     results, skipped = over_beacons(survey, min_pings, compare_one,
                                     skip_on=(UnusableStartError,))

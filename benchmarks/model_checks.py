@@ -43,7 +43,7 @@ sys.path.insert(0, str(ROOT / "tests"))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 import independent_generator as indep  # noqa: E402
-from _report import machine  # noqa: E402
+from _report import machine, write_section  # noqa: E402
 
 import bayes_mpem as bm  # noqa: E402
 from bayes_mpem.io.survey import load_survey  # noqa: E402
@@ -224,7 +224,7 @@ def main(argv=None):
     text = "\n".join([
         f"Produced by `{cmd.strip()}` on {dt.date.today().isoformat()} ({machine()}; "
         f"{took:.0f} s).", "",
-        "## Surveys with a hidden effect", "",
+        "### Surveys with a hidden effect", "",
         f"{n_seeds} seeds per effect, sign and generator ({', '.join(GENERATORS)}); one row "
         "per effect, sign and method, over all beacons of those surveys. *Covered*: the "
         "plane's interval holds the true plane; *flagged*: a model check or a quality flag "
@@ -232,15 +232,12 @@ def main(argv=None):
         *lines, "",
         f"In all: {int(eff.wrong.sum())} of {len(eff)} beacon results confidently wrong; "
         f"{int(eff.far_unflagged.sum())} planes more than {LIMIT:g} m off without a flag.", "",
-        "## Clean surveys: false alarms", "",
+        "### Clean surveys: false alarms", "",
         f"{n_clean} surveys per generator, no effect.", "", *fa, "",
         "Checks that raised the false alarms: " + (", ".join(fa_detail) or "none") + ".", ""])
     print(text)
     if not args.quick:
-        head = ("# Model checks: no confident wrong answer\n\n"
-                "Written by `benchmarks/model_checks.py`; see `bayes_mpem.lbl.model_checks` "
-                "and [the model](model.md) for what each check tests.\n\n")
-        (ROOT / "docs" / "model-checks.md").write_text(head + text + "\n")
+        write_section(ROOT / "docs" / "model-checks.md", "model-checks-study", text)
 
 
 if __name__ == "__main__":

@@ -346,7 +346,12 @@ class BeaconPosterior:
                  "log_sigma_dp": 1.0 / np.sqrt(2 * max(frac["dp"] * n, 2)),
                  "w_dp": np.sqrt(frac["dp"] * (1 - frac["dp"]) / n),
                  "w_mp": np.sqrt(frac["mp"] * (1 - frac["mp"]) / n)}
-        scale = np.array([0.5 * width[name] for name in self.names])
+        # no wider than the prior: an EM with no multipath reports an astronomical d0_se
+        extent = {"d0": self.d0_bounds[1] - self.d0_bounds[0],
+                  "log_sigma_mp": self.log_sigma_bounds[1] - self.log_sigma_bounds[0],
+                  "log_sigma_dp": self.log_sigma_bounds[1] - self.log_sigma_bounds[0],
+                  "w_dp": 1.0, "w_mp": 1.0}
+        scale = np.array([0.5 * min(width[name], extent[name]) for name in self.names])
         out = place_walkers(lambda sc: centre + sc * gen.standard_normal((n_walkers, self.ndim)),
                             lambda cand: np.isfinite(self(cand)), n_walkers, self.ndim,
                             scale=scale, rounds=100)

@@ -13,7 +13,11 @@ and tests a set of ranks for uniformity (:func:`rank_uniformity`):
   A posterior too narrow (an inexact sampler, a likelihood too sharp) puts the
   drawn values in its tails too often: a U-shaped histogram; too wide, a
   hump. This test aims at exactly that departure and is the sharper of the two
-  against it.
+  against it;
+* :func:`rank_dispersion`: the mean squared normal score of the ranks, which is
+  1 for uniform ranks and ``1 / r**2`` when the draws are ``r`` times too
+  narrow, tested per simulation (averaged over the parameters, so that their
+  dependence within a simulation is respected).
 
 The model-specific part (the prior, the simulator, the sampler) is the
 caller's: :mod:`bayes_mpem.lbl.sbc` for one LBL beacon.
@@ -153,3 +157,53 @@ def rank_uniformity(ranks, n_draws: int, *, n_bins: int = 10, tails: float = 0.1
             "p_value": float(stats.chi2.sf(chi2, dof)) if n else 1.0,
             "tails": in_tails / n if n else float("nan"), "tails_expected": p_tail,
             "tails_p_value": float(stats.binomtest(in_tails, n, p_tail).pvalue) if n else 1.0}
+
+
+def rank_dispersion(ranks, n_draws: int) -> dict:
+    """Test whether the ranks are too spread (draws too narrow) or too bunched (too wide).
+
+    Each rank ``r`` becomes the squared normal score ``q = Phi^-1((r + 1/2) / (L + 1))^2``.
+    Under uniform ranks its mean is known exactly (a little below 1, the ranks being
+    discrete); draws ``s`` times too narrow raise it to about ``1 / s**2``. The scores
+    are averaged over the parameters of each simulation (columns of ``ranks``), and the
+    mean over simulations is compared with the null mean by a t-test: the parameters of
+    one simulation are dependent, the simulations are not.
+
+    Parameters
+    ----------
+    ranks : array_like of int
+        ``(n_sims,)`` or ``(n_sims, n_params)`` ranks, each in ``0 .. n_draws``.
+    n_draws : int
+
+    Returns
+    -------
+    dict
+        ``n``, ``mean`` (of the scores), ``null_mean``, ``ratio`` (mean over null mean),
+        ``z`` (positive: the draws are too narrow) and ``p_value`` (two-sided).
+
+    Examples
+    --------
+    >>> gen = np.random.default_rng(1)
+    >>> ok = [[rank_statistic(gen.normal(size=99), gen.normal()) for _ in range(3)]
+    ...       for _ in range(400)]
+    >>> abs(rank_dispersion(ok, 99)["z"]) < 3
+    True
+    >>> narrow = [[rank_statistic(0.8 * gen.normal(size=99), gen.normal()) for _ in range(3)]
+    ...           for _ in range(400)]
+    >>> rank_dispersion(narrow, 99)["z"] > 5
+    True
+    """
+    from scipy import stats
+
+    ranks = np.asarray(ranks, float)
+    ranks = ranks.reshape(len(ranks), -1)
+    n_values = int(n_draws) + 1
+    score = stats.norm.ppf((ranks + 0.5) / n_values) ** 2
+    null = float(np.mean(stats.norm.ppf((np.arange(n_values) + 0.5) / n_values) ** 2))
+    per = score.mean(axis=1)
+    n = per.size
+    se = float(per.std(ddof=1) / np.sqrt(n)) if n > 1 else float("inf")
+    z = (float(per.mean()) - null) / se if se > 0 else 0.0
+    return {"n": int(n), "mean": float(per.mean()), "null_mean": null,
+            "ratio": float(per.mean() / null), "z": float(z),
+            "p_value": float(2 * stats.norm.sf(abs(z)))}

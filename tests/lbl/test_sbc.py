@@ -1,10 +1,16 @@
 """Simulation-based calibration of the beacon posterior: small, and able to fail.
 
 ``benchmarks/sbc.py`` is the study (500 simulations per move set, the shipped
-stopping rule). Here: 100 simulations of a 100-ping design with a short stopping
-rule (10 autocorrelation times), enough to catch emcee 3.1.6's released snooker
-when it makes half of the moves (its chains are ~10 % too narrow there) and to
-pass the shipped moves at the 1 % level.
+stopping rule). Here: 150 simulations of a 103-ping design with a short stopping
+rule (10 autocorrelation times), with the shipped moves and with emcee 3.1.6's
+released snooker making half of the moves (DE the other half; on a 5-D standard
+normal that mix has sd 0.90-0.91). The check is the dispersion of the ranks
+(``rank_dispersion``, pooled over the parameters per simulation): too-narrow
+chains put the truth in their tails. Measured on seeds 11-14 of this set-up:
+shipped z = 2.0, 1.0, -0.2, -2.1 (all 24 per-parameter chi-square and tail tests
+above 0.01); released mix z = 5.2, 4.7, 3.7, 2.0. So the check catches the
+released move on three seeds of four at z > 3: it is a sharp test of a 10 %
+narrowing only with the study's 500 simulations. The seed is fixed.
 """
 
 import sys
@@ -17,7 +23,12 @@ import pytest
 import bayes_mpem as bm
 from bayes_mpem.lbl.posterior import BeaconPosterior
 from bayes_mpem.lbl.sbc import run_sbc, sbc_design, sbc_posterior, simulate_ranges
-from bayes_mpem.mcmc.sbc import rank_histogram, rank_statistic, rank_uniformity
+from bayes_mpem.mcmc.sbc import (
+    rank_dispersion,
+    rank_histogram,
+    rank_statistic,
+    rank_uniformity,
+)
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests/, for the released move
 from released_snooker import ReleasedSnooker  # noqa: E402
@@ -62,15 +73,11 @@ def test_d0_bounds_and_window_are_checked(design):
 
 @pytest.mark.slow
 def test_sbc_passes_the_shipped_moves_and_fails_the_released_snooker(design):
-    ok = run_sbc(design, 100, rng=11, **FAST)
-    tests = ok.tests()
-    for name, t in tests.items():
+    ok = run_sbc(design, 150, rng=11, **FAST)
+    for name, t in ok.tests().items():
         assert t["p_value"] > 0.01 and t["tails_p_value"] > 0.01, (name, t)
-    bad = run_sbc(design, 100, rng=11,
+    assert abs(rank_dispersion(ok.ranks, ok.n_draws)["z"]) < 3.0
+    bad = run_sbc(design, 150, rng=11,
                   moves=[(emcee.moves.DEMove(), 0.5), (ReleasedSnooker(), 0.5)], **FAST)
-    # too-narrow chains put the truth in their tails: pooled over the parameters
-    k = 5  # rank values in each tail of 0..99: the outer 10 %
-    share = np.mean((bad.ranks < k) | (bad.ranks >= 100 - k))
-    ok_share = np.mean((ok.ranks < k) | (ok.ranks >= 100 - k))
-    assert share > 0.125 > ok_share, (share, ok_share)
-    assert min(t["tails_p_value"] for t in bad.tests().values()) < 0.01
+    disp = rank_dispersion(bad.ranks, bad.n_draws)
+    assert disp["z"] > 3.0 and disp["ratio"] > 1.05, disp  # the truth too often in the tails

@@ -109,20 +109,26 @@ def baseline_start(d: Ranges, fittable, path, rng):
     seed = int(as_generator(rng).integers(2**31))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # flags: on the final joint fit (residuals.beacon_flags)
-        # both geometries per beacon, the fits fit/sample/compare choose from; the joint
-        # model shares one geometry, so the choice here is by the summed log-likelihoods
-        choices = [choose_path(data, "auto", rng=seed + j) for j, data in enumerate(fittable)]
+        # auto: both geometries per beacon, the fits fit/sample/compare choose from; the
+        # joint model shares one geometry, so the choice here is by the summed
+        # log-likelihoods. A forced geometry is fitted alone (no margin is reported here).
+        if path == "auto":
+            fits = [choose_path(data, "auto", rng=seed + j).fits
+                    for j, data in enumerate(fittable)]
+        else:
+            fits = [{path: fit_mixture_em(data, path=path, rng=seed + j)}
+                    for j, data in enumerate(fittable)]
     for pth in paths:
         plane = np.empty(nb)
         sigma = np.empty((nb, 3))
         weights = np.zeros((nb, 4))
         total = 0.0
-        for j, choice in enumerate(choices):
-            r = choice.fits[pth]
+        for j, fit in enumerate(fits):
+            r = fit[pth]
             plane[j] = d.bz[j] - r.d0
             sigma[j] = (r.sigma_dp, r.sigma_mp, r.sigma_mp)
             weights[j] = (r.weights["dp"], r.weights["mp"], 0.0, r.weights["ol"])
-            total += choice.loglik[pth]
+            total += r.loglik if r.loglik is not None and np.isfinite(r.loglik) else -np.inf
         logliks[pth] = total
         if best is None or total > best[2]:
             best = (Params(plane=plane, sigma=sigma, weights=weights), pth, total)

@@ -106,10 +106,21 @@ def _indep(effect, sign, seed):
     return survey, planes, t["magnitude"], t["effect_beacon"]
 
 
+def _indep40(seed):
+    """A positive range bias in an independent survey with 40 % outliers (the issue's case)."""
+    from diagnose_bias_replant import survey
+
+    bias, g = survey(seed, outliers=0.4)
+    survey_ = load_survey(g["pings"], g["beacons"])
+    return survey_, {b: 0.0 for b in g["truth"]["d0"]}, bias, None
+
+
 def case(gen_name, effect, sign, seed):
     """One survey of a generator."""
     if gen_name == "independent":
         return _indep(effect, sign, seed)
+    if gen_name == "independent-40%-outliers":
+        return _indep40(seed)
     return _sim(gen_name, effect, sign, seed)
 
 
@@ -169,6 +180,8 @@ def cells(n_seeds):
         for e in EFFECTS:
             for sign in ((1, -1) if e in SIGNED else (1,)):
                 out += [(g, e, sign, s) for s in range(n_seeds)]
+    # the issue's case: a positive bias with 40 % outliers (independent generator)
+    out += [("independent-40%-outliers", "range_bias", 1, s) for s in range(2 * n_seeds)]
     return out
 
 
@@ -181,6 +194,8 @@ def summarise(rows):
     lines = ["| effect | sign | method | beacons | covered | flagged | covered or flagged | "
              "confidently wrong | worst error unflagged (m) | planes > 10 m off unflagged |",
              "|---|---|---|---:|---:|---:|---:|---:|---:|---:|"]
+    eff = eff.assign(effect=np.where(eff.generator == "independent-40%-outliers",
+                                     "range_bias, 40 % outliers (indep.)", eff.effect))
     for (e, sign, m), s in eff.groupby(["effect", "sign", "method"], sort=False):
         unfl = s[~s.flagged]
         worst = float(np.nanmax(np.abs(unfl.error))) if len(unfl) else float("nan")

@@ -40,9 +40,8 @@ def covariates(d: Ranges) -> dict:
     Returns
     -------
     dict of numpy.ndarray
-        ``time`` (s), ``range`` (direct-path length, m), ``elevation`` (deg,
-        positive when the vehicle is above the beacon), ``vehicle_depth`` (m),
-        ``bearing`` (deg clockwise from +y, of the vehicle seen from the beacon).
+        Those of :func:`bayes_mpem.lbl.model_checks.covariates` (time, range,
+        elevation, vehicle depth, bearing).
     """
     ex, ey, _, dz = offsets(d)
     return _covariates(ex, ey, dz, d.time, d.vdepth)

@@ -2,9 +2,9 @@
 
 Run from the repository root::
 
-    python benchmarks/sbc.py                 # 500 simulations per move set, docs page + figure
+    python benchmarks/sbc.py                 # docs page + figure (500 + 3 x 250 simulations)
     python benchmarks/sbc.py --quick         # 40 per move set, prints only
-    python benchmarks/sbc.py --sims 1000 --workers 2
+    python benchmarks/sbc.py --sims 1000 --sims-other 500 --workers 2
 
 For one design (beacon 4 of the ``abe58`` preset, 330 ping cycles; pings with a
 direct path under 200 m left out, ~300 replies), each simulation draws the
@@ -15,10 +15,11 @@ ranges from the model, samples their posterior exactly as ``bayes-mpem sample``
 does (EM start, the shipped stopping rule: 50 autocorrelation times and an ESS of
 1,000), and ranks each true value among 99 draws thinned from the kept chain.
 
-Three move sets: the shipped one (differential evolution alone), DE 0.8 with the
-exact snooker (``bayes_mpem.mcmc.SnookerMove``) 0.2, and DE 0.8 with emcee 3.1.6's
-released snooker 0.2 (re-implemented in ``tests/released_snooker.py``), the
-project's default before issue 14. Per parameter: the chi-square test of 10
+Four move sets: the shipped one (differential evolution alone, 500 simulations),
+and 250 each of DE 0.8 with the exact snooker (``bayes_mpem.mcmc.SnookerMove``) 0.2,
+DE 0.8 with emcee 3.1.6's released snooker 0.2 (re-implemented in
+``tests/released_snooker.py``; the project's default before issue 14), and DE 0.5 with
+the released snooker 0.5 (the mix the suite's small SBC must fail). Per parameter: the chi-square test of 10
 equal rank bins and the binomial test of the share of ranks in the outer 10 %
 (a too-narrow posterior puts the truth there too often). A parameter passes at
 the 1 % level when both p-values are above 0.01.
@@ -58,6 +59,8 @@ MOVES = {
     "DE 0.8 + exact snooker 0.2": lambda: [(emcee.moves.DEMove(), 0.8), (SnookerMove(), 0.2)],
     "DE 0.8 + emcee 3.1.6 snooker 0.2": lambda: [(emcee.moves.DEMove(), 0.8),
                                                  (ReleasedSnooker(), 0.2)],
+    "DE 0.5 + emcee 3.1.6 snooker 0.5": lambda: [(emcee.moves.DEMove(), 0.5),
+                                                 (ReleasedSnooker(), 0.5)],
 }
 SAMPLER = {"tau_factor": 50.0, "min_ess": 1000.0}  # the shipped stopping rule
 
@@ -107,15 +110,18 @@ def main(argv=None):
     """Command-line entry point."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="40 simulations per move set, print")
-    ap.add_argument("--sims", type=int, default=500, help="simulations per move set")
+    ap.add_argument("--sims", type=int, default=500, help="simulations, shipped moves")
+    ap.add_argument("--sims-other", type=int, default=250,
+                    help="simulations for each of the other move sets")
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--block", type=int, default=20, help="simulations per seeded block")
     args = ap.parse_args(argv)
-    n = 40 if args.quick else args.sims
-    blocks = [(7_000 + b, min(args.block, n - b * args.block))
-              for b in range(int(np.ceil(n / args.block)))]
     rows, notes, results = [], [], {}
     for label in MOVES:
+        n = 40 if args.quick else (args.sims if label.startswith("shipped")
+                                   else args.sims_other)
+        blocks = [(7_000 + b, min(args.block, n - b * args.block))
+                  for b in range(int(np.ceil(n / args.block)))]
         t0 = time.perf_counter()
         with Pool(args.workers) as pool:
             parts = pool.map(partial(chunk, label=label), blocks, chunksize=1)

@@ -21,8 +21,8 @@ DE 0.8 with emcee 3.1.6's released snooker 0.2 (re-implemented in
 ``tests/released_snooker.py``; the project's default before issue 14), and DE 0.5 with
 the released snooker 0.5 (the mix the suite's small SBC must fail). Per parameter:
 the chi-square test of 10 equal rank bins and the binomial test of the share of
-ranks in the outer 10 % (a too-narrow posterior puts the truth there too often). A parameter passes at
-the 1 % level when both p-values are above 0.01.
+ranks in the outer 10 % (a too-narrow posterior puts the truth there too often).
+A parameter passes at the 1 % level when both p-values are above 0.01.
 """
 
 from __future__ import annotations

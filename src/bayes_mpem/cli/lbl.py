@@ -192,17 +192,20 @@ def cmd_simulate(args) -> int:
     Raises
     ------
     OptionError
-        For an ``--effect`` that is not ``NAME=NUMBER``.
+        For an ``--effect`` that is not ``NAME=NUMBER`` (or ``beacon=ID``).
     """
     effects = {}
     for item in args.effect:
         name, sep, value = item.partition("=")
+        if not sep:
+            raise OptionError(f"--effect: expected NAME=NUMBER, got {item!r}")
+        if name.strip() == "beacon":  # the beacon of the per-beacon effects: an id
+            effects["beacon"] = value.strip()
+            continue
         try:
             effects[name.strip()] = float(value)
         except ValueError:
             raise OptionError(f"--effect: expected NAME=NUMBER, got {item!r}") from None
-        if not sep:
-            raise OptionError(f"--effect: expected NAME=NUMBER, got {item!r}")
     sim = simulate_survey(args.preset, rng=args.seed, path=args.path, n_cycles=args.n_cycles,
                           effects=effects or None)
     paths = sim.write(args.out)

@@ -305,6 +305,28 @@ def test_simulator_effects():
                                                  "second_fraction": 0.9})
 
 
+def test_simulator_per_beacon_effects(tmp_path):
+    clean = simulate_survey("abe58", rng=4, n_cycles=200)
+    biased = simulate_survey("abe58", rng=4, n_cycles=200,
+                             effects={"beacon_bias": 5.0, "beacon": "3"})
+    diff = biased.survey.range - clean.survey.range
+    on = (biased.survey.beacon == "3") & np.isin(biased.labels, ["dp", "mp"])
+    np.testing.assert_allclose(diff[on], 5.0)
+    np.testing.assert_array_equal(np.nan_to_num(diff[biased.survey.beacon != "3"]), 0.0)
+    moved = simulate_survey("abe58", rng=4, n_cycles=200,
+                            effects={"beacon_position": 20.0, "beacon_position_direction": 90.0})
+    np.testing.assert_array_equal(moved.survey.range, clean.survey.range)  # same replies
+    shift = moved.survey.beacons.loc["1"] - clean.survey.beacons.loc["1"]
+    np.testing.assert_allclose(shift[["x", "y", "depth"]], [0.0, 20.0, 0.0], atol=1e-9)
+    assert moved.truth["1"]["reported_offset"] == pytest.approx([0.0, 20.0, 0.0], abs=1e-9)
+    with pytest.raises(ValueError, match="effects\\['beacon'\\]"):
+        simulate_survey("abe58", rng=0, effects={"beacon_bias": 1.0, "beacon": "9"})
+    assert main(["simulate", "--out", str(tmp_path / "s"), "--n-cycles", "50",
+                 "--effect", "beacon_bias=4", "--effect", "beacon=2"]) == 0
+    cfg = json.loads((tmp_path / "s" / "truth.json").read_text())["config"]["effects"]
+    assert cfg == {"beacon_bias": 4.0, "beacon": "2"}
+
+
 def test_replant_drops_replies_shorter_than_the_bias():
     """A beacon with a reply shorter than the fitted bias is replanted without that reply.
 

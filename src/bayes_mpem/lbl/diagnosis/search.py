@@ -48,8 +48,11 @@ from .starts import replant, start_for
 #: A beacon whose direct-path mean residual is this many standard errors off ...
 SUSPECT_Z = 3.0
 #: ... or whose direct-path residuals trend with a covariate at this p-value (not
-#: corrected for the number of checks: a screen, not a verdict) gets per-beacon candidates.
+#: corrected for the number of checks: a screen, not a verdict) gets per-beacon candidates;
 SUSPECT_P = 1e-3
+#: so does a beacon whose direct-path weight fell below this (its direct path is off by
+#: more than the fit could follow: the multipath family sits on it).
+SUSPECT_DP = 0.05
 
 
 def suspects(fit, d: Ranges) -> list:
@@ -71,6 +74,9 @@ def suspects(fit, d: Ranges) -> list:
     out = []
     for j, bid in enumerate(d.ids):
         sel = d.bi == j
+        if fit.params.weights[j, 0] < SUSPECT_DP:  # no direct path left to check
+            out.append(bid)
+            continue
         r = d.z[sel] - mu["dp"][sel]
         s = float(fit.params.sigma[j, 0])
         off = direct_path_checks(r, fit.resp[sel, 0], s)
@@ -126,9 +132,16 @@ class Search:
             if own and not (any(e in PER_BEACON for e in effects)
                             and suspects(state["fit"], self.d)):
                 break
-            self.forward(state, effects, candidates, own=own, max_effects=max_effects, **rule)
+            # each stage may add max_effects terms: the shared stage may have used them all
+            # on what one beacon's own effect explains; the backward step then prunes
+            self.forward(state, effects, candidates, own=own,
+                         max_effects=len(state["kept"]) + max_effects, **rule)
             state["fit"], state["ho"], state["kept"] = self.backward(
                 state["fit"], state["ho"], state["kept"], candidates, **rule)
+        while len(state["kept"]) > max_effects:  # more than asked for: drop the weakest
+            state["fit"], state["ho"], state["kept"] = self.backward(
+                state["fit"], state["ho"], state["kept"], candidates,
+                min_gain=np.inf, min_z=np.inf, once=True)
         return state["fit"], state["kept"], candidates
 
     def forward(self, state, effects, candidates, *, own, max_effects, min_gain, min_z):
@@ -170,11 +183,12 @@ class Search:
         return shared + [term(e, b) for b in beacons for e in per
                          if term(e, b) not in current.effects]
 
-    def backward(self, current, cur_ho, kept, candidates, *, min_gain, min_z):
+    def backward(self, current, cur_ho, kept, candidates, *, min_gain, min_z, once=False):
         """Drop kept effects whose removal costs less than the keep rule, weakest first.
 
         Returns the fit, its held-out densities and the kept effects, each with what
-        removing it from the final model costs (its gain in that model).
+        removing it from the final model costs (its gain in that model). With
+        ``once``, at most one effect is dropped.
         """
         d = self.d
         while kept:
@@ -194,7 +208,9 @@ class Search:
             drop = not (cost > min_gain and cost > min_z * se)
             candidates.append({"round": "backward", "name": name, "delta_elpd": cost,
                                "se": se, "kept": not drop,
-                               "note": ("dropped: the other effects explain what it did"
+                               "note": ("dropped: more effects kept than max_effects, "
+                                        "this the weakest" if once and np.isinf(min_gain)
+                                        else "dropped: the other effects explain what it did"
                                         if drop else "kept: its removal costs more than "
                                         "the keep rule")})
             self.say(f"backward: removing {name} costs {cost:+.1f} ± {se:.1f}"
@@ -205,6 +221,8 @@ class Search:
                 break
             kept = [k for k in kept if k[0] != name]
             current, cur_ho = fit_r, ho
+            if once:
+                break
         return current, cur_ho, kept
 
     def refit(self, effects, starts):

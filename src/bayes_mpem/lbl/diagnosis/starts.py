@@ -30,11 +30,12 @@ import numpy as np
 
 from ..._rng import as_generator
 from .. import geometry
+from ..effects import split_term
 from ..em_mixture import fit_mixture_em, histogram_modes
 from ..path_choice import choose_path
 from .ecm import JointFit
-from .model import Ranges, biases, implied_depths
-from .params import Params, beacon_mask
+from .model import Ranges, biases, implied_depths, predict
+from .params import Params, beacon_mask, get_vector, mean_names, set_vector
 
 
 def _modes(v, k):
@@ -150,12 +151,69 @@ def start_for(d, base: JointFit, effects, path):
     -------
     list of Params
         ``base``'s parameters; for a new ``second_reflector``, one start per
-        candidate plane (possibly none).
+        candidate plane (possibly none); for a new per-beacon term, also a start
+        with that beacon's bias or position found from its ranges alone
+        (:func:`direct_path_offset`).
     """
     p = base.params.copy()
     if "second_reflector" in effects and "second_reflector" not in base.effects:
         return _second_starts(d, p, effects, path, base.resp)
+    new = [t for t in effects if t not in base.effects and split_term(t)[1] is not None]
+    if new:
+        return [p, direct_path_offset(d, p, effects, path, new[0])]
     return [p]
+
+
+def direct_path_offset(d: Ranges, p: Params, effects, path, t, *, scale=10.0, n_iter=30):
+    """Start a per-beacon term where its bias or position puts its ranges on the direct path.
+
+    When a beacon's direct path is off by metres (its own delay, or a position tens of
+    metres out), its baseline fit can lose the direct-path class altogether (weight 0:
+    the multipath family moved onto the offset direct path, the plane kilometres off),
+    and the ECM, which never revives a class of weight 0, cannot find the term from
+    there. This start fits the term's parameters to the beacon's ranges by iteratively
+    reweighted least squares on the direct-path prediction with Cauchy weights of scale
+    ``scale`` m (the direct path is the largest family; multipath and outliers get
+    weights near 0), and gives the beacon's classes fresh weights and scales, so that
+    the E-step re-assigns its ranges and the replant re-finds its plane.
+
+    Parameters
+    ----------
+    d : Ranges
+    p : Params
+    effects : tuple of str
+        The terms of the model, ``t`` among them.
+    path : {"triangle", "double"}
+    t : str
+        ``"beacon_bias:<id>"`` or ``"beacon_position:<id>"``.
+    scale : float, default 10
+    n_iter : int, default 30
+
+    Returns
+    -------
+    Params
+    """
+    name, bid = split_term(t)
+    j = d.ids.index(bid)
+    names = [n for n in mean_names((t,), d.ids) if n[0] != "plane"]
+    sel = d.bi == j
+    sub = d.subset(sel)
+    q = p.copy()
+    for _ in range(n_iter):
+        mu, jac = predict(sub, q, effects, path, names)
+        r = sub.z - mu["dp"]
+        w = 1.0 / (1.0 + (r / scale) ** 2)
+        jw = jac["dp"] * w[:, None]
+        try:
+            step = np.linalg.solve(jw.T @ jac["dp"] + 1e-9 * np.eye(len(names)), jw.T @ r)
+        except np.linalg.LinAlgError:
+            break
+        q = set_vector(q, names, get_vector(q, names) + step)
+        if np.max(np.abs(step)) < 1e-3:
+            break
+    q.weights[j] = (0.5, 0.3, 0.0, 0.2) if q.weights[j, 2] == 0 else (0.45, 0.25, 0.1, 0.2)
+    q.sigma[j, 0] = max(float(q.sigma[j, 0]), 3.0)
+    return q
 
 
 def replant(d: Ranges, fit: JointFit, fittable, path, rng) -> Params | None:

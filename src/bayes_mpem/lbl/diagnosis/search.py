@@ -14,20 +14,28 @@ folds, the geometry, the ECM's options) and runs the search:
    An effect added early can become redundant once a later one explains the
    same residuals (a wrong effect kept beside a small plane drift).
 
-Both run twice: first over the shared effects alone, then again with the
-per-beacon effects (:data:`~bayes_mpem.lbl.effects.PER_BEACON`) as candidates,
-tried on the beacons whose direct-path residuals the model still leaves
+Both run twice. First over the shared effects alone, then again with the
+per-beacon effects (:data:`~bayes_mpem.lbl.effects.PER_BEACON`) as candidates
+too, tried on the beacons whose direct-path residuals the model still leaves
 unexplained (:func:`suspects`: an offset of more than :data:`SUSPECT_Z`
-standard errors, or a trend with p below :data:`SUSPECT_P`), one term per beacon
-(``"beacon_bias:2"``). The order matters: a beacon's own position or bias has
-two or one parameters for that beacon alone and absorbs locally what a shared
-effect (a range bias with a navigation drift) explains for every beacon, so
-offered at once the greedy step picks one beacon's own effect per round
-(measured: two wrong beacon positions and a sound speed for a range bias plus a
-navigation drift on abe58, seed 100 of the study); offered after the shared
-effects, a beacon's own effect only takes what they leave, and the backward step
-removes a shared effect it makes redundant (one beacon's bias first taken for a
-small shared one).
+standard errors, a trend with p below :data:`SUSPECT_P`, or a direct-path weight
+below :data:`SUSPECT_DP`), one term per beacon (``"beacon_bias:2"``). The order
+matters both ways:
+
+* a beacon's own position or bias has parameters for that beacon alone and
+  absorbs locally what a shared effect explains everywhere: offered at once,
+  the greedy step took two beacons' positions and a sound speed for a range bias
+  plus a navigation drift (abe58, seed 100 of the study);
+* four shared parameters (a bias, a scale, a navigation drift) can mimic one
+  beacon's own bias well enough to leave no beacon unexplained (abe58: a 2.7 m
+  bias of beacon 3 taken for three shared effects).
+
+So when the baseline leaves a minority of the beacons unexplained, their own
+effects go first; otherwise the shared ones do. Each stage may add up to
+``max_effects`` terms, the backward step prunes, and beyond ``max_effects`` the
+weakest go. Among the terms that meet the keep rule, one within ``min_gain`` nats
+of the best with fewer parameters is taken (a beacon's bias rather than its
+position when the survey's bearings cannot tell them apart).
 """
 
 from __future__ import annotations
@@ -42,7 +50,7 @@ from ..model_checks import covariates, direct_path_checks, trend_checks
 from .ecm import fit_joint, heldout
 from .evidence import not_credible
 from .model import Ranges, offsets, predict
-from .params import without
+from .params import BEACON_KEYS, SHARED_KEYS, without
 from .starts import replant, start_for
 
 #: A beacon whose direct-path mean residual is this many standard errors off ...
@@ -53,6 +61,13 @@ SUSPECT_P = 1e-3
 #: so does a beacon whose direct-path weight fell below this (its direct path is off by
 #: more than the fit could follow: the multipath family sits on it).
 SUSPECT_DP = 0.05
+
+
+def n_parameters(t) -> int:
+    """Return the number of mean parameters of a term (:data:`.params.SHARED_KEYS`, ...)."""
+    name, bid = split_term(t)
+    keys = BEACON_KEYS if bid is not None else SHARED_KEYS
+    return len(keys.get(name, ())) or 1
 
 
 def suspects(fit, d: Ranges) -> list:
@@ -126,15 +141,19 @@ class Search:
                  "kept": [], "round": 0, "tried": {}}
         candidates = []
         rule = {"min_gain": min_gain, "min_z": min_z}
+        per_beacon = any(e in PER_BEACON for e in effects)
+        first = suspects(base, self.d) if per_beacon else []
         # shared effects first (one clock, one sound speed, one navigation explain every
-        # beacon at once); then, on the beacons still unexplained, their own effects
-        for own in (False, True):
-            if own and not (any(e in PER_BEACON for e in effects)
-                            and suspects(state["fit"], self.d)):
+        # beacon at once), then all, per-beacon ones on the beacons still unexplained; but
+        # when only a minority of beacons is unexplained at the baseline, their own effects
+        # first (four shared parameters can mimic one beacon's bias)
+        stages = ("own", "all") if 0 < len(first) < self.d.nb / 2 else ("shared", "all")
+        for stage in stages:
+            if stage == "all" and not (per_beacon and suspects(state["fit"], self.d)):
                 break
             # each stage may add max_effects terms: the shared stage may have used them all
             # on what one beacon's own effect explains; the backward step then prunes
-            self.forward(state, effects, candidates, own=own,
+            self.forward(state, effects, candidates, stage=stage,
                          max_effects=len(state["kept"]) + max_effects, **rule)
             state["fit"], state["ho"], state["kept"] = self.backward(
                 state["fit"], state["ho"], state["kept"], candidates, **rule)
@@ -144,14 +163,19 @@ class Search:
                 min_gain=np.inf, min_z=np.inf, once=True)
         return state["fit"], state["kept"], candidates
 
-    def forward(self, state, effects, candidates, *, own, max_effects, min_gain, min_z):
-        """Add the best term while one meets the keep rule (``state`` updated in place)."""
+    def forward(self, state, effects, candidates, *, stage, max_effects, min_gain, min_z):
+        """Add the best term while one meets the keep rule (``state`` updated in place).
+
+        Among the terms that meet it, one whose gain is within ``min_gain`` of the best
+        and that has fewer parameters is preferred (one beacon's bias against its
+        position, when the bearings of the survey cannot tell them apart).
+        """
         while len(state["kept"]) < max_effects:
             current, cur_ho = state["fit"], state["ho"]
             state["round"] += 1
             rnd = state["round"]
             trials = []
-            for t in self.terms(current, effects, own=own):
+            for t in self.terms(current, effects, stage=stage):
                 # the same term on the same fit was scored in the last round of the shared
                 # search: reuse it rather than fit it again
                 key = (id(current), t)
@@ -166,7 +190,10 @@ class Search:
             good = [t for t in trials if t[0] > min_gain and t[0] > min_z * t[1]]
             if not good:
                 return
-            delta, se, name, fit_e, ho = max(good, key=lambda t: t[0])
+            best = max(t[0] for t in good)
+            delta, se, name, fit_e, ho = min(
+                (t for t in good if t[0] >= best - min_gain),
+                key=lambda t: (n_parameters(t[2]), -t[0]))
             for c in candidates:
                 if c["round"] == rnd and c["name"] == name:
                     c["kept"] = True
@@ -175,10 +202,15 @@ class Search:
             self.say(f"kept {name} = {fit_e.magnitudes(self.d)[name]:+.4g} "
                      f"{UNITS[split_term(name)[0]]}")
 
-    def terms(self, current, effects, *, own=True):
-        """List the terms to try on top of ``current``: shared effects, then suspects' own."""
-        shared = [e for e in effects if e not in PER_BEACON and e not in current.effects]
-        per = [e for e in effects if e in PER_BEACON] if own else []
+    def terms(self, current, effects, *, stage="all"):
+        """List the terms to try on top of ``current``: shared effects, then suspects' own.
+
+        ``stage``: ``"shared"`` (shared effects only), ``"own"`` (per-beacon ones only)
+        or ``"all"``.
+        """
+        shared = ([e for e in effects if e not in PER_BEACON and e not in current.effects]
+                  if stage != "own" else [])
+        per = [e for e in effects if e in PER_BEACON] if stage != "shared" else []
         beacons = suspects(current, self.d) if per else []
         return shared + [term(e, b) for b in beacons for e in per
                          if term(e, b) not in current.effects]

@@ -20,8 +20,9 @@ from bayes_mpem.cli import main
 from bayes_mpem.exceptions import InputError
 from bayes_mpem.io.survey import load_survey
 from bayes_mpem.lbl.diagnosis.driver import diagnose
-from bayes_mpem.lbl.diagnosis.ecm import fit_joint
+from bayes_mpem.lbl.diagnosis.ecm import fit_joint, heldout
 from bayes_mpem.lbl.diagnosis.model import ranges
+from bayes_mpem.lbl.diagnosis.search import Search
 from bayes_mpem.lbl.diagnosis.starts import baseline_start, replant
 from bayes_mpem.lbl.effects import EFFECTS
 from bayes_mpem.lbl.em_mixture import fit_mixture_em
@@ -179,23 +180,42 @@ def test_a_plane_on_its_bound_does_not_hold_the_bias_at_zero(seed):
     assert not any(result.beacon_flags.values())
 
 
-def test_the_backward_step_drops_what_a_later_effect_explains():
-    """One beacon's own 4 m bias: the shared search first explains it with a small navigation
-    drift and range bias for everyone; once the beacon's own bias is in, the backward step drops
-    both, and the effect kept is worth its removal cost in the final model."""
+def test_one_beacons_bias_is_found_on_that_beacon_first():
+    """One beacon's own 4 m bias: only that beacon is unexplained at the baseline, so its own
+    effects are tried first; the effect kept is worth its removal cost in the final model."""
     sim = simulate_survey("abe58", rng=3, n_cycles=700,
                           effects={"beacon_bias": 4.0, "beacon": "2"})
     result = diagnose(sim.survey, rng=0, progress=False)
     (e,) = result.effects
     assert (e.name, e.beacons) == ("beacon_bias", ["2"])
     assert e.magnitude == pytest.approx(4.0, abs=0.5)
-    forward = {c["name"] for c in result.candidates if c["kept"] and c["round"] != "backward"}
-    dropped = {c["name"] for c in result.candidates
-               if c["round"] == "backward" and not c["kept"]}
-    assert forward - {"beacon_bias:2"} and dropped == forward - {"beacon_bias:2"}
+    assert result.candidates[0]["name"] == "beacon_bias:2"  # tried (and kept) first
     last = [c for c in result.candidates if c["name"] == "beacon_bias:2"][-1]
     assert last["round"] == "backward" and e.delta_elpd == pytest.approx(last["delta_elpd"])
     assert result.to_dict()["final_model"]["effects"] == {"beacon_bias:2": e.magnitude}
+
+
+def test_the_backward_step_drops_an_effect_the_others_explain():
+    """A range bias alone, fitted with a sound speed as well: removing the sound speed costs
+    nothing, so the backward step drops it; removing the bias costs hundreds of nats."""
+    sim = simulate_survey("abe58", rng=2, n_cycles=500, effects={"range_bias": 5.0})
+    fittable, _ = fittable_beacons(sim.survey, 30)
+    d = ranges(sim.survey, fittable)
+    start, path, _ = baseline_start(d, fittable, "auto", 0)
+    kw = {"max_iter": 300, "tol": 1e-7, "sigma_floor": 0.05}
+    folds = np.random.default_rng(0).permutation(np.arange(d.n) % 5)
+    both = fit_joint(d, ("range_bias", "sound_speed"), start, path=path, **kw)
+    search = Search(d=d, fittable=fittable, path=path, folds=folds, seed=0, kw=kw,
+                    say=lambda msg: None)
+    ho = heldout(d, both.effects, both, folds, path, **kw)
+    cands = []
+    fit, _, kept = search.backward(both, ho, [("range_bias", 0.0, 0.0),
+                                              ("sound_speed", 0.0, 0.0)], cands,
+                                   min_gain=4.0, min_z=2.0)
+    assert fit.effects == ("range_bias",) and [k[0] for k in kept] == ["range_bias"]
+    assert kept[0][1] > 100.0  # its removal cost in the final model
+    assert [(c["name"], c["kept"]) for c in cands] == [("sound_speed", False),
+                                                        ("range_bias", True)]
 
 
 def test_effect_outside_the_vocabulary_shows_as_unexplained_structure():

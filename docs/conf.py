@@ -16,7 +16,10 @@ extensions = [
 
 # pages: Markdown (MyST) and the notebooks, which live in ../notebooks and are copied here
 # by the build (see notebooks.md); they are executed at build time, never stored with outputs
-source_suffix = {".md": "myst-nb", ".ipynb": "myst-nb"}
+# ".rst" first: autosummary writes its generated API stubs with the first suffix whose parser
+# it takes for reStructuredText, and it mistakes myst-nb's for one; stubs written as ".md"
+# showed their ``.. autofunction::`` directives as text (docs/check_api_pages.py checks)
+source_suffix = {".rst": "restructuredtext", ".md": "myst-nb", ".ipynb": "myst-nb"}
 exclude_patterns = ["_build", "**.ipynb_checkpoints"]
 nb_execution_mode = "force"
 nb_execution_timeout = 600
@@ -25,6 +28,7 @@ myst_heading_anchors = 3
 suppress_warnings = ["myst.header"]
 
 autosummary_generate = True
+templates_path = ["_templates"]  # the module and class stubs document every public member
 autodoc_typehints = "none"
 numpydoc_show_class_members = False
 numpydoc_class_members_toctree = False

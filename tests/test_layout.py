@@ -23,7 +23,7 @@ LAYER = {"_rng": 0, "exceptions": 0, "_validate": 0, "_deprecated": 0,
          "io": 1,
          "acoustics": 2, "mixture": 2, "mcmc": 2,
          "lbl": 3, "survey_in": 3,
-         "plots": 4, "report": 5, "cli": 6}
+         "plots": 4, "report": 5, "batch": 5, "cli": 6}
 WINGS = {"lbl", "survey_in"}
 MAX_MODULE_LINES = 500
 MAX_FUNCTION_LINES = 100
@@ -240,6 +240,30 @@ def test_packages_that_kept_an_old_name_serve_its_old_names(package):
 def test_importing_the_package_warns_nothing():
     code = ("import warnings, importlib, sys; warnings.simplefilter('error'); "
             "import bayes_mpem; import bayes_mpem.cli")
+    import subprocess
+    import sys
+
+    subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_import_and_help_load_no_heavy_library():
+    """``import bayes_mpem`` and every ``--help`` import no numpy, pandas, SciPy, emcee, ArviZ
+    or matplotlib (the public names and the sub-commands load on first use, PEP 562), so
+    ``bayes-mpem --help`` answers at once (benchmarks/bench_startup.py times it)."""
+    code = (
+        "import sys, warnings; warnings.simplefilter('error')\n"
+        "import bayes_mpem\n"
+        "from bayes_mpem.cli.parser import COMMANDS, build_parser\n"
+        "parser = build_parser(); parser.format_help()\n"
+        "sub = parser._subparsers._group_actions[0].choices\n"
+        "assert set(sub) == set(COMMANDS), (set(sub), set(COMMANDS))\n"
+        "[p.format_help() for p in sub.values()]\n"
+        "heavy = {'numpy', 'pandas', 'scipy', 'emcee', 'arviz_base', 'xarray', 'matplotlib'}\n"
+        "assert not heavy & set(sys.modules), heavy & set(sys.modules)\n"
+        "from bayes_mpem import fit, SurveyFit\n"
+        "assert fit.__module__ == 'bayes_mpem.lbl.fitting' and 'numpy' in sys.modules\n"
+        "assert set(bayes_mpem.__all__) <= set(dir(bayes_mpem))\n"
+        "assert all(getattr(bayes_mpem, n) is not None for n in bayes_mpem.__all__)\n")
     import subprocess
     import sys
 

@@ -1,5 +1,7 @@
 """The shared emcee driver: the protocol, the loop and the chain summaries."""
 
+import re
+
 import emcee
 import numpy as np
 import pytest
@@ -64,6 +66,42 @@ def test_step_cap_warns_with_the_label():
         [r] = mcmc.run_ensembles(Gauss(), n_walkers=16, gen=np.random.default_rng(0),
                                  max_steps=50, progress=False)
     assert not r.converged and r.n_steps == 50
+
+
+def test_progress_lines_when_not_a_terminal(capsys, monkeypatch):
+    """progress="auto" writes plain lines (label, steps, ESS against the target, seconds)
+    when standard error is not a terminal, as under pytest; a line per check with no
+    minimum interval, and the last one says whether the rule was met."""
+    from bayes_mpem.mcmc import progress
+
+    monkeypatch.setattr(progress, "LOG_INTERVAL", 0.0)
+    [r] = mcmc.run_ensembles(Gauss(), n_walkers=16, gen=np.random.default_rng(0), min_ess=200,
+                             tau_factor=5, max_steps=3000, check_every=100)
+    lines = capsys.readouterr().err.splitlines()
+    assert r.converged and len(lines) == r.n_steps // 100 + 1
+    assert re.fullmatch(r"\[sampler\] test gaussian: step 100 of ~\d+ \(cap 3000\), ESS \d+ of "
+                        r"200, tau \d+, \d+\.\d s", lines[0]), lines[0]
+    assert re.fullmatch(rf"\[sampler\] test gaussian: done, {r.n_steps} steps, ESS \d+ \(bulk "
+                        r"\d+\) of 200, \d+\.\d s", lines[-1]), lines[-1]
+    with pytest.warns(SamplingWarning):
+        mcmc.run_ensembles(Gauss(), n_walkers=16, gen=np.random.default_rng(0), max_steps=50,
+                           progress="log")
+    assert "stopped at max_steps=50, 50 steps" in capsys.readouterr().err
+
+
+def test_progress_bar_total_and_modes(capsys):
+    assert mcmc.progress_mode("auto") == "log"  # pytest captures stderr: not a terminal
+    assert mcmc.progress_mode(True) == "bar" and mcmc.progress_mode(None) is None
+    with pytest.raises(ValueError, match="progress: expected"):
+        mcmc.progress_mode("verbose")
+    rep = mcmc.SamplingProgress("bar", "x", n_walkers=32, tau_factor=50, min_ess=1000,
+                                max_steps=20000, check_every=250)
+    rep.update(250, 40, np.inf)
+    assert rep.bar.total == 20000  # no autocorrelation time yet: the cap
+    rep.update(500, 40, 20.0)  # needs 40 + 20 x max(50, 1000 / 32) = 1040 -> 1250 steps
+    assert (rep.bar.n, rep.bar.total) == (500, 1250)
+    rep.finish(step=500, converged=True, ess=1000.0, ess_bulk=None)
+    assert "ESS 736/1000, tau 20" in capsys.readouterr().err and rep.bar is None  # 460 x 32 / 20
 
 
 def test_move_policies():

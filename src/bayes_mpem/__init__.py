@@ -5,8 +5,10 @@ identify each beacon's reflector (height of the reflecting plane ``d0`` and
 the multipath scatter ``sigma_MP``), with the paper's EM or a proper
 mixture-likelihood EM; sample the same likelihood with emcee for posterior
 intervals, and compare equal with learned mixing priors by PSIS-LOO; find which
-assumption a survey breaks (:func:`diagnose`); locate a transponder from a
-survey-in (:func:`bayes_mpem.survey_in.location.locate`).
+assumption a survey breaks (:func:`diagnose`); estimate the vehicle's track from
+the ranges and a drifting dead reckoning, using multipath as signal
+(:func:`navigate`); locate a transponder from a survey-in
+(:func:`bayes_mpem.survey_in.location.locate`).
 
 The package has two wings, which never import each other: :mod:`bayes_mpem.lbl`
 (the paper's problem: one-way ranges to beacons at known positions) and
@@ -18,48 +20,64 @@ transponder). What they share lives below them: :mod:`bayes_mpem.io`,
 
 __version__ = "0.1.0"
 
+import importlib  # noqa: E402
+
 from . import _deprecated  # noqa: E402
-from .exceptions import (  # noqa: E402
-    ConvergenceWarning,
-    FitQualityWarning,
-    InputError,
-    LocateWarning,
-    ModelCheckWarning,
-    PathChoiceWarning,
-    SamplingWarning,
-    SkippedBeaconWarning,
-)
-from .io.survey import BeaconData, Survey, load_survey  # noqa: E402
-from .lbl.beacon_sampling import PosteriorResult, sample_beacon  # noqa: E402
-from .lbl.comparison import SurveyComparison, compare  # noqa: E402
-from .lbl.diagnosis.driver import diagnose  # noqa: E402
-from .lbl.diagnosis.result import Diagnosis  # noqa: E402
-from .lbl.em_mixture import fit_mixture_em  # noqa: E402
-from .lbl.em_paper import fit_paper_em  # noqa: E402
-from .lbl.em_result import EMResult  # noqa: E402
-from .lbl.fitting import SurveyFit, fit  # noqa: E402
-from .lbl.loo import compare_beacon  # noqa: E402
-from .lbl.sampling import SurveyPosterior, sample  # noqa: E402
-from .lbl.simulate import Simulation, simulate_survey  # noqa: E402
+
+#: public name -> the module that defines it (relative to ``bayes_mpem``). The names are
+#: imported on first use (PEP 562), so ``import bayes_mpem`` and ``bayes-mpem --help``
+#: stay fast: numpy, scipy, pandas, emcee, ArviZ and matplotlib load only when needed.
+_PUBLIC: dict[str, str] = {
+    **dict.fromkeys(("ConvergenceWarning", "FitQualityWarning", "InputError", "LocateWarning",
+                     "ModelCheckWarning", "NavigationWarning", "PathChoiceWarning",
+                     "SamplingWarning", "SkippedBeaconWarning"),
+                    "exceptions"),
+    **dict.fromkeys(("BeaconData", "Survey", "load_survey"), "io.survey"),
+    **dict.fromkeys(("PosteriorResult", "sample_beacon"), "lbl.beacon_sampling"),
+    **dict.fromkeys(("SurveyComparison", "compare"), "lbl.comparison"),
+    "diagnose": "lbl.diagnosis.driver",
+    "Diagnosis": "lbl.diagnosis.result",
+    "fit_mixture_em": "lbl.em_mixture",
+    "fit_paper_em": "lbl.em_paper",
+    "EMResult": "lbl.em_result",
+    **dict.fromkeys(("SurveyFit", "fit"), "lbl.fitting"),
+    "compare_beacon": "lbl.loo",
+    **dict.fromkeys(("SurveyPosterior", "sample"), "lbl.sampling"),
+    **dict.fromkeys(("Simulation", "simulate_survey"), "lbl.simulate"),
+    **dict.fromkeys(("DiveSimulation", "Navigation", "navigate", "simulate_dive"),
+                    "lbl.navigate"),
+}
 
 _deprecated.install()
 
 
 def __getattr__(name):
-    """Serve ``bayes_mpem.em`` and the other old module paths as attributes too."""
+    """Import a public name on first use; serve ``bayes_mpem.em`` and the other old paths."""
+    if name in _PUBLIC:
+        value = getattr(importlib.import_module(f"{__name__}.{_PUBLIC[name]}"), name)
+        globals()[name] = value  # later look-ups skip this function
+        return value
     if name in _deprecated.MOVED:
         return _deprecated.old_module(name)
     raise AttributeError(f"module 'bayes_mpem' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted({*globals(), *_PUBLIC})
+
 
 __all__ = [
     "BeaconData",
     "ConvergenceWarning",
     "Diagnosis",
+    "DiveSimulation",
     "EMResult",
     "FitQualityWarning",
     "InputError",
     "LocateWarning",
     "ModelCheckWarning",
+    "Navigation",
+    "NavigationWarning",
     "PathChoiceWarning",
     "PosteriorResult",
     "SamplingWarning",
@@ -77,7 +95,9 @@ __all__ = [
     "fit_mixture_em",
     "fit_paper_em",
     "load_survey",
+    "navigate",
     "sample",
     "sample_beacon",
+    "simulate_dive",
     "simulate_survey",
 ]

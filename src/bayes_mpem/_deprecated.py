@@ -114,7 +114,7 @@ MOVED: dict[str, dict[str, str]] = {
         'DEFAULT_TAT': 'survey_in.location',
         'LocateResult': 'survey_in.location',
         'LocateWarning': 'exceptions',
-        'OUTLIER_MODELS': 'survey_in.location',
+        'OUTLIER_MODELS': 'survey_in.classes',
         'SEAGAP_TRANSDUCER_DEPTH': 'survey_in.survey',
         'earth_radius': 'io.geodesy',
         'enu_to_geodetic': 'io.geodesy',

@@ -43,3 +43,5 @@ class PathChoiceWarning(FitQualityWarning):
 
 class ModelCheckWarning(FitQualityWarning):
     """The ranges depart from the fitted model in a way its checks see (``bayes-mpem diagnose``)."""
+class NavigationWarning(UserWarning):
+    """Part of a navigated track (or a dead-reckoning nuisance) is not corrected by the ranges."""

@@ -2,8 +2,10 @@
 
 The command line writes a result's data with its ``write()`` and then its
 figures with :func:`write_figures`, which dispatches on the kind of result
-(fit, posterior, prior comparison, diagnosis). ``bayes-mpem plot RESULT_DIR``
-is :func:`load_output` followed by :func:`write_figures`; :func:`demo_markdown`
+(fit, posterior, prior comparison, diagnosis, located survey, navigation). ``bayes-mpem plot
+RESULT_DIR`` is :func:`load_output` followed by :func:`write_figures`; the
+folder kinds it reads are :data:`FOLDER_KINDS` (another command's folder is one
+more entry, :func:`folder_kind`); :func:`demo_markdown`
 is the ``summary.md`` of ``bayes-mpem demo``. One figure needs more than the
 result: the paper's Fig. 12 re-fits the figure beacon with the paper's EM over a
 grid of ``Pol`` (:func:`~bayes_mpem.lbl.pol_sensitivity.survey_pol_sensitivity`),
@@ -14,6 +16,7 @@ themselves only draw.
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -23,30 +26,37 @@ import pandas as pd
 
 from ._validate import check_choice
 from .exceptions import InputError
+from .io.results import MARKER, read_marker, write_file
 from .io.survey import load_survey
+from .io.table_files import frame_as_text, read_table_file
 from .io.tables import RESERVED_COLUMNS
 from .lbl.comparison import SurveyComparison
-from .lbl.diagnosis.result import Diagnosis
+from .lbl.diagnosis.result import Diagnosis, DiagnosisRecord
 from .lbl.em_result import EMResult
 from .lbl.fitting import SurveyFit
+from .lbl.navigate.result import Navigation
 from .lbl.path_choice import choices_from_summary
 from .lbl.pol_sensitivity import POL_GRID, survey_pol_sensitivity
 from .lbl.sampling import SurveyPosterior
 from .mixture.densities import CLASSES
 from .plots import bayes as bayes_plots
 from .plots import lbl as lbl_plots
+from .plots import navigate as nav_plots
+from .plots import survey_in as survey_in_plots
 from .plots.diagnose import write_figures as write_diagnosis_figures
 from .survey_in.result import SurveyInResult
 
-__all__ = ["POL_GRID", "demo_markdown", "figure_beacon", "load_output", "write_figures"]
+__all__ = ["FOLDER_KINDS", "POL_GRID", "demo_markdown", "figure_beacon", "folder_kind",
+           "load_output", "write_figures"]
 
 _ADDED = set(RESERVED_COLUMNS)
 
 
 def _save(fig, path, dpi=110):
-    fig.savefig(path, dpi=dpi)
-    plt.close(fig)
-    return Path(path)
+    try:
+        return write_file(path, lambda tmp: fig.savefig(tmp, dpi=dpi))
+    finally:
+        plt.close(fig)
 
 
 def figure_beacon(survey_fit, beacon=None) -> str:
@@ -78,15 +88,18 @@ def write_figures(result, out_dir, *, beacon=None, truth=None, general=True,
 
     Parameters
     ----------
-    result : SurveyFit, SurveyPosterior, SurveyComparison, Diagnosis or SurveyInResult
-        A result with nothing to draw (no fitted beacon; a located survey)
-        writes no figure.
+    result : SurveyFit, SurveyPosterior, SurveyComparison, Diagnosis, SurveyInResult or Navigation
+        Or the record of one read back by :func:`load_output`. A result with nothing to
+        draw (no fitted beacon or transponder) writes no figure. A navigation writes
+        ``nav_track.png``, ``nav_ranges.png``
+        and ``nav_correction.png``.
     out_dir : str or pathlib.Path
         Created if missing.
     beacon : str, optional
         Beacon of the single-beacon figures of a fit (:func:`figure_beacon`).
-    truth : dict, optional
-        ``Simulation.truth``, marked where a figure can show it (fits, posteriors).
+    truth : dict or pandas.DataFrame, optional
+        ``Simulation.truth``, marked where a figure can show it (fits, posteriors);
+        for a navigation, the true track (``DiveSimulation.true_track``).
     general : bool, default True
         Fits: also write the method-independent figures (Figs. 1, 5, 8 and 12).
     sensitivity : dict, optional
@@ -114,16 +127,26 @@ def write_figures(result, out_dir, *, beacon=None, truth=None, general=True,
                             sensitivity=sensitivity)
     if isinstance(result, SurveyPosterior):
         return _posterior_figures(result, out, truth=truth)
-    if isinstance(result, SurveyComparison):
+    if isinstance(result, (SurveyComparison, ComparisonRecord)):
         if not result.results:
             return []
         return [_save(bayes_plots.plot_prior_comparison(result), out / "compare.png")]
-    if isinstance(result, Diagnosis):
+    if isinstance(result, (Diagnosis, DiagnosisRecord)):
         return list(write_diagnosis_figures(result, out).values())
     if isinstance(result, SurveyInResult):
-        return []
+        if not result.summary.get("transponders"):
+            return []
+        return [_save(survey_in_plots.plot_survey_map(result), out / "survey_map.png"),
+                _save(survey_in_plots.plot_residuals(result), out / "residuals.png"),
+                _save(survey_in_plots.plot_residual_histogram(result),
+                      out / "residual_histogram.png")]
+    if isinstance(result, Navigation):
+        return [_save(nav_plots.plot_nav_track(result, truth=truth), out / "nav_track.png"),
+                _save(nav_plots.plot_nav_ranges(result), out / "nav_ranges.png"),
+                _save(nav_plots.plot_nav_correction(result, truth=truth),
+                      out / "nav_correction.png")]
     raise TypeError(f"result: expected a SurveyFit, SurveyPosterior, SurveyComparison, "
-                    f"Diagnosis or SurveyInResult, got {type(result).__name__}")
+                    f"Diagnosis, SurveyInResult or Navigation, got {type(result).__name__}")
 
 
 def _fit_figures(result, out, *, beacon, truth, general, sensitivity):
@@ -188,7 +211,7 @@ def demo_markdown(simulation, fit, paper, out_dir, figures, *, seed, posterior=N
     sim = simulation
     md = ["# bayes-mpem demo", "",
           f"Simulated ABE58-like survey (seed {seed}): {len(sim.survey)} pings to "
-          f"{len(sim.truth)} beacons. Truth: the sea surface, i.e. HRP = beacon depth.", "",
+          f"{len(sim.truth)} beacons. Truth: the sea surface, i.e. d0 = beacon depth.", "",
           "## Table II, mixture EM", "", lbl_plots.table_ii_markdown(fit, truth=sim.truth), "",
           "## Table II, the paper's EM (Pol = 0.05, alpha = 0.5)", "",
           lbl_plots.table_ii_markdown(paper, truth=sim.truth), ""]
@@ -203,25 +226,61 @@ def demo_markdown(simulation, fit, paper, out_dir, figures, *, seed, posterior=N
     return "\n".join(md) + "\n"
 
 
-def _read_json(path):
-    if not path.exists():
-        raise FileNotFoundError(f"{path}: not found; expected the output folder of "
-                                "'bayes-mpem fit' or 'bayes-mpem sample'")
-    return json.loads(path.read_text())
+@dataclass(frozen=True)
+class ComparisonRecord:
+    """A prior comparison read back from ``compare.json``: what its figure draws.
+
+    Attributes
+    ----------
+    results : dict
+        Per beacon, a namespace with ``elpd_diff``, ``elpd_diff_se``, ``shifts``
+        and ``learned.em.d0`` (as :class:`~bayes_mpem.lbl.loo.PriorComparison`).
+    """
+
+    results: dict
+
+
+#: Output folder kinds ``bayes-mpem plot`` reads, tried in order: ``(kind, file, test,
+#: loader)``; a folder is of the first kind whose ``file`` exists and whose JSON passes
+#: ``test``; ``loader(folder, document)`` returns what :func:`write_figures` draws.
+FOLDER_KINDS: list = []
+
+
+def folder_kind(kind: str, marker: str, test=None):
+    """Register a loader of an output folder kind for :func:`load_output` (a decorator).
+
+    Parameters
+    ----------
+    kind : str
+        Its name, for messages (``"fit"``, ``"locate"``, ...).
+    marker : str
+        The JSON file that identifies the folder (``"summary.json"``, ...).
+    test : callable, optional
+        ``test(document) -> bool``: the folder is of this kind (default: any).
+
+    Returns
+    -------
+    callable
+        The decorator; it returns the loader unchanged.
+    """
+    def register(loader):
+        FOLDER_KINDS.append((kind, marker, test or (lambda doc: True), loader))
+        return loader
+    return register
 
 
 def load_output(result_dir):
-    """Read the output folder of ``bayes-mpem fit`` or ``sample`` back into result objects.
+    """Read an output folder of ``bayes-mpem`` back into what its figures draw.
 
     Parameters
     ----------
     result_dir : str or pathlib.Path
-        Holds ``summary.json`` and ``classified.csv`` (and ``history.json`` for a
-        fit, ``posterior.nc`` for a sample).
+        The output folder of ``fit``, ``sample``, ``compare``, ``diagnose`` or
+        ``locate`` (:data:`FOLDER_KINDS`).
 
     Returns
     -------
-    SurveyFit or SurveyPosterior
+    SurveyFit, SurveyPosterior, ComparisonRecord, DiagnosisRecord or SurveyInResult
         Rebuilt from the files. A fit without ``history.json`` gets a
         one-entry history; a posterior's ``em`` is a namespace of the EM
         start's parameters.
@@ -231,30 +290,143 @@ def load_output(result_dir):
     FileNotFoundError
         When a needed file is missing.
     bayes_mpem.InputError
-        When the files do not fit together.
+        When the files do not fit together, or are of no known kind.
     """
     d = Path(result_dir)
-    summary = _read_json(d / "summary.json")
-    if "beacons_table" not in summary:
-        raise InputError(f"{d / 'summary.json'}: no 'beacons_table'; it was written by another "
-                         "program or an older bayes_mpem: run 'bayes-mpem fit' again")
-    classified = pd.read_csv(d / "classified.csv", dtype=str, keep_default_na=False)
+    if (d / MARKER).exists():  # valid JSON, and every data file of the run there (figures
+        marker = read_marker(d, check=False)  # are drawn again from the data: not needed)
+        missing = [f for f in marker.get("files", []) if not f.endswith(".png")
+                   and not (d / f).exists()]
+        if missing:
+            raise InputError(f"{d / MARKER}: lists {', '.join(missing[:5])}, missing: the folder "
+                             "is not a complete output")
+    seen = []
+    for kind, marker, test, loader in FOLDER_KINDS:
+        path = d / marker
+        if not path.exists():
+            continue
+        doc = _read_json(path)
+        if not isinstance(doc, dict):
+            raise InputError(f"{path}: expected a JSON object, got {type(doc).__name__}")
+        if test(doc):
+            return loader(d, doc)
+        seen.append(marker)
+    if "summary.json" in seen:
+        raise InputError(f"{d / 'summary.json'}: no 'beacons_table' or 'transponders'; it was "
+                         "written by another program or an older bayes_mpem: run the command "
+                         "again")
+    markers = sorted({m for _, m, _, _ in FOLDER_KINDS})
+    raise FileNotFoundError(f"{d / 'summary.json'}: not found; expected the output folder of "
+                            f"'bayes-mpem {' | '.join(k for k, *_ in FOLDER_KINDS)}' (one of "
+                            f"{', '.join(markers)})")
+
+
+def _read_json(path):
+    try:
+        return json.loads(path.read_text())
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise InputError(f"{path}: not valid JSON ({exc}); the file is damaged") from None
+
+
+def _classified(d, summary):
+    """Read the classified table of an output folder as text, checked against its summary."""
+    files = summary.get("files", [])
+    name = next((f for f in ("classified.parquet", "classified.csv") if f in files),
+                "classified.csv")
+    frame = read_table_file(d / name, str(d / name), "classified table").frame
+    n_rows = summary.get("n_rows")
+    if n_rows is not None and len(frame) != n_rows:
+        raise InputError(f"{d / name}: {len(frame)} rows, but {d / MARKER} says n_rows = "
+                         f"{n_rows}: the table is truncated or from another run")
+    missing = [c for c in ("p_dp", "p_mp", "p_ol", "label") if c not in frame.columns]
+    if missing:
+        raise InputError(f"{d / name}: missing column(s) {', '.join(missing)}; not a "
+                         "classified table of 'bayes-mpem fit' or 'sample'")
+    return frame_as_text(frame) if name.endswith(".parquet") else frame
+
+
+def _fit_or_sample(d, summary):
+    classified = _classified(d, summary)
     table = classified[[c for c in classified.columns if c not in _ADDED]]
     beacons = pd.DataFrame([{"beacon": b, **v} for b, v in summary["beacons_table"].items()])
     survey = load_survey(table, beacons)
-    num = {c: pd.to_numeric(classified[c].replace("", np.nan)).to_numpy()
-           for c in classified.columns if c in _ADDED - {"label", "reason"}}
+    num = {}
+    for c in sorted(_ADDED - {"label", "reason"}):
+        if c in classified.columns:
+            num[c] = pd.to_numeric(classified[c].replace("", np.nan), errors="coerce").to_numpy()
+            bad = np.flatnonzero(np.isnan(num[c]) & (classified[c] != "").to_numpy()
+                                 | (num[c] < 0) | (num[c] > 1))
+            if bad.size:
+                raise InputError(f"{d} classified table, row {int(bad[0]) + 1}, column {c!r}: "
+                                 f"expected a probability, got {classified[c].iloc[bad[0]]!r}")
     probs = np.column_stack([num["p_" + c] for c in CLASSES])
-    if "method" in summary:
+    return survey, probs, num
+
+
+@folder_kind("fit", "summary.json", lambda doc: "beacons_table" in doc and "method" in doc)
+def _folder_fit(d, summary):
+    survey, probs, _ = _fit_or_sample(d, summary)
+    try:
         return _load_fit(d, summary, survey, probs)
-    if "priors" in summary:
+    except (KeyError, TypeError, IndexError) as exc:
+        raise InputError(f"{d / MARKER}: the output files do not fit together "
+                         f"({type(exc).__name__}: {exc})") from None
+
+
+@folder_kind("sample", "summary.json", lambda doc: "beacons_table" in doc and "priors" in doc)
+def _folder_sample(d, summary):
+    survey, probs, num = _fit_or_sample(d, summary)
+    try:
         return _load_posterior(d, summary, survey, probs, num)
-    raise InputError(f"{d / 'summary.json'}: neither a fit ('method') nor a sample ('priors')")
+    except (KeyError, TypeError, IndexError) as exc:
+        raise InputError(f"{d / MARKER}: the output files do not fit together "
+                         f"({type(exc).__name__}: {exc})") from None
+
+
+@folder_kind("locate", "summary.json", lambda doc: "transponders" in doc)
+def _folder_locate(d, summary):
+    path = d / "classified.csv"
+    if not path.exists():
+        raise FileNotFoundError(f"{path}: not found; 'bayes-mpem locate' writes it")
+    cls = pd.read_csv(path, keep_default_na=False, na_values=[""],
+                      dtype={"transponder": str, "label": str, "reason": str})
+    cls["transponder"] = cls["transponder"].fillna("")
+    missing = [c for c in ("residual_ms", "azimuth_deg", "east", "north", "time")
+               if c not in cls.columns]
+    if missing:
+        raise InputError(f"{path}: no column(s) {missing}; it was written by an older "
+                         "bayes_mpem: run 'bayes-mpem locate' again")
+    return SurveyInResult(summary=summary, classified=cls)
+
+
+@folder_kind("compare", "compare.json")
+def _folder_compare(d, doc):
+    results = {}
+    for b, r in doc["beacons"].items():
+        if "em_d0" not in r:
+            raise InputError(f"{d / 'compare.json'}: no 'em_d0'; it was written by an older "
+                             "bayes_mpem: run 'bayes-mpem compare' again")
+        results[b] = SimpleNamespace(
+            elpd_diff=r["elpd_diff"], elpd_diff_se=r["elpd_diff_se"], shifts=r["shifts"],
+            learned=SimpleNamespace(em=SimpleNamespace(d0=r["em_d0"])))
+    return ComparisonRecord(results=results)
+
+
+@folder_kind("diagnose", "diagnosis.json")
+def _folder_diagnose(d, doc):
+    path = d / "replies.csv"
+    if not path.exists() or "figures" not in doc:
+        raise FileNotFoundError(f"{path}: not found; 'bayes-mpem diagnose' writes it (a folder "
+                                "of an older bayes_mpem: run it again)")
+    return DiagnosisRecord(document=doc, table=pd.read_csv(path, dtype={"beacon": str}))
 
 
 def _load_fit(d, summary, survey, probs):
     hist_path = d / "history.json"
-    hist = json.loads(hist_path.read_text()) if hist_path.exists() else {}
+    hist = _read_json(hist_path) if hist_path.exists() else {}
+    if not isinstance(hist, dict):
+        raise InputError(f"{hist_path}: expected a JSON object of beacons, got "
+                         f"{type(hist).__name__}")
     results = {}
     for b, s in summary["beacons"].items():
         rows = survey.for_beacon(b).rows
@@ -282,7 +454,10 @@ def _load_posterior(d, summary, survey, probs, num):
     path = d / "posterior.nc"
     if not path.exists():
         raise FileNotFoundError(f"{path}: not found; 'bayes-mpem sample' writes it")
-    tree = xr.open_datatree(path, engine="h5netcdf").load()
+    try:
+        tree = xr.open_datatree(path, engine="h5netcdf").load()
+    except (OSError, ValueError) as exc:
+        raise InputError(f"{path}: not a readable NetCDF file ({exc})") from None
     sd = np.column_stack([num["p_" + c + "_sd"] for c in CLASSES])
     results = {}
     for b, s in summary["beacons"].items():

@@ -33,13 +33,17 @@ def test_fit_command(survey_files, tmp_path, method, capsys):
     assert summary["beacons"]["4"]["sigma_dp"] == 3.97
     out = pd.read_csv(tmp_path / "classified.csv")
     assert len(out) == len(pd.read_csv(survey_files / "pings.csv"))
-    assert "HRP d0 (m)" in capsys.readouterr().out
+    assert "d0 (m)" in capsys.readouterr().out
 
 
 def test_fit_command_with_figures(survey_files, tmp_path):
+    from bayes_mpem.plots.style import PALETTES, class_color
+
     assert main(["fit", str(survey_files / "pings.csv"), "--beacons",
-                 str(survey_files / "beacons.csv"), "--out", str(tmp_path), "--figures"]) == 0
+                 str(survey_files / "beacons.csv"), "--out", str(tmp_path), "--figures",
+                 "--palette", "paper"]) == 0
     assert (tmp_path / "fig13_classification.png").stat().st_size > 10_000
+    assert class_color("ol") == PALETTES["okabe-ito"]["ol"]  # the command restored it
 
 
 def test_fit_command_bad_input_exits_2_with_message(survey_files, tmp_path, capsys):
@@ -65,7 +69,7 @@ def test_fit_command_missing_file(tmp_path, capsys):
 def test_demo_without_bayes(tmp_path, capsys):
     assert main(["demo", "--out", str(tmp_path), "--no-bayes"]) == 0
     text = capsys.readouterr().out
-    assert "HRP d0 (m)" in text and "The paper's EM" in text
+    assert "d0 (m)" in text and "The paper's EM" in text
     for name in ("summary.json", "classified.csv", "history.json", "summary.md",
                  "survey/pings.csv", "survey/truth.json", "paper/summary.json",
                  "fig01_ranges.png", "fig05_track.png", "fig07_first_iteration_4.png",

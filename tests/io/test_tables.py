@@ -10,6 +10,7 @@ import pandas as pd
 import pytest
 
 from bayes_mpem.exceptions import InputError
+from bayes_mpem.io.dead_reckoning import read_dead_reckoning
 from bayes_mpem.io.survey import BeaconData, Survey, load_survey
 from bayes_mpem.io.tables import BEACON_COLUMNS, PING_COLUMNS, read_beacons, read_pings
 
@@ -361,3 +362,26 @@ def test_reserved_output_column_names_are_refused(tmp_path, beacons_csv):
     p.write_text("time,beacon,range,x,y,depth,label\n0,1,100,0,0,10,mine\n")
     with pytest.raises(InputError, match=r"'label' would be overwritten by the results"):
         load_survey(p, beacons_csv)
+
+
+# ------------------------------------------------------------------ dead-reckoning tables
+
+
+def test_dead_reckoning_positions_and_velocities(tmp_path):
+    t, form = read_dead_reckoning(write(tmp_path, "dr.csv", "time,x,y,depth\n0,1,2,5\n10,3,4,5\n"))
+    assert form == "position" and t.columns.tolist() == ["time", "x", "y", "depth"]
+    t, form = read_dead_reckoning(write(tmp_path, "v.csv",
+                                        "time, ve ,vn,extra\n0,1,0,a\n5,1,0,b\n"))
+    assert form == "velocity" and t["ve"].tolist() == [1.0, 1.0]
+
+
+@pytest.mark.parametrize(("text", "match"), [
+    ("time,x,y,ve,vn\n0,0,0,1,1\n1,0,0,1,1\n", "found both"),
+    ("time,east,north\n0,0,0\n1,0,0\n", "found neither"),
+    ("time,x,y\n0,0,0\n", "at least two rows"),
+    ("time,x,y\n0,0,0\n10,0,0\n10,1,0\n", r"line 4, column 'time': expected a time after"),
+    ("time,x,y\n0,0,0\n10,abc,0\n", r"line 3, column 'x': expected a finite number"),
+])
+def test_dead_reckoning_errors_name_the_line_and_column(tmp_path, text, match):
+    with pytest.raises(InputError, match=match):
+        read_dead_reckoning(write(tmp_path, "dr.csv", text))

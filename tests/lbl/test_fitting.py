@@ -96,9 +96,9 @@ def test_table_like_table_ii(sim):
     res = bm.fit(sim.survey, rng=0)
     t = res.table()
     assert list(t["beacon"]) == ["1", "2", "3", "4"]
-    np.testing.assert_allclose(t["hrp_m"], t["beacon_depth_m"], atol=3.0)
+    np.testing.assert_allclose(t["d0_m"], t["beacon_depth_m"], atol=3.0)
     text = res.format_table()
-    assert "HRP d0 (m)" in text and "2392.0" in text
+    assert "d0 (m)" in text and "2392.0" in text
 
 
 def test_one_survey_loop_skips_with_reason_and_warns_at_the_caller(sim):
@@ -128,6 +128,8 @@ def test_results_write_the_same_bytes_through_the_one_writer(sim, tmp_path):
 
     res = bm.fit(sim.survey, rng=0)
     paths = res.write(tmp_path)
-    assert paths["summary"].read_text() == json_.dumps(res.summary(), indent=2) + "\n"
+    files = ["classified.csv", "history.json", "summary.json"]  # the completion marker's list
+    assert paths["summary"].read_text() == json_.dumps({**res.summary(), "files": files},
+                                                       indent=2) + "\n"
     assert paths["history"].read_text() == json_.dumps(res.history(), indent=None) + "\n"
     assert res.to_dict() == res.summary()

@@ -74,3 +74,30 @@ def test_unknown_path_is_rejected():
 def test_elevation_angle():
     assert geometry.elevation_angle(0.0, 100.0) == pytest.approx(90.0)
     assert geometry.elevation_angle(100.0, 100.0) == pytest.approx(45.0)
+
+
+def test_horizontal_slopes_match_finite_differences():
+    rng = np.random.default_rng(0)
+    h, dz, d0 = rng.uniform(10, 3000, 20), rng.uniform(-50, 300, 20), rng.uniform(400, 2500, 20)
+    eps = 1e-4
+    for path in ("triangle", "double"):
+        sd, sm = geometry.horizontal_slopes(h, dz, d0, path)
+        num_d = (geometry.direct_path(h + eps, dz) - geometry.direct_path(h - eps, dz)) / (2 * eps)
+        num_m = (geometry.multipath_range(h + eps, dz, d0, path)
+                 - geometry.multipath_range(h - eps, dz, d0, path)) / (2 * eps)
+        # dR/dx = (x - x_b) * slope and dh/dx = (x - x_b) / h, so dR/dh = h * slope
+        np.testing.assert_allclose(h * sd, num_d, rtol=1e-6)
+        np.testing.assert_allclose(h * sm, num_m, rtol=1e-6)
+
+
+def test_per_range_paths_match_one_path_each():
+    h, dz, d0 = np.array([500.0, 1500.0, 2500.0]), np.array([10.0, 40.0, 0.0]), 2400.0
+    paths = np.array(["triangle", "double", "triangle"])
+    mixed = geometry.multipath_range(h, dz, d0, paths)
+    for i, p in enumerate(paths):
+        assert mixed[i] == pytest.approx(geometry.multipath_range(h[i], dz[i], d0, p))
+        assert geometry.multipath_derivative(h, dz, d0, paths)[i] == pytest.approx(
+            geometry.multipath_derivative(h[i], dz[i], d0, p))
+    np.testing.assert_array_equal(geometry.multipath_range(h, dz, d0, paths == "double"), mixed)
+    with pytest.raises(ValueError, match="path"):
+        geometry.multipath_range(h, dz, d0, np.array(["triangle", "single", "double"]))

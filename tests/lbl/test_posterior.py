@@ -1,6 +1,7 @@
 """Bayesian variant: posterior, sampler, calibration, prior comparison, outputs."""
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -24,8 +25,14 @@ def beacon4():
 # --- the posterior ----------------------------------------------------------
 
 
-def test_log_posterior_is_prior_plus_shared_likelihood(beacon4):
-    post = BeaconPosterior(beacon4, concentration=2.5)
+@pytest.mark.parametrize("precision", ["float64", "auto"])
+def test_log_posterior_is_prior_plus_shared_likelihood(beacon4, precision):
+    from bayes_mpem.lbl.loglik_kernel import FLOAT32_MAX_ERROR, FLOAT32_MAX_RANGES
+
+    post = BeaconPosterior(beacon4, concentration=2.5, precision=precision)
+    # float64 agrees to rounding; float32 (chosen by "auto" here) within its error bound
+    tol = ({"rel": 1e-10} if post.kernel.dtype == np.float64
+           else {"abs": FLOAT32_MAX_ERROR * beacon4.n / FLOAT32_MAX_RANGES})
     theta = np.array([[2472.0, np.log(7.0), np.log(4.0), 0.5, 0.35],
                       [2470.0, np.log(9.0), np.log(3.5), 0.4, 0.4]])
     lp = post(theta)
@@ -34,7 +41,7 @@ def test_log_posterior_is_prior_plus_shared_likelihood(beacon4):
         ll = loglik_per_range(post.geom, row[0], np.exp(row[2]), np.exp(row[1]), w).sum()
         prior = (stats.dirichlet.logpdf(w, [2.5] * 3) - np.log(np.diff(post.d0_bounds)[0])
                  - 2 * np.log(np.diff(post.log_sigma_bounds)[0]))
-        assert value == pytest.approx(ll + prior, rel=1e-10)
+        assert value == pytest.approx(ll + prior, **tol)
 
 
 def test_prior_support(beacon4):
@@ -207,12 +214,18 @@ def test_sample_command_writes_the_contract(survey_files, tmp_path):
         assert (tmp_path / name).stat().st_size > 10_000
 
 
-def test_compare_command(survey_files, tmp_path):
+def test_compare_command(survey_files, tmp_path, capsys):
     from bayes_mpem.cli import main
 
     assert main(["compare", str(survey_files["pings"]), "--beacons",
-                 str(survey_files["beacons"]), "--out", str(tmp_path), "--seed", "2",
-                 "--no-progress"]) == 0
+                 str(survey_files["beacons"]), "--out", str(tmp_path), "--seed", "2"]) == 0
+    # standard error is not a terminal here: progress comes as plain lines, per beacon and
+    # priors, ending with the steps run, the ESS against its target and the seconds
+    err = capsys.readouterr().err
+    for bid in ("1", "2", "3", "4"):
+        for priors in ("equal", "learned"):
+            assert re.search(rf"^\[sampler\] beacon {bid} \({priors} priors\): done, \d+ "
+                             r"steps, ESS \d+ \(bulk \d+\) of 1000, \d+\.\d s$", err, re.M), err
     c = json.loads((tmp_path / "compare.json").read_text())
     for b in c["beacons"].values():
         for key in ("elpd_equal", "elpd_learned", "elpd_diff", "elpd_diff_se", "shifts",
@@ -221,6 +234,9 @@ def test_compare_command(survey_files, tmp_path):
         assert b["model_checks"]["flags"] == []  # a clean survey
         assert b["elpd_diff"] == pytest.approx(b["elpd_learned"] - b["elpd_equal"], rel=1e-9)
     assert (tmp_path / "compare.png").stat().st_size > 10_000
+    # bayes-mpem plot redraws it from compare.json alone
+    assert main(["plot", str(tmp_path), "--out", str(tmp_path / "again")]) == 0
+    assert (tmp_path / "again" / "compare.png").stat().st_size > 10_000
 
 
 def test_sample_bad_input(tmp_path, capsys):

@@ -1,25 +1,29 @@
 """``bayes-mpem locate``: locate the transponders of a ranging survey file.
 
-Parses nothing itself (:mod:`.main` does): checks that the options go
+Parses nothing itself (:mod:`.parser` does): checks that the options go
 together, calls :func:`~bayes_mpem.survey_in.survey.locate_survey` (or its
-posterior-sampling sibling), writes the result and prints one line per
-transponder.
+posterior-sampling sibling, through :func:`bayes_mpem.batch.locate_raw`, which
+``bayes-mpem batch`` shares), writes the result (and with ``--figures`` its
+figures, :func:`~bayes_mpem.report.write_figures`) and prints, per transponder,
+its position, the drift from the drop point, TAT, sound speed and depth change
+with their intervals, and whether a lag along the track would fit better.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from ..io.formats import read_survey
-from ..survey_in.location_sampling import locate_survey_bayes
+from ..batch import locate_raw
+from ..io.boundary import read_text_lines
+from ..io.formats import read_survey, sniff_format
+from ..io.raw import ARRAY_FORMATS
+from ..report import write_figures
 from ..survey_in.posterior import check_location_options
-from ..survey_in.result import SurveyInResult
-from ..survey_in.survey import locate_survey
 from .errors import OptionError
 
 
 def survey_format(path, fmt: str) -> str:
-    """Resolve ``--format obsrange`` to the SIO or WHOI variant of the deck-box log.
+    """Resolve ``--format auto`` and ``obsrange`` to a reader's format.
 
     Parameters
     ----------
@@ -31,13 +35,15 @@ def survey_format(path, fmt: str) -> str:
     Returns
     -------
     str
-        ``fmt``, or for ``"obsrange"`` ``"obsrange-whoi"`` when the file starts with
+        ``fmt``; for ``"auto"`` the format :func:`~bayes_mpem.io.formats.sniff_format`
+        recognises; for ``"obsrange"`` ``"obsrange-whoi"`` when the file starts with
         a ``#`` comment header, else ``"obsrange-sio"``.
     """
+    if fmt == "auto":
+        return sniff_format(path)
     if fmt != "obsrange":
         return fmt
-    with open(path, encoding="utf-8-sig", errors="replace") as fh:
-        first = next((ln for ln in fh if ln.strip()), "")
+    first = next((ln for ln in read_text_lines(path) if ln.strip()), "")
     return "obsrange-whoi" if first.lstrip().startswith("#") else "obsrange-sio"
 
 
@@ -52,32 +58,87 @@ def _check_sample_options(args):
                                min_ess=1000.0 if args.min_ess is None else args.min_ess)
 
 
-def _locate(args, raw) -> SurveyInResult:
+def locate_kwargs(args) -> dict:
+    """Options of the location from ``bayes-mpem locate``'s, after checking they go together.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+
+    Returns
+    -------
+    dict
+        The keyword arguments of :func:`~bayes_mpem.survey_in.survey.locate_survey`,
+        plus ``sample``: those of the posterior sampling
+        (:func:`~bayes_mpem.survey_in.location_sampling.locate_survey_bayes`) with
+        ``--sample``, else None.
+
+    Raises
+    ------
+    OptionError
+        For options that do not go together (e.g. ``--seed`` without ``--sample``).
+    """
+    _check_sample_options(args)
+    if getattr(args, "format", None) in ARRAY_FORMATS:
+        given = [name for name, v in (("--tat", args.tat is not None),
+                                      ("--fit-tat", args.fit_tat), ("--fit-lag", args.fit_lag),
+                                      ("--sample", args.sample)) if v]
+        if given:
+            raise OptionError(f"{', '.join(given)}: not for a {args.format} array survey (its "
+                              "travel times are corrected for the delays; the array's "
+                              "posterior is not sampled yet)")
+        return dict(ci=args.ci, outliers=args.outliers, ssp=args.ssp,
+                    speed_intervals=args.speed_intervals, sample=None)
     model = dict(tat=args.tat, fit_tat=args.fit_tat, ci=args.ci, outliers=args.outliers,
-                 ssp=args.ssp, speed_intervals=args.speed_intervals)
+                 ssp=args.ssp, speed_intervals=args.speed_intervals,
+                 lag_check=not getattr(args, "no_lag_check", False))
     if args.fit_lag:
         if args.sample:
             raise OptionError("--fit-lag with --sample is not implemented: the posterior has "
                               "no lag parameter yet")
         model["fit_lag"] = True
-    if not args.sample:
-        return locate_survey(raw, **model)
-    summary, classified, posteriors = locate_survey_bayes(
-        raw, **model, n_walkers=args.walkers,
-        min_ess=1000.0 if args.min_ess is None else args.min_ess,
+    model["sample"] = None if not args.sample else dict(
+        n_walkers=args.walkers, min_ess=1000.0 if args.min_ess is None else args.min_ess,
         rng=0 if args.seed is None else args.seed,
         progress=False if args.no_progress else "auto")
-    return SurveyInResult(summary=summary, classified=classified, posteriors=posteriors)
+    return model
+
+
+def _interval(d, fmt="{:.2f}", scale=1.0):
+    lo, hi = d["interval"]
+    f = fmt.format
+    return f"{f(scale * d['mean'])} [{f(scale * lo)}, {f(scale * hi)}]"
 
 
 def _print_transponder(tid, t, *, ci, sampled):
-    lo, hi = t["depth"]["interval"]
     where = f"lat {t['lat']:.6f} lon {t['lon']:.6f}" if t["lat"] is not None else \
         f"east {t['east']['mean']:.2f} north {t['north']['mean']:.2f} m"
-    print(f"transponder {tid}: {where}, depth {t['depth']['mean']:.2f} m "
-          f"[{lo:.2f}, {hi:.2f}], sound speed {t['sound_speed']['mean']:.2f} m/s, "
-          f"{t['n_spurious']} spurious of {t['n']} pings, rms {t['sigma_ms']:.2f} ms")
+    sig = t["sigma_ms"]["mean"] if isinstance(t["sigma_ms"], dict) else t["sigma_ms"]
+    print(f"transponder {tid}: {where}, depth {_interval(t['depth'])} m, "
+          f"{t['n_spurious']} spurious of {t['n']} pings, rms {sig:.3g} ms")
+    tat = t["tat"]
+    tat_s = (_interval(tat, "{:.2f}", 1e3) if tat.get("fitted") else
+             f"{1e3 * tat['mean']:.2f} (fixed)")
+    print(f"  sound speed {_interval(t['sound_speed'])} m/s, TAT {tat_s} ms")
+    if "enu" in t:
+        print(f"  east {_interval(t['enu']['east'], '{:.3f}')}, north "
+              f"{_interval(t['enu']['north'], '{:.3f}')}, up {_interval(t['enu']['up'], '{:.3f}')}"
+              f" m; moved {t['moved_m']:.3f} m from its prior position")
+    if "drift" in t:
+        change = (f"; depth change {_interval(t['depth_change'])} m" if "depth_change" in t
+                  else "")
+        print(f"  drift {_interval(t['drift'])} m at azimuth {_interval(t['azimuth'], '{:.1f}')}"
+              f" deg from the drop point{change}")
+    if "lag_check" in t:
+        lc = t["lag_check"]
+        verdict = ("re-run with --fit-lag" if lc["recommended"] else "no lag needed")
+        print(f"  lag check: a lag of {lc['lag']:.2f} +- {lc['lag_sd']:.2f} s along the track: "
+              f"held-out gain {lc['gain']:+.1f} +- {lc['gain_se']:.1f} nats, rms "
+              f"{lc['rms_ms_without']:.2f} -> {lc['rms_ms_with']:.2f} ms: {verdict}")
+    if "lag" in t:
+        print(f"  lag {t['lag']['mean']:.2f} +- {t['lag']['sd']:.2f} s (fitted)")
     if sampled:
+        lo, hi = t["depth"]["interval"]
         elo, ehi = t["em"]["depth"]["interval"]
         d = t["posterior"]["diagnostics"]
         ess = min(v for k in ("ess", "ess_bulk") for v in t["posterior"][k].values())
@@ -105,15 +166,24 @@ def cmd_locate(args) -> int:
     OptionError
         For options that do not go together (e.g. ``--seed`` without ``--sample``).
     """
-    fmt = survey_format(args.survey, args.format)
-    _check_sample_options(args)
-    raw = read_survey(args.survey, fmt)
-    result = _locate(args, raw)
+    args.format = survey_format(args.survey, args.format)
+    options = locate_kwargs(args)  # options checked before the file is read
+    raw = read_survey(args.survey, args.format)
+    result = locate_raw(raw, options)
     out = Path(args.out)
     paths = result.write(out)
     summary = result.summary
     for tid, t in summary["transponders"].items():
         _print_transponder(tid, t, ci=args.ci, sampled=args.sample)
+    if "array_centre" in summary:
+        c = summary["array_centre"]["enu"]
+        print(f"array centre: east {_interval(c['east'], '{:.3f}')}, north "
+              f"{_interval(c['north'], '{:.3f}')}, up {_interval(c['up'], '{:.3f}')} m")
+    for tid, why in summary.get("skipped_transponders", {}).items():
+        print(f"transponder {tid} not located: {why}")
     print(f"{summary['n_skipped_lines']} lines skipped (reasons in classified.csv)")
-    print(f"wrote {paths['summary']}\nwrote {paths['classified']}")
+    written = [paths["summary"], paths["classified"]]
+    if args.figures:
+        written += write_figures(result, out)
+    print("\n".join(f"wrote {p}" for p in written))
     return 0

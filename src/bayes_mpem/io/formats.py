@@ -1,20 +1,27 @@
-"""The survey file formats by name, and the sample surveys shipped with the package.
+"""The survey file formats by name, format sniffing, and the sample surveys shipped.
 
 :func:`read_survey` dispatches a path to the reader of one of :data:`FORMATS`
-(:mod:`bayes_mpem.io.obsrange`, :mod:`bayes_mpem.io.seagap`), and
-:func:`sample_file` finds a measured sample survey.
+(:mod:`bayes_mpem.io.obsrange`, :mod:`bayes_mpem.io.seagap`,
+:mod:`bayes_mpem.io.garpos`, :mod:`bayes_mpem.io.gnatss`), or to the one
+:func:`sniff_format` recognises; :func:`sample_file` finds a measured sample survey.
 """
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 from .._validate import check_choice
+from ..exceptions import InputError
+from .garpos import read_garpos
+from .gnatss import read_gnatss
 from .obsrange import read_obsrange_sio, read_obsrange_whoi
 from .raw import RawSurvey
 from .seagap import read_seagap
 
-FORMATS = ("obsrange-sio", "obsrange-whoi", "seagap")
+FORMATS = ("obsrange-sio", "obsrange-whoi", "seagap", "garpos", "gnatss")
+_READERS = {"obsrange-sio": read_obsrange_sio, "obsrange-whoi": read_obsrange_whoi,
+            "seagap": read_seagap, "garpos": read_garpos, "gnatss": read_gnatss}
 
 
 def sample_file(name: str) -> Path:
@@ -53,21 +60,91 @@ def sample_file(name: str) -> Path:
                             "'seagap/obsdata.inp')")
 
 
-def read_survey(path, format: str, **kwargs) -> RawSurvey:
-    """Read a survey file of the given ``format`` (one of :data:`FORMATS`).
+def _first_lines(path, n=40):
+    lines = []
+    with open(path, encoding="utf-8-sig", errors="replace") as fh:
+        for line in fh:
+            if line.strip():
+                lines.append(line.strip())
+            if len(lines) >= n:
+                break
+    return lines
+
+
+def sniff_format(path) -> str:
+    """Recognise a survey file's format from its first lines.
+
+    * a ``[Site-parameter]`` or ``[Obs-parameter]`` section: ``garpos`` (the site file);
+    * a YAML ``solver:`` key: ``gnatss`` (its ``config.yaml``);
+    * a ``#`` comment header and comma-separated lines: ``obsrange-whoi``;
+    * ``msec.`` ping lines or an SIO ``Key: value`` header: ``obsrange-sio``;
+    * lines of 18 numbers: ``seagap`` (``obsdata.inp``).
 
     Parameters
     ----------
     path : str or pathlib.Path
-    format : {"obsrange-sio", "obsrange-whoi", "seagap"}
+
+    Returns
+    -------
+    str
+        One of :data:`FORMATS`.
+
+    Raises
+    ------
+    FileNotFoundError
+        No such file.
+    InputError
+        None of them.
+
+    Examples
+    --------
+    >>> sniff_format(sample_file("obsrange/WHOI_S05.txt"))
+    'obsrange-whoi'
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"survey file not found: {str(path)!r}")
+    lines = _first_lines(path)
+    if any(re.fullmatch(r"\[(Site|Obs|Model)-parameter\]", s) for s in lines):
+        return "garpos"
+    if any(re.match(r"^solver\s*:", s) for s in lines) and not any("msec." in s for s in lines):
+        return "gnatss"
+    if lines and lines[0].startswith("#") and any("," in s and not s.startswith("#")
+                                                  for s in lines):
+        return "obsrange-whoi"
+    if any(re.search(r"\d\s*msec\.", s) for s in lines) or any(
+            s.lower().startswith(("drop point", "ranging data taken")) for s in lines):
+        return "obsrange-sio"
+    data = [s for s in lines if not s.startswith("#")]
+    if data and all(len(s.split()) == 18 for s in data[:5]):
+        return "seagap"
+    raise InputError(f"{path}: not a survey format bayes-mpem recognises (tried "
+                     f"{', '.join(FORMATS)}); give --format")
+
+
+def read_survey(path, format: str = "auto", **kwargs) -> RawSurvey:
+    """Read a survey file of the given ``format`` (one of :data:`FORMATS`, or ``"auto"``).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The survey file: the deck-box log, SeaGap's ``obsdata.inp``, GARPOS's
+        site file ``*-initcfg.ini`` or GNATSS's ``config.yaml``.
+    format : {"auto", "obsrange-sio", "obsrange-whoi", "seagap", "garpos", "gnatss"}
+        ``"auto"`` (the default) recognises it (:func:`sniff_format`).
     **kwargs
-        Passed to the reader (``strict``; SeaGap companion paths).
+        Passed to the reader (``strict``; SeaGap's companion paths; GARPOS's
+        ``obs``, ``svp``).
 
     Returns
     -------
     RawSurvey
+
+    Raises
+    ------
+    FileNotFoundError, InputError
     """
-    readers = {"obsrange-sio": read_obsrange_sio, "obsrange-whoi": read_obsrange_whoi,
-               "seagap": read_seagap}
-    check_choice("format", format, FORMATS)
-    return readers[format](path, **kwargs)
+    check_choice("format", format, ("auto", *FORMATS))
+    if format == "auto":
+        format = sniff_format(path)
+    return _READERS[format](path, **kwargs)

@@ -76,6 +76,44 @@ def antenna_to_transducer(east, north, up, heading, pitch, roll, offset):
             np.asarray(up, float) + v[:, 2])
 
 
+def atd_offset_enu(forward, rightward, downward, heading, pitch, roll):
+    """East, north, up of a vessel-frame offset (forward, rightward, downward) under an attitude.
+
+    The convention of GARPOS's ``ATDoffset`` and GNATSS's ``atd_offsets``: the
+    offset from the GNSS antenna to the transducer is given in the vessel's
+    frame (x forward, y to starboard, z down) and turned into north, east, down
+    by the yaw-pitch-roll rotation ``R = Rz(heading) Ry(pitch) Rx(roll)``
+    (heading clockwise from north; pitch bow up; roll starboard down).
+
+    Parameters
+    ----------
+    forward, rightward, downward : float or array_like
+        The offset in the vessel frame (m).
+    heading, pitch, roll : array_like
+        Degrees, one value per epoch.
+
+    Returns
+    -------
+    east, north, up : numpy.ndarray
+        The offset in the local frame (m), to add to the antenna position.
+
+    Examples
+    --------
+    >>> e, n, u = atd_offset_enu(1.0, 0.0, 2.0, [90.0], [0.0], [0.0])
+    >>> [round(float(v[0]), 6) for v in (e, n, u)]
+    [1.0, 0.0, -2.0]
+    """
+    from scipy.spatial.transform import Rotation
+
+    h, p, r = np.broadcast_arrays(*(np.atleast_1d(np.asarray(v, float))
+                                    for v in (heading, pitch, roll)))
+    rot = Rotation.from_euler("ZYX", np.column_stack([h, p, r]), degrees=True)
+    frd = np.column_stack(np.broadcast_arrays(*(np.atleast_1d(np.asarray(v, float))
+                                                for v in (forward, rightward, downward))))
+    ned = rot.apply(np.repeat(frd, h.size, axis=0) if frd.shape[0] == 1 else frd)
+    return ned[:, 1], ned[:, 0], -ned[:, 2]
+
+
 def earth_radius(lat: float) -> float:
     """Gaussian mean radius of the WGS84 ellipsoid at latitude ``lat`` (m).
 
@@ -145,11 +183,87 @@ def geodetic_to_enu(lat, lon, height, lat0, lon0, height0=0.0):
     >>> round(float(e), 3), round(float(n), 6)
     (111.319, 0.0)
     """
+    return ecef_to_enu(*geodetic_to_ecef(lat, lon, height), lat0, lon0, height0)
+
+
+def geodetic_to_ecef(lat, lon, height):
+    """Earth-centred Earth-fixed coordinates (m) of WGS84 points.
+
+    Parameters
+    ----------
+    lat, lon : array_like
+        Degrees.
+    height : array_like
+        Height above the ellipsoid (m).
+
+    Returns
+    -------
+    x, y, z : numpy.ndarray
+
+    Examples
+    --------
+    >>> [round(float(v)) for v in geodetic_to_ecef(0.0, 0.0, 0.0)]
+    [6378137, 0, 0]
+    """
     lat, lon, height = np.broadcast_arrays(*(np.asarray(v, float) for v in (lat, lon, height)))
-    d = _ecef(lat, lon, height) - _ecef(float(lat0), float(lon0), float(height0)).reshape(
-        (3,) + (1,) * lat.ndim)
+    x, y, z = _ecef(lat, lon, height)
+    return x, y, z
+
+
+def ecef_to_enu(x, y, z, lat0, lon0, height0=0.0):
+    """Local east, north, up (m) of Earth-centred Earth-fixed points relative to an origin.
+
+    Parameters
+    ----------
+    x, y, z : array_like
+        ECEF coordinates (m).
+    lat0, lon0, height0 : float
+        The origin (degrees, degrees, m above the ellipsoid).
+
+    Returns
+    -------
+    e, n, u : numpy.ndarray
+
+    Examples
+    --------
+    >>> x, y, z = geodetic_to_ecef(10.0, 20.0, -1500.0)
+    >>> [round(float(v), 6) + 0.0 for v in ecef_to_enu(x, y, z, 10.0, 20.0, 0.0)]
+    [0.0, 0.0, -1500.0]
+    """
+    x, y, z = np.broadcast_arrays(*(np.asarray(v, float) for v in (x, y, z)))
+    d = np.stack([x, y, z]) - _ecef(float(lat0), float(lon0), float(height0)).reshape(
+        (3,) + (1,) * x.ndim)
     e, n, u = np.tensordot(_enu_rotation(lat0, lon0), d, axes=1)
     return e, n, u
+
+
+def enu_to_ecef(east, north, up, lat0, lon0, height0=0.0):
+    """Earth-centred Earth-fixed coordinates (m) of local east, north, up points.
+
+    The inverse of :func:`ecef_to_enu`.
+
+    Parameters
+    ----------
+    east, north, up : array_like
+        Local coordinates (m).
+    lat0, lon0, height0 : float
+        The origin.
+
+    Returns
+    -------
+    x, y, z : numpy.ndarray
+
+    Examples
+    --------
+    >>> x, y, z = enu_to_ecef(100.0, -50.0, 10.0, 45.0, 7.0)
+    >>> [round(float(v), 6) for v in ecef_to_enu(x, y, z, 45.0, 7.0)]
+    [100.0, -50.0, 10.0]
+    """
+    e, n, u = np.broadcast_arrays(*(np.asarray(v, float) for v in (east, north, up)))
+    xyz = np.tensordot(_enu_rotation(lat0, lon0).T, np.stack([e, n, u]), axes=1)
+    x0 = _ecef(float(lat0), float(lon0), float(height0)).reshape((3,) + (1,) * e.ndim)
+    x, y, z = xyz + x0
+    return x, y, z
 
 
 def enu_to_geodetic(east, north, up, lat0, lon0, height0=0.0):

@@ -11,13 +11,19 @@ Formats (see ``data/README.md`` for the sample files and their sources):
   ``TAT``, deck-box sound speed), then ``date time, rng m, rng ms, lat, lon, GPS
   time, heading``; ``rng ms`` is the two-way travel time;
 * ``seagap``: SeaGap GNSS-acoustic ``obsdata.inp`` (18 columns, local E/N/U in m),
-  with ``pxp-ini.inp`` (transponder positions), ``tr-ant.inp`` and ``ss_prof.inp``.
+  with ``pxp-ini.inp`` (transponder positions), ``tr-ant.inp`` and ``ss_prof.inp``;
+* ``garpos``: GARPOS's site file ``*-initcfg.ini`` with the ``obs.csv`` shots and
+  ``svp.csv`` profile it names (:mod:`bayes_mpem.io.garpos`);
+* ``gnatss``: GNATSS's ``config.yaml`` with the ``pxp_tt`` travel times,
+  ``POS_FREED_TRANS_TWTT`` transducer positions and profile it names
+  (:mod:`bayes_mpem.io.gnatss`).
 
 Every line of a file is accounted for: a ping, a header or comment line, or a
 *skipped* line with its reason (``Event skipped`` in the deck-box log, or a line
 that does not parse). ``strict=True`` turns a line that does not parse into an
 :class:`~bayes_mpem.exceptions.InputError` naming the file and line. The readers
-are in :mod:`bayes_mpem.io.obsrange` and :mod:`bayes_mpem.io.seagap`.
+are in :mod:`bayes_mpem.io.obsrange`, :mod:`bayes_mpem.io.seagap`,
+:mod:`bayes_mpem.io.garpos` and :mod:`bayes_mpem.io.gnatss`.
 
 Latitude/longitude go to a local metric frame with the exact WGS84
 geodetic -> ECEF -> local east-north-up transform (:func:`geodetic_to_enu`).
@@ -32,7 +38,11 @@ import numpy as np
 import pandas as pd
 
 from ..exceptions import InputError
-from .geodesy import antenna_to_transducer, geodetic_to_enu
+from .geodesy import antenna_to_transducer, atd_offset_enu, geodetic_to_enu
+
+#: Formats of GNSS-acoustic array surveys (several transponders, antenna or transducer
+#: positions at transmit and receive): located jointly by ``bayes-mpem locate``.
+ARRAY_FORMATS = ("garpos", "gnatss")
 
 
 @dataclass(frozen=True)
@@ -91,22 +101,25 @@ class RawSurvey:
 
         Notes
         -----
-        SeaGap surveys are already in local metres: the vehicle position is the
-        mean of the transducer at transmit and at receive (the antenna position
-        moved by the ``tr-ant.inp`` lever arm, rotated by the attitude:
-        :func:`antenna_to_transducer`), its depth is minus ``up``, the
-        beacons are the transponders of ``pxp-ini.inp``, and the default sound
-        speed is the harmonic mean of ``ss_prof.inp`` from the surface to the mean
-        transponder depth (the straight-ray equivalent for vertical paths).
+        SeaGap, GARPOS and GNATSS surveys are already in local metres: the vehicle
+        position is the mean of the transducer at transmit and at receive
+        (:meth:`transducer_positions`), its depth is minus ``up``, the beacons are
+        the transponders of the survey's control file, and the default sound
+        speed is the harmonic mean of the survey's profile from the surface to
+        the mean transponder depth (the straight-ray equivalent for vertical
+        paths).
         """
-        if self.format == "seagap":
+        if self.format in ("seagap", *ARRAY_FORMATS):
             return self._to_pings_seagap(sound_speed)
         c = float(sound_speed or self.header.get("sound_speed") or 1500.0)
         t0 = float(self.header.get("tat", 0.0) if tat is None else tat)
         if origin is None:
-            if "lat" not in self.header:
+            if "lat" in self.header and "lon" in self.header:
+                origin = (self.header["lat"], self.header["lon"])
+            elif len(self.pings):  # no drop point: start from the middle of the ship's track
+                origin = (float(self.pings["lat"].mean()), float(self.pings["lon"].mean()))
+            else:
                 raise InputError(f"{self.source}: no drop point in the header; pass origin=")
-            origin = (self.header["lat"], self.header["lon"])
         e, n, _ = geodetic_to_enu(self.pings["lat"], self.pings["lon"], 0.0, *origin)
         p = pd.DataFrame({
             "time": self.pings["time"].to_numpy(), "beacon": self.pings["transponder"],
@@ -115,11 +128,48 @@ class RawSurvey:
             "twtt": self.pings["twtt"].to_numpy()})
         de, dn, _ = geodetic_to_enu(self.header.get("lat", origin[0]),
                                     self.header.get("lon", origin[1]), 0.0, *origin)
+        # no drop-point depth: start at the median one-way range (the slant range bounds it)
+        depth = self.header.get("depth", float(np.median(p["range"])) if len(p) else np.nan)
         b = pd.DataFrame([{"beacon": str(self.pings["transponder"].iloc[0]) if len(self.pings)
-                           else "1", "x": float(de), "y": float(dn),
-                           "depth": float(self.header.get("depth", np.nan))}])
+                           else "1", "x": float(de), "y": float(dn), "depth": float(depth)}])
         return p, b
 
+
+    def transducer_positions(self) -> dict:
+        """East, north, up of the ship's transducer at transmit and at receive, per ping.
+
+        GNSS-acoustic formats log the GNSS antenna: SeaGap's ``tr-ant.inp`` lever
+        arm is turned by SeaGap's attitude convention
+        (:func:`~bayes_mpem.io.geodesy.antenna_to_transducer`), GARPOS's
+        ``ATDoffset`` (forward, rightward, downward) by the yaw-pitch-roll one
+        (:func:`~bayes_mpem.io.geodesy.atd_offset_enu`); GNATSS's positions are
+        the transducer's already.
+
+        Returns
+        -------
+        dict
+            ``{"tx": (east, north, up), "rx": (east, north, up)}`` of numpy arrays (m).
+
+        Raises
+        ------
+        InputError
+            For a survey without antenna positions (a deck-box log).
+        """
+        p, h = self.pings, self.header
+        if self.format not in ("seagap", *ARRAY_FORMATS):
+            raise InputError(f"{self.source}: a {self.format} survey has no antenna positions")
+        pos = {}
+        for end in ("tx", "rx"):
+            enu = [p[f"{c}_{end}"].to_numpy(float) for c in "enu"]
+            att = [p[f"{a}_{end}"] for a in ("head", "pitch", "roll")] \
+                if f"head_{end}" in p.columns else None
+            if "tr_ant" in h and att is not None:
+                enu = antenna_to_transducer(*enu, *att, h["tr_ant"])
+            elif h.get("atd_offset") is not None and att is not None:
+                d = atd_offset_enu(*h["atd_offset"], *att)
+                enu = [v + dv for v, dv in zip(enu, d, strict=True)]
+            pos[end] = tuple(np.asarray(v, float) for v in enu)
+        return pos
 
     def _to_pings_seagap(self, sound_speed):
         p, h = self.pings, self.header
@@ -132,13 +182,7 @@ class RawSurvey:
             keep = prof["depth"] <= float(-tp["up"].mean())
             sound_speed = float(1.0 / np.mean(1.0 / prof.loc[keep, "sound_speed"]))
         c = float(sound_speed or 1500.0)
-        pos = {}
-        for end in ("tx", "rx"):
-            enu = (p[f"e_{end}"], p[f"n_{end}"], p[f"u_{end}"])
-            if "tr_ant" in h:  # the transducer, not the antenna
-                enu = antenna_to_transducer(*enu, p[f"head_{end}"], p[f"pitch_{end}"],
-                                            p[f"roll_{end}"], h["tr_ant"])
-            pos[end] = [np.asarray(v, float) for v in enu]
+        pos = self.transducer_positions()
         pings = pd.DataFrame({
             "time": p["time"].to_numpy(), "beacon": p["transponder"].to_numpy(),
             "range": c * p["twtt"].to_numpy() / 2.0,

@@ -99,18 +99,61 @@ class BeaconGeometry:
         return float(uniform_logpdf(self.lo, self.hi))
 
     def multipath(self, d0, path: str = "triangle"):
-        """Predicted multipath ranges for plane height ``d0`` (broadcasts)."""
+        """Predicted multipath ranges for plane height ``d0`` (broadcasts).
+
+        Parameters
+        ----------
+        d0 : float or array_like
+            Height of the reflecting plane above the beacon (m).
+        path : {"triangle", "double"}
+            One leg reflected, or both.
+
+        Returns
+        -------
+        ndarray
+            One predicted range (m) per range of the beacon.
+        """
         return geometry.multipath_range(self.h, self.dz, d0, path, direct=self.direct)
 
     def multipath_derivative(self, d0, path: str = "triangle"):
-        """``d z_MP / d d0`` of every range (:func:`.geometry.multipath_derivative`)."""
+        """``d z_MP / d d0`` of every range (:func:`.geometry.multipath_derivative`).
+
+        Parameters
+        ----------
+        d0 : float or array_like
+            Height of the reflecting plane above the beacon (m).
+        path : {"triangle", "double"}
+
+        Returns
+        -------
+        ndarray
+        """
         return geometry.multipath_derivative(self.h, self.dz, d0, path)
 
     def invert_plane_height(self, path: str = "triangle"):
-        """Per-range plane heights (:func:`~bayes_mpem.lbl.geometry.invert_plane_height`)."""
+        """Per-range plane heights (:func:`~bayes_mpem.lbl.geometry.invert_plane_height`).
+
+        Parameters
+        ----------
+        path : {"triangle", "double"}
+
+        Returns
+        -------
+        ndarray
+            The ``d0`` that would make each range a multipath (NaN where none does).
+        """
         return geometry.invert_plane_height(self.z, self.h, self.dz, path, direct=self.direct)
 
     def take(self, idx) -> BeaconGeometry:
-        """Keep the ranges ``idx``, with the same outlier window and ``d0_min``."""
+        """Keep the ranges ``idx``, with the same outlier window and ``d0_min``.
+
+        Parameters
+        ----------
+        idx : array_like of int or bool
+
+        Returns
+        -------
+        BeaconGeometry
+        """
         return BeaconGeometry(self.z[idx], self.h[idx], self.dz[idx], self.direct[idx],
                               self.lo, self.hi, self.d0_min)

@@ -82,8 +82,15 @@ class PosteriorResult:
     diagnostics : dict
         ``n_walkers``, ``n_steps``, ``burn``, ``thin``, ``n_draws``,
         ``n_ensembles``, ``converged`` (chain longer than ``tau_factor`` tau),
-        ``acceptance``, ``seconds``, ``moves``.
+        ``acceptance``, ``seconds``, ``moves``, ``precision`` (of the kernel).
     ci : float
+
+    Notes
+    -----
+    ``d0``, ``sigma_mp``, ``sigma_dp``, ``weights``, ``n``, ``converged``,
+    ``class_fractions`` and ``labels`` answer as the same names of
+    :class:`~bayes_mpem.lbl.em_result.EMResult` do (here from the posterior means), so a
+    fit's and a sample's per-beacon results read alike; ``summary`` has the intervals.
     """
 
     beacon: str
@@ -111,6 +118,45 @@ class PosteriorResult:
     def min_ess(self) -> float:
         """Smallest ESS over the sampled parameters."""
         return float(min(self.ess.values()))
+
+    # the names an EMResult answers to, as posterior means: fit and sample results read alike
+
+    @property
+    def d0(self) -> float:
+        """Posterior mean height of the reflecting plane above the beacon (m)."""
+        return float(self.summary["d0"]["mean"])
+
+    @property
+    def sigma_mp(self) -> float:
+        """Posterior mean multipath scatter (m)."""
+        return float(self.summary["sigma_mp"]["mean"])
+
+    @property
+    def sigma_dp(self) -> float:
+        """Posterior mean direct-path scatter (m; the fixed value when it was fixed)."""
+        return float(self.summary["sigma_dp"]["mean"])
+
+    @property
+    def weights(self) -> dict:
+        """Posterior mean mixing weights ``{"dp", "mp", "ol"}``."""
+        return {k: float(v["mean"]) for k, v in self.summary["weights"].items()}
+
+    @property
+    def n(self) -> int:
+        """Number of ranges."""
+        return int(self.class_probs.shape[0])
+
+    @property
+    def converged(self) -> bool:
+        """Whether every ensemble met its stopping rule before ``max_steps``."""
+        return bool(self.diagnostics.get("converged", True))
+
+    @property
+    def class_fractions(self) -> dict:
+        """Fraction of ranges whose most probable class is dp, mp and ol."""
+        lab = np.argmax(self.class_probs, axis=1)
+        return {c: float(np.mean(lab == j)) if self.n else float("nan")
+                for j, c in enumerate(CLASSES)}
 
     def to_dict(self) -> dict:
         """JSON-ready summary."""
@@ -142,6 +188,7 @@ def sample_beacon(
     rng: RNGLike = None,
     progress="auto",
     allow_flagged_start: bool = False,
+    precision: str = "auto",
 ) -> PosteriorResult:
     """Sample the posterior of one beacon with emcee, started from the EM solution.
 
@@ -187,6 +234,12 @@ def sample_beacon(
         (:func:`~bayes_mpem.lbl.em_result.quality_flags`: no multipath found, a
         plane above the sea surface, ...); by default that raises, as such a
         posterior describes no reflector and mixes slowly.
+    precision : {"auto", "float32", "float64"}
+        Of the likelihood kernel while sampling
+        (:class:`~bayes_mpem.lbl.loglik_kernel.LoglikKernel`; ``"auto"``: float32
+        where its rounding error is known to be harmless; ``"float64"``: the same
+        chain as the log-space likelihood, seed for seed). The per-range
+        log-likelihood and class probabilities are float64 either way.
 
     Returns
     -------
@@ -211,7 +264,7 @@ def sample_beacon(
                          n_draws=n_draws)
     gen = as_generator(rng)
     post = BeaconPosterior(data, priors=priors, sigma_dp=sigma_dp, path=path,
-                           concentration=concentration)
+                           concentration=concentration, precision=precision)
     post.em = init or fit_mixture_em(data, path=path, sigma_dp=sigma_dp,
                                      weights="learned" if priors == "learned" else "equal",
                                      rng=gen)
@@ -248,7 +301,8 @@ def sample_beacon(
                      "acceptance": float(np.mean([r.acceptance for r in runs])),
                      "seconds": float(seconds),
                      "tau_factor": float(tau_factor), "min_ess": float(min_ess),
-                     "moves": DEFAULT_MOVES_LABEL if moves is None else repr(moves)})
+                     "moves": DEFAULT_MOVES_LABEL if moves is None else repr(moves),
+                     "precision": post.kernel.dtype.name})
 
 
 def _check_start(post: BeaconPosterior, allow_flagged: bool) -> None:

@@ -223,6 +223,11 @@ class EMResult:
         return np.asarray(CLASSES)[np.argmax(self.resp, axis=1)]
 
     @property
+    def class_probs(self) -> np.ndarray:
+        """``(n, 3)`` class probabilities (dp, mp, ol): ``resp``, by PosteriorResult's name."""
+        return self.resp
+
+    @property
     def class_fractions(self) -> dict:
         """Fraction of ranges labelled dp, mp and ol."""
         lab = np.argmax(self.resp, axis=1)

@@ -8,6 +8,7 @@ and ``classified.csv`` (one row per input row, nothing dropped).
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -15,15 +16,42 @@ import pandas as pd
 
 from .._rng import RNGLike, as_generator
 from .._validate import check_choice
-from ..io.results import output_folder, write_csv, write_json
+from ..io.results import write_json, write_table, writing
 from ..io.survey import Survey, load_survey
+from ..io.table_files import TABLE_FORMATS
 from .em_paper import fit_paper_em
 from .em_result import check_options
 from .model_checks import check_fit, checks_record, warn_misfit
 from .path_choice import AUTO, check_path_choice, choose_path
-from .survey import beacons_table, classified_table, over_beacons
+from .survey import beacons_table, check_min_pings, classified_table, non_finite, over_beacons
 
 METHODS = ("mixture", "paper")
+#: table columns renamed for one vocabulary (docs/model.md): old name -> new name
+RENAMED_COLUMNS = {"hrp_m": "d0_m"}
+
+
+class _FitTable(pd.DataFrame):
+    """:meth:`SurveyFit.table`: still answers to the old column names, with a warning."""
+
+    @property
+    def _constructor(self):
+        return pd.DataFrame  # anything derived is a plain DataFrame
+
+    def _renamed(self, key):
+        if isinstance(key, str) and key in RENAMED_COLUMNS:
+            warnings.warn(f"the table column {key!r} is now {RENAMED_COLUMNS[key]!r} "
+                          "(docs/model.md, 'Names'); the old name will be removed",
+                          DeprecationWarning, stacklevel=3)
+            return RENAMED_COLUMNS[key]
+        return key
+
+    def __getitem__(self, key):
+        return super().__getitem__(self._renamed(key))
+
+    def __getattr__(self, name):
+        if name in RENAMED_COLUMNS:
+            return super().__getitem__(self._renamed(name))
+        return super().__getattr__(name)
 
 
 @dataclass(frozen=True)
@@ -116,7 +144,8 @@ class SurveyFit:
         Returns
         -------
         pandas.DataFrame
-            Columns ``beacon``, ``hrp_m`` (fitted plane height d0),
+            Columns ``beacon``, ``d0_m`` (height of the reflecting plane above the
+            beacon, the paper's HRP),
             ``sigma_mp_m``, ``beacon_depth_m``, ``plane_depth_m``, ``sigma_dp_m``,
             ``dp``, ``mp``, ``ol`` (fractions of ranges per label), ``n``,
             ``converged``, ``path`` and ``path_margin`` (log-likelihood of the
@@ -126,13 +155,13 @@ class SurveyFit:
         for bid, res in self.results.items():
             depth = float(self.survey.beacons.loc[bid, "depth"])
             fr = res.class_fractions
-            rows.append({"beacon": bid, "hrp_m": res.d0, "sigma_mp_m": res.sigma_mp,
+            rows.append({"beacon": bid, "d0_m": res.d0, "sigma_mp_m": res.sigma_mp,
                          "beacon_depth_m": depth, "plane_depth_m": depth - res.d0,
                          "sigma_dp_m": res.sigma_dp, **fr, "n": res.n,
                          "converged": res.converged, "path": res.path,
                          "path_margin": (self.path_choices[bid].margin
                                          if bid in self.path_choices else float("nan"))})
-        return pd.DataFrame(rows)
+        return _FitTable(rows)
 
     def format_table(self) -> str:
         """Format the :meth:`table` as aligned text for a terminal.
@@ -142,37 +171,51 @@ class SurveyFit:
         str
         """
         t = self.table()
-        lines = [f"{'beacon':>6} {'HRP d0 (m)':>11} {'sigma_MP (m)':>12} {'depth (m)':>10} "
+        lines = [f"{'beacon':>6} {'d0 (m)':>11} {'sigma_MP (m)':>12} {'depth (m)':>10} "
                  f"{'plane (m)':>9} {'DP':>6} {'MP':>6} {'OL':>6} {'n':>6} {'path':>8} "
                  f"{'margin':>7}"]
         for r in t.itertuples():
-            lines.append(f"{r.beacon:>6} {r.hrp_m:11.1f} {r.sigma_mp_m:12.2f} "
+            lines.append(f"{r.beacon:>6} {r.d0_m:11.1f} {r.sigma_mp_m:12.2f} "
                          f"{r.beacon_depth_m:10.1f} {r.plane_depth_m:9.1f} {r.dp:6.3f} "
                          f"{r.mp:6.3f} {r.ol:6.3f} {r.n:6d} {r.path:>8} {r.path_margin:7.0f}")
         for bid, why in self.skipped.items():
             lines.append(f"{bid:>6} skipped: {why}")
         return "\n".join(lines)
 
-    def write(self, out_dir) -> dict:
-        """Write ``summary.json`` and ``classified.csv`` into ``out_dir``.
+    def write(self, out_dir, *, table_format: str = "csv") -> dict:
+        """Write ``classified.csv``, ``history.json`` and, last, ``summary.json`` to ``out_dir``.
+
+        Through :func:`bayes_mpem.io.results.writing`: all or nothing, ``summary.json``
+        (the completion marker) last.
 
         Parameters
         ----------
         out_dir : str or pathlib.Path
             Created if missing.
+        table_format : {"csv", "parquet"}, default "csv"
+            Of the classified table (``classified.csv`` or ``classified.parquet``).
 
         Returns
         -------
         dict
             Paths written, keyed ``summary``, ``classified`` and ``history``.
         """
-        out = output_folder(out_dir)
-        return {"summary": write_json(out / "summary.json", self.summary()),
-                "classified": write_csv(out / "classified.csv", self.classified()),
-                "history": write_json(out / "history.json", self.history(), indent=None)}
+        check_choice("table_format", table_format, TABLE_FORMATS)
+        with writing(out_dir) as out:
+            return {"classified": write_table(out / f"classified.{table_format}",
+                                              self.classified()),
+                    "history": write_json(out / "history.json", self.history(as_arrays=True),
+                                          indent=None, numpy=True),
+                    "summary": write_json(out / "summary.json", self.summary())}
 
-    def history(self) -> dict:
+    def history(self, *, as_arrays: bool = False) -> dict:
         """Per beacon: every iteration's parameters and the first E-step's probabilities.
+
+        Parameters
+        ----------
+        as_arrays : bool, default False
+            Give ``first_resp`` as a NumPy array (what ``write()`` serialises, vectorised)
+            instead of nested lists.
 
         Returns
         -------
@@ -181,9 +224,20 @@ class SurveyFit:
             ``first_resp`` in the order of that beacon's replies (what the paper's
             Figs. 7, 10 and 11 show).
         """
+        def first(r):
+            rounded = np.round(r.first_resp, 3)
+            return rounded if as_arrays else rounded.tolist()
+
         return {bid: {"history": {k: np.asarray(v).tolist() for k, v in r.history.items()},
-                      "first_resp": np.round(r.first_resp, 3).tolist()}
+                      "first_resp": first(r)}
                 for bid, r in self.results.items()}
+
+
+def _non_finite_fit(res) -> list:
+    """Names of a fit's values that are not finite (the fit then failed)."""
+    doc = {"d0": res.d0, "sigma_mp": res.sigma_mp, "sigma_dp": res.sigma_dp,
+           "weights": res.weights, "loglik": res.loglik if res.loglik is not None else 0.0}
+    return non_finite(doc) + ([] if np.isfinite(res.resp).all() else ["class probabilities"])
 
 
 def fit(
@@ -227,8 +281,8 @@ def fit(
         Beacons with fewer replies are left unfitted, with a warning.
     rng : None, int or numpy.random.Generator
     **kwargs
-        Passed to :func:`~bayes_mpem.em.fit_mixture_em` or
-        :func:`~bayes_mpem.em.fit_paper_em`.
+        Passed to :func:`~bayes_mpem.lbl.em_mixture.fit_mixture_em` or
+        :func:`~bayes_mpem.lbl.em_paper.fit_paper_em`.
 
     Returns
     -------
@@ -236,7 +290,7 @@ def fit(
 
     Raises
     ------
-    bayes_mpem.data.InputError
+    bayes_mpem.exceptions.InputError
         For invalid input (the message names the file, row and column).
     ValueError
         For invalid options.
@@ -263,6 +317,7 @@ def fit(
     """
     check_choice("method", method, METHODS)
     check_path_choice(path)
+    check_min_pings(min_pings)
     check_options(weights=weights, pol=pol, alpha=alpha, sigma_dp=sigma_dp)
     survey = load_survey(pings, beacons)
     gen = as_generator(rng)
@@ -281,7 +336,7 @@ def fit(
         return fit_paper_em(data, path=choice.path, sigma_dp=sigma_dp, pol=pol, alpha=alpha,
                             **kwargs)
 
-    results, skipped = over_beacons(survey, min_pings, fit_one)
+    results, skipped = over_beacons(survey, min_pings, fit_one, check=_non_finite_fit)
     checks = {}
     for bid, res in results.items():
         if kwargs.get("ssp") is None:  # the checks predict straight rays

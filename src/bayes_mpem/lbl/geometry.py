@@ -26,9 +26,9 @@ from typing import Literal
 import numpy as np
 
 from .._validate import check_choice
+from .paths import PATHS
 
 Path = Literal["triangle", "double"]
-PATHS: tuple[str, ...] = ("triangle", "double")
 
 
 def check_path(path: str) -> str:
@@ -117,8 +117,10 @@ def multipath_range(h, dz, d0, path: Path = "triangle", *, direct=None):
         Horizontal distance and ``z_beacon - z_vehicle`` (m).
     d0 : float or array_like
         Height of the reflecting plane above the beacon (m).
-    path : {"triangle", "double"}
-        One reflected leg (default, the paper's finding) or both.
+    path : {"triangle", "double"} or array_like of str
+        One reflected leg (default, the paper's finding) or both; an array
+        gives each range its own geometry (names, or a boolean mask that is
+        True for the double bounce).
     direct : array_like, optional
         Precomputed :func:`direct_path` (saves a square root in hot loops).
 
@@ -134,6 +136,10 @@ def multipath_range(h, dz, d0, path: Path = "triangle", *, direct=None):
     4391.5
     """
     refl = reflected_leg(h, dz, d0)
+    if not isinstance(path, str):  # one geometry per range
+        if direct is None:
+            direct = direct_path(h, dz)
+        return np.where(_double_mask(path), refl, 0.5 * (direct + refl))
     if path == "triangle":
         if direct is None:
             direct = direct_path(h, dz)
@@ -153,7 +159,9 @@ def multipath_derivative(h, dz, d0, path: Path = "triangle"):
         Horizontal distance and ``z_beacon - z_vehicle`` (m).
     d0 : float or array_like
         Plane height (m).
-    path : {"triangle", "double"}
+    path : {"triangle", "double"} or array_like
+        One geometry for all ranges, or one per range (names, or a boolean
+        mask that is True for the double bounce).
 
     Returns
     -------
@@ -163,7 +171,19 @@ def multipath_derivative(h, dz, d0, path: Path = "triangle"):
     """
     lever = 2.0 * np.asarray(d0, float) - dz
     d = 2.0 * lever / np.hypot(h, lever)
+    if not isinstance(path, str):  # one geometry per range
+        return np.where(_double_mask(path), d, 0.5 * d)
     return 0.5 * d if check_path(path) == "triangle" else d
+
+
+def _double_mask(paths):
+    """Boolean mask of the double bounces in an array of path names (checked), or the mask."""
+    paths = np.asarray(paths)
+    if paths.dtype == bool:  # already the mask (hot loops precompute it)
+        return paths
+    for p in np.unique(paths):
+        check_path(str(p))
+    return paths == "double"
 
 
 def invert_plane_height(z, h, dz, path: Path = "triangle", *, direct=None):
@@ -223,3 +243,47 @@ def elevation_angle(h, dz):
     numpy.ndarray
     """
     return np.degrees(np.arctan2(dz, h))
+
+
+def horizontal_slopes(h, dz, d0, path: Path = "triangle", *, direct=None):
+    """Horizontal-position derivatives of the direct and multipath ranges, per unit offset.
+
+    The gradient of a range with respect to the vehicle's horizontal position
+    ``(x, y)`` is ``(x - x_beacon, y - y_beacon)`` times a slope: ``1 / L_direct``
+    for the direct path, ``(1 / L_direct + 1 / L_refl) / 2`` for the triangle
+    multipath and ``1 / L_refl`` for the double bounce. Returning the slopes
+    keeps the gradient finite right above the beacon (``h = 0``).
+
+    Parameters
+    ----------
+    h, dz : array_like
+        Horizontal distance and ``z_beacon - z_vehicle`` (m).
+    d0 : float or array_like
+        Plane height (m).
+    path : {"triangle", "double"} or array_like
+        Multipath geometry, one for all ranges or one per range (names, or a
+        boolean mask that is True for the double bounce).
+    direct : array_like, optional
+        Precomputed :func:`direct_path`.
+
+    Returns
+    -------
+    slope_direct, slope_multipath : numpy.ndarray
+        Multiply by ``x - x_beacon`` (or ``y - y_beacon``) for the derivative (1/m).
+
+    Examples
+    --------
+    A vehicle 3 m east of a beacon 4 m below it: the direct range grows by
+    3/5 m per metre east.
+
+    >>> sd, sm = horizontal_slopes(3.0, 4.0, 100.0)
+    >>> round(float(3.0 * sd), 6)
+    0.6
+    """
+    if direct is None:
+        direct = direct_path(h, dz)
+    refl = reflected_leg(h, dz, d0)
+    inv_d, inv_r = 1.0 / direct, 1.0 / refl
+    if isinstance(path, str):
+        return inv_d, (0.5 * (inv_d + inv_r) if check_path(path) == "triangle" else inv_r)
+    return inv_d, np.where(_double_mask(path), inv_r, 0.5 * (inv_d + inv_r))

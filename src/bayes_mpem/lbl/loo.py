@@ -158,6 +158,7 @@ class PriorComparison:
             "n_changed": int(len(self.changed)),
             "changed": self.changed.to_dict(orient="records")[:50],
             "weights_learned": self.learned.summary["weights"],
+            "em_d0": float(self.learned.em.d0),
         }
 
 

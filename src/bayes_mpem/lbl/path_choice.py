@@ -25,10 +25,8 @@ from ..exceptions import PathChoiceWarning
 from ..io.survey import BeaconData
 from .em_mixture import fit_mixture_em
 from .em_result import EMResult
-from .geometry import PATHS
+from .paths import AUTO, PATH_CHOICES, PATHS
 
-AUTO = "auto"
-PATH_CHOICES: tuple[str, ...] = (AUTO, *PATHS)
 #: A forced geometry that is worse than the other by more than this many nats of
 #: maximised log-likelihood draws a :class:`~bayes_mpem.exceptions.PathChoiceWarning`.
 #: Both geometries have the same number of parameters, so this is a likelihood ratio

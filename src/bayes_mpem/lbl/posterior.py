@@ -47,7 +47,7 @@ from ..mcmc.driver import place_walkers
 from ..mixture.densities import CLASSES
 from .beacon_geometry import BeaconGeometry
 from .em_result import EMResult
-from .likelihood import total_loglik, weighted_densities
+from .loglik_kernel import LoglikKernel
 
 PRIORS = ("equal", "learned")
 PARAMS = ("d0", "sigma_mp", "sigma_dp", "w_dp", "w_mp", "w_ol")
@@ -56,7 +56,27 @@ PARAMS = ("d0", "sigma_mp", "sigma_dp", "w_dp", "w_mp", "w_ol")
 def check_sample_options(*, priors="learned", ci=0.95, n_ensembles=1, concentration=1.0,
                          sigma_dp=None, path="triangle", tau_factor=50.0, min_ess=1000.0,
                          max_steps=20000, n_draws=2000):
-    """Validate the sampler's options before any work (``ValueError`` naming the option)."""
+    """Validate the sampler's options before any work (``ValueError`` naming the option).
+
+    Parameters
+    ----------
+    priors, ci, n_ensembles, concentration, sigma_dp, path, tau_factor, min_ess, max_steps, \
+n_draws
+        As for :func:`~bayes_mpem.lbl.beacon_sampling.sample_beacon`.
+
+    Raises
+    ------
+    ValueError
+        For the first invalid option, naming it.
+
+    Examples
+    --------
+    >>> check_sample_options(ci=0.9)
+    >>> check_sample_options(priors="flat")
+    Traceback (most recent call last):
+    ...
+    ValueError: priors: expected one of ('equal', 'learned'), got 'flat'
+    """
     from .geometry import check_path
 
     check_path(path)
@@ -95,6 +115,9 @@ class BeaconPosterior:
     window : tuple of float, optional
         ``(lo, hi)``: the outliers are uniform over this listening window (m),
         which must hold every range; default the smallest and largest range.
+    precision : {"auto", "float32", "float64"}
+        Of the likelihood kernel (:class:`~bayes_mpem.lbl.loglik_kernel.LoglikKernel`):
+        ``"auto"`` uses float32 where its rounding error is known to be harmless.
 
     Attributes
     ----------
@@ -104,6 +127,8 @@ class BeaconPosterior:
         ``"beacon <name> (<priors> priors)"``, for the progress bar.
     em : EMResult or None
         The start of the walkers.
+    kernel : LoglikKernel
+        The likelihood of the beacon's ranges, for a batch of walkers.
 
     Examples
     --------
@@ -119,7 +144,7 @@ class BeaconPosterior:
 
     def __init__(self, data: BeaconData, *, priors="learned", sigma_dp=None, path="triangle",
                  concentration=1.0, sigma_bounds=(0.05, 500.0), em: EMResult | None = None,
-                 d0_bounds=None, window=None):
+                 d0_bounds=None, window=None, precision="auto"):
         check_choice("priors", priors, PRIORS)
         check_positive("concentration", concentration)
         self.geom = _with_window(BeaconGeometry.from_data(data), window)
@@ -128,6 +153,7 @@ class BeaconPosterior:
         self.label = f"beacon {self.beacon} ({priors} priors)"
         self.em = em
         self.path = path
+        self.kernel = LoglikKernel(self.geom, path, precision=precision)
         self.sigma_dp = None if sigma_dp is None else float(sigma_dp)
         self.concentration = float(concentration)
         self.log_sigma_bounds = (np.log(sigma_bounds[0]), np.log(sigma_bounds[1]))
@@ -215,6 +241,16 @@ class BeaconPosterior:
 
         Works on the sampler's coordinates directly, so a proposal far outside
         the support is rejected without overflowing ``exp``.
+
+        Parameters
+        ----------
+        theta : array_like
+            ``(W, ndim)`` walkers in the order of :attr:`names` (or one ``(ndim,)`` point).
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(W,)`` log prior densities.
         """
         theta = np.atleast_2d(theta)
         col = {n: theta[:, i] for i, n in enumerate(self.names)}
@@ -234,7 +270,18 @@ class BeaconPosterior:
         return out
 
     def outside_prior(self, params: dict) -> list:
-        """Which natural parameters of ``params`` (e.g. an EM result) lie outside the prior."""
+        """Which natural parameters of ``params`` (e.g. an EM result) lie outside the prior.
+
+        Parameters
+        ----------
+        params : dict
+            ``d0``, ``sigma_mp``, ``sigma_dp`` and ``weights`` (as ``EMResult.params``).
+
+        Returns
+        -------
+        list of str
+            One message per parameter outside the prior's support (empty when none is).
+        """
         lo, hi = np.exp(self.log_sigma_bounds)
         out = []
         if not self.d0_bounds[0] <= params["d0"] <= self.d0_bounds[1]:
@@ -254,14 +301,15 @@ class BeaconPosterior:
         ok = np.isfinite(lp)
         if ok.any():
             p = self.unpack(theta[ok])
-            lp[ok] += total_loglik(self.geom, p["d0"], p["sigma_dp"], p["sigma_mp"],
-                                   [p["w_dp"], p["w_mp"], p["w_ol"]], self.path)
+            lp[ok] += self.kernel(p["d0"], p["sigma_dp"], p["sigma_mp"], p["w_dp"], p["w_mp"],
+                                  p["w_ol"])
         return lp
 
     def loglik_and_classes(self, theta):
         """Log-likelihood and class probabilities of every range, at each row of ``theta``.
 
-        Linear-space densities: exact, as ``w_ol > 0`` in the posterior's support.
+        Linear-space densities in float64 (:meth:`LoglikKernel.pointwise`): exact
+        to rounding, as ``w_ol > 0`` in the posterior's support.
 
         Parameters
         ----------
@@ -276,13 +324,22 @@ class BeaconPosterior:
             Per class (dp, mp, ol), ``(W, n)``.
         """
         p = self.unpack(theta)
-        terms = weighted_densities(self.geom, p["d0"], p["sigma_dp"], p["sigma_mp"],
-                                   [p["w_dp"], p["w_mp"], p["w_ol"]], self.path)
-        total = terms[0] + terms[1] + terms[2]
-        return np.log(total), [terms[j] / total for j in range(3)]
+        return self.kernel.pointwise(p["d0"], p["sigma_dp"], p["sigma_mp"], p["w_dp"],
+                                     p["w_mp"], p["w_ol"])
 
     def theta_from(self, params: dict):
-        """Sampler coordinates of a dict of natural parameters (e.g. an EM result)."""
+        """Sampler coordinates of a dict of natural parameters (e.g. an EM result).
+
+        Parameters
+        ----------
+        params : dict
+            ``d0``, ``sigma_mp``, ``sigma_dp`` and ``weights`` (as ``EMResult.params``).
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(ndim,)``, in the order of :attr:`names`.
+        """
         vals = {"d0": params["d0"], "log_sigma_mp": np.log(params["sigma_mp"]),
                 "log_sigma_dp": np.log(params["sigma_dp"]),
                 "w_dp": params["weights"]["dp"], "w_mp": params["weights"]["mp"]}

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._validate import check_choice
+
 PRESETS = ("abe58", "random")
 
 #: ABE dive 58 as described in the paper: recorded beacon depths (Table II),
@@ -90,3 +92,90 @@ def random_config(gen):
         "window": (1.0, float(3.0 * seafloor + 4.0 * half)),
         "cycle_seconds": float(gen.uniform(5.0, 20.0)),
     }
+
+
+def lawnmower_track(box, spacing, n_points):
+    """Points evenly spaced along a lawnmower pattern covering ``box``.
+
+    Parameters
+    ----------
+    box : tuple of 4 floats
+        ``(xmin, xmax, ymin, ymax)`` (m); tracklines run along x.
+    spacing : float
+        Distance between tracklines (m).
+    n_points : int
+
+    Returns
+    -------
+    x, y : numpy.ndarray
+    """
+    xmin, xmax, ymin, ymax = box
+    ys = np.arange(ymin, ymax + 1e-9, spacing)
+    verts = []
+    for i, yv in enumerate(ys):
+        xs = (xmin, xmax) if i % 2 == 0 else (xmax, xmin)
+        verts += [(xs[0], yv), (xs[1], yv)]
+    verts = np.asarray(verts)
+    seg = np.hypot(*np.diff(verts, axis=0).T)
+    s = np.concatenate([[0.0], np.cumsum(seg)])
+    t = np.linspace(0.0, s[-1], int(n_points))
+    return np.interp(t, s, verts[:, 0]), np.interp(t, s, verts[:, 1])
+
+
+def _seafloor(x, y, mean, relief):
+    return mean + relief * np.sin(2 * np.pi * x / 1500.0) + 0.6 * relief * np.cos(
+        2 * np.pi * y / 900.0)
+
+
+def preset_config(preset: str, gen, n_cycles: int | None = None,
+                  overrides: dict | None = None) -> dict:
+    """Return the settings of a preset survey, with ``overrides`` and ``n_cycles`` applied.
+
+    Parameters
+    ----------
+    preset : {"abe58", "random"}
+    gen : numpy.random.Generator
+        Draws the ``"random"`` configuration.
+    n_cycles : int, optional
+    overrides : dict, optional
+        Preset entries to replace.
+
+    Returns
+    -------
+    dict
+
+    Raises
+    ------
+    ValueError
+        For an unknown preset or override.
+    """
+    check_choice("preset", preset, PRESETS)
+    cfg = dict(ABE58) if preset == "abe58" else random_config(gen)
+    cfg.setdefault("plane_depth", 0.0)
+    unknown = set(overrides or {}) - set(cfg)
+    if unknown:
+        raise ValueError(f"unknown simulation option(s) {sorted(unknown)}; "
+                         f"known: {sorted(cfg)}")
+    cfg.update(overrides or {})
+    if n_cycles is not None:
+        cfg["n_cycles"] = int(n_cycles)
+    return cfg
+
+
+def preset_track(cfg: dict) -> dict:
+    """Return the bottom-following lawnmower track of a preset (one point per cycle).
+
+    Parameters
+    ----------
+    cfg : dict
+        From :func:`preset_config`.
+
+    Returns
+    -------
+    dict
+        Arrays ``time``, ``x``, ``y``, ``depth``.
+    """
+    x, y = lawnmower_track(cfg["box"], cfg["line_spacing"], cfg["n_cycles"])
+    seafloor = _seafloor(x, y, cfg["seafloor"], cfg["relief"])
+    return {"time": np.arange(x.size) * cfg["cycle_seconds"], "x": x, "y": y,
+            "depth": np.maximum(seafloor - cfg["altitude"], 1.0)}

@@ -280,7 +280,16 @@ class RefractedBeaconGeometry(BeaconGeometry):
                    cols=np.arange(base.z.size))
 
     def take(self, idx) -> RefractedBeaconGeometry:
-        """Select the ranges ``idx`` (same window, ``d0_min`` and bounce table)."""
+        """Select the ranges ``idx`` (same window, ``d0_min`` and bounce table).
+
+        Parameters
+        ----------
+        idx : array_like of int or bool
+
+        Returns
+        -------
+        RefractedBeaconGeometry
+        """
         return dataclasses.replace(
             self, z=self.z[idx], h=self.h[idx], dz=self.dz[idx], direct=self.direct[idx],
             direct_valid=self.direct_valid[idx], turning=self.turning[idx],
@@ -290,7 +299,19 @@ class RefractedBeaconGeometry(BeaconGeometry):
         return self.table.evaluate(d0, self.cols)
 
     def multipath(self, d0, path: str = "triangle"):
-        """Predicted multipath ranges at plane height ``d0`` (broadcasts); NO_RAY if none."""
+        """Predicted multipath ranges at plane height ``d0`` (broadcasts); NO_RAY if none.
+
+        Parameters
+        ----------
+        d0 : float or array_like
+            Height of the reflecting plane above the beacon (m).
+        path : {"triangle", "double"}
+
+        Returns
+        -------
+        numpy.ndarray
+            Nominal-speed ranges (m) of the refracted surface bounce.
+        """
         t_sb, _ = self._bounce(d0)
         if path == "triangle":
             t = 0.5 * (self.direct_time + t_sb)
@@ -299,7 +320,18 @@ class RefractedBeaconGeometry(BeaconGeometry):
         return np.where(np.isfinite(t), self.sound_speed * t, NO_RAY)
 
     def multipath_derivative(self, d0, path: str = "triangle"):
-        """``d z_MP / d d0`` from the tabulated ray derivative; 0 where no ray."""
+        """``d z_MP / d d0`` from the tabulated ray derivative; 0 where no ray.
+
+        Parameters
+        ----------
+        d0 : float or array_like
+            Height of the reflecting plane above the beacon (m).
+        path : {"triangle", "double"}
+
+        Returns
+        -------
+        numpy.ndarray
+        """
         t_sb, s = self._bounce(d0)
         d = self.sound_speed * s * (0.5 if geometry.check_path(path) == "triangle" else 1.0)
         if path == "triangle":
@@ -314,6 +346,19 @@ class RefractedBeaconGeometry(BeaconGeometry):
         and takes Newton steps on ``c_nom T(d0) = z`` with every range's own
         plane, traced directly (not tabulated). NaN where no plane within the
         physical bounds (above the vehicle and the beacon) fits to ``atol`` m.
+
+        Parameters
+        ----------
+        path : {"triangle", "double"}
+        max_iter : int
+            Newton steps at most.
+        atol : float
+            Tolerance on the range (m).
+
+        Returns
+        -------
+        numpy.ndarray
+            One plane height ``d0`` (m) per range.
         """
         geometry.check_path(path)
         dlow = np.maximum(self.dz, 0.0)

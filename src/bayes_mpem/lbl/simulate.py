@@ -27,20 +27,19 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from .._rng import RNGLike, as_generator
-from .._validate import check_choice
 from ..acoustics.profile import SoundSpeedProfile
 from ..acoustics.profile_checks import check_profile, check_sound_speed, nominal_sound_speed
 from ..acoustics.turning import direct_times
+from ..io.results import write_file, writing
 from ..io.survey import Survey, load_survey
 from . import geometry
 from .effects import EFFECTS, check_effects, effect_weights, per_beacon_target
-from .presets import ABE58, PRESETS, random_config
+from .presets import lawnmower_track, preset_config, preset_track  # noqa: F401 (re-exported)
 from .refracted import lbl_ranges
 
 
@@ -80,49 +79,15 @@ class Simulation:
         dict
             The paths written, keyed ``pings``, ``beacons``, ``truth``.
         """
-        out = Path(out_dir)
-        out.mkdir(parents=True, exist_ok=True)
-        paths = {k: out / f for k, f in
-                 (("pings", "pings.csv"), ("beacons", "beacons.csv"), ("truth", "truth.json"))}
-        self.survey.table.to_csv(paths["pings"], index=False, na_rep="", float_format="%.3f")
-        b = self.survey.beacons.reset_index()
-        b.to_csv(paths["beacons"], index=False)
-        paths["truth"].write_text(json.dumps({"beacons": self.truth, "config": self.config},
-                                             indent=2, default=float) + "\n")
-        return paths
-
-
-def lawnmower_track(box, spacing, n_points):
-    """Points evenly spaced along a lawnmower pattern covering ``box``.
-
-    Parameters
-    ----------
-    box : tuple of 4 floats
-        ``(xmin, xmax, ymin, ymax)`` (m); tracklines run along x.
-    spacing : float
-        Distance between tracklines (m).
-    n_points : int
-
-    Returns
-    -------
-    x, y : numpy.ndarray
-    """
-    xmin, xmax, ymin, ymax = box
-    ys = np.arange(ymin, ymax + 1e-9, spacing)
-    verts = []
-    for i, yv in enumerate(ys):
-        xs = (xmin, xmax) if i % 2 == 0 else (xmax, xmin)
-        verts += [(xs[0], yv), (xs[1], yv)]
-    verts = np.asarray(verts)
-    seg = np.hypot(*np.diff(verts, axis=0).T)
-    s = np.concatenate([[0.0], np.cumsum(seg)])
-    t = np.linspace(0.0, s[-1], int(n_points))
-    return np.interp(t, s, verts[:, 0]), np.interp(t, s, verts[:, 1])
-
-
-def _seafloor(x, y, mean, relief):
-    return mean + relief * np.sin(2 * np.pi * x / 1500.0) + 0.6 * relief * np.cos(
-        2 * np.pi * y / 900.0)
+        truth = json.dumps({"beacons": self.truth, "config": self.config}, indent=2,
+                           default=float) + "\n"
+        with writing(out_dir) as out:
+            return {
+                "pings": write_file(out / "pings.csv", lambda tmp: self.survey.table.to_csv(
+                    tmp, index=False, na_rep="", float_format="%.3f")),
+                "beacons": write_file(out / "beacons.csv", lambda tmp: self.survey.beacons
+                                      .reset_index().to_csv(tmp, index=False)),
+                "truth": write_file(out / "truth.json", lambda tmp: tmp.write_text(truth))}
 
 
 def simulate_lbl(
@@ -465,21 +430,9 @@ def simulate_survey(
     ValueError
         For an unknown preset or override.
     """
-    check_choice("preset", preset, PRESETS)
     gen = as_generator(rng)
-    cfg = dict(ABE58) if preset == "abe58" else random_config(gen)
-    cfg.setdefault("plane_depth", 0.0)
-    unknown = set(overrides) - set(cfg)
-    if unknown:
-        raise ValueError(f"unknown simulation option(s) {sorted(unknown)}; "
-                         f"known: {sorted(cfg)}")
-    cfg.update(overrides)
-    if n_cycles is not None:
-        cfg["n_cycles"] = int(n_cycles)
-    x, y = lawnmower_track(cfg["box"], cfg["line_spacing"], cfg["n_cycles"])
-    seafloor = _seafloor(x, y, cfg["seafloor"], cfg["relief"])
-    track = {"time": np.arange(x.size) * cfg["cycle_seconds"], "x": x, "y": y,
-             "depth": np.maximum(seafloor - cfg["altitude"], 1.0)}
+    cfg = preset_config(preset, gen, n_cycles, overrides)
+    track = preset_track(cfg)
     sim = simulate_lbl(
         cfg["beacons"], track, sigma_dp=cfg["sigma_dp"], sigma_mp=cfg["sigma_mp"],
         weights=cfg["weights"], plane_depth=cfg["plane_depth"], path=path,

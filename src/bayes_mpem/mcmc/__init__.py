@@ -44,11 +44,11 @@ from .driver import (
     EnsembleRun,
     LogPosterior,
     place_walkers,
-    progress_bar,
     run_ensemble,
     run_ensembles,
 )
 from .moves import DEFAULT_MOVES_LABEL, SnookerMove, default_moves
+from .progress import SamplingProgress, progress_bar, progress_mode
 from .summaries import (
     autocorr_ess,
     bulk_ess,
@@ -62,5 +62,6 @@ from .summaries import (
 
 __all__ = ["DEFAULT_MOVES_LABEL", "EnsembleRun", "LogPosterior", "autocorr_ess", "bulk_ess",
            "default_moves", "draw_moments", "equal_tailed", "hdi",
-           "place_walkers", "progress_bar", "SnookerMove", "rhat_across_ensembles", "run_ensemble",
+           "place_walkers", "progress_bar", "progress_mode", "SamplingProgress", "SnookerMove",
+           "rhat_across_ensembles", "run_ensemble",
            "run_ensembles", "thin_index", "to_datatree"]

@@ -8,7 +8,6 @@ enough, :func:`run_ensembles` several from their own start balls and seeds, and
 
 from __future__ import annotations
 
-import sys
 import warnings
 from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
@@ -18,6 +17,7 @@ import numpy as np
 
 from ..exceptions import SamplingWarning
 from .moves import default_moves
+from .progress import SamplingProgress
 
 
 @runtime_checkable
@@ -39,7 +39,18 @@ class LogPosterior(Protocol):
     label: str
 
     def start(self, n_walkers: int, gen: np.random.Generator) -> np.ndarray:
-        """Return initial positions, ``(n_walkers, ndim)``, inside the support."""
+        """Return initial positions, ``(n_walkers, ndim)``, inside the support.
+
+        Parameters
+        ----------
+        n_walkers : int
+        gen : numpy.random.Generator
+            The stream to draw the positions from.
+
+        Returns
+        -------
+        numpy.ndarray
+        """
         ...  # pragma: no cover
 
     def __call__(self, theta: np.ndarray) -> np.ndarray:
@@ -48,22 +59,6 @@ class LogPosterior(Protocol):
 
 
 # ------------------------------------------------------------------ the loop
-
-
-def progress_bar(progress, desc: str):
-    """Open a tqdm bar counting steps labelled ``desc``; None unless ``progress``.
-
-    ``progress="auto"``: only when standard error is a terminal.
-    """
-    if progress == "auto":
-        progress = sys.stderr.isatty()
-    if not progress:
-        return None
-    try:
-        from tqdm.auto import tqdm
-    except ImportError:  # pragma: no cover - tqdm is a dependency
-        return None
-    return tqdm(desc=desc, unit="step", leave=False)
 
 
 def _bulk_ess_min(chain):
@@ -160,6 +155,57 @@ def place_walkers(draw, inside, n_walkers: int, ndim: int, *, scale, rounds: int
     return None
 
 
+#: fewest steps between two checks of the stopping rule (a check costs ~30 steps' work)
+MIN_BLOCK = 50
+
+
+def next_block(iteration: int, burn: int, tau: float, n_walkers: int, *, tau_factor: float,
+               min_ess: float, ess_bulk: float, check_every: int) -> int:
+    """Plan the next check: the steps to where the stopping rule should hold, plus 5 %.
+
+    The kept chain needs ``tau_factor`` autocorrelation times and an ESS of
+    ``min_ess`` (by emcee's ``steps x walkers / tau``, scaled up by the ratio of
+    that estimate to ArviZ's bulk ESS when the bulk ESS fell short); at least
+    :data:`MIN_BLOCK` steps and at most ``check_every``, so a poor early estimate of
+    ``tau`` costs at most one block.
+
+    Parameters
+    ----------
+    iteration, burn : int
+        Steps run so far, and the burn-in at the current estimate.
+    tau : float
+        Largest autocorrelation time on the kept chain (inf when unknown).
+    n_walkers : int
+    tau_factor, min_ess : float
+        The stopping rule.
+    ess_bulk : float
+        Smallest bulk ESS at the last check where it was computed, else 0.
+    check_every : int
+        The largest block.
+
+    Returns
+    -------
+    int
+
+    Examples
+    --------
+    >>> next_block(250, 30, 16.0, 24, tau_factor=50, min_ess=1000, ess_bulk=0.0,
+    ...            check_every=250)
+    250
+    >>> next_block(750, 32, 16.0, 24, tau_factor=50, min_ess=1000, ess_bulk=0.0,
+    ...            check_every=250)
+    124
+    """
+    if not np.isfinite(tau):
+        return check_every
+    kept = max(iteration - burn, 1)
+    scale = 1.0
+    if ess_bulk > 0:
+        scale = max(1.0, (kept * n_walkers / tau) / ess_bulk)
+    need = burn + max(tau_factor * tau, scale * min_ess * tau / n_walkers)
+    return int(np.clip(np.ceil(1.05 * need) - iteration, MIN_BLOCK, check_every))
+
+
 def run_ensemble(post: LogPosterior, start, *, seed, moves=None, tau_factor=50.0,
                  min_ess=1000.0, max_steps=20000, check_every=250,
                  progress="auto"):
@@ -186,9 +232,14 @@ def run_ensemble(post: LogPosterior, start, *, seed, moves=None, tau_factor=50.0
     max_steps : int, default 20000
         Step cap.
     check_every : int, default 250
-        Steps between checks of the stopping rule.
-    progress : bool or "auto"
-        Progress bar (``"auto"``: when standard error is a terminal).
+        The most steps between two checks of the stopping rule; after the first
+        block, the next check is planned where the rule should hold
+        (:func:`next_block`).
+    progress : bool or {"auto", "bar", "log"}
+        A bar with the expected steps as its total (``"bar"``, True), one line of
+        progress every few seconds on standard error (``"log"``), either as standard
+        error is a terminal or not (``"auto"``), or nothing (False); see
+        :mod:`bayes_mpem.mcmc.progress`.
 
     Returns
     -------
@@ -209,22 +260,21 @@ def run_ensemble(post: LogPosterior, start, *, seed, moves=None, tau_factor=50.0
     sampler = emcee.EnsembleSampler(n_walkers, ndim, post, vectorize=True,
                                     moves=moves or default_moves())
     sampler.random_state = np.random.RandomState(seed % 2**32).get_state()
-    bar = progress_bar(progress, post.label)
+    report = SamplingProgress(progress, post.label, n_walkers=n_walkers,
+                              tau_factor=tau_factor, min_ess=min_ess, max_steps=max_steps,
+                              check_every=check_every)
     state, burn, tau, converged = start, 0, np.full(ndim, np.inf), False
-    ess_bulk = 0.0
+    ess_bulk, block = None, check_every
     try:
         while sampler.iteration < max_steps:
-            state = sampler.run_mcmc(state, min(check_every, max_steps - sampler.iteration),
-                                     progress=False)
+            block = min(block, max_steps - sampler.iteration)
+            state = sampler.run_mcmc(state, block, progress=False)
             tau_all = sampler.get_autocorr_time(tol=0, quiet=True)
             burn = int(np.ceil(2.0 * np.max(tau_all)))
             kept = sampler.iteration - burn
             if kept > 0:
                 tau = sampler.get_autocorr_time(discard=burn, tol=0, quiet=True)
-            if bar is not None:
-                bar.update(check_every)
-                bar.set_postfix(tau=f"{np.max(tau):.0f}",
-                                ess=f"{kept * n_walkers / np.max(tau):.0f}")
+            report.update(sampler.iteration, burn, float(np.max(tau)))
             long_enough = (kept > 0 and np.all(np.isfinite(tau))
                            and kept >= tau_factor * np.max(tau)
                            and kept * n_walkers / np.max(tau) >= min_ess)
@@ -234,14 +284,17 @@ def run_ensemble(post: LogPosterior, start, *, seed, moves=None, tau_factor=50.0
                 if ess_bulk >= min_ess:
                     converged = True
                     break
+            block = next_block(sampler.iteration, burn, np.max(tau), n_walkers,
+                               tau_factor=tau_factor, min_ess=min_ess,
+                               ess_bulk=ess_bulk or 0.0, check_every=check_every)
     finally:
-        if bar is not None:
-            bar.close()
+        report.close()
     kept = sampler.iteration - burn
+    ess = max(kept, 0) * n_walkers / np.max(tau)
+    report.finish(step=sampler.iteration, converged=converged, ess=ess, ess_bulk=ess_bulk)
     status = (f"{sampler.iteration} steps, burn-in {burn}, kept {kept} = "
               f"{kept / np.max(tau):.1f} tau (needs {tau_factor:g}), emcee ESS "
-              f"{max(kept, 0) * n_walkers / np.max(tau):.0f} and bulk ESS "
-              f"{ess_bulk:.0f} (need {min_ess:g})")
+              f"{ess:.0f} and bulk ESS {ess_bulk or 0:.0f} (need {min_ess:g})")
     return sampler, burn, tau, converged, status
 
 

@@ -48,7 +48,17 @@ def thin_index(kept: int, n_chains: int, n_draws: int) -> tuple[np.ndarray, int]
 def autocorr_ess(series) -> tuple[float, float]:
     """Integrated autocorrelation time (emcee, steps) of a ``(steps, walkers)`` series.
 
-    Returns ``(tau, ess)``, with ``ess = steps x walkers / tau``.
+    Parameters
+    ----------
+    series : numpy.ndarray
+        ``(steps, walkers)`` values of one parameter.
+
+    Returns
+    -------
+    tau : float
+        Integrated autocorrelation time, in steps.
+    ess : float
+        ``steps x walkers / tau``.
     """
     tau = float(emcee.autocorr.integrated_time(series[:, :, None], tol=0, quiet=True)[0])
     return tau, float(series.shape[0] * series.shape[1] / tau)
@@ -57,7 +67,14 @@ def autocorr_ess(series) -> tuple[float, float]:
 def bulk_ess(series: dict) -> dict:
     """ArviZ's rank-normalised bulk ESS of each ``(chain, draw)`` array of a dict.
 
-    Walkers as chains; returns name -> float.
+    Parameters
+    ----------
+    series : dict of str to array_like
+        ``(chain, draw)`` arrays (walkers as chains).
+
+    Returns
+    -------
+    dict of str to float
     """
     import arviz_stats as azs
 
@@ -68,7 +85,16 @@ def bulk_ess(series: dict) -> dict:
 def hdi(x, ci: float) -> list:
     """Highest-density interval ``[lower, upper]`` (ArviZ) of all values of ``x``.
 
-    With probability ``ci``.
+    Parameters
+    ----------
+    x : array_like
+        Draws (all axes pooled).
+    ci : float
+        Probability of the interval, in ``(0, 1)``.
+
+    Returns
+    -------
+    list of float
     """
     import arviz_stats as azs
 
@@ -79,6 +105,17 @@ def equal_tailed(x, ci: float) -> list:
     """Equal-tailed interval ``[lower, upper]`` of all values of ``x``, probability ``ci``.
 
     The ``(1 - ci) / 2`` and ``(1 + ci) / 2`` quantiles.
+
+    Parameters
+    ----------
+    x : array_like
+        Draws (all axes pooled).
+    ci : float
+        Probability of the interval, in ``(0, 1)``.
+
+    Returns
+    -------
+    list of float
 
     Examples
     --------
@@ -132,7 +169,7 @@ def draw_moments(flat, fn, *, chunk: int = 64):
             pointwise[i:i + chunk] = values
         for j, r in enumerate(probs):
             s1[:, j] += r.sum(axis=0)
-            s2[:, j] += (r * r).sum(axis=0)
+            s2[:, j] += np.einsum("ij,ij->j", r, r)  # no (W, n) temporary
     m = s1 / n_draws
     return pointwise, m, np.sqrt(np.maximum(s2 / n_draws - m * m, 0.0))
 
@@ -140,9 +177,19 @@ def draw_moments(flat, fn, *, chunk: int = 64):
 def to_datatree(groups: dict, **kwargs):
     """ArviZ data from a dict of groups, walkers as chains.
 
-    ``groups`` and ``kwargs`` as for :func:`arviz_base.from_dict`: group name ->
-    {variable -> ``(chain, draw, ...)`` array}; ArviZ's warning about more chains
-    than draws is silenced. Returns an ``xarray.DataTree``.
+    ArviZ's warning about more chains than draws is silenced.
+
+    Parameters
+    ----------
+    groups : dict
+        As for :func:`arviz_base.from_dict`: group name -> {variable ->
+        ``(chain, draw, ...)`` array}.
+    **kwargs
+        Passed to :func:`arviz_base.from_dict` (``dims``, ``coords``, ...).
+
+    Returns
+    -------
+    xarray.DataTree
     """
     import arviz_base as azb
 

@@ -7,11 +7,12 @@ from __future__ import annotations
 
 import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.ticker import MaxNLocator
 
-from .style import class_colors
+from .style import PARAM_LABELS, class_colors, class_key
 
-LABELS = {"d0": "d0 (m)", "sigma_mp": "sigma_MP (m)", "sigma_dp": "sigma_DP (m)",
-          "w_dp": "w_dp", "w_mp": "w_mp", "w_ol": "w_ol"}
+#: the axis labels of the parameters (:data:`~bayes_mpem.plots.style.PARAM_LABELS`)
+LABELS = PARAM_LABELS
 
 
 def _draws(result, names=None):
@@ -41,13 +42,17 @@ def plot_trace(result, *, params=None, fig=None):
     for (ax_t, ax_h), n in zip(axes, names, strict=True):
         ax_t.plot(d[n].T, lw=0.4, alpha=0.5)
         ax_t.set_ylabel(LABELS[n])
+        ax_h.sharey(ax_t)  # the histogram beside the trace, on the same scale
         ax_h.hist(d[n].ravel(), bins=40, orientation="horizontal", color="0.4")
-        ax_h.set_yticklabels([])
+        ax_h.tick_params(labelleft=False)
+        ax_h.set_xticks([])  # counts carry no information here
         s = result.summary.get(n) or result.summary["weights"][n[2:]]
         for v in s["interval"]:
-            ax_h.axhline(v, color="tab:red", lw=0.8)
+            ax_h.axhline(v, color="k", ls="--", lw=0.8,
+                         label=f"{100 * result.ci:g} % HDI" if v == s["interval"][0] else None)
         ax_t.set_title(f"tau = {result.tau.get(n, float('nan')):.1f} steps, "
                        f"ESS = {result.ess.get(n, float('nan')):.0f}", fontsize="small", loc="left")
+    axes[0, 1].legend(fontsize="x-small", loc="upper right")
     axes[-1, 0].set_xlabel(f"kept draw (thinned by {result.diagnostics.get('thin', 1)} steps)")
     fig.suptitle(f"beacon {result.beacon}: {result.priors} priors, "
                  f"{result.diagnostics.get('n_walkers')} walkers")
@@ -87,7 +92,9 @@ def plot_pair(result, *, params=None, fig=None, max_points=3000):
                 ax.hist(flat[ni], bins=40, color="0.4")
                 ax.set_yticks([])
             else:
-                ax.plot(flat[nj][::step], flat[ni][::step], ".", ms=1, alpha=0.3, color="tab:blue")
+                ax.plot(flat[nj][::step], flat[ni][::step], ".", ms=1, alpha=0.3, color="0.2")
+                ax.set_yticks(_inner_ticks(ax.get_ylim()))
+            ax.set_xticks(_inner_ticks(ax.get_xlim()))
             if i == k - 1:
                 ax.set_xlabel(LABELS[nj])
             else:
@@ -98,6 +105,15 @@ def plot_pair(result, *, params=None, fig=None, max_points=3000):
                 ax.set_yticklabels([])
     fig.suptitle(f"beacon {result.beacon}: {result.priors} priors")
     return fig
+
+
+def _inner_ticks(lim, n=3, edge=0.15):
+    """Round ticks inside the middle of ``lim``: labels of neighbouring panels never meet."""
+    lo, hi = lim
+    span = hi - lo
+    ticks = MaxNLocator(n).tick_values(lo, hi)
+    inner = [t for t in ticks if lo + edge * span <= t <= hi - edge * span]
+    return inner or [ticks[len(ticks) // 2]]
 
 
 def _interval_rows(survey_posterior, key, truth):
@@ -199,10 +215,9 @@ def plot_prior_comparison(survey_comparison, *, fig=None):
 def plot_class_uncertainty(survey_posterior, beacon, *, fig=None):
     """Range against time coloured by posterior class probability, and its uncertainty.
 
-    Top: ranges coloured by the posterior mean class probabilities (blue =
-    direct path, red = multipath, green = outlier). Bottom: the probability of
-    the most probable class with +- 1 posterior sd, so the ranges whose class is
-    uncertain stand out.
+    Top: ranges coloured by the posterior mean class probabilities (the colour key on
+    the figure). Bottom: the probability of the most probable class with +- 1
+    posterior sd, so the ranges whose class is uncertain stand out.
 
     Parameters
     ----------
@@ -223,6 +238,7 @@ def plot_class_uncertainty(survey_posterior, beacon, *, fig=None):
     ax1.scatter(data.time, data.range, c=col, s=4, linewidths=0)
     ax1.set_ylabel("one-way range (m)")
     ax1.set_title(f"beacon {beacon}: posterior class probabilities ({r.priors} priors)")
+    class_key(ax1)
     j = np.argmax(r.class_probs, axis=1)
     p = r.class_probs[np.arange(j.size), j]
     sd = r.class_probs_sd[np.arange(j.size), j]

@@ -1,24 +1,52 @@
 """Figures of :func:`bayes_mpem.diagnose`.
 
-Every function takes a :class:`~bayes_mpem.lbl.diagnosis.result.Diagnosis` and ``fig=``,
-and returns the Figure.
+Every function takes a :class:`~bayes_mpem.lbl.diagnosis.result.Diagnosis` (or a
+:class:`~bayes_mpem.lbl.diagnosis.result.DiagnosisRecord` read back from its folder)
+and ``fig=``, and returns the Figure.
 """
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.ticker import FuncFormatter
 
 from .._validate import check_choice
-from ..lbl.diagnosis.model import predict
-from ..lbl.diagnosis.residuals import covariates
+from ..io.results import write_file, writing
+from .style import CLASS_NAMES, class_color
 
 _COV_LABELS = {"time": "time (s)", "range": "direct-path length (m)",
                "elevation": "elevation angle (deg)", "vehicle_depth": "vehicle depth (m)",
                "bearing": "bearing from beacon (deg)"}
-_CLASS_COLORS = {"dp": "tab:blue", "mp": "tab:red", "mp2": "tab:purple", "ol": "0.5"}
+
+
+def running_mean(p, window: int):
+    """Centred running mean over ``window`` values, over fewer at the ends (no dip there).
+
+    Parameters
+    ----------
+    p : array_like
+        Values in order (e.g. class probabilities sorted by time).
+    window : int
+        Values averaged; at the ends the window shrinks to those that exist.
+
+    Returns
+    -------
+    numpy.ndarray
+
+    Examples
+    --------
+    >>> running_mean([1.0, 1.0, 1.0, 1.0], 3).tolist()
+    [1.0, 1.0, 1.0, 1.0]
+    >>> running_mean([0.0, 3.0, 6.0], 3).tolist()
+    [1.5, 3.0, 4.5]
+    """
+    p = np.asarray(p, float)
+    c = np.concatenate([[0.0], np.cumsum(p)])
+    i = np.arange(p.size)
+    half = int(window) // 2
+    lo, hi = np.maximum(i - half, 0), np.minimum(i + half + 1, p.size)
+    return (c[hi] - c[lo]) / (hi - lo)
 
 
 def _binned(x, r, n_bins=12):
@@ -53,8 +81,9 @@ def plot_residuals(diagnosis, *, model="baseline", fig=None, max_points=4000):
     check_choice("model", model, ("baseline", "final"), words=True)
     fit = diagnosis.baseline if model == "baseline" else diagnosis.final
     d = diagnosis.data
-    mu = predict(d, fit.params, fit.effects, fit.path)
-    cov = covariates(d)
+    tab, info = diagnosis.replies(), diagnosis.figure_info()[model]
+    cov = {name: tab[name].to_numpy(float) for name in _COV_LABELS}
+    res = {cls: tab[f"{model}_residual_{cls}"].to_numpy(float) for cls in ("dp", "mp")}
     names = list(_COV_LABELS)
     if fig is None:
         fig = plt.figure(figsize=(15, 5.6), layout="constrained")
@@ -68,7 +97,7 @@ def plot_residuals(diagnosis, *, model="baseline", fig=None, max_points=4000):
                 continue
             show = sel if sel.size <= max_points // d.nb else gen.choice(
                 sel, max_points // d.nb, replace=False)
-            r = d.z - mu[cls]
+            r = res[cls]
             for ax, name in zip(axes[row], names, strict=True):
                 ax.plot(cov[name][show], r[show], ".", ms=1.5, alpha=0.35, color=f"C{j}")
                 xm, ym = _binned(cov[name][sel], r[sel])
@@ -77,7 +106,7 @@ def plot_residuals(diagnosis, *, model="baseline", fig=None, max_points=4000):
             ax.axhline(0.0, color="k", lw=0.6)
             if row == 1:
                 ax.set_xlabel(_COV_LABELS[name])
-        sig = np.median(fit.params.sigma[:, col_c])
+        sig = info[f"sigma_{cls}"]
         axes[row, 0].set_ylim(-6 * sig, 6 * sig)
         axes[row, 0].set_ylabel(f"{'direct-path' if cls == 'dp' else 'multipath'} residual (m)")
     axes[0, -1].legend(fontsize="small", markerscale=4)
@@ -106,7 +135,6 @@ def plot_classes_vs_time(diagnosis, *, model="final", fig=None, window=101):
     if fig is None:
         fig = plt.figure(figsize=(10, 1.9 * d.nb + 0.6), layout="constrained")
     axes = fig.subplots(d.nb, 1, squeeze=False, sharex=True)[:, 0]
-    kernel = np.ones(window) / window
     for j, (ax, bid) in enumerate(zip(axes, d.ids, strict=True)):
         sel = np.flatnonzero(d.bi == j)
         sel = sel[np.argsort(d.time[sel], kind="stable")]
@@ -114,12 +142,12 @@ def plot_classes_vs_time(diagnosis, *, model="final", fig=None, window=101):
             p = fit.resp[sel, c]
             if name == "mp2" and not p.any():
                 continue
-            w = min(window, p.size)
-            run = np.convolve(p, kernel[:w] * window / w, mode="same") if w > 0 else p
-            ax.plot(d.time[sel], run, color=_CLASS_COLORS[name], label=name)
+            ax.plot(d.time[sel], running_mean(p, window), color=class_color(name),
+                    label=CLASS_NAMES[name])
         ax.set_ylim(0, 1)
         ax.set_ylabel(f"beacon {bid}")
-    axes[0].legend(ncol=4, fontsize="small")
+    fig.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", ncol=4,
+               fontsize="small")
     axes[-1].set_xlabel("time (s)")
     fig.suptitle(f"Class probabilities against time ({model} model, running mean of {window})")
     return fig
@@ -157,6 +185,7 @@ def plot_candidates(diagnosis, *, fig=None):
         ax.axvline(diagnosis.settings["min_gain"], color="k", ls=":", lw=0.8)
         ax.axvline(0.0, color="k", lw=0.6)
         ax.set_xscale("symlog", linthresh=10.0)
+        ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))  # 1000, not 10^3
         ax.set_xlabel("held-out log predictive density gain (nats)")
         ax.set_title(f"round {rnd}" if isinstance(rnd, int) else "backward step (cost of "
                      "removing)", fontsize="medium")
@@ -177,15 +206,16 @@ def write_figures(diagnosis, out_dir) -> dict:
     dict
         Paths keyed by figure name.
     """
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     paths = {}
-    for key, make in (("residuals_baseline", lambda: plot_residuals(diagnosis)),
-                      ("residuals_final", lambda: plot_residuals(diagnosis, model="final")),
-                      ("classes_vs_time", lambda: plot_classes_vs_time(diagnosis)),
-                      ("candidates", lambda: plot_candidates(diagnosis))):
-        fig = make()
-        paths[key] = out / f"{key}.png"
-        fig.savefig(paths[key], dpi=100)
-        plt.close(fig)
+    with writing(out_dir) as out:
+        for key, make in (("residuals_baseline", lambda: plot_residuals(diagnosis)),
+                          ("residuals_final", lambda: plot_residuals(diagnosis, model="final")),
+                          ("classes_vs_time", lambda: plot_classes_vs_time(diagnosis)),
+                          ("candidates", lambda: plot_candidates(diagnosis))):
+            fig = make()
+            try:
+                paths[key] = write_file(out / f"{key}.png",
+                                        lambda tmp, f=fig: f.savefig(tmp, dpi=100))
+            finally:
+                plt.close(fig)
     return paths

@@ -1,8 +1,8 @@
 """Figures. Every function takes ``ax=`` (or ``fig=``) and returns the Figure.
 
-The class colour follows the paper's Fig. 8: blue = direct path, red =
-multipath, green = outlier, mixed by the class probabilities, so a range that
-is half direct path, half multipath is drawn purple.
+A range's colour mixes the class colours by its class probabilities
+(:mod:`.style`: colour-blind safe by default, the paper's blue, red and green with
+``use_palette("paper")``); every class-coloured figure carries the colour key.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import numpy as np
 
 from .._validate import check_choice
 from ..lbl.beacon_geometry import BeaconGeometry
-from .style import class_colors
+from .style import CLASS_NAMES, PARAM_LABELS, class_color, class_colors, class_key, plain_log_axis
 
 
 def _ax(ax, figsize=(8, 4)):
@@ -22,7 +22,7 @@ def _ax(ax, figsize=(8, 4)):
 
 
 def plot_classification(survey_fit, beacon, *, ax=None, iteration="last", lines=True,
-                        title=None):
+                        title=None, key=True):
     """Range against time for one beacon, coloured by class probability.
 
     The paper's Figs. 7 (``iteration="first"``: after the first E-step), 9
@@ -39,6 +39,8 @@ def plot_classification(survey_fit, beacon, *, ax=None, iteration="last", lines=
     lines : bool, default True
         Draw the predicted direct path and multipath.
     title : str, optional
+    key : bool, default True
+        Add the legend: the class colours and the predicted lines.
 
     Returns
     -------
@@ -54,10 +56,14 @@ def plot_classification(survey_fit, beacon, *, ax=None, iteration="last", lines=
         geom = BeaconGeometry.from_data(data)
         d0 = res.history["d0"][0] if iteration == "first" else res.d0
         order = np.argsort(data.time)
-        ax.plot(data.time[order], geom.direct[order], color="0.3", lw=0.5, label="direct path")
-        ax.plot(data.time[order], geom.multipath(d0, res.path)[order], color="0.6", lw=0.5,
-                ls="--", label=f"multipath, d0 = {d0:.1f} m")
-        ax.legend(loc="upper right", fontsize="small")
+        # under the ranges (zorder), so the class colours stay visible
+        ax.plot(data.time[order], geom.direct[order], color="k", lw=0.6, alpha=0.6,
+                label="predicted direct path", zorder=0.8)
+        ax.plot(data.time[order], geom.multipath(d0, res.path)[order], color="k", lw=0.6,
+                ls="--", alpha=0.6, label=f"predicted {res.path} multipath", zorder=0.8)
+    if key:
+        # beside the panel, where it hides no range
+        class_key(ax, extra=ax.get_lines(), where="upper left", bbox_to_anchor=(1.01, 1.0))
     ax.set_xlabel("time (s)")
     ax.set_ylabel("one-way range (m)")
     if title is None:
@@ -86,10 +92,12 @@ def plot_survey_classification(survey_fit, *, fig=None):
     """
     ids = list(survey_fit.results)
     if fig is None:
-        fig = plt.figure(figsize=(10, 2.6 * max(len(ids), 1)), layout="constrained")
+        fig = plt.figure(figsize=(10, 2.6 * max(len(ids), 1) + 0.4), layout="constrained")
     axes = fig.subplots(max(len(ids), 1), 1, squeeze=False, sharex=True)[:, 0]
     for ax, bid in zip(axes, ids, strict=False):
-        plot_classification(survey_fit, bid, ax=ax)
+        plot_classification(survey_fit, bid, ax=ax, key=False)
+        ax.label_outer()
+    class_key(fig, extra=axes[0].get_lines())
     return fig
 
 
@@ -105,13 +113,14 @@ def plot_track(survey, *, ax=None):
     -------
     matplotlib.figure.Figure
     """
-    fig, ax = _ax(ax, figsize=(6, 6))
-    ax.plot(survey.x, survey.y, ".", ms=1.5, color="0.4", label="vehicle")
+    fig, ax = _ax(ax, figsize=(6, 4.5))
+    ax.plot(survey.x, survey.y, "-", lw=0.8, color="0.4", label="vehicle")
     b = survey.beacons
-    ax.plot(b["x"], b["y"], "s", color="tab:red", label="beacons")
+    ax.plot(b["x"], b["y"], "s", color="k", label="beacons")
     for bid, row in b.iterrows():
-        ax.annotate(f" {bid}", (row["x"], row["y"]), color="tab:red")
+        ax.annotate(f" beacon {bid}", (row["x"], row["y"]), color="k", fontsize="small")
     ax.set_aspect("equal")
+    ax.margins(0.12)  # room for the beacons' names
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     ax.legend(loc="best", fontsize="small")
@@ -133,7 +142,8 @@ def plot_ranges(survey, *, ax=None):
     fig, ax = _ax(ax, figsize=(10, 4))
     for i, bid in enumerate(survey.beacon_ids):
         m = (survey.beacon == bid) & ~survey.no_reply
-        ax.plot(survey.time[m], survey.range[m], ".", ms=2, color=f"C{i}", label=f"R{bid}")
+        ax.plot(survey.time[m], survey.range[m], ".", ms=2, color=f"C{i}",
+                label=f"beacon {bid}")
     ax.set_xlabel("time (s)")
     ax.set_ylabel("one-way range (m)")
     ax.legend(loc="upper right", markerscale=5, fontsize="small")
@@ -146,8 +156,8 @@ def plot_colormap(*, ax=None, resolution=400):
 
     Every point of the triangle is a probability vector (p_dp, p_mp, p_ol),
     coloured as :func:`class_colors` colours ranges: the corners are pure
-    direct path (blue), multipath (red) and outlier (green), and the colours
-    blend continuously in between.
+    direct path, multipath and outlier, and the colours blend continuously in between
+    (the palette in use, :func:`~bayes_mpem.plots.style.use_palette`).
 
     Parameters
     ----------
@@ -202,10 +212,13 @@ def plot_convergence(result, *, fig=None, truth=None):
         fig = plt.figure(figsize=(9, 3.4), layout="constrained")
     ax1, ax2 = fig.subplots(1, 2)
     it = np.arange(len(result.history["d0"]))
-    ax1.plot(it, result.history["d0"], ".-", color="tab:blue")
-    ax1.set_ylabel("d0, plane height above the beacon (m)")
-    ax2.semilogy(it, result.history["sigma_mp"], ".-", color="tab:red")
-    ax2.set_ylabel("sigma_MP (m)")
+    ax1.plot(it, result.history["d0"], ".-", color="k")
+    ax1.set_ylabel(PARAM_LABELS["d0"])
+    ax1.set_title("d0: height of the reflecting plane above the beacon", fontsize="medium")
+    ax2.semilogy(it, result.history["sigma_mp"], ".-", color="k")
+    plain_log_axis(ax2.yaxis)
+    ax2.set_ylabel(PARAM_LABELS["sigma_mp"])
+    ax2.set_title("sigma_MP: multipath scatter", fontsize="medium")
     for ax, key in ((ax1, "d0"), (ax2, "sigma_mp")):
         ax.set_xlabel("iteration")
         if truth is not None and key in truth:
@@ -233,17 +246,18 @@ def plot_pol_sensitivity(sens, *, fig=None, truth=None):
     if fig is None:
         fig = plt.figure(figsize=(11, 3.4), layout="constrained")
     a, b, c = fig.subplots(1, 3)
-    a.plot(sens["pol"], sens["d0"], "o-", color="tab:blue")
+    a.plot(sens["pol"], sens["d0"], "o-", color="k")
     mid = float(np.median(sens["d0"]))
     lo, hi = min(np.min(sens["d0"]), mid - 10.0), max(np.max(sens["d0"]), mid + 10.0)
     a.set_ylim(lo - 1.0, hi + 1.0)  # at least 20 m: a 2 m wobble should look like one
-    a.set_ylabel("d0 (m)")
-    a.set_title("a: plane height", loc="left")
-    b.plot(sens["pol"], sens["sigma_mp"], "o-", color="tab:red")
-    b.set_ylabel("sigma_MP (m)")
+    a.set_ylabel(PARAM_LABELS["d0"])
+    a.set_title("a: plane height d0", loc="left")
+    b.plot(sens["pol"], sens["sigma_mp"], "o-", color="k")
+    b.set_ylabel(PARAM_LABELS["sigma_mp"])
     b.set_title("b: multipath scatter", loc="left")
-    for cls, col in (("dp", "tab:blue"), ("mp", "tab:red"), ("ol", "tab:green")):
-        c.plot(sens["pol"], sens["p_" + cls], "o-", color=col, label=f"mean P({cls.upper()})")
+    for cls in ("dp", "mp", "ol"):
+        c.plot(sens["pol"], sens["p_" + cls], "o-", color=class_color(cls),
+               label=CLASS_NAMES[cls])
     c.set_ylabel("mean class probability")
     c.set_ylim(0, 1)
     c.set_title("c: class probabilities", loc="left")
@@ -251,8 +265,8 @@ def plot_pol_sensitivity(sens, *, fig=None, truth=None):
     if truth is not None:
         a.axhline(truth["d0"], color="0.4", ls="--", lw=0.8, label="truth")
         b.axhline(truth["sigma_mp"], color="0.4", ls="--", lw=0.8, label="truth")
-        for cls, col in (("dp", "tab:blue"), ("mp", "tab:red"), ("ol", "tab:green")):
-            c.axhline(truth["weights"][cls], color=col, ls=":", lw=0.8)
+        for cls in ("dp", "mp", "ol"):
+            c.axhline(truth["weights"][cls], color=class_color(cls), ls=":", lw=0.8)
         a.legend(fontsize="small")
     for ax in (a, b, c):
         ax.set_xlabel("Pol")
@@ -276,7 +290,7 @@ def table_ii_markdown(survey_fit, *, truth=None) -> str:
     t = survey_fit.table()
     head = "| | " + " | ".join(f"beacon {b}" for b in t["beacon"]) + " |"
     rows = [head, "|---|" + "---:|" * len(t),
-            "| HRP d0 (m) | " + " | ".join(f"{v:.1f}" for v in t["hrp_m"]) + " |",
+            "| d0 (m) | " + " | ".join(f"{v:.1f}" for v in t["d0_m"]) + " |",
             "| sigma_MP (m) | " + " | ".join(f"{v:.2f}" for v in t["sigma_mp_m"]) + " |"]
     if truth is not None:
         rows.append("| true sigma_MP (m) | " + " | ".join(
@@ -302,9 +316,9 @@ def plot_table_ii(survey_fit, *, ax=None):
     """
     fig, ax = _ax(ax, figsize=(7, 1.8))
     t = survey_fit.table()
-    cells = [[f"{v:.1f}" for v in t["hrp_m"]], [f"{v:.2f}" for v in t["sigma_mp_m"]],
+    cells = [[f"{v:.1f}" for v in t["d0_m"]], [f"{v:.2f}" for v in t["sigma_mp_m"]],
              [f"{v:.1f}" for v in t["beacon_depth_m"]]]
-    ax.table(cellText=cells, rowLabels=["HRP (m)", "sigma_MP (m)", "beacon depth (m)"],
+    ax.table(cellText=cells, rowLabels=["d0 (m)", "sigma_MP (m)", "beacon depth (m)"],
              colLabels=[f"beacon {b}" for b in t["beacon"]], loc="center", cellLoc="center")
     ax.set_axis_off()
     ax.set_title(f"Multipath identification results ({survey_fit.method} EM)")

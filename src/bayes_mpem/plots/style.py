@@ -1,31 +1,208 @@
-"""The class colours shared by every figure (the paper's three-value colour map).
+"""The class colours, the colour key and the labels shared by every figure.
 
-Blue is direct path, red multipath, green outlier; a range's colour mixes
-them by its class probabilities (:func:`class_colors`).
+A range's colour mixes its class colours by its class probabilities
+(:func:`class_colors`): pure colours are sure ranges, mixed ones uncertain. Two palettes:
+
+* ``"okabe-ito"`` (the default): direct path blue, multipath vermillion, outlier grey
+  (and a second multipath reddish purple), from the colour-blind-safe set of Okabe & Ito
+  (2008); the three stay apart under deuteranopia, protanopia and tritanopia, and an
+  outlier, grey, carries no hue of its own;
+* ``"paper"``: the paper's Fig. 8, blue, red and green (red and green are not
+  colour-blind safe).
+
+:func:`use_palette` switches, :func:`palette_context` for a ``with`` block
+(``bayes-mpem ... --palette paper`` on the command line);
+:func:`class_key` adds the colour key every class-coloured figure carries. ``d0`` is the
+height of the reflecting plane above the beacon (the paper's HRP): :data:`PARAM_LABELS`
+names it and the other parameters the same way on every figure. The survey-in figures
+colour a ping true or spurious (:data:`SURVEY_IN_COLORS`, colour-blind safe, with a marker
+per class: :data:`SURVEY_IN_MARKERS`).
 """
 
 from __future__ import annotations
 
+import contextlib
+
 import numpy as np
 
+#: class -> RGB of each palette; ``mp2`` is the diagnosis' second reflector
+PALETTES: dict[str, dict[str, tuple[float, float, float]]] = {
+    "okabe-ito": {"dp": (0.0, 0.447, 0.698), "mp": (0.835, 0.369, 0.0),
+                  "mp2": (0.8, 0.475, 0.655), "ol": (0.6, 0.6, 0.6)},
+    "paper": {"dp": (0.0, 0.0, 1.0), "mp": (1.0, 0.0, 0.0), "mp2": (0.5, 0.0, 0.5),
+              "ol": (0.0, 1.0, 0.0)},
+}
+DEFAULT_PALETTE = "okabe-ito"
+#: the words for the classes on figures
+CLASS_NAMES = {"dp": "direct path", "mp": "multipath", "mp2": "second multipath",
+               "ol": "outlier"}
+#: axis labels of the parameters, the same on every figure
+PARAM_LABELS = {"d0": "d0 (m)", "sigma_mp": "sigma_MP (m)", "sigma_dp": "sigma_DP (m)",
+                "w_dp": "w_dp", "w_mp": "w_mp", "w_ol": "w_ol"}
 
-def class_colors(resp):
-    """RGB colours of class probabilities (the paper's three-value colour map).
+_current = {"palette": DEFAULT_PALETTE}
+
+
+def use_palette(name: str) -> str:
+    """Draw the class colours of every later figure with the palette ``name``.
+
+    Parameters
+    ----------
+    name : {"okabe-ito", "paper"}
+
+    Returns
+    -------
+    str
+        The palette used until now (to restore it).
+
+    Raises
+    ------
+    ValueError
+        For an unknown palette.
+
+    Examples
+    --------
+    >>> old = use_palette("paper")
+    >>> class_color("mp")
+    (1.0, 0.0, 0.0)
+    >>> use_palette(old)
+    'paper'
+    """
+    if name not in PALETTES:
+        raise ValueError(f"palette: expected one of {tuple(PALETTES)}, got {name!r}")
+    old, _current["palette"] = _current["palette"], name
+    return old
+
+
+@contextlib.contextmanager
+def palette_context(name: str):
+    """Use the palette ``name`` inside a ``with`` block, and the previous one after it.
+
+    Parameters
+    ----------
+    name : {"okabe-ito", "paper"}
+
+    Yields
+    ------
+    str
+        ``name``.
+
+    Examples
+    --------
+    >>> with palette_context("paper"):
+    ...     class_color("ol")
+    (0.0, 1.0, 0.0)
+    >>> class_color("ol")
+    (0.6, 0.6, 0.6)
+    """
+    old = use_palette(name)
+    try:
+        yield name
+    finally:
+        use_palette(old)
+
+
+def class_color(name: str, palette: str | None = None) -> tuple[float, float, float]:
+    """Return the colour of one class.
+
+    Parameters
+    ----------
+    name : {"dp", "mp", "mp2", "ol"}
+    palette : str, optional
+        Default: the one in use (:func:`use_palette`).
+
+    Returns
+    -------
+    tuple of float
+        RGB in [0, 1].
+    """
+    return PALETTES[palette or _current["palette"]][name]
+
+
+def class_colors(resp, palette: str | None = None):
+    """RGB colours of class probabilities: each class's colour weighted by its probability.
 
     Parameters
     ----------
     resp : array_like
         ``(n, 3)`` probabilities of dp, mp, ol.
+    palette : str, optional
+        Default: the one in use (:func:`use_palette`).
 
     Returns
     -------
     numpy.ndarray
-        ``(n, 3)`` RGB in [0, 1]: red = p_mp, green = p_ol, blue = p_dp.
+        ``(n, 3)`` RGB in [0, 1]. With ``palette="paper"``: red = p_mp, green = p_ol,
+        blue = p_dp.
 
     Examples
     --------
-    >>> class_colors([[1.0, 0.0, 0.0]]).tolist()
+    >>> class_colors([[1.0, 0.0, 0.0]], palette="paper").tolist()
     [[0.0, 0.0, 1.0]]
+    >>> class_colors([[0.0, 0.0, 1.0]], palette="okabe-ito").tolist()
+    [[0.6, 0.6, 0.6]]
     """
-    resp = np.asarray(resp, float)
-    return np.clip(resp[:, [1, 2, 0]], 0.0, 1.0)
+    resp = np.clip(np.asarray(resp, float), 0.0, 1.0)
+    base = np.array([class_color(c, palette) for c in ("dp", "mp", "ol")])
+    return np.clip(resp @ base, 0.0, 1.0)
+
+
+def class_key(ax, classes=("dp", "mp", "ol"), *, extra=(), where=None, **kwargs):
+    """Add the colour key of the classes to a figure's legend.
+
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes or matplotlib.figure.Figure
+        Where the legend goes (a figure gets one legend for all its panels).
+    classes : sequence of str
+        The classes shown.
+    extra : sequence of matplotlib.artist.Artist
+        Further handles (with labels), e.g. predicted lines, after the classes.
+    where : str, optional
+        The legend's ``loc`` (default ``"upper right"``; a figure: above the panels).
+    **kwargs
+        Passed to ``legend``.
+
+    Returns
+    -------
+    matplotlib.legend.Legend
+    """
+    from matplotlib.lines import Line2D
+
+    handles = [Line2D([], [], ls="none", marker="o", ms=5, color=class_color(c),
+                      label=CLASS_NAMES[c]) for c in classes]
+    handles += list(extra)
+    is_fig = not hasattr(ax, "transData")
+    loc = where or ("outside upper center" if is_fig else "upper right")
+    kwargs.setdefault("fontsize", "small")
+    kwargs.setdefault("ncol", len(handles) if is_fig else 1)
+    return ax.legend(handles=handles, loc=loc, **kwargs)
+
+
+def plain_log_axis(axis) -> None:
+    """Label a log axis with plain numbers (``7``, ``10``, ``20``), never ``7x10^0``.
+
+    Ticks at 1, 2 and 5 per decade; when the axis spans less than a decade, every minor
+    tick (2, 3, ..., 9 per decade) is labelled too, so a short axis still has labels.
+
+    Parameters
+    ----------
+    axis : matplotlib.axis.Axis
+        E.g. ``ax.yaxis`` of a ``semilogy`` plot.
+    """
+    from matplotlib.ticker import FuncFormatter, LogLocator
+
+    def minor(v, _):
+        lo, hi = sorted(axis.get_view_interval())
+        return f"{v:g}" if lo > 0 and hi / lo < 10 else ""
+
+    axis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+    axis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+    axis.set_minor_formatter(FuncFormatter(minor))
+
+
+#: Colours of a survey-in's ping classes (Okabe-Ito blue and vermillion: told apart with
+#: every common colour-vision deficiency), and of lines that were not pings.
+SURVEY_IN_COLORS = {"true": "#0072B2", "spurious": "#D55E00", "skipped": "#999999"}
+#: Markers of the same classes, so that the figures read in grey too.
+SURVEY_IN_MARKERS = {"true": "o", "spurious": "X", "skipped": "."}

@@ -71,3 +71,56 @@ def heldout_logpdf(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None,
                            window=full.window, time_range=full.model["time_range"], **kwargs)
             out[test] = fit_k.logpdf(sub[test])
     return out
+
+
+#: A lag is recommended when it predicts held-out pings better by at least this many nats ...
+LAG_MIN_GAIN = 10.0
+#: ... and by at least this many standard errors of the paired sum.
+LAG_MIN_Z = 4.0
+
+
+def lag_check(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, n_folds=5,
+              rng=0, **kwargs) -> dict:
+    """Is the acoustic position behind the logged one? The held-out gain of a fitted lag.
+
+    Locates the transponder with and without a lag along the track
+    (``fit_lag``, :func:`~bayes_mpem.survey_in.location.locate`) and compares
+    the two by ``n_folds``-fold cross-validation (:func:`heldout_logpdf`, the
+    same folds for both). The lag is recommended when its gain is at least
+    :data:`LAG_MIN_GAIN` nats and :data:`LAG_MIN_Z` standard errors; on the
+    WHOI deck-box log it is 5.4 s and gains about 330 nats, on the SIO logs
+    it gains nothing (``docs/measured-data.md``).
+
+    Parameters
+    ----------
+    pings, beacons, transponder
+        As for :func:`locate` (``time``, ``x``, ``y`` for the ship's velocity).
+    n_folds : int, default 5
+    rng : None, int or numpy.random.Generator
+        Assigns the pings to folds.
+    **kwargs
+        Passed to :func:`locate` (``tat``, ``ssp``, ...; not ``fit_lag``).
+
+    Returns
+    -------
+    dict
+        ``lag`` and ``lag_sd`` (s), ``gain`` and ``gain_se`` (nats, lag minus no
+        lag, summed over pings), ``rms_ms_without`` and ``rms_ms_with`` (the
+        scatter of true arrivals, ms), ``recommended`` (bool) and ``rule``.
+    """
+    kwargs.pop("fit_lag", None)
+    seed = as_generator(rng).integers(2**63)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LocateWarning)
+        fits = [locate(pings, beacons, transponder, fit_lag=lag, **kwargs)
+                for lag in (False, True)]
+        held = [heldout_logpdf(pings, beacons, transponder, fit_lag=lag, n_folds=n_folds,
+                               rng=seed, **kwargs) for lag in (False, True)]
+    d = held[1] - held[0]
+    gain, se = float(d.sum()), float(np.sqrt(d.size * d.var()))
+    return {"lag": float(fits[1].model["lag"]), "lag_sd": float(fits[1].sd.get("lag", 0.0)),
+            "gain": gain, "gain_se": se, "rms_ms_without": 1e3 * fits[0].sigma,
+            "rms_ms_with": 1e3 * fits[1].sigma,
+            "recommended": bool(gain >= LAG_MIN_GAIN and gain >= LAG_MIN_Z * se),
+            "rule": f"recommended when the {n_folds}-fold held-out gain is >= "
+                    f"{LAG_MIN_GAIN:g} nats and >= {LAG_MIN_Z:g} standard errors"}

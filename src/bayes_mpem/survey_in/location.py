@@ -37,7 +37,7 @@ from scipy.optimize import least_squares
 
 from .._validate import check_choice, check_int
 from ..exceptions import InputError, LocateWarning
-from ..mixture.densities import first_arrival_logpdf, uniform_logpdf
+from .classes import OUTLIER_MODELS, log_classes, true_probability
 from .travel_times import TravelTimes, ship_velocity, speed_basis
 
 #: Turn-around time used when the file gives none (s): the WHOI EdgeTech log's
@@ -85,6 +85,9 @@ class LocateResult:
         The fitted speed parameter(s): the sound speed (m/s), or with a profile
         the factor its speeds are scaled by; one per B-spline coefficient when
         the speed varies in time.
+    cov : numpy.ndarray
+        ``(3, 3)`` approximate covariance of ``east``, ``north``, ``depth`` (the
+        drift's and azimuth's intervals, the solution ellipse).
     """
 
     transponder: str
@@ -105,6 +108,7 @@ class LocateResult:
     window: tuple = (0.0, 1.0)
     model: dict = field(default_factory=dict, repr=False)
     speed_coef: np.ndarray = field(default=None, repr=False)
+    cov: np.ndarray = field(default=None, repr=False)
 
     @property
     def refracted(self) -> bool:
@@ -174,7 +178,19 @@ class LocateResult:
         return int(np.sum(self.p_true < 0.5))
 
     def interval(self, name: str, ci: float = 0.95) -> list:
-        """Approximate (Wald) interval of a parameter with probability ``ci``."""
+        """Approximate (Wald) interval of a parameter with probability ``ci``.
+
+        Parameters
+        ----------
+        name : str
+            A reported parameter (``east``, ``north``, ``depth``, ``sound_speed``, ...).
+        ci : float
+
+        Returns
+        -------
+        list of float
+            ``[lower, upper]``.
+        """
         from scipy.stats import norm
 
         v = {"east": self.east, "north": self.north, "depth": self.depth,
@@ -183,7 +199,17 @@ class LocateResult:
         return [v - half, v + half]
 
     def to_dict(self, ci: float = 0.95) -> dict:
-        """JSON-ready summary; intervals are approximate (Wald, from the EM)."""
+        """JSON-ready summary; intervals are approximate (Wald, from the EM).
+
+        Parameters
+        ----------
+        ci : float
+            Probability of the intervals.
+
+        Returns
+        -------
+        dict
+        """
         out = {k: {"mean": getattr(self, k), "sd": self.sd.get(k, 0.0),
                    "interval": self.interval(k, ci)}
                for k in ("east", "north", "depth", "sound_speed")}
@@ -194,69 +220,6 @@ class LocateResult:
                    n_spurious=self.n_spurious, n=int(self.p_true.size),
                    iterations=self.n_iter, converged=self.converged, ci=ci)
         return out
-
-
-OUTLIER_MODELS = ("uniform", "first_arrival")
-
-
-def log_classes(t, pred, sigma, weight, window, outliers):
-    """Weighted log densities (true, spurious) of travel times ``t`` given predictions.
-
-    Parameters
-    ----------
-    t : numpy.ndarray
-        Two-way travel times (s).
-    pred : numpy.ndarray
-        Predicted travel time of a true arrival for each ping (s).
-    sigma : float
-        Scatter of the true arrivals (s).
-    weight : float
-        Fraction of true arrivals.
-    window : tuple of float
-        The listening window ``(lo, hi)`` (s).
-    outliers : {"uniform", "first_arrival"}
-        Spurious pings uniform over the window, or reported by a first-arrival
-        detector (:func:`~bayes_mpem.mixture.densities.first_arrival_logpdf`).
-
-    Returns
-    -------
-    ld, lu : numpy.ndarray
-        ``log(weight) + log N(t; pred, sigma)`` and ``log(1 - weight) + log
-        p_spurious(t)``; ``lu`` is ``-inf`` when ``weight >= 1``.
-    """
-    lo, hi = window
-    # the Gaussian in this operation order (log of sigma sqrt(2 pi) in one piece), not
-    # gaussian_logpdf's: it differs in the last bit, and the recorded fits use this one
-    ld = np.log(weight) - 0.5 * ((t - pred) / sigma) ** 2 - np.log(sigma * np.sqrt(2 * np.pi))
-    if weight >= 1:
-        return ld, np.full_like(t, -np.inf)
-    if outliers == "uniform":
-        lu = np.full_like(t, uniform_logpdf(lo, hi))
-    else:  # a detector reporting the first threshold crossing: spurious before the true arrival
-        lu = first_arrival_logpdf(t, pred, lo, hi, min_early=1e-6)
-    return ld, np.log1p(-weight) + lu
-
-
-def true_probability(ld, lu):
-    """Probability of a true arrival from the two class log-densities (broadcasts).
-
-    Parameters
-    ----------
-    ld, lu : array_like
-        Weighted log-densities of the true and the spurious class
-        (:func:`log_classes`).
-
-    Returns
-    -------
-    numpy.ndarray
-        ``1 / (1 + exp(lu - ld))``, with the exponent clipped to +-700.
-
-    Examples
-    --------
-    >>> float(true_probability(0.0, 0.0))
-    0.5
-    """
-    return 1.0 / (1.0 + np.exp(np.clip(lu - ld, -700.0, 700.0)))
 
 
 def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=None,
@@ -349,8 +312,12 @@ def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=
     # the robust start: straight rays at one speed
     theta = np.array([start["x"], start["y"], start["depth"], sound_speed]
                      + ([tat0] if fit_tat else []), float)
+    if not np.isfinite(theta).all() or not np.isfinite(t).all():
+        raise InputError(f"transponder {transponder}: the start (x, y, depth, sound speed"
+                         f"{', tat' if fit_tat else ''}) = {theta.tolist()} or a travel time "
+                         "is not finite; check the survey's header and pings")
     x_scale = [10.0, 10.0, 10.0, 1.0] + ([1e-3] if fit_tat else [])
-    resid, jac = _weighted_residuals(t, TravelTimes(x, y, z, tat0, **geo))
+    resid, jac = weighted_residuals(t, TravelTimes(x, y, z, tat0, **geo))
     theta = least_squares(resid, theta, jac=jac, loss="cauchy", f_scale=2e-3,
                           x_scale=np.array(x_scale)).x
     speed0 = theta[3]
@@ -361,7 +328,7 @@ def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=
     x_scale = np.array([10.0] * 3 + [abs(speed0) / 1500.0] * k + ([1.0] if fit_lag else [])
                        + ([1e-3] if fit_tat else []))
     model = TravelTimes(x, y, z, tat0, basis=basis, profile=ssp, fit_lag=fit_lag, **geo)
-    resid, jac = _weighted_residuals(t, model)
+    resid, jac = weighted_residuals(t, model)
     window = (float(t.min()), float(t.max())) if window is None else tuple(map(float, window))
     theta, sigma, weight, p, it, converged = _em(t, theta, resid, jac, x_scale, window,
                                                  outliers, max_iter=max_iter, tol=tol)
@@ -392,7 +359,7 @@ def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=
         model={"ssp": ssp, "surface_depth": float(surface_depth), "earth_radius": earth_radius,
                "speed_intervals": int(speed_intervals), "time_range": time_range,
                "lag": lag, "fit_lag": bool(fit_lag)},
-        speed_coef=coef.copy())
+        speed_coef=coef.copy(), cov=cov[:3, :3].copy())
 
 
 def _select_pings(pings, beacons, transponder, speed_intervals):
@@ -417,8 +384,23 @@ def _select_pings(pings, beacons, transponder, speed_intervals):
     return transponder, start, rows, pings.iloc[rows]
 
 
-def _weighted_residuals(t, model):
-    """Residual and Jacobian functions of ``model`` for :func:`least_squares` (optional weights)."""
+def weighted_residuals(t, model):
+    """Residual and Jacobian functions of a travel-time model for ``least_squares``.
+
+    Parameters
+    ----------
+    t : numpy.ndarray
+        Observed two-way travel times (s).
+    model : object
+        With ``predict(theta)`` and ``jac(theta)`` (:class:`TravelTimes`, or an
+        array's :class:`~bayes_mpem.survey_in.array.ArrayTravelTimes`).
+
+    Returns
+    -------
+    resid, jac : callable
+        ``resid(theta, w=None)`` (observed minus predicted, times ``sqrt(w)``
+        when weights are given) and ``jac(theta, w=None)`` its Jacobian.
+    """
 
     def resid(th, w=None):
         r = t - model.predict(th)

@@ -33,7 +33,9 @@ from ..mcmc import (
     thin_index,
     to_datatree,
 )
-from .location import LocateResult, true_probability
+from .classes import true_probability
+from .drift import drift_from_draws
+from .location import LocateResult
 from .posterior import (
     PARAMS,
     SIGMA_BOUNDS,
@@ -108,23 +110,76 @@ class LocationPosterior:
         return float(min(min(self.ess.values()), min(self.ess_bulk.values())))
 
     def mean(self, name: str) -> float:
-        """Posterior mean of a reported parameter."""
+        """Posterior mean of a reported parameter.
+
+        Parameters
+        ----------
+        name : str
+            A reported parameter (``east``, ``north``, ``depth``, ``sound_speed``, ...).
+
+        Returns
+        -------
+        float
+        """
         return float(np.mean(self.draws[name]))
 
     def sd(self, name: str) -> float:
-        """Posterior standard deviation of a reported parameter."""
+        """Posterior standard deviation of a reported parameter.
+
+        Parameters
+        ----------
+        name : str
+            A reported parameter (``east``, ``north``, ``depth``, ``sound_speed``, ...).
+
+        Returns
+        -------
+        float
+        """
         return float(np.std(self.draws[name], ddof=1))
 
     def interval(self, name: str, ci: float | None = None) -> list:
-        """Equal-tailed posterior interval of a reported parameter with probability ``ci``."""
+        """Equal-tailed posterior interval of a reported parameter with probability ``ci``.
+
+        Parameters
+        ----------
+        name : str
+            A reported parameter (``east``, ``north``, ``depth``, ``sound_speed``, ...).
+        ci : float, optional
+            Default: the probability the posterior was summarised with.
+
+        Returns
+        -------
+        list of float
+        """
         return equal_tailed(self.draws[name], self.ci if ci is None else float(ci))
 
     def describe(self, name: str, ci: float | None = None) -> dict:
-        """``mean``, ``sd`` and ``interval`` of a reported parameter."""
+        """``mean``, ``sd`` and ``interval`` of a reported parameter.
+
+        Parameters
+        ----------
+        name : str
+            A reported parameter (``east``, ``north``, ``depth``, ``sound_speed``, ...).
+        ci : float, optional
+
+        Returns
+        -------
+        dict
+        """
         return {"mean": self.mean(name), "sd": self.sd(name), "interval": self.interval(name, ci)}
 
     def to_dict(self, ci: float | None = None) -> dict:
-        """JSON-ready summary (equal-tailed intervals with probability ``ci``)."""
+        """JSON-ready summary (equal-tailed intervals with probability ``ci``).
+
+        Parameters
+        ----------
+        ci : float, optional
+            Default: the probability the posterior was summarised with.
+
+        Returns
+        -------
+        dict
+        """
         ci = self.ci if ci is None else float(ci)
         out = {k: self.describe(k, ci) for k in ("east", "north", "depth", "sound_speed")}
         if "tat" in self.draws:
@@ -290,6 +345,9 @@ def _merge(em: dict, post: LocationPosterior, ci: float, header: dict) -> dict:
                                                     header["lat"], header["lon"])
     else:
         out["lat"] = out["lon"] = None
+    if "drift" in em:  # a deck-box log: the drift from the drop point, from the draws
+        out.update(drift_from_draws(post.draws["east"], post.draws["north"], post.draws["depth"],
+                                    header.get("depth"), ci=ci))
     out["posterior"] = {"sigma_ms": d["sigma_ms"], "weight_true": d["weight_true"],
                         "ess": d["ess"], "ess_bulk": d["ess_bulk"], "tau": d["tau"],
                         "diagnostics": d["diagnostics"]}

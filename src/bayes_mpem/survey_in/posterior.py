@@ -5,7 +5,7 @@ travel time is a true arrival, ``N(prediction, sigma)``, with probability
 ``weight``, or spurious (uniform over the listening window, or before the true
 arrival); the walkers start from the EM solution. Parameters and priors:
 
-=====================  ========================================================
+======================  ========================================================
 ``east, north, depth``  flat (improper)
 ``speed`` (``_0...``)   the sound speed (m/s) or the profile's scale factor, one
                         per B-spline coefficient when it varies in time; flat
@@ -14,7 +14,7 @@ arrival); the walkers start from the EM solution. Parameters and priors:
 ``log_sigma``           flat, i.e. ``p(sigma) ~ 1/sigma`` on ``[1e-6, 1]`` s
 ``weight``              flat on ``(0, 1)``: ``Beta(1, 1)``, a ``Dirichlet(1, 1)``
                         on the true and spurious weights
-=====================  ========================================================
+======================  ========================================================
 
 Travel times, vectorised over walkers and pings: straight rays are exact. Through
 a profile, the eigenray solve per walker and step is replaced by a ray-bending
@@ -37,7 +37,8 @@ import pandas as pd
 
 from .._validate import check_choice, check_int, check_probability, check_range
 from ..mcmc.driver import place_walkers
-from .location import LocateResult, log_classes
+from .classes import log_classes
+from .location import LocateResult
 from .travel_times import chord
 
 #: Support of the log-uniform prior on sigma (s).
@@ -199,7 +200,18 @@ class LocationLogPosterior:
         return pos, coef, tat, np.exp(theta[:, [-2]]), theta[:, [-1]]
 
     def log_prior(self, theta):
-        """Log prior density (up to a constant) of a ``(W, ndim)`` array; ``-inf`` outside."""
+        """Log prior density (up to a constant) of a ``(W, ndim)`` array; ``-inf`` outside.
+
+        Parameters
+        ----------
+        theta : array_like
+            ``(W, ndim)`` walkers in the order of :attr:`names` (or one ``(ndim,)`` point).
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(W,)``.
+        """
         theta = np.atleast_2d(theta)
         coef = theta[:, 3:3 + self.k]
         lo, hi = np.log(SIGMA_BOUNDS[0]), np.log(SIGMA_BOUNDS[1])
@@ -213,7 +225,18 @@ class LocationLogPosterior:
         return np.where(ok, 0.0, -np.inf)
 
     def predict(self, theta):
-        """Predicted two-way travel times, ``(W, n)``, with the ray-bending correction."""
+        """Predicted two-way travel times, ``(W, n)``, with the ray-bending correction.
+
+        Parameters
+        ----------
+        theta : array_like
+            ``(W, ndim)`` walkers in the order of :attr:`names` (or one ``(ndim,)`` point).
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(W, n)`` travel times (s).
+        """
         pos, coef, tat, _, _ = self._split(theta)
         L = chord(self.sx, self.sy, self.tt.z, pos[:, [0]], pos[:, [1]], pos[:, [2]], self.tt.R)
         if self.profile is None:
@@ -225,7 +248,18 @@ class LocationLogPosterior:
         return 2.0 * T / (coef @ self.basis_t) + tat
 
     def class_log_densities(self, theta):
-        """Log densities (true, spurious), each ``(W, n)``."""
+        """Log densities (true, spurious), each ``(W, n)``.
+
+        Parameters
+        ----------
+        theta : array_like
+            ``(W, ndim)`` walkers in the order of :attr:`names` (or one ``(ndim,)`` point).
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+            The weighted log densities of the true and the spurious class.
+        """
         _, _, _, sigma, w = self._split(theta)
         # log_classes with a scalar weight of 1/2, re-weighted here: the same densities
         # as the EM, for an array of weights
@@ -234,17 +268,48 @@ class LocationLogPosterior:
         return ld + (np.log(w) - np.log(0.5)), lu + (np.log1p(-w) - np.log(0.5))
 
     def pointwise(self, theta):
-        """Log-likelihood of every ping, ``(W, n)``."""
+        """Log-likelihood of every ping, ``(W, n)``.
+
+        Parameters
+        ----------
+        theta : array_like
+            ``(W, ndim)`` walkers in the order of :attr:`names` (or one ``(ndim,)`` point).
+
+        Returns
+        -------
+        numpy.ndarray
+        """
         return np.logaddexp(*self.class_log_densities(theta))
 
     def loglik(self, theta):
-        """Log-likelihood of a ``(W, ndim)`` array (travel times as the sampler uses them)."""
+        """Log-likelihood of a ``(W, ndim)`` array (travel times as the sampler uses them).
+
+        Parameters
+        ----------
+        theta : array_like
+            ``(W, ndim)`` walkers in the order of :attr:`names` (or one ``(ndim,)`` point).
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(W,)``.
+        """
         return self.pointwise(theta).sum(axis=1)
 
     def exact_loglik(self, theta):
         """Log-likelihood with the refracted rays solved at each row (slow; for checks).
 
         Equal to :meth:`loglik` for straight rays.
+
+        Parameters
+        ----------
+        theta : array_like
+            ``(W, ndim)`` walkers in the order of :attr:`names` (or one ``(ndim,)`` point).
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(W,)``.
         """
         theta = np.atleast_2d(theta)
         out = np.empty(theta.shape[0])
@@ -280,6 +345,11 @@ class LocationLogPosterior:
 
     def natural(self, theta):
         """Convert a ``(..., ndim)`` array to the reported parameters, each of shape ``(...)``.
+
+        Parameters
+        ----------
+        theta : array_like
+            ``(..., ndim)``, in the order of :attr:`names`.
 
         Returns
         -------

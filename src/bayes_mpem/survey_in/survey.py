@@ -3,8 +3,12 @@
 :func:`locate_survey` takes a :class:`~bayes_mpem.io.raw.RawSurvey` (a deck-box
 log or a SeaGap folder), picks the sound-speed profile it names
 (:func:`survey_profile`) and the geometry of its format, runs
-:func:`~.location.locate` on each transponder and returns a
-:class:`~.result.SurveyInResult`.
+:func:`~.location.locate` on each transponder, adds what OBSrange reports beside
+the position (the drift and its azimuth from the drop point, the depth change:
+:mod:`.drift`; optionally whether a lag along the track would help:
+:func:`~.heldout.lag_check`) and returns a :class:`~.result.SurveyInResult`
+whose ``classified.csv`` holds every ping's residual. GNSS-A array surveys
+(GARPOS, GNATSS) go to :func:`~.array_survey.locate_array_survey`.
 """
 
 from __future__ import annotations
@@ -14,54 +18,26 @@ import pandas as pd
 
 from ..exceptions import InputError
 from ..io.geodesy import MEAN_EARTH_RADIUS_M, earth_radius, enu_to_geodetic
+from ..io.raw import ARRAY_FORMATS
+from .array_survey import locate_array_survey
+from .drift import drift_from_fit
+from .heldout import lag_check as heldout_lag_check
 from .location import DEFAULT_TAT, locate
-from .result import SurveyInResult
+from .result import SurveyInResult, classified_table
+from .ssp import survey_profile
 
 #: SeaGap's default depth of the ship's transducer below the sea surface (m)
 #: (``XDUCER_DEPTH`` in SeaGap); it places the profile against the ellipsoidal heights.
 SEAGAP_TRANSDUCER_DEPTH = 3.0
 
 
-def survey_profile(raw, ssp):
-    """Return the sound-speed profile ``ssp`` names for a survey.
-
-    Parameters
-    ----------
-    raw : RawSurvey
-    ssp : None, SoundSpeedProfile, str or path
-        As for :func:`locate_survey`.
-
-    Returns
-    -------
-    SoundSpeedProfile or None
-        ``None`` for straight rays.
-
-    Raises
-    ------
-    bayes_mpem.InputError
-        When the survey lacks what ``ssp`` asks for (its own profile, a position).
-    """
-    from ..acoustics.profile import SoundSpeedProfile
-
-    if ssp is None or isinstance(ssp, SoundSpeedProfile):
-        return ssp
-    if str(ssp) == "survey":
-        prof = raw.header.get("ss_prof")
-        if prof is None:
-            raise InputError(f"ssp='survey': {raw.source} came with no sound-speed profile "
-                             "(SeaGap's ss_prof.inp); give a file or 'woa09'")
-        return SoundSpeedProfile(prof["depth"], prof["sound_speed"], source="ss_prof.inp")
-    if str(ssp) == "woa09":
-        if "lat" not in raw.header:
-            raise InputError(f"ssp='woa09': {raw.source} has no latitude/longitude to look the "
-                             "atlas up at; give a profile file")
-        return SoundSpeedProfile.from_woa09(raw.header["lat"], raw.header["lon"])
-    return SoundSpeedProfile.from_file(ssp)
-
-
 def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", ssp=None,
-                  speed_intervals=0, fit_lag=False):
+                  speed_intervals=0, fit_lag=False, lag_check=False):
     """Locate every transponder of a :class:`~bayes_mpem.io.raw.RawSurvey`.
+
+    GNSS-acoustic array surveys (GARPOS, GNATSS) are located jointly by
+    :func:`~bayes_mpem.survey_in.array_survey.locate_array_survey`; every other
+    survey one transponder at a time.
 
     Parameters
     ----------
@@ -77,22 +53,35 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
         Refracted rays through a profile: a :class:`~bayes_mpem.acoustics.SoundSpeedProfile`,
         a two-column file (depth m, speed m/s), ``"woa09"`` (the atlas at the drop
         point) or ``"survey"`` (the profile that came with the survey, SeaGap's
-        ``ss_prof.inp``). Default: straight rays.
+        ``ss_prof.inp``); ``"straight"`` or None for straight rays (None is the
+        survey's own profile for an array survey).
     speed_intervals : int, default 0
         A sound speed varying in time (:func:`locate`).
     fit_lag : bool, default False
         Fit a lag of the acoustic position along the track (:func:`locate`).
+    lag_check : bool, default False
+        Without ``fit_lag``: also test whether a lag would predict held-out pings
+        better (:func:`~bayes_mpem.survey_in.heldout.lag_check`); reported under
+        each transponder's ``lag_check``.
 
     Returns
     -------
     SurveyInResult
         ``summary`` (``{"transponders": {id: {"lat", "lon", "depth",
-        "sound_speed", ...}}, ...}``) and ``classified`` (one row per ping line
-        and per skipped line of the file, in file order: ``line``,
-        ``transponder``, ``twtt``, ``p_true``, ``p_spurious``, ``label``
-        (``true``, ``spurious`` or ``skipped``) and ``reason``); it writes
+        "sound_speed", ...}}, ...}``; for a deck-box log also ``drift``,
+        ``azimuth`` and ``depth_change`` from the drop point, each with its
+        interval) and ``classified`` (one row per ping line and per skipped line
+        of the file, in file order: ``line``, ``transponder``, ``twtt``,
+        ``p_true``, ``p_spurious``, ``label`` (``true``, ``spurious`` or
+        ``skipped``), ``reason`` and :data:`~.result.PING_COLUMNS`); it writes
         both with ``write(out_dir)``; ``fits`` holds each transponder's
         :class:`~bayes_mpem.survey_in.location.LocateResult`.
+
+    Raises
+    ------
+    InputError
+        A turn-around time, a lag or a second outlier model asked of an array
+        survey (GNSS-A travel times are already corrected for delays).
 
     Notes
     -----
@@ -101,6 +90,14 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
     latitude, else 6,371 km), with the sea surface
     :data:`SEAGAP_TRANSDUCER_DEPTH` above the mean transducer.
     """
+    if raw.format in ARRAY_FORMATS:
+        for name, given in (("fit_tat", fit_tat), ("fit_lag", fit_lag),
+                            ("tat", tat not in (None, 0, 0.0))):
+            if given:
+                raise InputError(f"{name}: not for a {raw.format} survey (its travel times are "
+                                 "already corrected for the delays; a lag is not modelled)")
+        return locate_array_survey(raw, ci=ci, outliers=outliers, ssp=ssp,
+                                   speed_intervals=speed_intervals)
     if tat is None:
         tat = raw.header.get("tat", 0.0 if raw.format == "seagap" else DEFAULT_TAT)
     pings, beacons = raw.to_pings()
@@ -110,39 +107,54 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
         geo = {"earth_radius": earth_radius(raw.header["lat"]) if "lat" in raw.header
                else MEAN_EARTH_RADIUS_M,
                "surface_depth": float(pings["depth"].mean()) - SEAGAP_TRANSDUCER_DEPTH}
-    out, fits, probs = {}, {}, np.full(len(pings), np.nan)
+    n = len(pings)
+    out, fits = {}, {}
+    probs, resid, azim = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
+    model = dict(tat=tat, fit_tat=fit_tat, outliers=outliers, ssp=prof,
+                 speed_intervals=speed_intervals, **geo)
     for tid in beacons["beacon"].astype(str):
-        fits[tid] = r = locate(pings, beacons, tid, tat=tat, fit_tat=fit_tat, outliers=outliers,
-                               ssp=prof, speed_intervals=speed_intervals, fit_lag=fit_lag, **geo)
+        try:
+            fits[tid] = r = locate(pings, beacons, tid, fit_lag=fit_lag, **model)
+        except InputError as exc:
+            hint = (f" (speed_intervals={speed_intervals} needs {speed_intervals} more)"
+                    if speed_intervals and "need at least" in str(exc) else "")
+            raise InputError(f"{raw.source}: {exc}{hint}") from None
+        sub = pings.iloc[r.rows]
         probs[r.rows] = r.p_true
-        d = r.to_dict(ci)
-        if "lat" in raw.header:
-            d["lat"], d["lon"], _ = enu_to_geodetic(r.east, r.north, 0.0, raw.header["lat"],
-                                                    raw.header["lon"])
-        else:
-            d["lat"] = d["lon"] = None  # SeaGap: local frame only
-        out[tid] = d
-    cls = _classified(pings, probs, raw.skipped)
+        resid[r.rows] = 1e3 * (sub["twtt"].to_numpy() - r.predict(sub))
+        azim[r.rows] = np.degrees(np.arctan2(sub["x"].to_numpy() - r.east,
+                                             sub["y"].to_numpy() - r.north)) % 360.0
+        out[tid] = _entry(raw, r, ci)
+        if lag_check and not fit_lag:
+            out[tid]["lag_check"] = heldout_lag_check(pings, beacons, tid, **model)
+    table = pd.DataFrame({"line": pings["line"], "transponder": pings["beacon"].astype(str),
+                          "twtt": pings["twtt"], "time": pings["time"], "east": pings["x"],
+                          "north": pings["y"], "residual_ms": resid, "azimuth_deg": azim})
+    cls = classified_table(table, probs, raw.skipped)
     rays = "straight rays" if prof is None else f"refracted rays ({prof.source or 'profile'})"
     summary = {"transponders": out, "format": raw.format, "source": raw.source,
-               "n_pings": int(len(pings)), "n_skipped_lines": int(len(raw.skipped)),
+               "n_pings": int(n), "n_skipped_lines": int(len(raw.skipped)),
                "method": f"EM, {rays}; intervals approximate (Wald)",
                "outliers": outliers, "ssp": None if prof is None else prof.source,
                "speed_intervals": int(speed_intervals), "fit_lag": bool(fit_lag),
                "geometry": geo,
                "tat_fitted": bool(fit_tat), "tat_given": None if fit_tat else float(tat)}
+    if "lat" in raw.header and raw.format != "seagap":
+        summary["drop_point"] = {k: raw.header.get(k) for k in ("lat", "lon", "depth")}
     return SurveyInResult(summary=summary, classified=cls, fits=fits)
 
 
-def _classified(pings, probs, skipped):
-    """Per line of the file: the ping's class probabilities, or why it was skipped."""
-    lab = np.where(probs >= 0.5, "true", "spurious").astype(object)
-    cls = pd.DataFrame({"line": pings["line"], "transponder": pings["beacon"].astype(str),
-                        "twtt": pings["twtt"], "p_true": probs, "p_spurious": 1.0 - probs,
-                        "label": lab, "reason": ""})
-    if len(skipped):
-        cls = pd.concat([cls, pd.DataFrame({"line": skipped["line"], "transponder": "",
-                                            "twtt": np.nan, "p_true": np.nan,
-                                            "p_spurious": np.nan, "label": "skipped",
-                                            "reason": skipped["reason"]})], ignore_index=True)
-    return cls.sort_values("line", kind="stable").reset_index(drop=True)
+def _entry(raw, r, ci):
+    """Build a transponder's summary entry: the fit, its position and its drift."""
+    d = r.to_dict(ci)
+    d["covariance"] = {"names": ["east", "north", "depth"],
+                       "matrix": [[float(v) for v in row] for row in r.cov]}
+    if "lat" in raw.header:
+        d["lat"], d["lon"], _ = enu_to_geodetic(r.east, r.north, 0.0, raw.header["lat"],
+                                                raw.header["lon"])
+    else:
+        d["lat"] = d["lon"] = None  # SeaGap: local frame only
+    if "lat" in raw.header and raw.format != "seagap":  # the frame's origin is the drop point
+        d.update(drift_from_fit(r.east, r.north, r.depth, r.cov, raw.header.get("depth"),
+                                ci=ci))
+    return d

@@ -145,7 +145,17 @@ class TravelTimes:
         self._key = None
 
     def speed(self, theta):
-        """Speed (or profile scale) at each ping from ``theta``'s coefficients."""
+        """Speed (or profile scale) at each ping from ``theta``'s coefficients.
+
+        Parameters
+        ----------
+        theta : numpy.ndarray
+            The parameter vector (position, speed coefficients, then the optional ones).
+
+        Returns
+        -------
+        numpy.ndarray
+        """
         return self.basis @ theta[3:3 + self.k]
 
     def _tat(self, theta):
@@ -223,15 +233,46 @@ class TravelTimes:
         return T, q * L * Le, q * L * Ln, Td, int(bad.sum())
 
     def n_invalid(self, theta):
-        """Count the pings that no eigenray reaches at ``theta`` (0 for straight rays)."""
+        """Count the pings that no eigenray reaches at ``theta`` (0 for straight rays).
+
+        Parameters
+        ----------
+        theta : numpy.ndarray
+            The parameter vector (position, speed coefficients, then the optional ones).
+
+        Returns
+        -------
+        int
+        """
         return self.rays(theta)[4]
 
     def predict(self, theta):
-        """Two-way travel times (s) of true arrivals at ``theta``, one per ping."""
+        """Two-way travel times (s) of true arrivals at ``theta``, one per ping.
+
+        Parameters
+        ----------
+        theta : numpy.ndarray
+            The parameter vector (position, speed coefficients, then the optional ones).
+
+        Returns
+        -------
+        numpy.ndarray
+        """
         return 2.0 * self.rays(theta)[0] / self.speed(theta) + self._tat(theta)
 
     def jac(self, theta):
-        """d(prediction)/d(theta), one row per ping."""
+        """d(prediction)/d(theta), one row per ping.
+
+        Parameters
+        ----------
+        theta : numpy.ndarray
+            The parameter vector (position, speed coefficients, then the optional ones).
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(n, ndim)``.
+        """
         T, Te, Tn, Td, _ = self.rays(theta)
         s = self.speed(theta)
         cols = [2 * Te / s, 2 * Tn / s, 2 * Td / s]
@@ -279,8 +320,26 @@ def ship_velocity(pings: pd.DataFrame) -> tuple:
 def speed_basis(pings, n_intervals, time_range):
     """Design matrix of the sound speed in time: ones, or a cubic B-spline basis.
 
-    ``n_intervals`` equal intervals over ``time_range`` (default: the pings' own
-    span); times outside it take the value at the nearer end.
+    Parameters
+    ----------
+    pings : pandas.DataFrame
+        The pings (their ``time`` column).
+    n_intervals : int
+        Equal intervals of the B-spline (0: one constant speed).
+    time_range : tuple of float or None
+        The span the intervals divide (default: the pings' own); times outside it take
+        the value at the nearer end.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(n, k)`` design matrix, ``k = 1`` or ``n_intervals + 3``.
+
+    Raises
+    ------
+    InputError
+        When a varying speed is asked for pings without a ``time`` column, or the span
+        is empty.
     """
     n = len(pings)
     if not n_intervals:

@@ -14,6 +14,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from bayes_mpem.cli import main
@@ -28,7 +29,7 @@ from bayes_mpem.lbl.effects import EFFECTS
 from bayes_mpem.lbl.em_mixture import fit_mixture_em
 from bayes_mpem.lbl.simulate import simulate_survey
 from bayes_mpem.lbl.survey import fittable_beacons
-from bayes_mpem.report import write_figures
+from bayes_mpem.report import load_output, write_figures
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # tests/, for independent_generator
 import independent_generator as indep  # noqa: E402
@@ -134,8 +135,16 @@ def test_nav_drift_direction_and_json(tmp_path):
     (e,) = result.effects
     assert e.detail["direction_deg"] == pytest.approx(120.0, abs=5.0)
     paths = result.write(tmp_path)
-    assert set(paths) == {"diagnosis"}  # data only: the figures are the report's job
+    assert set(paths) == {"diagnosis", "replies"}  # data only: the figures are the report's job
     paths.update({p.stem: p for p in write_figures(result, tmp_path)})
+    # the folder alone redraws the same figures (bayes-mpem plot on a diagnose folder)
+    again = write_figures(load_output(tmp_path), tmp_path / "again")
+    assert {p.name for p in again} == {f"{k}.png" for k in ("residuals_baseline",
+                                                            "residuals_final",
+                                                            "classes_vs_time", "candidates")}
+    replies = pd.read_csv(paths["replies"])
+    assert len(replies) == result.data.n
+    np.testing.assert_allclose(replies["final_p_ol"], result.final.resp[:, 3], atol=1e-12)
     doc = json.loads(paths["diagnosis"].read_text())
     eff = doc["effects"][0]
     assert {"name", "magnitude", "unit", "beacons", "delta_elpd", "evidence"} <= set(eff)

@@ -35,10 +35,10 @@ e_y)|``, m at the last ping). Two act on one beacon ``b``, reported with it:
 baseline, all switched off, is the mixture model of
 :mod:`bayes_mpem.lbl.likelihood`, fitted to all beacons together.
 
-The model is :mod:`.model` (its parameters :mod:`.params`), its fit (ECM)
-:mod:`.ecm` from the starts of :mod:`.starts`, the search :mod:`.search`, the
-wording of the evidence :mod:`.evidence`, the residual checks
-:mod:`.residuals` and the result
+The model is :mod:`~bayes_mpem.lbl.diagnosis.model` (its parameters :mod:`.params`),
+its fit (ECM) :mod:`~bayes_mpem.lbl.diagnosis.ecm` from the starts of :mod:`.starts`,
+the search :mod:`.search`, the wording of the evidence :mod:`.evidence`, the residual
+checks :mod:`.residuals` and the result
 :class:`~bayes_mpem.lbl.diagnosis.result.Diagnosis`.
 
 Examples
@@ -60,11 +60,11 @@ import warnings
 import numpy as np
 
 from ..._rng import RNGLike, as_generator
-from ..._validate import check_choice, check_int
+from ..._validate import check_choice, check_finite, check_int, check_range
 from ...io.survey import load_survey
 from .. import geometry
 from ..effects import EFFECTS, UNITS, split_term
-from ..survey import fittable_beacons
+from ..survey import check_min_pings, fittable_beacons
 from .ecm import fit_joint
 from .evidence import check_effect_names, effect_detail, effect_evidence, effect_magnitude_se
 from .model import ranges
@@ -132,6 +132,9 @@ def diagnose(
     effects = tuple(effects)
     check_effect_names(effects, "effects")
     check_int("n_folds", n_folds, minimum=2)
+    check_min_pings(min_pings)
+    check_finite("min_gain", min_gain)
+    check_range("min_gain", min_gain, low=0, include_low=True)
     survey = load_survey(pings, beacons)
     gen = as_generator(rng)
     with warnings.catch_warnings():

@@ -1,6 +1,6 @@
 """Fitting the joint model of the diagnosis by ECM, and its held-out predictive density.
 
-The joint model (:mod:`.model`) is fitted to all beacons at once by an ECM
+The joint model (:mod:`~bayes_mpem.lbl.diagnosis.model`) is fitted to all beacons at once by an ECM
 algorithm: an E-step; closed-form mixing weights; a safeguarded Gauss-Newton
 step on the mean parameters (plane depths and effect parameters, analytic
 Jacobian; :func:`bayes_mpem.mixture.gauss_newton.safeguarded_step`) that never
@@ -38,12 +38,11 @@ import numpy as np
 
 from ...mixture.gauss_newton import safeguarded_step
 from ..effects import split_term
+from .constraints import is_feasible, repair
 from .model import (
     Ranges,
     e_step,
-    is_feasible,
     predict,
-    repair,
     weighted_sse,
 )
 from .params import Params, get_vector, mean_names, set_vector
@@ -176,7 +175,17 @@ class JointFit:
     history: list = field(default_factory=list)
 
     def magnitudes(self, data: Ranges) -> dict:
-        """Signed magnitude of every effect switched on (see :data:`UNITS`), keyed by term."""
+        """Signed magnitude of every effect switched on (see :data:`UNITS`), keyed by term.
+
+        Parameters
+        ----------
+        data : Ranges
+            The replies the fit was made on.
+
+        Returns
+        -------
+        dict of str to float
+        """
         p, out = self.params, {}
         if "range_bias" in self.effects:
             out["range_bias"] = p.bias
@@ -198,7 +207,19 @@ class JointFit:
         return {k: float(v) for k, v in out.items()}
 
     def beacons(self, data: Ranges) -> dict:
-        """Per-beacon parameters: ``d0`` (plane height above the beacon at the first ping), ..."""
+        """Per-beacon parameters: ``d0`` (plane height above the beacon at the first ping), ...
+
+        Parameters
+        ----------
+        data : Ranges
+            The replies the fit was made on.
+
+        Returns
+        -------
+        dict
+            Per beacon id: ``n_ranges``, ``d0``, ``plane_depth``, ``sigma_dp``,
+            ``sigma_mp``, ``weights`` (``d0_last``, ``sigma_mp2`` with the effects).
+        """
         p, out = self.params, {}
         for j, bid in enumerate(data.ids):
             sel = data.bi == j

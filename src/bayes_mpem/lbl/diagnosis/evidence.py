@@ -27,8 +27,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..effects import EFFECTS, split_term
+from .constraints import SECOND_GAP, main_plane
 from .ecm import JointFit
-from .model import SECOND_GAP, Ranges, main_plane, predict
+from .model import Ranges, predict
 
 
 def effect_evidence(name, fit: JointFit, d: Ranges, delta, se, n_folds):

@@ -14,9 +14,11 @@ plus the shared effect parameters. The effects
   :func:`bayes_mpem.lbl.geometry.multipath_range`;
 * :func:`log_densities` and :func:`e_step` give the class log-densities and
   probabilities (:mod:`bayes_mpem.mixture.densities`);
-* :func:`is_feasible` and :func:`repair` keep the planes physical.
+* :func:`implied_depths` inverts each range for the plane that would make it a
+  multipath.
 
-The fitting (ECM) is in :mod:`.ecm`.
+The constraints that keep the planes physical are in :mod:`.constraints`;
+the fitting (ECM) is in :mod:`~bayes_mpem.lbl.diagnosis.ecm`.
 
 Examples
 --------
@@ -50,7 +52,23 @@ from .params import Params, beacon_mask
 
 @dataclass(frozen=True)
 class Ranges:
-    """All replies of the fitted beacons, concatenated; per-range beacon index ``bi``."""
+    """All replies of the fitted beacons, concatenated; per-range beacon index ``bi``.
+
+    Attributes
+    ----------
+    z, x, y, vdepth, time : numpy.ndarray
+        Per reply: the range (m), the vehicle's position and depth (m), the time (s).
+    tau : numpy.ndarray
+        Per reply: the time normalised to ``[0, 1]`` over the survey's first to last ping.
+    bi : numpy.ndarray
+        Per reply: the index of its beacon in ``ids``.
+    rows : numpy.ndarray
+        Per reply: its row in the input pings table.
+    bx, by, bz, lo, hi : numpy.ndarray
+        Per beacon: its position (m) and outlier window ``[lo, hi]`` (m).
+    ids : tuple of str
+        The beacon ids.
+    """
 
     z: np.ndarray
     x: np.ndarray
@@ -387,39 +405,6 @@ def weighted_sse(d, p, effects, path, resp):
             r = d.z - mu[name]
             tot += float(np.sum(resp[:, c] * r * r / (sig[:, c] * sig[:, c])))
     return tot
-
-
-SECOND_GAP = 50.0  # m: the second plane lies at least this far below the main reflector
-
-
-def main_plane(p: Params) -> float:
-    """Depth of the main reflector: the median of the beacons' planes."""
-    return float(np.median(p.plane))
-
-
-def is_feasible(d, p, effects):
-    """Planes above the vehicle at every ping; the second plane below the main one."""
-    plane = p.plane[d.bi] + (p.drift * d.tau if "plane_drift" in effects else 0.0)
-    ok = bool(np.all(plane <= d.vdepth))
-    if "second_reflector" in effects:
-        ok = ok and main_plane(p) + SECOND_GAP <= p.plane2 <= float(np.min(d.vdepth))
-    if "sound_speed" in effects:
-        ok = ok and abs(p.scale) < 0.5
-    return ok
-
-
-def repair(d, p, effects) -> Params:
-    """Move an infeasible start just inside the constraints (planes 0.5 m above the vehicle)."""
-    q = p.copy()
-    drift = q.drift * d.tau if "plane_drift" in effects else np.zeros(d.n)
-    for j in range(d.nb):
-        sel = d.bi == j
-        if sel.any():
-            q.plane[j] = min(q.plane[j], float(np.min(d.vdepth[sel] - drift[sel])) - 0.5)
-    if "second_reflector" in effects:
-        lo, hi = main_plane(q) + SECOND_GAP, float(np.min(d.vdepth)) - 0.5
-        q.plane2 = float(np.clip(q.plane2, lo, max(lo, hi)))
-    return q
 
 
 def implied_depths(d, p, effects, path):

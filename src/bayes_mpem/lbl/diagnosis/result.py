@@ -2,19 +2,29 @@
 
 :class:`Effect` is one effect of the vocabulary found in the data;
 :class:`Diagnosis` holds them with the baseline and final joint fits, every
-extension tried and the residual checks, and writes ``diagnosis.json``. Its
-figures are drawn by :func:`bayes_mpem.report.write_figures`.
+extension tried and the residual checks, and writes ``diagnosis.json`` and
+``replies.csv`` (what its figures draw, per reply). Its figures are drawn by
+:func:`bayes_mpem.report.write_figures`; :class:`DiagnosisRecord` is a diagnosis
+read back from those two files, enough to draw them again (``bayes-mpem plot``).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from types import SimpleNamespace
+
+import numpy as np
+import pandas as pd
 
 from ..._deprecated import figures_keyword
-from ...io.results import output_folder, write_json
+from ...io.results import write_csv, write_json, writing
 from ...io.survey import Survey
 from .ecm import JointFit
-from .model import Ranges
+from .model import Ranges, predict
+from .residuals import covariates
+
+#: The classes of a joint fit, in the columns of its ``resp``.
+FIT_CLASSES = ("dp", "mp", "mp2", "ol")
 
 _DESCRIPTION = {
     "range_bias": "every returned range is offset by a constant (e.g. a wrong turn-around time)",
@@ -149,10 +159,47 @@ class Diagnosis:
             "residual_checks": self.residual_checks,
             "skipped_beacons": self.skipped,
             "settings": self.settings,
+            "figures": self.figure_info(),
         }
 
+    def replies(self) -> pd.DataFrame:
+        """Per reply, what the figures draw: covariates, residuals and classes of both fits.
+
+        Returns
+        -------
+        pandas.DataFrame
+            ``beacon``, ``time``, ``range``, ``elevation``, ``vehicle_depth``,
+            ``bearing`` (:func:`~.residuals.covariates`), and for ``m`` in
+            ``baseline``, ``final``: ``m_residual_dp``, ``m_residual_mp`` (range
+            minus each class mean, m) and ``m_p_dp``, ``m_p_mp``, ``m_p_mp2``,
+            ``m_p_ol``.
+        """
+        d = self.data
+        out = {"beacon": np.asarray(d.ids, dtype=object)[d.bi], **covariates(d)}
+        for name, fit in (("baseline", self.baseline), ("final", self.final)):
+            mu = predict(d, fit.params, fit.effects, fit.path)
+            out[f"{name}_residual_dp"] = d.z - mu["dp"]
+            out[f"{name}_residual_mp"] = d.z - mu["mp"]
+            for c, cls in enumerate(FIT_CLASSES):
+                out[f"{name}_p_{cls}"] = fit.resp[:, c]
+        return pd.DataFrame(out)
+
+    def figure_info(self) -> dict:
+        """Per fit, what the figures need beside :meth:`replies`: effects, path, scatters.
+
+        Returns
+        -------
+        dict
+            ``{"baseline": {...}, "final": {...}}`` with ``effects``, ``path``,
+            ``sigma_dp`` and ``sigma_mp`` (the median over beacons, m).
+        """
+        return {name: {"effects": list(fit.effects), "path": fit.path,
+                       "sigma_dp": float(np.median(fit.params.sigma[:, 0])),
+                       "sigma_mp": float(np.median(fit.params.sigma[:, 1]))}
+                for name, fit in (("baseline", self.baseline), ("final", self.final))}
+
     def write(self, out_dir, *, figures=None) -> dict:
-        """Write ``diagnosis.json`` to ``out_dir``.
+        """Write ``diagnosis.json`` and ``replies.csv`` to ``out_dir``.
 
         The figures are drawn by :func:`bayes_mpem.report.write_figures`.
 
@@ -167,12 +214,13 @@ class Diagnosis:
         Returns
         -------
         dict
-            Paths written, keyed ``diagnosis``.
+            Paths written, keyed ``diagnosis`` and ``replies``.
         """
-        out = output_folder(out_dir)
-        paths = {"diagnosis": write_json(out / "diagnosis.json", self.to_dict(), numpy=True)}
-        if figures is not None:
-            paths.update(figures_keyword(self, out, figures, "Diagnosis.write(figures=...)"))
+        with writing(out_dir) as out:
+            paths = {"diagnosis": write_json(out / "diagnosis.json", self.to_dict(), numpy=True),
+                     "replies": write_csv(out / "replies.csv", self.replies())}
+            if figures is not None:
+                paths.update(figures_keyword(self, out, figures, "Diagnosis.write(figures=...)"))
         return paths
 
     def summary(self) -> str:
@@ -201,3 +249,69 @@ class Diagnosis:
             lines.append(f"  beacon {bid}: fit not credible: {'; '.join(reasons)}")
         return "\n".join(lines)
 
+
+
+@dataclass(frozen=True)
+class DiagnosisRecord:
+    """A diagnosis read back from its output folder: enough to draw its figures again.
+
+    Attributes
+    ----------
+    document : dict
+        ``diagnosis.json``.
+    table : pandas.DataFrame
+        ``replies.csv`` (:meth:`Diagnosis.replies`).
+
+    Notes
+    -----
+    It offers what the figure functions of :mod:`bayes_mpem.plots.diagnose` read
+    of a :class:`Diagnosis`: ``candidates``, ``settings``, :meth:`replies`,
+    :meth:`figure_info`, and ``data`` (``ids``, ``bi``, ``time``, ``nb``) and
+    ``baseline``/``final`` (``resp``, ``effects``, ``path``) as plain namespaces.
+    """
+
+    document: dict
+    table: pd.DataFrame = field(repr=False)
+
+    @property
+    def candidates(self) -> list:
+        """Every extension tried (``diagnosis.json``'s ``candidates``)."""
+        return self.document["candidates"]
+
+    @property
+    def settings(self) -> dict:
+        """The diagnosis' settings."""
+        return self.document["settings"]
+
+    def replies(self) -> pd.DataFrame:
+        """Return the per-reply table (:meth:`Diagnosis.replies`)."""
+        return self.table
+
+    def figure_info(self) -> dict:
+        """Per fit: effects, path and scatters (:meth:`Diagnosis.figure_info`)."""
+        return self.document["figures"]
+
+    @property
+    def data(self):
+        """``ids``, ``bi`` (beacon index per reply), ``time`` and ``nb``."""
+        beacon = self.table["beacon"].astype(str).to_numpy()
+        ids = tuple(dict.fromkeys(beacon))
+        bi = np.array([ids.index(b) for b in beacon])
+        return SimpleNamespace(ids=ids, bi=bi, time=self.table["time"].to_numpy(float),
+                               nb=len(ids))
+
+    def _fit(self, name):
+        info = self.figure_info()[name]
+        resp = np.column_stack([self.table[f"{name}_p_{c}"].to_numpy(float)
+                                for c in FIT_CLASSES])
+        return SimpleNamespace(resp=resp, effects=tuple(info["effects"]), path=info["path"])
+
+    @property
+    def baseline(self):
+        """The baseline fit's ``resp``, ``effects``, ``path``."""
+        return self._fit("baseline")
+
+    @property
+    def final(self):
+        """The final fit's ``resp``, ``effects``, ``path``."""
+        return self._fit("final")

@@ -1,0 +1,199 @@
+"""``bayes-mpem stream``: classify each range as it arrives and keep the vehicle's position.
+
+Reads lines (:mod:`bayes_mpem.io.lines`) from standard input, a UDP socket or
+a replayed file (:mod:`bayes_mpem.io.stream`), feeds each ping to a
+:class:`~bayes_mpem.lbl.online.Navigator`, and answers every line with one
+JSON line, flushed at once, in input order: the ping's result, or ``{"line",
+"error"}`` for a malformed line (the stream goes on). Blank lines, ``#``
+comments and the CSV header are not answered, only counted. On the end of the
+input, SIGTERM or SIGINT: the lines already read are answered, the counts go to
+standard error as one JSON line, and the state to ``--state``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import sys
+import threading
+import time
+import traceback
+
+from ..exceptions import InputError
+from ..lbl.navigate.options import MULTIPATH
+from ..lbl.paths import PATH_CHOICES
+from . import options as opt
+from .errors import OptionError
+
+# the library (numpy, pandas) is imported when the command runs, not when the parser is
+# built: ``bayes-mpem --help`` loads no heavy module (tests/test_layout.py)
+
+#: The counts printed on exit, in order.
+COUNTS = ("read", "answered", "malformed", "header", "blank", "comment", "internal_errors")
+
+
+def add_stream(sub) -> None:
+    """Add the ``stream`` sub-command.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+    """
+    p = sub.add_parser("stream", help="classify ranges as they arrive and filter the vehicle's "
+                                      "position (stdin, UDP or a replayed file; JSON lines out)")
+    p.add_argument("--beacons", required=True, metavar="BEACONS",
+                   help="beacons CSV (beacon, x, y, depth)")
+    p.add_argument("--in", dest="source", default="-", metavar="-|udp://HOST:PORT",
+                   help="where pings come from: standard input (default) or a UDP socket")
+    p.add_argument("--out", default="-", metavar="-|FILE|udp://HOST:PORT",
+                   help="where answers go (default standard output)")
+    p.add_argument("--state", default=None, metavar="FILE",
+                   help="resume from this saved state if it exists; save to it on exit")
+    p.add_argument("--save-every", type=opt.at_least(0), default=0, metavar="N",
+                   help="also save the state every N lines (default 0: on exit only)")
+    p.add_argument("--replay", default=None, metavar="PINGS",
+                   help="feed a recorded file (CSV or JSON lines) at its own time stamps")
+    p.add_argument("--speed", default="realtime", metavar="realtime|max|FACTOR",
+                   help="--replay: real time (default), as fast as possible, or FACTOR times "
+                        "faster")
+    p.add_argument("--warmup", type=opt.at_least(3), default=200, metavar="N",
+                   help="replies fitted in batch before the online estimator starts "
+                        "(default 200)")
+    p.add_argument("--alpha", default=1.0, metavar="A",
+                   type=opt.number("a step-size exponent in (0.5, 1]", 0.5, 1.0,
+                                   include_low=False),
+                   help="online-EM step size n^-A, 1/2 < A <= 1 (default 1)")
+    p.add_argument("--multipath", choices=MULTIPATH, default="signal",
+                   help="multipath replies update the position (default) or are outliers")
+    p.add_argument("--path", choices=PATH_CHOICES, default="auto",
+                   help="multipath geometry: chosen by the warm-up and revised online "
+                        "(default auto), or forced")
+    p.add_argument("--dr-noise", type=opt.positive, default=0.1, metavar="Q",
+                   help="random-walk level of the dead reckoning, m/sqrt(s) (default 0.1)")
+    p.add_argument("--sigma-dp", type=opt.positive, default=None, metavar="S",
+                   help="fix sigma_DP, m (default learned)")
+    p.add_argument("--seed", type=opt.seed, default=0, help="seed of the warm-up fit (default 0)")
+
+
+def _speed(text: str):
+    if text == "realtime":
+        return 1.0
+    if text == "max":
+        return None
+    try:
+        v = float(text)
+    except ValueError:
+        v = float("nan")
+    if not v > 0 or v == float("inf"):
+        raise OptionError(f"--speed: expected realtime, max or a positive factor, got {text!r}")
+    return v
+
+
+def _navigator(args):
+    from ..io.tables import read_beacons
+    from ..lbl.online import Navigator
+
+    if args.state and os.path.exists(args.state):
+        nav = Navigator.load(args.state)
+        mine = read_beacons(args.beacons)
+        if not (list(mine.index) == list(nav.beacons.index)
+                and (mine.to_numpy() == nav.beacons.to_numpy()).all()):
+            raise InputError(f"--state {args.state}: its beacons differ from {args.beacons}")
+        print(f"resuming from {args.state} (phase {nav.phase}; the saved state's options are "
+              "kept)", file=sys.stderr, flush=True)
+        return nav
+    return Navigator(args.beacons, warmup=args.warmup, alpha=args.alpha,
+                     multipath=args.multipath, path=args.path, dr_noise=args.dr_noise,
+                     sigma_dp=args.sigma_dp, rng=args.seed)
+
+
+def _source(args, stop):
+    from ..io.stream import FdLines, ReplayLines, UdpLines, parse_address
+
+    if args.replay is not None:
+        if args.source != "-":
+            raise OptionError("--replay and --in: give one source")
+        return ReplayLines(stop, args.replay, _speed(args.speed))
+    if args.speed != "realtime":
+        raise OptionError("--speed applies to --replay only")
+    kind, where = parse_address(args.source)
+    if kind == "udp":
+        src = UdpLines(stop, *where)
+        host, port = src.address
+        print(f"listening on udp://{host}:{port}", file=sys.stderr, flush=True)
+        return src
+    if kind == "file":
+        raise OptionError(f"--in: expected - or udp://HOST:PORT, got {args.source!r} (use "
+                          "--replay for a file)")
+    return FdLines(stop)
+
+
+def _answer(nav, parser, counts, n, text):
+    """Return the JSON answer of line ``n``, or None for a line that gets none."""
+    try:
+        kind, ping = parser.parse(text, n)
+        if kind != "ping":
+            counts[kind] += 1
+            return None
+        out = {"line": n, **nav.update(ping).to_dict()}
+    except InputError as err:
+        counts["malformed"] += 1
+        return {"line": n, "error": str(err)}
+    except Exception as err:  # noqa: BLE001 - a bug must not stop the stream
+        counts["internal_errors"] += 1
+        traceback.print_exc(file=sys.stderr)
+        return {"line": n, "error": f"internal error: {type(err).__name__}: {err}"}
+    counts["answered"] += 1
+    return out
+
+
+def cmd_stream(args) -> int:
+    """Run ``bayes-mpem stream``.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+
+    Returns
+    -------
+    int
+        Exit status 0 (end of input, SIGTERM or SIGINT).
+    """
+    if args.save_every < 0:
+        raise OptionError(f"--save-every: expected a count >= 0, got {args.save_every}")
+    from ..io.lines import LineParser
+    from ..io.stream import LineSink
+
+    nav = _navigator(args)
+    parser = LineParser(nav.beacons.index)
+    stop = threading.Event()
+    source = _source(args, stop)
+    sink = LineSink(args.out)
+    counts = dict.fromkeys(COUNTS, 0)
+    previous = {s: signal.signal(s, lambda *_: stop.set()) for s in (signal.SIGTERM,
+                                                                      signal.SIGINT)}
+    t0, why = time.monotonic(), "end of input"
+    try:
+        for n, text in source:
+            counts["read"] += 1
+            answer = _answer(nav, parser, counts, n, text)
+            if answer is not None:
+                sink.write(json.dumps(answer, allow_nan=False, separators=(",", ":")))
+            if args.state and args.save_every and counts["read"] % args.save_every == 0:
+                nav.save(args.state)
+        if stop.is_set():
+            why = "stopped by a signal"
+    except BrokenPipeError:
+        why = "the reader of the answers went away"
+    finally:
+        for s, h in previous.items():
+            signal.signal(s, h)
+        sink.close()
+        if args.state:
+            nav.save(args.state)
+        report = {"stream": why, **counts, "incomplete_line": bool(source.partial),
+                  "phase": nav.phase, "seconds": round(time.monotonic() - t0, 3),
+                  "state": args.state}
+        print(json.dumps(report), file=sys.stderr, flush=True)
+    return 0

@@ -1,0 +1,75 @@
+"""Dead-reckoning tables: a vehicle's own positions or velocities at their own rate.
+
+:func:`read_dead_reckoning` reads and checks the optional dead-reckoning table of
+:func:`~bayes_mpem.lbl.navigate.navigate` (``time, x, y[, depth]`` or
+``time, ve, vn[, depth]``) with the cell and column checks of :mod:`.tables`.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from ..exceptions import InputError
+from .tables import Problems, check_columns, load_table, numeric_column
+
+#: The two forms of a dead-reckoning table: positions or velocities (east, north).
+DR_FORMS = {"position": ("x", "y"), "velocity": ("ve", "vn")}
+
+
+def read_dead_reckoning(source: Any, *, name: str | None = None) -> tuple[pd.DataFrame, str]:
+    """Read and validate a dead-reckoning table (positions or velocities at its own rate).
+
+    Parameters
+    ----------
+    source : str, os.PathLike or pandas.DataFrame
+        Columns ``time`` (s, strictly increasing) and either ``x``, ``y`` (dead-reckoned
+        position, m) or ``ve``, ``vn`` (velocity east and north, m/s); an optional ``depth``
+        column is checked and kept; others are ignored.
+    name : str, optional
+        Label for error messages; default the path or ``"dead-reckoning DataFrame"``.
+
+    Returns
+    -------
+    table : pandas.DataFrame
+        float64 columns ``time`` and the two of the form (and ``depth`` if given).
+    form : {"position", "velocity"}
+
+    Raises
+    ------
+    FileNotFoundError
+        If the path does not exist.
+    InputError
+        Missing or ambiguous columns, fewer than two rows, a bad cell, or a time not after
+        the previous one (naming the line and column).
+
+    Examples
+    --------
+    >>> t, form = read_dead_reckoning(pd.DataFrame({"time": [0, 10], "ve": [1.0, 1.0],
+    ...                                             "vn": [0.0, 0.5]}))
+    >>> form, t["vn"].tolist()
+    ('velocity', [0.0, 0.5])
+    """
+    table = load_table(source, name, "dead-reckoning")
+    cols = set(table.frame.columns)
+    forms = [f for f, c in DR_FORMS.items() if set(c) <= cols]
+    if len(forms) != 1:
+        raise InputError(f"{table.source}: expected columns 'time' and either 'x', 'y' "
+                         f"(positions) or 've', 'vn' (velocities), found "
+                         f"{'both' if forms else 'neither'}: "
+                         f"{', '.join(map(repr, table.frame.columns)) or 'no columns'}")
+    need = ("time", *DR_FORMS[forms[0]]) + (("depth",) if "depth" in cols else ())
+    check_columns(table, need, "dead-reckoning")
+    problems = Problems(table.source)
+    out = pd.DataFrame({c: numeric_column(table, c, problems) for c in need})
+    problems.raise_if_any()
+    if len(out) < 2:
+        raise InputError(f"{table.source}: the dead-reckoning table needs at least two rows, "
+                         f"got {len(out)}")
+    t = out["time"].to_numpy()
+    for pos in np.flatnonzero(np.diff(t) <= 0)[:1] + 1:
+        raise InputError(f"{table.where(int(pos), 'time')}: expected a time after the previous "
+                         f"row's {t[pos - 1]!r} s, got {t[pos]!r}")
+    return out, forms[0]

@@ -1,0 +1,120 @@
+"""Checked values of text fields, and where they came from (file, line, column).
+
+The GNSS-A readers (:mod:`~bayes_mpem.io.garpos`, :mod:`~bayes_mpem.io.gnatss`)
+parse every field through :func:`number` or :func:`flag`, which raise a
+``ValueError`` saying what was expected and what arrived; the reader adds the
+place (:func:`where`) and either skips the line with that reason or raises an
+:class:`~bayes_mpem.exceptions.InputError`.
+
+Examples
+--------
+>>> number("2.5", "TT", lo=0.0, hi=60.0, lo_open=True)
+2.5
+>>> try:
+...     number("-1", "TT", lo=0.0, hi=60.0, lo_open=True)
+... except ValueError as exc:
+...     print(exc)
+TT: expected a number in (0, 60], got '-1'
+>>> where("obs.csv", 7, 5, "TT")
+'obs.csv line 7, column 5 (TT)'
+"""
+
+from __future__ import annotations
+
+import math
+
+
+def where(source, line=None, column=None, name=None) -> str:
+    """Name a place in a file: ``"FILE line L, column C (NAME)"``.
+
+    Parameters
+    ----------
+    source : str or pathlib.Path
+        The file.
+    line, column : int, optional
+        1-based.
+    name : str, optional
+        The column's or key's name.
+
+    Returns
+    -------
+    str
+    """
+    out = str(source)
+    if line is not None:
+        out += f" line {line}"
+    if column is not None:
+        out += f", column {column}"
+    if name is not None:
+        out += f" ({name})"
+    return out
+
+
+def number(text, name, *, lo=None, hi=None, lo_open=False, integer=False) -> float:
+    """Parse one numeric field and check that it is finite and in range.
+
+    Parameters
+    ----------
+    text : str
+        The field as read.
+    name : str
+        What it is, for the message.
+    lo, hi : float, optional
+        Bounds, inclusive (``lo_open=True`` excludes ``lo``).
+    lo_open : bool, default False
+    integer : bool, default False
+        Require a whole number.
+
+    Returns
+    -------
+    float
+
+    Raises
+    ------
+    ValueError
+        Naming the field, the range expected and the text that arrived.
+    """
+    lo_s = "-inf" if lo is None else f"{lo:g}"
+    hi_s = "inf" if hi is None else f"{hi:g}"
+    left = "(" if lo_open or lo is None else "["
+    right = "]" if hi is not None else ")"
+    expected = (f"expected {'a whole number' if integer else 'a number'} in "
+                f"{left}{lo_s}, {hi_s}{right}")
+    try:
+        v = float(str(text).strip())
+    except ValueError:
+        raise ValueError(f"{name}: {expected}, got {str(text).strip()!r}") from None
+    if (not math.isfinite(v) or (lo is not None and (v <= lo if lo_open else v < lo))
+            or (hi is not None and v > hi) or (integer and v != round(v))):
+        raise ValueError(f"{name}: {expected}, got {str(text).strip()!r}")
+    return v
+
+
+def flag(text, name) -> bool:
+    """Parse a true/false field (``True``/``False``, ``1``/``0``, any case).
+
+    Parameters
+    ----------
+    text : str
+    name : str
+
+    Returns
+    -------
+    bool
+
+    Raises
+    ------
+    ValueError
+        For anything else.
+
+    Examples
+    --------
+    >>> flag(" false", "flag"), flag("1", "flag")
+    (False, True)
+    """
+    s = str(text).strip().lower()
+    if s in ("true", "1"):
+        return True
+    if s in ("false", "0"):
+        return False
+    raise ValueError(f"{name}: expected True or False, got {str(text).strip()!r}")

@@ -1,0 +1,462 @@
+"""GARPOS GNSS-acoustic surveys: the site file, the shots and the sound-speed profile.
+
+A GARPOS survey is three files (format learnt from GARPOS's documentation; no
+GARPOS code or data is used here):
+
+* the **site file** ``SITE.CAMPAIGN-initcfg.ini``: sections ``[Obs-parameter]``
+  (``Site_name``, ``Campaign``, ``SoundSpeed`` = path of the profile),
+  ``[Data-file]`` (``datacsv`` = path of the shots), ``[Site-parameter]``
+  (``Latitude0``, ``Longitude0``, ``Height0``: the origin of the local
+  east-north-up frame; ``Stations``: the transponder names) and
+  ``[Model-parameter]`` (``<station>_dPos``: east, north, up of each
+  transponder and their sigmas; ``dCentPos``: a shift of the whole array;
+  ``ATDoffset``: the transducer seen from the GNSS antenna, forward, rightward,
+  downward in the vessel frame);
+* the **shots** ``obs.csv``: ``#`` comment lines, a header, then one shot per
+  line: ``MT`` (transponder), ``TT`` (two-way travel time, s, delays removed),
+  ``ST`` and ``RT`` (transmit and receive times, s), the antenna position
+  ``ant_e0, ant_n0, ant_u0`` and attitude ``head0, pitch0, roll0`` (degrees) at
+  ``ST``, the same with ``1`` at ``RT``, and ``flag`` (True: GARPOS leaves the
+  shot out); the first, unnamed column is a row index;
+* the **profile** ``svp.csv``: ``depth,speed`` (m below the sea surface, which
+  is ``up = 0`` of the frame; m/s).
+
+:func:`read_garpos` reads the site file and the two files it names (a relative
+path is taken from the working folder, else from the site file's folder, as
+GARPOS's own scripts run from their sample folder) into a
+:class:`~bayes_mpem.io.raw.RawSurvey`; :func:`write_garpos` writes one.
+Every line of ``obs.csv`` is a shot, a comment or header line, or a skipped
+line with its reason (``strict=True`` raises instead); the site file and the
+profile must parse completely.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ..exceptions import InputError
+from .fields import flag, number, where
+from .raw import RawSurvey, bad, read_lines
+from .results import output_folder
+
+#: obs.csv column -> RawSurvey.pings column (the antenna and attitude at transmit and receive)
+OBS_COLUMNS = {"MT": "transponder", "TT": "twtt", "ST": "t_tx",
+               "ant_e0": "e_tx", "ant_n0": "n_tx", "ant_u0": "u_tx",
+               "head0": "head_tx", "pitch0": "pitch_tx", "roll0": "roll_tx", "RT": "t_rx",
+               "ant_e1": "e_rx", "ant_n1": "n_rx", "ant_u1": "u_rx",
+               "head1": "head_rx", "pitch1": "pitch_rx", "roll1": "roll_rx"}
+#: accepted range of each numeric obs.csv column: (low, high, low excluded)
+OBS_RANGES = {"TT": (0.0, 60.0, True), "ST": (None, None, False), "RT": (None, None, False),
+              **{f"ant_{c}{k}": (-1e5, 1e5, False) for c in "en" for k in "01"},
+              **{f"ant_u{k}": (-1e3, 1e3, False) for k in "01"},
+              **{f"head{k}": (-360.0, 360.0, False) for k in "01"},
+              **{f"{a}{k}": (-90.0, 90.0, False) for a in ("pitch", "roll") for k in "01"}}
+#: the name GARPOS gives a reply it could not assign to a transponder
+UNKNOWN_STATION = "M00"
+
+
+def resolve_path(text, base) -> Path:
+    """Find a file a survey's control file names: from the working folder, else from ``base``.
+
+    Parameters
+    ----------
+    text : str
+        The path as written (absolute, or relative).
+    base : str or pathlib.Path
+        The folder of the file that names it.
+
+    Returns
+    -------
+    pathlib.Path
+
+    Raises
+    ------
+    FileNotFoundError
+        Naming every place looked at.
+    """
+    p = Path(str(text).strip())
+    tried = [p] if p.is_absolute() else [Path.cwd() / p, Path(base) / p]
+    for cand in tried:
+        if cand.is_file():
+            return cand
+    raise FileNotFoundError(f"{str(text).strip()!r} not found (looked at "
+                            + " and ".join(str(c) for c in tried) + ")")
+
+
+def read_ini(path) -> dict:
+    """Read an INI-style control file, keeping the line of every value.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+
+    Returns
+    -------
+    dict
+        ``{section: {key: (value, line)}}``; ``#`` and ``;`` start comment lines.
+
+    Raises
+    ------
+    InputError
+        A line that is neither a section, a ``key = value``, a comment nor blank,
+        a key before any section, or a key given twice.
+    """
+    out, section = {}, None
+    for i, text in enumerate(read_lines(path), start=1):
+        s = text.strip()
+        if not s or s[0] in "#;":
+            continue
+        m = re.fullmatch(r"\[([^\]]+)\]", s)
+        if m:
+            section = m.group(1).strip()
+            out.setdefault(section, {})
+            continue
+        key, sep, value = s.partition("=")
+        if not sep or not key.strip():
+            raise InputError(f"{where(path, i)}: expected '[section]' or 'key = value', got "
+                             f"{s[:80]!r}")
+        if section is None:
+            raise InputError(f"{where(path, i)}: {key.strip()!r} comes before any [section]")
+        if key.strip() in out[section]:
+            raise InputError(f"{where(path, i)}: {key.strip()!r} given twice in [{section}]")
+        out[section][key.strip()] = (value.strip(), i)
+    return out
+
+
+def _get(ini, path, section, key, default=None):
+    try:
+        return ini[section][key]
+    except KeyError:
+        if default is not None:
+            return default
+        raise InputError(f"{path}: no {key!r} in [{section}]") from None
+
+
+def _values(ini, path, section, key, n, names, ranges=None):
+    """``n`` numbers of one key, checked; a ``ValueError`` becomes an InputError with the line."""
+    text, line = _get(ini, path, section, key)
+    parts = text.split()
+    if len(parts) < n:
+        raise InputError(f"{where(path, line, name=key)}: expected {n} numbers, got "
+                         f"{len(parts)}: {text!r}")
+    try:
+        return [number(v, key if n == 1 else f"{key} {nm}", **(ranges or {}).get(nm, {}))
+                for v, nm in zip(parts[:n], names, strict=True)]
+    except ValueError as exc:
+        raise InputError(f"{where(path, line, name=key)}: {exc}") from None
+
+
+def profile_frame(depth, speed, source) -> pd.DataFrame:
+    """Check a sound-speed profile read from a survey's file.
+
+    Parameters
+    ----------
+    depth, speed : array_like
+        m below the sea surface (increasing), m/s.
+    source : str
+        The file, for messages.
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``depth``, ``sound_speed``.
+
+    Raises
+    ------
+    InputError
+        Fewer than 2 levels, depths not increasing, or a speed outside 1300-1800 m/s.
+    """
+    d, c = np.asarray(depth, float), np.asarray(speed, float)
+    if d.size < 2:
+        raise InputError(f"{source}: a sound-speed profile needs 2 or more levels, got {d.size}")
+    if np.any(np.diff(d) <= 0):
+        k = int(np.flatnonzero(np.diff(d) <= 0)[0])
+        raise InputError(f"{source}: depths must increase, got {d[k]:g} then {d[k + 1]:g} m")
+    if np.any((c < 1300.0) | (c > 1800.0)):
+        k = int(np.flatnonzero((c < 1300.0) | (c > 1800.0))[0])
+        raise InputError(f"{source}: sound speed {c[k]:g} m/s at {d[k]:g} m is outside "
+                         "1300-1800 m/s")
+    return pd.DataFrame({"depth": d, "sound_speed": c})
+
+
+def read_svp(path) -> pd.DataFrame:
+    """Read GARPOS's ``svp.csv`` (``depth,speed`` header, then one level per line).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``depth`` (m), ``sound_speed`` (m/s).
+
+    Raises
+    ------
+    InputError
+        Naming the file, line and column of a value that does not parse.
+    """
+    rows, cols = [], None
+    for i, text in enumerate(read_lines(path), start=1):
+        s = text.strip()
+        if not s or s.startswith("#"):
+            continue
+        parts = [p.strip() for p in s.split(",")]
+        if cols is None:
+            cols = parts
+            missing = {"depth", "speed"} - set(cols)
+            if missing:
+                raise InputError(f"{where(path, i)}: expected a header with 'depth' and "
+                                 f"'speed', got {s[:80]!r}")
+            continue
+        if len(parts) != len(cols):
+            raise InputError(f"{where(path, i)}: expected {len(cols)} fields, got {len(parts)}")
+        vals = []
+        for name, lo, hi in (("depth", -100.0, 12000.0), ("speed", 1300.0, 1800.0)):
+            j = cols.index(name)
+            try:
+                vals.append(number(parts[j], name, lo=lo, hi=hi))
+            except ValueError as exc:
+                raise InputError(f"{where(path, i, j + 1, name)}: {exc}") from None
+        rows.append(vals)
+    if cols is None:
+        raise InputError(f"{path}: empty sound-speed profile")
+    d, c = np.array(rows, float).reshape(-1, 2).T
+    return profile_frame(d, c, str(path))
+
+
+def _parse_shot(parts, cols, stations):
+    """One obs.csv data line -> dict of RawSurvey columns, or ValueError with the column."""
+    if len(parts) != cols["_n"]:
+        raise ValueError(f"expected {cols['_n']} comma-separated fields, got {len(parts)}")
+    row = {}
+    mt = parts[cols["MT"]].strip()
+    if mt == UNKNOWN_STATION and mt not in stations:
+        raise LookupError(f"transponder {UNKNOWN_STATION}: a reply GARPOS could not assign "
+                          "to a transponder")
+    if mt not in stations:
+        raise LookupError(f"column {cols['MT'] + 1} (MT): transponder {mt!r} is not one of the "
+                          f"site's Stations {list(stations)}")
+    row["transponder"] = mt
+    for name, out in OBS_COLUMNS.items():
+        if name == "MT":
+            continue
+        lo, hi, lo_open = OBS_RANGES[name]
+        try:
+            row[out] = number(parts[cols[name]], name, lo=lo, hi=hi, lo_open=lo_open)
+        except ValueError as exc:
+            raise ValueError(f"column {cols[name] + 1} ({exc})") from None
+    if not 0.0 < row["t_rx"] - row["t_tx"] < 120.0:
+        raise ValueError(f"column {cols['RT'] + 1} (RT): expected 0-120 s after ST, got "
+                         f"{row['t_rx'] - row['t_tx']:g} s")
+    for name, out in (("SET", "set"), ("LN", "survey_line")):
+        if name in cols:
+            row[out] = parts[cols[name]].strip()
+    if "flag" in cols:
+        try:
+            row["file_flag"] = flag(parts[cols["flag"]], "flag")
+        except ValueError as exc:
+            raise ValueError(f"column {cols['flag'] + 1} ({exc})") from None
+    return row
+
+
+def read_obs(path, stations, *, strict=False):
+    """Read GARPOS's ``obs.csv`` shots.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+    stations : sequence of str
+        The site's transponders; a shot to another one is skipped with the reason.
+    strict : bool, default False
+        Raise on a line that does not parse instead of skipping it.
+
+    Returns
+    -------
+    rows : list of dict
+        One per shot (RawSurvey columns, ``line`` first).
+    skipped : list of tuple
+        ``(line, text, reason)``.
+
+    Raises
+    ------
+    InputError
+        A missing header or column; with ``strict``, any line that does not parse.
+    """
+    rows, skipped, cols = [], [], None
+    for i, text in enumerate(read_lines(path), start=1):
+        s = text.strip()
+        if not s or s.startswith("#"):
+            continue
+        parts = s.split(",")
+        if cols is None:
+            names = [p.strip() for p in parts]
+            cols = {n: j for j, n in enumerate(names) if n}
+            missing = [n for n in OBS_COLUMNS if n not in cols]
+            if missing:
+                raise InputError(f"{where(path, i)}: the header lacks column(s) {missing} "
+                                 f"(expected GARPOS's obs.csv: {list(OBS_COLUMNS)})")
+            cols["_n"] = len(names)
+            continue
+        try:
+            row = _parse_shot(parts, cols, stations)
+        except LookupError as exc:
+            if strict and not str(exc).startswith(f"transponder {UNKNOWN_STATION}"):
+                raise InputError(f"{where(path, i)}: {exc}") from None
+            skipped.append((i, text, str(exc)))
+            continue
+        except ValueError as exc:
+            bad(strict, str(path), i, text, str(exc), skipped)
+            continue
+        rows.append({"line": i, **row})
+    if cols is None:
+        raise InputError(f"{path}: no header line (expected GARPOS's obs.csv)")
+    return rows, skipped
+
+
+def read_garpos(site_file, *, obs=None, svp=None, strict=False) -> RawSurvey:
+    """Read a GARPOS survey: the site file and the shots and profile it names.
+
+    Parameters
+    ----------
+    site_file : str or pathlib.Path
+        ``*-initcfg.ini``.
+    obs, svp : str or pathlib.Path, optional
+        The shots and profile files, instead of the site file's ``datacsv`` and
+        ``SoundSpeed``.
+    strict : bool, default False
+        Raise on a shot line that does not parse instead of skipping it.
+
+    Returns
+    -------
+    RawSurvey
+        ``format="garpos"``; ``pings``: ``line``, ``transponder``, ``twtt`` (s),
+        ``time`` (s from the earliest transmission), ``t_tx``, ``t_rx`` and the
+        antenna ``e/n/u`` and ``head/pitch/roll`` at transmit (``_tx``) and receive
+        (``_rx``), plus ``set``, ``survey_line``, ``file_flag`` when present;
+        ``header``: ``site``, ``campaign``, ``lat``, ``lon``, ``height`` (the frame's
+        origin), ``transponders`` (DataFrame of ``east``, ``north``, ``up``, the
+        prior positions, ``dCentPos`` added), ``atd_offset`` (forward, rightward,
+        downward, m), ``ss_prof`` (DataFrame), ``surface_depth`` (0: ``up = 0`` is the
+        profile's sea surface) and ``files``.
+
+    Raises
+    ------
+    FileNotFoundError, InputError
+    """
+    site_file = Path(site_file)
+    ini = read_ini(site_file)
+    here = site_file.parent
+    origin = _values(ini, site_file, "Site-parameter", "Latitude0", 1, ["value"],
+                     {"value": {"lo": -90.0, "hi": 90.0}})
+    origin += _values(ini, site_file, "Site-parameter", "Longitude0", 1, ["value"],
+                      {"value": {"lo": -360.0, "hi": 360.0}})
+    origin += _values(ini, site_file, "Site-parameter", "Height0", 1, ["value"],
+                      {"value": {"lo": -1e4, "hi": 1e4}})
+    text, line = _get(ini, site_file, "Site-parameter", "Stations")
+    stations = text.split()
+    if not stations or len(set(stations)) != len(stations):
+        raise InputError(f"{where(site_file, line, name='Stations')}: expected distinct "
+                         f"transponder names, got {text!r}")
+    cent = (_values(ini, site_file, "Model-parameter", "dCentPos", 3, ["east", "north", "up"])
+            if "dCentPos" in ini.get("Model-parameter", {}) else [0.0, 0.0, 0.0])
+    pos = {}
+    for st in stations:
+        e, n, u = _values(ini, site_file, "Model-parameter", f"{st}_dPos", 3,
+                          ["east", "north", "up"], {"up": {"lo": -12000.0, "hi": 0.0}})
+        pos[st] = (e + cent[0], n + cent[1], u + cent[2])
+    atd = _values(ini, site_file, "Model-parameter", "ATDoffset", 3,
+                  ["forward", "rightward", "downward"],
+                  {k: {"lo": -100.0, "hi": 100.0} for k in ("forward", "rightward", "downward")})
+    obs_path = Path(obs) if obs is not None else resolve_path(
+        _get(ini, site_file, "Data-file", "datacsv")[0], here)
+    svp_path = Path(svp) if svp is not None else resolve_path(
+        _get(ini, site_file, "Obs-parameter", "SoundSpeed")[0], here)
+    rows, skipped = read_obs(obs_path, stations, strict=strict)
+    if not rows:
+        raise InputError(f"{obs_path}: no shot lines found ({len(skipped)} lines skipped)")
+    pings = pd.DataFrame(rows)
+    pings.insert(2, "time", pings["t_tx"] - pings["t_tx"].min())
+    transponders = pd.DataFrame(pos, index=["east", "north", "up"]).T
+    header = {"site": _get(ini, site_file, "Obs-parameter", "Site_name", ("", 0))[0],
+              "campaign": _get(ini, site_file, "Obs-parameter", "Campaign", ("", 0))[0],
+              "lat": origin[0], "lon": origin[1], "height": origin[2],
+              "transponders": transponders, "atd_offset": np.asarray(atd, float),
+              "ss_prof": read_svp(svp_path), "ss_prof_source": svp_path.name,
+              "surface_depth": 0.0,
+              "files": {"site": str(site_file), "obs": str(obs_path), "svp": str(svp_path)}}
+    return RawSurvey("garpos", str(site_file), pings, header,
+                     pd.DataFrame(skipped, columns=["line", "text", "reason"]))
+
+
+def write_garpos(out_dir, pings, header, *, site="SIM", campaign="0000.sim",
+                 date="2024-01-01") -> Path:
+    """Write a survey as GARPOS's three files.
+
+    Parameters
+    ----------
+    out_dir : str or pathlib.Path
+        Created if missing; receives ``SITE.CAMPAIGN-initcfg.ini``,
+        ``SITE.CAMPAIGN-obs.csv`` and ``SITE.CAMPAIGN-svp.csv`` (the site file
+        names the other two by their bare names, found beside it).
+    pings : pandas.DataFrame
+        ``transponder``, ``twtt``, ``t_tx``, ``t_rx`` and the antenna ``e/n/u`` and
+        ``head/pitch/roll`` at ``_tx`` and ``_rx`` (as :func:`read_garpos` returns;
+        ``file_flag``, ``set``, ``survey_line`` optional).
+    header : dict
+        ``lat``, ``lon``, ``height``, ``transponders`` (``east``, ``north``, ``up``),
+        ``atd_offset`` and ``ss_prof`` (``depth``, ``sound_speed``).
+    site, campaign, date : str
+        Written into the site file.
+
+    Returns
+    -------
+    pathlib.Path
+        The site file.
+    """
+    out = output_folder(out_dir)
+    stem = f"{site}.{campaign}"
+    site_file, obs_file, svp_file = (out / f"{stem}-{k}" for k in ("initcfg.ini", "obs.csv",
+                                                                    "svp.csv"))
+    tp = header["transponders"]
+    lines = ["[Obs-parameter]", f" Site_name   = {site}", f" Campaign    = {campaign}",
+             f" Date(UTC)   = {date}", f" SoundSpeed  = {svp_file.name}", "",
+             "[Data-file]", f" datacsv     = {obs_file.name}", f" N_shot      = {len(pings)}",
+             "", "[Site-parameter]", f" Latitude0   = {header['lat']:.8f}",
+             f" Longitude0  = {header['lon']:.8f}", f" Height0     = {header['height']:.2f}",
+             f" Stations    = {' '.join(map(str, tp.index))}", "", "[Model-parameter]",
+             "# MT_Pos     :   east  north  up  sigma_E  sigma_N  sigma_U  cov_NU  cov_UE  cov_EN"]
+    for st, r in tp.iterrows():
+        lines.append(f" {st}_dPos    = {r['east']:11.4f} {r['north']:11.4f} {r['up']:11.4f}"
+                     "      3.0000      3.0000      3.0000   0.000e+00   0.000e+00   0.000e+00")
+    f, r_, d = np.asarray(header["atd_offset"], float)
+    lines += [" dCentPos    =      0.0000      0.0000      0.0000      0.0000      0.0000"
+              "      0.0000   0.000e+00   0.000e+00   0.000e+00",
+              "# ANT_to_TD  :    forward  rightward  downward  sigma_F  sigma_R  sigma_D  "
+              "cov_RD  cov_DF  cov_FR",
+              f" ATDoffset   = {f:11.4f} {r_:11.4f} {d:11.4f}      0.0000      0.0000      0.0000"
+              "   0.000e+00   0.000e+00   0.000e+00", ""]
+    site_file.write_text("\n".join(lines) + "\n")
+    prof = header["ss_prof"]
+    svp_file.write_text("depth,speed\n" + "".join(
+        f"{z:.3f},{c:.4f}\n" for z, c in zip(prof["depth"], prof["sound_speed"], strict=True)))
+    table = pd.DataFrame({
+        "SET": pings.get("set", "S01"), "LN": pings.get("survey_line", "L01"),
+        "MT": pings["transponder"].astype(str), "TT": pings["twtt"].map("{:.7f}".format),
+        "ResiTT": 0.0, "TakeOff": 0.0, "gamma": 0.0,
+        "flag": pings.get("file_flag", pd.Series(False, index=pings.index)).astype(bool),
+        "ST": pings["t_tx"].map("{:.6f}".format)})
+    for name, col in OBS_COLUMNS.items():
+        if name not in ("MT", "TT", "ST"):
+            table[name] = pings[col].map("{:.6f}".format if name == "RT" else "{:.5f}".format
+                                         if name.startswith("ant") else "{:.3f}".format)
+    table = table[["SET", "LN", "MT", "TT", "ResiTT", "TakeOff", "gamma", "flag", "ST",
+                   *[n for n in OBS_COLUMNS if n not in ("MT", "TT", "ST")]]]
+    with open(obs_file, "w", newline="") as fh:
+        fh.write(f"# cfgfile = {site_file.name}\n")
+        table.to_csv(fh, index=True)
+    return site_file

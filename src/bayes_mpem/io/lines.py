@@ -1,0 +1,220 @@
+"""Pings one line at a time: the line formats of a live stream, validated.
+
+A vehicle's navigation stack sends one line per ping, in either form (sniffed
+per line):
+
+* **CSV** with a header line first: the columns of ``fit``'s pings table
+  (``time, beacon, range, x, y, depth``, any order; extra columns ignored);
+* **JSON**, one object per line: ``{"time": 12.0, "beacon": "1", "range":
+  2875.3, "x": 101.2, "y": -40.7, "depth": 2440.0}`` (numbers or numeric
+  strings).
+
+``range`` empty (CSV) or null/absent (JSON) is a ping without a reply. A line
+without ``beacon`` and ``range`` is a **dead-reckoning** line: only ``time``,
+``x``, ``y`` (``depth`` optional). Blank lines and lines starting with ``#``
+are skipped (and counted by the caller). Every other line is a :class:`Ping`
+or an :class:`~bayes_mpem.exceptions.InputError` saying what was expected,
+what arrived and where (line number and column).
+
+Examples
+--------
+>>> p = LineParser()
+>>> p.parse("time,beacon,range,x,y,depth", 1)
+('header', None)
+>>> p.parse("12,1,2875.5,10,20,2440", 2)
+('ping', Ping(time=12.0, beacon='1', range=2875.5, x=10.0, y=20.0, depth=2440.0))
+>>> p.parse('{"time": 13, "x": 11, "y": 20}', 3)[1].kind
+'dead_reckoning'
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from typing import NamedTuple
+
+from ..exceptions import InputError
+from .tables import PING_COLUMNS, as_beacon_id
+
+#: What :meth:`LineParser.parse` says a line is.
+KINDS = ("ping", "header", "blank", "comment")
+
+
+class Ping(NamedTuple):
+    """One validated input line.
+
+    Attributes
+    ----------
+    time : float
+        Seconds.
+    beacon : str or None
+        None on a dead-reckoning line.
+    range : float or None
+        One-way range (m); None for no reply (or a dead-reckoning line).
+    x, y : float
+        Dead-reckoned position (m).
+    depth : float or None
+        Pressure depth (m, positive down); may be None on a dead-reckoning line.
+    """
+
+    time: float
+    beacon: str | None
+    range: float | None
+    x: float
+    y: float
+    depth: float | None
+
+    @property
+    def kind(self) -> str:
+        """``"reply"``, ``"no_reply"`` or ``"dead_reckoning"``."""
+        if self.beacon is None:
+            return "dead_reckoning"
+        return "no_reply" if self.range is None else "reply"
+
+
+def _number(value, column, where, *, positive=False, optional=False):
+    """Return a finite float from a JSON value or a CSV cell, or raise an InputError naming it."""
+    missing = value is None or (isinstance(value, str) and not value.strip()) or (
+        isinstance(value, float) and math.isnan(value))  # NaN: pandas' missing value
+    if missing:
+        if optional:
+            return None
+        raise InputError(f"{where}, column {column!r}: expected a number, got an empty cell")
+    try:
+        if isinstance(value, bool) or not isinstance(value, (int, float, str)):
+            raise ValueError
+        if isinstance(value, str) and "_" in value:
+            raise ValueError
+        v = float(value)
+    except (ValueError, OverflowError):
+        v = math.nan
+    if not math.isfinite(v) or (positive and v <= 0.0):
+        what = "a positive number (m)" if positive else "a finite number"
+        hint = " or an empty cell for no reply" if column == "range" else ""
+        raise InputError(f"{where}, column {column!r}: expected {what}{hint}, got {value!r}")
+    return v
+
+
+def make_ping(values: dict, where: str, beacons=None) -> Ping:
+    """Validate one line's values into a :class:`Ping`.
+
+    Parameters
+    ----------
+    values : dict
+        Column name to raw value (str, number or None).
+    where : str
+        Where the line came from, for messages (``"line 17"``).
+    beacons : collection of str, optional
+        Known beacon ids; a ping of another beacon is refused.
+
+    Returns
+    -------
+    Ping
+
+    Raises
+    ------
+    InputError
+        A missing or bad value, an unknown beacon, a range on a dead-reckoning line.
+
+    Examples
+    --------
+    >>> make_ping({"time": "5", "beacon": "", "range": "", "x": "1", "y": "2"}, "line 2")
+    Ping(time=5.0, beacon=None, range=None, x=1.0, y=2.0, depth=None)
+    """
+    raw_b = values.get("beacon")
+    beacon = None if raw_b is None else (as_beacon_id(raw_b) or None)
+    rng = _number(values.get("range"), "range", where, positive=True, optional=True)
+    if beacon is None and rng is not None:
+        raise InputError(f"{where}, column 'beacon': expected a beacon id for a line with a "
+                         f"range, got {raw_b!r}")
+    if beacon is not None and beacons is not None and beacon not in beacons:
+        known = ", ".join(sorted(beacons)[:10])
+        raise InputError(f"{where}, column 'beacon': {beacon!r} is not in the beacons table "
+                         f"(known: {known})")
+    t = _number(values.get("time"), "time", where)
+    x = _number(values.get("x"), "x", where)
+    y = _number(values.get("y"), "y", where)
+    depth = _number(values.get("depth"), "depth", where, optional=beacon is None)
+    return Ping(t, beacon, rng, x, y, depth)
+
+
+def _no_constant(name):
+    """Refuse ``NaN`` and ``Infinity``, which are not JSON."""
+    raise ValueError(f"{name} is not a JSON number")
+
+
+class LineParser:
+    """Turns lines into pings; remembers the CSV header.
+
+    Parameters
+    ----------
+    beacons : collection of str, optional
+        Known beacon ids (a ping of another beacon is an error).
+
+    Attributes
+    ----------
+    header : list of str or None
+        The CSV columns, once a header line has been read.
+    """
+
+    def __init__(self, beacons=None):
+        self.beacons = None if beacons is None else frozenset(beacons)
+        self.header = None
+
+    def parse(self, text: str, line_no: int):
+        """Classify and parse one line.
+
+        Parameters
+        ----------
+        text : str
+            The line, with or without its newline.
+        line_no : int
+            Its number in the input (from 1), for messages.
+
+        Returns
+        -------
+        kind : str
+            One of :data:`KINDS`.
+        ping : Ping or None
+            The ping for ``kind == "ping"``.
+
+        Raises
+        ------
+        InputError
+            A malformed line (the parser's state is unchanged).
+        """
+        s = text.strip()
+        where = f"line {line_no}"
+        if not s:
+            return "blank", None
+        if s.startswith("#"):
+            return "comment", None
+        if s.startswith("{"):
+            try:
+                obj = json.loads(s, parse_constant=_no_constant)
+            except ValueError as err:
+                at = f" at column {err.colno}" if hasattr(err, "colno") else ""
+                raise InputError(f"{where}: expected a JSON object, got invalid JSON "
+                                 f"({getattr(err, 'msg', err)}{at})") from None
+            if not isinstance(obj, dict):  # pragma: no cover - "{" starts an object
+                raise InputError(f"{where}: expected a JSON object")
+            return "ping", make_ping(obj, where, self.beacons)
+        cells = next(csv.reader([s]))
+        if self.header is None:
+            return "header", self._set_header(cells, where)
+        if len(cells) != len(self.header):
+            raise InputError(f"{where}: expected {len(self.header)} comma-separated fields "
+                             f"(the header's), got {len(cells)}")
+        return "ping", make_ping(dict(zip(self.header, cells, strict=True)), where,
+                                 self.beacons)
+
+    def _set_header(self, cells, where):
+        names = [c.strip() for c in cells]
+        missing = [c for c in PING_COLUMNS if c not in names]
+        if missing:
+            raise InputError(f"{where}: expected a CSV header with the columns "
+                             f"{', '.join(PING_COLUMNS)} (or a JSON object), got {cells!r}; "
+                             f"missing {', '.join(missing)}")
+        self.header = names
+        return None

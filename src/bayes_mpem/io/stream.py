@@ -1,0 +1,260 @@
+"""Where a live stream's lines come from and where the answers go.
+
+Sources yield ``(line_number, text)`` in arrival order, from 1:
+
+* :class:`FdLines`: a file descriptor (standard input, a pipe); lines are split
+  from what :func:`os.read` returns after :func:`select.select` says there is
+  something, so a stop request (SIGTERM) is seen within ``poll`` seconds even
+  while nothing arrives, and no line already read is left unanswered;
+* :class:`UdpLines`: datagrams on a UDP socket bound to ``HOST:PORT`` (port 0:
+  any free port, see :attr:`UdpLines.address`); each datagram holds one or more
+  lines;
+* :class:`ReplayLines`: a recorded file fed at its own time stamps (the
+  ``time`` column or key), or ``speed`` times faster, or as fast as possible.
+
+A source stops at its end or when ``stop`` (a :class:`threading.Event`) is set;
+the unfinished end of a line cut by a stop is kept in ``partial``.
+
+Sinks (:func:`open_sink`): standard output (``-``), a file, or ``udp://HOST:PORT``
+(one datagram per answer). Every answer is flushed at once.
+
+Examples
+--------
+>>> parse_address("udp://127.0.0.1:9000"), parse_address("-")
+(('udp', ('127.0.0.1', 9000)), ('stdio', None))
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import select
+import socket
+import sys
+import time
+
+from ..exceptions import InputError
+
+#: Largest datagram read (bytes).
+MAX_DATAGRAM = 65535
+
+
+def parse_address(spec: str, *, option: str = "--in"):
+    """Split ``-``, ``udp://HOST:PORT`` or a file path.
+
+    Parameters
+    ----------
+    spec : str
+    option : str
+        The option's name, for messages.
+
+    Returns
+    -------
+    kind : {"stdio", "udp", "file"}
+    where : None, (str, int) or str
+
+    Raises
+    ------
+    InputError
+        A malformed ``udp://`` address.
+    """
+    if spec == "-":
+        return "stdio", None
+    if spec.startswith("udp://"):
+        host, sep, port = spec[len("udp://"):].rpartition(":")
+        if not sep or not host or not port.isdigit() or int(port) > 65535:
+            raise InputError(f"{option}: expected udp://HOST:PORT (port 0-65535), got {spec!r}")
+        return "udp", (host, int(port))
+    return "file", spec
+
+
+class _Splitter:
+    """Turns chunks of bytes into numbered lines; keeps the unfinished end."""
+
+    def __init__(self):
+        self.n, self.partial = 0, b""
+
+    def feed(self, data: bytes, *, final: bool = False):
+        data = self.partial + data
+        *lines, self.partial = data.split(b"\n")
+        if final and self.partial:
+            lines.append(self.partial)
+            self.partial = b""
+        for raw in lines:
+            self.n += 1
+            yield self.n, raw.decode("utf-8", errors="replace").rstrip("\r")
+
+
+class FdLines:
+    """Lines read from a file descriptor (standard input by default).
+
+    Parameters
+    ----------
+    stop : threading.Event
+    fd : int, optional
+        Default ``sys.stdin``'s.
+    poll : float, default 0.2
+        Seconds between looks at ``stop`` while nothing arrives.
+    """
+
+    def __init__(self, stop, fd=None, poll=0.2):
+        self.stop, self.poll = stop, poll
+        self.fd = sys.stdin.fileno() if fd is None else fd
+        self._split = _Splitter()
+
+    @property
+    def partial(self) -> bytes:
+        """The unfinished end of a line when the source stopped."""
+        return self._split.partial
+
+    def __iter__(self):
+        """Yield ``(line_number, text)`` until the end of the input or a stop."""
+        while not self.stop.is_set():
+            ready, _, _ = select.select([self.fd], [], [], self.poll)
+            if not ready:
+                continue
+            data = os.read(self.fd, 65536)
+            if not data:
+                yield from self._split.feed(b"", final=True)
+                return
+            yield from self._split.feed(data)
+
+
+class UdpLines:
+    """Lines from UDP datagrams on ``host:port`` (a datagram ends its last line).
+
+    Parameters
+    ----------
+    stop : threading.Event
+    host : str
+    port : int
+        0 picks a free port (:attr:`address` says which).
+    poll : float, default 0.2
+    """
+
+    partial = b""
+
+    def __init__(self, stop, host, port, poll=0.2):
+        self.stop, self.poll = stop, poll
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.bind((host, port))
+        self.sock.settimeout(poll)
+        self._split = _Splitter()
+
+    @property
+    def address(self):
+        """``(host, port)`` the socket is bound to."""
+        return self.sock.getsockname()
+
+    def __iter__(self):
+        """Yield ``(line_number, text)`` until a stop; then close the socket."""
+        try:
+            while not self.stop.is_set():
+                try:
+                    data = self.sock.recv(MAX_DATAGRAM)
+                except TimeoutError:
+                    continue
+                yield from self._split.feed(data, final=True)
+        finally:
+            self.sock.close()
+
+
+def _line_time(text: str, header):
+    """Return the ``time`` of a line, or None (a header, or a line too malformed to schedule)."""
+    s = text.strip()
+    try:
+        if s.startswith("{"):
+            return float(json.loads(s)["time"]), header
+        cells = next(csv.reader([s])) if s else []
+        if not cells or s.startswith("#"):
+            return None, header
+        if header is None:
+            names = [c.strip() for c in cells]
+            return None, (names.index("time") if "time" in names else None)
+        return float(cells[header]), header
+    except (ValueError, KeyError, IndexError, TypeError):
+        return None, header
+
+
+class ReplayLines:
+    """A recorded file's lines, each released at its time stamp.
+
+    Parameters
+    ----------
+    stop : threading.Event
+    path : str or pathlib.Path
+        CSV (with its header) or JSON lines, as a live stream.
+    speed : float or None
+        ``1`` real time, ``k`` k times faster, None as fast as possible.
+    """
+
+    partial = b""
+
+    def __init__(self, stop, path, speed):
+        self.stop, self.path, self.speed = stop, path, speed
+
+    def __iter__(self):
+        """Yield ``(line_number, text)``, each line at its time, until the end or a stop."""
+        header, t0, w0 = None, None, None
+        with open(self.path, "rb") as fh:
+            split = _Splitter()
+            for chunk in iter(lambda: fh.read(1 << 16), b""):
+                for n, text in split.feed(chunk):
+                    if self.stop.is_set():
+                        return
+                    t, header = _line_time(text, header)
+                    if self.speed is not None and t is not None:
+                        if t0 is None:
+                            t0, w0 = t, time.monotonic()
+                        wait = w0 + (t - t0) / self.speed - time.monotonic()
+                        if wait > 0 and self.stop.wait(wait):
+                            return
+                    yield n, text
+            yield from split.feed(b"", final=True)
+
+
+class LineSink:
+    """Writes one answer per line, flushed at once.
+
+    Parameters
+    ----------
+    spec : str
+        ``-`` (standard output), a file path, or ``udp://HOST:PORT``.
+
+    Raises
+    ------
+    InputError
+        A malformed address.
+    """
+
+    def __init__(self, spec: str):
+        kind, where = parse_address(spec, option="--out")
+        self.kind, self._sock, self._fh = kind, None, None
+        if kind == "udp":
+            self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+            self._dest = where
+        elif kind == "file":
+            self._fh = open(where, "w", encoding="utf-8")  # noqa: SIM115 - closed by close()
+        else:
+            self._fh = sys.stdout
+
+    def write(self, text: str) -> None:
+        """Send one line (``text`` without its newline).
+
+        Parameters
+        ----------
+        text : str
+        """
+        if self._sock is not None:
+            self._sock.sendto(text.encode("utf-8"), self._dest)
+            return
+        self._fh.write(text + "\n")
+        self._fh.flush()
+
+    def close(self) -> None:
+        """Close a file or socket (never standard output)."""
+        if self._sock is not None:
+            self._sock.close()
+        elif self.kind == "file":
+            self._fh.close()

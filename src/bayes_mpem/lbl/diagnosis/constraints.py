@@ -1,0 +1,84 @@
+"""The constraints of the joint model: physical planes, a second plane below the first.
+
+Every reflecting plane lies above the vehicle at every ping (with its drift in time); a
+second reflector lies at least :data:`SECOND_GAP` below the main one (:func:`main_plane`,
+the median of the beacons' planes) and above the vehicle's shallowest depth; a sound-speed
+scale stays within 50 %. :func:`is_feasible` tells whether parameters satisfy them and
+:func:`repair` moves a start just inside. Used by the ECM (:mod:`~bayes_mpem.lbl.diagnosis.ecm`)
+and the evidence
+rules (:mod:`.evidence`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .params import Params
+
+#: m: the second plane lies at least this far below the main reflector
+SECOND_GAP = 50.0
+
+
+def main_plane(p: Params) -> float:
+    """Depth of the main reflector: the median of the beacons' planes.
+
+    Parameters
+    ----------
+    p : Params
+
+    Returns
+    -------
+    float
+    """
+    return float(np.median(p.plane))
+
+
+def is_feasible(d, p, effects):
+    """Planes above the vehicle at every ping; the second plane below the main one.
+
+    Parameters
+    ----------
+    d : Ranges
+    p : Params
+    effects : tuple of str
+        The effects switched on.
+
+    Returns
+    -------
+    bool
+        Whether ``p`` satisfies the constraints (and a sound-speed scale within 50 %).
+    """
+    plane = p.plane[d.bi] + (p.drift * d.tau if "plane_drift" in effects else 0.0)
+    ok = bool(np.all(plane <= d.vdepth))
+    if "second_reflector" in effects:
+        ok = ok and main_plane(p) + SECOND_GAP <= p.plane2 <= float(np.min(d.vdepth))
+    if "sound_speed" in effects:
+        ok = ok and abs(p.scale) < 0.5
+    return ok
+
+
+def repair(d, p, effects) -> Params:
+    """Move an infeasible start just inside the constraints (planes 0.5 m above the vehicle).
+
+    Parameters
+    ----------
+    d : Ranges
+    p : Params
+    effects : tuple of str
+        The effects switched on.
+
+    Returns
+    -------
+    Params
+        A copy of ``p``, moved where needed.
+    """
+    q = p.copy()
+    drift = q.drift * d.tau if "plane_drift" in effects else np.zeros(d.n)
+    for j in range(d.nb):
+        sel = d.bi == j
+        if sel.any():
+            q.plane[j] = min(q.plane[j], float(np.min(d.vdepth[sel] - drift[sel])) - 0.5)
+    if "second_reflector" in effects:
+        lo, hi = main_plane(q) + SECOND_GAP, float(np.min(d.vdepth)) - 0.5
+        q.plane2 = float(np.clip(q.plane2, lo, max(lo, hi)))
+    return q

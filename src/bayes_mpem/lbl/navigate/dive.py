@@ -1,0 +1,223 @@
+"""A dive as the navigation estimator sees it: epochs, dead reckoning and the ranges.
+
+:func:`build_dive` turns a validated :class:`~bayes_mpem.io.survey.Survey`
+(``x``, ``y`` are the dead-reckoned position at each ping, ``depth`` the
+trusted pressure depth) and, optionally, a separate dead-reckoning table into a
+:class:`Dive`: the **epochs** (the distinct ping times; an LBL cycle
+interrogates every beacon at once, so one epoch holds several ranges), the
+dead-reckoned position at each epoch, and per reply its epoch, beacon, depth
+and the beacon's outlier window. No-reply pings define epochs too (the
+vehicle was somewhere then), but carry no range.
+
+A dead-reckoning table (:func:`bayes_mpem.io.dead_reckoning.read_dead_reckoning`) at
+its own rate replaces the pings' ``x``, ``y``: positions are interpolated
+linearly to the epochs; velocities are integrated (trapezoids) from the pings'
+first position. Every epoch must lie within the table's time span.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ...exceptions import InputError
+from ...io.dead_reckoning import read_dead_reckoning
+from ...io.survey import Survey
+from ...mixture.densities import uniform_logpdf
+
+#: Pings of one epoch whose dead-reckoned positions differ by more than this (m) are refused.
+SAME_EPOCH_TOLERANCE = 0.01
+#: A beacon with fewer replies takes the outlier window of all replies (its own few ranges
+#: would make a window too narrow, and every reply an outlier).
+MIN_WINDOW_REPLIES = 10
+
+
+@dataclass(frozen=True, eq=False)
+class Dive:
+    """The navigation problem's data, computed once.
+
+    Attributes
+    ----------
+    survey : Survey
+        The validated input.
+    times : numpy.ndarray
+        ``(K,)`` epoch times (s), increasing.
+    dr : numpy.ndarray
+        ``(K, 2)`` dead-reckoned position at each epoch (m).
+    depth : numpy.ndarray
+        ``(K,)`` mean pressure depth of each epoch's pings (m).
+    epoch_of_row : numpy.ndarray
+        ``(N,)`` epoch of every input row.
+    rows, epoch, beacon : numpy.ndarray
+        ``(n,)`` per reply: its position in the input table, its epoch and the
+        index of its beacon in :attr:`beacon_ids`.
+    z, zdepth : numpy.ndarray
+        ``(n,)`` the measured range and the vehicle depth of every reply (m).
+    beacon_ids : list of str
+    beacon_xyz : numpy.ndarray
+        ``(B, 3)`` beacon x, y, depth.
+    window : numpy.ndarray
+        ``(B, 2)`` outlier window of each beacon: its smallest and largest range
+        (with fewer than :data:`MIN_WINDOW_REPLIES` replies, those of all replies,
+        at least 1 m wide).
+    d0_min : numpy.ndarray
+        ``(B,)`` lowest physical plane height (above every vehicle position).
+    dr_source : str
+        ``"pings"`` or the dead-reckoning table's label and form.
+    """
+
+    survey: Survey = field(repr=False)
+    times: np.ndarray = field(repr=False)
+    dr: np.ndarray = field(repr=False)
+    depth: np.ndarray = field(repr=False)
+    epoch_of_row: np.ndarray = field(repr=False)
+    rows: np.ndarray = field(repr=False)
+    epoch: np.ndarray = field(repr=False)
+    beacon: np.ndarray = field(repr=False)
+    z: np.ndarray = field(repr=False)
+    zdepth: np.ndarray = field(repr=False)
+    beacon_ids: list
+    beacon_xyz: np.ndarray = field(repr=False)
+    window: np.ndarray = field(repr=False)
+    d0_min: np.ndarray = field(repr=False)
+    dr_source: str = "pings"
+
+    @property
+    def n_epochs(self) -> int:
+        """Number of epochs ``K``."""
+        return int(self.times.size)
+
+    @property
+    def n(self) -> int:
+        """Number of replies."""
+        return int(self.z.size)
+
+    @property
+    def dt(self) -> np.ndarray:
+        """``(K - 1,)`` time between consecutive epochs (s)."""
+        return np.diff(self.times)
+
+    @property
+    def delta(self) -> np.ndarray:
+        """``(K - 1, 2)`` dead-reckoned displacement between consecutive epochs (m)."""
+        return np.diff(self.dr, axis=0)
+
+    @property
+    def log_ol(self) -> np.ndarray:
+        """``(n,)`` log-density of an outlier for every reply (uniform over its beacon's window)."""
+        w = self.window[self.beacon]
+        return uniform_logpdf(w[:, 0], w[:, 1])
+
+    def replies_per_beacon(self) -> np.ndarray:
+        """``(B,)`` number of replies of each beacon."""
+        return np.bincount(self.beacon, minlength=len(self.beacon_ids))
+
+
+def _epoch_dr(survey: Survey, inverse: np.ndarray, k: int) -> np.ndarray:
+    """Dead-reckoned position of each epoch from the pings, refusing disagreeing pings."""
+    xy = np.column_stack([survey.x, survey.y])
+    sums = np.zeros((k, 2))
+    np.add.at(sums, inverse, xy)
+    mean = sums / np.bincount(inverse, minlength=k)[:, None]
+    off = np.hypot(*(xy - mean[inverse]).T)
+    bad = np.flatnonzero(off > SAME_EPOCH_TOLERANCE)
+    if bad.size:
+        e = inverse[bad[0]]
+        rows = np.flatnonzero(inverse == e)[:6] + 1
+        raise InputError(
+            f"{survey.pings_source}: the pings at time {float(survey.time[bad[0]])!r} s (data "
+            f"rows {', '.join(map(str, rows))}, counted from 1 after the header) give "
+            f"dead-reckoned positions up to "
+            f"{2 * off[inverse == e].max():.3g} m apart; expected one position per ping time "
+            "(columns 'x', 'y')")
+    return mean
+
+
+def _table_dr(survey: Survey, times: np.ndarray, first_xy, source) -> tuple[np.ndarray, str]:
+    """Dead-reckoned position at ``times`` from a separate table (interpolated or integrated)."""
+    table, form = read_dead_reckoning(source)
+    label = source if isinstance(source, str) else "dead-reckoning DataFrame"
+    t = table["time"].to_numpy()
+    out = np.flatnonzero((survey.time < t[0]) | (survey.time > t[-1]))
+    if out.size:
+        i = out[0]
+        raise InputError(
+            f"{survey.pings_source} data row {i + 1} (counted from 1 after the header), column "
+            f"'time': {float(survey.time[i])!r} s is outside the dead-reckoning table's span "
+            f"[{float(t[0])!r}, {float(t[-1])!r}] s ({label}); {out.size} ping(s) are")
+    if form == "position":
+        pos = table[["x", "y"]].to_numpy()
+    else:
+        v = table[["ve", "vn"]].to_numpy()
+        steps = 0.5 * (v[1:] + v[:-1]) * np.diff(t)[:, None]
+        pos = np.vstack([np.zeros((1, 2)), np.cumsum(steps, axis=0)])
+    dr = np.column_stack([np.interp(times, t, pos[:, 0]), np.interp(times, t, pos[:, 1])])
+    if form == "velocity":  # integrated from the pings' first dead-reckoned position
+        dr += np.asarray(first_xy, float) - dr[0]
+    return dr, f"{label} ({form}s)"
+
+
+def build_dive(survey: Survey, dead_reckoning=None) -> Dive:
+    """Group the pings into epochs and attach the dead reckoning.
+
+    Parameters
+    ----------
+    survey : Survey
+        Pings (``x``, ``y``: dead-reckoned; ``depth``: pressure) and beacons.
+    dead_reckoning : str, os.PathLike or pandas.DataFrame, optional
+        A separate dead-reckoning table (:func:`~bayes_mpem.io.dead_reckoning.read_dead_reckoning`);
+        default: the pings' own ``x``, ``y``.
+
+    Returns
+    -------
+    Dive
+
+    Raises
+    ------
+    InputError
+        Pings of one time with different dead-reckoned positions; a ping outside
+        the dead-reckoning table's span; a bad dead-reckoning table; no reply at all.
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> from bayes_mpem.io.survey import load_survey
+    >>> s = load_survey(pd.DataFrame({"time": [0, 0, 5], "beacon": [1, 2, 1],
+    ...                               "range": [100.0, None, 101.0], "x": [0, 0, 3],
+    ...                               "y": [0, 0, 0], "depth": [10, 10, 10]}),
+    ...                 pd.DataFrame({"beacon": [1, 2], "x": [0, 50], "y": [0, 0],
+    ...                               "depth": [100, 100]}))
+    >>> d = build_dive(s)
+    >>> d.n_epochs, d.n, d.epoch.tolist()
+    (2, 2, [0, 1])
+    """
+    times, inverse = np.unique(np.asarray(survey.time), return_inverse=True)
+    k = times.size
+    if dead_reckoning is None:
+        dr, source = _epoch_dr(survey, inverse, k), "pings"
+    else:
+        first = np.flatnonzero(inverse == 0)[0]
+        dr, source = _table_dr(survey, times, (survey.x[first], survey.y[first]),
+                               dead_reckoning)
+    depth = np.bincount(inverse, weights=survey.depth, minlength=k) / np.bincount(
+        inverse, minlength=k)
+    rows = np.flatnonzero(~survey.no_reply)
+    if rows.size == 0:
+        raise InputError(f"{survey.pings_source}: no ping has a reply (every 'range' cell is "
+                         "empty): nothing to navigate by")
+    ids = survey.beacon_ids
+    index = {b: i for i, b in enumerate(ids)}
+    beacon = np.array([index[b] for b in survey.beacon[rows]], dtype=np.int64)
+    z, zdepth = np.asarray(survey.range)[rows], np.asarray(survey.depth)[rows]
+    xyz = survey.beacons[["x", "y", "depth"]].to_numpy(float)
+    window = np.tile([z.min(), max(z.max(), z.min() + 1.0)], (len(ids), 1))
+    d0_min = np.zeros(len(ids))
+    for j in range(len(ids)):
+        mine = beacon == j
+        if mine.sum() >= MIN_WINDOW_REPLIES:
+            window[j] = z[mine].min(), z[mine].max()
+        if mine.any():
+            d0_min[j] = max(0.0, float((xyz[j, 2] - zdepth[mine]).max()))
+    return Dive(survey, times, dr, depth, inverse.astype(np.int64), rows, inverse[rows],
+                beacon, z, zdepth, ids, xyz, window, d0_min, source)

@@ -1,0 +1,377 @@
+"""``navigate``: the vehicle's track jointly with the class of every range and each reflector.
+
+The pings' ``x``, ``y`` are a drifting dead reckoning and ``depth`` the trusted
+pressure depth. :func:`navigate` estimates the horizontal track at every ping
+epoch, the dead reckoning's heading bias and speed scale, per beacon the plane
+height, sigma_MP and mixing weights, and sigma_DP, by the ECM of
+:mod:`~bayes_mpem.lbl.navigate.ecm`,
+started from the dead reckoning with annealed scales and the planes at the sea
+surface; then (``path="auto"``) each beacon's multipath geometry is chosen as
+:func:`~bayes_mpem.lbl.path_choice.choose_path` does, on the corrected track,
+and the ECM continues with it. The track's uncertainty is the Laplace
+approximation at the estimate (:mod:`.normal`); where it stays wide the
+result says so (:mod:`.observability`, a
+:class:`~bayes_mpem.exceptions.NavigationWarning`).
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+
+import numpy as np
+
+from ..._rng import RNGLike, as_generator
+from ..._validate import check_choice, check_int, check_positive, check_probability
+from ...exceptions import ConvergenceWarning, InputError, NavigationWarning
+from ...io.survey import BeaconData, load_survey
+from ...mixture.densities import CLASSES
+from ..em_result import reflector_flags
+from ..geometry import PATHS
+from ..path_choice import AUTO, check_path_choice, choose_path
+from . import ecm, observability
+from .dive import Dive, build_dive
+from .normal import global_covariance, marginal_covariances, solve
+from .objective import (
+    Priors,
+    State,
+    normal_equations,
+    predictions,
+)
+from .result import Navigation
+
+#: A beacon whose sea-surface bounce would lag the direct path by less than this (m, median
+#: over its replies, on the dead reckoning) gets no multipath class: the vehicle is at the
+#: surface and the two arrivals are one.
+MIN_SEPARATION = 1.0
+
+
+def _check_reflectors(reflectors, dive: Dive) -> dict:
+    out = {}
+    for bid, r in (reflectors or {}).items():
+        bid = str(bid)
+        if bid not in dive.beacon_ids:
+            raise InputError(f"reflectors: unknown beacon {bid!r}; known: {dive.beacon_ids}")
+        try:
+            out[bid] = {"d0": float(r["d0"]), "sigma_mp": check_positive(
+                f"reflectors[{bid!r}]['sigma_mp']", r["sigma_mp"]),
+                "path": check_choice(f"reflectors[{bid!r}]['path']",
+                                     r.get("path", "triangle"), PATHS)}
+        except (KeyError, TypeError):
+            raise InputError(f"reflectors[{bid!r}]: expected a mapping with 'd0' and "
+                             f"'sigma_mp' (and 'path'), got {r!r}") from None
+    return out
+
+
+def _fixed_resp(classes, dive: Dive):
+    if classes is None:
+        return None
+    lab = np.asarray(classes, dtype=object)
+    if lab.shape != (len(dive.survey),):
+        raise InputError(f"classes: expected one label per input row ({len(dive.survey)}), "
+                         f"got shape {lab.shape}")
+    lab = lab[dive.rows]
+    bad = np.flatnonzero(~np.isin(lab, CLASSES))
+    if bad.size:
+        raise InputError(f"classes[{dive.rows[bad[0]]}]: expected 'dp', 'mp' or 'ol' for a "
+                         f"ping with a reply, got {lab[bad[0]]!r}")
+    return (lab[:, None] == np.asarray(CLASSES)[None, :]).astype(float)
+
+
+def _start(dive: Dive, settings: ecm.Settings, path: str, fixed: dict, sigma_dp) -> State:
+    """Start at the dead reckoning, planes at the sea surface (or as given), equal weights."""
+    nb = len(dive.beacon_ids)
+    d0 = np.maximum(dive.beacon_xyz[:, 2], dive.d0_min)
+    double = np.full(nb, path == "double")
+    sigma_mp = np.full(nb, settings.sigma_floor)
+    for bid, r in fixed.items():
+        j = dive.beacon_ids.index(bid)
+        d0[j], sigma_mp[j], double[j] = r["d0"], r["sigma_mp"], r["path"] == "double"
+    w = np.where(settings.mp_beacons[:, None], 1.0 / 3.0, [0.5, 0.0, 0.5])
+    return State(dive.dr.copy(), 0.0, 1.0, d0, double,
+                 settings.sigma_floor if sigma_dp is None else float(sigma_dp), sigma_mp, w)
+
+
+def _choose_paths(dive: Dive, state: State, settings: ecm.Settings, gen):
+    """Per beacon with a multipath class, the geometry :func:`choose_path` prefers on the track."""
+    records, changed = {}, False
+    double, d0, s_mp = state.double.copy(), state.d0.copy(), state.sigma_mp.copy()
+    p = state.track[dive.epoch]
+    for j, bid in enumerate(dive.beacon_ids):
+        if not settings.mp_beacons[j] or j not in settings.free_d0:
+            continue
+        m = dive.beacon == j
+        data = BeaconData.from_arrays(dive.z[m], p[m, 0], p[m, 1], dive.zdepth[m],
+                                      dive.beacon_xyz[j], time=dive.times[dive.epoch[m]],
+                                      beacon=bid)
+        choice = choose_path(data, AUTO, rng=gen, fit_warnings=False)
+        records[bid] = choice.to_dict()
+        if (choice.path == "double") != bool(double[j]):
+            changed = True
+            double[j] = choice.path == "double"
+            d0[j] = max(choice.fit.d0, dive.d0_min[j])
+            s_mp[j] = max(choice.fit.sigma_mp, settings.sigma_floor)
+    return state.replace(double=double, d0=d0, sigma_mp=s_mp), records, changed
+
+
+def _uncertainty(dive, run, settings):
+    """Track covariances and the globals' posterior sd at the estimate (Laplace)."""
+    a = run.resp[:, 0] / run.state.sigma_dp ** 2
+    b = run.resp[:, 1] / run.state.sigma_mp[dive.beacon] ** 2
+    ne = normal_equations(dive, run.state, a, b, settings.priors, settings.free_d0)
+    step = solve(ne)
+    gsd = np.sqrt(np.maximum(np.diag(global_covariance(step)), 0.0))
+    out = {"beta": float(gsd[0]), "scale": float(gsd[1])}
+    out.update({f"d0:{dive.beacon_ids[j]}": float(gsd[2 + i])
+                for i, j in enumerate(settings.free_d0)})
+    return marginal_covariances(ne, step), out
+
+
+def surface_separation(dive: Dive) -> np.ndarray:
+    """Return the median lag (m) of a surface bounce behind the direct path, per beacon.
+
+    Evaluated on the dead reckoning with the plane at the sea surface (depth 0);
+    a reply from a vehicle at or above depth 0 counts as no lag.
+
+    Parameters
+    ----------
+    dive : Dive
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(B,)``; 0 for a vehicle at the surface (the bounce is the direct path),
+        NaN for a beacon without replies.
+    """
+    d0 = dive.beacon_xyz[:, 2]
+    st = State(dive.dr, 0.0, 1.0, d0, np.zeros(d0.size, bool), 1.0, np.ones(d0.size),
+               np.full((d0.size, 3), 1 / 3))
+    pred = predictions(dive, st)
+    lag = np.where(dive.zdepth > 0, pred.multipath - pred.direct, 0.0)
+    return np.array([np.median(lag[dive.beacon == j]) if np.any(dive.beacon == j) else np.nan
+                     for j in range(d0.size)])
+
+
+def _settings(dive, opts, fixed, fixed_resp) -> ecm.Settings:
+    counts = dive.replies_per_beacon()
+    lag = surface_separation(dive)
+    mp = np.array([opts["multipath"] == "signal" and opts["model"] == "mixture"
+                   and (counts[j] >= opts["min_pings"] or bid in fixed)
+                   and (lag[j] >= MIN_SEPARATION or bid in fixed)
+                   for j, bid in enumerate(dive.beacon_ids)], bool)
+    if fixed_resp is not None:  # the oracle: multipath where the classes say so
+        mp = np.bincount(dive.beacon, weights=fixed_resp[:, 1], minlength=mp.size) > 0
+    free = tuple(j for j, bid in enumerate(dive.beacon_ids) if mp[j] and bid not in fixed)
+    fix_mp = np.array([bid in fixed for bid in dive.beacon_ids], bool)
+    pri = Priors(q=opts["dr_noise"], start_sd=opts["start_sd"],
+                 heading_sd=np.deg2rad(opts["heading_sd"]), scale_sd=opts["scale_sd"],
+                 plane_sd=opts["plane_sd"])
+    return ecm.Settings(priors=pri, model=opts["model"], mp_beacons=mp, free_d0=free,
+                        fixed_resp=fixed_resp, fix_sigma_mp=fix_mp,
+                        fix_sigma_dp=opts["sigma_dp"] is not None,
+                        anneal_start=opts["anneal_start"], max_iter=opts["max_iter"],
+                        tol=opts["tol"])
+
+
+def _no_mp_reason(multipath, model, count, min_pings, lag) -> str:
+    if model != "mixture":
+        return f"no multipath class in model={model!r}"
+    if multipath == "outlier":
+        return "multipath treated as outliers (multipath='outlier')"
+    if count < min_pings:
+        return f"{count} replies, fewer than min_pings={min_pings}: no multipath class"
+    return (f"a sea-surface bounce would lag the direct path by {lag:.2g} m (median): the "
+            "vehicle is at the surface, so multipath cannot be told from the direct path; "
+            "no multipath class")
+
+
+def _beacon_info(dive, run, settings, fixed, records, min_pings, multipath):
+    counts = dive.replies_per_beacon()
+    lag = surface_separation(dive)
+    info = {}
+    for j, bid in enumerate(dive.beacon_ids):
+        d = {"mp": bool(settings.mp_beacons[j]), "d0_free": j in settings.free_d0,
+             "path_choice": records.get(bid)}
+        if d["mp"] and counts[j]:
+            st = run.state
+            d["flags"] = reflector_flags(run.resp[dive.beacon == j], float(st.sigma_mp[j]),
+                                         float(dive.beacon_xyz[j, 2] - st.d0[j]),
+                                         sigma_floor=settings.sigma_floor)
+        if not d["mp"]:
+            d["reason"] = _no_mp_reason(multipath, settings.model, counts[j], min_pings, lag[j])
+        if bid in fixed:
+            d["reason_fixed"] = "reflector given (not estimated)"
+        info[bid] = d
+    return info
+
+
+def _check_options(opts):
+    check_choice("model", opts["model"], ecm.MODELS)
+    check_choice("multipath", opts["multipath"], ecm.MULTIPATH)
+    check_path_choice(opts["path"])
+    for k in ("dr_noise", "start_sd", "heading_sd", "scale_sd", "plane_sd", "anneal_start",
+              "max_sd", "tol"):
+        opts[k] = check_positive(k, opts[k])
+    check_positive("sigma_dp", opts["sigma_dp"], allow_none=True)
+    check_int("min_pings", opts["min_pings"], minimum=1)
+    check_int("max_iter", opts["max_iter"], minimum=1)
+    check_probability("ci", opts["ci"])
+
+
+# long function: the steps of the estimator in order, each a call; splitting it would
+# only pass its dozen locals around
+def navigate(
+    pings,
+    beacons=None,
+    *,
+    dead_reckoning=None,
+    multipath: str = "signal",
+    model: str = "mixture",
+    path: str = AUTO,
+    dr_noise: float = 0.1,
+    start_sd: float = 1000.0,
+    heading_sd: float = 5.0,
+    scale_sd: float = 0.05,
+    plane_sd: float = 1000.0,
+    sigma_dp: float | None = None,
+    classes=None,
+    reflectors: dict | None = None,
+    min_pings: int = 30,
+    anneal_start: float = 100.0,
+    max_sd: float = 10.0,
+    max_iter: int = 300,
+    tol: float = 1e-3,
+    ci: float = 0.95,
+    rng: RNGLike = None,
+) -> Navigation:
+    """Estimate the vehicle's track jointly with every range's class and each reflector.
+
+    Parameters
+    ----------
+    pings : str, pathlib.Path, pandas.DataFrame or Survey
+        The pings table: ``x``, ``y`` are the **dead-reckoned** position at each
+        ping, ``depth`` the pressure depth (trusted). Pings with the same time
+        form one epoch.
+    beacons : str, pathlib.Path or pandas.DataFrame, optional
+        The beacons table (not needed when ``pings`` is a Survey).
+    dead_reckoning : str, pathlib.Path or pandas.DataFrame, optional
+        A dead-reckoning table at its own rate (``time, x, y`` or ``time, ve,
+        vn``, :func:`~bayes_mpem.io.dead_reckoning.read_dead_reckoning`), used instead of
+        the pings' ``x``, ``y``.
+    multipath : {"signal", "outlier"}
+        Multipath replies carry position information (default) or are outliers.
+    model : {"mixture", "huber", "gate", "gaussian"}
+        The mixture (default), or a baseline: every reply on the direct path with
+        Huber's loss, with a 3-sigma residual gate, or Gaussian.
+    path : {"auto", "triangle", "double"}
+        Multipath geometry per beacon: chosen on the corrected track (default),
+        or forced.
+    dr_noise : float, default 0.1
+        Random-walk level ``q`` of the dead reckoning (m / sqrt(s)): between
+        epochs ``dt`` apart the position may wander ``q sqrt(dt)`` m (sd, per
+        axis) from what the corrected dead reckoning says.
+    start_sd : float, default 1000
+        Prior sd (m) of the first position about the first dead-reckoned fix.
+    heading_sd : float, default 5
+        Prior sd (degrees) of the heading bias.
+    scale_sd : float, default 0.05
+        Prior sd of the speed scale (about 1).
+    plane_sd : float, default 1000
+        Prior sd (m) of each plane height about the sea surface.
+    sigma_dp : float, optional
+        Fix sigma_DP (m); default estimated.
+    classes : array_like, optional
+        One class per input row (``"dp"``, ``"mp"``, ``"ol"``; anything for a
+        no-reply ping): the classes are then known (the oracle of the benchmarks).
+    reflectors : dict, optional
+        ``{beacon: {"d0", "sigma_mp", "path"}}``: reflectors known, not estimated.
+    min_pings : int, default 30
+        A beacon with fewer replies gets no multipath class.
+    anneal_start : float, default 100
+        First floor (m) of the annealed scales; above the dead reckoning's error.
+    max_sd : float, default 10
+        An epoch whose position sd (major axis, m) stays above this is flagged as
+        not corrected.
+    max_iter : int, default 300
+    tol : float, default 1e-3
+        Convergence: no position, plane height or scale changes by more than
+        ``tol`` m in an iteration.
+    ci : float, default 0.95
+        Probability of the (Wald) intervals in the summary.
+    rng : None, int or numpy.random.Generator
+        Seeds the path choice's subsamples.
+
+    Returns
+    -------
+    Navigation
+
+    Raises
+    ------
+    InputError
+        Invalid tables (file, line and column named), classes or reflectors.
+    ValueError
+        An invalid option.
+
+    Warns
+    -----
+    NavigationWarning
+        A stretch of the track, or a dead-reckoning nuisance, that the ranges do
+        not correct.
+    ConvergenceWarning
+        ``max_iter`` reached first.
+
+    Examples
+    --------
+    >>> from bayes_mpem.lbl.navigate import simulate_dive
+    >>> sim = simulate_dive("abe58", rng=1, n_cycles=300)
+    >>> nav = navigate(sim.survey, path="triangle")
+    >>> err = nav.track - sim.true_track[["x", "y"]].to_numpy()
+    >>> bool(np.sqrt((err ** 2).sum(axis=1).mean()) < 3.0)
+    True
+    """
+    t_start = time.perf_counter()
+    opts = dict(multipath=multipath, model=model, path=path, dr_noise=dr_noise,
+                start_sd=start_sd, heading_sd=heading_sd, scale_sd=scale_sd, plane_sd=plane_sd,
+                sigma_dp=sigma_dp, min_pings=min_pings, anneal_start=anneal_start, max_sd=max_sd,
+                max_iter=max_iter, tol=tol, ci=ci)
+    _check_options(opts)
+    gen = as_generator(rng)
+    survey = load_survey(pings, beacons)
+    dive = build_dive(survey, dead_reckoning)
+    fixed = _check_reflectors(reflectors, dive)
+    settings = _settings(dive, opts, fixed, _fixed_resp(classes, dive))
+    timings = {"load": time.perf_counter() - t_start}
+    t0 = time.perf_counter()
+    run = ecm.run(dive, _start(dive, settings, path, fixed, sigma_dp), settings)
+    n_iter, records = run.n_iter, {}
+    timings["ecm"] = time.perf_counter() - t0
+    if path == AUTO and settings.free_d0:
+        t0 = time.perf_counter()
+        state, records, changed = _choose_paths(dive, run.state, settings, gen)
+        timings["path_choice"] = time.perf_counter() - t0
+        if changed:
+            run = ecm.run(dive, state, settings, anneal=False)
+            n_iter += run.n_iter
+            timings["ecm_after_path_choice"] = time.perf_counter() - t0
+    if not run.converged:
+        warnings.warn(f"navigate: the ECM did not converge in {n_iter} iterations; raise "
+                      "max_iter or loosen tol", ConvergenceWarning, stacklevel=2)
+    t0 = time.perf_counter()
+    cov, gsd = _uncertainty(dive, run, settings)
+    flags = observability.assess(
+        dive, cov, run.resp,
+        {"heading_bias": (np.rad2deg(gsd["beta"]), opts["heading_sd"], "deg"),
+         "speed_scale": (gsd["scale"], opts["scale_sd"], "")}, max_sd=opts["max_sd"])
+    if flags:
+        warnings.warn("navigate: " + observability.describe(flags), NavigationWarning,
+                      stacklevel=2)
+    timings["uncertainty"] = time.perf_counter() - t0
+    timings["total"] = time.perf_counter() - t_start
+    skipped = {bid: f"beacon {bid} has no reply" for bid, c in
+               zip(dive.beacon_ids, dive.replies_per_beacon(), strict=True) if c == 0}
+    info = _beacon_info(dive, run, settings, fixed, records, min_pings, multipath)
+    opts.update(oracle_classes=classes is not None, reflectors_given=sorted(fixed))
+    return Navigation(dive=dive, state=run.state, cov=cov, global_sd=gsd, resp=run.resp,
+                      beacons=info, skipped=skipped, flags=flags, n_iter=n_iter,
+                      converged=run.converged, loglik=run.loglik, history=run.history,
+                      options=opts, timings=timings)

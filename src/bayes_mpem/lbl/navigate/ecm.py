@@ -1,0 +1,317 @@
+"""The ECM of the navigation model: E-step, conditional M-steps and the annealed loop.
+
+One iteration:
+
+1. **E-step.** The class probabilities of every reply at the current track and
+   reflectors (:func:`e_step`): the direct-path / multipath / outlier mixture
+   of :func:`.model.class_log_joint` (``model="mixture"``; with
+   ``multipath="outlier"`` the multipath class is switched off, so multipath
+   replies can only be outliers). The baselines replace it by weights: every
+   reply on the direct path (``"gaussian"``), Huber's weights
+   (``"huber"``, ``min(1, c sigma / |r|)``), or a residual gate (``"gate"``,
+   1 within ``k sigma`` of the direct path, else 0). Fixed probabilities (an
+   oracle that knows the classes) skip it.
+2. **CM-step 1.** A few safeguarded Gauss-Newton steps on the track, the
+   dead-reckoning nuisances and the plane heights (:func:`gauss_newton`: the
+   sparse normal equations of :mod:`.objective`, solved by :mod:`.normal`, each
+   step halved until the objective does not increase,
+   :func:`~bayes_mpem.mixture.gauss_newton.safeguarded_step`).
+3. **CM-step 2.** The scales and mixing weights in closed form (:func:`scales_and_weights`).
+
+The start is the dead reckoning itself with the planes at the sea surface. The
+scales are **annealed**: floored at ``anneal_start`` m in the first iteration,
+the floor halved every iteration until it no longer binds; a drifted dead
+reckoning, tens of metres off, is then pulled onto the ranges before the
+scales shrink to what the data say. From then on, for the mixture, the log
+posterior never decreases (tested).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import numpy as np
+
+from ...mixture.densities import gaussian_logpdf, safe_log
+from ...mixture.gauss_newton import safeguarded_step
+from .dive import Dive
+from .model import class_log_joint
+from .normal import solve
+from .objective import Priors, State, normal_equations, objective, predictions, prior_penalty
+from .options import MODELS, MULTIPATH  # noqa: F401 (re-exported)
+
+
+@dataclass(frozen=True)
+class Settings:
+    """How the ECM runs (checked by :func:`~.driver.navigate`).
+
+    Attributes
+    ----------
+    priors : Priors
+    model : str
+        One of :data:`MODELS`.
+    mp_beacons : numpy.ndarray
+        ``(B,)`` bool: beacons with a multipath class (``multipath="signal"``
+        and enough replies).
+    free_d0 : tuple of int
+        Beacons whose plane height is estimated.
+    fixed_resp : numpy.ndarray or None
+        ``(n, 3)`` class probabilities given (the oracle), else None.
+    fix_sigma_mp : numpy.ndarray
+        ``(B,)`` bool: keep the beacon's sigma_MP as given.
+    fix_sigma_dp : bool
+    sigma_floor : float
+    anneal_start : float
+    huber_c, gate : float
+    gn_steps, max_iter : int
+    tol : float
+        Stop when no position moves more than ``tol`` m in an iteration, the
+        plane heights neither, and the scales change by less than ``tol`` m.
+    """
+
+    priors: Priors
+    model: str = "mixture"
+    mp_beacons: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    free_d0: tuple = ()
+    fixed_resp: np.ndarray | None = None
+    fix_sigma_mp: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    fix_sigma_dp: bool = False
+    sigma_floor: float = 0.05
+    anneal_start: float = 100.0
+    huber_c: float = 1.345
+    gate: float = 3.0
+    gn_steps: int = 3
+    max_iter: int = 300
+    tol: float = 1e-3
+
+
+class Run(NamedTuple):
+    """The outcome of :func:`run`.
+
+    Attributes
+    ----------
+    state : State
+    resp : numpy.ndarray
+        ``(n, 3)`` class probabilities (or baseline weights) at ``state``.
+    loglik : float
+        Log-likelihood of the ranges at ``state`` (mixture; for a baseline the
+        Gaussian log-likelihood of the weighted direct-path residuals).
+    history : dict of list
+        Per iteration: ``loglik``, ``log_posterior``, ``anneal``, ``sigma_dp``,
+        ``beta``, ``scale``, ``moved`` (largest position change, m).
+    n_iter : int
+    converged : bool
+    """
+
+    state: State
+    resp: np.ndarray
+    loglik: float
+    history: dict
+    n_iter: int
+    converged: bool
+
+
+def effective_scales(state: State, tau: float):
+    """Return the scales used at anneal floor ``tau``: ``max(sigma, tau)``.
+
+    Parameters
+    ----------
+    state : State
+    tau : float
+
+    Returns
+    -------
+    sigma_dp : float
+    sigma_mp : numpy.ndarray
+    """
+    return max(state.sigma_dp, tau), np.maximum(state.sigma_mp, tau)
+
+
+def e_step(dive: Dive, state: State, settings: Settings, tau: float = 0.0):
+    """Class probabilities (or a baseline's weights) and the log-likelihood of every reply.
+
+    Parameters
+    ----------
+    dive : Dive
+    state : State
+    settings : Settings
+    tau : float, default 0
+        Anneal floor of the scales.
+
+    Returns
+    -------
+    resp : numpy.ndarray
+        ``(n, 3)``.
+    lse : numpy.ndarray
+        ``(n,)`` per-reply log-likelihood.
+    """
+    s_dp, s_mp = effective_scales(state, tau)
+    pred = predictions(dive, state)
+    b = dive.beacon
+    if settings.model == "mixture" or settings.fixed_resp is not None:
+        lw = safe_log(state.weights)
+        lw[~settings.mp_beacons, 1] = -np.inf
+        resp, lse = class_log_joint(dive.z, pred.direct, pred.multipath, s_dp, s_mp[b],
+                                    dive.log_ol, lw[b])
+        if settings.fixed_resp is not None:
+            resp = settings.fixed_resp
+        return resp, lse
+    r = dive.z - pred.direct
+    resp = np.zeros((dive.n, 3))
+    if settings.model == "gaussian":
+        resp[:, 0] = 1.0
+    elif settings.model == "huber":
+        resp[:, 0] = np.minimum(1.0, settings.huber_c * s_dp / np.maximum(np.abs(r), 1e-300))
+    else:  # gate
+        resp[:, 0] = np.abs(r) <= settings.gate * s_dp
+    resp[:, 2] = 1.0 - resp[:, 0]
+    return resp, resp[:, 0] * gaussian_logpdf(r, s_dp)
+
+
+def _pack(state: State, free_d0):
+    return np.concatenate([state.track.ravel(), [state.beta, state.scale],
+                           state.d0[list(free_d0)]])
+
+
+def _unpack(x, state: State, dive: Dive, free_d0):
+    k = dive.n_epochs
+    d0 = state.d0.copy()
+    idx = list(free_d0)
+    d0[idx] = np.clip(x[2 * k + 2:], dive.d0_min[idx], None)
+    return state.replace(track=x[:2 * k].reshape(k, 2), beta=float(x[2 * k]),
+                         scale=float(max(x[2 * k + 1], 1e-3)), d0=d0)
+
+
+def gauss_newton(dive: Dive, state: State, a, b, settings: Settings) -> State:
+    """Up to ``settings.gn_steps`` safeguarded Gauss-Newton steps on the track and globals.
+
+    Parameters
+    ----------
+    dive : Dive
+    state : State
+    a, b : numpy.ndarray
+        ``(n,)`` weights of the squared direct-path and multipath residuals.
+    settings : Settings
+
+    Returns
+    -------
+    State
+        Where the objective is no larger than at ``state`` (plane heights kept
+        above every vehicle position, the speed scale positive).
+    """
+    free = settings.free_d0
+    pri = settings.priors
+
+    def value(x):
+        st = _unpack(x, state, dive, free)
+        return objective(dive, st, a, b, pri, track=st.track, beta=st.beta, scale=st.scale,
+                         d0=st.d0), st
+
+    current = objective(dive, state, a, b, pri)
+    for _ in range(settings.gn_steps):
+        ne = normal_equations(dive, state, a, b, pri, free)
+        try:
+            step = solve(ne)
+        except np.linalg.LinAlgError:
+            break
+        x = _pack(state, free)
+        out = safeguarded_step(value, x, np.concatenate([step.dp.ravel(), step.dg]), current)
+        if out is None:
+            break
+        moved = float(np.max(np.abs(out.aux.track - state.track)))
+        state, current = out.aux, out.value
+        if moved < 1e-6:
+            break
+    return state
+
+
+def scales_and_weights(dive: Dive, state: State, resp, settings: Settings) -> State:
+    """Closed-form sigma_DP (pooled), sigma_MP and mixing weights per beacon.
+
+    Parameters
+    ----------
+    dive : Dive
+    state : State
+    resp : numpy.ndarray
+        ``(n, 3)`` class probabilities or weights.
+    settings : Settings
+
+    Returns
+    -------
+    State
+    """
+    pred = predictions(dive, state)
+    e_dp, e_mp = dive.z - pred.direct, dive.z - pred.multipath
+    floor = settings.sigma_floor
+    s_dp = state.sigma_dp
+    if not settings.fix_sigma_dp:
+        if settings.model == "huber":
+            s_dp = max(1.4826 * float(np.median(np.abs(e_dp))), floor)
+        elif resp[:, 0].sum() > 0:
+            s_dp = max(np.sqrt(np.add.reduce(resp[:, 0] * e_dp ** 2) / resp[:, 0].sum()), floor)
+    nb = len(dive.beacon_ids)
+    r_mp = np.bincount(dive.beacon, weights=resp[:, 1], minlength=nb)
+    sse = np.bincount(dive.beacon, weights=resp[:, 1] * e_mp ** 2, minlength=nb)
+    s_mp = state.sigma_mp.copy()
+    upd = settings.mp_beacons & ~settings.fix_sigma_mp & (r_mp > 0)
+    s_mp[upd] = np.maximum(np.sqrt(sse[upd] / r_mp[upd]), floor)
+    w = state.weights.copy()
+    if settings.model == "mixture" and settings.fixed_resp is None:
+        n_b = np.maximum(np.bincount(dive.beacon, minlength=nb), 1)
+        for j in range(3):
+            w[:, j] = np.bincount(dive.beacon, weights=resp[:, j], minlength=nb) / n_b
+    return state.replace(sigma_dp=float(s_dp), sigma_mp=s_mp, weights=w)
+
+
+def _weights(dive, state, resp, tau):
+    s_dp, s_mp = effective_scales(state, tau)
+    return resp[:, 0] / s_dp ** 2, resp[:, 1] / s_mp[dive.beacon] ** 2
+
+
+def run(dive: Dive, state: State, settings: Settings, *, anneal: bool = True) -> Run:
+    """Run the ECM loop from ``state`` to convergence or ``settings.max_iter``.
+
+    Parameters
+    ----------
+    dive : Dive
+    state : State
+        The start (the dead reckoning, or an earlier run's state).
+    settings : Settings
+    anneal : bool, default True
+        Floor the scales at ``settings.anneal_start`` m first, halving the floor
+        every iteration until it no longer binds.
+
+    Returns
+    -------
+    Run
+    """
+    tau = settings.anneal_start if anneal else 0.0
+    hist = {k: [] for k in ("loglik", "log_posterior", "anneal", "sigma_dp", "beta", "scale",
+                            "moved")}
+    converged, it = False, 0
+    resp, lse = e_step(dive, state, settings, tau)
+    for it in range(1, settings.max_iter + 1):
+        a, b = _weights(dive, state, resp, tau)
+        new = gauss_newton(dive, state, a, b, settings)
+        new = scales_and_weights(dive, new, resp, settings)
+        moved = max(float(np.max(np.abs(new.track - state.track))),
+                    float(np.max(np.abs(new.d0 - state.d0), initial=0.0)),
+                    abs(new.sigma_dp - state.sigma_dp),
+                    float(np.max(np.abs(new.sigma_mp - state.sigma_mp), initial=0.0)))
+        state = new
+        s_min = min(state.sigma_dp, float(state.sigma_mp[settings.mp_beacons].min(
+            initial=np.inf)))
+        tau = tau * 0.5 if tau * 0.5 > s_min else 0.0
+        resp, lse = e_step(dive, state, settings, tau)
+        ll = float(np.add.reduce(lse))
+        for key, v in (("loglik", ll), ("log_posterior", ll - prior_penalty(dive, state,
+                                                                             settings.priors)),
+                       ("anneal", tau), ("sigma_dp", state.sigma_dp), ("beta", state.beta),
+                       ("scale", state.scale), ("moved", moved)):
+            hist[key].append(v)
+        if tau == 0.0 and moved < settings.tol and len(hist["anneal"]) > 1 \
+                and hist["anneal"][-2] == 0.0:
+            converged = True
+            break
+    return Run(state, resp, float(np.add.reduce(lse)), hist, it, converged)

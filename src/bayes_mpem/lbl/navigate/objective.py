@@ -1,0 +1,295 @@
+"""The M-step's objective of the navigation model, and its Gauss-Newton normal equations.
+
+Given the class probabilities of every reply (the E-step) and the scales, the
+unknowns ``theta = (p_1 .. p_K, beta, s, d0_1 .. d0_B)`` minimise::
+
+    Phi = 1/2 sum_i [a_i (f_dp,i - z_i)^2 + b_i (f_mp,i - z_i)^2]
+        + 1/2 sum_k lambda_k |p_k - p_{k-1} - s R(beta) Delta_k|^2
+        + 1/2 |p_1 - d_1|^2 / s_start^2 + 1/2 beta^2 / s_beta^2 + 1/2 (s - 1)^2 / s_scale^2
+        + 1/2 sum_b (d0_b - z_b)^2 / s_plane^2
+
+with ``a_i = P(dp)_i / sigma_DP^2``, ``b_i = P(mp)_i / sigma_MP,b^2``,
+``lambda_k = 1 / (q^2 dt_k)`` (the dead-reckoning random walk), ``d_1`` the
+first dead-reckoned fix and ``z_b`` the beacon depth (a plane at the sea
+surface). The priors are weak (:class:`Priors`): they keep the system
+positive definite where the ranges say nothing, so that the covariances grow
+wide there instead of the solve failing. :func:`objective` evaluates ``Phi``
+(for the safeguard of the step); :func:`normal_equations` its gradient and
+Gauss-Newton Hessian in the sparse form of :mod:`.normal`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from .dive import Dive
+from .model import RangePrediction, predict_ranges, rotation
+from .normal import Normal
+
+
+class Priors(NamedTuple):
+    """The weak priors and the random-walk level of the model.
+
+    Attributes
+    ----------
+    q : float
+        Dead-reckoning random-walk level (m / sqrt(s)).
+    start_sd : float
+        Prior sd of the first position about the first dead-reckoned fix (m).
+    heading_sd : float
+        Prior sd of the heading bias (rad), centred on 0.
+    scale_sd : float
+        Prior sd of the speed scale, centred on 1.
+    plane_sd : float
+        Prior sd of each plane height about the sea surface (m).
+    min_dt : float
+        Floor on the time between epochs (s), against an infinite weight.
+    """
+
+    q: float
+    start_sd: float
+    heading_sd: float
+    scale_sd: float
+    plane_sd: float
+    min_dt: float = 1e-3
+
+
+@dataclass(frozen=True)
+class State:
+    """The parameters of the navigation model.
+
+    Attributes
+    ----------
+    track : numpy.ndarray
+        ``(K, 2)`` horizontal positions at the epochs (m).
+    beta : float
+        Heading bias of the dead reckoning (rad).
+    scale : float
+        Speed scale of the dead reckoning.
+    d0 : numpy.ndarray
+        ``(B,)`` plane heights above the beacons (m).
+    double : numpy.ndarray
+        ``(B,)`` bool: the beacon's multipath is the double bounce (else triangle).
+    sigma_dp : float
+        Direct-path scale (m), shared by every beacon (a property of the sensor).
+    sigma_mp : numpy.ndarray
+        ``(B,)`` multipath scales (m).
+    weights : numpy.ndarray
+        ``(B, 3)`` mixing weights of dp, mp, ol.
+    """
+
+    track: np.ndarray
+    beta: float
+    scale: float
+    d0: np.ndarray
+    double: np.ndarray
+    sigma_dp: float
+    sigma_mp: np.ndarray
+    weights: np.ndarray
+
+    def replace(self, **changes) -> State:
+        """Return a copy with ``changes``.
+
+        Parameters
+        ----------
+        **changes
+            Fields to replace.
+
+        Returns
+        -------
+        State
+        """
+        return dataclasses.replace(self, **changes)
+
+
+def predictions(dive: Dive, state: State, track=None, d0=None) -> RangePrediction:
+    """Predicted ranges of every reply at ``state`` (or at another track / plane heights).
+
+    Parameters
+    ----------
+    dive : Dive
+    state : State
+    track : numpy.ndarray, optional
+        ``(K, 2)`` instead of ``state.track``.
+    d0 : numpy.ndarray, optional
+        ``(B,)`` instead of ``state.d0``.
+
+    Returns
+    -------
+    RangePrediction
+    """
+    track = state.track if track is None else track
+    d0 = state.d0 if d0 is None else d0
+    p = track[dive.epoch]
+    b = dive.beacon
+    xyz = dive.beacon_xyz[b]
+    return predict_ranges(p[:, 0], p[:, 1], dive.zdepth, (xyz[:, 0], xyz[:, 1], xyz[:, 2]),
+                          d0[b], state.double[b])
+
+
+def motion_residuals(dive: Dive, track, beta, scale):
+    """``p_k - p_{k-1} - s R(beta) Delta_k`` for every step.
+
+    Parameters
+    ----------
+    dive : Dive
+    track : numpy.ndarray
+        ``(K, 2)``.
+    beta, scale : float
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(K - 1, 2)``.
+    """
+    R, _ = rotation(beta)
+    return track[1:] - track[:-1] - scale * (dive.delta @ R.T)
+
+
+def motion_weights(dive: Dive, priors: Priors) -> np.ndarray:
+    """``lambda_k = 1 / (q^2 dt_k)`` of every step (``dt`` floored at ``priors.min_dt``).
+
+    Parameters
+    ----------
+    dive : Dive
+    priors : Priors
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(K - 1,)``.
+    """
+    return 1.0 / (priors.q ** 2 * np.maximum(dive.dt, priors.min_dt))
+
+
+def prior_penalty(dive: Dive, state: State, priors: Priors, track=None, beta=None, scale=None,
+                  d0=None) -> float:
+    """Return the motion and prior part of the objective (``Phi`` without the ranges).
+
+    Parameters
+    ----------
+    dive : Dive
+    state : State
+    priors : Priors
+    track, beta, scale, d0 : optional
+        Values to use instead of the state's.
+
+    Returns
+    -------
+    float
+    """
+    track = state.track if track is None else track
+    beta = state.beta if beta is None else beta
+    scale = state.scale if scale is None else scale
+    d0 = state.d0 if d0 is None else d0
+    u = motion_residuals(dive, track, beta, scale)
+    lam = motion_weights(dive, priors)
+    start = track[0] - dive.dr[0]
+    plane = d0 - dive.beacon_xyz[:, 2]
+    return 0.5 * float(np.add.reduce(lam * (u * u).sum(axis=1))
+                       + (start @ start) / priors.start_sd ** 2
+                       + beta * beta / priors.heading_sd ** 2
+                       + (scale - 1.0) ** 2 / priors.scale_sd ** 2
+                       + np.add.reduce(plane * plane) / priors.plane_sd ** 2)
+
+
+def objective(dive: Dive, state: State, a, b, priors: Priors, **values) -> float:
+    """``Phi`` of the module docstring at ``state`` (or at the ``values`` given).
+
+    Parameters
+    ----------
+    dive : Dive
+    state : State
+    a, b : numpy.ndarray
+        ``(n,)`` weights of the direct-path and multipath squared residuals.
+    priors : Priors
+    **values
+        ``track``, ``beta``, ``scale``, ``d0`` to use instead of the state's.
+
+    Returns
+    -------
+    float
+    """
+    pred = predictions(dive, state, values.get("track"), values.get("d0"))
+    e_dp, e_mp = pred.direct - dive.z, pred.multipath - dive.z
+    ranges = 0.5 * float(np.add.reduce(a * e_dp * e_dp + b * e_mp * e_mp))
+    return ranges + prior_penalty(dive, state, priors, **values)
+
+
+def _range_terms(dive, pred, a, b, k):
+    """Track blocks and gradient of the range terms, summed per epoch."""
+    def acc(w):
+        return np.bincount(dive.epoch, weights=w, minlength=k)
+
+    gd, gm = pred.grad_direct, pred.grad_multipath
+    e_dp, e_mp = pred.direct - dive.z, pred.multipath - dive.z
+    diag = np.column_stack([acc(a * gd[:, 0] ** 2 + b * gm[:, 0] ** 2),
+                            acc(a * gd[:, 0] * gd[:, 1] + b * gm[:, 0] * gm[:, 1]),
+                            acc(a * gd[:, 1] ** 2 + b * gm[:, 1] ** 2)])
+    grad = np.column_stack([acc(a * gd[:, 0] * e_dp + b * gm[:, 0] * e_mp),
+                            acc(a * gd[:, 1] * e_dp + b * gm[:, 1] * e_mp)])
+    return diag, grad, e_mp
+
+
+def normal_equations(dive: Dive, state: State, a, b, priors: Priors, free_d0) -> Normal:
+    """Gradient and Gauss-Newton Hessian of :func:`objective` in the sparse form.
+
+    The globals are ordered ``beta, scale, d0[free_d0[0]], d0[free_d0[1]], ...``.
+
+    Parameters
+    ----------
+    dive : Dive
+    state : State
+    a, b : numpy.ndarray
+        ``(n,)`` weights of the direct-path and multipath squared residuals.
+    priors : Priors
+    free_d0 : sequence of int
+        Beacons whose plane height is estimated.
+
+    Returns
+    -------
+    Normal
+    """
+    k = dive.n_epochs
+    pred = predictions(dive, state)
+    diag, grad, e_mp = _range_terms(dive, pred, a, b, k)
+    g = 2 + len(free_d0)
+    B = np.zeros((k, 2, g))
+    C = np.zeros((g, g))
+    grad_g = np.zeros(g)
+    for col, j in enumerate(free_d0, start=2):
+        m = np.flatnonzero(dive.beacon == j)
+        w = b[m] * pred.d_multipath_d0[m]
+        for ax in range(2):
+            B[:, ax, col] = np.bincount(dive.epoch[m], weights=w * pred.grad_multipath[m, ax],
+                                        minlength=k)
+        C[col, col] = np.add.reduce(w * pred.d_multipath_d0[m]) + 1.0 / priors.plane_sd ** 2
+        grad_g[col] = (np.add.reduce(w * e_mp[m])
+                       + (state.d0[j] - dive.beacon_xyz[j, 2]) / priors.plane_sd ** 2)
+    lam = motion_weights(dive, priors)
+    R, dR = rotation(state.beta)
+    rot = dive.delta @ R.T
+    u = state.track[1:] - state.track[:-1] - state.scale * rot
+    V = np.stack([-state.scale * (dive.delta @ dR.T), -rot], axis=-1)  # (K-1, 2, 2)
+    for col in (0, 2):
+        diag[:-1, col] += lam
+        diag[1:, col] += lam
+    grad[1:] += lam[:, None] * u
+    grad[:-1] -= lam[:, None] * u
+    lv = lam[:, None, None] * V
+    B[1:, :, :2] += lv
+    B[:-1, :, :2] -= lv
+    C[:2, :2] += np.einsum("kag,kah->gh", lv, V)
+    grad_g[:2] += np.einsum("kag,ka->g", lv, u)
+    diag[0, 0] += 1.0 / priors.start_sd ** 2
+    diag[0, 2] += 1.0 / priors.start_sd ** 2
+    grad[0] += (state.track[0] - dive.dr[0]) / priors.start_sd ** 2
+    C[0, 0] += 1.0 / priors.heading_sd ** 2
+    grad_g[0] += state.beta / priors.heading_sd ** 2
+    C[1, 1] += 1.0 / priors.scale_sd ** 2
+    grad_g[1] += (state.scale - 1.0) / priors.scale_sd ** 2
+    return Normal(diag, lam, B.reshape(2 * k, g), C, grad.ravel(), grad_g)

@@ -1,0 +1,279 @@
+"""The result of :func:`~.driver.navigate`: the corrected track, the classes, the reflectors.
+
+:class:`Navigation` writes ``track.csv`` (one row per epoch: time, position,
+depth, its 2x2 covariance, the dead reckoning), ``classified.csv`` (every input
+row with its class probabilities, label and reason, as ``fit`` writes it),
+``summary.json`` (per beacon the reflector with intervals, the dead-reckoning
+nuisances with intervals, the observability flags, iterations; byte-identical
+for the same input and options) and ``timings.json`` (wall-clock seconds of
+each stage, kept out of ``summary.json`` for that reason).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+from scipy.stats import norm
+
+from ...io.results import write_csv, write_json, writing
+from ...mixture.densities import CLASSES
+from ..survey import beacons_table, classified_table
+from .dive import Dive
+from .objective import State
+
+
+def finite(v):
+    """``float(v)``, or None where it is not finite (JSON has no NaN or infinity).
+
+    Parameters
+    ----------
+    v : float
+
+    Returns
+    -------
+    float or None
+
+    Examples
+    --------
+    >>> finite(1.5), finite(float("nan"))
+    (1.5, None)
+    """
+    v = float(v)
+    return v if math.isfinite(v) else None
+
+
+def estimate(value, sd, z, *, lo=-np.inf) -> dict:
+    """``{"estimate", "sd", "interval"}``, a Wald interval ``value +- z sd`` (clipped at ``lo``).
+
+    Parameters
+    ----------
+    value, sd : float
+    z : float
+        Normal quantile of the interval.
+    lo : float, default -inf
+        Lower end of the parameter's range.
+
+    Returns
+    -------
+    dict
+
+    Examples
+    --------
+    >>> estimate(10.0, 1.0, 2.0)
+    {'estimate': 10.0, 'sd': 1.0, 'interval': [8.0, 12.0]}
+    """
+    return {"estimate": finite(value), "sd": finite(sd),
+            "interval": [finite(max(value - z * sd, lo)), finite(value + z * sd)]}
+
+
+@dataclass(frozen=True)
+class Navigation:
+    """A navigated dive.
+
+    Attributes
+    ----------
+    dive : Dive
+        The input, grouped into epochs.
+    state : State
+        The estimate: track, heading bias, speed scale, plane heights, scales, weights.
+    cov : numpy.ndarray
+        ``(K, 2, 2)`` covariance of every epoch's position (Laplace).
+    global_sd : dict
+        Posterior sd of ``beta`` (rad), ``scale`` and of each estimated plane
+        height (``"d0:<beacon>"``).
+    resp : numpy.ndarray
+        ``(n, 3)`` class probabilities of every reply (or a baseline's weights).
+    beacons : dict
+        Per beacon: ``mp`` (a multipath class), ``d0_free``, ``path_choice``
+        (a record of :class:`~bayes_mpem.lbl.path_choice.PathChoice` or None).
+    skipped : dict
+        Beacons without a reply, with the reason.
+    flags : list of dict
+        Where the navigation was not corrected (:func:`.observability.assess`).
+    n_iter : int
+    converged : bool
+    loglik : float
+    history : dict
+    options : dict
+    timings : dict
+        Wall-clock seconds per stage (``timings.json`` only).
+    """
+
+    dive: Dive = field(repr=False)
+    state: State = field(repr=False)
+    cov: np.ndarray = field(repr=False)
+    global_sd: dict
+    resp: np.ndarray = field(repr=False)
+    beacons: dict
+    skipped: dict
+    flags: list
+    n_iter: int
+    converged: bool
+    loglik: float
+    history: dict = field(repr=False)
+    options: dict = field(default_factory=dict)
+    timings: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def track(self) -> np.ndarray:
+        """``(K, 2)`` the estimated horizontal positions."""
+        return self.state.track
+
+    @property
+    def corrected(self) -> bool:
+        """True when no stretch of the track was left uncorrected (see :attr:`flags`)."""
+        return not any(f["kind"] == "track" for f in self.flags)
+
+    def track_table(self) -> pd.DataFrame:
+        """One row per epoch: ``time, x, y, depth, sd_x, sd_y, cov_xy, dr_x, dr_y, n_replies``.
+
+        Returns
+        -------
+        pandas.DataFrame
+        """
+        d = self.dive
+        return pd.DataFrame({
+            "time": d.times, "x": self.track[:, 0], "y": self.track[:, 1], "depth": d.depth,
+            "sd_x": np.sqrt(self.cov[:, 0, 0]), "sd_y": np.sqrt(self.cov[:, 1, 1]),
+            "cov_xy": self.cov[:, 0, 1], "dr_x": d.dr[:, 0], "dr_y": d.dr[:, 1],
+            "n_replies": np.bincount(d.epoch, minlength=d.n_epochs)})
+
+    def classified(self) -> pd.DataFrame:
+        """Every input row with ``p_dp``, ``p_mp``, ``p_ol``, ``label`` and ``reason``.
+
+        Returns
+        -------
+        pandas.DataFrame
+            Same rows and order as the input (labels ``dp``, ``mp``, ``ol``,
+            ``no_reply``).
+        """
+        d = self.dive
+        fitted = {bid: (d.rows[d.beacon == j], self.resp[d.beacon == j])
+                  for j, bid in enumerate(d.beacon_ids) if bid not in self.skipped}
+        return classified_table(d.survey, fitted, {})
+
+    def _beacon_summary(self, j: int, bid: str, z: float) -> dict:
+        d, st, info = self.dive, self.state, self.beacons[bid]
+        mine = d.beacon == j
+        n = int(mine.sum())
+        resp = self.resp[mine]
+        depth = float(d.beacon_xyz[j, 2])
+        out = {"n": n, "n_no_reply": int(np.sum(d.survey.no_reply & (d.survey.beacon == bid))),
+               "beacon_depth": depth}
+        n_dp = float(self.resp[:, 0].sum())
+        out["sigma_dp"] = estimate(st.sigma_dp, st.sigma_dp / math.sqrt(2 * max(n_dp, 1)), z,
+                                   lo=0.0)
+        if info["mp"]:
+            n_mp = float(resp[:, 1].sum())
+            sd0 = self.global_sd.get(f"d0:{bid}", 0.0)
+            out["d0"] = estimate(st.d0[j], sd0, z, lo=float(d.d0_min[j]))
+            out["plane_depth"] = depth - float(st.d0[j])
+            out["sigma_mp"] = estimate(st.sigma_mp[j],
+                                       st.sigma_mp[j] / math.sqrt(2 * max(n_mp, 1)), z, lo=0.0)
+            out["path"] = "double" if st.double[j] else "triangle"
+        else:
+            out["d0"] = out["sigma_mp"] = out["path"] = out["plane_depth"] = None
+            out["reason"] = info.get("reason", "multipath treated as outliers")
+        w = st.weights[j]
+        out["weights"] = {c: estimate(w[i], math.sqrt(w[i] * (1 - w[i]) / max(n, 1)), z, lo=0.0)
+                          for i, c in enumerate(CLASSES)}
+        lab = np.argmax(resp, axis=1) if n else np.zeros(0, int)
+        out["class_fractions"] = {c: finite(np.mean(lab == i)) if n else None
+                                  for i, c in enumerate(CLASSES)}
+        out["path_choice"] = info.get("path_choice")
+        out["flags"] = list(info.get("flags", ()))
+        return out
+
+    def summary(self) -> dict:
+        """Return the content of ``summary.json`` (no wall-clock time: same input, same bytes).
+
+        Returns
+        -------
+        dict
+        """
+        ci = float(self.options.get("ci", 0.95))
+        z = float(norm.ppf(0.5 + ci / 2))
+        d, st = self.dive, self.state
+        beacons = {bid: self._beacon_summary(j, bid, z) for j, bid in enumerate(d.beacon_ids)
+                   if bid not in self.skipped}
+        sd = np.sqrt(self.cov[:, [0, 1], [0, 1]])
+        dr = {"heading_bias_deg": estimate(np.rad2deg(st.beta),
+                                           np.rad2deg(self.global_sd["beta"]), z),
+              "speed_scale": estimate(st.scale, self.global_sd["scale"], z, lo=0.0),
+              "dr_noise": self.options.get("dr_noise"), "source": d.dr_source}
+        return {
+            "model": self.options.get("model"), "multipath": self.options.get("multipath"),
+            "beacons": beacons, "sigma_dp": beacons[next(iter(beacons))]["sigma_dp"]
+            if beacons else None,
+            "dead_reckoning": dr,
+            "track": {"n_epochs": d.n_epochs, "sd_median": finite(np.median(sd.max(axis=1))),
+                      "sd_max": finite(sd.max())},
+            "navigation_corrected": self.corrected, "observability": list(self.flags),
+            "iterations": self.n_iter, "converged": self.converged, "loglik": finite(self.loglik),
+            "beacons_table": beacons_table(d.survey), "skipped": dict(self.skipped),
+            "n_rows": len(d.survey), "n_replies": d.n,
+            "n_no_reply": int(d.survey.no_reply.sum()), "ci": ci,
+            "pings": d.survey.pings_source, "beacons_file": d.survey.beacons_source,
+            "options": {k: v for k, v in self.options.items() if k not in ("rng", "ci")},
+        }
+
+    def to_dict(self) -> dict:
+        """Return the content of ``summary.json`` (the same as :meth:`summary`).
+
+        Returns
+        -------
+        dict
+        """
+        return self.summary()
+
+    def format_table(self) -> str:
+        """Per-beacon reflectors and the dead-reckoning nuisances, as aligned text.
+
+        Returns
+        -------
+        str
+        """
+        s = self.summary()
+        lines = [f"{'beacon':>6} {'d0 (m)':>9} {'+-':>5} {'sigma_MP':>8} {'path':>8} "
+                 f"{'DP':>6} {'MP':>6} {'OL':>6} {'n':>6}"]
+        for bid, b in s["beacons"].items():
+            cf = b["class_fractions"]
+            if b["d0"] is None:
+                left = f"{'-':>9} {'':>5} {'-':>8} {'-':>8}"
+            else:
+                half = (b["d0"]["interval"][1] - b["d0"]["interval"][0]) / 2
+                left = (f"{b['d0']['estimate']:9.1f} {half:5.1f} "
+                        f"{b['sigma_mp']['estimate']:8.2f} {b['path']:>8}")
+            lines.append(f"{bid:>6} {left} {cf['dp'] or 0:6.3f} {cf['mp'] or 0:6.3f} "
+                         f"{cf['ol'] or 0:6.3f} {b['n']:6d}")
+        dr = s["dead_reckoning"]
+        lines.append(f"heading bias {dr['heading_bias_deg']['estimate']:.3f} deg "
+                     f"(sd {dr['heading_bias_deg']['sd']:.3f}), speed scale "
+                     f"{dr['speed_scale']['estimate']:.4f} (sd {dr['speed_scale']['sd']:.4f}); "
+                     f"track sd median {s['track']['sd_median']:.2f} m, "
+                     f"max {s['track']['sd_max']:.3g} m")
+        for bid, why in self.skipped.items():
+            lines.append(f"{bid:>6} skipped: {why}")
+        return "\n".join(lines)
+
+    def write(self, out_dir) -> dict:
+        """Write ``track.csv``, ``classified.csv``, ``summary.json`` and ``timings.json``.
+
+        Parameters
+        ----------
+        out_dir : str or pathlib.Path
+            Created if missing.
+
+        Returns
+        -------
+        dict
+            Paths written, keyed ``track``, ``classified``, ``summary``, ``timings``.
+        """
+        with writing(out_dir) as out:
+            return {"track": write_csv(out / "track.csv", self.track_table()),
+                    "classified": write_csv(out / "classified.csv", self.classified()),
+                    "timings": write_json(out / "timings.json", dict(self.timings)),
+                    "summary": write_json(out / "summary.json", self.summary())}

@@ -1,0 +1,226 @@
+"""Figures of a located survey (``bayes-mpem locate``): the map and the residuals.
+
+Every function takes a :class:`~bayes_mpem.survey_in.result.SurveyInResult`
+(or anything with its ``summary`` dict and ``classified`` table, as read back
+from an output folder) and ``fig=``, and returns the Figure; the data drawn is
+the data written (``summary.json``, ``classified.csv``). Pings are coloured by
+class with :data:`~.style.SURVEY_IN_COLORS` and a marker per class, with a key.
+
+* :func:`plot_survey_map`: the ship's track, the drop point (or the prior
+  positions of an array), each solution with its confidence ellipse, and a
+  close-up of every solution;
+* :func:`plot_residuals`: residuals against time and against the azimuth of
+  the ship seen from the transponder;
+* :func:`plot_residual_histogram`: their histogram, with the fitted Gaussian.
+"""
+
+from __future__ import annotations
+
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.patches import Ellipse
+from matplotlib.ticker import MaxNLocator
+from scipy.stats import chi2
+
+from .style import SURVEY_IN_COLORS, SURVEY_IN_MARKERS
+
+
+def _cov2(t):
+    """East-north covariance of a transponder's summary entry (EM's, or from the sds)."""
+    for entry in (t, t.get("em", {})):
+        if "covariance" in entry:
+            return np.asarray(entry["covariance"]["matrix"], float)[:2, :2]
+    return np.diag([t["east"]["sd"] ** 2, t["north"]["sd"] ** 2])
+
+
+def _ellipse(ax, centre, cov, ci, **kw):
+    """Draw the ``ci`` region of a 2-D Gaussian; return its semi-major axis (m)."""
+    vals, vecs = np.linalg.eigh(cov)
+    vals = np.clip(vals, 0.0, None)
+    k = np.sqrt(chi2.ppf(ci, 2))
+    angle = np.degrees(np.arctan2(vecs[1, 1], vecs[0, 1]))
+    ax.add_patch(Ellipse(centre, 2 * k * np.sqrt(vals[1]), 2 * k * np.sqrt(vals[0]),
+                         angle=angle, fill=False, **kw))
+    return float(k * np.sqrt(vals[1]))
+
+
+def _anchor(summary, tid):
+    """Return what a solution is compared with: an array's prior, or the drop point (0, 0)."""
+    t = summary["transponders"][tid]
+    if "prior" in t:
+        return np.array([t["prior"]["east"], t["prior"]["north"]]), "prior position"
+    if "drop_point" in summary:
+        return np.zeros(2), "drop point"
+    return None, None
+
+
+def plot_survey_map(result, *, fig=None):
+    """Track, drop point (or prior positions), solutions with ellipses, and close-ups.
+
+    Parameters
+    ----------
+    result : SurveyInResult
+    fig : matplotlib.figure.Figure, optional
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    s, cls = result.summary, result.classified
+    tids = list(s["transponders"])
+    ncol = int(np.ceil(np.sqrt(len(tids))))
+    nrow = int(np.ceil(len(tids) / ncol))
+    if fig is None:
+        fig = plt.figure(figsize=(6.0 + 3.2 * ncol, max(5.2, 2.8 * nrow)), layout="constrained")
+    gs = fig.add_gridspec(nrow, 2 + ncol, width_ratios=[1.6, 1.6] + [1.0] * ncol)
+    ax = fig.add_subplot(gs[:, :2])
+    pinged = cls[cls["label"] != "skipped"].sort_values("time", kind="stable")
+    ax.plot(pinged["east"], pinged["north"], "-", color="0.6", lw=0.8, label="ship's track")
+    for j, tid in enumerate(tids):
+        t = s["transponders"][tid]
+        e, n = t["east"]["mean"], t["north"]["mean"]
+        ax.plot(e, n, "*", color="k", ms=11, label="solution" if j == 0 else None)
+        ax.annotate(tid, (e, n), textcoords="offset points", xytext=(6, 6))
+        anchor, name = _anchor(s, tid)
+        if anchor is not None:
+            ax.plot(*anchor, "^", color=SURVEY_IN_COLORS["spurious"], ms=8, mfc="none",
+                    label=name if j == 0 else None)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("east (m)")
+    ax.set_ylabel("north (m)")
+    ax.legend(loc="best", fontsize="small")
+    for j, tid in enumerate(tids):
+        t = s["transponders"][tid]
+        r, c = divmod(j, ncol)
+        _closeup(fig.add_subplot(gs[r, 2 + c]), s, tid, t)
+    ci = next(iter(s["transponders"].values())).get("ci", 0.95)
+    fig.suptitle(f"Location: solutions with their {100 * ci:g} % ellipses")
+    return fig
+
+
+def _closeup(ax, s, tid, t):
+    e, n = t["east"]["mean"], t["north"]["mean"]
+    ci = t.get("ci", 0.95)
+    half = max(4.0 * _ellipse(ax, (e, n), _cov2(t), ci, color="k", lw=1.2,
+                              label=f"{100 * ci:g} % ellipse"), 0.05)
+    ax.plot(e, n, "*", color="k", ms=10)
+    anchor, name = _anchor(s, tid)
+    if anchor is not None:
+        d = anchor - np.array([e, n])
+        dist = float(np.hypot(*d))
+        if dist <= half:
+            ax.plot(*anchor, "^", color=SURVEY_IN_COLORS["spurious"], mfc="none", ms=8,
+                    label=name)
+        else:
+            u = d / dist
+            ax.annotate("", xy=(e + 0.9 * half * u[0], n + 0.9 * half * u[1]), xytext=(e, n),
+                        arrowprops={"arrowstyle": "->", "color": SURVEY_IN_COLORS["spurious"]})
+            ax.text(0.03, 0.93, f"{name} {dist:.2f} m away", transform=ax.transAxes,
+                    fontsize="x-small", color=SURVEY_IN_COLORS["spurious"])
+    if "drift" in t:
+        ax.text(0.03, 0.85, f"drift {t['drift']['mean']:.2f} m, az {t['azimuth']['mean']:.1f} "
+                "deg", transform=ax.transAxes, fontsize="x-small")
+    ax.set_xlim(e - half, e + half)
+    ax.set_ylim(n - half, n + half)
+    ax.set_aspect("equal")
+    for axis in (ax.xaxis, ax.yaxis):
+        axis.set_major_locator(MaxNLocator(3))
+    ax.ticklabel_format(useOffset=False)
+    ax.tick_params(labelsize="x-small")
+    ax.set_title(f"{tid}", fontsize="small")
+    ax.legend(loc="lower right", fontsize="x-small")
+
+
+def _pinged(result):
+    """Return the pings classified (not skipped), the residual axis limit and sigma (ms).
+
+    The limit covers the true pings' spread, and at least 5 sigma.
+    """
+    cls = result.classified
+    cls = cls[cls["label"].isin(["true", "spurious"])]
+    true = cls.loc[cls["label"] == "true", "residual_ms"].to_numpy(float)
+    sig = float(np.median([t["sigma_ms"] if not isinstance(t["sigma_ms"], dict)
+                           else t["sigma_ms"]["mean"]
+                           for t in result.summary["transponders"].values()]))
+    top = np.nanmax(np.abs(true)) if true.size else 1.0
+    return cls, float(max(5.0 * sig, 1.1 * top)), sig
+
+
+def _scatter_classes(ax, cls, x, lim, *, key=True):
+    n_out = 0
+    for lab in ("true", "spurious"):
+        sub = cls[cls["label"] == lab]
+        y = sub["residual_ms"].to_numpy(float)
+        out = np.abs(y) > lim
+        n_out += int(out.sum())
+        ax.scatter(sub[x], np.clip(y, -lim, lim), s=9 if lab == "true" else 22,
+                   c=SURVEY_IN_COLORS[lab], marker=SURVEY_IN_MARKERS[lab], linewidths=0,
+                   alpha=0.7 if lab == "true" else 0.9,
+                   label=f"{lab} ({len(sub)})" if key else None)
+    ax.axhline(0.0, color="k", lw=0.6)
+    ax.set_ylim(-1.05 * lim, 1.05 * lim)
+    return n_out
+
+
+def plot_residuals(result, *, fig=None):
+    """Residuals (observed minus predicted two-way travel time) against time and azimuth.
+
+    Spurious pings beyond the axis are drawn at its edge (the count is in the title).
+
+    Parameters
+    ----------
+    result : SurveyInResult
+    fig : matplotlib.figure.Figure, optional
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    cls, lim, _ = _pinged(result)
+    if fig is None:
+        fig = plt.figure(figsize=(11, 4.2), layout="constrained")
+    a1, a2 = fig.subplots(1, 2, sharey=True)
+    n_out = _scatter_classes(a1, cls, "time", lim)
+    _scatter_classes(a2, cls, "azimuth_deg", lim, key=False)
+    a1.set_xlabel("time (s)")
+    a2.set_xlabel("azimuth of the ship from the transponder (deg)")
+    a2.set_xlim(0, 360)
+    a2.set_xticks(np.arange(0, 361, 90))
+    a1.set_ylabel("residual (ms)")
+    a1.legend(title="class", fontsize="small", loc="upper right")
+    fig.suptitle("Travel-time residuals by class"
+                 + (f" ({n_out} beyond +-{lim:.3g} ms drawn at the edge)" if n_out else ""))
+    return fig
+
+
+def plot_residual_histogram(result, *, fig=None):
+    """Histogram of the residuals by class, with the fitted Gaussian of the true pings.
+
+    Parameters
+    ----------
+    result : SurveyInResult
+    fig : matplotlib.figure.Figure, optional
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    cls, lim, sig = _pinged(result)
+    if fig is None:
+        fig = plt.figure(figsize=(6.5, 4.2), layout="constrained")
+    ax = fig.subplots()
+    bins = np.linspace(-lim, lim, int(np.clip(2 * np.sqrt(len(cls)), 12, 80)) + 1)
+    data = [np.clip(cls.loc[cls["label"] == lab, "residual_ms"].to_numpy(float), -lim, lim)
+            for lab in ("true", "spurious")]
+    ax.hist(data, bins=bins, stacked=True, color=[SURVEY_IN_COLORS[k] for k in
+                                                  ("true", "spurious")],
+            label=[f"{k} ({len(v)})" for k, v in zip(("true", "spurious"), data, strict=True)])
+    x = np.linspace(-lim, lim, 400)
+    width = bins[1] - bins[0]
+    ax.plot(x, len(data[0]) * width * np.exp(-0.5 * (x / sig) ** 2) / (sig * np.sqrt(2 * np.pi)),
+            color="k", lw=1.2, label=f"N(0, {sig:.3g} ms)")
+    ax.set_xlabel("residual (ms; spurious beyond the axis in the end bins)")
+    ax.set_ylabel("pings")
+    ax.legend(title="class", fontsize="small")
+    ax.set_title("Residual histogram")
+    return fig

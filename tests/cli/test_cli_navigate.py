@@ -1,0 +1,79 @@
+import json
+
+import pandas as pd
+import pytest
+
+from bayes_mpem.cli import main
+
+
+@pytest.fixture(scope="module")
+def dive_files(tmp_path_factory):
+    out = tmp_path_factory.mktemp("dive")
+    assert main(["simulate", "--preset", "abe58", "--seed", "2", "--n-cycles", "400",
+                 "--navigation", "--heading-bias", "1.5", "--shadow-window", "1000:2000",
+                 "--out", str(out)]) == 0
+    return out
+
+
+def test_simulate_navigation_writes_a_dive(dive_files):
+    assert {p.name for p in dive_files.iterdir()} >= {"pings.csv", "beacons.csv", "truth.json",
+                                                       "true_track.csv"}
+    nav = json.loads((dive_files / "truth.json").read_text())["config"]["navigation"]
+    assert nav["heading_bias_deg"] == 1.5 and nav["shadow_windows"] == [[1000.0, 2000.0]]
+
+
+def test_navigate_command(dive_files, tmp_path, capsys):
+    assert main(["navigate", str(dive_files / "pings.csv"), "--beacons",
+                 str(dive_files / "beacons.csv"), "--out", str(tmp_path), "--figures"]) == 0
+    out = capsys.readouterr().out
+    assert "heading bias" in out and "converged" in out
+    names = {p.name for p in tmp_path.iterdir()}
+    assert names >= {"track.csv", "classified.csv", "summary.json", "timings.json",
+                     "nav_track.png", "nav_ranges.png", "nav_correction.png"}
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert abs(summary["dead_reckoning"]["heading_bias_deg"]["estimate"] - 1.5) < 0.3
+    assert len(pd.read_csv(tmp_path / "classified.csv")) == len(
+        pd.read_csv(dive_files / "pings.csv"))
+
+
+def test_navigate_multipath_as_outliers_and_a_baseline(dive_files, tmp_path):
+    for extra in (["--multipath", "outlier"], ["--model", "gate"]):
+        assert main(["navigate", str(dive_files / "pings.csv"), "--beacons",
+                     str(dive_files / "beacons.csv"), "--out", str(tmp_path), *extra]) == 0
+        summary = json.loads((tmp_path / "summary.json").read_text())
+        assert summary["beacons"]["1"]["d0"] is None
+
+
+def test_navigate_bad_input_exits_2_naming_the_line(dive_files, tmp_path, capsys):
+    pings = pd.read_csv(dive_files / "pings.csv", dtype=str, keep_default_na=False)
+    pings.loc[7, "x"] = "east"
+    bad = tmp_path / "bad.csv"
+    pings.to_csv(bad, index=False)
+    code = main(["navigate", str(bad), "--beacons", str(dive_files / "beacons.csv"),
+                 "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert code == 2 and "line 9" in err and "'x'" in err and "east" in err
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize(("args", "msg"), [
+    (["--dr-noise", "0"], "argument --dr-noise: expected a positive number"),
+    (["--dead-reckoning", "nope.csv"], "dead-reckoning file not found"),
+])
+def test_navigate_bad_options_exit_2(dive_files, tmp_path, capsys, args, msg):
+    try:
+        code = main(["navigate", str(dive_files / "pings.csv"), "--beacons",
+                     str(dive_files / "beacons.csv"), "--out", str(tmp_path), *args])
+    except SystemExit as exc:  # an option value the parser refuses
+        code = exc.code
+    assert code == 2 and msg in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(("args", "msg"), [
+    (["--shadow-range", "500"], "--shadow-range: only with --navigation"),
+    (["--navigation", "--effect", "range_bias=5"], "--effect does not apply"),
+    (["--navigation", "--shadow-window", "10-20"], "expected T0:T1"),
+])
+def test_simulate_refuses_mixed_options(tmp_path, capsys, args, msg):
+    assert main(["simulate", "--out", str(tmp_path), *args]) == 2
+    assert msg in capsys.readouterr().err

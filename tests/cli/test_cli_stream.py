@@ -1,0 +1,164 @@
+"""``bayes-mpem stream`` through real pipes and a real UDP socket on 127.0.0.1.
+
+Every test is bounded in lines and time (timeouts on every wait); malformed
+lines are mixed into the input, and every line must be answered once, in order.
+"""
+
+import json
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from bayes_mpem.cli import main
+from bayes_mpem.lbl.navigate import simulate_dive
+
+CMD = [sys.executable, "-c", "import sys; from bayes_mpem.cli import main; sys.exit(main())",
+       "stream"]
+BAD = ["1,2,3", '{"time": 1, "beacon": "1"', "9,zz,100,0,0,5", '{"time": "x", "x": 0, "y": 0}']
+
+
+@pytest.fixture(scope="module")
+def dive(tmp_path_factory):
+    out = tmp_path_factory.mktemp("dive")
+    simulate_dive("abe58", rng=11, n_cycles=90).write(out)
+    lines = (out / "pings.csv").read_text().splitlines()
+    return out, lines
+
+
+def _mixed(lines, seed=0):
+    """The CSV lines with malformed ones inserted; returns (lines, numbers of the bad ones)."""
+    gen = np.random.default_rng(seed)
+    out, bad = [lines[0]], []
+    for i, line in enumerate(lines[1:]):
+        if i % 37 == 5:
+            out.append(BAD[gen.integers(len(BAD))])
+            bad.append(len(out))
+        out.append(line)
+    return out, bad
+
+
+def _check_answers(answers, n_lines, bad):
+    numbers = [a["line"] for a in answers]
+    assert numbers == list(range(2, n_lines + 1))  # every line but the header, once, in order
+    for a in answers:
+        assert ("error" in a) == (a["line"] in bad)
+        if "error" not in a:
+            assert {"time", "beacon", "label", "p_dp", "p_mp", "p_ol", "x", "y", "sd_x", "sd_y",
+                    "cov_xy"} <= a.keys()
+
+
+def test_pipe_in_pipe_out_with_malformed_lines(dive, tmp_path):
+    folder, lines = dive
+    mixed, bad = _mixed(lines)
+    proc = subprocess.run([*CMD, "--beacons", str(folder / "beacons.csv"), "--warmup", "100",
+                           "--state", str(tmp_path / "s.json")],
+                          input="\n".join(mixed) + "\n", capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    answers = [json.loads(s) for s in proc.stdout.splitlines()]
+    _check_answers(answers, len(mixed), bad)
+    counts = json.loads(proc.stderr.strip().splitlines()[-1])
+    assert counts["read"] == len(mixed) and counts["header"] == 1
+    assert counts["answered"] + counts["malformed"] == len(mixed) - 1
+    assert counts["malformed"] == len(bad) and counts["phase"] == "online"
+    assert json.loads((tmp_path / "s.json").read_text())["phase"] == "online"
+
+
+def test_json_lines_and_a_restart_from_the_state(dive, tmp_path):
+    folder, lines = dive
+    cols = lines[0].split(",")
+    as_json = [json.dumps(dict(zip(cols, row.split(","), strict=True))) for row in lines[1:]]
+    args = [*CMD, "--beacons", str(folder / "beacons.csv"), "--warmup", "100"]
+    whole = subprocess.run(args, input="\n".join(as_json), capture_output=True, text=True,
+                           timeout=120)
+    state = str(tmp_path / "state.json")
+    half = len(as_json) // 2
+    first = subprocess.run([*args, "--state", state], input="\n".join(as_json[:half]),
+                           capture_output=True, text=True, timeout=120)
+    second = subprocess.run([*args, "--state", state], input="\n".join(as_json[half:]),
+                            capture_output=True, text=True, timeout=120)
+    strip = [{k: v for k, v in json.loads(s).items() if k != "line"}
+             for s in first.stdout.splitlines() + second.stdout.splitlines()]
+    assert strip == [{k: v for k, v in json.loads(s).items() if k != "line"}
+                     for s in whole.stdout.splitlines()]
+
+
+def test_sigterm_mid_stream_answers_what_was_read_and_saves(dive, tmp_path):
+    folder, lines = dive
+    state = tmp_path / "state.json"
+    proc = subprocess.Popen([*CMD, "--beacons", str(folder / "beacons.csv"), "--warmup", "100",
+                             "--state", str(state)], stdin=subprocess.PIPE,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    watchdog = threading.Timer(90, proc.kill)  # bounds the blocking reads below
+    watchdog.start()
+    sent = lines[:150]
+    proc.stdin.write("\n".join(sent) + "\n")
+    proc.stdin.flush()
+    got = [proc.stdout.readline() for _ in range(len(sent) - 1)]  # blocks until answered
+    proc.send_signal(signal.SIGTERM)  # stdin still open
+    out, err = proc.communicate(timeout=30)
+    watchdog.cancel()
+    assert proc.returncode == 0
+    assert all(got) and out == ""
+    counts = json.loads(err.strip().splitlines()[-1])
+    assert counts["stream"] == "stopped by a signal"
+    assert counts["read"] == len(sent) and counts["answered"] == len(sent) - 1
+    assert json.loads(state.read_text())["phase"] == "online"
+
+
+def test_udp_in_udp_out(dive, tmp_path):
+    folder, lines = dive
+    mixed, bad = _mixed(lines[:200], seed=1)
+    rx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    rx.bind(("127.0.0.1", 0))
+    rx.settimeout(30)
+    proc = subprocess.Popen([*CMD, "--beacons", str(folder / "beacons.csv"), "--warmup", "100",
+                             "--in", "udp://127.0.0.1:0",
+                             "--out", f"udp://127.0.0.1:{rx.getsockname()[1]}",
+                             "--state", str(tmp_path / "s.json")],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        port = int(proc.stderr.readline().strip().rsplit(":", 1)[1])
+        tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        answers, t_end = [], time.monotonic() + 60
+        for line in mixed:  # one datagram a line, each answered before the next is sent
+            tx.sendto(line.encode(), ("127.0.0.1", port))
+            if line is not mixed[0]:
+                answers.append(json.loads(rx.recv(65535)))
+            assert time.monotonic() < t_end
+        tx.close()
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=30)
+        rx.close()
+    _check_answers(answers, len(mixed), bad)
+    counts = json.loads(err.strip().splitlines()[-1])
+    assert counts["read"] == len(mixed) and counts["malformed"] == len(bad)
+    assert (tmp_path / "s.json").exists()
+
+
+def test_replay_and_option_errors(dive, tmp_path, capsys):
+    folder, lines = dive
+    (tmp_path / "short.csv").write_text("\n".join(lines[:41]) + "\n")
+    beacons = str(folder / "beacons.csv")
+    t0 = time.monotonic()
+    proc = subprocess.run([*CMD, "--beacons", beacons, "--replay", str(tmp_path / "short.csv"),
+                           "--speed", "120", "--out", str(tmp_path / "out.jsonl")],
+                          capture_output=True, text=True, timeout=120)
+    took = time.monotonic() - t0
+    assert proc.returncode == 0, proc.stderr
+    answers = [json.loads(s) for s in (tmp_path / "out.jsonl").read_text().splitlines()]
+    assert [a["line"] for a in answers] == list(range(2, 42))
+    assert took > 108.0 / 120  # 10 cycles of 12 s, 120 times faster
+    for extra, msg in ((["--speed", "max"], "--speed applies to --replay only"),
+                       (["--replay", "x.csv", "--in", "udp://127.0.0.1:0"], "give one source"),
+                       (["--in", "pings.csv"], "use --replay for a file"),
+                       (["--replay", "x.csv", "--speed", "-2"], "expected realtime, max")):
+        assert main(["stream", "--beacons", beacons, *extra]) == 2
+        assert msg in capsys.readouterr().err

@@ -1,0 +1,73 @@
+"""The stream's sources and sinks: pipes, UDP datagrams, replayed files."""
+
+import os
+import threading
+import time
+
+import pytest
+
+from bayes_mpem.exceptions import InputError
+from bayes_mpem.io.stream import FdLines, LineSink, ReplayLines, UdpLines, parse_address
+
+
+def test_addresses():
+    assert parse_address("udp://localhost:0") == ("udp", ("localhost", 0))
+    assert parse_address("out.jsonl") == ("file", "out.jsonl")
+    for bad in ("udp://host", "udp://:9", "udp://h:99999", "udp://h:x"):
+        with pytest.raises(InputError, match="--in: expected udp://HOST:PORT"):
+            parse_address(bad)
+
+
+def test_pipe_lines_split_across_reads_and_stop():
+    r, w = os.pipe()
+    stop = threading.Event()
+    src = FdLines(stop, r, poll=0.05)
+    os.write(w, b"a,b\nc")
+    os.write(w, b"d\r\ne")
+    got = []
+
+    def later():
+        time.sleep(0.3)
+        stop.set()
+
+    threading.Thread(target=later).start()
+    got = list(src)
+    assert got == [(1, "a,b"), (2, "cd")] and src.partial == b"e"
+    os.write(w, b"\n")
+    os.close(w)
+    src = FdLines(threading.Event(), r, poll=0.05)
+    assert list(src) == [(1, "")]  # the end of input ends the source
+    os.close(r)
+
+
+def test_udp_datagrams_and_sink(tmp_path):
+    stop = threading.Event()
+    src = UdpLines(stop, "127.0.0.1", 0, poll=0.05)
+    sink = LineSink(f"udp://127.0.0.1:{src.address[1]}")
+    sink.write("one")
+    sink.write("two\nthree")
+    sink.close()
+    got = []
+    for item in src:
+        got.append(item)
+        if len(got) == 3:
+            stop.set()
+    assert got == [(1, "one"), (2, "two"), (3, "three")]
+    f = LineSink(str(tmp_path / "out.jsonl"))
+    f.write('{"a": 1}')
+    f.close()
+    assert (tmp_path / "out.jsonl").read_text() == '{"a": 1}\n'
+
+
+def test_replay_keeps_the_time_stamps(tmp_path):
+    path = tmp_path / "pings.csv"
+    path.write_text("time,beacon,range,x,y,depth\n0,1,10,0,0,1\nbad\n0.5,1,10,0,0,1\n"
+                    '{"time": 1.0}\n1.0,1,10,0,0,1')
+    t0 = time.monotonic()
+    lines = list(ReplayLines(threading.Event(), path, speed=2.0))
+    took = time.monotonic() - t0
+    assert [n for n, _ in lines] == [1, 2, 3, 4, 5, 6] and lines[-1][1] == "1.0,1,10,0,0,1"
+    assert 0.45 < took < 5.0  # 1 s of data at twice real time
+    t0 = time.monotonic()
+    assert len(list(ReplayLines(threading.Event(), path, speed=None))) == 6
+    assert time.monotonic() - t0 < 0.4

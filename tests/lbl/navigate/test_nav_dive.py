@@ -1,0 +1,61 @@
+"""Epochs, the dead reckoning at them, and what the dive refuses."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from bayes_mpem.exceptions import InputError
+from bayes_mpem.io.survey import load_survey
+from bayes_mpem.lbl.navigate.dive import build_dive
+
+BEACONS = pd.DataFrame({"beacon": ["A", "B"], "x": [0.0, 800.0], "y": [0.0, 0.0],
+                        "depth": [1000.0, 1000.0]})
+
+
+def _pings(**cols):
+    base = {"time": [0.0, 0.0, 10.0, 10.0, 20.0], "beacon": ["A", "B", "A", "B", "A"],
+            "range": [1000.0, 1300.0, np.nan, 1290.0, 1001.0], "x": [0.0, 0.0, 5.0, 5.0, 10.0],
+            "y": [0.0] * 5, "depth": [10.0, 10.0, 11.0, 11.0, 12.0]}
+    base.update(cols)
+    return pd.DataFrame(base)
+
+
+def test_epochs_are_the_distinct_ping_times():
+    d = build_dive(load_survey(_pings(), BEACONS))
+    assert d.n_epochs == 3 and d.n == 4
+    np.testing.assert_array_equal(d.epoch, [0, 0, 1, 2])
+    np.testing.assert_array_equal(d.epoch_of_row, [0, 0, 1, 1, 2])
+    np.testing.assert_array_equal(d.rows, [0, 1, 3, 4])
+    np.testing.assert_allclose(d.dr, [[0, 0], [5, 0], [10, 0]])
+    np.testing.assert_allclose(d.depth, [10, 11, 12])
+    # fewer than MIN_WINDOW_REPLIES replies: the window of all replies
+    np.testing.assert_allclose(d.window, [[1000, 1300], [1000, 1300]])
+
+
+def test_pings_of_one_time_must_agree_on_the_dead_reckoning():
+    with pytest.raises(InputError, match=r"time 10.0 s \(data rows 3, 4,.*'x', 'y'"):
+        build_dive(load_survey(_pings(x=[0.0, 0.0, 5.0, 7.0, 10.0]), BEACONS))
+
+
+def test_a_position_table_is_interpolated_to_the_epochs():
+    dr = pd.DataFrame({"time": [-5.0, 5.0, 25.0], "x": [100.0, 200.0, 200.0], "y": [0, 10, 30]})
+    d = build_dive(load_survey(_pings(), BEACONS), dr)
+    np.testing.assert_allclose(d.dr, [[150, 5], [200, 15], [200, 25]])
+    assert "positions" in d.dr_source
+
+
+def test_a_velocity_table_is_integrated_from_the_first_ping_position():
+    dr = pd.DataFrame({"time": [0.0, 10.0, 20.0], "ve": [1.0, 1.0, 3.0], "vn": [0.0, 0.5, 0.5]})
+    d = build_dive(load_survey(_pings(x=[7.0, 7.0, 0.0, 0.0, 0.0]), BEACONS), dr)
+    np.testing.assert_allclose(d.dr, [[7, 0], [17, 2.5], [37, 7.5]])
+
+
+def test_pings_outside_the_dead_reckoning_table_are_refused():
+    dr = pd.DataFrame({"time": [0.0, 15.0], "x": [0.0, 1.0], "y": [0.0, 0.0]})
+    with pytest.raises(InputError, match=r"data row 5 .*column 'time': 20.0 s is outside"):
+        build_dive(load_survey(_pings(), BEACONS), dr)
+
+
+def test_a_dive_without_any_reply_is_refused():
+    with pytest.raises(InputError, match="no ping has a reply"):
+        build_dive(load_survey(_pings(range=[np.nan] * 5), BEACONS))

@@ -1,0 +1,60 @@
+"""The plain-float filter is the extended Kalman filter written with matrices."""
+
+import numpy as np
+
+from bayes_mpem.lbl.online.ekf import COV_NAMES, PositionFilter
+from bayes_mpem.lbl.online.kernel import dr_step
+
+
+def _matrix(p):
+    iu = np.triu_indices(4)
+    m = np.zeros((4, 4))
+    m[iu] = p
+    return m + np.triu(m, 1).T
+
+
+def _random_filter(gen):
+    a = gen.normal(0, 1, (4, 4)) * [3.0, 3.0, 0.01, 0.005]
+    cov = a @ a.T + np.diag([1.0, 1.0, 1e-5, 1e-6])
+    f = PositionFilter(*gen.normal(0, 100, 2), gen.normal(0, 0.03), 1 + gen.normal(0, 0.01),
+                       cov[np.triu_indices(4)], 1e-5, 1e-6)
+    return f, cov
+
+
+def test_predict_is_f_p_ft_plus_q():
+    gen = np.random.default_rng(0)
+    for _ in range(50):
+        f, cov = _random_filter(gen)
+        state = np.array([f.x, f.y, f.beta, f.scale])
+        dx, dy, dt, q2 = *gen.normal(0, 30, 2), gen.uniform(0, 20), 0.01
+        sx, sy, ax, ay, bx, by = dr_step(dx, dy, f.beta, f.scale)
+        jac = np.eye(4)
+        jac[:2, 2], jac[:2, 3] = (ax, ay), (bx, by)
+        want = jac @ cov @ jac.T + np.diag([q2 * dt, q2 * dt, 1e-10 * dt, 1e-12 * dt])
+        f.predict(dx, dy, dt, q2)
+        np.testing.assert_allclose(_matrix(f.p), want, rtol=1e-10, atol=1e-12)
+        np.testing.assert_allclose([f.x, f.y], state[:2] + [sx, sy], rtol=1e-12)
+
+
+def test_update_is_the_kalman_update():
+    gen = np.random.default_rng(1)
+    for _ in range(50):
+        f, cov = _random_filter(gen)
+        state = np.array([f.x, f.y, f.beta, f.scale])
+        h = np.array([*gen.normal(0, 1, 2), 0.0, 0.0])
+        r, var = gen.normal(0, 5), gen.uniform(1, 30)
+        s = h @ cov @ h + var
+        k = cov @ h / s
+        assert f.range_variance(h[0], h[1]) == np.float64(h @ cov @ h).round(12) or np.isclose(
+            f.range_variance(h[0], h[1]), h @ cov @ h, rtol=1e-12)
+        f.update(r, h[0], h[1], var)
+        np.testing.assert_allclose([f.x, f.y, f.beta, f.scale], state + k * r, rtol=1e-12,
+                                   atol=1e-12)
+        np.testing.assert_allclose(_matrix(f.p), cov - np.outer(k, k) * s, rtol=1e-9,
+                                   atol=1e-12)
+
+
+def test_round_trip():
+    f, _ = _random_filter(np.random.default_rng(2))
+    g = PositionFilter.from_dict(f.to_dict())
+    assert g.to_dict() == f.to_dict() and len(COV_NAMES) == 10

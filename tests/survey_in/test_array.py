@@ -1,0 +1,161 @@
+"""The array location (GNSS-A): simulated truth through GARPOS and GNATSS files, recovered."""
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+from scipy.stats import chi2
+
+from bayes_mpem.acoustics.profile import SoundSpeedProfile
+from bayes_mpem.cli import main
+from bayes_mpem.exceptions import InputError
+from bayes_mpem.io.garpos import read_garpos, write_garpos
+from bayes_mpem.io.gnatss import read_gnatss, write_gnatss
+from bayes_mpem.survey_in.array import ArrayTravelTimes, locate_array
+from bayes_mpem.survey_in.array_survey import array_shots, locate_array_survey
+from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa
+from bayes_mpem.survey_in.travel_times import speed_basis
+
+
+def _profile(sim):
+    prof = sim.header["ss_prof"]
+    return SoundSpeedProfile(prof["depth"], prof["sound_speed"])
+
+
+@pytest.mark.parametrize("refracted", [False, True])
+def test_array_jacobian_matches_finite_differences(refracted):
+    sim = simulate_gnssa(n_transponders=3, hours=0.3, rng=2)
+    shots = array_shots(sim.raw())
+    index = pd.Categorical(shots["transponder"], categories=["M01", "M02", "M03"]).codes
+    basis = speed_basis(shots, 2, None)
+    model = ArrayTravelTimes(shots, index, 3, basis, profile=_profile(sim) if refracted else None)
+    scale = 1.0 if refracted else 1500.0
+    theta = np.concatenate([sim.truth["transponders"].to_numpy().ravel() + 0.3,
+                            scale * np.array([1.0, 1.0001, 0.9999, 1.0, 1.0002])])
+    J = model.jac(theta)
+    for j in range(theta.size):
+        h = 1e-4 if j < 9 else 1e-7 * scale
+        up, dn = theta.copy(), theta.copy()
+        up[j] += h
+        dn[j] -= h
+        num = (model.predict(up) - model.predict(dn)) / (2 * h)
+        np.testing.assert_allclose(J[:, j], num, rtol=1e-4, atol=1e-9 * scale / h)
+
+
+def test_a_constant_profile_gives_the_straight_ray_fit():
+    sim = simulate_gnssa(n_transponders=3, hours=0.5, rng=3)
+    shots = array_shots(sim.raw())
+    straight = locate_array(shots, sim.header["transponders"], sound_speed=1500.0)
+    flat = locate_array(shots, sim.header["transponders"],
+                        profile=SoundSpeedProfile.constant(1500.0))
+    np.testing.assert_allclose(flat.enu, straight.enu, atol=1e-5)
+    assert flat.sound_speed == pytest.approx(straight.sound_speed, abs=1e-6)
+
+
+@pytest.fixture(scope="module")
+def located(tmp_path_factory):
+    """Three simulated surveys, each written as GARPOS and as GNATSS files, read and located."""
+    out = []
+    for seed in range(3):
+        sim = simulate_gnssa(hours=1.0, rng=seed, origin=(38.0, 143.0, 20.0))
+        folder = tmp_path_factory.mktemp(f"gnssa{seed}")
+        raws = {"garpos": read_garpos(write_garpos(folder / "g", sim.pings, sim.header)),
+                "gnatss": read_gnatss(write_gnatss(folder / "n", sim.pings, sim.header,
+                                                   transducer_delay=0.13))}
+        out.append((sim, {k: locate_array_survey(r, speed_intervals=4) for k, r in
+                          raws.items()}))
+    return out
+
+
+def test_both_formats_give_the_same_array(located):
+    for _, res in located:
+        a, b = (res[k].summary["transponders"] for k in ("garpos", "gnatss"))
+        for tid in a:
+            for c in ("east", "north", "up"):
+                assert a[tid]["enu"][c]["mean"] == pytest.approx(b[tid]["enu"][c]["mean"],
+                                                                 abs=2e-3)
+
+
+def test_transponders_within_their_regions_and_shots_classified(located):
+    """3 surveys x 4 transponders: the 95 % region covers the truth (at most 2 misses)."""
+    d2, matched = [], []
+    for sim, res in located:
+        fit = res["garpos"].fits["array"]
+        truth = sim.truth["transponders"].loc[list(fit.ids)].to_numpy()
+        for k in range(len(fit.ids)):
+            err = fit.enu[k] - truth[k]
+            d2.append(float(err @ np.linalg.solve(fit.position_cov(k), err)))
+            assert np.all(np.abs(err) < 0.05)  # a few cm, never metres (offset, attitude)
+        called = np.zeros(len(sim.pings), bool)
+        called[fit.rows] = fit.p_true < 0.5
+        matched.append(np.mean(called == sim.truth["spurious"]))
+    assert sum(v > chi2.ppf(0.95, 3) for v in d2) <= 2, d2
+    assert min(matched) > 0.99
+
+
+def test_summary_keeps_the_locate_shape_and_adds_enu(located):
+    sim, res = located[0]
+    s = res["gnatss"].summary
+    t = s["transponders"]["M01"]
+    for key in ("east", "north", "depth", "sound_speed"):
+        assert set(t[key]) == {"mean", "sd", "interval"}
+    assert set(t["enu"]) == {"east", "north", "up"}
+    assert t["depth"]["mean"] == -t["enu"]["up"]["mean"]
+    assert {"lat", "lon", "n_spurious", "sigma_ms", "tat", "prior", "moved_m"} <= set(t)
+    centre = s["array_centre"]["enu"]
+    truth = sim.truth["transponders"].mean()
+    for c in ("east", "north", "up"):
+        lo, hi = centre[c]["interval"]
+        assert lo - 0.01 < truth[c] < hi + 0.01
+    cls = res["gnatss"].classified
+    assert len(cls) == s["n_pings"] + s["n_skipped_lines"]  # nothing lost
+    assert s["n_pings"] == len(sim.pings)
+    true = cls[cls["label"] == "true"]
+    assert abs(true["residual_ms"].std() - t["sigma_ms"]) < 0.1 * t["sigma_ms"]
+
+
+def test_a_time_varying_speed_needs_its_intervals():
+    sim = simulate_gnssa(hours=1.0, rng=5, speed_amplitude=1.0)
+    raw = sim.raw()
+    one = locate_array_survey(raw).fits["array"]
+    timed = locate_array_survey(raw, speed_intervals=4).fits["array"]
+    assert one.sigma > 2 * timed.sigma  # the unmodelled change is most of the misfit
+
+
+def test_a_transponder_with_too_few_shots_is_left_out_with_the_reason(tmp_path):
+    sim = simulate_gnssa(n_transponders=3, hours=0.3, rng=6)
+    pings = sim.pings[(sim.pings["transponder"] != "M03") | (sim.pings["line"] < 12)]
+    raw = read_garpos(write_garpos(tmp_path, pings, sim.header))
+    res = locate_array_survey(raw)
+    assert list(res.summary["transponders"]) == ["M01", "M02"]
+    assert "need at least 6" in res.summary["skipped_transponders"]["M03"]
+    left = res.classified[res.classified["transponder"] == "M03"]
+    assert (left["label"] == "skipped").all() and left["reason"].str.contains("not located").all()
+    with pytest.raises(InputError, match="no transponder has 6 shots"):
+        locate_array(array_shots(raw).iloc[:5], raw.header["transponders"])
+
+
+def test_locate_command_on_garpos_and_gnatss_files(located, tmp_path, capsys):
+    sim = simulate_gnssa(n_transponders=3, hours=0.5, rng=7)
+    site = write_garpos(tmp_path / "g", sim.pings, sim.header)
+    config = write_gnatss(tmp_path / "n", sim.pings, sim.header)
+    assert main(["locate", str(site), "--out", str(tmp_path / "og"), "--figures",
+                 "--speed-intervals", "2"]) == 0  # --format auto
+    out = capsys.readouterr().out
+    assert "array centre: east" in out and "moved" in out
+    s = json.loads((tmp_path / "og" / "summary.json").read_text())
+    assert s["format"] == "garpos" and "refracted rays" in s["method"]
+    assert set(s["transponders"]) == {"M01", "M02", "M03"}
+    for name in ("survey_map.png", "residuals.png", "residual_histogram.png"):
+        assert (tmp_path / "og" / name).stat().st_size > 10_000
+    cls = pd.read_csv(tmp_path / "og" / "classified.csv", keep_default_na=False)
+    assert len(cls) == len(sim.pings) and {"residual_ms", "azimuth_deg", "file_flag"} <= set(cls)
+    assert main(["plot", str(tmp_path / "og"), "--out", str(tmp_path / "again")]) == 0
+    assert main(["locate", str(config), "--format", "gnatss", "--ssp", "straight",
+                 "--out", str(tmp_path / "on")]) == 0
+    s = json.loads((tmp_path / "on" / "summary.json").read_text())
+    assert s["format"] == "gnatss" and s["ssp"] is None
+    for extra in (["--sample"], ["--fit-lag"], ["--tat", "0.1"]):
+        assert main(["locate", str(config), "--out", str(tmp_path / "x"), *extra]) == 2
+        assert "not for a gnatss array survey" in capsys.readouterr().err

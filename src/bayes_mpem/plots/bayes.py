@@ -5,6 +5,8 @@ Every function takes ``fig=`` or ``ax=`` and returns the Figure.
 
 from __future__ import annotations
 
+import textwrap
+
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.ticker import MaxNLocator
@@ -277,18 +279,22 @@ def plot_sbc_ranks(results, *, n_bins=10, fig=None):
         fig = plt.figure(figsize=(1.9 * len(names) + 1, 1.7 * len(results) + 0.6),
                          layout="constrained")
     axes = fig.subplots(len(results), len(names), squeeze=False, sharey="row")
-    for row, (label, res) in zip(axes, results.items(), strict=True):
+    for r, (label, res) in enumerate(results.items()):
         n = len(res.ranks)
         lo, hi = stats.binom.interval(0.99, n, 1.0 / n_bins)
-        for i, (ax, k) in enumerate(zip(row, names, strict=True)):
+        for i, k in enumerate(names):
+            ax = axes[r, i]
             counts = rank_histogram(res.ranks[:, i], res.n_draws, n_bins)
             ax.axhspan(lo, hi, color="0.85")
             ax.axhline(n / n_bins, color="0.5", lw=0.8)
             ax.bar(np.arange(n_bins), counts, width=1.0, color="tab:blue", edgecolor="white")
             ax.set_xticks([])
-            if row is axes[0]:
+            if r == 0:
                 ax.set_title(LABELS.get(k, k), fontsize="small")
+            if r == len(results) - 1:
+                ax.set_xlabel("rank, low to high", fontsize="x-small")
             if i == 0:
-                ax.set_ylabel(label, fontsize="small")
+                ax.set_ylabel(textwrap.fill(f"{label} (n = {n})" if label else f"n = {n}", 22),
+                              fontsize="x-small")
     fig.suptitle("SBC rank histograms (band: 99 % range under uniform ranks)")
     return fig

@@ -32,7 +32,7 @@ from .lbl.comparison import SurveyComparison
 from .lbl.diagnosis.result import Diagnosis, DiagnosisRecord
 from .lbl.em_result import EMResult
 from .lbl.fitting import SurveyFit
-from .lbl.navigate.result import Navigation
+from .lbl.navigate.result import Navigation, NavigationRecord
 from .lbl.path_choice import choices_from_summary
 from .lbl.pol_sensitivity import POL_GRID, survey_pol_sensitivity
 from .lbl.sampling import SurveyPosterior
@@ -86,8 +86,10 @@ def write_figures(result, out_dir, *, beacon=None, truth=None, general=True,
     Parameters
     ----------
     result : SurveyFit, SurveyPosterior, SurveyComparison, Diagnosis, SurveyInResult or Navigation
-        Or the record of one read back by :func:`load_output`. A result with nothing to
-        draw (no fitted beacon or transponder) writes no figure. A navigation writes
+        Or the record of one read back by :func:`load_output` (a
+        :class:`~bayes_mpem.lbl.navigate.result.NavigationRecord` for a navigation).
+        A result with nothing to draw (no fitted beacon or transponder) writes no
+        figure. A navigation writes
         ``nav_track.png``, ``nav_ranges.png``
         and ``nav_correction.png``.
     out_dir : str or pathlib.Path
@@ -137,7 +139,7 @@ def write_figures(result, out_dir, *, beacon=None, truth=None, general=True,
                 _save(survey_in_plots.plot_residuals(result), out / "residuals.png"),
                 _save(survey_in_plots.plot_residual_histogram(result),
                       out / "residual_histogram.png")]
-    if isinstance(result, Navigation):
+    if isinstance(result, (Navigation, NavigationRecord)):
         return [_save(nav_plots.plot_nav_track(result, truth=truth), out / "nav_track.png"),
                 _save(nav_plots.plot_nav_ranges(result), out / "nav_ranges.png"),
                 _save(nav_plots.plot_nav_correction(result, truth=truth),
@@ -272,13 +274,13 @@ def load_output(result_dir):
     Parameters
     ----------
     result_dir : str or pathlib.Path
-        The output folder of ``fit``, ``sample``, ``compare``, ``diagnose`` or
-        ``locate`` (:data:`FOLDER_KINDS`).
+        The output folder of ``fit``, ``sample``, ``compare``, ``diagnose``,
+        ``locate`` or ``navigate`` (:data:`FOLDER_KINDS`).
 
     Returns
     -------
-    SurveyFit, SurveyPosterior, ComparisonRecord, DiagnosisRecord or SurveyInResult
-        Rebuilt from the files. A fit without ``history.json`` gets a
+    SurveyFit, SurveyPosterior, ComparisonRecord, DiagnosisRecord, SurveyInResult, NavigationRecord
+        Rebuilt from the files (never by fitting again). A fit without ``history.json`` gets a
         one-entry history; a posterior's ``em`` is a namespace of the EM
         start's parameters.
 
@@ -290,6 +292,10 @@ def load_output(result_dir):
         When the files do not fit together, or are of no known kind.
     """
     d = Path(result_dir)
+    kinds = " | ".join(k for k, *_ in FOLDER_KINDS)
+    if d.is_file():
+        raise InputError(f"{d}: a file; expected the output folder of 'bayes-mpem {kinds}' "
+                         "('bayes-mpem stream' writes JSON lines, which have no figures)")
     seen = []
     for kind, marker, test, loader in FOLDER_KINDS:
         path = d / marker
@@ -300,12 +306,15 @@ def load_output(result_dir):
             return loader(d, doc)
         seen.append(marker)
     if "summary.json" in seen:
-        raise InputError(f"{d / 'summary.json'}: no 'beacons_table' or 'transponders'; it was "
-                         "written by another program or an older bayes_mpem: run the command "
-                         "again")
+        raise InputError(f"{d / 'summary.json'}: of no known kind (not the summary of "
+                         f"'bayes-mpem {kinds}'); it was written by another program or an older "
+                         "bayes_mpem: run the command again")
     markers = sorted({m for _, m, _, _ in FOLDER_KINDS})
+    if d.is_dir() and any(d.glob("*.jsonl")):
+        markers.append("this folder holds JSON lines: 'bayes-mpem stream' answers have no "
+                       "figures")
     raise FileNotFoundError(f"{d / 'summary.json'}: not found; expected the output folder of "
-                            f"'bayes-mpem {' | '.join(k for k, *_ in FOLDER_KINDS)}' (one of "
+                            f"'bayes-mpem {kinds}' (one of "
                             f"{', '.join(markers)})")
 
 
@@ -368,6 +377,16 @@ def _folder_diagnose(d, doc):
         raise FileNotFoundError(f"{path}: not found; 'bayes-mpem diagnose' writes it (a folder "
                                 "of an older bayes_mpem: run it again)")
     return DiagnosisRecord(document=doc, table=pd.read_csv(path, dtype={"beacon": str}))
+
+
+@folder_kind("navigate", "summary.json",
+             lambda doc: "dead_reckoning" in doc and "track" in doc and "beacons_table" in doc)
+def _folder_navigate(d, summary):
+    path = d / "track.csv"
+    if not path.exists():
+        raise FileNotFoundError(f"{path}: not found; 'bayes-mpem navigate' writes it")
+    survey, probs, _ = _fit_or_sample(d, summary)
+    return NavigationRecord.from_tables(summary, survey, pd.read_csv(path), probs)
 
 
 def _load_fit(d, summary, survey, probs):

@@ -74,3 +74,23 @@ def test_navigate_bad_options_exit_2(dive_files, tmp_path, capsys, args, msg):
 def test_simulate_refuses_mixed_options(tmp_path, capsys, args, msg):
     assert main(["simulate", "--out", str(tmp_path), *args]) == 2
     assert msg in capsys.readouterr().err
+
+
+def test_plot_draws_a_navigate_folder_and_refuses_unknown_ones(dive_files, tmp_path, capsys):
+    nav = tmp_path / "nav"
+    assert main(["navigate", str(dive_files / "pings.csv"), "--beacons",
+                 str(dive_files / "beacons.csv"), "--out", str(nav), "--path", "triangle"]) == 0
+    assert main(["plot", str(nav), "--out", str(tmp_path / "figs")]) == 0
+    assert sorted(p.name for p in (tmp_path / "figs").iterdir()) == [
+        "nav_correction.png", "nav_ranges.png", "nav_track.png"]
+    capsys.readouterr()
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "summary.json").write_text('{"written_by": "someone else"}')
+    answers = tmp_path / "answers.jsonl"
+    answers.write_text('{"line": 1, "label": "dp"}\n')
+    for folder, msg in ((other, "of no known kind"), (answers, "'bayes-mpem stream' writes JSON"),
+                        (tmp_path / "figs", "summary.json: not found")):
+        assert main(["plot", str(folder)]) == 2
+        err = capsys.readouterr().err
+        assert "error:" in err and msg in err and "navigate" in err and "Traceback" not in err

@@ -101,6 +101,12 @@ class Navigation:
     options : dict
     timings : dict
         Wall-clock seconds per stage (``timings.json`` only).
+    global_cov : numpy.ndarray
+        ``(G, G)`` joint covariance of the globals, in the order of
+        :attr:`global_sd`'s keys (``beta``, ``scale``, then the plane heights).
+    track_global_cov : numpy.ndarray
+        ``(K, 2, G)`` covariance of every epoch's position with the globals
+        (what a filter started at the last epoch needs, :mod:`bayes_mpem.lbl.online`).
     """
 
     dive: Dive = field(repr=False)
@@ -117,6 +123,9 @@ class Navigation:
     history: dict = field(repr=False)
     options: dict = field(default_factory=dict)
     timings: dict = field(default_factory=dict, repr=False)
+    global_cov: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)), repr=False)
+    track_global_cov: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 0)),
+                                         repr=False)
 
     @property
     def track(self) -> np.ndarray:
@@ -218,7 +227,9 @@ class Navigation:
             "n_rows": len(d.survey), "n_replies": d.n,
             "n_no_reply": int(d.survey.no_reply.sum()), "ci": ci,
             "pings": d.survey.pings_source, "beacons_file": d.survey.beacons_source,
-            "options": {k: v for k, v in self.options.items() if k not in ("rng", "ci")},
+            "information": self.options.get("information"),
+            "options": {k: v for k, v in self.options.items()
+                        if k not in ("rng", "ci", "information")},
         }
 
     def to_dict(self) -> dict:

@@ -5,6 +5,7 @@ Run from the repository root::
     python benchmarks/stream_accuracy.py            # 10 dives per preset; writes the docs
     python benchmarks/stream_accuracy.py --seeds 2  # prints only
     python benchmarks/stream_accuracy.py --seeds 4 --alpha 0.8   # another step size, prints only
+    python benchmarks/stream_accuracy.py --option warmup=400   # a Navigator option, prints only
 
 Dives are ``simulate_dive(preset, rng=seed)`` (``bayes_mpem.lbl.navigate``),
 ``abe58`` and ``random`` geometries, with navigate's dead reckoning (heading
@@ -139,12 +140,12 @@ def ideal_errors(sim, q: float = 0.1, start_sd: float = 10.0):
     return times, xf - x_true, xs - x_true
 
 
-def evaluate(preset: str, seed: int, alpha: float = 1.0) -> dict:
+def evaluate(preset: str, seed: int, alpha: float = 1.0, options=None) -> dict:
     sim = simulate_dive(preset, rng=seed)
     table = sim.survey.table
     beacons = sim.survey.beacons.reset_index()
     cut = cut_at(table, 500)
-    nav = Navigator(beacons, alpha=alpha, rng=0)
+    nav = Navigator(beacons, alpha=alpha, rng=0, **(options or {}))
     t0 = time.perf_counter()
     head = nav.run(table.iloc[:cut])
     online_d0 = {b: v["d0"] for b, v in nav.reflectors().items()}
@@ -239,11 +240,17 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--seeds", type=int, default=10, help="dives per preset (default 10)")
     ap.add_argument("--alpha", type=float, default=1.0, help="online-EM step-size exponent")
+    ap.add_argument("--option", action="append", default=[], metavar="NAME=VALUE",
+                    help="a Navigator option (a number), e.g. warmup=400 (repeatable)")
     args = ap.parse_args(argv)
+    options = {}
+    for item in args.option:
+        name, _, value = item.partition("=")
+        options[name] = int(value) if value.isdigit() else float(value)
     rows = []
     for preset in PRESETS:
         for seed in range(args.seeds):
-            r = evaluate(preset, seed, args.alpha)
+            r = evaluate(preset, seed, args.alpha, options)
             rows.append(r)
             print(f"{preset} {seed}: d0 {r['d0_vs_batch']:.2f} m, labels "
                   f"{r['labels_vs_batch']:.4f}, ratio {r['ratio']:.2f} (ideal "
@@ -251,7 +258,7 @@ def main(argv=None):
                   f"{r['coverage_online']:.3f}", flush=True)
     text = report(rows)
     print(text)
-    if args.seeds >= 10 and args.alpha == 1.0:
+    if args.seeds >= 10 and args.alpha == 1.0 and not options:
         write_section(ROOT / "docs" / "benchmarks.md", "stream_accuracy",
                       "## Streaming: the online navigator against the batch one "
                       "(`benchmarks/stream_accuracy.py`)\n\n" + text)

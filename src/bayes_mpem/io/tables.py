@@ -109,7 +109,13 @@ class Problems:
         self.source, self.items = source, []
 
     def add(self, pos: int, message: str) -> None:
-        """Record a problem of the row at position ``pos`` (messages are sorted by row)."""
+        """Record ``message`` for the row at position ``pos`` (listed in row order).
+
+        Parameters
+        ----------
+        pos : int
+        message : str
+        """
         self.items.append((pos, len(self.items), message))
 
     def raise_if_any(self) -> None:
@@ -136,13 +142,10 @@ class _Table:
 
 
 def _read_csv_fast(path: Path, label: str) -> _Table | None:
-    """Read with pandas' C parser, used only when line numbers stay exact; else ``None``.
+    """Read with pandas' C parser where line numbers stay exact, else ``None`` (5x faster).
 
-    Exact when no field is quoted (so no record spans lines), blank lines are
-    truly empty (pandas skips exactly those) and every other line has as many
-    commas as the header (pandas would silently pad a short row). Anything else
-    returns ``None`` and the exact reader :func:`_read_csv` takes over with its
-    diagnostics. About 5x faster on large files.
+    Exact when no field is quoted, blank lines are truly empty and every other line has as
+    many commas as the header; else :func:`_read_csv` reads it with its diagnostics.
     """
     raw = path.read_bytes()
     if raw.startswith(b"\xef\xbb\xbf"):
@@ -220,7 +223,6 @@ def load_table(source: Any, name: str | None, kind: str) -> _Table:
     Returns
     -------
     _Table
-        ``frame``, ``source`` and ``row_names`` (``"line 17"`` or ``"row 15"``).
     """
     if isinstance(source, pd.DataFrame):
         label = name or f"{kind} DataFrame"
@@ -313,7 +315,6 @@ def numeric_column(table: _Table, column: str, problems: Problems, *,
     Returns
     -------
     numpy.ndarray
-        float64 values, NaN where missing or bad.
     """
     col = table.frame[column]
     vals, missing, bad = _parse_numbers(col)

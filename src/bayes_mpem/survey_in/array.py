@@ -98,15 +98,46 @@ class ArrayTravelTimes:
         return T, dE, dN, dU, bad
 
     def speed(self, theta):
-        """Speed (or the profile's scale) at each shot."""
+        """Speed (or the profile's scale) at each shot.
+
+        Parameters
+        ----------
+        theta : numpy.ndarray
+            East, north, up of every transponder, then the speed coefficients.
+
+        Returns
+        -------
+        numpy.ndarray
+        """
         return self.basis @ theta[3 * self.K:]
 
     def predict(self, theta):
-        """Two-way travel time (s) of a true reply to each shot."""
+        """Two-way travel time (s) of a true reply to each shot.
+
+        Parameters
+        ----------
+        theta : numpy.ndarray
+            East, north, up of every transponder, then the speed coefficients.
+
+        Returns
+        -------
+        numpy.ndarray
+        """
         return self._paths(theta)[0] / self.speed(theta)
 
     def jac(self, theta):
-        """d(prediction)/d(theta), one row per shot."""
+        """d(prediction)/d(theta), one row per shot.
+
+        Parameters
+        ----------
+        theta : numpy.ndarray
+            East, north, up of every transponder, then the speed coefficients.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(shots, n_params)``.
+        """
         T, dE, dN, dU, _ = self._paths(theta)
         s = self.speed(theta)
         J = np.zeros((T.size, self.n_params))
@@ -117,7 +148,17 @@ class ArrayTravelTimes:
         return J
 
     def n_invalid(self, theta) -> int:
-        """Count the legs no eigenray reaches at ``theta`` (0 for straight rays)."""
+        """Count the legs no eigenray reaches at ``theta`` (0 for straight rays).
+
+        Parameters
+        ----------
+        theta : numpy.ndarray
+            East, north, up of every transponder, then the speed coefficients.
+
+        Returns
+        -------
+        int
+        """
         return int(self._paths(theta)[4])
 
 
@@ -211,11 +252,31 @@ class ArrayLocateResult:
         return self.enu.mean(axis=0), G @ self.cov @ G.T
 
     def position_cov(self, k: int) -> np.ndarray:
-        """``(3, 3)`` covariance of transponder ``k``'s east, north, up."""
+        """``(3, 3)`` covariance of transponder ``k``'s east, north, up.
+
+        Parameters
+        ----------
+        k : int
+            The transponder's index.
+
+        Returns
+        -------
+        numpy.ndarray
+        """
         return self.cov[3 * k:3 * k + 3, 3 * k:3 * k + 3]
 
     def n_spurious(self, k: int) -> int:
-        """Shots of transponder ``k`` more likely spurious than true."""
+        """Shots of transponder ``k`` more likely spurious than true.
+
+        Parameters
+        ----------
+        k : int
+            The transponder's index.
+
+        Returns
+        -------
+        int
+        """
         return int(np.sum(self.p_true[self.index == k] < 0.5))
 
 

@@ -5,8 +5,9 @@ spurious detection, uniform over the listening window or, for a first-arrival
 detector, before the true arrival (the densities of
 :mod:`bayes_mpem.mixture.densities`). :func:`log_classes` gives the weighted
 log-densities of both, :func:`true_probability` the probability of a true arrival;
-the EM of :mod:`.location`, the array of :mod:`.array` and the posterior of
-:mod:`.posterior` share them.
+the EM of :mod:`bayes_mpem.survey_in.location`, the array of
+:mod:`bayes_mpem.survey_in.array` and the posterior of
+:mod:`bayes_mpem.survey_in.posterior` share them.
 
 Examples
 --------

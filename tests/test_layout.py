@@ -23,7 +23,7 @@ LAYER = {"_rng": 0, "exceptions": 0, "_validate": 0, "_deprecated": 0,
          "io": 1,
          "acoustics": 2, "mixture": 2, "mcmc": 2,
          "lbl": 3, "survey_in": 3,
-         "plots": 4, "report": 5, "cli": 6}
+         "plots": 4, "report": 5, "batch": 5, "cli": 6}
 WINGS = {"lbl", "survey_in"}
 MAX_MODULE_LINES = 500
 MAX_FUNCTION_LINES = 100

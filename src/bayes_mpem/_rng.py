@@ -24,8 +24,12 @@ def as_generator(rng: RNGLike) -> np.random.Generator:
     ------
     TypeError
         If ``rng`` is of any other type.
+    ValueError
+        For a negative seed.
     """
     if rng is None or isinstance(rng, (int, np.integer)) and not isinstance(rng, bool):
+        if rng is not None and rng < 0:
+            raise ValueError(f"rng: expected a non-negative integer seed, got {rng!r}")
         return np.random.default_rng(rng)
     if isinstance(rng, np.random.Generator):
         return rng

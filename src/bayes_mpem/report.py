@@ -26,7 +26,9 @@ import pandas as pd
 
 from ._validate import check_choice
 from .exceptions import InputError
+from .io.results import MARKER, read_marker, write_file
 from .io.survey import load_survey
+from .io.table_files import frame_as_text, read_table_file
 from .io.tables import RESERVED_COLUMNS
 from .lbl.comparison import SurveyComparison
 from .lbl.diagnosis.result import Diagnosis, DiagnosisRecord
@@ -51,9 +53,10 @@ _ADDED = set(RESERVED_COLUMNS)
 
 
 def _save(fig, path, dpi=110):
-    fig.savefig(path, dpi=dpi)
-    plt.close(fig)
-    return Path(path)
+    try:
+        return write_file(path, lambda tmp: fig.savefig(tmp, dpi=dpi))
+    finally:
+        plt.close(fig)
 
 
 def figure_beacon(survey_fit, beacon=None) -> str:
@@ -296,19 +299,32 @@ def load_output(result_dir):
     if d.is_file():
         raise InputError(f"{d}: a file; expected the output folder of 'bayes-mpem {kinds}' "
                          "('bayes-mpem stream' writes JSON lines, which have no figures)")
-    seen = []
+    if (d / MARKER).exists():  # valid JSON, and every data file of the run there (figures
+        marker = read_marker(d, check=False)  # are drawn again from the data: not needed)
+        missing = [f for f in marker.get("files", []) if not f.endswith(".png")
+                   and not (d / f).exists()]
+        if missing:
+            raise InputError(f"{d / MARKER}: lists {', '.join(missing[:5])}, missing: the folder "
+                             "is not a complete output")
+    seen = {}
     for kind, marker, test, loader in FOLDER_KINDS:
         path = d / marker
         if not path.exists():
             continue
-        doc = json.loads(path.read_text())
+        doc = _read_json(path)
+        if not isinstance(doc, dict):
+            raise InputError(f"{path}: expected a JSON object, got {type(doc).__name__}")
         if test(doc):
             return loader(d, doc)
-        seen.append(marker)
-    if "summary.json" in seen:
-        raise InputError(f"{d / 'summary.json'}: of no known kind (not the summary of "
-                         f"'bayes-mpem {kinds}'); it was written by another program or an older "
-                         "bayes_mpem: run the command again")
+        seen[marker] = doc
+    if MARKER in seen and set(seen[MARKER]) <= {"files", "non_finite"}:  # a bare marker
+        raise InputError(f"{d / MARKER}: lists the files of a run and holds no result (a folder "
+                         f"of 'bayes-mpem simulate', or of figures); expected the output folder "
+                         f"of 'bayes-mpem {kinds}'")
+    if seen:
+        raise InputError(f"{d / MARKER}: of no known kind (no 'beacons_table' or 'transponders'; "
+                         f"not the summary of 'bayes-mpem {kinds}'); it was written by another "
+                         "program or an older bayes_mpem: run the command again")
     markers = sorted({m for _, m, _, _ in FOLDER_KINDS})
     if d.is_dir() and any(d.glob("*.jsonl")):
         markers.append("this folder holds JSON lines: 'bayes-mpem stream' answers have no "
@@ -318,27 +334,67 @@ def load_output(result_dir):
                             f"{', '.join(markers)})")
 
 
+def _read_json(path):
+    try:
+        return json.loads(path.read_text())
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise InputError(f"{path}: not valid JSON ({exc}); the file is damaged") from None
+
+
+def _classified(d, summary):
+    """Read the classified table of an output folder as text, checked against its summary."""
+    files = summary.get("files", [])
+    name = next((f for f in ("classified.parquet", "classified.csv") if f in files),
+                "classified.csv")
+    frame = read_table_file(d / name, str(d / name), "classified table").frame
+    n_rows = summary.get("n_rows")
+    if n_rows is not None and len(frame) != n_rows:
+        raise InputError(f"{d / name}: {len(frame)} rows, but {d / MARKER} says n_rows = "
+                         f"{n_rows}: the table is truncated or from another run")
+    missing = [c for c in ("p_dp", "p_mp", "p_ol", "label") if c not in frame.columns]
+    if missing:
+        raise InputError(f"{d / name}: missing column(s) {', '.join(missing)}; not a "
+                         "classified table of 'bayes-mpem fit', 'sample' or 'navigate'")
+    return frame_as_text(frame) if name.endswith(".parquet") else frame
+
+
 def _fit_or_sample(d, summary):
-    classified = pd.read_csv(d / "classified.csv", dtype=str, keep_default_na=False)
+    classified = _classified(d, summary)
     table = classified[[c for c in classified.columns if c not in _ADDED]]
     beacons = pd.DataFrame([{"beacon": b, **v} for b, v in summary["beacons_table"].items()])
     survey = load_survey(table, beacons)
-    num = {c: pd.to_numeric(classified[c].replace("", np.nan)).to_numpy()
-           for c in classified.columns if c in _ADDED - {"label", "reason"}}
+    num = {}
+    for c in sorted(_ADDED - {"label", "reason"}):
+        if c in classified.columns:
+            num[c] = pd.to_numeric(classified[c].replace("", np.nan), errors="coerce").to_numpy()
+            bad = np.flatnonzero(np.isnan(num[c]) & (classified[c] != "").to_numpy()
+                                 | (num[c] < 0) | (num[c] > 1))
+            if bad.size:
+                raise InputError(f"{d} classified table, row {int(bad[0]) + 1}, column {c!r}: "
+                                 f"expected a probability, got {classified[c].iloc[bad[0]]!r}")
     probs = np.column_stack([num["p_" + c] for c in CLASSES])
     return survey, probs, num
+
+
+def _together(d, load, *args):
+    """Return ``load(*args)``; a key or a type missing in the files is an InputError."""
+    try:
+        return load(*args)
+    except (KeyError, TypeError, IndexError) as exc:
+        raise InputError(f"{d / MARKER}: the output files do not fit together "
+                         f"({type(exc).__name__}: {exc})") from None
 
 
 @folder_kind("fit", "summary.json", lambda doc: "beacons_table" in doc and "method" in doc)
 def _folder_fit(d, summary):
     survey, probs, _ = _fit_or_sample(d, summary)
-    return _load_fit(d, summary, survey, probs)
+    return _together(d, _load_fit, d, summary, survey, probs)
 
 
 @folder_kind("sample", "summary.json", lambda doc: "beacons_table" in doc and "priors" in doc)
 def _folder_sample(d, summary):
     survey, probs, num = _fit_or_sample(d, summary)
-    return _load_posterior(d, summary, survey, probs, num)
+    return _together(d, _load_posterior, d, summary, survey, probs, num)
 
 
 @folder_kind("locate", "summary.json", lambda doc: "transponders" in doc)
@@ -385,13 +441,17 @@ def _folder_navigate(d, summary):
     path = d / "track.csv"
     if not path.exists():
         raise FileNotFoundError(f"{path}: not found; 'bayes-mpem navigate' writes it")
+    track = read_table_file(path, str(path), "track file").frame
     survey, probs, _ = _fit_or_sample(d, summary)
-    return NavigationRecord.from_tables(summary, survey, pd.read_csv(path), probs)
+    return _together(d, NavigationRecord.from_tables, summary, survey, track, probs)
 
 
 def _load_fit(d, summary, survey, probs):
     hist_path = d / "history.json"
-    hist = json.loads(hist_path.read_text()) if hist_path.exists() else {}
+    hist = _read_json(hist_path) if hist_path.exists() else {}
+    if not isinstance(hist, dict):
+        raise InputError(f"{hist_path}: expected a JSON object of beacons, got "
+                         f"{type(hist).__name__}")
     results = {}
     for b, s in summary["beacons"].items():
         rows = survey.for_beacon(b).rows
@@ -419,7 +479,10 @@ def _load_posterior(d, summary, survey, probs, num):
     path = d / "posterior.nc"
     if not path.exists():
         raise FileNotFoundError(f"{path}: not found; 'bayes-mpem sample' writes it")
-    tree = xr.open_datatree(path, engine="h5netcdf").load()
+    try:
+        tree = xr.open_datatree(path, engine="h5netcdf").load()
+    except (OSError, ValueError) as exc:
+        raise InputError(f"{path}: not a readable NetCDF file ({exc})") from None
     sd = np.column_stack([num["p_" + c + "_sd"] for c in CLASSES])
     results = {}
     for b, s in summary["beacons"].items():

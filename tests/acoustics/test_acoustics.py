@@ -182,7 +182,8 @@ def test_from_file_formats(tmp_path):
     ("0 1500\n10\n", r"line 2: expected at least 2 fields"),
     ("0 1500\n10 1501\n10 1502\n", r"line 3: depth 10.0 is not greater than the previous "
                                    r"depth 10.0 \(line 2\)"),
-    ("0 1500\n10 -3\n", r"line 2: sound speed -3.0: expected a positive"),
+    ("0 1500\n10 -3\n", r"line 2: sound speed -3 outside \[1300, 1800\] m/s"),
+    ("0 1500\n10 1\n", r"line 2: sound speed 1 outside .*physically possible"),
     ("0 1500\n10 nan\n", r"line 2: expected finite numbers"),
     ("# nothing\n\n", "no data lines found"),
 ])

@@ -114,7 +114,7 @@ def test_whoi_malformed_lines(tmp_path):
     assert len(raw.pings) == 2 and list(raw.skipped["line"]) == [7, 8, 9]
     reasons = " | ".join(raw.skipped["reason"])
     assert "expected 7 comma-separated fields, got 6" in reasons
-    assert "is not positive" in reasons and "DD MM.MMMM H" in reasons
+    assert "outside (0, 150] s" in reasons and "DD MM.MMMM H" in reasons
     with pytest.raises(InputError, match=r"w.txt line 7: expected 7"):
         read_survey(p, "obsrange-whoi", strict=True)
 

@@ -25,8 +25,14 @@ def beacon4():
 # --- the posterior ----------------------------------------------------------
 
 
-def test_log_posterior_is_prior_plus_shared_likelihood(beacon4):
-    post = BeaconPosterior(beacon4, concentration=2.5)
+@pytest.mark.parametrize("precision", ["float64", "auto"])
+def test_log_posterior_is_prior_plus_shared_likelihood(beacon4, precision):
+    from bayes_mpem.lbl.loglik_kernel import FLOAT32_MAX_ERROR, FLOAT32_MAX_RANGES
+
+    post = BeaconPosterior(beacon4, concentration=2.5, precision=precision)
+    # float64 agrees to rounding; float32 (chosen by "auto" here) within its error bound
+    tol = ({"rel": 1e-10} if post.kernel.dtype == np.float64
+           else {"abs": FLOAT32_MAX_ERROR * beacon4.n / FLOAT32_MAX_RANGES})
     theta = np.array([[2472.0, np.log(7.0), np.log(4.0), 0.5, 0.35],
                       [2470.0, np.log(9.0), np.log(3.5), 0.4, 0.4]])
     lp = post(theta)
@@ -35,7 +41,7 @@ def test_log_posterior_is_prior_plus_shared_likelihood(beacon4):
         ll = loglik_per_range(post.geom, row[0], np.exp(row[2]), np.exp(row[1]), w).sum()
         prior = (stats.dirichlet.logpdf(w, [2.5] * 3) - np.log(np.diff(post.d0_bounds)[0])
                  - 2 * np.log(np.diff(post.log_sigma_bounds)[0]))
-        assert value == pytest.approx(ll + prior, rel=1e-10)
+        assert value == pytest.approx(ll + prior, **tol)
 
 
 def test_prior_support(beacon4):

@@ -18,6 +18,7 @@ import numpy as np
 
 from .._validate import check_increasing
 from ..exceptions import InputError
+from ..io.boundary import limit_problem, read_text_lines
 from ..io.geodesy import MEAN_EARTH_RADIUS_KM
 from .woa09 import bundled_woa09, load_woa09, number_parts
 
@@ -177,36 +178,36 @@ class SoundSpeedProfile:
         ci, cj = (int(k) for k in columns)
         need = max(ci, cj) + 1
         depths, speeds, lines = [], [], []
-        with path.open(encoding="utf-8-sig", errors="replace") as fh:
-            for n, text in enumerate(fh, start=1):
-                s = text.split("#", 1)[0].strip()
-                if not s:
-                    continue
-                parts = [f for f in re.split(r"[,\s]+", s) if f]
-                if not depths and not number_parts([parts[k] for k in (ci, cj) if k < len(parts)]):
-                    continue  # header (column names, units, a title) before the data
-                if len(parts) < need:
-                    raise InputError(f"{path} line {n}: expected at least {need} fields (depth "
-                                     f"in column {ci}, speed in column {cj}, counting from 0), "
-                                     f"got {len(parts)}: {text.strip()!r}")
-                try:
-                    z, c = float(parts[ci]), float(parts[cj])
-                except ValueError:
-                    raise InputError(f"{path} line {n}: expected numbers in columns {ci} and {cj} "
-                                     f"(depth, sound speed), got {text.strip()!r}") from None
-                if not (np.isfinite(z) and np.isfinite(c)):
-                    raise InputError(f"{path} line {n}: expected finite numbers, got "
-                                     f"{text.strip()!r}")
-                if depths and z <= depths[-1]:
-                    raise InputError(f"{path} line {n}: depth {z} is not greater than the "
-                                     f"previous depth {depths[-1]} (line {lines[-1]}): depths "
-                                     "must be strictly increasing (positive down)")
-                if c <= 0:
-                    raise InputError(f"{path} line {n}: sound speed {c}: expected a positive "
-                                     "number (m/s)")
-                depths.append(z)
-                speeds.append(c)
-                lines.append(n)
+        for n, text in enumerate(read_text_lines(path, "sound-speed profile"), start=1):
+            s = text.split("#", 1)[0].strip()
+            if not s:
+                continue
+            parts = [f for f in re.split(r"[,\s]+", s) if f]
+            if not depths and not number_parts([parts[k] for k in (ci, cj) if k < len(parts)]):
+                continue  # header (column names, units, a title) before the data
+            if len(parts) < need:
+                raise InputError(f"{path} line {n}: expected at least {need} fields (depth "
+                                 f"in column {ci}, speed in column {cj}, counting from 0), "
+                                 f"got {len(parts)}: {text.strip()!r}")
+            try:
+                z, c = float(parts[ci]), float(parts[cj])
+            except ValueError:
+                raise InputError(f"{path} line {n}: expected numbers in columns {ci} and {cj} "
+                                 f"(depth, sound speed), got {text.strip()!r}") from None
+            if not (np.isfinite(z) and np.isfinite(c)):
+                raise InputError(f"{path} line {n}: expected finite numbers, got "
+                                 f"{text.strip()!r}")
+            if depths and z <= depths[-1]:
+                raise InputError(f"{path} line {n}: depth {z} is not greater than the "
+                                 f"previous depth {depths[-1]} (line {lines[-1]}): depths "
+                                 "must be strictly increasing (positive down)")
+            why = limit_problem("sound_speed", c) or limit_problem("depth", z)
+            if why:
+                raise InputError(f"{path} line {n}: {why}: expected a physically possible "
+                                 "sea-water profile (depth m, sound speed m/s)")
+            depths.append(z)
+            speeds.append(c)
+            lines.append(n)
         if not depths:
             raise InputError(f"{path}: no data lines found (expected depth and sound speed "
                              "columns)")

@@ -8,17 +8,35 @@ returns the exit status.
 
 from __future__ import annotations
 
+import math
 import sys
 from pathlib import Path
 
-from ..lbl.comparison import compare
-from ..lbl.diagnosis.driver import diagnose
+from ..io.results import write_file
 from ..lbl.effects import EFFECTS
 from ..lbl.fitting import fit
-from ..lbl.sampling import sample
 from ..lbl.simulate import simulate_survey
-from ..report import demo_markdown, load_output, write_figures
 from .errors import OptionError
+
+# sample, compare, diagnose and the report (emcee, ArviZ, matplotlib) are imported by the
+# commands that use them: `fit` starts without them
+
+
+def write_figures(*args, **kwargs):
+    """Call :func:`bayes_mpem.report.write_figures` (imported on first use).
+
+    Parameters
+    ----------
+    *args, **kwargs
+        As :func:`bayes_mpem.report.write_figures`.
+
+    Returns
+    -------
+    list of pathlib.Path
+    """
+    from ..report import write_figures as draw
+
+    return draw(*args, **kwargs)
 
 
 def fit_kwargs(args) -> dict:
@@ -72,6 +90,42 @@ def sample_kwargs(args) -> dict:
                 progress=False if args.no_progress else "auto")
 
 
+def sample_command_kwargs(args) -> dict:
+    """Keyword arguments of :func:`~bayes_mpem.lbl.sampling.sample` from ``bayes-mpem sample``.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+
+    Returns
+    -------
+    dict
+    """
+    return dict(priors=args.priors, ci=args.ci, n_ensembles=args.ensembles,
+                **sample_kwargs(args))
+
+
+def diagnose_kwargs(args) -> dict:
+    """Keyword arguments of :func:`~bayes_mpem.lbl.diagnosis.driver.diagnose` from its options.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+
+    Returns
+    -------
+    dict
+    """
+    effects = EFFECTS if args.effects is None else tuple(
+        e.strip() for e in args.effects.split(",") if e.strip())
+    unknown = [e for e in effects if e not in EFFECTS]
+    if unknown or not effects:
+        raise OptionError(f"--effects: expected a comma-separated list of {', '.join(EFFECTS)}; "
+                          f"got {args.effects!r}")
+    return dict(effects=effects, path=args.path, n_folds=args.folds, min_gain=args.min_gain,
+                min_pings=args.min_pings, rng=args.seed, progress=not args.no_progress)
+
+
 def _print_written(paths) -> None:
     for p in paths:
         print(f"wrote {p}")
@@ -84,6 +138,9 @@ def _report_fit(result, paths):
             print(f"warning: beacon {bid} did not converge", file=sys.stderr)
     n_nr = int(result.survey.no_reply.sum())
     print(f"\n{len(result.survey)} rows, {n_nr} pings without reply (labelled no_reply)")
+    if result.survey.comment_lines:
+        print(f"{result.survey.comment_lines} comment line(s) (starting with #) in "
+              f"{result.survey.pings_source} were not read as rows")
     _print_written(paths)
 
 
@@ -110,6 +167,9 @@ def _demo_fits(sim, out, seed):
 
 def _demo_bayes(sim, out, seed):
     """Sample and compare the demo's priors, write them: ``(posterior, comparison, paths)``."""
+    from ..lbl.comparison import compare
+    from ..lbl.sampling import sample
+
     print("\nSampling the posterior of every beacon (emcee, learned priors)...")
     post = sample(sim.survey, rng=seed, progress="auto")
     written = list(post.write(out / "bayes").values())
@@ -147,10 +207,11 @@ def cmd_demo(args) -> int:
         post, cmp, paths = _demo_bayes(sim, out, args.seed)
         written += paths
     figs = [p for p in written if str(p).endswith(".png")]
+    from ..report import demo_markdown
+
     md = demo_markdown(sim, result, paper, out, figs, seed=args.seed, posterior=post,
                        comparison=cmp)
-    (out / "summary.md").write_text(md)
-    written.append(out / "summary.md")
+    written.append(write_file(out / "summary.md", lambda tmp: tmp.write_text(md)))
     print(f"\nwrote {len(written)} files under {out}/ (summary.md links every figure)")
     return 0
 
@@ -168,8 +229,14 @@ def cmd_plot(args) -> int:
         Exit status: 0, or 2 when the folder holds nothing to draw (no fitted
         beacon or located transponder).
     """
+    from ..report import load_output
+
     result = load_output(args.result_dir)
     beacon = None if args.beacon is None else args.beacon.strip()  # ids are text, as in CSVs
+    if beacon is not None and beacon not in getattr(result, "results", {}):
+        raise OptionError(f"--beacon: expected one of the fitted beacons "
+                          f"{', '.join(map(repr, getattr(result, 'results', {})))}, "
+                          f"got {args.beacon!r}")
     paths = write_figures(result, args.out or args.result_dir, beacon=beacon)
     if not paths:
         skipped = getattr(result, "skipped", None)
@@ -204,8 +271,8 @@ def cmd_simulate(args) -> int:
             effects[name.strip()] = float(value)
         except ValueError:
             raise OptionError(f"--effect: expected NAME=NUMBER, got {item!r}") from None
-        if not sep:
-            raise OptionError(f"--effect: expected NAME=NUMBER, got {item!r}")
+        if not sep or not math.isfinite(effects[name.strip()]):
+            raise OptionError(f"--effect: expected NAME=NUMBER (a finite number), got {item!r}")
     sim = simulate_survey(args.preset, rng=args.seed, path=args.path, n_cycles=args.n_cycles,
                           effects=effects or None)
     paths = sim.write(args.out)
@@ -228,7 +295,7 @@ def cmd_fit(args) -> int:
     """
     result = fit(args.pings, args.beacons, **fit_kwargs(args))
     out = Path(args.out)
-    paths = list(result.write(out).values())
+    paths = list(result.write(out, table_format=args.table_format).values())
     if args.figures:
         paths += write_figures(result, out)
     _report_fit(result, paths)
@@ -247,10 +314,11 @@ def cmd_sample(args) -> int:
     int
         Exit status 0.
     """
-    result = sample(args.pings, args.beacons, priors=args.priors, ci=args.ci,
-                    n_ensembles=args.ensembles, **sample_kwargs(args))
+    from ..lbl.sampling import sample
+
+    result = sample(args.pings, args.beacons, **sample_command_kwargs(args))
     out = Path(args.out)
-    paths = list(result.write(out).values())
+    paths = list(result.write(out, table_format=args.table_format).values())
     if args.figures:
         paths += write_figures(result, out)
     print(result.format_table())
@@ -274,6 +342,8 @@ def cmd_compare(args) -> int:
     int
         Exit status 0.
     """
+    from ..lbl.comparison import compare
+
     result = compare(args.pings, args.beacons, **sample_kwargs(args))
     paths = list(result.write(args.out).values())
     paths += write_figures(result, args.out)
@@ -294,11 +364,9 @@ def cmd_diagnose(args) -> int:
     int
         Exit status 0.
     """
-    effects = EFFECTS if args.effects is None else tuple(
-        e.strip() for e in args.effects.split(",") if e.strip())
-    result = diagnose(args.pings, args.beacons, effects=effects, path=args.path,
-                      n_folds=args.folds, min_gain=args.min_gain, min_pings=args.min_pings,
-                      rng=args.seed, progress=not args.no_progress)
+    from ..lbl.diagnosis.driver import diagnose
+
+    result = diagnose(args.pings, args.beacons, **diagnose_kwargs(args))
     paths = list(result.write(args.out).values())
     if not args.no_figures:
         paths += write_figures(result, args.out)

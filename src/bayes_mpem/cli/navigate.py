@@ -10,10 +10,12 @@ dead-reckoned pings, the beacons, ``truth.json`` and ``true_track.csv``.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 from ..lbl.navigate.options import MODELS, MULTIPATH
 from ..lbl.paths import PATH_CHOICES
+from . import options as opt
 from .errors import OptionError
 
 #: ``simulate`` options that only apply with ``--navigation``.
@@ -46,21 +48,21 @@ def add_navigate(sub) -> None:
                    help="the mixture (default) or a baseline smoother")
     p.add_argument("--path", choices=PATH_CHOICES, default="auto",
                    help="multipath geometry per beacon (default auto)")
-    p.add_argument("--dr-noise", type=float, default=0.1, metavar="Q",
+    p.add_argument("--dr-noise", type=opt.positive, default=0.1, metavar="Q",
                    help="random-walk level of the dead reckoning, m/sqrt(s) (default 0.1)")
-    p.add_argument("--start-sd", type=float, default=1000.0, metavar="M",
+    p.add_argument("--start-sd", type=opt.positive, default=1000.0, metavar="M",
                    help="prior sd of the first position about the first fix, m (default 1000)")
-    p.add_argument("--heading-sd", type=float, default=5.0, metavar="DEG",
+    p.add_argument("--heading-sd", type=opt.positive, default=5.0, metavar="DEG",
                    help="prior sd of the heading bias, degrees (default 5)")
-    p.add_argument("--scale-sd", type=float, default=0.05, metavar="S",
+    p.add_argument("--scale-sd", type=opt.positive, default=0.05, metavar="S",
                    help="prior sd of the speed scale (default 0.05)")
-    p.add_argument("--sigma-dp", type=float, default=None, metavar="S",
+    p.add_argument("--sigma-dp", type=opt.positive, default=None, metavar="S",
                    help="fix sigma_DP, m (default: estimated)")
-    p.add_argument("--min-pings", type=int, default=30, metavar="N",
+    p.add_argument("--min-pings", type=opt.at_least(1), default=30, metavar="N",
                    help="beacons with fewer replies get no multipath class (default 30)")
-    p.add_argument("--max-sd", type=float, default=10.0, metavar="M",
+    p.add_argument("--max-sd", type=opt.positive, default=10.0, metavar="M",
                    help="flag epochs whose position sd stays above this, m (default 10)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--seed", type=opt.seed, default=0, help="random seed (default 0)")
     p.add_argument("--figures", action="store_true", help="also write the figures")
 
 
@@ -74,15 +76,16 @@ def add_simulate_navigation(p) -> None:
     g = p.add_argument_group("dives (--navigation)")
     g.add_argument("--navigation", action="store_true",
                    help="simulate a dive: dead-reckoned pings and the true track")
-    g.add_argument("--heading-bias", type=float, default=None, metavar="DEG",
+    g.add_argument("--heading-bias", default=None, metavar="DEG",
+                   type=opt.number("a heading bias in [-180, 180] degrees", -180.0, 180.0),
                    help="heading bias of the dead reckoning (default: drawn in [-2, 2])")
-    g.add_argument("--speed-scale", type=float, default=None, metavar="S",
+    g.add_argument("--speed-scale", type=opt.positive, default=None, metavar="S",
                    help="true over dead-reckoned speed (default: drawn in [0.98, 1.02])")
-    g.add_argument("--dr-noise", type=float, default=None, metavar="Q",
+    g.add_argument("--dr-noise", type=opt.non_negative, default=None, metavar="Q",
                    help="random walk of the dead reckoning, m/sqrt(s) (default 0.1)")
-    g.add_argument("--start-error", type=float, default=None, metavar="M",
+    g.add_argument("--start-error", type=opt.non_negative, default=None, metavar="M",
                    help="sd of the first fix's error, m (default 10)")
-    g.add_argument("--shadow-range", type=float, default=None, metavar="M",
+    g.add_argument("--shadow-range", type=opt.positive, default=None, metavar="M",
                    help="block the direct path beyond this horizontal range from a beacon")
     g.add_argument("--shadow-window", action="append", default=None, metavar="T0:T1",
                    help="block the direct path between these times, s (repeatable)")
@@ -93,11 +96,13 @@ def _windows(items):
     for item in items or ():
         a, sep, b = item.partition(":")
         try:
-            out.append((float(a), float(b)))
+            t0, t1 = float(a), float(b)
         except ValueError:
-            raise OptionError(f"--shadow-window: expected T0:T1 (seconds), got {item!r}") from None
-        if not sep:
-            raise OptionError(f"--shadow-window: expected T0:T1 (seconds), got {item!r}")
+            t0 = t1 = float("nan")
+        if not sep or not (math.isfinite(t0) and math.isfinite(t1) and t0 < t1):
+            raise OptionError(f"--shadow-window: expected T0:T1 (seconds, T0 < T1), got "
+                              f"{item!r}")
+        out.append((t0, t1))
     return out
 
 
@@ -138,6 +143,23 @@ def cmd_simulate_navigation(args) -> int:
     return 0
 
 
+def navigate_kwargs(args) -> dict:
+    """Keyword arguments of :func:`~bayes_mpem.lbl.navigate.navigate` from its options.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+
+    Returns
+    -------
+    dict
+    """
+    return dict(dead_reckoning=args.dead_reckoning, multipath=args.multipath, model=args.model,
+                path=args.path, dr_noise=args.dr_noise, start_sd=args.start_sd,
+                heading_sd=args.heading_sd, scale_sd=args.scale_sd, sigma_dp=args.sigma_dp,
+                min_pings=args.min_pings, max_sd=args.max_sd, rng=args.seed)
+
+
 def cmd_navigate(args) -> int:
     """Run ``bayes-mpem navigate``.
 
@@ -153,11 +175,7 @@ def cmd_navigate(args) -> int:
     from ..lbl.navigate import navigate
     from ..report import write_figures
 
-    nav = navigate(args.pings, args.beacons, dead_reckoning=args.dead_reckoning,
-                   multipath=args.multipath, model=args.model, path=args.path,
-                   dr_noise=args.dr_noise, start_sd=args.start_sd, heading_sd=args.heading_sd,
-                   scale_sd=args.scale_sd, sigma_dp=args.sigma_dp, min_pings=args.min_pings,
-                   max_sd=args.max_sd, rng=args.seed)
+    nav = navigate(args.pings, args.beacons, **navigate_kwargs(args))
     out = Path(args.out)
     paths = list(nav.write(out).values())
     if args.figures:

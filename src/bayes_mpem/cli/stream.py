@@ -23,6 +23,7 @@ import traceback
 from ..exceptions import InputError
 from ..lbl.navigate.options import MULTIPATH
 from ..lbl.paths import PATH_CHOICES
+from . import options as opt
 from .errors import OptionError
 
 # the library (numpy, pandas) is imported when the command runs, not when the parser is
@@ -49,28 +50,30 @@ def add_stream(sub) -> None:
                    help="where answers go (default standard output)")
     p.add_argument("--state", default=None, metavar="FILE",
                    help="resume from this saved state if it exists; save to it on exit")
-    p.add_argument("--save-every", type=int, default=0, metavar="N",
+    p.add_argument("--save-every", type=opt.at_least(0), default=0, metavar="N",
                    help="also save the state every N lines (default 0: on exit only)")
     p.add_argument("--replay", default=None, metavar="PINGS",
                    help="feed a recorded file (CSV or JSON lines) at its own time stamps")
     p.add_argument("--speed", default="realtime", metavar="realtime|max|FACTOR",
                    help="--replay: real time (default), as fast as possible, or FACTOR times "
                         "faster")
-    p.add_argument("--warmup", type=int, default=200, metavar="N",
+    p.add_argument("--warmup", type=opt.at_least(3), default=200, metavar="N",
                    help="replies fitted in batch before the online estimator starts "
                         "(default 200)")
-    p.add_argument("--alpha", type=float, default=1.0, metavar="A",
+    p.add_argument("--alpha", default=1.0, metavar="A",
+                   type=opt.number("a step-size exponent in (0.5, 1]", 0.5, 1.0,
+                                   include_low=False),
                    help="online-EM step size n^-A, 1/2 < A <= 1 (default 1)")
     p.add_argument("--multipath", choices=MULTIPATH, default="signal",
                    help="multipath replies update the position (default) or are outliers")
     p.add_argument("--path", choices=PATH_CHOICES, default="auto",
                    help="multipath geometry: chosen by the warm-up and revised online "
                         "(default auto), or forced")
-    p.add_argument("--dr-noise", type=float, default=0.1, metavar="Q",
+    p.add_argument("--dr-noise", type=opt.positive, default=0.1, metavar="Q",
                    help="random-walk level of the dead reckoning, m/sqrt(s) (default 0.1)")
-    p.add_argument("--sigma-dp", type=float, default=None, metavar="S",
+    p.add_argument("--sigma-dp", type=opt.positive, default=None, metavar="S",
                    help="fix sigma_DP, m (default learned)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the warm-up fit (default 0)")
+    p.add_argument("--seed", type=opt.seed, default=0, help="seed of the warm-up fit (default 0)")
 
 
 def _speed(text: str):

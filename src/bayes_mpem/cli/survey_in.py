@@ -2,7 +2,8 @@
 
 Parses nothing itself (:mod:`.parser` does): checks that the options go
 together, calls :func:`~bayes_mpem.survey_in.survey.locate_survey` (or its
-posterior-sampling sibling), writes the result (and with ``--figures`` its
+posterior-sampling sibling, through :func:`bayes_mpem.batch.locate_raw`, which
+``bayes-mpem batch`` shares), writes the result (and with ``--figures`` its
 figures, :func:`~bayes_mpem.report.write_figures`) and prints, per transponder,
 its position, the drift from the drop point, TAT, sound speed and depth change
 with their intervals, and whether a lag along the track would fit better.
@@ -12,13 +13,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..batch import locate_raw
+from ..io.boundary import read_text_lines
 from ..io.formats import read_survey, sniff_format
 from ..io.raw import ARRAY_FORMATS
 from ..report import write_figures
-from ..survey_in.location_sampling import locate_survey_bayes
 from ..survey_in.posterior import check_location_options
-from ..survey_in.result import SurveyInResult
-from ..survey_in.survey import locate_survey
 from .errors import OptionError
 
 
@@ -43,8 +43,7 @@ def survey_format(path, fmt: str) -> str:
         return sniff_format(path)
     if fmt != "obsrange":
         return fmt
-    with open(path, encoding="utf-8-sig", errors="replace") as fh:
-        first = next((ln for ln in fh if ln.strip()), "")
+    first = next((ln for ln in read_text_lines(path) if ln.strip()), "")
     return "obsrange-whoi" if first.lstrip().startswith("#") else "obsrange-sio"
 
 
@@ -59,33 +58,50 @@ def _check_sample_options(args):
                                min_ess=1000.0 if args.min_ess is None else args.min_ess)
 
 
-def _locate(args, raw) -> SurveyInResult:
-    model = dict(tat=args.tat, fit_tat=args.fit_tat, ci=args.ci, outliers=args.outliers,
-                 ssp=args.ssp, speed_intervals=args.speed_intervals)
-    if raw.format in ARRAY_FORMATS:
+def locate_kwargs(args) -> dict:
+    """Options of the location from ``bayes-mpem locate``'s, after checking they go together.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+
+    Returns
+    -------
+    dict
+        The keyword arguments of :func:`~bayes_mpem.survey_in.survey.locate_survey`,
+        plus ``sample``: those of the posterior sampling
+        (:func:`~bayes_mpem.survey_in.location_sampling.locate_survey_bayes`) with
+        ``--sample``, else None.
+
+    Raises
+    ------
+    OptionError
+        For options that do not go together (e.g. ``--seed`` without ``--sample``).
+    """
+    _check_sample_options(args)
+    if getattr(args, "format", None) in ARRAY_FORMATS:
         given = [name for name, v in (("--tat", args.tat is not None),
                                       ("--fit-tat", args.fit_tat), ("--fit-lag", args.fit_lag),
                                       ("--sample", args.sample)) if v]
         if given:
-            raise OptionError(f"{', '.join(given)}: not for a {raw.format} array survey (its "
+            raise OptionError(f"{', '.join(given)}: not for a {args.format} array survey (its "
                               "travel times are corrected for the delays; the array's "
                               "posterior is not sampled yet)")
-        return locate_survey(raw, ci=args.ci, outliers=args.outliers, ssp=args.ssp,
-                             speed_intervals=args.speed_intervals)
+        return dict(ci=args.ci, outliers=args.outliers, ssp=args.ssp,
+                    speed_intervals=args.speed_intervals, sample=None)
+    model = dict(tat=args.tat, fit_tat=args.fit_tat, ci=args.ci, outliers=args.outliers,
+                 ssp=args.ssp, speed_intervals=args.speed_intervals,
+                 lag_check=not getattr(args, "no_lag_check", False))
     if args.fit_lag:
         if args.sample:
             raise OptionError("--fit-lag with --sample is not implemented: the posterior has "
                               "no lag parameter yet")
         model["fit_lag"] = True
-    if not args.sample:
-        check = raw.format.startswith("obsrange") and not args.no_lag_check
-        return locate_survey(raw, **model, lag_check=check)
-    summary, classified, posteriors = locate_survey_bayes(
-        raw, **model, n_walkers=args.walkers,
-        min_ess=1000.0 if args.min_ess is None else args.min_ess,
+    model["sample"] = None if not args.sample else dict(
+        n_walkers=args.walkers, min_ess=1000.0 if args.min_ess is None else args.min_ess,
         rng=0 if args.seed is None else args.seed,
         progress=False if args.no_progress else "auto")
-    return SurveyInResult(summary=summary, classified=classified, posteriors=posteriors)
+    return model
 
 
 def _interval(d, fmt="{:.2f}", scale=1.0):
@@ -150,10 +166,10 @@ def cmd_locate(args) -> int:
     OptionError
         For options that do not go together (e.g. ``--seed`` without ``--sample``).
     """
-    fmt = survey_format(args.survey, args.format)
-    _check_sample_options(args)
-    raw = read_survey(args.survey, fmt)
-    result = _locate(args, raw)
+    args.format = survey_format(args.survey, args.format)
+    options = locate_kwargs(args)  # options checked before the file is read
+    raw = read_survey(args.survey, args.format)
+    result = locate_raw(raw, options)
     out = Path(args.out)
     paths = result.write(out)
     summary = result.summary

@@ -9,10 +9,9 @@ from __future__ import annotations
 import re
 from datetime import UTC, datetime, timedelta
 
-import numpy as np
-
 from ..exceptions import InputError
-from .raw import RawSurvey, bad, finish, read_lines
+from .boundary import COMMENT, LIMITS, Shape, classify, limit_problem, read_text_lines
+from .raw import RawSurvey, bad, finish
 
 
 def _dm(deg, minutes, hemi):
@@ -32,8 +31,61 @@ _SIO_HEADER = {"drop point (latitude)": "lat", "drop point (longitude)": "lon",
                "depth (meters)": "depth", "site": "site"}
 
 
+_SIO_SHAPES = (Shape("ping", _SIO_PING.pattern[1:-1]), Shape("separator", r"=+"),
+               Shape("event", r"Event skipped\b.*"),
+               Shape("header", r"(?P<key>[A-Za-z][A-Za-z ()/_.-]*?)\s*:\s*(?P<value>.*)"))
+
+
+def _sio_header(source, i, key, value, header):
+    k = _SIO_HEADER.get(key.strip().lower())
+    if k in ("lat", "lon", "depth"):
+        try:
+            v = float(value)
+        except ValueError:
+            v = None
+        why = (f"expected a number, got {value.strip()!r}" if v is None
+               else limit_problem(k, v))
+        if why:
+            raise InputError(f"{source} line {i}: header {key.strip()!r}: {why}")
+        header[k] = v
+    elif k:
+        header[k] = value.strip()
+
+
+def _sio_ping(g):
+    """Return a ping line's values, or the reason it cannot be used."""
+    for part, kind in (("latm", "minutes"), ("lonm", "minutes")):
+        why = limit_problem(kind, float(g[part]))
+        if why or float(g[part]) >= 60.0:
+            return why or f"arc-minutes {g[part]} outside [0, 60)"
+    year, doy = int(g["year"]), int(g["doy"])
+    days = 366 if (year % 4 == 0 and year % 100 != 0) or year % 400 == 0 else 365
+    if not 1 <= doy <= days:
+        return f"invalid time (day of year {doy} outside 1-{days})"
+    if int(g["hh"]) > 23 or int(g["mm"]) > 59 or float(g["ss"]) >= 61:
+        return f"invalid time ({g['hh']}:{g['mm']}:{g['ss']})"
+    t = (datetime(year, 1, 1, tzinfo=UTC)
+         + timedelta(days=doy - 1, hours=int(g["hh"]), minutes=int(g["mm"]),
+                     seconds=float(g["ss"])))
+    row = {"_epoch": t.timestamp(), "twtt": float(g["ms"]) / 1000.0,
+           "lat": _dm(g["latd"], g["latm"], g["lath"]),
+           "lon": _dm(g["lond"], g["lonm"], g["lonh"]), "alt": float(g["alt"])}
+    for kind in ("twtt", "lat", "lon"):
+        why = limit_problem(kind, row[kind])
+        if why:
+            return why
+    return row
+
+
 def read_obsrange_sio(path, *, strict=False) -> RawSurvey:
     """Read an SIO EdgeTech deck-box log (OBSrange sample format).
+
+    Every line is classified by its shape (:func:`~bayes_mpem.io.boundary.classify`):
+    a ping line is a ping wherever it stands (with or without the ``=====`` line
+    that ends the header), ``Key: value`` lines before the first ping are the
+    header, ``Event skipped`` lines are the deck box's, and any other line, or a
+    ping whose values are not physically possible (a travel time of 0 ms, a
+    latitude beyond 90 degrees, 75 arc-minutes), is skipped with its reason.
 
     Parameters
     ----------
@@ -48,54 +100,32 @@ def read_obsrange_sio(path, *, strict=False) -> RawSurvey:
     Raises
     ------
     FileNotFoundError, InputError
+        A header value that is not a number or not possible (a drop-point latitude
+        of 123) is an error naming the file and line.
     """
     source = str(path)
     rows, skipped, header = [], [], {}
-    in_header = True
-    for i, text in enumerate(read_lines(path), start=1):
-        s = text.strip()
-        if not s:
+    lines = read_text_lines(path)
+    for i, kind, m in classify(lines, _SIO_SHAPES):
+        text = lines[i - 1]
+        if kind in ("blank", "separator"):
             continue
-        if in_header:
-            if set(s) == {"="}:
-                in_header = False
-                continue
-            key, sep, value = s.partition(":")
-            if sep:
-                k = _SIO_HEADER.get(key.strip().lower())
-                if k in ("lat", "lon", "depth"):
-                    try:
-                        header[k] = float(value)
-                    except ValueError:
-                        raise InputError(f"{source} line {i}: header {key.strip()!r}: "
-                                         f"expected a number, got {value.strip()!r}") from None
-                elif k:
-                    header[k] = value.strip()
-                continue
-            in_header = False  # no separator line: data starts here
-        if s.startswith("Event skipped"):
-            skipped.append((i, text, "deck box: " + s.partition(" - ")[2] or s))
-            continue
-        m = _SIO_PING.match(s)
-        if m is None:
-            bad(strict, source, i, text, "not a ping line of the SIO deck-box format", skipped)
-            continue
-        g = m.groupdict()
-        try:
-            year, doy = int(g["year"]), int(g["doy"])
-            days = 366 if (year % 4 == 0 and year % 100 != 0) or year % 400 == 0 else 365
-            if not 1 <= doy <= days:
-                raise ValueError(f"day of year {doy} outside 1-{days}")
-            t = (datetime(year, 1, 1, tzinfo=UTC)
-                 + timedelta(days=int(g["doy"]) - 1, hours=int(g["hh"]), minutes=int(g["mm"]),
-                             seconds=float(g["ss"])))
-        except ValueError as exc:
-            bad(strict, source, i, text, f"invalid time ({exc})", skipped)
-            continue
-        rows.append({"line": i, "_epoch": t.timestamp(), "twtt": float(g["ms"]) / 1000.0,
-                     "lat": _dm(g["latd"], g["latm"], g["lath"]),
-                     "lon": _dm(g["lond"], g["lonm"], g["lonh"]), "alt": float(g["alt"])})
-    return finish("obsrange-sio", source, rows, header, skipped, header.get("site", "1"))
+        if kind == "header" and not rows:
+            _sio_header(source, i, m["key"], m["value"], header)
+        elif kind == "event":
+            skipped.append((i, text, "deck box: " + (text.strip().partition(" - ")[2]
+                                                     or text.strip())))
+        elif kind == "ping":
+            row = _sio_ping(m.groupdict())
+            if isinstance(row, str):
+                bad(strict, source, i, text, row, skipped)
+            else:
+                rows.append({"line": i, **row})
+        else:
+            why = ("a header line among the pings" if kind == "header"
+                   else "not a ping line of the SIO deck-box format")
+            bad(strict, source, i, text, why, skipped)
+    return finish("obsrange-sio", source, rows, header, skipped, header.get("site") or "1")
 
 
 # --------------------------------------------------------------------------- OBSrange WHOI
@@ -103,8 +133,77 @@ def read_obsrange_sio(path, *, strict=False) -> RawSurvey:
 _WHOI_DM = re.compile(r"^\s*(\d+)\s+(\d+(?:\.\d*)?)\s*([NSEW])\s*$")
 
 
+def _whoi_dm(text, kind):
+    """Signed degrees from 'DD MM.MMMM H', or the reason they are not usable."""
+    m = _WHOI_DM.match(text)
+    if m is None:
+        return f"{LIMITS[kind].what} {text.strip()!r} not as 'DD MM.MMMM H'"
+    if float(m.group(2)) >= 60.0:
+        return f"arc-minutes {m.group(2)} outside [0, 60)"
+    if (m.group(3) in "NS") != (kind == "lat"):
+        return f"{LIMITS[kind].what} {text.strip()!r} has the hemisphere of the other axis"
+    v = _dm(*m.groups())
+    return limit_problem(kind, v) or v
+
+
+def _whoi_header(source, i, text, header):
+    key, _, value = text.strip().lstrip("#").partition(":")
+    key, value = key.strip().lower(), value.strip()
+    try:
+        if key in ("drop-point latitude", "drop-point longitude"):
+            kind = "lat" if "latitude" in key else "lon"
+            v = _whoi_dm(value, kind)
+            if isinstance(v, str):
+                raise ValueError(v)
+            header[kind] = v
+        elif key in ("drop-point depth (m)", "tat", "speed of sound"):
+            kind = {"drop-point depth (m)": "depth", "tat": "tat",
+                    "speed of sound": "sound_speed"}[key]
+            v = float(value.split()[0]) / (1000.0 if kind == "tat" else 1.0)
+            why = limit_problem(kind, v)
+            if why:
+                raise ValueError(why)
+            header[kind] = v
+        elif key == "instrument":
+            header["site"] = value
+    except (ValueError, IndexError) as exc:
+        raise InputError(f"{source} line {i}: header {key!r}: could not read {value!r}"
+                         + (f" ({exc})" if str(exc) else "")) from None
+
+
+def _whoi_ping(parts):
+    """Return a WHOI ping line's values, or the reason it cannot be used."""
+    try:
+        t = datetime.strptime(parts[0], "%Y-%m-%d %H:%M:%S").replace(tzinfo=UTC)
+    except ValueError as exc:
+        return f"invalid time ({exc})"
+    row = {"_epoch": t.timestamp()}
+    for key, text, kind in (("twtt", parts[2], "twtt"), ("rng_m", parts[1], "range"),
+                            ("heading", parts[6], "heading")):
+        try:
+            v = float(text) / (1000.0 if key == "twtt" else 1.0)
+        except ValueError:
+            return f"{LIMITS[kind].what} {text!r} is not a number"
+        why = limit_problem(kind, v)
+        if why:
+            return why
+        row[key] = v
+    for key, text in (("lat", parts[3]), ("lon", parts[4])):
+        v = _whoi_dm(text, key)
+        if isinstance(v, str):
+            return v
+        row[key] = v
+    return row
+
+
 def read_obsrange_whoi(path, *, strict=False) -> RawSurvey:
     """Read a WHOI EdgeTech CSV log (OBSrange sample format).
+
+    ``#`` lines are the header (drop point, ``TAT``, deck-box sound speed; a
+    value that is not possible is an error naming the line); a ping line has 7
+    comma-separated fields, all physically possible (travel time, latitude,
+    longitude with minutes below 60, heading); any other line is skipped with its
+    reason.
 
     Parameters
     ----------
@@ -124,46 +223,19 @@ def read_obsrange_whoi(path, *, strict=False) -> RawSurvey:
     """
     source = str(path)
     rows, skipped, header = [], [], {}
-    for i, text in enumerate(read_lines(path), start=1):
-        s = text.strip()
-        if not s:
+    lines = read_text_lines(path)
+    for i, kind, _ in classify(lines, (COMMENT,)):
+        text = lines[i - 1]
+        if kind == "blank":
             continue
-        if s.startswith("#"):
-            key, sep, value = s.lstrip("#").partition(":")
-            key, value = key.strip().lower(), value.strip()
-            try:
-                if key == "drop-point latitude" or key == "drop-point longitude":
-                    m = _WHOI_DM.match(value)
-                    if m:
-                        header["lat" if "latitude" in key else "lon"] = _dm(*m.groups())
-                elif key == "drop-point depth (m)":
-                    header["depth"] = float(value)
-                elif key == "tat":
-                    header["tat"] = float(value.split()[0]) / 1000.0
-                elif key == "speed of sound":
-                    header["sound_speed"] = float(value.split()[0])
-                elif key == "instrument":
-                    header["site"] = value
-            except (ValueError, IndexError):
-                raise InputError(f"{source} line {i}: header {key!r}: could not read "
-                                 f"{value!r}") from None
+        if kind == "comment":
+            _whoi_header(source, i, text, header)
             continue
-        parts = [p.strip() for p in s.split(",")]
-        if len(parts) != 7:
-            bad(strict, source, i, text, f"expected 7 comma-separated fields, got {len(parts)}",
-                 skipped)
-            continue
-        try:
-            t = datetime.strptime(parts[0], "%Y-%m-%d %H:%M:%S").replace(tzinfo=UTC)
-            lat, lon = _WHOI_DM.match(parts[3]), _WHOI_DM.match(parts[4])
-            if lat is None or lon is None:
-                raise ValueError("latitude/longitude not as 'DD MM.MMMM H'")
-            twtt = float(parts[2]) / 1000.0
-            if not np.isfinite(twtt) or twtt <= 0:
-                raise ValueError(f"travel time {parts[2]!r} ms is not positive")
-            rows.append({"line": i, "_epoch": t.timestamp(), "twtt": twtt,
-                         "rng_m": float(parts[1]), "lat": _dm(*lat.groups()),
-                         "lon": _dm(*lon.groups()), "heading": float(parts[6])})
-        except ValueError as exc:
-            bad(strict, source, i, text, str(exc), skipped)
-    return finish("obsrange-whoi", source, rows, header, skipped, header.get("site", "1"))
+        parts = [p.strip() for p in text.strip().split(",")]
+        row = (f"expected 7 comma-separated fields, got {len(parts)}" if len(parts) != 7
+               else _whoi_ping(parts))
+        if isinstance(row, str):
+            bad(strict, source, i, text, row, skipped)
+        else:
+            rows.append({"line": i, **row})
+    return finish("obsrange-whoi", source, rows, header, skipped, header.get("site") or "1")

@@ -114,9 +114,12 @@ class RawSurvey:
         c = float(sound_speed or self.header.get("sound_speed") or 1500.0)
         t0 = float(self.header.get("tat", 0.0) if tat is None else tat)
         if origin is None:
-            if "lat" not in self.header:
+            if "lat" in self.header and "lon" in self.header:
+                origin = (self.header["lat"], self.header["lon"])
+            elif len(self.pings):  # no drop point: start from the middle of the ship's track
+                origin = (float(self.pings["lat"].mean()), float(self.pings["lon"].mean()))
+            else:
                 raise InputError(f"{self.source}: no drop point in the header; pass origin=")
-            origin = (self.header["lat"], self.header["lon"])
         e, n, _ = geodetic_to_enu(self.pings["lat"], self.pings["lon"], 0.0, *origin)
         p = pd.DataFrame({
             "time": self.pings["time"].to_numpy(), "beacon": self.pings["transponder"],
@@ -125,9 +128,10 @@ class RawSurvey:
             "twtt": self.pings["twtt"].to_numpy()})
         de, dn, _ = geodetic_to_enu(self.header.get("lat", origin[0]),
                                     self.header.get("lon", origin[1]), 0.0, *origin)
+        # no drop-point depth: start at the median one-way range (the slant range bounds it)
+        depth = self.header.get("depth", float(np.median(p["range"])) if len(p) else np.nan)
         b = pd.DataFrame([{"beacon": str(self.pings["transponder"].iloc[0]) if len(self.pings)
-                           else "1", "x": float(de), "y": float(dn),
-                           "depth": float(self.header.get("depth", np.nan))}])
+                           else "1", "x": float(de), "y": float(dn), "depth": float(depth)}])
         return p, b
 
 

@@ -1,23 +1,62 @@
-"""Writing result files: the one JSON and CSV writer behind every result's ``write()``.
+"""Writing result files: the one writer behind every result's ``write()`` and every figure.
 
 Every output folder of ``bayes-mpem`` holds JSON documents (``summary.json``,
-``compare.json``, ``diagnosis.json``, ...) and CSV tables (``classified.csv``,
-``changed.csv``). They are all written here, with one set of serialisation
-settings, so the files of every command look alike and stay byte-identical
-from one release to the next.
+``compare.json``, ``diagnosis.json``, ...), tables (``classified.csv`` or
+``.parquet``), NetCDF and PNG files. They are all written here, with one set of
+serialisation settings and one convention that makes an interrupted run safe:
+
+* **Check first.** :func:`check_output_folder` (the command line calls it on
+  ``--out`` before any work) refuses a path that is a file, lies under a file,
+  or cannot be created or written, naming the option.
+* **Temporary name, then rename.** Each file is written to a hidden temporary
+  name in its own folder (``.classified.partial-<pid>.csv``) and renamed into
+  place when complete; a file never exists half-written under its real name.
+* **One run, one commit.** Inside ``with writing(out_dir):`` (what every
+  ``write()`` and the command line use) the renames wait until the whole run
+  has succeeded. At the commit the old ``summary.json`` is removed first, the
+  new files are renamed in, and ``summary.json`` is written **last**, listing the
+  files of the run under ``"files"`` (files of an earlier run that this one did not
+  write are left in place, unlisted: they may be the user's inputs). It is the
+  completion marker: a folder is complete when its ``summary.json`` parses and
+  every file it lists exists
+  (:func:`read_marker`, which ``bayes-mpem plot`` uses). A run killed at any
+  moment leaves either the previous complete results or no ``summary.json``;
+  an exception leaves the previous results and removes its temporary files. A
+  folder whose result has no summary of its own (``diagnose``, ``compare``,
+  ``simulate``) gets a ``summary.json`` with only ``"files"``; a run that adds
+  files to a complete folder (``bayes-mpem plot``, ``writing(extend=True)``)
+  keeps its marker's content and lists the new files too.
+* **Valid JSON.** NaN and infinities are written as ``null`` and listed, with
+  what they were, under ``"non_finite"`` (``{"beacons.4.sigma_mp": "nan"}``); no
+  ``NaN``/``Infinity`` token is ever written.
+* **Timings apart.** Wall-clock seconds are not reproducible, so they never go
+  into ``summary.json`` (byte-identical for the same seed): results write them
+  to ``timings.json``.
+
+New results and commands get all of this by writing through :func:`write_json`,
+:func:`write_csv`, :func:`write_table` and :func:`write_file` inside
+``with writing(out_dir) as out:``.
 
 Examples
 --------
->>> import tempfile
+>>> import json, tempfile
 >>> import pandas as pd
 >>> with tempfile.TemporaryDirectory() as tmp:
-...     out = output_folder(tmp + "/run")
-...     p = write_json(out / "summary.json", {"n": 1})
-...     print(p.read_text(), end="")
-...     q = write_csv(out / "t.csv", pd.DataFrame({"a": [1, 2]}))
-...     print(q.read_text(), end="")
+...     with writing(tmp + "/run") as out:
+...         _ = write_json(out / "summary.json", {"n": 1, "sd": float("nan")})
+...         _ = write_csv(out / "t.csv", pd.DataFrame({"a": [1, 2]}))
+...     print((out / "summary.json").read_text(), end="")
+...     print((out / "t.csv").read_text(), end="")
 {
-  "n": 1
+  "n": 1,
+  "sd": null,
+  "non_finite": {
+    "sd": "nan"
+  },
+  "files": [
+    "summary.json",
+    "t.csv"
+  ]
 }
 a
 1
@@ -26,14 +65,218 @@ a
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import json
+import os
+import tempfile
 from pathlib import Path
 
 import numpy as np
 
+from ..exceptions import InputError
+from .documents import finite_json, json_text, numpy_to_json, split_timings
+from .table_files import write_table_file
+
+MARKER = "summary.json"
+TIMINGS = "timings.json"
+_RUNS: contextvars.ContextVar = contextvars.ContextVar("bayes_mpem_runs", default=())
+
+
+def check_output_folder(out_dir, option: str = "--out") -> Path:
+    """Check that ``out_dir`` is (or can become) a writable folder, without creating it.
+
+    Parameters
+    ----------
+    out_dir : str or os.PathLike
+    option : str, default "--out"
+        The option's name, for the message.
+
+    Returns
+    -------
+    pathlib.Path
+
+    Raises
+    ------
+    InputError
+        The path is a file, lies under a file, or its nearest existing folder
+        cannot be written (permissions, a read-only file system).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> with tempfile.NamedTemporaryFile() as f:
+    ...     check_output_folder(f.name + "/sub")
+    Traceback (most recent call last):
+    ...
+    bayes_mpem.exceptions.InputError: --out ...: lies under the file ...; expected a folder
+    """
+    out = Path(out_dir)
+    if str(out_dir).strip() == "":
+        raise InputError(f"{option}: expected a folder name, got an empty string")
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{option} {str(out)!r}: is a file; expected a folder")
+    base = out
+    while not base.exists():
+        if base.parent == base:
+            break
+        base = base.parent
+    if base.exists() and not base.is_dir():
+        raise InputError(f"{option} {str(out)!r}: lies under the file {str(base)!r}; "
+                         "expected a folder")
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".write-check-", dir=base)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise InputError(f"{option} {str(out)!r}: cannot be written ({exc.strerror or exc} in "
+                         f"{str(base)!r})") from None
+    return out
+
+
+class _Run:
+    """The files staged by one ``writing()`` block, renamed into place at its commit."""
+
+    def __init__(self, root: Path, extend: bool) -> None:
+        self.root, self.extend = root, extend
+        self.staged: dict[Path, Path] = {}  # final path -> temporary path
+        self.markers: dict[Path, dict] = {}  # final path of a summary.json -> its document
+
+    def owns(self, path: Path) -> bool:
+        return path.parent.resolve().is_relative_to(self.root.resolve())
+
+    def commit(self) -> None:
+        if not self.staged and not self.markers:
+            return  # nothing written: nothing to mark
+        for path, doc in list(self.markers.items()):
+            doc, timings = split_timings(doc)
+            self.markers[path] = doc
+            if timings:
+                write_json(path.with_name(TIMINGS), timings)
+        marker = self.root / MARKER
+        old = read_marker(self.root, check=False) if marker.exists() else None
+        for path in sorted(self.markers, key=lambda p: -len(p.parts)):
+            path.unlink(missing_ok=True)
+        marker.unlink(missing_ok=True)  # first: from here on the folder is not complete
+        for final, tmp in self.staged.items():
+            os.replace(tmp, final)
+        new = {self._rel(p) for p in [*self.staged, *self.markers]} | {MARKER}
+        doc = self.markers.pop(marker, None)
+        old_files = set((old or {}).get("files", []))
+        if doc is None and old is not None:
+            doc = {k: v for k, v in old.items() if k != "files"}
+            new |= {f for f in old_files if (self.root / f).exists()}
+        # files of an earlier run that this one did not write stay (they may be the user's
+        # inputs: `fit` into the folder `simulate` wrote), unlisted: not part of this result
+        for path in sorted(self.markers, key=lambda p: -len(p.parts)):  # nested, deepest first
+            sub = path.parent
+            files = sorted(self._rel(p, sub) for p in [*self.staged, *self.markers]
+                           if p.parent.resolve().is_relative_to(sub.resolve()))
+            _atomic_text(path, json_text({**self.markers[path], "files": files}, 2))
+        _atomic_text(marker, json_text({**(doc or {}), "files": sorted(new)}, 2))
+        self._clean_dead_partials()
+
+    def abort(self) -> None:
+        for tmp in self.staged.values():
+            with contextlib.suppress(OSError):
+                tmp.unlink()
+
+    def _rel(self, path: Path, base: Path | None = None) -> str:
+        return path.resolve().relative_to((base or self.root).resolve()).as_posix()
+
+    def _clean_dead_partials(self) -> None:
+        folders = {self.root} | {p.parent for p in self.staged}
+        for folder in folders:
+            for tmp in folder.glob(".*.partial-*"):
+                pid = tmp.name.split(".partial-")[-1].split(".")[0]
+                if pid.isdigit() and not _alive(int(pid)):
+                    with contextlib.suppress(OSError):
+                        tmp.unlink()
+
+
+def _alive(pid: int) -> bool:
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+@contextlib.contextmanager
+def writing(out_dir, *, extend: bool = False, option: str = "--out", create: bool = True):
+    """Write one run's files into ``out_dir``, all or nothing (see the module's description).
+
+    Blocks nest: a ``writing()`` inside another whose folder contains it joins the
+    outer run, so a command's data files, figures and sub-folders are committed
+    together, when the outermost block ends without an exception.
+
+    Parameters
+    ----------
+    out_dir : str or os.PathLike
+        Checked (:func:`check_output_folder`) and created.
+    extend : bool, default False
+        Add files to a complete folder, keeping its ``summary.json`` content
+        (``bayes-mpem plot``); by default the run replaces the folder's results.
+    option : str, default "--out"
+        The option named in the messages of :func:`check_output_folder`.
+    create : bool, default True
+        Create the folder now; ``False`` leaves it to the first file written (a run
+        that fails before writing anything leaves no folder behind).
+
+    Yields
+    ------
+    pathlib.Path
+        The folder.
+
+    Raises
+    ------
+    InputError
+        For an unusable folder.
+    """
+    out = check_output_folder(out_dir, option)
+    if create:
+        out.mkdir(parents=True, exist_ok=True)
+    if any(run.owns(out / "x") for run in _RUNS.get()):
+        yield out
+        return
+    run = _Run(out, extend)
+    token = _RUNS.set((*_RUNS.get(), run))
+    try:
+        yield out
+        run.commit()
+    except BaseException:
+        run.abort()
+        raise
+    finally:
+        _RUNS.reset(token)
+
+
+def abort_open_runs() -> int:
+    """Remove the temporary files of every open run (a process being terminated).
+
+    For a signal handler: the folders keep their previous results (or, killed
+    during a commit, no ``summary.json``), and no ``.partial`` file is left.
+
+    Returns
+    -------
+    int
+        The number of runs aborted.
+    """
+    runs = _RUNS.get()
+    for run in runs:
+        run.abort()
+    return len(runs)
+
 
 def output_folder(out_dir) -> Path:
-    """Create ``out_dir`` (and its parents) if missing.
+    """Create ``out_dir`` (and its parents) if missing, after :func:`check_output_folder`.
+
+    Files written into it outside a :func:`writing` block are still written under
+    a temporary name and renamed, one by one.
 
     Parameters
     ----------
@@ -43,42 +286,66 @@ def output_folder(out_dir) -> Path:
     -------
     pathlib.Path
     """
-    out = Path(out_dir)
+    out = check_output_folder(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     return out
 
 
-def numpy_to_json(value):
-    """Turn a NumPy scalar or array into a JSON-ready value (a ``json`` ``default=``).
+def _current_run(path: Path):
+    for run in reversed(_RUNS.get()):
+        if run.owns(path):
+            return run
+    return None
+
+
+def _temp_name(path: Path) -> Path:
+    return path.with_name(f".{path.stem}.partial-{os.getpid()}{path.suffix}")
+
+
+def _atomic_text(path: Path, text: str) -> None:
+    tmp = _temp_name(path)
+    tmp.write_text(text)
+    os.replace(tmp, path)
+
+
+def write_file(path, write) -> Path:
+    """Write a file through ``write(temporary_path)``, then rename it (or stage it in the run).
 
     Parameters
     ----------
-    value : object
+    path : str or os.PathLike
+        The final name; its folder must exist.
+    write : callable
+        ``write(tmp)`` writes the whole file at ``tmp`` (same folder and suffix).
 
     Returns
     -------
-    int, float, bool or list
-
-    Raises
-    ------
-    TypeError
-        For any other type.
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> numpy_to_json(np.float64(1.5)), numpy_to_json(np.arange(2))
-    (1.5, [0, 1])
+    pathlib.Path
+        ``path``.
     """
-    if isinstance(value, (np.floating, np.integer)):
-        return value.item()
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    raise TypeError(f"not JSON serialisable: {type(value)}")
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = _temp_name(path)
+    try:
+        write(tmp)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise
+    run = _current_run(path)
+    if run is None:
+        os.replace(tmp, path)
+    else:
+        run.staged.pop(path, None)
+        run.staged[path] = tmp
+    return path
 
 
 def write_json(path, document, *, indent: int | None = 2, numpy: bool = False) -> Path:
-    """Write ``document`` as JSON followed by a newline.
+    """Write ``document`` as strict JSON and a newline (:mod:`~bayes_mpem.io.documents`).
+
+    A ``summary.json`` inside a :func:`writing` block is the run's completion
+    marker: it is written last, at the commit, with ``"files"`` added.
 
     Parameters
     ----------
@@ -87,7 +354,7 @@ def write_json(path, document, *, indent: int | None = 2, numpy: bool = False) -
     indent : int or None, default 2
         ``None`` writes one line (used for the large ``history.json``).
     numpy : bool, default False
-        Also accept NumPy scalars and arrays (:func:`numpy_to_json`).
+        Also accept NumPy scalars and arrays (:func:`~bayes_mpem.io.documents.numpy_to_json`).
 
     Returns
     -------
@@ -95,13 +362,20 @@ def write_json(path, document, *, indent: int | None = 2, numpy: bool = False) -
         ``path``.
     """
     path = Path(path)
-    text = json.dumps(document, indent=indent, default=numpy_to_json if numpy else None)
-    path.write_text(text + "\n")
-    return path
+    run = _current_run(path)
+    if run is not None and path.name == MARKER:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        clean, replaced = finite_json(document, numpy)
+        if replaced and isinstance(clean, dict):
+            clean = {**clean, "non_finite": replaced}
+        run.markers[path] = clean
+        return path
+    text = json_text(document, indent, numpy)
+    return write_file(path, lambda tmp: tmp.write_text(text))
 
 
-def write_csv(path, table) -> Path:
-    """Write a table as CSV without its index.
+def write_table(path, table) -> Path:
+    """Write a table without its index: CSV, or Parquet for a ``.parquet`` path.
 
     Parameters
     ----------
@@ -113,6 +387,107 @@ def write_csv(path, table) -> Path:
     pathlib.Path
         ``path``.
     """
-    path = Path(path)
-    table.to_csv(path, index=False)
-    return path
+    return write_file(path, lambda tmp: write_table_file(tmp, table))
+
+
+def write_csv(path, table) -> Path:
+    """Write a table as CSV without its index (as ``DataFrame.to_csv``, but vectorised).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+    table : pandas.DataFrame
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+    """
+    return write_table(path, table)
+
+
+def read_marker(folder, *, check: bool = True) -> dict:
+    """Read a folder's ``summary.json`` and check that the run it describes is complete.
+
+    Parameters
+    ----------
+    folder : str or os.PathLike
+    check : bool, default True
+        Check that every file listed under ``"files"`` exists.
+
+    Returns
+    -------
+    dict
+        The document. Folders written before the marker existed have no
+        ``"files"``; they are taken as they are.
+
+    Raises
+    ------
+    FileNotFoundError
+        No ``summary.json``: the folder holds no complete run.
+    InputError
+        ``summary.json`` is not valid JSON (truncated, edited), or a listed file is
+        missing; the message names the file.
+    """
+    path = Path(folder) / MARKER
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: not found; the folder holds no complete output "
+                                "(an interrupted run leaves none)")
+    try:
+        doc = json.loads(path.read_text())
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise InputError(f"{path}: not valid JSON ({exc}); the file is damaged") from None
+    if not isinstance(doc, dict):
+        raise InputError(f"{path}: expected a JSON object, got {type(doc).__name__}")
+    if check:
+        missing = [f for f in doc.get("files", []) if not (Path(folder) / f).exists()]
+        if missing:
+            raise InputError(f"{path}: lists {', '.join(missing[:5])}, which "
+                             f"{'is' if len(missing) == 1 else 'are'} missing: the folder is "
+                             "not a complete output")
+    return doc
+
+
+def _uniform_column(col):
+    """Return a column Parquet can store: mixed kinds of values become JSON text."""
+    values = [v for v in col if v is not None and not (isinstance(v, float) and v != v)]
+    kinds = {"text" if isinstance(v, str) else
+             "number" if isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(
+                 v, bool) else "bool" if isinstance(v, (bool, np.bool_)) else "other"
+             for v in values}
+    if len(kinds) <= 1 and "other" not in kinds:
+        return col
+    return col.map(lambda v: None if v is None else
+                   v if isinstance(v, str) else json.dumps(v, default=numpy_to_json))
+
+
+def write_parquet(path, table) -> Path:
+    """Write a table as Parquet (pyarrow) without its index, through :func:`write_file`.
+
+    Object columns that mix kinds of values (text and numbers, lists) are stored
+    as JSON text, so that every column has one Parquet type.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+    table : pandas.DataFrame
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> import pandas as pd
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     p = write_parquet(tmp + "/t.parquet", pd.DataFrame({"a": [1, None], "b": ["x", 2]}))
+    ...     pd.read_parquet(p)["b"].tolist()
+    ['x', '2']
+    """
+    table = table.copy()
+    for name in table.columns:
+        if table[name].dtype == object:
+            table[name] = _uniform_column(table[name])
+    return write_file(path, lambda tmp: table.to_parquet(tmp, index=False))

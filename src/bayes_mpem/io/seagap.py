@@ -7,13 +7,16 @@ the sound-speed profile (see :mod:`bayes_mpem.io.raw` for the format).
 
 from __future__ import annotations
 
+import math
+import re
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from ..exceptions import InputError
-from .raw import RawSurvey, bad, read_lines
+from .boundary import COMMENT, classify, limit_problem, read_text_lines
+from .raw import RawSurvey, bad
 
 # --------------------------------------------------------------------------- SeaGap
 
@@ -22,30 +25,99 @@ _SEAGAP_COLS = ("transponder", "twtt", "t_tx", "e_tx", "n_tx", "u_tx", "head_tx"
                 "shot", "flag")
 
 
-def _numeric_table(path, ncols, what, strict, skipped):
-    rows = []
-    for i, text in enumerate(read_lines(path), start=1):
-        s = text.strip()
-        if not s or s.startswith("#"):
+#: The physical limit of each obsdata.inp column (the ids, shot and flag are integers).
+_SEAGAP_KINDS = {"twtt": "twtt", "t_tx": "time", "t_rx": "time",
+                 **{f"{a}_{e}": k for e in ("tx", "rx")
+                    for a, k in (("e", "east"), ("n", "north"), ("u", "up"), ("head", "heading"),
+                                 ("pitch", "angle"), ("roll", "angle"))}}
+_INTEGER = re.compile(r"[+-]?\d+")
+
+
+def _values(parts, names, kinds):
+    """Parse one line's fields by name; return the values, or the reason they are unusable."""
+    vals = {}
+    for name, text in zip(names, parts, strict=True):
+        if name in ("transponder", "shot", "flag"):
+            if _INTEGER.fullmatch(text) is None:
+                return f"{name} {text!r} is not an integer"
+            vals[name] = int(text)
             continue
-        parts = s.split()
         try:
-            if len(parts) != ncols:
-                raise ValueError(f"expected {ncols} numbers ({what}), got {len(parts)} fields")
-            vals = [float(v) for v in parts]
-            if not np.all(np.isfinite(vals)):
-                raise ValueError("non-finite number")
-        except ValueError as exc:
-            if skipped is None:
-                raise InputError(f"{path} line {i}: {exc}") from None
-            bad(strict, str(path), i, text, str(exc), skipped)
+            v = float(text)
+        except ValueError:
+            return f"{name} {text!r} is not a number"
+        why = limit_problem(kinds[name], v) if name in kinds else (
+            None if math.isfinite(v) else f"{name} is {v!r}, not a finite number")
+        if why:
+            return f"{name}: {why}"
+        vals[name] = v
+    return vals
+
+
+def _numeric_table(path, names, what, kinds, strict, skipped, check=None):
+    """Rows of a whitespace-separated numeric file; a bad line is skipped (or raised)."""
+    rows = []
+    lines = read_text_lines(path)
+    for i, kind, _ in classify(lines, (COMMENT,)):
+        if kind in ("blank", "comment"):
             continue
-        rows.append([i, *vals])
+        text = lines[i - 1]
+        parts = text.split()
+        vals = (f"expected {len(names)} numbers ({what}), got {len(parts)} fields"
+                if len(parts) != len(names) else _values(parts, names, kinds))
+        if check is not None and not isinstance(vals, str):
+            vals = check(vals) or vals
+        if isinstance(vals, str):
+            if skipped is None:
+                raise InputError(f"{path} line {i}: {vals}")
+            bad(strict, str(path), i, text, vals, skipped)
+            continue
+        rows.append({"line": i, **vals})
     return rows
+
+
+_COMPANIONS = (
+    ("transponders", "pxp-ini.inp", ("east", "north", "up", "c4", "c5", "c6"),
+     {"east": "east", "north": "north", "up": "up"}),
+    ("tr_ant", "tr-ant.inp", ("dx", "dy", "dz"), {}),
+    ("ss_prof", "ss_prof.inp", ("depth", "sound_speed"),
+     {"depth": "depth", "sound_speed": "sound_speed"}),
+)
+
+
+def _companions(here, paths):
+    header = {}
+    for key, name, cols, kinds in _COMPANIONS:
+        arg = paths[key]
+        path = Path(arg) if arg is not None else here / name
+        if arg is None and not path.exists():
+            continue
+        vals = _numeric_table(path, cols, name, kinds, strict=True, skipped=None)
+        if not vals:
+            raise InputError(f"{path}: no data lines (expected {len(cols)} numbers a line)")
+        frame = pd.DataFrame(vals)
+        if key == "transponders":
+            t = frame[["east", "north", "up"]].reset_index(drop=True)
+            t.index = [str(k + 1) for k in range(len(t))]
+            header[key] = t
+        elif key == "tr_ant":
+            lever = frame[["dx", "dy", "dz"]].to_numpy()[0]
+            if np.any(np.abs(lever) > 1000.0):
+                raise InputError(f"{path}: a lever arm of {lever.tolist()} m; expected the "
+                                 "transducer within 1 km of the antenna")
+            header[key] = np.asarray(lever, float)
+        else:
+            header[key] = frame[["depth", "sound_speed"]].reset_index(drop=True)
+    return header
 
 
 def read_seagap(obsdata, *, pxp=None, tr_ant=None, ss_prof=None, strict=False) -> RawSurvey:
     """Read SeaGap GNSS-acoustic data (``obsdata.inp`` and its companion files).
+
+    Every ``obsdata.inp`` line is a ping only when its 18 fields are exact: the
+    transponder, shot and flag integers (``1.7`` is not truncated to 1), every
+    number finite and physically possible, and the transponder one of
+    ``pxp-ini.inp`` (when read); otherwise the line is skipped with its reason.
 
     Parameters
     ----------
@@ -72,31 +144,24 @@ def read_seagap(obsdata, *, pxp=None, tr_ant=None, ss_prof=None, strict=False) -
         Companion files must parse completely (they are small and authoritative).
     """
     obsdata = Path(obsdata)
+    header = _companions(obsdata.parent, {"transponders": pxp, "tr_ant": tr_ant,
+                                          "ss_prof": ss_prof})
     skipped = []
-    rows = _numeric_table(obsdata, 18, "obsdata.inp columns", strict, skipped)
+    known = list(header["transponders"].index) if "transponders" in header else None
+
+    def check(vals):
+        if known is not None and str(vals["transponder"]) not in known:
+            return (f"transponder {vals['transponder']} is not in pxp-ini.inp (known: "
+                    f"{', '.join(known)})")
+        return None
+
+    rows = _numeric_table(obsdata, _SEAGAP_COLS, "obsdata.inp columns", _SEAGAP_KINDS, strict,
+                          skipped, check)
     if not rows:
-        raise InputError(f"{obsdata}: no data lines found (expected 18 columns)")
+        raise InputError(f"{obsdata}: no data lines found (expected 18 columns; "
+                         f"{len(skipped)} lines skipped)")
     pings = pd.DataFrame(rows, columns=["line", *_SEAGAP_COLS])
-    for c in ("transponder", "shot", "flag"):
-        pings[c] = pings[c].astype(int)
     pings["transponder"] = pings["transponder"].astype(str)
     pings.insert(2, "time", pings["t_tx"] - pings["t_tx"].iloc[0])
-    header = {}
-    here = obsdata.parent
-    for key, arg, name, ncols in (("transponders", pxp, "pxp-ini.inp", 6),
-                                  ("tr_ant", tr_ant, "tr-ant.inp", 3),
-                                  ("ss_prof", ss_prof, "ss_prof.inp", 2)):
-        path = Path(arg) if arg is not None else here / name
-        if arg is None and not path.exists():
-            continue
-        vals = _numeric_table(path, ncols, name, strict=True, skipped=None)
-        if key == "transponders":
-            t = pd.DataFrame([r[1:4] for r in vals], columns=["east", "north", "up"])
-            t.index = [str(k + 1) for k in range(len(t))]
-            header[key] = t
-        elif key == "tr_ant":
-            header[key] = np.asarray(vals[0][1:], float)
-        else:
-            header[key] = pd.DataFrame([r[1:] for r in vals], columns=["depth", "sound_speed"])
     skipped_df = pd.DataFrame(skipped, columns=["line", "text", "reason"])
     return RawSurvey("seagap", str(obsdata), pings, header, skipped_df)

@@ -13,6 +13,7 @@ import numpy as np
 import pandas as pd
 
 from ..exceptions import InputError
+from .boundary import limit_problem, out_of_limits
 from .tables import as_beacon_id, beacons_frame, pings_table, show
 
 
@@ -118,6 +119,11 @@ class BeaconData:
                 i = int(np.flatnonzero(bad)[0])
                 what = "a positive number" if k == "range" else "a finite number"
                 raise InputError(f"{k}[{i}]: expected {what}, got {a[i]!r}")
+            beyond = out_of_limits(k, a)
+            if beyond.any():
+                i = int(np.flatnonzero(beyond)[0])
+                raise InputError(f"{k}[{i}]: {limit_problem(k, a[i])} (a physically "
+                                 "possible value is expected)")
         pos = as_float("position", position)
         if pos.shape != (3,) or not np.isfinite(pos).all():
             raise InputError(f"position: expected 3 finite numbers (x, y, depth), got {pos!r}")
@@ -147,6 +153,10 @@ class Survey:
         Index = beacon id (str), float columns ``x``, ``y``, ``depth``, in file order.
     pings_source, beacons_source : str
         Labels of the inputs (path or ``"pings DataFrame"``).
+    lines : numpy.ndarray or None
+        ``(N,)`` file line of each row (CSV; as ``grep -n``), else ``None``.
+    comment_lines : int
+        ``#`` comment lines skipped in the pings file.
 
     Examples
     --------
@@ -168,6 +178,24 @@ class Survey:
     beacons: pd.DataFrame
     pings_source: str
     beacons_source: str
+    lines: np.ndarray | None = None
+    comment_lines: int = 0
+
+    def row_name(self, pos: int) -> str:
+        """Where row ``pos`` is in the input: ``"line 17"`` (CSV) or ``"row 15"``.
+
+        Parameters
+        ----------
+        pos : int
+            0-based position in :attr:`table`.
+
+        Returns
+        -------
+        str
+        """
+        if self.lines is not None:
+            return f"line {int(self.lines[pos])}"
+        return f"row {self.table.index[pos]}"
 
     @property
     def no_reply(self) -> np.ndarray:
@@ -266,10 +294,12 @@ def load_survey(pings: Any, beacons: Any = None) -> Survey:
     beacon_table, beacons_source = beacons_frame(beacons, None)
     known = [str(b) for b in beacon_table.index]
     known_text = ", ".join(map(repr, known[:20])) + (" ..." if len(known) > 20 else "")
-    for pos in np.flatnonzero(~np.isin(arr["beacon"], known + [""])):
-        problems.add(int(pos), f"{table.where(pos, 'beacon')}: beacon {arr['beacon'][pos]!r} is "
-                               f"not in {beacons_source}; known beacon ids: {known_text}")
+    unknown = ~pd.Series(arr["beacon"]).isin(known + [""]).to_numpy()
+    problems.add_mask(unknown, lambda pos: (
+        f"{table.where(pos, 'beacon')}: beacon {arr['beacon'][pos]!r} is not in "
+        f"{beacons_source}; known beacon ids: {known_text}"))
     problems.raise_if_any()
+    lines = None if table.lines is None else _frozen(table.lines, np.int64)
     return Survey(table.frame, _frozen(arr["beacon"], object),
                   *(_frozen(arr[k]) for k in ("time", "range", "x", "y", "depth")),
-                  beacon_table, table.source, beacons_source)
+                  beacon_table, table.source, beacons_source, lines, table.comments)

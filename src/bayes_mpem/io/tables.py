@@ -1,27 +1,33 @@
-"""Reading and checking the pings and beacons tables (CSV files or DataFrames).
+"""Reading and checking the pings and beacons tables (CSV or Parquet files, or DataFrames).
 
 The boundary where tabular user input is validated: every problem is reported
-with its column and row ("column 'range' row 17: expected a positive number,
+with its column and row ("column 'range' line 17: expected a positive number,
 got -3.2"), all of a table's problems at once, as one
-:class:`~bayes_mpem.exceptions.InputError`.
+:class:`~bayes_mpem.exceptions.InputError`. Files are read by
+:mod:`~bayes_mpem.io.table_files` (line numbers as ``grep -n`` shows them);
+the checks are vectorised over whole columns, and only the cells they flag are
+looked at one by one, to word the message. Every number must be finite and
+within the physical limits of :data:`~bayes_mpem.io.boundary.LIMITS` (a range
+in (0, 100 km], a depth in [-1 km, 11 km], ...).
 """
 
 from __future__ import annotations
 
-import csv
-import io
 import math
 import numbers
 import os
 import re
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pandas as pd
+import pyarrow as pa
+import pyarrow.compute as pc
 
 from ..exceptions import InputError
+from .boundary import LIMITS, out_of_limits
+from .table_files import read_table_file
 
 PING_COLUMNS = ("time", "beacon", "range", "x", "y", "depth")
 #: Columns the results add to every input row; an input column of that name would be lost.
@@ -29,7 +35,7 @@ RESERVED_COLUMNS = ("p_dp", "p_mp", "p_ol", "p_dp_sd", "p_mp_sd", "p_ol_sd", "la
 BEACON_COLUMNS = ("beacon", "x", "y", "depth")
 MAX_LISTED = 10
 _UNITS = {"time": "s", "range": "m", "x": "m", "y": "m", "depth": "m"}
-_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")  # no nan/inf/hex/"_"
+_NUMBER = r"^[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?$"  # no nan/inf/hex/"_"
 
 
 def _is_missing(v: Any) -> bool:
@@ -97,7 +103,10 @@ def as_beacon_id(v: Any) -> str:
 
 
 class Problems:
-    """Collects (row position, message) pairs and raises one InputError for all of them.
+    """Collects problems by row position and raises one InputError for all of them.
+
+    Vectorised checks hand over whole masks (:meth:`add_mask`); only the first
+    :data:`MAX_LISTED` flagged cells of each check are worded, the rest counted.
 
     Parameters
     ----------
@@ -106,7 +115,7 @@ class Problems:
     """
 
     def __init__(self, source: str) -> None:
-        self.source, self.items = source, []
+        self.source, self.items, self.count = source, [], 0
 
     def add(self, pos: int, message: str) -> None:
         """Record ``message`` for the row at position ``pos`` (listed in row order).
@@ -117,17 +126,25 @@ class Problems:
         message : str
         """
         self.items.append((pos, len(self.items), message))
+        self.count += 1
+
+    def add_mask(self, mask: np.ndarray, word) -> None:
+        """Record the rows flagged by ``mask``; ``word(pos)`` words the first few."""
+        flagged = np.flatnonzero(mask)
+        for pos in flagged[:MAX_LISTED]:
+            self.items.append((int(pos), len(self.items), word(int(pos))))
+        self.count += int(flagged.size)
 
     def raise_if_any(self) -> None:
         """Raise one :class:`InputError` listing the problems (the first ten), if any."""
         if not self.items:
             return
-        msgs = [m for _, _, m in sorted(self.items)]
-        if len(msgs) == 1:
+        msgs = [m for _, _, m in sorted(self.items)][:MAX_LISTED]
+        if self.count == 1:
             raise InputError(msgs[0])
-        lines = [f"{len(msgs)} problems in {self.source}:"] + ["  " + m for m in msgs[:MAX_LISTED]]
-        if len(msgs) > MAX_LISTED:
-            lines.append(f"  ... and {len(msgs) - MAX_LISTED} more problems")
+        lines = [f"{self.count} problems in {self.source}:"] + ["  " + m for m in msgs]
+        if self.count > MAX_LISTED:
+            lines.append(f"  ... and {self.count - MAX_LISTED} more problems")
         raise InputError("\n".join(lines))
 
 
@@ -135,82 +152,24 @@ class Problems:
 class _Table:
     frame: pd.DataFrame  # RangeIndex, stripped column names
     source: str
-    row_names: list  # per row: "line 17" (CSV) or "row 15" (DataFrame)
+    lines: np.ndarray | None = None  # file line of each row (CSV)
+    labels: pd.Index | None = None  # index labels of a DataFrame
+    comments: int = 0
+
+    def row_name(self, pos: int) -> str:
+        if self.lines is not None:
+            return f"line {int(self.lines[pos])}"
+        if self.labels is not None:
+            lab = self.labels[pos]
+            return f"row {lab!r}" if isinstance(lab, str) else f"row {lab}"
+        return f"row {pos}"
 
     def where(self, pos: int, column: str) -> str:
-        return f"{self.source} {self.row_names[pos]}, column {column!r}"
-
-
-def _read_csv_fast(path: Path, label: str) -> _Table | None:
-    """Read with pandas' C parser where line numbers stay exact, else ``None`` (5x faster).
-
-    Exact when no field is quoted, blank lines are truly empty and every other line has as
-    many commas as the header; else :func:`_read_csv` reads it with its diagnostics.
-    """
-    raw = path.read_bytes()
-    if raw.startswith(b"\xef\xbb\xbf"):
-        raw = raw[3:]
-    if b'"' in raw:
-        return None
-    lines = [ln.rstrip(b"\r") for ln in raw.split(b"\n")]
-    if lines and lines[-1] == b"":
-        lines.pop()
-    used = [i for i, ln in enumerate(lines) if ln]
-    if not used or any(not lines[i].strip() for i in used):
-        return None
-    n_commas = lines[used[0]].count(b",")
-    if any(lines[i].count(b",") != n_commas for i in used[1:]):
-        return None
-    try:
-        header = [h.strip() for h in lines[used[0]].decode("utf-8").split(",")]
-    except UnicodeDecodeError:
-        return None
-    if len(set(header)) != len(header):  # pandas would rename duplicates: let _load report
-        return None
-    try:
-        frame = pd.read_csv(io.BytesIO(raw), dtype=str, keep_default_na=False, na_values=[],
-                            skipinitialspace=True, encoding="utf-8", engine="c")
-    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError, ValueError):
-        return None
-    if len(frame) != len(used) - 1 or len(frame.columns) != len(header):
-        return None
-    frame.columns = header
-    return _Table(frame, label, [f"line {i + 1}" for i in used[1:]])
-
-
-def _read_csv(path: Path, label: str) -> _Table:
-    fast = _read_csv_fast(path, label)
-    if fast is not None:
-        return fast
-    try:
-        with open(path, newline="", encoding="utf-8-sig") as fh:
-            reader = csv.reader(fh, skipinitialspace=True)
-            read = [(rec, reader.line_num) for rec in reader]  # line_num: last line of record
-    except UnicodeDecodeError as exc:
-        raise InputError(f"{label}: not UTF-8 text ({exc.reason})") from None
-    except csv.Error as exc:
-        raise InputError(f"{label} line {reader.line_num}: malformed CSV ({exc})") from None
-    starts = [1] + [end + 1 for _, end in read[:-1]]  # first line of each record
-    keep = [i for i, (rec, _) in enumerate(read) if len(rec) > 1 or (rec and rec[0].strip())]
-    if not keep:
-        raise InputError(f"{label}: the file is empty (expected a header line of column names)")
-    header = [h.strip() for h in read[keep[0]][0]]
-    records = [read[i][0] for i in keep[1:]]
-    lines = [starts[i] for i in keep[1:]]
-    problems = Problems(label)
-    for pos, (rec, line) in enumerate(zip(records, lines, strict=True)):
-        if len(rec) != len(header):
-            problems.add(pos, f"{label} line {line}: expected {len(header)} fields "
-                              f"(as in the header), got {len(rec)}")
-    problems.raise_if_any()
-    columns = list(zip(*records, strict=True)) if records else [()] * len(header)
-    frame = pd.DataFrame({i: pd.Series(list(col), dtype=str) for i, col in enumerate(columns)})
-    frame.columns = header
-    return _Table(frame, label, [f"line {n}" for n in lines])
+        return f"{self.source} {self.row_name(pos)}, column {column!r}"
 
 
 def load_table(source: Any, name: str | None, kind: str) -> _Table:
-    """Read a CSV file or take a DataFrame as a table of text cells with row names for messages.
+    """Read a CSV or Parquet file, or take a DataFrame, as a table with row names for messages.
 
     Parameters
     ----------
@@ -223,22 +182,25 @@ def load_table(source: Any, name: str | None, kind: str) -> _Table:
     Returns
     -------
     _Table
+        ``frame``, ``source``, and the file ``lines`` or DataFrame ``labels`` of its rows.
+
+    Raises
+    ------
+    FileNotFoundError, InputError, TypeError
+        As :func:`~bayes_mpem.io.table_files.read_table_file`; duplicated column names.
     """
     if isinstance(source, pd.DataFrame):
         label = name or f"{kind} DataFrame"
         frame = source.copy()
         frame.columns = [c.strip() if isinstance(c, str) else c for c in frame.columns]
-        row_names = [f"row {lab!r}" if isinstance(lab, str) else f"row {lab}"
-                     for lab in frame.index]
-        table = _Table(frame.reset_index(drop=True), label, row_names)
+        table = _Table(frame.reset_index(drop=True), label, labels=source.index)
     elif isinstance(source, (str, os.PathLike)):
-        path = Path(source)
-        if not path.exists():
-            raise FileNotFoundError(f"{kind} file not found: {str(source)!r}")
-        table = _read_csv(path, name or str(source))
+        label = name or str(source)
+        text = read_table_file(source, label, f"{kind} file")
+        table = _Table(text.frame, label, lines=text.lines, comments=text.comments)
     else:
-        raise TypeError(f"{kind}: expected a CSV path or a pandas DataFrame, "
-                        f"got {type(source).__name__}")
+        raise TypeError(f"{kind}: expected a CSV path or a pandas DataFrame (or a Parquet "
+                        f"file), got {type(source).__name__}")
     cols = list(table.frame.columns)
     dupes = sorted({str(c) for c in cols if cols.count(c) > 1})
     if dupes:
@@ -247,20 +209,30 @@ def load_table(source: Any, name: str | None, kind: str) -> _Table:
 
 
 def check_columns(table: _Table, required: tuple[str, ...], kind: str) -> None:
-    """Raise :class:`InputError` naming missing required columns, or an empty table.
+    """Check that ``table`` has the ``required`` columns and at least one row.
 
     Parameters
     ----------
     table : _Table
     required : tuple of str
     kind : str
+        What the table is, for messages.
+
+    Raises
+    ------
+    InputError
+        Naming the missing columns (and what the header looks like) or the empty table.
     """
     missing = [c for c in required if c not in table.frame.columns]
     if missing:
+        found = ", ".join(map(repr, table.frame.columns)) or "no columns"
+        hint = ""
+        if len(table.frame.columns) == 1 and re.search(r"[;\t|]", str(table.frame.columns[0])):
+            hint = ("; the header is one column: the file looks semicolon- or tab-separated "
+                    "(perhaps with decimal commas), expected comma-separated values")
         raise InputError(
             f"{table.source}: missing required column(s) {', '.join(map(repr, missing))}; "
-            f"expected {', '.join(map(repr, required))}; "
-            f"found {', '.join(map(repr, table.frame.columns)) or 'no columns'}")
+            f"expected {', '.join(map(repr, required))}; found {found}{hint}")
     if len(table.frame) == 0:
         raise InputError(f"{table.source}: the {kind} table is empty (expected at least one "
                          "data row)")
@@ -276,103 +248,119 @@ def _cell_text(v: Any) -> str:
     return repr(float(v)) if real else "?"
 
 
+def _as_text_array(col: pd.Series) -> pa.Array:
+    """Return a text (or mixed) column as a pyarrow string array ('' = missing)."""
+    try:
+        arr = pa.array(col, type=pa.string(), from_pandas=True)
+    except (pa.ArrowInvalid, pa.ArrowTypeError):
+        arr = pa.array(col.astype(object).map(_cell_text).to_numpy(dtype=object),
+                       type=pa.string())
+    if isinstance(arr, pa.ChunkedArray):
+        arr = arr.combine_chunks()
+    return pc.fill_null(arr, "")
+
+
+def _np_bool(arr) -> np.ndarray:
+    return np.asarray(arr.to_numpy(zero_copy_only=False), dtype=bool)
+
+
 def _parse_numbers(col: pd.Series) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Return (float values, missing mask, not-a-number mask); values are NaN where unusable."""
+    """Return (float values, missing mask, not-a-number mask); values are NaN where unusable.
+
+    Text is parsed by pyarrow's (correctly rounded) cast, with the grammar of
+    :data:`_NUMBER` checked by a vectorised regular expression only when the cast fails.
+    """
     if pd.api.types.is_numeric_dtype(col) and not pd.api.types.is_bool_dtype(col):
         vals = np.array(col.to_numpy(dtype=float, na_value=np.nan), dtype=float)  # own copy
         return vals, np.isnan(vals), np.zeros(len(col), bool)
-    text = col.astype(object)
-    if pd.api.types.infer_dtype(text, skipna=False) != "string":
-        text = text.map(_cell_text)
-    arr = text.str.strip().to_numpy(dtype=str)
-    missing = arr == ""
-    try:  # fast path; float() also takes "1_000", which the regex below rejects
-        if "_" in "".join(arr.tolist()):
-            raise ValueError("underscore")
-        vals = np.where(missing, "0", arr).astype(float)
-    except ValueError:
-        ok = np.array([_NUMBER.fullmatch(t) is not None for t in arr], dtype=bool)
-        vals = np.full(len(arr), np.nan)
-        vals[ok] = arr[ok].astype(float)
-        return vals, missing, ~ok & ~missing
+    text = pc.utf8_trim_whitespace(_as_text_array(col))
+    missing = _np_bool(pc.equal(text, ""))
+    try:
+        vals = pc.cast(pc.if_else(pa.array(missing), "0", text), pa.float64()).to_numpy(
+            zero_copy_only=False).copy()
+        grammar = ~missing & ~np.isfinite(vals)  # "nan"/"inf" text is not a number
+        if np.any(_np_bool(pc.match_substring(text, "_"))):
+            raise pa.ArrowInvalid("underscore")  # pyarrow may take "1_000"; the grammar not
+    except (pa.ArrowInvalid, pa.ArrowNotImplementedError):
+        ok = _np_bool(pc.match_substring_regex(text, _NUMBER))
+        grammar = ~ok & ~missing
+        vals = pc.cast(pc.if_else(pa.array(ok), text, "0"), pa.float64()).to_numpy(
+            zero_copy_only=False).copy()
+        vals[~ok] = np.nan
     vals[missing] = np.nan
-    return vals, missing, ~missing & ~np.isfinite(vals)  # "nan"/"inf" text is not a number
+    return vals, missing, grammar
 
 
 def numeric_column(table: _Table, column: str, problems: Problems, *,
                    allow_missing: bool = False, positive: bool = False) -> np.ndarray:
-    """Parse a column as finite numbers (or positive ones); each bad cell goes to ``problems``.
+    """Parse and check one numeric column, vectorised; problems go to ``problems``.
 
     Parameters
     ----------
     table : _Table
     column : str
     problems : Problems
+        Receives every bad cell (not a number, not finite, not positive, missing, or
+        beyond the physical limits of :data:`~bayes_mpem.io.boundary.LIMITS`).
     allow_missing : bool, default False
-        Empty cells are NaN instead of a problem.
+        An empty cell is allowed (NaN: the ``range`` of a ping with no reply).
     positive : bool, default False
+        Values must be > 0.
 
     Returns
     -------
     numpy.ndarray
+        float64, NaN where missing or bad.
     """
     col = table.frame[column]
     vals, missing, bad = _parse_numbers(col)
     unit = _UNITS.get(column, "m")
     wrong = bad | (~missing & ~np.isfinite(vals))
     if positive:
-        wrong |= ~missing & ~bad & ~(vals > 0)
+        with np.errstate(invalid="ignore"):
+            wrong |= ~missing & ~bad & ~(vals > 0)
     if not allow_missing:
         wrong |= missing
-    for pos in np.flatnonzero(wrong):
+    what = f"a positive number ({unit})" if positive else f"a finite number ({unit})"
+
+    def word(pos):
         raw = col.iloc[pos]
-        what = f"a positive number ({unit})" if positive else f"a finite number ({unit})"
         hint = ""
         if positive and isinstance(raw, str) and raw.strip().lower().lstrip("+-") in (
                 "nan", "inf", "infinity", "na", "n/a", "none", "null"):
             hint = " (leave the cell empty for a ping with no reply)"
-        problems.add(int(pos), f"{table.where(pos, column)}: expected {what}, "
-                               f"got {show(raw)}{hint}")
+        return f"{table.where(pos, column)}: expected {what}, got {show(raw)}{hint}"
+
+    problems.add_mask(wrong, word)
+    kind = column if column in LIMITS else "x"
+    lim = LIMITS[kind]
+    beyond = ~wrong & ~missing & out_of_limits(kind, vals)
+    problems.add_mask(beyond, lambda pos: (
+        f"{table.where(pos, column)}: expected {column} within {lim.describe()} (a "
+        f"physically possible value), got {show(col.iloc[pos])}"))
     vals[missing] = np.nan
     return vals
 
 
 def _beacon_column(table: _Table, problems: Problems) -> np.ndarray:
-    col = table.frame["beacon"].astype(object)
-    if pd.api.types.infer_dtype(col, skipna=False) == "string":  # fast path (CSV)
-        ids = col.str.strip().to_numpy(dtype=object)
+    col = table.frame["beacon"]
+    if pd.api.types.is_string_dtype(col.dtype) or pd.api.types.infer_dtype(
+            col, skipna=False) == "string":  # text (CSV, Parquet): ids as written
+        arr = pc.utf8_trim_whitespace(_as_text_array(col)).dictionary_encode()
+        uniques = np.asarray(arr.dictionary.to_pylist(), dtype=object)
+        ids = uniques[np.asarray(arr.indices.to_numpy(zero_copy_only=False), dtype=np.intp)]
+    elif pd.api.types.is_numeric_dtype(col.dtype) and not pd.api.types.is_bool_dtype(col.dtype):
+        codes, uniques = pd.factorize(col)  # numeric ids (Parquet): one conversion per id
+        ids = np.asarray([as_beacon_id(u) for u in uniques] + [""], dtype=object)[codes]
     else:
         ids = np.array([as_beacon_id(v) for v in col], dtype=object)
-    for pos in np.flatnonzero(ids == ""):
-        problems.add(int(pos), f"{table.where(pos, 'beacon')}: expected a beacon id, "
-                               f"got {show(col.iloc[pos])}")
+    problems.add_mask(ids == "", lambda pos: f"{table.where(pos, 'beacon')}: expected a beacon "
+                                             f"id, got {show(col.iloc[pos])}")
     return ids
 
 
 def pings_table(source: Any, name: str | None) -> tuple[_Table, dict[str, np.ndarray], Problems]:
-    """Parse pings; cell problems are collected, not raised (load_survey adds to them).
-
-    Parameters
-    ----------
-    source : str, pathlib.Path or pandas.DataFrame
-        The pings table.
-    name : str or None
-        The name to use in messages (default: the file's).
-
-    Returns
-    -------
-    table : object
-        The table as read, with its source name, for messages.
-    arrays : dict of str to ndarray
-        One array per column of ``PING_COLUMNS``.
-    problems : object
-        The cell problems found so far (row -> message).
-
-    Raises
-    ------
-    InputError
-        When the file cannot be read, a column is missing or a reserved column is present.
-    """
+    """Parse pings; cell problems are collected, not raised (load_survey adds to them)."""
     table = load_table(source, name, "pings")
     check_columns(table, PING_COLUMNS, "pings")
     taken = [c for c in RESERVED_COLUMNS if c in table.frame.columns]
@@ -461,7 +449,7 @@ def beacons_frame(source: Any, name: str | None) -> tuple[pd.DataFrame, str]:
             seen.setdefault(b, []).append(pos)
     for b, where in seen.items():
         if len(where) > 1:
-            rows = ", ".join(table.row_names[p] for p in where)
+            rows = ", ".join(table.row_name(p) for p in where)
             problems.add(where[1], f"{table.source}, column 'beacon': beacon id {b!r} is "
                                    f"duplicated ({rows})")
     problems.raise_if_any()

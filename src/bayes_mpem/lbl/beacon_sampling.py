@@ -82,7 +82,7 @@ class PosteriorResult:
     diagnostics : dict
         ``n_walkers``, ``n_steps``, ``burn``, ``thin``, ``n_draws``,
         ``n_ensembles``, ``converged`` (chain longer than ``tau_factor`` tau),
-        ``acceptance``, ``seconds``, ``moves``.
+        ``acceptance``, ``seconds``, ``moves``, ``precision`` (of the kernel).
     ci : float
 
     Notes
@@ -188,6 +188,7 @@ def sample_beacon(
     rng: RNGLike = None,
     progress="auto",
     allow_flagged_start: bool = False,
+    precision: str = "auto",
 ) -> PosteriorResult:
     """Sample the posterior of one beacon with emcee, started from the EM solution.
 
@@ -233,6 +234,12 @@ def sample_beacon(
         (:func:`~bayes_mpem.lbl.em_result.quality_flags`: no multipath found, a
         plane above the sea surface, ...); by default that raises, as such a
         posterior describes no reflector and mixes slowly.
+    precision : {"auto", "float32", "float64"}
+        Of the likelihood kernel while sampling
+        (:class:`~bayes_mpem.lbl.loglik_kernel.LoglikKernel`; ``"auto"``: float32
+        where its rounding error is known to be harmless; ``"float64"``: the same
+        chain as the log-space likelihood, seed for seed). The per-range
+        log-likelihood and class probabilities are float64 either way.
 
     Returns
     -------
@@ -257,7 +264,7 @@ def sample_beacon(
                          n_draws=n_draws)
     gen = as_generator(rng)
     post = BeaconPosterior(data, priors=priors, sigma_dp=sigma_dp, path=path,
-                           concentration=concentration)
+                           concentration=concentration, precision=precision)
     post.em = init or fit_mixture_em(data, path=path, sigma_dp=sigma_dp,
                                      weights="learned" if priors == "learned" else "equal",
                                      rng=gen)
@@ -294,7 +301,8 @@ def sample_beacon(
                      "acceptance": float(np.mean([r.acceptance for r in runs])),
                      "seconds": float(seconds),
                      "tau_factor": float(tau_factor), "min_ess": float(min_ess),
-                     "moves": DEFAULT_MOVES_LABEL if moves is None else repr(moves)})
+                     "moves": DEFAULT_MOVES_LABEL if moves is None else repr(moves),
+                     "precision": post.kernel.dtype.name})
 
 
 def _check_start(post: BeaconPosterior, allow_flagged: bool) -> None:

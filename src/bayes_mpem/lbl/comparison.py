@@ -15,12 +15,12 @@ import pandas as pd
 from .._deprecated import figures_keyword
 from .._rng import RNGLike, as_generator
 from ..exceptions import UnusableStartError
-from ..io.results import output_folder, write_csv, write_json
+from ..io.results import write_csv, write_json, writing
 from ..io.survey import Survey, load_survey
 from .loo import CLEAR, MIN_DIFF, compare_beacon
 from .path_choice import AUTO, check_path_choice, choose_path
 from .posterior import check_sample_options
-from .survey import option_subset, over_beacons
+from .survey import check_min_pings, option_subset, over_beacons
 
 
 @dataclass(frozen=True)
@@ -107,11 +107,12 @@ class SurveyComparison:
         dict
             Paths written, keyed ``compare`` and ``changed``.
         """
-        out = output_folder(out_dir)
-        paths = {"compare": write_json(out / "compare.json", self.to_dict()),
-                 "changed": write_csv(out / "changed.csv", self.changed())}
-        if figure is not None:
-            paths.update(figures_keyword(self, out, figure, "SurveyComparison.write(figure=...)"))
+        with writing(out_dir) as out:
+            paths = {"compare": write_json(out / "compare.json", self.to_dict()),
+                     "changed": write_csv(out / "changed.csv", self.changed())}
+            if figure is not None:
+                paths.update(figures_keyword(self, out, figure,
+                                             "SurveyComparison.write(figure=...)"))
         return paths
 
 
@@ -150,6 +151,7 @@ def compare(pings, beacons=None, *, min_pings: int = 30, rng: RNGLike = None,
     """
     path = check_path_choice(kwargs.pop("path", AUTO))
     check_sample_options(**option_subset(kwargs))
+    check_min_pings(min_pings)
     survey = load_survey(pings, beacons)
     gen = as_generator(rng)
     choices = {}

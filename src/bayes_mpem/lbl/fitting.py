@@ -16,12 +16,13 @@ import pandas as pd
 
 from .._rng import RNGLike, as_generator
 from .._validate import check_choice
-from ..io.results import output_folder, write_csv, write_json
+from ..io.results import write_json, write_table, writing
 from ..io.survey import Survey, load_survey
+from ..io.table_files import TABLE_FORMATS
 from .em_paper import fit_paper_em
 from .em_result import check_options
 from .path_choice import AUTO, check_path_choice, choose_path
-from .survey import beacons_table, classified_table, over_beacons
+from .survey import beacons_table, check_min_pings, classified_table, non_finite, over_beacons
 
 METHODS = ("mixture", "paper")
 #: table columns renamed for one vocabulary (docs/model.md): old name -> new name
@@ -174,26 +175,40 @@ class SurveyFit:
             lines.append(f"{bid:>6} skipped: {why}")
         return "\n".join(lines)
 
-    def write(self, out_dir) -> dict:
-        """Write ``summary.json`` and ``classified.csv`` into ``out_dir``.
+    def write(self, out_dir, *, table_format: str = "csv") -> dict:
+        """Write ``classified.csv``, ``history.json`` and, last, ``summary.json`` to ``out_dir``.
+
+        Through :func:`bayes_mpem.io.results.writing`: all or nothing, ``summary.json``
+        (the completion marker) last.
 
         Parameters
         ----------
         out_dir : str or pathlib.Path
             Created if missing.
+        table_format : {"csv", "parquet"}, default "csv"
+            Of the classified table (``classified.csv`` or ``classified.parquet``).
 
         Returns
         -------
         dict
             Paths written, keyed ``summary``, ``classified`` and ``history``.
         """
-        out = output_folder(out_dir)
-        return {"summary": write_json(out / "summary.json", self.summary()),
-                "classified": write_csv(out / "classified.csv", self.classified()),
-                "history": write_json(out / "history.json", self.history(), indent=None)}
+        check_choice("table_format", table_format, TABLE_FORMATS)
+        with writing(out_dir) as out:
+            return {"classified": write_table(out / f"classified.{table_format}",
+                                              self.classified()),
+                    "history": write_json(out / "history.json", self.history(as_arrays=True),
+                                          indent=None, numpy=True),
+                    "summary": write_json(out / "summary.json", self.summary())}
 
-    def history(self) -> dict:
+    def history(self, *, as_arrays: bool = False) -> dict:
         """Per beacon: every iteration's parameters and the first E-step's probabilities.
+
+        Parameters
+        ----------
+        as_arrays : bool, default False
+            Give ``first_resp`` as a NumPy array (what ``write()`` serialises, vectorised)
+            instead of nested lists.
 
         Returns
         -------
@@ -202,9 +217,20 @@ class SurveyFit:
             ``first_resp`` in the order of that beacon's replies (what the paper's
             Figs. 7, 10 and 11 show).
         """
+        def first(r):
+            rounded = np.round(r.first_resp, 3)
+            return rounded if as_arrays else rounded.tolist()
+
         return {bid: {"history": {k: np.asarray(v).tolist() for k, v in r.history.items()},
-                      "first_resp": np.round(r.first_resp, 3).tolist()}
+                      "first_resp": first(r)}
                 for bid, r in self.results.items()}
+
+
+def _non_finite_fit(res) -> list:
+    """Names of a fit's values that are not finite (the fit then failed)."""
+    doc = {"d0": res.d0, "sigma_mp": res.sigma_mp, "sigma_dp": res.sigma_dp,
+           "weights": res.weights, "loglik": res.loglik if res.loglik is not None else 0.0}
+    return non_finite(doc) + ([] if np.isfinite(res.resp).all() else ["class probabilities"])
 
 
 def fit(
@@ -279,6 +305,7 @@ def fit(
     """
     check_choice("method", method, METHODS)
     check_path_choice(path)
+    check_min_pings(min_pings)
     check_options(weights=weights, pol=pol, alpha=alpha, sigma_dp=sigma_dp)
     survey = load_survey(pings, beacons)
     gen = as_generator(rng)
@@ -297,7 +324,7 @@ def fit(
         return fit_paper_em(data, path=choice.path, sigma_dp=sigma_dp, pol=pol, alpha=alpha,
                             **kwargs)
 
-    results, skipped = over_beacons(survey, min_pings, fit_one)
+    results, skipped = over_beacons(survey, min_pings, fit_one, check=_non_finite_fit)
     options = {"path": path, "sigma_dp": sigma_dp, "min_pings": min_pings, **kwargs}
     if method == "mixture":
         options["weights"] = weights

@@ -18,8 +18,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..mixture.densities import LOG_SQRT_2PI, LOG_TINY, gaussian_logpdf, log_mix, safe_log
-from . import geometry
 from .beacon_geometry import BeaconGeometry
+from .loglik_kernel import LoglikKernel
 
 
 def component_logpdf(geom: BeaconGeometry, d0, sigma_dp, sigma_mp, path: str = "triangle"):
@@ -122,25 +122,16 @@ def weighted_densities(geom: BeaconGeometry, d0, sigma_dp, sigma_mp, weights, pa
     return np.broadcast_to(dp, mp.shape), mp, ol
 
 
-#: beyond this many standard deviations exp(-x^2 / 2) is exactly 0 in float64 (38.6)
-_ZERO_SIGMAS = 40.0
-
-
 def total_loglik(geom: BeaconGeometry, d0, sigma_dp, sigma_mp, weights, path="triangle"):
-    """Sum the log-likelihood for many parameter sets at once (the sampler's kernel).
+    """Sum the log-likelihood for many parameter sets at once, in float64.
 
-    The same density as :func:`loglik_per_range`, evaluated in linear space:
-    two exponentials and one logarithm per range instead of log-sum-exp. The
-    uniform outlier term keeps the sum positive wherever ``w_ol > 0``; where a
-    Gaussian term underflows it is below 1e-300 of the outlier term, so the
-    result agrees with the log-space form to rounding (tested).
-
-    Ranges whose direct-path (or multipath) term is exactly 0 in float64 for
-    every parameter set of the call, more than 40 of the largest sigma away
-    from the prediction, skip that term; ranges with both terms 0 are counted,
-    not evaluated. The multipath residual is bounded over the call's ``d0``
-    values through ``|d z_MP / d d0| <= 1`` (triangle) or ``2`` (double). The
-    sum is unchanged up to rounding (tested), and about twice as fast.
+    The same density as :func:`loglik_per_range`, evaluated in linear space by
+    :class:`~bayes_mpem.lbl.loglik_kernel.LoglikKernel` (two exponentials and one
+    logarithm per range instead of log-sum-exp; terms that are exactly 0 for
+    every parameter set are skipped). The uniform outlier term keeps the sum
+    positive wherever ``w_ol > 0``; the result agrees with the log-space form to
+    rounding (tested). The sampler keeps one kernel per beacon instead, so that
+    the screen of ranges is made once.
 
     Parameters
     ----------
@@ -162,38 +153,7 @@ def total_loglik(geom: BeaconGeometry, d0, sigma_dp, sigma_mp, weights, path="tr
     NotImplementedError
         For a refracted geometry (``geom.straight`` False).
     """
-    if not geom.straight:
-        raise NotImplementedError("total_loglik: straight-ray geometry only (its multipath bound "
-                                  "is the image method's); use loglik_per_range for a "
-                                  "refracted geometry")
-    d0 = np.asarray(d0, float)
-    sigma_dp = np.asarray(sigma_dp, float)
-    sigma_mp = np.asarray(sigma_mp, float)
-    r_dp = geom.z - geom.direct
-    near_dp = np.abs(r_dp) < _ZERO_SIGMAS * float(sigma_dp.max())
-    d_ref = float(np.median(d0))
-    slope = 1.0 if path == "triangle" else 2.0
-    reach = slope * float(np.max(np.abs(d0 - d_ref)))
-    near_mp = (np.abs(geom.z - geom.multipath(d_ref, path)) - reach
-               < _ZERO_SIGMAS * float(sigma_mp.max()))
-    # columns ordered [direct only | both | multipath only]; the rest have the outlier term only
-    only_dp = np.flatnonzero(near_dp & ~near_mp)
-    both = np.flatnonzero(near_dp & near_mp)
-    only_mp = np.flatnonzero(~near_dp & near_mp)
-    cols = np.concatenate([only_dp, both, only_mp])
-    n_dp = only_dp.size + both.size
-    ol = weights[2] * np.exp(geom.log_ol_density + LOG_SQRT_2PI)
-    dens = np.repeat(np.reshape(ol, (-1, 1)), cols.size, axis=1)
-    rd = r_dp[cols[:n_dp]]
-    dens[:, :n_dp] += (weights[0] / sigma_dp) * np.exp(-0.5 * (rd * rd) / (sigma_dp * sigma_dp))
-    m = cols[only_dp.size:]
-    pred = geometry.multipath_range(geom.h[m], geom.dz[m], d0, path, direct=geom.direct[m])
-    rm = geom.z[m] - pred
-    dens[:, only_dp.size:] += (weights[1] / sigma_mp) * np.exp(
-        -0.5 * (rm * rm) / (sigma_mp * sigma_mp))
-    n_rest = geom.n - cols.size
-    with np.errstate(divide="ignore"):
-        out = np.log(dens).sum(axis=-1)
-        if n_rest:  # (0 * log(0) would be NaN when w_ol = 0 and nothing is left)
-            out = out + n_rest * np.log(ol).ravel()
-    return out - geom.n * LOG_SQRT_2PI
+    d0, sigma_dp, sigma_mp, *weights = np.broadcast_arrays(
+        *(np.asarray(v, float) for v in (d0, sigma_dp, sigma_mp, *weights)))
+    kernel = LoglikKernel(geom, path, precision="float64")
+    return kernel(d0, sigma_dp, sigma_mp, *weights)

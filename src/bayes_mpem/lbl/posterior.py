@@ -33,7 +33,7 @@ from ..mcmc.driver import place_walkers
 from ..mixture.densities import CLASSES
 from .beacon_geometry import BeaconGeometry
 from .em_result import EMResult
-from .likelihood import total_loglik, weighted_densities
+from .loglik_kernel import LoglikKernel
 
 PRIORS = ("equal", "learned")
 PARAMS = ("d0", "sigma_mp", "sigma_dp", "w_dp", "w_mp", "w_ol")
@@ -94,6 +94,9 @@ class BeaconPosterior:
         Support (m) of the log-uniform scale priors.
     em : EMResult, optional
         The EM fit :meth:`start` centres the walkers on (or set :attr:`em` later).
+    precision : {"auto", "float32", "float64"}
+        Of the likelihood kernel (:class:`~bayes_mpem.lbl.loglik_kernel.LoglikKernel`):
+        ``"auto"`` uses float32 where its rounding error is known to be harmless.
 
     Attributes
     ----------
@@ -103,6 +106,8 @@ class BeaconPosterior:
         ``"beacon <name> (<priors> priors)"``, for the progress bar.
     em : EMResult or None
         The start of the walkers.
+    kernel : LoglikKernel
+        The likelihood of the beacon's ranges, for a batch of walkers.
 
     Examples
     --------
@@ -117,7 +122,8 @@ class BeaconPosterior:
     """
 
     def __init__(self, data: BeaconData, *, priors="learned", sigma_dp=None, path="triangle",
-                 concentration=1.0, sigma_bounds=(0.05, 500.0), em: EMResult | None = None):
+                 concentration=1.0, sigma_bounds=(0.05, 500.0), em: EMResult | None = None,
+                 precision="auto"):
         check_choice("priors", priors, PRIORS)
         check_positive("concentration", concentration)
         self.geom = BeaconGeometry.from_data(data)
@@ -126,6 +132,7 @@ class BeaconPosterior:
         self.label = f"beacon {self.beacon} ({priors} priors)"
         self.em = em
         self.path = path
+        self.kernel = LoglikKernel(self.geom, path, precision=precision)
         self.sigma_dp = None if sigma_dp is None else float(sigma_dp)
         self.concentration = float(concentration)
         self.log_sigma_bounds = (np.log(sigma_bounds[0]), np.log(sigma_bounds[1]))
@@ -238,14 +245,15 @@ class BeaconPosterior:
         ok = np.isfinite(lp)
         if ok.any():
             p = self.unpack(theta[ok])
-            lp[ok] += total_loglik(self.geom, p["d0"], p["sigma_dp"], p["sigma_mp"],
-                                   [p["w_dp"], p["w_mp"], p["w_ol"]], self.path)
+            lp[ok] += self.kernel(p["d0"], p["sigma_dp"], p["sigma_mp"], p["w_dp"], p["w_mp"],
+                                  p["w_ol"])
         return lp
 
     def loglik_and_classes(self, theta):
         """Log-likelihood and class probabilities of every range, at each row of ``theta``.
 
-        Linear-space densities: exact, as ``w_ol > 0`` in the posterior's support.
+        Linear-space densities in float64 (:meth:`LoglikKernel.pointwise`): exact
+        to rounding, as ``w_ol > 0`` in the posterior's support.
 
         Parameters
         ----------
@@ -260,10 +268,8 @@ class BeaconPosterior:
             Per class (dp, mp, ol), ``(W, n)``.
         """
         p = self.unpack(theta)
-        terms = weighted_densities(self.geom, p["d0"], p["sigma_dp"], p["sigma_mp"],
-                                   [p["w_dp"], p["w_mp"], p["w_ol"]], self.path)
-        total = terms[0] + terms[1] + terms[2]
-        return np.log(total), [terms[j] / total for j in range(3)]
+        return self.kernel.pointwise(p["d0"], p["sigma_dp"], p["sigma_mp"], p["w_dp"],
+                                     p["w_mp"], p["w_ol"])
 
     def theta_from(self, params: dict):
         """Sampler coordinates of a dict of natural parameters (e.g. an EM result).

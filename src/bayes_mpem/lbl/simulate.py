@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -36,6 +35,7 @@ from .._rng import RNGLike, as_generator
 from ..acoustics.profile import SoundSpeedProfile
 from ..acoustics.profile_checks import check_profile, check_sound_speed, nominal_sound_speed
 from ..acoustics.turning import direct_times
+from ..io.results import write_file, writing
 from ..io.survey import Survey, load_survey
 from . import geometry
 from .effects import EFFECTS, check_effects, effect_weights
@@ -79,16 +79,15 @@ class Simulation:
         dict
             The paths written, keyed ``pings``, ``beacons``, ``truth``.
         """
-        out = Path(out_dir)
-        out.mkdir(parents=True, exist_ok=True)
-        paths = {k: out / f for k, f in
-                 (("pings", "pings.csv"), ("beacons", "beacons.csv"), ("truth", "truth.json"))}
-        self.survey.table.to_csv(paths["pings"], index=False, na_rep="", float_format="%.3f")
-        b = self.survey.beacons.reset_index()
-        b.to_csv(paths["beacons"], index=False)
-        paths["truth"].write_text(json.dumps({"beacons": self.truth, "config": self.config},
-                                             indent=2, default=float) + "\n")
-        return paths
+        truth = json.dumps({"beacons": self.truth, "config": self.config}, indent=2,
+                           default=float) + "\n"
+        with writing(out_dir) as out:
+            return {
+                "pings": write_file(out / "pings.csv", lambda tmp: self.survey.table.to_csv(
+                    tmp, index=False, na_rep="", float_format="%.3f")),
+                "beacons": write_file(out / "beacons.csv", lambda tmp: self.survey.beacons
+                                      .reset_index().to_csv(tmp, index=False)),
+                "truth": write_file(out / "truth.json", lambda tmp: tmp.write_text(truth))}
 
 
 def simulate_lbl(

@@ -13,9 +13,104 @@ import warnings
 
 import numpy as np
 
+from .._validate import check_int
 from ..exceptions import SkippedBeaconWarning
 from ..io.survey import Survey
 from ..mixture.densities import CLASSES
+
+#: The fewest replies a beacon can be fitted with (both EMs need 3 ranges).
+MIN_PINGS = 3
+
+
+def check_min_pings(min_pings) -> int:
+    """Check ``min_pings`` before any work: an integer >= :data:`MIN_PINGS`.
+
+    Parameters
+    ----------
+    min_pings : int
+
+    Returns
+    -------
+    int
+
+    Raises
+    ------
+    ValueError
+        Naming ``min_pings``.
+
+    Examples
+    --------
+    >>> check_min_pings(2)
+    Traceback (most recent call last):
+    ...
+    ValueError: min_pings: expected an integer >= 3, got 2
+    """
+    return check_int("min_pings", min_pings, minimum=MIN_PINGS)
+
+
+class Failure(str):
+    """The reason a beacon's fit failed (not finite): its rows are labelled ``failed``.
+
+    A ``str`` (it is written into ``summary.json``'s ``skipped`` like any reason)
+    that :func:`classified_table` tells apart from a beacon merely left unfitted.
+    """
+
+
+def non_finite(document, where: str = "") -> list:
+    """Dotted names of the non-finite numbers of a (nested) result document.
+
+    Parameters
+    ----------
+    document : dict, list or number
+    where : str, optional
+        Prefix of the names.
+
+    Returns
+    -------
+    list of str
+
+    Examples
+    --------
+    >>> non_finite({"d0": 1.0, "weights": {"dp": float("nan")}, "n": 3})
+    ['weights.dp']
+    """
+    if isinstance(document, dict):
+        return [n for k, v in document.items()
+                for n in non_finite(v, f"{where}.{k}" if where else str(k))]
+    if isinstance(document, (list, tuple)):
+        return [n for i, v in enumerate(document) for n in non_finite(v, f"{where}[{i}]")]
+    if isinstance(document, (float, np.floating)) and not np.isfinite(document):
+        return [where]
+    return []
+
+
+def culprit_rows(survey: Survey, data, *, factor: float = 100.0) -> list:
+    """Rows of a beacon whose values stand far out from the others (what breaks a fit).
+
+    A row stands out when its range minus the straight-line distance to the
+    beacon, or its vehicle position, lies more than ``factor`` robust standard
+    deviations (median absolute deviation, at least 1 m) from the beacon's median.
+
+    Parameters
+    ----------
+    survey : Survey
+    data : BeaconData
+        The beacon's replies.
+    factor : float, default 100
+
+    Returns
+    -------
+    list of str
+        Where those rows are (``"line 17"``), at most 10.
+    """
+    dist = np.sqrt((data.x - data.position[0]) ** 2 + (data.y - data.position[1]) ** 2
+                   + (data.depth - data.position[2]) ** 2)
+    out = np.zeros(data.n, bool)
+    for v in (data.range - dist, data.x, data.y, data.depth):
+        med = np.median(v)
+        mad = max(1.4826 * float(np.median(np.abs(v - med))), 1.0)
+        out |= ~np.isfinite(v) | (np.abs(v - med) > factor * mad)
+    return [survey.row_name(int(r)) for r in data.rows[out][:10]]
 
 
 def beacons_table(survey: Survey) -> dict:
@@ -63,8 +158,8 @@ def classified_table(survey: Survey, fitted: dict, skipped: dict, extra: dict | 
         label[rows] = np.asarray(CLASSES)[np.argmax(p, axis=1)]
     for bid, why in skipped.items():
         m = survey.beacon == bid
-        label[m] = "skipped"
-        reason[m] = why
+        label[m] = "failed" if isinstance(why, Failure) else "skipped"
+        reason[m] = str(why)
     nr = survey.no_reply
     label[nr] = "no_reply"
     reason[nr] = "empty range: the ping got no reply"
@@ -150,7 +245,7 @@ def skip_beacon(skipped: dict, beacon: str, why: str, *, stacklevel: int = 3) ->
     skipped[beacon] = why
 
 
-def over_beacons(survey: Survey, min_pings: int, analyse, *, skip_on=()):
+def over_beacons(survey: Survey, min_pings: int, analyse, *, skip_on=(), check=None):
     """Run ``analyse`` on every beacon with enough replies: the one survey loop.
 
     Beacons with fewer than ``min_pings`` replies are left out first (each with
@@ -167,6 +262,11 @@ def over_beacons(survey: Survey, min_pings: int, analyse, *, skip_on=()):
         ``analyse(BeaconData) -> result`` for one beacon.
     skip_on : tuple of exception classes, default ()
         Exceptions that leave one beacon out; any other propagates.
+    check : callable, optional
+        ``check(result) -> list of str``: the names of the result's values that are
+        not finite. A beacon with any is *failed*: left out with a :class:`Failure`
+        reason naming those values and the rows that stand out
+        (:func:`culprit_rows`), its rows labelled ``failed``.
 
     Returns
     -------
@@ -194,7 +294,18 @@ def over_beacons(survey: Survey, min_pings: int, analyse, *, skip_on=()):
     results = {}
     for data in fittable:
         try:
-            results[data.beacon] = analyse(data)
+            result = analyse(data)
         except skip_on as exc:
             skip_beacon(skipped, data.beacon, str(exc), stacklevel=4)
+            continue
+        bad = check(result) if check is not None else []
+        if bad:
+            rows = culprit_rows(survey, data)
+            why = (f"beacon {data.beacon}: the fit failed: {', '.join(bad[:5])} not finite; "
+                   + (f"rows that stand out: {', '.join(rows)}" if rows else
+                      "no single row stands out"))
+            warnings.warn(why, SkippedBeaconWarning, stacklevel=4)
+            skipped[data.beacon] = Failure(why)
+        else:
+            results[data.beacon] = result
     return results, skipped

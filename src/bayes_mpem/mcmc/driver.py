@@ -155,6 +155,57 @@ def place_walkers(draw, inside, n_walkers: int, ndim: int, *, scale, rounds: int
     return None
 
 
+#: fewest steps between two checks of the stopping rule (a check costs ~30 steps' work)
+MIN_BLOCK = 50
+
+
+def next_block(iteration: int, burn: int, tau: float, n_walkers: int, *, tau_factor: float,
+               min_ess: float, ess_bulk: float, check_every: int) -> int:
+    """Plan the next check: the steps to where the stopping rule should hold, plus 5 %.
+
+    The kept chain needs ``tau_factor`` autocorrelation times and an ESS of
+    ``min_ess`` (by emcee's ``steps x walkers / tau``, scaled up by the ratio of
+    that estimate to ArviZ's bulk ESS when the bulk ESS fell short); at least
+    :data:`MIN_BLOCK` steps and at most ``check_every``, so a poor early estimate of
+    ``tau`` costs at most one block.
+
+    Parameters
+    ----------
+    iteration, burn : int
+        Steps run so far, and the burn-in at the current estimate.
+    tau : float
+        Largest autocorrelation time on the kept chain (inf when unknown).
+    n_walkers : int
+    tau_factor, min_ess : float
+        The stopping rule.
+    ess_bulk : float
+        Smallest bulk ESS at the last check where it was computed, else 0.
+    check_every : int
+        The largest block.
+
+    Returns
+    -------
+    int
+
+    Examples
+    --------
+    >>> next_block(250, 30, 16.0, 24, tau_factor=50, min_ess=1000, ess_bulk=0.0,
+    ...            check_every=250)
+    250
+    >>> next_block(750, 32, 16.0, 24, tau_factor=50, min_ess=1000, ess_bulk=0.0,
+    ...            check_every=250)
+    124
+    """
+    if not np.isfinite(tau):
+        return check_every
+    kept = max(iteration - burn, 1)
+    scale = 1.0
+    if ess_bulk > 0:
+        scale = max(1.0, (kept * n_walkers / tau) / ess_bulk)
+    need = burn + max(tau_factor * tau, scale * min_ess * tau / n_walkers)
+    return int(np.clip(np.ceil(1.05 * need) - iteration, MIN_BLOCK, check_every))
+
+
 def run_ensemble(post: LogPosterior, start, *, seed, moves=None, tau_factor=50.0,
                  min_ess=1000.0, max_steps=20000, check_every=250,
                  progress="auto"):
@@ -181,7 +232,9 @@ def run_ensemble(post: LogPosterior, start, *, seed, moves=None, tau_factor=50.0
     max_steps : int, default 20000
         Step cap.
     check_every : int, default 250
-        Steps between checks of the stopping rule.
+        The most steps between two checks of the stopping rule; after the first
+        block, the next check is planned where the rule should hold
+        (:func:`next_block`).
     progress : bool or {"auto", "bar", "log"}
         A bar with the expected steps as its total (``"bar"``, True), one line of
         progress every few seconds on standard error (``"log"``), either as standard
@@ -211,11 +264,11 @@ def run_ensemble(post: LogPosterior, start, *, seed, moves=None, tau_factor=50.0
                               tau_factor=tau_factor, min_ess=min_ess, max_steps=max_steps,
                               check_every=check_every)
     state, burn, tau, converged = start, 0, np.full(ndim, np.inf), False
-    ess_bulk = None
+    ess_bulk, block = None, check_every
     try:
         while sampler.iteration < max_steps:
-            state = sampler.run_mcmc(state, min(check_every, max_steps - sampler.iteration),
-                                     progress=False)
+            block = min(block, max_steps - sampler.iteration)
+            state = sampler.run_mcmc(state, block, progress=False)
             tau_all = sampler.get_autocorr_time(tol=0, quiet=True)
             burn = int(np.ceil(2.0 * np.max(tau_all)))
             kept = sampler.iteration - burn
@@ -231,6 +284,9 @@ def run_ensemble(post: LogPosterior, start, *, seed, moves=None, tau_factor=50.0
                 if ess_bulk >= min_ess:
                     converged = True
                     break
+            block = next_block(sampler.iteration, burn, np.max(tau), n_walkers,
+                               tau_factor=tau_factor, min_ess=min_ess,
+                               ess_bulk=ess_bulk or 0.0, check_every=check_every)
     finally:
         report.close()
     kept = sampler.iteration - burn

@@ -169,7 +169,7 @@ def draw_moments(flat, fn, *, chunk: int = 64):
             pointwise[i:i + chunk] = values
         for j, r in enumerate(probs):
             s1[:, j] += r.sum(axis=0)
-            s2[:, j] += (r * r).sum(axis=0)
+            s2[:, j] += np.einsum("ij,ij->j", r, r)  # no (W, n) temporary
     m = s1 / n_draws
     return pointwise, m, np.sqrt(np.maximum(s2 / n_draws - m * m, 0.0))
 

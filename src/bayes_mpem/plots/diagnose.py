@@ -7,13 +7,12 @@ and ``fig=``, and returns the Figure.
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.ticker import FuncFormatter
 
 from .._validate import check_choice
+from ..io.results import write_file, writing
 from .style import CLASS_NAMES, class_color
 
 _COV_LABELS = {"time": "time (s)", "range": "direct-path length (m)",
@@ -204,15 +203,16 @@ def write_figures(diagnosis, out_dir) -> dict:
     dict
         Paths keyed by figure name.
     """
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     paths = {}
-    for key, make in (("residuals_baseline", lambda: plot_residuals(diagnosis)),
-                      ("residuals_final", lambda: plot_residuals(diagnosis, model="final")),
-                      ("classes_vs_time", lambda: plot_classes_vs_time(diagnosis)),
-                      ("candidates", lambda: plot_candidates(diagnosis))):
-        fig = make()
-        paths[key] = out / f"{key}.png"
-        fig.savefig(paths[key], dpi=100)
-        plt.close(fig)
+    with writing(out_dir) as out:
+        for key, make in (("residuals_baseline", lambda: plot_residuals(diagnosis)),
+                          ("residuals_final", lambda: plot_residuals(diagnosis, model="final")),
+                          ("classes_vs_time", lambda: plot_classes_vs_time(diagnosis)),
+                          ("candidates", lambda: plot_candidates(diagnosis))):
+            fig = make()
+            try:
+                paths[key] = write_file(out / f"{key}.png",
+                                        lambda tmp, f=fig: f.savefig(tmp, dpi=100))
+            finally:
+                plt.close(fig)
     return paths

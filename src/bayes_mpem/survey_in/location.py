@@ -312,6 +312,10 @@ def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=
     # the robust start: straight rays at one speed
     theta = np.array([start["x"], start["y"], start["depth"], sound_speed]
                      + ([tat0] if fit_tat else []), float)
+    if not np.isfinite(theta).all() or not np.isfinite(t).all():
+        raise InputError(f"transponder {transponder}: the start (x, y, depth, sound speed"
+                         f"{', tat' if fit_tat else ''}) = {theta.tolist()} or a travel time "
+                         "is not finite; check the survey's header and pings")
     x_scale = [10.0, 10.0, 10.0, 1.0] + ([1e-3] if fit_tat else [])
     resid, jac = weighted_residuals(t, TravelTimes(x, y, z, tat0, **geo))
     theta = least_squares(resid, theta, jac=jac, loss="cauchy", f_scale=2e-3,

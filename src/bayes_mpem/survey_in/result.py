@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from ..io.results import output_folder, write_csv, write_json
+from ..io.results import write_csv, write_json, writing
 
 #: Columns of ``classified.csv`` after the first seven, per ping: the ship's
 #: transducer (``east``, ``north``, m in the survey's frame) and the moment
@@ -144,9 +144,9 @@ class SurveyInResult:
         dict
             Paths written, keyed ``summary`` and ``classified``.
         """
-        out = output_folder(out_dir)
-        return {"summary": write_json(out / "summary.json", self.summary),
-                "classified": write_csv(out / "classified.csv", self.classified)}
+        with writing(out_dir) as out:
+            return {"classified": write_csv(out / "classified.csv", self.classified),
+                    "summary": write_json(out / "summary.json", self.summary)}
 
     def _as_pair(self):
         warnings.warn("using the result of locate_survey as a (summary, classified) pair is "

@@ -113,7 +113,12 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
     model = dict(tat=tat, fit_tat=fit_tat, outliers=outliers, ssp=prof,
                  speed_intervals=speed_intervals, **geo)
     for tid in beacons["beacon"].astype(str):
-        fits[tid] = r = locate(pings, beacons, tid, fit_lag=fit_lag, **model)
+        try:
+            fits[tid] = r = locate(pings, beacons, tid, fit_lag=fit_lag, **model)
+        except InputError as exc:
+            hint = (f" (speed_intervals={speed_intervals} needs {speed_intervals} more)"
+                    if speed_intervals and "need at least" in str(exc) else "")
+            raise InputError(f"{raw.source}: {exc}{hint}") from None
         sub = pings.iloc[r.rows]
         probs[r.rows] = r.p_true
         resid[r.rows] = 1e3 * (sub["twtt"].to_numpy() - r.predict(sub))

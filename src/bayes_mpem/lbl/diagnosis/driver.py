@@ -56,11 +56,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..._rng import RNGLike, as_generator
-from ..._validate import check_choice, check_int
+from ..._validate import check_choice, check_finite, check_int, check_range
 from ...io.survey import load_survey
 from .. import geometry
 from ..effects import EFFECTS, UNITS
-from ..survey import fittable_beacons
+from ..survey import check_min_pings, fittable_beacons
 from .ecm import baseline_start, fit_joint, heldout, replant, start_for
 from .evidence import (
     check_effect_names,
@@ -132,6 +132,9 @@ def diagnose(
     effects = tuple(effects)
     check_effect_names(effects, "effects")
     check_int("n_folds", n_folds, minimum=2)
+    check_min_pings(min_pings)
+    check_finite("min_gain", min_gain)
+    check_range("min_gain", min_gain, low=0, include_low=True)
     survey = load_survey(pings, beacons)
     gen = as_generator(rng)
     with warnings.catch_warnings():

@@ -17,7 +17,7 @@ import numpy as np
 import pandas as pd
 
 from ..._deprecated import figures_keyword
-from ...io.results import output_folder, write_csv, write_json
+from ...io.results import write_csv, write_json, writing
 from ...io.survey import Survey
 from .ecm import JointFit
 from .model import Ranges, predict
@@ -212,11 +212,11 @@ class Diagnosis:
         dict
             Paths written, keyed ``diagnosis`` and ``replies``.
         """
-        out = output_folder(out_dir)
-        paths = {"diagnosis": write_json(out / "diagnosis.json", self.to_dict(), numpy=True),
-                 "replies": write_csv(out / "replies.csv", self.replies())}
-        if figures is not None:
-            paths.update(figures_keyword(self, out, figures, "Diagnosis.write(figures=...)"))
+        with writing(out_dir) as out:
+            paths = {"diagnosis": write_json(out / "diagnosis.json", self.to_dict(), numpy=True),
+                     "replies": write_csv(out / "replies.csv", self.replies())}
+            if figures is not None:
+                paths.update(figures_keyword(self, out, figures, "Diagnosis.write(figures=...)"))
         return paths
 
     def summary(self) -> str:

@@ -19,7 +19,7 @@ import pandas as pd
 from scipy.stats import norm
 
 from ...exceptions import InputError
-from ...io.results import output_folder, write_csv, write_json
+from ...io.results import write_csv, write_json, writing
 from ...mixture.densities import CLASSES
 from ..survey import beacons_table, classified_table
 from .dive import Dive, dive_with_dead_reckoning
@@ -284,11 +284,11 @@ class Navigation:
         dict
             Paths written, keyed ``track``, ``classified``, ``summary``, ``timings``.
         """
-        out = output_folder(out_dir)
-        return {"track": write_csv(out / "track.csv", self.track_table()),
-                "classified": write_csv(out / "classified.csv", self.classified()),
-                "summary": write_json(out / "summary.json", self.summary()),
-                "timings": write_json(out / "timings.json", dict(self.timings))}
+        with writing(out_dir) as out:
+            return {"track": write_csv(out / "track.csv", self.track_table()),
+                    "classified": write_csv(out / "classified.csv", self.classified()),
+                    "timings": write_json(out / "timings.json", dict(self.timings)),
+                    "summary": write_json(out / "summary.json", self.summary())}
 
 
 @dataclass(frozen=True)
@@ -337,7 +337,7 @@ class NavigationRecord:
             The pings and beacons of ``classified.csv`` and ``summary.json``'s
             ``beacons_table``.
         track : pandas.DataFrame
-            ``track.csv`` (:meth:`Navigation.track_table`).
+            ``track.csv`` (:meth:`Navigation.track_table`), as text or numbers.
         probs : numpy.ndarray
             ``(N, 3)`` ``p_dp``, ``p_mp``, ``p_ol`` of every input row (NaN without a reply).
 
@@ -348,14 +348,22 @@ class NavigationRecord:
         Raises
         ------
         InputError
-            When the track's epochs are not those of the pings, or a column is missing.
+            When the track's epochs are not those of the pings, or a column is missing
+            or holds a cell that is not a number.
         """
         missing = [c for c in ("time", "x", "y", "sd_x", "sd_y", "cov_xy", "dr_x", "dr_y")
                    if c not in track.columns]
         if missing:
             raise InputError(f"track.csv: no column(s) {missing}; expected the track of "
                              "'bayes-mpem navigate'")
-        col = {c: track[c].to_numpy(float) for c in track.columns if c != "n_replies"}
+        col = {}
+        for c in ("time", "x", "y", "sd_x", "sd_y", "cov_xy", "dr_x", "dr_y"):
+            text = track[c].astype(str).str.strip()
+            col[c] = pd.to_numeric(text.replace({"": "nan"}), errors="coerce").to_numpy(float)
+            bad = np.flatnonzero(np.isnan(col[c]) & ~text.str.lower().isin(["", "nan"]).to_numpy())
+            if bad.size:
+                raise InputError(f"track.csv row {int(bad[0]) + 1}, column {c!r}: expected a "
+                                 f"number, got {track[c].iloc[bad[0]]!r}")
         dive = dive_with_dead_reckoning(
             survey, col["time"], np.column_stack([col["dr_x"], col["dr_y"]]),
             str((summary.get("dead_reckoning") or {}).get("source") or "pings"))

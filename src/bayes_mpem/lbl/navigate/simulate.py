@@ -31,7 +31,7 @@ import pandas as pd
 
 from ..._rng import RNGLike, as_generator
 from ..._validate import check_positive, check_range
-from ...io.results import output_folder, write_csv
+from ...io.results import write_csv, writing
 from ...io.survey import Survey, load_survey
 from .. import geometry
 from ..presets import preset_config, preset_track
@@ -88,9 +88,9 @@ class DiveSimulation:
         dict
             The paths written.
         """
-        out = output_folder(out_dir)
-        paths = self.simulation.write(out)
-        paths["true_track"] = write_csv(out / "true_track.csv", self.true_track)
+        with writing(out_dir) as out:
+            paths = self.simulation.write(out)
+            paths["true_track"] = write_csv(out / "true_track.csv", self.true_track)
         return paths
 
 

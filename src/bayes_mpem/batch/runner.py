@@ -1,0 +1,268 @@
+"""Running a batch on Dask: one task per survey, resumable, failures recorded, tables gathered."""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+import warnings
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import pandas as pd
+
+from ..exceptions import InputError
+from ..io.results import output_folder, write_json, write_parquet
+from .commands import COMMANDS, flatten
+from .tasks import BatchTask
+
+
+def run_task(task: BatchTask, out_dir: str, key: str | None = None) -> dict:
+    """Run one survey (on a Dask worker): write its outputs, its partition and ``batch.json``.
+
+    Never raises for a failure of the survey itself: it is returned, with its reason.
+
+    Parameters
+    ----------
+    task : BatchTask
+    out_dir : str
+        The batch's output folder.
+    key : str, optional
+        :meth:`BatchTask.key`, if already computed.
+
+    Returns
+    -------
+    dict
+        ``name``, ``status`` (``done`` or ``failed``), ``seconds``, ``warnings``,
+        and ``reason`` (failed) or ``rows`` (done: one flattened dict per beacon).
+    """
+    t0 = time.perf_counter()
+    spec = COMMANDS[task.command]
+    out = Path(out_dir)
+    folder = out / "surveys" / task.name
+    done = folder / "batch.json"
+    done.unlink(missing_ok=True)
+    part = out / "classified" / f"name={task.name}"
+    (part / "part-0.parquet").unlink(missing_ok=True)  # no stale rows if this run fails
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            key = key or task.key()
+            result = spec.run(task.inputs, task.options)
+            result.write(folder)
+            rows = [{"name": task.name, "beacon": str(b), **flatten(v)}
+                    for b, v in spec.beacons(result).items()]
+            if spec.classified is not None:
+                write_parquet(output_folder(part) / "part-0.parquet", spec.classified(result))
+        except Exception as exc:  # noqa: BLE001 - a failed survey is a result of the batch
+            return {"name": task.name, "status": "failed",
+                    "reason": f"{type(exc).__name__}: {exc}",
+                    "seconds": time.perf_counter() - t0,
+                    "warnings": [f"{w.category.__name__}: {w.message}" for w in caught]}
+    record = {"name": task.name, "status": "done", "hash": key, "command": task.command,
+              "seconds": time.perf_counter() - t0, "rows": rows,
+              "warnings": [f"{w.category.__name__}: {w.message}" for w in caught]}
+    tmp = write_json(folder / "batch.json.tmp", record)
+    tmp.replace(done)  # last, atomically: its presence means the survey is complete
+    return record
+
+
+def completed(task: BatchTask, out_dir, key: str | None) -> dict | None:
+    """Return the record of the survey if already complete with this hash, else None.
+
+    Parameters
+    ----------
+    task : BatchTask
+    out_dir : str or pathlib.Path
+    key : str or None
+        :meth:`BatchTask.key` (None when an input could not be read).
+
+    Returns
+    -------
+    dict or None
+    """
+    done = Path(out_dir) / "surveys" / task.name / "batch.json"
+    if key is None or not done.is_file():
+        return None
+    try:
+        record = json.loads(done.read_text())
+    except (OSError, ValueError):
+        return None
+    return record if record.get("hash") == key else None
+
+
+def _key_or_none(task: BatchTask):
+    try:
+        return task.key()
+    except OSError:  # a missing input: the task runs, and fails with the reader's message
+        return None
+
+
+@dataclass(frozen=True)
+class BatchResult:
+    """What a batch did: the gathered tables.
+
+    Attributes
+    ----------
+    surveys : pandas.DataFrame
+        One row per survey: ``name``, ``status`` (``done``, ``complete``: skipped
+        as already complete, ``failed``), ``seconds``, ``n_warnings``, ``warnings``,
+        ``hash``.
+    beacons : pandas.DataFrame
+        One row per survey and beacon of every complete survey: ``name``,
+        ``beacon`` and the flattened summary fields.
+    failures : pandas.DataFrame
+        ``name`` and ``reason`` of every survey that failed.
+    command : str
+    seconds : float
+        Wall time of the batch (not written).
+    """
+
+    surveys: pd.DataFrame
+    beacons: pd.DataFrame
+    failures: pd.DataFrame
+    command: str
+    seconds: float = 0.0
+
+    def write(self, out_dir) -> dict:
+        """Write ``surveys.parquet``, ``beacons.parquet`` and ``failures.parquet``.
+
+        Parameters
+        ----------
+        out_dir : str or pathlib.Path
+
+        Returns
+        -------
+        dict
+            Paths written.
+        """
+        out = output_folder(out_dir)
+        return {k: write_parquet(out / f"{k}.parquet", getattr(self, k))
+                for k in ("surveys", "beacons", "failures")}
+
+
+def _gather(records: list, command: str, seconds: float) -> BatchResult:
+    surveys = pd.DataFrame([{"name": r["name"], "status": r["status"],
+                             "seconds": float(r.get("seconds", float("nan"))),
+                             "n_warnings": len(r.get("warnings", [])),
+                             "warnings": json.dumps(r.get("warnings", [])),
+                             "hash": r.get("hash")} for r in records],
+                           columns=["name", "status", "seconds", "n_warnings", "warnings",
+                                    "hash"])
+    rows = [row for r in records if r["status"] != "failed" for row in r["rows"]]
+    beacons = pd.DataFrame(rows) if rows else pd.DataFrame(columns=["name", "beacon"])
+    failures = pd.DataFrame([{"name": r["name"], "reason": r["reason"]}
+                             for r in records if r["status"] == "failed"],
+                            columns=["name", "reason"])
+    return BatchResult(surveys, beacons, failures, command, seconds)
+
+
+def _client(scheduler, n_workers):
+    from distributed import Client, LocalCluster
+
+    if scheduler:
+        return Client(scheduler), None
+    cluster = LocalCluster(n_workers=n_workers or 1, threads_per_worker=1, processes=True,
+                           dashboard_address=None, silence_logs=40)
+    return Client(cluster), cluster
+
+
+def _progress(progress):
+    if progress == "auto":
+        progress = sys.stderr.isatty()
+    return progress
+
+
+def run_batch(tasks: list, out_dir, *, scheduler: str | None = None, n_workers: int | None = None,
+              progress="auto", report: Callable | None = None) -> BatchResult:
+    """Run every survey of a batch as a Dask task; skip those already complete.
+
+    Parameters
+    ----------
+    tasks : list of BatchTask
+        From :func:`read_manifest` (with options filled in as needed).
+    out_dir : str or pathlib.Path
+        The batch's folder (see the module's description of its contents).
+    scheduler : str, optional
+        Address of a running Dask scheduler (``tcp://host:8786``); default a
+        local cluster of ``n_workers`` processes (one thread each).
+    n_workers : int, optional
+        Workers of the local cluster (default 1, or the scheduler's own).
+    progress : bool or "auto"
+        A line on standard error per survey done (``"auto"``: when it is a terminal).
+    report : callable, optional
+        ``report(record, done, total)`` after each survey (the command line's
+        progress lines); overrides ``progress``.
+
+    Returns
+    -------
+    BatchResult
+        Also written to ``out_dir`` (:meth:`BatchResult.write`).
+
+    Raises
+    ------
+    InputError
+        For tasks of unknown commands or repeated names.
+    """
+    t0 = time.perf_counter()
+    names = [t.name for t in tasks]
+    if len(set(names)) != len(names):
+        raise InputError("batch: survey names must be unique")
+    unknown = sorted({t.command for t in tasks} - set(COMMANDS))
+    if unknown:
+        raise InputError(f"batch: unknown command(s) {unknown}; expected one of {list(COMMANDS)}")
+    out = output_folder(out_dir)
+    if report is None and _progress(progress):
+        def report(record, done, total):
+            print(f"[{done}/{total}] {record['name']}: {record['status']}"
+                  + (f" ({record['reason']})" if record["status"] == "failed" else
+                     f" in {record.get('seconds', 0.0):.1f} s"), file=sys.stderr, flush=True)
+    records, todo = {}, []
+    for task in tasks:
+        key = _key_or_none(task)
+        old = completed(task, out, key)
+        if old is not None:
+            records[task.name] = {**old, "status": "complete"}
+        else:
+            todo.append((task, key))
+    total = len(tasks)
+    for i, r in enumerate(records.values()):
+        if report:
+            report(r, i + 1, total)
+    if todo:
+        records.update(_submit(todo, out, scheduler, n_workers, report, len(records), total))
+    result = _gather([records[n] for n in names], tasks[0].command if tasks else "",
+                     time.perf_counter() - t0)
+    result.write(out)
+    return result
+
+
+def _submit(todo, out, scheduler, n_workers, report, n_done, total) -> dict:
+    """Submit the tasks, collect their records as they complete."""
+    from distributed import as_completed
+
+    client, cluster = _client(scheduler, n_workers)
+    records = {}
+    try:
+        futures = {client.submit(run_task, task, str(out), key, key=f"survey-{task.name}-"
+                                 f"{key or 'unreadable'}", pure=False): task
+                   for task, key in todo}
+        for fut in as_completed(futures):
+            task = futures[fut]
+            if fut.status == "error":  # the worker itself died (memory, a crash)
+                exc = fut.exception()
+                record = {"name": task.name, "status": "failed",
+                          "reason": f"{type(exc).__name__}: {exc}", "warnings": []}
+            else:
+                record = fut.result()
+            fut.release()
+            records[task.name] = record
+            n_done += 1
+            if report:
+                report(record, n_done, total)
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+    return records

@@ -1,0 +1,116 @@
+"""A survey of a batch (:class:`BatchTask`, its content hash) and the manifest that lists them."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pandas as pd
+
+from .. import __version__
+from ..exceptions import InputError
+from .commands import COMMANDS
+
+
+@dataclass(frozen=True)
+class BatchTask:
+    """One survey of a batch.
+
+    Attributes
+    ----------
+    name : str
+        Unique; names the survey's output folder.
+    command : str
+        A key of :data:`COMMANDS`.
+    inputs : dict
+        Manifest column -> value (absolute paths for files).
+    options : dict
+        Keyword arguments of the command's library call.
+    where : str
+        Where the task came from (``"manifest.csv line 3"``), for messages.
+    """
+
+    name: str
+    command: str
+    inputs: dict
+    options: dict = field(default_factory=dict)
+    where: str = ""
+
+    def key(self) -> str:
+        """Content hash of the inputs (file bytes), options, command and package version.
+
+        Returns
+        -------
+        str
+            Hex SHA-256.
+        """
+        h = hashlib.sha256()
+        h.update(json.dumps([self.command, __version__, self.inputs, self.options],
+                            sort_keys=True, default=str).encode())
+        for col in COMMANDS[self.command].files:
+            with open(self.inputs[col], "rb") as fh:
+                for block in iter(lambda: fh.read(1 << 20), b""):  # noqa: B023
+                    h.update(block)
+        return h.hexdigest()
+
+
+def read_manifest(path, command: str = "fit") -> tuple[list, pd.DataFrame]:
+    """Read a manifest: the surveys' inputs, and the option columns left to the caller.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        CSV with a header: ``name`` and the command's input columns
+        (``pings``, ``beacons``; or ``survey``, ``format``), then any option columns.
+    command : str, default "fit"
+        A key of :data:`COMMANDS`.
+
+    Returns
+    -------
+    tasks : list of BatchTask
+        One per row, without options.
+    options : pandas.DataFrame
+        The option columns, as text (empty cells are ``""``), one row per task.
+
+    Raises
+    ------
+    InputError
+        A missing column, an empty or repeated name, a name that is not a plain
+        folder name, an empty input cell: the message names the file and line.
+    FileNotFoundError
+        When the manifest does not exist.
+    """
+    from .._validate import check_choice
+
+    check_choice("command", command, tuple(COMMANDS))
+    spec = COMMANDS[command]
+    path = Path(path)
+    table = pd.read_csv(path, dtype=str, keep_default_na=False, skipinitialspace=True)
+    table.columns = [str(c).strip() for c in table.columns]
+    missing = [c for c in ("name", *spec.inputs) if c not in table.columns]
+    if missing:
+        raise InputError(f"{path}: the manifest of '{command}' needs the columns "
+                         f"{', '.join(('name', *spec.inputs))}; missing: {', '.join(missing)}")
+    tasks, seen = [], {}
+    for i, row in enumerate(table.to_dict("records")):
+        where = f"{path} line {i + 2}"
+        name = row["name"].strip()
+        if not name or name in (".", "..") or any(c in name for c in "/\\:"):
+            raise InputError(f"{where}, column 'name': expected a plain folder name, "
+                             f"got {row['name']!r}")
+        if name in seen:
+            raise InputError(f"{where}, column 'name': {name!r} already on line {seen[name]}")
+        seen[name] = i + 2
+        inputs = {}
+        for col in spec.inputs:
+            value = row[col].strip()
+            if not value:
+                raise InputError(f"{where}, column {col!r}: expected a value, got an empty cell")
+            inputs[col] = str((path.parent / value).resolve()) if col in spec.files else value
+        tasks.append(BatchTask(name, command, inputs, where=where))
+    options = table.drop(columns=["name", *spec.inputs])
+    return tasks, options
+
+

@@ -1,0 +1,133 @@
+"""``bayes-mpem batch``: a command on every survey of a manifest, on Dask.
+
+The option columns of the manifest are the options of the command, named as
+their long option without the dashes (``sigma_dp`` for ``--sigma-dp``; a flag
+such as ``fit_tat`` takes ``true``/``false``, ``yes``/``no``, ``1``/``0``;
+an empty cell leaves the default). Each row is parsed by the command's own
+sub-parser and turned into the library's keyword arguments by the same
+function as the single command (:func:`.lbl.fit_kwargs`, ...), so a manifest
+is checked exactly as the command line would check the same options, before
+any survey runs. The batch itself is :func:`bayes_mpem.batch.run_batch`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from dataclasses import replace
+
+from ..batch import read_manifest, run_batch
+from ..exceptions import InputError
+from . import lbl, navigate, survey_in
+from .errors import OptionError
+
+#: per command, the library keyword arguments from the parsed options
+KWARGS = {"fit": lbl.fit_kwargs, "sample": lbl.sample_command_kwargs,
+          "diagnose": lbl.diagnose_kwargs, "locate": survey_in.locate_kwargs,
+          "navigate": navigate.navigate_kwargs}
+#: options a batch sets itself (or never uses): not allowed as manifest columns
+#: (``dead_reckoning`` names a file: a batch hashes only the manifest's input columns)
+NOT_OPTIONS = {"help", "out", "pings", "beacons", "survey", "format", "figures", "no_figures",
+               "no_progress", "palette", "dead_reckoning"}
+TRUE, FALSE = {"true", "yes", "1"}, {"false", "no", "0", ""}
+
+
+def _argv(sub: argparse.ArgumentParser, command: str, task, options: dict) -> list:
+    """Return the command line that the options of one manifest row amount to."""
+    actions = {a.dest: a for a in sub._actions if a.option_strings}
+    if command == "locate":
+        argv = ["SURVEY", "--format", task.inputs["format"], "--out", "OUT"]
+    else:
+        argv = ["PINGS", "--beacons", "BEACONS", "--out", "OUT"]
+    for col, cell in options.items():
+        value = str(cell).strip()
+        action = actions.get(col)
+        if action is None or col in NOT_OPTIONS:
+            known = sorted(set(actions) - NOT_OPTIONS)
+            raise InputError(f"{task.where}, column {col!r}: not an option of "
+                             f"'bayes-mpem {command}' in a batch; expected one of {known}")
+        if action.nargs == 0:  # a flag
+            if value.lower() not in TRUE | FALSE:
+                raise InputError(f"{task.where}, column {col!r}: expected true or false, "
+                                 f"got {value!r}")
+            if value.lower() in TRUE:
+                argv.append(action.option_strings[-1])
+        elif value:
+            argv += [action.option_strings[-1], value]
+    return argv
+
+
+def tasks_from_manifest(path, command: str, subparsers: dict) -> list:
+    """Read a manifest and turn each row's option columns into the command's keyword arguments.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+    command : str
+    subparsers : dict
+        Command name -> its sub-parser (:func:`~bayes_mpem.cli.build_parser`).
+
+    Returns
+    -------
+    list of BatchTask
+
+    Raises
+    ------
+    InputError
+        For a manifest or an option cell the command would refuse, naming the line.
+    """
+    tasks, options = read_manifest(path, command)
+    sub = subparsers[command]
+    sub.exit_on_error = False  # raise ArgumentError instead of exiting
+    out = []
+    for task, row in zip(tasks, options.to_dict("records"), strict=True):
+        if command == "locate":
+            try:
+                fmt = survey_in.survey_format(task.inputs["survey"], task.inputs["format"])
+            except OSError:
+                fmt = task.inputs["format"]  # a missing file fails its task, with the reason
+            task = replace(task, inputs={**task.inputs, "format": fmt})
+        try:
+            args = sub.parse_args(_argv(sub, command, task, row))
+            kwargs = KWARGS[command](args)
+        except (argparse.ArgumentError, OptionError) as exc:
+            raise InputError(f"{task.where}: {exc}") from None
+        if command in ("sample", "diagnose"):
+            kwargs["progress"] = False
+        elif command == "locate" and kwargs["sample"] is not None:
+            kwargs["sample"]["progress"] = False
+        out.append(replace(task, options=kwargs))
+    return out
+
+
+def _report(record, done, total):
+    what = (f"failed: {record['reason']}" if record["status"] == "failed" else
+            "already complete" if record["status"] == "complete" else
+            f"done in {record.get('seconds', 0.0):.1f} s")
+    print(f"[{done}/{total}] {record['name']}: {what}", file=sys.stderr, flush=True)
+
+
+def cmd_batch(args) -> int:
+    """Run ``bayes-mpem batch``.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+
+    Returns
+    -------
+    int
+        Exit status: 0 when every survey is complete, 1 when some failed.
+    """
+    tasks = tasks_from_manifest(args.manifest, args.batch_command, args.subparsers)
+    result = run_batch(tasks, args.out, scheduler=args.scheduler, n_workers=args.workers,
+                       report=None if args.no_progress else _report)
+    counts = result.surveys["status"].value_counts()
+    print(f"{len(tasks)} surveys: {counts.get('done', 0)} done, "
+          f"{counts.get('complete', 0)} already complete, {counts.get('failed', 0)} failed "
+          f"({result.seconds:.1f} s)")
+    for name, reason in zip(result.failures["name"], result.failures["reason"], strict=True):
+        print(f"failed: {name}: {reason}", file=sys.stderr)
+    print(f"wrote {args.out}/beacons.parquet, surveys.parquet, failures.parquet, classified/ "
+          "and surveys/<name>/")
+    return 1 if len(result.failures) else 0

@@ -1,0 +1,118 @@
+"""Types of the command-line options: every value checked by argparse, before any work.
+
+Each name here is an ``argparse`` ``type=``: it turns the option's text into a value or
+raises :class:`argparse.ArgumentTypeError`, which argparse reports as ``bayes-mpem
+COMMAND: error: argument --ci: expected a probability in (0, 1), got '1.5'`` with exit
+status 2, naming the option, before any file is read. No NaN, infinity or out-of-range
+value gets through.
+
+Examples
+--------
+>>> probability("0.9")
+0.9
+>>> probability("1.5")
+Traceback (most recent call last):
+...
+argparse.ArgumentTypeError: expected a probability in (0, 1), got '1.5'
+>>> at_least(3)("2")
+Traceback (most recent call last):
+...
+argparse.ArgumentTypeError: expected an integer >= 3, got '2'
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+# the parser loads no numpy (`bayes-mpem --help` answers at once): these two are repeated
+# from where they live, and tests/cli/test_reliability.py checks that they agree
+#: :data:`bayes_mpem.lbl.survey.MIN_PINGS`: the fewest replies a beacon can be fitted with.
+MIN_PINGS = 3
+#: :data:`bayes_mpem.io.table_files.TABLE_FORMATS`: the formats of a result's tables.
+TABLE_FORMATS = ("csv", "parquet")
+
+
+def number(what: str, low: float = -math.inf, high: float = math.inf, *,
+           include_low: bool = True, include_high: bool = True):
+    """Make the ``type=`` of a finite number option within bounds.
+
+    Parameters
+    ----------
+    what : str
+        What the message says is expected (``"a probability in (0, 1)"``).
+    low, high : float
+        The bounds (infinite: none).
+    include_low, include_high : bool, default True
+        Whether a bound itself is allowed.
+
+    Returns
+    -------
+    callable
+        ``parse(text) -> float``, raising :class:`argparse.ArgumentTypeError`.
+
+    Examples
+    --------
+    >>> number("a number >= 1", 1.0)("1")
+    1.0
+    """
+    def parse(text: str) -> float:
+        try:
+            v = float(text)
+        except ValueError:
+            v = math.nan
+        ok = (math.isfinite(v) and (v >= low if include_low else v > low)
+              and (v <= high if include_high else v < high))
+        if not ok:
+            raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}")
+        return v
+
+    parse.__name__ = "number"
+    return parse
+
+
+def at_least(minimum: int, maximum: int | None = None):
+    """Make the ``type=`` of an integer option with bounds.
+
+    Parameters
+    ----------
+    minimum : int
+    maximum : int, optional
+
+    Returns
+    -------
+    callable
+        ``parse(text) -> int``, raising :class:`argparse.ArgumentTypeError`.
+    """
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            v = None
+        if v is None or v < minimum or (maximum is not None and v > maximum):
+            what = (f"an integer >= {minimum}" if maximum is None
+                    else f"an integer in [{minimum}, {maximum}]")
+            raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}")
+        return v
+
+    parse.__name__ = "integer"
+    return parse
+
+
+#: A finite number.
+finite = number("a finite number")
+#: A finite number > 0 (scales, ``--sigma-dp``, ``--concentration``).
+positive = number("a positive number", 0.0, include_low=False)
+#: A finite number >= 0 (``--min-gain``, ``--min-ess``).
+non_negative = number("a number >= 0", 0.0)
+#: A probability strictly between 0 and 1 (an interval's coverage, ``--pol``).
+probability = number("a probability in (0, 1)", 0.0, 1.0, include_low=False,
+                     include_high=False)
+#: A number in (0, 1] (the paper's ``--alpha``).
+fraction = number("a number in (0, 1]", 0.0, 1.0, include_low=False)
+#: A turn-around time in s (the limits of :data:`bayes_mpem.io.boundary.LIMITS`).
+turn_around = number("a turn-around time in [0, 10] s", 0.0, 10.0)
+#: ``--seed``: a non-negative integer (NumPy's seeds).
+seed = at_least(0)
+#: ``--min-pings``: the EMs need at least :data:`bayes_mpem.lbl.survey.MIN_PINGS` replies.
+min_pings = at_least(MIN_PINGS)

@@ -1,0 +1,186 @@
+"""JSON documents of the result files: NumPy values, non-finite numbers, timings.
+
+The serialisation rules :mod:`bayes_mpem.io.results` applies to every JSON file it
+writes: NumPy scalars and arrays become plain JSON (:func:`numpy_to_json`), a NaN or an
+infinity becomes ``null`` listed under ``"non_finite"`` (:func:`finite_json`,
+:func:`json_text`: strict JSON, never a ``NaN`` token), and wall-clock timings leave
+``summary.json`` for ``timings.json`` (:func:`split_timings`).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+
+
+def numpy_to_json(value):
+    """Turn a NumPy scalar or array into a JSON-ready value (a ``json`` ``default=``).
+
+    Parameters
+    ----------
+    value : object
+
+    Returns
+    -------
+    int, float, bool or list
+
+    Raises
+    ------
+    TypeError
+        For any other type.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> numpy_to_json(np.float64(1.5)), numpy_to_json(np.arange(2))
+    (1.5, [0, 1])
+    """
+    if isinstance(value, (np.floating, np.integer, np.bool_)):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    raise TypeError(f"not JSON serialisable: {type(value)}")
+
+
+def finite_json(document, numpy: bool = False):
+    """Replace every NaN and infinity in ``document`` by ``None``, saying where.
+
+    Parameters
+    ----------
+    document : dict, list or scalar
+    numpy : bool, default False
+        Also convert NumPy scalars and arrays.
+
+    Returns
+    -------
+    clean : same structure
+        With ``None`` for every non-finite float.
+    replaced : dict
+        ``{"dotted.path[i]": "nan" | "inf" | "-inf"}``.
+
+    Examples
+    --------
+    >>> finite_json({"a": [1.0, float("inf")], "b": {"c": float("nan")}})
+    ({'a': [1.0, None], 'b': {'c': None}}, {'a[1]': 'inf', 'b.c': 'nan'})
+    """
+    replaced = {}
+
+    def clean(v, where):
+        if numpy and isinstance(v, (np.generic, np.ndarray)):
+            v = numpy_to_json(v)
+        if isinstance(v, float) and not math.isfinite(v):
+            replaced[where] = repr(v)
+            return None
+        if isinstance(v, dict):
+            return {k: clean(x, f"{where}.{k}" if where else str(k)) for k, x in v.items()}
+        if isinstance(v, (list, tuple)):
+            return [clean(x, f"{where}[{i}]") for i, x in enumerate(v)]
+        return v
+
+    return clean(document, ""), replaced
+
+
+def split_timings(document):
+    """Move wall-clock timings (keys ``seconds`` or ``*_seconds``) out of a document.
+
+    Parameters
+    ----------
+    document : dict
+
+    Returns
+    -------
+    document : dict
+        Without the timing keys (a copy; the input is not changed).
+    timings : dict
+        The timings at the same places (empty if none).
+
+    Examples
+    --------
+    >>> split_timings({"a": {"seconds": 2.5, "n": 1}, "b": 3})
+    ({'a': {'n': 1}, 'b': 3}, {'a': {'seconds': 2.5}})
+    """
+    def is_timing(key):
+        return isinstance(key, str) and (key == "seconds" or key.endswith("_seconds"))
+
+    if not isinstance(document, dict):
+        return document, {}
+    kept, timings = {}, {}
+    for k, v in document.items():
+        if is_timing(k):
+            timings[k] = v
+        elif isinstance(v, dict):
+            kept[k], sub = split_timings(v)
+            if sub:
+                timings[k] = sub
+        else:
+            kept[k] = v
+    return kept, timings
+
+
+#: Float arrays at least this large are formatted in one vectorised pass (one-line JSON).
+BIG_ARRAY = 10_000
+
+
+def _array_text(a: np.ndarray) -> str:
+    """``json.dumps(a.tolist())`` of a finite 1-D or 2-D float array, formatted vectorised."""
+    import pyarrow.compute as pc
+
+    from .table_files import format_floats
+
+    cells = format_floats(a.ravel())
+    if a.ndim == 1:
+        return "[" + ", ".join(cells.to_pylist()) + "]"
+    cols = [cells.take(np.arange(j, a.size, a.shape[1])) for j in range(a.shape[1])]
+    rows = pc.binary_join_element_wise(*cols, ", ") if len(cols) > 1 else cols[0]
+    return "[[" + "], [".join(rows.to_pylist()) + "]]"
+
+
+def _with_arrays(document) -> str:
+    """One-line JSON of ``document``, its big finite float arrays formatted vectorised."""
+    arrays = []
+
+    def default(value):
+        if (isinstance(value, np.ndarray) and value.dtype.kind == "f" and value.ndim in (1, 2)
+                and value.size >= BIG_ARRAY and np.isfinite(value).all()):
+            arrays.append(value)
+            return f"\x00{len(arrays) - 1}\x00"
+        return numpy_to_json(value)
+
+    text = json.dumps(document, allow_nan=False, default=default)
+    for i, a in enumerate(arrays):
+        text = text.replace(f'"\\u0000{i}\\u0000"', _array_text(a), 1)
+    return text
+
+
+def json_text(document, indent, numpy=False) -> str:
+    r"""Return ``document`` as strict JSON text and a newline (see :func:`finite_json`).
+
+    Parameters
+    ----------
+    document : dict or list
+    indent : int or None
+    numpy : bool, default False
+        Also accept NumPy scalars and arrays.
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> json_text({"a": float("nan")}, None)
+    '{"a": null, "non_finite": {"a": "nan"}}\n'
+    """
+    try:  # the common case, in C: nothing to replace
+        if numpy and indent is None:
+            return _with_arrays(document) + "\n"
+        return json.dumps(document, indent=indent, allow_nan=False,
+                          default=numpy_to_json if numpy else None) + "\n"
+    except ValueError:
+        pass
+    clean, replaced = finite_json(document, numpy)
+    if replaced and isinstance(clean, dict):
+        clean = {**clean, "non_finite": {**clean.get("non_finite", {}), **replaced}}
+    return json.dumps(clean, indent=indent, allow_nan=False) + "\n"

@@ -1,0 +1,206 @@
+"""bayes-mpem batch: same results as each dive alone, failures recorded, resumable."""
+
+import json
+
+import pandas as pd
+import pytest
+
+from bayes_mpem.batch import BatchTask, flatten, read_manifest, run_batch
+from bayes_mpem.cli import main
+from bayes_mpem.cli.batch import tasks_from_manifest
+from bayes_mpem.cli.parser import build_parser
+from bayes_mpem.exceptions import InputError
+from bayes_mpem.io.formats import sample_file
+
+N_DIVES = 3
+
+
+@pytest.fixture(scope="module")
+def dives(tmp_path_factory):
+    """Three small simulated dives and a manifest (one with an option column)."""
+    root = tmp_path_factory.mktemp("dives")
+    for i in range(N_DIVES):
+        assert main(["simulate", "--seed", str(i), "--n-cycles", "250",
+                     "--out", str(root / f"d{i}")]) == 0
+    rows = ["name,pings,beacons,sigma_dp"] + [
+        f"dive{i},d{i}/pings.csv,d{i}/beacons.csv,{'3.97' if i == 1 else ''}"
+        for i in range(N_DIVES)]
+    (root / "manifest.csv").write_text("\n".join(rows) + "\n")
+    return root
+
+
+@pytest.fixture(scope="module")
+def scheduler():
+    """One local cluster for the module (two worker processes), passed as --scheduler."""
+    from distributed import LocalCluster
+
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                      dashboard_address=None, silence_logs=40) as cluster:
+        yield cluster.scheduler_address
+
+
+def _wait_idle(address):
+    import time
+
+    from distributed import Client
+
+    with Client(address) as client:
+        while any(client.processing().values()):
+            time.sleep(0.05)
+
+
+def _tasks(manifest, command="fit"):
+    return tasks_from_manifest(manifest, command, build_parser().get_default("subparsers"))
+
+
+def test_same_results_as_each_dive_alone(dives, scheduler, tmp_path):
+    out = tmp_path / "batch"
+    result = run_batch(_tasks(dives / "manifest.csv"), out, scheduler=scheduler,
+                       progress=False)
+    assert list(result.surveys["status"]) == ["done"] * N_DIVES
+    assert result.failures.empty
+    for i in range(N_DIVES):
+        alone = tmp_path / f"alone{i}"
+        extra = ["--sigma-dp", "3.97"] if i == 1 else []
+        assert main(["fit", str(dives / f"d{i}" / "pings.csv"), "--beacons",
+                     str(dives / f"d{i}" / "beacons.csv"), "--out", str(alone), *extra]) == 0
+        mine = out / "surveys" / f"dive{i}"
+        for name in ("summary.json", "classified.csv"):  # byte for byte
+            assert (mine / name).read_bytes() == (alone / name).read_bytes(), name
+        summary = json.loads((alone / "summary.json").read_text())
+        rows = result.beacons[result.beacons["name"] == f"dive{i}"].set_index("beacon")
+        for bid, b in summary["beacons"].items():
+            assert rows.loc[bid, "d0"] == b["d0"]
+            assert rows.loc[bid, "weights_mp"] == b["weights"]["mp"]
+    # the gathered files: one row per survey x beacon, classified pings by survey
+    table = pd.read_parquet(out / "beacons.parquet")
+    assert len(table) == 4 * N_DIVES and {"name", "beacon", "d0", "sigma_mp"} <= set(table)
+    classified = pd.read_parquet(out / "classified")
+    assert sorted(classified["name"].astype(str).unique()) == [f"dive{i}" for i in range(3)]
+    n_rows = sum(len(pd.read_csv(dives / f"d{i}" / "pings.csv")) for i in range(N_DIVES))
+    assert len(classified) == n_rows
+    assert (result.beacons.loc[result.beacons["name"] == "dive1", "sigma_dp"] == 3.97).all()
+
+
+def test_a_failing_dive_is_recorded_and_the_others_complete(dives, scheduler, tmp_path):
+    tasks = _tasks(dives / "manifest.csv")
+    broken = tmp_path / "broken.csv"
+    broken.write_text("time,beacon,range,x,y,depth\n0,1,abc,0,0,10\n")
+    tasks[1] = BatchTask("dive1", "fit", {**tasks[1].inputs, "pings": str(broken)},
+                         tasks[1].options)
+    result = run_batch(tasks, tmp_path / "out", scheduler=scheduler, progress=False)
+    assert list(result.surveys["status"]) == ["done", "failed", "done"]
+    [reason] = result.failures["reason"]
+    assert result.failures["name"].tolist() == ["dive1"]
+    assert reason.startswith("InputError") and "broken.csv" in reason and "range" in reason
+    assert set(result.beacons["name"]) == {"dive0", "dive2"}
+    assert pd.read_parquet(tmp_path / "out" / "failures.parquet")["name"].tolist() == ["dive1"]
+    assert not (tmp_path / "out" / "surveys" / "dive1" / "batch.json").exists()
+
+
+def test_an_interrupted_batch_resumes_without_redoing_finished_dives(dives, scheduler,
+                                                                     tmp_path):
+    out = tmp_path / "out"
+    tasks = _tasks(dives / "manifest.csv")
+
+    def interrupt(record, done, total):
+        raise KeyboardInterrupt  # Ctrl-C after the first survey is complete
+
+    with pytest.raises(KeyboardInterrupt):
+        run_batch(tasks, out, scheduler=scheduler, report=interrupt)
+    _wait_idle(scheduler)  # a task already running on a shared cluster may still finish
+    finished = [t.name for t in tasks if (out / "surveys" / t.name / "batch.json").exists()]
+    assert len(finished) >= 1
+    stamps = {n: (out / "surveys" / n / "summary.json").stat().st_mtime_ns for n in finished}
+    result = run_batch(tasks, out, scheduler=scheduler, progress=False)
+    status = dict(zip(result.surveys["name"], result.surveys["status"], strict=True))
+    assert all(status[n] == "complete" for n in finished)
+    assert all(status[t.name] == "done" for t in tasks if t.name not in finished)
+    assert {n: (out / "surveys" / n / "summary.json").stat().st_mtime_ns
+            for n in finished} == stamps  # not redone
+    assert len(result.beacons) == 4 * N_DIVES
+    # a changed option changes the content hash: that dive alone is redone
+    tasks[0] = BatchTask(tasks[0].name, "fit", tasks[0].inputs,
+                         {**tasks[0].options, "min_pings": 20})
+    again = run_batch(tasks, out, scheduler=scheduler, progress=False)
+    assert list(again.surveys["status"]) == ["done", "complete", "complete"]
+
+
+def test_batch_command_with_a_local_cluster_and_locate(tmp_path, capsys):
+    """The command line end to end: its own local cluster, survey-in, exit status."""
+    cc03 = sample_file("obsrange/SIO_CC03.txt")
+    manifest = tmp_path / "m.csv"
+    manifest.write_text(f"name,survey,format,ci\ncc03,{cc03},obsrange,0.9\n"
+                        f"gone,{tmp_path / 'nope.txt'},obsrange,\n")
+    status = main(["batch", str(manifest), "--out", str(tmp_path / "o"), "--command",
+                   "locate", "--workers", "2"])
+    assert status == 1  # one survey failed
+    captured = capsys.readouterr()
+    assert "1 done, 0 already complete, 1 failed" in captured.out
+    assert "gone: FileNotFoundError" in captured.err
+    table = pd.read_parquet(tmp_path / "o" / "beacons.parquet")
+    assert table["name"].tolist() == ["cc03"] and "depth_mean" in table
+    assert json.loads((tmp_path / "o" / "surveys" / "cc03" / "summary.json").read_text())
+
+
+@pytest.mark.parametrize(("rows", "message"), [
+    ("name,pings\nd,p.csv\n", "needs the columns name, pings, beacons; missing: beacons"),
+    ("name,pings,beacons\nd,p.csv,b.csv\nd,p.csv,b.csv\n", "line 3, column 'name': 'd' already"),
+    ("name,pings,beacons\na/b,p.csv,b.csv\n", "line 2, column 'name': expected a plain"),
+    ("name,pings,beacons\nd,,b.csv\n", "line 2, column 'pings': expected a value"),
+    ("name,pings,beacons,method\nd,p.csv,b.csv,nope\n", "line 2: argument --method: invalid"),
+    ("name,pings,beacons,pol\nd,p.csv,b.csv,0.1\n", "line 2: --pol and --alpha apply to"),
+    ("name,pings,beacons,figures\nd,p.csv,b.csv,1\n", "column 'figures': not an option of"),
+])
+def test_manifest_is_checked_before_any_work(tmp_path, rows, message, capsys):
+    manifest = tmp_path / "m.csv"
+    manifest.write_text(rows)
+    with pytest.raises(InputError, match=message):
+        _tasks(manifest)
+    assert main(["batch", str(manifest), "--out", str(tmp_path / "o")]) == 2
+    assert "bayes-mpem batch: error:" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+
+
+def test_read_manifest_resolves_paths_and_keeps_option_columns(tmp_path):
+    (tmp_path / "m.csv").write_text("name,pings,beacons,seed\nd1,x/p.csv,/abs/b.csv,3\n")
+    [task], options = read_manifest(tmp_path / "m.csv", "fit")
+    assert task.inputs == {"pings": str((tmp_path / "x" / "p.csv").resolve()),
+                           "beacons": "/abs/b.csv"}
+    assert options.to_dict("records") == [{"seed": "3"}]
+
+
+def test_flatten_keeps_every_field():
+    row = flatten({"d0": {"mean": 1.0, "sd": 0.1, "interval": [0.8, 1.2]},
+                   "weights": {"dp": 0.5}, "flags": ["a"], "n": 3, "path_choice": None})
+    assert row == {"d0_mean": 1.0, "d0_sd": 0.1, "d0_interval_0": 0.8, "d0_interval_1": 1.2,
+                   "weights_dp": 0.5, "flags": '["a"]', "n": 3, "path_choice": None}
+
+
+def test_every_batch_command_has_its_option_builder():
+    """A command is one entry of COMMANDS, one of the CLI's KWARGS and one parser choice."""
+    from bayes_mpem.batch import COMMANDS
+    from bayes_mpem.cli.batch import KWARGS
+    from bayes_mpem.cli.parser import BATCH_COMMANDS
+
+    assert set(KWARGS) == set(COMMANDS) == set(BATCH_COMMANDS) == {
+        "fit", "sample", "diagnose", "locate", "navigate"}
+    assert build_parser().parse_args(["batch", "m.csv", "--out", "o"]).batch_command == "fit"
+
+
+def test_navigate_in_a_batch_gives_the_same_files_as_alone(scheduler, tmp_path):
+    dive = tmp_path / "dive"
+    assert main(["simulate", "--navigation", "--seed", "2", "--n-cycles", "200",
+                 "--out", str(dive)]) == 0
+    manifest = tmp_path / "m.csv"
+    manifest.write_text(f"name,pings,beacons,model\nd,{dive / 'pings.csv'},"
+                        f"{dive / 'beacons.csv'},mixture\n")
+    result = run_batch(_tasks(manifest, "navigate"), tmp_path / "out", scheduler=scheduler,
+                       progress=False)
+    assert result.failures.empty, result.failures
+    assert main(["navigate", str(dive / "pings.csv"), "--beacons", str(dive / "beacons.csv"),
+                 "--out", str(tmp_path / "alone")]) == 0
+    for name in ("summary.json", "classified.csv", "track.csv"):
+        assert ((tmp_path / "out" / "surveys" / "d" / name).read_bytes()
+                == (tmp_path / "alone" / name).read_bytes()), name
+    assert {"name", "beacon", "d0_estimate"} <= set(result.beacons)

@@ -1,0 +1,127 @@
+"""Killing a command at any moment never leaves a complete-looking but wrong folder (issue 15).
+
+Real ``bayes-mpem`` processes rewrite a folder that already holds a complete earlier run
+and are killed (SIGTERM, then SIGKILL) at moments spread over the run. Afterwards the
+folder must either hold the earlier complete results, byte for byte, or no
+``summary.json`` at all (nothing that looks complete); a ``summary.json`` present must
+list only files that exist. On f31dfee a killed ``sample`` left an unreadable
+posterior.nc beside the earlier summary.json and classified.csv, and a killed ``demo`` a
+complete-looking top level.
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+BIN = [sys.executable, "-c", "import sys; from bayes_mpem.cli import main; sys.exit(main())"]
+
+
+def _snapshot(folder: Path) -> dict:
+    return {p.relative_to(folder).as_posix(): p.read_bytes() for p in sorted(folder.rglob("*"))
+            if p.is_file() and not p.name.startswith(".")}
+
+
+def _check_folder(folder: Path, previous: dict, where: str) -> str:
+    """'previous' (the earlier run, intact), 'new' (a complete new run) or 'incomplete'."""
+    now = _snapshot(folder)
+    markers = [k for k in now if k.endswith("summary.json")]
+    top = now.get("summary.json")
+    if top is None:
+        # nothing complete at the top; no sub-folder may claim completeness over a mix either
+        for m in markers:
+            doc = json.loads(now[m])
+            base = Path(m).parent
+            assert all((folder / base / f).exists() for f in doc.get("files", [])), where
+        return "incomplete"
+    doc = json.loads(top)  # valid JSON
+    if now == previous:
+        return "previous"
+    files = doc.get("files")
+    changed = sorted(k for k in now if now[k] != previous.get(k))
+    assert files is not None, (f"{where}: the folder changed ({changed}) but its summary.json "
+                               "still looks complete")
+    assert all((folder / f).exists() for f in files), f"{where}: a listed file is missing"
+    return "new"
+
+
+@pytest.fixture(scope="module")
+def survey(tmp_path_factory):
+    out = tmp_path_factory.mktemp("kill")
+    subprocess.run([*BIN, "simulate", "--preset", "abe58", "--seed", "2", "--n-cycles", "80",
+                    "--out", str(out / "sim")], check=True, capture_output=True)
+    two = out / "two"  # two beacons: shorter runs, the same writing
+    two.mkdir()
+    lines = (out / "sim" / "pings.csv").read_text().splitlines()
+    (two / "pings.csv").write_text("\n".join(
+        [lines[0]] + [ln for ln in lines[1:] if ln.split(",")[1] in ("1", "2")]) + "\n")
+    (two / "beacons.csv").write_text("\n".join(
+        (out / "sim" / "beacons.csv").read_text().splitlines()[:3]) + "\n")
+    return two
+
+
+def _touched(folder: Path, since: float) -> bool:
+    for p in folder.rglob("*"):
+        try:
+            if p.is_file() and p.stat().st_mtime >= since:
+                return True
+        except FileNotFoundError:  # renamed meanwhile: the run is writing
+            return True
+    return False
+
+
+def _kill_runs(argv, folder: Path, fractions, full_seconds):
+    """Run ``argv`` (writing ``folder``) and kill it at each fraction of its full run time."""
+    previous = _snapshot(folder)
+    seen = []
+    for sig in (signal.SIGTERM, signal.SIGKILL):
+        for frac in [*fractions, "writing"]:
+            start = time.time()
+            proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+            if frac == "writing":  # the moment the first file of the new run appears
+                while proc.poll() is None and not _touched(folder, start):
+                    time.sleep(0.002)
+            else:
+                time.sleep(frac * full_seconds)
+            proc.send_signal(sig)
+            _, err = proc.communicate(timeout=120)
+            when = frac if isinstance(frac, str) else f"{frac:.2f} of the run"
+            where = f"{sig.name} at {when} (exit {proc.returncode})"
+            assert b"Traceback" not in err, where
+            state = _check_folder(folder, previous, where)
+            seen.append(state)
+            if state == "new":
+                previous = _snapshot(folder)
+    return seen
+
+
+def _timed(argv):
+    t0 = time.perf_counter()
+    subprocess.run(argv, check=True, capture_output=True)
+    return time.perf_counter() - t0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("command", ["sample", "diagnose", "demo"])
+def test_killed_runs_leave_the_previous_results_or_nothing_complete(survey, tmp_path, command):
+    out = tmp_path / "out"
+    argv = {"sample": [*BIN, "sample", str(survey / "pings.csv"), "--beacons",
+                       str(survey / "beacons.csv"), "--out", str(out), "--no-progress",
+                       "--min-pings", "30"],
+            "diagnose": [*BIN, "diagnose", str(survey / "pings.csv"), "--beacons",
+                         str(survey / "beacons.csv"), "--out", str(out), "--no-progress",
+                         "--effects", "range_bias,plane_drift", "--folds", "2"],
+            "demo": [*BIN, "demo", "--no-bayes", "--out", str(out)]}[command]
+    full = _timed(argv)  # a complete earlier run in the folder
+    assert (out / "summary.json").exists()
+    rng = np.random.default_rng(sum(map(ord, command)))
+    fractions = rng.uniform(0.3, 1.0, size=1)  # and the moment the writing starts
+    states = _kill_runs(argv, out, fractions, full)
+    assert set(states) <= {"previous", "new", "incomplete"}

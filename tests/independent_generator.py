@@ -8,7 +8,10 @@ and one sound speed; depths positive down; every range is one-way.
 * surface bounce off a horizontal plane at depth ``P`` (image method):
   ``sqrt(h**2 + (depth - P + bdepth - P)**2)``; ``P = 0`` (sea surface) unless drifting;
 * outliers: uniform over the listening window ``[1, 1.2 * R_max]``, ``R_max`` the longest
-  noise-free surface-bounce range of the survey.
+  noise-free surface-bounce range of the survey;
+* one beacon's own effects (``beacon_bias``, ``beacon_position``) act on a beacon drawn at
+  random after everything else (so the other effects' draws do not change), named in
+  ``truth["effect_beacon"]``.
 """
 import numpy as np
 import pandas as pd
@@ -20,8 +23,11 @@ MAGNITUDE_RANGES = {  # absolute value ranges; signed effects get a random sign
     "second_reflector": (150.0, 350.0),  # m, depth D of the second plane
     "early_outliers": (0.05, 0.2),  # fraction of replies that are (early) outliers
     "nav_drift": (10.0, 60.0),  # m, horizontal navigation error at the last ping
+    "beacon_bias": (2.0, 15.0),  # m, added to one beacon's direct and multipath ranges
+    "beacon_position": (10.0, 60.0),  # m, horizontal error of one beacon's reported position
 }
-SIGNED = {"range_bias", "sound_speed", "plane_drift"}
+SIGNED = {"range_bias", "sound_speed", "plane_drift", "beacon_bias"}
+PER_BEACON = {"beacon_bias", "beacon_position"}
 
 
 def draw_magnitude(name, rng):
@@ -165,6 +171,11 @@ def generate(effect=None, magnitude=None, *, seed, n_ranges=5000, n_beacons=4,
     m = cls == 3
     hi = f * r_dp[m] + bias if "early_outliers" in effects else window[1]
     rng_[m] = rng.uniform(window[0], np.maximum(hi, window[0] + 1.0), size=int(m.sum()))
+    target = None
+    if PER_BEACON & set(effects):  # drawn last: the other draws stay as they were
+        target = int(rng.integers(n_beacons))
+        m = (b == target) & (cls <= 2)
+        rng_[m] += effects.get("beacon_bias", 0.0)
     n_clipped = int(np.sum(rng_ < 0.1))
     rng_ = np.where(rng_ < 0.1, 0.1, rng_)
     rng_[~reply] = np.nan
@@ -176,7 +187,12 @@ def generate(effect=None, magnitude=None, *, seed, n_ranges=5000, n_beacons=4,
         nav += effects["nav_drift"] * frac[:, None] * [np.cos(direction), np.sin(direction)]
     pings = pd.DataFrame({"time": times, "beacon": np.array(ids)[b], "range": rng_,
                           "x": nav[:, 0], "y": nav[:, 1], "depth": depth})
-    beacons = pd.DataFrame({"beacon": ids, "x": bxy[:, 0], "y": bxy[:, 1], "depth": bdepth})
+    reported = bxy.copy()
+    if "beacon_position" in effects:  # the table puts the beacon this far off, horizontally
+        ang = rng.uniform(0, 2 * np.pi)
+        reported[target] += effects["beacon_position"] * np.array([np.cos(ang), np.sin(ang)])
+    beacons = pd.DataFrame({"beacon": ids, "x": reported[:, 0], "y": reported[:, 1],
+                            "depth": bdepth})
     per = lambda a: {i: float(v) for i, v in zip(ids, a, strict=True)}  # noqa: E731
     realised = {i: {c: float(np.mean(labels[reply & (b == k)] == c))
                     for c in ("dp", "mp", "mp2", "ol")} for k, i in enumerate(ids)}
@@ -196,6 +212,7 @@ def generate(effect=None, magnitude=None, *, seed, n_ranges=5000, n_beacons=4,
         "nav_drift_direction": direction,  # radians from +x, counter-clockwise
         "labels": labels, "true_x": xy[:, 0], "true_y": xy[:, 1],
         "seafloor_z0": float(z0), "seafloor_gradient": grad.tolist(), "n_clipped": n_clipped,
+        "effect_beacon": None if target is None else ids[target],
     }
     return {"pings": pings, "beacons": beacons, "truth": truth}
 

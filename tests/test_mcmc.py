@@ -5,6 +5,7 @@ import re
 import emcee
 import numpy as np
 import pytest
+from released_snooker import ReleasedSnooker
 
 import bayes_mpem as bm
 from bayes_mpem import mcmc
@@ -146,27 +147,6 @@ def test_intervals_and_ess():
 
 
 # ----------------------------------------------------------------------- exact moves
-
-
-class ReleasedSnooker(emcee.moves.DESnookerMove):
-    """emcee 3.1.6's snooker, as released: direction over sqrt(distance), half the factor.
-
-    Written here from the description of the upstream fix, so that the check
-    below is shown to catch it whatever emcee version is installed.
-    """
-
-    def get_proposal(self, s, c, random):
-        ns, ndim = s.shape
-        q, factor = np.empty_like(s), np.empty(ns)
-        for i in range(ns):
-            w = np.array([c[j][random.randint(len(c[j]))] for j in range(3)])
-            random.shuffle(w)
-            z, z1, z2 = w
-            norm = np.linalg.norm(s[i] - z)
-            u = (s[i] - z) / np.sqrt(norm)
-            q[i] = s[i] + u * self.gammas * (np.dot(u, z1) - np.dot(u, z2))
-            factor[i] = 0.5 * (ndim - 1.0) * (np.log(np.linalg.norm(q[i] - z)) - np.log(norm))
-        return q, factor
 
 
 def _sd_z(moves, ndim, seed, n_steps=6000, n_walkers=32):

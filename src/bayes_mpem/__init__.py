@@ -29,8 +29,8 @@ from . import _deprecated  # noqa: E402
 #: stay fast: numpy, scipy, pandas, emcee, ArviZ and matplotlib load only when needed.
 _PUBLIC: dict[str, str] = {
     **dict.fromkeys(("ConvergenceWarning", "FitQualityWarning", "InputError", "LocateWarning",
-                     "NavigationWarning", "PathChoiceWarning", "SamplingWarning",
-                     "SkippedBeaconWarning"),
+                     "ModelCheckWarning", "NavigationWarning", "PathChoiceWarning",
+                     "SamplingWarning", "SkippedBeaconWarning"),
                     "exceptions"),
     **dict.fromkeys(("BeaconData", "Survey", "load_survey"), "io.survey"),
     **dict.fromkeys(("PosteriorResult", "sample_beacon"), "lbl.beacon_sampling"),
@@ -75,6 +75,7 @@ __all__ = [
     "FitQualityWarning",
     "InputError",
     "LocateWarning",
+    "ModelCheckWarning",
     "Navigation",
     "NavigationWarning",
     "PathChoiceWarning",

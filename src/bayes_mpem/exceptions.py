@@ -41,5 +41,7 @@ class PathChoiceWarning(FitQualityWarning):
     """A forced multipath geometry fits clearly worse than the other one (see ``path="auto"``)."""
 
 
+class ModelCheckWarning(FitQualityWarning):
+    """The ranges depart from the fitted model in a way its checks see (``bayes-mpem diagnose``)."""
 class NavigationWarning(UserWarning):
     """Part of a navigated track (or a dead-reckoning nuisance) is not corrected by the ranges."""

@@ -229,8 +229,9 @@ def test_compare_command(survey_files, tmp_path, capsys):
     c = json.loads((tmp_path / "compare.json").read_text())
     for b in c["beacons"].values():
         for key in ("elpd_equal", "elpd_learned", "elpd_diff", "elpd_diff_se", "shifts",
-                    "n_changed", "pareto_k", "verdict"):
+                    "n_changed", "pareto_k", "verdict", "model_checks"):
             assert key in b
+        assert b["model_checks"]["flags"] == []  # a clean survey
         assert b["elpd_diff"] == pytest.approx(b["elpd_learned"] - b["elpd_equal"], rel=1e-9)
     assert (tmp_path / "compare.png").stat().st_size > 10_000
     # bayes-mpem plot redraws it from compare.json alone

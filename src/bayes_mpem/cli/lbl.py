@@ -262,16 +262,21 @@ def cmd_simulate(args) -> int:
     Raises
     ------
     OptionError
-        For an ``--effect`` that is not ``NAME=NUMBER``.
+        For an ``--effect`` that is not ``NAME=NUMBER`` (or ``beacon=ID``).
     """
     effects = {}
     for item in args.effect:
         name, sep, value = item.partition("=")
+        if not sep:
+            raise OptionError(f"--effect: expected NAME=NUMBER, got {item!r}")
+        if name.strip() == "beacon":  # the beacon of the per-beacon effects: an id
+            effects["beacon"] = value.strip()
+            continue
         try:
             effects[name.strip()] = float(value)
         except ValueError:
             raise OptionError(f"--effect: expected NAME=NUMBER, got {item!r}") from None
-        if not sep or not math.isfinite(effects[name.strip()]):
+        if not math.isfinite(effects[name.strip()]):
             raise OptionError(f"--effect: expected NAME=NUMBER (a finite number), got {item!r}")
     sim = simulate_survey(args.preset, rng=args.seed, path=args.path, n_cycles=args.n_cycles,
                           effects=effects or None)

@@ -299,6 +299,11 @@ class _Failed(Exception):
     """A command returned a non-zero status: its files are not committed."""
 
 
+#: commands whose non-zero status still leaves a result: a batch with failed surveys
+#: writes them into ``failures.parquet`` beside the surveys that were done
+_COMMITS_ON_FAILURE = frozenset({"batch"})
+
+
 def _on_sigterm(signum, frame):
     # not an exception: third-party code on the stack (emcee) would print it as a traceback
     from ..io.results import abort_open_runs
@@ -318,7 +323,7 @@ def _run(handler, args) -> int:
     try:
         with writing(out, extend=args.command == "plot", create=False):
             code = handler(args)
-            if code:
+            if code and args.command not in _COMMITS_ON_FAILURE:
                 raise _Failed(code)
     except _Failed as failed:
         return failed.args[0]

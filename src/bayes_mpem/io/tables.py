@@ -13,7 +13,6 @@ in (0, 100 km], a depth in [-1 km, 11 km], ...).
 
 from __future__ import annotations
 
-import math
 import numbers
 import os
 import re
@@ -27,125 +26,15 @@ import pyarrow.compute as pc
 
 from ..exceptions import InputError
 from .boundary import LIMITS, out_of_limits
+from .cells import MAX_LISTED, Problems, as_beacon_id, is_missing, show  # noqa: F401 (re-exported)
 from .table_files import read_table_file
 
 PING_COLUMNS = ("time", "beacon", "range", "x", "y", "depth")
 #: Columns the results add to every input row; an input column of that name would be lost.
 RESERVED_COLUMNS = ("p_dp", "p_mp", "p_ol", "p_dp_sd", "p_mp_sd", "p_ol_sd", "label", "reason")
 BEACON_COLUMNS = ("beacon", "x", "y", "depth")
-MAX_LISTED = 10
 _UNITS = {"time": "s", "range": "m", "x": "m", "y": "m", "depth": "m"}
 _NUMBER = r"^[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?$"  # no nan/inf/hex/"_"
-
-
-def _is_missing(v: Any) -> bool:
-    return v is None or v is pd.NA or v is pd.NaT or (
-        isinstance(v, (float, np.floating)) and math.isnan(v))
-
-
-def show(v: Any) -> str:
-    """Describe an offending cell for an error message.
-
-    Parameters
-    ----------
-    v : object
-        The cell's value.
-
-    Returns
-    -------
-    str
-        Its ``repr`` (cut at 40 characters), or words for an empty or missing cell.
-
-    Examples
-    --------
-    >>> show(" "), show(-3.2)
-    ('an empty cell', '-3.2')
-    """
-    if isinstance(v, str):
-        return repr(v) if v.strip() else "an empty cell"
-    if isinstance(v, np.generic):
-        v = v.item()
-    if _is_missing(v):
-        return f"a missing value ({'NaN' if isinstance(v, float) else v})"
-    text = repr(v)
-    return text if len(text) <= 40 else text[:37] + "..."
-
-
-def as_beacon_id(v: Any) -> str:
-    """Canonical string form of a beacon id ('' if missing); integral floats print as ints.
-
-    Parameters
-    ----------
-    v : object
-        A beacon id as read (str, int, float, missing).
-
-    Returns
-    -------
-    str
-
-    Examples
-    --------
-    >>> as_beacon_id(4.0), as_beacon_id(" B2 "), as_beacon_id(float("nan"))
-    ('4', 'B2', '')
-    """
-    if _is_missing(v):
-        return ""
-    if isinstance(v, str):
-        return v.strip()
-    if isinstance(v, (bool, np.bool_)):
-        return str(bool(v))
-    if isinstance(v, numbers.Integral):
-        return str(int(v))
-    if isinstance(v, numbers.Real):
-        f = float(v)
-        return str(int(f)) if f.is_integer() else repr(f)
-    return str(v).strip()
-
-
-class Problems:
-    """Collects problems by row position and raises one InputError for all of them.
-
-    Vectorised checks hand over whole masks (:meth:`add_mask`); only the first
-    :data:`MAX_LISTED` flagged cells of each check are worded, the rest counted.
-
-    Parameters
-    ----------
-    source : str
-        The file or table named in the message.
-    """
-
-    def __init__(self, source: str) -> None:
-        self.source, self.items, self.count = source, [], 0
-
-    def add(self, pos: int, message: str) -> None:
-        """Record ``message`` for the row at position ``pos`` (listed in row order).
-
-        Parameters
-        ----------
-        pos : int
-        message : str
-        """
-        self.items.append((pos, len(self.items), message))
-        self.count += 1
-
-    def add_mask(self, mask: np.ndarray, word) -> None:
-        """Record the rows flagged by ``mask``; ``word(pos)`` words the first few."""
-        flagged = np.flatnonzero(mask)
-        for pos in flagged[:MAX_LISTED]:
-            self.items.append((int(pos), len(self.items), word(int(pos))))
-        self.count += int(flagged.size)
-
-    def raise_if_any(self) -> None:
-        """Raise one :class:`InputError` listing the problems (the first ten), if any."""
-        if not self.items:
-            return
-        msgs = [m for _, _, m in sorted(self.items)][:MAX_LISTED]
-        if self.count == 1:
-            raise InputError(msgs[0])
-        lines = [f"{self.count} problems in {self.source}:"] + ["  " + m for m in msgs]
-        if self.count > MAX_LISTED:
-            lines.append(f"  ... and {self.count - MAX_LISTED} more problems")
-        raise InputError("\n".join(lines))
 
 
 @dataclass
@@ -242,7 +131,7 @@ def _cell_text(v: Any) -> str:
     """Text of a non-string DataFrame cell for number parsing ('' = missing, '?' = no number)."""
     if isinstance(v, str):
         return v
-    if _is_missing(v):
+    if is_missing(v):
         return ""
     real = isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_))
     return repr(float(v)) if real else "?"
@@ -360,7 +249,20 @@ def _beacon_column(table: _Table, problems: Problems) -> np.ndarray:
 
 
 def pings_table(source: Any, name: str | None) -> tuple[_Table, dict[str, np.ndarray], Problems]:
-    """Parse pings; cell problems are collected, not raised (load_survey adds to them)."""
+    """Parse pings; cell problems are collected, not raised (load_survey adds to them).
+
+    Parameters
+    ----------
+    source : str, os.PathLike or pandas.DataFrame
+        The pings table (CSV or Parquet file, or a frame).
+    name : str or None
+        How the messages name a frame.
+
+    Returns
+    -------
+    table, arrays, problems
+        The table read, its numeric columns, and the problems found so far.
+    """
     table = load_table(source, name, "pings")
     check_columns(table, PING_COLUMNS, "pings")
     taken = [c for c in RESERVED_COLUMNS if c in table.frame.columns]

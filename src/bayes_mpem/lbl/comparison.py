@@ -18,6 +18,7 @@ from ..exceptions import UnusableStartError
 from ..io.results import write_csv, write_json, writing
 from ..io.survey import Survey, load_survey
 from .loo import CLEAR, MIN_DIFF, compare_beacon
+from .model_checks import check_posterior, checks_record, warn_misfit
 from .path_choice import AUTO, check_path_choice, choose_path
 from .posterior import check_sample_options
 from .survey import check_min_pings, option_subset, over_beacons
@@ -38,12 +39,16 @@ class SurveyComparison:
     path_choices : dict of str to PathChoice
         Per beacon, the multipath geometry sampled and its EM margin over the
         other (:func:`~bayes_mpem.lbl.path_choice.choose_path`).
+    checks : dict of str to list
+        Per beacon, the model checks of the learned-priors posterior
+        (:func:`~bayes_mpem.lbl.model_checks.check_posterior`).
     """
 
     survey: Survey
     results: dict
     skipped: dict
     path_choices: dict = field(default_factory=dict)
+    checks: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
         """Return the content of ``compare.json``.
@@ -56,6 +61,8 @@ class SurveyComparison:
         for b, entry in beacons.items():
             if b in self.path_choices:
                 entry["path_choice"] = self.path_choices[b].to_dict()
+            if b in self.checks:
+                entry["model_checks"] = checks_record(self.checks[b])
         return {"beacons": beacons,
                 "skipped": dict(self.skipped),
                 "rule": f"a difference is clear when |elpd_diff| > {CLEAR:g} elpd_diff_se "
@@ -148,6 +155,9 @@ def compare(pings, beacons=None, *, min_pings: int = 30, rng: RNGLike = None,
         For a beacon with too few replies or an unusable EM start.
     PathChoiceWarning
         For a beacon whose forced ``path`` is clearly worse than the other.
+    ModelCheckWarning
+        For a beacon whose ranges the learned-priors posterior's model does not
+        describe (:mod:`~bayes_mpem.lbl.model_checks`; in ``compare.json``).
     """
     path = check_path_choice(kwargs.pop("path", AUTO))
     check_sample_options(**option_subset(kwargs))
@@ -158,13 +168,19 @@ def compare(pings, beacons=None, *, min_pings: int = 30, rng: RNGLike = None,
 
     def compare_one(data):
         # stacklevel 5: choose_path, compare_one, over_beacons, compare, then its caller;
-        # the fit itself only chooses (each prior's run fits its own EM start)
+        # the chosen geometry's learned-weights fit starts the learned run (the equal
+        # run fits its own, with equal weights)
         choice = choose_path(data, path, sigma_dp=kwargs.get("sigma_dp"), rng=gen,
                              fit_warnings=False, stacklevel=5)
         choices[data.beacon] = choice
-        return compare_beacon(data, rng=gen, path=choice.path, **kwargs)
+        learned_init = None if "init" in kwargs else choice.fit
+        return compare_beacon(data, rng=gen, path=choice.path, learned_init=learned_init,
+                              **kwargs)
 
     results, skipped = over_beacons(survey, min_pings, compare_one,
                                     skip_on=(UnusableStartError,))
+    checks = {b: check_posterior(survey.for_beacon(b), r.learned) for b, r in results.items()}
+    for b, ch in checks.items():
+        warn_misfit(b, ch, stacklevel=2)
     return SurveyComparison(survey=survey, results=results, skipped=skipped,
-                            path_choices=choices)
+                            path_choices=choices, checks=checks)

@@ -21,6 +21,7 @@ from ..io.survey import Survey, load_survey
 from ..io.table_files import TABLE_FORMATS
 from .em_paper import fit_paper_em
 from .em_result import check_options
+from .model_checks import check_fit, checks_record, warn_misfit
 from .path_choice import AUTO, check_path_choice, choose_path
 from .survey import beacons_table, check_min_pings, classified_table, non_finite, over_beacons
 
@@ -71,6 +72,9 @@ class SurveyFit:
     path_choices : dict of str to PathChoice
         Per fitted beacon, the multipath geometry used and its margin over the
         other (:func:`~bayes_mpem.lbl.path_choice.choose_path`).
+    checks : dict of str to list
+        Per fitted beacon, the model checks of its fit
+        (:func:`~bayes_mpem.lbl.model_checks.check_fit`; empty for a refracted fit).
     """
 
     survey: Survey
@@ -79,6 +83,7 @@ class SurveyFit:
     method: str
     options: dict = field(default_factory=dict)
     path_choices: dict = field(default_factory=dict)
+    checks: dict = field(default_factory=dict)
 
     def classified(self) -> pd.DataFrame:
         """Every input row with ``p_dp``, ``p_mp``, ``p_ol``, ``label`` and ``reason``.
@@ -109,6 +114,8 @@ class SurveyFit:
             d["n_no_reply"] = int(np.sum(self.survey.no_reply & (self.survey.beacon == bid)))
             if bid in self.path_choices:
                 d["path_choice"] = self.path_choices[bid].to_dict()
+            if bid in self.checks:
+                d["model_checks"] = checks_record(self.checks[bid])
             beacons[bid] = d
         return {
             "method": self.method,
@@ -294,6 +301,11 @@ def fit(
         For every beacon left unfitted.
     PathChoiceWarning
         For a beacon whose forced ``path`` is clearly worse than the other.
+    ModelCheckWarning
+        For a beacon whose ranges the fitted model does not describe
+        (:mod:`~bayes_mpem.lbl.model_checks`: the direct path's offset or trends,
+        the outliers' timing, a plane far from the sea surface); the checks of
+        every beacon are in ``checks`` and ``summary.json``.
 
     Examples
     --------
@@ -325,10 +337,15 @@ def fit(
                             **kwargs)
 
     results, skipped = over_beacons(survey, min_pings, fit_one, check=_non_finite_fit)
+    checks = {}
+    for bid, res in results.items():
+        if kwargs.get("ssp") is None:  # the checks predict straight rays
+            checks[bid] = check_fit(survey.for_beacon(bid), res)
+            warn_misfit(bid, checks[bid], stacklevel=2)
     options = {"path": path, "sigma_dp": sigma_dp, "min_pings": min_pings, **kwargs}
     if method == "mixture":
         options["weights"] = weights
     else:
         options.update(pol=pol, alpha=alpha)
     return SurveyFit(survey=survey, results=results, skipped=skipped, method=method,
-                     options=options, path_choices=choices)
+                     options=options, path_choices=choices, checks=checks)

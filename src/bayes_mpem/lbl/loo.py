@@ -171,13 +171,17 @@ def _shift(eq: dict, le: dict) -> dict:
             "width_ratio": (lh - ll) / (eh - el) if eh > el else float("nan")}
 
 
-def compare_beacon(data: BeaconData, *, rng: RNGLike = None, **kwargs) -> PriorComparison:
+def compare_beacon(data: BeaconData, *, rng: RNGLike = None, learned_init=None,
+                   **kwargs) -> PriorComparison:
     """Sample one beacon under equal and learned priors and compare them.
 
     Parameters
     ----------
     data : BeaconData
     rng : None, int or numpy.random.Generator
+    learned_init : EMResult, optional
+        The learned-weights EM fit to start the learned run from (e.g. the one
+        :func:`~bayes_mpem.lbl.path_choice.choose_path` made), instead of fitting it again.
     **kwargs
         Passed to :func:`~bayes_mpem.lbl.beacon_sampling.sample_beacon` for both runs.
 
@@ -187,7 +191,8 @@ def compare_beacon(data: BeaconData, *, rng: RNGLike = None, **kwargs) -> PriorC
     """
     gen = as_generator(rng)
     eq = sample_beacon(data, priors="equal", rng=gen, **kwargs)
-    le = sample_beacon(data, priors="learned", rng=gen, **kwargs)
+    le = sample_beacon(data, priors="learned", rng=gen,
+                       **({"init": learned_init} if learned_init is not None else {}), **kwargs)
     loo_eq, loo_le = psis_loo(eq), psis_loo(le)
     diff_i = loo_le.elpd_i - loo_eq.elpd_i
     n = diff_i.size

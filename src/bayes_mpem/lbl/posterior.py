@@ -8,6 +8,8 @@ coordinates:
 ==================  =====================================================
 ``d0``              plane height above the beacon (m); prior uniform on
                     ``[max(0, max dz), hi + max(0, max dz) + 1]``, the EM's bounds
+                    (``hi``: the largest range); with ``d0_bounds=(a, b)``
+                    uniform on ``[max(a, max(0, max dz)), b]`` instead
 ``log_sigma_mp``    prior uniform on ``[log 0.05, log 500]``, i.e.
                     ``p(sigma) ~ 1 / sigma`` (scale-invariant) on 0.05-500 m
 ``log_sigma_dp``    the same prior; absent when ``sigma_dp`` is fixed
@@ -16,6 +18,16 @@ coordinates:
                     uniform on the simplex); equal priors fix all at 1/3
 ==================  =====================================================
 
+The default prior of ``d0`` is bounded above by the data (the largest range:
+a plane higher than that would put every multipath beyond the data, where the
+likelihood no longer depends on ``d0``), so it is not a prior one can draw
+parameters from before seeing the ranges. ``d0_bounds`` makes it proper and
+data-independent (``max dz`` comes from the vehicle depths, the design, not
+from the ranges); ``window`` fixes the outliers' window to the listening
+window instead of the observed ranges. Both are used by the simulation-based
+calibration (:mod:`bayes_mpem.lbl.sbc`), which draws parameters from the prior
+(:meth:`BeaconPosterior.draw_prior`); neither changes the default posterior.
+
 The walkers start in a small ball around the EM solution
 (:meth:`BeaconPosterior.start`); :func:`check_sample_options` validates the
 sampler's options before any work. Sampling itself is
@@ -23,6 +35,8 @@ sampler's options before any work. Sampling itself is
 """
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 from scipy.special import gammaln
@@ -94,6 +108,13 @@ class BeaconPosterior:
         Support (m) of the log-uniform scale priors.
     em : EMResult, optional
         The EM fit :meth:`start` centres the walkers on (or set :attr:`em` later).
+    d0_bounds : tuple of float, optional
+        ``(a, b)``: a proper prior of ``d0``, uniform on ``[max(a, d0_min), b]``
+        (``d0_min = max(0, max dz)``, the plane above the vehicle); default the
+        EM's bounds, whose upper end is the largest range.
+    window : tuple of float, optional
+        ``(lo, hi)``: the outliers are uniform over this listening window (m),
+        which must hold every range; default the smallest and largest range.
     precision : {"auto", "float32", "float64"}
         Of the likelihood kernel (:class:`~bayes_mpem.lbl.loglik_kernel.LoglikKernel`):
         ``"auto"`` uses float32 where its rounding error is known to be harmless.
@@ -123,10 +144,10 @@ class BeaconPosterior:
 
     def __init__(self, data: BeaconData, *, priors="learned", sigma_dp=None, path="triangle",
                  concentration=1.0, sigma_bounds=(0.05, 500.0), em: EMResult | None = None,
-                 precision="auto"):
+                 d0_bounds=None, window=None, precision="auto"):
         check_choice("priors", priors, PRIORS)
         check_positive("concentration", concentration)
-        self.geom = BeaconGeometry.from_data(data)
+        self.geom = _with_window(BeaconGeometry.from_data(data), window)
         self.beacon = data.beacon
         self.priors = priors
         self.label = f"beacon {self.beacon} ({priors} priors)"
@@ -136,7 +157,7 @@ class BeaconPosterior:
         self.sigma_dp = None if sigma_dp is None else float(sigma_dp)
         self.concentration = float(concentration)
         self.log_sigma_bounds = (np.log(sigma_bounds[0]), np.log(sigma_bounds[1]))
-        self.d0_bounds = (self.geom.d0_min, self.geom.hi + self.geom.d0_min + 1.0)
+        self.d0_bounds = _d0_bounds(self.geom, d0_bounds)
         names = ["d0", "log_sigma_mp"]
         if self.sigma_dp is None:
             names.append("log_sigma_dp")
@@ -154,6 +175,41 @@ class BeaconPosterior:
     def ndim(self) -> int:
         """Number of sampled parameters."""
         return len(self.names)
+
+    def draw_prior(self, n, gen):
+        """Draw ``n`` parameter sets from the prior, in the sampler's coordinates.
+
+        Parameters
+        ----------
+        n : int
+        gen : numpy.random.Generator
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(n, ndim)``: ``d0`` uniform on :attr:`d0_bounds`, the log scales
+            uniform, the weights Dirichlet. (With the default ``d0`` bounds the
+            prior depends on the ranges; pass ``d0_bounds`` for a prior one can
+            draw from before seeing them.)
+
+        Examples
+        --------
+        >>> from bayes_mpem.lbl.simulate import simulate_survey
+        >>> post = BeaconPosterior(simulate_survey("abe58", rng=0).survey.for_beacon("4"),
+        ...                        d0_bounds=(2442.0, 2502.0))
+        >>> theta = post.draw_prior(5, np.random.default_rng(0))
+        >>> theta.shape, bool(np.all(np.isfinite(post.log_prior(theta))))
+        ((5, 5), True)
+        """
+        lo, hi = self.log_sigma_bounds
+        cols = {"d0": gen.uniform(*self.d0_bounds, size=n),
+                "log_sigma_mp": gen.uniform(lo, hi, size=n)}
+        if self.sigma_dp is None:
+            cols["log_sigma_dp"] = gen.uniform(lo, hi, size=n)
+        if self.priors == "learned":
+            w = gen.dirichlet(np.full(3, self.concentration), size=n)
+            cols["w_dp"], cols["w_mp"] = w[:, 0], w[:, 1]
+        return np.column_stack([cols[name] for name in self.names])
 
     def unpack(self, theta):
         """Natural parameters of a ``(W, ndim)`` array, each of shape ``(W, 1)``.
@@ -289,10 +345,32 @@ class BeaconPosterior:
                 "w_dp": params["weights"]["dp"], "w_mp": params["weights"]["mp"]}
         return np.array([vals[n] for n in self.names], float)
 
+    def _inside(self, centre):
+        """``centre`` moved just inside the prior's support (unchanged when inside)."""
+        if np.isfinite(self.log_prior(centre[None, :])[0]):
+            return centre
+        out = centre.copy()
+        col = {n: i for i, n in enumerate(self.names)}
+        lo, hi = self.d0_bounds
+        pad = 1e-6 * (hi - lo)
+        out[col["d0"]] = np.clip(out[col["d0"]], lo + pad, hi - pad)
+        lo, hi = self.log_sigma_bounds
+        for name in ("log_sigma_mp", "log_sigma_dp"):
+            if name in col:
+                out[col[name]] = np.clip(out[col[name]], lo + 1e-6, hi - 1e-6)
+        if "w_dp" in col:
+            w = np.maximum([out[col["w_dp"]], out[col["w_mp"]],
+                            1.0 - out[col["w_dp"]] - out[col["w_mp"]]], 1e-3)
+            out[col["w_dp"]], out[col["w_mp"]] = w[:2] / w.sum()
+        return out
+
     def start(self, n_walkers, gen):
         """Walkers around the EM solution, scattered by rough posterior widths, inside the prior.
 
-        Each parameter is scattered by half its large-sample standard error at the
+        An EM solution outside the prior's support is first moved just inside it
+        (:func:`~bayes_mpem.lbl.beacon_sampling.sample_beacon` refuses such a
+        start before it gets here; the calibration of :mod:`~bayes_mpem.lbl.sbc`
+        does not). Each parameter is scattered by half its large-sample standard error at the
         EM solution :attr:`em`; candidates outside the prior are redrawn, at half
         the scatter each time.
 
@@ -317,7 +395,7 @@ class BeaconPosterior:
         if em is None:
             raise ValueError(f"beacon {self.beacon}: start needs the EM solution to start "
                              "from (BeaconPosterior(..., em=...)), got None")
-        centre = self.theta_from(em.to_dict())
+        centre = self._inside(self.theta_from(em.to_dict()))
         n = em.n
         frac = {c: max(em.weights[c], 1e-3) for c in CLASSES}
         width = {"d0": em.d0_se if em.d0_se and np.isfinite(em.d0_se) else 1.0,
@@ -325,7 +403,12 @@ class BeaconPosterior:
                  "log_sigma_dp": 1.0 / np.sqrt(2 * max(frac["dp"] * n, 2)),
                  "w_dp": np.sqrt(frac["dp"] * (1 - frac["dp"]) / n),
                  "w_mp": np.sqrt(frac["mp"] * (1 - frac["mp"]) / n)}
-        scale = np.array([0.5 * width[name] for name in self.names])
+        # no wider than the prior: an EM with no multipath reports an astronomical d0_se
+        extent = {"d0": self.d0_bounds[1] - self.d0_bounds[0],
+                  "log_sigma_mp": self.log_sigma_bounds[1] - self.log_sigma_bounds[0],
+                  "log_sigma_dp": self.log_sigma_bounds[1] - self.log_sigma_bounds[0],
+                  "w_dp": 1.0, "w_mp": 1.0}
+        scale = np.array([0.5 * min(width[name], extent[name]) for name in self.names])
         out = place_walkers(lambda sc: centre + sc * gen.standard_normal((n_walkers, self.ndim)),
                             lambda cand: np.isfinite(self(cand)), n_walkers, self.ndim,
                             scale=scale, rounds=100)
@@ -334,3 +417,28 @@ class BeaconPosterior:
         raise RuntimeError(f"beacon {self.beacon}: could not place walkers inside the prior "
                            "around the EM solution "
                            f"{dict(zip(self.names, centre, strict=True))}")
+
+
+def _with_window(geom: BeaconGeometry, window) -> BeaconGeometry:
+    """``geom`` with the outliers' window ``(lo, hi)`` (None: the observed ranges)."""
+    if window is None:
+        return geom
+    lo, hi = (float(v) for v in window)
+    if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
+        raise ValueError(f"window: expected (lo, hi) with lo < hi, got {window!r}")
+    if geom.n and (geom.lo < lo or geom.hi > hi):
+        raise ValueError(f"window: ({lo:g}, {hi:g}) m must hold every range; the ranges "
+                         f"span {geom.lo:g}-{geom.hi:g} m")
+    return replace(geom, lo=lo, hi=hi)
+
+
+def _d0_bounds(geom: BeaconGeometry, bounds) -> tuple:
+    """Return the support of the ``d0`` prior: the EM's bounds, or ``bounds`` above ``d0_min``."""
+    if bounds is None:
+        return (geom.d0_min, geom.hi + geom.d0_min + 1.0)
+    a, b = (float(v) for v in bounds)
+    lo = max(a, geom.d0_min)
+    if not (np.isfinite(lo) and np.isfinite(b) and lo < b):
+        raise ValueError(f"d0_bounds: expected (a, b) with max(a, {geom.d0_min:g}) < b (the "
+                         f"plane above the vehicle), got {bounds!r}")
+    return (lo, b)

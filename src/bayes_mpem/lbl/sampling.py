@@ -15,6 +15,7 @@ from ..io.survey import Survey, load_survey
 from ..io.table_files import TABLE_FORMATS
 from ..mixture.densities import CLASSES
 from .beacon_sampling import PosteriorResult, sample_beacon
+from .model_checks import check_posterior, checks_record, warn_misfit
 from .path_choice import AUTO, check_path_choice, choose_path
 from .posterior import check_sample_options
 from .survey import (
@@ -55,6 +56,10 @@ class SurveyPosterior:
     path_choices : dict of str to PathChoice
         Per beacon, the multipath geometry sampled and its EM margin over the
         other (:func:`~bayes_mpem.lbl.path_choice.choose_path`).
+    checks : dict of str to list
+        Per beacon, the model checks at the posterior means, with the posterior
+        class probabilities and the plane's interval
+        (:func:`~bayes_mpem.lbl.model_checks.check_posterior`).
     """
 
     survey: Survey
@@ -64,6 +69,7 @@ class SurveyPosterior:
     ci: float
     options: dict = field(default_factory=dict)
     path_choices: dict = field(default_factory=dict)
+    checks: dict = field(default_factory=dict)
 
     def classified(self):
         """Every input row with posterior class probabilities, their sd, ``label``, ``reason``.
@@ -98,6 +104,8 @@ class SurveyPosterior:
             d["n"] = int(r.rows.size)
             if bid in self.path_choices:
                 d["path_choice"] = self.path_choices[bid].to_dict()
+            if bid in self.checks:
+                d["model_checks"] = checks_record(self.checks[bid])
             beacons[bid] = d
         return {"priors": self.priors, "ci": self.ci, "beacons": beacons,
                 "beacons_table": beacons_table(self.survey), "skipped": dict(self.skipped),
@@ -277,6 +285,10 @@ def sample(
         prior (it is left unsampled, with the reason, instead of stopping the survey).
     PathChoiceWarning
         For a beacon whose forced ``path`` is clearly worse than the other.
+    ModelCheckWarning
+        For a beacon whose ranges the posterior's model does not describe
+        (:mod:`~bayes_mpem.lbl.model_checks`); every beacon's checks are in
+        ``checks`` and ``summary.json``.
 
     Examples
     --------
@@ -305,6 +317,9 @@ def sample(
 
     results, skipped = over_beacons(survey, min_pings, sample_one, skip_on=(UnusableStartError,),
                                     check=_non_finite_posterior)
+    checks = {bid: check_posterior(survey.for_beacon(bid), r) for bid, r in results.items()}
+    for bid, ch in checks.items():
+        warn_misfit(bid, ch, stacklevel=2)
     return SurveyPosterior(survey=survey, results=results, skipped=skipped, priors=priors,
                            ci=float(ci), options={"min_pings": min_pings, "path": path, **kwargs},
-                           path_choices=choices)
+                           path_choices=choices, checks=checks)

@@ -38,7 +38,7 @@ from ..acoustics.turning import direct_times
 from ..io.results import write_file, writing
 from ..io.survey import Survey, load_survey
 from . import geometry
-from .effects import EFFECTS, check_effects, effect_weights
+from .effects import EFFECTS, check_effects, effect_weights, per_beacon_target
 from .presets import lawnmower_track, preset_config, preset_track  # noqa: F401 (re-exported)
 from .refracted import lbl_ranges
 
@@ -156,6 +156,15 @@ def simulate_lbl(
             linearly in time from zero; the pings table reports the drifted
             positions. Direction ``effects.get("nav_drift_direction", 45.0)``
             degrees counter-clockwise from +x.
+        ``"beacon_bias"``
+            every true return of one beacon (``effects["beacon"]``, default
+            the first) is offset by this many m (its own turn-around time).
+        ``"beacon_position"``
+            the beacons table reports that beacon this many m away from where
+            it is, towards ``effects.get("beacon_position_direction", 45.0)``
+            degrees counter-clockwise from +x and
+            ``effects.get("beacon_position_dip", 0.0)`` degrees below the
+            horizontal (its truth records ``reported_offset``, east, north, down).
     rng : None, int or numpy.random.Generator
     ssp : SoundSpeedProfile, optional
         Refract the rays through this profile (:mod:`bayes_mpem.lbl.refracted`):
@@ -207,13 +216,18 @@ def simulate_lbl(
             "p_no_reply": p_no_reply, "window": window}
     rows, truth, labels = [], {}, []
     n_ol = n_replies = 0
+    target, offset = per_beacon_target(eff, beacons)
     for j, (bid, b) in enumerate(beacons.items()):
         w = np.asarray(weights[bid], float)
         if w.shape != (3,) or np.any(w < 0) or abs(w.sum() - 1) > 1e-9:
             raise ValueError(f"weights[{bid!r}]: expected 3 non-negative numbers summing to 1, "
                              f"got {weights[bid]!r}")
+        own = opts if bid != target else {**opts, "bias": opts["bias"]
+                                          + eff.get("beacon_bias", 0.0)}
         frame, truth[bid] = _beacon_replies(gen, bid, b, w, sigma_mp[bid],
-                                            (t + j * beacon_offset, x, y, z), opts)
+                                            (t + j * beacon_offset, x, y, z), own)
+        if bid == target and offset is not None:
+            truth[bid]["reported_offset"] = offset.tolist()
         rows.append(frame)
         labels.append(frame["true_class"].to_numpy())
         n_ol += int(np.sum(labels[-1] == "ol"))
@@ -221,7 +235,11 @@ def simulate_lbl(
     pings = pd.concat(rows, ignore_index=True).sort_values("time", kind="stable")
     order = pings.index.to_numpy()
     pings = pings.reset_index(drop=True)
-    bdf = pd.DataFrame([{"beacon": k, **v} for k, v in beacons.items()])
+    reported = {k: dict(v) for k, v in beacons.items()}
+    if offset is not None:
+        for key, dv in zip(("x", "y", "depth"), offset, strict=True):
+            reported[target][key] = float(reported[target][key]) + float(dv)
+    bdf = pd.DataFrame([{"beacon": k, **v} for k, v in reported.items()])
     survey = load_survey(pings, bdf)
     all_labels = np.concatenate(labels)[order]
     realised = {k: v for k, v in eff.items() if k in EFFECTS}

@@ -15,7 +15,8 @@ of :class:`bayes_mpem.survey_in.posterior.LocationLogPosterior`. Each satisfies
   snooker update, :class:`SnookerMove`;
 - the summaries of a kept chain: :func:`thin_index`, :func:`autocorr_ess`,
   :func:`bulk_ess`, :func:`hdi`, :func:`equal_tailed`, :func:`draw_moments`,
-  :func:`to_datatree` and :func:`rhat_across_ensembles`.
+  :func:`to_datatree` and :func:`rhat_across_ensembles`;
+- the rank statistics of simulation-based calibration and their tests (:mod:`.sbc`).
 
 Walkers are ArviZ chains throughout (the emcee convention). Same ``seed``,
 same chain: emcee's random state is set from the seed, never from global state.

@@ -248,3 +248,47 @@ def plot_class_uncertainty(survey_posterior, beacon, *, fig=None):
     ax2.set_ylabel("P(most probable class)")
     ax2.set_xlabel("time (s)")
     return fig
+
+
+def plot_sbc_ranks(results, *, n_bins=10, fig=None):
+    """Rank histograms of simulation-based calibration, one row per run, one column per parameter.
+
+    Parameters
+    ----------
+    results : SBCResult or dict of str to SBCResult
+        :func:`bayes_mpem.lbl.sbc.run_sbc` results, labelled (e.g. by move set).
+    n_bins : int, default 10
+        Bins of the ranks (a divisor of ``n_draws + 1``).
+    fig : matplotlib.figure.Figure, optional
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The grey band is the 99 % range of a bin's count under uniform ranks.
+    """
+    from scipy import stats
+
+    from ..mcmc.sbc import rank_histogram
+
+    if not isinstance(results, dict):
+        results = {"": results}
+    names = next(iter(results.values())).names
+    if fig is None:
+        fig = plt.figure(figsize=(1.9 * len(names) + 1, 1.7 * len(results) + 0.6),
+                         layout="constrained")
+    axes = fig.subplots(len(results), len(names), squeeze=False, sharey="row")
+    for row, (label, res) in zip(axes, results.items(), strict=True):
+        n = len(res.ranks)
+        lo, hi = stats.binom.interval(0.99, n, 1.0 / n_bins)
+        for i, (ax, k) in enumerate(zip(row, names, strict=True)):
+            counts = rank_histogram(res.ranks[:, i], res.n_draws, n_bins)
+            ax.axhspan(lo, hi, color="0.85")
+            ax.axhline(n / n_bins, color="0.5", lw=0.8)
+            ax.bar(np.arange(n_bins), counts, width=1.0, color="tab:blue", edgecolor="white")
+            ax.set_xticks([])
+            if row is axes[0]:
+                ax.set_title(LABELS.get(k, k), fontsize="small")
+            if i == 0:
+                ax.set_ylabel(label, fontsize="small")
+    fig.suptitle("SBC rank histograms (band: 99 % range under uniform ranks)")
+    return fig

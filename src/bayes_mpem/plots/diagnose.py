@@ -166,11 +166,13 @@ def plot_candidates(diagnosis, *, fig=None):
     matplotlib.figure.Figure
     """
     cands = [c for c in diagnosis.candidates if c["delta_elpd"] is not None]
-    rounds = sorted({c["round"] for c in cands})
+    # forward rounds in order, then the backward step (its gain: the cost of removing)
+    rounds = list(dict.fromkeys(c["round"] for c in cands))
+    order = list(dict.fromkeys(c["name"] for c in cands))  # every term tried, as first tried
     if fig is None:
-        fig = plt.figure(figsize=(4 + 3 * max(len(rounds), 1), 3.6), layout="constrained")
+        fig = plt.figure(figsize=(4 + 3 * max(len(rounds), 1), 1.6 + 0.25 * len(order)),
+                         layout="constrained")
     axes = fig.subplots(1, max(len(rounds), 1), squeeze=False, sharey=True)[0]
-    order = list(diagnosis.settings["candidates"])
     for ax, rnd in zip(axes, rounds, strict=False):
         cs = [c for c in cands if c["round"] == rnd]
         y = np.array([order.index(c["name"]) for c in cs])
@@ -185,7 +187,8 @@ def plot_candidates(diagnosis, *, fig=None):
         ax.set_xscale("symlog", linthresh=10.0)
         ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))  # 1000, not 10^3
         ax.set_xlabel("held-out log predictive density gain (nats)")
-        ax.set_title(f"round {rnd}", fontsize="medium")
+        ax.set_title(f"round {rnd}" if isinstance(rnd, int) else "backward step (cost of "
+                     "removing)", fontsize="medium")
     fig.suptitle("Extensions tried (green: kept; bars ± 2 SE; dotted: minimum gain)")
     return fig
 

@@ -21,8 +21,10 @@ from bayes_mpem.cli import main
 from bayes_mpem.exceptions import InputError
 from bayes_mpem.io.survey import load_survey
 from bayes_mpem.lbl.diagnosis.driver import diagnose
-from bayes_mpem.lbl.diagnosis.ecm import baseline_start, fit_joint, replant
+from bayes_mpem.lbl.diagnosis.ecm import fit_joint, heldout
 from bayes_mpem.lbl.diagnosis.model import ranges
+from bayes_mpem.lbl.diagnosis.search import Search
+from bayes_mpem.lbl.diagnosis.starts import baseline_start, replant
 from bayes_mpem.lbl.effects import EFFECTS
 from bayes_mpem.lbl.em_mixture import fit_mixture_em
 from bayes_mpem.lbl.simulate import simulate_survey
@@ -36,8 +38,9 @@ import independent_generator as indep  # noqa: E402
 #: random sign). plane_drift starts at 4 m: docs/diagnose.md measures the detection limit.
 SIM_RANGES = {"range_bias": (1.0, 15.0), "sound_speed": (0.002, 0.02),
               "plane_drift": (4.0, 10.0), "second_reflector": (150.0, 1500.0),
-              "early_outliers": (0.05, 0.2), "nav_drift": (10.0, 60.0)}
-SIGNED = {"range_bias", "sound_speed", "plane_drift"}
+              "early_outliers": (0.05, 0.2), "nav_drift": (10.0, 60.0),
+              "beacon_bias": (2.0, 15.0), "beacon_position": (10.0, 60.0)}
+SIGNED = {"range_bias", "sound_speed", "plane_drift", "beacon_bias"}
 D0_LIMIT = 3.0  # the clean-data recovery limit of the mixture EM (docs/recovery.md)
 
 
@@ -52,10 +55,14 @@ def _sim(names, seed):
     eff = {n: _draw(n, gen) for n in names}
     if "nav_drift" in eff:
         eff["nav_drift_direction"] = float(gen.uniform(0.0, 360.0))
+    target = None
+    if {"beacon_bias", "beacon_position"} & set(eff):
+        target = str(gen.integers(1, 5))
+        eff.update(beacon=target, beacon_position_direction=float(gen.uniform(0.0, 360.0)))
     sim = simulate_survey("abe58", rng=seed, effects=eff)
     truth = sim.truth["1"]["effects"]
     d0 = {k: v["d0"] for k, v in sim.truth.items()}
-    return sim.survey, None, truth, d0
+    return sim.survey, None, truth, d0, target
 
 
 def _indep(names, seed):
@@ -65,15 +72,19 @@ def _indep(names, seed):
     if len(names) > 1:
         kw["second_effect"] = names[1]
     g = indep.generate(seed=seed, **kw)
-    return g["pings"], g["beacons"], dict(g["truth"]["effects"]), g["truth"]["d0"]
+    t = g["truth"]
+    return g["pings"], g["beacons"], dict(t["effects"]), t["d0"], t["effect_beacon"]
 
 
 GENERATORS = {"simulator": _sim, "independent": _indep}
 
 
-def _check(result, truth, d0):
+def _check(result, truth, d0, target=None):
     found = {e.name: e.magnitude for e in result.effects}
     assert set(found) == set(truth), (found, truth, result.candidates)
+    for e in result.effects:  # a per-beacon effect names its beacon
+        if e.name in ("beacon_bias", "beacon_position"):
+            assert e.beacons == [target], (e, target)
     for name, value in truth.items():
         assert abs(found[name] - value) <= 0.3 * abs(value), (name, found[name], value)
     final = result.final.beacons(result.data)
@@ -84,7 +95,7 @@ def _check(result, truth, d0):
 @pytest.mark.parametrize("gen_name", list(GENERATORS))
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_clean_survey_gives_no_effect(gen_name, seed):
-    pings, beacons, truth, d0 = GENERATORS[gen_name]([], seed)
+    pings, beacons, truth, d0, _ = GENERATORS[gen_name]([], seed)
     result = diagnose(pings, beacons, rng=seed, progress=False)
     assert truth == {}
     assert result.effects == []
@@ -97,13 +108,14 @@ def test_clean_survey_gives_no_effect(gen_name, seed):
 @pytest.mark.parametrize("effect", EFFECTS)
 @pytest.mark.parametrize("seed", [3, 4])
 def test_one_hidden_effect_is_found_and_sized(gen_name, effect, seed):
-    pings, beacons, truth, d0 = GENERATORS[gen_name]([effect], seed)
+    pings, beacons, truth, d0, target = GENERATORS[gen_name]([effect], seed)
     result = diagnose(pings, beacons, rng=seed, progress=False)
-    _check(result, truth, d0)
+    _check(result, truth, d0, target)
     (e,) = result.effects
     assert e.delta_elpd > 4.0 and e.delta_elpd > 2 * e.delta_elpd_se
     assert e.unit == {"range_bias": "m", "sound_speed": "1", "plane_drift": "m",
-                      "second_reflector": "m", "early_outliers": "1", "nav_drift": "m"}[effect]
+                      "second_reflector": "m", "early_outliers": "1", "nav_drift": "m",
+                      "beacon_bias": "m", "beacon_position": "m"}[effect]
 
 
 @pytest.mark.slow
@@ -111,9 +123,9 @@ def test_one_hidden_effect_is_found_and_sized(gen_name, effect, seed):
                                   ("second_reflector", "early_outliers")])
 @pytest.mark.parametrize("gen_name", list(GENERATORS))
 def test_two_effects_at_once_are_both_found(pair, gen_name):
-    pings, beacons, truth, d0 = GENERATORS[gen_name](list(pair), 7)
+    pings, beacons, truth, d0, target = GENERATORS[gen_name](list(pair), 7)
     result = diagnose(pings, beacons, rng=0, progress=False)
-    _check(result, truth, d0)
+    _check(result, truth, d0, target)
 
 
 def test_nav_drift_direction_and_json(tmp_path):
@@ -146,17 +158,86 @@ def test_nav_drift_direction_and_json(tmp_path):
     assert {"diagnosis", "residuals_baseline", "candidates"} <= set(old_style)
 
 
-def test_effect_outside_the_vocabulary_shows_as_unexplained_structure():
-    """A beacon surveyed 25 m off (not in the vocabulary) leaves bearing-dependent residuals."""
+def test_a_beacon_surveyed_off_is_found_with_its_beacon():
+    """A beacon reported 25 m east of where it is: beacon_position on that beacon alone."""
     sim = simulate_survey("abe58", rng=6)
     beacons = sim.survey.beacons.reset_index()
     beacons.loc[beacons.beacon == "3", "x"] += 25.0
     result = diagnose(sim.survey.table.drop(columns="true_class"), beacons, rng=0,
                       progress=False)
-    flagged = {(c["beacon"], c["class"]) for c in result.unexplained}
-    assert ("3", "dp") in flagged, result.residual_checks
+    (e,) = result.effects
+    assert (e.name, e.beacons) == ("beacon_position", ["3"])
+    assert e.magnitude == pytest.approx(25.0, rel=0.1)
+    assert e.detail["east"] == pytest.approx(25.0, abs=3.0)
+    assert result.unexplained == []
+
+
+@pytest.mark.parametrize("seed", [13, 19])
+def test_a_plane_on_its_bound_does_not_hold_the_bias_at_zero(seed):
+    """Seeds 13 and 19 of benchmarks/diagnose_bias_replant.py: the baseline puts one beacon's
+    multipath on its biased direct path, its plane on the bound above the vehicle. The bias
+    step used to be rejected whole (bias 0, planes 1.2 and 3.1 km off); the plane is now held
+    on its bound while the bias moves."""
+    bias = float(np.random.default_rng(5_000 + seed).uniform(2.0, 15.0))
+    g = indep.generate("range_bias", bias, seed=seed)
+    result = diagnose(g["pings"], g["beacons"], rng=seed, progress=False)
+    (e,) = result.effects
+    assert e.name == "range_bias" and e.magnitude == pytest.approx(bias, abs=0.3)
+    final = result.final.beacons(result.data)
+    assert max(abs(v["plane_depth"] - g["truth"]["plane_depth_first"])
+               for v in final.values()) < D0_LIMIT
+    assert not any(result.beacon_flags.values())
+
+
+def test_one_beacons_bias_is_found_on_that_beacon_first():
+    """One beacon's own 4 m bias: only that beacon is unexplained at the baseline, so its own
+    effects are tried first; the effect kept is worth its removal cost in the final model."""
+    sim = simulate_survey("abe58", rng=3, n_cycles=700,
+                          effects={"beacon_bias": 4.0, "beacon": "2"})
+    result = diagnose(sim.survey, rng=0, progress=False)
+    (e,) = result.effects
+    assert (e.name, e.beacons) == ("beacon_bias", ["2"])
+    assert e.magnitude == pytest.approx(4.0, abs=0.5)
+    assert result.candidates[0]["name"] == "beacon_bias:2"  # tried (and kept) first
+    last = [c for c in result.candidates if c["name"] == "beacon_bias:2"][-1]
+    assert last["round"] == "backward" and e.delta_elpd == pytest.approx(last["delta_elpd"])
+    assert result.to_dict()["final_model"]["effects"] == {"beacon_bias:2": e.magnitude}
+
+
+def test_the_backward_step_drops_an_effect_the_others_explain():
+    """A range bias alone, fitted with a sound speed as well: removing the sound speed costs
+    nothing, so the backward step drops it; removing the bias costs hundreds of nats."""
+    sim = simulate_survey("abe58", rng=2, n_cycles=500, effects={"range_bias": 5.0})
+    fittable, _ = fittable_beacons(sim.survey, 30)
+    d = ranges(sim.survey, fittable)
+    start, path, _ = baseline_start(d, fittable, "auto", 0)
+    kw = {"max_iter": 300, "tol": 1e-7, "sigma_floor": 0.05}
+    folds = np.random.default_rng(0).permutation(np.arange(d.n) % 5)
+    both = fit_joint(d, ("range_bias", "sound_speed"), start, path=path, **kw)
+    search = Search(d=d, fittable=fittable, path=path, folds=folds, seed=0, kw=kw,
+                    say=lambda msg: None)
+    ho = heldout(d, both.effects, both, folds, path, **kw)
+    cands = []
+    fit, _, kept = search.backward(both, ho, [("range_bias", 0.0, 0.0),
+                                              ("sound_speed", 0.0, 0.0)], cands,
+                                   min_gain=4.0, min_z=2.0)
+    assert fit.effects == ("range_bias",) and [k[0] for k in kept] == ["range_bias"]
+    assert kept[0][1] > 100.0  # its removal cost in the final model
+    assert [(c["name"], c["kept"]) for c in cands] == [("sound_speed", False),
+                                                        ("range_bias", True)]
+
+
+def test_effect_outside_the_vocabulary_shows_as_unexplained_structure():
+    """A clock drift (a range bias growing with time) is no effect of the vocabulary: the
+    residuals the final model leaves vary with time."""
+    sim = simulate_survey("abe58", rng=6)
+    table = sim.survey.table.drop(columns="true_class").copy()
+    tau = (table.time - table.time.min()) / (table.time.max() - table.time.min())
+    table["range"] = table["range"] + 10.0 * tau
+    result = diagnose(table, sim.survey.beacons.reset_index(), rng=0, progress=False)
+    assert any(c["class"] == "dp" and c["against"] == "time" for c in result.unexplained)
     clean = diagnose(sim.survey, rng=0, progress=False)
-    assert clean.unexplained == []
+    assert clean.unexplained == [] and clean.effects == []
 
 
 def test_baseline_is_the_per_beacon_mixture_fit():
@@ -251,6 +332,28 @@ def test_simulator_effects():
     with pytest.raises(ValueError, match="no direct path"):
         simulate_survey("abe58", rng=0, effects={"second_reflector": 500.0,
                                                  "second_fraction": 0.9})
+
+
+def test_simulator_per_beacon_effects(tmp_path):
+    clean = simulate_survey("abe58", rng=4, n_cycles=200)
+    biased = simulate_survey("abe58", rng=4, n_cycles=200,
+                             effects={"beacon_bias": 5.0, "beacon": "3"})
+    diff = biased.survey.range - clean.survey.range
+    on = (biased.survey.beacon == "3") & np.isin(biased.labels, ["dp", "mp"])
+    np.testing.assert_allclose(diff[on], 5.0)
+    np.testing.assert_array_equal(np.nan_to_num(diff[biased.survey.beacon != "3"]), 0.0)
+    moved = simulate_survey("abe58", rng=4, n_cycles=200,
+                            effects={"beacon_position": 20.0, "beacon_position_direction": 90.0})
+    np.testing.assert_array_equal(moved.survey.range, clean.survey.range)  # same replies
+    shift = moved.survey.beacons.loc["1"] - clean.survey.beacons.loc["1"]
+    np.testing.assert_allclose(shift[["x", "y", "depth"]], [0.0, 20.0, 0.0], atol=1e-9)
+    assert moved.truth["1"]["reported_offset"] == pytest.approx([0.0, 20.0, 0.0], abs=1e-9)
+    with pytest.raises(ValueError, match="effects\\['beacon'\\]"):
+        simulate_survey("abe58", rng=0, effects={"beacon_bias": 1.0, "beacon": "9"})
+    assert main(["simulate", "--out", str(tmp_path / "s"), "--n-cycles", "50",
+                 "--effect", "beacon_bias=4", "--effect", "beacon=2"]) == 0
+    cfg = json.loads((tmp_path / "s" / "truth.json").read_text())["config"]["effects"]
+    assert cfg == {"beacon_bias": 4.0, "beacon": "2"}
 
 
 def test_replant_drops_replies_shorter_than_the_bias():

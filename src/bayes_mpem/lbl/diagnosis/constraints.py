@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .model import Params
+from .params import Params
 
 #: m: the second plane lies at least this far below the main reflector
 SECOND_GAP = 50.0

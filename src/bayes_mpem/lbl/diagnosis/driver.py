@@ -6,7 +6,8 @@ beacon at once (the *baseline*), then each extension of a fixed vocabulary
 (:data:`~bayes_mpem.lbl.effects.EFFECTS`), and keeps an extension only
 when it predicts held-out ranges clearly better (K-fold cross-validated log
 predictive density). Effects are added greedily, so two effects present at
-once are both found.
+once are both found; then a backward step drops any kept effect whose removal
+costs less than that rule (:mod:`.search`).
 
 The joint model
 ---------------
@@ -14,9 +15,11 @@ For range ``i`` of beacon ``b`` at normalised time ``tau_i`` (0 at the first
 ping of the survey, 1 at the last), with the vehicle at the reported position
 plus the navigation correction ``tau_i (e_x, e_y)``:
 
-* direct path ``mu_dp = k D_i + beta``, multipath ``mu_mp = k M_i(P_b + delta
-  tau_i) + beta`` off a plane at depth ``P_b + delta tau_i``, a second
-  multipath ``mu_mp2 = k M_i(P_2) + beta``, with ``k = 1 + f``;
+* direct path ``mu_dp = k D_i + beta + beta_b``, multipath ``mu_mp = k M_i(P_b +
+  delta tau_i) + beta + beta_b`` off a plane at depth ``P_b + delta tau_i``, a
+  second multipath ``mu_mp2 = k M_i(P_2) + beta + beta_b``, with ``k = 1 + f``;
+  ``D_i`` and ``M_i`` from the beacon's reported position plus its correction
+  ``c_b`` (east, north);
 * Gaussian scatter per beacon and class; outliers uniform over the beacon's
   listening window, or, with first-arrival detection, uniform between the
   window start and the direct path;
@@ -27,13 +30,16 @@ Each effect switches on one part: ``range_bias`` (``beta``, m),
 first to the last ping), ``second_reflector`` (``P_2``, m, with its weight and
 scatter per beacon), ``early_outliers`` (the first-arrival outlier density;
 magnitude = fraction of replies that are outliers) and ``nav_drift`` (``|(e_x,
-e_y)|``, m at the last ping). The baseline, all switched off, is the mixture
-model of :mod:`bayes_mpem.lbl.likelihood`, fitted to all beacons together.
+e_y)|``, m at the last ping). Two act on one beacon ``b``, reported with it:
+``beacon_bias`` (``beta_b``, m) and ``beacon_position`` (``|c_b|``, m). The
+baseline, all switched off, is the mixture model of
+:mod:`bayes_mpem.lbl.likelihood`, fitted to all beacons together.
 
-The model is :mod:`~bayes_mpem.lbl.diagnosis.model`, its fit (ECM)
-:mod:`~bayes_mpem.lbl.diagnosis.ecm`, the wording of the
-evidence :mod:`.evidence`, the residual checks :mod:`.residuals` and the
-result :class:`~bayes_mpem.lbl.diagnosis.result.Diagnosis`.
+The model is :mod:`~bayes_mpem.lbl.diagnosis.model` (its parameters :mod:`.params`),
+its fit (ECM) :mod:`~bayes_mpem.lbl.diagnosis.ecm` from the starts of :mod:`.starts`,
+the search :mod:`.search`, the wording of the evidence :mod:`.evidence`, the residual
+checks :mod:`.residuals` and the result
+:class:`~bayes_mpem.lbl.diagnosis.result.Diagnosis`.
 
 Examples
 --------
@@ -50,8 +56,6 @@ from __future__ import annotations
 
 import sys
 import warnings
-from collections.abc import Callable
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -59,19 +63,15 @@ from ..._rng import RNGLike, as_generator
 from ..._validate import check_choice, check_finite, check_int, check_range
 from ...io.survey import load_survey
 from .. import geometry
-from ..effects import EFFECTS, UNITS
+from ..effects import EFFECTS, UNITS, split_term
 from ..survey import check_min_pings, fittable_beacons
-from .ecm import baseline_start, fit_joint, heldout, replant, start_for
-from .evidence import (
-    check_effect_names,
-    effect_detail,
-    effect_evidence,
-    effect_magnitude_se,
-    not_credible,
-)
-from .model import Ranges, ranges
+from .ecm import fit_joint
+from .evidence import check_effect_names, effect_detail, effect_evidence, effect_magnitude_se
+from .model import ranges
 from .residuals import beacon_flags, residual_checks
 from .result import Diagnosis, Effect
+from .search import Search
+from .starts import baseline_start
 
 
 def diagnose(
@@ -153,15 +153,18 @@ def diagnose(
     base = fit_joint(d, (), start, path=path, **kw)
     say(f"baseline: {d.n} replies, {d.nb} beacons, {path} multipath, "
         f"log-likelihood {base.loglik:.1f}")
-    search = _Search(d=d, fittable=fittable, path=path, folds=folds, seed=seed, kw=kw, say=say)
+    search = Search(d=d, fittable=fittable, path=path, folds=folds, seed=seed, kw=kw, say=say)
     current, kept, candidates = search.run(base, effects, max_effects=int(max_effects),
                                            min_gain=min_gain, min_z=min_z)
-    found = [Effect(name=name, magnitude=current.magnitudes(d)[name], unit=UNITS[name],
-                    beacons=list(d.ids), delta_elpd=delta, delta_elpd_se=se,
-                    magnitude_se=effect_magnitude_se(name, current),
-                    evidence=effect_evidence(name, current, d, delta, se, int(n_folds)),
-                    detail=effect_detail(name, current))
-             for name, delta, se in kept]
+    found = []
+    for t, delta, se in kept:
+        name, bid = split_term(t)
+        found.append(Effect(
+            name=name, magnitude=current.magnitudes(d)[t], unit=UNITS[name],
+            beacons=list(d.ids) if bid is None else [bid], delta_elpd=delta, delta_elpd_se=se,
+            magnitude_se=effect_magnitude_se(t, current),
+            evidence=effect_evidence(t, current, d, delta, se, int(n_folds)),
+            detail=effect_detail(t, current, d)))
     checks = residual_checks(current, d)
     settings = {"path": path, "path_loglik": path_ll, "n_folds": int(n_folds),
                 "min_gain": float(min_gain),
@@ -178,86 +181,3 @@ def _progress(msg):
 
 def _silent(msg):
     pass
-
-
-@dataclass(frozen=True)
-class _Search:
-    """The greedy forward search over effects, on fixed data, folds and geometry."""
-
-    d: Ranges
-    fittable: list
-    path: str
-    folds: np.ndarray
-    seed: int
-    kw: dict
-    say: Callable
-
-    def run(self, base, effects, *, max_effects, min_gain, min_z):
-        """Add effects greedily; return ``(final fit, kept, candidates)``."""
-        current = base
-        cur_ho = heldout(self.d, (), base, self.folds, self.path, **self.kw)
-        kept, candidates = [], []
-        for rnd in range(1, max_effects + 1):
-            trials = []
-            for name in effects:
-                if name in current.effects:
-                    continue
-                cand, trial = self.try_effect(current, cur_ho, name, rnd)
-                candidates.append(cand)
-                if trial is not None:
-                    trials.append(trial)
-            good = [t for t in trials if t[0] > min_gain and t[0] > min_z * t[1]]
-            if not good:
-                break
-            delta, se, name, fit_e, ho = max(good, key=lambda t: t[0])
-            for c in candidates:
-                if c["round"] == rnd and c["name"] == name:
-                    c["kept"] = True
-            mag = fit_e.magnitudes(self.d)[name]
-            kept.append((name, delta, se))
-            current, cur_ho = fit_e, ho
-            self.say(f"kept {name} = {mag:+.4g} {UNITS[name]}")
-        return current, kept, candidates
-
-    def fit(self, current, name):
-        """Fit the model of ``current`` plus effect ``name`` (best of its starts and a replant).
-
-        Returns the fit, or a note saying why there is none.
-        """
-        d, path = self.d, self.path
-        eff = tuple(sorted(set(current.effects) | {name}, key=EFFECTS.index))
-        starts = start_for(d, current, eff, path)
-        if not starts:
-            return None, "no starting point"
-        try:
-            fit_e = fit_joint(d, eff, starts, path=path, **self.kw)
-        except ValueError as err:
-            return None, str(err)
-        fresh = replant(d, fit_e, self.fittable, path, self.seed)
-        if fresh is not None:
-            try:
-                alt = fit_joint(d, eff, fresh, path=path, **self.kw)
-                if alt.loglik > fit_e.loglik:
-                    fit_e = alt
-            except ValueError:
-                pass
-        return fit_e, None
-
-    def try_effect(self, current, cur_ho, name, rnd):
-        """Score effect ``name`` on top of ``current``: ``(candidate entry, trial or None)``."""
-        d = self.d
-        fit_e, note = self.fit(current, name)
-        if fit_e is None:
-            return {"round": rnd, "name": name, "delta_elpd": None, "se": None,
-                    "kept": False, "note": note}, None
-        ho = heldout(d, fit_e.effects, fit_e, self.folds, self.path, **self.kw)
-        diff = ho - cur_ho
-        delta = float(diff.sum())
-        se = float(np.sqrt(d.n * np.var(diff)))
-        why_not = not_credible(name, fit_e, d)
-        trial = (delta, se, name, fit_e, ho) if why_not is None else None
-        cand = {"round": rnd, "name": name, "delta_elpd": delta, "se": se,
-                "magnitude": fit_e.magnitudes(d)[name], "kept": False,
-                **({"note": why_not} if why_not else {})}
-        self.say(f"round {rnd}: {name:16s} delta elpd {delta:+10.1f} ± {se:.1f}")
-        return cand, trial

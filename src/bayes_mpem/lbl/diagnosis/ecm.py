@@ -5,15 +5,11 @@ algorithm: an E-step; closed-form mixing weights; a safeguarded Gauss-Newton
 step on the mean parameters (plane depths and effect parameters, analytic
 Jacobian; :func:`bayes_mpem.mixture.gauss_newton.safeguarded_step`) that never
 increases the weighted squared error; closed-form scatters. The
-log-likelihood therefore never decreases.
+log-likelihood therefore never decreases. A plane held on its bound (just
+above the vehicle) by the step is kept there while the other parameters move.
 
-* :func:`baseline_start` starts the baseline (no effect) from the per-beacon
-  mixture EM with both geometries (:func:`bayes_mpem.lbl.path_choice.choose_path`),
-  and picks the multipath geometry of the joint model;
-* :func:`start_for` and :func:`replant` give starting points for a model
-  with more effects;
-* :func:`fit_joint` runs the ECM from several starts and keeps the best, a
-  :class:`JointFit`;
+* :func:`fit_joint` runs the ECM from several starts (:mod:`.starts`) and keeps
+  the best, a :class:`JointFit`;
 * :func:`heldout` scores each reply by K-fold cross-validation, the
   criterion the driver (:func:`bayes_mpem.lbl.diagnosis.driver.diagnose`)
   keeps an effect by.
@@ -23,6 +19,7 @@ Examples
 >>> from bayes_mpem.lbl.simulate import simulate_survey
 >>> from bayes_mpem.lbl.survey import fittable_beacons
 >>> from bayes_mpem.lbl.diagnosis.model import ranges
+>>> from bayes_mpem.lbl.diagnosis.starts import baseline_start
 >>> sim = simulate_survey("abe58", rng=2, n_cycles=300, effects={"range_bias": 6.0})
 >>> fittable, _ = fittable_beacons(sim.survey, 30)
 >>> d = ranges(sim.survey, fittable)
@@ -34,29 +31,21 @@ True
 
 from __future__ import annotations
 
-import warnings
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from functools import partial
 
 import numpy as np
 
-from ..._rng import as_generator
 from ...mixture.gauss_newton import safeguarded_step
-from .. import geometry
-from ..em_mixture import fit_mixture_em, histogram_modes
-from ..path_choice import choose_path
+from ..effects import split_term
 from .constraints import is_feasible, repair
 from .model import (
-    Params,
     Ranges,
     e_step,
-    get_vector,
-    implied_depths,
-    mean_names,
     predict,
-    set_vector,
     weighted_sse,
 )
+from .params import Params, get_vector, mean_names, set_vector
 
 
 def _feasible_sse(d, p, names, effects, path, resp, v):
@@ -69,7 +58,7 @@ def _feasible_sse(d, p, names, effects, path, resp, v):
 
 def _gauss_newton(d, p, effects, path, resp, n_steps=2):
     """Safeguarded Gauss-Newton on the mean parameters; never increases the weighted SSE."""
-    names = mean_names(effects, d.nb)
+    names = mean_names(effects, d.ids)
     sig = p.sigma[d.bi]
     q0 = weighted_sse(d, p, effects, path, resp)
     info = None
@@ -86,19 +75,50 @@ def _gauss_newton(d, p, effects, path, resp, n_steps=2):
             a += np.einsum("ni,nj->ij", jw, jac[name])
             g += np.einsum("ni,n->i", jw, d.z - mu[name])
         info = a
-        ridge = 1e-9 * np.maximum(np.diag(a), 1e-12) + 1e-12
-        try:
-            step = np.linalg.solve(a + np.diag(ridge), g)
-        except np.linalg.LinAlgError:
-            break
         objective = partial(_feasible_sse, d, p, names, effects, path, resp)
-        out = safeguarded_step(objective, get_vector(p, names), step, q0)
+        free = np.ones(len(names), bool)
+        out = None
+        while out is None and free.any():
+            step = _solve(a, g, free)
+            if step is None:
+                break
+            out = safeguarded_step(objective, get_vector(p, names), step, q0)
+            # a plane on its bound (just above the vehicle) that the step pushes further
+            # down makes every halving infeasible and would block all the other parameters
+            # (a range bias stuck at 0): hold those planes and step the rest
+            blocked = free & _pushed_past_bound(d, p, names, effects, step)
+            if out is not None or not blocked.any():
+                break
+            free &= ~blocked
         if out is None:
             break
         p, q0 = out.aux, out.value
         if np.max(np.abs(out.step)) < 1e-10:
             break
     return p, names, info
+
+
+def _solve(a, g, free):
+    """Gauss-Newton step of the ``free`` mean parameters (the others held); None if singular."""
+    step = np.zeros(g.size)
+    af = a[np.ix_(free, free)]
+    ridge = 1e-9 * np.maximum(np.diag(af), 1e-12) + 1e-12
+    try:
+        step[free] = np.linalg.solve(af + np.diag(ridge), g[free])
+    except np.linalg.LinAlgError:
+        return None
+    return step
+
+
+def _pushed_past_bound(d, p, names, effects, step):
+    """Which mean parameters are planes that ``step`` moves below their beacon's vehicle."""
+    drift = p.drift * d.tau if "plane_drift" in effects else np.zeros(d.n)
+    out = np.zeros(len(names), bool)
+    for i, (key, j) in enumerate(names):
+        if key == "plane" and step[i] > 0:
+            sel = d.bi == j
+            out[i] = p.plane[j] + step[i] > float(np.min(d.vdepth[sel] - drift[sel]))
+    return out
 
 
 def _m_step(d, p, effects, path, resp, sigma_floor, mp2_floor):
@@ -155,7 +175,7 @@ class JointFit:
     history: list = field(default_factory=list)
 
     def magnitudes(self, data: Ranges) -> dict:
-        """Signed magnitude of every effect switched on (see :data:`UNITS`).
+        """Signed magnitude of every effect switched on (see :data:`UNITS`), keyed by term.
 
         Parameters
         ----------
@@ -179,6 +199,11 @@ class JointFit:
             out["early_outliers"] = float(self.resp[:, 3].mean())
         if "nav_drift" in self.effects:
             out["nav_drift"] = float(np.hypot(*p.nav))
+        for t in self.effects:  # per-beacon terms, "<effect>:<beacon>"
+            name, bid = split_term(t)
+            if bid is not None:
+                j = data.ids.index(bid)
+                out[t] = p.bbias[j] if name == "beacon_bias" else np.linalg.norm(p.bpos[j])
         return {k: float(v) for k, v in out.items()}
 
     def beacons(self, data: Ranges) -> dict:
@@ -207,58 +232,17 @@ class JointFit:
                 "weights": {"dp": float(p.weights[j, 0]), "mp": float(p.weights[j, 1]),
                             "ol": float(p.weights[j, 3])},
             }
+            if f"beacon_position:{bid}" in self.effects:
+                entry["position_correction"] = [float(v) for v in p.bpos[j, :2]]
+            if f"beacon_bias:{bid}" in self.effects:
+                entry["range_bias"] = float(p.bbias[j])
             if "plane_drift" in self.effects:
-                entry["d0_last"] = float(data.bz[j] - p.plane[j] - p.drift)
+                entry["d0_last"] = entry["d0"] - float(p.drift)
             if "second_reflector" in self.effects:
                 entry["weights"]["mp2"] = float(p.weights[j, 2])
                 entry["sigma_mp2"] = float(p.sigma[j, 2])
             out[bid] = entry
         return out
-
-
-def _modes(v, k):
-    """Return the ``k`` strongest modes of the depths ``v`` (5 m bins, 25 m apart, > 4 ranges)."""
-    return histogram_modes(v, k, min_count=4) if v.size >= 10 else []
-
-
-def _second_starts(d, p, effects, path, resp):
-    """Give starts for a second plane: modes of the implied depths of poorly explained ranges.
-
-    A beacon whose own plane sits on a candidate depth (its strongest multipath
-    family may be the second plane's) also gets a start with its plane moved to
-    its next mode, so that the shared plane and the beacon's own are not confused.
-    """
-    depth = implied_depths(d, p, effects, path)
-    top = float(np.min(d.vdepth))
-    usable = np.isfinite(depth) & (depth < top) & (depth > -0.2 * top)
-    # the beacons' consensus plane (median weighted by multipath counts) is the main reflector:
-    # a candidate on it would only relabel the two families
-    n_mp = np.bincount(d.bi, weights=resp[:, 1], minlength=d.nb)
-    order = np.argsort(p.plane)
-    cum = np.cumsum(n_mp[order])
-    main = float(p.plane[order][np.searchsorted(cum, 0.5 * cum[-1])])
-    starts = []
-    for cand in _modes(depth[usable & (resp[:, 3] > 0.5)], 4):
-        if abs(cand - main) < 30.0:
-            continue
-        q = p.copy()
-        q.plane2 = cand
-        share = np.maximum(0.5 * q.weights[:, 3], 0.01)
-        q.weights[:, 2] = share
-        q.weights[:, 3] = np.maximum(q.weights[:, 3] - share, 0.005)
-        q.weights = q.weights / q.weights.sum(1, keepdims=True)
-        q.sigma[:, 2] = np.median(q.sigma[:, 1])
-        starts.append(q)
-        clash = np.abs(q.plane - cand) < 30.0
-        if clash.any():
-            r = q.copy()
-            for j in np.flatnonzero(clash):
-                own = usable & (d.bi == j) & (resp[:, 0] < 0.5)
-                alt = [m for m in _modes(depth[own], 3) if abs(m - cand) > 30.0]
-                if alt:
-                    r.plane[j] = min(alt[0], float(np.min(d.vdepth[d.bi == j])))
-            starts.append(r)
-    return starts
 
 
 def _run(d, p, effects, path, *, max_iter, tol, sigma_floor):
@@ -270,7 +254,7 @@ def _run(d, p, effects, path, *, max_iter, tol, sigma_floor):
     ll = float(ll_i.sum())
     hist = [ll]
     converged = False
-    info, names = None, mean_names(effects, d.nb)
+    info, names = None, mean_names(effects, d.ids)
     for it in range(1, max_iter + 1):
         p, names, info = _m_step(d, p, effects, path, resp, sigma_floor, mp2_floor)
         resp, ll_i, mu = e_step(d, p, effects, path)
@@ -286,82 +270,12 @@ def _run(d, p, effects, path, *, max_iter, tol, sigma_floor):
         try:
             cov = np.linalg.inv(info + np.diag(1e-12 + 1e-9 * np.abs(np.diag(info))))
             for i, (k, j) in enumerate(names):
-                key = f"plane[{d.ids[j]}]" if k == "plane" else k
+                key = k if j is None else f"{k}[{d.ids[j]}]"
                 se[key] = float(np.sqrt(max(cov[i, i], 0.0)))
         except np.linalg.LinAlgError:
             pass
     return JointFit(effects=tuple(effects), params=p, resp=resp, loglik=ll, n_iter=it,
                     converged=converged, path=path, se=se, history=hist)
-
-
-def baseline_start(d: Ranges, fittable, path, rng):
-    """Start the joint baseline from per-beacon mixture-EM fits.
-
-    Parameters
-    ----------
-    d : Ranges
-    fittable : list of BeaconData
-        The beacons of ``d``, in order.
-    path : {"auto", "triangle", "double"}
-        ``"auto"`` picks the multipath geometry with the higher total likelihood.
-    rng : None, int or numpy.random.Generator
-        Seeds the per-beacon fits.
-
-    Returns
-    -------
-    params : Params
-    path : str
-        The multipath geometry chosen.
-    logliks : dict
-        Total log-likelihood of the per-beacon fits for each geometry tried.
-    """
-    nb = d.nb
-    paths = geometry.PATHS if path == "auto" else (path,)
-    best, logliks = None, {}
-    seed = int(as_generator(rng).integers(2**31))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # flags: on the final joint fit (residuals.beacon_flags)
-        # both geometries per beacon, the fits fit/sample/compare choose from; the joint
-        # model shares one geometry, so the choice here is by the summed log-likelihoods
-        choices = [choose_path(data, "auto", rng=seed + j) for j, data in enumerate(fittable)]
-    for pth in paths:
-        plane = np.empty(nb)
-        sigma = np.empty((nb, 3))
-        weights = np.zeros((nb, 4))
-        total = 0.0
-        for j, choice in enumerate(choices):
-            r = choice.fits[pth]
-            plane[j] = d.bz[j] - r.d0
-            sigma[j] = (r.sigma_dp, r.sigma_mp, r.sigma_mp)
-            weights[j] = (r.weights["dp"], r.weights["mp"], 0.0, r.weights["ol"])
-            total += choice.loglik[pth]
-        logliks[pth] = total
-        if best is None or total > best[2]:
-            best = (Params(plane=plane, sigma=sigma, weights=weights), pth, total)
-    return best[0], best[1], logliks
-
-
-def start_for(d, base: JointFit, effects, path):
-    """Give starting points for a model with ``effects``, from a fit of a nested model.
-
-    Parameters
-    ----------
-    d : Ranges
-    base : JointFit
-        The fit of a model with fewer effects.
-    effects : tuple of str
-    path : {"triangle", "double"}
-
-    Returns
-    -------
-    list of Params
-        ``base``'s parameters; for a new ``second_reflector``, one start per
-        candidate plane (possibly none).
-    """
-    p = base.params.copy()
-    if "second_reflector" in effects and "second_reflector" not in base.effects:
-        return _second_starts(d, p, effects, path, base.resp)
-    return [p]
 
 
 def fit_joint(d: Ranges, effects, start: Params | list, *, path="triangle", max_iter=300,
@@ -404,67 +318,6 @@ def fit_joint(d: Ranges, effects, start: Params | list, *, path="triangle", max_
     if best is None:
         raise ValueError(f"no feasible starting point for the model with {sorted(effects)}")
     return best
-
-
-def replant(d: Ranges, fit: JointFit, fittable, path, rng) -> Params | None:
-    """Re-find each beacon's plane for ``fit``'s model: a fresh start.
-
-    Each beacon's plane, scales and weights are re-found by the per-beacon
-    mixture EM (its multi-start over plane heights) on ranges corrected by the
-    fitted bias, scale and navigation drift. A beacon whose baseline plane was
-    pulled to a wrong family (e.g. the direct path of a mis-scaled survey)
-    stays there when the effect is switched on; this gives it a way out.
-
-    Parameters
-    ----------
-    d : Ranges
-    fit : JointFit
-    fittable : list of BeaconData
-        The beacons of ``d``, in order.
-    path : {"triangle", "double"}
-    rng : None, int or numpy.random.Generator
-        Seeds the per-beacon fits.
-
-    Returns
-    -------
-    Params or None
-        ``None`` when no plane moves by more than 5 m.
-    """
-    p = fit.params
-    k = 1.0 + (p.scale if "sound_speed" in fit.effects else 0.0)
-    b = p.bias if "range_bias" in fit.effects else 0.0
-    q = p.copy()
-    moved = False
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        for j, data in enumerate(fittable):
-            sel = d.bi == j
-            tau = d.tau[sel]
-            x, y = data.x, data.y
-            if "nav_drift" in fit.effects:
-                x, y = x + p.nav[0] * tau, y + p.nav[1] * tau
-            z = (data.range - b) / k
-            # a reply shorter than the fitted bias is no path at all: leave it out of this
-            # beacon's restart (the joint fit still scores it, as an outlier)
-            keep = z > 0
-            corrected = replace(data, range=z[keep], x=x[keep], y=y[keep],
-                                depth=data.depth[keep], time=data.time[keep],
-                                rows=data.rows[keep])
-            try:
-                r = fit_mixture_em(corrected, path=path, rng=rng, n_init=4)
-            except ValueError:  # fewer than 3 replies left: the beacon keeps its plane
-                continue
-            plane = float(d.bz[j] - r.d0)
-            if "plane_drift" in fit.effects:
-                plane -= p.drift * float(np.mean(tau))
-            if abs(plane - p.plane[j]) > 5.0:
-                moved = True
-            q.plane[j] = plane
-            q.sigma[j, :2] = (r.sigma_dp * k, r.sigma_mp * k)
-            w_mp2 = q.weights[j, 2]
-            q.weights[j] = (r.weights["dp"] * (1 - w_mp2), r.weights["mp"] * (1 - w_mp2), w_mp2,
-                            r.weights["ol"] * (1 - w_mp2))
-    return q if moved else None
 
 
 # --------------------------------------------------------------------------- selection

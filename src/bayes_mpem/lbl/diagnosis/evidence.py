@@ -18,14 +18,15 @@ Examples
 Traceback (most recent call last):
 ...
 ValueError: effects: unknown effect(s) ['tide']; known: ['range_bias', 'sound_speed', \
-'plane_drift', 'second_reflector', 'early_outliers', 'nav_drift']
+'plane_drift', 'second_reflector', 'early_outliers', 'nav_drift', 'beacon_bias', \
+'beacon_position']
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..effects import EFFECTS
+from ..effects import EFFECTS, split_term
 from .constraints import SECOND_GAP, main_plane
 from .ecm import JointFit
 from .model import Ranges, predict
@@ -37,7 +38,8 @@ def effect_evidence(name, fit: JointFit, d: Ranges, delta, se, n_folds):
     Parameters
     ----------
     name : str
-        The effect (one of :data:`~bayes_mpem.lbl.effects.EFFECTS`).
+        The effect's term (:func:`~bayes_mpem.lbl.effects.term`: an effect of
+        :data:`~bayes_mpem.lbl.effects.EFFECTS`, ``"<effect>:<beacon>"`` for one beacon's).
     fit : JointFit
         The fit with the effect switched on.
     d : Ranges
@@ -52,6 +54,9 @@ def effect_evidence(name, fit: JointFit, d: Ranges, delta, se, n_folds):
     mag = fit.magnitudes(d)[name]
     gain = f"held-out log predictive density +{delta:.1f} ± {se:.1f} nats ({n_folds}-fold CV)"
     p = fit.params
+    name, bid = split_term(name)
+    if bid is not None:
+        return f"{_beacon_evidence(name, bid, mag, p, d)}; {gain}"
     if name == "range_bias":
         what = f"ranges are {abs(mag):.2f} m too {'long' if mag > 0 else 'short'}"
     elif name == "sound_speed":
@@ -72,6 +77,16 @@ def effect_evidence(name, fit: JointFit, d: Ranges, delta, se, n_folds):
         what = (f"the reported navigation is off by {mag:.1f} m at the last ping "
                 f"(east {err[0]:+.1f} m, north {err[1]:+.1f} m), growing with time")
     return f"{what}; {gain}"
+
+
+def _beacon_evidence(name, bid, mag, p, d):
+    j = d.ids.index(bid)
+    if name == "beacon_bias":
+        return (f"beacon {bid}'s ranges are {abs(mag):.2f} m too "
+                f"{'long' if mag > 0 else 'short'} (its own turn-around time or delay)")
+    e, n = -p.bpos[j, :2]
+    return (f"beacon {bid}'s reported position is {mag:.1f} m from where its ranges put it, "
+            f"horizontally (reported minus fitted: east {e:+.1f} m, north {n:+.1f} m)")
 
 
 def _late_share(d, fit: JointFit):
@@ -98,7 +113,7 @@ def check_effect_names(names, what):
     ValueError
         For a name not in :data:`~bayes_mpem.lbl.effects.EFFECTS`.
     """
-    bad = [e for e in names if e not in EFFECTS]
+    bad = [e for e in names if split_term(e)[0] not in EFFECTS]
     if bad:
         raise ValueError(f"{what}: unknown effect(s) {bad}; known: {list(EFFECTS)}")
 
@@ -120,7 +135,7 @@ def not_credible(name, fit: JointFit, d: Ranges):
     -------
     str or None
     """
-    if name != "second_reflector":
+    if split_term(name)[0] != "second_reflector":
         return None
     share = float(fit.resp[:, 2].mean())
     if share < MIN_SECOND_SHARE or share * d.n < 20:
@@ -147,6 +162,12 @@ def effect_magnitude_se(name, fit: JointFit):
         ``None`` where the fit gives none (``early_outliers``).
     """
     se = fit.se
+    name, bid = split_term(name)
+    if name == "beacon_bias":
+        return se.get(f"bbias[{bid}]")
+    if name == "beacon_position":
+        v = [se.get(f"bpos_{c}[{bid}]") for c in "xy"]
+        return None if None in v else float(np.sqrt(np.mean(np.square(v))))
     if name == "range_bias":
         return se.get("bias")
     if name == "sound_speed":
@@ -160,21 +181,30 @@ def effect_magnitude_se(name, fit: JointFit):
     return None
 
 
-def effect_detail(name, fit: JointFit):
+def effect_detail(name, fit: JointFit, d: Ranges | None = None):
     """Extra numbers of an effect for the report.
 
     Parameters
     ----------
     name : str
+        The effect's term.
     fit : JointFit
+    d : Ranges, optional
+        Needed for a ``beacon_position`` term (the beacon's index).
 
     Returns
     -------
     dict
         ``nav_drift``: the error at the last ping (east, north, direction);
-        ``second_reflector``: the share of replies; others: empty.
+        ``second_reflector``: the share of replies; ``beacon_position``: the
+        reported minus the fitted position (east, north, direction); others: empty.
     """
     p = fit.params
+    name, bid = split_term(name)
+    if name == "beacon_position" and d is not None:
+        err = -p.bpos[d.ids.index(bid)]
+        return {"east": float(err[0]), "north": float(err[1]),
+                "direction_deg": float(np.degrees(np.arctan2(err[1], err[0])) % 360.0)}
     if name == "nav_drift":
         err = -p.nav
         return {"east_at_last_ping": float(err[0]), "north_at_last_ping": float(err[1]),

@@ -22,14 +22,17 @@ the fitting (ECM) is in :mod:`~bayes_mpem.lbl.diagnosis.ecm`.
 
 Examples
 --------
->>> from bayes_mpem.lbl.diagnosis.model import mean_names
->>> mean_names(("range_bias",), 2)
-[('plane', 0), ('plane', 1), ('bias', None)]
+>>> from bayes_mpem.lbl.simulate import simulate_survey
+>>> from bayes_mpem.lbl.survey import fittable_beacons
+>>> sim = simulate_survey("abe58", rng=0, n_cycles=50)
+>>> d = ranges(sim.survey, fittable_beacons(sim.survey, 30)[0])
+>>> d.ids, d.nb
+(('1', '2', '3', '4'), 4)
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -42,6 +45,7 @@ from ...mixture.densities import (
     uniform_logpdf,
 )
 from .. import geometry
+from .params import Params, beacon_mask
 
 # --------------------------------------------------------------------------- data
 
@@ -150,121 +154,6 @@ def ranges(survey: Survey, fittable) -> Ranges:
 # --------------------------------------------------------------------------- model
 
 
-@dataclass
-class Params:
-    """Parameters of the joint model (effect parameters unused while switched off).
-
-    Attributes
-    ----------
-    plane : numpy.ndarray
-        Per beacon (``B``), the depth of its reflecting plane at the first ping (m).
-    sigma : numpy.ndarray
-        ``(B, 3)``: the scatter (m) of the direct path, multipath and second multipath.
-    weights : numpy.ndarray
-        ``(B, 4)``: the weights of direct path, multipath, second multipath, outlier.
-    bias : float
-        Range bias (m).
-    scale : float
-        Sound-speed scale minus 1 (ranges scaled by ``1 + scale``).
-    drift : float
-        Change of the plane depth from the first to the last ping (m).
-    plane2 : float
-        Depth of the second reflecting plane (m).
-    nav : numpy.ndarray
-        Navigation correction (east, north; m) at the last ping, growing linearly from 0.
-    """
-
-    plane: np.ndarray       # (B,) plane depth at the first ping
-    sigma: np.ndarray       # (B, 3) dp, mp, mp2
-    weights: np.ndarray     # (B, 4) dp, mp, mp2, ol
-    bias: float = 0.0
-    scale: float = 0.0      # f = factor - 1
-    drift: float = 0.0      # plane depth change, first -> last ping
-    plane2: float = np.nan  # second plane depth
-    nav: np.ndarray = field(default_factory=lambda: np.zeros(2))  # correction at the last ping
-
-    def copy(self) -> Params:
-        """Return a deep copy (arrays copied)."""
-        return Params(self.plane.copy(), self.sigma.copy(), self.weights.copy(), self.bias,
-                       self.scale, self.drift, self.plane2, self.nav.copy())
-
-
-def mean_names(effects, nb):
-    """Names of the mean parameters fitted by Gauss-Newton.
-
-    Parameters
-    ----------
-    effects : tuple of str
-    nb : int
-        Number of beacons.
-
-    Returns
-    -------
-    list of tuple
-        ``("plane", j)`` for every beacon, then ``(name, None)`` for the
-        effects' parameters (``bias``, ``scale``, ``drift``, ``plane2``,
-        ``nav_x``, ``nav_y``).
-    """
-    names = [("plane", j) for j in range(nb)]
-    for e, keys in (("range_bias", ["bias"]), ("sound_speed", ["scale"]),
-                    ("plane_drift", ["drift"]), ("second_reflector", ["plane2"]),
-                    ("nav_drift", ["nav_x", "nav_y"])):
-        if e in effects:
-            names += [(k, None) for k in keys]
-    return names
-
-
-def get_vector(p: Params, names):
-    """Gather the mean parameters ``names`` (:func:`mean_names`) into a vector.
-
-    Parameters
-    ----------
-    p : Params
-    names : list of tuple
-
-    Returns
-    -------
-    numpy.ndarray
-    """
-    out = []
-    for k, j in names:
-        if k == "plane":
-            out.append(p.plane[j])
-        elif k == "nav_x":
-            out.append(p.nav[0])
-        elif k == "nav_y":
-            out.append(p.nav[1])
-        else:
-            out.append(getattr(p, k))
-    return np.asarray(out, float)
-
-
-def set_vector(p: Params, names, v) -> Params:
-    """Copy ``p`` with the mean parameters ``names`` set from the vector ``v``.
-
-    Parameters
-    ----------
-    p : Params
-    names : list of tuple
-    v : array_like
-
-    Returns
-    -------
-    Params
-    """
-    q = p.copy()
-    for (k, j), val in zip(names, v, strict=True):
-        if k == "plane":
-            q.plane[j] = val
-        elif k == "nav_x":
-            q.nav[0] = val
-        elif k == "nav_y":
-            q.nav[1] = val
-        else:
-            setattr(q, k, float(val))
-    return q
-
-
 def offsets(d: Ranges, p: Params | None = None, effects=()):
     """Offsets of the vehicle from the beacon at every reply.
 
@@ -272,9 +161,10 @@ def offsets(d: Ranges, p: Params | None = None, effects=()):
     ----------
     d : Ranges
     p : Params, optional
-        Needed when ``nav_drift`` is in ``effects``.
+        Needed when ``nav_drift`` or a ``beacon_position`` term is in ``effects``.
     effects : tuple of str
-        With ``nav_drift`` the navigation is corrected by ``tau * p.nav``.
+        With ``nav_drift`` the navigation is corrected by ``tau * p.nav``; with
+        ``beacon_position:<id>`` that beacon's position by ``p.bpos``.
 
     Returns
     -------
@@ -282,12 +172,38 @@ def offsets(d: Ranges, p: Params | None = None, effects=()):
         Vehicle minus beacon (east, north), horizontal distance and ``dz =
         z_beacon - z_vehicle`` (m).
     """
-    ex = d.x - d.bx[d.bi]
-    ey = d.y - d.by[d.bi]
+    bx, by, bz = d.bx[d.bi], d.by[d.bi], d.bz[d.bi]
+    if p is not None:
+        on = beacon_mask(effects, "beacon_position", d.ids)
+        if on.any():
+            corr = np.where(on[:, None], p.bpos, 0.0)[d.bi]
+            bx, by, bz = bx + corr[:, 0], by + corr[:, 1], bz + corr[:, 2]
+    ex = d.x - bx
+    ey = d.y - by
     if "nav_drift" in effects:
         ex = ex + p.nav[0] * d.tau
         ey = ey + p.nav[1] * d.tau
-    return ex, ey, np.hypot(ex, ey), d.bz[d.bi] - d.vdepth
+    return ex, ey, np.hypot(ex, ey), bz - d.vdepth
+
+
+def biases(d: Ranges, p: Params, effects):
+    """Return the range bias of every reply: the shared one plus its beacon's own (m).
+
+    Parameters
+    ----------
+    d : Ranges
+    p : Params
+    effects : tuple of str
+
+    Returns
+    -------
+    numpy.ndarray
+    """
+    b = np.full(d.n, p.bias if "range_bias" in effects else 0.0)
+    on = beacon_mask(effects, "beacon_bias", d.ids)
+    if on.any():
+        b = b + np.where(on, p.bbias, 0.0)[d.bi]
+    return b
 
 
 def predict(d: Ranges, p: Params, effects, path, names=None):
@@ -300,7 +216,8 @@ def predict(d: Ranges, p: Params, effects, path, names=None):
     effects : tuple of str
     path : {"triangle", "double"}
     names : list of tuple, optional
-        Mean parameters (:func:`mean_names`) to differentiate by.
+        Mean parameters (:func:`~bayes_mpem.lbl.diagnosis.params.mean_names`)
+        to differentiate by.
 
     Returns
     -------
@@ -310,12 +227,12 @@ def predict(d: Ranges, p: Params, effects, path, names=None):
         Only with ``names``: per class, ``(n, len(names))`` derivatives.
     """
     ex, ey, h, dz = offsets(d, p, effects)
-    bz = d.bz[d.bi]
+    bz = dz + d.vdepth  # the beacon's depth, corrected where its position is fitted
     direct = np.hypot(h, dz)
     plane = p.plane[d.bi] + (p.drift * d.tau if "plane_drift" in effects else 0.0)
     d0 = bz - plane
     k = 1.0 + (p.scale if "sound_speed" in effects else 0.0)
-    b = p.bias if "range_bias" in effects else 0.0
+    b = biases(d, p, effects)
     mp = geometry.multipath_range(h, dz, d0, path, direct=direct)
     mu = {"dp": k * direct + b, "mp": k * mp + b}
     second = "second_reflector" in effects
@@ -327,6 +244,7 @@ def predict(d: Ranges, p: Params, effects, path, names=None):
         return mu
     jac = {c: np.zeros((d.n, len(names))) for c in mu}
     dmp_dd0 = geometry.multipath_derivative(h, dz, d0, path)
+    levers = [2.0 * d0 - dz] + ([2.0 * d02 - dz] if second else [])
     for col, (key, j) in enumerate(names):
         if key == "plane":
             sel = d.bi == j
@@ -348,7 +266,29 @@ def predict(d: Ranges, p: Params, effects, path, names=None):
                          [geometry.reflected_leg(h, dz, d0)]
                          + ([geometry.reflected_leg(h, dz, d02)] if second else []),
                          path, k)
+        else:
+            _beacon_columns(jac, col, key, d.bi == j, (ex, ey, dz, direct, h), levers,
+                            path, k)
     return mu, jac
+
+
+def _beacon_columns(jac, col, key, sel, geo, levers, path, k):
+    """Fill column ``col`` with ``d mu / d`` a beacon's own bias or position correction."""
+    if key == "bbias":
+        for c in jac:
+            jac[c][sel, col] = 1.0
+        return
+    ex, ey, dz, direct, h = (g[sel] for g in geo)
+    # d(length)/d(correction): the vehicle offset shrinks as the beacon moves towards it;
+    # a deeper beacon lengthens dz, and the reflected leg's lever 2 d0 - dz by as much
+    lever_arms = {"bpos_x": -ex, "bpos_y": -ey}
+    dd = (lever_arms[key] if key in lever_arms else dz) / np.maximum(direct, 1e-9)
+    jac["dp"][sel, col] = k * dd
+    for name, lever in zip(("mp", "mp2"), levers, strict=False):
+        lev = lever[sel]
+        refl = np.maximum(np.hypot(h, lev), 1e-9)
+        dr = (lever_arms[key] if key in lever_arms else lev) / refl
+        jac[name][sel, col] = k * (0.5 * (dd + dr) if path == "triangle" else dr)
 
 
 def _plane2_derivative(h, dz, d02, path, k):
@@ -475,7 +415,8 @@ def implied_depths(d, p, effects, path):
     d : Ranges
     p : Params
     effects : tuple of str
-        The bias, scale and navigation drift are removed first when switched on.
+        The biases, scale, navigation drift and beacon positions are removed first
+        when switched on.
     path : {"triangle", "double"}
 
     Returns
@@ -484,8 +425,7 @@ def implied_depths(d, p, effects, path):
         NaN where no plane can produce the range.
     """
     k = 1.0 + (p.scale if "sound_speed" in effects else 0.0)
-    b = p.bias if "range_bias" in effects else 0.0
-    z = (d.z - b) / k
+    z = (d.z - biases(d, p, effects)) / k
     _, _, h, dz = offsets(d, p, effects)
     d0k = geometry.invert_plane_height(z, h, dz, path)
-    return d.bz[d.bi] - d0k
+    return dz + d.vdepth - d0k

@@ -4,10 +4,14 @@ After the diagnosis has kept its effects, :func:`residual_checks` bins the
 standardised residuals of the confidently classified direct-path and
 multipath replies of every beacon against each covariate of
 :func:`covariates` (time, range, elevation, vehicle depth, bearing) and tests
-the bin means against zero. A significant check is structure no effect of
+the bin means against zero (:func:`bayes_mpem.lbl.model_checks.binned_trend`).
+A significant check is structure no effect of
 :data:`~bayes_mpem.lbl.effects.EFFECTS` explains. :func:`beacon_flags` runs the
-per-beacon EM's quality checks on the final joint fit: a beacon whose fit is not
-credible (e.g. its multipath on the direct path) is named, not left silent.
+per-beacon EM's quality checks and the model checks of ``fit`` and ``sample``
+(:mod:`bayes_mpem.lbl.model_checks`: the direct path's offset, the outliers'
+timing, the plane against the sea surface) on the final joint fit: a beacon
+whose fit is not credible (e.g. its multipath on the direct path) is named, not
+left silent.
 """
 
 from __future__ import annotations
@@ -15,6 +19,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..em_result import reflector_flags
+from ..model_checks import binned_trend, direct_path_checks, outlier_timing_check, plane_check
+from ..model_checks import covariates as _covariates
 from .ecm import JointFit
 from .model import Ranges, offsets, predict
 
@@ -34,14 +40,11 @@ def covariates(d: Ranges) -> dict:
     Returns
     -------
     dict of numpy.ndarray
-        ``time`` (s), ``range`` (direct-path length, m), ``elevation`` (deg,
-        positive when the vehicle is above the beacon), ``vehicle_depth`` (m),
-        ``bearing`` (deg clockwise from +y, of the vehicle seen from the beacon).
+        Those of :func:`bayes_mpem.lbl.model_checks.covariates` (time, range,
+        elevation, vehicle depth, bearing).
     """
-    ex, ey, h, dz = offsets(d)
-    return {"time": d.time, "range": np.hypot(h, dz),
-            "elevation": np.degrees(np.arctan2(dz, h)), "vehicle_depth": d.vdepth,
-            "bearing": np.degrees(np.arctan2(ex, ey)) % 360.0}
+    ex, ey, _, dz = offsets(d)
+    return _covariates(ex, ey, dz, d.time, d.vdepth)
 
 
 def residual_checks(fit: JointFit, d: Ranges, *, n_bins=10, alpha=1e-4) -> list:
@@ -67,8 +70,6 @@ def residual_checks(fit: JointFit, d: Ranges, *, n_bins=10, alpha=1e-4) -> list:
         ``beacon``, ``class``, ``against``, ``chi2``, ``dof``, ``p_value``,
         ``max_bin_mean`` (m), ``significant``, ``message``.
     """
-    from scipy import stats
-
     mu = predict(d, fit.params, fit.effects, fit.path)
     p = fit.params
     cov = covariates(d)
@@ -81,20 +82,9 @@ def residual_checks(fit: JointFit, d: Ranges, *, n_bins=10, alpha=1e-4) -> list:
             sig = p.sigma[j, c]
             r = (d.z[sel] - mu[name][sel])
             for cname in _COVARIATES:
-                v = cov[cname][sel]
-                if np.ptp(v) <= 0:
-                    continue
-                edges = np.unique(np.quantile(v, np.linspace(0, 1, n_bins + 1)))
-                idx = np.clip(np.searchsorted(edges, v, side="right") - 1, 0, edges.size - 2)
-                nbin = np.bincount(idx, minlength=edges.size - 1)
-                ok = nbin > 0
-                means = np.bincount(idx, weights=r, minlength=edges.size - 1)[ok] / nbin[ok]
-                chi2 = float(np.sum(means ** 2 * nbin[ok] / sig ** 2))
-                dof = int(ok.sum())
-                pval = float(stats.chi2.sf(chi2, dof))
-                checks.append({"beacon": bid, "class": name, "against": cname, "chi2": chi2,
-                               "dof": dof, "p_value": pval,
-                               "max_bin_mean": float(np.max(np.abs(means)))})
+                t = binned_trend(r, sig, cov[cname][sel], n_bins)
+                if t is not None:
+                    checks.append({"beacon": bid, "class": name, "against": cname, **t})
     limit = alpha / max(len(checks), 1)
     for ch in checks:
         ch["significant"] = ch["p_value"] < limit
@@ -108,9 +98,14 @@ def beacon_flags(fit, data, sigma_floor: float = 0.05) -> dict:
     """Why each beacon's fit is not credible: the per-beacon EM's quality checks, jointly.
 
     The checks of :func:`bayes_mpem.lbl.em_result.quality_flags`, on this
-    joint fit's per-beacon parameters, and one more: the multipath family
-    lying on the direct path (its median separation from it below twice the
-    multipath scatter), where a plane near the vehicle mimics a range bias.
+    joint fit's per-beacon parameters; the multipath family lying on the direct
+    path (its median separation from it below twice the multipath scatter),
+    where a plane near the vehicle mimics a range bias; and the model checks of
+    :mod:`bayes_mpem.lbl.model_checks` that the joint model's residuals allow:
+    the direct path's offset (a bias the effects found do not explain), the
+    outliers' timing (not with ``early_outliers``, whose outliers are all early),
+    and a plane more than 10 m below the sea surface (the quality checks flag
+    one above it).
 
     Parameters
     ----------
@@ -138,5 +133,12 @@ def beacon_flags(fit, data, sigma_floor: float = 0.05) -> dict:
             flags.append(f"the multipath family lies on the direct path (median "
                          f"separation {gap:.1f} m, sigma_MP = {s_mp:.1f} m; plane depth "
                          f"{p.plane[j]:.0f} m)")
+        checks = (direct_path_checks(data.z[sel] - mu["dp"][sel], fit.resp[sel, 0],
+                                     float(p.sigma[j, 0]))
+                  + ([] if "early_outliers" in fit.effects else outlier_timing_check(
+                      data.z[sel], mu["dp"][sel], fit.resp[sel, 3], float(data.lo[j]),
+                      float(data.hi[j])))
+                  + ([] if p.plane[j] < -10.0 else plane_check(float(p.plane[j]))))
+        flags += [c["message"] for c in checks if c["flagged"]]
         out[bid] = flags
     return out

@@ -35,6 +35,8 @@ _DESCRIPTION = {
     "early_outliers": "spurious returns arrive only before the true one (first-arrival "
                       "detection)",
     "nav_drift": "the navigation drifts away from the truth over the dive",
+    "beacon_bias": "one beacon's ranges are offset by a constant (its own turn-around time)",
+    "beacon_position": "one beacon is not where the beacons table puts it",
 }
 
 
@@ -50,10 +52,12 @@ class Effect:
         Signed size in :attr:`unit` (see :data:`UNITS`).
     unit : str
     beacons : list of str
-        Beacons it was fitted on (all fitted beacons: every effect is shared).
+        Beacons it acts on: all fitted beacons for a shared effect, the one
+        beacon of a per-beacon effect (``beacon_bias``, ``beacon_position``).
     delta_elpd, delta_elpd_se : float
-        Gain in held-out log predictive density (nats) over the model without
-        it when it was added, and its standard error.
+        Gain in held-out log predictive density (nats) of the final model over
+        the same model without this effect (what the backward step measured;
+        :mod:`~bayes_mpem.lbl.diagnosis.search`), and its standard error.
     magnitude_se : float or None
         Approximate standard error of the magnitude.
     evidence : str

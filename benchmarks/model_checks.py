@@ -198,11 +198,11 @@ def summarise(rows):
                                      "range_bias, 40 % outliers (indep.)", eff.effect))
     for (e, sign, m), s in eff.groupby(["effect", "sign", "method"], sort=False):
         unfl = s[~s.flagged]
-        worst = float(np.nanmax(np.abs(unfl.error))) if len(unfl) else float("nan")
+        worst = f"{np.nanmax(np.abs(unfl.error)):.2f}" if len(unfl) else "-"  # all flagged
         lines.append(f"| {e} | {'+' if sign > 0 else '-'} | {m} | {len(s)} | "
                      f"{int(s.covered.sum())} | {int(s.flagged.sum())} | "
                      f"{int((s.covered | s.flagged).sum())} | {int(s.wrong.sum())} | "
-                     f"{worst:.2f} | {int(s.far_unflagged.sum())} |")
+                     f"{worst} | {int(s.far_unflagged.sum())} |")
     clean = df[df.effect == "clean"]
     fa = ["| generator | method | surveys | beacons | beacons flagged | surveys with a flag "
           "| interval coverage |", "|---|---|---:|---:|---:|---:|---:|"]

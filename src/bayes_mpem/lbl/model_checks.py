@@ -222,7 +222,7 @@ def trend_checks(residuals, sigmas, resp, cov, *, n_bins=10, alpha=TREND_ALPHA, 
         The bin means are tested against the class's mean residual (an offset is
         :func:`direct_path_checks`' business): ``name`` (``direct_path_trend`` or
         ``multipath_trend``), ``class``,
-        ``against``, ``chi2``, ``dof``, ``p_value``, ``value`` (largest |bin mean|,
+        ``against``, ``chi2``, ``dof``, ``p_value``, ``value`` (largest absolute bin mean,
         m), ``flagged``, ``message``.
     """
     found = []

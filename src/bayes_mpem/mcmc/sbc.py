@@ -53,7 +53,7 @@ import numpy as np
 
 
 def rank_statistic(draws, truth) -> int:
-    """Count the posterior draws below the true value: the SBC rank, in ``0 .. len(draws)``.
+    """Count the posterior draws below the true value: the SBC rank, from 0 to ``len(draws)``.
 
     Parameters
     ----------
@@ -76,7 +76,7 @@ def rank_statistic(draws, truth) -> int:
 
 
 def rank_histogram(ranks, n_draws: int, n_bins: int = 10) -> np.ndarray:
-    """Count the ranks in ``n_bins`` equal bins of ``0 .. n_draws``.
+    """Count the ranks in ``n_bins`` equal bins of the range 0 to ``n_draws``.
 
     Parameters
     ----------

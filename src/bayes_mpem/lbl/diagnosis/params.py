@@ -38,7 +38,31 @@ BEACON_KEYS = {"beacon_bias": ["bbias"], "beacon_position": ["bpos_x", "bpos_y"]
 
 @dataclass
 class Params:
-    """Parameters of the joint model (effect parameters unused while switched off)."""
+    """Parameters of the joint model (effect parameters unused while switched off).
+
+    Attributes
+    ----------
+    plane : numpy.ndarray
+        Per beacon (``B``), the depth of its reflecting plane at the first ping (m).
+    sigma : numpy.ndarray
+        ``(B, 3)``: the scatter (m) of the direct path, multipath and second multipath.
+    weights : numpy.ndarray
+        ``(B, 4)``: the weights of direct path, multipath, second multipath, outlier.
+    bias : float
+        Range bias (m).
+    scale : float
+        Sound-speed scale minus 1 (ranges scaled by ``1 + scale``).
+    drift : float
+        Change of the plane depth from the first to the last ping (m).
+    plane2 : float
+        Depth of the second reflecting plane (m).
+    nav : numpy.ndarray
+        Navigation correction (east, north; m) at the last ping, growing linearly from 0.
+    bbias : numpy.ndarray
+        ``(B,)``: each beacon's own range bias (m).
+    bpos : numpy.ndarray
+        ``(B, 3)``: true minus reported beacon position (east, north, down; m).
+    """
 
     plane: np.ndarray       # (B,) plane depth at the first ping
     sigma: np.ndarray       # (B, 3) dp, mp, mp2
@@ -88,7 +112,21 @@ def beacons_with(effects, name, ids) -> list:
 
 
 def beacon_mask(effects, name, ids):
-    """Return a boolean per beacon: is ``name`` on for it (see :func:`beacons_with`)."""
+    """Return a boolean per beacon: is ``name`` on for it (see :func:`beacons_with`).
+
+    Parameters
+    ----------
+    effects : tuple of str
+        The terms switched on.
+    name : str
+        A per-beacon effect.
+    ids : sequence of str
+        The beacon ids.
+
+    Returns
+    -------
+    numpy.ndarray
+    """
     m = np.zeros(len(ids), bool)
     m[beacons_with(effects, name, ids)] = True
     return m

@@ -64,7 +64,17 @@ SUSPECT_DP = 0.05
 
 
 def n_parameters(t) -> int:
-    """Return the number of mean parameters of a term (:data:`.params.SHARED_KEYS`, ...)."""
+    """Return the number of mean parameters of a term (:data:`.params.SHARED_KEYS`, ...).
+
+    Parameters
+    ----------
+    t : str
+        A term: an effect's name, or ``"name:beacon"`` for a per-beacon effect.
+
+    Returns
+    -------
+    int
+    """
     name, bid = split_term(t)
     keys = BEACON_KEYS if bid is not None else SHARED_KEYS
     return len(keys.get(name, ())) or 1
@@ -105,7 +115,25 @@ def suspects(fit, d: Ranges) -> list:
 
 @dataclass(frozen=True)
 class Search:
-    """The search over effects on fixed data, folds and geometry (see the module)."""
+    """The search over effects on fixed data, folds and geometry (see the module).
+
+    Parameters
+    ----------
+    d : Ranges
+        The replies of the fitted beacons.
+    fittable : list of BeaconData
+        Those beacons' data (for the replant of each fit).
+    path : {"triangle", "double"}
+        The multipath geometry, fixed for the search.
+    folds : numpy.ndarray
+        Per reply, its cross-validation fold.
+    seed : int
+        Seeds the replants.
+    kw : dict
+        Options of :func:`~bayes_mpem.lbl.diagnosis.ecm.fit_joint`.
+    say : callable
+        ``say(message)``: the progress report.
+    """
 
     d: Ranges
     fittable: list
@@ -169,6 +197,22 @@ class Search:
         Among the terms that meet it, one whose gain is within ``min_gain`` of the best
         and that has fewer parameters is preferred (one beacon's bias against its
         position, when the bearings of the survey cannot tell them apart).
+
+        Parameters
+        ----------
+        state : dict
+            ``fit`` (the current JointFit), ``ho`` (its held-out densities), ``kept``
+            (the kept terms with their gains); updated in place.
+        effects : tuple of str
+            The candidate effects.
+        candidates : list of dict
+            Every term tried, with its gain (appended to).
+        stage : {"shared", "own", "all"}
+            Which terms to try (:meth:`terms`).
+        max_effects : int
+            Stop when this many terms are kept.
+        min_gain, min_z : float
+            The keep rule.
         """
         while len(state["kept"]) < max_effects:
             current, cur_ho = state["fit"], state["ho"]
@@ -205,8 +249,18 @@ class Search:
     def terms(self, current, effects, *, stage="all"):
         """List the terms to try on top of ``current``: shared effects, then suspects' own.
 
-        ``stage``: ``"shared"`` (shared effects only), ``"own"`` (per-beacon ones only)
-        or ``"all"``.
+        Parameters
+        ----------
+        current : JointFit
+        effects : tuple of str
+            The candidate effects.
+        stage : {"all", "shared", "own"}
+            Shared effects only, per-beacon ones only (on the suspect beacons), or both.
+
+        Returns
+        -------
+        list of str
+            Terms (:func:`~bayes_mpem.lbl.effects.term`).
         """
         shared = ([e for e in effects if e not in PER_BEACON and e not in current.effects]
                   if stage != "own" else [])
@@ -218,9 +272,25 @@ class Search:
     def backward(self, current, cur_ho, kept, candidates, *, min_gain, min_z, once=False):
         """Drop kept effects whose removal costs less than the keep rule, weakest first.
 
-        Returns the fit, its held-out densities and the kept effects, each with what
-        removing it from the final model costs (its gain in that model). With
-        ``once``, at most one effect is dropped.
+        Parameters
+        ----------
+        current : JointFit
+        cur_ho : numpy.ndarray
+            Its held-out log densities, per reply.
+        kept : list of tuple
+            ``(term, gain, se)`` of the kept effects.
+        candidates : list of dict
+            Every term tried (the drops are appended).
+        min_gain, min_z : float
+            The keep rule.
+        once : bool, default False
+            Drop at most one effect.
+
+        Returns
+        -------
+        fit, held_out, kept
+            The fit, its held-out densities and the kept effects, each with what
+            removing it from the final model costs (its gain in that model).
         """
         d = self.d
         while kept:
@@ -258,7 +328,18 @@ class Search:
         return current, cur_ho, kept
 
     def refit(self, effects, starts):
-        """Fit the model with ``effects`` from ``starts`` and a replant (None if infeasible)."""
+        """Fit the model with ``effects`` from ``starts`` and a replant (None if infeasible).
+
+        Parameters
+        ----------
+        effects : tuple of str
+            The terms switched on.
+        starts : list of Params
+
+        Returns
+        -------
+        JointFit or None
+        """
         d, path = self.d, self.path
         try:
             fit_e = fit_joint(d, effects, starts, path=path, **self.kw)
@@ -277,7 +358,16 @@ class Search:
     def fit(self, current, name):
         """Fit the model of ``current`` plus effect ``name`` (best of its starts and a replant).
 
-        Returns the fit, or a note saying why there is none.
+        Parameters
+        ----------
+        current : JointFit
+        name : str
+            The term to add.
+
+        Returns
+        -------
+        fit, note
+            The fit (or None) and a note saying why there is none.
         """
         eff = tuple(sorted(set(current.effects) | {name}, key=term_order))
         starts = start_for(self.d, current, eff, self.path)
@@ -289,7 +379,24 @@ class Search:
         return fit_e, None
 
     def try_effect(self, current, cur_ho, name, rnd):
-        """Score effect ``name`` on top of ``current``: ``(candidate entry, trial or None)``."""
+        """Score effect ``name`` on top of ``current``: ``(candidate entry, trial or None)``.
+
+        Parameters
+        ----------
+        current : JointFit
+        cur_ho : numpy.ndarray
+            Its held-out log densities, per reply.
+        name : str
+            The term to try.
+        rnd : int
+            The round of the search (recorded in the entry).
+
+        Returns
+        -------
+        entry, trial
+            The candidate's entry (gain, its standard error, kept or not, a note) and,
+            when it could be fitted, the fit with its held-out densities.
+        """
         d = self.d
         fit_e, note = self.fit(current, name)
         if fit_e is None:

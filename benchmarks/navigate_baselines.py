@@ -85,17 +85,7 @@ def measure(sim, method):
     d0 = [abs(nav.state.d0[j] - sim.simulation.truth[b]["d0"])
           for j, b in enumerate(nav.dive.beacon_ids) if nav.beacons[b]["mp"]]
     three = method in ("this model", "oracle")
-    z = {}
-    if method == "this model":  # errors of the reported estimates over their reported sd
-        summ, nav_truth = nav.summary(), sim.truth["navigation"]
-        z["d0"] = [(v["d0"]["estimate"] - sim.simulation.truth[b]["d0"]) / v["d0"]["sd"]
-                   for b, v in summ["beacons"].items() if v["d0"] is not None]
-        dr = summ["dead_reckoning"]
-        z["heading bias"] = [(dr["heading_bias_deg"]["estimate"]
-                              - nav_truth["heading_bias_deg"]) / dr["heading_bias_deg"]["sd"]]
-        z["speed scale"] = [(dr["speed_scale"]["estimate"] - nav_truth["speed_scale"])
-                            / dr["speed_scale"]["sd"]]
-    return {"z": z, "rmse": _rmse(err),
+    return {"rmse": _rmse(err),
             "rmse_blocked": _rmse(err[blocked]) if blocked.any() else np.nan,
             "plane": max(d0) if d0 and method == "this model" else np.nan,
             "labels3": float(np.mean(pred == lab)) if three else np.nan,
@@ -192,13 +182,117 @@ def acceptance(rows):
             f"{ok(0.90 <= cov <= 0.98)}."]
 
 
-def intervals(rows):
-    out = []
-    for name in ("d0", "heading bias", "speed scale"):
-        z = np.concatenate([r[3]["this model"]["z"][name] for r in rows])
-        out.append(f"{name}: {np.mean(np.abs(z) < 1.96):.0%} of {z.size} within their 95 % "
-                   f"interval (sd of error / reported sd {z.std():.2f})")
-    return ["Intervals of the summary (this model): " + "; ".join(out) + "."]
+def ideal_d0_z(sim):
+    """Per beacon, the plane height's error over its sd for the ideal estimator.
+
+    Weighted least squares on the true multipath replies at the true positions,
+    with the true sigma_MP and path (Gauss-Newton to convergence): what the
+    data of the dive allow at best. Its errors over its exact sd are N(0, 1)
+    if the simulator follows the model; on a finite set of beacons they
+    show the sampling spread any estimator's coverage shares.
+    """
+    from bayes_mpem.lbl.navigate.model import predict_ranges
+
+    s, lab, tt = sim.survey, np.asarray(sim.labels), sim.true_track
+    k = np.searchsorted(tt["time"].to_numpy(), np.asarray(s.time))
+    x, y = tt["x"].to_numpy()[k], tt["y"].to_numpy()[k]
+    out = {}
+    for bid, tr in sim.simulation.truth.items():
+        m = (np.asarray(s.beacon) == bid) & (lab == "mp")
+        if m.sum() < 2:
+            continue
+        b = s.beacons.loc[bid]
+        d0 = tr["d0"]
+        for _ in range(4):
+            p = predict_ranges(x[m], y[m], np.asarray(s.depth)[m], (b.x, b.y, b.depth), d0,
+                               tr["path"])
+            jac = p.d_multipath_d0
+            d0 += float(np.sum(jac * (np.asarray(s.range)[m] - p.multipath)) / np.sum(jac ** 2))
+        out[bid] = (d0 - tr["d0"]) / (tr["sigma_mp"] / np.sqrt(np.sum(jac ** 2)))
+    return out
+
+
+def gauss_newton_sd(nav):
+    """The globals' sd from the class-weighted Gauss-Newton information (no Louis term)."""
+    from bayes_mpem.lbl.navigate.normal import global_covariance, solve
+    from bayes_mpem.lbl.navigate.objective import Priors, normal_equations
+
+    o, d, st = nav.options, nav.dive, nav.state
+    pri = Priors(q=o["dr_noise"], start_sd=o["start_sd"], heading_sd=np.deg2rad(o["heading_sd"]),
+                 scale_sd=o["scale_sd"], plane_sd=o["plane_sd"])
+    free = tuple(j for j, b in enumerate(d.beacon_ids) if nav.beacons[b]["d0_free"])
+    ne = normal_equations(d, st, nav.resp[:, 0] / st.sigma_dp ** 2,
+                          nav.resp[:, 1] / st.sigma_mp[d.beacon] ** 2, pri, free)
+    return np.sqrt(np.diag(global_covariance(solve(ne))))
+
+
+def _z(nav, sim):
+    """Errors over reported sd of d0 (per beacon), heading bias and speed scale."""
+    summ, nt = nav.summary(), sim.truth["navigation"]
+    dr = summ["dead_reckoning"]
+    beacons = [b for b, v in summ["beacons"].items() if v["d0"] is not None]
+    return beacons, {
+        "d0": [(summ["beacons"][b]["d0"]["estimate"] - sim.simulation.truth[b]["d0"])
+               / summ["beacons"][b]["d0"]["sd"] for b in beacons],
+        "heading bias": [(dr["heading_bias_deg"]["estimate"] - nt["heading_bias_deg"])
+                         / dr["heading_bias_deg"]["sd"]],
+        "speed scale": [(dr["speed_scale"]["estimate"] - nt["speed_scale"])
+                        / dr["speed_scale"]["sd"]]}
+
+
+def interval_study(seeds):
+    """z-scores of the summary's estimates: this model, known classes, the ideal d0.
+
+    Also the widening of the d0 sd by Louis' missing information (observed over
+    Gauss-Newton sd, per beacon).
+    """
+    z = {k: [] for k in ("d0", "heading bias", "speed scale", "ideal d0", "d0, known classes",
+                         "heading bias, known classes", "speed scale, known classes")}
+    widen = []
+    for preset in PRESETS:
+        for seed in seeds:
+            sim = simulate_dive(preset, rng=seed)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                nav = navigate(sim.survey, rng=0)
+                known = navigate(sim.survey, rng=0, classes=sim.labels)
+            beacons, zz = _z(nav, sim)
+            for k, v in zz.items():
+                z[k] += v
+            for k, v in _z(known, sim)[1].items():
+                z[f"{k}, known classes"] += v
+            ideal = ideal_d0_z(sim)
+            z["ideal d0"] += [ideal[b] for b in beacons]
+            gn = gauss_newton_sd(nav)[2:]
+            widen += [nav.global_sd[f"d0:{b}"] / g for b, g in zip(beacons, gn, strict=True)]
+    return z, np.asarray(widen)
+
+
+def intervals(study, n_dives):
+    z, widen = study
+
+    def row(name, what):
+        v = np.asarray(z[name])
+        return (f"| {what} | {v.size} | {np.mean(np.abs(v) < 1.96):.1%} | {v.std():.2f} | "
+                f"{v.mean():+.2f} |")
+
+    return [f"Intervals of the summary over {n_dives} dives (seeds 0 to {n_dives // 2 - 1} of "
+            "each preset): `navigate` (the intervals of `summary.json`), `navigate` given the "
+            "true classes (plane heights free), and the ideal estimator of each plane height on "
+            "the same beacons (`ideal_d0_z`: least squares on the true multipath replies at the "
+            "true positions with the true sigma_MP; its error over its exact sd is N(0, 1)):",
+            "", "| estimate | n | within the 95 % interval | sd of error / reported sd | "
+            "mean of error / reported sd |", "|---|---:|---:|---:|---:|",
+            row("d0", "plane height d0"), row("d0, known classes", "plane height, known classes"),
+            row("ideal d0", "plane height, ideal estimator"),
+            row("heading bias", "heading bias"),
+            row("heading bias, known classes", "heading bias, known classes"),
+            row("speed scale", "speed scale"),
+            row("speed scale, known classes", "speed scale, known classes"), "",
+            "Louis' missing information widens the plane heights' sd by "
+            f"{np.median(widen) - 1:.2%} (median; at most {widen.max() - 1:.1%}) over the "
+            "class-weighted Gauss-Newton "
+            "information."]
 
 
 def table2(rows, fractions):
@@ -224,11 +318,18 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--seeds", type=int, default=10, help="dives per preset (default 10)")
     ap.add_argument("--shadow-seeds", type=int, default=5)
+    ap.add_argument("--interval-seeds", type=int, default=40,
+                    help="dives per preset for the intervals' calibration (default 40)")
     args = ap.parse_args(argv)
-    n1, n2 = (2, 1) if args.quick else (args.seeds, args.shadow_seeds)
+    n1, n2, n3 = (2, 1, 3) if args.quick else (args.seeds, args.shadow_seeds,
+                                                args.interval_seeds)
     fractions = (0.2, 0.35, 0.5)
     t0 = time.perf_counter()
     rows1 = part1(range(n1))
+    z_first = interval_study(range(n1))
+    z_all = interval_study(range(n1, max(n3, n1)))
+    z_all = ({k: z_first[0][k] + v for k, v in z_all[0].items()},
+             np.concatenate([z_first[1], z_all[1]]))
     rows2 = part2(range(n2), fractions)
     text = ["## Navigation: this model against its baselines", "",
             f"`python benchmarks/navigate_baselines.py` on {dt.date.today()} ({machine()}), "
@@ -242,7 +343,7 @@ def main(argv=None):
             "95 % error ellipse (from the Laplace covariance) holds the true position. Flagged: "
             "dives with a `NavigationWarning` stretch (position sd above 10 m).", "",
             *table1(rows1), "", "Acceptance (this model):", "", *acceptance(rows1), "",
-            *intervals(rows1), "",
+            *intervals(z_first, 2 * n1), "", *intervals(z_all, 2 * max(n3, n1)), "",
             "### Direct path blocked", "",
             f"The direct path of every beacon blocked over the middle part of the dive (the "
             f"surface bounce still arrives), seeds 0 to {n2 - 1} of each preset; median RMSE "

@@ -34,7 +34,7 @@ from .lbl.comparison import SurveyComparison
 from .lbl.diagnosis.result import Diagnosis, DiagnosisRecord
 from .lbl.em_result import EMResult
 from .lbl.fitting import SurveyFit
-from .lbl.navigate.result import Navigation
+from .lbl.navigate.result import Navigation, NavigationRecord
 from .lbl.path_choice import choices_from_summary
 from .lbl.pol_sensitivity import POL_GRID, survey_pol_sensitivity
 from .lbl.sampling import SurveyPosterior
@@ -89,8 +89,10 @@ def write_figures(result, out_dir, *, beacon=None, truth=None, general=True,
     Parameters
     ----------
     result : SurveyFit, SurveyPosterior, SurveyComparison, Diagnosis, SurveyInResult or Navigation
-        Or the record of one read back by :func:`load_output`. A result with nothing to
-        draw (no fitted beacon or transponder) writes no figure. A navigation writes
+        Or the record of one read back by :func:`load_output` (a
+        :class:`~bayes_mpem.lbl.navigate.result.NavigationRecord` for a navigation).
+        A result with nothing to draw (no fitted beacon or transponder) writes no
+        figure. A navigation writes
         ``nav_track.png``, ``nav_ranges.png``
         and ``nav_correction.png``.
     out_dir : str or pathlib.Path
@@ -140,7 +142,7 @@ def write_figures(result, out_dir, *, beacon=None, truth=None, general=True,
                 _save(survey_in_plots.plot_residuals(result), out / "residuals.png"),
                 _save(survey_in_plots.plot_residual_histogram(result),
                       out / "residual_histogram.png")]
-    if isinstance(result, Navigation):
+    if isinstance(result, (Navigation, NavigationRecord)):
         return [_save(nav_plots.plot_nav_track(result, truth=truth), out / "nav_track.png"),
                 _save(nav_plots.plot_nav_ranges(result), out / "nav_ranges.png"),
                 _save(nav_plots.plot_nav_correction(result, truth=truth),
@@ -275,13 +277,13 @@ def load_output(result_dir):
     Parameters
     ----------
     result_dir : str or pathlib.Path
-        The output folder of ``fit``, ``sample``, ``compare``, ``diagnose`` or
-        ``locate`` (:data:`FOLDER_KINDS`).
+        The output folder of ``fit``, ``sample``, ``compare``, ``diagnose``,
+        ``locate`` or ``navigate`` (:data:`FOLDER_KINDS`).
 
     Returns
     -------
-    SurveyFit, SurveyPosterior, ComparisonRecord, DiagnosisRecord or SurveyInResult
-        Rebuilt from the files. A fit without ``history.json`` gets a
+    SurveyFit, SurveyPosterior, ComparisonRecord, DiagnosisRecord, SurveyInResult, NavigationRecord
+        Rebuilt from the files (never by fitting again). A fit without ``history.json`` gets a
         one-entry history; a posterior's ``em`` is a namespace of the EM
         start's parameters.
 
@@ -293,6 +295,10 @@ def load_output(result_dir):
         When the files do not fit together, or are of no known kind.
     """
     d = Path(result_dir)
+    kinds = " | ".join(k for k, *_ in FOLDER_KINDS)
+    if d.is_file():
+        raise InputError(f"{d}: a file; expected the output folder of 'bayes-mpem {kinds}' "
+                         "('bayes-mpem stream' writes JSON lines, which have no figures)")
     if (d / MARKER).exists():  # valid JSON, and every data file of the run there (figures
         marker = read_marker(d, check=False)  # are drawn again from the data: not needed)
         missing = [f for f in marker.get("files", []) if not f.endswith(".png")
@@ -300,7 +306,7 @@ def load_output(result_dir):
         if missing:
             raise InputError(f"{d / MARKER}: lists {', '.join(missing[:5])}, missing: the folder "
                              "is not a complete output")
-    seen = []
+    seen = {}
     for kind, marker, test, loader in FOLDER_KINDS:
         path = d / marker
         if not path.exists():
@@ -310,14 +316,21 @@ def load_output(result_dir):
             raise InputError(f"{path}: expected a JSON object, got {type(doc).__name__}")
         if test(doc):
             return loader(d, doc)
-        seen.append(marker)
-    if "summary.json" in seen:
-        raise InputError(f"{d / 'summary.json'}: no 'beacons_table' or 'transponders'; it was "
-                         "written by another program or an older bayes_mpem: run the command "
-                         "again")
+        seen[marker] = doc
+    if MARKER in seen and set(seen[MARKER]) <= {"files", "non_finite"}:  # a bare marker
+        raise InputError(f"{d / MARKER}: lists the files of a run and holds no result (a folder "
+                         f"of 'bayes-mpem simulate', or of figures); expected the output folder "
+                         f"of 'bayes-mpem {kinds}'")
+    if seen:
+        raise InputError(f"{d / MARKER}: of no known kind (no 'beacons_table' or 'transponders'; "
+                         f"not the summary of 'bayes-mpem {kinds}'); it was written by another "
+                         "program or an older bayes_mpem: run the command again")
     markers = sorted({m for _, m, _, _ in FOLDER_KINDS})
+    if d.is_dir() and any(d.glob("*.jsonl")):
+        markers.append("this folder holds JSON lines: 'bayes-mpem stream' answers have no "
+                       "figures")
     raise FileNotFoundError(f"{d / 'summary.json'}: not found; expected the output folder of "
-                            f"'bayes-mpem {' | '.join(k for k, *_ in FOLDER_KINDS)}' (one of "
+                            f"'bayes-mpem {kinds}' (one of "
                             f"{', '.join(markers)})")
 
 
@@ -341,7 +354,7 @@ def _classified(d, summary):
     missing = [c for c in ("p_dp", "p_mp", "p_ol", "label") if c not in frame.columns]
     if missing:
         raise InputError(f"{d / name}: missing column(s) {', '.join(missing)}; not a "
-                         "classified table of 'bayes-mpem fit' or 'sample'")
+                         "classified table of 'bayes-mpem fit', 'sample' or 'navigate'")
     return frame_as_text(frame) if name.endswith(".parquet") else frame
 
 
@@ -363,24 +376,25 @@ def _fit_or_sample(d, summary):
     return survey, probs, num
 
 
-@folder_kind("fit", "summary.json", lambda doc: "beacons_table" in doc and "method" in doc)
-def _folder_fit(d, summary):
-    survey, probs, _ = _fit_or_sample(d, summary)
+def _together(d, load, *args):
+    """Return ``load(*args)``; a key or a type missing in the files is an InputError."""
     try:
-        return _load_fit(d, summary, survey, probs)
+        return load(*args)
     except (KeyError, TypeError, IndexError) as exc:
         raise InputError(f"{d / MARKER}: the output files do not fit together "
                          f"({type(exc).__name__}: {exc})") from None
+
+
+@folder_kind("fit", "summary.json", lambda doc: "beacons_table" in doc and "method" in doc)
+def _folder_fit(d, summary):
+    survey, probs, _ = _fit_or_sample(d, summary)
+    return _together(d, _load_fit, d, summary, survey, probs)
 
 
 @folder_kind("sample", "summary.json", lambda doc: "beacons_table" in doc and "priors" in doc)
 def _folder_sample(d, summary):
     survey, probs, num = _fit_or_sample(d, summary)
-    try:
-        return _load_posterior(d, summary, survey, probs, num)
-    except (KeyError, TypeError, IndexError) as exc:
-        raise InputError(f"{d / MARKER}: the output files do not fit together "
-                         f"({type(exc).__name__}: {exc})") from None
+    return _together(d, _load_posterior, d, summary, survey, probs, num)
 
 
 @folder_kind("locate", "summary.json", lambda doc: "transponders" in doc)
@@ -419,6 +433,17 @@ def _folder_diagnose(d, doc):
         raise FileNotFoundError(f"{path}: not found; 'bayes-mpem diagnose' writes it (a folder "
                                 "of an older bayes_mpem: run it again)")
     return DiagnosisRecord(document=doc, table=pd.read_csv(path, dtype={"beacon": str}))
+
+
+@folder_kind("navigate", "summary.json",
+             lambda doc: "dead_reckoning" in doc and "track" in doc and "beacons_table" in doc)
+def _folder_navigate(d, summary):
+    path = d / "track.csv"
+    if not path.exists():
+        raise FileNotFoundError(f"{path}: not found; 'bayes-mpem navigate' writes it")
+    track = read_table_file(path, str(path), "track file").frame
+    survey, probs, _ = _fit_or_sample(d, summary)
+    return _together(d, NavigationRecord.from_tables, summary, survey, track, probs)
 
 
 def _load_fit(d, summary, survey, probs):

@@ -1,4 +1,5 @@
 import json
+import shutil
 
 import pandas as pd
 import pytest
@@ -77,3 +78,39 @@ def test_navigate_bad_options_exit_2(dive_files, tmp_path, capsys, args, msg):
 def test_simulate_refuses_mixed_options(tmp_path, capsys, args, msg):
     assert main(["simulate", "--out", str(tmp_path), *args]) == 2
     assert msg in capsys.readouterr().err
+
+
+def test_plot_draws_a_navigate_folder_and_refuses_unknown_ones(dive_files, tmp_path, capsys):
+    nav = tmp_path / "nav"
+    assert main(["navigate", str(dive_files / "pings.csv"), "--beacons",
+                 str(dive_files / "beacons.csv"), "--out", str(nav), "--path", "triangle"]) == 0
+    assert main(["plot", str(nav), "--out", str(tmp_path / "figs")]) == 0
+    assert sorted(p.name for p in (tmp_path / "figs").iterdir()) == [
+        "nav_correction.png", "nav_ranges.png", "nav_track.png", "summary.json"]
+    capsys.readouterr()
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "summary.json").write_text('{"written_by": "someone else"}')
+    answers = tmp_path / "answers.jsonl"
+    answers.write_text('{"line": 1, "label": "dp"}\n')
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    for folder, msg in ((other, "of no known kind"), (answers, "'bayes-mpem stream' writes JSON"),
+                        (tmp_path / "figs", "holds no result"),
+                        (empty, "summary.json: not found")):
+        assert main(["plot", str(folder), "--out", str(tmp_path / "none")]) == 2
+        err = capsys.readouterr().err
+        assert "error:" in err and msg in err and "navigate" in err and "Traceback" not in err
+    assert main(["plot", str(answers)]) == 2  # RESULT_DIR is also where the figures go
+    assert "RESULT_DIR" in capsys.readouterr().err
+    for name, damage, msg in (
+            ("gone", lambda d: (d / "track.csv").unlink(), "track.csv, missing"),
+            ("text", lambda d: (d / "track.csv").write_text(
+                (d / "track.csv").read_text().replace("\n", "\nabc", 1)),
+             "column 'time': expected a number, got 'abc")):
+        bad = shutil.copytree(nav, tmp_path / name)
+        damage(bad)
+        assert main(["plot", str(bad), "--out", str(tmp_path / f"{name}_figs")]) == 2
+        err = capsys.readouterr().err
+        assert msg in err and "Traceback" not in err
+        assert not (tmp_path / f"{name}_figs").exists()

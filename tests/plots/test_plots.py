@@ -262,7 +262,8 @@ def test_results_and_library_never_import_plots_or_report():
 
 
 def test_plot_reads_every_output_folder_kind():
-    """fit, sample, compare, diagnose and locate folders (each redrawn in its own test)."""
+    """fit, sample, compare, diagnose, locate, navigate folders (each redrawn in its own test)."""
     from bayes_mpem.report import FOLDER_KINDS
 
-    assert [k for k, *_ in FOLDER_KINDS] == ["fit", "sample", "locate", "compare", "diagnose"]
+    assert [k for k, *_ in FOLDER_KINDS] == ["fit", "sample", "locate", "compare", "diagnose",
+                                            "navigate"]

@@ -42,3 +42,52 @@ def test_figures_draw_track_ranges_and_correction(nav_and_sim, tmp_path):
     plt.close(fig)
     paths = write_figures(nav, tmp_path, truth=sim.true_track)
     assert [p.name for p in paths] == ["nav_track.png", "nav_ranges.png", "nav_correction.png"]
+
+
+def _content(fig):
+    """Every axis' drawn data: lines, scatter offsets and colours, ellipse sizes."""
+    out = []
+    for ax in fig.axes:
+        out.append([np.asarray(line.get_xydata()) for line in ax.lines])
+        for c in ax.collections:
+            out.append([np.asarray(c.get_offsets()), np.asarray(c.get_facecolors())]
+                       + [np.asarray(getattr(c, a)) for a in ("_widths", "_heights", "_angles")
+                          if hasattr(c, a)])
+            if hasattr(c, "get_paths") and not hasattr(c, "_widths"):
+                out.append([p.vertices for p in c.get_paths()])
+        out.append([ax.get_xlabel(), ax.get_ylabel()])
+    return out
+
+
+def _assert_same(a, b):
+    assert len(a) == len(b)
+    for x, y in zip(a, b, strict=True):
+        if isinstance(x, list):
+            _assert_same(x, y)
+        elif isinstance(x, str):
+            assert x == y
+        else:
+            np.testing.assert_allclose(x, y, rtol=1e-9, atol=1e-9)
+
+
+def test_a_navigate_folder_read_back_draws_the_same_figures(nav_and_sim, tmp_path, monkeypatch):
+    from bayes_mpem.lbl.navigate import ecm, normal
+    from bayes_mpem.lbl.navigate.result import NavigationRecord
+    from bayes_mpem.report import load_output
+
+    nav, _ = nav_and_sim
+    nav.write(tmp_path)
+    for mod, name in ((ecm, "run"), (ecm, "gauss_newton"), (normal, "solve")):
+        monkeypatch.setattr(mod, name, lambda *a, **k: pytest.fail("the record ran a fit"))
+    rec = load_output(tmp_path)
+    assert isinstance(rec, NavigationRecord)
+    assert rec.dive.n_epochs == nav.dive.n_epochs and rec.skipped == nav.skipped
+    np.testing.assert_array_equal(rec.dive.epoch, nav.dive.epoch)
+    np.testing.assert_array_equal(rec.dive.beacon, nav.dive.beacon)
+    for draw in (plot_nav_track, plot_nav_ranges, plot_nav_correction):
+        a, b = draw(nav), draw(rec)
+        _assert_same(_content(a), _content(b))
+        plt.close(a)
+        plt.close(b)
+    paths = write_figures(rec, tmp_path / "again")
+    assert [p.name for p in paths] == ["nav_track.png", "nav_ranges.png", "nav_correction.png"]

@@ -80,10 +80,10 @@ def _add_demo_plot_simulate(sub):
                         "demo's ~30 s)")
 
     p = sub.add_parser("plot", help="draw the figures of an output folder (fit, sample, "
-                                    "compare, diagnose, locate)")
+                                    "compare, diagnose, locate, navigate)")
     p.add_argument("result_dir", metavar="RESULT_DIR",
-                   help="output folder of 'bayes-mpem fit', 'sample', 'compare', 'diagnose' "
-                        "or 'locate'")
+                   help="output folder of 'bayes-mpem fit', 'sample', 'compare', 'diagnose', "
+                        "'locate' or 'navigate'")
     p.add_argument("--out", default=None, metavar="DIR",
                    help="where to write (default: RESULT_DIR)")
     p.add_argument("--beacon", default=None, metavar="ID",

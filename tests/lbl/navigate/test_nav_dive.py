@@ -59,3 +59,19 @@ def test_pings_outside_the_dead_reckoning_table_are_refused():
 def test_a_dive_without_any_reply_is_refused():
     with pytest.raises(InputError, match="no ping has a reply"):
         build_dive(load_survey(_pings(range=[np.nan] * 5), BEACONS))
+
+
+def test_a_dive_rebuilt_from_its_dead_reckoning_is_the_same():
+    from bayes_mpem.lbl.navigate.dive import dive_with_dead_reckoning
+    from bayes_mpem.lbl.navigate.simulate import simulate_dive
+
+    sim = simulate_dive("random", rng=3, n_cycles=60)
+    a = build_dive(sim.survey)
+    b = dive_with_dead_reckoning(sim.survey, a.times, a.dr)
+    for name in ("times", "dr", "depth", "epoch_of_row", "rows", "epoch", "beacon", "z",
+                 "zdepth", "beacon_xyz", "window", "d0_min"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+    with pytest.raises(InputError, match="epochs"):
+        dive_with_dead_reckoning(sim.survey, a.times[1:], a.dr[1:])
+    with pytest.raises(InputError, match="shape"):
+        dive_with_dead_reckoning(sim.survey, a.times, a.dr[:, :1])

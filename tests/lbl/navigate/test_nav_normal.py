@@ -7,11 +7,19 @@ from bayes_mpem.lbl.navigate.dive import build_dive
 from bayes_mpem.lbl.navigate.normal import (
     Normal,
     band,
+    cross_covariances,
     global_covariance,
     marginal_covariances,
     solve,
 )
-from bayes_mpem.lbl.navigate.objective import Priors, State, normal_equations, objective
+from bayes_mpem.lbl.navigate.objective import (
+    Priors,
+    State,
+    missing_information,
+    normal_equations,
+    objective,
+    predictions,
+)
 from bayes_mpem.lbl.navigate.simulate import simulate_dive
 
 
@@ -46,6 +54,9 @@ def test_schur_solve_and_covariances_match_the_dense_system(k, g):
     for i in range(k):
         np.testing.assert_allclose(cov[i], inv[2 * i:2 * i + 2, 2 * i:2 * i + 2], atol=1e-9)
     np.testing.assert_allclose(global_covariance(step), inv[2 * k:, 2 * k:], atol=1e-9)
+    cross = cross_covariances(step)
+    assert cross.shape == (k, 2, g)
+    np.testing.assert_allclose(cross.reshape(2 * k, g), inv[:2 * k, 2 * k:], atol=1e-9)
 
 
 def test_normal_equations_are_the_gradient_and_gauss_newton_hessian_of_the_objective():
@@ -79,3 +90,64 @@ def test_normal_equations_are_the_gradient_and_gauss_newton_hessian_of_the_objec
     step = solve(ne)
     x1 = x0 + np.concatenate([step.dp.ravel(), step.dg])
     assert at(x1) < at(x0)
+
+
+def _dense(diag, B, C):
+    k, g = diag.shape[0], C.shape[0]
+    H = np.zeros((2 * k + g, 2 * k + g))
+    for i in range(k):
+        H[2 * i:2 * i + 2, 2 * i:2 * i + 2] = [[diag[i, 0], diag[i, 1]], [diag[i, 1], diag[i, 2]]]
+    H[:2 * k, 2 * k:], H[2 * k:, :2 * k], H[2 * k:, 2 * k:] = B, B.T, C
+    return H
+
+
+def test_missing_information_is_louis_identity_for_every_reply():
+    """Complete-data information less the missing one = the observed information (Louis)."""
+    sim = simulate_dive("random", rng=4, n_cycles=12)
+    dive = build_dive(sim.survey)
+    k, nb = dive.n_epochs, len(dive.beacon_ids)
+    rng = np.random.default_rng(2)
+    st = State(dive.dr + rng.normal(0, 3, (k, 2)), 0.0, 1.0,
+               dive.d0_min + rng.uniform(1, 20, nb), np.zeros(nb, bool), 40.0,
+               np.full(nb, 60.0), np.tile([0.5, 0.3, 0.2], (nb, 1)))  # plane low: classes overlap
+    pred = predictions(dive, st)
+    lw = np.log(st.weights[dive.beacon])
+    lol = dive.log_ol
+    s_dp, s_mp = st.sigma_dp, st.sigma_mp[dive.beacon]
+
+    def nll(f_dp, f_mp):  # minus the log mixture density of every reply at predictions f
+        comp = np.stack([lw[:, 0] - 0.5 * ((dive.z - f_dp) / s_dp) ** 2 - np.log(s_dp),
+                         lw[:, 1] - 0.5 * ((dive.z - f_mp) / s_mp) ** 2 - np.log(s_mp),
+                         lw[:, 2] + lol])
+        top = comp.max(axis=0)
+        return -(top + np.log(np.exp(comp - top).sum(axis=0)))
+
+    comp = np.stack([lw[:, 0] - 0.5 * ((dive.z - pred.direct) / s_dp) ** 2 - np.log(s_dp),
+                     lw[:, 1] - 0.5 * ((dive.z - pred.multipath) / s_mp) ** 2 - np.log(s_mp),
+                     lw[:, 2] + lol])
+    resp = np.exp(comp - comp.max(axis=0))
+    resp = (resp / resp.sum(axis=0)).T
+    assert (resp[:, 0] * resp[:, 1]).max() > 0.2  # replies between direct path and multipath
+    assert (resp[:, 1] * resp[:, 2]).max() > 0.05  # and between multipath and outlier
+    free = tuple(range(nb))
+    eps = 1e-2  # m: the densities are smooth on the scale of sigma (40-60 m)
+    f = np.stack([pred.direct, pred.multipath])
+    hess = np.zeros((dive.n, 2, 2))  # numerical Hessian of nll in (f_dp, f_mp), every reply
+    for a in range(2):
+        for b in range(2):
+            ea, eb = np.eye(2)[a][:, None] * eps, np.eye(2)[b][:, None] * eps
+            hess[:, a, b] = (nll(*(f + ea + eb)) - nll(*(f + ea - eb)) - nll(*(f - ea + eb))
+                             + nll(*(f - ea - eb))) / (4 * eps * eps)
+    complete = np.zeros((dive.n, 2, 2))
+    complete[:, 0, 0], complete[:, 1, 1] = resp[:, 0] / s_dp ** 2, resp[:, 1] / s_mp ** 2
+    jac = np.zeros((dive.n, 2, 2 * k + 2 + nb))  # d(f_dp, f_mp) / d(track, beta, s, d0)
+    for i in range(dive.n):
+        e, j = dive.epoch[i], dive.beacon[i]
+        jac[i, 0, 2 * e:2 * e + 2] = pred.grad_direct[i]
+        jac[i, 1, 2 * e:2 * e + 2] = pred.grad_multipath[i]
+        jac[i, 1, 2 * k + 2 + j] = pred.d_multipath_d0[i]
+    want = np.einsum("iap,iab,ibq->pq", jac, complete - hess, jac)
+    got = _dense(*missing_information(dive, st, resp, free))
+    np.testing.assert_allclose(got, want, rtol=1e-5, atol=1e-5 * np.abs(want).max())
+    hard = (resp == resp.max(axis=1, keepdims=True)).astype(float)
+    assert not np.any(_dense(*missing_information(dive, st, hard, free)))

@@ -124,6 +124,31 @@ def test_baselines_take_every_reply_for_the_direct_path_or_nothing(dives, model)
     assert all(b["d0"] is None and "model=" in b["reason"] for b in s["beacons"].values())
 
 
+def test_intervals_use_the_observed_information_of_the_mixture(dives, navs):
+    """Louis' correction: only where the classes are estimated, and it only widens."""
+    from bayes_mpem.lbl.navigate import driver, ecm
+
+    nav = navs[1]
+    assert nav.summary()["information"] == "observed (Louis)"
+    settings = ecm.Settings(priors=driver._settings(nav.dive, nav.options, {}, None).priors,
+                            mp_beacons=np.array([b["mp"] for b in nav.beacons.values()]),
+                            free_d0=tuple(j for j, b in enumerate(nav.beacons.values())
+                                          if b["d0_free"]), fixed_resp=nav.resp)
+    run = ecm.Run(nav.state, nav.resp, nav.loglik, {}, 0, True)
+    cov_gn, sd_gn, *_, info = driver._uncertainty(nav.dive, run, settings)
+    assert info == "class-weighted Gauss-Newton"
+    assert all(nav.global_sd[k] >= sd_gn[k] for k in sd_gn)
+    assert max(nav.global_sd[k] / sd_gn[k] for k in sd_gn if k.startswith("d0")) > 1.001
+    assert np.all(np.linalg.eigvalsh(nav.cov - cov_gn) > -1e-12)
+    oracle = _quiet(dives[1].survey, **_oracle(dives[1]))
+    assert oracle.summary()["information"] == "class-weighted Gauss-Newton"
+    # the joint covariance the online filter starts from
+    g = len(nav.global_sd)
+    assert nav.global_cov.shape == (g, g) and nav.track_global_cov.shape == (
+        nav.dive.n_epochs, 2, g)
+    np.testing.assert_allclose(np.sqrt(np.diag(nav.global_cov)), list(nav.global_sd.values()))
+
+
 def test_multipath_as_outliers_has_no_reflector(dives):
     nav = _quiet(dives[0].survey, multipath="outlier")
     assert np.all(nav.resp[:, 1] == 0)

@@ -1,6 +1,7 @@
 """The plain-float filter is the extended Kalman filter written with matrices."""
 
 import numpy as np
+import pytest
 
 from bayes_mpem.lbl.online.ekf import COV_NAMES, PositionFilter
 from bayes_mpem.lbl.online.kernel import dr_step
@@ -58,3 +59,35 @@ def test_round_trip():
     f, _ = _random_filter(np.random.default_rng(2))
     g = PositionFilter.from_dict(f.to_dict())
     assert g.to_dict() == f.to_dict() and len(COV_NAMES) == 10
+
+
+def test_start_from_a_joint_covariance_or_a_position_one():
+    gen = np.random.default_rng(3)
+    a = gen.normal(0, 1, (4, 4))
+    cov = a @ a.T
+    f = PositionFilter.start(1.0, 2.0, 0.01, 1.001, cov)
+    np.testing.assert_allclose(_matrix(f.p), cov, rtol=1e-12)
+    g = PositionFilter.start(1.0, 2.0, 0.01, 1.001, cov[:2, :2], 1e-4, 1e-6)
+    want = np.zeros((4, 4))
+    want[:2, :2], want[2, 2], want[3, 3] = cov[:2, :2], 1e-4, 1e-6
+    np.testing.assert_allclose(_matrix(g.p), want, rtol=1e-12)
+    with pytest.raises(ValueError, match="expected a"):
+        PositionFilter.start(1.0, 2.0, 0.0, 1.0, cov[:2, :2])
+    with pytest.raises(ValueError, match="expected a"):
+        PositionFilter.start(1.0, 2.0, 0.0, 1.0, cov[:3, :3])
+
+
+def test_the_filter_starts_with_the_smoothers_correlations():
+    """The warm-up's filter gets Cov(p_K, beta, s) of the batch fit, not only its diagonal."""
+    from bayes_mpem.lbl.navigate import navigate, simulate_dive
+    from bayes_mpem.lbl.online.warmup import endpoint_covariance
+
+    nav = navigate(simulate_dive("abe58", rng=0, n_cycles=80).survey, rng=0, path="triangle")
+    c = endpoint_covariance(nav)
+    np.testing.assert_allclose(c, c.T)
+    assert np.all(np.linalg.eigvalsh(c) > 0)
+    np.testing.assert_allclose(c[:2, :2], nav.cov[-1])
+    np.testing.assert_allclose(np.sqrt(c[[2, 3], [2, 3]]),
+                               [nav.global_sd["beta"], nav.global_sd["scale"]])
+    corr = c / np.sqrt(np.outer(np.diag(c), np.diag(c)))
+    assert np.abs(corr[:2, 2:]).max() > 0.1  # the correlations the old start dropped

@@ -200,6 +200,61 @@ def build_dive(survey: Survey, dead_reckoning=None) -> Dive:
         first = np.flatnonzero(inverse == 0)[0]
         dr, source = _table_dr(survey, times, (survey.x[first], survey.y[first]),
                                dead_reckoning)
+    return _assemble(survey, times, inverse, dr, source)
+
+
+def dive_with_dead_reckoning(survey: Survey, times, dr, source: str = "pings") -> Dive:
+    """Rebuild the :class:`Dive` of a navigation from its pings and its epochs' dead reckoning.
+
+    What :func:`build_dive` returns, with the dead-reckoned positions given
+    (as ``track.csv`` holds them) instead of derived: reading a ``navigate``
+    output folder back needs no dead-reckoning table.
+
+    Parameters
+    ----------
+    survey : Survey
+        The pings and beacons of the navigation.
+    times : array_like
+        ``(K,)`` epoch times (s): the distinct ping times, increasing.
+    dr : array_like
+        ``(K, 2)`` dead-reckoned position at each epoch (m).
+    source : str, default "pings"
+        :attr:`Dive.dr_source`.
+
+    Returns
+    -------
+    Dive
+
+    Raises
+    ------
+    InputError
+        When ``times`` are not the pings' distinct times, or ``dr`` is not ``(K, 2)``.
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> from bayes_mpem.io.survey import load_survey
+    >>> s = load_survey(pd.DataFrame({"time": [0, 5], "beacon": [1, 1], "range": [100.0, 101.0],
+    ...                               "x": [0, 3], "y": [0, 0], "depth": [10, 10]}),
+    ...                 pd.DataFrame({"beacon": [1], "x": [0], "y": [0], "depth": [100]}))
+    >>> dive_with_dead_reckoning(s, [0.0, 5.0], [[0.0, 0.0], [2.5, 0.0]]).dr.tolist()
+    [[0.0, 0.0], [2.5, 0.0]]
+    """
+    own, inverse = np.unique(np.asarray(survey.time), return_inverse=True)
+    times = np.asarray(times, float)
+    dr = np.asarray(dr, float)
+    if own.shape != times.shape or not np.array_equal(own, times):
+        raise InputError(f"{survey.pings_source}: {own.size} distinct ping times, but the track "
+                         f"has {times.size} epochs (or other times); expected the epochs of "
+                         "these pings")
+    if dr.shape != (times.size, 2):
+        raise InputError(f"dead reckoning: expected shape ({times.size}, 2), got {dr.shape}")
+    return _assemble(survey, times, inverse, dr, source)
+
+
+def _assemble(survey: Survey, times, inverse, dr, source) -> Dive:
+    """Return the :class:`Dive` of grouped pings (``inverse``: epoch of every row), with DR."""
+    k = times.size
     depth = np.bincount(inverse, weights=survey.depth, minlength=k) / np.bincount(
         inverse, minlength=k)
     rows = np.flatnonzero(~survey.no_reply)

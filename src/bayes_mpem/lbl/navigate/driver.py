@@ -9,7 +9,9 @@ started from the dead reckoning with annealed scales and the planes at the sea
 surface; then (``path="auto"``) each beacon's multipath geometry is chosen as
 :func:`~bayes_mpem.lbl.path_choice.choose_path` does, on the corrected track,
 and the ECM continues with it. The track's uncertainty is the Laplace
-approximation at the estimate (:mod:`.normal`); where it stays wide the
+approximation at the estimate (:mod:`.normal`), with the observed information
+of the mixture (the class-weighted Gauss-Newton Hessian less the information the
+uncertain classes cost, :func:`.objective.missing_information`); where it stays wide the
 result says so (:mod:`.observability`, a
 :class:`~bayes_mpem.exceptions.NavigationWarning`).
 """
@@ -31,10 +33,11 @@ from ..geometry import PATHS
 from ..path_choice import AUTO, check_path_choice, choose_path
 from . import ecm, observability
 from .dive import Dive, build_dive
-from .normal import global_covariance, marginal_covariances, solve
+from .normal import cross_covariances, global_covariance, marginal_covariances, solve
 from .objective import (
     Priors,
     State,
+    missing_information,
     normal_equations,
     predictions,
 )
@@ -115,16 +118,34 @@ def _choose_paths(dive: Dive, state: State, settings: ecm.Settings, gen):
 
 
 def _uncertainty(dive, run, settings):
-    """Track covariances and the globals' posterior sd at the estimate (Laplace)."""
+    """Track covariances, the globals' sd and covariance, and their cross-covariances (Laplace).
+
+    The information is the observed one of the mixture (Louis' missing information
+    of the uncertain classes subtracted from the class-weighted Gauss-Newton
+    Hessian) where the classes are estimated; a baseline's weights, or known
+    classes, keep the Gauss-Newton Hessian. Also returns which was used.
+    """
     a = run.resp[:, 0] / run.state.sigma_dp ** 2
     b = run.resp[:, 1] / run.state.sigma_mp[dive.beacon] ** 2
     ne = normal_equations(dive, run.state, a, b, settings.priors, settings.free_d0)
-    step = solve(ne)
-    gsd = np.sqrt(np.maximum(np.diag(global_covariance(step)), 0.0))
+    info = "class-weighted Gauss-Newton"
+    step = None
+    if settings.model == "mixture" and settings.fixed_resp is None:
+        dg, dB, dC = missing_information(dive, run.state, run.resp, settings.free_d0)
+        observed = ne._replace(diag=ne.diag - dg, B=ne.B - dB, C=ne.C - dC)
+        try:
+            step, ne = solve(observed), observed
+            info = "observed (Louis)"
+        except np.linalg.LinAlgError:
+            info = ("class-weighted Gauss-Newton (the observed information was not positive "
+                    "definite)")
+    step = solve(ne) if step is None else step
+    gcov = global_covariance(step)
+    gsd = np.sqrt(np.maximum(np.diag(gcov), 0.0))
     out = {"beta": float(gsd[0]), "scale": float(gsd[1])}
     out.update({f"d0:{dive.beacon_ids[j]}": float(gsd[2 + i])
                 for i, j in enumerate(settings.free_d0)})
-    return marginal_covariances(ne, step), out
+    return marginal_covariances(ne, step), out, gcov, cross_covariances(step), info
 
 
 def surface_separation(dive: Dive) -> np.ndarray:
@@ -357,7 +378,7 @@ def navigate(
         warnings.warn(f"navigate: the ECM did not converge in {n_iter} iterations; raise "
                       "max_iter or loosen tol", ConvergenceWarning, stacklevel=2)
     t0 = time.perf_counter()
-    cov, gsd = _uncertainty(dive, run, settings)
+    cov, gsd, gcov, cross, information = _uncertainty(dive, run, settings)
     flags = observability.assess(
         dive, cov, run.resp,
         {"heading_bias": (np.rad2deg(gsd["beta"]), opts["heading_sd"], "deg"),
@@ -370,8 +391,9 @@ def navigate(
     skipped = {bid: f"beacon {bid} has no reply" for bid, c in
                zip(dive.beacon_ids, dive.replies_per_beacon(), strict=True) if c == 0}
     info = _beacon_info(dive, run, settings, fixed, records, min_pings, multipath)
-    opts.update(oracle_classes=classes is not None, reflectors_given=sorted(fixed))
+    opts.update(oracle_classes=classes is not None, reflectors_given=sorted(fixed),
+                information=information)
     return Navigation(dive=dive, state=run.state, cov=cov, global_sd=gsd, resp=run.resp,
                       beacons=info, skipped=skipped, flags=flags, n_iter=n_iter,
                       converged=run.converged, loglik=run.loglik, history=run.history,
-                      options=opts, timings=timings)
+                      options=opts, timings=timings, global_cov=gcov, track_global_cov=cross)

@@ -12,7 +12,8 @@ complement ``S = C - B^T A^{-1} B``, with ``A`` factored once as a band
 linear in ``K``. :func:`marginal_covariances` returns the 2x2 diagonal blocks of
 the full inverse, ``[A^{-1}]_kk + X_k S^{-1} X_k^T`` with ``X = A^{-1} B``, by
 the block recursion of a Rauch-Tung-Striebel smoother, never forming a dense
-inverse.
+inverse; :func:`cross_covariances` the covariances of every epoch with the
+globals, ``-X_k S^{-1}``.
 
 Examples
 --------
@@ -222,3 +223,32 @@ def global_covariance(step: Step) -> np.ndarray:
         ``(G, G)``.
     """
     return np.linalg.inv(step.S) if step.S.size else np.zeros((0, 0))
+
+
+def cross_covariances(step: Step) -> np.ndarray:
+    """Return the covariance of every epoch's position with the globals: ``-X_k S^{-1}``.
+
+    The off-diagonal block of the inverse of ``[[A, B], [B^T, C]]`` is
+    ``-A^{-1} B S^{-1}``; its rows of epoch ``k`` are ``Cov(p_k, g)``.
+
+    Parameters
+    ----------
+    step : Step
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(K, 2, G)``.
+
+    Examples
+    --------
+    One epoch, one global, ``H = [[2, 0, 1], [0, 2, 0], [1, 0, 2]]``:
+
+    >>> ne = Normal(diag=np.array([[2.0, 0.0, 2.0]]), lam=np.zeros(0), B=np.array([[1.0], [0.0]]),
+    ...             C=np.array([[2.0]]), grad_p=np.zeros(2), grad_g=np.zeros(1))
+    >>> H = np.array([[2.0, 0, 1], [0, 2, 0], [1, 0, 2]])
+    >>> bool(np.allclose(cross_covariances(solve(ne))[0], np.linalg.inv(H)[:2, 2:]))
+    True
+    """
+    k = step.dp.shape[0]
+    return -np.einsum("ig,gh->ih", step.X, global_covariance(step)).reshape(k, 2, -1)

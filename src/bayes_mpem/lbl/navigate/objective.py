@@ -293,3 +293,60 @@ def normal_equations(dive: Dive, state: State, a, b, priors: Priors, free_d0) ->
     C[1, 1] += 1.0 / priors.scale_sd ** 2
     grad_g[1] += (state.scale - 1.0) / priors.scale_sd ** 2
     return Normal(diag, lam, B.reshape(2 * k, g), C, grad.ravel(), grad_g)
+
+
+def missing_information(dive: Dive, state: State, resp, free_d0):
+    """Return the information the uncertain classes cost (Louis, 1982), in the sparse layout.
+
+    The observed information of the mixture is the complete-data information
+    (the class-weighted Gauss-Newton Hessian of :func:`normal_equations`) less
+    the covariance, given the data, of the complete-data score. Reply ``i``
+    scores ``u_i = e_dp,i / sigma_DP^2 grad f_dp,i`` as a direct path and
+    ``v_i = e_mp,i / sigma_MP^2 grad f_mp,i`` as a multipath (the outlier
+    class scores 0), so its share is ``p_dp (1 - p_dp) u u^T + p_mp (1 - p_mp)
+    v v^T - p_dp p_mp (u v^T + v u^T)``: it touches the reply's epoch and its
+    beacon's plane height only, and the normal equations stay sparse. Known
+    classes (0 or 1) cost nothing.
+
+    Parameters
+    ----------
+    dive : Dive
+    state : State
+    resp : numpy.ndarray
+        ``(n, 3)`` class probabilities.
+    free_d0 : sequence of int
+        Beacons whose plane height is estimated (the globals' order of
+        :func:`normal_equations`).
+
+    Returns
+    -------
+    diag : numpy.ndarray
+        ``(K, 3)`` to subtract from :attr:`.normal.Normal.diag`.
+    B : numpy.ndarray
+        ``(2K, G)`` to subtract from :attr:`.normal.Normal.B`.
+    C : numpy.ndarray
+        ``(G, G)`` to subtract from :attr:`.normal.Normal.C`.
+    """
+    k = dive.n_epochs
+    pred = predictions(dive, state)
+    p_d, p_m = resp[:, 0], resp[:, 1]
+    u = ((pred.direct - dive.z) / state.sigma_dp ** 2)[:, None] * pred.grad_direct
+    sv = (pred.multipath - dive.z) / state.sigma_mp[dive.beacon] ** 2
+    v = sv[:, None] * pred.grad_multipath
+    cu, cv, cx = p_d * (1 - p_d), p_m * (1 - p_m), p_d * p_m
+    block = (cu[:, None, None] * u[:, :, None] * u[:, None, :]
+             + cv[:, None, None] * v[:, :, None] * v[:, None, :]
+             - cx[:, None, None] * (u[:, :, None] * v[:, None, :] + v[:, :, None] * u[:, None, :]))
+    diag = np.column_stack([np.bincount(dive.epoch, weights=block[:, a, b], minlength=k)
+                            for a, b in ((0, 0), (0, 1), (1, 1))])
+    g = 2 + len(free_d0)
+    B = np.zeros((k, 2, g))
+    C = np.zeros((g, g))
+    vd = sv * pred.d_multipath_d0
+    for col, j in enumerate(free_d0, start=2):
+        m = dive.beacon == j
+        for ax in range(2):
+            w = (cv[m] * v[m, ax] - cx[m] * u[m, ax]) * vd[m]
+            B[:, ax, col] = np.bincount(dive.epoch[m], weights=w, minlength=k)
+        C[col, col] = np.add.reduce(cv[m] * vd[m] ** 2)
+    return diag, B.reshape(2 * k, g), C

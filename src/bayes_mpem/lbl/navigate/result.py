@@ -18,10 +18,11 @@ import numpy as np
 import pandas as pd
 from scipy.stats import norm
 
+from ...exceptions import InputError
 from ...io.results import write_csv, write_json, writing
 from ...mixture.densities import CLASSES
 from ..survey import beacons_table, classified_table
-from .dive import Dive
+from .dive import Dive, dive_with_dead_reckoning
 from .objective import State
 
 
@@ -100,6 +101,12 @@ class Navigation:
     options : dict
     timings : dict
         Wall-clock seconds per stage (``timings.json`` only).
+    global_cov : numpy.ndarray
+        ``(G, G)`` joint covariance of the globals, in the order of
+        :attr:`global_sd`'s keys (``beta``, ``scale``, then the plane heights).
+    track_global_cov : numpy.ndarray
+        ``(K, 2, G)`` covariance of every epoch's position with the globals
+        (what a filter started at the last epoch needs, :mod:`bayes_mpem.lbl.online`).
     """
 
     dive: Dive = field(repr=False)
@@ -116,6 +123,9 @@ class Navigation:
     history: dict = field(repr=False)
     options: dict = field(default_factory=dict)
     timings: dict = field(default_factory=dict, repr=False)
+    global_cov: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)), repr=False)
+    track_global_cov: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 0)),
+                                         repr=False)
 
     @property
     def track(self) -> np.ndarray:
@@ -217,7 +227,9 @@ class Navigation:
             "n_rows": len(d.survey), "n_replies": d.n,
             "n_no_reply": int(d.survey.no_reply.sum()), "ci": ci,
             "pings": d.survey.pings_source, "beacons_file": d.survey.beacons_source,
-            "options": {k: v for k, v in self.options.items() if k not in ("rng", "ci")},
+            "information": self.options.get("information"),
+            "options": {k: v for k, v in self.options.items()
+                        if k not in ("rng", "ci", "information")},
         }
 
     def to_dict(self) -> dict:
@@ -277,3 +289,87 @@ class Navigation:
                     "classified": write_csv(out / "classified.csv", self.classified()),
                     "timings": write_json(out / "timings.json", dict(self.timings)),
                     "summary": write_json(out / "summary.json", self.summary())}
+
+
+@dataclass(frozen=True)
+class NavigationRecord:
+    """A navigation read back from its output folder: what its figures draw, no fit re-run.
+
+    Attributes
+    ----------
+    dive : Dive
+        The pings of ``classified.csv`` grouped into epochs, with the dead
+        reckoning of ``track.csv`` (:func:`.dive.dive_with_dead_reckoning`).
+    track : numpy.ndarray
+        ``(K, 2)`` the navigated positions (``track.csv``'s ``x``, ``y``).
+    cov : numpy.ndarray
+        ``(K, 2, 2)`` their covariances (``sd_x``, ``sd_y``, ``cov_xy``).
+    resp : numpy.ndarray
+        ``(n, 3)`` class probabilities of every reply (``classified.csv``).
+    skipped : dict
+        Beacons without a reply, with the reason (``summary.json``).
+    summary : dict
+        ``summary.json``.
+
+    Notes
+    -----
+    It offers what :mod:`bayes_mpem.plots.navigate` reads of a
+    :class:`Navigation`: ``dive``, ``track``, ``cov``, ``resp`` and ``skipped``.
+    """
+
+    dive: Dive = field(repr=False)
+    track: np.ndarray = field(repr=False)
+    cov: np.ndarray = field(repr=False)
+    resp: np.ndarray = field(repr=False)
+    skipped: dict
+    summary: dict = field(repr=False)
+
+    @classmethod
+    def from_tables(cls, summary: dict, survey, track: pd.DataFrame,
+                    probs: np.ndarray) -> NavigationRecord:
+        """Rebuild a navigation from its files' content.
+
+        Parameters
+        ----------
+        summary : dict
+            ``summary.json``.
+        survey : Survey
+            The pings and beacons of ``classified.csv`` and ``summary.json``'s
+            ``beacons_table``.
+        track : pandas.DataFrame
+            ``track.csv`` (:meth:`Navigation.track_table`), as text or numbers.
+        probs : numpy.ndarray
+            ``(N, 3)`` ``p_dp``, ``p_mp``, ``p_ol`` of every input row (NaN without a reply).
+
+        Returns
+        -------
+        NavigationRecord
+
+        Raises
+        ------
+        InputError
+            When the track's epochs are not those of the pings, or a column is missing
+            or holds a cell that is not a number.
+        """
+        missing = [c for c in ("time", "x", "y", "sd_x", "sd_y", "cov_xy", "dr_x", "dr_y")
+                   if c not in track.columns]
+        if missing:
+            raise InputError(f"track.csv: no column(s) {missing}; expected the track of "
+                             "'bayes-mpem navigate'")
+        col = {}
+        for c in ("time", "x", "y", "sd_x", "sd_y", "cov_xy", "dr_x", "dr_y"):
+            text = track[c].astype(str).str.strip()
+            col[c] = pd.to_numeric(text.replace({"": "nan"}), errors="coerce").to_numpy(float)
+            bad = np.flatnonzero(np.isnan(col[c]) & ~text.str.lower().isin(["", "nan"]).to_numpy())
+            if bad.size:
+                raise InputError(f"track.csv row {int(bad[0]) + 1}, column {c!r}: expected a "
+                                 f"number, got {track[c].iloc[bad[0]]!r}")
+        dive = dive_with_dead_reckoning(
+            survey, col["time"], np.column_stack([col["dr_x"], col["dr_y"]]),
+            str((summary.get("dead_reckoning") or {}).get("source") or "pings"))
+        cov = np.empty((dive.n_epochs, 2, 2))
+        cov[:, 0, 0], cov[:, 1, 1] = col["sd_x"] ** 2, col["sd_y"] ** 2
+        cov[:, 0, 1] = cov[:, 1, 0] = col["cov_xy"]
+        return cls(dive=dive, track=np.column_stack([col["x"], col["y"]]), cov=cov,
+                   resp=np.asarray(probs, float)[dive.rows], skipped=dict(summary["skipped"]),
+                   summary=summary)

@@ -60,26 +60,40 @@ class PositionFilter:
         self.beta_walk, self.scale_walk = float(beta_walk), float(scale_walk)
 
     @classmethod
-    def start(cls, x, y, beta, scale, cov_xy, var_beta, var_scale, *, beta_walk=0.0,
+    def start(cls, x, y, beta, scale, cov, var_beta=None, var_scale=None, *, beta_walk=0.0,
               scale_walk=0.0):
-        """Start with a 2 x 2 position covariance and independent nuisances.
+        """Start from a joint 4 x 4 covariance, or a 2 x 2 one and independent nuisances.
 
         Parameters
         ----------
         x, y, beta, scale : float
-        cov_xy : array_like
-            ``(2, 2)`` position covariance (m^2).
-        var_beta, var_scale : float
-            Variances of the heading bias (rad^2) and the speed scale.
+        cov : array_like
+            ``(4, 4)`` covariance of ``(x, y, beta, s)`` (a smoother's at its
+            last epoch, with the correlations of the position with the nuisances),
+            or ``(2, 2)`` of the position alone (m^2).
+        var_beta, var_scale : float, optional
+            With a ``(2, 2)`` ``cov``: variances of the heading bias (rad^2) and
+            the speed scale, uncorrelated with the position.
         beta_walk, scale_walk : float, default 0
 
         Returns
         -------
         PositionFilter
+
+        Raises
+        ------
+        ValueError
+            ``cov`` of another shape, or ``(2, 2)`` without ``var_beta`` and ``var_scale``.
         """
-        (a, b), (_, d) = cov_xy
-        return cls(x, y, beta, scale, [a, b, 0.0, 0.0, d, 0.0, 0.0, var_beta, 0.0, var_scale],
-                   beta_walk, scale_walk)
+        c = [[float(v) for v in row] for row in cov]
+        if len(c) == 2 and var_beta is not None and var_scale is not None:
+            c = [c[0] + [0.0, 0.0], c[1] + [0.0, 0.0], [0.0, 0.0, float(var_beta), 0.0],
+                 [0.0, 0.0, 0.0, float(var_scale)]]
+        if len(c) != 4 or any(len(row) != 4 for row in c):
+            raise ValueError("cov: expected a (4, 4) covariance of (x, y, beta, s), or (2, 2) "
+                             f"with var_beta and var_scale; got {len(c)} rows")
+        return cls(x, y, beta, scale, [0.5 * (c[i][j] + c[j][i]) for i in range(4)
+                                       for j in range(i, 4)], beta_walk, scale_walk)
 
     def predict(self, dx, dy, dt, q2):
         """Move by the dead-reckoned displacement ``(dx, dy)`` over ``dt`` seconds.

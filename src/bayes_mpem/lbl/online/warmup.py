@@ -153,6 +153,31 @@ def prior_model(xyz, prior, *, mp_on, path, d0_min, window):
     return m
 
 
+def endpoint_covariance(nav) -> np.ndarray:
+    """Return the joint covariance of ``(x, y, beta, s)`` at a navigation's last epoch.
+
+    The smoother's Laplace covariance (:attr:`~bayes_mpem.lbl.navigate.Navigation.cov`,
+    ``global_cov``, ``track_global_cov``) marginalised over the plane heights:
+    the filter starts with the position's correlation with the heading bias
+    and the speed scale, as the batch fit leaves it.
+
+    Parameters
+    ----------
+    nav : Navigation
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(4, 4)``.
+    """
+    out = np.zeros((4, 4))
+    out[:2, :2] = nav.cov[-1]
+    out[:2, 2:] = nav.track_global_cov[-1][:, :2]
+    out[2:, :2] = out[:2, 2:].T
+    out[2:, 2:] = nav.global_cov[:2, :2]
+    return out
+
+
 def batch_start(buffer, beacons: pd.DataFrame, opts: dict, seed: int, prior: dict):
     """Fit the kept replies in batch and build the online estimator's start from it.
 
@@ -191,8 +216,7 @@ def batch_start(buffer, beacons: pd.DataFrame, opts: dict, seed: int, prior: dic
     dive = build_dive(survey)
     st = nav.state
     filt = PositionFilter.start(st.track[-1, 0], st.track[-1, 1], st.beta, st.scale,
-                                nav.cov[-1], nav.global_sd["beta"] ** 2,
-                                nav.global_sd["scale"] ** 2, beta_walk=opts["beta_walk"],
+                                endpoint_covariance(nav), beta_walk=opts["beta_walk"],
                                 scale_walk=opts["scale_walk"])
     lag = surface_separation(dive)
     counts = dive.replies_per_beacon()

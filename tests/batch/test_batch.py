@@ -141,6 +141,10 @@ def test_batch_command_with_a_local_cluster_and_locate(tmp_path, capsys):
     table = pd.read_parquet(tmp_path / "o" / "beacons.parquet")
     assert table["name"].tolist() == ["cc03"] and "depth_mean" in table
     assert json.loads((tmp_path / "o" / "surveys" / "cc03" / "summary.json").read_text())
+    # plot draws every complete survey of a batch folder
+    assert main(["plot", str(tmp_path / "o"), "--out", str(tmp_path / "figs")]) == 0
+    assert (tmp_path / "figs" / "surveys" / "cc03" / "survey_map.png").stat().st_size > 0
+    assert not (tmp_path / "figs" / "surveys" / "gone").exists()
 
 
 @pytest.mark.parametrize(("rows", "message"), [

@@ -231,6 +231,8 @@ def cmd_plot(args) -> int:
     """
     from ..report import load_output
 
+    if _is_batch_folder(args.result_dir):
+        return _plot_batch(args)
     result = load_output(args.result_dir)
     beacon = None if args.beacon is None else args.beacon.strip()  # ids are text, as in CSVs
     if beacon is not None and beacon not in getattr(result, "results", {}):
@@ -243,6 +245,30 @@ def cmd_plot(args) -> int:
         print(f"bayes-mpem plot: {args.result_dir} holds no fitted beacon or located "
               f"transponder (skipped: {skipped or 'none'}); nothing to draw", file=sys.stderr)
         return 2
+    _print_written(paths)
+    return 0
+
+
+def _is_batch_folder(folder) -> bool:
+    d = Path(folder)
+    return (d / "surveys.parquet").is_file() and (d / "surveys").is_dir()
+
+
+def _plot_batch(args) -> int:
+    """Draw every survey of a ``bayes-mpem batch`` folder, each into ``OUT/surveys/<name>``."""
+    from ..report import load_output
+
+    root = Path(args.result_dir)
+    out = Path(args.out) if args.out else root
+    folders = sorted(p for p in (root / "surveys").iterdir() if (p / "summary.json").is_file())
+    paths = []
+    for folder in folders:
+        paths += write_figures(load_output(folder), out / "surveys" / folder.name)
+    if not paths:
+        print(f"bayes-mpem plot: {root} is a batch folder with no complete survey to draw",
+              file=sys.stderr)
+        return 2
+    print(f"{len(folders)} surveys of the batch drawn")
     _print_written(paths)
     return 0
 

@@ -145,6 +145,8 @@ def test_batch_command_with_a_local_cluster_and_locate(tmp_path, capsys):
     assert main(["plot", str(tmp_path / "o"), "--out", str(tmp_path / "figs")]) == 0
     assert (tmp_path / "figs" / "surveys" / "cc03" / "survey_map.png").stat().st_size > 0
     assert not (tmp_path / "figs" / "surveys" / "gone").exists()
+    assert main(["plot", str(tmp_path / "o"), "--beacon", "1"]) == 2
+    assert "--beacon: draws one survey's beacon" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize(("rows", "message"), [

@@ -259,6 +259,9 @@ def _plot_batch(args) -> int:
     from ..report import load_output
 
     root = Path(args.result_dir)
+    if args.beacon is not None:
+        raise OptionError(f"--beacon: draws one survey's beacon; give that survey's folder "
+                          f"({root / 'surveys' / '<name>'}), not the batch folder")
     out = Path(args.out) if args.out else root
     folders = sorted(p for p in (root / "surveys").iterdir() if (p / "summary.json").is_file())
     paths = []

@@ -174,3 +174,21 @@ def test_big_arrays_are_dumped_as_json_dumps_would(values, width):
     finally:
         documents.BIG_ARRAY = old
     assert got == json.dumps({"b": {"first_resp": a.tolist(), "n": 1}, "x": [1.5]}) + "\n"
+
+
+@pytest.mark.parametrize("zero", [0.0, -0.0])
+@pytest.mark.parametrize("width", [1, 3])
+def test_rounded_probabilities_are_formatted_once_per_value(zero, width, monkeypatch):
+    """Few distinct values (first_resp rounded to 3 decimals) take the lookup path: same bytes."""
+    import bayes_mpem.io.documents as documents
+    import bayes_mpem.io.table_files as table_files
+
+    if not np.signbit(zero):  # the lookup path needs no general formatter; -0.0 goes there
+        monkeypatch.setattr(table_files, "format_floats", lambda a: pytest.fail("not taken"))
+
+    p = np.round(np.random.default_rng(0).dirichlet([1, 1, 1], size=20_000), 3)
+    p[:5] = zero
+    a = p[:, 0].copy() if width == 1 else p
+    assert a.size >= documents.BIG_ARRAY
+    got = documents.json_text({"first_resp": a}, None, numpy=True)
+    assert got == json.dumps({"first_resp": a.tolist()}) + "\n"

@@ -368,7 +368,9 @@ def main(argv=None) -> int:
     if args.command == "simulate":
         handler = _simulate_handler(args, handler)
     colours = contextlib.nullcontext()
-    if getattr(args, "palette", None):  # the figures' class colours, restored on return
+    # the figures' class colours, restored on return (only when figures are drawn: the
+    # plotting modules import matplotlib.pyplot)
+    if getattr(args, "palette", None) and getattr(args, "figures", True):
         from ..plots.style import palette_context
 
         colours = palette_context(args.palette)

@@ -125,11 +125,23 @@ BIG_ARRAY = 10_000
 
 def _array_text(a: np.ndarray) -> str:
     """``json.dumps(a.tolist())`` of a finite 1-D or 2-D float array, formatted vectorised."""
+    import pyarrow as pa
     import pyarrow.compute as pc
 
     from .table_files import format_floats
 
-    cells = format_floats(a.ravel())
+    flat = a.ravel()
+    cells = None
+    probe = flat[:: max(1, flat.size // 4096)]
+    if np.unique(probe).size * 2 <= probe.size and not np.any((flat == 0) & np.signbit(flat)):
+        # few distinct values (rounded probabilities): each formatted once, as json.dumps
+        # does (float.__repr__); -0.0 would be merged with 0.0 by unique, so it goes below
+        uniq, inverse = np.unique(flat, return_inverse=True)
+        if uniq.size * 8 <= flat.size:
+            cells = pa.array([float.__repr__(float(u)) for u in uniq]).take(
+                inverse.astype(np.int32))
+    if cells is None:
+        cells = format_floats(flat)
     if a.ndim == 1:
         return "[" + ", ".join(cells.to_pylist()) + "]"
     cols = [cells.take(np.arange(j, a.size, a.shape[1])) for j in range(a.shape[1])]

@@ -121,11 +121,16 @@ def binned_trend(r, sigma, v, n_bins=10, *, centred=False):
     >>> binned_trend(gen.normal(0, 1, 500) + v / 250, 1.0, v)["p_value"] < 1e-10
     True
     """
-    from scipy import stats
+    from scipy.special import chdtrc  # chi2.sf, without importing scipy.stats (0.7 s)
 
     if np.ptp(v) <= 0:
         return None
-    edges = np.unique(np.quantile(v, np.linspace(0, 1, n_bins + 1)))
+    # bin edges at the covariate's quantiles (from every k-th value beyond 50,000: the bins
+    # depend on the covariate alone, so the test stays exact; only their counts even out less)
+    step = -(-v.size // 50_000)
+    edges = np.unique(np.quantile(v[::step], np.linspace(0, 1, n_bins + 1)))
+    if edges.size < 2:  # the values sampled were all equal: one bin of the whole range
+        edges = np.array([np.min(v), np.max(v)])
     idx = np.clip(np.searchsorted(edges, v, side="right") - 1, 0, edges.size - 2)
     nbin = np.bincount(idx, minlength=edges.size - 1)
     ok = nbin > 0
@@ -133,7 +138,7 @@ def binned_trend(r, sigma, v, n_bins=10, *, centred=False):
     means = np.bincount(idx, weights=r - centre, minlength=edges.size - 1)[ok] / nbin[ok]
     chi2 = float(np.sum(means ** 2 * nbin[ok] / sigma ** 2))
     dof = int(ok.sum()) - (1 if centred else 0)
-    return {"chi2": chi2, "dof": dof, "p_value": float(stats.chi2.sf(chi2, dof)),
+    return {"chi2": chi2, "dof": dof, "p_value": float(chdtrc(dof, chi2)),
             "max_bin_mean": float(np.max(np.abs(means)))}
 
 

@@ -43,11 +43,11 @@ import pyarrow.compute as pc
 
 from ..exceptions import InputError
 from .boundary import open_input, sniff_delimiter, split_lines
+from .cells import Problems
 
 PARQUET_SUFFIXES = (".parquet", ".pq")
 #: The formats of the tables a result writes (``--table-format``).
 TABLE_FORMATS = ("csv", "parquet")
-MAX_LISTED = 10
 
 
 @dataclass
@@ -258,13 +258,11 @@ def _check_shape(label, header, records, where, kept):
            if len(rec) != len(header)]
     if not bad:
         return
-    msgs = [f"{label} line {line}: expected {len(header)} fields (as in the header), got {n}"
-            for line, n in bad]
-    if len(msgs) == 1:
-        raise InputError(msgs[0])
-    extra = [f"  ... and {len(msgs) - MAX_LISTED} more problems"] if len(msgs) > MAX_LISTED else []
-    raise InputError("\n".join([f"{len(msgs)} problems in {label}:"]
-                               + ["  " + m for m in msgs[:MAX_LISTED]] + extra))
+    problems = Problems(label)
+    for pos, (line, n) in enumerate(bad):
+        problems.add(pos, f"{label} line {line}: expected {len(header)} fields (as in the "
+                          f"header), got {n}")
+    problems.raise_if_any()
 
 
 # --------------------------------------------------------------------------- writing

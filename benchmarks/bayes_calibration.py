@@ -94,6 +94,7 @@ def one_survey(i, generator, n_draws=4000, ci=0.95):
                          "hdi_sub_lo": slo, "hdi_sub_hi": shi, "n_draws": x.size,
                          "rank": float(np.mean(x < tv)), "n": data.n, "path": choice.path,
                          "ess": r.ess.get(k, np.nan), "flags": "; ".join(r.em.flags),
+                         "sampler": r.diagnostics["sampler"],
                          "seconds": time.perf_counter() - t0})
     return rows
 

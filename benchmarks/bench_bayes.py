@@ -109,10 +109,13 @@ def worker_ours(d, seed):
     call = time.perf_counter() - t0
     post = r.idata.posterior
     draws = {k: post[k].values for k in NAMES}
-    return {"call": call, "sampling": r.diagnostics["seconds"],
-            "ess": min(r.ess_bulk.values()), "emcee_ess": r.min_ess,
-            "steps": r.diagnostics["n_steps"], "walkers": r.diagnostics["n_walkers"],
-            "moments": moments(draws)}
+    out = {"call": call, "sampling": r.diagnostics["seconds"],
+           "ess": min(r.ess_bulk.values()), "own_ess": r.min_ess,
+           "steps": r.diagnostics["n_steps"], "chains": r.diagnostics["n_chains"],
+           "sampler": r.diagnostics["sampler"], "moments": moments(draws)}
+    if r.diagnostics["thin"] == 1:  # every kept draw is in idata: the driver checks the ESS
+        out["draws"] = {k: v.tolist() for k, v in draws.items()}
+    return out
 
 
 def _pymc_model(d):
@@ -260,8 +263,15 @@ def spawn(method, data_file, seed, caches):
     if proc.returncode or not line:
         print(f"{method} failed:\n{proc.stderr[-3000:]}", file=sys.stderr)
         return None
-    return json.loads(line[-1][len("RESULT "):]) | {"wall": wall, "cpu": cpu,
-                                                     "method": method, "seed": seed}
+    res = json.loads(line[-1][len("RESULT "):]) | {"wall": wall, "cpu": cpu,
+                                                    "method": method, "seed": seed}
+    draws = res.pop("draws", None)
+    if draws is not None:  # bayes_mpem's own bulk ESS, recomputed here by ArviZ
+        res["ess_arviz"] = bulk_ess_min({k: np.asarray(v) for k, v in draws.items()})
+        if not np.isclose(res["ess_arviz"], res["ess"], rtol=1e-8):
+            raise SystemExit(f"bayes_mpem's bulk ESS {res['ess']} differs from ArviZ's "
+                             f"{res['ess_arviz']} on the same draws")
+    return res
 
 
 def loadavg():

@@ -2,9 +2,10 @@
 
 Run from the repository root::
 
-    python benchmarks/sbc.py                 # docs page + figure (500 + 3 x 250 simulations)
-    python benchmarks/sbc.py --quick         # 40 per move set, prints only
+    python benchmarks/sbc.py                 # docs page + figure (500 + 5 x 250 simulations)
+    python benchmarks/sbc.py --quick         # 40 per arm, prints only
     python benchmarks/sbc.py --sims 1000 --sims-other 500 --workers 2
+    python benchmarks/sbc.py --arms shipped,independence --section sbc_samplers
 
 For one design (beacon 4 of the ``abe58`` preset, 330 ping cycles; pings with a
 direct path under 200 m left out, ~300 replies), each simulation draws the
@@ -12,14 +13,18 @@ parameters from the calibration's proper prior (``bayes_mpem.lbl.sbc``: plane
 within 30 m of the sea surface, sigma_DP and sigma_MP log-uniform on 1-20 m,
 weights Dirichlet(1, 1, 1), outliers uniform over a fixed window), simulates the
 ranges from the model, samples their posterior exactly as ``bayes-mpem sample``
-does (EM start, the shipped stopping rule: 50 autocorrelation times and an ESS of
-1,000), and ranks each true value among 99 draws thinned from the kept chain.
+does (EM start, the shipped stopping rule: an ESS of 1,000, and for the ensemble 50
+autocorrelation times), and ranks each true value among 99 draws thinned from the
+kept chain.
 
-Four move sets: the shipped one (differential evolution alone, 500 simulations),
-and 250 each of DE 0.8 with the exact snooker (``bayes_mpem.mcmc.SnookerMove``) 0.2,
-DE 0.8 with emcee 3.1.6's released snooker 0.2 (re-implemented in
-``tests/released_snooker.py``; the project's default before issue 14), and DE 0.5 with
-the released snooker 0.5 (the mix the suite's small SBC must fail). Per parameter:
+Six arms (``--arms``): the shipped sampler (``sampler="auto"``: independence chains
+from a Laplace proposal, the ensemble where that proposal fits poorly; 500
+simulations), and 250 each of the independence chains alone, the ensemble with
+differential evolution alone (the default before the independence chains), DE 0.8
+with the exact snooker (``bayes_mpem.mcmc.SnookerMove``) 0.2, DE 0.8 with emcee
+3.1.6's released snooker 0.2 (re-implemented in ``tests/released_snooker.py``; the
+project's default before issue 14), and DE 0.5 with the released snooker 0.5 (the
+mix the suite's small SBC must fail). Per parameter:
 the chi-square test of 10 equal rank bins and the binomial test of the share of
 ranks in the outer 10 % (a too-narrow posterior puts the truth there too often).
 A parameter passes at the 1 % level when both p-values are above 0.01.
@@ -54,13 +59,17 @@ from bayes_mpem.mcmc import SnookerMove  # noqa: E402
 from bayes_mpem.mcmc.sbc import rank_dispersion  # noqa: E402
 from bayes_mpem.plots.bayes import plot_sbc_ranks  # noqa: E402
 
-MOVES = {
-    "shipped (DE alone)": lambda: None,
-    "DE 0.8 + exact snooker 0.2": lambda: [(emcee.moves.DEMove(), 0.8), (SnookerMove(), 0.2)],
-    "DE 0.8 + emcee 3.1.6 snooker 0.2": lambda: [(emcee.moves.DEMove(), 0.8),
-                                                 (ReleasedSnooker(), 0.2)],
-    "DE 0.5 + emcee 3.1.6 snooker 0.5": lambda: [(emcee.moves.DEMove(), 0.5),
-                                                 (ReleasedSnooker(), 0.5)],
+#: arm: (label, the options of run_sbc, made in the worker)
+ARMS = {
+    "shipped": ("shipped (auto)", lambda: {"sampler": "auto"}),
+    "independence": ("independence chains alone", lambda: {"sampler": "independence"}),
+    "ensemble": ("ensemble, DE alone", lambda: {"sampler": "ensemble"}),
+    "snooker": ("DE 0.8 + exact snooker 0.2",
+                lambda: {"moves": [(emcee.moves.DEMove(), 0.8), (SnookerMove(), 0.2)]}),
+    "released-0.2": ("DE 0.8 + emcee 3.1.6 snooker 0.2",
+                     lambda: {"moves": [(emcee.moves.DEMove(), 0.8), (ReleasedSnooker(), 0.2)]}),
+    "released-0.5": ("DE 0.5 + emcee 3.1.6 snooker 0.5",
+                     lambda: {"moves": [(emcee.moves.DEMove(), 0.5), (ReleasedSnooker(), 0.5)]}),
 }
 SAMPLER = {"tau_factor": 50.0, "min_ess": 1000.0}  # the shipped stopping rule
 
@@ -71,10 +80,10 @@ def design():
     return sbc_design(sim.survey.for_beacon("4"))
 
 
-def chunk(args, label):
-    """Run one seeded block of simulations with the moves ``label``."""
+def chunk(args, arm):
+    """Run one seeded block of simulations of the arm ``arm``."""
     seed, n = args
-    return run_sbc(design(), n, rng=seed, moves=MOVES[label](), **SAMPLER)
+    return run_sbc(design(), n, rng=seed, **ARMS[arm][1](), **SAMPLER)
 
 
 def merged(parts):
@@ -99,32 +108,43 @@ def table(label, res, seconds):
                      f"{'pass' if ok else '**fail**'} |")
     d = res.diagnostics
     pooled = rank_dispersion(res.ranks, res.n_draws)
-    note = (f"{label}: {len(res.ranks)} simulations in {seconds:.0f} s; steps per run median "
-            f"{np.median(d['n_steps']):.0f}, max {max(d['n_steps'])}; stopping rule met in "
-            f"{sum(d['converged'])} of {len(d['converged'])}; dispersion of all parameters "
-            f"together {pooled['ratio']:.3f} (z {pooled['z']:+.1f}, p {pooled['p_value']:.2g})")
+    used = ", ".join(f"{k} {v}" for k, v in
+                     zip(*np.unique(d["sampler"], return_counts=True), strict=True))
+    note = (f"{label}: {len(res.ranks)} simulations in {seconds:.0f} s; sampler used: {used}; "
+            f"steps (or draws per chain) median {np.median(d['n_steps']):.0f}, max "
+            f"{max(d['n_steps'])}; stopping rule met in {sum(d['converged'])} of "
+            f"{len(d['converged'])}; dispersion of all parameters together "
+            f"{pooled['ratio']:.3f} (z {pooled['z']:+.1f}, p {pooled['p_value']:.2g})")
     return lines, note
 
 
 def main(argv=None):
     """Command-line entry point."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help="40 simulations per move set, print")
-    ap.add_argument("--sims", type=int, default=500, help="simulations, shipped moves")
+    ap.add_argument("--quick", action="store_true", help="40 simulations per arm, print")
+    ap.add_argument("--sims", type=int, default=500, help="simulations, shipped sampler")
     ap.add_argument("--sims-other", type=int, default=250,
-                    help="simulations for each of the other move sets")
+                    help="simulations for each of the other arms")
+    ap.add_argument("--arms", default=",".join(ARMS),
+                    help=f"comma-separated arms (default all: {','.join(ARMS)})")
+    ap.add_argument("--section", default="sbc",
+                    help="section of docs/bayes-calibration.md to write (default sbc)")
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--block", type=int, default=20, help="simulations per seeded block")
     args = ap.parse_args(argv)
     rows, notes, results = [], [], {}
-    for label in MOVES:
-        n = 40 if args.quick else (args.sims if label.startswith("shipped")
-                                   else args.sims_other)
+    arms = [a.strip() for a in args.arms.split(",")]
+    bad = [a for a in arms if a not in ARMS]
+    if bad:
+        ap.error(f"--arms: unknown {bad}; expected some of {list(ARMS)}")
+    for arm in arms:
+        label = ARMS[arm][0]
+        n = 40 if args.quick else (args.sims if arm == "shipped" else args.sims_other)
         blocks = [(7_000 + b, min(args.block, n - b * args.block))
                   for b in range(int(np.ceil(n / args.block)))]
         t0 = time.perf_counter()
         with Pool(args.workers) as pool:
-            parts = pool.map(partial(chunk, label=label), blocks, chunksize=1)
+            parts = pool.map(partial(chunk, arm=arm), blocks, chunksize=1)
         res = merged(parts)
         results[label] = res
         lines, note = table(label, res, time.perf_counter() - t0)
@@ -132,6 +152,7 @@ def main(argv=None):
         notes.append(note)
         print("\n".join(lines), "\n" + note, flush=True)
     s = next(iter(results.values())).settings
+    figure = "sbc_ranks.png" if args.section == "sbc" else f"{args.section}_ranks.png"
     cmd = "python benchmarks/sbc.py " + " ".join(argv if argv is not None else sys.argv[1:])
     text = "\n".join([
         "## Simulation-based calibration", "",
@@ -142,7 +163,8 @@ def main(argv=None):
         f"and sigma_MP log-uniform on {s['sigma_bounds'][0]:g}-{s['sigma_bounds'][1]:g} m, "
         f"weights Dirichlet(1, 1, 1), outliers uniform on [{s['window'][0]:.0f}, "
         f"{s['window'][1]:.0f}] m. Each simulation: prior draw, ranges from the model, EM "
-        "start, emcee to the shipped stopping rule (50 tau, ESS 1,000), rank of the truth "
+        "start, the arm's sampler to the shipped stopping rule (ESS 1,000; an ensemble also "
+        "50 tau), rank of the truth "
         f"among {next(iter(results.values())).n_draws} draws thinned from the kept chain.", "",
         "A parameter passes at the 1 % level when the chi-square test of 10 equal rank bins "
         "and the binomial test of the share of ranks in the outer 10 % (expected 10 %) both "
@@ -150,15 +172,15 @@ def main(argv=None):
         "*Dispersion*: the mean squared normal score of the ranks over its value for uniform "
         "ranks (`bayes_mpem.mcmc.sbc.rank_dispersion`; about 1 / s^2 for draws s times too "
         "narrow) and its z; given for reading, not part of the pass rule.", "",
-        "| moves | parameter | chi2 (9 dof) | p | ranks in outer 10 % | p | dispersion (z) "
+        "| sampler | parameter | chi2 (9 dof) | p | ranks in outer 10 % | p | dispersion (z) "
         "| 1 % level |",
         "|---|---|---:|---:|---:|---:|---:|---|", *rows, "", *[f"- {x}." for x in notes], "",
-        "![SBC rank histograms](figures/sbc_ranks.png)", ""])
+        f"![SBC rank histograms](figures/{figure})", ""])
     print(text)
     if not args.quick:
         fig = plot_sbc_ranks(results)
-        fig.savefig(ROOT / "docs" / "figures" / "sbc_ranks.png", dpi=80)
-        write_section(ROOT / "docs" / "bayes-calibration.md", "sbc", text)
+        fig.savefig(ROOT / "docs" / "figures" / figure, dpi=80)
+        write_section(ROOT / "docs" / "bayes-calibration.md", args.section, text)
 
 
 if __name__ == "__main__":

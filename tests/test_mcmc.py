@@ -189,3 +189,22 @@ def test_the_check_catches_emcee_3_1_6_snooker(ndim):
     """The released snooker in the same mix is too narrow (sd 0.96 at 5-D, 0.91 at 16-D)."""
     z, sd = _sd_z([(emcee.moves.DEMove(), 0.8), (ReleasedSnooker(), 0.2)], ndim, seed=ndim)
     assert z < -8.0, sd
+
+
+def test_to_datatree_is_arviz_from_dict():
+    """bayes_mpem builds its ArviZ data with xarray; the arrays, dims and coords are ArviZ's."""
+    import arviz_base as azb
+    import xarray as xr
+
+    gen = np.random.default_rng(0)
+    groups = {"posterior": {"d0": gen.random((4, 5)), "m": gen.random((4, 5, 2))},
+              "log_likelihood": {"z": gen.random((4, 5, 3))},
+              "sample_stats": {"lp": gen.random((4, 5))},
+              "observed_data": {"z": gen.random(3)}}
+    kw = {"dims": {"z": ["range"]}, "coords": {"range": np.arange(3) * 2}}
+    ref, ours = azb.from_dict(groups, **kw), mcmc.to_datatree(groups, **kw)
+    assert sorted(ref.children) == sorted(ours.children)
+    for g in ref.children:
+        xr.testing.assert_identical(ref[g].dataset.drop_attrs(), ours[g].dataset.drop_attrs())
+        assert set(ref[g].attrs) == set(ours[g].attrs)
+    assert ours["posterior"].attrs["creation_library"] == "bayes_mpem"

@@ -95,10 +95,11 @@ def test_result_contents(beacon4):
     assert np.mean(r.labels[sure] == r.em.labels[sure]) > 0.99
 
 
-def test_step_cap_warns(beacon4):
+@pytest.mark.parametrize("sampler", ["independence", "ensemble"])
+def test_step_cap_warns(beacon4, sampler):
     with pytest.warns(SamplingWarning, match="reached max_steps=100"):
-        r = sample_beacon(beacon4, rng=0, max_steps=100, **FAST)
-    assert not r.diagnostics["converged"]
+        r = sample_beacon(beacon4, rng=0, max_steps=100, sampler=sampler, **FAST)
+    assert not r.diagnostics["converged"] and r.diagnostics["sampler"] == sampler
 
 
 def test_several_ensembles_give_rhat(beacon4):
@@ -220,12 +221,13 @@ def test_compare_command(survey_files, tmp_path, capsys):
     assert main(["compare", str(survey_files["pings"]), "--beacons",
                  str(survey_files["beacons"]), "--out", str(tmp_path), "--seed", "2"]) == 0
     # standard error is not a terminal here: progress comes as plain lines, per beacon and
-    # priors, ending with the steps run, the ESS against its target and the seconds
+    # priors, ending with the draws run, the ESS against its target and the seconds
     err = capsys.readouterr().err
     for bid in ("1", "2", "3", "4"):
         for priors in ("equal", "learned"):
             assert re.search(rf"^\[sampler\] beacon {bid} \({priors} priors\): done, \d+ "
-                             r"steps, ESS \d+ \(bulk \d+\) of 1000, \d+\.\d s$", err, re.M), err
+                             r"draws x 4 independence chains, bulk ESS \d+ of 1000, \d+\.\d s$",
+                             err, re.M), err
     c = json.loads((tmp_path / "compare.json").read_text())
     for b in c["beacons"].values():
         for key in ("elpd_equal", "elpd_learned", "elpd_diff", "elpd_diff_se", "shifts",
@@ -313,4 +315,6 @@ def test_far_proposals_do_not_overflow(beacon4):
 
 def test_step_cap_warning_says_which_test_failed(beacon4):
     with pytest.warns(SamplingWarning, match=r"kept \d+ = .* tau \(needs 50\).*bulk ESS"):
+        sample_beacon(beacon4, rng=0, max_steps=100, sampler="ensemble", **FAST)
+    with pytest.warns(SamplingWarning, match=r"100 draws x 4 chains, bulk ESS \d+ \(need 1000\)"):
         sample_beacon(beacon4, rng=0, max_steps=100, **FAST)

@@ -187,7 +187,7 @@ def _add_locate(sub):
 
 
 def _add_sample_compare(sub):
-    for name, helptext in (("sample", "sample each beacon's posterior with emcee"),
+    for name, helptext in (("sample", "sample each beacon's posterior (MCMC)"),
                            ("compare", "compare equal (paper) and learned mixing priors by LOO")):
         p = sub.add_parser(name, help=helptext)
         p.add_argument("pings", metavar="PINGS", help="pings CSV")
@@ -200,7 +200,8 @@ def _add_sample_compare(sub):
             p.add_argument("--ci", type=opt.probability, default=0.95,
                            help="probability of the highest-density intervals (default 0.95)")
             p.add_argument("--ensembles", type=opt.at_least(1, 64), default=1, metavar="K",
-                           help="independent ensembles; R-hat is reported when K > 1")
+                           help="--sampler ensemble: independent ensembles; R-hat is reported "
+                                "when K > 1")
             p.add_argument("--figures", action="store_true", help="also write PNG figures")
             _add_table_format(p)
         p.add_argument("--path", choices=PATH_CHOICES, default="auto",
@@ -211,6 +212,9 @@ def _add_sample_compare(sub):
         p.add_argument("--concentration", type=opt.positive, default=None, metavar="C",
                        help="Dirichlet concentration of the learned weights (default 1)")
         p.add_argument("--min-pings", type=opt.min_pings, default=30, metavar="N")
+        p.add_argument("--sampler", choices=["auto", "independence", "ensemble"], default="auto",
+                       help="independence chains from a Laplace proposal, emcee's ensemble, or "
+                            "the first unless its proposal fits poorly (default auto)")
         p.add_argument("--no-progress", action="store_true",
                        help="no progress bar (terminal) or progress lines (log file)")
 

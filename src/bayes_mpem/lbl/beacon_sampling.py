@@ -1,22 +1,25 @@
-"""Sampling one beacon's posterior: emcee from the EM solution to a :class:`PosteriorResult`.
+"""Sampling one beacon's posterior: from the EM solution to a :class:`PosteriorResult`.
 
 :func:`sample_beacon` samples :class:`~bayes_mpem.lbl.posterior.BeaconPosterior`
-(the parameters and their priors are listed there) with the shared driver of
-:mod:`bayes_mpem.mcmc`:
+(the parameters and their priors are listed there):
 
 1. the mixture EM (:func:`~bayes_mpem.lbl.em_mixture.fit_mixture_em`) gives the
    start; a start outside the prior support, or one the EM flagged (no multipath,
    a plane above the sea surface, ...), raises :class:`UnusableStartError`;
-2. each ensemble starts in a small ball around the EM solution, runs in blocks
-   until the post-burn-in chain is longer than ``tau_factor`` (default 50)
-   integrated autocorrelation times and its smallest ESS reaches ``min_ess``
-   (by emcee's and by ArviZ's bulk estimate), and discards ``2 max(tau)`` steps of
-   burn-in;
-3. about ``n_draws`` evenly thinned draws give the ArviZ data (walkers as
-   chains, the log-likelihood of every range for PSIS-LOO in
+2. :func:`~bayes_mpem.lbl.beacon_chains.beacon_chains` samples: by default four
+   independence Metropolis-Hastings chains from a Student-t at the posterior mode
+   until the smallest bulk ESS reaches ``min_ess``, or, when that proposal fits
+   poorly (or ``sampler="ensemble"``), emcee ensembles from a small ball around the
+   EM solution, run in blocks until the post-burn-in chain is longer than
+   ``tau_factor`` (default 50) integrated autocorrelation times and its smallest
+   ESS reaches ``min_ess`` (by emcee's and by the bulk estimate), discarding
+   ``2 max(tau)`` steps of burn-in;
+3. about ``n_draws`` evenly thinned draws give the ArviZ data (chains or walkers as
+   ArviZ chains, the log-likelihood of every range for PSIS-LOO in
    :mod:`bayes_mpem.lbl.loo`), the highest-density intervals and the posterior
    mean and sd of each range's class probabilities; the autocorrelation times
-   and ESS use the whole kept chain, R-hat compares independent ensembles.
+   and ESS use the whole kept chain, R-hat compares the independence chains
+   (or independent ensembles).
 
 See ``docs/bayes.md``.
 """
@@ -26,24 +29,23 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 
-import emcee
 import numpy as np
 
 from .._rng import RNGLike, as_generator
 from ..exceptions import UnusableStartError
 from ..io.survey import BeaconData
 from ..mcmc import (
-    DEFAULT_MOVES_LABEL,
     autocorr_ess,
     bulk_ess,
-    draw_moments,
     hdi,
     rhat_across_ensembles,
     run_ensembles,
     thin_index,
     to_datatree,
 )
+from ..mcmc.convergence import ess_mean, rhat_rank
 from ..mixture.densities import CLASSES
+from .beacon_chains import BeaconChains, beacon_chains
 from .em_mixture import fit_mixture_em
 from .em_result import EMResult
 from .posterior import PARAMS, BeaconPosterior, check_sample_options
@@ -65,13 +67,16 @@ class PosteriorResult:
         Per parameter (``d0``, ``sigma_mp``, ``sigma_dp``, ``weights``):
         ``mean``, ``sd``, ``interval`` (highest-density, probability ``ci``).
     tau, ess : dict
-        emcee's integrated autocorrelation time (steps) and
-        ``ESS = steps x walkers / tau`` per sampled parameter.
+        Integrated autocorrelation time (steps) and ``ESS = steps x chains / tau``
+        per sampled parameter: emcee's estimate for an ensemble (walkers as
+        chains), the split-chain ESS of the mean for independence chains.
     ess_bulk : dict
-        ArviZ's rank-normalised bulk ESS of every kept (unthinned) draw, walkers
-        as chains: a second, independent estimate, comparable with other samplers.
+        Rank-normalised bulk ESS (ArviZ's estimator) of every kept (unthinned)
+        draw, walkers or chains as chains: a second estimate, comparable with
+        other samplers.
     rhat : dict or None
-        Rank-normalised split R-hat across independent ensembles (if several ran).
+        Rank-normalised split R-hat across the independence chains, or across
+        independent ensembles (None for a single ensemble).
     class_probs, class_probs_sd : numpy.ndarray
         ``(n, 3)`` posterior mean and standard deviation of each range's class
         probabilities (dp, mp, ol), over the kept draws.
@@ -80,9 +85,12 @@ class PosteriorResult:
     em : EMResult
         The EM fit the walkers started from.
     diagnostics : dict
-        ``n_walkers``, ``n_steps``, ``burn``, ``thin``, ``n_draws``,
-        ``n_ensembles``, ``converged`` (chain longer than ``tau_factor`` tau),
-        ``acceptance``, ``seconds``, ``moves``, ``precision`` (of the kernel).
+        ``sampler`` (``"independence"`` or ``"ensemble"``), ``fallback`` (why the
+        independence chains were not kept, or None), ``n_chains`` (chains, or
+        walkers per ensemble), ``n_steps``, ``burn``, ``thin``, ``n_draws``,
+        ``n_ensembles``, ``converged`` (the stopping rule met), ``acceptance``,
+        ``seconds``, ``precision`` (of the kernel); for an ensemble also
+        ``n_walkers`` and ``moves``, for independence chains ``proposal_df``.
     ci : float
 
     Notes
@@ -177,6 +185,7 @@ def sample_beacon(
     path: str = "triangle",
     concentration: float = 1.0,
     init: EMResult | None = None,
+    sampler: str = "auto",
     n_walkers: int | None = None,
     moves=None,
     tau_factor: float = 50.0,
@@ -190,7 +199,7 @@ def sample_beacon(
     allow_flagged_start: bool = False,
     precision: str = "auto",
 ) -> PosteriorResult:
-    """Sample the posterior of one beacon with emcee, started from the EM solution.
+    """Sample the posterior of one beacon, started from the EM solution.
 
     Parameters
     ----------
@@ -207,20 +216,28 @@ def sample_beacon(
     init : EMResult, optional
         EM fit to start from (default: :func:`~bayes_mpem.lbl.em_mixture.fit_mixture_em`
         with the matching weights option).
+    sampler : {"auto", "independence", "ensemble"}
+        Independence chains from a Laplace proposal, emcee's ensemble, or the
+        first unless its proposal fits poorly (``"auto"``); see
+        :mod:`bayes_mpem.lbl.beacon_chains`. ``n_walkers`` or ``moves`` imply
+        the ensemble.
     n_walkers : int, optional
         Walkers per ensemble (default ``max(24, 4 ndim)``).
     moves : list, optional
         emcee moves; default :func:`~bayes_mpem.mcmc.default_moves`
         (differential evolution alone).
     tau_factor : float, default 50
-        Stop when the kept chain is this many autocorrelation times long ...
+        Ensemble: stop when the kept chain is this many autocorrelation times long ...
     min_ess : float, default 1000
-        ... and its smallest ESS reaches this, by emcee's estimate and by ArviZ's
-        bulk ESS (per ensemble; 0 to rely on ``tau_factor`` alone).
+        ... and its smallest ESS reaches this, by emcee's estimate and by the bulk
+        ESS (per ensemble; 0 to rely on ``tau_factor`` alone). Independence
+        chains: stop when the smallest bulk ESS reaches this and R-hat < 1.01.
     max_steps : int, default 20000
-        Step cap per ensemble (``SamplingWarning`` when reached).
+        Step cap per ensemble, or draws per independence chain
+        (``SamplingWarning`` when reached).
     n_ensembles : int, default 1
         Independent ensembles (different seeds); R-hat is reported when > 1.
+        (Independence chains: always four, and R-hat.)
     n_draws : int, default 2000
         Draws kept (thinned evenly) for the ArviZ data, LOO and class probabilities.
     ci : float, default 0.95
@@ -256,9 +273,9 @@ def sample_beacon(
     Warns
     -----
     SamplingWarning
-        When an ensemble reaches ``max_steps`` first.
+        When an ensemble or the independence chains reach ``max_steps`` first.
     """
-    check_sample_options(priors=priors, ci=ci, n_ensembles=n_ensembles,
+    check_sample_options(priors=priors, ci=ci, n_ensembles=n_ensembles, sampler=sampler,
                          concentration=concentration, sigma_dp=sigma_dp, path=path,
                          tau_factor=tau_factor, min_ess=min_ess, max_steps=max_steps,
                          n_draws=n_draws)
@@ -269,40 +286,49 @@ def sample_beacon(
                                      weights="learned" if priors == "learned" else "equal",
                                      rng=gen)
     _check_start(post, allow_flagged_start)
-    n_walkers = int(n_walkers or max(24, 4 * post.ndim))
     t0 = time.perf_counter()
-    runs = run_ensembles(post, n_walkers=n_walkers, gen=gen, n_ensembles=n_ensembles,
-                         where=f"beacon {data.beacon}", stacklevel=2, moves=moves,
-                         tau_factor=tau_factor, min_ess=min_ess, max_steps=max_steps,
-                         progress=progress)
+    chains = beacon_chains(post, gen, sampler=sampler, n_walkers=n_walkers, moves=moves,
+                           tau_factor=tau_factor, min_ess=min_ess, max_steps=max_steps,
+                           n_ensembles=n_ensembles, n_draws=n_draws, progress=progress,
+                           where=f"beacon {data.beacon}", stacklevel=3)
     seconds = time.perf_counter() - t0
-    chains = [r.chain for r in runs]
-    kept = min(c.shape[0] for c in chains)
-    idx, thin = thin_index(kept, n_walkers * len(chains), n_draws)
-    # walkers become ArviZ chains: (chain, draw, ndim) and (chain, draw)
-    theta = np.swapaxes(np.concatenate([c[idx] for c in chains], axis=1), 0, 1)
-    lp = np.concatenate([r.log_prob[idx] for r in runs], axis=1).T
+    groups = chains.groups
+    kept = min(c.shape[0] for c in groups)
+    idx, thin = thin_index(kept, sum(c.shape[1] for c in groups), n_draws)
+    # chains (walkers) become ArviZ chains: (chain, draw, ndim) and (chain, draw)
+    theta = np.swapaxes(np.concatenate([c[idx] for c in groups], axis=1), 0, 1)
+    lp = np.concatenate([lp_[idx] for lp_ in chains.log_prob], axis=1).T
     flat = theta.reshape(-1, post.ndim)
     nat = {k: v[:, 0].reshape(theta.shape[:2]) for k, v in post.unpack(flat).items()}
-    ll, probs, probs_sd = draw_moments(flat, post.loglik_and_classes)
-    idata = _datatree(post, nat, ll.reshape(*theta.shape[:2], -1), lp)
+    ll, probs, probs_sd = post.pointwise_moments(flat)
+    idata = _datatree(post, nat, ll.reshape(*theta.shape[:2], -1), lp, chains.sampler)
     tau, ess, ess_bulk = _chain_diagnostics(post, chains, kept)
-    rhat = (rhat_across_ensembles(idata.posterior.dataset, len(chains)) if len(chains) > 1
-            else None)
+    if chains.sampler == "independence":
+        rhat = {k: rhat_rank(nat[k]) for k in _sampled(post)} if thin == 1 else {
+            k: rhat_rank(_natural(post, groups[0], k).T) for k in _sampled(post)}
+    else:
+        rhat = (rhat_across_ensembles(idata.posterior.dataset, len(groups)) if len(groups) > 1
+                else None)
+    info = chains.info
+    diagnostics = {"sampler": chains.sampler, "fallback": info["fallback"],
+                   "n_chains": info["n_chains"], "n_steps": info["n_steps"],
+                   "burn": info["burn"], "thin": int(thin), "n_draws": int(flat.shape[0]),
+                   "n_ensembles": len(groups), "converged": info["converged"],
+                   "acceptance": float(info["acceptance"]), "seconds": float(seconds),
+                   "tau_factor": float(tau_factor), "min_ess": float(min_ess),
+                   "precision": post.kernel.dtype.name}
+    if chains.sampler == "ensemble":
+        from ..mcmc import DEFAULT_MOVES_LABEL
+
+        diagnostics.update(n_walkers=info["n_chains"],
+                           moves=DEFAULT_MOVES_LABEL if moves is None else repr(moves))
+    else:
+        diagnostics.update(proposal_df=info["proposal_df"])
     return PosteriorResult(
         beacon=data.beacon, priors=priors, path=path, idata=idata,
         summary=_summary(nat, ci), tau=tau, ess=ess,
         ess_bulk=ess_bulk, rhat=rhat, class_probs=probs, class_probs_sd=probs_sd,
-        rows=np.asarray(data.rows), em=post.em, ci=float(ci),
-        diagnostics={"n_walkers": n_walkers, "n_steps": max(r.n_steps for r in runs),
-                     "burn": int(max(r.burn for r in runs)), "thin": int(thin),
-                     "n_draws": int(flat.shape[0]), "n_ensembles": len(runs),
-                     "converged": bool(all(r.converged for r in runs)),
-                     "acceptance": float(np.mean([r.acceptance for r in runs])),
-                     "seconds": float(seconds),
-                     "tau_factor": float(tau_factor), "min_ess": float(min_ess),
-                     "moves": DEFAULT_MOVES_LABEL if moves is None else repr(moves),
-                     "precision": post.kernel.dtype.name})
+        rows=np.asarray(data.rows), em=post.em, ci=float(ci), diagnostics=diagnostics)
 
 
 def _check_start(post: BeaconPosterior, allow_flagged: bool) -> None:
@@ -325,16 +351,24 @@ def _sampled(post: BeaconPosterior) -> list:
             or (k.startswith("w_") and post.priors == "learned")]
 
 
-def _datatree(post: BeaconPosterior, nat: dict, ll, lp):
-    """ArviZ data of the thinned draws, walkers as chains."""
+def _datatree(post: BeaconPosterior, nat: dict, ll, lp, sampler: str):
+    """ArviZ data of the thinned draws, chains (walkers) as chains."""
     idata = to_datatree(
         {"posterior": {k: nat[k] for k in _sampled(post)},
          "log_likelihood": {"z": ll},
          "sample_stats": {"lp": lp},
          "observed_data": {"z": post.geom.z}},
         dims={"z": ["range"]}, coords={"range": np.arange(post.geom.n)})
+    if sampler == "ensemble":
+        import emcee
+
+        label = f"emcee {emcee.__version__}"
+    else:
+        from .. import __version__
+
+        label = f"bayes_mpem {__version__} independence Metropolis-Hastings"
     idata.attrs.update({"beacon": post.beacon, "priors": post.priors, "path": post.path,
-                        "sampler": f"emcee {emcee.__version__}"})
+                        "sampler": label})
     return idata
 
 
@@ -345,24 +379,35 @@ def _summary(nat: dict, ci) -> dict:
     return summary
 
 
-def _chain_diagnostics(post: BeaconPosterior, chains, kept):
-    """Autocorrelation time and ESS (emcee, summed over ensembles) and bulk ESS (ArviZ).
+def _natural(post: BeaconPosterior, chain, k) -> np.ndarray:
+    """Natural parameter ``k`` of a ``(steps, chains, ndim)`` chain, ``(steps, chains)``."""
+    return post.unpack(chain.reshape(-1, post.ndim))[k][:, 0].reshape(chain.shape[:2])
 
-    On the whole kept chain of each ensemble; the bulk ESS on the last ``kept``
-    steps of each, walkers of all ensembles as chains.
+
+def _chain_diagnostics(post: BeaconPosterior, chains: BeaconChains, kept):
+    """Autocorrelation time and ESS, and the bulk ESS, of every sampled natural parameter.
+
+    An ensemble: emcee's estimates on the whole kept chain of each (ESS summed
+    over ensembles), the bulk ESS on the last ``kept`` steps of each, walkers of
+    all ensembles as chains. Independence chains: the split-chain ESS of the
+    mean and the bulk ESS, chains as chains; ``tau = steps x chains / ESS``.
     """
     tau, ess, full = {}, {}, {}
     for k in _sampled(post):
+        if chains.sampler == "independence":
+            x = _natural(post, chains.groups[0], k).T  # (chain, draw)
+            ess[k] = ess_mean(x)
+            tau[k] = float(x.size / ess[k])
+            full[k] = x
+            continue
         tk, ek = [], 0.0
-        for c in chains:
-            t, e = autocorr_ess(post.unpack(c.reshape(-1, post.ndim))[k][:, 0]
-                                .reshape(c.shape[:2]))
+        for c in chains.groups:
+            t, e = autocorr_ess(_natural(post, c, k))
             tk.append(t)
             ek += e
         tau[k], ess[k] = float(np.max(tk)), float(ek)
-        full[k] = np.concatenate(
-            [post.unpack(c[-kept:].reshape(-1, post.ndim))[k][:, 0].reshape(kept, -1).T
-             for c in chains], axis=0)  # (walker, step) per ensemble, common length
+        full[k] = np.concatenate([_natural(post, c[-kept:], k).T for c in chains.groups],
+                                 axis=0)  # (walker, step) per ensemble, common length
     return tau, ess, bulk_ess(full)
 
 

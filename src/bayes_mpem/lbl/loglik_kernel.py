@@ -314,3 +314,67 @@ class LoglikKernel:
         mp *= inv
         inv *= ol_col
         return loglik, [dp, mp, inv]
+
+    def pointwise_moments(self, d0, sigma_dp, sigma_mp, w_dp, w_mp, w_ol, *, chunk=64):
+        """The per-range pass after sampling: :meth:`pointwise` for many draws, with moments.
+
+        The same values as :meth:`pointwise` (float64), but each Gaussian term is
+        evaluated only where the screen of all the draws' envelope says it can be
+        non-zero (elsewhere it is exactly 0 in float64, see the module notes): on a
+        5,000-range beacon about 4,400 terms per draw instead of 10,000. The
+        class probabilities are reduced to their mean and sd over the draws as
+        they are made (never a draws x ranges x classes array).
+
+        Parameters
+        ----------
+        d0, sigma_dp, sigma_mp, w_dp, w_mp, w_ol : numpy.ndarray
+            ``(W,)`` each: the draws.
+        chunk : int, default 64
+            Draws per block.
+
+        Returns
+        -------
+        loglik : numpy.ndarray
+            ``(W, n)``: ``log p(z_k)`` of every range at every draw, input order.
+        mean, sd : numpy.ndarray
+            ``(n, 3)``: mean and sd over the draws of each range's probabilities of
+            dp, mp and ol.
+        """
+        d0, sigma_dp, sigma_mp, w_dp, w_mp, w_ol = (
+            np.asarray(v, float).ravel() for v in (d0, sigma_dp, sigma_mp, w_dp, w_mp, w_ol))
+        f64 = np.dtype(np.float64)
+        sc = self._screen(d0, sigma_dp, sigma_mp, f64)  # one envelope holds every draw
+        n_dp, mp_from, n_cols, n = sc.n_dp, sc.mp_from, sc.n_cols, self.geom.n
+        n_draws = d0.size
+        ol_all = w_ol * self._c_ol
+        rest = np.setdiff1d(np.arange(n), sc.cols, assume_unique=True)  # outlier term only
+        ll = np.empty((n_draws, n))
+        s1, s2 = np.zeros((n_cols, 3)), np.zeros((n_cols, 3))
+        with np.errstate(divide="ignore"):
+            for i in range(0, n_draws, chunk):
+                sl = slice(i, i + chunk)
+                rows = d0[sl].size
+                dp, mp = self._terms(sc, f64, d0[sl], sigma_dp[sl], sigma_mp[sl], w_dp[sl],
+                                     w_mp[sl], np.empty((rows, n_cols)))
+                ol = ol_all[sl][:, None]
+                total = np.empty((rows, n_cols))
+                np.add(dp, ol, out=total[:, :n_dp])
+                total[:, n_dp:] = ol
+                total[:, mp_from:] += mp
+                block = ll[sl]  # this block's rows, in input order
+                block[:, sc.cols] = np.log(total)
+                block[:, rest] = np.log(ol)
+                inv = np.divide(1.0, total, out=total)
+                dp *= inv[:, :n_dp]
+                mp *= inv[:, mp_from:]
+                inv *= ol
+                for j, (lo, hi, r) in enumerate(((0, n_dp, dp), (mp_from, n_cols, mp),
+                                                 (0, n_cols, inv))):
+                    s1[lo:hi, j] += r.sum(axis=0)
+                    s2[lo:hi, j] += np.einsum("ij,ij->j", r, r)  # no (W, n) temporary
+        ll -= LOG_SQRT_2PI
+        m, sd = np.zeros((n, 3)), np.zeros((n, 3))
+        m[rest, 2] = 1.0  # outlier only: probability 1 in every draw
+        m[sc.cols] = s1 / n_draws
+        sd[sc.cols] = np.sqrt(np.maximum(s2 / n_draws - m[sc.cols] ** 2, 0.0))
+        return ll, m, sd

@@ -37,9 +37,9 @@ sampler's options before any work. Sampling itself is
 from __future__ import annotations
 
 from dataclasses import replace
+from math import lgamma
 
 import numpy as np
-from scipy.special import gammaln
 
 from .._validate import check_choice, check_int, check_positive, check_probability, check_range
 from ..io.survey import BeaconData
@@ -50,18 +50,20 @@ from .em_result import EMResult
 from .loglik_kernel import LoglikKernel
 
 PRIORS = ("equal", "learned")
+#: the samplers of :func:`~bayes_mpem.lbl.beacon_chains.beacon_chains`
+SAMPLERS = ("auto", "independence", "ensemble")
 PARAMS = ("d0", "sigma_mp", "sigma_dp", "w_dp", "w_mp", "w_ol")
 
 
 def check_sample_options(*, priors="learned", ci=0.95, n_ensembles=1, concentration=1.0,
                          sigma_dp=None, path="triangle", tau_factor=50.0, min_ess=1000.0,
-                         max_steps=20000, n_draws=2000):
+                         max_steps=20000, n_draws=2000, sampler="auto"):
     """Validate the sampler's options before any work (``ValueError`` naming the option).
 
     Parameters
     ----------
     priors, ci, n_ensembles, concentration, sigma_dp, path, tau_factor, min_ess, max_steps, \
-n_draws
+n_draws, sampler
         As for :func:`~bayes_mpem.lbl.beacon_sampling.sample_beacon`.
 
     Raises
@@ -81,6 +83,7 @@ n_draws
 
     check_path(path)
     check_choice("priors", priors, PRIORS)
+    check_choice("sampler", sampler, SAMPLERS)
     check_probability("ci", ci)
     check_positive("concentration", concentration)
     check_range("tau_factor", tau_factor, low=0)  # inf: stop on max_steps only
@@ -165,7 +168,7 @@ class BeaconPosterior:
             names += ["w_dp", "w_mp"]
         self.names = tuple(names)
         c = self.concentration
-        self._dirichlet_norm = gammaln(3 * c) - 3 * gammaln(c)
+        self._dirichlet_norm = lgamma(3 * c) - 3 * lgamma(c)
         width = self.log_sigma_bounds[1] - self.log_sigma_bounds[0]
         n_scales = 2 if self.sigma_dp is None else 1
         self._log_prior_const = -np.log(self.d0_bounds[1] - self.d0_bounds[0]) - n_scales * np.log(
@@ -327,6 +330,28 @@ class BeaconPosterior:
         return self.kernel.pointwise(p["d0"], p["sigma_dp"], p["sigma_mp"], p["w_dp"],
                                      p["w_mp"], p["w_ol"])
 
+    def pointwise_moments(self, theta):
+        """Per-range log-likelihood at every draw, and the class probabilities' mean and sd.
+
+        :meth:`loglik_and_classes` for all draws at once, reduced as it goes
+        (:meth:`LoglikKernel.pointwise_moments`): the per-range pass after sampling.
+
+        Parameters
+        ----------
+        theta : numpy.ndarray
+            ``(W, ndim)`` draws, inside the support.
+
+        Returns
+        -------
+        loglik : numpy.ndarray
+            ``(W, n)``.
+        mean, sd : numpy.ndarray
+            ``(n, 3)``, classes dp, mp, ol.
+        """
+        p = self.unpack(theta)
+        return self.kernel.pointwise_moments(p["d0"], p["sigma_dp"], p["sigma_mp"], p["w_dp"],
+                                             p["w_mp"], p["w_ol"])
+
     def theta_from(self, params: dict):
         """Sampler coordinates of a dict of natural parameters (e.g. an EM result).
 
@@ -364,6 +389,29 @@ class BeaconPosterior:
             out[col["w_dp"]], out[col["w_mp"]] = w[:2] / w.sum()
         return out
 
+    def rough_sd(self) -> np.ndarray:
+        """Large-sample standard errors at the EM solution :attr:`em`, no wider than the prior.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(ndim,)``, in the order of :attr:`names`.
+        """
+        em = self.em
+        n = em.n
+        frac = {c: max(em.weights[c], 1e-3) for c in CLASSES}
+        width = {"d0": em.d0_se if em.d0_se and np.isfinite(em.d0_se) else 1.0,
+                 "log_sigma_mp": 1.0 / np.sqrt(2 * max(frac["mp"] * n, 2)),
+                 "log_sigma_dp": 1.0 / np.sqrt(2 * max(frac["dp"] * n, 2)),
+                 "w_dp": np.sqrt(frac["dp"] * (1 - frac["dp"]) / n),
+                 "w_mp": np.sqrt(frac["mp"] * (1 - frac["mp"]) / n)}
+        # no wider than the prior: an EM with no multipath reports an astronomical d0_se
+        extent = {"d0": self.d0_bounds[1] - self.d0_bounds[0],
+                  "log_sigma_mp": self.log_sigma_bounds[1] - self.log_sigma_bounds[0],
+                  "log_sigma_dp": self.log_sigma_bounds[1] - self.log_sigma_bounds[0],
+                  "w_dp": 1.0, "w_mp": 1.0}
+        return np.array([min(width[name], extent[name]) for name in self.names])
+
     def start(self, n_walkers, gen):
         """Walkers around the EM solution, scattered by rough posterior widths, inside the prior.
 
@@ -396,19 +444,7 @@ class BeaconPosterior:
             raise ValueError(f"beacon {self.beacon}: start needs the EM solution to start "
                              "from (BeaconPosterior(..., em=...)), got None")
         centre = self._inside(self.theta_from(em.to_dict()))
-        n = em.n
-        frac = {c: max(em.weights[c], 1e-3) for c in CLASSES}
-        width = {"d0": em.d0_se if em.d0_se and np.isfinite(em.d0_se) else 1.0,
-                 "log_sigma_mp": 1.0 / np.sqrt(2 * max(frac["mp"] * n, 2)),
-                 "log_sigma_dp": 1.0 / np.sqrt(2 * max(frac["dp"] * n, 2)),
-                 "w_dp": np.sqrt(frac["dp"] * (1 - frac["dp"]) / n),
-                 "w_mp": np.sqrt(frac["mp"] * (1 - frac["mp"]) / n)}
-        # no wider than the prior: an EM with no multipath reports an astronomical d0_se
-        extent = {"d0": self.d0_bounds[1] - self.d0_bounds[0],
-                  "log_sigma_mp": self.log_sigma_bounds[1] - self.log_sigma_bounds[0],
-                  "log_sigma_dp": self.log_sigma_bounds[1] - self.log_sigma_bounds[0],
-                  "w_dp": 1.0, "w_mp": 1.0}
-        scale = np.array([0.5 * min(width[name], extent[name]) for name in self.names])
+        scale = 0.5 * self.rough_sd()
         out = place_walkers(lambda sc: centre + sc * gen.standard_normal((n_walkers, self.ndim)),
                             lambda cand: np.isfinite(self(cand)), n_walkers, self.ndim,
                             scale=scale, rounds=100)

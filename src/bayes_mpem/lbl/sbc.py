@@ -10,7 +10,8 @@ positions of its pings; the ranges are simulated):
 2. simulate one range per ping from the model's own mixture at those parameters
    (:func:`simulate_ranges`);
 3. sample the posterior of those ranges as ``bayes-mpem sample`` does: the
-   mixture EM gives the start, :func:`~bayes_mpem.mcmc.run_ensembles` runs to its
+   mixture EM gives the start, :func:`~bayes_mpem.lbl.beacon_chains.beacon_chains`
+   runs the shipped sampler (or the ensemble with the ``moves`` given) to its
    stopping rule, and ``n_draws`` draws are thinned evenly from the kept chain;
 4. record the rank of every true parameter among its draws
    (:func:`~bayes_mpem.mcmc.sbc.rank_statistic`).
@@ -37,8 +38,9 @@ import numpy as np
 
 from .._rng import RNGLike, as_generator
 from ..io.survey import BeaconData
-from ..mcmc import run_ensembles, thin_index
+from ..mcmc import thin_index
 from ..mcmc.sbc import rank_statistic, rank_uniformity
+from .beacon_chains import beacon_chains
 from .beacon_geometry import BeaconGeometry
 from .em_mixture import fit_mixture_em
 from .posterior import PARAMS, BeaconPosterior
@@ -187,8 +189,8 @@ def simulate_ranges(post: BeaconPosterior, theta, gen) -> np.ndarray:
     return z
 
 
-def run_sbc(design: BeaconData, n_sims: int, *, rng: RNGLike = None, moves=None,
-            n_draws: int = 99, path: str = "triangle", n_walkers: int = 24,
+def run_sbc(design: BeaconData, n_sims: int, *, rng: RNGLike = None, sampler="auto",
+            moves=None, n_draws: int = 99, path: str = "triangle", n_walkers=None,
             tau_factor: float = 30.0, min_ess: float = 300.0, max_steps: int = 20000,
             **prior) -> SBCResult:
     """Simulation-based calibration of the beacon posterior on ``design``.
@@ -201,14 +203,18 @@ def run_sbc(design: BeaconData, n_sims: int, *, rng: RNGLike = None, moves=None,
         Simulations (prior draw, data, posterior).
     rng : None, int or numpy.random.Generator
         The only source of randomness.
+    sampler : {"auto", "independence", "ensemble"}
+        As for :func:`~bayes_mpem.lbl.beacon_sampling.sample_beacon` (default the shipped
+        choice; ``moves`` or ``n_walkers`` imply the ensemble).
     moves : list, optional
-        emcee moves (default: the shipped :func:`~bayes_mpem.mcmc.default_moves`).
+        emcee moves of the ensemble (default: :func:`~bayes_mpem.mcmc.default_moves`).
     n_draws : int, default 99
         Posterior draws each rank is taken among, thinned evenly from the kept chain.
     path : {"triangle", "double"}
-    n_walkers : int, default 24
+    n_walkers : int, optional
+        Walkers of the ensemble (default ``max(24, 4 ndim)``).
     tau_factor, min_ess, max_steps : float, float, int
-        The sampler's stopping rule (:func:`~bayes_mpem.mcmc.run_ensemble`).
+        The sampler's stopping rule (:func:`~bayes_mpem.lbl.beacon_chains.beacon_chains`).
     **prior
         ``plane_halfwidth``, ``sigma_bounds``, ``concentration``, ``priors``
         (:func:`sbc_posterior`).
@@ -226,7 +232,7 @@ def run_sbc(design: BeaconData, n_sims: int, *, rng: RNGLike = None, moves=None,
              or (k.startswith("w_") and base.priors == "learned")]
     ranks = np.empty((int(n_sims), len(names)), int)
     truths = np.empty((int(n_sims), len(names)))
-    diag = {"n_steps": [], "max_tau": [], "converged": []}
+    diag = {"n_steps": [], "sampler": [], "converged": []}
     for s in range(int(n_sims)):
         theta = base.draw_prior(1, gen)[0]
         data = replace(design, range=simulate_ranges(base, theta, gen))
@@ -234,22 +240,22 @@ def run_sbc(design: BeaconData, n_sims: int, *, rng: RNGLike = None, moves=None,
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # flagged fits and step caps are counted instead
             post.em = fit_mixture_em(data, path=path, rng=gen)
-            [run] = run_ensembles(post, n_walkers=n_walkers, gen=gen, moves=moves,
-                                  tau_factor=tau_factor, min_ess=min_ess, max_steps=max_steps,
-                                  progress=False)
-        chain = run.chain
-        idx, _ = thin_index(chain.shape[0], n_walkers, n_draws)
+            run = beacon_chains(post, gen, sampler=sampler, n_walkers=n_walkers, moves=moves,
+                                tau_factor=tau_factor, min_ess=min_ess, max_steps=max_steps,
+                                progress=False)
+        chain = run.groups[0]
+        idx, _ = thin_index(chain.shape[0], chain.shape[1], n_draws)
         flat = chain[idx].reshape(-1, post.ndim)[-n_draws:]
         draws = post.unpack(flat)
         truth = post.unpack(theta[None, :])
         for i, k in enumerate(names):
             truths[s, i] = truth[k][0, 0]
             ranks[s, i] = rank_statistic(draws[k][:, 0], truth[k][0, 0])
-        diag["n_steps"].append(run.n_steps)
-        diag["max_tau"].append(float(np.max(run.tau)))
-        diag["converged"].append(run.converged)
+        diag["n_steps"].append(run.info["n_steps"])
+        diag["sampler"].append(run.sampler)
+        diag["converged"].append(run.info["converged"])
     settings = {"n_sims": int(n_sims), "n_ranges": int(design.n), "path": path,
-                "n_walkers": int(n_walkers), "tau_factor": float(tau_factor),
+                "sampler": sampler, "n_walkers": n_walkers, "tau_factor": float(tau_factor),
                 "min_ess": float(min_ess), "moves": "default" if moves is None else repr(moves),
                 **{k: (list(v) if isinstance(v, tuple) else v) for k, v in opts.items()}}
     return SBCResult(names=tuple(names), ranks=ranks, truths=truths, n_draws=int(n_draws),

@@ -217,7 +217,7 @@ def option_subset(kwargs: dict) -> dict:
     -------
     dict
         ``n_ensembles``, ``concentration``, ``sigma_dp``, ``path``, ``tau_factor``,
-        ``min_ess``, ``max_steps`` and ``n_draws`` where given.
+        ``min_ess``, ``max_steps``, ``n_draws`` and ``sampler`` where given.
 
     Examples
     --------
@@ -225,7 +225,7 @@ def option_subset(kwargs: dict) -> dict:
     {'path': 'double'}
     """
     keys = ("n_ensembles", "concentration", "sigma_dp", "path", "tau_factor", "min_ess",
-            "max_steps", "n_draws")
+            "max_steps", "n_draws", "sampler")
     return {k: kwargs[k] for k in keys if k in kwargs}
 
 

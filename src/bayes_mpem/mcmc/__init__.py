@@ -12,7 +12,13 @@ of :class:`bayes_mpem.survey_in.posterior.LocationLogPosterior`. Each satisfies
   ``steps x walkers / tau`` and by ArviZ's bulk estimate, reaches ``min_ess``;
   :func:`run_ensembles` runs several, each from its own start ball and seed;
 - the move policy, :func:`default_moves` (differential evolution, for both), and an exact
-  snooker update, :class:`SnookerMove`;
+  snooker update, :class:`SnookerMove` (imported on first use: emcee's import costs
+  0.5 s);
+- independence Metropolis-Hastings from a Laplace (Student-t) proposal
+  (:mod:`.independence`: :func:`laplace_proposal`, :func:`run_independence`), the
+  beacon posterior's default sampler;
+- ArviZ's rank-normalised ESS and R-hat and the nearest-draws HDI, written against the
+  paper (:mod:`.convergence`; checked against :mod:`arviz_stats` in the tests);
 - the summaries of a kept chain: :func:`thin_index`, :func:`autocorr_ess`,
   :func:`bulk_ess`, :func:`hdi`, :func:`equal_tailed`, :func:`draw_moments`,
   :func:`to_datatree` and :func:`rhat_across_ensembles`;
@@ -47,7 +53,7 @@ from .driver import (
     run_ensemble,
     run_ensembles,
 )
-from .moves import DEFAULT_MOVES_LABEL, SnookerMove, default_moves
+from .independence import IndependenceRun, TProposal, laplace_proposal, run_independence
 from .progress import SamplingProgress, progress_bar, progress_mode
 from .summaries import (
     autocorr_ess,
@@ -60,8 +66,20 @@ from .summaries import (
     to_datatree,
 )
 
-__all__ = ["DEFAULT_MOVES_LABEL", "EnsembleRun", "LogPosterior", "autocorr_ess", "bulk_ess",
-           "default_moves", "draw_moments", "equal_tailed", "hdi",
+__all__ = ["DEFAULT_MOVES_LABEL", "EnsembleRun", "IndependenceRun", "LogPosterior", "TProposal",
+           "autocorr_ess", "bulk_ess", "default_moves", "draw_moments", "equal_tailed", "hdi",
+           "laplace_proposal", "run_independence",
            "place_walkers", "progress_bar", "progress_mode", "SamplingProgress", "SnookerMove",
            "rhat_across_ensembles", "run_ensemble",
            "run_ensembles", "thin_index", "to_datatree"]
+
+_MOVES = ("DEFAULT_MOVES_LABEL", "SnookerMove", "default_moves")
+
+
+def __getattr__(name):
+    """The move policy on first use: :mod:`.moves` imports emcee (0.5 s)."""
+    if name in _MOVES:
+        from . import moves
+
+        return getattr(moves, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

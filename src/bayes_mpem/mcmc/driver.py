@@ -12,11 +12,10 @@ import warnings
 from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
 
-import emcee
 import numpy as np
 
 from ..exceptions import SamplingWarning
-from .moves import default_moves
+from .convergence import ess_bulk
 from .progress import SamplingProgress
 
 
@@ -62,11 +61,8 @@ class LogPosterior(Protocol):
 
 
 def _bulk_ess_min(chain):
-    """Smallest ArviZ bulk ESS over the columns of a ``(steps, walkers, ndim)`` chain."""
-    import arviz_stats as azs
-
-    arr = np.transpose(chain, (1, 0, 2))  # (walker = chain, step = draw, ndim)
-    return float(np.min(azs.ess(arr, method="bulk", chain_axis=0, draw_axis=1)))
+    """Smallest bulk ESS (ArviZ's estimator) over the columns of a ``(steps, walkers, ndim)`` chain."""
+    return float(min(ess_bulk(chain[:, :, i].T) for i in range(chain.shape[2])))
 
 
 @dataclass(frozen=True)
@@ -256,6 +252,10 @@ def run_ensemble(post: LogPosterior, start, *, seed, moves=None, tau_factor=50.0
     --------
     run_ensembles : several ensembles, as an :class:`EnsembleRun` each.
     """
+    import emcee  # here: importing emcee costs 0.5 s (scipy.stats), idle on independence chains
+
+    from .moves import default_moves
+
     n_walkers, ndim = start.shape
     sampler = emcee.EnsembleSampler(n_walkers, ndim, post, vectorize=True,
                                     moves=moves or default_moves())

@@ -56,8 +56,11 @@ def plot_trace(result, *, params=None, fig=None):
                        f"ESS = {result.ess.get(n, float('nan')):.0f}", fontsize="small", loc="left")
     axes[0, 1].legend(fontsize="x-small", loc="upper right")
     axes[-1, 0].set_xlabel(f"kept draw (thinned by {result.diagnostics.get('thin', 1)} steps)")
-    fig.suptitle(f"beacon {result.beacon}: {result.priors} priors, "
-                 f"{result.diagnostics.get('n_walkers')} walkers")
+    diag = result.diagnostics
+    chains = (f"{diag.get('n_chains')} independence chains"
+              if diag.get("sampler") == "independence"
+              else f"{diag.get('n_chains', diag.get('n_walkers'))} walkers")
+    fig.suptitle(f"beacon {result.beacon}: {result.priors} priors, {chains}")
     return fig
 
 

@@ -14,13 +14,16 @@ log-scales uniform, Dirichlet(1, 1, 1) weights, the mixture likelihood of
 :mod:`bayes_mpem.lbl.likelihood`) on the same data; the NUTS samplers start from
 the EM solution, run 2 chains x 1,000 draws after 1,000 tuning steps, and report
 ArviZ's bulk ESS; bayes_mpem runs ``sample_beacon`` with its defaults (EM start,
-sampling to min bulk ESS 1,000 with the shipped moves, post-processing:
-pointwise log-likelihood, class probabilities, ArviZ data).
+sampling to min bulk ESS 1,000 with the shipped sampler, post-processing:
+pointwise log-likelihood, class probabilities, ArviZ data). When bayes_mpem's
+draws are not thinned (every kept draw in its ArviZ data), the driver recomputes
+their bulk ESS with ``arviz_stats`` and stops if it differs from the reported one.
 
 Columns: *wall* is the whole process; *CPU* its processor time (user and
 system, threads and child processes included: the NUTS samplers run their two
 chains on both cores), a measure that a loaded machine inflates less;
-*sampling* is the sampler alone (for bayes_mpem the emcee run, for nutpie
+*sampling* is the sampler alone (for bayes_mpem the sampler's own clock: the
+Laplace proposal and the chains, or the emcee run; for nutpie
 ``nutpie.sample`` after compilation, for PyMC its reported ``sampling_time``,
 for NumPyro a second ``mcmc.run`` in the same process, compiled). ESS/s is min
 bulk ESS over wall or over sampling. The

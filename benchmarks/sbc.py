@@ -154,8 +154,11 @@ def main(argv=None):
     s = next(iter(results.values())).settings
     figure = "sbc_ranks.png" if args.section == "sbc" else f"{args.section}_ranks.png"
     cmd = "python benchmarks/sbc.py " + " ".join(argv if argv is not None else sys.argv[1:])
+    title = ("## Simulation-based calibration of the ensemble's moves (issue 14)"
+             if args.section == "sbc"
+             else "## Simulation-based calibration of the samplers (the default since issue 17)")
     text = "\n".join([
-        "## Simulation-based calibration", "",
+        title, "",
         f"Produced by `{cmd.strip()}` on {dt.date.today().isoformat()} ({machine()}).", "",
         f"Design: beacon 4 of `abe58`, {s['n_ranges']} pings (direct path >= 200 m). Prior "
         f"(`bayes_mpem.lbl.sbc`): d0 uniform on [{s['d0_bounds'][0]:.0f}, "

@@ -3,7 +3,7 @@
 Classify every acoustic range as direct path, multipath or outlier, and
 identify each beacon's reflector (height of the reflecting plane ``d0`` and
 the multipath scatter ``sigma_MP``), with the paper's EM or a proper
-mixture-likelihood EM; sample the same likelihood with emcee for posterior
+mixture-likelihood EM; sample the same likelihood by MCMC for posterior
 intervals, and compare equal with learned mixing priors by PSIS-LOO; find which
 assumption a survey breaks (:func:`diagnose`); estimate the vehicle's track from
 the ranges and a drifting dead reckoning, using multipath as signal

@@ -173,7 +173,7 @@ def _demo_bayes(sim, out, seed):
     from ..lbl.comparison import compare
     from ..lbl.sampling import sample
 
-    print("\nSampling the posterior of every beacon (emcee, learned priors)...")
+    print("\nSampling the posterior of every beacon (MCMC, learned priors)...")
     post = sample(sim.survey, rng=seed, progress="auto")
     written = list(post.write(out / "bayes").values())
     written += write_figures(post, out / "bayes", truth=sim.truth)

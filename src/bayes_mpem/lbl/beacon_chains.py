@@ -16,10 +16,11 @@ simulation-based calibration (:mod:`bayes_mpem.lbl.sbc`):
     (:func:`bayes_mpem.mcmc.run_ensembles`), as before this choice existed.
 ``"auto"`` (the default)
     Independence chains when the proposal fits: the first block (4 chains of
-    ``n_draws / 4`` draws, 4 x 500 by default) must give at least :data:`MIN_ESS_PER_DRAW` bulk ESS per draw and
-    R-hat below :data:`MAX_FIRST_RHAT`; otherwise (no Gaussian approximation at
-    the mode, a skewed or multimodal posterior, typically a beacon with few
-    multipath replies) the ensemble, from scratch. Either sampler is exact: the
+    ``n_draws / 4`` draws, 4 x 500 by default) must give at least
+    :data:`MIN_ESS_PER_DRAW` bulk ESS per draw and R-hat below
+    :data:`MAX_FIRST_RHAT`; otherwise (no Gaussian approximation at the mode, a
+    skewed or multimodal posterior, typically a beacon with few multipath
+    replies) the ensemble, from scratch. Either sampler is exact: the
     choice only decides how fast the draws come; it is recorded in the result's
     diagnostics (``sampler``, and ``fallback`` with the reason).
 """
@@ -76,7 +77,18 @@ class FreeCoordinates:
         self._chunk = max(16, _CHUNK_CELLS // max(post.geom.n, 1))
 
     def to_free(self, theta) -> np.ndarray:
-        """Free coordinates of ``(n, ndim)`` sampler coordinates."""
+        """Free coordinates of points in the sampler's coordinates.
+
+        Parameters
+        ----------
+        theta : array_like
+            ``(n, ndim)``, inside the support.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(n, ndim)``.
+        """
         u = np.array(np.atleast_2d(theta), dtype=float)
         if self.weights:
             w_ol = 1.0 - u[:, -2] - u[:, -1]
@@ -84,7 +96,20 @@ class FreeCoordinates:
         return u
 
     def from_free(self, u):
-        """Sampler coordinates of ``(n, ndim)`` free coordinates, and the log-Jacobian ``(n,)``."""
+        """Sampler coordinates of points in free coordinates, and the log-Jacobian.
+
+        Parameters
+        ----------
+        u : array_like
+            ``(n, ndim)``.
+
+        Returns
+        -------
+        theta : numpy.ndarray
+            ``(n, ndim)``.
+        log_jac : numpy.ndarray
+            ``(n,)``: ``log(w_dp w_mp w_ol)`` (0 with equal priors).
+        """
         theta = np.array(np.atleast_2d(u), dtype=float)
         log_jac = np.zeros(theta.shape[0])
         if self.weights:

@@ -39,7 +39,6 @@ from ..mcmc import (
     bulk_ess,
     hdi,
     rhat_across_ensembles,
-    run_ensembles,
     thin_index,
     to_datatree,
 )

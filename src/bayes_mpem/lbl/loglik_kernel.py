@@ -316,7 +316,7 @@ class LoglikKernel:
         return loglik, [dp, mp, inv]
 
     def pointwise_moments(self, d0, sigma_dp, sigma_mp, w_dp, w_mp, w_ol, *, chunk=64):
-        """The per-range pass after sampling: :meth:`pointwise` for many draws, with moments.
+        """Make the per-range pass after sampling: :meth:`pointwise` for many draws, with moments.
 
         The same values as :meth:`pointwise` (float64), but each Gaussian term is
         evaluated only where the screen of all the draws' envelope says it can be

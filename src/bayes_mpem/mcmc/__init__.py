@@ -77,7 +77,7 @@ _MOVES = ("DEFAULT_MOVES_LABEL", "SnookerMove", "default_moves")
 
 
 def __getattr__(name):
-    """The move policy on first use: :mod:`.moves` imports emcee (0.5 s)."""
+    """Import the move policy on first use: :mod:`.moves` imports emcee (0.5 s)."""
     if name in _MOVES:
         from . import moves
 

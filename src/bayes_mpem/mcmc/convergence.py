@@ -124,6 +124,15 @@ def split_chains(a) -> np.ndarray:
 def average_ranks(x) -> np.ndarray:
     """Ranks 1..n of the values of ``x`` (any shape), ties given their average rank.
 
+    Parameters
+    ----------
+    x : array_like
+
+    Returns
+    -------
+    numpy.ndarray
+        The ranks, the shape of ``x``.
+
     Examples
     --------
     >>> average_ranks([3.0, 1.0, 3.0, 2.0]).tolist()
@@ -279,7 +288,7 @@ def hdi_nearest(x, prob: float) -> list:
     Examples
     --------
     >>> hdi_nearest([0.0, 1.0, 1.1, 1.2, 5.0], 0.5)
-    [1.0, 1.1]
+    [1.0, 1.2]
     """
     xs = np.sort(np.ravel(np.asarray(x, dtype=float)))
     k = int(np.floor(prob * xs.size))

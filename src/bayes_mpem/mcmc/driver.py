@@ -10,13 +10,16 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass, field
-from typing import Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 import numpy as np
 
 from ..exceptions import SamplingWarning
 from .convergence import ess_bulk
 from .progress import SamplingProgress
+
+if TYPE_CHECKING:  # emcee is imported when an ensemble runs (0.5 s)
+    import emcee
 
 
 @runtime_checkable
@@ -61,7 +64,7 @@ class LogPosterior(Protocol):
 
 
 def _bulk_ess_min(chain):
-    """Smallest bulk ESS (ArviZ's estimator) over the columns of a ``(steps, walkers, ndim)`` chain."""
+    """Smallest bulk ESS (ArviZ's estimator) of the columns of a ``(steps, walkers, dim)`` chain."""
     return float(min(ess_bulk(chain[:, :, i].T) for i in range(chain.shape[2])))
 
 

@@ -52,19 +52,41 @@ class TProposal:
     df: float
 
     def draw(self, n: int, gen: np.random.Generator) -> np.ndarray:
-        """Draw ``n`` points, ``(n, ndim)``."""
+        """Draw ``n`` points.
+
+        Parameters
+        ----------
+        n : int
+        gen : numpy.random.Generator
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(n, ndim)``.
+        """
         d = self.centre.size
         z = gen.standard_normal((n, d)) @ self.chol.T
         return self.centre + z * np.sqrt(self.df / gen.chisquare(self.df, size=n))[:, None]
 
     def log_density(self, u) -> np.ndarray:
-        """Log density up to a constant, ``(n,)`` for ``(n, ndim)`` points."""
+        """Log density up to a constant.
+
+        Parameters
+        ----------
+        u : array_like
+            ``(n, ndim)`` points.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(n,)``.
+        """
         r = np.linalg.solve(self.chol, (np.atleast_2d(u) - self.centre).T)
         return -0.5 * (self.df + self.centre.size) * np.log1p((r * r).sum(axis=0) / self.df)
 
 
 def _hessian_points(u, h):
-    """The centre, the 2d axial and the 4 d(d-1)/2 diagonal points of a central-difference Hessian."""
+    """Return the centre, axial and diagonal points of a central-difference Hessian."""
     d = u.size
     e = np.eye(d) * h
     pts = [u]
@@ -93,7 +115,7 @@ def _derivatives(v, h):
 
 
 def laplace_proposal(target, start, step, *, df: float = 10.0, newton: int = 3):
-    """A Student-t proposal at the mode of ``target``, scaled by the inverse Hessian there.
+    """Make a Student-t proposal at the mode of ``target``, scaled by the inverse Hessian there.
 
     Parameters
     ----------
@@ -120,7 +142,7 @@ def laplace_proposal(target, start, step, *, df: float = 10.0, newton: int = 3):
     >>> target = lambda u: -0.5 * ((u - 1.0) ** 2 / np.array([1.0, 4.0])).sum(axis=1)
     >>> q = laplace_proposal(target, [0.0, 0.0], [1.0, 1.0])
     >>> q.centre.round(6).tolist(), (q.chol @ q.chol.T).round(6).tolist()
-    [[1.0, 1.0], [[1.0, 0.0], [0.0, 4.0]]]
+    ([1.0, 1.0], [[1.0, 0.0], [0.0, 4.0]])
     """
     u = np.asarray(start, dtype=float).copy()
     h = 0.25 * np.asarray(step, dtype=float)
@@ -214,7 +236,7 @@ def _extend(target, proposal, n, n_chains, gen, state):
 def run_independence(target, proposal: TProposal, *, gen: np.random.Generator,
                      n_chains: int = 4, first: int = 500, min_ess: float = 1000.0,
                      max_draws: int = 20000, give_up=None) -> IndependenceRun:
-    """Independence chains of ``target`` from ``proposal``, until the smallest bulk ESS reaches ``min_ess``.
+    """Run independence chains of ``target`` from ``proposal`` until bulk ESS >= ``min_ess``.
 
     Parameters
     ----------

@@ -10,7 +10,6 @@ import numpy as np
 from .convergence import ess_bulk, hdi_nearest, rhat_rank
 
 
-
 def thin_index(kept: int, n_chains: int, n_draws: int) -> tuple[np.ndarray, int]:
     """Evenly spaced steps, ending at the last, giving about ``n_draws`` draws over all chains.
 
@@ -203,7 +202,7 @@ def to_datatree(groups: dict, *, dims: dict | None = None, coords: dict | None =
     from .. import __version__
 
     dims, coords = dims or {}, coords or {}
-    attrs = {"created_at": dt.datetime.now(dt.timezone.utc).isoformat(),
+    attrs = {"created_at": dt.datetime.now(dt.UTC).isoformat(),
              "creation_library": "bayes_mpem", "creation_library_version": __version__,
              "creation_library_language": "Python"}
     tree = {}

@@ -98,6 +98,14 @@ def _chains(a) -> np.ndarray:
     return a
 
 
+def _usable(a, *, min_chains: int):
+    """``(chain, draw)`` array of ``a``, or None with too few chains or draws, or non-finite."""
+    a = _chains(a)
+    if a.shape[0] < min_chains or a.shape[1] < 4 or not np.all(np.isfinite(a)):
+        return None
+    return a
+
+
 def split_chains(a) -> np.ndarray:
     """Each chain cut into its first and last halves (the middle draw of an odd length dropped).
 
@@ -219,10 +227,8 @@ def ess_bulk(a) -> float:
     float
         NaN for fewer than 4 draws or non-finite values.
     """
-    a = _chains(a)
-    if a.shape[1] < 4 or not np.all(np.isfinite(a)):
-        return float("nan")
-    return _ess(z_scale(split_chains(a)))
+    a = _usable(a, min_chains=1)
+    return float("nan") if a is None else _ess(z_scale(split_chains(a)))
 
 
 def ess_mean(a) -> float:
@@ -237,10 +243,8 @@ def ess_mean(a) -> float:
     -------
     float
     """
-    a = _chains(a)
-    if a.shape[1] < 4 or not np.all(np.isfinite(a)):
-        return float("nan")
-    return _ess(split_chains(a))
+    a = _usable(a, min_chains=1)
+    return float("nan") if a is None else _ess(split_chains(a))
 
 
 def _rhat(a: np.ndarray) -> float:
@@ -263,8 +267,8 @@ def rhat_rank(a) -> float:
     float
         NaN when there are too few chains or draws.
     """
-    a = _chains(a)
-    if a.shape[0] < 2 or a.shape[1] < 4 or not np.all(np.isfinite(a)):
+    a = _usable(a, min_chains=2)
+    if a is None:
         return float("nan")
     s = split_chains(a)
     return max(_rhat(z_scale(s)), _rhat(z_scale(np.abs(s - np.median(s)))))

@@ -124,7 +124,7 @@ def test_falls_back_when_the_proposal_fits_poorly(post4, monkeypatch, capsys):
 def test_moves_or_walkers_mean_the_ensemble(post4):
     from bayes_mpem.mcmc import default_moves
 
-    for kw in ({"moves": default_moves()}, {"n_walkers": 16}):
+    for kw in ({"moves": default_moves()}, {"n_walkers": 16}, {"n_ensembles": 2}):
         r = beacon_chains(post4, np.random.default_rng(0), min_ess=0, tau_factor=5,
                           progress=False, **kw)
         assert r.sampler == "ensemble" and r.info["fallback"] is None
@@ -164,5 +164,3 @@ def test_cli_sampler_option(tmp_path):
 
     s = json.loads((tmp_path / "o" / "summary.json").read_text())
     assert {b["diagnostics"]["sampler"] for b in s["beacons"].values()} == {"ensemble"}
-    assert main(["sample", str(pings), "--beacons", str(beacons), "--out",
-                 str(tmp_path / "o2"), "--ensembles", "2"]) == 2

@@ -84,9 +84,6 @@ def sample_kwargs(args) -> dict:
     """
     if getattr(args, "priors", None) == "equal" and args.concentration is not None:
         raise OptionError("--concentration applies to --priors learned only")
-    if getattr(args, "ensembles", 1) > 1 and args.sampler != "ensemble":
-        raise OptionError("--ensembles applies to --sampler ensemble only (the independence "
-                          "chains always run four chains and report R-hat)")
     return dict(path=args.path, sigma_dp=args.sigma_dp,
                 concentration=1.0 if args.concentration is None else args.concentration,
                 min_pings=args.min_pings, rng=args.seed, sampler=args.sampler,

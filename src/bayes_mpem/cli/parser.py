@@ -200,8 +200,8 @@ def _add_sample_compare(sub):
             p.add_argument("--ci", type=opt.probability, default=0.95,
                            help="probability of the highest-density intervals (default 0.95)")
             p.add_argument("--ensembles", type=opt.at_least(1, 64), default=1, metavar="K",
-                           help="--sampler ensemble: independent ensembles; R-hat is reported "
-                                "when K > 1")
+                           help="independent emcee ensembles (K > 1 implies --sampler "
+                                "ensemble); R-hat is reported when K > 1")
             p.add_argument("--figures", action="store_true", help="also write PNG figures")
             _add_table_format(p)
         p.add_argument("--path", choices=PATH_CHOICES, default="auto",

@@ -230,7 +230,8 @@ def beacon_chains(post: BeaconPosterior, gen: np.random.Generator, *, sampler="a
     post : BeaconPosterior
     gen : numpy.random.Generator
     sampler : {"auto", "independence", "ensemble"}
-        See the module's description. Moves or a number of walkers imply the ensemble.
+        See the module's description. Moves, a number of walkers or more than one
+        ensemble imply the ensemble.
     n_walkers, moves, tau_factor, n_ensembles, progress
         Of the ensemble (:func:`~bayes_mpem.mcmc.run_ensembles`).
     min_ess, max_steps
@@ -248,7 +249,7 @@ def beacon_chains(post: BeaconPosterior, gen: np.random.Generator, *, sampler="a
     BeaconChains
     """
     fallback = None
-    if sampler != "ensemble" and moves is None and n_walkers is None:
+    if sampler != "ensemble" and moves is None and n_walkers is None and n_ensembles == 1:
         first = max(4, min(max_steps, -(-int(n_draws) // N_CHAINS)))
         chains, fallback = _independence(post, gen, min_ess=min_ess, max_steps=max_steps,
                                          first=first, check=sampler == "auto",

@@ -218,8 +218,8 @@ def sample_beacon(
     sampler : {"auto", "independence", "ensemble"}
         Independence chains from a Laplace proposal, emcee's ensemble, or the
         first unless its proposal fits poorly (``"auto"``); see
-        :mod:`bayes_mpem.lbl.beacon_chains`. ``n_walkers`` or ``moves`` imply
-        the ensemble.
+        :mod:`bayes_mpem.lbl.beacon_chains`. ``n_walkers``, ``moves`` or
+        ``n_ensembles > 1`` imply the ensemble.
     n_walkers : int, optional
         Walkers per ensemble (default ``max(24, 4 ndim)``).
     moves : list, optional
@@ -235,8 +235,9 @@ def sample_beacon(
         Step cap per ensemble, or draws per independence chain
         (``SamplingWarning`` when reached).
     n_ensembles : int, default 1
-        Independent ensembles (different seeds); R-hat is reported when > 1.
-        (Independence chains: always four, and R-hat.)
+        Independent ensembles (different seeds; more than one implies the
+        ensemble); R-hat is reported when > 1. (Independence chains: always
+        four, and R-hat.)
     n_draws : int, default 2000
         Draws kept (thinned evenly) for the ArviZ data, LOO and class probabilities.
     ci : float, default 0.95
@@ -302,9 +303,8 @@ def sample_beacon(
     ll, probs, probs_sd = post.pointwise_moments(flat)
     idata = _datatree(post, nat, ll.reshape(*theta.shape[:2], -1), lp, chains.sampler)
     tau, ess, ess_bulk = _chain_diagnostics(post, chains, kept)
-    if chains.sampler == "independence":
-        rhat = {k: rhat_rank(nat[k]) for k in _sampled(post)} if thin == 1 else {
-            k: rhat_rank(_natural(post, groups[0], k).T) for k in _sampled(post)}
+    if chains.sampler == "independence":  # the four chains, every kept draw
+        rhat = {k: rhat_rank(_natural(post, groups[0], k).T) for k in _sampled(post)}
     else:
         rhat = (rhat_across_ensembles(idata.posterior.dataset, len(groups)) if len(groups) > 1
                 else None)

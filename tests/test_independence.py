@@ -63,11 +63,15 @@ def test_outside_the_support_is_never_taken():
         return np.where(u[:, 0] > 0, -0.5 * u[:, 0] ** 2, -np.inf)
 
     q = TProposal(centre=np.zeros(1), chol=np.eye(1), df=10.0)
-    run = run_independence(half, q, gen=np.random.default_rng(1), first=3000, min_ess=2000)
-    # the first state of each chain is a proposal and may be outside; every later one is inside
-    assert np.all(run.chain[1:] > 0) or np.all(run.log_prob[1:] > -np.inf)
-    kept = run.chain[10:, :, 0].ravel()
+    for seed in range(5):  # half the first proposals fall outside: those starts are redrawn
+        run = run_independence(half, q, gen=np.random.default_rng(seed), first=3000,
+                               min_ess=2000)
+        assert np.all(run.chain > 0) and np.all(np.isfinite(run.log_prob))
+    kept = run.chain[:, :, 0].ravel()
     assert abs(kept.mean() - np.sqrt(2 / np.pi)) < 0.05
+    with pytest.raises(ValueError, match="outside the target's support"):
+        run_independence(lambda u: np.full(len(u), -np.inf), q, gen=np.random.default_rng(0),
+                         first=10, min_ess=0)
 
 
 def test_stops_at_min_ess_and_extends_when_short(laplace):

@@ -207,6 +207,24 @@ class IndependenceRun:
         return int(self.chain.shape[0])
 
 
+def _start_inside(target, proposal, gen, cur, cur_lw, cur_lp, rounds=1000):
+    """Redraw, in place, the start of every chain whose first proposal fell outside the support.
+
+    The start is then a draw of the proposal restricted to the support (an
+    unchanged random stream when every first proposal is inside). Raises
+    ``ValueError`` when ``rounds`` draws per chain all fall outside.
+    """
+    for _ in range(rounds):
+        out = np.flatnonzero(~np.isfinite(cur_lp))
+        if out.size == 0:
+            return
+        cand = proposal.draw(out.size, gen)
+        lp = target(cand)
+        cur[out], cur_lp[out] = cand, lp
+        cur_lw[out] = lp - proposal.log_density(cand)
+    raise ValueError(f"the proposal put {rounds} draws in a row outside the target's support")
+
+
 def _extend(target, proposal, n, n_chains, gen, state):
     """``n`` more draws of each chain from ``state = (u, log w)`` (None: start at a proposal)."""
     prop = proposal.draw(n * n_chains, gen).reshape(n, n_chains, -1)
@@ -217,6 +235,7 @@ def _extend(target, proposal, n, n_chains, gen, state):
     chain, chain_lp = np.empty_like(prop), np.empty_like(lp)
     if state is None:
         cur, cur_lw, cur_lp = prop[0].copy(), lw[0].copy(), lp[0].copy()
+        _start_inside(target, proposal, gen, cur, cur_lw, cur_lp)
         first = 1
         chain[0], chain_lp[0] = cur, cur_lp
     else:

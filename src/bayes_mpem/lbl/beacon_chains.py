@@ -15,8 +15,9 @@ simulation-based calibration (:mod:`bayes_mpem.lbl.sbc`):
     emcee's differential evolution from a ball around the EM solution
     (:func:`bayes_mpem.mcmc.run_ensembles`), as before this choice existed.
 ``"auto"`` (the default)
-    Independence chains when the proposal fits: the first block (4 chains of
-    ``n_draws / 4`` draws, 4 x 500 by default) must give at least
+    Independence chains when the proposal fits: a pilot (4 chains of
+    ``n_draws / 8`` draws, 4 x 250 by default, then discarded, so that the draws
+    kept play no part in the choice) must give at least
     :data:`MIN_ESS_PER_DRAW` bulk ESS per draw and R-hat below
     :data:`MAX_FIRST_RHAT`; otherwise (no Gaussian approximation at the mode, a
     skewed or multimodal posterior, typically a beacon with few multipath
@@ -40,10 +41,10 @@ from ..mcmc.progress import progress_bar, progress_mode
 from .posterior import SAMPLERS, BeaconPosterior
 
 __all__ = ["SAMPLERS", "BeaconChains", "FreeCoordinates", "beacon_chains"]
-#: independence chains are kept ("auto") when their first block gives at least this
+#: independence chains are used ("auto") when their pilot gives at least this
 #: bulk ESS per draw (a well-fitting proposal gives 0.6-0.9; a sticky one below 0.1)
 MIN_ESS_PER_DRAW = 0.2
-#: ... and R-hat below this over the four chains of the first block
+#: ... and R-hat below this over the four chains of the pilot
 MAX_FIRST_RHAT = 1.05
 #: degrees of freedom of the Student-t proposal
 PROPOSAL_DF = 10.0
@@ -179,27 +180,30 @@ def _independence(post: BeaconPosterior, gen, *, min_ess, max_steps, first, chec
     if proposal is None:
         return None, "no Gaussian approximation at the mode (Hessian not negative definite)"
 
-    def give_up(run):
-        return check and (run.ess / run.chain[:, :, 0].size < MIN_ESS_PER_DRAW
-                          or not run.rhat < MAX_FIRST_RHAT)
-
     mode = progress_mode(progress)
     t0 = time.perf_counter()
-    bar = progress_bar(mode, post.label, total=N_CHAINS * first) if mode == "bar" else None
+    pilot = max(4, first // 2) if check else 0
+    bar = (progress_bar(mode, post.label, total=N_CHAINS * (pilot + first)) if mode == "bar"
+           else None)
     if bar is not None:
         free.on_chunk = bar.update
     try:
+        if check:  # decided on a pilot, then discarded: the kept draws do not choose
+            test = run_independence(free, proposal, gen=gen, n_chains=N_CHAINS, first=pilot,
+                                    min_ess=np.inf, max_draws=pilot)
+            per_draw = test.ess / test.chain[:, :, 0].size
+            if per_draw < MIN_ESS_PER_DRAW or not test.rhat < MAX_FIRST_RHAT:
+                reason = (f"the Laplace proposal fits poorly (pilot of {N_CHAINS} x {pilot} "
+                          f"draws: ESS {per_draw:.2f} per draw, R-hat {test.rhat:.3f}, "
+                          f"acceptance {test.acceptance:.2f})")
+                _say(mode, post.label, f"{reason}; sampling with the ensemble instead")
+                return None, reason
         run = run_independence(free, proposal, gen=gen, n_chains=N_CHAINS, first=first,
-                               min_ess=min_ess, max_draws=max_steps, give_up=give_up)
+                               min_ess=min_ess, max_draws=max_steps)
     finally:
         if bar is not None:
             bar.close()
     d, c, k = run.chain.shape
-    if run.gave_up:
-        reason = (f"the Laplace proposal fits poorly (first block: ESS {run.ess / (d * c):.2f} "
-                  f"per draw, R-hat {run.rhat:.3f}, acceptance {run.acceptance:.2f})")
-        _say(mode, post.label, f"{reason}; sampling with the ensemble instead")
-        return None, reason
     how = "done" if run.converged else f"stopped at max_steps={max_steps}"
     _say(mode, post.label, f"{how}, {d} draws x {c} independence chains, bulk ESS {run.ess:.0f} "
                            f"of {min_ess:g}, {time.perf_counter() - t0:.1f} s")

@@ -27,7 +27,7 @@ ergodicity when ``p / q`` is bounded, as with heavier-tailed proposals).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -187,8 +187,6 @@ class IndependenceRun:
         Largest rank-normalised split R-hat over the coordinates.
     converged : bool
         The stopping rule was met before ``max_draws``.
-    gave_up : bool
-        ``give_up`` stopped the run after its first block.
     proposal : TProposal
     """
 
@@ -198,7 +196,6 @@ class IndependenceRun:
     ess: float
     rhat: float
     converged: bool
-    gave_up: bool
     proposal: TProposal = field(repr=False)
 
     @property
@@ -254,7 +251,7 @@ def _extend(target, proposal, n, n_chains, gen, state):
 
 def run_independence(target, proposal: TProposal, *, gen: np.random.Generator,
                      n_chains: int = 4, first: int = 500, min_ess: float = 1000.0,
-                     max_draws: int = 20000, give_up=None) -> IndependenceRun:
+                     max_draws: int = 20000) -> IndependenceRun:
     """Run independence chains of ``target`` from ``proposal`` until bulk ESS >= ``min_ess``.
 
     Parameters
@@ -273,10 +270,6 @@ def run_independence(target, proposal: TProposal, *, gen: np.random.Generator,
         the largest R-hat is below 1.01.
     max_draws : int, default 20000
         Cap of draws per chain.
-    give_up : callable, optional
-        ``give_up(run)`` after the first block, unless that already met the
-        stopping rule: True stops there (the caller falls back to another
-        sampler); the returned run then has ``gave_up`` True.
 
     Returns
     -------
@@ -284,21 +277,17 @@ def run_independence(target, proposal: TProposal, *, gen: np.random.Generator,
     """
     chain, lp, state, acc, tried = _extend(target, proposal, max(4, min(first, max_draws)),
                                            n_chains, gen, None)
-    block = 0
     while True:
         cols = [chain[:, :, i].T for i in range(chain.shape[2])]
         ess = min(ess_bulk(c) for c in cols)
         rhat = max(rhat_rank(c) for c in cols)
         done = bool(ess >= min_ess and rhat < 1.01)
         run = IndependenceRun(chain=chain, log_prob=lp, acceptance=acc / max(tried, 1),
-                              ess=float(ess), rhat=float(rhat), converged=done, gave_up=False,
+                              ess=float(ess), rhat=float(rhat), converged=done,
                               proposal=proposal)
         n = chain.shape[0]
-        if not done and block == 0 and give_up is not None and give_up(run):
-            return replace(run, gave_up=True)
         if done or n >= max_draws:
             return run
-        block += 1
         per_draw = max(ess, 1.0) / n
         more = int(np.clip(np.ceil(1.25 * min_ess / per_draw) - n, 0.25 * n, max_draws - n))
         c2, lp2, state, a2, t2 = _extend(target, proposal, more, n_chains, gen, state)

@@ -28,7 +28,6 @@ simulation-based calibration (:mod:`bayes_mpem.lbl.sbc`):
 
 from __future__ import annotations
 
-import sys
 import time
 import warnings
 from dataclasses import dataclass, field
@@ -37,7 +36,7 @@ import numpy as np
 
 from ..exceptions import SamplingWarning
 from ..mcmc.independence import laplace_proposal, run_independence
-from ..mcmc.progress import progress_bar, progress_mode
+from ..mcmc.progress import progress_bar, progress_mode, say
 from .posterior import SAMPLERS, BeaconPosterior
 
 __all__ = ["SAMPLERS", "BeaconChains", "FreeCoordinates", "beacon_chains"]
@@ -161,15 +160,12 @@ class BeaconChains:
         ``n_chains`` (per group), ``n_steps``, ``burn``, ``acceptance``,
         ``converged``, ``fallback`` (the reason the independence chains were
         not kept, or None) and, for the independence chains, ``proposal_df``.
-    runs : list
-        The emcee runs (empty for independence chains).
     """
 
     sampler: str
     groups: list = field(repr=False)
     log_prob: list = field(repr=False)
     info: dict = field(default_factory=dict)
-    runs: list = field(default_factory=list, repr=False)
 
 
 def _independence(post: BeaconPosterior, gen, *, min_ess, max_steps, first, check, progress):
@@ -218,9 +214,9 @@ def _independence(post: BeaconPosterior, gen, *, min_ess, max_steps, first, chec
 
 
 def _say(mode, label, text):
-    """One progress line, in log mode."""
+    """One progress line, in log mode (:func:`bayes_mpem.mcmc.progress.say`)."""
     if mode == "log":
-        print(f"[sampler] {label}: {text}", file=sys.stderr, flush=True)
+        say(label, text)
 
 
 def beacon_chains(post: BeaconPosterior, gen: np.random.Generator, *, sampler="auto",
@@ -274,7 +270,6 @@ def beacon_chains(post: BeaconPosterior, gen: np.random.Generator, *, sampler="a
                          progress=progress)
     return BeaconChains(
         sampler="ensemble", groups=[r.chain for r in runs], log_prob=[r.log_prob for r in runs],
-        runs=runs,
         info={"n_chains": n_walkers, "n_steps": max(r.n_steps for r in runs),
               "burn": int(max(r.burn for r in runs)),
               "acceptance": float(np.mean([r.acceptance for r in runs])),

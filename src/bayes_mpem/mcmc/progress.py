@@ -206,5 +206,18 @@ class SamplingProgress:
                   f"{time.perf_counter() - self.t0:.1f} s")
 
     def _say(self, text: str) -> None:
-        print(f"[sampler] {self.label}: {text}", file=self.stream or sys.stderr, flush=True)
+        say(self.label, text, self.stream)
         self.lines += 1
+
+
+def say(label: str, text: str, stream=None) -> None:
+    """Print one progress line, ``[sampler] <label>: <text>``, on ``stream`` (standard error).
+
+    Parameters
+    ----------
+    label : str
+        Names the posterior.
+    text : str
+    stream : file-like, optional
+    """
+    print(f"[sampler] {label}: {text}", file=stream or sys.stderr, flush=True)

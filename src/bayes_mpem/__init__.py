@@ -22,8 +22,6 @@ __version__ = "0.1.0"
 
 import importlib  # noqa: E402
 
-from . import _deprecated  # noqa: E402
-
 #: public name -> the module that defines it (relative to ``bayes_mpem``). The names are
 #: imported on first use (PEP 562), so ``import bayes_mpem`` and ``bayes-mpem --help``
 #: stay fast: numpy, scipy, pandas, emcee, ArviZ and matplotlib load only when needed.
@@ -48,17 +46,12 @@ _PUBLIC: dict[str, str] = {
                     "lbl.navigate"),
 }
 
-_deprecated.install()
-
-
 def __getattr__(name):
-    """Import a public name on first use; serve ``bayes_mpem.em`` and the other old paths."""
+    """Import a public name on first use."""
     if name in _PUBLIC:
         value = getattr(importlib.import_module(f"{__name__}.{_PUBLIC[name]}"), name)
         globals()[name] = value  # later look-ups skip this function
         return value
-    if name in _deprecated.MOVED:
-        return _deprecated.old_module(name)
     raise AttributeError(f"module 'bayes_mpem' has no attribute {name!r}")
 
 

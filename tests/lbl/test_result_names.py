@@ -37,10 +37,6 @@ def test_survey_tables_share_their_columns(fit_and_sample):
     assert list(t_fit.columns[:len(TABLE) - 3]) == TABLE[:-3]
     assert set(TABLE) <= set(t_fit.columns) and set(TABLE) <= set(t_post.columns)
     assert "hrp_m" not in t_fit.columns  # d0 is named d0 everywhere
-    with pytest.warns(DeprecationWarning, match="'hrp_m' is now 'd0_m'"):
-        np.testing.assert_array_equal(t_fit["hrp_m"], t_fit["d0_m"])
-    with pytest.warns(DeprecationWarning, match="'hrp_m' is now 'd0_m'"):
-        np.testing.assert_array_equal(t_fit.hrp_m, t_fit.d0_m)
     assert np.all(t_post["d0_lo_m"] < t_post["d0_m"]) and np.all(
         t_post["d0_m"] < t_post["d0_hi_m"])
     np.testing.assert_allclose(t_post["plane_depth_m"],

@@ -82,11 +82,6 @@ def test_seagap_geometry_and_refraction_move_the_depths_towards_seagap_s_own():
     before = locate_survey(raw).summary
     after_res = locate_survey(raw, ssp="survey", speed_intervals=15)
     after = after_res.summary
-    with pytest.warns(DeprecationWarning, match=r"as a \(summary, classified\) pair"):
-        summary, classified = after_res  # the old (summary, classified) pair still unpacks
-    assert summary is after and classified is after_res.classified
-    with pytest.warns(DeprecationWarning):
-        assert after_res[0] is after  # and indexes like it
     for tid, b in beacons.set_index("beacon").iterrows():
         d0 = before["transponders"][str(tid)]["depth"]["mean"] - b["depth"]
         d1 = after["transponders"][str(tid)]["depth"]["mean"] - b["depth"]

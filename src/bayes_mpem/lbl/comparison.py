@@ -12,7 +12,6 @@ from dataclasses import dataclass, field
 
 import pandas as pd
 
-from .._deprecated import figures_keyword
 from .._rng import RNGLike, as_generator
 from ..exceptions import UnusableStartError
 from ..io.results import write_csv, write_json, writing
@@ -96,7 +95,7 @@ class SurveyComparison:
         frames = [r.changed.assign(beacon=b) for b, r in self.results.items()]
         return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
 
-    def write(self, out_dir, *, figure=None) -> dict:
+    def write(self, out_dir) -> dict:
         """Write ``compare.json`` and ``changed.csv`` to ``out_dir``.
 
         The figure (``compare.png``) is drawn by :func:`bayes_mpem.report.write_figures`.
@@ -105,9 +104,6 @@ class SurveyComparison:
         ----------
         out_dir : str or pathlib.Path
             Created if missing.
-        figure : bool, optional
-            Deprecated (figures are the report's job); ``True`` still draws it,
-            with a DeprecationWarning.
 
         Returns
         -------
@@ -115,12 +111,8 @@ class SurveyComparison:
             Paths written, keyed ``compare`` and ``changed``.
         """
         with writing(out_dir) as out:
-            paths = {"compare": write_json(out / "compare.json", self.to_dict()),
-                     "changed": write_csv(out / "changed.csv", self.changed())}
-            if figure is not None:
-                paths.update(figures_keyword(self, out, figure,
-                                             "SurveyComparison.write(figure=...)"))
-        return paths
+            return {"compare": write_json(out / "compare.json", self.to_dict()),
+                    "changed": write_csv(out / "changed.csv", self.changed())}
 
 
 def compare(pings, beacons=None, *, min_pings: int = 30, rng: RNGLike = None,

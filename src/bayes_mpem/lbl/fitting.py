@@ -8,7 +8,6 @@ and ``classified.csv`` (one row per input row, nothing dropped).
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -26,32 +25,6 @@ from .path_choice import AUTO, check_path_choice, choose_path
 from .survey import beacons_table, check_min_pings, classified_table, non_finite, over_beacons
 
 METHODS = ("mixture", "paper")
-#: table columns renamed for one vocabulary (docs/model.md): old name -> new name
-RENAMED_COLUMNS = {"hrp_m": "d0_m"}
-
-
-class _FitTable(pd.DataFrame):
-    """:meth:`SurveyFit.table`: still answers to the old column names, with a warning."""
-
-    @property
-    def _constructor(self):
-        return pd.DataFrame  # anything derived is a plain DataFrame
-
-    def _renamed(self, key):
-        if isinstance(key, str) and key in RENAMED_COLUMNS:
-            warnings.warn(f"the table column {key!r} is now {RENAMED_COLUMNS[key]!r} "
-                          "(docs/model.md, 'Names'); the old name will be removed",
-                          DeprecationWarning, stacklevel=3)
-            return RENAMED_COLUMNS[key]
-        return key
-
-    def __getitem__(self, key):
-        return super().__getitem__(self._renamed(key))
-
-    def __getattr__(self, name):
-        if name in RENAMED_COLUMNS:
-            return super().__getitem__(self._renamed(name))
-        return super().__getattr__(name)
 
 
 @dataclass(frozen=True)
@@ -161,7 +134,7 @@ class SurveyFit:
                          "converged": res.converged, "path": res.path,
                          "path_margin": (self.path_choices[bid].margin
                                          if bid in self.path_choices else float("nan"))})
-        return _FitTable(rows)
+        return pd.DataFrame(rows)
 
     def format_table(self) -> str:
         """Format the :meth:`table` as aligned text for a terminal.

@@ -4,7 +4,6 @@
 :mod:`.bayes` (posterior figures), :mod:`.diagnose` (diagnosis figures).
 """
 
-from .._deprecated import moved_attribute
 from .lbl import (
     plot_classification,
     plot_colormap,
@@ -21,9 +20,3 @@ from .style import class_colors
 __all__ = ["class_colors", "plot_classification", "plot_colormap", "plot_convergence",
            "plot_pol_sensitivity", "plot_ranges", "plot_survey_classification", "plot_table_ii",
            "plot_track", "table_ii_markdown"]
-
-
-def __getattr__(name):
-    if name == "pol_sensitivity":  # a computation, not a figure: it lives with the paper's EM
-        return moved_attribute(__name__, name, "lbl.pol_sensitivity")
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

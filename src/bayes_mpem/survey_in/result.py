@@ -8,7 +8,6 @@ with posterior intervals), and writes ``summary.json`` and ``classified.csv``.
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -103,12 +102,6 @@ class SurveyInResult:
     fits : dict
         ``{id: LocateResult}``, the EM fit of each transponder (not written).
 
-    Notes
-    -----
-    Unpacking, ``summary, classified = locate_survey(raw)``, still works for
-    code written when :func:`~.survey.locate_survey` returned a pair, with a
-    :class:`DeprecationWarning`; use the attributes instead.
-
     Examples
     --------
     >>> import pandas as pd
@@ -147,17 +140,3 @@ class SurveyInResult:
         with writing(out_dir) as out:
             return {"classified": write_csv(out / "classified.csv", self.classified),
                     "summary": write_json(out / "summary.json", self.summary)}
-
-    def _as_pair(self):
-        warnings.warn("using the result of locate_survey as a (summary, classified) pair is "
-                      "deprecated; use its .summary and .classified attributes",
-                      DeprecationWarning, stacklevel=3)
-        return (self.summary, self.classified)
-
-    def __iter__(self):
-        """Yield ``summary`` then ``classified`` (deprecated pair unpacking)."""
-        return iter(self._as_pair())
-
-    def __getitem__(self, index):
-        """``summary`` at 0, ``classified`` at 1 (deprecated pair indexing)."""
-        return self._as_pair()[index]

@@ -153,9 +153,6 @@ def test_nav_drift_direction_and_json(tmp_path):
     assert {"d0", "sigma_dp", "sigma_mp", "weights"} <= set(doc["beacons"]["1"])
     for key in ("residuals_baseline", "residuals_final", "classes_vs_time", "candidates"):
         assert paths[key].stat().st_size > 10_000
-    with pytest.warns(DeprecationWarning, match=r"write\(figures=\.\.\.\) is deprecated"):
-        old_style = result.write(tmp_path / "old", figures=True)  # the old keyword still draws
-    assert {"diagnosis", "residuals_baseline", "candidates"} <= set(old_style)
 
 
 def test_a_beacon_surveyed_off_is_found_with_its_beacon():

@@ -16,7 +16,6 @@ from types import SimpleNamespace
 import numpy as np
 import pandas as pd
 
-from ..._deprecated import figures_keyword
 from ...io.results import write_csv, write_json, writing
 from ...io.survey import Survey
 from .ecm import JointFit
@@ -198,7 +197,7 @@ class Diagnosis:
                        "sigma_mp": float(np.median(fit.params.sigma[:, 1]))}
                 for name, fit in (("baseline", self.baseline), ("final", self.final))}
 
-    def write(self, out_dir, *, figures=None) -> dict:
+    def write(self, out_dir) -> dict:
         """Write ``diagnosis.json`` and ``replies.csv`` to ``out_dir``.
 
         The figures are drawn by :func:`bayes_mpem.report.write_figures`.
@@ -207,9 +206,6 @@ class Diagnosis:
         ----------
         out_dir : str or pathlib.Path
             Created if missing.
-        figures : bool, optional
-            Deprecated (figures are the report's job); ``True`` still draws
-            them, with a DeprecationWarning.
 
         Returns
         -------
@@ -217,11 +213,8 @@ class Diagnosis:
             Paths written, keyed ``diagnosis`` and ``replies``.
         """
         with writing(out_dir) as out:
-            paths = {"diagnosis": write_json(out / "diagnosis.json", self.to_dict(), numpy=True),
-                     "replies": write_csv(out / "replies.csv", self.replies())}
-            if figures is not None:
-                paths.update(figures_keyword(self, out, figures, "Diagnosis.write(figures=...)"))
-        return paths
+            return {"diagnosis": write_json(out / "diagnosis.json", self.to_dict(), numpy=True),
+                    "replies": write_csv(out / "replies.csv", self.replies())}
 
     def summary(self) -> str:
         """Describe what was found in a few lines for a terminal.

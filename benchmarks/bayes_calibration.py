@@ -47,9 +47,9 @@ from _report import machine, write_section  # noqa: E402
 
 import bayes_mpem as bm  # noqa: E402
 from bayes_mpem.io.survey import load_survey  # noqa: E402
-from bayes_mpem.lbl.beacon_sampling import sample_beacon  # noqa: E402
-from bayes_mpem.lbl.loo import compare_beacon  # noqa: E402
-from bayes_mpem.lbl.path_choice import choose_path  # noqa: E402
+from bayes_mpem.lbl.bayes.beacon_sampling import sample_beacon  # noqa: E402
+from bayes_mpem.lbl.bayes.loo import compare_beacon  # noqa: E402
+from bayes_mpem.lbl.em.path_choice import choose_path  # noqa: E402
 from bayes_mpem.mcmc import equal_tailed  # noqa: E402
 
 KEYS = ("d0", "sigma_mp", "sigma_dp", "w_dp", "w_mp", "w_ol")

@@ -11,7 +11,7 @@ round. Round 0 is *cold* (empty compile caches: PyTensor's C code, numba's and
 JAX's caches in fresh folders); the later rounds are *warm* (the same folders,
 as on a second run on a machine). All methods sample the same model (d0 and
 log-scales uniform, Dirichlet(1, 1, 1) weights, the mixture likelihood of
-:mod:`bayes_mpem.lbl.likelihood`) on the same data; the NUTS samplers start from
+:mod:`bayes_mpem.lbl.model.likelihood`) on the same data; the NUTS samplers start from
 the EM solution, run 2 chains x 1,000 draws after 1,000 tuning steps, and report
 ArviZ's bulk ESS; bayes_mpem runs ``sample_beacon`` with its defaults (EM start,
 sampling to min bulk ESS 1,000 with the shipped sampler, post-processing:
@@ -58,7 +58,7 @@ METHODS = ("bayes_mpem", "nutpie", "numpyro", "pymc")
 def make_data(n=5000, seed=0):
     """Beacon 4 of abe58 (50 % direct path, 35 % multipath, 15 % outliers), n replies."""
     import bayes_mpem as bm
-    from bayes_mpem.lbl.presets import ABE58
+    from bayes_mpem.lbl.simulation.presets import ABE58
 
     sim = bm.simulate_survey(
         "abe58", rng=seed, n_cycles=n, p_no_reply=0.0,
@@ -70,7 +70,7 @@ def make_data(n=5000, seed=0):
 def write_data(path):
     """The beacon's arrays, prior bounds and EM start, for workers that do not import us."""
     import bayes_mpem as bm
-    from bayes_mpem.lbl.posterior import BeaconPosterior
+    from bayes_mpem.lbl.bayes.posterior import BeaconPosterior
 
     data = make_data()
     post = BeaconPosterior(data)
@@ -103,7 +103,7 @@ def bulk_ess_min(draws: dict) -> float:
 
 def worker_ours(d, seed):
     from bayes_mpem.io.survey import BeaconData
-    from bayes_mpem.lbl.beacon_sampling import sample_beacon
+    from bayes_mpem.lbl.bayes.beacon_sampling import sample_beacon
 
     data = BeaconData.from_arrays(d["range"], d["x"], d["y"], d["depth"], d["position"],
                                   beacon="4")

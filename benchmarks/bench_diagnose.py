@@ -24,7 +24,7 @@ import warnings
 from pathlib import Path
 
 from bayes_mpem.lbl.diagnosis.driver import diagnose
-from bayes_mpem.lbl.simulate import simulate_survey
+from bayes_mpem.lbl.simulation.simulate import simulate_survey
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _report import machine, write_section  # noqa: E402

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 import bayes_mpem as bm
-from bayes_mpem.lbl.presets import ABE58
+from bayes_mpem.lbl.simulation.presets import ABE58
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _report import machine, write_section  # noqa: E402

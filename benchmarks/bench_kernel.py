@@ -10,7 +10,7 @@ from its posterior (what emcee's differential-evolution move evaluates: half of
 five times (best kept). Columns: milliseconds per call; the largest error
 against the log-space form (``loglik_per_range`` summed, float64); one-off costs
 (import, compilation). The options: the previous NumPy kernel (float64, a
-screen of ranges per call), :class:`~bayes_mpem.lbl.loglik_kernel.LoglikKernel` in
+screen of ranges per call), :class:`~bayes_mpem.lbl.model.loglik_kernel.LoglikKernel` in
 float64 and float32, and, where installed, numexpr, numba and JAX (the ``bench``
 extra brings numba and JAX) on the same fused expression.
 """
@@ -30,11 +30,11 @@ sys.path.insert(0, str(HERE))
 from _report import machine, write_section  # noqa: E402
 from bench_bayes import make_data  # noqa: E402
 
-from bayes_mpem.lbl import geometry  # noqa: E402
-from bayes_mpem.lbl.beacon_geometry import BeaconGeometry  # noqa: E402
-from bayes_mpem.lbl.beacon_sampling import sample_beacon  # noqa: E402
-from bayes_mpem.lbl.likelihood import loglik_per_range  # noqa: E402
-from bayes_mpem.lbl.loglik_kernel import LoglikKernel  # noqa: E402
+from bayes_mpem.lbl.bayes.beacon_sampling import sample_beacon  # noqa: E402
+from bayes_mpem.lbl.model import geometry  # noqa: E402
+from bayes_mpem.lbl.model.beacon_geometry import BeaconGeometry  # noqa: E402
+from bayes_mpem.lbl.model.likelihood import loglik_per_range  # noqa: E402
+from bayes_mpem.lbl.model.loglik_kernel import LoglikKernel  # noqa: E402
 from bayes_mpem.mixture.densities import LOG_SQRT_2PI  # noqa: E402
 
 ROOT = HERE.parent

@@ -31,8 +31,8 @@ from _report import machine, write_section  # noqa: E402
 from test_mcmc import ReleasedSnooker, _sd_z  # noqa: E402
 
 from bayes_mpem import mcmc  # noqa: E402
-from bayes_mpem.lbl.beacon_sampling import sample_beacon  # noqa: E402
-from bayes_mpem.lbl.simulate import simulate_survey  # noqa: E402
+from bayes_mpem.lbl.bayes.beacon_sampling import sample_beacon  # noqa: E402
+from bayes_mpem.lbl.simulation.simulate import simulate_survey  # noqa: E402
 
 MIXES = {
     "DE only (shipped default)": mcmc.default_moves,

@@ -44,7 +44,7 @@ import numpy as np
 
 from bayes_mpem.io.lines import LineParser, Ping
 from bayes_mpem.lbl.navigate import model, simulate_dive
-from bayes_mpem.lbl.online import Navigator, kernel
+from bayes_mpem.lbl.navigate.online import Navigator, kernel
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _report import machine, write_section  # noqa: E402

@@ -36,8 +36,8 @@ import independent_generator as indep  # noqa: E402
 from _report import machine, write_section  # noqa: E402
 
 from bayes_mpem.lbl.diagnosis.driver import diagnose  # noqa: E402
-from bayes_mpem.lbl.effects import EFFECTS  # noqa: E402
-from bayes_mpem.lbl.simulate import simulate_survey  # noqa: E402
+from bayes_mpem.lbl.simulation.effects import EFFECTS  # noqa: E402
+from bayes_mpem.lbl.simulation.simulate import simulate_survey  # noqa: E402
 
 RANGES = {"range_bias": (1.0, 15.0), "sound_speed": (0.002, 0.02), "plane_drift": (3.0, 12.0),
           "second_reflector": None, "early_outliers": (0.05, 0.2), "nav_drift": (10.0, 60.0),

@@ -6,7 +6,7 @@ Run from the repository root::
     python benchmarks/model_checks.py --quick         # 1 seed per cell, prints only
     python benchmarks/model_checks.py --seeds 5 --clean 40 --workers 2
 
-Every effect of ``bayes_mpem.lbl.effects`` is hidden in surveys of three generators
+Every effect of ``bayes_mpem.lbl.simulation.effects`` is hidden in surveys of three generators
 (the project's ``abe58`` and ``random`` presets at 700 ping cycles, and
 ``tests/independent_generator.py``), both signs for the signed ones, at a magnitude drawn
 from a realistic range; then ``fit`` (mixture EM, ``path="auto"``) and ``sample``
@@ -16,7 +16,7 @@ from a realistic range; then ``fit`` (mixture EM, ``path="auto"``) and ``sample`
   interval for the posterior, against the true plane (the sea surface; for a drifting
   plane, the plane at the mean time of that beacon's replies, what a static plane
   estimates);
-* whether the result carries a flag: a model check (:mod:`bayes_mpem.lbl.model_checks`),
+* whether the result carries a flag: a model check (:mod:`bayes_mpem.lbl.survey.model_checks`),
   a quality flag of the fit, or (``sample``) a beacon left unsampled because its start
   was not credible.
 
@@ -47,7 +47,7 @@ from _report import machine, write_section  # noqa: E402
 
 import bayes_mpem as bm  # noqa: E402
 from bayes_mpem.io.survey import load_survey  # noqa: E402
-from bayes_mpem.lbl.effects import EFFECTS, PER_BEACON  # noqa: E402
+from bayes_mpem.lbl.simulation.effects import EFFECTS, PER_BEACON  # noqa: E402
 
 #: Realistic magnitudes for the project simulator (|value|); the independent
 #: generator uses its own (``indep.MAGNITUDE_RANGES``).

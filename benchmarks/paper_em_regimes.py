@@ -55,9 +55,9 @@ import pandas as pd
 from scipy import special
 
 import bayes_mpem as bm
-from bayes_mpem.lbl import geometry
-from bayes_mpem.lbl.beacon_geometry import BeaconGeometry
-from bayes_mpem.lbl.em_paper import paper_e_step, paper_m_step
+from bayes_mpem.lbl.em.em_paper import paper_e_step, paper_m_step
+from bayes_mpem.lbl.model import geometry
+from bayes_mpem.lbl.model.beacon_geometry import BeaconGeometry
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_OUT = ROOT / "docs" / "paper-em-regimes.md"
@@ -294,8 +294,8 @@ def trace_paper_em(data, labels, *, pol=0.05, alpha=0.5, sigma_dp=SIGMA_DP, tol=
                    max_iter=2000):
     """Re-run the paper's EM step by step, splitting eq. 8 by the true class.
 
-    Uses the library's own :func:`bayes_mpem.lbl.em_paper.paper_e_step` and
-    :func:`~bayes_mpem.lbl.em_paper.paper_m_step`, with the stopping rule of
+    Uses the library's own :func:`bayes_mpem.lbl.em.em_paper.paper_e_step` and
+    :func:`~bayes_mpem.lbl.em.em_paper.paper_m_step`, with the stopping rule of
     :func:`bayes_mpem.fit_paper_em`.
 
     Returns

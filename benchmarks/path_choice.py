@@ -28,9 +28,9 @@ from pathlib import Path
 import numpy as np
 
 from bayes_mpem.exceptions import PathChoiceWarning
-from bayes_mpem.lbl.fitting import fit
-from bayes_mpem.lbl.path_choice import choose_path
-from bayes_mpem.lbl.simulate import simulate_survey
+from bayes_mpem.lbl.em.path_choice import choose_path
+from bayes_mpem.lbl.simulation.simulate import simulate_survey
+from bayes_mpem.lbl.survey.fitting import fit
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _report import machine, write_section  # noqa: E402

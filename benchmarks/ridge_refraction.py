@@ -40,8 +40,8 @@ from bayes_mpem.acoustics.eigenray import shoot, surface_bounce_ray  # noqa: E40
 from bayes_mpem.acoustics.profile import SoundSpeedProfile  # noqa: E402
 from bayes_mpem.acoustics.profile_checks import nominal_sound_speed  # noqa: E402
 from bayes_mpem.acoustics.turning import direct_times  # noqa: E402
-from bayes_mpem.lbl.em_mixture import fit_mixture_em  # noqa: E402
-from bayes_mpem.lbl.presets import ABE58  # noqa: E402
+from bayes_mpem.lbl.em.em_mixture import fit_mixture_em  # noqa: E402
+from bayes_mpem.lbl.simulation.presets import ABE58  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 WOA09 = ROOT / "data" / "woa09"

@@ -9,7 +9,7 @@ Run from the repository root::
 
 For one design (beacon 4 of the ``abe58`` preset, 330 ping cycles; pings with a
 direct path under 200 m left out, ~300 replies), each simulation draws the
-parameters from the calibration's proper prior (``bayes_mpem.lbl.sbc``: plane
+parameters from the calibration's proper prior (``bayes_mpem.lbl.bayes.sbc``: plane
 within 30 m of the sea surface, sigma_DP and sigma_MP log-uniform on 1-20 m,
 weights Dirichlet(1, 1, 1), outliers uniform over a fixed window), simulates the
 ranges from the model, samples their posterior exactly as ``bayes-mpem sample``
@@ -54,7 +54,7 @@ from _report import machine, write_section  # noqa: E402
 from released_snooker import ReleasedSnooker  # noqa: E402
 
 import bayes_mpem as bm  # noqa: E402
-from bayes_mpem.lbl.sbc import SBCResult, run_sbc, sbc_design  # noqa: E402
+from bayes_mpem.lbl.bayes.sbc import SBCResult, run_sbc, sbc_design  # noqa: E402
 from bayes_mpem.mcmc import SnookerMove  # noqa: E402
 from bayes_mpem.mcmc.sbc import rank_dispersion  # noqa: E402
 from bayes_mpem.plots.bayes import plot_sbc_ranks  # noqa: E402
@@ -161,7 +161,7 @@ def main(argv=None):
         title, "",
         f"Produced by `{cmd.strip()}` on {dt.date.today().isoformat()} ({machine()}).", "",
         f"Design: beacon 4 of `abe58`, {s['n_ranges']} pings (direct path >= 200 m). Prior "
-        f"(`bayes_mpem.lbl.sbc`): d0 uniform on [{s['d0_bounds'][0]:.0f}, "
+        f"(`bayes_mpem.lbl.bayes.sbc`): d0 uniform on [{s['d0_bounds'][0]:.0f}, "
         f"{s['d0_bounds'][1]:.0f}] m (the plane within 30 m of the sea surface), sigma_DP "
         f"and sigma_MP log-uniform on {s['sigma_bounds'][0]:g}-{s['sigma_bounds'][1]:g} m, "
         f"weights Dirichlet(1, 1, 1), outliers uniform on [{s['window'][0]:.0f}, "

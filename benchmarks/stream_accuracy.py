@@ -11,7 +11,7 @@ Dives are ``simulate_dive(preset, rng=seed)`` (``bayes_mpem.lbl.navigate``),
 ``abe58`` and ``random`` geometries, with navigate's dead reckoning (heading
 bias in [-2, 2] deg, speed scale in [0.98, 1.02], random walk 0.1 m/sqrt(s),
 first fix 10 m off). Each dive's pings are fed in time order to a
-:class:`~bayes_mpem.lbl.online.Navigator` with its defaults (warm-up 200
+:class:`~bayes_mpem.lbl.navigate.online.Navigator` with its defaults (warm-up 200
 replies, ``alpha = 1``), and compared with :func:`~bayes_mpem.lbl.navigate.navigate`
 (the batch ECM and smoother, defaults, ``rng=0``):
 
@@ -41,7 +41,7 @@ import numpy as np
 import pandas as pd
 
 from bayes_mpem.lbl.navigate import navigate, simulate_dive
-from bayes_mpem.lbl.online import Navigator
+from bayes_mpem.lbl.navigate.online import Navigator
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _report import machine, write_section  # noqa: E402

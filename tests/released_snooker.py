@@ -2,7 +2,7 @@
 
 Written here from the description of the upstream fix (emcee pull request #531),
 so that the checks are shown to catch it whatever emcee version is installed:
-``tests/test_mcmc.py`` (standard normals) and ``tests/lbl/test_sbc.py``
+``tests/test_mcmc.py`` (standard normals) and ``tests/lbl/bayes/test_sbc.py``
 (simulation-based calibration of a beacon's posterior).
 """
 

@@ -222,7 +222,7 @@ def test_import_and_help_load_no_heavy_library():
         "heavy = {'numpy', 'pandas', 'scipy', 'emcee', 'arviz_base', 'xarray', 'matplotlib'}\n"
         "assert not heavy & set(sys.modules), heavy & set(sys.modules)\n"
         "from bayes_mpem import fit, SurveyFit\n"
-        "assert fit.__module__ == 'bayes_mpem.lbl.fitting' and 'numpy' in sys.modules\n"
+        "assert fit.__module__ == 'bayes_mpem.lbl.survey.fitting' and 'numpy' in sys.modules\n"
         "assert set(bayes_mpem.__all__) <= set(dir(bayes_mpem))\n"
         "assert all(getattr(bayes_mpem, n) is not None for n in bayes_mpem.__all__)\n")
     import subprocess

@@ -10,8 +10,8 @@ from released_snooker import ReleasedSnooker
 import bayes_mpem as bm
 from bayes_mpem import mcmc
 from bayes_mpem.exceptions import SamplingWarning
-from bayes_mpem.lbl.em_mixture import fit_mixture_em
-from bayes_mpem.lbl.posterior import BeaconPosterior
+from bayes_mpem.lbl.bayes.posterior import BeaconPosterior
+from bayes_mpem.lbl.em.em_mixture import fit_mixture_em
 
 
 class Gauss:

@@ -8,7 +8,7 @@ folder kinds it reads are :data:`FOLDER_KINDS` (another command's folder is one
 more entry, :func:`folder_kind`); :func:`demo_markdown`
 is the ``summary.md`` of ``bayes-mpem demo``. One figure needs more than the
 result: the paper's Fig. 12 re-fits the figure beacon with the paper's EM over a
-grid of ``Pol`` (:func:`~bayes_mpem.lbl.pol_sensitivity.survey_pol_sensitivity`),
+grid of ``Pol`` (:func:`~bayes_mpem.lbl.em.pol_sensitivity.survey_pol_sensitivity`),
 which :func:`write_figures` runs unless it is given; the plotting functions
 themselves only draw.
 """
@@ -30,14 +30,14 @@ from .io.results import MARKER, read_marker, write_file
 from .io.survey import load_survey
 from .io.table_files import frame_as_text, read_table_file
 from .io.tables import RESERVED_COLUMNS
-from .lbl.comparison import SurveyComparison
 from .lbl.diagnosis.result import Diagnosis, DiagnosisRecord
-from .lbl.em_result import EMResult
-from .lbl.fitting import SurveyFit
+from .lbl.em.em_result import EMResult
+from .lbl.em.path_choice import choices_from_summary
+from .lbl.em.pol_sensitivity import POL_GRID, survey_pol_sensitivity
 from .lbl.navigate.result import Navigation, NavigationRecord
-from .lbl.path_choice import choices_from_summary
-from .lbl.pol_sensitivity import POL_GRID, survey_pol_sensitivity
-from .lbl.sampling import SurveyPosterior
+from .lbl.survey.comparison import SurveyComparison
+from .lbl.survey.fitting import SurveyFit
+from .lbl.survey.sampling import SurveyPosterior
 from .mixture.densities import CLASSES
 from .plots import bayes as bayes_plots
 from .plots import lbl as lbl_plots
@@ -105,7 +105,7 @@ def write_figures(result, out_dir, *, beacon=None, truth=None, general=True,
     general : bool, default True
         Fits: also write the method-independent figures (Figs. 1, 5, 8 and 12).
     sensitivity : dict, optional
-        Fits: :func:`~bayes_mpem.lbl.pol_sensitivity.survey_pol_sensitivity`
+        Fits: :func:`~bayes_mpem.lbl.em.pol_sensitivity.survey_pol_sensitivity`
         of the figure beacon, drawn as the paper's Fig. 12; computed here
         (seconds) when not given.
 
@@ -236,7 +236,7 @@ class ComparisonRecord:
     ----------
     results : dict
         Per beacon, a namespace with ``elpd_diff``, ``elpd_diff_se``, ``shifts``
-        and ``learned.em.d0`` (as :class:`~bayes_mpem.lbl.loo.PriorComparison`).
+        and ``learned.em.d0`` (as :class:`~bayes_mpem.lbl.bayes.loo.PriorComparison`).
     """
 
     results: dict
@@ -474,7 +474,7 @@ def _load_fit(d, summary, survey, probs):
 def _load_posterior(d, summary, survey, probs, num):
     import xarray as xr
 
-    from .lbl.beacon_sampling import PosteriorResult
+    from .lbl.bayes.beacon_sampling import PosteriorResult
 
     path = d / "posterior.nc"
     if not path.exists():

@@ -18,7 +18,7 @@ from scipy import integrate
 from bayes_mpem.acoustics.eigenray import direct_ray, shoot, surface_bounce_ray
 from bayes_mpem.acoustics.profile import WOA09_ENV, SoundSpeedProfile
 from bayes_mpem.exceptions import InputError
-from bayes_mpem.lbl import geometry
+from bayes_mpem.lbl.model import geometry
 
 DATA = Path(__file__).resolve().parents[2] / "data"
 WOA09 = DATA / "woa09"

@@ -70,7 +70,7 @@ def test_output_problems_are_found_before_the_work(small, tmp_path, monkeypatch,
     """An --out that is a file, under a file or unwritable raised after all the work."""
     def no_work(*args, **kwargs):
         raise AssertionError("the work started")
-    monkeypatch.setattr("bayes_mpem.lbl.sampling.sample", no_work)
+    monkeypatch.setattr("bayes_mpem.lbl.survey.sampling.sample", no_work)
     f = tmp_path / "file"
     f.write_text("x")
     for out, words in ((f, "is a file"), (f / "sub", "lies under the file"),
@@ -132,7 +132,7 @@ def test_degenerate_fits_are_named_with_their_rows(small, monkeypatch):
     """A non-finite fit was written as 'dp' with probabilities (0, 0, 0) and NaN sigmas."""
     import dataclasses
 
-    import bayes_mpem.lbl.fitting as fitting
+    import bayes_mpem.lbl.survey.fitting as fitting
 
     real = fitting.choose_path
 
@@ -186,7 +186,7 @@ def test_parquet_in_and_out(small, tmp_path):
 def test_the_parser_repeats_the_library_constants_faithfully():
     from bayes_mpem.cli import options
     from bayes_mpem.io.table_files import TABLE_FORMATS
-    from bayes_mpem.lbl.survey import MIN_PINGS
+    from bayes_mpem.lbl.survey.survey import MIN_PINGS
 
     assert options.MIN_PINGS == MIN_PINGS and options.TABLE_FORMATS == TABLE_FORMATS
 

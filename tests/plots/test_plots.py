@@ -8,7 +8,7 @@ import pytest
 from matplotlib.figure import Figure
 
 import bayes_mpem as bm
-from bayes_mpem.lbl.pol_sensitivity import pol_sensitivity
+from bayes_mpem.lbl.em.pol_sensitivity import pol_sensitivity
 from bayes_mpem.plots import bayes as bayes_plots
 from bayes_mpem.plots.diagnose import running_mean
 from bayes_mpem.plots.lbl import (
@@ -252,7 +252,7 @@ def test_results_and_library_never_import_plots_or_report():
     import subprocess
     import sys
 
-    code = ("import sys, bayes_mpem.lbl.comparison, bayes_mpem.lbl.diagnosis.result, "
+    code = ("import sys, bayes_mpem.lbl.survey.comparison, bayes_mpem.lbl.diagnosis.result, "
             "bayes_mpem.survey_in.survey; "
             "print(sorted(m for m in sys.modules if m.startswith(('bayes_mpem.plots', "
             "'bayes_mpem.report', 'bayes_mpem.cli'))))")

@@ -20,13 +20,13 @@ ARRAY_OPTIONS = ("ci", "outliers", "ssp", "speed_intervals")
 
 
 def _run_fit(inputs, options):
-    from ..lbl.fitting import fit
+    from ..lbl.survey.fitting import fit
 
     return fit(inputs["pings"], inputs["beacons"], **options)
 
 
 def _run_sample(inputs, options):
-    from ..lbl.sampling import sample
+    from ..lbl.survey.sampling import sample
 
     return sample(inputs["pings"], inputs["beacons"], **{"progress": False, **options})
 

@@ -13,9 +13,9 @@ import sys
 from pathlib import Path
 
 from ..io.results import write_file
-from ..lbl.effects import EFFECTS
-from ..lbl.fitting import fit
-from ..lbl.simulate import simulate_survey
+from ..lbl.simulation.effects import EFFECTS
+from ..lbl.simulation.simulate import simulate_survey
+from ..lbl.survey.fitting import fit
 from .errors import OptionError
 
 # sample, compare, diagnose and the report (emcee, ArviZ, matplotlib) are imported by the
@@ -40,7 +40,7 @@ def write_figures(*args, **kwargs):
 
 
 def fit_kwargs(args) -> dict:
-    """Keyword arguments of :func:`~bayes_mpem.lbl.fitting.fit` from ``bayes-mpem fit``'s options.
+    """Keyword arguments of :func:`~bayes_mpem.lbl.survey.fitting.fit` from ``fit``'s options.
 
     Parameters
     ----------
@@ -91,7 +91,7 @@ def sample_kwargs(args) -> dict:
 
 
 def sample_command_kwargs(args) -> dict:
-    """Keyword arguments of :func:`~bayes_mpem.lbl.sampling.sample` from ``bayes-mpem sample``.
+    """Keyword arguments of :func:`~bayes_mpem.lbl.survey.sampling.sample` from ``sample``.
 
     Parameters
     ----------
@@ -167,8 +167,8 @@ def _demo_fits(sim, out, seed):
 
 def _demo_bayes(sim, out, seed):
     """Sample and compare the demo's priors, write them: ``(posterior, comparison, paths)``."""
-    from ..lbl.comparison import compare
-    from ..lbl.sampling import sample
+    from ..lbl.survey.comparison import compare
+    from ..lbl.survey.sampling import sample
 
     print("\nSampling the posterior of every beacon (MCMC, learned priors)...")
     post = sample(sim.survey, rng=seed, progress="auto")
@@ -348,7 +348,7 @@ def cmd_sample(args) -> int:
     int
         Exit status 0.
     """
-    from ..lbl.sampling import sample
+    from ..lbl.survey.sampling import sample
 
     result = sample(args.pings, args.beacons, **sample_command_kwargs(args))
     out = Path(args.out)
@@ -376,7 +376,7 @@ def cmd_compare(args) -> int:
     int
         Exit status 0.
     """
-    from ..lbl.comparison import compare
+    from ..lbl.survey.comparison import compare
 
     result = compare(args.pings, args.beacons, **sample_kwargs(args))
     paths = list(result.write(args.out).values())

@@ -13,8 +13,8 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+from ..lbl.model.paths import PATH_CHOICES
 from ..lbl.navigate.options import MODELS, MULTIPATH
-from ..lbl.paths import PATH_CHOICES
 from . import options as opt
 from .errors import OptionError
 

@@ -27,7 +27,7 @@ import math
 
 # the parser loads no numpy (`bayes-mpem --help` answers at once): these two are repeated
 # from where they live, and tests/cli/test_reliability.py checks that they agree
-#: :data:`bayes_mpem.lbl.survey.MIN_PINGS`: the fewest replies a beacon can be fitted with.
+#: :data:`bayes_mpem.lbl.survey.survey.MIN_PINGS`: the fewest replies a beacon can be fitted with.
 MIN_PINGS = 3
 #: :data:`bayes_mpem.io.table_files.TABLE_FORMATS`: the formats of a result's tables.
 TABLE_FORMATS = ("csv", "parquet")
@@ -114,5 +114,5 @@ fraction = number("a number in (0, 1]", 0.0, 1.0, include_low=False)
 turn_around = number("a turn-around time in [0, 10] s", 0.0, 10.0)
 #: ``--seed``: a non-negative integer (NumPy's seeds).
 seed = at_least(0)
-#: ``--min-pings``: the EMs need at least :data:`bayes_mpem.lbl.survey.MIN_PINGS` replies.
+#: ``--min-pings``: the EMs need at least :data:`bayes_mpem.lbl.survey.survey.MIN_PINGS` replies.
 min_pings = at_least(MIN_PINGS)

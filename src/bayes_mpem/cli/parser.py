@@ -20,7 +20,7 @@ import warnings
 
 from .. import __version__
 from ..exceptions import InputError
-from ..lbl.paths import PATH_CHOICES
+from ..lbl.model.paths import PATH_CHOICES
 from . import navigate, stream
 from . import options as opt
 from .errors import OptionError

@@ -2,7 +2,7 @@
 
 Reads lines (:mod:`bayes_mpem.io.lines`) from standard input, a UDP socket or
 a replayed file (:mod:`bayes_mpem.io.stream`), feeds each ping to a
-:class:`~bayes_mpem.lbl.online.Navigator`, and answers every line with one
+:class:`~bayes_mpem.lbl.navigate.online.Navigator`, and answers every line with one
 JSON line, flushed at once, in input order: the ping's result, or ``{"line",
 "error"}`` for a malformed line (the stream goes on). Blank lines, ``#``
 comments and the CSV header are not answered, only counted. On the end of the
@@ -21,8 +21,8 @@ import time
 import traceback
 
 from ..exceptions import InputError
+from ..lbl.model.paths import PATH_CHOICES
 from ..lbl.navigate.options import MULTIPATH
-from ..lbl.paths import PATH_CHOICES
 from . import options as opt
 from .errors import OptionError
 
@@ -92,7 +92,7 @@ def _speed(text: str):
 
 def _navigator(args):
     from ..io.tables import read_beacons
-    from ..lbl.online import Navigator
+    from ..lbl.navigate.online import Navigator
 
     if args.state and os.path.exists(args.state):
         nav = Navigator.load(args.state)

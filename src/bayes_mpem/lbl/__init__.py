@@ -1,12 +1,9 @@
 """The paper's problem: one-way LBL ranges to beacons at known positions.
 
-Classify every range (direct path, multipath, outlier) and identify each
-beacon's reflector. Per beacon: the geometry (:mod:`.geometry`,
-:mod:`.beacon_geometry`, :mod:`.refracted`), the likelihood
-(:mod:`.likelihood`), the two EMs (:mod:`.em_paper`, :mod:`.em_mixture`), the
-posterior (:mod:`.posterior`, :mod:`.beacon_sampling`) and the prior comparison
-(:mod:`.loo`). Over a survey: :mod:`.fitting`, :mod:`.sampling`,
-:mod:`.comparison` (one loop, :mod:`.survey`), the simulator
-(:mod:`.simulate`, :mod:`.presets`) and the diagnosis of hidden effects
-(:mod:`.diagnosis`). Never imports :mod:`bayes_mpem.survey_in`.
+Classify every range (direct path, multipath, outlier) and identify each beacon's
+reflector. Grouped by concept: the range model (:mod:`.model`), the two EMs (:mod:`.em`),
+the posterior (:mod:`.bayes`), the per-survey commands (:mod:`.survey`), the simulator
+(:mod:`.simulation`), the diagnosis of hidden effects (:mod:`.diagnosis`) and navigation
+(:mod:`.navigate`, with the same model one ping at a time in :mod:`.navigate.online`).
+Never imports :mod:`bayes_mpem.survey_in`.
 """

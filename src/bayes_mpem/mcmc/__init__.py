@@ -1,7 +1,7 @@
 """The emcee driver shared by both posteriors: one protocol, one loop, one set of summaries.
 
 Both problems sample a log-posterior vectorised over walkers: the beacon of
-:class:`bayes_mpem.lbl.posterior.BeaconPosterior` and the transponder location
+:class:`bayes_mpem.lbl.bayes.posterior.BeaconPosterior` and the transponder location
 of :class:`bayes_mpem.survey_in.posterior.LocationLogPosterior`. Each satisfies
 :class:`LogPosterior` (parameter ``names``, ``ndim``, a ``label``, a
 ``start`` ball and ``__call__``), and this package does the rest

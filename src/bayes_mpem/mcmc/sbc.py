@@ -20,7 +20,7 @@ and tests a set of ranks for uniformity (:func:`rank_uniformity`):
   dependence within a simulation is respected).
 
 The model-specific part (the prior, the simulator, the sampler) is the
-caller's: :mod:`bayes_mpem.lbl.sbc` for one LBL beacon.
+caller's: :mod:`bayes_mpem.lbl.bayes.sbc` for one LBL beacon.
 
 References
 ----------

@@ -261,7 +261,7 @@ def plot_sbc_ranks(results, *, n_bins=10, fig=None):
     Parameters
     ----------
     results : SBCResult or dict of str to SBCResult
-        :func:`bayes_mpem.lbl.sbc.run_sbc` results, labelled (e.g. by move set).
+        :func:`bayes_mpem.lbl.bayes.sbc.run_sbc` results, labelled (e.g. by move set).
     n_bins : int, default 10
         Bins of the ranks (a divisor of ``n_draws + 1``).
     fig : matplotlib.figure.Figure, optional

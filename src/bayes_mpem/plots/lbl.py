@@ -11,7 +11,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from .._validate import check_choice
-from ..lbl.beacon_geometry import BeaconGeometry
+from ..lbl.model.beacon_geometry import BeaconGeometry
 from .style import CLASS_NAMES, PARAM_LABELS, class_color, class_colors, class_key, plain_log_axis
 
 

@@ -25,10 +25,10 @@ from bayes_mpem.lbl.diagnosis.ecm import fit_joint, heldout
 from bayes_mpem.lbl.diagnosis.model import ranges
 from bayes_mpem.lbl.diagnosis.search import Search
 from bayes_mpem.lbl.diagnosis.starts import baseline_start, replant
-from bayes_mpem.lbl.effects import EFFECTS
-from bayes_mpem.lbl.em_mixture import fit_mixture_em
-from bayes_mpem.lbl.simulate import simulate_survey
-from bayes_mpem.lbl.survey import fittable_beacons
+from bayes_mpem.lbl.em.em_mixture import fit_mixture_em
+from bayes_mpem.lbl.simulation.effects import EFFECTS
+from bayes_mpem.lbl.simulation.simulate import simulate_survey
+from bayes_mpem.lbl.survey.survey import fittable_beacons
 from bayes_mpem.report import load_output, write_figures
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # tests/, for independent_generator

@@ -12,9 +12,9 @@ from bayes_mpem.lbl.diagnosis.params import (
     set_vector,
     without,
 )
-from bayes_mpem.lbl.effects import split_term, term, term_order
-from bayes_mpem.lbl.simulate import simulate_survey
-from bayes_mpem.lbl.survey import fittable_beacons
+from bayes_mpem.lbl.simulation.effects import split_term, term, term_order
+from bayes_mpem.lbl.simulation.simulate import simulate_survey
+from bayes_mpem.lbl.survey.survey import fittable_beacons
 
 TERMS = ("range_bias", "sound_speed", "plane_drift", "second_reflector", "nav_drift",
          "beacon_bias:2", "beacon_position:3")

@@ -3,7 +3,7 @@
 The paper's model assumes one static reflector, a homogeneous medium, exact
 navigation and a calibrated system. :func:`diagnose` fits that model to every
 beacon at once (the *baseline*), then each extension of a fixed vocabulary
-(:data:`~bayes_mpem.lbl.effects.EFFECTS`), and keeps an extension only
+(:data:`~bayes_mpem.lbl.simulation.effects.EFFECTS`), and keeps an extension only
 when it predicts held-out ranges clearly better (K-fold cross-validated log
 predictive density). Effects are added greedily, so two effects present at
 once are both found; then a backward step drops any kept effect whose removal
@@ -33,7 +33,7 @@ magnitude = fraction of replies that are outliers) and ``nav_drift`` (``|(e_x,
 e_y)|``, m at the last ping). Two act on one beacon ``b``, reported with it:
 ``beacon_bias`` (``beta_b``, m) and ``beacon_position`` (``|c_b|``, m). The
 baseline, all switched off, is the mixture model of
-:mod:`bayes_mpem.lbl.likelihood`, fitted to all beacons together.
+:mod:`bayes_mpem.lbl.model.likelihood`, fitted to all beacons together.
 
 The model is :mod:`~bayes_mpem.lbl.diagnosis.model` (its parameters :mod:`.params`),
 its fit (ECM) :mod:`~bayes_mpem.lbl.diagnosis.ecm` from the starts of :mod:`.starts`,
@@ -43,7 +43,7 @@ checks :mod:`.residuals` and the result
 
 Examples
 --------
->>> from bayes_mpem.lbl.simulate import simulate_survey
+>>> from bayes_mpem.lbl.simulation.simulate import simulate_survey
 >>> sim = simulate_survey("abe58", rng=2, n_cycles=700, effects={"range_bias": 6.0})
 >>> dx = diagnose(sim.survey, rng=0, progress=False)
 >>> [e.name for e in dx.effects]
@@ -62,9 +62,9 @@ import numpy as np
 from ..._rng import RNGLike, as_generator
 from ..._validate import check_choice, check_finite, check_int, check_range
 from ...io.survey import load_survey
-from .. import geometry
-from ..effects import EFFECTS, UNITS, split_term
-from ..survey import check_min_pings, fittable_beacons
+from ..model import geometry
+from ..simulation.effects import EFFECTS, UNITS, split_term
+from ..survey.survey import check_min_pings, fittable_beacons
 from .ecm import fit_joint
 from .evidence import check_effect_names, effect_detail, effect_evidence, effect_magnitude_se
 from .model import ranges
@@ -96,7 +96,7 @@ def diagnose(
         The pings table (``docs/input.md``) or a loaded survey.
     beacons : str, pathlib.Path or pandas.DataFrame, optional
         The beacons table (not needed with a Survey).
-    effects : sequence of str, default all of :data:`~bayes_mpem.lbl.effects.EFFECTS`
+    effects : sequence of str, default all of :data:`~bayes_mpem.lbl.simulation.effects.EFFECTS`
         The candidate extensions.
     path : {"auto", "triangle", "double"}
         Multipath geometry: one reflected leg (the paper's finding), both, or

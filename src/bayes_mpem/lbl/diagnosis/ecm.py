@@ -16,8 +16,8 @@ above the vehicle) by the step is kept there while the other parameters move.
 
 Examples
 --------
->>> from bayes_mpem.lbl.simulate import simulate_survey
->>> from bayes_mpem.lbl.survey import fittable_beacons
+>>> from bayes_mpem.lbl.simulation.simulate import simulate_survey
+>>> from bayes_mpem.lbl.survey.survey import fittable_beacons
 >>> from bayes_mpem.lbl.diagnosis.model import ranges
 >>> from bayes_mpem.lbl.diagnosis.starts import baseline_start
 >>> sim = simulate_survey("abe58", rng=2, n_cycles=300, effects={"range_bias": 6.0})
@@ -37,7 +37,7 @@ from functools import partial
 import numpy as np
 
 from ...mixture.gauss_newton import safeguarded_step
-from ..effects import split_term
+from ..simulation.effects import split_term
 from .constraints import is_feasible, repair
 from .model import (
     Ranges,
@@ -287,7 +287,7 @@ def fit_joint(d: Ranges, effects, start: Params | list, *, path="triangle", max_
     d : Ranges
         The replies (``Diagnosis.data``).
     effects : tuple of str
-        Extensions switched on (names of :data:`~bayes_mpem.lbl.effects.EFFECTS`).
+        Extensions switched on (names of :data:`~bayes_mpem.lbl.simulation.effects.EFFECTS`).
     start : parameters or list of them
         Starting points; infeasible ones are moved just inside the constraints.
     path : {"triangle", "double"}

@@ -1,6 +1,6 @@
 """What a kept effect means, in words and numbers, and which fits are not credible.
 
-For every effect of :data:`~bayes_mpem.lbl.effects.EFFECTS` the driver
+For every effect of :data:`~bayes_mpem.lbl.simulation.effects.EFFECTS` the driver
 (:func:`~bayes_mpem.lbl.diagnosis.driver.diagnose`) asks this module for
 
 * :func:`effect_evidence`: one sentence with the size of the effect in the
@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..effects import EFFECTS, split_term
+from ..simulation.effects import EFFECTS, split_term
 from .constraints import SECOND_GAP, main_plane
 from .ecm import JointFit
 from .model import Ranges, predict
@@ -38,8 +38,9 @@ def effect_evidence(name, fit: JointFit, d: Ranges, delta, se, n_folds):
     Parameters
     ----------
     name : str
-        The effect's term (:func:`~bayes_mpem.lbl.effects.term`: an effect of
-        :data:`~bayes_mpem.lbl.effects.EFFECTS`, ``"<effect>:<beacon>"`` for one beacon's).
+        The effect's term (:func:`~bayes_mpem.lbl.simulation.effects.term`: an effect of
+        :data:`~bayes_mpem.lbl.simulation.effects.EFFECTS`,
+        ``"<effect>:<beacon>"`` for one beacon's).
     fit : JointFit
         The fit with the effect switched on.
     d : Ranges
@@ -111,7 +112,7 @@ def check_effect_names(names, what):
     Raises
     ------
     ValueError
-        For a name not in :data:`~bayes_mpem.lbl.effects.EFFECTS`.
+        For a name not in :data:`~bayes_mpem.lbl.simulation.effects.EFFECTS`.
     """
     bad = [e for e in names if split_term(e)[0] not in EFFECTS]
     if bad:

@@ -5,13 +5,13 @@
 of the joint model: per beacon a plane depth, three scales (direct path,
 multipath, second multipath) and four mixing weights (those and outliers),
 plus the shared effect parameters. The effects
-(:data:`~bayes_mpem.lbl.effects.EFFECTS`) switch parts of the model on:
+(:data:`~bayes_mpem.lbl.simulation.effects.EFFECTS`) switch parts of the model on:
 
 * :func:`predict` gives the class means ``k D + beta`` (direct path) and
   ``k M(plane) + beta`` (multipath off the beacon's plane, drifting in time,
   or off a second plane), with the navigation corrected by a drift, and their
   Jacobians with respect to the mean parameters; the multipath ranges are
-  :func:`bayes_mpem.lbl.geometry.multipath_range`;
+  :func:`bayes_mpem.lbl.model.geometry.multipath_range`;
 * :func:`log_densities` and :func:`e_step` give the class log-densities and
   probabilities (:mod:`bayes_mpem.mixture.densities`);
 * :func:`implied_depths` inverts each range for the plane that would make it a
@@ -22,8 +22,8 @@ the fitting (ECM) is in :mod:`~bayes_mpem.lbl.diagnosis.ecm`.
 
 Examples
 --------
->>> from bayes_mpem.lbl.simulate import simulate_survey
->>> from bayes_mpem.lbl.survey import fittable_beacons
+>>> from bayes_mpem.lbl.simulation.simulate import simulate_survey
+>>> from bayes_mpem.lbl.survey.survey import fittable_beacons
 >>> sim = simulate_survey("abe58", rng=0, n_cycles=50)
 >>> d = ranges(sim.survey, fittable_beacons(sim.survey, 30)[0])
 >>> d.ids, d.nb
@@ -44,7 +44,7 @@ from ...mixture.densities import (
     safe_log,
     uniform_logpdf,
 )
-from .. import geometry
+from ..model import geometry
 from .params import Params, beacon_mask
 
 # --------------------------------------------------------------------------- data
@@ -294,7 +294,7 @@ def _beacon_columns(jac, col, key, sel, geo, levers, path, k):
 def _plane2_derivative(h, dz, d02, path, k):
     """``d mu_mp2 / d plane2 = -k d z_MP / d d0`` at the second plane.
 
-    :func:`~bayes_mpem.lbl.geometry.multipath_derivative` up to rounding; kept
+    :func:`~bayes_mpem.lbl.model.geometry.multipath_derivative` up to rounding; kept
     in this operation order (``-k`` times the lever arm, then divided by the
     reflected leg) so that the fits stay bit-identical.
     """

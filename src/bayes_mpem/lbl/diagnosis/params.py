@@ -6,7 +6,7 @@ shared effects' parameters (a range bias, a scale factor, a plane drift, a
 second plane, a navigation drift); and the per-beacon effects' parameters (a
 beacon's own range bias, a correction to its position). An effect's
 parameters are used only while its term is switched on (the terms are the
-names of :func:`bayes_mpem.lbl.effects.term`: ``"range_bias"``,
+names of :func:`bayes_mpem.lbl.simulation.effects.term`: ``"range_bias"``,
 ``"beacon_bias:2"``, ...). :func:`mean_names` lists the mean parameters of a
 set of terms, :func:`get_vector` and :func:`set_vector` move them in and out of
 a vector, and :func:`beacons_with` says which beacons a per-beacon effect is on.
@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..effects import split_term
+from ..simulation.effects import split_term
 
 #: The mean parameters of each shared effect, in the order of the vector.
 SHARED_KEYS = {"range_bias": ["bias"], "sound_speed": ["scale"], "plane_drift": ["drift"],

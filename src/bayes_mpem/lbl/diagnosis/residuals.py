@@ -4,11 +4,11 @@ After the diagnosis has kept its effects, :func:`residual_checks` bins the
 standardised residuals of the confidently classified direct-path and
 multipath replies of every beacon against each covariate of
 :func:`covariates` (time, range, elevation, vehicle depth, bearing) and tests
-the bin means against zero (:func:`bayes_mpem.lbl.model_checks.binned_trend`).
+the bin means against zero (:func:`bayes_mpem.lbl.survey.model_checks.binned_trend`).
 A significant check is structure no effect of
-:data:`~bayes_mpem.lbl.effects.EFFECTS` explains. :func:`beacon_flags` runs the
+:data:`~bayes_mpem.lbl.simulation.effects.EFFECTS` explains. :func:`beacon_flags` runs the
 per-beacon EM's quality checks and the model checks of ``fit`` and ``sample``
-(:mod:`bayes_mpem.lbl.model_checks`: the direct path's offset, the outliers'
+(:mod:`bayes_mpem.lbl.survey.model_checks`: the direct path's offset, the outliers'
 timing, the plane against the sea surface) on the final joint fit: a beacon
 whose fit is not credible (e.g. its multipath on the direct path) is named, not
 left silent.
@@ -18,9 +18,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..em_result import reflector_flags
-from ..model_checks import binned_trend, direct_path_checks, outlier_timing_check, plane_check
-from ..model_checks import covariates as _covariates
+from ..em.em_result import reflector_flags
+from ..survey.model_checks import (
+    binned_trend,
+    direct_path_checks,
+    outlier_timing_check,
+    plane_check,
+)
+from ..survey.model_checks import covariates as _covariates
 from .ecm import JointFit
 from .model import Ranges, offsets, predict
 
@@ -40,7 +45,7 @@ def covariates(d: Ranges) -> dict:
     Returns
     -------
     dict of numpy.ndarray
-        Those of :func:`bayes_mpem.lbl.model_checks.covariates` (time, range,
+        Those of :func:`bayes_mpem.lbl.survey.model_checks.covariates` (time, range,
         elevation, vehicle depth, bearing).
     """
     ex, ey, _, dz = offsets(d)
@@ -97,11 +102,11 @@ def residual_checks(fit: JointFit, d: Ranges, *, n_bins=10, alpha=1e-4) -> list:
 def beacon_flags(fit, data, sigma_floor: float = 0.05) -> dict:
     """Why each beacon's fit is not credible: the per-beacon EM's quality checks, jointly.
 
-    The checks of :func:`bayes_mpem.lbl.em_result.quality_flags`, on this
+    The checks of :func:`bayes_mpem.lbl.em.em_result.quality_flags`, on this
     joint fit's per-beacon parameters; the multipath family lying on the direct
     path (its median separation from it below twice the multipath scatter),
     where a plane near the vehicle mimics a range bias; and the model checks of
-    :mod:`bayes_mpem.lbl.model_checks` that the joint model's residuals allow:
+    :mod:`bayes_mpem.lbl.survey.model_checks` that the joint model's residuals allow:
     the direct path's offset (a bias the effects found do not explain), the
     outliers' timing (not with ``early_outliers``, whose outliers are all early),
     and a plane more than 10 m below the sea surface (the quality checks flag

@@ -46,7 +46,7 @@ class Effect:
     Attributes
     ----------
     name : str
-        One of :data:`~bayes_mpem.lbl.effects.EFFECTS`.
+        One of :data:`~bayes_mpem.lbl.simulation.effects.EFFECTS`.
     magnitude : float
         Signed size in :attr:`unit` (see :data:`UNITS`).
     unit : str

@@ -15,7 +15,7 @@ folds, the geometry, the ECM's options) and runs the search:
    same residuals (a wrong effect kept beside a small plane drift).
 
 Both run twice. First over the shared effects alone, then again with the
-per-beacon effects (:data:`~bayes_mpem.lbl.effects.PER_BEACON`) as candidates
+per-beacon effects (:data:`~bayes_mpem.lbl.simulation.effects.PER_BEACON`) as candidates
 too, tried on the beacons whose direct-path residuals the model still leaves
 unexplained (:func:`suspects`: an offset of more than :data:`SUSPECT_Z`
 standard errors, a trend with p below :data:`SUSPECT_P`, or a direct-path weight
@@ -45,8 +45,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..effects import PER_BEACON, UNITS, split_term, term, term_order
-from ..model_checks import covariates, direct_path_checks, trend_checks
+from ..simulation.effects import PER_BEACON, UNITS, split_term, term, term_order
+from ..survey.model_checks import covariates, direct_path_checks, trend_checks
 from .ecm import fit_joint, heldout
 from .evidence import not_credible
 from .model import Ranges, offsets, predict
@@ -151,7 +151,7 @@ class Search:
         base : JointFit
             The baseline.
         effects : tuple of str
-            The candidate effects (names of :data:`~bayes_mpem.lbl.effects.EFFECTS`).
+            The candidate effects (names of :data:`~bayes_mpem.lbl.simulation.effects.EFFECTS`).
         max_effects : int
         min_gain, min_z : float
             The keep rule.
@@ -260,7 +260,7 @@ class Search:
         Returns
         -------
         list of str
-            Terms (:func:`~bayes_mpem.lbl.effects.term`).
+            Terms (:func:`~bayes_mpem.lbl.simulation.effects.term`).
         """
         shared = ([e for e in effects if e not in PER_BEACON and e not in current.effects]
                   if stage != "own" else [])

@@ -1,7 +1,7 @@
 """Starting points of the diagnosis' joint fits.
 
 * :func:`baseline_start` starts the baseline (no effect) from the per-beacon
-  mixture EM with both geometries (:func:`bayes_mpem.lbl.path_choice.choose_path`),
+  mixture EM with both geometries (:func:`bayes_mpem.lbl.em.path_choice.choose_path`),
   and picks the multipath geometry of the joint model;
 * :func:`start_for` gives starting points for a model with more effects, from a
   fit of a nested one (for a second reflector: one per candidate plane);
@@ -11,8 +11,8 @@
 
 Examples
 --------
->>> from bayes_mpem.lbl.simulate import simulate_survey
->>> from bayes_mpem.lbl.survey import fittable_beacons
+>>> from bayes_mpem.lbl.simulation.simulate import simulate_survey
+>>> from bayes_mpem.lbl.survey.survey import fittable_beacons
 >>> from bayes_mpem.lbl.diagnosis.model import ranges
 >>> sim = simulate_survey("abe58", rng=2, n_cycles=300)
 >>> fittable, _ = fittable_beacons(sim.survey, 30)
@@ -29,10 +29,10 @@ from dataclasses import replace
 import numpy as np
 
 from ..._rng import as_generator
-from .. import geometry
-from ..effects import split_term
-from ..em_mixture import fit_mixture_em, histogram_modes
-from ..path_choice import choose_path
+from ..em.em_mixture import fit_mixture_em, histogram_modes
+from ..em.path_choice import choose_path
+from ..model import geometry
+from ..simulation.effects import split_term
 from .ecm import JointFit
 from .model import Ranges, biases, implied_depths, predict
 from .params import Params, beacon_mask, get_vector, mean_names, set_vector

@@ -7,7 +7,7 @@ height, sigma_MP and mixing weights, and sigma_DP, by the ECM of
 :mod:`~bayes_mpem.lbl.navigate.ecm`,
 started from the dead reckoning with annealed scales and the planes at the sea
 surface; then (``path="auto"``) each beacon's multipath geometry is chosen as
-:func:`~bayes_mpem.lbl.path_choice.choose_path` does, on the corrected track,
+:func:`~bayes_mpem.lbl.em.path_choice.choose_path` does, on the corrected track,
 and the ECM continues with it. The track's uncertainty is the Laplace
 approximation at the estimate (:mod:`.normal`), with the observed information
 of the mixture (the class-weighted Gauss-Newton Hessian less the information the
@@ -28,9 +28,9 @@ from ..._validate import check_choice, check_int, check_positive, check_probabil
 from ...exceptions import ConvergenceWarning, InputError, NavigationWarning
 from ...io.survey import BeaconData, load_survey
 from ...mixture.densities import CLASSES
-from ..em_result import reflector_flags
-from ..geometry import PATHS
-from ..path_choice import AUTO, check_path_choice, choose_path
+from ..em.em_result import reflector_flags
+from ..em.path_choice import AUTO, check_path_choice, choose_path
+from ..model.geometry import PATHS
 from . import ecm, observability
 from .dive import Dive, build_dive
 from .normal import cross_covariances, global_covariance, marginal_covariances, solve

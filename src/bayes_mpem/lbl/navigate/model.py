@@ -6,7 +6,7 @@ can call the same functions one ping at a time:
 
 * :func:`predict_ranges`: the direct-path and multipath ranges of a vehicle at
   a horizontal position, with their derivatives with respect to that position
-  and the plane height (straight rays, :mod:`bayes_mpem.lbl.geometry`);
+  and the plane height (straight rays, :mod:`bayes_mpem.lbl.model.geometry`);
 * :func:`class_log_joint`: ``log w_j + log p(z | j)`` of every class (direct
   path, multipath, outlier) and their log-sum-exp, from the shared densities
   of :mod:`bayes_mpem.mixture.densities`;
@@ -35,7 +35,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ...mixture.densities import LOG_TINY, gaussian_logpdf, log_mix
-from .. import geometry
+from ..model import geometry
 
 
 class RangePrediction(NamedTuple):

@@ -1,7 +1,7 @@
 """The names of :func:`~bayes_mpem.lbl.navigate.navigate`'s choices, light enough for the CLI.
 
 This module imports nothing, so ``bayes-mpem --help`` can list the choices of
-``navigate`` without loading numpy (as :mod:`bayes_mpem.lbl.paths` does for the
+``navigate`` without loading numpy (as :mod:`bayes_mpem.lbl.model.paths` does for the
 multipath geometries).
 
 Examples

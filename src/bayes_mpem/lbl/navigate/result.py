@@ -21,7 +21,7 @@ from scipy.stats import norm
 from ...exceptions import InputError
 from ...io.results import write_csv, write_json, writing
 from ...mixture.densities import CLASSES
-from ..survey import beacons_table, classified_table
+from ..survey.survey import beacons_table, classified_table
 from .dive import Dive, dive_with_dead_reckoning
 from .objective import State
 
@@ -89,7 +89,7 @@ class Navigation:
         ``(n, 3)`` class probabilities of every reply (or a baseline's weights).
     beacons : dict
         Per beacon: ``mp`` (a multipath class), ``d0_free``, ``path_choice``
-        (a record of :class:`~bayes_mpem.lbl.path_choice.PathChoice` or None).
+        (a record of :class:`~bayes_mpem.lbl.em.path_choice.PathChoice` or None).
     skipped : dict
         Beacons without a reply, with the reason.
     flags : list of dict
@@ -106,7 +106,7 @@ class Navigation:
         :attr:`global_sd`'s keys (``beta``, ``scale``, then the plane heights).
     track_global_cov : numpy.ndarray
         ``(K, 2, G)`` covariance of every epoch's position with the globals
-        (what a filter started at the last epoch needs, :mod:`bayes_mpem.lbl.online`).
+        (what a filter started at the last epoch needs, :mod:`bayes_mpem.lbl.navigate.online`).
     """
 
     dive: Dive = field(repr=False)

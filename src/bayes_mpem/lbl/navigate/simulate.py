@@ -1,6 +1,6 @@
 """Simulated dives for navigation: a true track, a drifting dead reckoning, LBL replies.
 
-:func:`simulate_dive` runs the LBL simulator of :mod:`bayes_mpem.lbl.simulate`
+:func:`simulate_dive` runs the LBL simulator of :mod:`bayes_mpem.lbl.simulation.simulate`
 along a preset's true track (one interrogation of every beacon per cycle, all
 at the same time), then
 
@@ -33,9 +33,9 @@ from ..._rng import RNGLike, as_generator
 from ..._validate import check_positive, check_range
 from ...io.results import write_csv, writing
 from ...io.survey import Survey, load_survey
-from .. import geometry
-from ..presets import preset_config, preset_track
-from ..simulate import Simulation, simulate_lbl
+from ..model import geometry
+from ..simulation.presets import preset_config, preset_track
+from ..simulation.simulate import Simulation, simulate_lbl
 from .model import rotation
 
 
@@ -241,7 +241,7 @@ def simulate_dive(
     ----------
     preset : {"abe58", "random"}
         The survey (beacons, noise, class weights, lawnmower track) of
-        :func:`~bayes_mpem.lbl.simulate.simulate_survey`.
+        :func:`~bayes_mpem.lbl.simulation.simulate.simulate_survey`.
     rng : None, int or numpy.random.Generator
         The only source of randomness.
     n_cycles : int, optional

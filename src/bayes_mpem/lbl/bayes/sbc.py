@@ -1,0 +1,262 @@
+"""Simulation-based calibration (Talts et al. 2018) of one beacon's posterior and sampler.
+
+:func:`run_sbc` repeats, for one fixed *design* (a beacon and the vehicle
+positions of its pings; the ranges are simulated):
+
+1. draw the parameters from a proper prior that does not look at the ranges
+   (:func:`sbc_posterior`: :class:`~bayes_mpem.lbl.bayes.posterior.BeaconPosterior` with
+   ``d0`` uniform within ``plane_halfwidth`` of the sea surface, the outliers'
+   window fixed, log-uniform scales on ``sigma_bounds`` and Dirichlet weights);
+2. simulate one range per ping from the model's own mixture at those parameters
+   (:func:`simulate_ranges`);
+3. sample the posterior of those ranges as ``bayes-mpem sample`` does: the
+   mixture EM gives the start, :func:`~bayes_mpem.lbl.bayes.beacon_chains.beacon_chains`
+   runs the shipped sampler (or the ensemble with the ``moves`` given) to its
+   stopping rule, and ``n_draws`` draws are thinned evenly from the kept chain;
+4. record the rank of every true parameter among its draws
+   (:func:`~bayes_mpem.mcmc.sbc.rank_statistic`).
+
+With an exact posterior and sampler the ranks are uniform
+(:meth:`SBCResult.tests`). The prior options exist only here; the default
+posterior of ``sample`` is unchanged (its ``d0`` prior is bounded by the largest
+range, see :mod:`bayes_mpem.lbl.bayes.posterior`). ``benchmarks/sbc.py`` runs the
+study (``docs/bayes-calibration.md``); ``tests/lbl/bayes/test_sbc.py`` a small one
+that fails with emcee 3.1.6's snooker move.
+
+Pings whose direct path is shorter than ``min_direct`` are left out of the
+design, so that no simulated direct or multipath range can leave the window
+(the model's outlier density is uniform over it, and a range outside would
+make the simulated data and the likelihood disagree).
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ..._rng import RNGLike, as_generator
+from ...io.survey import BeaconData
+from ...mcmc import thin_index
+from ...mcmc.sbc import rank_statistic, rank_uniformity
+from ..em.em_mixture import fit_mixture_em
+from ..model.beacon_geometry import BeaconGeometry
+from .beacon_chains import beacon_chains
+from .posterior import PARAMS, BeaconPosterior
+
+#: The prior of the calibration: plane depth within this many m of the sea surface ...
+PLANE_HALFWIDTH = 30.0
+#: ... scales log-uniform on these bounds (m) ...
+SIGMA_BOUNDS = (1.0, 20.0)
+#: ... and the listening window from 1 m to this many times the longest possible
+#: multipath, plus 200 m.
+WINDOW_FACTOR = 1.25
+
+
+@dataclass(frozen=True)
+class SBCResult:
+    """Ranks of the true parameters among their posterior draws, over the simulations.
+
+    Attributes
+    ----------
+    names : tuple of str
+        The natural parameters ranked (:data:`~bayes_mpem.lbl.bayes.posterior.PARAMS`).
+    ranks : numpy.ndarray
+        ``(n_sims, len(names))`` ranks, each in ``0 .. n_draws``.
+    truths : numpy.ndarray
+        ``(n_sims, len(names))`` the values drawn from the prior.
+    n_draws : int
+        Posterior draws each rank is taken among.
+    settings : dict
+        The design, the prior and the sampler's options.
+    diagnostics : dict
+        Per simulation: steps run, the smallest ESS, whether the stopping rule was met.
+    """
+
+    names: tuple
+    ranks: np.ndarray = field(repr=False)
+    truths: np.ndarray = field(repr=False)
+    n_draws: int
+    settings: dict = field(default_factory=dict)
+    diagnostics: dict = field(default_factory=dict, repr=False)
+
+    def tests(self, *, n_bins: int = 10, tails: float = 0.1) -> dict:
+        """Test every parameter's ranks for uniformity (:func:`.rank_uniformity`).
+
+        Parameters
+        ----------
+        n_bins : int, default 10
+        tails : float, default 0.1
+
+        Returns
+        -------
+        dict
+            Parameter name to the test's dict.
+        """
+        return {k: rank_uniformity(self.ranks[:, i], self.n_draws, n_bins=n_bins, tails=tails)
+                for i, k in enumerate(self.names)}
+
+
+def sbc_design(data: BeaconData, *, min_direct: float = 200.0) -> BeaconData:
+    """Keep the pings of ``data`` whose direct path is at least ``min_direct`` m long.
+
+    Parameters
+    ----------
+    data : BeaconData
+        A beacon's replies; only the vehicle positions and the beacon position are used.
+    min_direct : float, default 200
+        Shortest direct path kept (m): ten times the largest scale of the prior,
+        so no simulated range falls below the window's start.
+
+    Returns
+    -------
+    BeaconData
+    """
+    geom = BeaconGeometry.from_data(data)
+    keep = geom.direct >= float(min_direct)
+    return replace(data, range=data.range[keep], x=data.x[keep], y=data.y[keep],
+                   depth=data.depth[keep], time=data.time[keep], rows=data.rows[keep])
+
+
+def sbc_posterior(design: BeaconData, *, path: str = "triangle",
+                  plane_halfwidth: float = PLANE_HALFWIDTH, sigma_bounds=SIGMA_BOUNDS,
+                  concentration: float = 1.0, priors: str = "learned") -> BeaconPosterior:
+    """Build the calibration's posterior for ``design``: a prior that ignores the ranges.
+
+    ``d0`` is uniform on ``[depth - plane_halfwidth, depth + plane_halfwidth]``
+    (the plane within that distance of the sea surface; raised to the vehicle's
+    highest point if needed), the scales log-uniform on ``sigma_bounds``, the
+    weights ``Dirichlet(concentration)``, and the outliers uniform from 1 m to
+    ``1.25`` times the longest multipath the prior allows plus 200 m.
+
+    Parameters
+    ----------
+    design : BeaconData
+    path : {"triangle", "double"}
+    plane_halfwidth : float, default 30
+    sigma_bounds : tuple of float, default (1, 20)
+    concentration : float, default 1
+    priors : {"learned", "equal"}
+
+    Returns
+    -------
+    BeaconPosterior
+        On the design's own ranges (replace them before use: :func:`simulate_ranges`).
+    """
+    geom = BeaconGeometry.from_data(design)
+    depth = float(design.position[2])
+    d0_hi = depth + float(plane_halfwidth)
+    top = float(np.max(geom.multipath(d0_hi, path)))
+    window = (min(1.0, geom.lo), max(WINDOW_FACTOR * top + 200.0, geom.hi))
+    return BeaconPosterior(design, priors=priors, path=path, concentration=concentration,
+                           sigma_bounds=tuple(sigma_bounds),
+                           d0_bounds=(depth - float(plane_halfwidth), d0_hi), window=window)
+
+
+def simulate_ranges(post: BeaconPosterior, theta, gen) -> np.ndarray:
+    """Draw one range per ping of ``post``'s design from the model at ``theta``.
+
+    Parameters
+    ----------
+    post : BeaconPosterior
+        Gives the geometry, the path and the outliers' window.
+    theta : numpy.ndarray
+        ``(ndim,)`` parameters in the sampler's coordinates.
+    gen : numpy.random.Generator
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(n,)`` ranges: per ping a class drawn with the weights, then a Gaussian
+        around the direct path or the multipath, or a uniform outlier.
+
+    Raises
+    ------
+    ValueError
+        When a range falls outside the window (a design with too short direct paths).
+    """
+    p = {k: float(v[0, 0]) for k, v in post.unpack(np.atleast_2d(theta)).items()}
+    g = post.geom
+    cls = gen.choice(3, size=g.n, p=[p["w_dp"], p["w_mp"], p["w_ol"]])
+    dp = g.direct + p["sigma_dp"] * gen.standard_normal(g.n)
+    mp = g.multipath(p["d0"], post.path) + p["sigma_mp"] * gen.standard_normal(g.n)
+    ol = gen.uniform(g.lo, g.hi, g.n)
+    z = np.choose(cls, [dp, mp, ol])
+    if np.any((z < g.lo) | (z > g.hi)):
+        raise ValueError(f"a simulated range left the window [{g.lo:g}, {g.hi:g}] m: keep "
+                         "only pings with longer direct paths (sbc_design)")
+    return z
+
+
+def run_sbc(design: BeaconData, n_sims: int, *, rng: RNGLike = None, sampler="auto",
+            moves=None, n_draws: int = 99, path: str = "triangle", n_walkers=None,
+            tau_factor: float = 30.0, min_ess: float = 300.0, max_steps: int = 20000,
+            **prior) -> SBCResult:
+    """Simulation-based calibration of the beacon posterior on ``design``.
+
+    Parameters
+    ----------
+    design : BeaconData
+        The vehicle positions (:func:`sbc_design`).
+    n_sims : int
+        Simulations (prior draw, data, posterior).
+    rng : None, int or numpy.random.Generator
+        The only source of randomness.
+    sampler : {"auto", "independence", "ensemble"}
+        As for :func:`~bayes_mpem.lbl.bayes.beacon_sampling.sample_beacon` (default the shipped
+        choice; ``moves`` or ``n_walkers`` imply the ensemble).
+    moves : list, optional
+        emcee moves of the ensemble (default: :func:`~bayes_mpem.mcmc.default_moves`).
+    n_draws : int, default 99
+        Posterior draws each rank is taken among, thinned evenly from the kept chain.
+    path : {"triangle", "double"}
+    n_walkers : int, optional
+        Walkers of the ensemble (default ``max(24, 4 ndim)``).
+    tau_factor, min_ess, max_steps : float, float, int
+        The sampler's stopping rule (:func:`~bayes_mpem.lbl.bayes.beacon_chains.beacon_chains`).
+    **prior
+        ``plane_halfwidth``, ``sigma_bounds``, ``concentration``, ``priors``
+        (:func:`sbc_posterior`).
+
+    Returns
+    -------
+    SBCResult
+    """
+    gen = as_generator(rng)
+    base = sbc_posterior(design, path=path, **prior)
+    opts = {"path": path, "priors": base.priors, "concentration": base.concentration,
+            "sigma_bounds": tuple(np.exp(base.log_sigma_bounds)), "d0_bounds": base.d0_bounds,
+            "window": (base.geom.lo, base.geom.hi)}
+    names = [k for k in PARAMS if k in ("d0", "sigma_mp", "sigma_dp")
+             or (k.startswith("w_") and base.priors == "learned")]
+    ranks = np.empty((int(n_sims), len(names)), int)
+    truths = np.empty((int(n_sims), len(names)))
+    diag = {"n_steps": [], "sampler": [], "converged": []}
+    for s in range(int(n_sims)):
+        theta = base.draw_prior(1, gen)[0]
+        data = replace(design, range=simulate_ranges(base, theta, gen))
+        post = BeaconPosterior(data, **opts)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # flagged fits and step caps are counted instead
+            post.em = fit_mixture_em(data, path=path, rng=gen)
+            run = beacon_chains(post, gen, sampler=sampler, n_walkers=n_walkers, moves=moves,
+                                tau_factor=tau_factor, min_ess=min_ess, max_steps=max_steps,
+                                progress=False)
+        chain = run.groups[0]
+        idx, _ = thin_index(chain.shape[0], chain.shape[1], n_draws)
+        flat = chain[idx].reshape(-1, post.ndim)[-n_draws:]
+        draws = post.unpack(flat)
+        truth = post.unpack(theta[None, :])
+        for i, k in enumerate(names):
+            truths[s, i] = truth[k][0, 0]
+            ranks[s, i] = rank_statistic(draws[k][:, 0], truth[k][0, 0])
+        diag["n_steps"].append(run.info["n_steps"])
+        diag["sampler"].append(run.sampler)
+        diag["converged"].append(run.info["converged"])
+    settings = {"n_sims": int(n_sims), "n_ranges": int(design.n), "path": path,
+                "sampler": sampler, "n_walkers": n_walkers, "tau_factor": float(tau_factor),
+                "min_ess": float(min_ess), "moves": "default" if moves is None else repr(moves),
+                **{k: (list(v) if isinstance(v, tuple) else v) for k, v in opts.items()}}
+    return SBCResult(names=tuple(names), ranks=ranks, truths=truths, n_draws=int(n_draws),
+                     settings=settings, diagnostics=diag)

@@ -1,0 +1,395 @@
+"""The mixture EM for one beacon: maximum likelihood of the dp / mp / outlier mixture.
+
+:func:`fit_mixture_em` (the package's default fit) maximises the likelihood of
+the density mixture of :mod:`bayes_mpem.lbl.model.likelihood`: a Gaussian around
+the direct path, a Gaussian around the multipath off a horizontal plane at
+height ``d0`` above the beacon, and outliers uniform over the observed window.
+Each iteration is a generalised EM step: the E-step of
+:func:`bayes_mpem.lbl.model.likelihood.e_step`, then the plane height improved by a
+safeguarded Gauss-Newton step (:mod:`bayes_mpem.mixture.gauss_newton`) and the
+scales and weights in closed form (:func:`mixture_m_step`), so the
+log-likelihood never decreases. The starts are the modes of the per-range
+plane heights (:func:`histogram_modes`), compared on a subsample. With
+``ssp=`` the ranges are predicted through a sound-speed profile (refracted
+rays, :mod:`bayes_mpem.lbl.model.refracted`) instead of straight lines.
+
+The paper's own EM is :mod:`bayes_mpem.lbl.em.em_paper`; both return an
+:class:`~bayes_mpem.lbl.em.em_result.EMResult` whose class probabilities come
+from a final E-step at the returned parameters.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..._rng import RNGLike, as_generator
+from ..._validate import check_int, check_positive, check_range
+from ...exceptions import ConvergenceWarning
+from ...io.survey import BeaconData
+from ...mixture.densities import CLASSES
+from ...mixture.gauss_newton import safeguarded_step
+from ..model.beacon_geometry import BeaconGeometry
+from ..model.likelihood import e_step
+from .em_result import (
+    EMResult,
+    check_max_iter,
+    check_options,
+    estimate_sigma_dp,
+    wdot,
+    with_flags,
+)
+
+# --------------------------------------------------------------------------
+# the mixture EM
+
+
+@dataclass
+class _State:
+    d0: float
+    sigma_dp: float
+    sigma_mp: float
+    weights: np.ndarray
+
+
+def _weighted_sse(geom, r, d0, path):
+    res = geom.z - geom.multipath(d0, path)
+    return float(wdot(r, res * res)), res
+
+
+def _update_d0(geom, r, d0, path, lo, hi, max_steps=5):
+    """Safeguarded Gauss-Newton on the weighted SSE: never increases it."""
+    sse, res = _weighted_sse(geom, r, d0, path)
+    for _ in range(max_steps):
+        jac = geom.multipath_derivative(d0, path)
+        den = float(wdot(r, jac * jac))
+        if den <= 0:
+            break
+        step = float(wdot(r, res * jac)) / den
+        out = safeguarded_step(lambda x: _weighted_sse(geom, r, x, path), d0, step, sse,
+                               bounds=(lo, hi))
+        if out is None:
+            break
+        moved = abs(out.x - d0)
+        d0, sse, res = out.x, out.value, out.aux
+        if moved < 1e-6:
+            break
+    return d0, sse
+
+
+def mixture_m_step(geom, resp, state, path, *, fit_sigma_dp, fit_weights, sigma_floor, d0_bounds):
+    """M-step of the mixture EM (a generalised one for ``d0``).
+
+    Parameters
+    ----------
+    geom : BeaconGeometry
+    resp : numpy.ndarray
+        ``(n, 3)`` responsibilities.
+    state : _State
+        Current parameters (``d0`` is the Gauss-Newton start).
+    path : {"triangle", "double"}
+    fit_sigma_dp, fit_weights : bool
+        Whether sigma_DP and the weights are free.
+    sigma_floor : float
+        Lower bound on both scales (m), against collapse onto single ranges.
+    d0_bounds : tuple of float
+
+    Returns
+    -------
+    _State
+    """
+    r_dp, r_mp = resp[:, 0], resp[:, 1]
+    d0, sse = _update_d0(geom, r_mp, state.d0, path, *d0_bounds)
+    n_mp = r_mp.sum()
+    s_mp = max(np.sqrt(sse / n_mp), sigma_floor) if n_mp > 0 else state.sigma_mp
+    s_dp = state.sigma_dp
+    if fit_sigma_dp and r_dp.sum() > 0:
+        rd = geom.z - geom.direct
+        s_dp = max(np.sqrt(wdot(r_dp, rd * rd) / r_dp.sum()), sigma_floor)
+    w = resp.mean(axis=0) if fit_weights else state.weights
+    return _State(float(d0), float(s_dp), float(s_mp), np.asarray(w, float))
+
+
+def _run_mixture(geom, state, path, *, fit_sigma_dp, fit_weights, sigma_floor, tol, max_iter,
+                 d0_bounds):
+    ll, resp = e_step(geom, state.d0, state.sigma_dp, state.sigma_mp, state.weights, path)
+    first = resp
+    hist = {k: [] for k in ("d0", "sigma_mp", "sigma_dp", "p_dp", "p_mp", "p_ol", "loglik",
+                            "w_dp", "w_mp", "w_ol")}
+
+    def record():
+        hist["d0"].append(state.d0)
+        hist["sigma_mp"].append(state.sigma_mp)
+        hist["sigma_dp"].append(state.sigma_dp)
+        hist["loglik"].append(ll)
+        for j, c in enumerate(CLASSES):
+            hist["p_" + c].append(float(resp[:, j].mean()))
+            hist["w_" + c].append(float(state.weights[j]))
+
+    record()
+    converged = False
+    it = 0
+    for it in range(1, max_iter + 1):
+        state = mixture_m_step(geom, resp, state, path, fit_sigma_dp=fit_sigma_dp,
+                               fit_weights=fit_weights, sigma_floor=sigma_floor,
+                               d0_bounds=d0_bounds)
+        ll_old = ll
+        ll, resp = e_step(geom, state.d0, state.sigma_dp, state.sigma_mp, state.weights, path)
+        record()
+        if abs(ll - ll_old) <= tol * max(geom.n, 1):
+            converged = True
+            break
+    return state, ll, resp, first, hist, it, converged
+
+
+def histogram_modes(v, k, *, width=5.0, sep=25.0, min_count=-1):
+    """Return the ``k`` strongest modes of ``v`` from a smoothed histogram.
+
+    Parameters
+    ----------
+    v : numpy.ndarray
+        Values (e.g. per-range plane heights).
+    k : int
+        Number of modes wanted.
+    width : float, default 5
+        Bin width.
+    sep : float, default 25
+        Smallest separation of two modes.
+    min_count : float, default -1
+        A mode's 3-bin smoothed count must exceed this (default: any bin,
+        empty ones included).
+
+    Returns
+    -------
+    list of float
+        Bin centres, strongest first (at most ``k``).
+
+    Examples
+    --------
+    >>> v = np.r_[np.full(50, 100.0), np.full(20, 300.0)]
+    >>> histogram_modes(v, 2)
+    [102.5, 297.5]
+    """
+    nb = int(min(max((v.max() - v.min()) / width, 1), 20000))
+    counts, edges = np.histogram(v, bins=nb)
+    smooth = np.convolve(counts, np.ones(3), mode="same")[:counts.size] if counts.size >= 3 \
+        else counts.astype(float)
+    out = []
+    for i in np.argsort(smooth)[::-1]:
+        if smooth[i] <= min_count:
+            break
+        c = 0.5 * (edges[i] + edges[i + 1])
+        if all(abs(c - o) > sep for o in out):
+            out.append(float(c))
+        if len(out) >= k:
+            break
+    return out
+
+
+def _d0_candidates(geom, sigma_dp, path, k):
+    """Modes of the per-range plane heights, ranges near the direct path left out."""
+    d0k = geom.invert_plane_height(path)
+    far = np.abs(geom.z - geom.direct) > max(6.0 * sigma_dp, 10.0)
+    v = d0k[np.isfinite(d0k) & far & (d0k >= geom.d0_min)]
+    if v.size < 3:
+        return []
+    return histogram_modes(v, k)
+
+
+def fit_mixture_em(
+    data: BeaconData,
+    *,
+    path: str = "triangle",
+    sigma_dp: float | None = None,
+    weights: str = "learned",
+    init: dict | None = None,
+    n_init: int = 4,
+    max_iter: int = 500,
+    tol: float = 1e-8,
+    sigma_floor: float = 0.05,
+    subsample: int = 20000,
+    rng: RNGLike = None,
+    ssp=None,
+    sound_speed: float | None = None,
+) -> EMResult:
+    """Maximum-likelihood fit of the density mixture for one beacon.
+
+    Parameters
+    ----------
+    data : BeaconData
+        Replies of one beacon.
+    path : {"triangle", "double"}
+        Multipath geometry.
+    sigma_dp : float, optional
+        Fix the direct-path scatter (m); estimated from the data if omitted.
+    weights : {"learned", "equal"}
+        Learn the mixing weights (default) or fix them at 1/3 each, the
+        paper's equal priors.
+    init : dict, optional
+        Extra starting point, e.g. ``result.to_dict()`` of an earlier fit
+        (keys ``d0``, ``sigma_mp``, ``sigma_dp``, ``weights``).
+    n_init : int, default 4
+        Number of data-driven starts: the strongest modes of the per-range
+        plane heights :func:`~bayes_mpem.lbl.model.geometry.invert_plane_height`.
+    max_iter : int, default 500
+    tol : float, default 1e-8
+        Stop when the log-likelihood gains less than ``tol`` per range.
+    sigma_floor : float, default 0.05
+        Lower bound on the scales (m).
+    subsample : int, default 20000
+        Starts are compared on a random subsample of at most this many
+        ranges; only the best is run on all of them.
+    rng : None, int or numpy.random.Generator
+        Seeds the subsample.
+    ssp : SoundSpeedProfile, optional
+        Predict the direct and multipath ranges through this profile (refracted
+        eigenrays, :mod:`bayes_mpem.lbl.model.refracted`) instead of straight lines;
+        ``d0`` stays the height of the reflecting plane above the beacon. It
+        must reach the deepest beacon or vehicle. Ranges with no eigenray of a
+        class get zero density under it (with neither, they can only be
+        outliers); the counts are in ``settings["refraction"]``.
+    sound_speed : float, optional
+        With ``ssp``, required: the nominal speed (m/s) the navigation used to
+        turn travel times into ranges.
+
+    Returns
+    -------
+    EMResult
+
+    Raises
+    ------
+    ValueError
+        A bad option, fewer than 3 ranges, ``sound_speed`` without ``ssp`` or
+        ``ssp`` without ``sound_speed``, a profile that does not reach the beacon
+        or vehicle.
+    TypeError
+        ``ssp`` not a :class:`~bayes_mpem.acoustics.SoundSpeedProfile`.
+
+    Warns
+    -----
+    ConvergenceWarning
+        When ``max_iter`` is reached first.
+    FitQualityWarning
+        When the result is not a credible reflector (:func:`quality_flags`).
+
+    Examples
+    --------
+    >>> from bayes_mpem.lbl.simulation.simulate import simulate_survey
+    >>> from bayes_mpem.lbl.em.em_mixture import fit_mixture_em
+    >>> sim = simulate_survey("abe58", rng=1)
+    >>> res = fit_mixture_em(sim.survey.for_beacon("4"), rng=0)
+    >>> abs(res.d0 - 2472) < 3
+    True
+    """
+    fixed_dp = check_options(path=path, weights=weights, sigma_dp=sigma_dp)
+    check_int("n_init", n_init, minimum=1)
+    check_max_iter(max_iter)
+    check_positive("tol", tol)
+    check_range("sigma_floor", sigma_floor, low=0, include_low=True)
+    if data.n < 3:
+        raise ValueError(f"beacon {data.beacon}: need at least 3 ranges to fit, got {data.n}")
+    gen = as_generator(rng)
+    geom = _geometry(data, ssp, sound_speed)
+    s_dp0 = fixed_dp or estimate_sigma_dp(geom)
+    d0_bounds = (geom.d0_min, geom.hi + geom.d0_min + 1.0)
+    opts = dict(fit_sigma_dp=fixed_dp is None, fit_weights=weights == "learned",
+                sigma_floor=float(sigma_floor), d0_bounds=d0_bounds)
+    starts = _starts(geom, init, s_dp0, fixed_dp, weights, path, int(n_init), d0_bounds)
+    best, prefix, first = _best_start(geom, starts, path, opts, subsample=subsample,
+                                      max_iter=max_iter, gen=gen)
+    used = len(prefix["d0"]) - 1 if prefix is not None else 0
+    state, ll, resp, first_new, hist, it, converged = _run_mixture(
+        geom, best, path, tol=float(tol), max_iter=int(max_iter) - used, **opts)
+    if prefix is not None:
+        hist = {k: prefix[k] + v[1:] for k, v in hist.items()}
+        it += used
+    else:
+        first = first_new
+    if not converged:
+        warnings.warn(
+            f"beacon {data.beacon}: mixture EM did not converge in {it} iterations "
+            f"(d0={state.d0:.2f} m); raise max_iter or loosen tol",
+            ConvergenceWarning,
+            stacklevel=2,
+        )
+    jac = geom.multipath_derivative(state.d0, path)
+    info = wdot(resp[:, 1], jac * jac)
+    d0_se = state.sigma_mp / np.sqrt(info) if info > 0 else float("inf")
+    settings = {"weights": weights, "sigma_dp_fixed": fixed_dp is not None,
+                "n_starts": len(starts), "tol": float(tol), "sigma_floor": float(sigma_floor)}
+    if not geom.straight:
+        settings.update(ssp=geom.ssp.source or repr(geom.ssp), sound_speed=geom.sound_speed,
+                        refraction=geom.ray_counts(state.d0, path))
+    return with_flags(EMResult(
+        beacon=data.beacon,
+        method="mixture",
+        path=path,
+        d0=state.d0,
+        sigma_mp=state.sigma_mp,
+        sigma_dp=state.sigma_dp,
+        weights={c: float(w) for c, w in zip(CLASSES, state.weights, strict=True)},
+        resp=resp,
+        rows=np.asarray(data.rows),
+        n_iter=it,
+        converged=converged,
+        loglik=ll,
+        history={k: np.asarray(v) for k, v in hist.items()},
+        first_resp=first,
+        settings=settings,
+        d0_se=float(d0_se),
+    ), data, float(sigma_floor))
+
+
+def _geometry(data, ssp, sound_speed):
+    """Straight-ray geometry, or refracted through ``ssp`` (then ``sound_speed`` is needed)."""
+    if ssp is None:
+        if sound_speed is not None:
+            raise ValueError("sound_speed: only used with a sound-speed profile (ssp=...)")
+        return BeaconGeometry.from_data(data)
+    from ..model.refracted import RefractedBeaconGeometry
+
+    return RefractedBeaconGeometry.from_data(data, ssp, sound_speed)
+
+
+def _starts(geom, init, s_dp0, fixed_dp, weights, path, n_init, d0_bounds):
+    """List the starting states: ``init``, then the modes of the per-range plane heights."""
+    starts = []
+    if init is not None:
+        w = init.get("weights", {})
+        starts.append(_State(
+            float(init["d0"]),
+            fixed_dp or float(init.get("sigma_dp", s_dp0)),
+            float(init.get("sigma_mp", max(3 * s_dp0, 5.0))),
+            np.array([w.get(c, 1 / 3) for c in CLASSES], float)
+            if weights == "learned" else np.full(3, 1 / 3),
+        ))
+    for d0 in _d0_candidates(geom, s_dp0, path, n_init):
+        starts.append(_State(d0, s_dp0, float(np.clip(3 * s_dp0, 5.0, 50.0)), np.full(3, 1 / 3)))
+    if not starts:  # no multipath-like ranges at all: start at the data window
+        starts.append(_State(float(np.clip(geom.hi, *d0_bounds)), s_dp0, 50.0, np.full(3, 1 / 3)))
+    for s in starts:
+        s.d0 = float(np.clip(s.d0, *d0_bounds))
+    return starts
+
+
+def _best_start(geom, starts, path, opts, *, subsample, max_iter, gen):
+    """Compare the starts by short runs on a subsample of at most ``subsample`` ranges.
+
+    Returns ``(best state, history, first responsibilities)``; the last two are
+    the winning run's, to be continued, when the comparison ran on all the
+    data, else ``None``.
+    """
+    if len(starts) == 1:
+        return starts[0], None, None
+    sub, full = geom, geom.n <= subsample
+    if not full:
+        idx = np.sort(gen.choice(geom.n, size=int(subsample), replace=False))
+        sub = geom.take(idx)
+    runs = [_run_mixture(sub, s, path, tol=1e-6, max_iter=min(100, int(max_iter)), **opts)
+            for s in starts]
+    best_run = max(runs, key=lambda run: run[1])
+    if full:  # the comparison ran on all the data: continue that run
+        return best_run[0], best_run[4], best_run[3]
+    return best_run[0], None, None

@@ -1,0 +1,371 @@
+"""The result of a one-beacon EM and what both EMs share.
+
+:class:`EMResult` is the frozen result of :func:`~bayes_mpem.lbl.em.em_mixture.fit_mixture_em`
+and :func:`~bayes_mpem.lbl.em.em_paper.fit_paper_em`: the fitted plane height,
+scales and weights, the class probabilities of every range from a final
+E-step, the iteration history and the settings. :func:`quality_flags` says
+why a fitted reflector is not credible, and :func:`with_flags` attaches those
+flags (with a :class:`~bayes_mpem.exceptions.FitQualityWarning`).
+
+The helpers both EMs use are here too: option checks (:func:`check_options`,
+:func:`check_max_iter`, built on :mod:`bayes_mpem._validate`), the robust
+direct-path scatter (:func:`estimate_sigma_dp`) and a BLAS-free weighted sum
+(:func:`wdot`).
+
+Examples
+--------
+>>> import numpy as np
+>>> wdot(np.array([1.0, 2.0]), np.array([3.0, 4.0]))
+11.0
+>>> check_max_iter(0)
+Traceback (most recent call last):
+...
+ValueError: max_iter: expected an integer >= 1, got 0
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..._validate import check_choice, check_int, check_positive, check_range
+from ...exceptions import FitQualityWarning
+from ...io.survey import BeaconData
+from ...mixture.densities import CLASSES
+from ..model import geometry
+from ..model.beacon_geometry import BeaconGeometry
+
+#: The mixing weights of both EMs: learned, or the paper's equal thirds.
+WEIGHTS = ("learned", "equal")
+
+
+def quality_flags(result, data: BeaconData, *, sigma_floor: float = 0.05) -> tuple:
+    """Reasons why a fitted reflector is not credible (empty when it is).
+
+    Parameters
+    ----------
+    result : EMResult
+    data : BeaconData
+    sigma_floor : float
+        The scale floor the fit used.
+
+    Returns
+    -------
+    tuple of str
+        Checked: almost no range is multipath (fewer than 10 ranges' worth), the
+        multipath scale stuck at its floor (collapsed onto a few ranges) or above
+        100 m (no coherent multipath), almost no range on the direct path (a wrong
+        beacon position or navigation), a plane above the sea surface, and (for a
+        fit through a sound-speed profile) more than 1 % of the ranges with no
+        eigenray at all.
+    """
+    depth = float(data.position[2])
+    flags = reflector_flags(result.resp, result.sigma_mp, depth - result.d0,
+                            sigma_floor=sigma_floor,
+                            plane_note=f" (d0 = {result.d0:.0f} m, beacon depth {depth:.0f} m)")
+    rays = result.settings.get("refraction") if result.settings else None
+    if rays and result.n and rays["no_ray"] > 0.01 * result.n:
+        flags.append(f"{rays['no_ray']} of {result.n} ranges have no eigenray through the "
+                     "sound-speed profile (neither direct nor multipath at the fitted plane): "
+                     "they can only be outliers")
+    return tuple(flags)
+
+
+def reflector_flags(resp, sigma_mp, plane_depth, *, sigma_floor=0.05, plane_note=""):
+    """Check a fitted reflector: the tests shared by the per-beacon EMs and the diagnosis.
+
+    Parameters
+    ----------
+    resp : numpy.ndarray
+        ``(n, k)`` class probabilities of the beacon's ranges, direct path in
+        column 0 and multipath in column 1.
+    sigma_mp : float
+        The multipath scale (m).
+    plane_depth : float
+        Depth of the reflecting plane (m, positive down; the sea surface is 0).
+    sigma_floor : float, default 0.05
+        The scale floor of the fit.
+    plane_note : str, optional
+        Appended to the message of a plane above the sea surface.
+
+    Returns
+    -------
+    list of str
+        Almost no multipath, sigma_MP at its floor or above 100 m, almost no
+        direct path, a plane more than 10 m above the sea surface.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> reflector_flags(np.tile([0.7, 0.3], (100, 1)), 5.0, -20.0)
+    ['the plane is 20 m above the sea surface']
+    """
+    flags = []
+    n = resp.shape[0]
+    n_mp = float(resp[:, 1].sum()) if n else 0.0
+    if n_mp < 10:
+        flags.append(f"only {n_mp:.1f} ranges' worth of multipath: no reflector identified")
+    if sigma_mp <= 1.05 * sigma_floor:
+        flags.append(f"sigma_MP = {sigma_mp:.3g} m is at its floor: the multipath "
+                     "component collapsed onto a few ranges")
+    elif sigma_mp > 100.0:
+        flags.append(f"sigma_MP = {sigma_mp:.0f} m: no coherent multipath band")
+    if n and float(resp[:, 0].mean()) < 0.01:
+        flags.append("almost no range matches the direct path: check the beacon position "
+                     "and the navigation")
+    if plane_depth < -10.0:
+        flags.append(f"the plane is {-plane_depth:.0f} m above the sea surface{plane_note}")
+    return flags
+
+
+def with_flags(result, data, sigma_floor):
+    """Set the quality flags of ``result``, warning once if there are any.
+
+    Parameters
+    ----------
+    result : EMResult
+    data : BeaconData
+        The beacon's replies.
+    sigma_floor : float
+        The scale floor the fit used.
+
+    Returns
+    -------
+    EMResult
+        A copy with ``flags`` set (:func:`quality_flags`).
+
+    Warns
+    -----
+    FitQualityWarning
+        When there are flags.
+    """
+    flags = quality_flags(result, data, sigma_floor=sigma_floor)
+    if flags:
+        warnings.warn(f"beacon {data.beacon} ({result.method} EM): " + "; ".join(flags),
+                      FitQualityWarning, stacklevel=3)
+    return dataclasses.replace(result, flags=flags)
+
+
+@dataclass(frozen=True)
+class EMResult:
+    """Fit of one beacon.
+
+    Attributes
+    ----------
+    beacon : str
+        Beacon id.
+    method : {"mixture", "paper"}
+    path : {"triangle", "double"}
+        Multipath geometry.
+    d0 : float
+        Height of the reflecting plane above the beacon (m).
+    sigma_mp, sigma_dp : float
+        Multipath and direct-path range scatter (m).
+    weights : dict
+        Mixing weights ``{"dp", "mp", "ol"}``. The paper's EM has none (its
+        priors are equal and dropped); there they are the mean class
+        probabilities, the quantity of the paper's Fig. 12c.
+    resp : numpy.ndarray
+        ``(n, 3)`` class probabilities of every range (dp, mp, ol).
+    rows : numpy.ndarray
+        Positions of these ranges in the input table.
+    n_iter : int
+    converged : bool
+    loglik : float or None
+        Mixture log-likelihood at the returned parameters (mixture EM only).
+    d0_se : float or None
+        Approximate standard error of ``d0`` (m, mixture EM only):
+        ``sigma_mp / sqrt(sum_k p_mp(k) (d z_MP / d d0)_k^2)``, the Fisher
+        information of the multipath ranges given their class probabilities.
+        Calibrated on simulated surveys (``docs/recovery.md``).
+    flags : tuple of str
+        Why the result is not a credible reflector (:func:`quality_flags`);
+        empty for a good fit. A :class:`FitQualityWarning` repeats them.
+    history : dict of numpy.ndarray
+        Per-iteration values, index 0 being the initial state: ``d0``,
+        ``sigma_mp``, ``sigma_dp``, ``p_dp``, ``p_mp``, ``p_ol`` (mean class
+        probabilities) and, for the mixture EM, ``loglik``.
+    first_resp : numpy.ndarray
+        Class probabilities after the first E-step (the paper's Fig. 7).
+    settings : dict
+        The options the fit ran with.
+    """
+
+    beacon: str
+    method: str
+    path: str
+    d0: float
+    sigma_mp: float
+    sigma_dp: float
+    weights: dict
+    resp: np.ndarray = field(repr=False)
+    rows: np.ndarray = field(repr=False)
+    n_iter: int
+    converged: bool
+    loglik: float | None
+    history: dict = field(repr=False)
+    first_resp: np.ndarray = field(repr=False)
+    settings: dict = field(default_factory=dict)
+    d0_se: float | None = None
+    flags: tuple = ()
+
+    @property
+    def n(self) -> int:
+        """Number of ranges used."""
+        return int(self.resp.shape[0])
+
+    @property
+    def labels(self) -> np.ndarray:
+        """Most probable class of every range (``"dp"``, ``"mp"`` or ``"ol"``)."""
+        return np.asarray(CLASSES)[np.argmax(self.resp, axis=1)]
+
+    @property
+    def class_probs(self) -> np.ndarray:
+        """``(n, 3)`` class probabilities (dp, mp, ol): ``resp``, by PosteriorResult's name."""
+        return self.resp
+
+    @property
+    def class_fractions(self) -> dict:
+        """Fraction of ranges labelled dp, mp and ol."""
+        lab = np.argmax(self.resp, axis=1)
+        return {c: float(np.mean(lab == j)) if self.n else float("nan")
+                for j, c in enumerate(CLASSES)}
+
+    def to_dict(self) -> dict:
+        """JSON-ready summary (no per-range arrays)."""
+        return {
+            "d0": self.d0,
+            "sigma_mp": self.sigma_mp,
+            "sigma_dp": self.sigma_dp,
+            "weights": dict(self.weights),
+            "class_fractions": self.class_fractions,
+            "n": self.n,
+            "iterations": self.n_iter,
+            "converged": self.converged,
+            "loglik": self.loglik,
+            "d0_se": self.d0_se,
+            "flags": list(self.flags),
+            "method": self.method,
+            "path": self.path,
+            "settings": dict(self.settings),
+        }
+
+
+# --------------------------------------------------------------------------
+# shared helpers
+
+
+def estimate_sigma_dp(geom: BeaconGeometry, *, window: float = 50.0) -> float:
+    """Robust direct-path scatter from residuals ``z - L_direct``.
+
+    Residuals within ``window`` m of the direct path are trimmed iteratively
+    at 3 sigma (starting from the MAD), a robust stand-in for the paper's
+    least-squares fit of sigma_DP.
+
+    Parameters
+    ----------
+    geom : BeaconGeometry
+    window : float
+        Initial half-width (m) of the residuals considered.
+
+    Returns
+    -------
+    float
+        Standard deviation (m); 1.0 if fewer than 5 ranges fall in the window.
+    """
+    r = geom.z - geom.direct
+    r = r[np.abs(r) < window]
+    if r.size < 5:
+        return 1.0
+    s = 1.4826 * np.median(np.abs(r - np.median(r)))
+    for _ in range(20):
+        keep = r[np.abs(r - r.mean()) < 3.0 * max(s, 1e-3)]
+        s_new = float(keep.std()) if keep.size >= 5 else s
+        if abs(s_new - s) < 1e-6:
+            break
+        s = s_new
+    return max(float(s), 1e-3)
+
+
+def wdot(w, x):
+    """Return ``sum(w * x)``, computed without BLAS.
+
+    ``np.dot`` on 1-D arrays calls a multi-threaded BLAS ``ddot`` that spin-waits
+    for a busy core: on 2 cores with another process running it made the EM 40x
+    slower (measured, ``benchmarks/bench_em.py``). A NumPy reduction does not.
+
+    Parameters
+    ----------
+    w, x : numpy.ndarray
+        Weights and values (broadcastable).
+
+    Returns
+    -------
+    float
+    """
+    return float(np.add.reduce(w * x))
+
+
+def check_options(*, path="triangle", weights="learned", pol=0.05, alpha=0.5, sigma_dp=None):
+    """Validate the options of both EMs up front.
+
+    Parameters
+    ----------
+    path : {"triangle", "double"}
+    weights : {"learned", "equal"}
+    pol : float
+        In (0, 1).
+    alpha : float
+        In (0, 1].
+    sigma_dp : float, optional
+        Positive when given.
+
+    Returns
+    -------
+    float or None
+        ``sigma_dp`` as a float (``None`` when it is to be estimated).
+
+    Raises
+    ------
+    ValueError
+        Naming the first bad option.
+    """
+    geometry.check_path(path)
+    check_choice("weights", weights, WEIGHTS, words=True)
+    check_range("pol", pol, low=0, high=1)
+    check_range("alpha", alpha, low=0, high=1, include_high=True)
+    return check_positive("sigma_dp", sigma_dp, allow_none=True, what="a positive number")
+
+
+def check_max_iter(max_iter):
+    """Check that ``max_iter`` is an integer >= 1.
+
+    Parameters
+    ----------
+    max_iter : int
+
+    Raises
+    ------
+    ValueError
+        For anything else (``bool`` included).
+    """
+    check_int("max_iter", max_iter, minimum=1)
+
+
+def mean_resp_history(resp):
+    """Mean class probabilities of ``resp`` (NaN for no ranges).
+
+    Parameters
+    ----------
+    resp : numpy.ndarray
+        ``(n, 3)`` class probabilities.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(3,)``.
+    """
+    return resp.mean(axis=0) if resp.size else np.full(3, np.nan)

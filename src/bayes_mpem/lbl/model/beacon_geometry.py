@@ -1,0 +1,159 @@
+"""What the likelihood of one beacon needs of its geometry, computed once.
+
+:class:`BeaconGeometry` holds the per-range quantities of one beacon that do
+not depend on the parameters (reported ranges, horizontal distances, depth
+differences, direct-path lengths, the outlier window) and predicts the
+multipath ranges for a plane height through :mod:`bayes_mpem.lbl.model.geometry`.
+The EMs and samplers take one instead of the raw data.
+
+Examples
+--------
+>>> import numpy as np
+>>> g = BeaconGeometry(z=np.array([5.0, 9.0]), h=np.array([3.0, 3.0]),
+...                    dz=np.array([4.0, 4.0]), direct=np.array([5.0, 5.0]),
+...                    lo=5.0, hi=9.0, d0_min=4.0)
+>>> round(g.log_ol_density, 6)
+-1.386294
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from ...io.survey import BeaconData
+from ...mixture.densities import uniform_logpdf
+from . import geometry
+
+
+@dataclass(frozen=True)
+class BeaconGeometry:
+    """Per-range quantities of one beacon that do not depend on parameters.
+
+    Attributes
+    ----------
+    z : numpy.ndarray
+        Reported ranges (m).
+    h, dz, direct : numpy.ndarray
+        Horizontal distance, ``z_beacon - z_vehicle`` and direct-path length (m).
+    lo, hi : float
+        Outlier window: the smallest and largest reported range (m).
+    d0_min : float
+        Lowest physical plane height: the plane must lie above the vehicle for
+        every range, ``max(0, max(dz))``.
+
+    Notes
+    -----
+    Predictions are straight-ray (:mod:`bayes_mpem.lbl.model.geometry`); the subclass
+    :class:`~bayes_mpem.lbl.model.refracted.RefractedBeaconGeometry` predicts through a
+    sound-speed profile with the same interface (``straight`` is False there).
+    """
+
+    straight: ClassVar[bool] = True
+
+    z: np.ndarray
+    h: np.ndarray
+    dz: np.ndarray
+    direct: np.ndarray
+    lo: float
+    hi: float
+    d0_min: float
+
+    @classmethod
+    def from_data(cls, data: BeaconData) -> BeaconGeometry:
+        """Precompute the geometry of ``data``.
+
+        Parameters
+        ----------
+        data : BeaconData
+
+        Returns
+        -------
+        BeaconGeometry
+        """
+        bx, by, bz = (float(v) for v in data.position)
+        h = geometry.horizontal_distance(data.x, data.y, bx, by)
+        dz = bz - np.asarray(data.depth, float)
+        z = np.asarray(data.range, float)
+        lo, hi = (float(z.min()), float(z.max())) if z.size else (0.0, 1.0)
+        return cls(
+            z=z,
+            h=h,
+            dz=dz,
+            direct=geometry.direct_path(h, dz),
+            lo=lo,
+            hi=hi,
+            d0_min=max(0.0, float(dz.max())) if z.size else 0.0,
+        )
+
+    @property
+    def n(self) -> int:
+        """Number of ranges."""
+        return int(self.z.size)
+
+    @property
+    def log_ol_density(self) -> float:
+        """Log of the uniform outlier density over ``[lo, hi]`` (1/m)."""
+        return float(uniform_logpdf(self.lo, self.hi))
+
+    def multipath(self, d0, path: str = "triangle"):
+        """Predicted multipath ranges for plane height ``d0`` (broadcasts).
+
+        Parameters
+        ----------
+        d0 : float or array_like
+            Height of the reflecting plane above the beacon (m).
+        path : {"triangle", "double"}
+            One leg reflected, or both.
+
+        Returns
+        -------
+        ndarray
+            One predicted range (m) per range of the beacon.
+        """
+        return geometry.multipath_range(self.h, self.dz, d0, path, direct=self.direct)
+
+    def multipath_derivative(self, d0, path: str = "triangle"):
+        """``d z_MP / d d0`` of every range (:func:`.geometry.multipath_derivative`).
+
+        Parameters
+        ----------
+        d0 : float or array_like
+            Height of the reflecting plane above the beacon (m).
+        path : {"triangle", "double"}
+
+        Returns
+        -------
+        ndarray
+        """
+        return geometry.multipath_derivative(self.h, self.dz, d0, path)
+
+    def invert_plane_height(self, path: str = "triangle"):
+        """Per-range plane heights (:func:`~bayes_mpem.lbl.model.geometry.invert_plane_height`).
+
+        Parameters
+        ----------
+        path : {"triangle", "double"}
+
+        Returns
+        -------
+        ndarray
+            The ``d0`` that would make each range a multipath (NaN where none does).
+        """
+        return geometry.invert_plane_height(self.z, self.h, self.dz, path, direct=self.direct)
+
+    def take(self, idx) -> BeaconGeometry:
+        """Keep the ranges ``idx``, with the same outlier window and ``d0_min``.
+
+        Parameters
+        ----------
+        idx : array_like of int or bool
+
+        Returns
+        -------
+        BeaconGeometry
+        """
+        return BeaconGeometry(self.z[idx], self.h[idx], self.dz[idx], self.direct[idx],
+                              self.lo, self.hi, self.d0_min)

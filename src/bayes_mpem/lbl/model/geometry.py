@@ -1,0 +1,289 @@
+"""Straight-ray LBL geometry: direct path, image-method multipath, inversion.
+
+Conventions (see ``docs/model.md``):
+
+* depths are positive down; ``h`` is the horizontal distance beacon-vehicle;
+* ``dz = z_beacon - z_vehicle`` is how far the vehicle sits above the beacon;
+* the reflecting plane is horizontal, at height ``d0`` above the beacon, i.e. at
+  depth ``z_beacon - d0``. For a sea-surface bounce ``d0`` equals the beacon
+  depth;
+* by the image method the reflected leg has length
+  ``L_refl = sqrt(h**2 + (2 d0 - dz)**2)``: the beacon's image sits ``d0``
+  above the plane, and the vehicle ``d0 - dz`` below it. This is eq. 2 of the
+  paper, with its ``|x0 + x|`` read as the horizontal separation;
+* ranges are one-way, i.e. half the round-trip path. The **triangle** path
+  (one leg reflected, the other direct: the paper's finding) gives
+  ``(L_direct + L_refl) / 2``; the **double** bounce (both legs reflected)
+  gives ``L_refl``.
+
+Every function is vectorised with NumPy broadcasting.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+
+from ..._validate import check_choice
+from .paths import PATHS
+
+Path = Literal["triangle", "double"]
+
+
+def check_path(path: str) -> str:
+    """Return ``path`` if it names a supported multipath geometry.
+
+    Parameters
+    ----------
+    path : str
+        ``"triangle"`` or ``"double"``.
+
+    Returns
+    -------
+    str
+
+    Raises
+    ------
+    ValueError
+        For any other value.
+    """
+    return check_choice("path", path, PATHS)
+
+
+def horizontal_distance(x, y, beacon_x, beacon_y):
+    """Horizontal distance between vehicle and beacon (m).
+
+    Parameters
+    ----------
+    x, y : array_like
+        Vehicle position (m).
+    beacon_x, beacon_y : float or array_like
+        Beacon position (m).
+
+    Returns
+    -------
+    numpy.ndarray
+    """
+    return np.hypot(np.asarray(x, float) - beacon_x, np.asarray(y, float) - beacon_y)
+
+
+def direct_path(h, dz):
+    """Straight line-of-sight length (m).
+
+    Parameters
+    ----------
+    h : array_like
+        Horizontal distance (m).
+    dz : array_like
+        ``z_beacon - z_vehicle`` (m).
+
+    Returns
+    -------
+    numpy.ndarray
+
+    Examples
+    --------
+    >>> float(direct_path(3.0, 4.0))
+    5.0
+    """
+    return np.hypot(h, dz)
+
+
+def reflected_leg(h, dz, d0):
+    """Length of one leg reflected once by the plane ``d0`` above the beacon.
+
+    Parameters
+    ----------
+    h, dz : array_like
+        Horizontal distance and ``z_beacon - z_vehicle`` (m).
+    d0 : float or array_like
+        Height of the reflecting plane above the beacon (m).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``sqrt(h**2 + (2 d0 - dz)**2)``.
+    """
+    return np.hypot(h, 2.0 * np.asarray(d0, float) - dz)
+
+
+def multipath_range(h, dz, d0, path: Path = "triangle", *, direct=None):
+    """Predicted one-way multipath range (m).
+
+    Parameters
+    ----------
+    h, dz : array_like
+        Horizontal distance and ``z_beacon - z_vehicle`` (m).
+    d0 : float or array_like
+        Height of the reflecting plane above the beacon (m).
+    path : {"triangle", "double"} or array_like of str
+        One reflected leg (default, the paper's finding) or both; an array
+        gives each range its own geometry (names, or a boolean mask that is
+        True for the double bounce).
+    direct : array_like, optional
+        Precomputed :func:`direct_path` (saves a square root in hot loops).
+
+    Returns
+    -------
+    numpy.ndarray
+
+    Examples
+    --------
+    A vehicle 3 km from a beacon 2472 m deep, both near the floor:
+
+    >>> round(float(multipath_range(3000.0, 0.0, 2472.0)), 1)
+    4391.5
+    """
+    refl = reflected_leg(h, dz, d0)
+    if not isinstance(path, str):  # one geometry per range
+        if direct is None:
+            direct = direct_path(h, dz)
+        return np.where(_double_mask(path), refl, 0.5 * (direct + refl))
+    if path == "triangle":
+        if direct is None:
+            direct = direct_path(h, dz)
+        return 0.5 * (direct + refl)
+    if path == "double":
+        return refl
+    check_path(path)
+    raise AssertionError("unreachable")  # pragma: no cover
+
+
+def multipath_derivative(h, dz, d0, path: Path = "triangle"):
+    """Differentiate :func:`multipath_range` with respect to ``d0``.
+
+    Parameters
+    ----------
+    h, dz : array_like
+        Horizontal distance and ``z_beacon - z_vehicle`` (m).
+    d0 : float or array_like
+        Plane height (m).
+    path : {"triangle", "double"} or array_like
+        One geometry for all ranges, or one per range (names, or a boolean
+        mask that is True for the double bounce).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``d z_MP / d d0``; ``2 (2 d0 - dz) / L_refl`` for the double bounce,
+        half that for the triangle path.
+    """
+    lever = 2.0 * np.asarray(d0, float) - dz
+    d = 2.0 * lever / np.hypot(h, lever)
+    if not isinstance(path, str):  # one geometry per range
+        return np.where(_double_mask(path), d, 0.5 * d)
+    return 0.5 * d if check_path(path) == "triangle" else d
+
+
+def _double_mask(paths):
+    """Boolean mask of the double bounces in an array of path names (checked), or the mask."""
+    paths = np.asarray(paths)
+    if paths.dtype == bool:  # already the mask (hot loops precompute it)
+        return paths
+    for p in np.unique(paths):
+        check_path(str(p))
+    return paths == "double"
+
+
+def invert_plane_height(z, h, dz, path: Path = "triangle", *, direct=None):
+    """Per-range plane height ``d0(k)`` that makes range ``z`` a multipath.
+
+    Closed-form inversion of :func:`multipath_range` (used by eq. 8 of the
+    paper). For the triangle path ``L_refl = 2 z - L_direct``; for the double
+    bounce ``L_refl = z``; then ``d0 = (sqrt(L_refl**2 - h**2) + dz) / 2``,
+    taking the branch with the vehicle below the plane.
+
+    Parameters
+    ----------
+    z : array_like
+        Measured one-way ranges (m).
+    h, dz : array_like
+        Horizontal distance and ``z_beacon - z_vehicle`` (m).
+    path : {"triangle", "double"}
+    direct : array_like, optional
+        Precomputed direct-path length.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``d0(k)``; NaN where no plane can produce the range (``L_refl < h``,
+        e.g. a range shorter than the direct path).
+
+    Examples
+    --------
+    >>> z = multipath_range(1500.0, 40.0, 2400.0)
+    >>> round(float(invert_plane_height(z, 1500.0, 40.0)), 6)
+    2400.0
+    """
+    z = np.asarray(z, float)
+    if check_path(path) == "triangle":
+        if direct is None:
+            direct = direct_path(h, dz)
+        refl = 2.0 * z - direct
+    else:
+        refl = z
+    disc = refl * refl - np.asarray(h, float) ** 2
+    out = np.full(np.broadcast(disc, dz).shape, np.nan)
+    ok = (disc >= 0) & (refl > 0)
+    out[ok] = 0.5 * (np.sqrt(disc[ok]) + np.broadcast_to(dz, out.shape)[ok])
+    return out
+
+
+def elevation_angle(h, dz):
+    """Elevation of the vehicle seen from the beacon (degrees, 90 = overhead).
+
+    Parameters
+    ----------
+    h, dz : array_like
+        Horizontal distance and ``z_beacon - z_vehicle`` (m).
+
+    Returns
+    -------
+    numpy.ndarray
+    """
+    return np.degrees(np.arctan2(dz, h))
+
+
+def horizontal_slopes(h, dz, d0, path: Path = "triangle", *, direct=None):
+    """Horizontal-position derivatives of the direct and multipath ranges, per unit offset.
+
+    The gradient of a range with respect to the vehicle's horizontal position
+    ``(x, y)`` is ``(x - x_beacon, y - y_beacon)`` times a slope: ``1 / L_direct``
+    for the direct path, ``(1 / L_direct + 1 / L_refl) / 2`` for the triangle
+    multipath and ``1 / L_refl`` for the double bounce. Returning the slopes
+    keeps the gradient finite right above the beacon (``h = 0``).
+
+    Parameters
+    ----------
+    h, dz : array_like
+        Horizontal distance and ``z_beacon - z_vehicle`` (m).
+    d0 : float or array_like
+        Plane height (m).
+    path : {"triangle", "double"} or array_like
+        Multipath geometry, one for all ranges or one per range (names, or a
+        boolean mask that is True for the double bounce).
+    direct : array_like, optional
+        Precomputed :func:`direct_path`.
+
+    Returns
+    -------
+    slope_direct, slope_multipath : numpy.ndarray
+        Multiply by ``x - x_beacon`` (or ``y - y_beacon``) for the derivative (1/m).
+
+    Examples
+    --------
+    A vehicle 3 m east of a beacon 4 m below it: the direct range grows by
+    3/5 m per metre east.
+
+    >>> sd, sm = horizontal_slopes(3.0, 4.0, 100.0)
+    >>> round(float(3.0 * sd), 6)
+    0.6
+    """
+    if direct is None:
+        direct = direct_path(h, dz)
+    refl = reflected_leg(h, dz, d0)
+    inv_d, inv_r = 1.0 / direct, 1.0 / refl
+    if isinstance(path, str):
+        return inv_d, (0.5 * (inv_d + inv_r) if check_path(path) == "triangle" else inv_r)
+    return inv_d, np.where(_double_mask(path), inv_r, 0.5 * (inv_d + inv_r))

@@ -1,0 +1,484 @@
+"""``Navigator``: classify each range as it arrives and keep the vehicle's position.
+
+One :meth:`Navigator.update` per input line, in time order, at a constant cost
+and in constant memory:
+
+1. **Predict.** The filter (:mod:`.ekf`) moves by the dead-reckoned
+   displacement since the previous line (``x``, ``y`` of every line are the
+   dead reckoning), with the random walk ``q^2 dt``. A ping without a reply and
+   a dead-reckoning line stop here: they advance the filter and are answered
+   with its position.
+2. **Classify.** The reply's class probabilities from the model as it stands:
+   the mixture of :func:`~bayes_mpem.lbl.navigate.model.class_log_joint` at the
+   predicted position, each Gaussian widened by the variance the range inherits
+   from the position's uncertainty (``g^T P g``; for the multipath also from
+   ``d0``'s): the predictive density of the range.
+3. **Correct.** The range updates the filter as a direct path with variance
+   ``sigma_DP^2 / p_dp`` and as a multipath with variance
+   ``(sigma_MP^2 + J^2 var d0) / p_mp`` (the EM's class-weighted least squares,
+   one Kalman update each; a class below ``1e-9`` is skipped).
+4. **Learn.** The beacon's reflector, weights and the pooled sigma_DP take one
+   online-EM step (:mod:`.reflector`) with the reply's statistics at the
+   corrected position.
+
+Before the first ``warmup`` replies the answers are provisional and the replies
+are kept for the batch fit that starts the online estimator (:mod:`.warmup`).
+The whole state is a JSON document (:meth:`Navigator.to_dict`,
+:meth:`Navigator.save`, :meth:`Navigator.load`); a restored navigator gives
+the very same answers as one that never stopped.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import warnings
+from operator import attrgetter
+
+import pandas as pd
+
+from ...._rng import RNGLike, as_generator
+from ...._validate import check_choice, check_int, check_positive, check_range
+from ....exceptions import InputError, NavigationWarning
+from ....io.lines import Ping, make_ping
+from ....io.results import write_json
+from ....io.tables import read_beacons, read_pings
+from ....mixture.densities import CLASSES
+from ...em.path_choice import CLEAR_MARGIN, check_path_choice
+from ..driver import MIN_SEPARATION
+from .ekf import PositionFilter
+from .kernel import class_probabilities, log_weight, ranges
+from .reflector import BeaconModel, DirectPathScale
+from .result import PingResult, label_of
+from .warmup import batch_start, prior_model, provisional_classes
+
+#: Written into every saved state; a state of another format is refused.
+STATE_FORMAT = "bayes-mpem navigator state"
+STATE_VERSION = 1
+#: Switch a beacon's multipath geometry when the other is likelier by this many nats
+#: (the margin beyond which :func:`~bayes_mpem.lbl.em.path_choice.choose_path` warns).
+PATH_MARGIN = CLEAR_MARGIN
+#: A class whose probability is below this does not update the filter.
+MIN_CLASS_PROB = 1e-9
+_REPLY_REASON = {"no_reply": "empty range: the ping got no reply",
+                 "dead_reckoning": "dead-reckoning line: no beacon"}
+
+
+def _options(o: dict) -> dict:
+    check_int("warmup", o["warmup"], minimum=2)
+    check_range("alpha", o["alpha"], low=0.5, high=1.0, include_low=False, include_high=True)
+    check_choice("multipath", o["multipath"], ("signal", "outlier"))
+    check_path_choice(o["path"])
+    for k in ("dr_noise", "start_sd", "heading_sd", "scale_sd", "plane_sd", "provisional_sd",
+              "prior_sigma_mp", "sigma_floor"):
+        o[k] = check_positive(k, o[k])
+    check_positive("sigma_dp", o["sigma_dp"], allow_none=True)
+    for k in ("beta_walk", "scale_walk"):
+        o[k] = check_range(k, o[k], low=0.0, include_low=True)
+    check_int("min_pings", o["min_pings"], minimum=1)
+    check_int("prior_pings", o["prior_pings"], minimum=1)
+    return o
+
+
+class Navigator:
+    """Online classification of ranges and filtering of the vehicle's position.
+
+    Parameters
+    ----------
+    beacons : str, pathlib.Path or pandas.DataFrame
+        The beacons table (``beacon, x, y, depth``).
+    warmup : int, default 200
+        Replies fitted in batch (:func:`~bayes_mpem.lbl.navigate.navigate`)
+        before the online estimator takes over.
+    alpha : float, default 1.0
+        Step-size exponent of the online EM, ``gamma_n = n^-alpha`` with ``n``
+        the beacon's reply count, in (1/2, 1].
+    multipath : {"signal", "outlier"}
+        Multipath replies update the position (default) or are outliers.
+    path : {"auto", "triangle", "double"}
+        Multipath geometry: chosen per beacon by the warm-up fit (default;
+        triangle for a beacon first heard after it), or forced.
+    dr_noise : float, default 0.1
+        Random-walk level ``q`` of the dead reckoning (m / sqrt(s)).
+    start_sd, heading_sd, scale_sd, plane_sd : float
+        The warm-up fit's priors (m, degrees, -, m), as
+        :func:`~bayes_mpem.lbl.navigate.navigate`; ``start_sd`` is also the
+        provisional answers' position sd.
+    sigma_dp : float, optional
+        Fix sigma_DP (m); default learned.
+    min_pings : int, default 30
+        A beacon with fewer warm-up replies starts from the prior below.
+    provisional_sd : float, default 100
+        Scales (m) of the provisional classes during the warm-up.
+    prior_sigma_mp : float, default 20
+        sigma_MP (m) of a beacon too rare in the warm-up; its plane starts at
+        the sea surface, its weights equal.
+    prior_pings : int, default 20
+        How many replies that prior counts for.
+    beta_walk : float, default 1e-5
+        Random walk of the heading bias (rad / sqrt(s)).
+    scale_walk : float, default 1e-6
+        Random walk of the speed scale (1 / sqrt(s)).
+    sigma_floor : float, default 0.05
+        Smallest scale (m).
+    rng : None, int or numpy.random.Generator
+        Seeds the warm-up fit's path choice (one seed is drawn and kept in the state).
+
+    Examples
+    --------
+    >>> from bayes_mpem.lbl.navigate import simulate_dive
+    >>> sim = simulate_dive("abe58", rng=3, n_cycles=120)
+    >>> nav = Navigator(sim.survey.beacons.reset_index(), warmup=200, rng=0)
+    >>> cols = ["time", "beacon", "range", "x", "y", "depth"]
+    >>> out = [nav.update(dict(zip(cols, row))) for row in
+    ...        sim.survey.table[cols].itertuples(index=False)]
+    >>> out[-1].phase, out[-1].label in ("dp", "mp", "ol", "no_reply")
+    ('online', True)
+    """
+
+    def __init__(self, beacons, *, warmup: int = 200, alpha: float = 1.0,
+                 multipath: str = "signal", path: str = "auto", dr_noise: float = 0.1,
+                 start_sd: float = 1000.0, heading_sd: float = 5.0, scale_sd: float = 0.05,
+                 plane_sd: float = 1000.0, sigma_dp: float | None = None, min_pings: int = 30,
+                 provisional_sd: float = 100.0, prior_sigma_mp: float = 20.0,
+                 prior_pings: int = 20, beta_walk: float = 1e-5, scale_walk: float = 1e-6,
+                 sigma_floor: float = 0.05, rng: RNGLike = None):
+        self.options = _options(dict(
+            warmup=warmup, alpha=alpha, multipath=multipath, path=path, dr_noise=dr_noise,
+            start_sd=start_sd, heading_sd=heading_sd, scale_sd=scale_sd, plane_sd=plane_sd,
+            sigma_dp=sigma_dp, min_pings=min_pings, provisional_sd=provisional_sd,
+            prior_sigma_mp=prior_sigma_mp, prior_pings=prior_pings, beta_walk=beta_walk,
+            scale_walk=scale_walk, sigma_floor=sigma_floor))
+        self.beacons = read_beacons(beacons)
+        self.seed = int(as_generator(rng).integers(2 ** 62))
+        self.phase = "warmup"
+        self.last = None  # (time, dead-reckoned x, y) of the previous line
+        self.first_time = None
+        self.buffer = []  # warm-up replies
+        self.windows = {}  # warm-up: per beacon the smallest and largest range
+        self.filter = None
+        self.models = {}
+        self.dp = None
+        self.warmup_record = None
+        self._setup()
+
+    def _setup(self):
+        self._xyz = {b: tuple(float(v) for v in r) for b, r in
+                     zip(self.beacons.index, self.beacons[["x", "y", "depth"]].to_numpy(),
+                         strict=True)}
+        o = self.options
+        self._q2 = o["dr_noise"] ** 2
+        self._alpha, self._floor = o["alpha"], o["sigma_floor"]
+
+    # ------------------------------------------------------------------ checks
+    def _as_ping(self, ping) -> Ping:
+        if isinstance(ping, Ping):
+            if ping.beacon is not None and ping.beacon not in self._xyz:
+                raise InputError(f"beacon {ping.beacon!r} is not in the beacons table")
+            if ping.beacon is not None and ping.depth is None:
+                raise InputError("a ping needs the vehicle's depth")
+        else:
+            ping = make_ping(dict(ping), "ping", self._xyz)
+        if self.last is not None and ping.time < self.last[0]:
+            raise InputError(f"time {ping.time!r} s is before the previous line's "
+                             f"{self.last[0]!r} s: lines must come in time order")
+        return ping
+
+    # ------------------------------------------------------------------ update
+    def update(self, ping) -> PingResult:
+        """Take one line (a ping, a ping without reply, or a dead-reckoning line).
+
+        Parameters
+        ----------
+        ping : Ping or mapping
+            ``time``, ``beacon``, ``range``, ``x``, ``y``, ``depth``
+            (:func:`~bayes_mpem.io.lines.make_ping`).
+
+        Returns
+        -------
+        PingResult
+
+        Raises
+        ------
+        InputError
+            A bad value, an unknown beacon, or a time before the previous
+            line's; the navigator is left as it was.
+
+        Warns
+        -----
+        NavigationWarning
+            Once, when the warm-up's batch fit warned (its messages are in
+            :attr:`warmup_record`).
+        """
+        ping = self._as_ping(ping)
+        if self.first_time is None:
+            self.first_time = ping.time
+        if self.phase == "warmup":
+            return self._warmup_step(ping)
+        return self._online_step(ping)
+
+    def _warmup_step(self, ping: Ping) -> PingResult:
+        self.last = (ping.time, ping.x, ping.y)
+        sd = math.sqrt(self.options["start_sd"] ** 2
+                       + self._q2 * (ping.time - self.first_time))
+        kind = ping.kind
+        if kind != "reply":
+            return PingResult(ping.time, ping.beacon, None, "no_reply" if ping.beacon else None,
+                              None, None, None, ping.x, ping.y, sd, sd, 0.0, "warmup",
+                              _REPLY_REASON[kind])
+        z = ping.range
+        w = self.windows.setdefault(ping.beacon, [z, z])
+        w[0], w[1] = min(w[0], z), max(w[1], z)
+        self.buffer.append([ping.time, ping.beacon, z, ping.x, ping.y, ping.depth])
+        if len(self.buffer) >= self.options["warmup"]:
+            return self._finish_warmup(ping)
+        p = provisional_classes(ping, self._xyz[ping.beacon], w, self.options["provisional_sd"])
+        return PingResult(ping.time, ping.beacon, z, label_of(p), *p, ping.x, ping.y, sd, sd, 0.0,
+                          "warmup")
+
+    def _finish_warmup(self, ping: Ping) -> PingResult:
+        o = self.options
+        self.filter, self.models, self.dp, p, self.warmup_record = batch_start(
+            self.buffer, self.beacons, o, self.seed,
+            {"sigma_mp": o["prior_sigma_mp"], "n": o["prior_pings"]})
+        self.buffer, self.windows, self.phase = [], {}, "online"
+        f = self.filter
+        out = PingResult(ping.time, ping.beacon, ping.range, label_of(p), *p, f.x, f.y,
+                         *f.position_sd(), "warmup")
+        if self.warmup_record["warnings"]:
+            warnings.warn("the warm-up's batch fit warned: "
+                          + "; ".join(self.warmup_record["warnings"]), NavigationWarning,
+                          stacklevel=3)
+        return out
+
+    def _new_beacon(self, bid: str, ping: Ping) -> BeaconModel:
+        """Start a beacon first heard after the warm-up (:func:`.warmup.prior_model`)."""
+        o = self.options
+        bx, by, bz = xyz = self._xyz[bid]
+        direct, mp, *_ = ranges(ping.x, ping.y, ping.depth, bx, by, bz, bz, False)
+        m = prior_model(xyz, {"sigma_mp": o["prior_sigma_mp"], "n": o["prior_pings"]},
+                        mp_on=o["multipath"] == "signal" and mp - direct >= MIN_SEPARATION,
+                        path=o["path"], d0_min=max(0.0, bz - ping.depth),
+                        window=(ping.range, ping.range))
+        self.models[bid] = m
+        return m
+
+    # long function: the four steps of one ping in order (predict, classify, correct,
+    # learn) on local floats; split, each would pass a dozen of them around
+    def _online_step(self, ping: Ping) -> PingResult:
+        f = self.filter
+        t0, x0, y0 = self.last
+        dx, dy, dt = ping.x - x0, ping.y - y0, ping.time - t0
+        if dt > 0.0 or dx != 0.0 or dy != 0.0:
+            f.predict(dx, dy, dt, self._q2)
+        self.last = (ping.time, ping.x, ping.y)
+        kind = ping.kind
+        if kind != "reply":
+            return PingResult(ping.time, ping.beacon, None, "no_reply" if ping.beacon else None,
+                              None, None, None, f.x, f.y, *f.position_sd(), "online",
+                              _REPLY_REASON[kind])
+        z, depth = ping.range, ping.depth
+        m = self.models.get(ping.beacon) or self._new_beacon(ping.beacon, ping)
+        m.observe(z, depth)
+        xp, yp = f.x, f.y
+        direct, mp, gdx, gdy, gmx, gmy, jac = ranges(xp, yp, depth, *m.xyz, m.d0, m.double)
+        s_dp2 = self.dp.sigma ** 2
+        sd_dp = math.sqrt(s_dp2 + f.range_variance(gdx, gdy))
+        s_mp2 = m.sigma_mp ** 2 + jac * jac * m.d0_variance()
+        w = m.weights
+        p_dp, p_mp, p_ol, lse = class_probabilities(
+            z, direct, mp, sd_dp, math.sqrt(s_mp2 + f.range_variance(gmx, gmy)), m.log_outlier(),
+            log_weight(w[0]), log_weight(w[1]) if m.mp_on else -math.inf, log_weight(w[2]))
+        alt = m.alt
+        if alt is not None:  # the other geometry, classified at the same prediction
+            alt.observe(z, depth)
+            a_pred = ranges(xp, yp, depth, *m.xyz, alt.d0, alt.double)
+            a_p = self._classify(alt, z, direct, a_pred, sd_dp)
+        # correct: class-weighted Kalman updates, linearised at the predicted position
+        if p_dp > MIN_CLASS_PROB:
+            f.update(z - direct, gdx, gdy, s_dp2 / p_dp)
+        if p_mp > MIN_CLASS_PROB:
+            f.update(z - mp - gmx * (f.x - xp) - gmy * (f.y - yp), gmx, gmy,
+                     max(s_mp2, s_dp2) / p_mp)
+        # learn: statistics at the corrected position (expected squares under the filter)
+        ex, ey = f.x - xp, f.y - yp
+        r_dp = z - direct - gdx * ex - gdy * ey
+        self.dp.learn(p_dp, r_dp * r_dp + f.range_variance(gdx, gdy), self._alpha, self._floor)
+        u = z - mp - gmx * ex - gmy * ey + jac * (m.d0 - m.d0_ref)
+        m.learn(p_dp, p_mp, p_ol, jac, u, u * u + f.range_variance(gmx, gmy), self._alpha,
+                self._floor)
+        if alt is not None:
+            _, mp_a, _, _, gax, gay, jac_a = a_pred
+            u = z - mp_a - gax * ex - gay * ey + jac_a * (alt.d0 - alt.d0_ref)
+            alt.learn(*a_p[:3], jac_a, u, u * u + f.range_variance(gax, gay), self._alpha,
+                      self._floor)
+            self.models[ping.beacon] = m.weigh(a_p[3] - lse, self._alpha, PATH_MARGIN)
+        sd_x, sd_y, cxy = f.position_sd()
+        return PingResult(ping.time, ping.beacon, z, label_of((p_dp, p_mp, p_ol)), p_dp, p_mp,
+                          p_ol, f.x, f.y, sd_x, sd_y, cxy, "online")
+
+    def _classify(self, m, z, direct, pred, sd_dp):
+        """Class probabilities and log-likelihood of a reply under model ``m`` (its multipath)."""
+        _, mp, _, _, gmx, gmy, jac = pred
+        sd_mp = math.sqrt(m.sigma_mp ** 2 + jac * jac * m.d0_variance()
+                          + self.filter.range_variance(gmx, gmy))
+        w = m.weights
+        return class_probabilities(z, direct, mp, sd_dp, sd_mp, m.log_outlier(), log_weight(w[0]),
+                                   log_weight(w[1]), log_weight(w[2]))
+
+    def run(self, pings) -> pd.DataFrame:
+        """Feed a whole pings table, row by row, as if it arrived live.
+
+        Parameters
+        ----------
+        pings : str, pathlib.Path or pandas.DataFrame
+            The ``fit`` pings table (validated as a whole first; rows in time order).
+
+        Returns
+        -------
+        pandas.DataFrame
+            One row per input row, the fields of :class:`PingResult`.
+
+        Raises
+        ------
+        InputError
+            A bad table, an unknown beacon or a row out of time order (the rows
+            before it are taken).
+        """
+        _, a = read_pings(pings)
+        rng = a["range"]
+        rows = []
+        for i in range(rng.size):
+            z = float(rng[i])
+            rows.append(self.update(Ping(float(a["time"][i]), a["beacon"][i],
+                                         None if z != z else z, float(a["x"][i]),
+                                         float(a["y"][i]), float(a["depth"][i]))))
+        cols = zip(*map(attrgetter(*PingResult.__slots__), rows), strict=True) if rows else ()
+        cols = dict(zip(PingResult.__slots__, cols, strict=False))
+        text = ("beacon", "label", "phase", "reason")  # object columns, None kept as None
+        return pd.DataFrame({k: pd.Series(cols.get(k, ()), dtype=object if k in text else float)
+                             for k in PingResult.__slots__})
+
+    # ------------------------------------------------------------------ reading the state
+    def reflectors(self) -> dict:
+        """Per beacon the current reflector, scales and weights.
+
+        Returns
+        -------
+        dict
+            ``{beacon: {"d0", "d0_sd", "sigma_mp", "sigma_dp", "weights", "path",
+            "mp", "n"}}`` (empty during the warm-up).
+        """
+        return {bid: {"d0": m.d0, "d0_sd": math.sqrt(m.d0_variance()), "sigma_mp": m.sigma_mp,
+                      "sigma_dp": self.dp.sigma, "weights": dict(zip(CLASSES, m.weights,
+                                                                     strict=True)),
+                      "path": "double" if m.double else "triangle", "mp": m.mp_on, "n": m.n}
+                for bid, m in self.models.items()}
+
+    def nuisances(self) -> dict:
+        """Return the dead reckoning's heading bias (degrees) and speed scale, with their sd.
+
+        Returns
+        -------
+        dict
+            Empty during the warm-up.
+        """
+        f = self.filter
+        if f is None:
+            return {}
+        return {"heading_bias_deg": math.degrees(f.beta),
+                "heading_bias_sd_deg": math.degrees(math.sqrt(max(f.p[7], 0.0))),
+                "speed_scale": f.scale, "speed_scale_sd": math.sqrt(max(f.p[9], 0.0))}
+
+    # ------------------------------------------------------------------ saving
+    def to_dict(self) -> dict:
+        """Return the whole state as a JSON-ready document (floats round-trip exactly).
+
+        Returns
+        -------
+        dict
+        """
+        b = self.beacons
+        return {"format": STATE_FORMAT, "version": STATE_VERSION, "options": self.options,
+                "beacons": {"beacon": list(b.index), "x": b["x"].tolist(),
+                            "y": b["y"].tolist(), "depth": b["depth"].tolist()},
+                "seed": self.seed, "phase": self.phase, "last": self.last,
+                "first_time": self.first_time, "buffer": self.buffer, "windows": self.windows,
+                "filter": None if self.filter is None else self.filter.to_dict(),
+                "models": {k: m.to_dict() for k, m in self.models.items()},
+                "dp": None if self.dp is None else self.dp.to_dict(),
+                "warmup_record": self.warmup_record}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> Navigator:
+        """Rebuild a navigator from :meth:`to_dict`.
+
+        Parameters
+        ----------
+        d : dict
+
+        Returns
+        -------
+        Navigator
+
+        Raises
+        ------
+        InputError
+            Not a navigator state (or of another version).
+        """
+        if not isinstance(d, dict) or d.get("format") != STATE_FORMAT:
+            raise InputError(f"expected a saved navigator state (format {STATE_FORMAT!r}), "
+                             f"got {type(d).__name__}")
+        if d.get("version") != STATE_VERSION:
+            raise InputError(f"navigator state version {d.get('version')!r}: this version "
+                             f"reads version {STATE_VERSION}")
+        self = cls.__new__(cls)
+        self.options = dict(d["options"])
+        self.beacons = read_beacons(pd.DataFrame(d["beacons"]))
+        self.seed, self.phase, self.first_time = d["seed"], d["phase"], d["first_time"]
+        self.last = None if d["last"] is None else tuple(d["last"])
+        self.buffer, self.windows = d["buffer"], d["windows"]
+        self.filter = None if d["filter"] is None else PositionFilter.from_dict(d["filter"])
+        self.models = {k: BeaconModel.from_dict(v) for k, v in d["models"].items()}
+        self.dp = None if d["dp"] is None else DirectPathScale.from_dict(d["dp"])
+        self.warmup_record = d["warmup_record"]
+        self._setup()
+        return self
+
+    def save(self, path) -> None:
+        """Write the state to ``path`` (JSON), atomically (a temporary file, then renamed).
+
+        Parameters
+        ----------
+        path : str or pathlib.Path
+        """
+        path = os.fspath(path)
+        tmp = path + ".tmp"
+        write_json(tmp, self.to_dict(), indent=None)
+        os.replace(tmp, path)
+
+    @classmethod
+    def load(cls, path) -> Navigator:
+        """Read a state written by :meth:`save`.
+
+        Parameters
+        ----------
+        path : str or pathlib.Path
+
+        Returns
+        -------
+        Navigator
+
+        Raises
+        ------
+        InputError
+            The file is not a navigator state.
+        """
+        try:
+            with open(path, encoding="utf-8") as fh:
+                d = json.load(fh)
+        except ValueError as err:
+            raise InputError(f"{os.fspath(path)}: not a navigator state (invalid JSON: "
+                             f"{err})") from None
+        return cls.from_dict(d)

@@ -1,0 +1,347 @@
+"""Online EM of a beacon's reflector and mixing weights, and of the pooled sigma_DP.
+
+Stochastic approximation of the sufficient statistics (Cappé and Moulines,
+2009, *On-line expectation-maximization algorithm for latent data models*,
+JRSS B 71:593-613): with ``s_n`` the running average of the complete-data
+statistics,
+
+``s_n = s_{n-1} + gamma_n (S(z_n; theta_{n-1}) - s_{n-1})``, ``theta_n = M(s_n)``,
+
+where ``S`` is the statistic of one reply given the class probabilities and
+the filtered position (the E-step), ``M`` the closed-form M-step, and the step
+``gamma_n = n^-alpha`` with ``n`` the beacon's reply count (so ``alpha = 1`` is
+the plain running mean; ``1/2 < alpha < 1`` forgets the early, worse-modelled
+replies faster; Cappé and Moulines' conditions). The first statistics are the
+batch warm-up's, counted as its ``n`` replies.
+
+Per beacon, with ``g`` the class probabilities, ``J = d f_MP / d d0`` at the
+plane height ``d0_n`` of the moment and ``u = z - f_MP(p, d0_n) + J (d0_n -
+d0_ref)`` (the multipath residual as a linear function of ``delta = d0 -
+d0_ref``, ``d0_ref`` fixed for the beacon, against cancellation):
+
+* weights ``w_j = <g_j>``;
+* ``<g_MP J^2>``, ``<g_MP J u>``, ``<g_MP u^2>``: the multipath M-step is the
+  weighted least squares ``delta = <g J u> / <g J^2>``, and
+  ``sigma_MP^2 = <g (u - J delta)^2> / <g_MP>`` from the same three numbers.
+  ``f_MP`` is linearised about the ``d0`` of each reply's moment, an error of
+  ``(Delta d0)^2 / L``: centimetres;
+
+and pooled over beacons ``<g_DP r^2>``, ``<g_DP>`` for ``sigma_DP`` (one
+scale, a property of the sensor, as :func:`~bayes_mpem.lbl.navigate.navigate`).
+The squared residuals are their expectation under the filtered position:
+``r^2 + g^T P g``.
+
+``d0``'s variance, for the filter's multipath measurement noise, is
+``sigma_MP^2 / (N_eff <g_MP J^2>)`` with ``N_eff = 1 / sum_i w_i^2`` the
+effective number of replies behind the weighted average (``w_i`` the weight
+the averaging has left on reply ``i``; ``n`` for ``alpha = 1``).
+
+Examples
+--------
+>>> r = BeaconModel.start(d0=100.0, sigma_mp=5.0, weights=(0.5, 0.3, 0.2), n=10,
+...                       double=False, mp_on=True, xyz=(0.0, 0.0, 100.0), d0_min=0.0,
+...                       window=(10.0, 200.0))
+>>> step_size(4, 1.0), round(r.d0, 6)
+(0.25, 100.0)
+"""
+
+from __future__ import annotations
+
+import math
+
+#: Statistics of one beacon, in order: <g_dp>, <g_mp>, <g_ol>, <g_mp J^2>, <g_mp J u>, <g_mp u^2>.
+BEACON_STATS = ("g_dp", "g_mp", "g_ol", "jj", "ju", "uu")
+
+
+def step_size(n, alpha):
+    """``gamma_n = n^-alpha``.
+
+    Parameters
+    ----------
+    n : int
+        The reply count, including the one being added (>= 1).
+    alpha : float
+        In (1/2, 1].
+
+    Returns
+    -------
+    float
+
+    Examples
+    --------
+    >>> round(step_size(100, 0.6), 6)
+    0.063096
+    """
+    return n ** -alpha
+
+
+class BeaconModel:
+    """One beacon's reflector, weights and their running statistics.
+
+    Attributes
+    ----------
+    xyz : tuple of float
+        Beacon ``x``, ``y``, ``depth``.
+    d0, sigma_mp : float
+        Plane height and multipath scale (m).
+    weights : list of float
+        Mixing weights of dp, mp, ol.
+    double, mp_on : bool
+        Double bounce; the beacon has a multipath class.
+    d0_ref : float
+        Reference of the linearised statistic.
+    stats : list of float
+        :data:`BEACON_STATS`.
+    n : int
+        Replies so far (the step-size counter).
+    sumsq : float
+        ``sum_i w_i^2`` of the averaging weights (``N_eff = 1 / sumsq``).
+    d0_min : float
+        Lowest physical plane height (above every vehicle position so far).
+    window : list of float
+        Smallest and largest range so far (the outlier density's support).
+    alt : BeaconModel or None
+        The same beacon with the other multipath geometry, learned alongside
+        (``path="auto"``; :meth:`switch`).
+    evidence : float
+        Running average of the log-likelihood of ``alt`` minus this model's, per reply.
+    """
+
+    __slots__ = ("alt", "d0", "d0_min", "d0_ref", "double", "evidence", "mp_on", "n", "sigma_mp",
+                 "stats", "sumsq", "weights", "window", "xyz")
+
+    @classmethod
+    def start(cls, *, d0, sigma_mp, weights, n, double, mp_on, xyz, d0_min, window,
+              stats=None):
+        """Start a beacon whose first ``n`` replies had these parameters (or these statistics).
+
+        Parameters
+        ----------
+        d0, sigma_mp : float
+        weights : sequence of 3 float
+        n : int
+            Replies behind the statistics (a pseudo-count for a prior).
+        double, mp_on : bool
+        xyz : sequence of 3 float
+        d0_min : float
+        window : sequence of 2 float
+        stats : sequence of 6 float, optional
+            :data:`BEACON_STATS` (``d0_ref = d0``); default the statistics of
+            replies that fit ``d0``, ``sigma_mp`` exactly with ``J = 1``.
+
+        Returns
+        -------
+        BeaconModel
+        """
+        self = cls()
+        self.xyz = tuple(float(v) for v in xyz)
+        self.d0, self.d0_ref, self.sigma_mp = float(d0), float(d0), float(sigma_mp)
+        self.weights = [float(w) for w in weights]
+        self.double, self.mp_on = bool(double), bool(mp_on)
+        if stats is None:
+            g = self.weights[1]
+            stats = (*self.weights, g, 0.0, g * self.sigma_mp ** 2)
+        self.stats = [float(v) for v in stats]
+        self.n = int(n)
+        self.sumsq = 1.0 / max(self.n, 1)
+        self.d0_min, self.window = float(d0_min), [float(v) for v in window]
+        self.alt, self.evidence = None, 0.0
+        return self
+
+    def weigh(self, diff, alpha, margin):
+        """Add one reply's log-likelihood difference (``alt`` minus this); switch if due.
+
+        Called after :meth:`learn` (which counted the reply). The evidence is
+        the running average of the differences with the step sizes of the
+        statistics; times the effective number of replies, ``N_eff``, it is the
+        log-likelihood ratio of the two geometries over those replies (the whole
+        sum for ``alpha = 1``, as :func:`~bayes_mpem.lbl.em.path_choice.choose_path`
+        compares them).
+
+        Parameters
+        ----------
+        diff : float
+            ``log p(z | alt) - log p(z | this)`` of the reply.
+        alpha : float
+        margin : float
+            Switch when the ratio exceeds this many nats.
+
+        Returns
+        -------
+        BeaconModel
+            ``alt`` (now holding this model as its alternative) if it has won by
+            ``margin``, else this model.
+        """
+        self.evidence += step_size(self.n, alpha) * (diff - self.evidence)
+        if self.evidence <= margin * self.sumsq:
+            return self
+        new = self.alt
+        new.alt, new.evidence, self.alt = self, -self.evidence, None
+        return new
+
+    def observe(self, z, depth):
+        """Widen the outlier window and raise ``d0_min`` for a new reply.
+
+        Parameters
+        ----------
+        z, depth : float
+            The range and the vehicle's depth (m).
+        """
+        w = self.window
+        if z < w[0]:
+            w[0] = z
+        if z > w[1]:
+            w[1] = z
+        low = self.xyz[2] - depth
+        if low > self.d0_min:
+            self.d0_min = low
+
+    def log_outlier(self, min_width=1e-9):
+        """Log-density of an outlier (uniform over the window).
+
+        Parameters
+        ----------
+        min_width : float, default 1e-9
+
+        Returns
+        -------
+        float
+        """
+        return -math.log(max(self.window[1] - self.window[0], min_width))
+
+    def d0_variance(self):
+        """Variance of ``d0`` (m^2): ``sigma_MP^2 / (N_eff <g_MP J^2>)``; 0 without a statistic.
+
+        Returns
+        -------
+        float
+        """
+        jj = self.stats[3]
+        return self.sigma_mp ** 2 * self.sumsq / jj if jj > 0.0 else 0.0
+
+    def learn(self, g_dp, g_mp, g_ol, jac, u, u2, alpha, floor):
+        """Add one reply's statistics and redo the M-step.
+
+        Parameters
+        ----------
+        g_dp, g_mp, g_ol : float
+            The reply's class probabilities.
+        jac : float
+            ``d f_MP / d d0`` at the reply.
+        u, u2 : float
+            The linearised multipath residual and its expected square.
+        alpha : float
+            Step-size exponent.
+        floor : float
+            Smallest ``sigma_MP`` (m).
+        """
+        self.n += 1
+        gam = step_size(self.n, alpha)
+        keep = 1.0 - gam
+        self.sumsq = keep * keep * self.sumsq + gam * gam
+        new = (g_dp, g_mp, g_ol, g_mp * jac * jac, g_mp * jac * u, g_mp * u2)
+        s = self.stats
+        for i in range(6):
+            s[i] += gam * (new[i] - s[i])
+        total = s[0] + s[1] + s[2]
+        if total > 0.0:
+            self.weights = [s[0] / total, s[1] / total, s[2] / total]
+        if self.mp_on and s[3] > 0.0 and s[1] > 0.0:
+            delta = s[4] / s[3]
+            d0 = self.d0_ref + delta
+            if d0 < self.d0_min:
+                d0, delta = self.d0_min, self.d0_min - self.d0_ref
+            var = (s[5] - 2.0 * delta * s[4] + delta * delta * s[3]) / s[1]
+            self.d0 = d0
+            self.sigma_mp = max(math.sqrt(max(var, 0.0)), floor)
+
+    def to_dict(self) -> dict:
+        """Return the beacon's model as a JSON-ready mapping.
+
+        Returns
+        -------
+        dict
+        """
+        out = {k: getattr(self, k) for k in self.__slots__}
+        out["alt"] = None if self.alt is None else self.alt.to_dict()
+        return out
+
+    @classmethod
+    def from_dict(cls, d: dict) -> BeaconModel:
+        """Rebuild a model written by :meth:`to_dict`.
+
+        Parameters
+        ----------
+        d : dict
+
+        Returns
+        -------
+        BeaconModel
+        """
+        self = cls()
+        for k in cls.__slots__:
+            v = d[k]
+            setattr(self, k, tuple(v) if k == "xyz" else v)
+        if self.alt is not None:
+            self.alt = cls.from_dict(self.alt)
+        return self
+
+
+class DirectPathScale:
+    """The pooled sigma_DP: running ``<g_DP>`` and ``<g_DP r^2>`` over every reply.
+
+    Attributes
+    ----------
+    sigma : float
+    stats : list of float
+    n : int
+    fixed : bool
+        Keep ``sigma`` as given.
+    """
+
+    __slots__ = ("fixed", "n", "sigma", "stats")
+
+    def __init__(self, sigma, n, *, stats=None, fixed=False):
+        self.sigma, self.n, self.fixed = float(sigma), int(n), bool(fixed)
+        self.stats = [1.0, self.sigma ** 2] if stats is None else [float(v) for v in stats]
+
+    def learn(self, g_dp, r2, alpha, floor):
+        """Add one reply's ``g_DP`` and expected squared direct-path residual.
+
+        Parameters
+        ----------
+        g_dp, r2 : float
+        alpha : float
+        floor : float
+            Smallest sigma_DP (m).
+        """
+        self.n += 1
+        gam = step_size(self.n, alpha)
+        s = self.stats
+        s[0] += gam * (g_dp - s[0])
+        s[1] += gam * (g_dp * r2 - s[1])
+        if not self.fixed and s[0] > 0.0:
+            self.sigma = max(math.sqrt(s[1] / s[0]), floor)
+
+    def to_dict(self) -> dict:
+        """JSON-ready mapping.
+
+        Returns
+        -------
+        dict
+        """
+        return {k: getattr(self, k) for k in self.__slots__}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> DirectPathScale:
+        """Rebuild from :meth:`to_dict`.
+
+        Parameters
+        ----------
+        d : dict
+
+        Returns
+        -------
+        DirectPathScale
+        """
+        return cls(d["sigma"], d["n"], stats=d["stats"], fixed=d["fixed"])

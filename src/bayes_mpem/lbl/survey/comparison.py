@@ -1,0 +1,178 @@
+"""Equal against learned mixing priors on every beacon of a survey (``bayes-mpem compare``).
+
+:func:`compare` runs :func:`~.loo.compare_beacon` (PSIS-LOO of the two
+posteriors) on each beacon and returns a :class:`SurveyComparison`, which
+writes ``compare.json`` and ``changed.csv``; its figure is drawn by
+:func:`bayes_mpem.report.write_figures`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import pandas as pd
+
+from ..._rng import RNGLike, as_generator
+from ...exceptions import UnusableStartError
+from ...io.results import write_csv, write_json, writing
+from ...io.survey import Survey, load_survey
+from ..bayes.loo import CLEAR, MIN_DIFF, compare_beacon
+from ..bayes.posterior import check_sample_options
+from ..em.path_choice import AUTO, check_path_choice, choose_path
+from .model_checks import check_posterior, checks_record, warn_misfit
+from .survey import check_min_pings, option_subset, over_beacons
+
+
+@dataclass(frozen=True)
+class SurveyComparison:
+    """:class:`~.loo.PriorComparison` of every beacon of a survey.
+
+    Attributes
+    ----------
+    survey : Survey
+        The validated input.
+    results : dict of str to PriorComparison
+        One comparison per beacon.
+    skipped : dict of str to str
+        Beacons left out, with the reason.
+    path_choices : dict of str to PathChoice
+        Per beacon, the multipath geometry sampled and its EM margin over the
+        other (:func:`~bayes_mpem.lbl.em.path_choice.choose_path`).
+    checks : dict of str to list
+        Per beacon, the model checks of the learned-priors posterior
+        (:func:`~bayes_mpem.lbl.survey.model_checks.check_posterior`).
+    """
+
+    survey: Survey
+    results: dict
+    skipped: dict
+    path_choices: dict = field(default_factory=dict)
+    checks: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        """Return the content of ``compare.json``.
+
+        Returns
+        -------
+        dict
+        """
+        beacons = {b: r.to_dict() for b, r in self.results.items()}
+        for b, entry in beacons.items():
+            if b in self.path_choices:
+                entry["path_choice"] = self.path_choices[b].to_dict()
+            if b in self.checks:
+                entry["model_checks"] = checks_record(self.checks[b])
+        return {"beacons": beacons,
+                "skipped": dict(self.skipped),
+                "rule": f"a difference is clear when |elpd_diff| > {CLEAR:g} elpd_diff_se "
+                        f"and > {MIN_DIFF:g}"}
+
+    def format_table(self) -> str:
+        """Format the ELPD difference per beacon as text.
+
+        Returns
+        -------
+        str
+        """
+        lines = [f"{'beacon':>6} {'elpd equal':>11} {'elpd learned':>12} {'diff':>8} "
+                 f"{'se':>6} {'verdict':>20} {'d0 shift (m)':>12} {'changed':>7} {'path':>8}"]
+        for b, r in self.results.items():
+            lines.append(f"{b:>6} {r.elpd['equal'][0]:11.1f} {r.elpd['learned'][0]:12.1f} "
+                         f"{r.elpd_diff:8.1f} {r.elpd_diff_se:6.1f} {r.verdict:>20} "
+                         f"{r.shifts['d0']['mean_shift']:12.2f} {len(r.changed):7d} "
+                         f"{r.learned.path:>8}")
+        return "\n".join(lines)
+
+    def changed(self) -> pd.DataFrame:
+        """Ranges whose label changes between the two priors, every beacon in one table.
+
+        Returns
+        -------
+        pandas.DataFrame
+            Each beacon's :attr:`~.loo.PriorComparison.changed` rows with a
+            ``beacon`` column; empty when no beacon was compared.
+        """
+        frames = [r.changed.assign(beacon=b) for b, r in self.results.items()]
+        return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
+
+    def write(self, out_dir) -> dict:
+        """Write ``compare.json`` and ``changed.csv`` to ``out_dir``.
+
+        The figure (``compare.png``) is drawn by :func:`bayes_mpem.report.write_figures`.
+
+        Parameters
+        ----------
+        out_dir : str or pathlib.Path
+            Created if missing.
+
+        Returns
+        -------
+        dict
+            Paths written, keyed ``compare`` and ``changed``.
+        """
+        with writing(out_dir) as out:
+            return {"compare": write_json(out / "compare.json", self.to_dict()),
+                    "changed": write_csv(out / "changed.csv", self.changed())}
+
+
+def compare(pings, beacons=None, *, min_pings: int = 30, rng: RNGLike = None,
+            **kwargs) -> SurveyComparison:
+    """Compare equal and learned priors on every beacon of a survey.
+
+    Parameters
+    ----------
+    pings, beacons
+        As for :func:`bayes_mpem.fit`.
+    min_pings : int, default 30
+    rng : None, int or numpy.random.Generator
+    **kwargs
+        Passed to :func:`~bayes_mpem.lbl.bayes.beacon_sampling.sample_beacon`. ``path``
+        may also be ``"auto"`` (the default): per beacon the geometry is chosen
+        by the mixture EM with learned weights
+        (:func:`~bayes_mpem.lbl.em.path_choice.choose_path`), then both priors are
+        sampled with it; a forced geometry that loses by more than 10 nats warns.
+
+    Returns
+    -------
+    SurveyComparison
+
+    Raises
+    ------
+    ValueError
+        For invalid options, before any sampling.
+
+    Warns
+    -----
+    SkippedBeaconWarning
+        For a beacon with too few replies or an unusable EM start.
+    PathChoiceWarning
+        For a beacon whose forced ``path`` is clearly worse than the other.
+    ModelCheckWarning
+        For a beacon whose ranges the learned-priors posterior's model does not
+        describe (:mod:`~bayes_mpem.lbl.survey.model_checks`; in ``compare.json``).
+    """
+    path = check_path_choice(kwargs.pop("path", AUTO))
+    check_sample_options(**option_subset(kwargs))
+    check_min_pings(min_pings)
+    survey = load_survey(pings, beacons)
+    gen = as_generator(rng)
+    choices = {}
+
+    def compare_one(data):
+        # stacklevel 5: choose_path, compare_one, over_beacons, compare, then its caller;
+        # the chosen geometry's learned-weights fit starts the learned run (the equal
+        # run fits its own, with equal weights)
+        choice = choose_path(data, path, sigma_dp=kwargs.get("sigma_dp"), rng=gen,
+                             fit_warnings=False, stacklevel=5)
+        choices[data.beacon] = choice
+        learned_init = None if "init" in kwargs else choice.fit
+        return compare_beacon(data, rng=gen, path=choice.path, learned_init=learned_init,
+                              **kwargs)
+
+    results, skipped = over_beacons(survey, min_pings, compare_one,
+                                    skip_on=(UnusableStartError,))
+    checks = {b: check_posterior(survey.for_beacon(b), r.learned) for b, r in results.items()}
+    for b, ch in checks.items():
+        warn_misfit(b, ch, stacklevel=2)
+    return SurveyComparison(survey=survey, results=results, skipped=skipped,
+                            path_choices=choices, checks=checks)

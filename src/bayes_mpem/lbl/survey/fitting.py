@@ -1,0 +1,324 @@
+"""Fit every beacon of a survey and write the results.
+
+:func:`fit` is what ``bayes-mpem fit`` calls: it validates the input, fits
+each beacon on its own (the paper's practice) with the mixture EM or the
+paper's EM, and returns a :class:`SurveyFit` that writes ``summary.json``
+and ``classified.csv`` (one row per input row, nothing dropped).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from ..._rng import RNGLike, as_generator
+from ..._validate import check_choice
+from ...io.results import write_json, write_table, writing
+from ...io.survey import Survey, load_survey
+from ...io.table_files import TABLE_FORMATS
+from ..em.em_paper import fit_paper_em
+from ..em.em_result import check_options
+from ..em.path_choice import AUTO, check_path_choice, choose_path
+from .model_checks import check_fit, checks_record, warn_misfit
+from .survey import beacons_table, check_min_pings, classified_table, non_finite, over_beacons
+
+METHODS = ("mixture", "paper")
+
+
+@dataclass(frozen=True)
+class SurveyFit:
+    """Fits of every beacon of a survey.
+
+    Attributes
+    ----------
+    survey : Survey
+        The validated input.
+    results : dict of str to EMResult
+        One fit per fitted beacon.
+    skipped : dict of str to str
+        Beacons left unfitted, with the reason.
+    method : str
+    options : dict
+        The options passed to the per-beacon fits.
+    path_choices : dict of str to PathChoice
+        Per fitted beacon, the multipath geometry used and its margin over the
+        other (:func:`~bayes_mpem.lbl.em.path_choice.choose_path`).
+    checks : dict of str to list
+        Per fitted beacon, the model checks of its fit
+        (:func:`~bayes_mpem.lbl.survey.model_checks.check_fit`; empty for a refracted fit).
+    """
+
+    survey: Survey
+    results: dict
+    skipped: dict
+    method: str
+    options: dict = field(default_factory=dict)
+    path_choices: dict = field(default_factory=dict)
+    checks: dict = field(default_factory=dict)
+
+    def classified(self) -> pd.DataFrame:
+        """Every input row with ``p_dp``, ``p_mp``, ``p_ol``, ``label`` and ``reason``.
+
+        Returns
+        -------
+        pandas.DataFrame
+            Same rows, same order as the input; labels are ``dp``, ``mp``,
+            ``ol``, ``no_reply`` or ``skipped`` (``reason`` says why).
+        """
+        return classified_table(
+            self.survey, {bid: (r.rows, r.resp) for bid, r in self.results.items()},
+            self.skipped)
+
+    def summary(self) -> dict:
+        """JSON-ready summary: per-beacon parameters, counts, skipped beacons.
+
+        Returns
+        -------
+        dict
+        """
+        beacons = {}
+        for bid, res in self.results.items():
+            d = res.to_dict()
+            depth = float(self.survey.beacons.loc[bid, "depth"])
+            d["beacon_depth"] = depth
+            d["plane_depth"] = depth - res.d0
+            d["n_no_reply"] = int(np.sum(self.survey.no_reply & (self.survey.beacon == bid)))
+            if bid in self.path_choices:
+                d["path_choice"] = self.path_choices[bid].to_dict()
+            if bid in self.checks:
+                d["model_checks"] = checks_record(self.checks[bid])
+            beacons[bid] = d
+        return {
+            "method": self.method,
+            "beacons": beacons,
+            "beacons_table": beacons_table(self.survey),
+            "skipped": dict(self.skipped),
+            "n_rows": len(self.survey),
+            "n_no_reply": int(self.survey.no_reply.sum()),
+            "pings": self.survey.pings_source,
+            "beacons_file": self.survey.beacons_source,
+            "options": {k: v for k, v in self.options.items() if k != "rng"},
+        }
+
+    def to_dict(self) -> dict:
+        """Return the content of ``summary.json`` (the same as :meth:`summary`).
+
+        Returns
+        -------
+        dict
+        """
+        return self.summary()
+
+    def table(self) -> pd.DataFrame:
+        """Per-beacon table in the spirit of the paper's Table II.
+
+        Returns
+        -------
+        pandas.DataFrame
+            Columns ``beacon``, ``d0_m`` (height of the reflecting plane above the
+            beacon, the paper's HRP),
+            ``sigma_mp_m``, ``beacon_depth_m``, ``plane_depth_m``, ``sigma_dp_m``,
+            ``dp``, ``mp``, ``ol`` (fractions of ranges per label), ``n``,
+            ``converged``, ``path`` and ``path_margin`` (log-likelihood of the
+            geometry used minus the other's, nats; NaN when not measured).
+        """
+        rows = []
+        for bid, res in self.results.items():
+            depth = float(self.survey.beacons.loc[bid, "depth"])
+            fr = res.class_fractions
+            rows.append({"beacon": bid, "d0_m": res.d0, "sigma_mp_m": res.sigma_mp,
+                         "beacon_depth_m": depth, "plane_depth_m": depth - res.d0,
+                         "sigma_dp_m": res.sigma_dp, **fr, "n": res.n,
+                         "converged": res.converged, "path": res.path,
+                         "path_margin": (self.path_choices[bid].margin
+                                         if bid in self.path_choices else float("nan"))})
+        return pd.DataFrame(rows)
+
+    def format_table(self) -> str:
+        """Format the :meth:`table` as aligned text for a terminal.
+
+        Returns
+        -------
+        str
+        """
+        t = self.table()
+        lines = [f"{'beacon':>6} {'d0 (m)':>11} {'sigma_MP (m)':>12} {'depth (m)':>10} "
+                 f"{'plane (m)':>9} {'DP':>6} {'MP':>6} {'OL':>6} {'n':>6} {'path':>8} "
+                 f"{'margin':>7}"]
+        for r in t.itertuples():
+            lines.append(f"{r.beacon:>6} {r.d0_m:11.1f} {r.sigma_mp_m:12.2f} "
+                         f"{r.beacon_depth_m:10.1f} {r.plane_depth_m:9.1f} {r.dp:6.3f} "
+                         f"{r.mp:6.3f} {r.ol:6.3f} {r.n:6d} {r.path:>8} {r.path_margin:7.0f}")
+        for bid, why in self.skipped.items():
+            lines.append(f"{bid:>6} skipped: {why}")
+        return "\n".join(lines)
+
+    def write(self, out_dir, *, table_format: str = "csv") -> dict:
+        """Write ``classified.csv``, ``history.json`` and, last, ``summary.json`` to ``out_dir``.
+
+        Through :func:`bayes_mpem.io.results.writing`: all or nothing, ``summary.json``
+        (the completion marker) last.
+
+        Parameters
+        ----------
+        out_dir : str or pathlib.Path
+            Created if missing.
+        table_format : {"csv", "parquet"}, default "csv"
+            Of the classified table (``classified.csv`` or ``classified.parquet``).
+
+        Returns
+        -------
+        dict
+            Paths written, keyed ``summary``, ``classified`` and ``history``.
+        """
+        check_choice("table_format", table_format, TABLE_FORMATS)
+        with writing(out_dir) as out:
+            return {"classified": write_table(out / f"classified.{table_format}",
+                                              self.classified()),
+                    "history": write_json(out / "history.json", self.history(as_arrays=True),
+                                          indent=None, numpy=True),
+                    "summary": write_json(out / "summary.json", self.summary())}
+
+    def history(self, *, as_arrays: bool = False) -> dict:
+        """Per beacon: every iteration's parameters and the first E-step's probabilities.
+
+        Parameters
+        ----------
+        as_arrays : bool, default False
+            Give ``first_resp`` as a NumPy array (what ``write()`` serialises, vectorised)
+            instead of nested lists.
+
+        Returns
+        -------
+        dict
+            ``{beacon: {"history": {name: [..]}, "first_resp": [[p_dp, p_mp, p_ol], ..]}}``,
+            ``first_resp`` in the order of that beacon's replies (what the paper's
+            Figs. 7, 10 and 11 show).
+        """
+        def first(r):
+            rounded = np.round(r.first_resp, 3)
+            return rounded if as_arrays else rounded.tolist()
+
+        return {bid: {"history": {k: np.asarray(v).tolist() for k, v in r.history.items()},
+                      "first_resp": first(r)}
+                for bid, r in self.results.items()}
+
+
+def _non_finite_fit(res) -> list:
+    """Names of a fit's values that are not finite (the fit then failed)."""
+    doc = {"d0": res.d0, "sigma_mp": res.sigma_mp, "sigma_dp": res.sigma_dp,
+           "weights": res.weights, "loglik": res.loglik if res.loglik is not None else 0.0}
+    return non_finite(doc) + ([] if np.isfinite(res.resp).all() else ["class probabilities"])
+
+
+def fit(
+    pings,
+    beacons=None,
+    *,
+    method: str = "mixture",
+    path: str = AUTO,
+    sigma_dp: float | None = None,
+    pol: float = 0.05,
+    alpha: float = 0.5,
+    weights: str = "learned",
+    min_pings: int = 30,
+    rng: RNGLike = None,
+    **kwargs,
+) -> SurveyFit:
+    """Classify every range and identify each beacon's reflector.
+
+    Parameters
+    ----------
+    pings : str, pathlib.Path, pandas.DataFrame or Survey
+        The pings table (see ``docs/input.md``), or an already loaded survey.
+    beacons : str, pathlib.Path or pandas.DataFrame, optional
+        The beacons table (not needed when ``pings`` is a Survey).
+    method : {"mixture", "paper"}
+        The density-mixture EM (default) or the paper's EM.
+    path : {"auto", "triangle", "double"}
+        Multipath geometry: one reflected leg, both, or (default) per beacon the
+        one whose mixture-EM fit has the higher log-likelihood
+        (:func:`~bayes_mpem.lbl.em.path_choice.choose_path`). Both are fitted in
+        every case; a forced geometry that loses by more than 10 nats warns. With
+        ``method="paper"`` the geometry is chosen by the mixture EM too (the
+        paper's EM has no likelihood of its own), then the paper's EM runs on it.
+    sigma_dp : float, optional
+        Direct-path scatter (m); estimated from the data if omitted.
+    pol, alpha : float
+        The paper's EM knobs (``method="paper"`` only).
+    weights : {"learned", "equal"}
+        Mixing weights of the mixture EM.
+    min_pings : int, default 30
+        Beacons with fewer replies are left unfitted, with a warning.
+    rng : None, int or numpy.random.Generator
+    **kwargs
+        Passed to :func:`~bayes_mpem.lbl.em.em_mixture.fit_mixture_em` or
+        :func:`~bayes_mpem.lbl.em.em_paper.fit_paper_em`.
+
+    Returns
+    -------
+    SurveyFit
+
+    Raises
+    ------
+    bayes_mpem.exceptions.InputError
+        For invalid input (the message names the file, row and column).
+    ValueError
+        For invalid options.
+
+    Warns
+    -----
+    SkippedBeaconWarning
+        For every beacon left unfitted.
+    PathChoiceWarning
+        For a beacon whose forced ``path`` is clearly worse than the other.
+    ModelCheckWarning
+        For a beacon whose ranges the fitted model does not describe
+        (:mod:`~bayes_mpem.lbl.survey.model_checks`: the direct path's offset or trends,
+        the outliers' timing, a plane far from the sea surface); the checks of
+        every beacon are in ``checks`` and ``summary.json``.
+
+    Examples
+    --------
+    >>> import bayes_mpem
+    >>> sim = bayes_mpem.simulate_survey("abe58", rng=3)
+    >>> res = bayes_mpem.fit(sim.survey, rng=0)
+    >>> sorted(res.results)
+    ['1', '2', '3', '4']
+    """
+    check_choice("method", method, METHODS)
+    check_path_choice(path)
+    check_min_pings(min_pings)
+    check_options(weights=weights, pol=pol, alpha=alpha, sigma_dp=sigma_dp)
+    survey = load_survey(pings, beacons)
+    gen = as_generator(rng)
+    choices = {}
+
+    def fit_one(data):
+        # stacklevel 5: choose_path, fit_one, over_beacons, fit, then fit's caller
+        if method == "mixture":
+            choice = choose_path(data, path, sigma_dp=sigma_dp, weights=weights, rng=gen,
+                                 stacklevel=5, **kwargs)
+            choices[data.beacon] = choice
+            return choice.fit
+        choice = choose_path(data, path, sigma_dp=sigma_dp, rng=gen, fit_warnings=False,
+                             stacklevel=5)
+        choices[data.beacon] = choice
+        return fit_paper_em(data, path=choice.path, sigma_dp=sigma_dp, pol=pol, alpha=alpha,
+                            **kwargs)
+
+    results, skipped = over_beacons(survey, min_pings, fit_one, check=_non_finite_fit)
+    checks = {}
+    for bid, res in results.items():
+        if kwargs.get("ssp") is None:  # the checks predict straight rays
+            checks[bid] = check_fit(survey.for_beacon(bid), res)
+            warn_misfit(bid, checks[bid], stacklevel=2)
+    options = {"path": path, "sigma_dp": sigma_dp, "min_pings": min_pings, **kwargs}
+    if method == "mixture":
+        options["weights"] = weights
+    else:
+        options.update(pol=pol, alpha=alpha)
+    return SurveyFit(survey=survey, results=results, skipped=skipped, method=method,
+                     options=options, path_choices=choices, checks=checks)

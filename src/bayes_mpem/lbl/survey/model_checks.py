@@ -1,0 +1,475 @@
+"""Model checks of one beacon's fit: whether the paper's model describes these ranges.
+
+A fit can be confident and wrong: an effect the model leaves out (a range bias,
+a wrong sound speed, a drifting plane or navigation, a wrong beacon position)
+moves the plane while its interval stays narrow. These checks compare what the
+fitted model predicts with what the ranges show, in either direction, one
+beacon at a time:
+
+``direct_path_offset``
+    The direct-path ranges (weighted by their class probability) should scatter
+    around the straight line to the beacon: their mean residual, in standard
+    errors ``sigma_DP / sqrt(n_eff)``.
+``direct_path_scatter``
+    Their spread should match the scatter assumed (only when ``sigma_DP`` is
+    fixed by the user; a fitted one matches by construction).
+``direct_path_trend``, ``multipath_trend``
+    The residuals of the confident direct-path (multipath) ranges, binned against
+    time, range, elevation, vehicle depth and bearing, should have bin means
+    near zero (:func:`binned_trend`).
+``outliers_before_direct``
+    The ranges called outliers should be spread over the listening window: the
+    share arriving before the direct path against the share a uniform window
+    predicts (a first-arrival detector puts them all before it).
+``plane_off_surface``
+    The reflecting plane should be the sea surface: a plane more than
+    :data:`PLANE_TOLERANCE` m above or below it is flagged.
+
+A check is *flagged* when its test is beyond :data:`Z_LIMIT` standard errors
+(or, for the binned trends, its p-value below ``alpha`` over the number of
+trend checks, Bonferroni) and, for the plane, beyond the tolerance. The
+numbers and the flags go into the results (``summary.json``), and a
+:class:`~bayes_mpem.exceptions.ModelCheckWarning` names the misfit and points
+to ``bayes-mpem diagnose``, which fits the effects themselves. The false-alarm
+rate on clean surveys and what the checks catch are measured by
+``benchmarks/model_checks.py`` (``docs/model-checks.md``).
+
+The checks compare the observed residuals with their distribution under the
+fitted parameters (a plug-in predictive check; for a posterior, at its mean
+and with its class probabilities). With hundreds of ranges per class the
+parameters' own uncertainty is small next to the scatter of the statistics.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from ...exceptions import ModelCheckWarning
+from ..model.beacon_geometry import BeaconGeometry
+
+#: A mean residual or a count this many standard errors off is flagged: a
+#: two-sided normal tail of 6e-7 per check on data that fit the model.
+Z_LIMIT = 5.0
+#: A plane this many m above or below the sea surface is flagged (the
+#: quality flags already flag one this far above it).
+PLANE_TOLERANCE = 10.0
+#: Family-wise level of the binned trend checks of one beacon (Bonferroni).
+TREND_ALPHA = 1e-4
+#: Covariates the residuals are binned against.
+COVARIATES = ("time", "range", "elevation", "vehicle_depth", "bearing")
+#: Where a flagged check sends the user.
+ADVICE = ("run 'bayes-mpem diagnose' to find which of the model's assumptions the data break "
+          "(a range bias, a sound speed, a drifting plane or navigation, a beacon position)")
+
+
+def covariates(ex, ey, dz, time, vehicle_depth) -> dict:
+    """Per-range covariates the residuals are checked against.
+
+    Parameters
+    ----------
+    ex, ey : numpy.ndarray
+        Vehicle minus beacon, east and north (m).
+    dz : numpy.ndarray
+        Beacon depth minus vehicle depth (m).
+    time, vehicle_depth : numpy.ndarray
+
+    Returns
+    -------
+    dict of numpy.ndarray
+        ``time`` (s), ``range`` (direct-path length, m), ``elevation`` (deg,
+        positive when the vehicle is above the beacon), ``vehicle_depth`` (m),
+        ``bearing`` (deg clockwise from +y, of the vehicle seen from the beacon).
+    """
+    h = np.hypot(ex, ey)
+    return {"time": np.asarray(time, float), "range": np.hypot(h, dz),
+            "elevation": np.degrees(np.arctan2(dz, h)),
+            "vehicle_depth": np.asarray(vehicle_depth, float),
+            "bearing": np.degrees(np.arctan2(ex, ey)) % 360.0}
+
+
+def binned_trend(r, sigma, v, n_bins=10, *, centred=False):
+    """Chi-square test of the residuals' bin means against a covariate.
+
+    Parameters
+    ----------
+    r : numpy.ndarray
+        Residuals (m) of one class.
+    sigma : float
+        Their assumed scatter (m).
+    v : numpy.ndarray
+        The covariate at each residual.
+    n_bins : int, default 10
+        Quantile bins of ``v``.
+    centred : bool, default False
+        Test the bin means against the residuals' overall mean (a trend alone,
+        one degree of freedom fewer) instead of against zero (a trend or an offset).
+
+    Returns
+    -------
+    dict or None
+        ``chi2``, ``dof``, ``p_value``, ``max_bin_mean`` (m, from the centre); None
+        when ``v`` is constant.
+
+    Examples
+    --------
+    >>> gen = np.random.default_rng(0)
+    >>> v = np.arange(500.0)
+    >>> binned_trend(gen.normal(0, 1, 500), 1.0, v)["p_value"] > 1e-3
+    True
+    >>> binned_trend(gen.normal(0, 1, 500) + v / 250, 1.0, v)["p_value"] < 1e-10
+    True
+    """
+    from scipy.special import chdtrc  # chi2.sf, without importing scipy.stats (0.7 s)
+
+    if np.ptp(v) <= 0:
+        return None
+    # bin edges at the covariate's quantiles (from every k-th value beyond 50,000: the bins
+    # depend on the covariate alone, so the test stays exact; only their counts even out less)
+    step = -(-v.size // 50_000)
+    edges = np.unique(np.quantile(v[::step], np.linspace(0, 1, n_bins + 1)))
+    if edges.size < 2:  # the values sampled were all equal: one bin of the whole range
+        edges = np.array([np.min(v), np.max(v)])
+    idx = np.clip(np.searchsorted(edges, v, side="right") - 1, 0, edges.size - 2)
+    nbin = np.bincount(idx, minlength=edges.size - 1)
+    ok = nbin > 0
+    centre = float(np.mean(r)) if centred else 0.0
+    means = np.bincount(idx, weights=r - centre, minlength=edges.size - 1)[ok] / nbin[ok]
+    chi2 = float(np.sum(means ** 2 * nbin[ok] / sigma ** 2))
+    dof = int(ok.sum()) - (1 if centred else 0)
+    return {"chi2": chi2, "dof": dof, "p_value": float(chdtrc(dof, chi2)),
+            "max_bin_mean": float(np.max(np.abs(means)))}
+
+
+def _finite(v):
+    """Return a float, or None where it is not finite (JSON has no NaN or infinity)."""
+    return float(v) if v is not None and np.isfinite(v) else None
+
+
+def _check(name, value, z, flagged, message, **extra):
+    return {"name": name, "value": _finite(value), "z": _finite(z), "flagged": bool(flagged),
+            "message": message, **{k: _finite(v) for k, v in extra.items()}}
+
+
+def _offset(r, w, sigma):
+    """Weighted mean residual and its z (standard error sigma / sqrt(n_eff))."""
+    sw, sw2 = float(w.sum()), float((w * w).sum())
+    if sw < 5:
+        return None
+    mean = float((w * r).sum() / sw)
+    se = sigma / np.sqrt(sw * sw / sw2)
+    return mean, mean / se, se
+
+
+def direct_path_checks(r_dp, resp_dp, sigma_dp, *, sigma_fixed=False):
+    """Check the direct-path class's offset and (for a fixed ``sigma_DP``) its scatter.
+
+    Parameters
+    ----------
+    r_dp : numpy.ndarray
+        Range minus predicted direct path (m), every range.
+    resp_dp : numpy.ndarray
+        Direct-path probability of every range.
+    sigma_dp : float
+        The scatter assumed (m).
+    sigma_fixed : bool, default False
+        ``sigma_DP`` was given, not fitted: check the spread against it.
+
+    Returns
+    -------
+    list of dict
+        One entry per check (``name``, ``value``, ``z``, ``flagged``, ``message``).
+    """
+    out = []
+    off = _offset(r_dp, resp_dp, sigma_dp)
+    if off is not None:
+        mean, z, se = off
+        out.append(_check(
+            "direct_path_offset", mean, z, abs(z) > Z_LIMIT,
+            f"direct-path ranges are {abs(mean):.2f} ± {se:.2f} m "
+            f"{'longer' if mean > 0 else 'shorter'} than the straight line to the beacon "
+            f"({abs(z):.0f} standard errors): a range bias (turn-around time), a sound-speed "
+            "error or a wrong beacon position", se=se))
+    sw = float(resp_dp.sum())
+    if sigma_fixed and sw >= 5:
+        ratio = float(np.sqrt((resp_dp * r_dp * r_dp).sum() / sw) / sigma_dp)
+        z = (ratio ** 2 - 1.0) / np.sqrt(2.0 / sw)
+        out.append(_check(
+            "direct_path_scatter", ratio, z, abs(z) > Z_LIMIT,
+            f"direct-path ranges scatter {ratio:.2f} times the sigma_DP = {sigma_dp:.2f} m "
+            "given: fit sigma_DP instead, or check the sensor's noise"))
+    return out
+
+
+def trend_checks(residuals, sigmas, resp, cov, *, n_bins=10, alpha=TREND_ALPHA, min_per_bin=5):
+    """Binned trend checks of the confident ranges of each class against each covariate.
+
+    Parameters
+    ----------
+    residuals : dict of str to numpy.ndarray
+        Class name (``"dp"``, ``"mp"``) to the residuals of every range (m).
+    sigmas : dict of str to float
+        The class scatters (m).
+    resp : dict of str to numpy.ndarray
+        The class probabilities of every range; ranges above 0.9 are used.
+    cov : dict of str to numpy.ndarray
+        :func:`covariates`.
+    n_bins : int, default 10
+    alpha : float, default :data:`TREND_ALPHA`
+        Family-wise level over the checks made (Bonferroni).
+    min_per_bin : int, default 5
+        A class needs ``min_per_bin * n_bins`` confident ranges to be checked.
+
+    Returns
+    -------
+    list of dict
+        The bin means are tested against the class's mean residual (an offset is
+        :func:`direct_path_checks`' business): ``name`` (``direct_path_trend`` or
+        ``multipath_trend``), ``class``,
+        ``against``, ``chi2``, ``dof``, ``p_value``, ``value`` (largest absolute bin mean,
+        m), ``flagged``, ``message``.
+    """
+    found = []
+    for cls, r in residuals.items():
+        sel = resp[cls] > 0.9
+        if sel.sum() < min_per_bin * n_bins:
+            continue
+        for against in COVARIATES:
+            t = binned_trend(r[sel], sigmas[cls], cov[against][sel], n_bins, centred=True)
+            if t is not None:
+                found.append((cls, against, t))
+    limit = alpha / max(len(found), 1)
+    out = []
+    for cls, against, t in found:
+        what = "direct-path" if cls == "dp" else "multipath"
+        out.append({"name": f"{'direct_path' if cls == 'dp' else 'multipath'}_trend",
+                    "class": cls, "against": against, **t, "value": t["max_bin_mean"],
+                    "z": None, "flagged": t["p_value"] < limit,
+                    "message": f"{what} residuals vary with {against} (bin means up to "
+                               f"{t['max_bin_mean']:.2f} m from their mean, "
+                               f"p = {t['p_value']:.1e})"})
+    return out
+
+
+def outlier_timing_check(z, direct, resp_ol, lo, hi):
+    """Share of the outliers before the direct path against a uniform window's share.
+
+    Parameters
+    ----------
+    z, direct : numpy.ndarray
+        Ranges and predicted direct paths (m).
+    resp_ol : numpy.ndarray
+        Outlier probability of every range.
+    lo, hi : float
+        The listening window (m).
+
+    Returns
+    -------
+    list of dict
+        One check, or none when fewer than 20 ranges' worth are outliers.
+    """
+    w = np.asarray(resp_ol, float)
+    if w.sum() < 20 or hi <= lo:
+        return []
+    e = np.clip((direct - lo) / (hi - lo), 0.0, 1.0)  # uniform: P(before the direct path)
+    obs = float((w * (z < direct)).sum())
+    exp = float((w * e).sum())
+    sd = float(np.sqrt(max((w * w * e * (1 - e)).sum(), 1e-12)))
+    zz = (obs - exp) / sd
+    share, want = obs / w.sum(), exp / w.sum()
+    why = ("a first-arrival detector (outliers only before the true reply)" if zz > 0
+           else "late spurious replies (reverberation, a second reflector)")
+    return [_check("outliers_before_direct", share, zz, abs(zz) > Z_LIMIT,
+                   f"{100 * share:.0f} % of the outliers arrive before the direct path, "
+                   f"{100 * want:.0f} % expected if they spread over the listening window: "
+                   f"{why}", expected=want)]
+
+
+def plane_check(plane_depth, interval=None):
+    """Check the plane against the sea surface, in either direction.
+
+    Parameters
+    ----------
+    plane_depth : float
+        Depth of the fitted plane (m, positive down; the sea surface is 0).
+    interval : tuple of float, optional
+        Its credible interval; the check then uses the end nearer the surface.
+
+    Returns
+    -------
+    list of dict
+        One check.
+    """
+    lo, hi = interval if interval is not None else (plane_depth, plane_depth)
+    near = 0.0 if lo <= 0.0 <= hi else (lo if lo > 0 else hi)
+    off = abs(near) > PLANE_TOLERANCE
+    where = "below" if plane_depth > 0 else "above"
+    return [_check("plane_off_surface", plane_depth, None, off,
+                   f"the plane is {abs(plane_depth):.1f} m {where} the sea surface (more than "
+                   f"{PLANE_TOLERANCE:g} m): a range bias, a sound-speed error, a wrong "
+                   "beacon depth, a drifting plane or navigation can move it")]
+
+
+def check_beacon(geom: BeaconGeometry, time, depth, *, d0, sigma_dp, sigma_mp, resp, path,
+                 plane_depth, sigma_dp_fixed=False, plane_interval=None, ex=None,
+                 ey=None) -> list:
+    """Every check of one beacon's straight-ray fit.
+
+    Parameters
+    ----------
+    geom : BeaconGeometry
+        The beacon's ranges and geometry.
+    time, depth : numpy.ndarray
+        Time and vehicle depth of each range.
+    d0, sigma_dp, sigma_mp : float
+        The fitted parameters (for a posterior: its means).
+    resp : numpy.ndarray
+        ``(n, 3)`` class probabilities (dp, mp, ol).
+    path : {"triangle", "double"}
+    plane_depth : float
+        The plane's depth (m): beacon depth minus ``d0``.
+    sigma_dp_fixed : bool, default False
+    plane_interval : tuple of float, optional
+        The plane depth's credible interval (a posterior).
+    ex, ey : numpy.ndarray, optional
+        Vehicle minus beacon east and north (for the bearing); default from ``h``
+        alone (bearing 0).
+
+    Returns
+    -------
+    list of dict
+        The checks, flagged or not.
+    """
+    r_dp = geom.z - geom.direct
+    r_mp = geom.z - geom.multipath(d0, path)
+    ex = geom.h if ex is None else ex
+    ey = np.zeros_like(geom.h) if ey is None else ey
+    cov = covariates(ex, ey, geom.dz, time, depth)
+    out = direct_path_checks(r_dp, resp[:, 0], sigma_dp, sigma_fixed=sigma_dp_fixed)
+    out += trend_checks({"dp": r_dp, "mp": r_mp}, {"dp": sigma_dp, "mp": sigma_mp},
+                        {"dp": resp[:, 0], "mp": resp[:, 1]}, cov)
+    out += outlier_timing_check(geom.z, geom.direct, resp[:, 2], geom.lo, geom.hi)
+    out += plane_check(plane_depth, plane_interval)
+    return out
+
+
+def check_fit(data, result, *, plane_interval=None, params=None, resp=None) -> list:
+    """Run :func:`check_beacon` on a fit of one beacon (an EM result, or a posterior's).
+
+    Parameters
+    ----------
+    data : BeaconData
+    result : EMResult
+        The fit (its geometry, path, sigma_DP setting, and by default its
+        parameters and class probabilities).
+    plane_interval : tuple of float, optional
+        The plane depth's credible interval.
+    params : dict, optional
+        ``d0``, ``sigma_dp``, ``sigma_mp`` to use instead of the result's (a
+        posterior's means).
+    resp : numpy.ndarray, optional
+        Class probabilities to use instead of the result's.
+
+    Returns
+    -------
+    list of dict
+    """
+    geom = BeaconGeometry.from_data(data)
+    p = params or {"d0": result.d0, "sigma_dp": result.sigma_dp, "sigma_mp": result.sigma_mp}
+    bx, by, bz = (float(v) for v in data.position)
+    fixed = bool(result.settings.get("sigma_dp_fixed")) if result.settings else False
+    return check_beacon(geom, data.time, data.depth, d0=p["d0"], sigma_dp=p["sigma_dp"],
+                        sigma_mp=p["sigma_mp"], resp=result.resp if resp is None else resp,
+                        path=result.path, plane_depth=bz - p["d0"], sigma_dp_fixed=fixed,
+                        plane_interval=plane_interval, ex=data.x - bx, ey=data.y - by)
+
+
+def check_posterior(data, result) -> list:
+    """Run :func:`check_beacon` on a beacon's posterior (a :class:`PosteriorResult`).
+
+    At the posterior means of ``d0``, ``sigma_DP`` and ``sigma_MP``, with the
+    posterior mean class probabilities of every range; the plane is checked with
+    its credible interval (flagged when the whole interval is more than
+    :data:`PLANE_TOLERANCE` m from the sea surface).
+
+    Parameters
+    ----------
+    data : BeaconData
+    result : PosteriorResult
+
+    Returns
+    -------
+    list of dict
+    """
+    s = result.summary
+    depth = float(data.position[2])
+    lo, hi = s["d0"]["interval"]
+    params = {k: s[k]["mean"] for k in ("d0", "sigma_dp", "sigma_mp")}
+    return check_fit(data, result.em, params=params, resp=result.class_probs,
+                     plane_interval=(depth - hi, depth - lo))
+
+
+def checks_record(checks) -> dict:
+    """Return the record of a beacon's checks in ``summary.json``: flags, then every check.
+
+    Parameters
+    ----------
+    checks : list of dict
+
+    Returns
+    -------
+    dict
+        ``flags`` (the messages of the flagged checks, with the advice when any),
+        ``checks`` (all of them).
+    """
+    msgs = flagged(checks)
+    return {"flags": msgs + ([ADVICE] if msgs else []), "checks": list(checks)}
+
+
+def flagged(checks) -> list:
+    """Return the messages of the flagged checks, the trends of one class in one message.
+
+    Parameters
+    ----------
+    checks : list of dict
+
+    Returns
+    -------
+    list of str
+    """
+    out, trends = [], {}
+    for c in checks:
+        if not c["flagged"]:
+            continue
+        if c["name"].endswith("_trend"):
+            trends.setdefault(c["class"], []).append(c)
+        else:
+            out.append(c["message"])
+    for cls, cs in trends.items():
+        what = "direct-path" if cls == "dp" else "multipath"
+        out.append(f"{what} residuals vary with {', '.join(c['against'] for c in cs)} (bin "
+                   f"means up to {max(c['value'] for c in cs):.2f} m from their mean, "
+                   f"p <= {max(c['p_value'] for c in cs):.1e})")
+    return out
+
+
+def warn_misfit(beacon, checks, *, stacklevel=2):
+    """Warn once for a beacon whose checks flag a misfit.
+
+    Parameters
+    ----------
+    beacon : str
+    checks : list of dict
+    stacklevel : int, default 2
+
+    Warns
+    -----
+    ModelCheckWarning
+        When a check is flagged.
+    """
+    msgs = flagged(checks)
+    if msgs:
+        warnings.warn(f"beacon {beacon}: the model does not describe these ranges: "
+                      + "; ".join(msgs) + f". The interval of d0 assumes it does: {ADVICE}",
+                      ModelCheckWarning, stacklevel=stacklevel + 1)

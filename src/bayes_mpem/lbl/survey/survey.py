@@ -1,0 +1,311 @@
+"""The per-beacon survey loop and the tables every survey result shares.
+
+:func:`fit`, :func:`sample` and :func:`compare` all work beacon by beacon:
+:func:`over_beacons` is their one loop (leave out beacons with too few
+replies, run the per-beacon analysis on the others, leave out with a reason
+any beacon whose analysis cannot start). :func:`classified_table` and
+:func:`beacons_table` build the parts of their output files they share.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from ..._validate import check_int
+from ...exceptions import SkippedBeaconWarning
+from ...io.survey import Survey
+from ...mixture.densities import CLASSES
+
+#: The fewest replies a beacon can be fitted with (both EMs need 3 ranges).
+MIN_PINGS = 3
+
+
+def check_min_pings(min_pings) -> int:
+    """Check ``min_pings`` before any work: an integer >= :data:`MIN_PINGS`.
+
+    Parameters
+    ----------
+    min_pings : int
+
+    Returns
+    -------
+    int
+
+    Raises
+    ------
+    ValueError
+        Naming ``min_pings``.
+
+    Examples
+    --------
+    >>> check_min_pings(2)
+    Traceback (most recent call last):
+    ...
+    ValueError: min_pings: expected an integer >= 3, got 2
+    """
+    return check_int("min_pings", min_pings, minimum=MIN_PINGS)
+
+
+class Failure(str):
+    """The reason a beacon's fit failed (not finite): its rows are labelled ``failed``.
+
+    A ``str`` (it is written into ``summary.json``'s ``skipped`` like any reason)
+    that :func:`classified_table` tells apart from a beacon merely left unfitted.
+    """
+
+
+def non_finite(document, where: str = "") -> list:
+    """Dotted names of the non-finite numbers of a (nested) result document.
+
+    Parameters
+    ----------
+    document : dict, list or number
+    where : str, optional
+        Prefix of the names.
+
+    Returns
+    -------
+    list of str
+
+    Examples
+    --------
+    >>> non_finite({"d0": 1.0, "weights": {"dp": float("nan")}, "n": 3})
+    ['weights.dp']
+    """
+    if isinstance(document, dict):
+        return [n for k, v in document.items()
+                for n in non_finite(v, f"{where}.{k}" if where else str(k))]
+    if isinstance(document, (list, tuple)):
+        return [n for i, v in enumerate(document) for n in non_finite(v, f"{where}[{i}]")]
+    if isinstance(document, (float, np.floating)) and not np.isfinite(document):
+        return [where]
+    return []
+
+
+def culprit_rows(survey: Survey, data, *, factor: float = 100.0) -> list:
+    """Rows of a beacon whose values stand far out from the others (what breaks a fit).
+
+    A row stands out when its range minus the straight-line distance to the
+    beacon, or its vehicle position, lies more than ``factor`` robust standard
+    deviations (median absolute deviation, at least 1 m) from the beacon's median.
+
+    Parameters
+    ----------
+    survey : Survey
+    data : BeaconData
+        The beacon's replies.
+    factor : float, default 100
+
+    Returns
+    -------
+    list of str
+        Where those rows are (``"line 17"``), at most 10.
+    """
+    dist = np.sqrt((data.x - data.position[0]) ** 2 + (data.y - data.position[1]) ** 2
+                   + (data.depth - data.position[2]) ** 2)
+    out = np.zeros(data.n, bool)
+    for v in (data.range - dist, data.x, data.y, data.depth):
+        med = np.median(v)
+        mad = max(1.4826 * float(np.median(np.abs(v - med))), 1.0)
+        out |= ~np.isfinite(v) | (np.abs(v - med) > factor * mad)
+    return [survey.row_name(int(r)) for r in data.rows[out][:10]]
+
+
+def beacons_table(survey: Survey) -> dict:
+    """Beacon positions as ``{id: {"x", "y", "depth"}}`` (written into summaries).
+
+    Parameters
+    ----------
+    survey : Survey
+
+    Returns
+    -------
+    dict
+    """
+    return {b: {k: float(v) for k, v in row.items()}
+            for b, row in survey.beacons[["x", "y", "depth"]].iterrows()}
+
+
+def classified_table(survey: Survey, fitted: dict, skipped: dict, extra: dict | None = None):
+    """Every input row with its class probabilities, ``label`` and ``reason``.
+
+    Parameters
+    ----------
+    survey : Survey
+    fitted : dict
+        ``{beacon: (rows, probs)}``: positions in the input table and ``(n, 3)``
+        class probabilities (dp, mp, ol).
+    skipped : dict
+        ``{beacon: reason}`` of beacons left unfitted.
+    extra : dict, optional
+        ``{column: {beacon: (n,) values}}``: more per-range columns (NaN elsewhere).
+
+    Returns
+    -------
+    pandas.DataFrame
+        The input table, same rows and order, plus ``p_dp``, ``p_mp``, ``p_ol``,
+        any ``extra`` columns, ``label`` (``dp``, ``mp``, ``ol``, ``no_reply``,
+        ``skipped``) and ``reason``.
+    """
+    n = len(survey)
+    probs = np.full((n, 3), np.nan)
+    label = np.full(n, "", dtype=object)
+    reason = np.full(n, "", dtype=object)
+    for rows, p in fitted.values():
+        probs[rows] = p
+        label[rows] = np.asarray(CLASSES)[np.argmax(p, axis=1)]
+    for bid, why in skipped.items():
+        m = survey.beacon == bid
+        label[m] = "failed" if isinstance(why, Failure) else "skipped"
+        reason[m] = str(why)
+    nr = survey.no_reply
+    label[nr] = "no_reply"
+    reason[nr] = "empty range: the ping got no reply"
+    out = survey.table.copy()
+    for j, c in enumerate(CLASSES):
+        out["p_" + c] = probs[:, j]
+    for col, per_beacon in (extra or {}).items():
+        v = np.full(n, np.nan)
+        for bid, vals in per_beacon.items():
+            v[fitted[bid][0]] = vals
+        out[col] = v
+    out["label"] = label
+    out["reason"] = reason
+    return out
+
+
+def fittable_beacons(survey: Survey, min_pings: int, *, stacklevel: int = 3):
+    """Split the beacons into those with enough replies and those left unfitted.
+
+    Parameters
+    ----------
+    survey : Survey
+    min_pings : int
+    stacklevel : int, default 3
+        Of the warnings (3: the caller of the function that calls this one).
+
+    Returns
+    -------
+    fittable : list of BeaconData
+    skipped : dict
+        ``{beacon: reason}``; a :class:`SkippedBeaconWarning` is issued for each.
+    """
+    fittable, skipped = [], {}
+    for bid in survey.beacon_ids:
+        data = survey.for_beacon(bid)
+        if data.n < min_pings:
+            why = (f"beacon {bid} has {data.n} replies ({data.n_no_reply} pings without reply), "
+                   f"fewer than min_pings={min_pings}")
+            warnings.warn(why + "; left unfitted", SkippedBeaconWarning, stacklevel=stacklevel)
+            skipped[bid] = why
+        else:
+            fittable.append(data)
+    return fittable, skipped
+
+
+def option_subset(kwargs: dict) -> dict:
+    """Pick the options of ``kwargs`` that :func:`~.posterior.check_sample_options` checks.
+
+    Parameters
+    ----------
+    kwargs : dict
+        Keyword arguments meant for the per-beacon sampler.
+
+    Returns
+    -------
+    dict
+        ``n_ensembles``, ``concentration``, ``sigma_dp``, ``path``, ``tau_factor``,
+        ``min_ess``, ``max_steps``, ``n_draws`` and ``sampler`` where given.
+
+    Examples
+    --------
+    >>> option_subset({"path": "double", "progress": False})
+    {'path': 'double'}
+    """
+    keys = ("n_ensembles", "concentration", "sigma_dp", "path", "tau_factor", "min_ess",
+            "max_steps", "n_draws", "sampler")
+    return {k: kwargs[k] for k in keys if k in kwargs}
+
+
+def skip_beacon(skipped: dict, beacon: str, why: str, *, stacklevel: int = 3) -> None:
+    """Record ``beacon`` as left unsampled with ``why``, and warn.
+
+    Parameters
+    ----------
+    skipped : dict
+        ``{beacon: reason}``, updated in place.
+    beacon : str
+    why : str
+    stacklevel : int, default 3
+        Of the :class:`SkippedBeaconWarning`.
+    """
+    warnings.warn(why + "; left unsampled", SkippedBeaconWarning, stacklevel=stacklevel)
+    skipped[beacon] = why
+
+
+def over_beacons(survey: Survey, min_pings: int, analyse, *, skip_on=(), check=None):
+    """Run ``analyse`` on every beacon with enough replies: the one survey loop.
+
+    Beacons with fewer than ``min_pings`` replies are left out first (each with
+    a :class:`SkippedBeaconWarning`, "left unfitted"); then ``analyse(data)``
+    runs on the others in table order. A beacon whose analysis raises one of
+    ``skip_on`` is left out too, with the exception's message as the reason
+    ("left unsampled"), instead of stopping the survey.
+
+    Parameters
+    ----------
+    survey : Survey
+    min_pings : int
+    analyse : callable
+        ``analyse(BeaconData) -> result`` for one beacon.
+    skip_on : tuple of exception classes, default ()
+        Exceptions that leave one beacon out; any other propagates.
+    check : callable, optional
+        ``check(result) -> list of str``: the names of the result's values that are
+        not finite. A beacon with any is *failed*: left out with a :class:`Failure`
+        reason naming those values and the rows that stand out
+        (:func:`culprit_rows`), its rows labelled ``failed``.
+
+    Returns
+    -------
+    results : dict
+        ``{beacon: result}`` in table order.
+    skipped : dict
+        ``{beacon: reason}``: the beacons with too few replies first, then those
+        ``skip_on`` left out.
+
+    Warns
+    -----
+    SkippedBeaconWarning
+        For every beacon left out.
+
+    Examples
+    --------
+    >>> import bayes_mpem
+    >>> sim = bayes_mpem.simulate_survey("abe58", rng=0, n_cycles=40)
+    >>> res, skipped = over_beacons(sim.survey, 30, lambda data: data.n)
+    >>> sorted(res), skipped
+    (['1', '2', '3', '4'], {})
+    """
+    # stacklevel 4: past the helper, this function and fit/sample/compare, to their caller
+    fittable, skipped = fittable_beacons(survey, min_pings, stacklevel=4)
+    results = {}
+    for data in fittable:
+        try:
+            result = analyse(data)
+        except skip_on as exc:
+            skip_beacon(skipped, data.beacon, str(exc), stacklevel=4)
+            continue
+        bad = check(result) if check is not None else []
+        if bad:
+            rows = culprit_rows(survey, data)
+            why = (f"beacon {data.beacon}: the fit failed: {', '.join(bad[:5])} not finite; "
+                   + (f"rows that stand out: {', '.join(rows)}" if rows else
+                      "no single row stands out"))
+            warnings.warn(why, SkippedBeaconWarning, stacklevel=4)
+            skipped[data.beacon] = Failure(why)
+        else:
+            results[data.beacon] = result
+    return results, skipped

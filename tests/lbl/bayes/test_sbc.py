@@ -33,7 +33,7 @@ from bayes_mpem.mcmc.sbc import (
     rank_uniformity,
 )
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests/, for the released move
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # tests/, for the released move
 from released_snooker import ReleasedSnooker  # noqa: E402
 
 FAST = {"tau_factor": 10.0, "min_ess": 0.0, "n_draws": 99}

@@ -27,7 +27,7 @@ from bayes_mpem.lbl.model.refracted import RefractedBeaconGeometry, lbl_ranges
 from bayes_mpem.lbl.simulation.presets import ABE58
 from bayes_mpem.lbl.simulation.simulate import simulate_lbl
 
-WOA09 = Path(__file__).resolve().parents[2] / "data" / "woa09"
+WOA09 = Path(__file__).resolve().parents[3] / "data" / "woa09"
 ENDEAVOUR = (47.95, -129.10)
 KAIREI = (-25.32, 70.04)
 CONST = SoundSpeedProfile.constant(1500.0)

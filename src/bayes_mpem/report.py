@@ -1,17 +1,4 @@
-"""Figures and summaries written to an output folder, and reading such a folder back.
-
-The command line writes a result's data with its ``write()`` and then its
-figures with :func:`write_figures`, which dispatches on the kind of result
-(fit, posterior, prior comparison, diagnosis, located survey, navigation). ``bayes-mpem plot
-RESULT_DIR`` is :func:`load_output` followed by :func:`write_figures`; the
-folder kinds it reads are :data:`FOLDER_KINDS` (another command's folder is one
-more entry, :func:`folder_kind`); :func:`demo_markdown`
-is the ``summary.md`` of ``bayes-mpem demo``. One figure needs more than the
-result: the paper's Fig. 12 re-fits the figure beacon with the paper's EM over a
-grid of ``Pol`` (:func:`~bayes_mpem.lbl.em.pol_sensitivity.survey_pol_sensitivity`),
-which :func:`write_figures` runs unless it is given; the plotting functions
-themselves only draw.
-"""
+"""Figures and summaries written to an output folder, and reading such a folder back."""
 
 from __future__ import annotations
 

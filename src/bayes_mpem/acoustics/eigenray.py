@@ -1,58 +1,10 @@
 """Refracted eigenrays without a turning point through a layered ocean.
 
-Conventions: depth ``z`` positive down (m), sound speed ``c`` (m/s), times in
-seconds, horizontal distances in metres. A :class:`SoundSpeedProfile` is a list
-of knots; between knots ``c(z)`` is linear (constant-gradient layers), above the
-first and below the last knot it is constant.
-
-Rays. In a horizontally stratified medium a ray keeps its ray parameter
-``p = sin(theta) / c`` (Snell's law; ``theta`` from the vertical). In a layer
-with constant gradient ``g`` the ray is a circular arc and, with
-``s = cos(theta) = sqrt(1 - p**2 c**2)`` at the layer's top (0) and bottom (1),
-its horizontal run and travel time have closed forms, written here without
-dividing by ``g`` so that they stay exact as ``g -> 0`` (the straight segment):
-
-* ``X = p h (c0 + c1) / (s0 + s1)``,
-  ``dX/dp = h (c0 + c1) / ((s0 + s1) s0 s1)``;
-* ``T = h w artanh(x) / x`` with
-  ``w = (c0 + c1)(1 + s0 s1) / ((s0 + s1)(c0**2 s1**2 + c1**2))`` and
-  ``x = (c1 - c0) w`` (this is ``(artanh s0 - artanh s1) / g``).
-
-The eigenray solvers find, for every source/receiver pair at once, the ``p``
-whose summed ``X`` equals the horizontal distance. ``X(p)`` increases with
-``p`` up to ``1 / c_max`` (``c_max`` the fastest speed on the path, where the
-ray would turn horizontal); a longer horizontal distance needs a turning point
-and is reported as invalid (NaN), never approximated; such rays are solved by
-:func:`bayes_mpem.acoustics.turning.direct_times`, the solver the rest of the
-package calls for direct rays. The unknown is the
-grazing angle ``phi`` at the fastest point, ``p = cos(phi) / c_max``, so that
-both near-vertical and near-horizontal rays are resolved to full precision;
-the step is Newton's (from the analytic ``dX/dp``) inside a bisection bracket.
-
-Performance, measured on the 2-core development machine (NumPy 2.4, one
-thread: elementwise operations and row sums only, no BLAS) while other jobs kept
-its load average at 1.3-2.9: 10,000 direct rays from 0 m to 2,700 m through the
-1,301-knot SeaGap ``ss_prof.inp`` (horizontal distances 0-8 km) take
-0.23-0.48 s; the same rays reflected by the sea surface (2,700 m to 10 m)
-0.28-0.32 s (the minimum of 5 runs, from several runs of)::
-
-    import timeit, numpy as np
-    from bayes_mpem.acoustics import SoundSpeedProfile, direct_ray, surface_bounce_ray
-    p = SoundSpeedProfile.from_file("data/seagap/ss_prof.inp")
-    h = np.linspace(0.0, 8000.0, 10000)
-    min(timeit.repeat(lambda: direct_ray(p, 0.0, 2700.0, h), number=1, repeat=5))
-    min(timeit.repeat(lambda: surface_bounce_ray(p, 2700.0, 10.0, h), number=1, repeat=5))
-
-Rays go in blocks of about 2**15 array elements (rays x knots in their depth
-range); the first guess, the straight chord at the harmonic-mean speed, leaves
-about 2.8 Newton evaluations per ray, plus one at grazing for the validity
-check and one for the travel time. Interior knots on a straight line (equal
-gradients) are skipped by the tracer.
-
-The WOA09 annual climatology (:meth:`SoundSpeedProfile.from_woa09`) is in the
-source repository's ``data/woa09`` (see ``data/README.md``) and is installed with
-the package; ``directory=`` or the ``BAYES_MPEM_WOA09`` environment variable
-point elsewhere.
+Depth positive down (m), speed (m/s), times (s). Each ray keeps its ray parameter
+``p = sin(theta) / c``; the layer formulas (``acoustics.layers``) are written without
+dividing by the gradient, so they stay exact as it goes to 0. A horizontal distance that
+needs a turning point is NaN here; :func:`bayes_mpem.acoustics.turning.direct_times`
+solves those. Formulas and timings: ``docs/refraction.md``.
 """
 
 from __future__ import annotations
@@ -281,12 +233,6 @@ def direct_ray(profile: SoundSpeedProfile, z_a, z_b, horizontal, *, tol: float =
 def surface_bounce_ray(profile: SoundSpeedProfile, z_a, z_b, horizontal, plane_depth=0.0, *,
                        tol: float = 1e-9, max_iter: int = 100) -> Eigenray:
     """Eigenray reflected once by a horizontal plane above both ends.
-
-    The ray leaves ``z_a`` upward, reflects specularly at ``plane_depth`` and
-    goes down to ``z_b``; its horizontal run is the sum of the two legs. In a
-    homogeneous medium this is the image method (the LBL wing's double-bounce
-    multipath range): ``c * time`` is the distance from ``z_a`` to the mirror
-    image of ``z_b`` in the plane.
 
     Parameters
     ----------

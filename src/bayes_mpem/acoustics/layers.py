@@ -1,12 +1,4 @@
-"""Closed-form ray integrals through the constant-gradient layers of a profile.
-
-A :class:`Legs` holds, for a block of rays, the layers each leg of the ray
-crosses (between its top and bottom depth), and evaluates for a ray parameter
-``p`` (through the grazing angle at the fastest point) the horizontal run, its
-derivative and the travel time summed over the legs. The formulas, and why they
-are written without dividing by the gradient, are in
-:mod:`bayes_mpem.acoustics.eigenray`, whose solvers are the only users.
-"""
+"""Closed-form ray integrals through the constant-gradient layers of a profile."""
 
 from __future__ import annotations
 
@@ -29,12 +21,6 @@ def _artanh_ratio(x):
 
 class Legs:
     """Vertical legs ``[top, bot]`` of a block of rays, as per-ray knot arrays.
-
-    For each leg: ``C`` (rays x knots) the speeds at the leg's knots (its ends and
-    the profile knots strictly inside, the rest clipped to an end, giving layers
-    of zero thickness), ``H`` the layer thicknesses, ``A = H (c0 + c1)``, and
-    ``B = 1 - (c/c_max)**2`` (exactly 0 at the fastest knot), ``R2 = (c/c_max)**2``
-    so that ``s = sqrt(B + R2 sin(phi)**2)`` with no cancellation at grazing.
 
     Parameters
     ----------

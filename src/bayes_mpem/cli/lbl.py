@@ -1,10 +1,4 @@
-"""The LBL sub-commands: demo, simulate, fit, sample, compare, plot and diagnose.
-
-Each ``cmd_*`` takes the parsed arguments (:func:`~bayes_mpem.cli.build_parser`),
-calls the library, writes the result's data with its ``write()`` and its
-figures with :func:`bayes_mpem.report.write_figures`, prints what it found and
-returns the exit status.
-"""
+"""The LBL sub-commands: demo, simulate, fit, sample, compare, plot and diagnose."""
 
 from __future__ import annotations
 

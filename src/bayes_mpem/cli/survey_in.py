@@ -1,13 +1,4 @@
-"""``bayes-mpem locate``: locate the transponders of a ranging survey file.
-
-Parses nothing itself (:mod:`.parser` does): checks that the options go
-together, calls :func:`~bayes_mpem.survey_in.survey.locate_survey` (or its
-posterior-sampling sibling, through :func:`bayes_mpem.batch.locate_raw`, which
-``bayes-mpem batch`` shares), writes the result (and with ``--figures`` its
-figures, :func:`~bayes_mpem.report.write_figures`) and prints, per transponder,
-its position, the drift from the drop point, TAT, sound speed and depth change
-with their intervals, and whether a lag along the track would fit better.
-"""
+"""``bayes-mpem locate``: locate the transponders of a ranging survey file."""
 
 from __future__ import annotations
 

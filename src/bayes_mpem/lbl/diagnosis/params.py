@@ -1,16 +1,5 @@
 """The parameters of the diagnosis' joint model, and the vector the Gauss-Newton step moves.
 
-:class:`Params` holds, per beacon, a plane depth, three scales (direct path,
-multipath, second multipath) and four mixing weights (those and outliers); the
-shared effects' parameters (a range bias, a scale factor, a plane drift, a
-second plane, a navigation drift); and the per-beacon effects' parameters (a
-beacon's own range bias, a correction to its position). An effect's
-parameters are used only while its term is switched on (the terms are the
-names of :func:`bayes_mpem.lbl.simulation.effects.term`: ``"range_bias"``,
-``"beacon_bias:2"``, ...). :func:`mean_names` lists the mean parameters of a
-set of terms, :func:`get_vector` and :func:`set_vector` move them in and out of
-a vector, and :func:`beacons_with` says which beacons a per-beacon effect is on.
-
 Examples
 --------
 >>> mean_names(("range_bias", "beacon_bias:b"), ("a", "b"))

@@ -1,12 +1,4 @@
-"""What :func:`~.driver.diagnose` returns: the effects found and the fits behind them.
-
-:class:`Effect` is one effect of the vocabulary found in the data;
-:class:`Diagnosis` holds them with the baseline and final joint fits, every
-extension tried and the residual checks, and writes ``diagnosis.json`` and
-``replies.csv`` (what its figures draw, per reply). Its figures are drawn by
-:func:`bayes_mpem.report.write_figures`; :class:`DiagnosisRecord` is a diagnosis
-read back from those two files, enough to draw them again (``bayes-mpem plot``).
-"""
+"""What :func:`~.driver.diagnose` returns: the effects found and the fits behind them."""
 
 from __future__ import annotations
 
@@ -200,8 +192,6 @@ class Diagnosis:
     def write(self, out_dir) -> dict:
         """Write ``diagnosis.json`` and ``replies.csv`` to ``out_dir``.
 
-        The figures are drawn by :func:`bayes_mpem.report.write_figures`.
-
         Parameters
         ----------
         out_dir : str or pathlib.Path
@@ -254,13 +244,6 @@ class DiagnosisRecord:
         ``diagnosis.json``.
     table : pandas.DataFrame
         ``replies.csv`` (:meth:`Diagnosis.replies`).
-
-    Notes
-    -----
-    It offers what the figure functions of :mod:`bayes_mpem.plots.diagnose` read
-    of a :class:`Diagnosis`: ``candidates``, ``settings``, :meth:`replies`,
-    :meth:`figure_info`, and ``data`` (``ids``, ``bi``, ``time``, ``nb``) and
-    ``baseline``/``final`` (``resp``, ``effects``, ``path``) as plain namespaces.
     """
 
     document: dict

@@ -1,17 +1,4 @@
-"""Triangle or double bounce: the multipath geometry of one beacon, chosen by likelihood.
-
-:func:`choose_path` fits the mixture EM (:func:`~bayes_mpem.lbl.em.em_mixture.fit_mixture_em`)
-with both geometries and keeps the likelier one (``path="auto"``), or the geometry the
-caller forces, warning when the other one is better by more than :data:`CLEAR_MARGIN`
-nats. :func:`~bayes_mpem.fit`, :func:`~bayes_mpem.sample` and :func:`~bayes_mpem.compare`
-all choose through it, one beacon at a time; the choice and its margin go into their
-summaries (``PathChoice.to_dict``).
-
-The two geometries have the same parameters (``d0``, ``sigma_MP``, ``sigma_DP``, the
-weights), so their maximised log-likelihoods compare directly, with no penalty for
-size. The margin is the log-likelihood of the geometry used minus that of the other:
-positive when the geometry used is the likelier.
-"""
+"""Triangle or double bounce: the multipath geometry of one beacon, chosen by likelihood."""
 
 from __future__ import annotations
 

@@ -1,11 +1,5 @@
 """What the likelihood of one beacon needs of its geometry, computed once.
 
-:class:`BeaconGeometry` holds the per-range quantities of one beacon that do
-not depend on the parameters (reported ranges, horizontal distances, depth
-differences, direct-path lengths, the outlier window) and predicts the
-multipath ranges for a plane height through :mod:`bayes_mpem.lbl.model.geometry`.
-The EMs and samplers take one instead of the raw data.
-
 Examples
 --------
 >>> import numpy as np
@@ -43,12 +37,6 @@ class BeaconGeometry:
     d0_min : float
         Lowest physical plane height: the plane must lie above the vehicle for
         every range, ``max(0, max(dz))``.
-
-    Notes
-    -----
-    Predictions are straight-ray (:mod:`bayes_mpem.lbl.model.geometry`); the subclass
-    :class:`~bayes_mpem.lbl.model.refracted.RefractedBeaconGeometry` predicts through a
-    sound-speed profile with the same interface (``straight`` is False there).
     """
 
     straight: ClassVar[bool] = True

@@ -1,22 +1,10 @@
 """Straight-ray LBL geometry: direct path, image-method multipath, inversion.
 
-Conventions (see ``docs/model.md``):
-
-* depths are positive down; ``h`` is the horizontal distance beacon-vehicle;
-* ``dz = z_beacon - z_vehicle`` is how far the vehicle sits above the beacon;
-* the reflecting plane is horizontal, at height ``d0`` above the beacon, i.e. at
-  depth ``z_beacon - d0``. For a sea-surface bounce ``d0`` equals the beacon
-  depth;
-* by the image method the reflected leg has length
-  ``L_refl = sqrt(h**2 + (2 d0 - dz)**2)``: the beacon's image sits ``d0``
-  above the plane, and the vehicle ``d0 - dz`` below it. This is eq. 2 of the
-  paper, with its ``|x0 + x|`` read as the horizontal separation;
-* ranges are one-way, i.e. half the round-trip path. The **triangle** path
-  (one leg reflected, the other direct: the paper's finding) gives
-  ``(L_direct + L_refl) / 2``; the **double** bounce (both legs reflected)
-  gives ``L_refl``.
-
-Every function is vectorised with NumPy broadcasting.
+Depths positive down; ``h`` the horizontal distance beacon-vehicle;
+``dz = z_beacon - z_vehicle``; the reflecting plane lies ``d0`` above the beacon, and its
+reflected leg is ``sqrt(h**2 + (2 d0 - dz)**2)`` (eq. 2 of the paper). Ranges are one-way:
+the triangle path gives ``(L_direct + L_refl) / 2``, the double bounce ``L_refl``
+(``docs/model.md``). Every function broadcasts.
 """
 
 from __future__ import annotations
@@ -189,11 +177,6 @@ def _double_mask(paths):
 def invert_plane_height(z, h, dz, path: Path = "triangle", *, direct=None):
     """Per-range plane height ``d0(k)`` that makes range ``z`` a multipath.
 
-    Closed-form inversion of :func:`multipath_range` (used by eq. 8 of the
-    paper). For the triangle path ``L_refl = 2 z - L_direct``; for the double
-    bounce ``L_refl = z``; then ``d0 = (sqrt(L_refl**2 - h**2) + dz) / 2``,
-    taking the branch with the vehicle below the plane.
-
     Parameters
     ----------
     z : array_like
@@ -247,12 +230,6 @@ def elevation_angle(h, dz):
 
 def horizontal_slopes(h, dz, d0, path: Path = "triangle", *, direct=None):
     """Horizontal-position derivatives of the direct and multipath ranges, per unit offset.
-
-    The gradient of a range with respect to the vehicle's horizontal position
-    ``(x, y)`` is ``(x - x_beacon, y - y_beacon)`` times a slope: ``1 / L_direct``
-    for the direct path, ``(1 / L_direct + 1 / L_refl) / 2`` for the triangle
-    multipath and ``1 / L_refl`` for the double bounce. Returning the slopes
-    keeps the gradient finite right above the beacon (``h = 0``).
 
     Parameters
     ----------

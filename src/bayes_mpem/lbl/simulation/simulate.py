@@ -1,18 +1,5 @@
 """Simulated LBL surveys with known truth.
 
-A survey is a set of seafloor beacons, a vehicle track, and for every ping
-cycle one reply (or none) from each beacon. Each reply is, at random with the
-beacon's mixing weights, the direct path (Gaussian around the straight line),
-a multipath from a horizontal plane (by default the sea surface; Gaussian
-around the image-method prediction of :mod:`bayes_mpem.lbl.model.geometry`), or an
-outlier (uniform over the listening window).
-
-The simulator's assumptions are the paper's: straight rays, one sound speed,
-a static reflector, exact navigation, constant noise. With ``ssp=`` (a
-:class:`~bayes_mpem.acoustics.SoundSpeedProfile`) the rays are refracted
-instead (:mod:`bayes_mpem.lbl.model.refracted`) and the travel times are turned into
-ranges with a nominal sound speed, as an LBL system does.
-
 Examples
 --------
 >>> from bayes_mpem.lbl.simulation.simulate import simulate_survey
@@ -259,12 +246,7 @@ def simulate_lbl(
 
 
 def _model_ranges(refr, h, z, depth, d0_t, path, second):
-    """Noise-free direct, multipath and second-reflector ranges, and the direct rays.
-
-    Straight rays when ``refr`` is None, else refracted through ``refr = (profile,
-    nominal speed)`` (NaN where no eigenray exists); ``second`` is the second
-    reflector's depth or None.
-    """
+    """Noise-free direct, multipath and second-reflector ranges, and the direct rays."""
     dz = depth - z
     rays = mp2 = None
     if refr is None:
@@ -285,12 +267,7 @@ def _model_ranges(refr, h, z, depth, d0_t, path, second):
 
 
 def _draw_ranges(gen, w4, model, sigma_mp, opts):
-    """Draw each ping's class and range, in the simulator's fixed order of random draws.
-
-    Returns the range (NaN for no reply or a class without an eigenray, which becomes
-    an outlier), the labels (``dp``, ``mp``, ``mp2``, ``ol``, ``no_reply``), and per
-    class the replies turned into outliers for want of an eigenray.
-    """
+    """Draw each ping's class and range, in the simulator's fixed order of random draws."""
     direct, mp, mp2, _ = model
     eff, n, window = opts["eff"], direct.size, opts["window"]
     scale, bias = opts["scale"], opts["bias"]

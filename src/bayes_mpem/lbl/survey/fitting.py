@@ -1,10 +1,4 @@
-"""Fit every beacon of a survey and write the results.
-
-:func:`fit` is what ``bayes-mpem fit`` calls: it validates the input, fits
-each beacon on its own (the paper's practice) with the mixture EM or the
-paper's EM, and returns a :class:`SurveyFit` that writes ``summary.json``
-and ``classified.csv`` (one row per input row, nothing dropped).
-"""
+"""Fit every beacon of a survey and write the results."""
 
 from __future__ import annotations
 
@@ -157,9 +151,6 @@ class SurveyFit:
 
     def write(self, out_dir, *, table_format: str = "csv") -> dict:
         """Write ``classified.csv``, ``history.json`` and, last, ``summary.json`` to ``out_dir``.
-
-        Through :func:`bayes_mpem.io.results.writing`: all or nothing, ``summary.json``
-        (the completion marker) last.
 
         Parameters
         ----------

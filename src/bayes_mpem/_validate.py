@@ -45,10 +45,6 @@ def check_positive(name: str, value: Any, *, allow_none: bool = False,
     what : str, optional
         What the message says is expected, instead of ``"a positive number"``.
 
-    Returns
-    -------
-    float or None
-
     Raises
     ------
     ValueError
@@ -78,10 +74,6 @@ def check_finite(name: str, value: Any) -> float:
         The argument's name, for the message.
     value : Any
 
-    Returns
-    -------
-    float
-
     Raises
     ------
     ValueError
@@ -103,10 +95,6 @@ def check_probability(name: str, value: Any, *, open_interval: bool = True) -> f
     value : Any
     open_interval : bool, default True
         Exclude 0 and 1.
-
-    Returns
-    -------
-    float
 
     Raises
     ------
@@ -173,10 +161,6 @@ def check_int(name: str, value: Any, *, minimum: int) -> int:
     value : Any
     minimum : int
 
-    Returns
-    -------
-    int
-
     Raises
     ------
     ValueError
@@ -201,10 +185,6 @@ def check_range(name: str, value: Any, *, low: float | None = None, high: float 
         The bounds; ``None`` for none.
     include_low, include_high : bool, default False
         Whether the bound itself is allowed.
-
-    Returns
-    -------
-    float
 
     Raises
     ------
@@ -251,10 +231,6 @@ def check_increasing(name: str, values: Any, *, context: str = "",
         Put before the name (``"SoundSpeedProfile: "``).
     what : str, default "strictly increasing values"
         What the message says is expected.
-
-    Returns
-    -------
-    numpy.ndarray
 
     Raises
     ------

@@ -56,10 +56,6 @@ def figure_beacon(survey_fit, beacon=None) -> str:
     beacon : str, optional
         Default: the last fitted beacon (the paper uses its beacon 4).
 
-    Returns
-    -------
-    str
-
     Raises
     ------
     ValueError
@@ -95,10 +91,6 @@ def write_figures(result, out_dir, *, beacon=None, truth=None, general=True,
         Fits: :func:`~bayes_mpem.lbl.em.pol_sensitivity.survey_pol_sensitivity`
         of the figure beacon, drawn as the paper's Fig. 12; computed here
         (seconds) when not given.
-
-    Returns
-    -------
-    list of pathlib.Path
 
     Raises
     ------

@@ -152,10 +152,6 @@ class SoundSpeedProfile:
         columns : tuple of int, default (0, 1)
             Zero-based columns holding depth and sound speed.
 
-        Returns
-        -------
-        SoundSpeedProfile
-
         Raises
         ------
         FileNotFoundError
@@ -220,10 +216,6 @@ class SoundSpeedProfile:
             environment variable, else the copy installed with the package.
         max_distance_km : float, default 150
             Refuse a cell farther than this.
-
-        Returns
-        -------
-        SoundSpeedProfile
 
         Raises
         ------

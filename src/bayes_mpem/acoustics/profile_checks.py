@@ -18,10 +18,6 @@ def check_profile(ssp, deepest: float | None = None, *, name: str = "ssp") -> So
     name : str
         Argument name used in messages.
 
-    Returns
-    -------
-    SoundSpeedProfile
-
     Raises
     ------
     TypeError
@@ -53,10 +49,6 @@ def check_sound_speed(sound_speed, name: str = "sound_speed") -> float:
     name : str
         Argument name used in messages.
 
-    Returns
-    -------
-    float
-
     Raises
     ------
     ValueError
@@ -73,10 +65,6 @@ def nominal_sound_speed(ssp: SoundSpeedProfile, depth) -> float:
     ssp : SoundSpeedProfile
     depth : float
         m, positive down.
-
-    Returns
-    -------
-    float
 
     Examples
     --------

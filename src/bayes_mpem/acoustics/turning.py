@@ -174,10 +174,6 @@ def direct_times(ssp: SoundSpeedProfile, z_a, z_b, horizontal, *, tol: float = 1
         Horizontal distance (m, >= 0). All three broadcast.
     tol : float, default 1e-9
 
-    Returns
-    -------
-    DirectRays
-
     Examples
     --------
     Speed growing with depth: two points 3 km apart at the same depth are

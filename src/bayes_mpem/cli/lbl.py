@@ -40,10 +40,6 @@ def fit_kwargs(args) -> dict:
     ----------
     args : argparse.Namespace
 
-    Returns
-    -------
-    dict
-
     Raises
     ------
     OptionError
@@ -67,10 +63,6 @@ def sample_kwargs(args) -> dict:
     ----------
     args : argparse.Namespace
 
-    Returns
-    -------
-    dict
-
     Raises
     ------
     OptionError
@@ -90,10 +82,6 @@ def sample_command_kwargs(args) -> dict:
     Parameters
     ----------
     args : argparse.Namespace
-
-    Returns
-    -------
-    dict
     """
     return dict(priors=args.priors, ci=args.ci, n_ensembles=args.ensembles,
                 **sample_kwargs(args))
@@ -105,10 +93,6 @@ def diagnose_kwargs(args) -> dict:
     Parameters
     ----------
     args : argparse.Namespace
-
-    Returns
-    -------
-    dict
     """
     effects = EFFECTS if args.effects is None else tuple(
         e.strip() for e in args.effects.split(",") if e.strip())

@@ -268,10 +268,6 @@ def table_ii_markdown(survey_fit, *, truth=None) -> str:
     survey_fit : SurveyFit
     truth : dict, optional
         ``Simulation.truth``: adds the true sigma_MP.
-
-    Returns
-    -------
-    str
     """
     t = survey_fit.table()
     head = "| | " + " | ".join(f"beacon {b}" for b in t["beacon"]) + " |"

@@ -160,10 +160,6 @@ def mc_pvalue(measured: float, simulated, side: str = "two-sided") -> float:
     simulated : array_like
     side : {"upper", "lower", "two-sided"}
 
-    Returns
-    -------
-    float
-
     Examples
     --------
     >>> mc_pvalue(5.0, [0.0, 1.0, 2.0, 3.0], "upper")

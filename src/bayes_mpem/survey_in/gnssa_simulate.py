@@ -73,10 +73,6 @@ class GnssaSimulation:
         Parameters
         ----------
         fmt : {"garpos", "gnatss"}
-
-        Returns
-        -------
-        RawSurvey
         """
         return RawSurvey(fmt, "simulated", self.pings.copy(), dict(self.header),
                          pd.DataFrame(columns=["line", "text", "reason"]))

@@ -110,12 +110,7 @@ class SurveyInResult:
     fits: dict = field(default_factory=dict, repr=False)
 
     def to_dict(self) -> dict:
-        """Return the content of ``summary.json``.
-
-        Returns
-        -------
-        dict
-        """
+        """Return the content of ``summary.json``."""
         return self.summary
 
     def write(self, out_dir) -> dict:

@@ -298,10 +298,6 @@ def simulation_gap(pings: pd.DataFrame, beacons: pd.DataFrame, transponders=None
     **locate_kwargs
         Passed to every ``locate`` call; not ``ssp``, ``speed_intervals`` or ``earth_radius``.
 
-    Returns
-    -------
-    GapResult
-
     Raises
     ------
     InputError

@@ -256,10 +256,6 @@ def ship_velocity(pings: pd.DataFrame) -> tuple:
     ----------
     pings : pandas.DataFrame
         ``time``, ``x``, ``y`` (or ``vx``, ``vy``).
-
-    Returns
-    -------
-    tuple of numpy.ndarray
     """
     if {"vx", "vy"} <= set(pings.columns):
         return pings["vx"].to_numpy(float), pings["vy"].to_numpy(float)

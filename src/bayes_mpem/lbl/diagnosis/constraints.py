@@ -16,10 +16,6 @@ def main_plane(p: Params) -> float:
     Parameters
     ----------
     p : Params
-
-    Returns
-    -------
-    float
     """
     return float(np.median(p.plane))
 

@@ -82,10 +82,6 @@ class Ranges:
         ----------
         mask : numpy.ndarray
             Boolean mask or indices of the replies to keep.
-
-        Returns
-        -------
-        Ranges
         """
         return replace(self, **{k: getattr(self, k)[mask] for k in
                                 ("z", "x", "y", "vdepth", "time", "tau", "bi", "rows")})

@@ -87,10 +87,6 @@ def beacons_with(effects, name, ids) -> list:
         ``"beacon_bias"`` or ``"beacon_position"``.
     ids : tuple of str
         The beacons, in the order of the fit.
-
-    Returns
-    -------
-    list of int
     """
     out = []
     for t in effects:
@@ -189,10 +185,6 @@ def set_vector(p: Params, names, v) -> Params:
     p : Params
     names : list of tuple
     v : array_like
-
-    Returns
-    -------
-    Params
     """
     q = p.copy()
     for (k, j), val in zip(names, v, strict=True):
@@ -219,10 +211,6 @@ def without(p: Params, term, ids) -> Params:
     p : Params
     term : str
     ids : tuple of str
-
-    Returns
-    -------
-    Params
     """
     q = p.copy()
     name, bid = split_term(term)

@@ -68,12 +68,7 @@ class Effect:
     detail: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
-        """Return the effect as a JSON-ready dict.
-
-        Returns
-        -------
-        dict
-        """
+        """Return the effect as a JSON-ready dict."""
         return {"name": self.name, "magnitude": self.magnitude, "unit": self.unit,
                 "beacons": list(self.beacons), "delta_elpd": self.delta_elpd,
                 "delta_elpd_se": self.delta_elpd_se, "magnitude_se": self.magnitude_se,
@@ -119,21 +114,11 @@ class Diagnosis:
 
     @property
     def unexplained(self) -> list:
-        """Residual checks that fail under the final model.
-
-        Returns
-        -------
-        list of dict
-        """
+        """Residual checks that fail under the final model."""
         return [c for c in self.residual_checks if c["significant"]]
 
     def to_dict(self) -> dict:
-        """Return the content of ``diagnosis.json``.
-
-        Returns
-        -------
-        dict
-        """
+        """Return the content of ``diagnosis.json``."""
         d = self.data
         final = self.final.beacons(d)
         for bid, entry in final.items():
@@ -207,12 +192,7 @@ class Diagnosis:
                     "replies": write_csv(out / "replies.csv", self.replies())}
 
     def summary(self) -> str:
-        """Describe what was found in a few lines for a terminal.
-
-        Returns
-        -------
-        str
-        """
+        """Describe what was found in a few lines for a terminal."""
         flagged = {b: f for b, f in self.beacon_flags.items() if f}
         if not self.effects and not self.unexplained and not flagged:
             lines = ["No effect found: the paper's model explains these data "

@@ -37,10 +37,6 @@ def n_parameters(t) -> int:
     ----------
     t : str
         A term: an effect's name, or ``"name:beacon"`` for a per-beacon effect.
-
-    Returns
-    -------
-    int
     """
     name, bid = split_term(t)
     keys = BEACON_KEYS if bid is not None else SHARED_KEYS

@@ -32,10 +32,6 @@ def check_path_choice(path: str) -> str:
     ----------
     path : str
 
-    Returns
-    -------
-    str
-
     Raises
     ------
     ValueError
@@ -79,12 +75,7 @@ class PathChoice:
         return float(self.loglik[self.path] - self.loglik[other])
 
     def to_dict(self) -> dict:
-        """JSON-ready record: ``requested``, ``path``, ``margin``, ``loglik``, ``rule``.
-
-        Returns
-        -------
-        dict
-        """
+        """JSON-ready record: ``requested``, ``path``, ``margin``, ``loglik``, ``rule``."""
         def finite(v):  # JSON has no infinity: a failed fit's -inf is written as null
             return v if math.isfinite(v) else None
 
@@ -101,10 +92,6 @@ class PathChoice:
         beacon : str
         d : dict
             A ``path_choice`` entry of ``summary.json``.
-
-        Returns
-        -------
-        PathChoice
         """
         return cls(beacon=beacon, requested=d["requested"], path=d["path"],
                    loglik={p: _score(v) for p, v in d["loglik"].items()})
@@ -169,10 +156,6 @@ def choose_path(
         Of the warnings (the chosen fit's own warnings are issued again here).
     **kwargs
         Passed to :func:`~bayes_mpem.lbl.em.em_mixture.fit_mixture_em` for both fits.
-
-    Returns
-    -------
-    PathChoice
 
     Warns
     -----

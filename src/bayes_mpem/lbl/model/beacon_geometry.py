@@ -56,10 +56,6 @@ class BeaconGeometry:
         Parameters
         ----------
         data : BeaconData
-
-        Returns
-        -------
-        BeaconGeometry
         """
         bx, by, bz = (float(v) for v in data.position)
         h = geometry.horizontal_distance(data.x, data.y, bx, by)
@@ -138,10 +134,6 @@ class BeaconGeometry:
         Parameters
         ----------
         idx : array_like of int or bool
-
-        Returns
-        -------
-        BeaconGeometry
         """
         return BeaconGeometry(self.z[idx], self.h[idx], self.dz[idx], self.direct[idx],
                               self.lo, self.hi, self.d0_min)

@@ -27,10 +27,6 @@ def check_path(path: str) -> str:
     path : str
         ``"triangle"`` or ``"double"``.
 
-    Returns
-    -------
-    str
-
     Raises
     ------
     ValueError

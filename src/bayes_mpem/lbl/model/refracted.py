@@ -65,10 +65,6 @@ def lbl_ranges(ssp: SoundSpeedProfile, sound_speed: float, horizontal, z_vehicle
     direct : DirectRays, optional
         Precomputed :func:`direct_times` of the same pairs.
 
-    Returns
-    -------
-    RefractedRanges
-
     Raises
     ------
     ValueError
@@ -200,10 +196,6 @@ class RefractedBeaconGeometry(BeaconGeometry):
         plane_step : float, default PLANE_STEP
             Grid spacing of the bounce table (m).
 
-        Returns
-        -------
-        RefractedBeaconGeometry
-
         Raises
         ------
         TypeError, ValueError
@@ -233,10 +225,6 @@ class RefractedBeaconGeometry(BeaconGeometry):
         Parameters
         ----------
         idx : array_like of int or bool
-
-        Returns
-        -------
-        RefractedBeaconGeometry
         """
         return dataclasses.replace(
             self, z=self.z[idx], h=self.h[idx], dz=self.dz[idx], direct=self.direct[idx],

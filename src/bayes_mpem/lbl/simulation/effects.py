@@ -36,10 +36,6 @@ def term(name: str, beacon=None) -> str:
     beacon : str, optional
         The beacon of a :data:`PER_BEACON` effect.
 
-    Returns
-    -------
-    str
-
     Examples
     --------
     >>> term("beacon_bias", "2"), split_term("beacon_bias:2"), split_term("range_bias")
@@ -54,10 +50,6 @@ def split_term(t: str) -> tuple:
     Parameters
     ----------
     t : str
-
-    Returns
-    -------
-    tuple
     """
     name, _, beacon = t.partition(":")
     return name, (beacon or None)
@@ -69,10 +61,6 @@ def term_order(t: str) -> tuple:
     Parameters
     ----------
     t : str
-
-    Returns
-    -------
-    tuple
     """
     name, beacon = split_term(t)
     return EFFECTS.index(name), beacon or ""

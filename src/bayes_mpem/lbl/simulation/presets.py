@@ -135,10 +135,6 @@ def preset_config(preset: str, gen, n_cycles: int | None = None,
     overrides : dict, optional
         Preset entries to replace.
 
-    Returns
-    -------
-    dict
-
     Raises
     ------
     ValueError

@@ -66,12 +66,7 @@ class SurveyFit:
             self.skipped)
 
     def summary(self) -> dict:
-        """JSON-ready summary: per-beacon parameters, counts, skipped beacons.
-
-        Returns
-        -------
-        dict
-        """
+        """JSON-ready summary: per-beacon parameters, counts, skipped beacons."""
         beacons = {}
         for bid, res in self.results.items():
             d = res.to_dict()
@@ -97,12 +92,7 @@ class SurveyFit:
         }
 
     def to_dict(self) -> dict:
-        """Return the content of ``summary.json`` (the same as :meth:`summary`).
-
-        Returns
-        -------
-        dict
-        """
+        """Return the content of ``summary.json`` (the same as :meth:`summary`)."""
         return self.summary()
 
     def table(self) -> pd.DataFrame:
@@ -131,12 +121,7 @@ class SurveyFit:
         return pd.DataFrame(rows)
 
     def format_table(self) -> str:
-        """Format the :meth:`table` as aligned text for a terminal.
-
-        Returns
-        -------
-        str
-        """
+        """Format the :meth:`table` as aligned text for a terminal."""
         t = self.table()
         lines = [f"{'beacon':>6} {'d0 (m)':>11} {'sigma_MP (m)':>12} {'depth (m)':>10} "
                  f"{'plane (m)':>9} {'DP':>6} {'MP':>6} {'OL':>6} {'n':>6} {'path':>8} "

@@ -299,10 +299,6 @@ def check_beacon(geom: BeaconGeometry, time, depth, *, d0, sigma_dp, sigma_mp, r
         The plane depth's credible interval (a posterior).
     ex, ey : numpy.ndarray, optional
         Vehicle minus beacon east and north, for the bearing (default: bearing 0).
-
-    Returns
-    -------
-    list of dict
     """
     r_dp = geom.z - geom.direct
     r_mp = geom.z - geom.multipath(d0, path)
@@ -330,10 +326,6 @@ def check_fit(data, result, *, plane_interval=None, params=None, resp=None) -> l
         ``d0``, ``sigma_dp``, ``sigma_mp`` instead of the result's (a posterior's means).
     resp : numpy.ndarray, optional
         Class probabilities instead of the result's.
-
-    Returns
-    -------
-    list of dict
     """
     geom = BeaconGeometry.from_data(data)
     p = params or {"d0": result.d0, "sigma_dp": result.sigma_dp, "sigma_mp": result.sigma_mp}
@@ -352,10 +344,6 @@ def check_posterior(data, result) -> list:
     ----------
     data : BeaconData
     result : PosteriorResult
-
-    Returns
-    -------
-    list of dict
     """
     s = result.summary
     depth = float(data.position[2])
@@ -387,10 +375,6 @@ def flagged(checks) -> list:
     Parameters
     ----------
     checks : list of dict
-
-    Returns
-    -------
-    list of str
     """
     out, trends = [], {}
     for c in checks:

@@ -22,10 +22,6 @@ def check_min_pings(min_pings) -> int:
     ----------
     min_pings : int
 
-    Returns
-    -------
-    int
-
     Raises
     ------
     ValueError
@@ -53,10 +49,6 @@ def non_finite(document, where: str = "") -> list:
     document : dict, list or number
     where : str, optional
         Prefix of the names.
-
-    Returns
-    -------
-    list of str
 
     Examples
     --------
@@ -104,10 +96,6 @@ def beacons_table(survey: Survey) -> dict:
     Parameters
     ----------
     survey : Survey
-
-    Returns
-    -------
-    dict
     """
     return {b: {k: float(v) for k, v in row.items()}
             for b, row in survey.beacons[["x", "y", "depth"]].iterrows()}

@@ -16,11 +16,7 @@ from .em_result import EMResult
 
 #: A forced geometry that is worse than the other by more than this many nats of
 #: maximised log-likelihood draws a :class:`~bayes_mpem.exceptions.PathChoiceWarning`.
-#: Both geometries have the same number of parameters, so this is a likelihood ratio
-#: of e^10 (about 22 000) with no size penalty; it is twice the "very strong" level
-#: of Kass & Raftery (2 ln B > 10) and above the few nats by which two EM runs from
-#: different starts can differ. A wrong geometry loses by hundreds of nats on the
-#: benchmark surveys (``docs/benchmarks.md``).
+#: A likelihood ratio of e^10 (same number of parameters); ``docs/model.md``.
 CLEAR_MARGIN = 10.0
 RULE = "maximised mixture-EM log-likelihood"
 
@@ -175,9 +171,8 @@ def choose_path(
     """
     check_path_choice(path)
     gen = as_generator(rng)
-    # the geometry asked for (triangle under auto) draws from ``gen`` exactly as a single
-    # fit did before path choice existed; the other one from a child stream, so that the
-    # caller's stream (the next beacon, the sampler) is the same whichever path is chosen
+    # the geometry asked for draws from ``gen``, the other from a child stream: the
+    # caller's stream is the same whichever path is chosen
     first = PATHS[0] if path == AUTO else path
     streams = {first: gen, **{p: _child(gen) for p in PATHS if p != first}}
     fits, caught = {}, {}

@@ -41,17 +41,17 @@ class Legs:
     Parameters
     ----------
     profile : SoundSpeedProfile
-        The profile whose knots (``ray_knots``) and speeds build the layers.
     legs : sequence of (ndarray, ndarray)
         Per leg, the top and bottom depth (m) of every ray, each of shape ``(rays,)``.
 
     Attributes
     ----------
     C, H, A, B, R2 : list of ndarray
-        Per leg, ``(rays, knots)`` (``H`` and ``A``: ``(rays, knots - 1)``) arrays as
-        above.
+        Per leg: speeds at the leg's knots, layer thicknesses, ``A = H (c0 + c1)``,
+        ``B = 1 - (c/c_max)**2`` and ``R2 = (c/c_max)**2``, so that
+        ``s = sqrt(B + R2 sin(phi)**2)`` has no cancellation at grazing.
     cmax : ndarray
-        The fastest speed met by each ray over all its legs, ``(rays,)``.
+        The fastest speed met by each ray over all its legs.
     """
 
     def __init__(self, profile, legs):
@@ -89,18 +89,12 @@ class Legs:
             self.R2.append(r2)
 
     def take(self, idx, names=("C", "H", "A", "B", "R2")):
-        """Return the same legs for the rays ``idx`` only.
+        """Return the same legs for the rays ``idx`` only (with the arrays ``names``).
 
         Parameters
         ----------
         idx : array_like of int or bool
-            The rays to keep.
         names : tuple of str
-            The per-leg arrays to carry over (fewer for a cheaper copy).
-
-        Returns
-        -------
-        Legs
         """
         new = object.__new__(Legs)
         for name in names:
@@ -109,17 +103,12 @@ class Legs:
         return new
 
     def cosines(self, sin2):
-        """``s = cos(theta)`` at every knot for grazing angles with ``sin(phi)**2 = sin2``.
+        """``s = cos(theta)`` at every knot, per leg, for grazing angles ``sin(phi)**2 = sin2``.
 
         Parameters
         ----------
         sin2 : ndarray
-            ``sin(phi)**2`` of each ray's grazing angle at its fastest knot, ``(rays,)``.
-
-        Returns
-        -------
-        list of ndarray
-            Per leg, the cosines at its knots, ``(rays, knots)``.
+            ``sin(phi)**2`` of each ray's grazing angle at its fastest knot.
         """
         out = []
         for b, r2 in zip(self.B, self.R2, strict=True):
@@ -129,17 +118,12 @@ class Legs:
         return out
 
     def cosines_from_p(self, p):
-        """``s`` at every knot for ray parameters ``p`` (0 where ``p c >= 1``).
+        """``s = sqrt(1 - (p c)**2)`` at every knot, per leg (0 where ``p c >= 1``).
 
         Parameters
         ----------
         p : ndarray
-            Ray parameter (s/m) of each ray, ``(rays,)``.
-
-        Returns
-        -------
-        list of ndarray
-            Per leg, ``sqrt(1 - (p c)**2)`` at its knots, ``(rays, knots)``.
+            Ray parameter (s/m) of each ray.
         """
         out = []
         for cc in self.C:
@@ -155,15 +139,9 @@ class Legs:
         S : list of ndarray
             Per leg, the cosines at the knots (:meth:`cosines`).
         deriv : bool
-            Also sum the derivative term.
+            Also sum the derivative term (else ``d`` is None).
         safe : bool
-            Count zero-thickness layers as 0 even where both their ends graze
-            (``s0 = s1 = 0``, 0/0); needed only at ``p = 1 / c_max``.
-
-        Returns
-        -------
-        x, d : ndarray or None
-            The two sums per ray, ``(rays,)``; ``d`` is None when ``deriv`` is false.
+            Zero-thickness layers count 0 where both ends graze (0/0); needed at ``p = 1 / c_max``.
         """
         x = np.zeros(S[0].shape[0])
         d = np.zeros_like(x) if deriv else None
@@ -186,17 +164,11 @@ class Legs:
         return x / self.cmax
 
     def times(self, S):
-        """Travel time summed over the layers, for knot cosines ``S``.
+        """One-way travel time (s) of each ray summed over the layers, for knot cosines ``S``.
 
         Parameters
         ----------
         S : list of ndarray
-            Per leg, the cosines at the knots (:meth:`cosines`).
-
-        Returns
-        -------
-        ndarray
-            One-way travel time (s) of each ray, ``(rays,)``.
         """
         t = np.zeros(S[0].shape[0])
         with np.errstate(divide="ignore", invalid="ignore"):

@@ -163,6 +163,7 @@ def direct_path_offset(d: Ranges, p: Params, effects, path, t, *, scale=10.0, n_
     t : str
         ``"beacon_bias:<id>"`` or ``"beacon_position:<id>"``.
     scale : float, default 10
+        Cauchy scale (m) of the reweighted least squares on the direct-path prediction.
     n_iter : int, default 30
 
     Returns

@@ -165,6 +165,9 @@ def direct_times(ssp: SoundSpeedProfile, z_a, z_b, horizontal, *, tol: float = 1
                  ) -> DirectRays:
     """Direct eigenrays, with a turning point where the straight-through ray does not exist.
 
+    A ray turning below the deeper end or above the shallower one is two legs meeting at the
+    turning depth; of two such rays the first arrival is kept.
+
     Parameters
     ----------
     ssp : SoundSpeedProfile
@@ -173,6 +176,7 @@ def direct_times(ssp: SoundSpeedProfile, z_a, z_b, horizontal, *, tol: float = 1
     horizontal : array_like
         Horizontal distance (m, >= 0). All three broadcast.
     tol : float, default 1e-9
+        Relative tolerance on the horizontal run.
 
     Examples
     --------

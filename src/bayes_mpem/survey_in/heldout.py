@@ -89,7 +89,8 @@ def lag_check(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, n
     dict
         ``lag`` and ``lag_sd`` (s), ``gain`` and ``gain_se`` (nats, lag minus no
         lag, summed over pings), ``rms_ms_without`` and ``rms_ms_with`` (the
-        scatter of true arrivals, ms), ``recommended`` (bool) and ``rule``.
+        scatter of true arrivals, ms), ``recommended`` (a gain of at least :data:`LAG_MIN_GAIN`
+        nats and :data:`LAG_MIN_Z` standard errors) and ``rule``.
     """
     kwargs.pop("fit_lag", None)
     seed = as_generator(rng).integers(2**63)

@@ -47,6 +47,7 @@ def residual_checks(fit: JointFit, d: Ranges, *, n_bins=10, alpha=1e-4) -> list:
     d : Ranges
     n_bins : int, default 10
     alpha : float, default 1e-4
+        Family-wise level (Bonferroni over the checks).
 
     Returns
     -------

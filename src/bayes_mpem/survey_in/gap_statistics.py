@@ -1,11 +1,6 @@
 """Statistics of a transponder's travel-time residuals, for the simulation-gap check.
 
-:func:`gap_statistics` computes the statistics of :data:`STATISTICS` from a
-residual frame (:func:`~bayes_mpem.survey_in.simcheck.residual_frame`),
-:func:`remove_common_drift` the part of each residual that the other
-transponders pinged at the same time predict (a common change of sound speed),
-and :func:`mc_pvalue` a Monte-Carlo p-value of a measured statistic among its
-simulated values. Their definitions are in :mod:`bayes_mpem.survey_in.simcheck`.
+Their definitions: ``docs/simulation-gap.md``.
 """
 
 from __future__ import annotations
@@ -40,11 +35,6 @@ STATISTICS = {
 
 def remove_common_drift(frames) -> dict:
     """Predict each true residual from the other transponders pinged at the same time.
-
-    A change of the mean sound speed over time scales every travel time alike.
-    For each true ping, the mean ``residual / pred`` of the *other*
-    transponders' true pings with the same ``time`` is multiplied by this ping's
-    ``pred`` and subtracted (leave-one-out, so a ping's own noise is not removed).
 
     Parameters
     ----------
@@ -161,19 +151,14 @@ def gap_statistics(frame: pd.DataFrame, *, n_bins: int = 6) -> dict:
 def mc_pvalue(measured: float, simulated, side: str = "two-sided") -> float:
     """Monte-Carlo p-value of a measured statistic against simulated replicates.
 
-    ``upper = (1 + #{sim >= measured}) / (N + 1)``, ``lower`` likewise with
-    ``<=``; two-sided is ``min(1, 2 min(upper, lower))``. NaN replicates are
-    dropped; NaN when the measured value is NaN or no replicate is left.
+    ``upper = (1 + #{sim >= measured}) / (N + 1)``, ``lower`` likewise; two-sided is
+    ``min(1, 2 min(upper, lower))``. NaN replicates are dropped.
 
     Parameters
     ----------
     measured : float
     simulated : array_like
     side : {"upper", "lower", "two-sided"}
-
-    Returns
-    -------
-    float
 
     Examples
     --------

@@ -1,70 +1,12 @@
 """What the simulation gets wrong: measured survey residuals against simulated ones.
 
-The simulator (and :func:`bayes_mpem.survey_in.location.locate`) assumes straight rays at one
-sound speed, a constant turn-around time, independent Gaussian noise of constant
-size on the true arrivals, and spurious returns uniform over the listening
-window. This module simulates a measured survey under exactly those assumptions
-(same ship track, same transponder, the parameters located from the measured
-travel times: :func:`simulate_like`), re-locates every simulated replicate the
-same way as the measured survey, and compares statistics of the residuals
-(:func:`gap_statistics`) between the two (:func:`simulation_gap`). A statistic
-whose measured value lies outside its simulated distribution (a small
-Monte-Carlo p-value, :func:`mc_pvalue`) is a pattern in the data that the
-simulation does not produce.
-
-Residuals are ``observed - predicted`` two-way travel times (s) with the straight-
-ray prediction of the located fit (:func:`residual_frame`). A ping is counted as a
-true arrival when its class probability ``p_true`` is at least 0.5, and as
-spurious otherwise. The fit's sound speed absorbs the mean of any refraction
-effect (and its depth and position absorb more), so only what a straight-ray fit
-cannot absorb shows in the residuals; :func:`unabsorbed` computes that part for
-any noise-free travel-time model, e.g. refracted rays through a sound-speed
-profile (:func:`refracted_twtt`).
-
-The statistics (:data:`STATISTICS`), all computed from the true pings of one
-transponder:
-
-``elevation``, ``slant_range``, ``time``
-    Dependence of the residuals on elevation angle, slant range and time: the
-    pings are sorted by the variable and split into ``n_bins`` groups of equal
-    count; the statistic is ``sum_b n_b mean_b**2 / s**2`` with ``s**2`` the mean
-    squared residual. For independent residuals of mean zero it is about
-    chi-square with ``n_bins`` degrees of freedom; a pattern that depends on the
-    variable makes it larger.
-``lag1``
-    Lag-1 autocorrelation of the residuals in time order (0 for independent noise).
-``noise_elevation``
-    ``log(sd_low / sd_high)``: the scatter of the third of the pings at the lowest
-    elevations over that of the third at the highest (0 for constant noise).
-``kurtosis``
-    Excess kurtosis of the true residuals (about 0 for Gaussian noise; the
-    classification trims the tails somewhat, which the simulation reproduces).
-``along_track``
-    Least-squares offset (m) of the acoustic position along the ship's course,
-    fitted to the residuals (with a constant): a transducer ahead of the logged
-    position, or a time lag between the position fix and the ping, makes it
-    non-zero. The course is the direction between the neighbouring pings in time.
-``late_share``
-    Share of the spurious pings arriving after the predicted true arrival
-    (NaN when there is no spurious ping). A detector that reports the first
-    threshold crossing cannot report a false detection after a detected true
-    arrival, so it would make the share 0; the simulation's uniform spurious
-    returns put it near the part of the window after the true arrival.
-
-With several transponders pinged at the same times (``common_drift``), the
-residual of each true ping is also predicted from the other transponders' true
-pings at the same time: a change of the mean sound speed scales every travel time
-alike, so the prediction is the mean of their ``residual / predicted`` times this
-ping's predicted travel time (leave-one-out). ``common_drift`` is the share of the
-residual variance this removes (negative, about ``-1/(n-1)`` for ``n``
-independent transponders), and ``elevation_detrended``, ``slant_range_detrended``
-and ``lag1_detrended`` are the statistics above on what is left (the binned
-statistics normalised by the scatter of what is left).
-
-Monte-Carlo p-values (:func:`mc_pvalue`): one-sided, upper, for the binned
-statistics and ``common_drift`` (only a larger value is a pattern); two-sided,
-twice the smaller tail, for the others. With ``N`` replicates the smallest
-possible p-value is ``1 / (N + 1)`` (one-sided) or ``2 / (N + 1)`` (two-sided).
+:func:`simulate_like` simulates a measured survey under the simulator's assumptions
+(straight rays at one speed, constant TAT, independent Gaussian noise, uniform spurious
+returns) from the fit located from the measured travel times; :func:`simulation_gap`
+re-locates every replicate the same way and compares residual statistics
+(:func:`~bayes_mpem.survey_in.gap_statistics.gap_statistics`) between the two with
+Monte-Carlo p-values. The statistics and the findings on measured surveys:
+``docs/simulation-gap.md``.
 """
 
 from __future__ import annotations
@@ -165,12 +107,7 @@ def _straight_twtt(x, y, z, fit):
 
 
 def simulate_like(pings: pd.DataFrame, beacons: pd.DataFrame, fit, rng=None) -> pd.DataFrame:
-    """Simulate a measured survey under the simulator's assumptions.
-
-    Same ship track, the travel times drawn from the located fit(s): straight rays
-    at ``fit.sound_speed`` plus ``fit.tat``, independent Gaussian noise of sd
-    ``fit.sigma``; each ping is spurious with probability ``1 - fit.weight``,
-    and a spurious travel time is uniform over ``fit.window``.
+    """Simulate a measured survey under the simulator's assumptions, from the located fit(s).
 
     Parameters
     ----------
@@ -182,20 +119,17 @@ def simulate_like(pings: pd.DataFrame, beacons: pd.DataFrame, fit, rng=None) -> 
     fit : LocateResult or sequence of LocateResult
         One transponder, or several of the same survey.
     rng : None, int or numpy.random.Generator
-        Same seed, same table.
 
     Returns
     -------
     pandas.DataFrame
-        The fitted transponders' pings in table order (index reset): ``beacon``,
-        ``twtt`` (s), ``x``, ``y``, ``depth``, ``time``, ``line`` (when present),
-        and ``spurious`` (bool, the simulated class).
+        The fitted transponders' pings in table order: ``beacon``, ``twtt`` (s), ``x``, ``y``,
+        ``depth``, ``time``, ``line`` (when present), ``spurious`` (bool).
 
     Raises
     ------
     InputError
-        A missing column, a transponder not in ``beacons``, or a fit that was not
-        located from ``pings``.
+        A missing column, a transponder not in ``beacons``, or a fit not located from ``pings``.
     ValueError
         A fit with refracted rays or a time-varying sound speed.
     """
@@ -233,23 +167,17 @@ def residual_frame(pings: pd.DataFrame, fit: LocateResult) -> pd.DataFrame:
     Parameters
     ----------
     pings : pandas.DataFrame
-        The table the fit was located from (``beacon``, ``twtt``, ``x``, ``y``,
-        ``depth``, ``time``).
+        The table the fit was located from.
     fit : LocateResult
-        A straight-ray, one-speed fit (:func:`bayes_mpem.survey_in.location.locate`).
+        A straight-ray, one-speed fit.
 
     Returns
     -------
     pandas.DataFrame
-        One row per ping, in table order: ``row`` (position in ``pings``),
-        ``beacon``, ``time`` (s), ``x``, ``y``, ``depth`` (m), ``twtt`` (s),
-        ``pred`` (s, the straight-ray prediction with ``fit.tat``), ``residual``
-        (s, ``twtt - pred``), ``ratio`` (``twtt / pred``), ``p_true``, ``true``
-        (``p_true >= 0.5``), ``elevation`` (degrees above the horizontal, seen
-        from the transponder), ``slant_range``, ``horizontal_range`` (m), and
-        ``dtwtt_dforward`` (s/m: the change of the predicted travel time per
-        metre of ship position moved along its course; 0 where the course is
-        undefined).
+        One row per ping: ``row``, ``beacon``, ``time``, ``x``, ``y``, ``depth``, ``twtt``,
+        ``pred`` (straight ray plus TAT), ``residual``, ``ratio`` (``twtt / pred``), ``p_true``,
+        ``true``, ``elevation`` (deg), ``slant_range``, ``horizontal_range`` (m) and
+        ``dtwtt_dforward`` (s/m along the ship's course).
 
     Raises
     ------
@@ -312,23 +240,19 @@ class GapResult:
     fits : dict
         Transponder -> the measured :class:`~bayes_mpem.survey_in.location.LocateResult`.
     frames : dict
-        Transponder -> measured :func:`residual_frame` (with ``detrended`` when
-        the common drift was removed).
+        Transponder -> measured :func:`residual_frame`.
     table : pandas.DataFrame
-        One row per transponder and statistic: ``transponder``, ``statistic``,
-        ``measured``, ``sim_q05``, ``sim_median``, ``sim_q95``, ``p_value``,
-        ``side``, ``n_sim`` (replicates with a finite value).
+        One row per transponder and statistic: ``measured``, ``sim_q05``, ``sim_median``,
+        ``sim_q95``, ``p_value``, ``side``, ``n_sim``.
     simulated : dict
         ``(transponder, statistic)`` -> the replicate values.
     example : dict
-        Transponder -> the residual frame of the first replicate (for figures).
+        Transponder -> the residual frame of the first replicate.
     spurious_ratio : dict
-        Transponder -> one array per replicate: ``twtt / pred`` of the simulated
-        pings classified spurious.
+        Transponder -> per replicate, ``twtt / pred`` of the pings classified spurious.
     n_sim : int
     n_warned : int
-        Replicate fits that raised a :class:`~bayes_mpem.exceptions.LocateWarning`
-        (kept; the warning is not shown).
+        Replicate fits that raised a :class:`~bayes_mpem.exceptions.LocateWarning`.
     """
 
     fits: dict
@@ -357,12 +281,6 @@ def simulation_gap(pings: pd.DataFrame, beacons: pd.DataFrame, transponders=None
                    progress=None, **locate_kwargs) -> GapResult:
     """Compare a measured survey's residual statistics with simulated replicates.
 
-    Each transponder is located (:func:`~bayes_mpem.survey_in.location.locate`); ``n_sim``
-    replicates are drawn from the fits (:func:`simulate_like`, all transponders
-    of a replicate together) and each is located again in the same way; the
-    statistics (:func:`gap_statistics`) of the measured survey are compared with
-    their replicate distribution (:func:`mc_pvalue`).
-
     Parameters
     ----------
     pings, beacons : pandas.DataFrame
@@ -374,18 +292,11 @@ def simulation_gap(pings: pd.DataFrame, beacons: pd.DataFrame, transponders=None
     rng : None, int or numpy.random.Generator
     n_bins : int, default 6
     common_drift : bool, optional
-        Remove the drift common to the transponders (:func:`remove_common_drift`);
-        default: when there are several transponders.
+        Remove the drift common to the transponders; default: when there are several.
     progress : callable, optional
         Called with the replicate number after each replicate.
     **locate_kwargs
-        Passed to every :func:`~bayes_mpem.survey_in.location.locate` call (``tat``,
-        ``outliers``, ...); not ``ssp``, ``speed_intervals`` or ``earth_radius``
-        (the simulator's straight rays at one speed).
-
-    Returns
-    -------
-    GapResult
+        Passed to every ``locate`` call; not ``ssp``, ``speed_intervals`` or ``earth_radius``.
 
     Raises
     ------

@@ -1,14 +1,4 @@
-"""What a straight-ray fit cannot absorb of another travel-time model.
-
-A straight-ray location (position, depth, one sound speed) absorbs most of a
-refraction effect: the fitted speed takes its mean, the depth and position take
-more. :func:`unabsorbed` fits the straight-ray model to noise-free travel times
-of another model and returns what is left, the pattern that model would leave
-in the residuals of :mod:`bayes_mpem.survey_in.simcheck`; :func:`refracted_twtt`
-gives such travel times for refracted rays through a sound-speed profile (the
-direct eigenrays of :func:`bayes_mpem.acoustics.turning.direct_times`, turning
-rays included).
-"""
+"""What a straight-ray fit cannot absorb of another travel-time model."""
 
 from __future__ import annotations
 
@@ -23,10 +13,6 @@ from .simcheck import check_straight, ping_rows
 
 def unabsorbed(pings: pd.DataFrame, fit: LocateResult, twtt) -> tuple:
     """Find the part of noise-free travel times that a straight-ray fit cannot absorb.
-
-    The straight-ray model (position, depth, sound speed; ``fit.tat`` fixed) is
-    fitted by least squares to ``twtt`` from the fit's values; what is left is
-    the pattern that model's residuals would show.
 
     Parameters
     ----------

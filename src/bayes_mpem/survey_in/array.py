@@ -35,8 +35,9 @@ from scipy.stats import norm
 
 from .._validate import check_choice, check_int
 from ..exceptions import InputError, LocateWarning
-from .classes import OUTLIER_MODELS, log_classes, true_probability
-from .location import weighted_residuals
+from ..mixture.em import run_em
+from .classes import OUTLIER_MODELS
+from .location import TravelTimeEM, weighted_residuals
 from .travel_times import TravelTimes, speed_basis
 
 #: Fewest shots a transponder needs to be located.
@@ -324,33 +325,6 @@ def _check_shots(shots, transponders):
     return ids, skipped, index
 
 
-def _em(t, theta, resid, jac, x_scale, windows, index, outliers, *, max_iter, tol):
-    """Run the array EM; return ``(theta, sigma, weights, p, n_iter, converged)``."""
-    K = windows.shape[0]
-    r = resid(theta)
-    sigma = max(1.4826 * float(np.median(np.abs(r - np.median(r)))), 1e-7)
-    weights = np.full(K, 0.9)
-    p = np.ones_like(t)
-    converged, it = False, 0
-    for it in range(1, max_iter + 1):
-        pred = t - r
-        for k in range(K):
-            sel = index == k
-            ld, lu = log_classes(t[sel], pred[sel], sigma, weights[k], windows[k], outliers)
-            p[sel] = true_probability(ld, lu)
-        theta = least_squares(resid, theta, jac=jac, args=(p,), x_scale=x_scale).x
-        r = resid(theta)
-        new = float(np.sqrt(np.sum(p * r * r) / p.sum()))
-        weights = np.clip(np.bincount(index, p, K) / np.bincount(index, minlength=K),
-                          1e-6, 1 - 1e-6)
-        done = abs(new - sigma) < tol
-        sigma = new
-        if done:
-            converged = True
-            break
-    return theta, sigma, weights, p, it, converged
-
-
 def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=None,
                  surface_depth=0.0, speed_intervals=0, sound_speed=None, outliers="uniform",
                  time_range=None, max_iter=200, tol=1e-10) -> ArrayLocateResult:
@@ -423,8 +397,10 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
     x_scale = np.array([1.0] * 3 * K + [abs(coef0) / 1500.0] * basis.shape[1])
     resid, jac = weighted_residuals(t, model)
     windows = np.array([[t[index == k].min(), t[index == k].max()] for k in range(K)])
-    theta, sigma, weights, p, it, converged = _em(t, theta, resid, jac, x_scale, windows,
-                                                  index, outliers, max_iter=max_iter, tol=tol)
+    em = TravelTimeEM(t, resid, jac, x_scale, windows, index, outliers)
+    run = run_em(em, em.start(theta, 1e-7), tol=tol, max_iter=max_iter)
+    theta, sigma, weights, p = run.params.theta, run.params.sigma, run.params.weights, run.resp
+    it, converged = run.n_iter, run.converged
     clusters = sub["t_tx"].to_numpy() if "t_tx" in sub.columns else np.arange(len(sub))
     J = jac(theta, p)
     cov = robust_covariance(J, resid(theta, p), clusters)

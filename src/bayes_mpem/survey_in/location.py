@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -37,6 +38,7 @@ from scipy.optimize import least_squares
 
 from .._validate import check_choice, check_int
 from ..exceptions import InputError, LocateWarning
+from ..mixture.em import EMModel, run_em
 from .classes import OUTLIER_MODELS, log_classes, true_probability
 from .travel_times import TravelTimes, ship_velocity, speed_basis
 
@@ -330,8 +332,11 @@ def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=
     model = TravelTimes(x, y, z, tat0, basis=basis, profile=ssp, fit_lag=fit_lag, **geo)
     resid, jac = weighted_residuals(t, model)
     window = (float(t.min()), float(t.max())) if window is None else tuple(map(float, window))
-    theta, sigma, weight, p, it, converged = _em(t, theta, resid, jac, x_scale, window,
-                                                 outliers, max_iter=max_iter, tol=tol)
+    em = TravelTimeEM(t, resid, jac, x_scale, [window], None, outliers)
+    run = run_em(em, em.start(theta, 1e-6), tol=tol, max_iter=max_iter)
+    theta, sigma, weight, p = run.params.theta, run.params.sigma, float(run.params.weights[0]), \
+        run.resp
+    it, converged = run.n_iter, run.converged
     J = jac(theta, p)
     cov = np.linalg.pinv(J.T @ J) * sigma**2
     sd = {name: float(np.sqrt(max(cov[i, i], 0.0)))
@@ -413,25 +418,90 @@ def weighted_residuals(t, model):
     return resid, jac
 
 
-def _em(t, theta, resid, jac, x_scale, window, outliers, *, max_iter, tol):
-    """Run the EM loop; return ``(theta, sigma, weight, p_true, n_iter, converged)``."""
-    r = resid(theta)
-    sigma = max(1.4826 * float(np.median(np.abs(r - np.median(r)))), 1e-6)
-    weight = 0.9
-    converged, it = False, 0
-    for it in range(1, max_iter + 1):
-        ld, lu = log_classes(t, t - r, sigma, weight, window, outliers)
-        p = true_probability(ld, lu)
-        theta = least_squares(resid, theta, jac=jac, args=(p,), x_scale=x_scale).x
-        r = resid(theta)
-        new = float(np.sqrt(np.sum(p * r * r) / p.sum()))
-        weight = float(np.clip(p.mean(), 1e-6, 1 - 1e-6))
-        done = abs(new - sigma) < tol
-        sigma = new
-        if done:
-            converged = True
-            break
-    return theta, sigma, weight, p, it, converged
+class _Fit(NamedTuple):
+    theta: np.ndarray
+    r: np.ndarray  # residuals at theta
+    sigma: float
+    weights: np.ndarray  # share of true arrivals, per transponder
+
+
+class TravelTimeEM(EMModel):
+    """The EM of one or several transponders, as an :class:`~bayes_mpem.mixture.em.EMModel`.
+
+    E-step: the probability that each ping is true
+    (:func:`~bayes_mpem.survey_in.classes.log_classes`); M-step: weighted least
+    squares from the current point, then ``sigma`` and each transponder's share
+    of true pings in closed form. It stops when ``sigma`` changes by less than
+    ``tol``. The probabilities returned are those of the last M-step, the weights
+    of the covariance.
+
+    Parameters
+    ----------
+    t : numpy.ndarray
+        Observed two-way travel times (s).
+    resid, jac : callable
+        From :func:`weighted_residuals`.
+    x_scale : numpy.ndarray
+        Scales of the parameters for ``least_squares``.
+    windows : sequence of tuple
+        Listening window ``(lo, hi)`` of each transponder (s).
+    index : numpy.ndarray or None
+        Transponder number of each ping; None for one transponder.
+    outliers : {"uniform", "first_arrival"}
+    """
+
+    final_e_step = False
+
+    def __init__(self, t, resid, jac, x_scale, windows, index, outliers):
+        self.t, self.resid, self.jac, self.x_scale = t, resid, jac, x_scale
+        self.windows, self.index, self.outliers = windows, index, outliers
+        self.rows = [slice(None)] if index is None else [index == k for k in range(len(windows))]
+
+    def start(self, theta, sigma_min):
+        """Return the first parameters: ``sigma`` from the MAD of the residuals, shares 0.9.
+
+        Parameters
+        ----------
+        theta : numpy.ndarray
+            The starting geometry and speed.
+        sigma_min : float
+            Floor of the starting ``sigma`` (s).
+
+        Returns
+        -------
+        tuple
+            ``(theta, residuals, sigma, shares)``, the parameters of the EM.
+        """
+        r = self.resid(theta)
+        sigma = max(1.4826 * float(np.median(np.abs(r - np.median(r)))), sigma_min)
+        return _Fit(theta, r, sigma, np.full(len(self.windows), 0.9))
+
+    def e_step(self, fit):
+        """Return ``(None, probability that each ping is true)``."""
+        p, pred = np.empty_like(self.t), self.t - fit.r
+        for k, sel in enumerate(self.rows):
+            ld, lu = log_classes(self.t[sel], pred[sel], fit.sigma, fit.weights[k],
+                                 self.windows[k], self.outliers)
+            p[sel] = true_probability(ld, lu)
+        return None, p
+
+    def m_step(self, fit, p):
+        """Return the new parameters given the probabilities ``p`` of true pings."""
+        theta = least_squares(self.resid, fit.theta, jac=self.jac, args=(p,),
+                              x_scale=self.x_scale).x
+        r = self.resid(theta)
+        sigma = float(np.sqrt(np.sum(p * r * r) / p.sum()))
+        if self.index is None:
+            shares = np.array([np.clip(p.mean(), 1e-6, 1 - 1e-6)])
+        else:
+            k = len(self.rows)
+            shares = np.clip(np.bincount(self.index, p, k) / np.bincount(self.index, minlength=k),
+                             1e-6, 1 - 1e-6)
+        return _Fit(theta, r, sigma, shares)
+
+    def change(self, old, new, gain):
+        """Return the change of ``sigma`` (s)."""
+        return abs(new.sigma - old.sigma)
 
 
 def _warn(transponder, n_bad, n, converged, it, sd, fit_tat):

@@ -29,7 +29,7 @@ Two unit-variance Gaussians of equal weight, their means unknown:
 ...         return resp.T @ x / resp.sum(axis=0)
 >>> run = run_em(TwoMeans(), np.array([1.0, 2.0]), tol=1e-8, max_iter=100)
 >>> run.converged, np.round(run.params, 1).tolist()
-(True, [-0.0, 4.0])
+(True, [0.1, 4.0])
 """
 
 from __future__ import annotations

@@ -43,102 +43,43 @@ from ..exceptions import ConvergenceWarning
 
 
 class EMModel:
-    """What a model gives :func:`run_em`: an E-step, an M-step and optional hooks.
+    """What a model gives :func:`run_em`: its E-step, its M-step and optional hooks.
 
-    Subclasses override :meth:`e_step` and :meth:`m_step`; the other methods
-    default to a maximum-likelihood EM (stop on the log-likelihood gain, record
-    the log-likelihood). The parameters are whatever object the two steps
-    exchange.
+    A subclass overrides :meth:`e_step` and :meth:`m_step`; the other hooks
+    default to a maximum-likelihood EM. The parameters are whatever object the
+    two steps exchange.
 
     Attributes
     ----------
     final_e_step : bool
         True (default): return the probabilities of an E-step at the returned
-        parameters. False: return those the last M-step used (for a model whose
+        parameters. False: those the last M-step used (for a model whose
         covariance is that of its last weighted least-squares step).
     """
 
     final_e_step = True
 
     def e_step(self, params):
-        """Class probabilities at ``params``.
-
-        Parameters
-        ----------
-        params : object
-            The model's parameters.
-
-        Returns
-        -------
-        loglik : float or None
-            The log-likelihood at ``params`` (None for an EM that has none).
-        resp : numpy.ndarray
-            Class probabilities of every observation.
-        """
+        """Return ``(loglik or None, class probabilities)`` at ``params``."""
         raise NotImplementedError
 
     def m_step(self, params, resp):
-        """Return new parameters given the class probabilities.
-
-        Parameters
-        ----------
-        params : object
-            The current parameters (a start for an iterative M-step).
-        resp : numpy.ndarray
-            Class probabilities from the E-step at ``params``.
-
-        Returns
-        -------
-        object
-            The new parameters.
-        """
+        """Return new parameters given the probabilities ``resp`` of the E-step at ``params``."""
         raise NotImplementedError
 
     def change(self, old, new, gain):
-        """Size of one iteration; the loop has converged when it falls below ``tol``.
+        """Return the size of an iteration from ``old`` to ``new`` (default ``abs(gain)``).
 
-        Parameters
-        ----------
-        old, new : object
-            Parameters before and after the iteration.
-        gain : float or None
-            Log-likelihood gain of the iteration (None without a log-likelihood).
-
-        Returns
-        -------
-        float
-            ``abs(gain)`` by default.
+        ``gain`` is the log-likelihood gain, None for a model without one.
         """
         return abs(gain)
 
     def record(self, params, loglik, resp) -> dict:
-        """Values kept in the history for one state (the start and every iteration).
-
-        Parameters
-        ----------
-        params : object
-        loglik : float or None
-        resp : numpy.ndarray
-
-        Returns
-        -------
-        dict
-            ``{"loglik": loglik}`` by default (nothing without a log-likelihood).
-        """
+        """Return the values the history keeps of a state (default its log-likelihood)."""
         return {} if loglik is None else {"loglik": loglik}
 
     def usable(self, params) -> bool:
-        """Whether an E-step is defined at ``params`` (e.g. no scale collapsed to 0).
-
-        Parameters
-        ----------
-        params : object
-
-        Returns
-        -------
-        bool
-            True by default.
-        """
+        """Return whether an E-step is defined at ``params`` (default True)."""
         return True
 
 

@@ -35,7 +35,6 @@ from scipy.stats import norm
 
 from .._validate import check_choice, check_int
 from ..exceptions import InputError, LocateWarning
-from ..mixture.em import run_em
 from .classes import OUTLIER_MODELS
 from .location import TravelTimeEM, weighted_residuals
 from .travel_times import TravelTimes, speed_basis
@@ -397,10 +396,9 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
     x_scale = np.array([1.0] * 3 * K + [abs(coef0) / 1500.0] * basis.shape[1])
     resid, jac = weighted_residuals(t, model)
     windows = np.array([[t[index == k].min(), t[index == k].max()] for k in range(K)])
-    em = TravelTimeEM(t, resid, jac, x_scale, windows, index, outliers)
-    run = run_em(em, em.start(theta, 1e-7), tol=tol, max_iter=max_iter)
-    theta, sigma, weights, p = run.params.theta, run.params.sigma, run.params.weights, run.resp
-    it, converged = run.n_iter, run.converged
+    run = TravelTimeEM(t, resid, jac, x_scale, windows, index, outliers).run(
+        theta, sigma_min=1e-7, tol=tol, max_iter=max_iter)
+    (theta, _, sigma, weights), p = run.params, run.resp
     clusters = sub["t_tx"].to_numpy() if "t_tx" in sub.columns else np.arange(len(sub))
     J = jac(theta, p)
     cov = robust_covariance(J, resid(theta, p), clusters)
@@ -408,7 +406,7 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
     g = basis.mean(axis=0)
     kk = slice(3 * K, None)
     n_bad = model.n_invalid(theta)
-    _warn(n_bad, 2 * t.size, converged, it)
+    _warn(n_bad, 2 * t.size, run.converged, run.n_iter)
     return ArrayLocateResult(
         ids=tuple(ids), enu=theta[:3 * K].reshape(K, 3).copy(), cov=cov, start=start,
         cov_model=cov_model,
@@ -416,7 +414,7 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
         sound_speed_sd=float(np.sqrt(max(g @ cov[kk, kk] @ g, 0.0))) * unit,
         speed_coef=theta[kk].copy(), sigma=sigma, weights=weights, p_true=p,
         residual=resid(theta), rows=rows, index=index, windows=windows, skipped=skipped,
-        n_iter=it, converged=converged, outliers=outliers,
+        n_iter=run.n_iter, converged=run.converged, outliers=outliers,
         model={"profile": profile, "surface_depth": float(surface_depth),
                "speed_intervals": int(speed_intervals), "time_range": time_range,
                "unit": unit, "n_invalid": n_bad})

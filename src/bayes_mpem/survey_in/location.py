@@ -332,11 +332,9 @@ def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=
     model = TravelTimes(x, y, z, tat0, basis=basis, profile=ssp, fit_lag=fit_lag, **geo)
     resid, jac = weighted_residuals(t, model)
     window = (float(t.min()), float(t.max())) if window is None else tuple(map(float, window))
-    em = TravelTimeEM(t, resid, jac, x_scale, [window], None, outliers)
-    run = run_em(em, em.start(theta, 1e-6), tol=tol, max_iter=max_iter)
-    theta, sigma, weight, p = run.params.theta, run.params.sigma, float(run.params.weights[0]), \
-        run.resp
-    it, converged = run.n_iter, run.converged
+    run = TravelTimeEM(t, resid, jac, x_scale, [window], None, outliers).run(
+        theta, sigma_min=1e-6, tol=tol, max_iter=max_iter)
+    (theta, _, sigma, weight), p = run.params, run.resp
     J = jac(theta, p)
     cov = np.linalg.pinv(J.T @ J) * sigma**2
     sd = {name: float(np.sqrt(max(cov[i, i], 0.0)))
@@ -354,12 +352,12 @@ def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=
     lag = float(theta[3 + k]) if fit_lag else 0.0
     if fit_lag:
         sd["lag"] = float(np.sqrt(max(cov[3 + k, 3 + k], 0.0)))
-    _warn(transponder, model.n_invalid(theta), t.size, converged, it, sd, fit_tat)
+    _warn(transponder, model.n_invalid(theta), t.size, run.converged, run.n_iter, sd, fit_tat)
     return LocateResult(
         transponder=str(transponder), east=float(theta[0]), north=float(theta[1]),
         depth=float(theta[2]), sound_speed=speed,
-        tat=float(theta[-1]) if fit_tat else tat0, sigma=sigma, weight=weight, sd=sd,
-        p_true=p, rows=rows, n_iter=it, converged=converged, fit_tat=fit_tat,
+        tat=float(theta[-1]) if fit_tat else tat0, sigma=sigma, weight=float(weight[0]), sd=sd,
+        p_true=p, rows=rows, n_iter=run.n_iter, converged=run.converged, fit_tat=fit_tat,
         outliers=outliers, window=window,
         model={"ssp": ssp, "surface_depth": float(surface_depth), "earth_radius": earth_radius,
                "speed_intervals": int(speed_intervals), "time_range": time_range,
@@ -426,27 +424,26 @@ class _Fit(NamedTuple):
 
 
 class TravelTimeEM(EMModel):
-    """The EM of one or several transponders, as an :class:`~bayes_mpem.mixture.em.EMModel`.
+    """The EM of :func:`locate` and :func:`~bayes_mpem.survey_in.array.locate_array`.
 
-    E-step: the probability that each ping is true
-    (:func:`~bayes_mpem.survey_in.classes.log_classes`); M-step: weighted least
-    squares from the current point, then ``sigma`` and each transponder's share
-    of true pings in closed form. It stops when ``sigma`` changes by less than
-    ``tol``. The probabilities returned are those of the last M-step, the weights
-    of the covariance.
+    E-step: the probability that each ping is true (:func:`.classes.log_classes`);
+    M-step: weighted least squares from the current point, then ``sigma`` and each
+    transponder's share of true pings in closed form; converged when ``sigma``
+    changes by less than ``tol`` (s). The probabilities returned are the weights
+    of the last M-step, those of the covariance.
 
     Parameters
     ----------
     t : numpy.ndarray
-        Observed two-way travel times (s).
+        Two-way travel times (s).
     resid, jac : callable
-        From :func:`weighted_residuals`.
+        Of :func:`weighted_residuals`.
     x_scale : numpy.ndarray
-        Scales of the parameters for ``least_squares``.
-    windows : sequence of tuple
-        Listening window ``(lo, hi)`` of each transponder (s).
+        Parameter scales for ``least_squares``.
+    windows : list of tuple
+        Listening window of each transponder (s).
     index : numpy.ndarray or None
-        Transponder number of each ping; None for one transponder.
+        Transponder of each ping (None: one transponder).
     outliers : {"uniform", "first_arrival"}
     """
 
@@ -457,24 +454,25 @@ class TravelTimeEM(EMModel):
         self.windows, self.index, self.outliers = windows, index, outliers
         self.rows = [slice(None)] if index is None else [index == k for k in range(len(windows))]
 
-    def start(self, theta, sigma_min):
-        """Return the first parameters: ``sigma`` from the MAD of the residuals, shares 0.9.
+    def run(self, theta, *, sigma_min, **kw):
+        """Run :func:`~bayes_mpem.mixture.em.run_em` from ``theta`` (``sigma`` from the MAD).
 
         Parameters
         ----------
         theta : numpy.ndarray
-            The starting geometry and speed.
+            Start of the geometry and speed.
         sigma_min : float
             Floor of the starting ``sigma`` (s).
+        **kw
+            ``tol`` and ``max_iter``.
 
         Returns
         -------
-        tuple
-            ``(theta, residuals, sigma, shares)``, the parameters of the EM.
+        EMRun
         """
         r = self.resid(theta)
         sigma = max(1.4826 * float(np.median(np.abs(r - np.median(r)))), sigma_min)
-        return _Fit(theta, r, sigma, np.full(len(self.windows), 0.9))
+        return run_em(self, _Fit(theta, r, sigma, np.full(len(self.windows), 0.9)), **kw)
 
     def e_step(self, fit):
         """Return ``(None, probability that each ping is true)``."""

@@ -1,13 +1,10 @@
-"""One EM loop for every mixture model of the package.
+"""The EM loop the mixture models of the package share.
 
-:func:`run_em` owns what the EMs share: the loop, the convergence test, the
-history, the :class:`~bayes_mpem.exceptions.ConvergenceWarning` and the final
-E-step, so that the returned class probabilities are those of the returned
-parameters; :func:`best_run` keeps the best of several starts. A model
-(:class:`EMModel`) gives its E-step and M-step and, where its EM differs from
-a maximum-likelihood one, how a step is measured, what is recorded and when
-parameters are unusable. This is the template method of scikit-learn's
-``BaseMixture`` (``sklearn/mixture/_base.py``).
+:func:`run_em` owns the loop, the convergence test, the history, the
+:class:`~bayes_mpem.exceptions.ConvergenceWarning` and the final E-step (so the
+returned probabilities are those of the returned parameters); :func:`best_run`
+keeps the best of several starts. A model (:class:`EMModel`) gives its E-step
+and M-step, as in scikit-learn's ``BaseMixture`` (``sklearn/mixture/_base.py``).
 
 References
 ----------
@@ -119,9 +116,8 @@ def run_em(model: EMModel, init=None, *, tol: float, max_iter: int, resume: EMRu
            stacklevel: int = 2) -> EMRun:
     """Run EM from ``init`` until an iteration changes less than ``tol``, or ``max_iter``.
 
-    Every iteration is an M-step then an E-step at the new parameters. The loop
-    stops early, unconverged, when the M-step gives parameters where
-    :meth:`EMModel.usable` is false.
+    Each iteration is an M-step, then an E-step at the new parameters; parameters
+    that are not :meth:`EMModel.usable` stop the loop unconverged.
 
     Parameters
     ----------
@@ -136,9 +132,9 @@ def run_em(model: EMModel, init=None, *, tol: float, max_iter: int, resume: EMRu
         Continue this run (of a model with ``final_e_step``): its iterations,
         history and first probabilities are kept.
     warn : callable, optional
-        ``warn(run) -> message``: warn with it when the run did not converge.
+        ``warn(run) -> message``: warn with it (``category``) when the run did not
+        converge.
     category : type, default ConvergenceWarning
-        Class of that warning.
     stacklevel : int, default 2
         Its stack level, counted from the caller of :func:`run_em`.
 
@@ -149,8 +145,7 @@ def run_em(model: EMModel, init=None, *, tol: float, max_iter: int, resume: EMRu
     Warns
     -----
     ConvergenceWarning
-        (or ``category``) With ``warn``, when ``max_iter`` is reached first or
-        the parameters became unusable.
+        (or ``category``) With ``warn``, when the run did not converge.
     """
     if resume is None:
         params, done = init, 0
@@ -186,18 +181,7 @@ def _append(history, values):
 
 
 def best_run(runs):
-    """Return the run with the highest log-likelihood (the first of equals).
-
-    Parameters
-    ----------
-    runs : iterable of EMRun
-        Runs from different starts.
-
-    Returns
-    -------
-    EMRun or None
-        None when ``runs`` is empty.
-    """
+    """Return the run of ``runs`` with the highest log-likelihood (the first of equals)."""
     best = None
     for run in runs:
         if best is None or run.loglik > best.loglik:

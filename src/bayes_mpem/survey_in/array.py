@@ -16,11 +16,9 @@ leg) and ``s(t)`` the speed. A shot is either true, ``N(twtt, sigma)`` (one
 ``sigma`` for the array), or spurious (uniform over the transponder's window,
 or before the true arrival: the models of
 :func:`~bayes_mpem.survey_in.classes.log_classes`), each transponder with its own
-share of true replies. The EM is that of :func:`~bayes_mpem.survey_in.location.locate`:
-class probabilities, then a weighted Gauss-Newton (``least_squares``) for the
-positions and the speed, then ``sigma`` and the shares in closed form; the
-start is a Cauchy-loss fit from the prior positions. Intervals are Wald
-intervals from the weighted information.
+share of true replies. The EM is that of :func:`~bayes_mpem.survey_in.location.locate`
+(:class:`~bayes_mpem.survey_in.location.TravelTimeEM`), from a Cauchy-loss fit
+from the prior positions.
 """
 
 from __future__ import annotations
@@ -98,46 +96,15 @@ class ArrayTravelTimes:
         return T, dE, dN, dU, bad
 
     def speed(self, theta):
-        """Speed (or the profile's scale) at each shot.
-
-        Parameters
-        ----------
-        theta : numpy.ndarray
-            East, north, up of every transponder, then the speed coefficients.
-
-        Returns
-        -------
-        numpy.ndarray
-        """
+        """Return the speed (or the profile's scale) at each shot, given ``theta``."""
         return self.basis @ theta[3 * self.K:]
 
     def predict(self, theta):
-        """Two-way travel time (s) of a true reply to each shot.
-
-        Parameters
-        ----------
-        theta : numpy.ndarray
-            East, north, up of every transponder, then the speed coefficients.
-
-        Returns
-        -------
-        numpy.ndarray
-        """
+        """Return the two-way travel time (s) of a true reply to each shot, given ``theta``."""
         return self._paths(theta)[0] / self.speed(theta)
 
     def jac(self, theta):
-        """d(prediction)/d(theta), one row per shot.
-
-        Parameters
-        ----------
-        theta : numpy.ndarray
-            East, north, up of every transponder, then the speed coefficients.
-
-        Returns
-        -------
-        numpy.ndarray
-            ``(shots, n_params)``.
-        """
+        """Return d(prediction)/d(theta), ``(shots, n_params)``."""
         T, dE, dN, dU, _ = self._paths(theta)
         s = self.speed(theta)
         J = np.zeros((T.size, self.n_params))
@@ -148,17 +115,7 @@ class ArrayTravelTimes:
         return J
 
     def n_invalid(self, theta) -> int:
-        """Count the legs no eigenray reaches at ``theta`` (0 for straight rays).
-
-        Parameters
-        ----------
-        theta : numpy.ndarray
-            East, north, up of every transponder, then the speed coefficients.
-
-        Returns
-        -------
-        int
-        """
+        """Count the legs no eigenray reaches at ``theta`` (0 for straight rays)."""
         return int(self._paths(theta)[4])
 
 
@@ -236,15 +193,7 @@ class ArrayLocateResult:
         return np.sqrt(np.clip(np.diag(self.cov)[:3 * len(self.ids)], 0.0, None)).reshape(-1, 3)
 
     def centre(self):
-        """Return the array centre (the mean of the transponders) and its covariance.
-
-        Returns
-        -------
-        mean : numpy.ndarray
-            East, north, up (m).
-        cov : numpy.ndarray
-            ``(3, 3)``.
-        """
+        """Return the array centre (the transponders' mean east, north, up) and its covariance."""
         K = len(self.ids)
         G = np.zeros((3, self.cov.shape[0]))
         for k in range(K):
@@ -252,45 +201,16 @@ class ArrayLocateResult:
         return self.enu.mean(axis=0), G @ self.cov @ G.T
 
     def position_cov(self, k: int) -> np.ndarray:
-        """``(3, 3)`` covariance of transponder ``k``'s east, north, up.
-
-        Parameters
-        ----------
-        k : int
-            The transponder's index.
-
-        Returns
-        -------
-        numpy.ndarray
-        """
+        """Return the ``(3, 3)`` covariance of east, north, up of transponder number ``k``."""
         return self.cov[3 * k:3 * k + 3, 3 * k:3 * k + 3]
 
     def n_spurious(self, k: int) -> int:
-        """Shots of transponder ``k`` more likely spurious than true.
-
-        Parameters
-        ----------
-        k : int
-            The transponder's index.
-
-        Returns
-        -------
-        int
-        """
+        """Count the shots of transponder number ``k`` more likely spurious than true."""
         return int(np.sum(self.p_true[self.index == k] < 0.5))
 
 
 def describe(mean, sd, ci):
-    """``{"mean", "sd", "interval"}`` of a Wald interval with probability ``ci``.
-
-    Parameters
-    ----------
-    mean, sd : float
-    ci : float
-
-    Returns
-    -------
-    dict
+    """Return ``{"mean", "sd", "interval"}``, a Wald interval with probability ``ci``.
 
     Examples
     --------
@@ -426,11 +346,8 @@ def robust_covariance(J, r, clusters) -> np.ndarray:
     ``A^-1 B A^-1`` with ``A = J^T J`` and ``B`` the sum over clusters of the
     outer product of each cluster's score ``sum_i J_i r_i``, scaled by
     ``G / (G - P)`` (``G`` clusters, ``P`` parameters). Replies to one
-    interrogation share the transducer's position at transmit, and with it its
-    GNSS error: their residuals are correlated, which the model-based
-    ``sigma^2 (J^T J)^-1`` ignores (on simulated surveys its vertical intervals
-    covered the truth too rarely: ``docs/gnssa.md``). Without correlation,
-    ``B`` estimates ``sigma^2 A`` and the two agree.
+    interrogation share the transducer's GNSS error, a correlation the
+    model-based ``sigma^2 (J^T J)^-1`` ignores (``docs/gnssa.md``).
 
     Parameters
     ----------

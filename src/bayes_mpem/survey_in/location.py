@@ -11,11 +11,9 @@ chord at one speed, or refracted rays through a scaled sound-speed profile
 (``ssp=``), with a speed that may vary in time (``speed_intervals=``) and a lag
 of the acoustic position along the track (``fit_lag=True``).
 
-E-step: class probabilities in log space. M-step: weighted nonlinear least
-squares for the geometry (``scipy.optimize.least_squares`` from the current
-point, so the weighted sum of squares does not increase), then ``sigma`` and the
-weight in closed form. The start is a Cauchy-loss robust fit from the drop
-point. Standard deviations are from the weighted Gauss-Newton information
+The EM (:class:`TravelTimeEM`, shared with the array of
+:mod:`bayes_mpem.survey_in.array`) starts from a Cauchy-loss robust fit from the
+drop point. Standard deviations are from the weighted Gauss-Newton information
 (approximate; :mod:`bayes_mpem.survey_in.location_sampling` samples the
 posterior).
 
@@ -118,18 +116,10 @@ class LocateResult:
         return self.model.get("ssp") is not None
 
     def travel_times(self, pings):
-        """Return the travel-time model of this fit on ``pings``, and its parameters.
+        """Return the :class:`TravelTimes` of this fit on ``pings``, and its ``theta``.
 
-        Parameters
-        ----------
-        pings : pandas.DataFrame
-            ``x``, ``y``, ``depth`` (and ``time`` for a lag or a time-varying speed).
-
-        Returns
-        -------
-        model : TravelTimes
-        theta : numpy.ndarray
-            ``(east, north, depth, speed coefficients...)`` of the fit.
+        ``pings`` has ``x``, ``y``, ``depth`` (and ``time`` for a lag or a
+        time-varying speed); ``theta`` is ``(east, north, depth, speed coefficients...)``.
         """
         x, y, z = (pings[c].to_numpy(float) for c in ("x", "y", "depth"))
         m = self.model
@@ -143,32 +133,12 @@ class LocateResult:
         return tt, np.concatenate([[self.east, self.north, self.depth], coef])
 
     def predict(self, pings: pd.DataFrame) -> np.ndarray:
-        """Predicted two-way travel time (s) of a true arrival for each ping.
-
-        Parameters
-        ----------
-        pings : pandas.DataFrame
-            ``x``, ``y``, ``depth`` of the ship transducer.
-
-        Returns
-        -------
-        numpy.ndarray
-        """
+        """Return the two-way travel time (s) of a true arrival for each of ``pings``."""
         model, theta = self.travel_times(pings)
         return model.predict(theta)
 
     def logpdf(self, pings: pd.DataFrame) -> np.ndarray:
-        """Log density (1/s) of each ping's two-way travel time under this fit.
-
-        Parameters
-        ----------
-        pings : pandas.DataFrame
-            ``twtt``, ``x``, ``y``, ``depth`` of this transponder's pings (e.g. held out).
-
-        Returns
-        -------
-        numpy.ndarray
-        """
+        """Return the log density (1/s) of the ``twtt`` of each of ``pings`` (e.g. held out)."""
         t = pings["twtt"].to_numpy(float)
         pred = self.predict(pings)
         ld, lu = log_classes(t, pred, self.sigma, self.weight, self.window, self.outliers)
@@ -180,19 +150,7 @@ class LocateResult:
         return int(np.sum(self.p_true < 0.5))
 
     def interval(self, name: str, ci: float = 0.95) -> list:
-        """Approximate (Wald) interval of a parameter with probability ``ci``.
-
-        Parameters
-        ----------
-        name : str
-            A reported parameter (``east``, ``north``, ``depth``, ``sound_speed``, ...).
-        ci : float
-
-        Returns
-        -------
-        list of float
-            ``[lower, upper]``.
-        """
+        """Return the Wald interval ``[lower, upper]`` of parameter ``name``, probability ``ci``."""
         from scipy.stats import norm
 
         v = {"east": self.east, "north": self.north, "depth": self.depth,
@@ -201,17 +159,7 @@ class LocateResult:
         return [v - half, v + half]
 
     def to_dict(self, ci: float = 0.95) -> dict:
-        """JSON-ready summary; intervals are approximate (Wald, from the EM).
-
-        Parameters
-        ----------
-        ci : float
-            Probability of the intervals.
-
-        Returns
-        -------
-        dict
-        """
+        """Return a JSON-ready summary, with Wald intervals of probability ``ci``."""
         out = {k: {"mean": getattr(self, k), "sd": self.sd.get(k, 0.0),
                    "interval": self.interval(k, ci)}
                for k in ("east", "north", "depth", "sound_speed")}
@@ -244,17 +192,14 @@ def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=
         Turn-around time (s); default :data:`DEFAULT_TAT`. The start value when
         ``fit_tat`` is true.
     fit_tat : bool, default False
-        Fit the turn-around time too. On the OBSrange samples it is not
-        identifiable (it trades off against depth and sound speed: 2 sd of
-        depth ~290 m), and a :class:`LocateWarning` says so when that happens.
+        Fit the turn-around time too; it trades off against depth and sound
+        speed, and a :class:`LocateWarning` says when the depth is lost.
     sound_speed : float, default 1500
         Starting sound speed (m/s).
     outliers : {"uniform", "first_arrival"}
-        Spurious pings uniform over the listening window (the simulator's
-        assumption), or uniform between the window start and the true arrival:
-        a detector that reports the first threshold crossing cannot report a
-        false detection after the true one (a share ``1e-3`` of the density
-        stays spread over the window).
+        Spurious pings uniform over the listening window, or (a detector that
+        reports the first threshold crossing) before the true arrival
+        (:func:`~bayes_mpem.survey_in.classes.log_classes`).
     window : tuple of float, optional
         Listening window (s); default the smallest and largest travel time of
         the transponder's pings.
@@ -273,16 +218,14 @@ def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=
     speed_intervals : int, default 0
         Let the sound speed (or the profile's scale) vary in time as a cubic
         B-spline with this many equal intervals over ``time_range`` (0: one
-        constant speed). The ocean's sound speed changes over hours; GNSS-acoustic
-        processing models it the same way.
+        constant speed).
     time_range : tuple of float, optional
         Span of the B-spline (s); default the pings' own.
     fit_lag : bool, default False
         Fit a time lag (s) of the acoustic position behind the logged one: the
-        ship is taken at ``(x, y) + lag * velocity`` (:func:`ship_velocity`). It
-        stands for a position fix logged at another moment than the ping, or a
-        transducer ahead of the GPS antenna on a ship holding its course (the
-        two cannot be told apart on such a track).
+        ship is taken at ``(x, y) + lag * velocity`` (:func:`ship_velocity`): a
+        fix logged at another moment than the ping, or a transducer ahead of the
+        GPS antenna on a ship holding its course.
     max_iter : int, default 200
     tol : float, default 1e-10
         Stop when sigma (s) changes by less than this.
@@ -427,10 +370,11 @@ class TravelTimeEM(EMModel):
     """The EM of :func:`locate` and :func:`~bayes_mpem.survey_in.array.locate_array`.
 
     E-step: the probability that each ping is true (:func:`.classes.log_classes`);
-    M-step: weighted least squares from the current point, then ``sigma`` and each
-    transponder's share of true pings in closed form; converged when ``sigma``
-    changes by less than ``tol`` (s). The probabilities returned are the weights
-    of the last M-step, those of the covariance.
+    M-step: weighted least squares (``scipy.optimize.least_squares``) from the
+    current point, so the weighted sum of squares does not increase, then
+    ``sigma`` and each transponder's share of true pings in closed form;
+    converged when ``sigma`` changes by less than ``tol`` (s). The probabilities
+    returned are the weights of the last M-step, those of the covariance.
 
     Parameters
     ----------
@@ -455,20 +399,9 @@ class TravelTimeEM(EMModel):
         self.rows = [slice(None)] if index is None else [index == k for k in range(len(windows))]
 
     def run(self, theta, *, sigma_min, **kw):
-        """Run :func:`~bayes_mpem.mixture.em.run_em` from ``theta`` (``sigma`` from the MAD).
+        """Return the :func:`~bayes_mpem.mixture.em.run_em` (``**kw``) of the EM from ``theta``.
 
-        Parameters
-        ----------
-        theta : numpy.ndarray
-            Start of the geometry and speed.
-        sigma_min : float
-            Floor of the starting ``sigma`` (s).
-        **kw
-            ``tol`` and ``max_iter``.
-
-        Returns
-        -------
-        EMRun
+        The first ``sigma`` is the MAD of the residuals, at least ``sigma_min`` (s).
         """
         r = self.resid(theta)
         sigma = max(1.4826 * float(np.median(np.abs(r - np.median(r)))), sigma_min)

@@ -41,12 +41,7 @@ from ...mixture.em import EMModel, best_run, run_em
 from ...mixture.gauss_newton import safeguarded_step
 from ..simulation.effects import split_term
 from .constraints import is_feasible, repair
-from .model import (
-    Ranges,
-    e_step,
-    predict,
-    weighted_sse,
-)
+from .model import Ranges, e_step, predict, weighted_sse
 from .params import Params, get_vector, mean_names, set_vector
 
 
@@ -269,7 +264,7 @@ class JointFit:
 
 
 def _run(d, p, effects, path, *, max_iter, tol, sigma_floor):
-    """Run the ECM from ``p``; the :class:`~bayes_mpem.mixture.em.EMRun`."""
+    """Run the ECM from ``p``; return its :class:`~bayes_mpem.mixture.em.EMRun`."""
     mp2_floor = np.maximum(sigma_floor, p.sigma[:, 0])
     if "second_reflector" in effects:
         p = p.copy()

@@ -32,14 +32,7 @@ from ...mixture.em import EMModel, best_run, run_em
 from ...mixture.gauss_newton import safeguarded_step
 from ..model.beacon_geometry import BeaconGeometry
 from ..model.likelihood import e_step
-from .em_result import (
-    EMResult,
-    check_max_iter,
-    check_options,
-    estimate_sigma_dp,
-    wdot,
-    with_flags,
-)
+from .em_result import EMResult, check_options, estimate_sigma_dp, wdot, with_flags
 
 # --------------------------------------------------------------------------
 # the mixture EM
@@ -273,7 +266,7 @@ def fit_mixture_em(
     """
     fixed_dp = check_options(path=path, weights=weights, sigma_dp=sigma_dp)
     check_int("n_init", n_init, minimum=1)
-    check_max_iter(max_iter)
+    check_int("max_iter", max_iter, minimum=1)
     check_positive("tol", tol)
     check_range("sigma_floor", sigma_floor, low=0, include_low=True)
     if data.n < 3:

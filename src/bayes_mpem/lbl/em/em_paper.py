@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import special
 
-from ..._validate import check_finite, check_positive
+from ..._validate import check_finite, check_int, check_positive
 from ...io.survey import BeaconData
 from ...mixture.densities import CLASSES
 from ...mixture.em import EMModel, run_em
@@ -26,7 +26,6 @@ from ..model import geometry
 from ..model.beacon_geometry import BeaconGeometry
 from .em_result import (
     EMResult,
-    check_max_iter,
     check_options,
     estimate_sigma_dp,
     mean_resp_history,
@@ -85,9 +84,8 @@ def paper_m_step(geom: BeaconGeometry, gamma_mp, d0_prev, alpha, path="triangle"
         Blending factor of eq. 10.
     path : {"triangle", "double"}
     d0k : numpy.ndarray, optional
-        Precomputed per-range plane heights
-        (:func:`~bayes_mpem.lbl.model.geometry.invert_plane_height`); they do not depend
-        on the parameters, so the EM loop computes them once.
+        The per-range plane heights
+        (:func:`~bayes_mpem.lbl.model.geometry.invert_plane_height`), if computed.
 
     Returns
     -------
@@ -193,7 +191,7 @@ def fit_paper_em(
     fixed_dp = check_options(path=path, pol=pol, alpha=alpha, sigma_dp=sigma_dp)
     check_positive("sigma_mp2_init", sigma_mp2_init)
     check_positive("tol", tol)
-    check_max_iter(max_iter)
+    check_int("max_iter", max_iter, minimum=1)
     check_finite("d0_init", d0_init)
     geom = BeaconGeometry.from_data(data)
     s_dp = fixed_dp or estimate_sigma_dp(geom)

@@ -50,7 +50,7 @@ _ZETA, _W_ZETA = 0.5 * (_GL_NODES + 1.0), 0.5 * _GL_WEIGHTS
 
 
 def reference_speed(z):
-    """The reference profile of :func:`reference_profile` at depths ``z`` (m/s)."""
+    """Return the reference profile of :func:`reference_profile` at depths ``z`` (m/s)."""
     z = np.asarray(z, float)
     return 1482.0 + 33.0 * np.exp(-z / 350.0) + 0.017 * z
 
@@ -101,7 +101,7 @@ class SoundSpeedField:
     depth: float
 
     def bulk(self, t):
-        """``b(t)``, the surface change of the speed (m/s)."""
+        """Return ``b(t)``, the surface change of the speed (m/s)."""
         t = np.asarray(t, float)
         out = np.zeros_like(t)
         for a, p, ph in zip(self.amplitudes, self.periods, self.phases, strict=True):
@@ -109,7 +109,7 @@ class SoundSpeedField:
         return out
 
     def gradients(self, t):
-        """``g_s(t)``, ``g_d(t)``: arrays ``(n, 2)`` of east, north gradients, (m/s)/m."""
+        """Return ``g_s(t)``, ``g_d(t)``: arrays ``(n, 2)`` of east, north gradients, (m/s)/m."""
         t = np.asarray(t, float)
         out = []
         for size, ph in zip((self.shallow, self.deep), self.gradient_phases, strict=True):
@@ -118,7 +118,7 @@ class SoundSpeedField:
         return out
 
     def delta_v(self, z, east, north, t):
-        """The change of the speed (m/s) at depth ``z``, position ``east, north``, time ``t``."""
+        """Return the change of the speed (m/s) at depth ``z``, ``east``, ``north``, time ``t``."""
         gs, gd = self.gradients(t)
         z = np.asarray(z, float)
         de, dn = np.asarray(east) - self.centre[0], np.asarray(north) - self.centre[1]
@@ -127,7 +127,7 @@ class SoundSpeedField:
                 + dn * (gs[..., 1] * fs + gd[..., 1]))
 
     def delta_time(self, t, ship, pos):
-        """First-order change of a one-way time (s) along the chord from ``ship`` to ``pos``.
+        """Return the first-order change (s) of a one-way time, ``ship`` to ``pos``.
 
         ``-integral dV / c_ref^2 ds`` along the straight chord (the eigenray's
         horizontal course differs from the chord to second order).
@@ -144,7 +144,7 @@ class SoundSpeedField:
         return -length * np.sum(_W_ZETA * dv / reference_speed(ze) ** 2, axis=1)
 
     def coefficients(self, t):
-        """GARPOS's ``a0``, ``a1`` (east, north) and ``a2`` (east, north) at times ``t``.
+        """Return GARPOS's ``a0``, ``a1`` (east, north) and ``a2`` (east, north) at times ``t``.
 
         Averages over a vertical ray from the surface to :attr:`depth` with weight
         ``1 / c_ref``: ``a0 = int dV / c^2 dz / int 1 / c dz`` (so that
@@ -166,16 +166,21 @@ class SoundSpeedField:
         return a0, a1, a2
 
     def gamma(self, t, ship, pos):
-        """GARPOS's ``gamma(t, p, x)`` of one leg: ``a0 + a1 . (p - centre) / L + a2 . (x -
-        centre) / L``, L = 1 km."""
+        """Return GARPOS's ``gamma(t, p, x)`` of one leg.
+
+        ``a0 + a1 . (p - centre) / L + a2 . (x - centre) / L``, L = 1 km.
+        """
         a0, a1, a2 = self.coefficients(t)
         dp = np.column_stack([ship[0] - self.centre[0], ship[1] - self.centre[1]]) / 1e3
         dx = (np.array([pos[0], pos[1]]) - np.asarray(self.centre)) / 1e3
         return a0 + np.sum(a1 * dp, axis=1) + a2 @ dx
 
     def series(self, t) -> pd.DataFrame:
-        """The field's truth at times ``t``: ``time``, ``surface_dv`` (m/s), ``dV0`` (m/s),
-        ``grad1_east``, ``grad1_north``, ``grad2_east``, ``grad2_north`` ((m/s)/km)."""
+        """Return the field's truth at times ``t``.
+
+        Columns ``time``, ``surface_dv`` (m/s), ``dV0`` (m/s), ``grad1_east``,
+        ``grad1_north``, ``grad2_east``, ``grad2_north`` ((m/s)/km).
+        """
         t = np.atleast_1d(np.asarray(t, float))
         a0, a1, a2 = self.coefficients(t)
         v0 = self.v0()
@@ -184,7 +189,7 @@ class SoundSpeedField:
                              "grad2_east": a2[:, 0] * v0, "grad2_north": a2[:, 1] * v0})
 
     def v0(self) -> float:
-        """``V0``: the reference profile's harmonic mean from the surface to :attr:`depth`."""
+        """Return ``V0``: the reference profile's harmonic mean from the surface to :attr:`depth`."""
         z = self.depth * _ZETA
         return float(1.0 / np.sum(_W_ZETA / reference_speed(z)))
 
@@ -333,7 +338,7 @@ def _track(t, radius, speed, rot):
 
 
 def _station(t, rot, half=50.0):
-    """A ship holding station: a slow figure within ``half`` m of the centre."""
+    """Hold station: a slow figure within ``half`` m of the centre."""
     w1, w2 = 2 * np.pi / 1800.0, 2 * np.pi / 2400.0
     e, n = half * np.sin(w1 * t + rot), half * np.sin(w2 * t + 2 * rot)
     course = np.degrees(np.arctan2(half * w1 * np.cos(w1 * t + rot),

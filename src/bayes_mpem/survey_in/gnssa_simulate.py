@@ -189,7 +189,7 @@ class SoundSpeedField:
                              "grad2_east": a2[:, 0] * v0, "grad2_north": a2[:, 1] * v0})
 
     def v0(self) -> float:
-        """Return ``V0``: the reference profile's harmonic mean from the surface to :attr:`depth`."""
+        """Return ``V0``: the profile's harmonic mean from the surface to :attr:`depth`."""
         z = self.depth * _ZETA
         return float(1.0 / np.sum(_W_ZETA / reference_speed(z)))
 
@@ -388,6 +388,73 @@ def _legs(profile, tx, rx, pos):
     return out
 
 
+def _check_options(*, n_transponders, depth, hours, shot_interval, ship_speed, sigma,
+                   p_spurious, p_missing, track, speed_model, travel_time, gradients,
+                   speed_decay, shallow_decay, gradient_period, speed_periods,
+                   speed_amplitudes):
+    """Raise ValueError for an option :func:`simulate_gnssa` cannot take."""
+    check_int("n_transponders", n_transponders, minimum=1)
+    for name, v in (("depth", depth), ("hours", hours), ("shot_interval", shot_interval),
+                    ("ship_speed", ship_speed), ("sigma", sigma)):
+        check_positive(name, v)
+    check_probability("p_spurious", p_spurious, open_interval=False)
+    check_probability("p_missing", p_missing, open_interval=False)
+    check_choice("track", track, TRACKS)
+    check_choice("speed_model", speed_model, ("scale", "field"))
+    check_choice("travel_time", travel_time, TRAVEL_TIME_MODELS)
+    if speed_model != "field" and (gradients or travel_time != "ray"):
+        raise ValueError("gradients and travel_time='gamma' need speed_model='field'")
+    if speed_model == "field":
+        for name, v in (("speed_decay", speed_decay), ("shallow_decay", shallow_decay),
+                        ("gradient_period", gradient_period), *(
+                            (f"speed_periods[{j}]", p) for j, p in enumerate(speed_periods))):
+            check_positive(name, v)
+        if len(speed_amplitudes) != len(speed_periods):
+            raise ValueError(f"speed_amplitudes and speed_periods: expected the same length, "
+                             f"got {len(speed_amplitudes)} and {len(speed_periods)}")
+
+
+def _replies(pings, ids, track_at, settings, phases, sigma, p_spurious, p_missing, gen):
+    """Add the noise, the spurious and missing replies and the receive positions."""
+    n = len(pings)
+    twtt = pings.pop("twtt_true").to_numpy() + gen.normal(0.0, sigma, n)
+    spurious = gen.random(n) < p_spurious
+    for st in ids:
+        sel = spurious & (pings["transponder"] == st).to_numpy()
+        ref = twtt[(pings["transponder"] == st).to_numpy()]
+        lo, hi = 0.9 * ref.min(), 1.1 * ref.max()
+        twtt[sel] = gen.uniform(lo, hi, sel.sum())
+    pings["twtt"] = twtt
+    pings["t_rx"] = pings["t_tx"] + twtt
+    rx = _logged(_ship(pings["t_rx"].to_numpy(), track_at, settings, phases),
+                 settings["gnss_sd"], gen)
+    for k, v in _columns(rx, "rx").items():
+        pings[k] = v
+    keep = gen.random(n) >= p_missing
+    return pings[keep].reset_index(drop=True), spurious[keep]
+
+
+def _make_field(gen, true, amplitudes, periods, decay, sizes, shallow_decay, period):
+    """Build the :class:`SoundSpeedField` of :func:`simulate_gnssa` (periods in hours)."""
+    return SoundSpeedField(
+        amplitudes=tuple(map(float, amplitudes)),
+        periods=tuple(3600.0 * float(p) for p in periods),
+        phases=tuple(gen.uniform(0, 2 * np.pi, len(periods))), decay=float(decay),
+        shallow=float(sizes[0]), deep=float(sizes[1]), shallow_decay=float(shallow_decay),
+        gradient_period=3600.0 * float(period),
+        gradient_phases=tuple(gen.uniform(0, 2 * np.pi, 2)),
+        centre=(float(true["east"].mean()), float(true["north"].mean())),
+        depth=float(-true["up"].mean()))
+
+
+def _field_settings(field, periods, gradients, gradient_period, travel_time):
+    return dict(speed_model="field", speed_amplitudes=list(field.amplitudes),
+                speed_periods=[float(p) for p in periods], speed_decay=field.decay,
+                gradients=bool(gradients), shallow_gradient=field.shallow,
+                deep_gradient=field.deep, shallow_decay=field.shallow_decay,
+                gradient_period=float(gradient_period), travel_time=travel_time)
+
+
 def simulate_gnssa(*, n_transponders: int = 4, depth: float = 1500.0, hours: float = 4.0,
                    shot_interval: float = 20.0, ship_speed: float = 2.5, sigma: float = 5e-5,
                    p_spurious: float = 0.05, p_missing: float = 0.02,
@@ -489,25 +556,13 @@ def simulate_gnssa(*, n_transponders: int = 4, depth: float = 1500.0, hours: flo
     >>> list(sim.truth["series"].columns)[:3]
     ['time', 'surface_dv', 'dV0']
     """
-    check_int("n_transponders", n_transponders, minimum=1)
-    for name, v in (("depth", depth), ("hours", hours), ("shot_interval", shot_interval),
-                    ("ship_speed", ship_speed), ("sigma", sigma)):
-        check_positive(name, v)
-    check_probability("p_spurious", p_spurious, open_interval=False)
-    check_probability("p_missing", p_missing, open_interval=False)
-    check_choice("track", track, TRACKS)
-    check_choice("speed_model", speed_model, ("scale", "field"))
-    check_choice("travel_time", travel_time, TRAVEL_TIME_MODELS)
-    if speed_model != "field" and (gradients or travel_time != "ray"):
-        raise ValueError("gradients and travel_time='gamma' need speed_model='field'")
-    if speed_model == "field":
-        for name, v in (("speed_decay", speed_decay), ("shallow_decay", shallow_decay),
-                        ("gradient_period", gradient_period), *(
-                            (f"speed_periods[{j}]", p) for j, p in enumerate(speed_periods))):
-            check_positive(name, v)
-        if len(speed_amplitudes) != len(speed_periods):
-            raise ValueError(f"speed_amplitudes and speed_periods: expected the same length, "
-                             f"got {len(speed_amplitudes)} and {len(speed_periods)}")
+    _check_options(n_transponders=n_transponders, depth=depth, hours=hours,
+                   shot_interval=shot_interval, ship_speed=ship_speed, sigma=sigma,
+                   p_spurious=p_spurious, p_missing=p_missing, track=track,
+                   speed_model=speed_model, travel_time=travel_time, gradients=gradients,
+                   speed_decay=speed_decay, shallow_decay=shallow_decay,
+                   gradient_period=gradient_period, speed_periods=speed_periods,
+                   speed_amplitudes=speed_amplitudes)
     gen = as_generator(rng)
     field_gen = gen.spawn(1)[0] if speed_model == "field" else None  # gen's state untouched
     ids = [f"M{k + 1:02d}" for k in range(n_transponders)]
@@ -523,9 +578,8 @@ def simulate_gnssa(*, n_transponders: int = 4, depth: float = 1500.0, hours: flo
     rot = gen.uniform(0.0, 2 * np.pi)
     radius = 0.9 * depth if track_radius is None else float(track_radius)
     check_positive("track_radius", radius)
-    way = {"star": lambda: _star(radius, rot), "circle": lambda: _circle(radius, rot),
-           "star+circle": lambda: np.vstack([_star(radius, rot), _circle(radius, rot)]),
-           "station": lambda: None}[track]()
+    way = (_circle(radius, rot) if track == "circle" else
+           np.vstack([_star(radius, rot), _circle(radius, rot)]))
 
     def track_at(t):
         if track == "station":
@@ -540,19 +594,10 @@ def simulate_gnssa(*, n_transponders: int = 4, depth: float = 1500.0, hours: flo
         return 1.0 + amp * (0.7 * np.sin(2 * np.pi * t / 21600.0 + phases[4])
                             + 0.3 * np.sin(2 * np.pi * t / 7200.0 + phases[5]))
 
-    field = None
-    if speed_model == "field":
-        field = SoundSpeedField(
-            amplitudes=tuple(map(float, speed_amplitudes)),
-            periods=tuple(3600.0 * float(p) for p in speed_periods),
-            phases=tuple(field_gen.uniform(0, 2 * np.pi, len(speed_periods))),
-            decay=float(speed_decay), shallow=float(shallow_gradient) if gradients else 0.0,
-            deep=float(deep_gradient) if gradients else 0.0, shallow_decay=float(shallow_decay),
-            gradient_period=3600.0 * float(gradient_period),
-            gradient_phases=tuple(field_gen.uniform(0, 2 * np.pi, 2)),
-            centre=(float(true["east"].mean()), float(true["north"].mean())),
-            depth=float(-true["up"].mean()))
-
+    field = None if speed_model != "field" else _make_field(
+        field_gen, true, speed_amplitudes, speed_periods, speed_decay,
+        (shallow_gradient, deep_gradient) if gradients else (0.0, 0.0), shallow_decay,
+        gradient_period)
     t_tx = np.arange(0.0, hours * 3600.0, shot_interval)
     ship_tx = _ship(t_tx, track_at, settings, phases)
     tx = _transducer(ship_tx, atd_offset)
@@ -578,22 +623,8 @@ def simulate_gnssa(*, n_transponders: int = 4, depth: float = 1500.0, hours: flo
     pings = pd.concat(frames, ignore_index=True).sort_values(["t_tx", "transponder"],
                                                             kind="stable")
     pings = pings.reset_index(drop=True)
-    n = len(pings)
-    twtt = pings.pop("twtt_true").to_numpy() + gen.normal(0.0, sigma, n)
-    spurious = gen.random(n) < p_spurious
-    for st in ids:
-        sel = spurious & (pings["transponder"] == st).to_numpy()
-        ref = twtt[(pings["transponder"] == st).to_numpy()]
-        lo, hi = 0.9 * ref.min(), 1.1 * ref.max()
-        twtt[sel] = gen.uniform(lo, hi, sel.sum())
-    pings["twtt"] = twtt
-    pings["t_rx"] = pings["t_tx"] + twtt
-    rx = _logged(_ship(pings["t_rx"].to_numpy(), track_at, settings, phases),
-                 settings["gnss_sd"], gen)
-    for k, v in _columns(rx, "rx").items():
-        pings[k] = v
-    keep = gen.random(n) >= p_missing
-    pings, spurious = pings[keep].reset_index(drop=True), spurious[keep]
+    pings, spurious = _replies(pings, ids, track_at, settings, phases, sigma, p_spurious,
+                               p_missing, gen)
     hm = profile.harmonic_mean(0.0, float(-true["up"].mean()))
     truth = {"transponders": true, "spurious": spurious, "scale": pings.pop("scale").to_numpy(),
              "sigma": float(sigma)}
@@ -615,11 +646,8 @@ def simulate_gnssa(*, n_transponders: int = 4, depth: float = 1500.0, hours: flo
     if track != "star" or track_radius is not None:
         sets.update(track=track, track_radius=radius)
     if field is not None:
-        sets.update(speed_model="field", speed_amplitudes=list(field.amplitudes),
-                    speed_periods=[float(p) for p in speed_periods], speed_decay=field.decay,
-                    gradients=bool(gradients), shallow_gradient=field.shallow,
-                    deep_gradient=field.deep, shallow_decay=field.shallow_decay,
-                    gradient_period=float(gradient_period), travel_time=travel_time)
+        sets.update(_field_settings(field, speed_periods, gradients, gradient_period,
+                                    travel_time))
     return GnssaSimulation(pings=pings[cols], header=header, truth=truth, settings=sets)
 
 

@@ -21,7 +21,7 @@ import warnings
 from .. import __version__
 from ..exceptions import InputError
 from ..lbl.model.paths import PATH_CHOICES
-from . import navigate, stream
+from . import gnssa, navigate, stream
 from . import options as opt
 from .errors import OptionError
 
@@ -101,6 +101,7 @@ def _add_demo_plot_simulate(sub):
                    help="hide an effect in the data, e.g. range_bias=5 (repeatable; names as "
                         "in 'bayes-mpem diagnose')")
     navigate.add_simulate_navigation(p)
+    gnssa.add_simulate_gnssa(p)
 
 
 def _add_fit_diagnose(sub):
@@ -221,6 +222,9 @@ def _add_sample_compare(sub):
 
 def _simulate_handler(args, cmd_simulate):
     """``simulate`` writes a survey, or a dive with ``--navigation``; refuse mixed options."""
+    chosen = gnssa.gnssa_handler(args)  # --gnssa: a GNSS-A campaign
+    if chosen is not None:
+        return chosen
     if args.navigation:
         return navigate.cmd_simulate_navigation
     given = [o for o in navigate.NAVIGATION_ONLY if getattr(args, o) is not None]

@@ -149,6 +149,9 @@ def _add_locate(sub):
     p.add_argument("--out", required=True, metavar="DIR")
     p.add_argument("--figures", action="store_true",
                    help="also write the figures (map, residuals; as 'bayes-mpem plot' does)")
+    p.add_argument("--one-at-a-time", action="store_true",
+                   help="SeaGap: locate each transponder on its own (its own sound speed) "
+                        "instead of the array together with its centre")
     p.add_argument("--no-lag-check", action="store_true",
                    help="deck-box logs: do not test whether a lag along the track would fit "
                         "better (a few tenths of a second)")

@@ -20,7 +20,8 @@ def array_shots(raw) -> pd.DataFrame:
     Parameters
     ----------
     raw : RawSurvey
-        Of format ``garpos`` or ``gnatss``.
+        Of format ``garpos``, ``gnatss`` or ``seagap`` (whose 18 columns give the
+        antenna and attitude at transmit and at receive).
 
     Returns
     -------
@@ -33,9 +34,9 @@ def array_shots(raw) -> pd.DataFrame:
     InputError
         For another format.
     """
-    if raw.format not in ARRAY_FORMATS:
+    if raw.format not in (*ARRAY_FORMATS, "seagap"):
         raise InputError(f"{raw.source}: a {raw.format} survey is not an array survey "
-                         f"({', '.join(ARRAY_FORMATS)})")
+                         f"({', '.join(ARRAY_FORMATS)}, seagap)")
     pos = raw.transducer_positions()
     shots = raw.pings.copy()
     for end in ("tx", "rx"):
@@ -48,7 +49,7 @@ def _transponder_entry(fit, k, ci, origin, n_shots):
     e, n, u = fit.enu[k]
     sd = fit.sd[k]
     C = fit.position_cov(k)
-    lat, lon, h = enu_to_geodetic(e, n, u, *origin)
+    lat, lon, h = _geodetic(e, n, u, origin)
     start = fit.start[k]
     return {"east": describe(e, sd[0], ci), "north": describe(n, sd[1], ci),
             "depth": describe(-u, sd[2], ci),
@@ -68,7 +69,7 @@ def _transponder_entry(fit, k, ci, origin, n_shots):
 def _centre_entry(fit, ci, origin):
     m, C = fit.centre()
     sd = np.sqrt(np.clip(np.diag(C), 0.0, None))
-    lat, lon, h = enu_to_geodetic(*m, *origin)
+    lat, lon, h = _geodetic(*m, origin)
     return {"enu": {c: describe(v, s, ci) for c, v, s in zip(("east", "north", "up"), m, sd,
                                                               strict=True)},
             "lat": lat, "lon": lon, "height": h,
@@ -76,14 +77,21 @@ def _centre_entry(fit, ci, origin):
                            "matrix": [[float(v) for v in row] for row in C]}}
 
 
+def _geodetic(e, n, u, origin):
+    """Latitude, longitude, height of a local point; None each without an origin (SeaGap)."""
+    if origin is None:
+        return None, None, None
+    return enu_to_geodetic(e, n, u, *origin)
+
+
 def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
-                        speed_intervals=0) -> SurveyInResult:
+                        speed_intervals=0, surface_depth=None) -> SurveyInResult:
     """Locate every transponder of a GNSS-A array survey together.
 
     Parameters
     ----------
     raw : RawSurvey
-        Of format ``garpos`` or ``gnatss``.
+        Of format ``garpos``, ``gnatss`` or ``seagap``.
     ci : float, default 0.95
     outliers : {"uniform", "first_arrival"}
     ssp : None, SoundSpeedProfile, str or path
@@ -93,6 +101,9 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
         The sound speed (the profile's scale) as a cubic B-spline in time with
         this many intervals, shared by the array. GNSS-A surveys last hours and
         the ocean changes in that time: one interval per 15-30 minutes.
+    surface_depth : float, optional
+        Depth (``-up``) of the profile's sea surface in the survey's frame;
+        default the header's (0 without one).
 
     Returns
     -------
@@ -105,10 +116,12 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
     shots = array_shots(raw)
     prof = survey_profile(raw, "survey" if ssp is None else ssp)
     h = raw.header
+    if surface_depth is None:
+        surface_depth = float(h.get("surface_depth", 0.0))
     fit = locate_array(shots, h["transponders"], profile=prof,
-                       surface_depth=float(h.get("surface_depth", 0.0)),
+                       surface_depth=float(surface_depth),
                        speed_intervals=speed_intervals, outliers=outliers)
-    origin = (h["lat"], h["lon"], h.get("height", 0.0))
+    origin = (h["lat"], h["lon"], h.get("height", 0.0)) if "lat" in h else None
     counts = np.bincount(fit.index, minlength=len(fit.ids))
     out = {tid: _transponder_entry(fit, k, ci, origin, counts[k])
            for k, tid in enumerate(fit.ids)}
@@ -148,9 +161,9 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
         "outliers": outliers, "ssp": None if prof is None else prof.source,
         "speed_intervals": int(speed_intervals), "fit_lag": False,
         "geometry": {"frame": "local east, north, up about the origin (m)",
-                     "origin": dict(zip(("lat", "lon", "height"), map(float, origin),
-                                        strict=True)),
-                     "surface_depth": float(h.get("surface_depth", 0.0))},
+                     "origin": None if origin is None else dict(
+                         zip(("lat", "lon", "height"), map(float, origin), strict=True)),
+                     "surface_depth": float(surface_depth)},
         "tat_fitted": False, "tat_given": 0.0,
         "position_region": f"a transponder's {100 * ci:g} % region is the ellipsoid of its "
                            f"covariance with squared radius {chi2.ppf(ci, 3):.4f}"}

@@ -113,6 +113,9 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
         ``array_centre``, ``sound_speed``, the survey's ``origin`` and files;
         ``classified``: one row per shot and per skipped line.
     """
+    if "transponders" not in raw.header:
+        raise InputError(f"{raw.source}: no prior transponder positions were read (SeaGap's "
+                         "pxp-ini.inp beside it); the array's fit starts from them")
     shots = array_shots(raw)
     prof = survey_profile(raw, "survey" if ssp is None else ssp)
     h = raw.header

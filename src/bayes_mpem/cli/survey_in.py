@@ -138,6 +138,8 @@ def cmd_locate(args) -> int:
         print(f"transponder {tid} not located: {why}")
     print(f"{summary['n_skipped_lines']} lines skipped (reasons in classified.csv)")
     written = [paths["summary"], paths["classified"]]
+    if "solution" in paths:  # an array: the plain-text solution
+        written.append(paths["solution"])
     if args.figures:
         written += write_figures(result, out)
     print("\n".join(f"wrote {p}" for p in written))

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from datetime import timedelta
+
 import numpy as np
 import pandas as pd
 from scipy.stats import chi2
@@ -12,6 +14,7 @@ from ..io.raw import ARRAY_FORMATS
 from .array import describe, locate_array
 from .result import SurveyInResult, classified_table
 from .ssp import survey_profile
+from .travel_times import speed_basis
 
 
 def array_shots(raw) -> pd.DataFrame:
@@ -75,6 +78,106 @@ def _centre_entry(fit, ci, origin):
             "lat": lat, "lon": lon, "height": h,
             "covariance": {"names": ["east", "north", "up"],
                            "matrix": [[float(v) for v in row] for row in C]}}
+
+
+#: What ``t_tx`` counts in each format (``summary.json`` ``epoch``).
+TIME_REFERENCES = {"garpos": "s of the day of the site file's Date(UTC) (GARPOS ST)",
+                   "gnatss": "s since J2000 (2000-01-01 12:00:00)",
+                   "seagap": "s in obsdata.inp's own time scale"}
+
+
+def _epoch_entry(fmt, shots):
+    """Return the campaign's epoch: the middle of its shots (``t_tx``), in the file's time scale."""
+    t = shots["t_tx"].to_numpy(float) if "t_tx" in shots.columns else shots["time"].to_numpy()
+    mid = 0.5 * (float(np.min(t)) + float(np.max(t)))
+    out = {"t_tx_mid": mid, "t_tx_first": float(np.min(t)), "t_tx_last": float(np.max(t)),
+           "time_reference": TIME_REFERENCES.get(fmt, "s"), "utc": None,
+           "hours": (float(np.max(t)) - float(np.min(t))) / 3600.0}
+    if fmt == "gnatss":
+        from ..io.gnatss import J2000
+
+        out["utc"] = (J2000 + timedelta(seconds=mid)).isoformat(timespec="seconds")
+    return out
+
+
+def speed_series(fit, n=121):
+    """Return the fitted sound speed against time: ``time_s``, ``mean_m_s``, ``sd_m_s``.
+
+    Parameters
+    ----------
+    fit : ArrayLocateResult
+    n : int, default 121
+        Points, evenly over the fit's time span.
+
+    Returns
+    -------
+    dict
+        Lists of ``n`` floats (m/s; the sd from the coefficients' covariance).
+    """
+    lo, hi = fit.model["time_range"]
+    t = np.linspace(lo, hi, n)
+    B = speed_basis(pd.DataFrame({"time": t}), fit.model["speed_intervals"], (lo, hi))
+    k = B.shape[1]
+    C = fit.cov[-k:, -k:]
+    unit = fit.model["unit"]
+    sd = np.sqrt(np.clip(np.einsum("ij,jk,ik->i", B, C, B), 0.0, None)) * unit
+    return {"time_s": t.tolist(), "mean_m_s": (B @ fit.speed_coef * unit).tolist(),
+            "sd_m_s": sd.tolist()}
+
+
+def sound_speed_entry(fit, ci, prof) -> dict:
+    """Return the ``sound_speed`` record of an array's ``summary.json``, a unit per field.
+
+    Parameters
+    ----------
+    fit : ArrayLocateResult
+    ci : float
+    prof : SoundSpeedProfile or None
+        The profile of the rays (None: straight rays).
+
+    Returns
+    -------
+    dict
+        ``mean``, ``sd``, ``interval`` and ``unit`` ("m/s"): the survey's mean
+        speed (``quantity`` says which); ``model``, ``speed_intervals``,
+        ``interval_minutes``; ``reference_m_s`` (the profile's harmonic mean
+        over the same span, None for straight rays); ``coefficients`` with
+        ``coefficients_unit``; ``series`` (:func:`speed_series`).
+    """
+    n_int = int(fit.model["speed_intervals"])
+    lo, hi = fit.model["time_range"]
+    refracted = prof is not None
+    return {
+        **describe(fit.sound_speed, fit.sound_speed_sd, ci), "unit": "m/s",
+        "quantity": ("harmonic mean of the fitted profile (the survey's profile times the "
+                     "fitted scale) from the ship's to the transponders' mean depth, averaged "
+                     "over the survey") if refracted else
+                    "straight-ray speed, averaged over the survey",
+        "model": "one value for the survey" if not n_int else
+                 f"cubic B-spline in time, {n_int} equal intervals",
+        "speed_intervals": n_int,
+        "interval_minutes": (hi - lo) / 60.0 / n_int if n_int else None,
+        "reference_m_s": float(fit.model["unit"]) if refracted else None,
+        "coefficients": [float(v) for v in fit.speed_coef],
+        "coefficients_unit": ("scale of the profile (dimensionless: speed = scale x profile)"
+                              if refracted else "m/s"),
+        "series": speed_series(fit)}
+
+
+def residual_entry(cls) -> dict:
+    """Return the residual rms (ms) of the true replies, overall and per transponder."""
+    pinged = cls[cls["label"].isin(["true", "spurious"])]
+    true = pinged[pinged["label"] == "true"]
+
+    def rms(x):
+        x = np.asarray(x, float)
+        return float(np.sqrt(np.mean(x**2))) if x.size else None
+
+    return {"unit": "ms", "rms_true": rms(true["residual_ms"]), "n_true": int(len(true)),
+            "n_spurious": int((pinged["label"] == "spurious").sum()),
+            "n_skipped": int((cls["label"] == "skipped").sum()),
+            "per_transponder": {str(t): {"rms_true": rms(g["residual_ms"]), "n_true": int(len(g))}
+                                for t, g in true.groupby("transponder", sort=True)}}
 
 
 def _geodetic(e, n, u, origin):
@@ -153,9 +256,10 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
     rays = "straight rays" if prof is None else f"refracted rays ({prof.source or 'profile'})"
     summary = {
         "transponders": out, "array_centre": _centre_entry(fit, ci, origin),
-        "sound_speed": {**describe(fit.sound_speed, fit.sound_speed_sd, ci),
-                        "coefficients": [float(v) for v in fit.speed_coef],
-                        "unit": "m/s" if prof is None else "scale of the profile"},
+        "sound_speed": sound_speed_entry(fit, ci, prof),
+        "residuals": residual_entry(cls),
+        "site": h.get("site"), "campaign": h.get("campaign"),
+        "epoch": _epoch_entry(raw.format, shots),
         "format": raw.format, "source": raw.source, "files": h.get("files", {}),
         "n_pings": int(n), "n_skipped_lines": int(len(raw.skipped)),
         "skipped_transponders": dict(fit.skipped),
@@ -166,7 +270,9 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
         "geometry": {"frame": "local east, north, up about the origin (m)",
                      "origin": None if origin is None else dict(
                          zip(("lat", "lon", "height"), map(float, origin), strict=True)),
-                     "surface_depth": float(surface_depth)},
+                     "surface_depth": float(surface_depth),
+                     "earth": "flat: straight or refracted rays in the local frame, no Earth "
+                              "curvature"},
         "tat_fitted": False, "tat_given": 0.0,
         "position_region": f"a transponder's {100 * ci:g} % region is the ellipsoid of its "
                            f"covariance with squared radius {chi2.ppf(ci, 3):.4f}"}

@@ -117,10 +117,16 @@ def write_figures(result, out_dir, *, beacon=None, truth=None, general=True,
     if isinstance(result, SurveyInResult):
         if not result.summary.get("transponders"):
             return []
-        return [_save(survey_in_plots.plot_survey_map(result), out / "survey_map.png"),
-                _save(survey_in_plots.plot_residuals(result), out / "residuals.png"),
-                _save(survey_in_plots.plot_residual_histogram(result),
-                      out / "residual_histogram.png")]
+        paths = [_save(survey_in_plots.plot_survey_map(result), out / "survey_map.png"),
+                 _save(survey_in_plots.plot_residuals(result), out / "residuals.png"),
+                 _save(survey_in_plots.plot_residual_histogram(result),
+                       out / "residual_histogram.png")]
+        if "array_centre" in result.summary:  # GNSS-A: the array, its sound speed, per transponder
+            paths += [_save(survey_in_plots.plot_array_map(result), out / "array_map.png"),
+                      _save(survey_in_plots.plot_sound_speed(result), out / "sound_speed.png"),
+                      _save(survey_in_plots.plot_residuals_by_transponder(result),
+                            out / "residuals_by_transponder.png")]
+        return paths
     if isinstance(result, (Navigation, NavigationRecord)):
         return [_save(nav_plots.plot_nav_track(result, truth=truth), out / "nav_track.png"),
                 _save(nav_plots.plot_nav_ranges(result), out / "nav_ranges.png"),

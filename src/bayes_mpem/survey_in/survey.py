@@ -97,7 +97,7 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
     if one_at_a_time and raw.format in ARRAY_FORMATS:
         raise InputError(f"one_at_a_time: a {raw.format} survey is located as an array")
     if is_array(raw, one_at_a_time=one_at_a_time):
-        for name, given in (("fit_tat", fit_tat), ("fit_lag", fit_lag), ("lag_check", lag_check),
+        for name, given in (("fit_tat", fit_tat), ("fit_lag", fit_lag),
                             ("tat", tat not in (None, 0, 0.0))):
             if given:
                 also = " or locate one transponder at a time" if raw.format == "seagap" else ""

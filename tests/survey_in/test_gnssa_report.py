@@ -66,3 +66,23 @@ def test_write_figures_for_an_array_folder(array, tmp_path):
     assert all((tmp_path / n).stat().st_size > 10_000 for n in names)
     assert (tmp_path / "solution.txt").is_file()
     plt.close("all")
+
+
+def test_truth_is_marked_where_given(tmp_path):
+    sim = simulate_gnssa(n_transponders=3, hours=0.5, rng=1, speed_model="field")
+    res = locate_array_survey(sim.raw(), speed_intervals=3)
+    truth = sim.truth_record()
+    fig = plot_array_map(res, truth=truth)
+    ax = next(a for a in fig.axes if a.get_title().startswith("M02"))
+    t, pr = truth["transponders"]["M02"], truth["prior"]["M02"]
+    marker = next(ln for ln in ax.lines if ln.get_label().startswith("truth"))
+    assert marker.get_xydata()[0] == pytest.approx([100 * (t[c] - pr[c])
+                                                    for c in ("east", "north")])
+    fig2 = plot_sound_speed(res, truth=truth)
+    line = next(ln for ln in fig2.axes[0].lines if ln.get_label().startswith("truth"))
+    fitted = np.interp(np.asarray(truth["sound_speed"]["series"]["time_s"]) / 3600.0,
+                       fig2.axes[0].lines[0].get_xdata(), fig2.axes[0].lines[0].get_ydata())
+    assert np.abs(line.get_ydata() - fitted).max() < 0.3  # m/s: the fit follows the truth
+    names = {p.name for p in write_figures(res, tmp_path, truth=truth)}
+    assert "array_map.png" in names
+    plt.close("all")

@@ -215,7 +215,7 @@ def _ci(summary):
     return next(iter(summary["transponders"].values())).get("ci", 0.95)
 
 
-def plot_sound_speed(result, *, ax=None):
+def plot_sound_speed(result, *, ax=None, truth=None):
     """Plot the array's fitted sound speed against time, with its ``ci`` band.
 
     Parameters
@@ -224,6 +224,10 @@ def plot_sound_speed(result, *, ax=None):
         An array's (``summary["sound_speed"]["series"]``; without a series, the
         survey's one value and its interval).
     ax : matplotlib.axes.Axes, optional
+    truth : dict, optional
+        A simulated campaign's ``truth.json``
+        (:meth:`~bayes_mpem.survey_in.gnssa_simulate.GnssaSimulation.truth_record`):
+        its depth-averaged speed ``reference_m_s + dV0`` is drawn too.
 
     Returns
     -------
@@ -249,6 +253,11 @@ def plot_sound_speed(result, *, ax=None):
     if ss.get("reference_m_s") is not None:
         ax.axhline(ss["reference_m_s"], color="0.4", lw=0.8, ls="--",
                    label="the survey's profile")
+    if truth is not None:
+        ts = truth["sound_speed"]
+        ax.plot(np.asarray(ts["series"]["time_s"], float) / 3600.0,
+                ts["reference_m_s"] + np.asarray(ts["series"]["dV0_m_s"], float),
+                color="k", lw=1.0, ls=":", label="truth (depth-averaged)")
     ax.set_xlabel("time since the first shot (h)" if ser else "(one value for the survey)")
     ax.set_ylabel(f"sound speed ({ss.get('unit', 'm/s')})")
     ax.ticklabel_format(axis="y", useOffset=False)
@@ -293,7 +302,7 @@ def plot_residuals_by_transponder(result, *, fig=None):
     return fig
 
 
-def _offset_panel(ax, name, delta_cm, cov_cm, up_cm, up_sd_cm, ci):
+def _offset_panel(ax, name, delta_cm, cov_cm, up_cm, up_sd_cm, ci, true_cm=None):
     """Draw one position against its prior, in cm: the solution, its ellipse, the prior."""
     semi = _ellipse(ax, delta_cm, cov_cm, ci, color="k", lw=1.2,
                     label=f"{100 * ci:g} % ellipse")
@@ -306,6 +315,10 @@ def _offset_panel(ax, name, delta_cm, cov_cm, up_cm, up_sd_cm, ci):
     else:
         ax.text(0.03, 0.04, f"prior {dist / 100:.2f} m away", transform=ax.transAxes,
                 fontsize="x-small", color=SURVEY_IN_COLORS["spurious"])
+    if true_cm is not None:
+        ax.plot(*true_cm[:2], "o", color="k", mfc="none", ms=7,
+                label=f"truth (up {true_cm[2]:+.1f})")
+        ax.legend(fontsize="xx-small", loc="upper right")
     ax.set_xlim(delta_cm[0] - half, delta_cm[0] + half)
     ax.set_ylim(delta_cm[1] - half, delta_cm[1] + half)
     ax.set_aspect("equal")
@@ -317,7 +330,7 @@ def _offset_panel(ax, name, delta_cm, cov_cm, up_cm, up_sd_cm, ci):
     ax.set_ylabel("north - prior (cm)", fontsize="x-small")
 
 
-def plot_array_map(result, *, fig=None):
+def plot_array_map(result, *, fig=None, truth=None):
     """Plot the array: track and positions (m), each position against its prior (cm).
 
     The close-ups are east and north minus the prior position, in cm, with the
@@ -328,6 +341,9 @@ def plot_array_map(result, *, fig=None):
     result : SurveyInResult
         An array's (``summary["array_centre"]``).
     fig : matplotlib.figure.Figure, optional
+    truth : dict, optional
+        A simulated campaign's ``truth.json``: the true positions are marked in
+        the close-ups.
 
     Returns
     -------
@@ -366,11 +382,17 @@ def plot_array_map(result, *, fig=None):
     entries = [(c["enu"], np.mean(priors, axis=0), c["covariance"]["matrix"])] + [
         (s["transponders"][t]["enu"], priors[k], s["transponders"][t]["covariance"]["matrix"])
         for k, t in enumerate(tids)]
+    trues = [None] * len(names)
+    if truth is not None:
+        trues = [truth["array_centre"]] + [truth["transponders"].get(str(t)) for t in tids]
     for j, (name, (enu, pr, cov)) in enumerate(zip(names, entries, strict=True)):
         r, col = divmod(j, ncol)
         m = np.array([enu[k]["mean"] for k in ("east", "north", "up")])
         d = 100.0 * (m - pr)
+        tr = None if trues[j] is None else 100.0 * (
+            np.array([trues[j][k] for k in ("east", "north", "up")]) - pr)
         _offset_panel(fig.add_subplot(gs[r, 2 + col]), name, d[:2],
-                      1e4 * np.asarray(cov, float)[:2, :2], d[2], 100.0 * enu["up"]["sd"], ci)
+                      1e4 * np.asarray(cov, float)[:2, :2], d[2], 100.0 * enu["up"]["sd"], ci,
+                      true_cm=tr)
     fig.suptitle(f"Array: positions against their priors (cm), {100 * ci:g} % ellipses")
     return fig

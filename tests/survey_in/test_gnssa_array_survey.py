@@ -111,3 +111,15 @@ def test_solution_txt_holds_the_summary_to_the_mm(simulated, tmp_path):
         assert any(ln.startswith(tid) for ln in text.splitlines())
     assert f"{s['residuals']['rms_true']:.4f} ms" in text
     assert "SIM" in text and "cubic B-spline in time, 4 equal intervals" in text
+
+
+def test_track_geometry_tells_a_circle_from_holding_station():
+    """The shallow gradient's identifiability (docs/gnssa.md): spread over depth and azimuths."""
+    g = {tr: locate_array_survey(simulate_gnssa(n_transponders=3, hours=0.5, track=tr,
+                                                rng=2).raw()).summary["track"]
+         for tr in ("circle", "station")}
+    assert g["circle"]["spread_over_depth"] > 0.5 > 0.05 > g["station"]["spread_over_depth"]
+    for t in g["circle"]["transponders"].values():
+        assert t["azimuth_coverage_deg"] > 300 and t["max_incidence_deg"] > 45
+    for t in g["station"]["transponders"].values():
+        assert t["azimuth_coverage_deg"] < 30 and t["max_incidence_deg"] < 35

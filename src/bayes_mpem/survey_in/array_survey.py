@@ -180,6 +180,57 @@ def residual_entry(cls) -> dict:
                                 for t, g in true.groupby("transponder", sort=True)}}
 
 
+def track_geometry(shots, enu) -> dict:
+    """Return how well the ship's track surrounds the array (the gradients' identifiability).
+
+    Parameters
+    ----------
+    shots : pandas.DataFrame
+        The shots used (``transponder``, the transducer's ``e/n/u_tx`` and ``_rx``).
+    enu : dict
+        ``{id: (east, north, up)}`` of the transponders.
+
+    Returns
+    -------
+    dict
+        ``spread_over_depth``: the sd of the transducer's horizontal position
+        along its least-spread direction over the mean water depth (GARPOS's
+        shallow gradient needs about 0.3 or more; a ship holding station has
+        almost 0); per transponder ``azimuth_coverage_deg`` (360 minus the
+        largest gap between the azimuths of the ship seen from it) and
+        ``max_incidence_deg`` (the largest angle of the ray from the vertical).
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> a = np.radians(np.arange(0, 360, 10))
+    >>> e, n = 1000 * np.sin(a), 1000 * np.cos(a)
+    >>> shots = pd.DataFrame({"transponder": "A", "e_tx": e, "n_tx": n, "u_tx": 0.0,
+    ...                       "e_rx": e, "n_rx": n, "u_rx": 0.0})
+    >>> g = track_geometry(shots, {"A": (0.0, 0.0, -1000.0)})
+    >>> round(g["spread_over_depth"], 2), round(g["transponders"]["A"]["azimuth_coverage_deg"])
+    (0.72, 350)
+    """
+    e = 0.5 * (shots["e_tx"].to_numpy(float) + shots["e_rx"].to_numpy(float))
+    n = 0.5 * (shots["n_tx"].to_numpy(float) + shots["n_rx"].to_numpy(float))
+    u = 0.5 * (shots["u_tx"].to_numpy(float) + shots["u_rx"].to_numpy(float))
+    tid = shots["transponder"].astype(str).to_numpy()
+    depth = float(np.mean([u.mean() - p[2] for p in enu.values()]))
+    lam = np.linalg.eigvalsh(np.cov(np.vstack([e, n]))) if e.size > 2 else np.zeros(2)
+    out = {"spread_over_depth": float(np.sqrt(max(lam[0], 0.0)) / depth), "transponders": {}}
+    for t, p in enu.items():
+        sel = tid == str(t)
+        if not sel.any():
+            continue
+        de, dn = e[sel] - p[0], n[sel] - p[1]
+        az = np.sort(np.degrees(np.arctan2(de, dn)) % 360.0)
+        gaps = np.diff(np.concatenate([az, az[:1] + 360.0]))
+        inc = np.degrees(np.arctan2(np.hypot(de, dn), u[sel] - p[2]))
+        out["transponders"][str(t)] = {"azimuth_coverage_deg": float(360.0 - gaps.max()),
+                                       "max_incidence_deg": float(inc.max())}
+    return out
+
+
 def _geodetic(e, n, u, origin):
     """Latitude, longitude, height of a local point; None each without an origin (SeaGap)."""
     if origin is None:
@@ -258,6 +309,7 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
         "transponders": out, "array_centre": _centre_entry(fit, ci, origin),
         "sound_speed": sound_speed_entry(fit, ci, prof),
         "residuals": residual_entry(cls),
+        "track": track_geometry(sub, {t: fit.enu[k] for k, t in enumerate(fit.ids)}),
         "site": h.get("site"), "campaign": h.get("campaign"),
         "epoch": _epoch_entry(raw.format, shots),
         "format": raw.format, "source": raw.source, "files": h.get("files", {}),

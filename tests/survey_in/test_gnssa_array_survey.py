@@ -115,7 +115,7 @@ def test_solution_txt_holds_the_summary_to_the_mm(simulated, tmp_path):
 
 def test_track_geometry_tells_a_circle_from_holding_station():
     """The shallow gradient's identifiability (docs/gnssa.md): spread over depth and azimuths."""
-    g = {tr: locate_array_survey(simulate_gnssa(n_transponders=3, hours=0.5, track=tr,
+    g = {tr: locate_array_survey(simulate_gnssa(n_transponders=3, hours=1.0, track=tr,
                                                 rng=2).raw()).summary["track"]
          for tr in ("circle", "station")}
     assert g["circle"]["spread_over_depth"] > 0.5 > 0.05 > g["station"]["spread_over_depth"]

@@ -18,6 +18,7 @@ result says so (:mod:`.observability`, a
 
 from __future__ import annotations
 
+import dataclasses
 import time
 import warnings
 
@@ -27,7 +28,7 @@ from ..._rng import RNGLike, as_generator
 from ..._validate import check_choice, check_int, check_positive, check_probability
 from ...exceptions import ConvergenceWarning, InputError, NavigationWarning
 from ...io.survey import BeaconData, load_survey
-from ...mixture.densities import CLASSES
+from ...mixture.densities import CLASSES, gaussian_logpdf
 from ..em.em_result import reflector_flags
 from ..em.path_choice import AUTO, check_path_choice, choose_path
 from ..model.geometry import PATHS
@@ -47,6 +48,16 @@ from .result import Navigation
 #: over its replies, on the dead reckoning) gets no multipath class: the vehicle is at the
 #: surface and the two arrivals are one.
 MIN_SEPARATION = 1.0
+
+#: A multipath class is kept only where its bounce lags the direct path by this many scales.
+MIN_LAG_SIGMAS = 3.0
+
+#: ... and carries this many replies' worth of probability.
+MIN_MP_REPLIES = 10.0
+
+#: ... and raises the beacon's log-likelihood ratio (2 log LR) above this: calibrated on
+#: simulated dives without multipath (benchmarks/navigate_ship.py).
+MP_LR_THRESHOLD = 30.0
 
 
 def _check_reflectors(reflectors, dive: Dive) -> dict:
@@ -115,6 +126,90 @@ def _choose_paths(dive: Dive, state: State, settings: ecm.Settings, gen):
             d0[j] = max(choice.fit.d0, dive.d0_min[j])
             s_mp[j] = max(choice.fit.sigma_mp, settings.sigma_floor)
     return state.replace(double=double, d0=d0, sigma_mp=s_mp), records, changed
+
+
+def _without_multipath_loglik(ldp, lol, iters: int = 200) -> float:
+    """Log-likelihood of replies as direct path or outlier, the mixing weight refitted (EM)."""
+    w = 0.9
+    for _ in range(iters):
+        a, b = np.log(w) + ldp, np.log1p(-w) + lol
+        m = np.maximum(a, b)
+        lse = m + np.log(np.exp(a - m) + np.exp(b - m))
+        w = float(np.clip(np.mean(np.exp(a - lse)), 1e-6, 1.0 - 1e-6))
+    return float(np.add.reduce(lse))
+
+
+def multipath_support(dive: Dive, state: State, resp, lse, settings: ecm.Settings) -> dict:
+    """Decide, per beacon with an estimated multipath class, whether the data support it.
+
+    A class is kept only when (1) the fitted bounce lags the direct path by at
+    least :data:`MIN_LAG_SIGMAS` times the larger scale (median over the
+    beacon's replies; a plane at the vehicle's depth, or a vehicle at the
+    surface, makes the two arrivals one), (2) it carries at least
+    :data:`MIN_MP_REPLIES` replies' worth of probability with sigma_MP above its
+    floor and the plane no more than 10 m above the sea surface, and (3) the
+    likelihood ratio of the beacon's replies with and without it (the direct
+    path / outlier weight refitted, the track kept) exceeds
+    :data:`MP_LR_THRESHOLD`, calibrated on simulated dives without multipath
+    (``benchmarks/navigate_ship.py``).
+
+    Parameters
+    ----------
+    dive : Dive
+    state : State
+    resp : numpy.ndarray
+        ``(n, 3)`` class probabilities at ``state``.
+    lse : numpy.ndarray
+        ``(n,)`` per-reply log-likelihood at ``state``.
+    settings : ecm.Settings
+
+    Returns
+    -------
+    dict
+        ``{beacon index: (kept, lr, reason)}``; ``reason`` is None when kept.
+    """
+    pred = predictions(dive, state)
+    ldp_all = gaussian_logpdf(dive.z - pred.direct, state.sigma_dp)
+    lol_all = dive.log_ol
+    out = {}
+    for j in settings.free_d0:
+        m = dive.beacon == j
+        if not m.any():
+            continue
+        scale = max(state.sigma_dp, float(state.sigma_mp[j]))
+        lag = float(np.median(pred.multipath[m] - pred.direct[m]))
+        n_mp = float(resp[m, 1].sum())
+        plane = float(dive.beacon_xyz[j, 2] - state.d0[j])
+        lr = 2.0 * (float(np.add.reduce(lse[m]))
+                    - _without_multipath_loglik(ldp_all[m], lol_all[m]))
+        reason = None
+        if lag < MIN_LAG_SIGMAS * scale:
+            reason = (f"the fitted bounce lags the direct path by {lag:.2g} m (median), less "
+                      f"than {MIN_LAG_SIGMAS:g} sigma ({scale:.2g} m): the two arrivals cannot "
+                      "be told apart (vehicle or plane at the surface)")
+        elif n_mp < MIN_MP_REPLIES or state.sigma_mp[j] <= 1.05 * settings.sigma_floor:
+            reason = (f"only {n_mp:.1f} replies' worth of multipath (sigma_MP "
+                      f"{state.sigma_mp[j]:.2g} m): no reflector identified")
+        elif plane < -10.0:
+            reason = f"the fitted plane is {-plane:.0f} m above the sea surface"
+        elif lr < MP_LR_THRESHOLD:
+            reason = (f"likelihood ratio {lr:.1f} with / without a multipath class, below "
+                      f"{MP_LR_THRESHOLD:g}: the data do not support one")
+        out[j] = (reason is None, lr, reason)
+    return out
+
+
+def _drop_multipath(state: State, settings: ecm.Settings, drop):
+    """Return settings and state with the multipath class of ``drop`` switched off."""
+    mp = settings.mp_beacons.copy()
+    mp[list(drop)] = False
+    free = tuple(j for j in settings.free_d0 if j not in drop)
+    w = state.weights.copy()
+    for j in drop:
+        w[j, 1] = 0.0
+        w[j] /= max(w[j].sum(), 1e-300)
+    return (dataclasses.replace(settings, mp_beacons=mp, free_d0=free),
+            state.replace(weights=w))
 
 
 def _uncertainty(dive, run, settings):
@@ -374,9 +469,21 @@ def navigate(
             run = ecm.run(dive, state, settings, anneal=False)
             n_iter += run.n_iter
             timings["ecm_after_path_choice"] = time.perf_counter() - t0
+    support = {}
+    if settings.model == "mixture" and settings.fixed_resp is None and settings.free_d0:
+        t0 = time.perf_counter()
+        support = multipath_support(dive, run.state, run.resp,
+                                    ecm.e_step(dive, run.state, settings)[1], settings)
+        drop = [j for j, (kept, _, _) in support.items() if not kept]
+        if drop:
+            settings, state = _drop_multipath(run.state, settings, drop)
+            run = ecm.run(dive, state, settings, anneal=False)
+            n_iter += run.n_iter
+        timings["multipath_check"] = time.perf_counter() - t0
     if not run.converged:
         warnings.warn(f"navigate: the ECM did not converge in {n_iter} iterations; raise "
-                      "max_iter or loosen tol", ConvergenceWarning, stacklevel=2)
+                      "max_iter (--max-iter) or loosen tol (--tol)", ConvergenceWarning,
+                      stacklevel=2)
     t0 = time.perf_counter()
     cov, gsd, gcov, cross, information = _uncertainty(dive, run, settings)
     flags = observability.assess(
@@ -391,6 +498,12 @@ def navigate(
     skipped = {bid: f"beacon {bid} has no reply" for bid, c in
                zip(dive.beacon_ids, dive.replies_per_beacon(), strict=True) if c == 0}
     info = _beacon_info(dive, run, settings, fixed, records, min_pings, multipath)
+    for j, (kept, lr, reason) in support.items():
+        bid = dive.beacon_ids[j]
+        info[bid]["multipath_check"] = {"kept": kept, "likelihood_ratio": float(lr),
+                                        "threshold": MP_LR_THRESHOLD}
+        if not kept:
+            info[bid]["reason"] = "multipath class switched off: " + reason
     opts.update(oracle_classes=classes is not None, reflectors_given=sorted(fixed),
                 information=information)
     return Navigation(dive=dive, state=run.state, cov=cov, global_sd=gsd, resp=run.resp,

@@ -138,12 +138,12 @@ def test_intervals_use_the_observed_information_of_the_mixture(dives, navs):
                                           if b["d0_free"]), fixed_resp=nav.resp)
     run = ecm.Run(nav.state, nav.resp, nav.loglik, {}, 0, True)
     cov_gn, sd_gn, *_, info = driver._uncertainty(nav.dive, run, settings)
-    assert info == "class-weighted Gauss-Newton"
+    assert info == driver.INFORMATION["complete"]
     assert all(nav.global_sd[k] >= sd_gn[k] for k in sd_gn)
     assert max(nav.global_sd[k] / sd_gn[k] for k in sd_gn if k.startswith("d0")) > 1.001
     assert np.all(np.linalg.eigvalsh(nav.cov - cov_gn) > -1e-12)
     oracle = _quiet(dives[1].survey, **_oracle(dives[1]))
-    assert oracle.summary()["information"] == "class-weighted Gauss-Newton"
+    assert oracle.summary()["information"] == driver.INFORMATION["complete"]
     # the joint covariance the online filter starts from
     g = len(nav.global_sd)
     assert nav.global_cov.shape == (g, g) and nav.track_global_cov.shape == (

@@ -212,35 +212,75 @@ def _drop_multipath(state: State, settings: ecm.Settings, drop):
             state.replace(weights=w))
 
 
+def _positive_definite(step, cov) -> bool:
+    """Return whether the Schur complement and every epoch's covariance are positive definite."""
+    try:
+        if step.S.size:
+            np.linalg.cholesky(step.S)
+    except np.linalg.LinAlgError:
+        return False
+    det = cov[:, 0, 0] * cov[:, 1, 1] - cov[:, 0, 1] * cov[:, 1, 0]
+    return bool(np.all(np.isfinite(cov)) and np.all(cov[:, 0, 0] > 0) and np.all(det > 0))
+
+
+def _psd(cov):
+    """Return each 2x2 block symmetrised, its eigenvalues floored at a tiny positive value."""
+    sym = 0.5 * (cov + np.swapaxes(cov, 1, 2))
+    val, vec = np.linalg.eigh(sym)
+    val = np.maximum(val, 1e-12 * np.maximum(val.max(axis=1, keepdims=True), 1e-300))
+    return np.einsum("kab,kb,kcb->kac", vec, val, vec)
+
+
+#: Names of the information the uncertainty is taken from (``summary.json``'s ``information``).
+INFORMATION = {
+    "observed": "observed (Louis)",
+    "complete": "complete-data (class-weighted Gauss-Newton)",
+    "fallback": ("complete-data (class-weighted Gauss-Newton): the observed (Louis) information "
+                 "was not positive definite, so the intervals ignore the class uncertainty"),
+}
+
+
 def _uncertainty(dive, run, settings):
     """Track covariances, the globals' sd and covariance, and their cross-covariances (Laplace).
 
     The information is the observed one of the mixture (Louis' missing information
     of the uncertain classes subtracted from the class-weighted Gauss-Newton
-    Hessian) where the classes are estimated; a baseline's weights, or known
-    classes, keep the Gauss-Newton Hessian. Also returns which was used.
+    Hessian) where the classes are estimated and it is positive definite (the
+    Schur complement of the globals and every epoch's block); otherwise the
+    complete-data information (the class-weighted Gauss-Newton Hessian, positive
+    definite by the weak priors), and the result says so. A baseline's weights,
+    or known classes, keep the complete-data information. The heading bias,
+    speed scale and plane heights are eliminated by the Schur complement, so
+    their uncertainty is in every epoch's covariance. Also returns which
+    information was used.
     """
     a = run.resp[:, 0] / run.state.sigma_dp ** 2
     b = run.resp[:, 1] / run.state.sigma_mp[dive.beacon] ** 2
     ne = normal_equations(dive, run.state, a, b, settings.priors, settings.free_d0)
-    info = "class-weighted Gauss-Newton"
-    step = None
+    info, step, cov = INFORMATION["complete"], None, None
     if settings.model == "mixture" and settings.fixed_resp is None:
         dg, dB, dC = missing_information(dive, run.state, run.resp, settings.free_d0)
         observed = ne._replace(diag=ne.diag - dg, B=ne.B - dB, C=ne.C - dC)
         try:
-            step, ne = solve(observed), observed
-            info = "observed (Louis)"
+            step = solve(observed)
+            cov = marginal_covariances(observed, step)
         except np.linalg.LinAlgError:
-            info = ("class-weighted Gauss-Newton (the observed information was not positive "
-                    "definite)")
-    step = solve(ne) if step is None else step
+            step = None
+        if step is not None and _positive_definite(step, cov):
+            ne, info = observed, INFORMATION["observed"]
+        else:
+            step, cov, info = None, None, INFORMATION["fallback"]
+    if step is None:
+        step = solve(ne)
+        cov = marginal_covariances(ne, step)
+    if not _positive_definite(step, cov):  # rounding only: the information is positive definite
+        cov = _psd(cov)
     gcov = global_covariance(step)
     gsd = np.sqrt(np.maximum(np.diag(gcov), 0.0))
     out = {"beta": float(gsd[0]), "scale": float(gsd[1])}
     out.update({f"d0:{dive.beacon_ids[j]}": float(gsd[2 + i])
                 for i, j in enumerate(settings.free_d0)})
-    return marginal_covariances(ne, step), out, gcov, cross_covariances(step), info
+    return cov, out, gcov, cross_covariances(step), info
 
 
 def surface_separation(dive: Dive) -> np.ndarray:
@@ -505,7 +545,7 @@ def navigate(
         if not kept:
             info[bid]["reason"] = "multipath class switched off: " + reason
     opts.update(oracle_classes=classes is not None, reflectors_given=sorted(fixed),
-                information=information)
+                sigma_floor=settings.sigma_floor, information=information)
     return Navigation(dive=dive, state=run.state, cov=cov, global_sd=gsd, resp=run.resp,
                       beacons=info, skipped=skipped, flags=flags, n_iter=n_iter,
                       converged=run.converged, loglik=run.loglik, history=run.history,

@@ -10,8 +10,8 @@ covariance per epoch.
 * :func:`trilaterate`: at every epoch, the ranges within ``+- half_window``
   epochs, each moved to the epoch by the dead-reckoned displacement between
   them, are fitted by Gauss-Newton least squares for the horizontal position
-  (depth known); replies beyond ``gate`` robust sigmas are dropped and the fit
-  repeated. Covariance ``s^2 (J^T J)^{-1}`` with ``s`` the pooled residual
+  (depth known); the worst reply beyond 30 m, then beyond ``gate`` robust
+  sigmas, is dropped and the fit repeated. Covariance ``s^2 (J^T J)^{-1}`` with ``s`` the pooled residual
   scale (degrees of freedom corrected). Epochs with fewer than three ranges in
   their window, a singular fit or a residual beyond the gate keep the dead
   reckoning shifted by the last fix's offset, with an infinite covariance.
@@ -43,16 +43,16 @@ def _ranges(dive, p, m):
     return pred.direct, pred.grad_direct
 
 
-def trilaterate(dive, *, half_window: int = 2, gate: float = 4.0, iters: int = 20,
-                max_step: float = 20.0, accept: float = 10.0):
+def trilaterate(dive, *, half_window: int = 3, gate: float = 4.0, iters: int = 20,
+                max_step: float = 20.0, accept: float = 30.0):
     """Short-window least-squares fixes (see the module docstring).
 
     Parameters
     ----------
     dive : Dive
-    half_window : int, default 2
-        Epochs on either side of the fixed one (5 epochs: every beacon of a
-        four-beacon staggered schedule at least once).
+    half_window : int, default 3
+        Epochs on either side of the fixed one (7 epochs: every beacon of a
+        four-beacon staggered schedule at least once, most twice).
     gate : float, default 4
         Residuals beyond this many robust sigmas (1.4826 MAD of the pooled
         first-pass residuals) are dropped.
@@ -60,9 +60,11 @@ def trilaterate(dive, *, half_window: int = 2, gate: float = 4.0, iters: int = 2
         Gauss-Newton iterations per fix.
     max_step : float, default 20
         Longest Gauss-Newton step (m).
-    accept : float, default 10
-        A first-pass fix with a residual beyond this (m) is not a fix (a wrong
-        start); the next fix starts from the last accepted one's offset.
+    accept : float, default 30
+        First pass: the worst reply beyond this (m) is dropped and the fix
+        repeated (a multipath or an outlier, or a wrong start); second pass the
+        same beyond ``gate`` robust sigmas. A fix left with fewer than three
+        replies is no fix; the next starts from the last fix's offset.
 
     Returns
     -------
@@ -77,24 +79,29 @@ def trilaterate(dive, *, half_window: int = 2, gate: float = 4.0, iters: int = 2
     lo = np.searchsorted(ep, np.arange(k) - half_window, side="left")
     hi = np.searchsorted(ep, np.arange(k) + half_window, side="right")
 
-    def fit(p0, m, keep, kk):
+    def fit(p0, m, keep, kk, limit):
+        """Gauss-Newton fix, the worst reply beyond ``limit`` dropped and the fit repeated."""
         m = m[keep]
-        if m.size < 3:
-            return None
-        p = p0.copy()
-        shift = dive.dr[dive.epoch[m]] - dive.dr[kk]  # each reply's epoch from the fixed one
-        for _ in range(iters):
+        while m.size >= 3:
+            p = p0.copy()
+            shift = dive.dr[dive.epoch[m]] - dive.dr[kk]  # each reply's epoch from the fixed one
+            for _ in range(iters):
+                f, g = _ranges(dive, p[None, :] + shift, m)
+                try:
+                    step = np.linalg.solve(g.T @ g, g.T @ (dive.z[m] - f))
+                except np.linalg.LinAlgError:
+                    return None
+                step *= min(1.0, max_step / max(float(np.hypot(*step)), 1e-300))
+                p = p + step
+                if np.max(np.abs(step)) < 1e-4:
+                    break
             f, g = _ranges(dive, p[None, :] + shift, m)
-            try:
-                step = np.linalg.solve(g.T @ g, g.T @ (dive.z[m] - f))
-            except np.linalg.LinAlgError:
-                return None
-            step *= min(1.0, max_step / max(float(np.hypot(*step)), 1e-300))
-            p = p + step
-            if np.max(np.abs(step)) < 1e-4:
-                break
-        f, g = _ranges(dive, p[None, :] + shift, m)
-        return p, dive.z[m] - f, g
+            r = dive.z[m] - f
+            worst = int(np.argmax(np.abs(r)))
+            if abs(r[worst]) <= limit:
+                return p, r, g
+            m = np.delete(m, worst)
+        return None
 
     track = dive.dr.copy()
     jtj = np.full((k, 2, 2), np.nan)
@@ -103,8 +110,8 @@ def trilaterate(dive, *, half_window: int = 2, gate: float = 4.0, iters: int = 2
     for kk in range(k):
         m = order[lo[kk]:hi[kk]]
         p0 = dive.dr[kk] + offset
-        out = fit(p0, m, np.ones(m.size, bool), kk)
-        if out is None or np.max(np.abs(out[1])) > accept:
+        out = fit(p0, m, np.ones(m.size, bool), kk, accept)
+        if out is None:
             track[kk] = p0
             continue
         track[kk], resid[kk] = out[0], out[1]
@@ -120,8 +127,8 @@ def trilaterate(dive, *, half_window: int = 2, gate: float = 4.0, iters: int = 2
         p0 = track[kk]
         f, _ = _ranges(dive, p0[None, :] + dive.dr[dive.epoch[m]] - dive.dr[kk], m)
         keep = np.abs(dive.z[m] - f) <= gate * robust
-        out = fit(p0, m, keep, kk)
-        if out is None or np.max(np.abs(out[1])) > gate * robust:
+        out = fit(p0, m, keep, kk, gate * robust)
+        if out is None:
             resid[kk] = None
             continue
         track[kk], r, g = out

@@ -42,6 +42,6 @@ def test_reference_navigators_are_sane(row):
     """The baselines are real competitors: the EKF finds the noise level, trilateration fixes."""
     assert abs(row["EKF + RTS (estimated sigma)"]["sigma"] / 0.2 - 1) <= 0.25
     assert row["EKF + RTS (true sigma)"]["rmse"] < 1.0
-    assert np.isfinite(row["trilateration"]["rmse"]) and row["trilateration"]["rmse"] < 3.0
+    assert np.isfinite(row["trilateration"]["rmse"]) and row["trilateration"]["rmse"] < 1.5
     lines, acc = _load("navigate_ship").summarise([row], [])
     assert len(lines) == 7 and acc[0].startswith("* sigma_DP")

@@ -11,10 +11,11 @@ covariance per epoch.
   epochs, each moved to the epoch by the dead-reckoned displacement between
   them, are fitted by Gauss-Newton least squares for the horizontal position
   (depth known); the worst reply beyond 30 m, then beyond ``gate`` robust
-  sigmas, is dropped and the fit repeated. Covariance ``s^2 (J^T J)^{-1}`` with ``s`` the pooled residual
-  scale (degrees of freedom corrected). Epochs with fewer than three ranges in
-  their window, a singular fit or a residual beyond the gate keep the dead
-  reckoning shifted by the last fix's offset, with an infinite covariance.
+  sigmas, is dropped and the fit repeated. Covariance ``s^2 (J^T J)^{-1}``
+  with ``s`` the pooled residual scale (degrees of freedom corrected). Epochs
+  with fewer than three ranges left in their window, or a singular fit, keep
+  the dead reckoning shifted by the last fix's offset, with an infinite
+  covariance.
 * :func:`ekf_rts`: the state ``(x, y, beta, s)`` (position, heading bias,
   speed scale of the dead reckoning) with the motion model of
   :mod:`bayes_mpem.lbl.navigate.model` (``p_k = p_{k-1} + s R(beta) Delta_k +

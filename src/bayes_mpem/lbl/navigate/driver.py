@@ -59,6 +59,10 @@ MIN_MP_REPLIES = 10.0
 #: simulated dives without multipath (benchmarks/navigate_ship.py).
 MP_LR_THRESHOLD = 30.0
 
+#: ECM iterations before a run that has not converged has its multipath classes checked
+#: (a class that collapsed onto the direct path makes the ECM crawl).
+PROBE_ITER = 60
+
 
 def _check_reflectors(reflectors, dive: Dive) -> dict:
     out = {}
@@ -361,6 +365,77 @@ def _beacon_info(dive, run, settings, fixed, records, min_pings, multipath):
     return info
 
 
+def _merge(hist: dict, run: ecm.Run, index: int) -> None:
+    """Append a run's history to ``hist``, with the run's index in ``hist["run"]``."""
+    for k, v in run.history.items():
+        hist.setdefault(k, []).extend(v)
+    hist.setdefault("run", []).extend([index] * len(run.history.get("loglik", ())))
+
+
+def _check_multipath(dive, state, settings, support, skip=()):
+    """Check every multipath class at ``state`` (into ``support``); switch off the unsupported.
+
+    Beacons in ``skip`` (a geometry just changed, their weights not yet refitted) are
+    left alone. Returns the settings and state without them, and whether any was
+    switched off.
+    """
+    resp, lse = ecm.e_step(dive, state, settings)
+    found = {j: v for j, v in multipath_support(dive, state, resp, lse, settings).items()
+             if j not in skip}
+    support.update(found)
+    drop = [j for j, (kept, _, _) in found.items() if not kept]
+    if not drop:
+        return settings, state, False
+    settings, state = _drop_multipath(state, settings, drop)
+    return settings, state, True
+
+
+def _estimate(dive, settings, start, path, gen, timings):
+    """Run the ECM, the path choice and the multipath check, in order.
+
+    The ECM runs :data:`PROBE_ITER` iterations at most; then (``path="auto"``) each
+    beacon's geometry is chosen on the corrected track; where a geometry changed or
+    the ECM had not converged, the multipath classes whose geometry stayed are
+    checked and the ECM continues; at its end they are checked again, and the ECM
+    continues once more if one was switched off. Returns the last run (its
+    history that of every run, ``history["run"]`` numbering them), the
+    iterations, the path choices, the multipath checks and the final settings.
+    """
+    check = settings.model == "mixture" and settings.fixed_resp is None
+    hist, records, support = {}, {}, {}
+    t0 = time.perf_counter()
+    run = ecm.run(dive, start, dataclasses.replace(
+        settings, max_iter=min(settings.max_iter, PROBE_ITER)))
+    n_iter, state, again = run.n_iter, run.state, not run.converged
+    _merge(hist, run, 0)
+    timings["ecm"] = time.perf_counter() - t0
+    if path == AUTO and settings.free_d0:
+        t0 = time.perf_counter()
+        before = state.double
+        state, records, changed = _choose_paths(dive, state, settings, gen)
+        again |= changed
+        timings["path_choice"] = time.perf_counter() - t0
+    if again and n_iter < settings.max_iter:
+        t0 = time.perf_counter()
+        if check and settings.free_d0:
+            moved = () if path != AUTO else np.flatnonzero(state.double != before).tolist()
+            settings, state, _ = _check_multipath(dive, state, settings, support, moved)
+        run = ecm.run(dive, state, dataclasses.replace(
+            settings, max_iter=settings.max_iter - n_iter), anneal=False)
+        n_iter += run.n_iter
+        _merge(hist, run, 1)
+        timings["ecm_continued"] = time.perf_counter() - t0
+    if check and settings.free_d0:
+        t0 = time.perf_counter()
+        settings, state, dropped = _check_multipath(dive, run.state, settings, support)
+        if dropped:
+            run = ecm.run(dive, state, settings, anneal=False)
+            n_iter += run.n_iter
+            _merge(hist, run, 2)
+        timings["multipath_check"] = time.perf_counter() - t0
+    return run._replace(history=hist), n_iter, records, support, settings
+
+
 def _check_options(opts):
     check_choice("model", opts["model"], ecm.MODELS)
     check_choice("multipath", opts["multipath"], ecm.MULTIPATH)
@@ -497,29 +572,8 @@ def navigate(
     fixed = _check_reflectors(reflectors, dive)
     settings = _settings(dive, opts, fixed, _fixed_resp(classes, dive))
     timings = {"load": time.perf_counter() - t_start}
-    t0 = time.perf_counter()
-    run = ecm.run(dive, _start(dive, settings, path, fixed, sigma_dp), settings)
-    n_iter, records = run.n_iter, {}
-    timings["ecm"] = time.perf_counter() - t0
-    if path == AUTO and settings.free_d0:
-        t0 = time.perf_counter()
-        state, records, changed = _choose_paths(dive, run.state, settings, gen)
-        timings["path_choice"] = time.perf_counter() - t0
-        if changed:
-            run = ecm.run(dive, state, settings, anneal=False)
-            n_iter += run.n_iter
-            timings["ecm_after_path_choice"] = time.perf_counter() - t0
-    support = {}
-    if settings.model == "mixture" and settings.fixed_resp is None and settings.free_d0:
-        t0 = time.perf_counter()
-        support = multipath_support(dive, run.state, run.resp,
-                                    ecm.e_step(dive, run.state, settings)[1], settings)
-        drop = [j for j, (kept, _, _) in support.items() if not kept]
-        if drop:
-            settings, state = _drop_multipath(run.state, settings, drop)
-            run = ecm.run(dive, state, settings, anneal=False)
-            n_iter += run.n_iter
-        timings["multipath_check"] = time.perf_counter() - t0
+    run, n_iter, records, support, settings = _estimate(
+        dive, settings, _start(dive, settings, path, fixed, sigma_dp), path, gen, timings)
     if not run.converged:
         warnings.warn(f"navigate: the ECM did not converge in {n_iter} iterations; raise "
                       "max_iter (--max-iter) or loosen tol (--tol)", ConvergenceWarning,

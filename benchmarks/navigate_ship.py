@@ -84,7 +84,7 @@ def ship_dive(seed, n_cycles=1200):
     out["this model"] = {**_score(nav.track, nav.cov, truth), "sigma": nav.state.sigma_dp,
                          "seconds": sec, "mp": sum(b["mp"] for b in nav.beacons.values()),
                          "n_beacons": len(nav.beacons), "lr": _lrs(nav),
-                         "information": nav.options["information"]}
+                         "n_checked": _n_checked(nav), "information": nav.options["information"]}
     g = _navigate(sim, model="gaussian")
     out["Gaussian"] = {**_score(g.track, g.cov, truth), "sigma": g.state.sigma_dp}
     dive = build_dive(sim.survey)
@@ -98,8 +98,14 @@ def ship_dive(seed, n_cycles=1200):
 
 
 def _lrs(nav):
+    """Likelihood ratios of the beacons the ratio decided (the lag and size tests passed)."""
     return [b["multipath_check"]["likelihood_ratio"] for b in nav.beacons.values()
-            if "multipath_check" in b]
+            if "multipath_check" in b and (b["multipath_check"]["kept"]
+                                           or "likelihood ratio" in b.get("reason", ""))]
+
+
+def _n_checked(nav):
+    return sum("multipath_check" in b for b in nav.beacons.values())
 
 
 def deep_dive(seed, n_cycles=600):
@@ -108,7 +114,7 @@ def deep_dive(seed, n_cycles=600):
                         weights={b: (0.9, 0.0, 0.1) for b in ("1", "2", "3", "4")})
     nav = _navigate(sim)
     return {"mp": sum(b["mp"] for b in nav.beacons.values()), "n_beacons": len(nav.beacons),
-            "lr": _lrs(nav), "sigma": nav.state.sigma_dp,
+            "lr": _lrs(nav), "n_checked": _n_checked(nav), "sigma": nav.state.sigma_dp,
             "sigma_true": sim.simulation.truth["1"]["sigma_dp"]}
 
 
@@ -136,8 +142,10 @@ def summarise(rows, deep):
     ratio = np.array([r["this model"]["rmse"] for r in rows]) / np.array(best)
     best_pooled = min(pooled[m] for m in BASELINES)
     lr = np.concatenate([r["lr"] for r in me] + [[np.nan]])
+    n_lr = sum(len(r["lr"]) for r in me)
     d_mp, d_b = sum(d["mp"] for d in deep), sum(d["n_beacons"] for d in deep)
     d_lr = np.concatenate([d["lr"] for d in deep] + [[np.nan]])
+    d_n = sum(len(d["lr"]) for d in deep)
 
     def ok(flag):
         return "met" if flag else "**not met**"
@@ -146,8 +154,9 @@ def summarise(rows, deep):
            f"{ratio_sig.max():.3f}x over {len(me)} dives, "
            f"{ok(np.all(np.abs(ratio_sig - 1) <= 0.2))};",
            f"* a multipath class claimed on {n_mp} of {n_b} beacons ({n_mp / n_b:.1%}), "
-           f"{ok(n_mp <= 0.05 * n_b)} (likelihood ratios with / without the class: max "
-           f"{np.nanmax(lr):.1f}, threshold {_threshold():g});",
+           f"{ok(n_mp <= 0.05 * n_b)}; {n_b - n_lr} of them switched off by the lag or size "
+           f"test (the fitted bounce on the direct path), the other {n_lr} by the likelihood "
+           f"ratio (max {_max(lr)}, threshold {_threshold():g});",
            f"* 95 % ellipses hold the truth in {cov:.1%} of epochs pooled (per dive "
            f"{min(per):.1%} to {max(per):.1%}), {ok(0.90 <= cov <= 0.98)};",
            f"* RMSE / best baseline's: median {np.median(ratio):.3f}, worst dive "
@@ -159,11 +168,24 @@ def summarise(rows, deep):
     if deep:
         acc.append(f"* vehicle 30 m above the sea floor, all beacons per cycle, no multipath "
                    f"({len(deep)} dives): a multipath class claimed on {d_mp} of {d_b} beacons "
-                   f"({d_mp / d_b:.1%}); likelihood ratios max {np.nanmax(d_lr):.1f}, 95th "
-                   f"percentile {np.nanpercentile(d_lr, 95):.1f}; sigma_DP / truth "
+                   f"({d_mp / d_b:.1%}); {d_n} decided by the likelihood ratio: max "
+                   f"{_max(d_lr)}, 95th percentile {_p95(d_lr)} "
+                   f"(threshold {_threshold():g}); sigma_DP / truth "
                    f"{min(d['sigma'] / d['sigma_true'] for d in deep):.3f} to "
                    f"{max(d['sigma'] / d['sigma_true'] for d in deep):.3f}.")
     return lines, acc
+
+
+def _max(v):
+    v = np.asarray(v, float)
+    v = v[np.isfinite(v)]
+    return f"{v.max():.1f}" if v.size else "none"
+
+
+def _p95(v):
+    v = np.asarray(v, float)
+    v = v[np.isfinite(v)]
+    return f"{np.percentile(v, 95):.1f}" if v.size else "none"
 
 
 def _threshold():

@@ -58,6 +58,8 @@ def add_navigate(sub) -> None:
                    help="prior sd of the speed scale (default 0.05)")
     p.add_argument("--sigma-dp", type=opt.positive, default=None, metavar="S",
                    help="fix sigma_DP, m (default: estimated)")
+    p.add_argument("--range-scale", action="store_true",
+                   help="also estimate a range scale (a sound-speed error), prior sd 0.01")
     p.add_argument("--min-pings", type=opt.at_least(1), default=30, metavar="N",
                    help="beacons with fewer replies get no multipath class (default 30)")
     p.add_argument("--max-sd", type=opt.positive, default=10.0, metavar="M",
@@ -162,6 +164,7 @@ def navigate_kwargs(args) -> dict:
     return dict(dead_reckoning=args.dead_reckoning, multipath=args.multipath, model=args.model,
                 path=args.path, dr_noise=args.dr_noise, start_sd=args.start_sd,
                 heading_sd=args.heading_sd, scale_sd=args.scale_sd, sigma_dp=args.sigma_dp,
+                range_scale=args.range_scale,
                 min_pings=args.min_pings, max_sd=args.max_sd, max_iter=args.max_iter,
                 tol=args.tol, rng=args.seed)
 

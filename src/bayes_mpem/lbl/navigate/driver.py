@@ -260,10 +260,11 @@ def _uncertainty(dive, run, settings):
     """
     a = run.resp[:, 0] / run.state.sigma_dp ** 2
     b = run.resp[:, 1] / run.state.sigma_mp[dive.beacon] ** 2
-    ne = normal_equations(dive, run.state, a, b, settings.priors, settings.free_d0)
+    fk = settings.free_range_scale
+    ne = normal_equations(dive, run.state, a, b, settings.priors, settings.free_d0, fk)
     info, step, cov = INFORMATION["complete"], None, None
     if settings.model == "mixture" and settings.fixed_resp is None:
-        dg, dB, dC = missing_information(dive, run.state, run.resp, settings.free_d0)
+        dg, dB, dC = missing_information(dive, run.state, run.resp, settings.free_d0, fk)
         observed = ne._replace(diag=ne.diag - dg, B=ne.B - dB, C=ne.C - dC)
         try:
             step = solve(observed)
@@ -284,6 +285,8 @@ def _uncertainty(dive, run, settings):
     out = {"beta": float(gsd[0]), "scale": float(gsd[1])}
     out.update({f"d0:{dive.beacon_ids[j]}": float(gsd[2 + i])
                 for i, j in enumerate(settings.free_d0)})
+    if fk:
+        out["range_scale"] = float(gsd[-1])
     return cov, out, gcov, cross_covariances(step), info
 
 
@@ -329,6 +332,7 @@ def _settings(dive, opts, fixed, fixed_resp) -> ecm.Settings:
     return ecm.Settings(priors=pri, model=opts["model"], mp_beacons=mp, free_d0=free,
                         fixed_resp=fixed_resp, fix_sigma_mp=fix_mp,
                         fix_sigma_dp=opts["sigma_dp"] is not None,
+                        free_range_scale=bool(opts["range_scale"]),
                         anneal_start=opts["anneal_start"], max_iter=opts["max_iter"],
                         tol=opts["tol"])
 
@@ -465,6 +469,7 @@ def navigate(
     scale_sd: float = 0.05,
     plane_sd: float = 1000.0,
     sigma_dp: float | None = None,
+    range_scale: bool = False,
     classes=None,
     reflectors: dict | None = None,
     min_pings: int = 30,
@@ -511,6 +516,9 @@ def navigate(
         Prior sd (m) of each plane height about the sea surface.
     sigma_dp : float, optional
         Fix sigma_DP (m); default estimated.
+    range_scale : bool, default False
+        Also estimate a range scale: every predicted range is multiplied by it
+        (the ranges' sound speed over the true mean one), prior sd 0.01 about 1.
     classes : array_like, optional
         One class per input row (``"dp"``, ``"mp"``, ``"ol"``; anything for a
         no-reply ping): the classes are then known (the oracle of the benchmarks).
@@ -563,8 +571,8 @@ def navigate(
     t_start = time.perf_counter()
     opts = dict(multipath=multipath, model=model, path=path, dr_noise=dr_noise,
                 start_sd=start_sd, heading_sd=heading_sd, scale_sd=scale_sd, plane_sd=plane_sd,
-                sigma_dp=sigma_dp, min_pings=min_pings, anneal_start=anneal_start, max_sd=max_sd,
-                max_iter=max_iter, tol=tol, ci=ci)
+                sigma_dp=sigma_dp, range_scale=bool(range_scale), min_pings=min_pings,
+                anneal_start=anneal_start, max_sd=max_sd, max_iter=max_iter, tol=tol, ci=ci)
     _check_options(opts)
     gen = as_generator(rng)
     survey = load_survey(pings, beacons)

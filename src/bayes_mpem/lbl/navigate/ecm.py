@@ -71,6 +71,8 @@ class Settings:
     fix_sigma_mp : numpy.ndarray
         ``(B,)`` bool: keep the beacon's sigma_MP as given.
     fix_sigma_dp : bool
+    free_range_scale : bool
+        Estimate the range scale (:attr:`.objective.State.range_scale`).
     sigma_floor : float
     anneal_start : float
     huber_c, gate : float
@@ -87,6 +89,7 @@ class Settings:
     fixed_resp: np.ndarray | None = None
     fix_sigma_mp: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
     fix_sigma_dp: bool = False
+    free_range_scale: bool = False
     sigma_floor: float = 0.05
     anneal_start: float = 100.0
     huber_c: float = 1.345
@@ -180,18 +183,19 @@ def e_step(dive: Dive, state: State, settings: Settings, tau: float = 0.0):
     return resp, resp[:, 0] * gaussian_logpdf(r, s_dp)
 
 
-def _pack(state: State, free_d0):
+def _pack(state: State, free_d0, free_k=False):
     return np.concatenate([state.track.ravel(), [state.beta, state.scale],
-                           state.d0[list(free_d0)]])
+                           state.d0[list(free_d0)], [state.range_scale] if free_k else []])
 
 
-def _unpack(x, state: State, dive: Dive, free_d0):
+def _unpack(x, state: State, dive: Dive, free_d0, free_k=False):
     k = dive.n_epochs
     d0 = state.d0.copy()
     idx = list(free_d0)
-    d0[idx] = np.clip(x[2 * k + 2:], dive.d0_min[idx], None)
+    d0[idx] = np.clip(x[2 * k + 2:2 * k + 2 + len(idx)], dive.d0_min[idx], None)
+    rs = float(min(max(x[-1], 0.5), 2.0)) if free_k else state.range_scale
     return state.replace(track=x[:2 * k].reshape(k, 2), beta=float(x[2 * k]),
-                         scale=float(max(x[2 * k + 1], 1e-3)), d0=d0)
+                         scale=float(max(x[2 * k + 1], 1e-3)), d0=d0, range_scale=rs)
 
 
 def gauss_newton(dive: Dive, state: State, a, b, settings: Settings) -> State:
@@ -211,22 +215,22 @@ def gauss_newton(dive: Dive, state: State, a, b, settings: Settings) -> State:
         Where the objective is no larger than at ``state`` (plane heights kept
         above every vehicle position, the speed scale positive).
     """
-    free = settings.free_d0
+    free, fk = settings.free_d0, settings.free_range_scale
     pri = settings.priors
 
     def value(x):
-        st = _unpack(x, state, dive, free)
+        st = _unpack(x, state, dive, free, fk)
         return objective(dive, st, a, b, pri, track=st.track, beta=st.beta, scale=st.scale,
-                         d0=st.d0), st
+                         d0=st.d0, range_scale=st.range_scale), st
 
     current = objective(dive, state, a, b, pri)
     for _ in range(settings.gn_steps):
-        ne = normal_equations(dive, state, a, b, pri, free)
+        ne = normal_equations(dive, state, a, b, pri, free, fk)
         try:
             step = solve(ne)
         except np.linalg.LinAlgError:
             break
-        x = _pack(state, free)
+        x = _pack(state, free, fk)
         out = safeguarded_step(value, x, np.concatenate([step.dp.ravel(), step.dg]), current)
         if out is None:
             break
@@ -262,7 +266,8 @@ def leverages(dive: Dive, state: State, resp, settings: Settings):
     """
     a = resp[:, 0] / state.sigma_dp ** 2
     b = resp[:, 1] / state.sigma_mp[dive.beacon] ** 2
-    ne = normal_equations(dive, state, a, b, settings.priors, settings.free_d0)
+    fk = settings.free_range_scale
+    ne = normal_equations(dive, state, a, b, settings.priors, settings.free_d0, fk)
     try:
         step = solve(ne)
         cov = marginal_covariances(ne, step)
@@ -273,13 +278,23 @@ def leverages(dive: Dive, state: State, resp, settings: Settings):
     gd, gm = pred.grad_direct, pred.grad_multipath
     v_dp = np.einsum("ia,iab,ib->i", gd, pk, gd)
     v_mp = np.einsum("ia,iab,ib->i", gm, pk, gm)
-    if settings.free_d0:
+    if settings.free_d0 or fk:
         cross, gcov = cross_covariances(step), global_covariance(step)
         for col, j in enumerate(settings.free_d0, start=2):
             m = np.flatnonzero(dive.beacon == j)
             dd = pred.d_multipath_d0[m]
             v_mp[m] += (2.0 * dd * np.einsum("ia,ia->i", gm[m], cross[dive.epoch[m], :, col])
                         + dd * dd * gcov[col, col])
+        if fk:  # the range scale moves every range: f / s per unit
+            c = gcov.shape[0] - 1
+            ck = cross[dive.epoch, :, c]
+            for v, f, g in ((v_dp, pred.direct, gd), (v_mp, pred.multipath, gm)):
+                jk = f / state.range_scale
+                v += 2.0 * jk * np.einsum("ia,ia->i", g, ck) + jk * jk * gcov[c, c]
+            for col, j in enumerate(settings.free_d0, start=2):
+                m = dive.beacon == j
+                v_mp[m] += (2.0 * pred.d_multipath_d0[m] * pred.multipath[m]
+                            / state.range_scale * gcov[col, c])
     return np.maximum(v_dp, 0.0), np.maximum(v_mp, 0.0)
 
 
@@ -391,6 +406,7 @@ def run(dive: Dive, state: State, settings: Settings, *, anneal: bool = True) ->
         moved = max(float(np.max(np.abs(new.track - state.track))),
                     float(np.max(np.abs(new.d0 - state.d0), initial=0.0)),
                     abs(new.sigma_dp - state.sigma_dp),
+                    abs(new.range_scale - state.range_scale) * float(np.max(dive.z, initial=0.0)),
                     float(np.max(np.abs(new.sigma_mp - state.sigma_mp), initial=0.0)))
         state = new
         s_min = min(state.sigma_dp, float(state.sigma_mp[settings.mp_beacons].min(

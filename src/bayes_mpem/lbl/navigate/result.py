@@ -292,8 +292,11 @@ class Navigation:
                                            np.rad2deg(self.global_sd["beta"]), z),
               "speed_scale": estimate(st.scale, self.global_sd["scale"], z, lo=0.0),
               "dr_noise": self.options.get("dr_noise"), "source": d.dr_source}
+        rs = (estimate(st.range_scale, self.global_sd["range_scale"], z, lo=0.0)
+              if "range_scale" in self.global_sd else None)
         return {
             "model": self.options.get("model"), "multipath": self.options.get("multipath"),
+            "range_scale": rs,
             "beacons": beacons, "sigma_dp": beacons[next(iter(beacons))]["sigma_dp"]
             if beacons else None,
             "dead_reckoning": dr,
@@ -348,6 +351,10 @@ class Navigation:
                      f"{_num(sc['estimate'], '.4f')} (sd {_num(sc['sd'], '.4f')}); "
                      f"track sd median {_num(tr['sd_median'], '.2f')} m, "
                      f"max {_num(tr['sd_max'], '.3g')} m")
+        rs = s.get("range_scale")
+        if rs:
+            lines.append(f"range scale {_num(rs['estimate'], '.6f')} "
+                         f"(sd {_num(rs['sd'], '.6f')})")
         sdp = s.get("sigma_dp")
         if sdp:
             kind = ("given" if sdp.get("fixed") else

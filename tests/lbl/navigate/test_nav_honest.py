@@ -2,6 +2,7 @@
 scales that do not collapse, no spurious multipath class, intervals that hold, no negative
 variance, parameters at a bound with one-sided intervals."""
 
+import dataclasses
 import warnings
 
 import numpy as np
@@ -110,3 +111,24 @@ def test_a_value_at_its_bound_gets_a_one_sided_interval():
     assert e["interval"][1] == pytest.approx(2483.0 + 1.644854 * 0.04, rel=1e-6)
     assert "at_bound" not in estimate(2490.0, 0.04, 1.96, lo=2483.0)
     assert estimate(1.0, float("nan"), 1.96)["interval"] == [None, None]
+
+
+def test_range_scale_estimated_when_asked(ships, navs):
+    """Ranges 0.05 % long (a sound speed 0.75 m/s high): without the scale the track and the
+    noise level absorb it; with it the scale is found and the ellipses hold again."""
+    from bayes_mpem.io.survey import load_survey
+
+    sim = ships[0]
+    t = sim.survey.table.copy()
+    t["range"] = t["range"] * 1.0005
+    survey = load_survey(t, sim.survey.beacons.reset_index())
+    longer = dataclasses.replace(sim, simulation=dataclasses.replace(sim.simulation,
+                                                                     survey=survey))
+    nav = _nav(longer, range_scale=True)
+    s = nav.summary()
+    rs = s["range_scale"]
+    assert abs(rs["estimate"] - 1.0005) < 4 * rs["sd"] + 1e-6
+    assert 0.16 <= nav.state.sigma_dp <= 0.24
+    assert 0.85 <= _coverage(nav, sim) <= 0.995
+    assert "range scale 1.000" in nav.format_table()
+    assert navs[0].summary()["range_scale"] is None  # off by default

@@ -36,6 +36,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ...mixture.densities import gaussian_logpdf, safe_log
+from ...mixture.em import EMModel, run_em
 from ...mixture.gauss_newton import safeguarded_step
 from .dive import Dive
 from .model import class_log_joint
@@ -97,6 +98,11 @@ class Settings:
     gn_steps: int = 3
     max_iter: int = 300
     tol: float = 1e-3
+
+
+#: the keys of :attr:`Run.history`
+HISTORY = ("loglik", "log_posterior", "log_posterior_track", "anneal", "sigma_dp", "beta",
+           "scale", "moved")
 
 
 class Run(NamedTuple):
@@ -373,6 +379,67 @@ def _weights(dive, state, resp, tau):
     return resp[:, 0] / s_dp ** 2, resp[:, 1] / s_mp[dive.beacon] ** 2
 
 
+class _Iterate(NamedTuple):
+    """The ECM's parameters between two steps.
+
+    The state, the anneal floor and what the last iteration did (``it`` 0 at the start).
+    """
+
+    state: State
+    tau: float
+    it: int = 0
+    moved: float = 0.0
+    lp_track: float = 0.0
+
+
+class _NavigationECM(EMModel):
+    """The navigation ECM as an :class:`~bayes_mpem.mixture.em.EMModel`.
+
+    The E-step at the annealed scales; the M-step a track step, then the scales and weights.
+    """
+
+    def __init__(self, dive: Dive, settings: Settings):
+        self.dive, self.settings = dive, settings
+
+    def e_step(self, params):
+        resp, lse = e_step(self.dive, params.state, self.settings, params.tau)
+        return float(np.add.reduce(lse)), resp
+
+    def m_step(self, params, resp):
+        dive, settings, state, tau = self.dive, self.settings, params.state, params.tau
+        a, b = _weights(dive, state, resp, tau)
+        new = gauss_newton(dive, state, a, b, settings)
+        # the log posterior after the E- and track steps, before the scales move: the
+        # ECM guarantees it is no lower than the last iteration's (at the same scales)
+        lp_track = float(np.add.reduce(e_step(dive, new, settings, tau)[1])) - prior_penalty(
+            dive, new, settings.priors)
+        new = scales_and_weights(dive, new, resp, settings, expected=tau == 0.0)
+        moved = max(float(np.max(np.abs(new.track - state.track))),
+                    float(np.max(np.abs(new.d0 - state.d0), initial=0.0)),
+                    abs(new.sigma_dp - state.sigma_dp),
+                    abs(new.range_scale - state.range_scale) * float(np.max(dive.z, initial=0.0)),
+                    float(np.max(np.abs(new.sigma_mp - state.sigma_mp), initial=0.0)))
+        s_min = min(new.sigma_dp, float(new.sigma_mp[settings.mp_beacons].min(initial=np.inf)))
+        tau = tau * 0.5 if tau * 0.5 > s_min else 0.0
+        return _Iterate(new, tau, params.it + 1, moved, lp_track)
+
+    def change(self, old, new, gain):
+        # converged once the floor has been off for two iterations and nothing moves
+        if new.tau == 0.0 and old.tau == 0.0 and old.it > 0:
+            return new.moved
+        return np.inf
+
+    def record(self, params, loglik, resp):
+        if params.it == 0:
+            return {}  # the history keeps iterations only
+        state = params.state
+        return {"loglik": loglik,
+                "log_posterior": loglik - prior_penalty(self.dive, state, self.settings.priors),
+                "log_posterior_track": params.lp_track, "anneal": params.tau,
+                "sigma_dp": state.sigma_dp, "beta": state.beta, "scale": state.scale,
+                "moved": params.moved}
+
+
 def run(dive: Dive, state: State, settings: Settings, *, anneal: bool = True) -> Run:
     """Run the ECM loop from ``state`` to convergence or ``settings.max_iter``.
 
@@ -390,38 +457,8 @@ def run(dive: Dive, state: State, settings: Settings, *, anneal: bool = True) ->
     -------
     Run
     """
-    tau = settings.anneal_start if anneal else 0.0
-    hist = {k: [] for k in ("loglik", "log_posterior", "log_posterior_track", "anneal",
-                            "sigma_dp", "beta", "scale", "moved")}
-    converged, it = False, 0
-    resp, lse = e_step(dive, state, settings, tau)
-    for it in range(1, settings.max_iter + 1):
-        a, b = _weights(dive, state, resp, tau)
-        new = gauss_newton(dive, state, a, b, settings)
-        # the log posterior after the E- and track steps, before the scales move: the
-        # ECM guarantees it is no lower than the last iteration's (at the same scales)
-        lp_track = float(np.add.reduce(e_step(dive, new, settings, tau)[1])) - prior_penalty(
-            dive, new, settings.priors)
-        new = scales_and_weights(dive, new, resp, settings, expected=tau == 0.0)
-        moved = max(float(np.max(np.abs(new.track - state.track))),
-                    float(np.max(np.abs(new.d0 - state.d0), initial=0.0)),
-                    abs(new.sigma_dp - state.sigma_dp),
-                    abs(new.range_scale - state.range_scale) * float(np.max(dive.z, initial=0.0)),
-                    float(np.max(np.abs(new.sigma_mp - state.sigma_mp), initial=0.0)))
-        state = new
-        s_min = min(state.sigma_dp, float(state.sigma_mp[settings.mp_beacons].min(
-            initial=np.inf)))
-        tau = tau * 0.5 if tau * 0.5 > s_min else 0.0
-        resp, lse = e_step(dive, state, settings, tau)
-        ll = float(np.add.reduce(lse))
-        for key, v in (("loglik", ll), ("log_posterior", ll - prior_penalty(dive, state,
-                                                                             settings.priors)),
-                       ("log_posterior_track", lp_track), ("anneal", tau),
-                       ("sigma_dp", state.sigma_dp), ("beta", state.beta),
-                       ("scale", state.scale), ("moved", moved)):
-            hist[key].append(v)
-        if tau == 0.0 and moved < settings.tol and len(hist["anneal"]) > 1 \
-                and hist["anneal"][-2] == 0.0:
-            converged = True
-            break
-    return Run(state, resp, float(np.add.reduce(lse)), hist, it, converged)
+    start = _Iterate(state, settings.anneal_start if anneal else 0.0)
+    out = run_em(_NavigationECM(dive, settings), start, tol=settings.tol,
+                 max_iter=settings.max_iter)
+    hist = {k: list(out.history.get(k, ())) for k in HISTORY}
+    return Run(out.params.state, out.resp, out.loglik, hist, out.n_iter, out.converged)

@@ -79,10 +79,18 @@ def psis_loo(result: PosteriorResult) -> LooResult:
     Returns
     -------
     LooResult
+
+    Raises
+    ------
+    ValueError
+        When ``result`` holds no ``log_likelihood`` group.
     """
     import arviz_stats as azs
     from scipy.special import logsumexp
 
+    if "log_likelihood" not in result.idata.children:
+        raise ValueError(f"beacon {result.beacon}: PSIS-LOO needs the per-range "
+                         "log-likelihood: sample with log_likelihood=True")
     vals = result.idata.log_likelihood["z"].values  # (chain, draw, range)
     ratios = -vals.reshape(-1, vals.shape[-1])  # log importance ratios, (draws, ranges)
     n_draws = ratios.shape[0]
@@ -191,6 +199,7 @@ def compare_beacon(data: BeaconData, *, rng: RNGLike = None, learned_init=None,
     PriorComparison
     """
     gen = as_generator(rng)
+    kwargs["log_likelihood"] = True  # LOO needs it
     eq = sample_beacon(data, priors="equal", rng=gen, **kwargs)
     le = sample_beacon(data, priors="learned", rng=gen,
                        **({"init": learned_init} if learned_init is not None else {}), **kwargs)

@@ -55,15 +55,15 @@ SAMPLERS = ("auto", "independence", "ensemble")
 PARAMS = ("d0", "sigma_mp", "sigma_dp", "w_dp", "w_mp", "w_ol")
 
 
-def check_sample_options(*, priors="learned", ci=0.95, n_ensembles=1, concentration=1.0,
-                         sigma_dp=None, path="triangle", tau_factor=50.0, min_ess=1000.0,
-                         max_steps=20000, n_draws=2000, sampler="auto"):
+def check_sample_options(*, priors="learned", ci=0.95, n_ensembles=None, concentration=1.0,
+                         sigma_dp=None, path="triangle", min_ess=1000.0,
+                         max_steps=20000, n_draws=2000, sampler="auto", n_walkers=None):
     """Validate the sampler's options before any work (``ValueError`` naming the option).
 
     Parameters
     ----------
-    priors, ci, n_ensembles, concentration, sigma_dp, path, tau_factor, min_ess, max_steps, \
-n_draws, sampler
+    priors, ci, n_ensembles, concentration, sigma_dp, path, min_ess, max_steps, n_draws, \
+sampler, n_walkers
         As for :func:`~bayes_mpem.lbl.bayes.beacon_sampling.sample_beacon`.
 
     Raises
@@ -86,12 +86,14 @@ n_draws, sampler
     check_choice("sampler", sampler, SAMPLERS)
     check_probability("ci", ci)
     check_positive("concentration", concentration)
-    check_range("tau_factor", tau_factor, low=0)  # inf: stop on max_steps only
     check_range("min_ess", min_ess, low=0, include_low=True)
     check_positive("sigma_dp", sigma_dp, allow_none=True, what="a positive number")
     for name, value in (("n_ensembles", n_ensembles), ("max_steps", max_steps),
                         ("n_draws", n_draws)):
-        check_int(name, value, minimum=1)
+        if value is not None or name != "n_ensembles":
+            check_int(name, value, minimum=1)
+    if n_walkers is not None:
+        check_int("n_walkers", n_walkers, minimum=8)
 
 
 class BeaconPosterior:

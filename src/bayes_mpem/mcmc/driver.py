@@ -245,6 +245,7 @@ def run_ensembles(target, starts, *, moves, gen: np.random.Generator, min_ess=10
             need = burn + max(1.1 * min_ess / per_step, n_draws / total_walkers)
             if ess_min >= min_ess and not rhat_max < max_rhat:
                 need = max(need, 1.5 * steps)
+            need = min(need, float(max_steps))
             report.update(steps, ess_min, rhat_max, expected=need)
             if converged or steps >= max_steps:
                 break

@@ -19,6 +19,7 @@ ergodicity when ``p / q`` is bounded, as with heavier-tailed proposals).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -58,6 +59,10 @@ class TProposal:
         z = gen.standard_normal((n, d)) @ self.chol.T
         return self.centre + z * np.sqrt(self.df / gen.chisquare(self.df, size=n))[:, None]
 
+    @cached_property
+    def _inv_chol_t(self) -> np.ndarray:
+        return np.linalg.inv(self.chol).T
+
     def log_density(self, u) -> np.ndarray:
         """Log density up to a constant.
 
@@ -71,8 +76,9 @@ class TProposal:
         numpy.ndarray
             ``(n,)``.
         """
-        r = np.linalg.solve(self.chol, (np.atleast_2d(u) - self.centre).T)
-        return -0.5 * (self.df + self.centre.size) * np.log1p((r * r).sum(axis=0) / self.df)
+        r = (np.atleast_2d(u) - self.centre) @ self._inv_chol_t
+        return -0.5 * (self.df + self.centre.size) * np.log1p(
+            np.einsum("ij,ij->i", r, r) / self.df)
 
 
 def _hessian_points(u, h):

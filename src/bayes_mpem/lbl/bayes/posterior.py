@@ -258,19 +258,20 @@ class BeaconPosterior:
             ``(W,)`` log prior densities.
         """
         theta = np.atleast_2d(theta)
-        col = {n: theta[:, i] for i, n in enumerate(self.names)}
         lo, hi = self.log_sigma_bounds
-        ok = (col["d0"] >= self.d0_bounds[0]) & (col["d0"] <= self.d0_bounds[1])
-        for name in ("log_sigma_mp", "log_sigma_dp"):
-            if name in col:
-                ok &= (col[name] >= lo) & (col[name] <= hi)
+        d0 = theta[:, 0]
+        ok = (d0 >= self.d0_bounds[0]) & (d0 <= self.d0_bounds[1])
+        scales = theta[:, 1:3 if self.sigma_dp is None else 2]  # the log scales
+        ok &= np.all((scales >= lo) & (scales <= hi), axis=1)
         out = np.full(theta.shape[0], self._log_prior_const)
         if self.priors == "learned":
-            w = np.column_stack([col["w_dp"], col["w_mp"], 1.0 - col["w_dp"] - col["w_mp"]])
+            w = np.column_stack([theta[:, -2], theta[:, -1], 1.0 - theta[:, -2] - theta[:, -1]])
             ok &= np.all(w > 0, axis=1)
-            with np.errstate(invalid="ignore", divide="ignore"):
-                out += self._dirichlet_norm + (self.concentration - 1.0) * np.log(
-                    np.where(w > 0, w, 1.0)).sum(axis=1)
+            if self.concentration != 1.0:
+                with np.errstate(invalid="ignore", divide="ignore"):
+                    out += (self.concentration - 1.0) * np.log(np.where(w > 0, w, 1.0)).sum(
+                        axis=1)
+            out += self._dirichlet_norm
         out[~ok] = -np.inf
         return out
 

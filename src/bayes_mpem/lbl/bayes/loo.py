@@ -7,10 +7,7 @@ model's expected log pointwise predictive density, and the paired difference
 2017). A difference is called clear when it exceeds both two standard errors
 and 4 nats: below 4 the models predict about equally well and the normal
 approximation behind the SE is unreliable (Sivula, Magnusson & Vehtari 2020;
-Vehtari's cross-validation FAQ). On surveys simulated with equal weights the
-learned model loses 0.7-1.6 nats (the price of two extra parameters) with an
-SE of 0.6-1.4 (``docs/bayes-calibration.md``), so a 2-SE rule alone would
-sometimes "prefer" equal priors there (-1.6 +- 0.6 on one of six surveys).
+Vehtari's cross-validation FAQ; the measured case is in ``docs/bayes.md``).
 
 :func:`psis_loo` computes the LOO of one
 :class:`~bayes_mpem.lbl.bayes.beacon_sampling.PosteriorResult`

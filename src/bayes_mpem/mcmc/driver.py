@@ -121,6 +121,8 @@ class EnsembleRun:
         Mean acceptance fraction.
     ess, rhat : float
         The smallest bulk ESS and the largest R-hat (ArviZ) at the last check.
+    ess_by, rhat_by : dict
+        Each checked series' bulk ESS and R-hat at the last check.
     converged : bool
         Whether the stopping rule was met before ``max_steps``.
     status : str
@@ -138,6 +140,8 @@ class EnsembleRun:
     rhat: float
     converged: bool
     status: str
+    ess_by: dict = field(default_factory=dict, repr=False)
+    rhat_by: dict = field(default_factory=dict, repr=False)
 
 
 def _burn(samplers) -> int:
@@ -147,17 +151,17 @@ def _burn(samplers) -> int:
 
 
 def _check(chain, natural, n_ens):
-    """Smallest bulk ESS and largest R-hat of the kept chain (walkers as chains)."""
+    """Bulk ESS and R-hat of each series of the kept chain (walkers as chains): two dicts."""
     series = (natural(chain) if natural is not None
               else {i: chain[:, :, i] for i in range(chain.shape[2])})
-    ess_min, rhat_max = np.inf, 0.0
-    for v in series.values():
-        x = np.asarray(v).T  # (chain, draw)
-        ess_min = min(ess_min, ess(x))
+    ess_by, rhat_by = {}, {}
+    for k, v in series.items():
+        x = np.ascontiguousarray(np.asarray(v).T)  # (chain, draw)
+        ess_by[k] = ess(x)
         if n_ens > 1:  # an ensemble's walkers are not independent: one chain per ensemble
             x = x.reshape(n_ens, -1, x.shape[1]).transpose(0, 2, 1).reshape(n_ens, -1)
-        rhat_max = max(rhat_max, rhat(x))
-    return float(ess_min), float(rhat_max)
+        rhat_by[k] = rhat(x)
+    return ess_by, rhat_by
 
 
 def run_ensembles(target, starts, *, moves, gen: np.random.Generator, min_ess=1000.0,
@@ -238,7 +242,8 @@ def run_ensembles(target, starts, *, moves, gen: np.random.Generator, min_ess=10
             burn = min(_burn(samplers), steps - 4) if burn_in else 0
             kept = steps - burn
             chain = np.concatenate([s.get_chain(discard=burn) for s in samplers], axis=1)
-            ess_min, rhat_max = _check(chain, natural, n_ens)
+            ess_by, rhat_by = _check(chain, natural, n_ens)
+            ess_min, rhat_max = min(ess_by.values()), max(rhat_by.values())
             converged = bool(kept * total_walkers >= n_draws and ess_min >= min_ess
                              and rhat_max < max_rhat)
             per_step = max(ess_min, 1.0) / kept
@@ -266,4 +271,5 @@ def run_ensembles(target, starts, *, moves, gen: np.random.Generator, min_ess=10
     return EnsembleRun(chain=chain, log_prob=log_prob, n_ensembles=n_ens, n_walkers=n_walkers,
                        n_steps=steps, burn=burn,
                        acceptance=float(np.mean([s.acceptance_fraction for s in samplers])),
-                       ess=ess_min, rhat=rhat_max, converged=converged, status=status)
+                       ess=ess_min, rhat=rhat_max, converged=converged, status=status,
+                       ess_by=ess_by, rhat_by=rhat_by)

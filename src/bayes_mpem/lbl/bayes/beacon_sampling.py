@@ -281,11 +281,12 @@ def sample_beacon(
         extra["posterior_predictive"] = {"z": _predict(post, nat, gen)}
     idata = _datatree(post, data, nat, lp, chains.sampler, extra)
     names = sampled(post)
-    ess_ = {k: ess(idata.posterior[k].values) for k in names}
-    if run.n_ensembles > 1:
-        rhat_ = rhat_across_ensembles(idata.posterior.to_dataset()[names], run.n_ensembles)
+    if thin == 1 and idx.size == chains.chain.shape[0]:  # the draws written are those checked
+        ess_, rhat_ = dict(run.ess_by), dict(run.rhat_by)
     else:
-        rhat_ = {k: rhat(idata.posterior[k].values) for k in names}
+        ess_ = {k: ess(idata.posterior[k].values) for k in names}
+        rhat_ = (rhat_across_ensembles(idata.posterior.to_dataset()[names], run.n_ensembles)
+                 if run.n_ensembles > 1 else {k: rhat(idata.posterior[k].values) for k in names})
     tau = {k: float(idx.size * thin * theta.shape[0] / ess_[k]) for k in names}
     diagnostics = {"sampler": chains.sampler, "moves": chains.info["moves"],
                    "fallback": chains.info["fallback"], "n_walkers": run.n_walkers,

@@ -118,6 +118,15 @@ def test_falls_back_when_the_proposal_fits_poorly(post4, monkeypatch, capsys):
     assert r.sampler == "independence" and not r.run.converged
 
 
+def test_hands_over_to_de_when_the_independence_move_overruns(post4, monkeypatch):
+    monkeypatch.setattr(bc, "INDEPENDENCE_BUDGET", 20)
+    with pytest.warns(bm.exceptions.SamplingWarning, match="max_steps=300"):
+        r = beacon_chains(post4, np.random.default_rng(0), min_ess=1e6, max_steps=300,
+                          progress=False)
+    assert r.sampler == "ensemble" and "did not meet the stopping rule in 20" in \
+        r.info["fallback"]
+
+
 def test_ensembles_mean_differential_evolution(post4):
     r = beacon_chains(post4, np.random.default_rng(0), min_ess=300, n_ensembles=2,
                       progress=False)

@@ -17,7 +17,9 @@ in free coordinates (:class:`FreeCoordinates`) with
     :data:`PILOT_STEPS` steps) gives
     less than :data:`MIN_ESS_PER_DRAW` bulk ESS per draw or R-hat above
     :data:`MAX_PILOT_RHAT` (or the Hessian at the mode is not negative definite):
-    then differential evolution. The choice and its reason are recorded.
+    then differential evolution; also when the independence move has not met the
+    stopping rule after :data:`INDEPENDENCE_BUDGET` steps. The choice and its reason are
+    recorded.
 """
 
 from __future__ import annotations
@@ -37,6 +39,9 @@ MIN_ESS_PER_DRAW = 0.2
 MAX_PILOT_RHAT = 1.1
 #: walkers and steps of the pilot (discarded)
 PILOT_WALKERS, PILOT_STEPS = 32, 32
+#: with ``"auto"``, an independence move that has not met the stopping rule after this many
+#: steps (a proposal that fits poorly in a region the pilot missed) hands over to DE
+INDEPENDENCE_BUDGET = 2000
 #: degrees of freedom of the Student-t proposal
 PROPOSAL_DF = 10.0
 #: walkers of the independence move
@@ -253,10 +258,16 @@ def beacon_chains(post: BeaconPosterior, gen: np.random.Generator, *, sampler="a
                     f"draws: ESS {per_draw:.2f} per draw, R-hat {pilot.rhat:.3f}, "
                     f"acceptance {pilot.acceptance:.2f})")
         if info["fallback"] is None:
+            budget = sampler == "auto" and max_steps > INDEPENDENCE_BUDGET
             run = run_ensembles(free, [_proposal_start(free, proposal, walkers, gen)],
-                                moves=independence_move(proposal), progress=progress, **opts)
-            info.update(moves=INDEPENDENCE_LABEL, proposal_df=PROPOSAL_DF)
-            return _chains("independence", free, run, info)
+                                moves=independence_move(proposal), progress=progress,
+                                **{**opts, "max_steps": INDEPENDENCE_BUDGET if budget
+                                   else max_steps, "warn": not budget})
+            if run.converged or not budget:
+                info.update(moves=INDEPENDENCE_LABEL, proposal_df=PROPOSAL_DF)
+                return _chains("independence", free, run, info)
+            info["fallback"] = (f"the independence move did not meet the stopping rule in "
+                                f"{INDEPENDENCE_BUDGET} steps ({run.status})")
         if progress_mode(progress) == "log":
             say(post.label, f"{info['fallback']}; differential evolution instead")
     walkers = int(n_walkers or max(24, 4 * post.ndim))

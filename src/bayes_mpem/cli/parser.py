@@ -226,7 +226,7 @@ def _add_sample_compare(sub):
         p.add_argument("--draws", type=opt.at_least(10), default=2000, metavar="N",
                        help="draws kept per beacon, at least (default 2000)")
         p.add_argument("--walkers", type=opt.at_least(12, 4096), default=None, metavar="N",
-                       help="emcee walkers (default 32 with the independence proposal, "
+                       help="emcee walkers (default 16 with the independence proposal, "
                             "max(24, 4 x parameters) with differential evolution)")
         p.add_argument("--min-ess", type=opt.non_negative, default=1000.0, metavar="N",
                        help="run until the smallest bulk ESS reaches N and R-hat < 1.01 "

@@ -2,10 +2,8 @@
 
 Run from the repository root::
 
-    python benchmarks/sbc.py                 # docs page + figure (500 + 5 x 250 simulations)
+    python benchmarks/sbc.py --arms shipped --section sbc_samplers   # docs page + figure
     python benchmarks/sbc.py --quick         # 40 per arm, prints only
-    python benchmarks/sbc.py --sims 1000 --sims-other 500 --workers 2
-    python benchmarks/sbc.py --arms shipped,independence --section sbc_samplers
 
 For one design (beacon 4 of the ``abe58`` preset, 330 ping cycles; pings with a
 direct path under 200 m left out, ~300 replies), each simulation draws the
@@ -13,18 +11,13 @@ parameters from the calibration's proper prior (``bayes_mpem.lbl.bayes.sbc``: pl
 within 30 m of the sea surface, sigma_DP and sigma_MP log-uniform on 1-20 m,
 weights Dirichlet(1, 1, 1), outliers uniform over a fixed window), simulates the
 ranges from the model, samples their posterior exactly as ``bayes-mpem sample``
-does (EM start, the shipped stopping rule: an ESS of 1,000, and for the ensemble 50
-autocorrelation times), and ranks each true value among 99 draws thinned from the
-kept chain.
+does (EM start, the shipped stopping rule: bulk ESS 1,000 and R-hat < 1.01), and
+ranks each true value among 99 draws thinned from the kept chain.
 
-Six arms (``--arms``): the shipped sampler (``sampler="auto"``: independence chains
-from a Laplace proposal, the ensemble where that proposal fits poorly; 500
-simulations), and 250 each of the independence chains alone, the ensemble with
-differential evolution alone (the default before the independence chains), DE 0.8
-with the exact snooker (``bayes_mpem.mcmc.SnookerMove``) 0.2, DE 0.8 with emcee
-3.1.6's released snooker 0.2 (re-implemented in ``tests/released_snooker.py``; the
-project's default before issue 14), and DE 0.5 with the released snooker 0.5 (the
-mix the suite's small SBC must fail). Per parameter:
+Three arms (``--arms``): the shipped sampler (``sampler="auto"``: emcee with the
+independence ``MHMove``, differential evolution where a pilot finds the proposal fits
+poorly; 500 simulations), and 250 each of the independence move alone and
+differential evolution alone. Per parameter:
 the chi-square test of 10 equal rank bins and the binomial test of the share of
 ranks in the outer 10 % (a too-narrow posterior puts the truth there too often).
 A parameter passes at the 1 % level when both p-values are above 0.01.
@@ -40,7 +33,6 @@ from functools import partial
 from multiprocessing import Pool
 from pathlib import Path
 
-import emcee
 import matplotlib
 
 matplotlib.use("Agg")
@@ -51,27 +43,19 @@ sys.path.insert(0, str(ROOT / "tests"))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from _report import machine, write_section  # noqa: E402
-from released_snooker import ReleasedSnooker  # noqa: E402
 
 import bayes_mpem as bm  # noqa: E402
 from bayes_mpem.lbl.bayes.sbc import SBCResult, run_sbc, sbc_design  # noqa: E402
-from bayes_mpem.mcmc import SnookerMove  # noqa: E402
 from bayes_mpem.mcmc.sbc import rank_dispersion  # noqa: E402
 from bayes_mpem.plots.bayes import plot_sbc_ranks  # noqa: E402
 
 #: arm: (label, the options of run_sbc, made in the worker)
 ARMS = {
     "shipped": ("shipped (auto)", lambda: {"sampler": "auto"}),
-    "independence": ("independence chains alone", lambda: {"sampler": "independence"}),
-    "ensemble": ("ensemble, DE alone", lambda: {"sampler": "ensemble"}),
-    "snooker": ("DE 0.8 + exact snooker 0.2",
-                lambda: {"moves": [(emcee.moves.DEMove(), 0.8), (SnookerMove(), 0.2)]}),
-    "released-0.2": ("DE 0.8 + emcee 3.1.6 snooker 0.2",
-                     lambda: {"moves": [(emcee.moves.DEMove(), 0.8), (ReleasedSnooker(), 0.2)]}),
-    "released-0.5": ("DE 0.5 + emcee 3.1.6 snooker 0.5",
-                     lambda: {"moves": [(emcee.moves.DEMove(), 0.5), (ReleasedSnooker(), 0.5)]}),
+    "independence": ("independence MHMove alone", lambda: {"sampler": "independence"}),
+    "ensemble": ("differential evolution alone", lambda: {"sampler": "ensemble"}),
 }
-SAMPLER = {"tau_factor": 50.0, "min_ess": 1000.0}  # the shipped stopping rule
+SAMPLER = {"min_ess": 1000.0}  # the shipped stopping rule (and R-hat < 1.01)
 
 
 def design():
@@ -166,8 +150,8 @@ def main(argv=None):
         f"and sigma_MP log-uniform on {s['sigma_bounds'][0]:g}-{s['sigma_bounds'][1]:g} m, "
         f"weights Dirichlet(1, 1, 1), outliers uniform on [{s['window'][0]:.0f}, "
         f"{s['window'][1]:.0f}] m. Each simulation: prior draw, ranges from the model, EM "
-        "start, the arm's sampler to the shipped stopping rule (ESS 1,000; an ensemble also "
-        "50 tau), rank of the truth "
+        "start, the arm's sampler to the shipped stopping rule (bulk ESS 1,000, R-hat < "
+        "1.01), rank of the truth "
         f"among {next(iter(results.values())).n_draws} draws thinned from the kept chain.", "",
         "A parameter passes at the 1 % level when the chi-square test of 10 equal rank bins "
         "and the binomial test of the share of ranks in the outer 10 % (expected 10 %) both "

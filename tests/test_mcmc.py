@@ -46,46 +46,81 @@ def test_start_needs_the_em_solution(beacon4):
         BeaconPosterior(beacon4).start(24, np.random.default_rng(0))
 
 
-def test_same_seed_same_chain_and_order_of_draws():
-    def run(seed):
-        gen = np.random.default_rng(seed)
-        [r] = mcmc.run_ensembles(Gauss(), n_walkers=16, gen=gen, min_ess=0, tau_factor=5,
-                                 max_steps=3000, progress=False)
-        return r, gen.random()
+def _run(seed, **kw):
+    gen = np.random.default_rng(seed)
+    opts = {"moves": mcmc.default_moves(), "gen": gen, "min_ess": 400, "burn_in": True,
+            "progress": False, "label": "test gaussian", **kw}
+    return mcmc.run_ensembles(Gauss(), [Gauss().start(16, gen)], **opts), gen
 
-    (a, ga), (b, gb), (c, _) = run(1), run(1), run(2)
+
+def test_same_seed_same_chain_and_order_of_draws():
+    (a, ga), (b, gb), (c, _) = _run(1), _run(1), _run(2)
     np.testing.assert_array_equal(a.chain, b.chain)
-    assert ga == gb  # the generator advanced the same way
+    assert ga.random() == gb.random()  # the generator advanced the same way
     assert not np.array_equal(a.chain[-1], c.chain[-1])
     assert a.converged and a.chain.shape[1:] == (16, 2)
     assert a.log_prob.shape == a.chain.shape[:2]
 
 
+def test_stops_on_arviz_ess_and_rhat():
+    """The run stops once ArviZ's bulk ESS of the kept chain reaches the target and R-hat is
+    below 1.01, both recomputed here from the chain with arviz_stats."""
+    from arviz_stats.base import array_stats
+
+    r, _ = _run(3, min_ess=600)
+    for i in range(2):
+        x = r.chain[:, :, i].T
+        assert array_stats.ess(x, method="bulk") >= 600
+        assert array_stats.rhat(x) < 1.01
+    assert min(array_stats.ess(r.chain[:, :, i].T, method="bulk") for i in range(2)) == r.ess
+
+
+def test_independence_move_is_exact_and_needs_no_burn_in():
+    """emcee's MHMove with a deliberately offset and widened t proposal still samples the
+    target: each walker is its own chain, the mean and sd within Monte-Carlo error."""
+    target = Gauss()
+    prop = mcmc.TProposal(centre=np.array([0.5, -0.5]), chol=1.5 * np.eye(2), df=5.0)
+    gen = np.random.default_rng(0)
+    r = mcmc.run_ensembles(target, [prop.draw(32, gen)], moves=mcmc.independence_move(prop),
+                           gen=gen, min_ess=4000, progress=False)
+    assert r.burn == 0 and r.converged
+    x = r.chain.reshape(-1, 2)
+    se = 1.0 / np.sqrt(r.ess)
+    np.testing.assert_allclose(x.mean(axis=0), 0.0, atol=4 * se)
+    np.testing.assert_allclose(x.std(axis=0), 1.0, atol=4 * se)
+    assert np.corrcoef(x.T)[0, 1] == pytest.approx(0.8, abs=0.05)
+
+
+def test_laplace_proposal_finds_the_mode():
+    target = lambda u: -0.5 * ((u - 1.0) ** 2 / np.array([1.0, 4.0])).sum(axis=1)  # noqa: E731
+    q = mcmc.laplace_proposal(target, [0.0, 0.0], [1.0, 1.0])
+    np.testing.assert_allclose(q.centre, 1.0, atol=1e-6)
+    np.testing.assert_allclose(q.chol @ q.chol.T, np.diag([1.0, 4.0]), atol=1e-6)
+    assert mcmc.laplace_proposal(lambda u: 0.5 * (u ** 2).sum(axis=1), [0.0], [1.0]) is None
+
+
 def test_step_cap_warns_with_the_label():
     with pytest.warns(SamplingWarning, match=r"test gaussian: the chain reached max_steps=50"):
-        [r] = mcmc.run_ensembles(Gauss(), n_walkers=16, gen=np.random.default_rng(0),
-                                 max_steps=50, progress=False)
+        r, _ = _run(0, max_steps=50, min_ess=10_000, warn=True)
     assert not r.converged and r.n_steps == 50
 
 
 def test_progress_lines_when_not_a_terminal(capsys, monkeypatch):
-    """progress="auto" writes plain lines (label, steps, ESS against the target, seconds)
-    when standard error is not a terminal, as under pytest; a line per check with no
-    minimum interval, and the last one says whether the rule was met."""
+    """progress="auto" writes plain lines when standard error is not a terminal, as under
+    pytest: the steps, the ESS and R-hat against their targets, with thousands separators."""
     from bayes_mpem.mcmc import progress
 
     monkeypatch.setattr(progress, "LOG_INTERVAL", 0.0)
-    [r] = mcmc.run_ensembles(Gauss(), n_walkers=16, gen=np.random.default_rng(0), min_ess=200,
-                             tau_factor=5, max_steps=3000, check_every=100)
+    r, _ = _run(0, min_ess=1200, progress="auto")
     lines = capsys.readouterr().err.splitlines()
-    assert r.converged and len(lines) == r.n_steps // 100 + 1
-    assert re.fullmatch(r"\[sampler\] test gaussian: step 100 of ~\d+ \(cap 3000\), ESS \d+ of "
-                        r"200, tau \d+, \d+\.\d s", lines[0]), lines[0]
-    assert re.fullmatch(rf"\[sampler\] test gaussian: done, {r.n_steps} steps, ESS \d+ \(bulk "
-                        r"\d+\) of 200, \d+\.\d s", lines[-1]), lines[-1]
+    assert r.converged and len(lines) >= 2
+    assert re.fullmatch(r"\[sampler\] test gaussian: step \d+ of ~[\d,]+: ESS [\d,]+, target "
+                        r"1,200; R-hat \d\.\d{3}, target < 1\.01; \d+\.\d s", lines[0]), lines[0]
+    assert re.fullmatch(rf"\[sampler\] test gaussian: done, {r.n_steps:,} steps x 16 walkers: "
+                        r"ESS [\d,]+, target 1,200; R-hat \d\.\d{3}, target < 1\.01; "
+                        r"\d+\.\d s", lines[-1]), lines[-1]
     with pytest.warns(SamplingWarning):
-        mcmc.run_ensembles(Gauss(), n_walkers=16, gen=np.random.default_rng(0), max_steps=50,
-                           progress="log")
+        _run(0, max_steps=50, min_ess=10_000, progress="log")
     assert "stopped at max_steps=50, 50 steps" in capsys.readouterr().err
 
 
@@ -94,18 +129,22 @@ def test_progress_bar_total_and_modes(capsys):
     assert mcmc.progress_mode(True) == "bar" and mcmc.progress_mode(None) is None
     with pytest.raises(ValueError, match="progress: expected"):
         mcmc.progress_mode("verbose")
-    rep = mcmc.SamplingProgress("bar", "x", n_walkers=32, tau_factor=50, min_ess=1000,
-                                max_steps=20000, check_every=250)
-    rep.update(250, 40, np.inf)
-    assert rep.bar.total == 20000  # no autocorrelation time yet: the cap
-    rep.update(500, 40, 20.0)  # needs 40 + 20 x max(50, 1000 / 32) = 1040 -> 1250 steps
-    assert (rep.bar.n, rep.bar.total) == (500, 1250)
-    rep.finish(step=500, converged=True, ess=1000.0, ess_bulk=None)
-    assert "ESS 736/1000, tau 20" in capsys.readouterr().err and rep.bar is None  # 460 x 32 / 20
+    rep = mcmc.SamplingProgress("bar", "x", min_ess=1000, max_rhat=1.01, max_steps=20000,
+                                n_walkers=32)
+    rep.update(63, 1307.2, 1.004, expected=95.2)
+    assert (rep.bar.n, rep.bar.total) == (63, 96)
+    rep.finish(steps=63, converged=True, ess=1307.0, rhat=1.004)
+    assert "ESS 1,307, target 1,000; R-hat 1.004" in capsys.readouterr().err and rep.bar is None
 
 
 def test_move_policies():
     assert [(type(m).__name__, w) for m, w in mcmc.default_moves()] == [("DEMove", 1.0)]
+    prop = mcmc.TProposal(centre=np.zeros(2), chol=np.eye(2), df=10.0)
+    [(move, w)] = mcmc.independence_move(prop)
+    assert isinstance(move, emcee.moves.MHMove) and w == 1.0
+    x = np.array([[0.0, 0.0], [3.0, 1.0]])
+    new, log_ratio = move.get_proposal(x, np.random.RandomState(0))
+    np.testing.assert_allclose(log_ratio, prop.log_density(x) - prop.log_density(new))
 
 
 @pytest.mark.parametrize(("kept", "n_chains", "n_draws"), [(1000, 50, 400), (7, 4, 1000),
@@ -114,7 +153,8 @@ def test_thin_index_ends_at_the_last_step(kept, n_chains, n_draws):
     idx, thin = mcmc.thin_index(kept, n_chains, n_draws)
     assert idx[-1] == kept - 1 and idx[0] >= 0
     assert np.all(np.diff(idx) == thin)
-    assert len(idx) == max(1, min(kept, int(np.ceil(n_draws / n_chains))))
+    least = max(1, min(kept, int(np.ceil(n_draws / n_chains))))
+    assert least <= len(idx) < 2 * least + 1
 
 
 def test_draw_moments_match_a_direct_computation():
@@ -134,16 +174,18 @@ def test_draw_moments_match_a_direct_computation():
     assert mcmc.draw_moments(flat, lambda t: (None, fn(t)[1]))[0] is None
 
 
-def test_intervals_and_ess():
+def test_intervals_and_ess_are_arviz_stats():
+    from arviz_stats.base import array_stats
+
     rng = np.random.default_rng(0)
     x = rng.normal(size=20000)
     lo, hi = mcmc.hdi(x, 0.9)
+    assert [lo, hi] == pytest.approx(list(array_stats.hdi(x, 0.9)), rel=1e-12)
     assert np.mean((x >= lo) & (x <= hi)) == pytest.approx(0.9, abs=2e-3)
     assert mcmc.equal_tailed(x, 0.9) == pytest.approx(list(np.quantile(x, [0.05, 0.95])))
-    series = rng.normal(size=(2000, 8))  # (steps, walkers), independent draws
-    tau, ess = mcmc.autocorr_ess(series)
-    assert ess == pytest.approx(16000 / tau) and 0.5 < tau < 2
-    assert mcmc.bulk_ess({"x": series.T})["x"] == pytest.approx(16000, rel=0.1)
+    series = rng.normal(size=(8, 2000))  # (chain, draw), independent draws
+    assert mcmc.bulk_ess({"x": series})["x"] == pytest.approx(16000, rel=0.1)
+    assert mcmc.rhat(series) == pytest.approx(1.0, abs=0.01)
 
 
 # ----------------------------------------------------------------------- exact moves
@@ -173,18 +215,16 @@ def _sd_z(moves, ndim, seed, n_steps=6000, n_walkers=32):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("ndim", [5, 16])
+@pytest.mark.parametrize("ndim", [5])
 def test_shipped_moves_sample_a_standard_normal_exactly(ndim):
-    """The shipped moves and the exact snooker keep N(0, I): |z| < 8, i.e. about 4 standard
-    deviations of z itself (sd up to ~1.9); the released snooker sits at z -11 to -42."""
-    for moves in (mcmc.default_moves(),
-                  [(emcee.moves.DEMove(), 0.8), (mcmc.SnookerMove(), 0.2)]):
-        z, sd = _sd_z(moves, ndim, seed=ndim)
-        assert abs(z) < 8.0, (moves, sd)
+    """Differential evolution keeps N(0, I): |z| < 8, i.e. about 4 standard deviations of z
+    itself (sd up to ~1.9); the released snooker sits at z -11 to -42."""
+    z, sd = _sd_z(mcmc.default_moves(), ndim, seed=ndim)
+    assert abs(z) < 8.0, sd
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("ndim", [5, 16])
+@pytest.mark.parametrize("ndim", [5])
 def test_the_check_catches_emcee_3_1_6_snooker(ndim):
     """The released snooker in the same mix is too narrow (sd 0.96 at 5-D, 0.91 at 16-D)."""
     z, sd = _sd_z([(emcee.moves.DEMove(), 0.8), (ReleasedSnooker(), 0.2)], ndim, seed=ndim)
@@ -192,19 +232,13 @@ def test_the_check_catches_emcee_3_1_6_snooker(ndim):
 
 
 def test_to_datatree_is_arviz_from_dict():
-    """bayes_mpem builds its ArviZ data with xarray; the arrays, dims and coords are ArviZ's."""
     import arviz_base as azb
     import xarray as xr
 
     gen = np.random.default_rng(0)
-    groups = {"posterior": {"d0": gen.random((4, 5)), "m": gen.random((4, 5, 2))},
-              "log_likelihood": {"z": gen.random((4, 5, 3))},
-              "sample_stats": {"lp": gen.random((4, 5))},
-              "observed_data": {"z": gen.random(3)}}
+    groups = {"posterior": {"d0": gen.random((4, 5))}, "observed_data": {"z": gen.random(3)}}
     kw = {"dims": {"z": ["range"]}, "coords": {"range": np.arange(3) * 2}}
-    ref, ours = azb.from_dict(groups, **kw), mcmc.to_datatree(groups, **kw)
-    assert sorted(ref.children) == sorted(ours.children)
+    ref, ours = azb.from_dict(groups, **kw), mcmc.to_datatree(groups, attrs={"a": 1}, **kw)
     for g in ref.children:
         xr.testing.assert_identical(ref[g].dataset.drop_attrs(), ours[g].dataset.drop_attrs())
-        assert set(ref[g].attrs) == set(ours[g].attrs)
-    assert ours["posterior"].attrs["creation_library"] == "bayes_mpem"
+    assert ours.attrs["a"] == 1

@@ -56,6 +56,7 @@ def sample_kwargs(args) -> dict:
     return dict(path=args.path, sigma_dp=args.sigma_dp,
                 concentration=1.0 if args.concentration is None else args.concentration,
                 min_pings=args.min_pings, rng=args.seed, sampler=args.sampler,
+                n_draws=args.draws, n_walkers=args.walkers, min_ess=args.min_ess,
                 progress=False if args.no_progress else "auto")
 
 
@@ -67,6 +68,7 @@ def sample_command_kwargs(args) -> dict:
     args : argparse.Namespace
     """
     return dict(priors=args.priors, ci=args.ci, n_ensembles=args.ensembles,
+                log_likelihood=args.log_likelihood, predictive=args.predictive,
                 **sample_kwargs(args))
 
 
@@ -258,8 +260,8 @@ def cmd_sample(args) -> int:
     print(result.format_table())
     for bid, r in result.results.items():
         if not r.diagnostics["converged"]:
-            print(f"warning: beacon {bid}: chain shorter than {r.diagnostics['tau_factor']:g} "
-                  "autocorrelation times", file=sys.stderr)
+            print(f"warning: beacon {bid}: max_steps reached before the bulk ESS reached "
+                  f"{r.diagnostics['min_ess']:,.0f} and R-hat 1.01", file=sys.stderr)
     _print_written(paths)
     return 0
 

@@ -203,9 +203,16 @@ def _add_sample_compare(sub):
                            help="Dirichlet-learned mixing weights (default) or equal 1/3")
             p.add_argument("--ci", type=opt.probability, default=0.95,
                            help="probability of the highest-density intervals (default 0.95)")
-            p.add_argument("--ensembles", type=opt.at_least(1, 64), default=1, metavar="K",
-                           help="independent emcee ensembles (K > 1 implies --sampler "
-                                "ensemble); R-hat is reported when K > 1")
+            p.add_argument("--ensembles", type=opt.at_least(1, 64), default=None, metavar="K",
+                           help="independent emcee ensembles of differential evolution "
+                                "(default 2; K > 1 implies --sampler ensemble); R-hat "
+                                "compares them")
+            p.add_argument("--log-likelihood", action=argparse.BooleanOptionalAction,
+                           default=False,
+                           help="keep each range's log-likelihood at every draw in "
+                                "posterior.nc (for LOO; default: not kept)")
+            p.add_argument("--predictive", action="store_true",
+                           help="also write posterior predictive ranges (one per ping and draw)")
             p.add_argument("--figures", action="store_true", help="also write PNG figures")
             _add_table_format(p)
         p.add_argument("--path", choices=PATH_CHOICES, default="auto",
@@ -217,8 +224,17 @@ def _add_sample_compare(sub):
                        help="Dirichlet concentration of the learned weights (default 1)")
         p.add_argument("--min-pings", type=opt.min_pings, default=30, metavar="N")
         p.add_argument("--sampler", choices=["auto", "independence", "ensemble"], default="auto",
-                       help="independence chains from a Laplace proposal, emcee's ensemble, or "
-                            "the first unless its proposal fits poorly (default auto)")
+                       help="emcee's moves: an independence proposal (Laplace Student-t), "
+                            "differential evolution, or the first unless a pilot finds its "
+                            "proposal fits poorly (default auto)")
+        p.add_argument("--draws", type=opt.at_least(10), default=2000, metavar="N",
+                       help="draws kept per beacon, at least (default 2000)")
+        p.add_argument("--walkers", type=opt.at_least(12, 4096), default=None, metavar="N",
+                       help="emcee walkers (default 16 with the independence proposal, "
+                            "max(24, 4 x parameters) with differential evolution)")
+        p.add_argument("--min-ess", type=opt.non_negative, default=1000.0, metavar="N",
+                       help="run until the smallest bulk ESS reaches N and R-hat < 1.01 "
+                            "(default 1000)")
         p.add_argument("--no-progress", action="store_true",
                        help="no progress bar (terminal) or progress lines (log file)")
 

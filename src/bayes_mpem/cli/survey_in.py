@@ -112,7 +112,7 @@ def _print_transponder(tid, t, *, ci, sampled):
         lo, hi = t["depth"]["interval"]
         elo, ehi = t["em"]["depth"]["interval"]
         d = t["posterior"]["diagnostics"]
-        ess = min(v for k in ("ess", "ess_bulk") for v in t["posterior"][k].values())
+        ess = min(t["posterior"]["ess"].values())
         print(f"  depth {100 * ci:g} % interval: posterior [{lo:.2f}, {hi:.2f}] m, "
               f"EM (Wald) [{elo:.2f}, {ehi:.2f}] m; min ESS {ess:.0f}, "
               f"{d['n_steps']} steps x {d['n_walkers']} walkers, {d['seconds']:.1f} s"

@@ -1,30 +1,27 @@
-"""The emcee driver: the :class:`LogPosterior` protocol, the moves and the sampling loop.
+"""The emcee driver: the :class:`LogPosterior` protocol and the sampling loop.
 
-:func:`run_ensemble` runs one ensemble in blocks until the kept chain is long
-enough, :func:`run_ensembles` several from their own start balls and seeds, and
-:func:`place_walkers` fills a start ball inside the prior. See
-:mod:`bayes_mpem.mcmc`.
+:func:`run_ensembles` runs one or more ``emcee.EnsembleSampler`` (``vectorize=True``)
+in blocks until ArviZ's bulk ESS reaches its target and R-hat is below its bound;
+:func:`place_walkers` fills a start ball inside the prior.
 """
 
 from __future__ import annotations
 
+import math
 import warnings
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Protocol, runtime_checkable
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 
 from ..exceptions import SamplingWarning
-from .convergence import ess_bulk
 from .progress import SamplingProgress
-
-if TYPE_CHECKING:  # emcee is imported when an ensemble runs (0.5 s)
-    import emcee
+from .summaries import ess, rhat
 
 
 @runtime_checkable
 class LogPosterior(Protocol):
-    """What :func:`run_ensemble` needs of a posterior.
+    """What the samplers need of a posterior.
 
     Attributes
     ----------
@@ -58,58 +55,6 @@ class LogPosterior(Protocol):
     def __call__(self, theta: np.ndarray) -> np.ndarray:
         """Return the log posterior (up to a constant) of ``(W, ndim)``: ``(W,)``, -inf outside."""
         ...  # pragma: no cover
-
-
-# ------------------------------------------------------------------ the loop
-
-
-def _bulk_ess_min(chain):
-    """Smallest bulk ESS (ArviZ's estimator) of the columns of a ``(steps, walkers, dim)`` chain."""
-    return float(min(ess_bulk(chain[:, :, i].T) for i in range(chain.shape[2])))
-
-
-@dataclass(frozen=True)
-class EnsembleRun:
-    """One emcee ensemble run to its stopping rule (or to ``max_steps``).
-
-    Attributes
-    ----------
-    sampler : emcee.EnsembleSampler
-    burn : int
-        Steps discarded as burn-in: ``ceil(2 max tau)``.
-    tau : numpy.ndarray
-        Autocorrelation time of each parameter on the kept chain.
-    converged : bool
-        Whether the stopping rule was met before ``max_steps``.
-    status : str
-        How far the run got against each stopping test (for the warning).
-    """
-
-    sampler: emcee.EnsembleSampler = field(repr=False)
-    burn: int
-    tau: np.ndarray
-    converged: bool
-    status: str
-
-    @property
-    def chain(self) -> np.ndarray:
-        """The kept chain, ``(steps, walkers, ndim)``."""
-        return self.sampler.get_chain(discard=self.burn)
-
-    @property
-    def log_prob(self) -> np.ndarray:
-        """Log posterior of the kept chain, ``(steps, walkers)``."""
-        return self.sampler.get_log_prob(discard=self.burn)
-
-    @property
-    def acceptance(self) -> float:
-        """Mean acceptance fraction over the walkers."""
-        return float(np.mean(self.sampler.acceptance_fraction))
-
-    @property
-    def n_steps(self) -> int:
-        """Steps run, burn-in included."""
-        return int(self.sampler.iteration)
 
 
 def place_walkers(draw, inside, n_walkers: int, ndim: int, *, scale, rounds: int):
@@ -154,197 +99,177 @@ def place_walkers(draw, inside, n_walkers: int, ndim: int, *, scale, rounds: int
     return None
 
 
-#: fewest steps between two checks of the stopping rule (a check costs ~30 steps' work)
-MIN_BLOCK = 50
+#: fewest steps between two checks of the stopping rule
+MIN_BLOCK = 10
 
 
-def next_block(iteration: int, burn: int, tau: float, n_walkers: int, *, tau_factor: float,
-               min_ess: float, ess_bulk: float, check_every: int) -> int:
-    """Plan the next check: the steps to where the stopping rule should hold, plus 5 %.
+@dataclass(frozen=True)
+class EnsembleRun:
+    """One run of :func:`run_ensembles`: the kept chain and its diagnostics.
 
-    The kept chain needs ``tau_factor`` autocorrelation times and an ESS of
-    ``min_ess`` (by emcee's ``steps x walkers / tau``, scaled up by the ratio of
-    that estimate to ArviZ's bulk ESS when the bulk ESS fell short); at least
-    :data:`MIN_BLOCK` steps and at most ``check_every``, so a poor early estimate of
-    ``tau`` costs at most one block.
-
-    Parameters
+    Attributes
     ----------
-    iteration, burn : int
-        Steps run so far, and the burn-in at the current estimate.
-    tau : float
-        Largest autocorrelation time on the kept chain (inf when unknown).
-    n_walkers : int
-    tau_factor, min_ess : float
-        The stopping rule.
-    ess_bulk : float
-        Smallest bulk ESS at the last check where it was computed, else 0.
-    check_every : int
-        The largest block.
-
-    Returns
-    -------
-    int
-
-    Examples
-    --------
-    >>> next_block(250, 30, 16.0, 24, tau_factor=50, min_ess=1000, ess_bulk=0.0,
-    ...            check_every=250)
-    250
-    >>> next_block(750, 32, 16.0, 24, tau_factor=50, min_ess=1000, ess_bulk=0.0,
-    ...            check_every=250)
-    124
-    """
-    if not np.isfinite(tau):
-        return check_every
-    kept = max(iteration - burn, 1)
-    scale = 1.0
-    if ess_bulk > 0:
-        scale = max(1.0, (kept * n_walkers / tau) / ess_bulk)
-    need = burn + max(tau_factor * tau, scale * min_ess * tau / n_walkers)
-    return int(np.clip(np.ceil(1.05 * need) - iteration, MIN_BLOCK, check_every))
-
-
-def run_ensemble(post: LogPosterior, start, *, seed, moves=None, tau_factor=50.0,
-                 min_ess=1000.0, max_steps=20000, check_every=250,
-                 progress="auto"):
-    """Run one emcee ensemble until it is long enough by three measures.
-
-    The kept chain must be ``tau_factor`` autocorrelation times long, and its
-    smallest ESS must reach ``min_ess`` both by emcee's ``steps x walkers / tau``
-    and by ArviZ's rank-normalised bulk ESS (walkers as chains).
-
-    Parameters
-    ----------
-    post : LogPosterior
-        The target; only ``label`` and ``__call__`` are used here.
-    start : numpy.ndarray
-        ``(n_walkers, ndim)`` initial positions.
-    seed : int
-        Seeds emcee's random state.
-    moves : list, optional
-        emcee moves (default: :func:`default_moves`).
-    tau_factor : float, default 50
-        Kept steps needed, in autocorrelation times.
-    min_ess : float, default 1000
-        Per ensemble; 0 to stop on ``tau_factor`` alone.
-    max_steps : int, default 20000
-        Step cap.
-    check_every : int, default 250
-        The most steps between two checks of the stopping rule; after the first
-        block, the next check is planned where the rule should hold
-        (:func:`next_block`).
-    progress : bool or {"auto", "bar", "log"}
-        A bar with the expected steps as its total (``"bar"``, True), one line of
-        progress every few seconds on standard error (``"log"``), either as standard
-        error is a terminal or not (``"auto"``), or nothing (False); see
-        :mod:`bayes_mpem.mcmc.progress`.
-
-    Returns
-    -------
-    sampler : emcee.EnsembleSampler
-    burn : int
-        Steps discarded as burn-in: ``ceil(2 max tau)``.
-    tau : numpy.ndarray
-        Autocorrelation time of each parameter on the kept chain.
+    chain : numpy.ndarray
+        ``(steps, walkers, ndim)`` after burn-in, the walkers of every ensemble side by side.
+    log_prob : numpy.ndarray
+        ``(steps, walkers)`` target log density of the kept chain.
+    n_ensembles, n_walkers : int
+        Ensembles, and walkers per ensemble.
+    n_steps, burn : int
+        Steps run per ensemble, and steps discarded as burn-in.
+    acceptance : float
+        Mean acceptance fraction.
+    ess, rhat : float
+        The smallest bulk ESS and the largest R-hat (ArviZ) at the last check.
+    ess_by, rhat_by : dict
+        Each checked series' bulk ESS and R-hat at the last check.
     converged : bool
+        Whether the stopping rule was met before ``max_steps``.
     status : str
-        How far the run got against each stopping test (for the warning).
-
-    See Also
-    --------
-    run_ensembles : several ensembles, as an :class:`EnsembleRun` each.
+        The stopping rule's state, in words.
     """
-    import emcee  # here: importing emcee costs 0.5 s (scipy.stats), idle on independence chains
 
-    from .moves import default_moves
-
-    n_walkers, ndim = start.shape
-    sampler = emcee.EnsembleSampler(n_walkers, ndim, post, vectorize=True,
-                                    moves=moves or default_moves())
-    sampler.random_state = np.random.RandomState(seed % 2**32).get_state()
-    report = SamplingProgress(progress, post.label, n_walkers=n_walkers,
-                              tau_factor=tau_factor, min_ess=min_ess, max_steps=max_steps,
-                              check_every=check_every)
-    state, burn, tau, converged = start, 0, np.full(ndim, np.inf), False
-    ess_bulk, block = None, check_every
-    try:
-        while sampler.iteration < max_steps:
-            block = min(block, max_steps - sampler.iteration)
-            state = sampler.run_mcmc(state, block, progress=False)
-            tau_all = sampler.get_autocorr_time(tol=0, quiet=True)
-            burn = int(np.ceil(2.0 * np.max(tau_all)))
-            kept = sampler.iteration - burn
-            if kept > 0:
-                tau = sampler.get_autocorr_time(discard=burn, tol=0, quiet=True)
-            report.update(sampler.iteration, burn, float(np.max(tau)))
-            long_enough = (kept > 0 and np.all(np.isfinite(tau))
-                           and kept >= tau_factor * np.max(tau)
-                           and kept * n_walkers / np.max(tau) >= min_ess)
-            if long_enough:
-                ess_bulk = (_bulk_ess_min(sampler.get_chain(discard=burn)) if min_ess > 0
-                            else np.inf)
-                if ess_bulk >= min_ess:
-                    converged = True
-                    break
-            block = next_block(sampler.iteration, burn, np.max(tau), n_walkers,
-                               tau_factor=tau_factor, min_ess=min_ess,
-                               ess_bulk=ess_bulk or 0.0, check_every=check_every)
-    finally:
-        report.close()
-    kept = sampler.iteration - burn
-    ess = max(kept, 0) * n_walkers / np.max(tau)
-    report.finish(step=sampler.iteration, converged=converged, ess=ess, ess_bulk=ess_bulk)
-    status = (f"{sampler.iteration} steps, burn-in {burn}, kept {kept} = "
-              f"{kept / np.max(tau):.1f} tau (needs {tau_factor:g}), emcee ESS "
-              f"{ess:.0f} and bulk ESS {ess_bulk or 0:.0f} (need {min_ess:g})")
-    return sampler, burn, tau, converged, status
+    chain: np.ndarray = field(repr=False)
+    log_prob: np.ndarray = field(repr=False)
+    n_ensembles: int
+    n_walkers: int
+    n_steps: int
+    burn: int
+    acceptance: float
+    ess: float
+    rhat: float
+    converged: bool
+    status: str
+    ess_by: dict = field(default_factory=dict, repr=False)
+    rhat_by: dict = field(default_factory=dict, repr=False)
 
 
-def run_ensembles(post: LogPosterior, *, n_walkers: int, gen: np.random.Generator,
-                  n_ensembles: int = 1, where: str = "", stacklevel: int = 2,
-                  **options) -> list[EnsembleRun]:
-    """Run independent ensembles, each from ``post.start`` and its own seed from ``gen``.
+def _burn(samplers) -> int:
+    """Burn-in: twice the largest autocorrelation time (emcee's estimate) over the ensembles."""
+    tau = max(float(np.max(s.get_autocorr_time(tol=0, quiet=True))) for s in samplers)
+    return int(math.ceil(2.0 * tau)) if math.isfinite(tau) else samplers[0].iteration // 2
 
-    Draws from ``gen`` in this order, per ensemble: the start ball, then the seed.
+
+def _check(chain, natural, n_ens):
+    """Bulk ESS and R-hat of each series of the kept chain (walkers as chains): two dicts."""
+    series = (natural(chain) if natural is not None
+              else {i: chain[:, :, i] for i in range(chain.shape[2])})
+    ess_by, rhat_by = {}, {}
+    for k, v in series.items():
+        x = np.ascontiguousarray(np.asarray(v).T)  # (chain, draw)
+        ess_by[k] = ess(x)
+        if n_ens > 1:  # an ensemble's walkers are not independent: one chain per ensemble
+            x = x.reshape(n_ens, -1, x.shape[1]).transpose(0, 2, 1).reshape(n_ens, -1)
+        rhat_by[k] = rhat(x)
+    return ess_by, rhat_by
+
+
+def run_ensembles(target, starts, *, moves, gen: np.random.Generator, min_ess=1000.0,
+                  max_rhat=1.01, n_draws=2000, max_steps=20000, check_every=500,
+                  burn_in=False, natural=None, progress="auto", label="", warn=True,
+                  stacklevel=2) -> EnsembleRun:
+    """Run emcee ensembles until the bulk ESS reaches ``min_ess`` and R-hat < ``max_rhat``.
+
+    Every check uses ArviZ's rank-normalised estimators on the kept chain, walkers as
+    chains (exact for an independence move, where every walker is its own Markov
+    chain); with several ensembles R-hat compares the ensembles.
 
     Parameters
     ----------
-    post : LogPosterior
-        The target.
-    n_walkers : int
-        Walkers per ensemble.
+    target : callable
+        Log density of ``(W, ndim)`` points (``-inf`` outside the support).
+    starts : list of numpy.ndarray
+        ``(walkers, ndim)`` start of each ensemble.
+    moves : list
+        emcee's ``moves`` (:mod:`bayes_mpem.mcmc.moves`).
     gen : numpy.random.Generator
-        The only source of randomness.
-    n_ensembles : int, default 1
-        Independent ensembles.
-    where : str, default ""
-        Names the posterior in the warning (e.g. ``"beacon 4"``); default its ``label``.
+        Seeds each ensemble's emcee random state: same seed, same chain.
+    min_ess : float, default 1000
+        Target of the smallest bulk ESS (0: no target).
+    max_rhat : float, default 1.01
+        Bound of the largest R-hat.
+    n_draws : int, default 2000
+        The kept chain has at least this many draws (walkers x steps) before it stops.
+    max_steps : int, default 20000
+        Step cap per ensemble.
+    check_every : int, default 500
+        The most steps between two checks; between, the steps to the target are
+        extrapolated from the ESS per step so far.
+    burn_in : bool, default False
+        Discard twice the autocorrelation time (emcee's estimate) as burn-in; an
+        independence move started at proposal draws needs none.
+    natural : callable, optional
+        ``natural(chain)`` returns the ``(steps, walkers)`` series whose ESS and
+        R-hat are checked (default: the coordinates).
+    progress : bool or {"auto", "bar", "log"}
+        See :mod:`bayes_mpem.mcmc.progress`.
+    label : str
+        Names the posterior in progress lines and the warning.
+    warn : bool, default True
+        Warn when ``max_steps`` is reached first.
     stacklevel : int, default 2
-        Of the warning, counted from the caller of this function.
-    **options
-        ``moves``, ``tau_factor``, ``min_ess``, ``max_steps``, ``progress``, as
-        for :func:`run_ensemble`.
+        Of the warning.
 
     Returns
     -------
-    list of EnsembleRun
+    EnsembleRun
 
     Warns
     -----
     SamplingWarning
-        When an ensemble reaches ``max_steps`` before its stopping rule.
+        When ``max_steps`` is reached before the stopping rule (and ``warn``).
     """
-    runs = []
-    for _ in range(int(n_ensembles)):
-        start = post.start(n_walkers, gen)
-        runs.append(EnsembleRun(*run_ensemble(post, start, seed=int(gen.integers(2**63)),
-                                              **options)))
-    if not all(r.converged for r in runs):
-        max_steps = options.get("max_steps", 20000)
-        warnings.warn(f"{where or post.label}: the chain reached max_steps={max_steps} before "
-                      "meeting its stopping rule: "
-                      + "; ".join(r.status for r in runs if not r.converged)
-                      + "; estimates may be unreliable",
+    import emcee
+
+    n_ens, (n_walkers, ndim) = len(starts), starts[0].shape
+    total_walkers = n_ens * n_walkers
+    samplers, states = [], []
+    for start in starts:
+        sampler = emcee.EnsembleSampler(n_walkers, ndim, target, vectorize=True, moves=moves)
+        sampler.random_state = np.random.RandomState(int(gen.integers(2**32))).get_state()
+        samplers.append(sampler)
+        states.append(emcee.State(np.array(start, float), log_prob=target(start)))
+    report = SamplingProgress(progress, label, min_ess=min_ess, max_rhat=max_rhat,
+                              max_steps=max_steps, n_walkers=total_walkers)
+    block = max(MIN_BLOCK, math.ceil(n_draws / total_walkers))
+    burn, ess_min, rhat_max, converged = 0, 0.0, np.inf, False
+    try:
+        while True:
+            block = min(block, max_steps - samplers[0].iteration)
+            for i, sampler in enumerate(samplers):
+                states[i] = sampler.run_mcmc(states[i], block, skip_initial_state_check=True)
+            steps = samplers[0].iteration
+            burn = min(_burn(samplers), steps - 4) if burn_in else 0
+            kept = steps - burn
+            chain = np.concatenate([s.get_chain(discard=burn) for s in samplers], axis=1)
+            ess_by, rhat_by = _check(chain, natural, n_ens)
+            ess_min, rhat_max = min(ess_by.values()), max(rhat_by.values())
+            converged = bool(kept * total_walkers >= n_draws and ess_min >= min_ess
+                             and rhat_max < max_rhat)
+            per_step = max(ess_min, 1.0) / kept
+            need = burn + max(1.1 * min_ess / per_step, n_draws / total_walkers)
+            if ess_min >= min_ess and not rhat_max < max_rhat:
+                need = max(need, 1.5 * steps)
+            need = min(need, float(max_steps))
+            report.update(steps, ess_min, rhat_max, expected=need)
+            if converged or steps >= max_steps:
+                break
+            block = int(np.clip(math.ceil(need - steps), max(MIN_BLOCK, steps // 10),
+                                check_every))
+    finally:
+        report.close()
+    steps = samplers[0].iteration
+    report.finish(steps=steps, converged=converged, ess=ess_min, rhat=rhat_max)
+    status = (f"{steps} steps x {total_walkers} walkers, burn-in {burn}, bulk ESS "
+              f"{ess_min:,.0f} (target {min_ess:,.0f}), R-hat {rhat_max:.3f} "
+              f"(target < {max_rhat:g})")
+    if warn and not converged:
+        warnings.warn(f"{label}: the chain reached max_steps={max_steps} before meeting its "
+                      f"stopping rule: {status}; estimates may be unreliable",
                       SamplingWarning, stacklevel=stacklevel + 1)
-    return runs
+    log_prob = np.concatenate([s.get_log_prob(discard=burn) for s in samplers], axis=1)
+    return EnsembleRun(chain=chain, log_prob=log_prob, n_ensembles=n_ens, n_walkers=n_walkers,
+                       n_steps=steps, burn=burn,
+                       acceptance=float(np.mean([s.acceptance_fraction for s in samplers])),
+                       ess=ess_min, rhat=rhat_max, converged=converged, status=status,
+                       ess_by=ess_by, rhat_by=rhat_by)

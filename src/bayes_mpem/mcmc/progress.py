@@ -1,18 +1,15 @@
 """Progress of a sampling run: a bar on a terminal, plain lines in a log file.
 
-:func:`run_ensemble` reports after every block of steps to a :class:`SamplingProgress`.
-On a terminal it draws a tqdm bar whose total is the number of steps the stopping rule
-is expected to need (re-estimated at each check from the autocorrelation time, capped
-at ``max_steps``), with the ESS against its target beside it. When standard error is
-not a terminal (a log file, a batch job) it prints one line instead, at the first
-check, then at most every :data:`LOG_INTERVAL` seconds, and at the end::
+:func:`~bayes_mpem.mcmc.driver.run_ensembles` reports after every check to a
+:class:`SamplingProgress`. On a terminal it draws a tqdm bar whose total is the steps
+the stopping rule is expected to need, with the ESS and R-hat against their targets
+beside it. When standard error is not a terminal it prints one line instead, at the
+first check, then at most every :data:`LOG_INTERVAL` seconds, and at the end::
 
-    [sampler] beacon 4 (learned priors): step 250 of ~4250 (cap 20000), ESS 64 of 1000,
-    tau 21, 0.6 s
-    [sampler] beacon 4 (learned priors): done, 4250 steps, ESS 1012 (bulk 1034) of 1000,
-    8.6 s
+    [sampler] beacon 4 (learned priors): done, 63 steps x 32 walkers: ESS 1,307,
+    target 1,000; R-hat 1.004, target < 1.01; 0.2 s
 
-(one line each, cut here).
+(one line, cut here).
 
 ``progress`` arguments everywhere (:func:`bayes_mpem.sample`, :func:`bayes_mpem.compare`,
 :func:`~bayes_mpem.survey_in.location_sampling.locate_survey_bayes`, ...) take
@@ -88,93 +85,63 @@ def progress_bar(progress, desc: str, total: int | None = None):
 
 
 class SamplingProgress:
-    """Report one ensemble's run: a bar or log lines, by :func:`progress_mode`.
+    """Report a run of :func:`~bayes_mpem.mcmc.driver.run_ensembles`: a bar or log lines.
 
     Parameters
     ----------
     progress : bool, None or {"auto", "bar", "log"}
+        As for :func:`progress_mode`.
     label : str
         Names the run (e.g. ``"beacon 4 (learned priors)"``).
-    n_walkers : int
-    tau_factor, min_ess : float
-        The stopping rule (:func:`~bayes_mpem.mcmc.driver.run_ensemble`).
+    min_ess, max_rhat : float
+        The stopping rule.
     max_steps : int
         The step cap.
-    check_every : int, default 1
-        Steps between two checks of the stopping rule (the expected total is rounded up
-        to a multiple of it).
+    n_walkers : int
+        Walkers over all ensembles.
     stream : file-like, optional
         Where the lines go (default: standard error).
     """
 
-    def __init__(self, progress, label: str, *, n_walkers: int, tau_factor: float,
-                 min_ess: float, max_steps: int, check_every: int = 1,
-                 stream=None) -> None:
+    def __init__(self, progress, label: str, *, min_ess: float, max_rhat: float,
+                 max_steps: int, n_walkers: int, stream=None) -> None:
         self.mode = progress_mode(progress)
         self.label, self.n_walkers = label, int(n_walkers)
-        self.tau_factor, self.min_ess, self.max_steps = tau_factor, min_ess, int(max_steps)
-        self.check_every, self.stream = max(int(check_every), 1), stream
+        self.min_ess, self.max_rhat, self.max_steps = min_ess, max_rhat, int(max_steps)
+        self.stream = stream
         self.t0 = self.last_line = time.perf_counter()
         self.lines = 0
         self.bar = progress_bar(self.mode, label, total=self.max_steps) if self.mode else None
 
-    def expected_steps(self, burn: int, tau: float) -> int:
-        """Return the steps the stopping rule needs at autocorrelation time ``tau``, capped.
+    def _rule(self, ess: float, rhat: float) -> str:
+        return (f"ESS {_count(ess)}, target {_count(self.min_ess)}; R-hat {rhat:.3f}, "
+                f"target < {self.max_rhat:g}")
 
-        Parameters
-        ----------
-        burn : int
-            The current burn-in (steps).
-        tau : float
-            The largest autocorrelation time on the kept chain (steps).
-
-        Returns
-        -------
-        int
-            ``burn + tau * max(tau_factor, min_ess / n_walkers)``, rounded up to a whole
-            number of checks, at most ``max_steps`` (``max_steps`` while ``tau`` is not
-            finite).
-
-        Examples
-        --------
-        >>> p = SamplingProgress(False, "x", n_walkers=32, tau_factor=50, min_ess=1000,
-        ...                      max_steps=20000)
-        >>> p.expected_steps(40, 20.0)
-        1040
-        """
-        if not math.isfinite(tau):
-            return self.max_steps
-        need = burn + tau * max(self.tau_factor, self.min_ess / self.n_walkers)
-        need = math.ceil(need / self.check_every) * self.check_every
-        return int(min(self.max_steps, need))
-
-    def update(self, step: int, burn: int, tau: float) -> None:
+    def update(self, step: int, ess: float, rhat: float, *, expected: float) -> None:
         """Report the state after ``step`` steps.
 
         Parameters
         ----------
         step : int
             Steps run so far.
-        burn : int
-            The current burn-in.
-        tau : float
-            The largest autocorrelation time on the kept chain (inf before there is one).
+        ess, rhat : float
+            The smallest bulk ESS and largest R-hat of the kept chain.
+        expected : float
+            Steps the stopping rule is expected to need.
         """
         if self.mode is None:
             return
-        kept = max(step - burn, 0)
-        ess = kept * self.n_walkers / tau if math.isfinite(tau) and tau > 0 else 0.0
-        total = max(self.expected_steps(burn, tau), step)
+        total = int(min(self.max_steps, max(step, math.ceil(expected))))
         if self.bar is not None:
             self.bar.total = total
             self.bar.update(step - self.bar.n)
-            self.bar.set_postfix_str(f"ESS {ess:.0f}/{self.min_ess:g}, tau {tau:.0f}")
+            self.bar.set_postfix_str(self._rule(ess, rhat))
             return
         now = time.perf_counter()
         if self.lines and now - self.last_line < LOG_INTERVAL:
             return
-        self._say(f"step {step} of ~{total} (cap {self.max_steps}), ESS {ess:.0f} of "
-                  f"{self.min_ess:g}, tau {tau:.0f}, {now - self.t0:.1f} s")
+        self._say(f"step {_count(step)} of ~{_count(total)}: {self._rule(ess, rhat)}; "
+                  f"{now - self.t0:.1f} s")
         self.last_line = now
 
     def close(self) -> None:
@@ -183,31 +150,39 @@ class SamplingProgress:
             self.bar.close()
             self.bar = None
 
-    def finish(self, *, step: int, converged: bool, ess: float, ess_bulk: float | None) -> None:
+    def finish(self, *, steps: int, converged: bool, ess: float, rhat: float) -> None:
         """Print the last line (log mode) and close the bar.
 
         Parameters
         ----------
-        step : int
+        steps : int
             Steps run.
         converged : bool
             Whether the stopping rule was met.
-        ess : float
-            The smallest ESS by emcee's estimate.
-        ess_bulk : float or None
-            The smallest ArviZ bulk ESS (None when the run never got far enough to need it).
+        ess, rhat : float
+            The smallest bulk ESS and largest R-hat at the end.
         """
         self.close()
         if self.mode != "log":
             return
-        how = "done" if converged else f"stopped at max_steps={self.max_steps}"
-        bulk = "" if ess_bulk is None else f" (bulk {ess_bulk:.0f})"
-        self._say(f"{how}, {step} steps, ESS {ess:.0f}{bulk} of {self.min_ess:g}, "
-                  f"{time.perf_counter() - self.t0:.1f} s")
+        how = "done" if converged else f"stopped at max_steps={_count(self.max_steps)}"
+        self._say(f"{how}, {_count(steps)} steps x {self.n_walkers} walkers: "
+                  f"{self._rule(ess, rhat)}; {time.perf_counter() - self.t0:.1f} s")
 
     def _say(self, text: str) -> None:
         say(self.label, text, self.stream)
         self.lines += 1
+
+
+def _count(x: float) -> str:
+    """Format a count with thousands separators (``1,307``), ``inf`` as is.
+
+    Examples
+    --------
+    >>> _count(1307.4), _count(float("inf"))
+    ('1,307', 'inf')
+    """
+    return f"{x:,.0f}" if math.isfinite(x) else f"{x}"
 
 
 def say(label: str, text: str, stream=None) -> None:

@@ -1,17 +1,22 @@
-"""Summaries of a kept chain: thinning, ESS, intervals, moments over draws, ArviZ objects.
+"""Summaries of a kept chain: thinning, moments over draws, and ArviZ's diagnostics.
 
-Used by both posteriors after :func:`bayes_mpem.mcmc.driver.run_ensembles`.
+ESS, R-hat and HDI come from :mod:`arviz_stats`, the DataTree from :mod:`arviz_base`
+(both imported on first use).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .convergence import ess_bulk, hdi_nearest, rhat_rank
+
+def _array_stats():
+    from arviz_stats.base import array_stats
+
+    return array_stats
 
 
 def thin_index(kept: int, n_chains: int, n_draws: int) -> tuple[np.ndarray, int]:
-    """Evenly spaced steps, ending at the last, giving about ``n_draws`` draws over all chains.
+    """Pick steps ending at the last, at the largest spacing keeping ``n_draws`` draws or more.
 
     Parameters
     ----------
@@ -20,7 +25,7 @@ def thin_index(kept: int, n_chains: int, n_draws: int) -> tuple[np.ndarray, int]
     n_chains : int
         Chains (walkers, over all ensembles) sharing the draws.
     n_draws : int
-        Draws wanted in all.
+        Draws wanted at least, over all chains (all steps when there are fewer).
 
     Returns
     -------
@@ -32,53 +37,64 @@ def thin_index(kept: int, n_chains: int, n_draws: int) -> tuple[np.ndarray, int]
     Examples
     --------
     >>> idx, thin = thin_index(1000, 50, 400)
-    >>> idx.tolist(), thin
-    ([124, 249, 374, 499, 624, 749, 874, 999], 125)
+    >>> idx[:3].tolist(), idx.size, thin
+    ([124, 249, 374], 8, 125)
+    >>> thin_index(80, 32, 2000)[1]
+    1
     """
     per_chain = max(1, min(kept, int(np.ceil(n_draws / n_chains))))
     thin = max(1, kept // per_chain)
-    idx = np.arange(kept - (per_chain - 1) * thin - 1, kept, thin)[-per_chain:]
-    return idx, thin
+    return np.arange(kept - 1, -1, -thin)[::-1], thin
 
 
-def autocorr_ess(series) -> tuple[float, float]:
-    """Integrated autocorrelation time (emcee, steps) of a ``(steps, walkers)`` series.
+def ess(x, method: str = "bulk") -> float:
+    """ArviZ's ESS (:func:`arviz_stats.base.array_stats.ess`) of a ``(chain, draw)`` array.
 
     Parameters
     ----------
-    series : numpy.ndarray
-        ``(steps, walkers)`` values of one parameter.
+    x : array_like
+        ``(chain, draw)``.
+    method : str, default "bulk"
+        ``"bulk"``, ``"tail"``, ``"mean"``, ...
 
     Returns
     -------
-    tau : float
-        Integrated autocorrelation time, in steps.
-    ess : float
-        ``steps x walkers / tau``.
+    float
     """
-    import emcee
+    return float(_array_stats().ess(np.asarray(x, float), method=method))
 
-    tau = float(emcee.autocorr.integrated_time(series[:, :, None], tol=0, quiet=True)[0])
-    return tau, float(series.shape[0] * series.shape[1] / tau)
+
+def rhat(x) -> float:
+    """ArviZ's rank-normalised split R-hat of a ``(chain, draw)`` array.
+
+    Parameters
+    ----------
+    x : array_like
+        ``(chain, draw)``.
+
+    Returns
+    -------
+    float
+    """
+    return float(_array_stats().rhat(np.asarray(x, float)))
 
 
 def bulk_ess(series: dict) -> dict:
-    """Rank-normalised bulk ESS (ArviZ's estimator, :mod:`.convergence`) of each array of a dict.
+    """ArviZ's bulk ESS of each ``(chain, draw)`` array of a dict.
 
     Parameters
     ----------
     series : dict of str to array_like
-        ``(chain, draw)`` arrays (walkers as chains).
 
     Returns
     -------
     dict of str to float
     """
-    return {k: ess_bulk(v) for k, v in series.items()}
+    return {k: ess(v) for k, v in series.items()}
 
 
 def hdi(x, ci: float) -> list:
-    """Highest-density interval ``[lower, upper]`` (ArviZ's nearest-draws method) of ``x``.
+    """Highest-density interval ``[lower, upper]`` of all values of ``x`` (ArviZ's nearest).
 
     Parameters
     ----------
@@ -91,7 +107,8 @@ def hdi(x, ci: float) -> list:
     -------
     list of float
     """
-    return hdi_nearest(x, ci)
+    lo, hi = _array_stats().hdi(np.ravel(np.asarray(x, float)), ci)
+    return [float(lo), float(hi)]
 
 
 def equal_tailed(x, ci: float) -> list:
@@ -167,62 +184,35 @@ def draw_moments(flat, fn, *, chunk: int = 64):
     return pointwise, m, np.sqrt(np.maximum(s2 / n_draws - m * m, 0.0))
 
 
-#: groups without the (chain, draw) dimensions (ArviZ's convention)
-_NO_SAMPLE_DIMS = ("observed_data", "constant_data", "predictions_constant_data")
-
-
-def to_datatree(groups: dict, *, dims: dict | None = None, coords: dict | None = None):
-    """ArviZ data from a dict of groups, walkers (or chains) as chains.
-
-    The structure :func:`arviz_base.from_dict` makes (``chain`` and ``draw``
-    leading every variable of a sampled group, numbered; the ``dims`` and ``coords``
-    given; ``var_dim_i`` for unnamed axes; the creation attributes on every group),
-    built with xarray directly: :mod:`arviz_base` imports matplotlib (0.1 s, a
-    tenth of sampling a beacon end to end). ``tests/test_mcmc.py`` compares the
-    two, array for array.
+def to_datatree(groups: dict, *, dims: dict | None = None, coords: dict | None = None,
+                attrs: dict | None = None):
+    """ArviZ data (:func:`arviz_base.from_dict`), walkers (or chains) as chains.
 
     Parameters
     ----------
     groups : dict
-        Group name -> {variable -> ``(chain, draw, ...)`` array} (``observed_data``
-        and ``constant_data``: no chain and draw axes).
+        Group name -> {variable -> ``(chain, draw, ...)`` array} (``observed_data``:
+        no chain and draw axes).
     dims : dict, optional
         Variable -> names of its axes after ``chain`` and ``draw``.
     coords : dict, optional
         Dimension -> coordinate values.
+    attrs : dict, optional
+        Root attributes.
 
     Returns
     -------
     xarray.DataTree
     """
-    import datetime as dt
+    from arviz_base import from_dict
 
-    import xarray as xr
-
-    from .. import __version__
-
-    dims, coords = dims or {}, coords or {}
-    attrs = {"created_at": dt.datetime.now(dt.UTC).isoformat(),
-             "creation_library": "bayes_mpem", "creation_library_version": __version__,
-             "creation_library_language": "Python"}
-    tree = {}
-    for group, variables in groups.items():
-        lead = () if group in _NO_SAMPLE_DIMS else ("chain", "draw")
-        data = {}
-        for name, value in variables.items():
-            value = np.asarray(value)
-            rest = value.ndim - len(lead)
-            names = list(dims.get(name, []))[:rest]
-            names += [f"{name}_dim_{i}" for i in range(len(names), rest)]
-            data[name] = (lead + tuple(names), value)
-        ds = xr.Dataset(data, attrs=dict(attrs))
-        ds = ds.assign_coords({d: coords.get(d, np.arange(n)) for d, n in ds.sizes.items()})
-        tree[group] = ds
-    return xr.DataTree.from_dict(tree)
+    tree = from_dict(groups, dims=dims, coords=coords, check_conventions=False)
+    tree.attrs.update(attrs or {})
+    return tree
 
 
 def rhat_across_ensembles(ds, n_ens: int) -> dict:
-    """Rank-normalised split R-hat (ArviZ's estimator) across independent ensembles.
+    """ArviZ's rank-normalised split R-hat across independent ensembles.
 
     The walkers of one ensemble are not independent chains: each ensemble's
     walkers are regrouped into one chain (draws = walkers x kept draws) first.
@@ -243,5 +233,5 @@ def rhat_across_ensembles(ds, n_ens: int) -> dict:
     for k, v in ds.data_vars.items():
         a = v.values  # (chain, draw)
         a = a.reshape(n_ens, -1, a.shape[1])  # (ensemble, walker, draw)
-        out[k] = rhat_rank(a.transpose(0, 2, 1).reshape(n_ens, -1))
+        out[k] = rhat(a.transpose(0, 2, 1).reshape(n_ens, -1))
     return out

@@ -52,15 +52,16 @@ def plot_trace(result, *, params=None, fig=None):
         for v in s["interval"]:
             ax_h.axhline(v, color="k", ls="--", lw=0.8,
                          label=f"{100 * result.ci:g} % HDI" if v == s["interval"][0] else None)
-        ax_t.set_title(f"tau = {result.tau.get(n, float('nan')):.1f} steps, "
-                       f"ESS = {result.ess.get(n, float('nan')):.0f}", fontsize="small", loc="left")
+        ax_t.set_title(f"bulk ESS = {result.ess.get(n, float('nan')):,.0f}, R-hat = "
+                       f"{(result.rhat or {}).get(n, float('nan')):.3f}", fontsize="small",
+                       loc="left")
     axes[0, 1].legend(fontsize="x-small", loc="upper right")
     axes[-1, 0].set_xlabel(f"kept draw (thinned by {result.diagnostics.get('thin', 1)} steps)")
     diag = result.diagnostics
-    chains = (f"{diag.get('n_chains')} independence chains"
-              if diag.get("sampler") == "independence"
-              else f"{diag.get('n_chains', diag.get('n_walkers'))} walkers")
-    fig.suptitle(f"beacon {result.beacon}: {result.priors} priors, {chains}")
+    moves = ("independence proposal" if diag.get("sampler") == "independence"
+             else "differential evolution")
+    fig.suptitle(f"beacon {result.beacon}: {result.priors} priors, "
+                 f"{diag.get('n_chains', diag.get('n_walkers'))} emcee walkers ({moves})")
     return fig
 
 

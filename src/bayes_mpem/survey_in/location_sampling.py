@@ -3,14 +3,12 @@
 The model, its priors and its travel times are those of
 :class:`bayes_mpem.survey_in.posterior.LocationLogPosterior`.
 
-Sampling (:func:`sample_location`) uses the shared driver of :mod:`bayes_mpem.mcmc`:
-the posterior satisfies :class:`bayes_mpem.mcmc.LogPosterior`, and the chain runs
-until it is 50 autocorrelation times long and the smallest ESS, by emcee and by
-ArviZ's bulk estimate, reaches ``min_ess``; with differential-evolution moves only
-(:func:`bayes_mpem.mcmc.default_moves`: emcee 3.1.6's snooker move is biased). The
-result, :class:`LocationPosterior`, holds thinned draws, each ping's probability
-of being a true arrival and equal-tailed intervals; :func:`locate_survey_bayes`
-does it for every transponder of a survey.
+Sampling (:func:`sample_location`) uses the shared emcee driver
+(:func:`bayes_mpem.mcmc.run_ensembles`) with differential evolution, until ArviZ's bulk
+ESS reaches ``min_ess`` and R-hat (walkers as chains) is below 1.01. The result,
+:class:`LocationPosterior`, holds the kept draws, each ping's probability of being a
+true arrival and equal-tailed intervals; :func:`locate_survey_bayes` does it for
+every transponder of a survey.
 """
 
 from __future__ import annotations
@@ -18,17 +16,15 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 
-import emcee
 import numpy as np
 import pandas as pd
 
 from .._rng import RNGLike, as_generator
 from ..mcmc import (
-    autocorr_ess,
     bulk_ess,
-    default_moves,
     draw_moments,
     equal_tailed,
+    rhat,
     run_ensembles,
     thin_index,
     to_datatree,
@@ -65,9 +61,10 @@ class LocationPosterior:
     rows : numpy.ndarray
         Positions of the pings in the input table.
     tau, ess, ess_bulk : dict
-        Per reported parameter, on the whole kept chain: emcee's integrated
-        autocorrelation time (steps), ``steps x walkers / tau``, and ArviZ's
-        rank-normalised bulk ESS (walkers as chains).
+        Per reported parameter: ``steps x walkers / ESS`` (steps), and ArviZ's bulk ESS
+        of :attr:`draws` (walkers as chains; the same dict under both names).
+    rhat : dict
+        ArviZ's R-hat of :attr:`draws` (walkers as chains).
     em : LocateResult
         The EM fit the walkers started from.
     diagnostics : dict
@@ -85,6 +82,7 @@ class LocationPosterior:
     tau: dict = field(default_factory=dict)
     ess: dict = field(default_factory=dict)
     ess_bulk: dict = field(default_factory=dict)
+    rhat: dict = field(default_factory=dict)
     em: LocateResult = field(default=None, repr=False)
     diagnostics: dict = field(default_factory=dict)
     ci: float = 0.95
@@ -106,8 +104,8 @@ class LocationPosterior:
 
     @property
     def min_ess(self) -> float:
-        """Smallest ESS (emcee's and ArviZ's bulk) over the reported parameters."""
-        return float(min(min(self.ess.values()), min(self.ess_bulk.values())))
+        """Smallest bulk ESS over the reported parameters."""
+        return float(min(self.ess.values()))
 
     def mean(self, name: str) -> float:
         """Posterior mean of a reported parameter.
@@ -191,8 +189,8 @@ class LocationPosterior:
                            "interval": [1e3 * v for v in s["interval"]]}
         out["weight_true"] = self.describe("weight", ci)
         out.update(n_spurious=self.n_spurious, n=int(self.p_true.size), ci=ci,
-                   interval_method="posterior", ess=dict(self.ess),
-                   ess_bulk=dict(self.ess_bulk), tau=dict(self.tau),
+                   interval_method="posterior", ess=dict(self.ess), rhat=dict(self.rhat),
+                   tau=dict(self.tau),
                    diagnostics=dict(self.diagnostics))
         return out
 
@@ -203,11 +201,12 @@ class LocationPosterior:
         -------
         xarray.DataTree
         """
-        idata = to_datatree({"posterior": {k: self.draws[k] for k in self.params}})
-        idata.attrs.update({"transponder": self.transponder,
-                            "sampler": f"emcee {emcee.__version__}",
-                            "travel_times": self.diagnostics.get("travel_times", "")})
-        return idata
+        import emcee
+
+        return to_datatree({"posterior": {k: self.draws[k] for k in self.params}},
+                           attrs={"transponder": self.transponder,
+                                  "sampler": f"emcee {emcee.__version__}",
+                                  "travel_times": self.diagnostics.get("travel_times", "")})
 
 
 def _true_probability(post: LocationLogPosterior, theta):
@@ -236,14 +235,6 @@ def _location_posterior(pings, fit, *, n_walkers, bending):
     return post, n_walkers
 
 
-def _chain_diagnostics(nat: dict):
-    """Autocorrelation time and ESS (emcee) and bulk ESS (ArviZ) of each ``(steps, walkers)``."""
-    tau, ess = {}, {}
-    for k, v in nat.items():
-        tau[k], ess[k] = autocorr_ess(v)
-    return tau, ess, bulk_ess({k: nat[k].T for k in PARAMS if k in nat})
-
-
 def sample_location(pings: pd.DataFrame, fit: LocateResult, *, n_walkers: int | None = None,
                     ci: float = 0.95, min_ess: float = 1000.0, max_steps: int = 20000,
                     n_draws: int = 4000, bending: str = "linear", rng: RNGLike = None,
@@ -263,13 +254,13 @@ def sample_location(pings: pd.DataFrame, fit: LocateResult, *, n_walkers: int | 
     ci : float, default 0.95
         Probability of the equal-tailed intervals.
     min_ess : float, default 1000
-        Run until the smallest ESS of the sampled coordinates reaches this (by
-        emcee's ``steps x walkers / tau`` and ArviZ's bulk ESS) and the kept
-        chain is 50 autocorrelation times long; 0 for the second test alone.
+        Run until the smallest bulk ESS of the reported parameters reaches this and
+        R-hat < 1.01.
     max_steps : int, default 20000
         Step cap (``SamplingWarning`` when reached first).
     n_draws : int, default 4000
-        Draws kept (thinned evenly) for the summaries and the class probabilities.
+        Draws kept at least (a longer chain is thinned evenly) for the summaries and
+        the class probabilities.
     bending : {"linear", "fixed"}
         Refracted rays only: the ray-bending correction held fixed at the EM
         solution (OBSrange's), or with its gradient there too (the default; see
@@ -299,19 +290,25 @@ def sample_location(pings: pd.DataFrame, fit: LocateResult, *, n_walkers: int | 
     check_location_options(n_walkers=n_walkers, ci=ci, min_ess=min_ess, max_steps=max_steps,
                            n_draws=n_draws)
     post, n_walkers = _location_posterior(pings, fit, n_walkers=n_walkers, bending=bending)
+    from ..mcmc.moves import default_moves
+
     gen = as_generator(rng)
     t0 = time.perf_counter()
-    [run] = run_ensembles(post, n_walkers=n_walkers, gen=gen,
-                          where=f"transponder {fit.transponder}", stacklevel=2,
-                          moves=default_moves(), min_ess=float(min_ess), max_steps=int(max_steps),
-                          progress=progress)
+    start = post.start(n_walkers, gen)
+
+    def natural(chain):
+        return {k: v for k, v in post.natural(chain).items() if k in PARAMS}
+
+    run = run_ensembles(post, [start], moves=default_moves(), gen=gen, min_ess=float(min_ess),
+                        max_steps=int(max_steps), n_draws=int(n_draws), burn_in=True,
+                        natural=natural, progress=progress,
+                        label=f"transponder {fit.transponder}", stacklevel=2)
     seconds = time.perf_counter() - t0
-    chain = run.chain  # (steps, walkers, ndim)
-    nat = post.natural(chain)  # per reported parameter, on the whole kept chain
-    tau, ess, ess_bulk = _chain_diagnostics(nat)
-    idx, thin = thin_index(chain.shape[0], n_walkers, n_draws)
-    theta = np.swapaxes(chain[idx], 0, 1)  # (walker, draw, ndim)
-    draws = {k: np.ascontiguousarray(nat[k][idx].T) for k in PARAMS if k in nat}
+    idx, thin = thin_index(run.chain.shape[0], n_walkers, n_draws)
+    theta = np.swapaxes(run.chain[idx], 0, 1)  # (walker, draw, ndim)
+    draws = {k: np.ascontiguousarray(v) for k, v in natural(theta).items()}
+    ess = bulk_ess(draws)
+    tau = {k: float(idx.size * thin * n_walkers / ess[k]) for k in draws}
     draws["theta"] = theta
     flat = theta.reshape(-1, post.ndim)
     _, p, p_sd = draw_moments(flat, lambda t: _true_probability(post, t))
@@ -319,13 +316,13 @@ def sample_location(pings: pd.DataFrame, fit: LocateResult, *, n_walkers: int | 
               "refracted rays: fixed ray-bending correction at the EM solution")
     return LocationPosterior(
         transponder=fit.transponder, names=post.names, draws=draws, p_true=p[:, 0],
-        p_true_sd=p_sd[:, 0], rows=np.asarray(fit.rows), tau=tau, ess=ess, ess_bulk=ess_bulk,
-        em=fit,
+        p_true_sd=p_sd[:, 0], rows=np.asarray(fit.rows), tau=tau, ess=ess, ess_bulk=ess,
+        rhat={k: rhat(draws[k]) for k in ess}, em=fit,
         diagnostics={"n_walkers": n_walkers, "n_steps": run.n_steps, "burn": int(run.burn),
                      "thin": int(thin), "n_draws": int(flat.shape[0]),
                      "converged": bool(run.converged), "acceptance": run.acceptance,
                      "seconds": float(seconds), "min_ess": float(min_ess),
-                     "travel_times": travel},
+                     "moves": "DEMove 1.0 (differential evolution)", "travel_times": travel},
         ci=float(ci))
 
 
@@ -349,7 +346,7 @@ def _merge(em: dict, post: LocationPosterior, ci: float, header: dict) -> dict:
         out.update(drift_from_draws(post.draws["east"], post.draws["north"], post.draws["depth"],
                                     header.get("depth"), ci=ci))
     out["posterior"] = {"sigma_ms": d["sigma_ms"], "weight_true": d["weight_true"],
-                        "ess": d["ess"], "ess_bulk": d["ess_bulk"], "tau": d["tau"],
+                        "ess": d["ess"], "rhat": d["rhat"], "tau": d["tau"],
                         "diagnostics": d["diagnostics"]}
     out["em"] = em
     return out

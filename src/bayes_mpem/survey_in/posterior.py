@@ -24,10 +24,8 @@ the profile's harmonic mean at ``theta_0`` and ``delta = T_refracted - L / v``
 per ping. OBSrange holds ``delta`` fixed (``bending="fixed"``); by default
 (``bending="linear"``) it also follows its gradient at ``theta_0``, ``delta_0 +
 (grad T_refracted - grad L / v) . (position - position_0)``, from the same ray
-solve. On SeaGap (sigma 0.05 ms) the fixed correction is not enough: the
-log-likelihood at posterior draws is off by up to 2.7 nats, against 2e-4 with
-the gradient (:meth:`LocationLogPosterior.exact_loglik` solves the rays at any
-draw; ``tests/survey_in/test_location_sampling.py`` checks it).
+solve (:meth:`LocationLogPosterior.exact_loglik` solves the rays at any draw, for
+checks; ``docs/measured-data.md`` has the measured difference).
 """
 
 from __future__ import annotations

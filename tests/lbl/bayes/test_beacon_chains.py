@@ -1,10 +1,8 @@
-"""The sampler choice of one beacon (bayes_mpem.lbl.bayes.beacon_chains): independence chains
-from a Laplace proposal, the ensemble where that proposal fits poorly.
+"""The sampler choice of one beacon (bayes_mpem.lbl.bayes.beacon_chains): emcee with an
+independence MHMove from a Laplace proposal, differential evolution where that fits poorly.
 
-The independence chains are checked for exactness in tests/test_independence.py and by
-the SBC (tests/lbl/bayes/test_sbc.py, benchmarks/sbc.py); here: the free coordinates, the
-agreement of the two samplers on the same beacon, the fallback and its reasons, the
-per-range pass, and the options.
+Here: the free coordinates, the agreement of the two moves on the same beacon, the
+fallback and its reasons, the per-range pass, and the options.
 """
 
 import warnings
@@ -65,8 +63,9 @@ def test_independence_and_ensemble_agree(beacon4):
     imh = sample_beacon(beacon4, rng=1, **FAST)
     ens = sample_beacon(beacon4, rng=1, sampler="ensemble", **FAST)
     assert imh.diagnostics["sampler"] == "independence" and imh.diagnostics["fallback"] is None
-    assert ens.diagnostics["sampler"] == "ensemble" and "n_walkers" in ens.diagnostics
-    assert imh.diagnostics["acceptance"] > 0.6 and set(imh.rhat) == set(imh.ess_bulk)
+    assert "MHMove" in imh.diagnostics["moves"] and "DEMove" in ens.diagnostics["moves"]
+    assert imh.diagnostics["burn"] == 0 and ens.diagnostics["burn"] > 0
+    assert imh.diagnostics["acceptance"] > 0.6 and set(imh.rhat) == set(imh.ess)
     assert all(v < 1.01 for v in imh.rhat.values())
     for k in ("d0", "sigma_mp", "sigma_dp"):
         a, b = imh.summary[k], ens.summary[k]
@@ -74,23 +73,21 @@ def test_independence_and_ensemble_agree(beacon4):
         assert abs(a["mean"] - b["mean"]) < 0.2 * b["sd"], (k, a, b)
         assert abs(a["sd"] / b["sd"] - 1) < 0.1, (k, a, b)
     np.testing.assert_allclose(imh.class_probs, ens.class_probs, atol=0.02)
-    assert imh.idata.attrs["sampler"].startswith("bayes_mpem") and \
-        ens.idata.attrs["sampler"].startswith("emcee")
+    assert imh.idata.attrs["sampler"].startswith("emcee")
 
 
 def test_reaches_min_ess_and_keeps_every_draw(beacon4):
-    r = sample_beacon(beacon4, rng=2, progress=False, n_draws=2000)
-    d = r.diagnostics
-    assert d["converged"] and d["thin"] == 1 and d["n_draws"] == 2000 and d["n_chains"] == 4
-    assert min(r.ess_bulk.values()) >= 1000
-    post = r.idata.posterior
-    assert post.sizes["chain"] == 4 and post.sizes["draw"] == 500
-    # the reported bulk ESS is ArviZ's on the draws in the ArviZ data
     import arviz_stats as azs
 
-    for k, v in r.ess_bulk.items():
-        assert np.isclose(float(azs.ess(post[k].values, method="bulk", chain_axis=0,
-                                        draw_axis=1)), v, rtol=1e-8)
+    r = sample_beacon(beacon4, rng=2, progress=False, n_draws=2000)
+    d = r.diagnostics
+    assert d["converged"] and d["thin"] == 1 and d["n_chains"] == 16
+    assert d["n_draws"] == 16 * d["n_steps"] >= 2000  # every draw kept
+    assert min(r.ess.values()) >= 1000 and max(r.rhat.values()) < 1.01
+    post = r.idata.posterior
+    assert post.sizes["chain"] == 16 and post.sizes["draw"] == d["n_steps"]
+    for k, v in r.ess.items():  # ArviZ's ESS of the draws in the ArviZ data
+        assert float(azs.ess(r.idata, var_names=[k])[k]) == pytest.approx(v, rel=1e-10)
 
 
 def test_same_seed_same_draws(beacon4):
@@ -101,33 +98,42 @@ def test_same_seed_same_draws(beacon4):
 
 def test_falls_back_without_a_mode(post4, monkeypatch):
     monkeypatch.setattr(bc, "laplace_proposal", lambda *a, **k: None)
-    for sampler in ("auto", "independence"):  # no proposal at all: the ensemble either way
+    for sampler in ("auto", "independence"):  # no proposal at all: DE either way
         r = beacon_chains(post4, np.random.default_rng(0), sampler=sampler, min_ess=200,
-                          tau_factor=10, progress=False)
+                          progress=False)
         assert r.sampler == "ensemble" and "Hessian not negative definite" in r.info["fallback"]
 
 
 def test_falls_back_when_the_proposal_fits_poorly(post4, monkeypatch, capsys):
-    monkeypatch.setattr(bc, "MIN_ESS_PER_DRAW", 1.1)  # no proposal can pass
+    monkeypatch.setattr(bc, "MIN_ESS_PER_DRAW", 1.5)  # no proposal can pass
     with pytest.warns(bm.exceptions.SamplingWarning, match="max_steps=300"):
-        r = beacon_chains(post4, np.random.default_rng(0), min_ess=1e6, tau_factor=10,
-                          max_steps=300, progress="log")
+        r = beacon_chains(post4, np.random.default_rng(0), min_ess=1e6, max_steps=300,
+                          progress="log")
     assert r.sampler == "ensemble" and "fits poorly" in r.info["fallback"]
-    assert "sampling with the ensemble instead" in capsys.readouterr().err
-    # forced, the independence chains are kept (and warn at their cap)
-    with pytest.warns(bm.exceptions.SamplingWarning, match="independence chains"):
+    assert "differential evolution instead" in capsys.readouterr().err
+    # forced, the independence move is kept (and warns at its cap)
+    with pytest.warns(bm.exceptions.SamplingWarning, match="beacon 4: the chain reached"):
         r = beacon_chains(post4, np.random.default_rng(0), sampler="independence",
                           min_ess=1e6, max_steps=300, progress=False, where="beacon 4")
-    assert r.sampler == "independence" and not r.info["converged"]
+    assert r.sampler == "independence" and not r.run.converged
 
 
-def test_moves_or_walkers_mean_the_ensemble(post4):
-    from bayes_mpem.mcmc import default_moves
+def test_hands_over_to_de_when_the_independence_move_overruns(post4, monkeypatch):
+    monkeypatch.setattr(bc, "INDEPENDENCE_BUDGET", 20)
+    with pytest.warns(bm.exceptions.SamplingWarning, match="max_steps=300"):
+        r = beacon_chains(post4, np.random.default_rng(0), min_ess=1e6, max_steps=300,
+                          progress=False)
+    assert r.sampler == "ensemble" and "did not meet the stopping rule in 20" in \
+        r.info["fallback"]
 
-    for kw in ({"moves": default_moves()}, {"n_walkers": 16}, {"n_ensembles": 2}):
-        r = beacon_chains(post4, np.random.default_rng(0), min_ess=0, tau_factor=5,
-                          progress=False, **kw)
-        assert r.sampler == "ensemble" and r.info["fallback"] is None
+
+def test_ensembles_mean_differential_evolution(post4):
+    r = beacon_chains(post4, np.random.default_rng(0), min_ess=300, n_ensembles=2,
+                      progress=False)
+    assert r.sampler == "ensemble" and r.info["fallback"] is None and r.run.n_ensembles == 2
+    r = beacon_chains(post4, np.random.default_rng(0), min_ess=300, n_walkers=24,
+                      progress=False)
+    assert r.sampler == "independence" and r.chain.shape[1] == 24
 
 
 def test_pointwise_moments_equal_the_full_pass(post4):
@@ -135,7 +141,7 @@ def test_pointwise_moments_equal_the_full_pass(post4):
     from bayes_mpem.mcmc import draw_moments
 
     r = beacon_chains(post4, np.random.default_rng(3), min_ess=0, progress=False)
-    flat = r.groups[0].reshape(-1, post4.ndim)[:300]
+    flat = r.chain.reshape(-1, post4.ndim)[:300]
     ll, m, s = post4.pointwise_moments(flat)
     ll_ref, m_ref, s_ref = draw_moments(flat, post4.loglik_and_classes)
     np.testing.assert_allclose(ll, ll_ref, rtol=1e-12)

@@ -80,11 +80,22 @@ def test_same_seed_same_chain(beacon4):
 def test_result_contents(beacon4):
     r = sample_beacon(beacon4, rng=1, **FAST)
     assert r.diagnostics["converged"]
-    kept = r.diagnostics["n_steps"] - r.diagnostics["burn"]
-    assert kept >= 50 * max(r.tau.values())
-    assert set(r.idata.children) >= {"posterior", "log_likelihood", "sample_stats",
-                                     "observed_data"}
-    assert r.idata.log_likelihood["z"].shape[-1] == beacon4.n
+    assert min(r.ess.values()) >= 1000 and max(r.rhat.values()) < 1.01
+    assert sorted(r.idata.children) == ["observed_data", "posterior", "sample_stats"]
+    obs = r.idata.observed_data
+    np.testing.assert_array_equal(obs["range"], beacon4.rows)  # the input rows
+    np.testing.assert_array_equal(obs["time"], beacon4.time)
+    assert obs["z"].attrs["units"] == "m" and obs["time"].attrs["units"] == "s"
+    assert r.idata.posterior["d0"].attrs["units"] == "m"
+    full = sample_beacon(beacon4, rng=1, log_likelihood=True, predictive=True, **FAST)
+    assert full.idata.log_likelihood["z"].shape[-1] == beacon4.n
+    np.testing.assert_array_equal(full.idata.posterior["d0"], r.idata.posterior["d0"])
+    pp = full.idata.posterior_predictive["z"].values
+    assert pp.shape == full.idata.log_likelihood["z"].shape
+    # the predictive ranges look like the data: the share near the direct path agrees
+    geom = BeaconPosterior(beacon4).geom
+    near = lambda z: np.mean(np.abs(z - geom.direct) < 3 * full.sigma_dp)  # noqa: E731
+    assert near(pp) == pytest.approx(near(beacon4.range), abs=0.03)
     for key in ("d0", "sigma_mp", "sigma_dp"):
         lo, hi = r.summary[key]["interval"]
         assert lo < r.summary[key]["mean"] < hi
@@ -97,15 +108,15 @@ def test_result_contents(beacon4):
 
 @pytest.mark.parametrize("sampler", ["independence", "ensemble"])
 def test_step_cap_warns(beacon4, sampler):
-    with pytest.warns(SamplingWarning, match="reached max_steps=100"):
-        r = sample_beacon(beacon4, rng=0, max_steps=100, sampler=sampler, **FAST)
+    with pytest.warns(SamplingWarning, match="reached max_steps=40"):
+        r = sample_beacon(beacon4, rng=0, max_steps=40, sampler=sampler, **FAST)
     assert not r.diagnostics["converged"] and r.diagnostics["sampler"] == sampler
 
 
 def test_several_ensembles_give_rhat(beacon4):
     r = sample_beacon(beacon4, rng=3, n_ensembles=2, **FAST)
     assert set(r.rhat) == {"d0", "sigma_mp", "sigma_dp", "w_dp", "w_mp", "w_ol"}
-    assert all(v < 1.02 for v in r.rhat.values())
+    assert all(v < 1.02 for v in r.rhat.values()) and r.diagnostics["n_ensembles"] == 2
 
 
 def test_hdi_interval_probability(beacon4):
@@ -162,16 +173,18 @@ def test_loo_claims_nothing_on_equal_weights(seed):
 def test_psis_loo_matches_arviz_where_arviz_works(beacon4):
     import arviz_stats as azs
 
-    r = sample_beacon(beacon4, rng=2, **FAST)  # learned priors: no tied tails
+    r = sample_beacon(beacon4, rng=2, log_likelihood=True, **FAST)  # learned: no tied tails
     ours = psis_loo(r)
     ref = azs.loo(r.idata, pointwise=True, var_name="z")
     assert ours.n_constant == 0
     assert ours.elpd == pytest.approx(float(ref.elpd), rel=1e-10)
     assert ours.se == pytest.approx(float(ref.se), rel=1e-6)
+    with pytest.raises(ValueError, match="log_likelihood=True"):
+        psis_loo(sample_beacon(beacon4, rng=2, **FAST))
 
 
 def test_psis_loo_tied_tail_is_exact_for_constant_ranges(beacon4):
-    r = sample_beacon(beacon4, priors="equal", rng=2, **FAST)
+    r = sample_beacon(beacon4, priors="equal", rng=2, log_likelihood=True, **FAST)
     loo = psis_loo(r)
     ll = r.idata.log_likelihood["z"].values.reshape(-1, beacon4.n)
     const = np.ptp(ll, axis=0) == 0
@@ -210,7 +223,8 @@ def test_sample_command_writes_the_contract(survey_files, tmp_path):
     assert len(out) == len(__import__("pandas").read_csv(survey_files["pings"]))
     assert {"p_dp", "p_mp", "p_ol", "p_mp_sd", "label"} <= set(out.columns)
     tree = xr.open_datatree(tmp_path / "posterior.nc", engine="h5netcdf")
-    assert "log_likelihood" in tree["beacon_3"].children
+    assert "log_likelihood" not in tree["beacon_3"].children  # only when asked for
+    assert sorted(p.name for p in tmp_path.glob("*.nc")) == ["posterior.nc"]
     for name in ("intervals.png", "trace_3.png", "pair_3.png", "classes_3.png"):
         assert (tmp_path / name).stat().st_size > 10_000
 
@@ -226,8 +240,8 @@ def test_compare_command(survey_files, tmp_path, capsys):
     for bid in ("1", "2", "3", "4"):
         for priors in ("equal", "learned"):
             assert re.search(rf"^\[sampler\] beacon {bid} \({priors} priors\): done, \d+ "
-                             r"draws x 4 independence chains, bulk ESS \d+ of 1000, \d+\.\d s$",
-                             err, re.M), err
+                             r"steps x 16 walkers: ESS [\d,]+, target 1,000; R-hat \d\.\d+, "
+                             r"target < 1\.01; \d+\.\d s$", err, re.M), err
     c = json.loads((tmp_path / "compare.json").read_text())
     for b in c["beacons"].values():
         for key in ("elpd_equal", "elpd_learned", "elpd_diff", "elpd_diff_se", "shifts",
@@ -314,7 +328,8 @@ def test_far_proposals_do_not_overflow(beacon4):
 
 
 def test_step_cap_warning_says_which_test_failed(beacon4):
-    with pytest.warns(SamplingWarning, match=r"kept \d+ = .* tau \(needs 50\).*bulk ESS"):
-        sample_beacon(beacon4, rng=0, max_steps=100, sampler="ensemble", **FAST)
-    with pytest.warns(SamplingWarning, match=r"100 draws x 4 chains, bulk ESS \d+ \(need 1000\)"):
-        sample_beacon(beacon4, rng=0, max_steps=100, **FAST)
+    with pytest.warns(SamplingWarning, match=r"40 steps x 48 walkers, burn-in \d+, bulk ESS "
+                                             r"[\d,]+ \(target 1,000\), R-hat"):
+        sample_beacon(beacon4, rng=0, max_steps=40, sampler="ensemble", **FAST)
+    with pytest.warns(SamplingWarning, match=r"20 steps x 16 walkers, burn-in 0, bulk ESS"):
+        sample_beacon(beacon4, rng=0, max_steps=20, **FAST)

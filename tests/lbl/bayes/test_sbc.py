@@ -1,25 +1,11 @@
-"""Simulation-based calibration of the beacon posterior: small, and able to fail.
+"""Simulation-based calibration of the beacon posterior: a small sentinel, able to fail.
 
-``benchmarks/sbc.py`` is the study (500 simulations of the shipped sampler, 250 of
-each other arm, the shipped stopping rule). Here: 150 simulations of a 103-ping
-design with a short stopping rule (no ESS target; the ensemble 10 autocorrelation
-times), with the shipped sampler (``sampler="auto"``: independence chains from a
-Laplace proposal, on this small design the ensemble for 30-45 % of the prior's
-draws) and with an ensemble whose moves are half emcee 3.1.6's released snooker
-(DE the other half; on a 5-D standard normal that mix has sd 0.90-0.91). The check
-is the dispersion of the ranks (``rank_dispersion``, pooled over the parameters per
-simulation): too-narrow chains put the truth in their tails. Measured on seeds
-11-14 of this set-up: shipped z = 0.8, 0.3, -0.9, -0.0 (the smallest of the 12
-chi-square and tail p-values per seed 0.185, 0.113, 0.109, 0.275; the ensemble alone,
-before issue 17: z = 2.0, 1.0, -0.2, -2.1); released mix z = 5.2, 4.7, 3.7, 2.0. So
-the check catches the released move on three seeds of four at z > 3: it is a sharp
-test of a 10 % narrowing only with the study's 500 simulations. The seed is fixed.
+``benchmarks/sbc.py`` is the study (docs/bayes-calibration.md). Here: 15 simulations of a
+103-ping design with a short stopping rule, checked with the study's tests at a loose level
+(a broken sampler or likelihood fails them); and the dispersion check, on synthetic draws,
+catches posteriors 20 % too narrow. The seed is fixed.
 """
 
-import sys
-from pathlib import Path
-
-import emcee
 import numpy as np
 import pytest
 
@@ -33,10 +19,7 @@ from bayes_mpem.mcmc.sbc import (
     rank_uniformity,
 )
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # tests/, for the released move
-from released_snooker import ReleasedSnooker  # noqa: E402
-
-FAST = {"tau_factor": 10.0, "min_ess": 0.0, "n_draws": 99}
+FAST = {"min_ess": 50.0, "n_draws": 49}
 
 
 @pytest.fixture(scope="module")
@@ -74,14 +57,17 @@ def test_d0_bounds_and_window_are_checked(design):
         BeaconPosterior(design, window=(1.0, 2.0))
 
 
-@pytest.mark.slow
-def test_sbc_passes_the_shipped_sampler_and_fails_the_released_snooker(design):
-    ok = run_sbc(design, 150, rng=11, **FAST)
-    assert set(ok.diagnostics["sampler"]) == {"independence", "ensemble"}  # both paths ran
-    for name, t in ok.tests().items():
-        assert t["p_value"] > 0.01 and t["tails_p_value"] > 0.01, (name, t)
-    assert abs(rank_dispersion(ok.ranks, ok.n_draws)["z"]) < 3.0
-    bad = run_sbc(design, 150, rng=11,
-                  moves=[(emcee.moves.DEMove(), 0.5), (ReleasedSnooker(), 0.5)], **FAST)
-    disp = rank_dispersion(bad.ranks, bad.n_draws)
-    assert disp["z"] > 3.0 and disp["ratio"] > 1.05, disp  # the truth too often in the tails
+def test_sbc_sentinel(design):
+    ok = run_sbc(design, 15, rng=11, **FAST)
+    assert "independence" in ok.diagnostics["sampler"]
+    for name, t in ok.tests(n_bins=5).items():
+        assert t["p_value"] > 0.001 and t["tails_p_value"] > 0.001, (name, t)
+    assert abs(rank_dispersion(ok.ranks, ok.n_draws)["z"]) < 3.5
+
+
+def test_dispersion_catches_posteriors_too_narrow():
+    gen = np.random.default_rng(0)
+    ranks = np.array([[rank_statistic(0.8 * gen.normal(size=49), gen.normal())
+                       for _ in range(3)] for _ in range(150)])
+    disp = rank_dispersion(ranks, 49)
+    assert disp["z"] > 3.0 and disp["ratio"] > 1.1, disp

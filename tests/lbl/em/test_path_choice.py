@@ -11,7 +11,7 @@ from bayes_mpem.exceptions import FitQualityWarning, PathChoiceWarning
 from bayes_mpem.lbl.em.path_choice import CLEAR_MARGIN, PathChoice, check_path_choice, choose_path
 from bayes_mpem.report import load_output
 
-QUICK = dict(progress=False, min_ess=0, tau_factor=1.0, max_steps=300, n_draws=200)
+QUICK = dict(progress=False, min_ess=0, max_steps=300, n_draws=200)
 
 
 @pytest.fixture(scope="module")

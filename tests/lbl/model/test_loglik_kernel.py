@@ -10,7 +10,7 @@ from bayes_mpem.lbl.bayes.posterior import BeaconPosterior
 from bayes_mpem.lbl.model.beacon_geometry import BeaconGeometry
 from bayes_mpem.lbl.model.likelihood import e_step, loglik_per_range
 from bayes_mpem.lbl.model.loglik_kernel import FLOAT32_MAX_ERROR, FLOAT32_MAX_RANGES, LoglikKernel
-from bayes_mpem.mcmc import run_ensemble
+from bayes_mpem.mcmc import default_moves, run_ensembles
 
 
 def _beacon(n_cycles, seed=1, path="triangle"):
@@ -113,9 +113,9 @@ def test_same_seed_same_chain_as_the_log_space_likelihood():
     chains = []
     for post in (BeaconPosterior(data, em=em, precision="float64"), LogSpace(data, em=em)):
         start = post.start(24, np.random.default_rng(5))
-        sampler, *_ = run_ensemble(post, start, seed=7, min_ess=0, tau_factor=np.inf,
-                                   max_steps=300, progress=False)
-        chains.append(sampler.get_chain())
+        run = run_ensembles(post, [start], moves=default_moves(), gen=np.random.default_rng(7),
+                            min_ess=np.inf, max_steps=300, progress=False, warn=False)
+        chains.append(run.chain)
     assert np.array_equal(chains[0], chains[1])
 
 

@@ -1,55 +1,52 @@
-"""The chains of one beacon's posterior: independence chains from a Laplace proposal, or emcee.
+"""The chains of one beacon's posterior: emcee with an independence proposal, or DE.
 
-:func:`beacon_chains` is the sampler choice of
-:func:`~bayes_mpem.lbl.bayes.beacon_sampling.sample_beacon` and of the
-simulation-based calibration (:mod:`bayes_mpem.lbl.bayes.sbc`):
+:func:`beacon_chains` samples :class:`~bayes_mpem.lbl.bayes.posterior.BeaconPosterior`
+in free coordinates (:class:`FreeCoordinates`) with
+:func:`bayes_mpem.mcmc.run_ensembles`:
 
 ``"independence"``
-    Independence Metropolis-Hastings (:mod:`bayes_mpem.mcmc.independence`)
-    in free coordinates (:class:`FreeCoordinates`: ``d0`` and the log scales as
-    they are, the weights as log-ratios to ``w_ol``, with the Jacobian), from a
-    Student-t (10 degrees of freedom) at the posterior mode with the inverse
-    Hessian as its scale; four chains, each started at a draw of the proposal,
-    until the smallest bulk ESS reaches ``min_ess`` and R-hat < 1.01.
+    emcee's ``MHMove`` with a Student-t proposal (10 degrees of freedom) at the
+    posterior mode, the inverse Hessian as its scale
+    (:func:`~bayes_mpem.mcmc.laplace_proposal`); :data:`N_WALKERS` walkers, each its
+    own chain, started at proposal draws (no burn-in).
 ``"ensemble"``
-    emcee's differential evolution from a ball around the EM solution
-    (:func:`bayes_mpem.mcmc.run_ensembles`), as before this choice existed.
+    emcee's differential evolution from balls around the EM solution, with burn-in:
+    two independent ensembles by default, so that R-hat compares them.
 ``"auto"`` (the default)
-    Independence chains when the proposal fits: a pilot (4 chains of
-    ``n_draws / 8`` draws, 4 x 250 by default, then discarded, so that the draws
-    kept play no part in the choice) must give at least
-    :data:`MIN_ESS_PER_DRAW` bulk ESS per draw and R-hat below
-    :data:`MAX_FIRST_RHAT`; otherwise (no Gaussian approximation at the mode, a
-    skewed or multimodal posterior, typically a beacon with few multipath
-    replies) the ensemble, from scratch. Either sampler is exact: the
-    choice only decides how fast the draws come; it is recorded in the result's
-    diagnostics (``sampler``, and ``fallback`` with the reason).
+    The independence move unless a discarded pilot (:data:`PILOT_WALKERS` walkers x
+    :data:`PILOT_STEPS` steps) gives
+    less than :data:`MIN_ESS_PER_DRAW` bulk ESS per draw or R-hat above
+    :data:`MAX_PILOT_RHAT` (or the Hessian at the mode is not negative definite):
+    then differential evolution; also when the independence move has not met the
+    stopping rule after :data:`INDEPENDENCE_BUDGET` steps. The choice and its reason are
+    recorded.
 """
 
 from __future__ import annotations
 
-import time
-import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from ...exceptions import SamplingWarning
-from ...mcmc.independence import laplace_proposal, run_independence
-from ...mcmc.progress import progress_bar, progress_mode, say
-from .posterior import SAMPLERS, BeaconPosterior
+from ...mcmc import laplace_proposal, run_ensembles
+from ...mcmc.progress import progress_mode, say
+from .posterior import PARAMS, SAMPLERS, BeaconPosterior
 
 __all__ = ["SAMPLERS", "BeaconChains", "FreeCoordinates", "beacon_chains"]
-#: independence chains are used ("auto") when their pilot gives at least this
-#: bulk ESS per draw (a well-fitting proposal gives 0.6-0.9; a sticky one below 0.1)
+#: the pilot keeps the independence move at or above this bulk ESS per draw
 MIN_ESS_PER_DRAW = 0.2
-#: ... and R-hat below this over the four chains of the pilot
-MAX_FIRST_RHAT = 1.05
+#: ... and at or below this R-hat (over 32 chains of 32 draws: 1.02-1.04 for a good fit)
+MAX_PILOT_RHAT = 1.1
+#: walkers and steps of the pilot (discarded)
+PILOT_WALKERS, PILOT_STEPS = 32, 32
+#: with ``"auto"``, an independence move that has not met the stopping rule after this many
+#: steps (a proposal that fits poorly in a region the pilot missed) hands over to DE
+INDEPENDENCE_BUDGET = 2000
 #: degrees of freedom of the Student-t proposal
 PROPOSAL_DF = 10.0
-#: independence chains
-N_CHAINS = 4
-#: the target is evaluated in chunks of at most this many proposals x ranges
+#: walkers of the independence move
+N_WALKERS = 16
+#: the target is evaluated in chunks of at most this many points x ranges
 _CHUNK_CELLS = 4_000_000
 
 
@@ -63,17 +60,11 @@ class FreeCoordinates:
     Parameters
     ----------
     post : BeaconPosterior
-
-    Attributes
-    ----------
-    on_chunk : callable or None
-        Called with the number of points after each chunk is evaluated (progress).
     """
 
     def __init__(self, post: BeaconPosterior):
         self.post = post
         self.weights = post.priors == "learned"
-        self.on_chunk = None
         self._chunk = max(16, _CHUNK_CELLS // max(post.geom.n, 1))
 
     def to_free(self, theta) -> np.ndarray:
@@ -111,15 +102,14 @@ class FreeCoordinates:
             ``(n,)``: ``log(w_dp w_mp w_ol)`` (0 with equal priors).
         """
         theta = np.array(np.atleast_2d(u), dtype=float)
-        log_jac = np.zeros(theta.shape[0])
-        if self.weights:
-            a = np.column_stack([theta[:, -2], theta[:, -1], np.zeros(theta.shape[0])])
-            a -= a.max(axis=1, keepdims=True)
-            w = np.exp(a)
-            w /= w.sum(axis=1, keepdims=True)
-            theta[:, -2:] = w[:, :2]
-            with np.errstate(divide="ignore"):
-                log_jac = np.log(w).sum(axis=1)
+        if not self.weights:
+            return theta, np.zeros(theta.shape[0])
+        a_dp, a_mp = theta[:, -2], theta[:, -1]
+        top = np.maximum(np.maximum(a_dp, a_mp), 0.0)
+        e_dp, e_mp, e_ol = np.exp(a_dp - top), np.exp(a_mp - top), np.exp(-top)
+        total = e_dp + e_mp + e_ol
+        log_jac = a_dp + a_mp - 3.0 * (top + np.log(total))  # log(w_dp w_mp w_ol)
+        theta[:, -2], theta[:, -1] = e_dp / total, e_mp / total
         return theta, log_jac
 
     def __call__(self, u) -> np.ndarray:
@@ -129,8 +119,6 @@ class FreeCoordinates:
         for i in range(0, u.shape[0], self._chunk):
             theta, log_jac = self.from_free(u[i:i + self._chunk])
             out[i:i + self._chunk] = self.post(theta) + log_jac
-            if self.on_chunk is not None:
-                self.on_chunk(theta.shape[0])
         return out
 
     def rough_sd(self) -> np.ndarray:
@@ -146,131 +134,154 @@ class FreeCoordinates:
 
 @dataclass(frozen=True)
 class BeaconChains:
-    """Kept draws of one beacon, in the sampler's coordinates, by whichever sampler ran.
+    """The kept chain of one beacon, in the posterior's coordinates.
 
     Attributes
     ----------
     sampler : {"independence", "ensemble"}
-    groups : list of numpy.ndarray
-        ``(steps, chains, ndim)`` per independent group: one group of four
-        independence chains, or one per emcee ensemble (its walkers as chains).
-    log_prob : list of numpy.ndarray
-        ``(steps, chains)`` log posterior (sampler's coordinates) of each group.
+    chain : numpy.ndarray
+        ``(steps, walkers, ndim)`` in :attr:`BeaconPosterior.names` coordinates.
+    log_prob : numpy.ndarray
+        ``(steps, walkers)`` log posterior in those coordinates.
+    run : EnsembleRun
+        The driver's record (ESS, R-hat, steps, acceptance, status).
     info : dict
-        ``n_chains`` (per group), ``n_steps``, ``burn``, ``acceptance``,
-        ``converged``, ``fallback`` (the reason the independence chains were
-        not kept, or None) and, for the independence chains, ``proposal_df``.
+        ``moves``, ``fallback`` (why the independence move was not kept, or None),
+        ``proposal_df`` and ``pilot`` (its ESS per draw and R-hat) when one ran.
     """
 
     sampler: str
-    groups: list = field(repr=False)
-    log_prob: list = field(repr=False)
+    chain: np.ndarray = field(repr=False)
+    log_prob: np.ndarray = field(repr=False)
+    run: object = field(repr=False)
     info: dict = field(default_factory=dict)
 
 
-def _independence(post: BeaconPosterior, gen, *, min_ess, max_steps, first, check, progress):
-    """Independence chains, or ``(None, reason)`` when the proposal does not fit."""
-    free = FreeCoordinates(post)
-    start = free.to_free(post._inside(post.theta_from(post.em.to_dict())))[0]
-    proposal = laplace_proposal(free, start, free.rough_sd(), df=PROPOSAL_DF)
-    if proposal is None:
-        return None, "no Gaussian approximation at the mode (Hessian not negative definite)"
+def sampled(post: BeaconPosterior) -> list:
+    """List the natural parameters that vary over the draws, in :data:`PARAMS` order.
 
-    mode = progress_mode(progress)
-    t0 = time.perf_counter()
-    pilot = max(4, first // 2) if check else 0
-    bar = (progress_bar(mode, post.label, total=N_CHAINS * (pilot + first)) if mode == "bar"
-           else None)
-    if bar is not None:
-        free.on_chunk = bar.update
-    try:
-        if check:  # decided on a pilot, then discarded: the kept draws do not choose
-            test = run_independence(free, proposal, gen=gen, n_chains=N_CHAINS, first=pilot,
-                                    min_ess=np.inf, max_draws=pilot)
-            per_draw = test.ess / test.chain[:, :, 0].size
-            if per_draw < MIN_ESS_PER_DRAW or not test.rhat < MAX_FIRST_RHAT:
-                reason = (f"the Laplace proposal fits poorly (pilot of {N_CHAINS} x {pilot} "
-                          f"draws: ESS {per_draw:.2f} per draw, R-hat {test.rhat:.3f}, "
-                          f"acceptance {test.acceptance:.2f})")
-                _say(mode, post.label, f"{reason}; sampling with the ensemble instead")
-                return None, reason
-        run = run_independence(free, proposal, gen=gen, n_chains=N_CHAINS, first=first,
-                               min_ess=min_ess, max_draws=max_steps)
-    finally:
-        if bar is not None:
-            bar.close()
-    d, c, k = run.chain.shape
-    how = "done" if run.converged else f"stopped at max_steps={max_steps}"
-    _say(mode, post.label, f"{how}, {d} draws x {c} independence chains, bulk ESS {run.ess:.0f} "
-                           f"of {min_ess:g}, {time.perf_counter() - t0:.1f} s")
-    theta, log_jac = free.from_free(run.chain.reshape(-1, k))
-    theta = theta.reshape(d, c, k)
-    return BeaconChains(
-        sampler="independence", groups=[theta], log_prob=[run.log_prob - log_jac.reshape(d, c)],
-        info={"n_chains": c, "n_steps": d, "burn": 0, "acceptance": run.acceptance,
-              "converged": run.converged, "fallback": None, "proposal_df": PROPOSAL_DF,
-              "status": f"{d} draws x {c} chains, bulk ESS {run.ess:.0f} (need {min_ess:g}), "
-                        f"R-hat {run.rhat:.3f} (need < 1.01)"}), None
+    Parameters
+    ----------
+    post : BeaconPosterior
+
+    Returns
+    -------
+    list of str
+    """
+    return [k for k in PARAMS if k in ("d0", "sigma_mp")
+            or (k == "sigma_dp" and post.sigma_dp is None)
+            or (k.startswith("w_") and post.priors == "learned")]
 
 
-def _say(mode, label, text):
-    """One progress line, in log mode (:func:`bayes_mpem.mcmc.progress.say`)."""
-    if mode == "log":
-        say(label, text)
+def _natural(post: BeaconPosterior, free: FreeCoordinates):
+    """``natural(chain)``: the sampled natural parameters of a free-coordinates chain."""
+    names = sampled(post)
+
+    def natural(chain):
+        theta, _ = free.from_free(chain.reshape(-1, chain.shape[-1]))
+        nat = post.unpack(theta)
+        return {k: nat[k][:, 0].reshape(chain.shape[:2]) for k in names}
+
+    return natural
+
+
+def _proposal_start(free: FreeCoordinates, proposal, n: int, gen, rounds: int = 1000):
+    """``n`` proposal draws inside the support: the independence chains need no burn-in."""
+    out = proposal.draw(n, gen)
+    for _ in range(rounds):
+        bad = np.flatnonzero(~np.isfinite(free(out)))
+        if bad.size == 0:
+            return out
+        out[bad] = proposal.draw(bad.size, gen)
+    raise ValueError(f"the proposal put {rounds} draws in a row outside the support")
 
 
 def beacon_chains(post: BeaconPosterior, gen: np.random.Generator, *, sampler="auto",
-                  n_walkers=None, moves=None, tau_factor=50.0, min_ess=1000.0,
-                  max_steps=20000, n_ensembles=1, n_draws=2000, progress="auto", where="",
-                  stacklevel=3) -> BeaconChains:
-    """Sample ``post`` (its :attr:`~BeaconPosterior.em` set) with the sampler chosen by ``sampler``.
+                  n_walkers=None, min_ess=1000.0, max_steps=20000, n_ensembles=None,
+                  n_draws=2000, progress="auto", where="", stacklevel=3) -> BeaconChains:
+    """Sample ``post`` (its :attr:`~BeaconPosterior.em` set) with the move ``sampler`` chooses.
 
     Parameters
     ----------
     post : BeaconPosterior
     gen : numpy.random.Generator
     sampler : {"auto", "independence", "ensemble"}
-        See the module's description. Moves, a number of walkers or more than one
-        ensemble imply the ensemble.
-    n_walkers, moves, tau_factor, n_ensembles, progress
-        Of the ensemble (:func:`~bayes_mpem.mcmc.run_ensembles`).
-    min_ess, max_steps
-        The stopping rule of either (``max_steps``: draws per independence chain).
-    n_draws : int, default 2000
-        The independence chains run at least ``n_draws`` draws in all (so that
-        the draws kept need no thinning), more if their ESS falls short.
+        See the module's description; ``n_ensembles > 1`` implies the ensemble.
+    n_walkers : int, optional
+        Default :data:`N_WALKERS` (independence) or ``max(24, 4 ndim)`` (ensemble).
+    min_ess, max_steps, n_draws
+        The stopping rule (:func:`~bayes_mpem.mcmc.run_ensembles`).
+    n_ensembles : int, optional
+        Independent ensembles of differential evolution (R-hat compares them; default
+        2); more than one implies differential evolution.
+    progress : bool or {"auto", "bar", "log"}
     where : str
-        Names the beacon in warnings.
+        Names the beacon in progress lines and warnings (default its label).
     stacklevel : int
-        Of the ensemble's :class:`~bayes_mpem.exceptions.SamplingWarning`.
+        Of the :class:`~bayes_mpem.exceptions.SamplingWarning`.
 
     Returns
     -------
     BeaconChains
     """
-    fallback = None
-    if sampler != "ensemble" and moves is None and n_walkers is None and n_ensembles == 1:
-        first = max(4, min(max_steps, -(-int(n_draws) // N_CHAINS)))
-        chains, fallback = _independence(post, gen, min_ess=min_ess, max_steps=max_steps,
-                                         first=first, check=sampler == "auto",
-                                         progress=progress)
-        if chains is not None:
-            if not chains.info["converged"]:
-                warnings.warn(f"{where}: the independence chains reached max_steps={max_steps} "
-                              f"before meeting their stopping rule: {chains.info['status']}; "
-                              "estimates may be unreliable", SamplingWarning,
-                              stacklevel=stacklevel)
-            return chains
-    from ...mcmc import run_ensembles
+    from ...mcmc.moves import (
+        DEFAULT_MOVES_LABEL,
+        INDEPENDENCE_LABEL,
+        default_moves,
+        independence_move,
+    )
 
-    n_walkers = int(n_walkers or max(24, 4 * post.ndim))
-    runs = run_ensembles(post, n_walkers=n_walkers, gen=gen, n_ensembles=n_ensembles,
-                         where=where, stacklevel=stacklevel, moves=moves,
-                         tau_factor=tau_factor, min_ess=min_ess, max_steps=max_steps,
-                         progress=progress)
-    return BeaconChains(
-        sampler="ensemble", groups=[r.chain for r in runs], log_prob=[r.log_prob for r in runs],
-        info={"n_chains": n_walkers, "n_steps": max(r.n_steps for r in runs),
-              "burn": int(max(r.burn for r in runs)),
-              "acceptance": float(np.mean([r.acceptance for r in runs])),
-              "converged": bool(all(r.converged for r in runs)), "fallback": fallback})
+    free = FreeCoordinates(post)
+    natural = _natural(post, free)
+    opts = {"gen": gen, "min_ess": min_ess, "max_steps": max_steps, "n_draws": n_draws,
+            "natural": natural, "stacklevel": stacklevel, "label": where or post.label}
+    info = {"fallback": None}
+    if sampler != "ensemble" and (n_ensembles or 1) == 1:
+        start = free.to_free(post._inside(post.theta_from(post.em.to_dict())))[0]
+        proposal = laplace_proposal(free, start, free.rough_sd(), df=PROPOSAL_DF)
+        walkers = int(n_walkers or N_WALKERS)
+        if proposal is None:
+            info["fallback"] = ("no Gaussian approximation at the mode (Hessian not negative "
+                                "definite)")
+        elif sampler == "auto":
+            pilot = run_ensembles(free, [_proposal_start(free, proposal, PILOT_WALKERS, gen)],
+                                  moves=independence_move(proposal), gen=gen,
+                                  min_ess=np.inf, max_steps=PILOT_STEPS,
+                                  n_draws=PILOT_WALKERS * PILOT_STEPS, natural=natural,
+                                  progress=False, warn=False)
+            per_draw = pilot.ess / pilot.chain[:, :, 0].size
+            info["pilot"] = {"ess_per_draw": per_draw, "rhat": pilot.rhat,
+                             "draws": int(pilot.chain[:, :, 0].size)}
+            if per_draw < MIN_ESS_PER_DRAW or not pilot.rhat <= MAX_PILOT_RHAT:
+                info["fallback"] = (
+                    f"the Laplace proposal fits poorly (pilot of {PILOT_WALKERS} x {PILOT_STEPS} "
+                    f"draws: ESS {per_draw:.2f} per draw, R-hat {pilot.rhat:.3f}, "
+                    f"acceptance {pilot.acceptance:.2f})")
+        if info["fallback"] is None:
+            budget = sampler == "auto" and max_steps > INDEPENDENCE_BUDGET
+            run = run_ensembles(free, [_proposal_start(free, proposal, walkers, gen)],
+                                moves=independence_move(proposal), progress=progress,
+                                **{**opts, "max_steps": INDEPENDENCE_BUDGET if budget
+                                   else max_steps, "warn": not budget})
+            if run.converged or not budget:
+                info.update(moves=INDEPENDENCE_LABEL, proposal_df=PROPOSAL_DF)
+                return _chains("independence", free, run, info)
+            info["fallback"] = (f"the independence move did not meet the stopping rule in "
+                                f"{INDEPENDENCE_BUDGET} steps ({run.status})")
+        if progress_mode(progress) == "log":
+            say(post.label, f"{info['fallback']}; differential evolution instead")
+    walkers = int(n_walkers or max(24, 4 * post.ndim))
+    starts = [free.to_free(post.start(walkers, gen)) for _ in range(int(n_ensembles or 2))]
+    run = run_ensembles(free, starts, moves=default_moves(), burn_in=True, progress=progress,
+                        **opts)
+    info.update(moves=DEFAULT_MOVES_LABEL)
+    return _chains("ensemble", free, run, info)
+
+
+def _chains(sampler, free, run, info) -> BeaconChains:
+    """Return the run's chain in the posterior's coordinates, with its log density there."""
+    steps, walkers, ndim = run.chain.shape
+    theta, log_jac = free.from_free(run.chain.reshape(-1, ndim))
+    return BeaconChains(sampler=sampler, chain=theta.reshape(steps, walkers, ndim),
+                        log_prob=run.log_prob - log_jac.reshape(steps, walkers), run=run,
+                        info=info)

@@ -6,20 +6,15 @@
 1. the mixture EM (:func:`~bayes_mpem.lbl.em.em_mixture.fit_mixture_em`) gives the
    start; a start outside the prior support, or one the EM flagged (no multipath,
    a plane above the sea surface, ...), raises :class:`UnusableStartError`;
-2. :func:`~bayes_mpem.lbl.bayes.beacon_chains.beacon_chains` samples: by default four
-   independence Metropolis-Hastings chains from a Student-t at the posterior mode
-   until the smallest bulk ESS reaches ``min_ess``, or, when that proposal fits
-   poorly (or ``sampler="ensemble"``), emcee ensembles from a small ball around the
-   EM solution, run in blocks until the post-burn-in chain is longer than
-   ``tau_factor`` (default 50) integrated autocorrelation times and its smallest
-   ESS reaches ``min_ess`` (by emcee's and by the bulk estimate), discarding
-   ``2 max(tau)`` steps of burn-in;
-3. about ``n_draws`` evenly thinned draws give the ArviZ data (chains or walkers as
-   ArviZ chains, the log-likelihood of every range for PSIS-LOO in
-   :mod:`bayes_mpem.lbl.bayes.loo`), the highest-density intervals and the posterior
-   mean and sd of each range's class probabilities; the autocorrelation times
-   and ESS use the whole kept chain, R-hat compares the independence chains
-   (or independent ensembles).
+2. :func:`~bayes_mpem.lbl.bayes.beacon_chains.beacon_chains` samples with emcee
+   (an independence ``MHMove`` from a Laplace proposal, or differential evolution
+   where that fits poorly) until the smallest bulk ESS reaches ``min_ess`` and
+   R-hat < 1.01;
+3. the kept draws (thinned evenly only beyond ``2 n_draws``) give the ArviZ data
+   (walkers as chains), the ESS, R-hat and highest-density intervals (arviz-stats,
+   from the draws written) and the posterior mean and sd of each range's class
+   probabilities; the per-range log-likelihood (for PSIS-LOO,
+   :mod:`bayes_mpem.lbl.bayes.loo`) and posterior predictive ranges only when asked.
 
 See ``docs/bayes.md``.
 """
@@ -34,20 +29,12 @@ import numpy as np
 from ..._rng import RNGLike, as_generator
 from ...exceptions import UnusableStartError
 from ...io.survey import BeaconData
-from ...mcmc import (
-    autocorr_ess,
-    bulk_ess,
-    hdi,
-    rhat_across_ensembles,
-    thin_index,
-    to_datatree,
-)
-from ...mcmc.convergence import ess_mean, rhat_rank
+from ...mcmc import ess, hdi, rhat, rhat_across_ensembles, thin_index, to_datatree
 from ...mixture.densities import CLASSES
 from ..em.em_mixture import fit_mixture_em
 from ..em.em_result import EMResult
-from .beacon_chains import BeaconChains, beacon_chains
-from .posterior import PARAMS, BeaconPosterior, check_sample_options
+from .beacon_chains import beacon_chains, sampled
+from .posterior import BeaconPosterior, check_sample_options
 
 
 @dataclass(frozen=True)
@@ -60,22 +47,21 @@ class PosteriorResult:
     priors : {"learned", "equal"}
     path : str
     idata : xarray.DataTree
-        ArviZ data: ``posterior`` (chain = walker), ``log_likelihood`` (``z``
-        per range), ``sample_stats`` (``lp``), ``observed_data``.
+        ArviZ data: ``posterior`` (chain = walker), ``sample_stats`` (``lp``),
+        ``observed_data`` (``z`` over ``range``: the input row, with the ping ``time``
+        as a coordinate; units as attributes); ``log_likelihood`` and
+        ``posterior_predictive`` when asked for.
     summary : dict
         Per parameter (``d0``, ``sigma_mp``, ``sigma_dp``, ``weights``):
         ``mean``, ``sd``, ``interval`` (highest-density, probability ``ci``).
-    tau, ess : dict
-        Integrated autocorrelation time (steps) and ``ESS = steps x chains / tau``
-        per sampled parameter: emcee's estimate for an ensemble (walkers as
-        chains), the split-chain ESS of the mean for independence chains.
-    ess_bulk : dict
-        Rank-normalised bulk ESS (ArviZ's estimator) of every kept (unthinned)
-        draw, walkers or chains as chains: a second estimate, comparable with
-        other samplers.
-    rhat : dict or None
-        Rank-normalised split R-hat across the independence chains, or across
-        independent ensembles (None for a single ensemble).
+    tau : dict
+        ``steps x walkers / ESS`` per sampled parameter: the autocorrelation time (steps).
+    ess, ess_bulk : dict
+        ArviZ's bulk ESS of the draws in :attr:`idata` (the same dict under both names).
+    rhat : dict
+        ArviZ's rank-normalised R-hat: over the walkers (each its own chain under the
+        independence move; a heuristic for one ensemble of differential evolution),
+        or across independent ensembles.
     class_probs, class_probs_sd : numpy.ndarray
         ``(n, 3)`` posterior mean and standard deviation of each range's class
         probabilities (dp, mp, ol), over the kept draws.
@@ -84,12 +70,12 @@ class PosteriorResult:
     em : EMResult
         The EM fit the walkers started from.
     diagnostics : dict
-        ``sampler`` (``"independence"`` or ``"ensemble"``), ``fallback`` (why the
-        independence chains were not kept, or None), ``n_chains`` (chains, or
-        walkers per ensemble), ``n_steps``, ``burn``, ``thin``, ``n_draws``,
-        ``n_ensembles``, ``converged`` (the stopping rule met), ``acceptance``,
-        ``seconds``, ``precision`` (of the kernel); for an ensemble also
-        ``n_walkers`` and ``moves``, for independence chains ``proposal_df``.
+        ``sampler`` (``"independence"`` or ``"ensemble"``), ``moves``, ``fallback``
+        (why the independence move was not kept, or None), ``n_walkers`` (per
+        ensemble), ``n_chains`` (walkers in all), ``n_steps``, ``burn``, ``thin``,
+        ``n_draws``, ``n_ensembles``, ``converged`` (the stopping rule met),
+        ``acceptance``, ``seconds``, ``min_ess``, ``precision`` (of the kernel), and
+        ``proposal_df`` and ``pilot`` when they apply.
     ci : float
 
     Notes
@@ -155,7 +141,7 @@ class PosteriorResult:
 
     @property
     def converged(self) -> bool:
-        """Whether every ensemble met its stopping rule before ``max_steps``."""
+        """Whether the stopping rule was met before ``max_steps``."""
         return bool(self.diagnostics.get("converged", True))
 
     @property
@@ -167,8 +153,7 @@ class PosteriorResult:
 
     def to_dict(self) -> dict:
         """JSON-ready summary."""
-        return {**self.summary, "ess": dict(self.ess), "ess_bulk": dict(self.ess_bulk),
-                "tau": dict(self.tau),
+        return {**self.summary, "ess": dict(self.ess), "tau": dict(self.tau),
                 "rhat": None if self.rhat is None else dict(self.rhat), "priors": self.priors,
                 "path": self.path, "ci": self.ci, "diagnostics": dict(self.diagnostics),
                 "em": {"d0": self.em.d0, "sigma_mp": self.em.sigma_mp,
@@ -186,13 +171,13 @@ def sample_beacon(
     init: EMResult | None = None,
     sampler: str = "auto",
     n_walkers: int | None = None,
-    moves=None,
-    tau_factor: float = 50.0,
     min_ess: float = 1000.0,
     max_steps: int = 20000,
-    n_ensembles: int = 1,
+    n_ensembles: int | None = None,
     n_draws: int = 2000,
     ci: float = 0.95,
+    log_likelihood: bool = False,
+    predictive: bool = False,
     rng: RNGLike = None,
     progress="auto",
     allow_flagged_start: bool = False,
@@ -216,46 +201,38 @@ def sample_beacon(
         EM fit to start from (default: :func:`~bayes_mpem.lbl.em.em_mixture.fit_mixture_em`
         with the matching weights option).
     sampler : {"auto", "independence", "ensemble"}
-        Independence chains from a Laplace proposal, emcee's ensemble, or the
-        first unless its proposal fits poorly (``"auto"``); see
-        :mod:`bayes_mpem.lbl.bayes.beacon_chains`. ``n_walkers``, ``moves`` or
-        ``n_ensembles > 1`` imply the ensemble.
+        emcee's independence ``MHMove`` from a Laplace proposal, differential
+        evolution, or the first unless a pilot says its proposal fits poorly
+        (:mod:`bayes_mpem.lbl.bayes.beacon_chains`).
     n_walkers : int, optional
-        Walkers per ensemble (default ``max(24, 4 ndim)``).
-    moves : list, optional
-        emcee moves; default :func:`~bayes_mpem.mcmc.default_moves`
-        (differential evolution alone).
-    tau_factor : float, default 50
-        Ensemble: stop when the kept chain is this many autocorrelation times long ...
+        Walkers (default 32 for the independence move, ``max(24, 4 ndim)`` per ensemble).
     min_ess : float, default 1000
-        ... and its smallest ESS reaches this, by emcee's estimate and by the bulk
-        ESS (per ensemble; 0 to rely on ``tau_factor`` alone). Independence
-        chains: stop when the smallest bulk ESS reaches this and R-hat < 1.01.
+        Stop when the smallest bulk ESS reaches this and R-hat < 1.01.
     max_steps : int, default 20000
-        Step cap per ensemble, or draws per independence chain
-        (``SamplingWarning`` when reached).
-    n_ensembles : int, default 1
-        Independent ensembles (different seeds; more than one implies the
-        ensemble); R-hat is reported when > 1. (Independence chains: always
-        four, and R-hat.)
+        Step cap (``SamplingWarning`` when reached).
+    n_ensembles : int, optional
+        Independent ensembles of differential evolution (default 2; more than one
+        implies differential evolution).
     n_draws : int, default 2000
-        Draws kept (thinned evenly) for the ArviZ data, LOO and class probabilities.
+        Draws kept at least: the sampler runs that many, and a longer chain is thinned
+        evenly to between ``n_draws`` and ``2 n_draws``.
     ci : float, default 0.95
         Probability of the highest-density intervals.
+    log_likelihood : bool, default False
+        Keep the per-range log-likelihood of every draw (``log_likelihood`` group, for
+        PSIS-LOO).
+    predictive : bool, default False
+        Draw a range per ping at every draw (``posterior_predictive`` group).
     rng : None, int or numpy.random.Generator
         The only source of randomness: same seed, same chain.
     progress : bool or "auto"
-        Progress bar (``"auto"``: when standard error is a terminal).
+        Progress bar or lines (:mod:`bayes_mpem.mcmc.progress`).
     allow_flagged_start : bool, default False
         Sample even when the EM start carries fit-quality flags
-        (:func:`~bayes_mpem.lbl.em.em_result.quality_flags`: no multipath found, a
-        plane above the sea surface, ...); by default that raises, as such a
-        posterior describes no reflector and mixes slowly.
+        (:func:`~bayes_mpem.lbl.em.em_result.quality_flags`).
     precision : {"auto", "float32", "float64"}
         Of the likelihood kernel while sampling
-        (:class:`~bayes_mpem.lbl.model.loglik_kernel.LoglikKernel`; ``"auto"``: float32
-        where its rounding error is known to be harmless; ``"float64"``: the same
-        chain as the log-space likelihood, seed for seed). The per-range
+        (:class:`~bayes_mpem.lbl.model.loglik_kernel.LoglikKernel`). The per-range
         log-likelihood and class probabilities are float64 either way.
 
     Returns
@@ -265,20 +242,19 @@ def sample_beacon(
     Raises
     ------
     UnusableStartError
-        When the EM solution lies outside the prior support or is flagged (a
-        sign of a wrong beacon position or of a beacon without multipath).
+        When the EM solution lies outside the prior support or is flagged.
     ValueError
         For invalid options.
 
     Warns
     -----
     SamplingWarning
-        When an ensemble or the independence chains reach ``max_steps`` first.
+        When the sampler reaches ``max_steps`` first.
     """
     check_sample_options(priors=priors, ci=ci, n_ensembles=n_ensembles, sampler=sampler,
                          concentration=concentration, sigma_dp=sigma_dp, path=path,
-                         tau_factor=tau_factor, min_ess=min_ess, max_steps=max_steps,
-                         n_draws=n_draws)
+                         min_ess=min_ess, max_steps=max_steps, n_draws=n_draws,
+                         n_walkers=n_walkers)
     gen = as_generator(rng)
     post = BeaconPosterior(data, priors=priors, sigma_dp=sigma_dp, path=path,
                            concentration=concentration, precision=precision)
@@ -287,47 +263,44 @@ def sample_beacon(
                                      rng=gen)
     _check_start(post, allow_flagged_start)
     t0 = time.perf_counter()
-    chains = beacon_chains(post, gen, sampler=sampler, n_walkers=n_walkers, moves=moves,
-                           tau_factor=tau_factor, min_ess=min_ess, max_steps=max_steps,
-                           n_ensembles=n_ensembles, n_draws=n_draws, progress=progress,
-                           where=f"beacon {data.beacon}", stacklevel=3)
+    chains = beacon_chains(post, gen, sampler=sampler, n_walkers=n_walkers, min_ess=min_ess,
+                           max_steps=max_steps, n_ensembles=n_ensembles, n_draws=n_draws,
+                           progress=progress, stacklevel=3)
     seconds = time.perf_counter() - t0
-    groups = chains.groups
-    kept = min(c.shape[0] for c in groups)
-    idx, thin = thin_index(kept, sum(c.shape[1] for c in groups), n_draws)
-    # chains (walkers) become ArviZ chains: (chain, draw, ndim) and (chain, draw)
-    theta = np.swapaxes(np.concatenate([c[idx] for c in groups], axis=1), 0, 1)
-    lp = np.concatenate([lp_[idx] for lp_ in chains.log_prob], axis=1).T
+    run = chains.run
+    idx, thin = thin_index(chains.chain.shape[0], chains.chain.shape[1], n_draws)
+    theta = np.swapaxes(chains.chain[idx], 0, 1)  # walkers become ArviZ chains
+    lp = chains.log_prob[idx].T
     flat = theta.reshape(-1, post.ndim)
     nat = {k: v[:, 0].reshape(theta.shape[:2]) for k, v in post.unpack(flat).items()}
     ll, probs, probs_sd = post.pointwise_moments(flat)
-    idata = _datatree(post, nat, ll.reshape(*theta.shape[:2], -1), lp, chains.sampler)
-    tau, ess, ess_bulk = _chain_diagnostics(post, chains, kept)
-    if chains.sampler == "independence":  # the four chains, every kept draw
-        rhat = {k: rhat_rank(_natural(post, groups[0], k).T) for k in _sampled(post)}
+    extra = {}
+    if log_likelihood:
+        extra["log_likelihood"] = {"z": ll.reshape(*theta.shape[:2], -1)}
+    if predictive:
+        extra["posterior_predictive"] = {"z": _predict(post, nat, gen)}
+    idata = _datatree(post, data, nat, lp, chains.sampler, extra)
+    names = sampled(post)
+    if thin == 1 and idx.size == chains.chain.shape[0]:  # the draws written are those checked
+        ess_, rhat_ = dict(run.ess_by), dict(run.rhat_by)
     else:
-        rhat = (rhat_across_ensembles(idata.posterior.dataset, len(groups)) if len(groups) > 1
-                else None)
-    info = chains.info
-    diagnostics = {"sampler": chains.sampler, "fallback": info["fallback"],
-                   "n_chains": info["n_chains"], "n_steps": info["n_steps"],
-                   "burn": info["burn"], "thin": int(thin), "n_draws": int(flat.shape[0]),
-                   "n_ensembles": len(groups), "converged": info["converged"],
-                   "acceptance": float(info["acceptance"]), "seconds": float(seconds),
-                   "tau_factor": float(tau_factor), "min_ess": float(min_ess),
-                   "precision": post.kernel.dtype.name}
-    if chains.sampler == "ensemble":
-        from ...mcmc import DEFAULT_MOVES_LABEL
-
-        diagnostics.update(n_walkers=info["n_chains"],
-                           moves=DEFAULT_MOVES_LABEL if moves is None else repr(moves))
-    else:
-        diagnostics.update(proposal_df=info["proposal_df"])
+        ess_ = {k: ess(idata.posterior[k].values) for k in names}
+        rhat_ = (rhat_across_ensembles(idata.posterior.to_dataset()[names], run.n_ensembles)
+                 if run.n_ensembles > 1 else {k: rhat(idata.posterior[k].values) for k in names})
+    tau = {k: float(idx.size * thin * theta.shape[0] / ess_[k]) for k in names}
+    diagnostics = {"sampler": chains.sampler, "moves": chains.info["moves"],
+                   "fallback": chains.info["fallback"], "n_walkers": run.n_walkers,
+                   "n_chains": int(theta.shape[0]), "n_steps": run.n_steps, "burn": run.burn,
+                   "thin": int(thin), "n_draws": int(flat.shape[0]),
+                   "n_ensembles": run.n_ensembles, "converged": run.converged,
+                   "acceptance": run.acceptance, "seconds": float(seconds),
+                   "min_ess": float(min_ess), "precision": post.kernel.dtype.name,
+                   **{k: chains.info[k] for k in ("proposal_df", "pilot") if k in chains.info}}
     return PosteriorResult(
         beacon=data.beacon, priors=priors, path=path, idata=idata,
-        summary=_summary(nat, ci), tau=tau, ess=ess,
-        ess_bulk=ess_bulk, rhat=rhat, class_probs=probs, class_probs_sd=probs_sd,
-        rows=np.asarray(data.rows), em=post.em, ci=float(ci), diagnostics=diagnostics)
+        summary=_summary(nat, ci), tau=tau, ess=ess_, ess_bulk=ess_, rhat=rhat_,
+        class_probs=probs, class_probs_sd=probs_sd, rows=np.asarray(data.rows), em=post.em,
+        ci=float(ci), diagnostics=diagnostics)
 
 
 def _check_start(post: BeaconPosterior, allow_flagged: bool) -> None:
@@ -343,31 +316,45 @@ def _check_start(post: BeaconPosterior, allow_flagged: bool) -> None:
             + ". Check this beacon's position and ranges with 'bayes-mpem fit' first.")
 
 
-def _sampled(post: BeaconPosterior) -> list:
-    """List the natural parameters that vary over the draws, in :data:`PARAMS` order."""
-    return [k for k in PARAMS if k == "d0" or k == "sigma_mp"
-            or (k == "sigma_dp" and post.sigma_dp is None)
-            or (k.startswith("w_") and post.priors == "learned")]
+#: units of the variables written (``units`` attributes)
+UNITS = {"d0": "m", "sigma_mp": "m", "sigma_dp": "m", "w_dp": "1", "w_mp": "1", "w_ol": "1",
+         "z": "m", "time": "s"}
 
 
-def _datatree(post: BeaconPosterior, nat: dict, ll, lp, sampler: str):
-    """ArviZ data of the thinned draws, chains (walkers) as chains."""
+def _predict(post: BeaconPosterior, nat: dict, gen) -> np.ndarray:
+    """One range per ping at every draw, from the mixture: ``(chain, draw, range)`` float32."""
+    g = post.geom
+    shape = nat["d0"].shape + (g.n,)
+    u = gen.random(shape)
+    cls = (u > nat["w_dp"][..., None]).astype(int) + (u > (nat["w_dp"] + nat["w_mp"])[..., None])
+    dp = g.direct + nat["sigma_dp"][..., None] * gen.standard_normal(shape)
+    mp = (g.multipath(nat["d0"][..., None], post.path)
+          + nat["sigma_mp"][..., None] * gen.standard_normal(shape))
+    ol = gen.uniform(g.lo, g.hi, shape)
+    return np.choose(cls, [dp, mp, ol]).astype(np.float32)
+
+
+def _datatree(post: BeaconPosterior, data: BeaconData, nat: dict, lp, sampler: str,
+              extra: dict):
+    """ArviZ data of the kept draws, walkers as chains; units and ping times attached."""
+    import emcee
+    import xarray as xr
+
     idata = to_datatree(
-        {"posterior": {k: nat[k] for k in _sampled(post)},
-         "log_likelihood": {"z": ll},
-         "sample_stats": {"lp": lp},
-         "observed_data": {"z": post.geom.z}},
-        dims={"z": ["range"]}, coords={"range": np.arange(post.geom.n)})
-    if sampler == "ensemble":
-        import emcee
-
-        label = f"emcee {emcee.__version__}"
-    else:
-        from ... import __version__
-
-        label = f"bayes_mpem {__version__} independence Metropolis-Hastings"
-    idata.attrs.update({"beacon": post.beacon, "priors": post.priors, "path": post.path,
-                        "sampler": label})
+        {"posterior": {k: nat[k] for k in sampled(post)}, "sample_stats": {"lp": lp},
+         "observed_data": {"z": post.geom.z}, **extra},
+        dims={"z": ["range"]}, coords={"range": np.asarray(data.rows)},
+        attrs={"beacon": post.beacon, "priors": post.priors, "path": post.path,
+               "sampler": f"emcee {emcee.__version__} ({sampler})"})
+    for name in idata.children:
+        ds = idata[name].to_dataset()
+        if "range" in ds.dims:
+            ds = ds.assign_coords(time=("range", np.asarray(data.time, float)))
+            ds["range"].attrs.update(long_name="input row")
+        for var in list(ds.data_vars) + list(ds.coords):
+            if var in UNITS and not (name == "log_likelihood" and var == "z"):
+                ds[var].attrs["units"] = UNITS[var]
+        idata[name] = xr.DataTree(ds)
     return idata
 
 
@@ -378,39 +365,10 @@ def _summary(nat: dict, ci) -> dict:
     return summary
 
 
-def _natural(post: BeaconPosterior, chain, k) -> np.ndarray:
-    """Natural parameter ``k`` of a ``(steps, chains, ndim)`` chain, ``(steps, chains)``."""
-    return post.unpack(chain.reshape(-1, post.ndim))[k][:, 0].reshape(chain.shape[:2])
-
-
-def _chain_diagnostics(post: BeaconPosterior, chains: BeaconChains, kept):
-    """Autocorrelation time and ESS, and the bulk ESS, of every sampled natural parameter.
-
-    An ensemble: emcee's estimates on the whole kept chain of each (ESS summed
-    over ensembles), the bulk ESS on the last ``kept`` steps of each, walkers of
-    all ensembles as chains. Independence chains: the split-chain ESS of the
-    mean and the bulk ESS, chains as chains; ``tau = steps x chains / ESS``.
-    """
-    tau, ess, full = {}, {}, {}
-    for k in _sampled(post):
-        if chains.sampler == "independence":
-            x = _natural(post, chains.groups[0], k).T  # (chain, draw)
-            ess[k] = ess_mean(x)
-            tau[k] = float(x.size / ess[k])
-            full[k] = x
-            continue
-        tk, ek = [], 0.0
-        for c in chains.groups:
-            t, e = autocorr_ess(_natural(post, c, k))
-            tk.append(t)
-            ek += e
-        tau[k], ess[k] = float(np.max(tk)), float(ek)
-        full[k] = np.concatenate([_natural(post, c[-kept:], k).T for c in chains.groups],
-                                 axis=0)  # (walker, step) per ensemble, common length
-    return tau, ess, bulk_ess(full)
-
-
 def _describe(x, ci):
-    lo, hi = hdi(x, ci)  # highest-density interval
-    return {"mean": float(np.mean(x)), "sd": float(np.std(x, ddof=1)) if x.size > 1 else 0.0,
-            "interval": [lo, hi]}
+    x = np.asarray(x, float)
+    if np.ptp(x) == 0:  # a fixed parameter
+        v = float(x.flat[0])
+        return {"mean": v, "sd": 0.0, "interval": [v, v]}
+    return {"mean": float(np.mean(x)), "sd": float(np.std(x, ddof=1)),
+            "interval": hdi(x, ci)}

@@ -7,10 +7,7 @@ model's expected log pointwise predictive density, and the paired difference
 2017). A difference is called clear when it exceeds both two standard errors
 and 4 nats: below 4 the models predict about equally well and the normal
 approximation behind the SE is unreliable (Sivula, Magnusson & Vehtari 2020;
-Vehtari's cross-validation FAQ). On surveys simulated with equal weights the
-learned model loses 0.7-1.6 nats (the price of two extra parameters) with an
-SE of 0.6-1.4 (``docs/bayes-calibration.md``), so a 2-SE rule alone would
-sometimes "prefer" equal priors there (-1.6 +- 0.6 on one of six surveys).
+Vehtari's cross-validation FAQ; the measured case is in ``docs/bayes.md``).
 
 :func:`psis_loo` computes the LOO of one
 :class:`~bayes_mpem.lbl.bayes.beacon_sampling.PosteriorResult`
@@ -79,10 +76,18 @@ def psis_loo(result: PosteriorResult) -> LooResult:
     Returns
     -------
     LooResult
+
+    Raises
+    ------
+    ValueError
+        When ``result`` holds no ``log_likelihood`` group.
     """
     import arviz_stats as azs
     from scipy.special import logsumexp
 
+    if "log_likelihood" not in result.idata.children:
+        raise ValueError(f"beacon {result.beacon}: PSIS-LOO needs the per-range "
+                         "log-likelihood: sample with log_likelihood=True")
     vals = result.idata.log_likelihood["z"].values  # (chain, draw, range)
     ratios = -vals.reshape(-1, vals.shape[-1])  # log importance ratios, (draws, ranges)
     n_draws = ratios.shape[0]
@@ -191,6 +196,7 @@ def compare_beacon(data: BeaconData, *, rng: RNGLike = None, learned_init=None,
     PriorComparison
     """
     gen = as_generator(rng)
+    kwargs["log_likelihood"] = True  # LOO needs it
     eq = sample_beacon(data, priors="equal", rng=gen, **kwargs)
     le = sample_beacon(data, priors="learned", rng=gen,
                        **({"init": learned_init} if learned_init is not None else {}), **kwargs)

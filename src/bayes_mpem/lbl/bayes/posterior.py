@@ -55,15 +55,15 @@ SAMPLERS = ("auto", "independence", "ensemble")
 PARAMS = ("d0", "sigma_mp", "sigma_dp", "w_dp", "w_mp", "w_ol")
 
 
-def check_sample_options(*, priors="learned", ci=0.95, n_ensembles=1, concentration=1.0,
-                         sigma_dp=None, path="triangle", tau_factor=50.0, min_ess=1000.0,
-                         max_steps=20000, n_draws=2000, sampler="auto"):
+def check_sample_options(*, priors="learned", ci=0.95, n_ensembles=None, concentration=1.0,
+                         sigma_dp=None, path="triangle", min_ess=1000.0,
+                         max_steps=20000, n_draws=2000, sampler="auto", n_walkers=None):
     """Validate the sampler's options before any work (``ValueError`` naming the option).
 
     Parameters
     ----------
-    priors, ci, n_ensembles, concentration, sigma_dp, path, tau_factor, min_ess, max_steps, \
-n_draws, sampler
+    priors, ci, n_ensembles, concentration, sigma_dp, path, min_ess, max_steps, n_draws, \
+sampler, n_walkers
         As for :func:`~bayes_mpem.lbl.bayes.beacon_sampling.sample_beacon`.
 
     Raises
@@ -86,12 +86,14 @@ n_draws, sampler
     check_choice("sampler", sampler, SAMPLERS)
     check_probability("ci", ci)
     check_positive("concentration", concentration)
-    check_range("tau_factor", tau_factor, low=0)  # inf: stop on max_steps only
     check_range("min_ess", min_ess, low=0, include_low=True)
     check_positive("sigma_dp", sigma_dp, allow_none=True, what="a positive number")
     for name, value in (("n_ensembles", n_ensembles), ("max_steps", max_steps),
                         ("n_draws", n_draws)):
-        check_int(name, value, minimum=1)
+        if value is not None or name != "n_ensembles":
+            check_int(name, value, minimum=1)
+    if n_walkers is not None:
+        check_int("n_walkers", n_walkers, minimum=8)
 
 
 class BeaconPosterior:
@@ -256,19 +258,20 @@ class BeaconPosterior:
             ``(W,)`` log prior densities.
         """
         theta = np.atleast_2d(theta)
-        col = {n: theta[:, i] for i, n in enumerate(self.names)}
         lo, hi = self.log_sigma_bounds
-        ok = (col["d0"] >= self.d0_bounds[0]) & (col["d0"] <= self.d0_bounds[1])
-        for name in ("log_sigma_mp", "log_sigma_dp"):
-            if name in col:
-                ok &= (col[name] >= lo) & (col[name] <= hi)
+        d0 = theta[:, 0]
+        ok = (d0 >= self.d0_bounds[0]) & (d0 <= self.d0_bounds[1])
+        scales = theta[:, 1:3 if self.sigma_dp is None else 2]  # the log scales
+        ok &= np.all((scales >= lo) & (scales <= hi), axis=1)
         out = np.full(theta.shape[0], self._log_prior_const)
         if self.priors == "learned":
-            w = np.column_stack([col["w_dp"], col["w_mp"], 1.0 - col["w_dp"] - col["w_mp"]])
+            w = np.column_stack([theta[:, -2], theta[:, -1], 1.0 - theta[:, -2] - theta[:, -1]])
             ok &= np.all(w > 0, axis=1)
-            with np.errstate(invalid="ignore", divide="ignore"):
-                out += self._dirichlet_norm + (self.concentration - 1.0) * np.log(
-                    np.where(w > 0, w, 1.0)).sum(axis=1)
+            if self.concentration != 1.0:
+                with np.errstate(invalid="ignore", divide="ignore"):
+                    out += (self.concentration - 1.0) * np.log(np.where(w > 0, w, 1.0)).sum(
+                        axis=1)
+            out += self._dirichlet_norm
         out[~ok] = -np.inf
         return out
 

@@ -11,8 +11,8 @@ positions of its pings; the ranges are simulated):
    (:func:`simulate_ranges`);
 3. sample the posterior of those ranges as ``bayes-mpem sample`` does: the
    mixture EM gives the start, :func:`~bayes_mpem.lbl.bayes.beacon_chains.beacon_chains`
-   runs the shipped sampler (or the ensemble with the ``moves`` given) to its
-   stopping rule, and ``n_draws`` draws are thinned evenly from the kept chain;
+   runs the shipped sampler to its stopping rule, and ``n_draws`` draws are thinned
+   evenly from the kept chain;
 4. record the rank of every true parameter among its draws
    (:func:`~bayes_mpem.mcmc.sbc.rank_statistic`).
 
@@ -20,8 +20,7 @@ With an exact posterior and sampler the ranks are uniform
 (:meth:`SBCResult.tests`). The prior options exist only here; the default
 posterior of ``sample`` is unchanged (its ``d0`` prior is bounded by the largest
 range, see :mod:`bayes_mpem.lbl.bayes.posterior`). ``benchmarks/sbc.py`` runs the
-study (``docs/bayes-calibration.md``); ``tests/lbl/bayes/test_sbc.py`` a small one
-that fails with emcee 3.1.6's snooker move.
+study (``docs/bayes-calibration.md``); ``tests/lbl/bayes/test_sbc.py`` a small sentinel.
 
 Pings whose direct path is shorter than ``min_direct`` are left out of the
 design, so that no simulated direct or multipath range can leave the window
@@ -38,7 +37,6 @@ import numpy as np
 
 from ..._rng import RNGLike, as_generator
 from ...io.survey import BeaconData
-from ...mcmc import thin_index
 from ...mcmc.sbc import rank_statistic, rank_uniformity
 from ..em.em_mixture import fit_mixture_em
 from ..model.beacon_geometry import BeaconGeometry
@@ -190,9 +188,8 @@ def simulate_ranges(post: BeaconPosterior, theta, gen) -> np.ndarray:
 
 
 def run_sbc(design: BeaconData, n_sims: int, *, rng: RNGLike = None, sampler="auto",
-            moves=None, n_draws: int = 99, path: str = "triangle", n_walkers=None,
-            tau_factor: float = 30.0, min_ess: float = 300.0, max_steps: int = 20000,
-            **prior) -> SBCResult:
+            n_draws: int = 99, path: str = "triangle", n_walkers=None,
+            min_ess: float = 300.0, max_steps: int = 20000, **prior) -> SBCResult:
     """Simulation-based calibration of the beacon posterior on ``design``.
 
     Parameters
@@ -204,17 +201,14 @@ def run_sbc(design: BeaconData, n_sims: int, *, rng: RNGLike = None, sampler="au
     rng : None, int or numpy.random.Generator
         The only source of randomness.
     sampler : {"auto", "independence", "ensemble"}
-        As for :func:`~bayes_mpem.lbl.bayes.beacon_sampling.sample_beacon` (default the shipped
-        choice; ``moves`` or ``n_walkers`` imply the ensemble).
-    moves : list, optional
-        emcee moves of the ensemble (default: :func:`~bayes_mpem.mcmc.default_moves`).
+        As for :func:`~bayes_mpem.lbl.bayes.beacon_sampling.sample_beacon`.
     n_draws : int, default 99
         Posterior draws each rank is taken among, thinned evenly from the kept chain.
     path : {"triangle", "double"}
     n_walkers : int, optional
-        Walkers of the ensemble (default ``max(24, 4 ndim)``).
-    tau_factor, min_ess, max_steps : float, float, int
-        The sampler's stopping rule (:func:`~bayes_mpem.lbl.bayes.beacon_chains.beacon_chains`).
+        Walkers (:func:`~bayes_mpem.lbl.bayes.beacon_chains.beacon_chains`).
+    min_ess, max_steps : float, int
+        The sampler's stopping rule.
     **prior
         ``plane_halfwidth``, ``sigma_bounds``, ``concentration``, ``priors``
         (:func:`sbc_posterior`).
@@ -240,23 +234,24 @@ def run_sbc(design: BeaconData, n_sims: int, *, rng: RNGLike = None, sampler="au
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # flagged fits and step caps are counted instead
             post.em = fit_mixture_em(data, path=path, rng=gen)
-            run = beacon_chains(post, gen, sampler=sampler, n_walkers=n_walkers, moves=moves,
-                                tau_factor=tau_factor, min_ess=min_ess, max_steps=max_steps,
+            run = beacon_chains(post, gen, sampler=sampler, n_walkers=n_walkers,
+                                min_ess=min_ess, max_steps=max_steps, n_draws=n_draws,
                                 progress=False)
-        chain = run.groups[0]
-        idx, _ = thin_index(chain.shape[0], chain.shape[1], n_draws)
-        flat = chain[idx].reshape(-1, post.ndim)[-n_draws:]
+        chain = run.chain
+        per_chain = -(-n_draws // chain.shape[1])
+        idx = np.linspace(0, chain.shape[0] - 1, per_chain).round().astype(int)
+        flat = chain[idx].reshape(-1, post.ndim)
+        flat = flat[np.linspace(0, flat.shape[0] - 1, n_draws).round().astype(int)]
         draws = post.unpack(flat)
         truth = post.unpack(theta[None, :])
         for i, k in enumerate(names):
             truths[s, i] = truth[k][0, 0]
             ranks[s, i] = rank_statistic(draws[k][:, 0], truth[k][0, 0])
-        diag["n_steps"].append(run.info["n_steps"])
+        diag["n_steps"].append(run.run.n_steps)
         diag["sampler"].append(run.sampler)
-        diag["converged"].append(run.info["converged"])
+        diag["converged"].append(run.run.converged)
     settings = {"n_sims": int(n_sims), "n_ranges": int(design.n), "path": path,
-                "sampler": sampler, "n_walkers": n_walkers, "tau_factor": float(tau_factor),
-                "min_ess": float(min_ess), "moves": "default" if moves is None else repr(moves),
+                "sampler": sampler, "n_walkers": n_walkers, "min_ess": float(min_ess),
                 **{k: (list(v) if isinstance(v, tuple) else v) for k, v in opts.items()}}
     return SBCResult(names=tuple(names), ranks=ranks, truths=truths, n_draws=int(n_draws),
                      settings=settings, diagnostics=diag)

@@ -27,17 +27,44 @@ from .survey import (
     over_beacons,
 )
 
-#: The per-range log-likelihood dominates a posterior file: gzip'd float32 (7 significant
-#: digits, ample for LOO) took the abe58 demo file from 81 to 29 MB (measured).
-LOGLIK_ENCODING = {"/log_likelihood": {"z": {"dtype": "float32"}}}
-#: ... and with ``write(compress=True)``: gzip, a third smaller, ~1 s per 5,000-range beacon
-LOGLIK_GZIP = {"/log_likelihood": {"z": {"dtype": "float32", "compression": "gzip",
-                                         "compression_opts": 4, "shuffle": True}}}
-#: The root attribute ``contents`` of ``posterior.nc`` (legacy ArviZ reads no nested groups).
-COMBINED_NOTE = ("one group beacon_<id> per beacon, each with the ArviZ groups posterior, "
-                 "log_likelihood, sample_stats and observed_data; open it with "
-                 "xarray.open_datatree. posterior_<id>.nc holds one beacon at its root for "
-                 "arviz.from_netcdf (legacy InferenceData) and arviz_base.convert_to_datatree")
+#: The root attribute ``contents`` of ``posterior.nc``.
+CONTENTS = ("one group beacon_<id> per beacon, each with the ArviZ groups posterior, "
+            "sample_stats and observed_data (log_likelihood and posterior_predictive when "
+            "asked for); open one with xarray.open_datatree(path)['beacon_<id>'] or "
+            "arviz.InferenceData.from_netcdf(path, base_group='beacon_<id>')")
+#: gzip with byte shuffling (netCDF4's deflate), on every variable when compressing
+GZIP = {"compression": "gzip", "compression_opts": 4, "shuffle": True}
+
+
+def encoding(tree, *, compress: bool = True) -> dict:
+    """NetCDF encoding of every variable of ``tree``: gzip, the per-range log-likelihood float32.
+
+    float32 keeps 7 significant digits of each range's log-likelihood, ample for LOO.
+
+    Parameters
+    ----------
+    tree : xarray.DataTree
+    compress : bool, default True
+
+    Returns
+    -------
+    dict
+        Group path -> variable -> encoding, for ``DataTree.to_netcdf``.
+    """
+    enc = {}
+    for node in tree.subtree:
+        variables = {}
+        for name, var in node.dataset.variables.items():
+            if var.ndim == 0 or name in node.dataset.dims:
+                continue
+            e = dict(GZIP) if compress else {}
+            if node.name == "log_likelihood":
+                e["dtype"] = "float32"
+            if e:
+                variables[name] = e
+        if variables:
+            enc[node.path] = variables
+    return enc
 
 
 @dataclass(frozen=True)
@@ -185,49 +212,36 @@ class SurveyPosterior:
         root = xr.DataTree()
         for bid, r in self.results.items():
             root[f"beacon_{bid}"] = r.idata
-        root.attrs.update({"priors": self.priors, "ci": self.ci, "contents": COMBINED_NOTE})
+        root.attrs.update({"priors": self.priors, "ci": self.ci, "contents": CONTENTS})
         return root
 
-    def write(self, out_dir, *, table_format: str = "csv", compress: bool = False) -> dict:
-        """Write the posterior files, ``classified.csv`` and, last, ``summary.json``.
+    def write(self, out_dir, *, table_format: str = "csv", compress: bool = True) -> dict:
+        """Write ``posterior.nc``, ``classified.csv`` and, last, ``summary.json``.
 
-        ``posterior_<id>.nc`` holds one beacon's ArviZ groups (``posterior``,
-        ``log_likelihood``, ``sample_stats``, ``observed_data``) at its root, so that
-        ``arviz.from_netcdf`` of either generation opens it with no extra argument;
-        ``posterior.nc`` holds every beacon, one group ``beacon_<id>`` each
-        (``xarray.open_datatree``). ``docs/bayes.md`` has the calls. The per-range
-        log-likelihood is float32 (7 significant digits, ample for LOO). Through
-        :func:`bayes_mpem.io.results.writing`: all or nothing, ``summary.json`` (the
-        completion marker) last, sampling times in ``timings.json``.
+        ``posterior.nc`` holds every beacon, one group ``beacon_<id>`` each, with the
+        ArviZ groups of :attr:`PosteriorResult.idata` (``docs/bayes.md`` has the calls
+        that open it). Through :func:`bayes_mpem.io.results.writing`: all or nothing,
+        ``summary.json`` (the completion marker) last.
 
         Parameters
         ----------
         out_dir : str or pathlib.Path
         table_format : {"csv", "parquet"}, default "csv"
             Of the classified table.
-        compress : bool, default False
-            Gzip the per-range log-likelihood of the posterior files: about a third
-            smaller, five times slower to write (5,000 ranges: 27 against 41 MB,
-            ~1 s against ~0.2 s; measured).
+        compress : bool, default True
+            Gzip every variable (:func:`encoding`).
 
         Returns
         -------
         dict
-            Paths written: ``posterior``, ``posterior_<id>`` per beacon, ``classified``,
-            ``summary``.
+            Paths written: ``posterior``, ``classified``, ``summary``.
         """
         check_choice("table_format", table_format, TABLE_FORMATS)
-        loglik = LOGLIK_GZIP if compress else LOGLIK_ENCODING
-        enc = {f"/beacon_{b}{group}": e for b in self.results for group, e in loglik.items()}
+        tree = self.datatree()
+        enc = encoding(tree, compress=compress)
         with writing(out_dir) as out:
-            paths = {"posterior": write_file(out / "posterior.nc", lambda tmp: self.datatree()
-                                             .to_netcdf(tmp, engine="h5netcdf", encoding=enc))}
-            for bid, r in self.results.items():
-                tree = r.idata if r.idata.is_root else r.idata.copy()  # read back: a subtree
-                paths[f"posterior_{bid}"] = write_file(
-                    out / f"posterior_{bid}.nc",
-                    lambda tmp, tree=tree: tree.to_netcdf(tmp, engine="h5netcdf",
-                                                          encoding=loglik))
+            paths = {"posterior": write_file(out / "posterior.nc", lambda tmp: tree.to_netcdf(
+                tmp, engine="h5netcdf", encoding=enc))}
             paths["classified"] = write_table(out / f"classified.{table_format}",
                                               self.classified())
             paths["summary"] = write_json(out / "summary.json", self.summary())

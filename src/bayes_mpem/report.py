@@ -24,7 +24,7 @@ from .lbl.em.pol_sensitivity import POL_GRID, survey_pol_sensitivity
 from .lbl.navigate.result import Navigation, NavigationRecord
 from .lbl.survey.comparison import SurveyComparison
 from .lbl.survey.fitting import SurveyFit
-from .lbl.survey.sampling import SurveyPosterior
+from .lbl.survey.sampling import SurveyPosterior, posterior_file
 from .mixture.densities import CLASSES
 from .plots import bayes as bayes_plots
 from .plots import lbl as lbl_plots
@@ -465,19 +465,19 @@ def _load_posterior(d, summary, survey, probs, num):
 
     from .lbl.bayes.beacon_sampling import PosteriorResult
 
-    path = d / "posterior.nc"
-    if not path.exists():
-        raise FileNotFoundError(f"{path}: not found; 'bayes-mpem sample' writes it")
-    try:
-        tree = xr.open_datatree(path, engine="h5netcdf").load()
-    except (OSError, ValueError) as exc:
-        raise InputError(f"{path}: not a readable NetCDF file ({exc})") from None
     sd = np.column_stack([num["p_" + c + "_sd"] for c in CLASSES])
     results = {}
     for b, s in summary["beacons"].items():
+        path = d / posterior_file(b) if "file" not in s else d / Path(s["file"]).name
+        if not path.exists():
+            raise FileNotFoundError(f"{path}: not found; 'bayes-mpem sample' writes it")
+        try:
+            tree = xr.open_datatree(path, engine="h5netcdf").load()
+        except (OSError, ValueError) as exc:
+            raise InputError(f"{path}: not a readable NetCDF file ({exc})") from None
         rows = survey.for_beacon(b).rows
         results[b] = PosteriorResult(
-            beacon=b, priors=s["priors"], path=s["path"], idata=tree[f"beacon_{b}"],
+            beacon=b, priors=s["priors"], path=s["path"], idata=tree,
             summary={k: s[k] for k in ("d0", "sigma_mp", "sigma_dp", "weights")},
             tau=s["tau"], ess=s["ess"], ess_bulk=s.get("ess_bulk", {}), rhat=s.get("rhat"),
             class_probs=probs[rows],

@@ -1,10 +1,10 @@
-"""The posterior file opens in ArviZ as its users expect (docs/bayes.md, "Opening the posterior
+"""The posterior files open in ArviZ as its users expect (docs/bayes.md, "Opening the posterior
 in ArviZ").
 
-``posterior.nc`` holds one group ``beacon_<id>`` per beacon, each with the ArviZ groups. The
-current generation (``xarray.open_datatree``, ``arviz_base``, arviz-stats) and the legacy one
-(``arviz.InferenceData.from_netcdf(path, base_group=...)``, ``arviz<1`` in the ``test``
-extra) open it. arviz-plots (the ``arviz-plots`` extra) draws from it where installed.
+``sample`` writes one file per beacon, ``posterior_<id>.nc``, its ArviZ groups at the root.
+The current generation (``xarray.open_datatree``, ``arviz_base.from_netcdf``, arviz-stats) and
+the legacy one (``arviz.from_netcdf``, ``arviz<1`` in the ``test`` extra) open it as it is.
+arviz-plots (the ``arviz-plots`` extra) draws from it where installed.
 """
 
 import json
@@ -26,20 +26,28 @@ def written(tmp_path_factory):
     return post, out, post.write(out)
 
 
-def test_one_grouped_file_with_every_beacon(written):
+def test_one_file_per_beacon_and_no_other(written):
     post, out, paths = written
-    assert sorted(p.name for p in out.glob("*.nc")) == ["posterior.nc"]
-    tree = xr.open_datatree(paths["posterior"])  # no engine, no group
-    assert "base_group" in tree.attrs["contents"]
-    assert sorted(tree.children) == [f"beacon_{b}" for b in sorted(post.results)]
+    summary = json.loads((out / "summary.json").read_text())
+    assert sorted(p.name for p in out.glob("*.nc")) == sorted(
+        f"posterior_{b}.nc" for b in post.results)
     for bid, r in post.results.items():
-        node = tree[f"beacon_{bid}"]
-        assert sorted(node.children) == sorted(GROUPS) and node.attrs["beacon"] == bid
-        np.testing.assert_array_equal(node["posterior"]["d0"], r.idata.posterior["d0"])
-        obs = node["observed_data"]
+        assert summary["beacons"][bid]["file"] == f"posterior_{bid}.nc"
+        tree = xr.open_datatree(paths[f"posterior_{bid}"])  # no engine, no group
+        assert "arviz.from_netcdf" in tree.attrs["contents"] and tree.attrs["beacon"] == bid
+        assert sorted(tree.children) == sorted(GROUPS)
+        np.testing.assert_array_equal(tree["posterior"]["d0"], r.idata.posterior["d0"])
+        obs = tree["observed_data"]
         assert obs["z"].attrs["units"] == "m" and obs["time"].attrs["units"] == "s"
         np.testing.assert_array_equal(obs["range"], r.rows)
-        assert node["log_likelihood"]["z"].dtype == np.float32
+        assert tree["log_likelihood"]["z"].dtype == np.float32
+
+
+def test_file_names_stay_plain_whatever_the_id():
+    from bayes_mpem.lbl.survey.sampling import posterior_file
+
+    assert posterior_file("4") == "posterior_4.nc"
+    assert posterior_file("../etc/x y") == "posterior_.._etc_x_y.nc"
 
 
 def test_summary_ess_is_what_arviz_computes_from_the_file(written):
@@ -47,10 +55,9 @@ def test_summary_ess_is_what_arviz_computes_from_the_file(written):
 
     _, out, paths = written
     summary = json.loads((out / "summary.json").read_text())
-    tree = xr.open_datatree(paths["posterior"])
     for bid, b in summary["beacons"].items():
-        ess = azs.ess(tree[f"beacon_{bid}"], method="bulk")
-        rhat = azs.rhat(tree[f"beacon_{bid}"])
+        tree = xr.open_datatree(out / b["file"])
+        ess, rhat = azs.ess(tree, method="bulk"), azs.rhat(tree)
         for k, v in b["ess"].items():
             assert float(ess[k]) == pytest.approx(v, rel=1e-12), (bid, k)
             assert float(rhat[k]) == pytest.approx(b["rhat"][k], rel=1e-12), (bid, k)
@@ -61,7 +68,7 @@ def test_current_arviz_reads_the_file(written):
     import arviz_stats as azs
 
     post, _, paths = written
-    tree = azb.convert_to_datatree(xr.open_datatree(paths["posterior"])["beacon_4"])
+    tree = azb.convert_to_datatree(str(paths["posterior_4"]))  # a path is opened
     loo = azs.loo(tree)
     assert loo.n_data_points == post.results["4"].idata.observed_data.sizes["range"]
 
@@ -73,10 +80,10 @@ def test_legacy_arviz_reads_the_file(written):
     import arviz_stats as azs
 
     _, _, paths = written
-    idata = az.InferenceData.from_netcdf(paths["posterior"], base_group="beacon_4")
+    idata = az.from_netcdf(paths["posterior_4"])
     assert sorted(idata.groups()) == sorted(GROUPS)
     elpd_legacy = az.loo(idata).elpd_loo
-    elpd_current = azs.loo(xr.open_datatree(paths["posterior"])["beacon_4"]).elpd
+    elpd_current = azs.loo(xr.open_datatree(paths["posterior_4"])).elpd
     assert elpd_legacy == pytest.approx(elpd_current, rel=1e-5)
     summary = az.summary(idata, var_names=["d0", "sigma_mp"], round_to="none")
     assert summary.loc["d0", "mean"] == pytest.approx(
@@ -86,24 +93,24 @@ def test_legacy_arviz_reads_the_file(written):
 def test_default_file_is_small_and_compressed(written, tmp_path):
     post, _, paths = written
     lean = bm.sample(post.survey, rng=1, progress=False, min_ess=300)
-    small = lean.write(tmp_path / "lean")["posterior"]
-    plain = lean.write(tmp_path / "plain", compress=False)["posterior"]
-    assert "log_likelihood" not in xr.open_datatree(small)["beacon_4"].children
-    assert small.stat().st_size < 0.2 * paths["posterior"].stat().st_size
+    small = lean.write(tmp_path / "lean")["posterior_4"]
+    plain = lean.write(tmp_path / "plain", compress=False)["posterior_4"]
+    assert "log_likelihood" not in xr.open_datatree(small).children
+    assert small.stat().st_size < 0.2 * paths["posterior_4"].stat().st_size
     import h5py
 
     with h5py.File(small) as f, h5py.File(plain) as g:
-        assert f["beacon_4/posterior/d0"].compression == "gzip"
-        assert g["beacon_4/posterior/d0"].compression is None
-    with h5py.File(paths["posterior"]) as f:
-        assert f["beacon_4/log_likelihood/z"].compression == "gzip"
+        assert f["posterior/d0"].compression == "gzip"
+        assert g["posterior/d0"].compression is None
+    with h5py.File(paths["posterior_4"]) as f:
+        assert f["log_likelihood/z"].compression == "gzip"
 
 
 def test_arviz_plots_draws_from_the_file(written, tmp_path):
     azp = pytest.importorskip("arviz_plots", reason="the arviz-plots extra is not installed")
 
     _, _, paths = written
-    tree = xr.open_datatree(paths["posterior"])["beacon_4"]
+    tree = xr.open_datatree(paths["posterior_4"])
     for name in ("plot_trace_dist", "plot_dist", "plot_forest", "plot_pair", "plot_rank",
                  "plot_ess"):
         pc = getattr(azp, name)(tree, var_names=["d0", "sigma_mp"], backend="matplotlib")

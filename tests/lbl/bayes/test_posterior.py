@@ -222,9 +222,10 @@ def test_sample_command_writes_the_contract(survey_files, tmp_path):
     out = __import__("pandas").read_csv(tmp_path / "classified.csv")
     assert len(out) == len(__import__("pandas").read_csv(survey_files["pings"]))
     assert {"p_dp", "p_mp", "p_ol", "p_mp_sd", "label"} <= set(out.columns)
-    tree = xr.open_datatree(tmp_path / "posterior.nc", engine="h5netcdf")
-    assert "log_likelihood" not in tree["beacon_3"].children  # only when asked for
-    assert sorted(p.name for p in tmp_path.glob("*.nc")) == ["posterior.nc"]
+    tree = xr.open_datatree(tmp_path / "posterior_3.nc", engine="h5netcdf")
+    assert "log_likelihood" not in tree.children  # only when asked for
+    assert sorted(p.name for p in tmp_path.glob("*.nc")) == [
+        f"posterior_{b}.nc" for b in sorted(s["beacons"])]
     for name in ("intervals.png", "trace_3.png", "pair_3.png", "classes_3.png"):
         assert (tmp_path / name).stat().st_size > 10_000
 

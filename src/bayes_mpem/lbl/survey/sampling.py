@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -27,11 +28,36 @@ from .survey import (
     over_beacons,
 )
 
-#: The root attribute ``contents`` of ``posterior.nc``.
-CONTENTS = ("one group beacon_<id> per beacon, each with the ArviZ groups posterior, "
-            "sample_stats and observed_data (log_likelihood and posterior_predictive when "
-            "asked for); open one with xarray.open_datatree(path)['beacon_<id>'] or "
-            "arviz.InferenceData.from_netcdf(path, base_group='beacon_<id>')")
+#: The root attribute ``contents`` of each ``posterior_<id>.nc``.
+CONTENTS = ("one beacon's posterior: the ArviZ groups posterior, sample_stats and "
+            "observed_data (log_likelihood and posterior_predictive when asked for); open it "
+            "with xarray.open_datatree(path), arviz_base.convert_to_datatree(path) or legacy "
+            "arviz.from_netcdf(path)")
+
+
+def posterior_file(bid: str) -> str:
+    """Return the file name of beacon ``bid``'s posterior, ``posterior_<id>.nc``.
+
+    Characters other than letters, digits, ``-``, ``_`` and ``.`` become ``_`` (the
+    name stays a plain file name whatever the id); ``summary.json`` records each
+    beacon's file under ``file``.
+
+    Parameters
+    ----------
+    bid : str
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> posterior_file("4"), posterior_file("B/2 east")
+    ('posterior_4.nc', 'posterior_B_2_east.nc')
+    """
+    return "posterior_" + re.sub(r"[^A-Za-z0-9_.-]", "_", str(bid)) + ".nc"
+
+
 #: gzip with byte shuffling (netCDF4's deflate), on every variable when compressing
 GZIP = {"compression": "gzip", "compression_opts": 4, "shuffle": True}
 
@@ -129,6 +155,7 @@ class SurveyPosterior:
             d["plane_depth"] = {"mean": depth - r.summary["d0"]["mean"],
                                 "interval": [depth - hi, depth - lo]}
             d["n"] = int(r.rows.size)
+            d["file"] = self.files()[bid]
             if bid in self.path_choices:
                 d["path_choice"] = self.path_choices[bid].to_dict()
             if bid in self.checks:
@@ -200,27 +227,30 @@ class SurveyPosterior:
                          "converged": r.converged, "path": r.path, "min_ess": r.min_ess})
         return pd.DataFrame(rows)
 
-    def datatree(self):
-        """All beacons in one ``xarray.DataTree``: a child ``beacon_<id>`` per beacon.
+    def files(self) -> dict:
+        """Return each beacon's posterior file name (:func:`posterior_file`, made unique).
 
         Returns
         -------
-        xarray.DataTree
+        dict of str to str
         """
-        import xarray as xr
-
-        root = xr.DataTree()
-        for bid, r in self.results.items():
-            root[f"beacon_{bid}"] = r.idata
-        root.attrs.update({"priors": self.priors, "ci": self.ci, "contents": CONTENTS})
-        return root
+        out, used = {}, set()
+        for bid in self.results:
+            name = posterior_file(bid)
+            stem, k = name[:-3], 1
+            while name in used:  # two ids that differ only in replaced characters
+                k += 1
+                name = f"{stem}-{k}.nc"
+            used.add(name)
+            out[bid] = name
+        return out
 
     def write(self, out_dir, *, table_format: str = "csv", compress: bool = True) -> dict:
-        """Write ``posterior.nc``, ``classified.csv`` and, last, ``summary.json``.
+        """Write ``posterior_<id>.nc`` per beacon, ``classified.csv`` and, last, ``summary.json``.
 
-        ``posterior.nc`` holds every beacon, one group ``beacon_<id>`` each, with the
-        ArviZ groups of :attr:`PosteriorResult.idata` (``docs/bayes.md`` has the calls
-        that open it). Through :func:`bayes_mpem.io.results.writing`: all or nothing,
+        Each ``posterior_<id>.nc`` holds the ArviZ groups of that beacon's
+        :attr:`PosteriorResult.idata` at its root, so ArviZ of either generation opens it
+        (``docs/bayes.md``). Through :func:`bayes_mpem.io.results.writing`: all or nothing,
         ``summary.json`` (the completion marker) last.
 
         Parameters
@@ -234,14 +264,19 @@ class SurveyPosterior:
         Returns
         -------
         dict
-            Paths written: ``posterior``, ``classified``, ``summary``.
+            Paths written: ``posterior_<id>`` per beacon, ``classified``, ``summary``.
         """
         check_choice("table_format", table_format, TABLE_FORMATS)
-        tree = self.datatree()
-        enc = encoding(tree, compress=compress)
+        paths = {}
         with writing(out_dir) as out:
-            paths = {"posterior": write_file(out / "posterior.nc", lambda tmp: tree.to_netcdf(
-                tmp, engine="h5netcdf", encoding=enc))}
+            for bid, name in self.files().items():
+                tree = self.results[bid].idata.copy(deep=False)
+                tree.attrs = {**tree.attrs, "beacon": bid, "priors": self.priors,
+                              "ci": self.ci, "contents": CONTENTS}
+                enc = encoding(tree, compress=compress)
+                paths[name[:-3]] = write_file(out / name, lambda tmp, tree=tree, enc=enc:
+                                              tree.to_netcdf(tmp, engine="h5netcdf",
+                                                             encoding=enc))
             paths["classified"] = write_table(out / f"classified.{table_format}",
                                               self.classified())
             paths["summary"] = write_json(out / "summary.json", self.summary())

@@ -33,10 +33,15 @@ import pandas as pd  # noqa: E402
 
 from bayes_mpem.acoustics.profile import SoundSpeedProfile  # noqa: E402
 from bayes_mpem.io.formats import read_survey  # noqa: E402
-from bayes_mpem.survey_in.gap_statistics import STATISTICS, mc_pvalue, remove_common_drift  # noqa: E402
 from bayes_mpem.survey_in.location import DEFAULT_TAT  # noqa: E402
-from bayes_mpem.survey_in.simcheck import simulation_gap  # noqa: E402
-from bayes_mpem.survey_in.unabsorbed import refracted_twtt, unabsorbed  # noqa: E402
+from bayes_mpem.survey_in.simcheck import (  # noqa: E402  # noqa: E402
+    STATISTICS,
+    mc_pvalue,
+    refracted_twtt,
+    remove_common_drift,
+    simulation_gap,  # noqa: E402
+    unabsorbed,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "data"

@@ -1,21 +1,11 @@
 """bayes_mpem: acoustic multipath identification for LBL ranging.
 
-Classify every acoustic range as direct path, multipath or outlier, and
-identify each beacon's reflector (height of the reflecting plane ``d0`` and
-the multipath scatter ``sigma_MP``), with the paper's EM or a proper
-mixture-likelihood EM; sample the same likelihood by MCMC for posterior
-intervals, and compare equal with learned mixing priors by PSIS-LOO; find which
-assumption a survey breaks (:func:`diagnose`); estimate the vehicle's track from
-the ranges and a drifting dead reckoning, using multipath as signal
-(:func:`navigate`); locate a transponder from a survey-in
-(:func:`bayes_mpem.survey_in.location.locate`).
-
-The package has two wings, which never import each other: :mod:`bayes_mpem.lbl`
-(the paper's problem: one-way ranges to beacons at known positions) and
-:mod:`bayes_mpem.survey_in` (two-way travel times from a ship to one
-transponder). What they share lives below them: :mod:`bayes_mpem.io`,
-:mod:`bayes_mpem.acoustics`, :mod:`bayes_mpem.mixture` and
-:mod:`bayes_mpem.mcmc`. See ``docs/architecture.md``.
+Classify every acoustic range as direct path, multipath or outlier and identify each
+beacon's reflector, with the paper's EM or a mixture EM; sample the same likelihood for
+posterior intervals (:func:`sample`, :func:`compare`); find which assumption a survey breaks
+(:func:`diagnose`); navigate with multipath as signal (:func:`navigate`); locate a
+transponder from a survey-in (:mod:`bayes_mpem.survey_in`). The layout:
+``docs/architecture.md``.
 """
 
 __version__ = "0.1.0"

@@ -16,10 +16,6 @@ def as_generator(rng: RNGLike) -> np.random.Generator:
         ``None`` gives fresh OS entropy, an int is a seed, a Generator is
         returned unchanged (so callers can share one stream).
 
-    Returns
-    -------
-    numpy.random.Generator
-
     Raises
     ------
     TypeError

@@ -1,9 +1,6 @@
 """Every public exception and warning class of the package.
 
-Errors derive from ``ValueError`` (bad input, an unusable start); warnings from
-``UserWarning`` (a fit that did not converge or is not credible, a short
-chain, a skipped beacon, a poorly constrained location), so that callers can
-filter them by class.
+Errors derive from ``ValueError``, warnings from ``UserWarning``.
 """
 
 from __future__ import annotations

@@ -1,17 +1,4 @@
-"""Figures and summaries written to an output folder, and reading such a folder back.
-
-The command line writes a result's data with its ``write()`` and then its
-figures with :func:`write_figures`, which dispatches on the kind of result
-(fit, posterior, prior comparison, diagnosis, located survey, navigation). ``bayes-mpem plot
-RESULT_DIR`` is :func:`load_output` followed by :func:`write_figures`; the
-folder kinds it reads are :data:`FOLDER_KINDS` (another command's folder is one
-more entry, :func:`folder_kind`); :func:`demo_markdown`
-is the ``summary.md`` of ``bayes-mpem demo``. One figure needs more than the
-result: the paper's Fig. 12 re-fits the figure beacon with the paper's EM over a
-grid of ``Pol`` (:func:`~bayes_mpem.lbl.em.pol_sensitivity.survey_pol_sensitivity`),
-which :func:`write_figures` runs unless it is given; the plotting functions
-themselves only draw.
-"""
+"""Figures and summaries written to an output folder, and reading such a folder back."""
 
 from __future__ import annotations
 
@@ -69,10 +56,6 @@ def figure_beacon(survey_fit, beacon=None) -> str:
     beacon : str, optional
         Default: the last fitted beacon (the paper uses its beacon 4).
 
-    Returns
-    -------
-    str
-
     Raises
     ------
     ValueError
@@ -108,10 +91,6 @@ def write_figures(result, out_dir, *, beacon=None, truth=None, general=True,
         Fits: :func:`~bayes_mpem.lbl.em.pol_sensitivity.survey_pol_sensitivity`
         of the figure beacon, drawn as the paper's Fig. 12; computed here
         (seconds) when not given.
-
-    Returns
-    -------
-    list of pathlib.Path
 
     Raises
     ------

@@ -10,10 +10,17 @@ import pytest
 from bayes_mpem.acoustics.profile import SoundSpeedProfile
 from bayes_mpem.exceptions import InputError
 from bayes_mpem.io.formats import read_survey
-from bayes_mpem.survey_in.gap_statistics import gap_statistics, mc_pvalue, remove_common_drift
 from bayes_mpem.survey_in.location import LocateResult, locate
-from bayes_mpem.survey_in.simcheck import residual_frame, simulate_like, simulation_gap
-from bayes_mpem.survey_in.unabsorbed import refracted_twtt, unabsorbed
+from bayes_mpem.survey_in.simcheck import (
+    gap_statistics,
+    mc_pvalue,
+    refracted_twtt,
+    remove_common_drift,
+    residual_frame,
+    simulate_like,
+    simulation_gap,
+    unabsorbed,
+)
 
 DATA = Path(__file__).resolve().parents[2] / "data"
 TRUTH = {"east": 35.0, "north": -60.0, "depth": 4000.0, "c": 1505.0, "tat": 0.013}

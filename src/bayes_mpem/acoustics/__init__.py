@@ -1,10 +1,4 @@
-"""Sound in the sea, shared by both problems: profiles and rays.
-
-:class:`~bayes_mpem.acoustics.profile.SoundSpeedProfile` (a file, the WOA09
-atlas, a CTD cast), eigenrays through it (:mod:`.eigenray`), turning direct
-rays and surface bounces (:mod:`.turning`) and option checks
-(:mod:`.profile_checks`).
-"""
+"""Sound in the sea, shared by both problems: profiles and rays."""
 
 from .eigenray import Eigenray, direct_ray, shoot, surface_bounce_ray
 from .profile import WOA09_ENV, SoundSpeedProfile

@@ -1,58 +1,10 @@
 """Refracted eigenrays without a turning point through a layered ocean.
 
-Conventions: depth ``z`` positive down (m), sound speed ``c`` (m/s), times in
-seconds, horizontal distances in metres. A :class:`SoundSpeedProfile` is a list
-of knots; between knots ``c(z)`` is linear (constant-gradient layers), above the
-first and below the last knot it is constant.
-
-Rays. In a horizontally stratified medium a ray keeps its ray parameter
-``p = sin(theta) / c`` (Snell's law; ``theta`` from the vertical). In a layer
-with constant gradient ``g`` the ray is a circular arc and, with
-``s = cos(theta) = sqrt(1 - p**2 c**2)`` at the layer's top (0) and bottom (1),
-its horizontal run and travel time have closed forms, written here without
-dividing by ``g`` so that they stay exact as ``g -> 0`` (the straight segment):
-
-* ``X = p h (c0 + c1) / (s0 + s1)``,
-  ``dX/dp = h (c0 + c1) / ((s0 + s1) s0 s1)``;
-* ``T = h w artanh(x) / x`` with
-  ``w = (c0 + c1)(1 + s0 s1) / ((s0 + s1)(c0**2 s1**2 + c1**2))`` and
-  ``x = (c1 - c0) w`` (this is ``(artanh s0 - artanh s1) / g``).
-
-The eigenray solvers find, for every source/receiver pair at once, the ``p``
-whose summed ``X`` equals the horizontal distance. ``X(p)`` increases with
-``p`` up to ``1 / c_max`` (``c_max`` the fastest speed on the path, where the
-ray would turn horizontal); a longer horizontal distance needs a turning point
-and is reported as invalid (NaN), never approximated; such rays are solved by
-:func:`bayes_mpem.acoustics.turning.direct_times`, the solver the rest of the
-package calls for direct rays. The unknown is the
-grazing angle ``phi`` at the fastest point, ``p = cos(phi) / c_max``, so that
-both near-vertical and near-horizontal rays are resolved to full precision;
-the step is Newton's (from the analytic ``dX/dp``) inside a bisection bracket.
-
-Performance, measured on the 2-core development machine (NumPy 2.4, one
-thread: elementwise operations and row sums only, no BLAS) while other jobs kept
-its load average at 1.3-2.9: 10,000 direct rays from 0 m to 2,700 m through the
-1,301-knot SeaGap ``ss_prof.inp`` (horizontal distances 0-8 km) take
-0.23-0.48 s; the same rays reflected by the sea surface (2,700 m to 10 m)
-0.28-0.32 s (the minimum of 5 runs, from several runs of)::
-
-    import timeit, numpy as np
-    from bayes_mpem.acoustics import SoundSpeedProfile, direct_ray, surface_bounce_ray
-    p = SoundSpeedProfile.from_file("data/seagap/ss_prof.inp")
-    h = np.linspace(0.0, 8000.0, 10000)
-    min(timeit.repeat(lambda: direct_ray(p, 0.0, 2700.0, h), number=1, repeat=5))
-    min(timeit.repeat(lambda: surface_bounce_ray(p, 2700.0, 10.0, h), number=1, repeat=5))
-
-Rays go in blocks of about 2**15 array elements (rays x knots in their depth
-range); the first guess, the straight chord at the harmonic-mean speed, leaves
-about 2.8 Newton evaluations per ray, plus one at grazing for the validity
-check and one for the travel time. Interior knots on a straight line (equal
-gradients) are skipped by the tracer.
-
-The WOA09 annual climatology (:meth:`SoundSpeedProfile.from_woa09`) is in the
-source repository's ``data/woa09`` (see ``data/README.md``) and is installed with
-the package; ``directory=`` or the ``BAYES_MPEM_WOA09`` environment variable
-point elsewhere.
+Depth positive down (m), speed (m/s), times (s). Each ray keeps its ray parameter
+``p = sin(theta) / c``; the layer formulas (:class:`Legs`) are written without
+dividing by the gradient, so they stay exact as it goes to 0. A horizontal distance that
+needs a turning point is NaN here; :func:`bayes_mpem.acoustics.turning.direct_times`
+solves those. Formulas and timings: ``docs/refraction.md``.
 """
 
 from __future__ import annotations
@@ -62,12 +14,184 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._validate import check_int, check_positive
-from .layers import Legs
 from .profile import SoundSpeedProfile
 
 _CHUNK = 1 << 15  # array elements per block of rays (keeps the temporaries in cache)
 
 
+# --------------------------------------------------------------------------- layers
+
+def _artanh_ratio(x):
+    """``artanh(x) / x``, 1 at ``x = 0`` (series below ``|x| = 0.01``, error < 1e-20)."""
+    x2 = x * x
+    if x2.size and x2.max() < 1e-8:  # |x| < 1e-4: two terms are exact to 2e-17
+        x2 *= 1 / 3
+        x2 += 1.0
+        return x2
+    out = 1.0 + x2 * (1 / 3 + x2 * (1 / 5 + x2 * (1 / 7 + x2 / 9)))
+    big = np.abs(x) >= 1e-2
+    if big.any():
+        out[big] = np.arctanh(x[big]) / x[big]
+    return out
+
+
+class Legs:
+    """Vertical legs ``[top, bot]`` of a block of rays, as per-ray knot arrays.
+
+    Parameters
+    ----------
+    profile : SoundSpeedProfile
+    legs : sequence of (ndarray, ndarray)
+        Per leg, the top and bottom depth (m) of every ray, each of shape ``(rays,)``.
+
+    Attributes
+    ----------
+    C, H, A, B, R2 : list of ndarray
+        Per leg: speeds at the leg's knots, layer thicknesses, ``A = H (c0 + c1)``,
+        ``B = 1 - (c/c_max)**2`` and ``R2 = (c/c_max)**2``, so that
+        ``s = sqrt(B + R2 sin(phi)**2)`` has no cancellation at grazing.
+    cmax : ndarray
+        The fastest speed met by each ray over all its legs.
+    """
+
+    def __init__(self, profile, legs):
+        self.C, self.H = [], []
+        z, c = profile.ray_knots
+        for top, bot in legs:
+            inside = (z > top.min()) & (z < bot.max())
+            zk, ck = z[inside], c[inside]
+            n, m = top.size, zk.size
+            t, b = top[:, None], bot[:, None]
+            zc = np.empty((n, m + 2))
+            zc[:, :1], zc[:, -1:] = t, b
+            np.clip(zk, t, b, out=zc[:, 1:-1])
+            cc = np.empty((n, m + 2))
+            cc[:, 0], cc[:, -1] = profile.speed(top), profile.speed(bot)
+            mid = cc[:, 1:-1]
+            mid[:] = ck
+            np.copyto(mid, cc[:, :1], where=zk <= t)
+            np.copyto(mid, cc[:, -1:], where=zk >= b)
+            self.C.append(cc)
+            self.H.append(np.diff(zc, axis=1))
+        self.cmax = np.max([cc.max(axis=1) for cc in self.C], axis=0)
+        m = self.cmax[:, None]
+        self.A, self.B, self.R2 = [], [], []
+        for cc, hh in zip(self.C, self.H, strict=True):
+            a = cc[:, :-1] + cc[:, 1:]
+            a *= hh
+            self.A.append(a)
+            bb = m - cc
+            bb *= m + cc
+            bb *= 1.0 / (m * m)
+            self.B.append(bb)
+            r2 = cc * (1.0 / m)
+            r2 *= r2
+            self.R2.append(r2)
+
+    def take(self, idx, names=("C", "H", "A", "B", "R2")):
+        """Return the same legs for the rays ``idx`` only (with the arrays ``names``).
+
+        Parameters
+        ----------
+        idx : array_like of int or bool
+        names : tuple of str
+        """
+        new = object.__new__(Legs)
+        for name in names:
+            setattr(new, name, [a[idx] for a in getattr(self, name)])
+        new.cmax = self.cmax[idx]
+        return new
+
+    def cosines(self, sin2):
+        """``s = cos(theta)`` at every knot, per leg, for grazing angles ``sin(phi)**2 = sin2``.
+
+        Parameters
+        ----------
+        sin2 : ndarray
+            ``sin(phi)**2`` of each ray's grazing angle at its fastest knot.
+        """
+        out = []
+        for b, r2 in zip(self.B, self.R2, strict=True):
+            s = np.multiply(r2, sin2[:, None])
+            s += b
+            out.append(np.sqrt(s, out=s))
+        return out
+
+    def cosines_from_p(self, p):
+        """``s = sqrt(1 - (p c)**2)`` at every knot, per leg (0 where ``p c >= 1``).
+
+        Parameters
+        ----------
+        p : ndarray
+            Ray parameter (s/m) of each ray.
+        """
+        out = []
+        for cc in self.C:
+            pc = p[:, None] * cc
+            out.append(np.sqrt(np.maximum((1.0 - pc) * (1.0 + pc), 0.0)))
+        return out
+
+    def sums(self, S, deriv=True, safe=False):
+        """``sum A / (s0 + s1)`` (= X / p) and ``sum A / ((s0 + s1) s0 s1)`` (= dX/dp).
+
+        Parameters
+        ----------
+        S : list of ndarray
+            Per leg, the cosines at the knots (:meth:`cosines`).
+        deriv : bool
+            Also sum the derivative term (else ``d`` is None).
+        safe : bool
+            Zero-thickness layers count 0 where both ends graze (0/0); needed at ``p = 1 / c_max``.
+        """
+        x = np.zeros(S[0].shape[0])
+        d = np.zeros_like(x) if deriv else None
+        for a, s in zip(self.A, S, strict=True):
+            s0, s1 = s[:, :-1], s[:, 1:]
+            term = s0 + s1
+            np.divide(a, term, out=term)
+            if safe:
+                term[a == 0] = 0.0
+            x += term.sum(axis=1)
+            if deriv:
+                term /= np.multiply(s0, s1)
+                d += term.sum(axis=1)
+        return x, d
+
+    def x_grazing(self):
+        """``X`` at ``p = 1 / c_max`` (inf if the fastest speed holds over a finite layer)."""
+        with np.errstate(divide="ignore", invalid="ignore"):
+            x, _ = self.sums(self.cosines(np.zeros(self.cmax.size)), deriv=False, safe=True)
+        return x / self.cmax
+
+    def times(self, S):
+        """One-way travel time (s) of each ray summed over the layers, for knot cosines ``S``.
+
+        Parameters
+        ----------
+        S : list of ndarray
+        """
+        t = np.zeros(S[0].shape[0])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            for cc, hh, s in zip(self.C, self.H, S, strict=True):
+                c0, c1, s0, s1 = cc[:, :-1], cc[:, 1:], s[:, :-1], s[:, 1:]
+                den = c0 * s1
+                den *= den
+                den += c1 * c1
+                den *= s0 + s1
+                w = s0 * s1
+                w += 1.0
+                w *= c0 + c1
+                w /= den
+                x = c1 - c0
+                x *= w
+                w *= hh
+                w *= _artanh_ratio(x)
+                tt = w.sum(axis=1)
+                bad = np.isnan(tt)  # 0/0 of zero-thickness layers at grazing incidence
+                if bad.any():
+                    tt[bad] = np.where(hh[bad] > 0, w[bad], 0.0).sum(axis=1)
+                t += tt
+        return t
 
 
 # --------------------------------------------------------------------------- eigenrays
@@ -281,12 +405,6 @@ def direct_ray(profile: SoundSpeedProfile, z_a, z_b, horizontal, *, tol: float =
 def surface_bounce_ray(profile: SoundSpeedProfile, z_a, z_b, horizontal, plane_depth=0.0, *,
                        tol: float = 1e-9, max_iter: int = 100) -> Eigenray:
     """Eigenray reflected once by a horizontal plane above both ends.
-
-    The ray leaves ``z_a`` upward, reflects specularly at ``plane_depth`` and
-    goes down to ``z_b``; its horizontal run is the sum of the two legs. In a
-    homogeneous medium this is the image method (the LBL wing's double-bounce
-    multipath range): ``c * time`` is the distance from ``z_a`` to the mirror
-    image of ``z_b`` in the plane.
 
     Parameters
     ----------

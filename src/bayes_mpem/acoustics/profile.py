@@ -1,12 +1,4 @@
-"""Sound-speed profiles: speed against depth in constant-gradient layers.
-
-:class:`SoundSpeedProfile` holds the knots of a profile (linear between knots,
-constant beyond the ends), with its constructors (a constant speed, a text file,
-the WOA09 climatology, a CTD cast) and the quantities the ray tracers and the
-fits need: the speed at any depth and the harmonic mean (vertical travel-time
-average) between two depths. The rays themselves are in
-:mod:`bayes_mpem.acoustics.eigenray` and :mod:`bayes_mpem.acoustics.turning`.
-"""
+"""Sound-speed profiles: speed against depth in constant-gradient layers."""
 
 from __future__ import annotations
 
@@ -149,12 +141,10 @@ class SoundSpeedProfile:
 
     @classmethod
     def from_file(cls, path, *, columns=(0, 1)) -> SoundSpeedProfile:
-        """Read a two-column text profile: depth (m), sound speed (m/s).
+        """Read a text profile: depth (m), sound speed (m/s).
 
-        Fields are separated by whitespace and/or commas. Blank lines and
-        everything after a ``#`` are ignored. Lines before the first data line
-        whose depth or speed field is not a number are a header (column names
-        such as ``depth(m) ssp(m/s)``, a title); other columns are ignored.
+        Fields are separated by whitespace or commas, ``#`` starts a comment, and lines before the
+        first numeric data line are a header.
 
         Parameters
         ----------
@@ -162,17 +152,12 @@ class SoundSpeedProfile:
         columns : tuple of int, default (0, 1)
             Zero-based columns holding depth and sound speed.
 
-        Returns
-        -------
-        SoundSpeedProfile
-
         Raises
         ------
         FileNotFoundError
         InputError
-            A data line with too few fields, a field that is not a number (after
-            the data began), no data at all, depths not strictly increasing or a
-            speed not positive; the message names the file and line.
+            A bad data line, no data, depths not strictly increasing or a speed not positive; the
+            message names the file and line.
         """
         path = Path(path)
         ci, cj = (int(k) for k in columns)
@@ -218,38 +203,24 @@ class SoundSpeedProfile:
                    max_distance_km: float = 150.0) -> SoundSpeedProfile:
         """Annual climatological profile from the World Ocean Atlas 2009 (1 degree grid).
 
-        Takes the nearest grid cell (great-circle distance between cell centres)
-        that has data, keeps its levels down to the first missing one, and
-        converts ``c = 1000 + 0.01 * stored value`` (m/s).
-
-        The copy shipped with OBSrange (``lev_latlonZ.mat``, ``lev_ann.mat``) has
-        a value in every one of its 64,800 cells and 33 levels (0-5500 m), land
-        included: it cannot tell where the seafloor is, so levels deeper than the
-        water at the site are extrapolations. Missing values (NaN, or an integer
-        fill value 0 or the type's maximum) are nevertheless handled.
+        The nearest cell with data, its levels down to the first missing one
+        (``c = 1000 + 0.01 * stored value``). The atlas has no seafloor: levels deeper than the
+        water at the site are extrapolations.
 
         Parameters
         ----------
         lat, lon : float
             Degrees; longitude east, either -180-180 or 0-360.
         directory : str or pathlib.Path, optional
-            Folder with ``lev_latlonZ.mat`` and ``lev_ann.mat`` (in the source
-            repository: ``data/woa09``). Default: the ``BAYES_MPEM_WOA09``
-            environment variable, else the copy installed with the package
-            (or the source repository's, in a development install).
+            Folder with ``lev_latlonZ.mat`` and ``lev_ann.mat``. Default: the ``BAYES_MPEM_WOA09``
+            environment variable, else the copy installed with the package.
         max_distance_km : float, default 150
             Refuse a cell farther than this.
-
-        Returns
-        -------
-        SoundSpeedProfile
-            ``source`` names the cell and its distance.
 
         Raises
         ------
         FileNotFoundError
-            No directory given, ``BAYES_MPEM_WOA09`` unset and no installed copy, or a
-            file missing.
+            No atlas found.
         InputError
             A file without the expected variables or shapes.
         ValueError
@@ -375,8 +346,6 @@ class SoundSpeedProfile:
     def vertical_time(self, z_top, z_bottom):
         """Signed one-way vertical travel time from ``z_top`` to ``z_bottom`` (s).
 
-        Exact for the linear layers; arrays broadcast together.
-
         Parameters
         ----------
         z_top, z_bottom : array_like
@@ -409,9 +378,6 @@ class SoundSpeedProfile:
 
     def harmonic_mean(self, z_top, z_bottom):
         """Time-averaged (harmonic mean) sound speed along a vertical path.
-
-        ``|z_bottom - z_top| / integral(dz / c)``, exact for the linear layers;
-        at ``z_top == z_bottom`` the speed there.
 
         Parameters
         ----------

@@ -1,12 +1,4 @@
-"""Checks of a profile and a nominal sound speed before rays are traced through them.
-
-:func:`check_profile` makes sure an argument is a
-:class:`~bayes_mpem.acoustics.profile.SoundSpeedProfile` reaching the deepest end
-of every ray, :func:`check_sound_speed` that a nominal speed is a positive
-number, and :func:`nominal_sound_speed` gives the default nominal speed (the
-harmonic mean from the surface to a depth, which turns vertical travel times
-into exact depths). Used by the LBL refracted model and the simulator.
-"""
+"""Checks of a profile and a nominal sound speed before rays are traced through them."""
 
 from __future__ import annotations
 
@@ -25,10 +17,6 @@ def check_profile(ssp, deepest: float | None = None, *, name: str = "ssp") -> So
         Deepest point a ray has to reach (m): the deepest beacon or vehicle.
     name : str
         Argument name used in messages.
-
-    Returns
-    -------
-    SoundSpeedProfile
 
     Raises
     ------
@@ -61,10 +49,6 @@ def check_sound_speed(sound_speed, name: str = "sound_speed") -> float:
     name : str
         Argument name used in messages.
 
-    Returns
-    -------
-    float
-
     Raises
     ------
     ValueError
@@ -76,19 +60,11 @@ def check_sound_speed(sound_speed, name: str = "sound_speed") -> float:
 def nominal_sound_speed(ssp: SoundSpeedProfile, depth) -> float:
     """Harmonic-mean sound speed from the sea surface down to ``depth`` (m/s).
 
-    The speed that turns vertical travel times from ``depth`` to the surface
-    into exact distances; the simulator's default nominal speed (with ``depth``
-    the mean beacon depth).
-
     Parameters
     ----------
     ssp : SoundSpeedProfile
     depth : float
         m, positive down.
-
-    Returns
-    -------
-    float
 
     Examples
     --------

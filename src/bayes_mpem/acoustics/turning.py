@@ -1,20 +1,4 @@
-"""The package's direct-ray solver: eigenrays with or without a turning point.
-
-:func:`~bayes_mpem.acoustics.eigenray.direct_ray` solves only rays that do not
-turn, and leaves NaN where the ends need a turning point (near the seafloor,
-where the speed grows with depth, a far receiver at about the source's depth).
-:func:`direct_times` solves those too, as two legs meeting at the turning depth,
-and is the one solver the rest of the package uses for direct rays (the LBL
-refracted ranges and simulator, the transponder location's travel times, the
-simulation-gap checks): a pair it cannot join is marked invalid
-(``DirectRays.valid``), never approximated here; each caller says what it does
-with such a pair (the transponder location counts them, warns, and keeps the fit
-going on the straight chord at the profile's mean speed; the simulation-gap
-check raises). :func:`bounce_times` gives the
-ray reflected once by a plane, with its derivative with respect to the plane,
-and :data:`NO_RAY` is the range that stands for "no eigenray" in a mixture
-model.
-"""
+"""The package's direct-ray solver: eigenrays with or without a turning point."""
 
 from __future__ import annotations
 
@@ -60,11 +44,7 @@ class DirectRays:
 
 
 def _stretch_ends(ssp, z, down):
-    """Depth where the speed stops increasing away from ``z`` (down or up); NaN if at once.
-
-    Only the profile's knots count: beyond the last knot (or above the first) the speed
-    is constant, which ends the stretch.
-    """
+    """Depth where the speed stops increasing away from ``z`` (down or up); NaN if at once."""
     zk, g = ssp.depths, np.diff(ssp.speeds) / np.diff(ssp.depths) if len(ssp) > 1 else None
     out = np.full(z.shape, np.nan)
     if g is None:
@@ -104,11 +84,8 @@ def _artanh_over(x):
 def _turning_leg(ssp, z_e, zt):
     """Horizontal run and time of the leg from ``z_e`` to the turning depth ``zt``.
 
-    The ray parameter is ``p = 1 / c(zt)``. The layer formulas of
-    :mod:`bayes_mpem.acoustics` are written with ``s = cos(theta) = sqrt((c_t - c)(c_t +
-    c)) / c_t``, which is exactly 0 at the turning point: computing ``s`` from a rounded
-    ``p`` instead (``sqrt(1 - p**2 c**2)``) leaves ``s ~ 1e-8`` there, and for a ray
-    dipping ~10 m over 3 km that moves its horizontal run by ~2 mm.
+    ``s`` comes from ``(c_t - c)(c_t + c)``, exactly 0 at the turning point (from a rounded
+    ``p`` it would be ~1e-8 there, ~2 mm of run on a 3 km ray dipping 10 m).
     """
     top, bot = np.minimum(z_e, zt), np.maximum(z_e, zt)
     zk = ssp.depths
@@ -138,12 +115,7 @@ def _turning_leg_sum(ssp, za, zb, zt):
 
 
 def _solve_turning(ssp, za, zb, H, end, stop, sign, tol, max_iter=200):
-    """Root of ``X(zt) = H`` in ``u = sqrt(|zt - end|)``; NaN where there is none.
-
-    ``X`` is close to linear in ``u`` (a ray dipping ``d`` below its deeper end runs
-    about ``sqrt(8 R d)`` for a radius of curvature ``R``), so regula falsi with the
-    Illinois modification converges in a handful of steps; the bracket is kept.
-    """
+    """Root of ``X(zt) = H`` in ``u = sqrt(|zt - end|)``; NaN where there is none."""
     n = H.size
     t_out, p_out, z_out = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
     ok = np.isfinite(stop) & (np.abs(stop - end) > 0)
@@ -193,14 +165,8 @@ def direct_times(ssp: SoundSpeedProfile, z_a, z_b, horizontal, *, tol: float = 1
                  ) -> DirectRays:
     """Direct eigenrays, with a turning point where the straight-through ray does not exist.
 
-    First :func:`~bayes_mpem.acoustics.direct_ray` (no turning point). Where it
-    has none, the ray that turns below the deeper end (speed increasing with
-    depth there) or above the shallower end (speed increasing upward) is
-    solved: its two legs meet at the turning depth ``z_t`` where ``p c(z_t) =
-    1``, and ``z_t`` is found (regula falsi in ``sqrt(|z_t - z_end|)``, kept in a
-    bracket) so that the legs' horizontal runs add up to ``horizontal`` (to
-    ``tol`` relative). If both a downward and an upward turning ray exist, the
-    faster is kept (the first arrival).
+    A ray turning below the deeper end or above the shallower one is two legs meeting at the
+    turning depth; of two such rays the first arrival is kept.
 
     Parameters
     ----------
@@ -210,10 +176,7 @@ def direct_times(ssp: SoundSpeedProfile, z_a, z_b, horizontal, *, tol: float = 1
     horizontal : array_like
         Horizontal distance (m, >= 0). All three broadcast.
     tol : float, default 1e-9
-
-    Returns
-    -------
-    DirectRays
+        Relative tolerance on the horizontal run.
 
     Examples
     --------

@@ -1,10 +1,4 @@
-"""The World Ocean Atlas 2009 annual sound-speed climatology: locating and loading it.
-
-The atlas (``lev_latlonZ.mat``, ``lev_ann.mat``) ships with the package, or is
-found in the source repository's ``data/woa09``; :func:`load_woa09` reads the
-grid that :meth:`~bayes_mpem.acoustics.profile.SoundSpeedProfile.from_woa09`
-interpolates.
-"""
+"""The World Ocean Atlas 2009 annual sound-speed climatology: locating and loading it."""
 
 from __future__ import annotations
 

@@ -1,10 +1,4 @@
-"""The LBL sub-commands: demo, simulate, fit, sample, compare, plot and diagnose.
-
-Each ``cmd_*`` takes the parsed arguments (:func:`~bayes_mpem.cli.build_parser`),
-calls the library, writes the result's data with its ``write()`` and its
-figures with :func:`bayes_mpem.report.write_figures`, prints what it found and
-returns the exit status.
-"""
+"""The LBL sub-commands: demo, simulate, fit, sample, compare, plot and diagnose."""
 
 from __future__ import annotations
 
@@ -23,17 +17,7 @@ from .errors import OptionError
 
 
 def write_figures(*args, **kwargs):
-    """Call :func:`bayes_mpem.report.write_figures` (imported on first use).
-
-    Parameters
-    ----------
-    *args, **kwargs
-        As :func:`bayes_mpem.report.write_figures`.
-
-    Returns
-    -------
-    list of pathlib.Path
-    """
+    """Call :func:`bayes_mpem.report.write_figures` (imported on first use)."""
     from ..report import write_figures as draw
 
     return draw(*args, **kwargs)
@@ -42,18 +26,7 @@ def write_figures(*args, **kwargs):
 def fit_kwargs(args) -> dict:
     """Keyword arguments of :func:`~bayes_mpem.lbl.survey.fitting.fit` from ``fit``'s options.
 
-    Parameters
-    ----------
-    args : argparse.Namespace
-
-    Returns
-    -------
-    dict
-
-    Raises
-    ------
-    OptionError
-        For an option of the other method.
+    Raises ``OptionError`` for an option of the other method.
     """
     if args.method == "mixture" and (args.pol is not None or args.alpha is not None):
         raise OptionError("--pol and --alpha apply to --method paper only")
@@ -72,10 +45,6 @@ def sample_kwargs(args) -> dict:
     Parameters
     ----------
     args : argparse.Namespace
-
-    Returns
-    -------
-    dict
 
     Raises
     ------
@@ -96,26 +65,13 @@ def sample_command_kwargs(args) -> dict:
     Parameters
     ----------
     args : argparse.Namespace
-
-    Returns
-    -------
-    dict
     """
     return dict(priors=args.priors, ci=args.ci, n_ensembles=args.ensembles,
                 **sample_kwargs(args))
 
 
 def diagnose_kwargs(args) -> dict:
-    """Keyword arguments of :func:`~bayes_mpem.lbl.diagnosis.driver.diagnose` from its options.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-
-    Returns
-    -------
-    dict
-    """
+    """Keyword arguments of :func:`~bayes_mpem.lbl.diagnosis.driver.diagnose` from its options."""
     effects = EFFECTS if args.effects is None else tuple(
         e.strip() for e in args.effects.split(",") if e.strip())
     unknown = [e for e in effects if e not in EFFECTS]
@@ -184,17 +140,7 @@ def _demo_bayes(sim, out, seed):
 
 
 def cmd_demo(args) -> int:
-    """Run ``bayes-mpem demo``: simulate, fit, sample, compare, write figures and summary.md.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-
-    Returns
-    -------
-    int
-        Exit status 0.
-    """
+    """Run ``bayes-mpem demo``: simulate, fit, sample, compare, write figures and summary.md."""
     out = Path(args.out)
     sim = simulate_survey("abe58", rng=args.seed)
     written = list(sim.write(out / "survey").values())
@@ -217,18 +163,7 @@ def cmd_demo(args) -> int:
 
 
 def cmd_plot(args) -> int:
-    """Run ``bayes-mpem plot``: the figures of an output folder of any kind.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-
-    Returns
-    -------
-    int
-        Exit status: 0, or 2 when the folder holds nothing to draw (no fitted
-        beacon or located transponder).
-    """
+    """Run ``bayes-mpem plot``; exit status 2 when the folder holds nothing to draw."""
     from ..report import load_output
 
     if _is_batch_folder(args.result_dir):
@@ -277,22 +212,7 @@ def _plot_batch(args) -> int:
 
 
 def cmd_simulate(args) -> int:
-    """Run ``bayes-mpem simulate``: write a simulated survey.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-
-    Returns
-    -------
-    int
-        Exit status 0.
-
-    Raises
-    ------
-    OptionError
-        For an ``--effect`` that is not ``NAME=NUMBER`` (or ``beacon=ID``).
-    """
+    """Run ``bayes-mpem simulate``; ``OptionError`` for an ``--effect`` not ``NAME=NUMBER``."""
     effects = {}
     for item in args.effect:
         name, sep, value = item.partition("=")
@@ -316,17 +236,7 @@ def cmd_simulate(args) -> int:
 
 
 def cmd_fit(args) -> int:
-    """Run ``bayes-mpem fit``.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-
-    Returns
-    -------
-    int
-        Exit status 0.
-    """
+    """Run ``bayes-mpem fit``."""
     result = fit(args.pings, args.beacons, **fit_kwargs(args))
     out = Path(args.out)
     paths = list(result.write(out, table_format=args.table_format).values())
@@ -337,17 +247,7 @@ def cmd_fit(args) -> int:
 
 
 def cmd_sample(args) -> int:
-    """Run ``bayes-mpem sample``.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-
-    Returns
-    -------
-    int
-        Exit status 0.
-    """
+    """Run ``bayes-mpem sample``."""
     from ..lbl.survey.sampling import sample
 
     result = sample(args.pings, args.beacons, **sample_command_kwargs(args))
@@ -365,17 +265,7 @@ def cmd_sample(args) -> int:
 
 
 def cmd_compare(args) -> int:
-    """Run ``bayes-mpem compare``.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-
-    Returns
-    -------
-    int
-        Exit status 0.
-    """
+    """Run ``bayes-mpem compare``."""
     from ..lbl.survey.comparison import compare
 
     result = compare(args.pings, args.beacons, **sample_kwargs(args))
@@ -387,17 +277,7 @@ def cmd_compare(args) -> int:
 
 
 def cmd_diagnose(args) -> int:
-    """Run ``bayes-mpem diagnose``.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-
-    Returns
-    -------
-    int
-        Exit status 0.
-    """
+    """Run ``bayes-mpem diagnose``."""
     from ..lbl.diagnosis.driver import diagnose
 
     result = diagnose(args.pings, args.beacons, **diagnose_kwargs(args))

@@ -1,13 +1,4 @@
-"""``bayes-mpem locate``: locate the transponders of a ranging survey file.
-
-Parses nothing itself (:mod:`.parser` does): checks that the options go
-together, calls :func:`~bayes_mpem.survey_in.survey.locate_survey` (or its
-posterior-sampling sibling, through :func:`bayes_mpem.batch.locate_raw`, which
-``bayes-mpem batch`` shares), writes the result (and with ``--figures`` its
-figures, :func:`~bayes_mpem.report.write_figures`) and prints, per transponder,
-its position, the drift from the drop point, TAT, sound speed and depth change
-with their intervals, and whether a lag along the track would fit better.
-"""
+"""``bayes-mpem locate``: locate the transponders of a ranging survey file."""
 
 from __future__ import annotations
 
@@ -23,22 +14,7 @@ from .errors import OptionError
 
 
 def survey_format(path, fmt: str) -> str:
-    """Resolve ``--format auto`` and ``obsrange`` to a reader's format.
-
-    Parameters
-    ----------
-    path : str or pathlib.Path
-        The survey file.
-    fmt : str
-        The ``--format`` given.
-
-    Returns
-    -------
-    str
-        ``fmt``; for ``"auto"`` the format :func:`~bayes_mpem.io.formats.sniff_format`
-        recognises; for ``"obsrange"`` ``"obsrange-whoi"`` when the file starts with
-        a ``#`` comment header, else ``"obsrange-sio"``.
-    """
+    """Resolve ``--format auto`` (sniffed) and ``obsrange`` (WHOI or SIO) to a reader's format."""
     if fmt == "auto":
         return sniff_format(path)
     if fmt != "obsrange":
@@ -59,24 +35,9 @@ def _check_sample_options(args):
 
 
 def locate_kwargs(args) -> dict:
-    """Options of the location from ``bayes-mpem locate``'s, after checking they go together.
+    """Options of ``locate_survey`` from ``bayes-mpem locate``'s, plus ``sample`` (or None).
 
-    Parameters
-    ----------
-    args : argparse.Namespace
-
-    Returns
-    -------
-    dict
-        The keyword arguments of :func:`~bayes_mpem.survey_in.survey.locate_survey`,
-        plus ``sample``: those of the posterior sampling
-        (:func:`~bayes_mpem.survey_in.location_sampling.locate_survey_bayes`) with
-        ``--sample``, else None.
-
-    Raises
-    ------
-    OptionError
-        For options that do not go together (e.g. ``--seed`` without ``--sample``).
+    Raises ``OptionError`` for options that do not go together (``--seed`` without ``--sample``).
     """
     _check_sample_options(args)
     if getattr(args, "format", None) in ARRAY_FORMATS:
@@ -149,23 +110,7 @@ def _print_transponder(tid, t, *, ci, sampled):
 
 
 def cmd_locate(args) -> int:
-    """Run ``bayes-mpem locate``.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        Parsed by :func:`~bayes_mpem.cli.build_parser`.
-
-    Returns
-    -------
-    int
-        Exit status 0.
-
-    Raises
-    ------
-    OptionError
-        For options that do not go together (e.g. ``--seed`` without ``--sample``).
-    """
+    """Run ``bayes-mpem locate``."""
     args.format = survey_format(args.survey, args.format)
     options = locate_kwargs(args)  # options checked before the file is read
     raw = read_survey(args.survey, args.format)

@@ -2,7 +2,8 @@
 
 :mod:`.densities` holds the component log-densities (Gaussian, uniform and
 first-arrival outliers) and the log-sum-exp of a mixture; :mod:`.gauss_newton`
-the safeguard of a Gauss-Newton M-step.
+the safeguard of a Gauss-Newton M-step; :mod:`.em` the EM loop (convergence,
+history, warning, final E-step) that the EMs of both problems run on.
 """
 
 from .densities import (
@@ -15,7 +16,9 @@ from .densities import (
     safe_log,
     uniform_logpdf,
 )
+from .em import EMModel, EMRun, best_run, run_em
 from .gauss_newton import safeguarded_step
 
-__all__ = ["CLASSES", "EPS_LATE", "first_arrival_logpdf", "gaussian_logpdf", "log_mix",
-           "responsibilities", "safe_log", "safeguarded_step", "uniform_logpdf"]
+__all__ = ["CLASSES", "EPS_LATE", "EMModel", "EMRun", "best_run", "first_arrival_logpdf",
+           "gaussian_logpdf", "log_mix", "responsibilities", "run_em", "safe_log",
+           "safeguarded_step", "uniform_logpdf"]

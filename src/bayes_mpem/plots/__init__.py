@@ -1,8 +1,4 @@
-"""Figures. Plot functions take ``ax=``/``fig=`` and return the Figure; none runs a fit.
-
-:mod:`.style` (the class colours), :mod:`.lbl` (the paper's figures),
-:mod:`.bayes` (posterior figures), :mod:`.diagnose` (diagnosis figures).
-"""
+"""Figures. Plot functions take ``ax=``/``fig=`` and return the Figure; none runs a fit."""
 
 from .lbl import (
     plot_classification,

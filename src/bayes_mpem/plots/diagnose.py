@@ -1,9 +1,4 @@
-"""Figures of :func:`bayes_mpem.diagnose`.
-
-Every function takes a :class:`~bayes_mpem.lbl.diagnosis.result.Diagnosis` (or a
-:class:`~bayes_mpem.lbl.diagnosis.result.DiagnosisRecord` read back from its folder)
-and ``fig=``, and returns the Figure.
-"""
+"""Figures of :func:`bayes_mpem.diagnose`."""
 
 from __future__ import annotations
 
@@ -62,10 +57,6 @@ def _binned(x, r, n_bins=12):
 
 def plot_residuals(diagnosis, *, model="baseline", fig=None, max_points=4000):
     """Direct-path and multipath residuals against time, range, elevation, depth, bearing.
-
-    Replies with class probability above 0.5 are shown (at most ``max_points``
-    per panel, chosen at random with a fixed seed), one colour per beacon,
-    with binned means as lines. Structure here is what the model misses.
 
     Parameters
     ----------

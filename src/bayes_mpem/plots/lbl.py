@@ -1,9 +1,4 @@
-"""Figures. Every function takes ``ax=`` (or ``fig=``) and returns the Figure.
-
-A range's colour mixes the class colours by its class probabilities
-(:mod:`.style`: colour-blind safe by default, the paper's blue, red and green with
-``use_palette("paper")``); every class-coloured figure carries the colour key.
-"""
+"""Figures. Every function takes ``ax=`` (or ``fig=``) and returns the Figure."""
 
 from __future__ import annotations
 
@@ -24,10 +19,6 @@ def _ax(ax, figsize=(8, 4)):
 def plot_classification(survey_fit, beacon, *, ax=None, iteration="last", lines=True,
                         title=None, key=True):
     """Range against time for one beacon, coloured by class probability.
-
-    The paper's Figs. 7 (``iteration="first"``: after the first E-step), 9
-    (``"last"``) and, per beacon, 13; with the fitted direct-path and
-    multipath predictions.
 
     Parameters
     ----------
@@ -154,11 +145,6 @@ def plot_ranges(survey, *, ax=None):
 def plot_colormap(*, ax=None, resolution=400):
     """Draw the three-value colour map of class probabilities (the paper's Fig. 8).
 
-    Every point of the triangle is a probability vector (p_dp, p_mp, p_ol),
-    coloured as :func:`class_colors` colours ranges: the corners are pure
-    direct path, multipath and outlier, and the colours blend continuously in between
-    (the palette in use, :func:`~bayes_mpem.plots.style.use_palette`).
-
     Parameters
     ----------
     ax : matplotlib.axes.Axes, optional
@@ -282,10 +268,6 @@ def table_ii_markdown(survey_fit, *, truth=None) -> str:
     survey_fit : SurveyFit
     truth : dict, optional
         ``Simulation.truth``: adds the true sigma_MP.
-
-    Returns
-    -------
-    str
     """
     t = survey_fit.table()
     head = "| | " + " | ".join(f"beacon {b}" for b in t["beacon"]) + " |"

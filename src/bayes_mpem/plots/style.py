@@ -1,22 +1,8 @@
 """The class colours, the colour key and the labels shared by every figure.
 
-A range's colour mixes its class colours by its class probabilities
-(:func:`class_colors`): pure colours are sure ranges, mixed ones uncertain. Two palettes:
-
-* ``"okabe-ito"`` (the default): direct path blue, multipath vermillion, outlier grey
-  (and a second multipath reddish purple), from the colour-blind-safe set of Okabe & Ito
-  (2008); the three stay apart under deuteranopia, protanopia and tritanopia, and an
-  outlier, grey, carries no hue of its own;
-* ``"paper"``: the paper's Fig. 8, blue, red and green (red and green are not
-  colour-blind safe).
-
-:func:`use_palette` switches, :func:`palette_context` for a ``with`` block
-(``bayes-mpem ... --palette paper`` on the command line);
-:func:`class_key` adds the colour key every class-coloured figure carries. ``d0`` is the
-height of the reflecting plane above the beacon (the paper's HRP): :data:`PARAM_LABELS`
-names it and the other parameters the same way on every figure. The survey-in figures
-colour a ping true or spurious (:data:`SURVEY_IN_COLORS`, colour-blind safe, with a marker
-per class: :data:`SURVEY_IN_MARKERS`).
+A range's colour mixes the class colours by its class probabilities. Palettes:
+``"okabe-ito"`` (default, colour-blind safe; Okabe & Ito 2008) and ``"paper"`` (the
+paper's Fig. 8); switch with :func:`use_palette` or :func:`palette_context`.
 """
 
 from __future__ import annotations
@@ -181,9 +167,6 @@ def class_key(ax, classes=("dp", "mp", "ol"), *, extra=(), where=None, **kwargs)
 
 def plain_log_axis(axis) -> None:
     """Label a log axis with plain numbers (``7``, ``10``, ``20``), never ``7x10^0``.
-
-    Ticks at 1, 2 and 5 per decade; when the axis spans less than a decade, every minor
-    tick (2, 3, ..., 9 per decade) is labelled too, so a short axis still has labels.
 
     Parameters
     ----------

@@ -1,18 +1,4 @@
-"""Figures of a located survey (``bayes-mpem locate``): the map and the residuals.
-
-Every function takes a :class:`~bayes_mpem.survey_in.result.SurveyInResult`
-(or anything with its ``summary`` dict and ``classified`` table, as read back
-from an output folder) and ``fig=``, and returns the Figure; the data drawn is
-the data written (``summary.json``, ``classified.csv``). Pings are coloured by
-class with :data:`~.style.SURVEY_IN_COLORS` and a marker per class, with a key.
-
-* :func:`plot_survey_map`: the ship's track, the drop point (or the prior
-  positions of an array), each solution with its confidence ellipse, and a
-  close-up of every solution;
-* :func:`plot_residuals`: residuals against time and against the azimuth of
-  the ship seen from the transponder;
-* :func:`plot_residual_histogram`: their histogram, with the fitted Gaussian.
-"""
+"""Figures of a located survey (``bayes-mpem locate``): the map and the residuals."""
 
 from __future__ import annotations
 
@@ -132,10 +118,7 @@ def _closeup(ax, s, tid, t):
 
 
 def _pinged(result):
-    """Return the pings classified (not skipped), the residual axis limit and sigma (ms).
-
-    The limit covers the true pings' spread, and at least 5 sigma.
-    """
+    """Return the pings classified (not skipped), the residual axis limit and sigma (ms)."""
     cls = result.classified
     cls = cls[cls["label"].isin(["true", "spurious"])]
     true = cls.loc[cls["label"] == "true", "residual_ms"].to_numpy(float)
@@ -164,8 +147,6 @@ def _scatter_classes(ax, cls, x, lim, *, key=True):
 
 def plot_residuals(result, *, fig=None):
     """Residuals (observed minus predicted two-way travel time) against time and azimuth.
-
-    Spurious pings beyond the axis are drawn at its edge (the count is in the title).
 
     Parameters
     ----------

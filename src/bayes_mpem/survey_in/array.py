@@ -16,11 +16,9 @@ leg) and ``s(t)`` the speed. A shot is either true, ``N(twtt, sigma)`` (one
 ``sigma`` for the array), or spurious (uniform over the transponder's window,
 or before the true arrival: the models of
 :func:`~bayes_mpem.survey_in.classes.log_classes`), each transponder with its own
-share of true replies. The EM is that of :func:`~bayes_mpem.survey_in.location.locate`:
-class probabilities, then a weighted Gauss-Newton (``least_squares``) for the
-positions and the speed, then ``sigma`` and the shares in closed form; the
-start is a Cauchy-loss fit from the prior positions. Intervals are Wald
-intervals from the weighted information.
+share of true replies. The EM is that of :func:`~bayes_mpem.survey_in.location.locate`
+(:class:`~bayes_mpem.survey_in.location.TravelTimeEM`), from a Cauchy-loss fit
+from the prior positions.
 """
 
 from __future__ import annotations
@@ -35,8 +33,8 @@ from scipy.stats import norm
 
 from .._validate import check_choice, check_int
 from ..exceptions import InputError, LocateWarning
-from .classes import OUTLIER_MODELS, log_classes, true_probability
-from .location import weighted_residuals
+from .classes import OUTLIER_MODELS
+from .location import TravelTimeEM, weighted_residuals
 from .travel_times import TravelTimes, speed_basis
 
 #: Fewest shots a transponder needs to be located.
@@ -98,46 +96,15 @@ class ArrayTravelTimes:
         return T, dE, dN, dU, bad
 
     def speed(self, theta):
-        """Speed (or the profile's scale) at each shot.
-
-        Parameters
-        ----------
-        theta : numpy.ndarray
-            East, north, up of every transponder, then the speed coefficients.
-
-        Returns
-        -------
-        numpy.ndarray
-        """
+        """Return the speed (or the profile's scale) at each shot, given ``theta``."""
         return self.basis @ theta[3 * self.K:]
 
     def predict(self, theta):
-        """Two-way travel time (s) of a true reply to each shot.
-
-        Parameters
-        ----------
-        theta : numpy.ndarray
-            East, north, up of every transponder, then the speed coefficients.
-
-        Returns
-        -------
-        numpy.ndarray
-        """
+        """Return the two-way travel time (s) of a true reply to each shot, given ``theta``."""
         return self._paths(theta)[0] / self.speed(theta)
 
     def jac(self, theta):
-        """d(prediction)/d(theta), one row per shot.
-
-        Parameters
-        ----------
-        theta : numpy.ndarray
-            East, north, up of every transponder, then the speed coefficients.
-
-        Returns
-        -------
-        numpy.ndarray
-            ``(shots, n_params)``.
-        """
+        """Return d(prediction)/d(theta), ``(shots, n_params)``."""
         T, dE, dN, dU, _ = self._paths(theta)
         s = self.speed(theta)
         J = np.zeros((T.size, self.n_params))
@@ -148,17 +115,7 @@ class ArrayTravelTimes:
         return J
 
     def n_invalid(self, theta) -> int:
-        """Count the legs no eigenray reaches at ``theta`` (0 for straight rays).
-
-        Parameters
-        ----------
-        theta : numpy.ndarray
-            East, north, up of every transponder, then the speed coefficients.
-
-        Returns
-        -------
-        int
-        """
+        """Count the legs no eigenray reaches at ``theta`` (0 for straight rays)."""
         return int(self._paths(theta)[4])
 
 
@@ -236,15 +193,7 @@ class ArrayLocateResult:
         return np.sqrt(np.clip(np.diag(self.cov)[:3 * len(self.ids)], 0.0, None)).reshape(-1, 3)
 
     def centre(self):
-        """Return the array centre (the mean of the transponders) and its covariance.
-
-        Returns
-        -------
-        mean : numpy.ndarray
-            East, north, up (m).
-        cov : numpy.ndarray
-            ``(3, 3)``.
-        """
+        """Return the array centre (the transponders' mean east, north, up) and its covariance."""
         K = len(self.ids)
         G = np.zeros((3, self.cov.shape[0]))
         for k in range(K):
@@ -252,45 +201,16 @@ class ArrayLocateResult:
         return self.enu.mean(axis=0), G @ self.cov @ G.T
 
     def position_cov(self, k: int) -> np.ndarray:
-        """``(3, 3)`` covariance of transponder ``k``'s east, north, up.
-
-        Parameters
-        ----------
-        k : int
-            The transponder's index.
-
-        Returns
-        -------
-        numpy.ndarray
-        """
+        """Return the ``(3, 3)`` covariance of east, north, up of transponder number ``k``."""
         return self.cov[3 * k:3 * k + 3, 3 * k:3 * k + 3]
 
     def n_spurious(self, k: int) -> int:
-        """Shots of transponder ``k`` more likely spurious than true.
-
-        Parameters
-        ----------
-        k : int
-            The transponder's index.
-
-        Returns
-        -------
-        int
-        """
+        """Count the shots of transponder number ``k`` more likely spurious than true."""
         return int(np.sum(self.p_true[self.index == k] < 0.5))
 
 
 def describe(mean, sd, ci):
-    """``{"mean", "sd", "interval"}`` of a Wald interval with probability ``ci``.
-
-    Parameters
-    ----------
-    mean, sd : float
-    ci : float
-
-    Returns
-    -------
-    dict
+    """Return ``{"mean", "sd", "interval"}``, a Wald interval with probability ``ci``.
 
     Examples
     --------
@@ -322,33 +242,6 @@ def _check_shots(shots, transponders):
     k_of = {t: k for k, t in enumerate(ids)}
     index = np.array([k_of.get(t, -1) for t in tid])
     return ids, skipped, index
-
-
-def _em(t, theta, resid, jac, x_scale, windows, index, outliers, *, max_iter, tol):
-    """Run the array EM; return ``(theta, sigma, weights, p, n_iter, converged)``."""
-    K = windows.shape[0]
-    r = resid(theta)
-    sigma = max(1.4826 * float(np.median(np.abs(r - np.median(r)))), 1e-7)
-    weights = np.full(K, 0.9)
-    p = np.ones_like(t)
-    converged, it = False, 0
-    for it in range(1, max_iter + 1):
-        pred = t - r
-        for k in range(K):
-            sel = index == k
-            ld, lu = log_classes(t[sel], pred[sel], sigma, weights[k], windows[k], outliers)
-            p[sel] = true_probability(ld, lu)
-        theta = least_squares(resid, theta, jac=jac, args=(p,), x_scale=x_scale).x
-        r = resid(theta)
-        new = float(np.sqrt(np.sum(p * r * r) / p.sum()))
-        weights = np.clip(np.bincount(index, p, K) / np.bincount(index, minlength=K),
-                          1e-6, 1 - 1e-6)
-        done = abs(new - sigma) < tol
-        sigma = new
-        if done:
-            converged = True
-            break
-    return theta, sigma, weights, p, it, converged
 
 
 def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=None,
@@ -423,8 +316,9 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
     x_scale = np.array([1.0] * 3 * K + [abs(coef0) / 1500.0] * basis.shape[1])
     resid, jac = weighted_residuals(t, model)
     windows = np.array([[t[index == k].min(), t[index == k].max()] for k in range(K)])
-    theta, sigma, weights, p, it, converged = _em(t, theta, resid, jac, x_scale, windows,
-                                                  index, outliers, max_iter=max_iter, tol=tol)
+    run = TravelTimeEM(t, resid, jac, x_scale, windows, index, outliers).run(
+        theta, sigma_min=1e-7, tol=tol, max_iter=max_iter)
+    (theta, _, sigma, weights), p = run.params, run.resp
     clusters = sub["t_tx"].to_numpy() if "t_tx" in sub.columns else np.arange(len(sub))
     J = jac(theta, p)
     cov = robust_covariance(J, resid(theta, p), clusters)
@@ -432,7 +326,7 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
     g = basis.mean(axis=0)
     kk = slice(3 * K, None)
     n_bad = model.n_invalid(theta)
-    _warn(n_bad, 2 * t.size, converged, it)
+    _warn(n_bad, 2 * t.size, run.converged, run.n_iter)
     return ArrayLocateResult(
         ids=tuple(ids), enu=theta[:3 * K].reshape(K, 3).copy(), cov=cov, start=start,
         cov_model=cov_model,
@@ -440,7 +334,7 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
         sound_speed_sd=float(np.sqrt(max(g @ cov[kk, kk] @ g, 0.0))) * unit,
         speed_coef=theta[kk].copy(), sigma=sigma, weights=weights, p_true=p,
         residual=resid(theta), rows=rows, index=index, windows=windows, skipped=skipped,
-        n_iter=it, converged=converged, outliers=outliers,
+        n_iter=run.n_iter, converged=run.converged, outliers=outliers,
         model={"profile": profile, "surface_depth": float(surface_depth),
                "speed_intervals": int(speed_intervals), "time_range": time_range,
                "unit": unit, "n_invalid": n_bad})
@@ -452,11 +346,8 @@ def robust_covariance(J, r, clusters) -> np.ndarray:
     ``A^-1 B A^-1`` with ``A = J^T J`` and ``B`` the sum over clusters of the
     outer product of each cluster's score ``sum_i J_i r_i``, scaled by
     ``G / (G - P)`` (``G`` clusters, ``P`` parameters). Replies to one
-    interrogation share the transducer's position at transmit, and with it its
-    GNSS error: their residuals are correlated, which the model-based
-    ``sigma^2 (J^T J)^-1`` ignores (on simulated surveys its vertical intervals
-    covered the truth too rarely: ``docs/gnssa.md``). Without correlation,
-    ``B`` estimates ``sigma^2 A`` and the two agree.
+    interrogation share the transducer's GNSS error, a correlation the
+    model-based ``sigma^2 (J^T J)^-1`` ignores (``docs/gnssa.md``).
 
     Parameters
     ----------

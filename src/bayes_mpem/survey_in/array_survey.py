@@ -1,16 +1,4 @@
-"""Locate the transponders of a GNSS-acoustic array survey (GARPOS, GNATSS) together.
-
-:func:`locate_array_survey` turns a :class:`~bayes_mpem.io.raw.RawSurvey` of
-format ``garpos`` or ``gnatss`` into shots with the transducer's position at
-transmit and receive (:func:`array_shots`), locates the whole array by EM
-(:func:`~.array.locate_array`) through the survey's own sound-speed profile
-unless told otherwise, and returns a :class:`~.result.SurveyInResult`: the
-``summary.json`` keeps the ``transponders`` entry of a single-transponder
-``locate`` (``east``, ``north``, ``depth``, ``sound_speed``, ``lat``, ``lon``,
-...) and adds per transponder ``enu`` (east, north, up in the site file's frame,
-each with mean, sd and interval), its prior position and how far it moved, and
-the ``array_centre``; ``classified.csv`` has every shot's class and residual.
-"""
+"""Locate the transponders of a GNSS-acoustic array survey (GARPOS, GNATSS) together."""
 
 from __future__ import annotations
 

@@ -1,14 +1,5 @@
 """The two classes of a survey-in ping, true arrival or spurious: their log-densities.
 
-A two-way travel time is a true arrival (Gaussian around the predicted time) or a
-spurious detection, uniform over the listening window or, for a first-arrival
-detector, before the true arrival (the densities of
-:mod:`bayes_mpem.mixture.densities`). :func:`log_classes` gives the weighted
-log-densities of both, :func:`true_probability` the probability of a true arrival;
-the EM of :mod:`bayes_mpem.survey_in.location`, the array of
-:mod:`bayes_mpem.survey_in.array` and the posterior of
-:mod:`bayes_mpem.survey_in.posterior` share them.
-
 Examples
 --------
 >>> import numpy as np

@@ -1,13 +1,7 @@
 """Where the transponder settled against where it was dropped: drift, azimuth, depth change.
 
-What OBSrange prints beside the location: the horizontal **drift** from the
-drop point (m), its **azimuth** (degrees clockwise from north) and the **depth
-change** (the located depth minus the drop point's; OBSrange's ``dz`` is its
-negative, the rise). :func:`drift_from_fit` takes them with their intervals
-from an EM fit (Wald, by the delta method from the east-north-depth covariance),
-:func:`drift_from_draws` from posterior draws (equal-tailed). Deck-box surveys
-are located in a frame whose origin is the drop point, so the drift is the
-located east and north.
+The depth change is the located depth minus the drop point's (OBSrange's ``dz`` is its
+negative); the azimuth is degrees clockwise from north.
 """
 
 from __future__ import annotations

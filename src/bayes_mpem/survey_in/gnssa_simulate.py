@@ -1,26 +1,4 @@
-"""A GNSS-acoustic array survey with a known truth, for testing the array location.
-
-:func:`simulate_gnssa` sails a ship over an array of seafloor transponders and
-logs what a GNSS-A system logs: the GNSS antenna's position and the ship's
-attitude at every transmission and reception, and the two-way travel time of
-every reply. The truth it hides:
-
-* the transponders (3-4 by default, on a circle of about half the water depth)
-  and their prior positions (the truth plus a few metres, as a site file's
-  initial values are);
-* the antenna-transducer offset in the vessel frame, turned by heading, pitch
-  and roll (:func:`~bayes_mpem.io.geodesy.atd_offset_enu`);
-* a sound-speed profile (:func:`reference_profile`) scaled by a factor that
-  changes smoothly in time (two sinusoids, hours long);
-* refracted eigenrays for both legs, transmit and receive, at the ship's
-  position at each moment (:func:`~bayes_mpem.acoustics.turning.direct_times`);
-* Gaussian timing noise, spurious replies (uniform over a window around the
-  transponder's travel times) and missing replies.
-
-The result holds the pings and header a GARPOS or GNATSS reader returns, so
-:func:`~bayes_mpem.io.garpos.write_garpos` and
-:func:`~bayes_mpem.io.gnatss.write_gnatss` write it as either format.
-"""
+"""A GNSS-acoustic array survey with a known truth, for testing the array location."""
 
 from __future__ import annotations
 
@@ -38,10 +16,7 @@ from ..io.raw import RawSurvey
 
 
 def reference_profile(max_depth: float, step: float = 25.0) -> pd.DataFrame:
-    """Tabulate a smooth open-ocean sound-speed profile (a warm surface, a minimum near 600 m).
-
-    ``c(z) = 1482 + 33 exp(-z / 350) + 0.017 z`` m/s, tabulated every ``step`` m
-    from the surface to ``max_depth``.
+    """Tabulate ``c(z) = 1482 + 33 exp(-z / 350) + 0.017 z`` m/s, every ``step`` m.
 
     Parameters
     ----------
@@ -98,10 +73,6 @@ class GnssaSimulation:
         Parameters
         ----------
         fmt : {"garpos", "gnatss"}
-
-        Returns
-        -------
-        RawSurvey
         """
         return RawSurvey(fmt, "simulated", self.pings.copy(), dict(self.header),
                          pd.DataFrame(columns=["line", "text", "reason"]))

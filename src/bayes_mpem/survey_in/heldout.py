@@ -1,10 +1,4 @@
-"""Held-out (K-fold cross-validated) log predictive density of a transponder's pings.
-
-How much a travel-time extension (refraction, a time-varying sound speed, a
-lag, the first-arrival outlier model) gains on pings the fit has not seen:
-``benchmarks/measured_gain.py`` sums the paired differences per survey
-(``docs/measured-data.md``).
-"""
+"""Held-out (K-fold cross-validated) log predictive density of a transponder's pings."""
 
 from __future__ import annotations
 
@@ -24,9 +18,6 @@ def heldout_logpdf(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None,
                    outliers="uniform", n_folds=5, folds="random", rng=0,
                    **kwargs) -> np.ndarray:
     """K-fold cross-validated log predictive density of every ping of one transponder.
-
-    Each fold is located from the other pings (same listening window: the
-    whole file's) and scores its own pings with :meth:`LocateResult.logpdf`.
 
     Parameters
     ----------
@@ -83,14 +74,6 @@ def lag_check(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, n
               rng=0, **kwargs) -> dict:
     """Is the acoustic position behind the logged one? The held-out gain of a fitted lag.
 
-    Locates the transponder with and without a lag along the track
-    (``fit_lag``, :func:`~bayes_mpem.survey_in.location.locate`) and compares
-    the two by ``n_folds``-fold cross-validation (:func:`heldout_logpdf`, the
-    same folds for both). The lag is recommended when its gain is at least
-    :data:`LAG_MIN_GAIN` nats and :data:`LAG_MIN_Z` standard errors; on the
-    WHOI deck-box log it is 5.4 s and gains about 330 nats, on the SIO logs
-    it gains nothing (``docs/measured-data.md``).
-
     Parameters
     ----------
     pings, beacons, transponder
@@ -106,7 +89,8 @@ def lag_check(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, n
     dict
         ``lag`` and ``lag_sd`` (s), ``gain`` and ``gain_se`` (nats, lag minus no
         lag, summed over pings), ``rms_ms_without`` and ``rms_ms_with`` (the
-        scatter of true arrivals, ms), ``recommended`` (bool) and ``rule``.
+        scatter of true arrivals, ms), ``recommended`` (a gain of at least :data:`LAG_MIN_GAIN`
+        nats and :data:`LAG_MIN_Z` standard errors) and ``rule``.
     """
     kwargs.pop("fit_lag", None)
     seed = as_generator(rng).integers(2**63)

@@ -11,11 +11,9 @@ chord at one speed, or refracted rays through a scaled sound-speed profile
 (``ssp=``), with a speed that may vary in time (``speed_intervals=``) and a lag
 of the acoustic position along the track (``fit_lag=True``).
 
-E-step: class probabilities in log space. M-step: weighted nonlinear least
-squares for the geometry (``scipy.optimize.least_squares`` from the current
-point, so the weighted sum of squares does not increase), then ``sigma`` and the
-weight in closed form. The start is a Cauchy-loss robust fit from the drop
-point. Standard deviations are from the weighted Gauss-Newton information
+The EM (:class:`TravelTimeEM`, shared with the array of
+:mod:`bayes_mpem.survey_in.array`) starts from a Cauchy-loss robust fit from the
+drop point. Standard deviations are from the weighted Gauss-Newton information
 (approximate; :mod:`bayes_mpem.survey_in.location_sampling` samples the
 posterior).
 
@@ -30,6 +28,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -37,6 +36,7 @@ from scipy.optimize import least_squares
 
 from .._validate import check_choice, check_int
 from ..exceptions import InputError, LocateWarning
+from ..mixture.em import EMModel, run_em
 from .classes import OUTLIER_MODELS, log_classes, true_probability
 from .travel_times import TravelTimes, ship_velocity, speed_basis
 
@@ -116,18 +116,10 @@ class LocateResult:
         return self.model.get("ssp") is not None
 
     def travel_times(self, pings):
-        """Return the travel-time model of this fit on ``pings``, and its parameters.
+        """Return the :class:`TravelTimes` of this fit on ``pings``, and its ``theta``.
 
-        Parameters
-        ----------
-        pings : pandas.DataFrame
-            ``x``, ``y``, ``depth`` (and ``time`` for a lag or a time-varying speed).
-
-        Returns
-        -------
-        model : TravelTimes
-        theta : numpy.ndarray
-            ``(east, north, depth, speed coefficients...)`` of the fit.
+        ``pings`` has ``x``, ``y``, ``depth`` (and ``time`` for a lag or a
+        time-varying speed); ``theta`` is ``(east, north, depth, speed coefficients...)``.
         """
         x, y, z = (pings[c].to_numpy(float) for c in ("x", "y", "depth"))
         m = self.model
@@ -141,32 +133,12 @@ class LocateResult:
         return tt, np.concatenate([[self.east, self.north, self.depth], coef])
 
     def predict(self, pings: pd.DataFrame) -> np.ndarray:
-        """Predicted two-way travel time (s) of a true arrival for each ping.
-
-        Parameters
-        ----------
-        pings : pandas.DataFrame
-            ``x``, ``y``, ``depth`` of the ship transducer.
-
-        Returns
-        -------
-        numpy.ndarray
-        """
+        """Return the two-way travel time (s) of a true arrival for each of ``pings``."""
         model, theta = self.travel_times(pings)
         return model.predict(theta)
 
     def logpdf(self, pings: pd.DataFrame) -> np.ndarray:
-        """Log density (1/s) of each ping's two-way travel time under this fit.
-
-        Parameters
-        ----------
-        pings : pandas.DataFrame
-            ``twtt``, ``x``, ``y``, ``depth`` of this transponder's pings (e.g. held out).
-
-        Returns
-        -------
-        numpy.ndarray
-        """
+        """Return the log density (1/s) of the ``twtt`` of each of ``pings`` (e.g. held out)."""
         t = pings["twtt"].to_numpy(float)
         pred = self.predict(pings)
         ld, lu = log_classes(t, pred, self.sigma, self.weight, self.window, self.outliers)
@@ -178,19 +150,7 @@ class LocateResult:
         return int(np.sum(self.p_true < 0.5))
 
     def interval(self, name: str, ci: float = 0.95) -> list:
-        """Approximate (Wald) interval of a parameter with probability ``ci``.
-
-        Parameters
-        ----------
-        name : str
-            A reported parameter (``east``, ``north``, ``depth``, ``sound_speed``, ...).
-        ci : float
-
-        Returns
-        -------
-        list of float
-            ``[lower, upper]``.
-        """
+        """Return the Wald interval ``[lower, upper]`` of parameter ``name``, probability ``ci``."""
         from scipy.stats import norm
 
         v = {"east": self.east, "north": self.north, "depth": self.depth,
@@ -199,17 +159,7 @@ class LocateResult:
         return [v - half, v + half]
 
     def to_dict(self, ci: float = 0.95) -> dict:
-        """JSON-ready summary; intervals are approximate (Wald, from the EM).
-
-        Parameters
-        ----------
-        ci : float
-            Probability of the intervals.
-
-        Returns
-        -------
-        dict
-        """
+        """Return a JSON-ready summary, with Wald intervals of probability ``ci``."""
         out = {k: {"mean": getattr(self, k), "sd": self.sd.get(k, 0.0),
                    "interval": self.interval(k, ci)}
                for k in ("east", "north", "depth", "sound_speed")}
@@ -242,17 +192,14 @@ def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=
         Turn-around time (s); default :data:`DEFAULT_TAT`. The start value when
         ``fit_tat`` is true.
     fit_tat : bool, default False
-        Fit the turn-around time too. On the OBSrange samples it is not
-        identifiable (it trades off against depth and sound speed: 2 sd of
-        depth ~290 m), and a :class:`LocateWarning` says so when that happens.
+        Fit the turn-around time too; it trades off against depth and sound
+        speed, and a :class:`LocateWarning` says when the depth is lost.
     sound_speed : float, default 1500
         Starting sound speed (m/s).
     outliers : {"uniform", "first_arrival"}
-        Spurious pings uniform over the listening window (the simulator's
-        assumption), or uniform between the window start and the true arrival:
-        a detector that reports the first threshold crossing cannot report a
-        false detection after the true one (a share ``1e-3`` of the density
-        stays spread over the window).
+        Spurious pings uniform over the listening window, or (a detector that
+        reports the first threshold crossing) before the true arrival
+        (:func:`~bayes_mpem.survey_in.classes.log_classes`).
     window : tuple of float, optional
         Listening window (s); default the smallest and largest travel time of
         the transponder's pings.
@@ -271,16 +218,14 @@ def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=
     speed_intervals : int, default 0
         Let the sound speed (or the profile's scale) vary in time as a cubic
         B-spline with this many equal intervals over ``time_range`` (0: one
-        constant speed). The ocean's sound speed changes over hours; GNSS-acoustic
-        processing models it the same way.
+        constant speed).
     time_range : tuple of float, optional
         Span of the B-spline (s); default the pings' own.
     fit_lag : bool, default False
         Fit a time lag (s) of the acoustic position behind the logged one: the
-        ship is taken at ``(x, y) + lag * velocity`` (:func:`ship_velocity`). It
-        stands for a position fix logged at another moment than the ping, or a
-        transducer ahead of the GPS antenna on a ship holding its course (the
-        two cannot be told apart on such a track).
+        ship is taken at ``(x, y) + lag * velocity`` (:func:`ship_velocity`): a
+        fix logged at another moment than the ping, or a transducer ahead of the
+        GPS antenna on a ship holding its course.
     max_iter : int, default 200
     tol : float, default 1e-10
         Stop when sigma (s) changes by less than this.
@@ -330,8 +275,9 @@ def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=
     model = TravelTimes(x, y, z, tat0, basis=basis, profile=ssp, fit_lag=fit_lag, **geo)
     resid, jac = weighted_residuals(t, model)
     window = (float(t.min()), float(t.max())) if window is None else tuple(map(float, window))
-    theta, sigma, weight, p, it, converged = _em(t, theta, resid, jac, x_scale, window,
-                                                 outliers, max_iter=max_iter, tol=tol)
+    run = TravelTimeEM(t, resid, jac, x_scale, [window], None, outliers).run(
+        theta, sigma_min=1e-6, tol=tol, max_iter=max_iter)
+    (theta, _, sigma, weight), p = run.params, run.resp
     J = jac(theta, p)
     cov = np.linalg.pinv(J.T @ J) * sigma**2
     sd = {name: float(np.sqrt(max(cov[i, i], 0.0)))
@@ -349,12 +295,12 @@ def locate(pings: pd.DataFrame, beacons: pd.DataFrame, transponder=None, *, tat=
     lag = float(theta[3 + k]) if fit_lag else 0.0
     if fit_lag:
         sd["lag"] = float(np.sqrt(max(cov[3 + k, 3 + k], 0.0)))
-    _warn(transponder, model.n_invalid(theta), t.size, converged, it, sd, fit_tat)
+    _warn(transponder, model.n_invalid(theta), t.size, run.converged, run.n_iter, sd, fit_tat)
     return LocateResult(
         transponder=str(transponder), east=float(theta[0]), north=float(theta[1]),
         depth=float(theta[2]), sound_speed=speed,
-        tat=float(theta[-1]) if fit_tat else tat0, sigma=sigma, weight=weight, sd=sd,
-        p_true=p, rows=rows, n_iter=it, converged=converged, fit_tat=fit_tat,
+        tat=float(theta[-1]) if fit_tat else tat0, sigma=sigma, weight=float(weight[0]), sd=sd,
+        p_true=p, rows=rows, n_iter=run.n_iter, converged=run.converged, fit_tat=fit_tat,
         outliers=outliers, window=window,
         model={"ssp": ssp, "surface_depth": float(surface_depth), "earth_radius": earth_radius,
                "speed_intervals": int(speed_intervals), "time_range": time_range,
@@ -413,25 +359,80 @@ def weighted_residuals(t, model):
     return resid, jac
 
 
-def _em(t, theta, resid, jac, x_scale, window, outliers, *, max_iter, tol):
-    """Run the EM loop; return ``(theta, sigma, weight, p_true, n_iter, converged)``."""
-    r = resid(theta)
-    sigma = max(1.4826 * float(np.median(np.abs(r - np.median(r)))), 1e-6)
-    weight = 0.9
-    converged, it = False, 0
-    for it in range(1, max_iter + 1):
-        ld, lu = log_classes(t, t - r, sigma, weight, window, outliers)
-        p = true_probability(ld, lu)
-        theta = least_squares(resid, theta, jac=jac, args=(p,), x_scale=x_scale).x
-        r = resid(theta)
-        new = float(np.sqrt(np.sum(p * r * r) / p.sum()))
-        weight = float(np.clip(p.mean(), 1e-6, 1 - 1e-6))
-        done = abs(new - sigma) < tol
-        sigma = new
-        if done:
-            converged = True
-            break
-    return theta, sigma, weight, p, it, converged
+class _Fit(NamedTuple):
+    theta: np.ndarray
+    r: np.ndarray  # residuals at theta
+    sigma: float
+    weights: np.ndarray  # share of true arrivals, per transponder
+
+
+class TravelTimeEM(EMModel):
+    """The EM of :func:`locate` and :func:`~bayes_mpem.survey_in.array.locate_array`.
+
+    E-step: the probability that each ping is true (:func:`.classes.log_classes`);
+    M-step: weighted least squares (``scipy.optimize.least_squares``) from the
+    current point, so the weighted sum of squares does not increase, then
+    ``sigma`` and each transponder's share of true pings in closed form;
+    converged when ``sigma`` changes by less than ``tol`` (s). The probabilities
+    returned are the weights of the last M-step, those of the covariance.
+
+    Parameters
+    ----------
+    t : numpy.ndarray
+        Two-way travel times (s).
+    resid, jac : callable
+        Of :func:`weighted_residuals`.
+    x_scale : numpy.ndarray
+        Parameter scales for ``least_squares``.
+    windows : list of tuple
+        Listening window of each transponder (s).
+    index : numpy.ndarray or None
+        Transponder of each ping (None: one transponder).
+    outliers : {"uniform", "first_arrival"}
+    """
+
+    final_e_step = False
+
+    def __init__(self, t, resid, jac, x_scale, windows, index, outliers):
+        self.t, self.resid, self.jac, self.x_scale = t, resid, jac, x_scale
+        self.windows, self.index, self.outliers = windows, index, outliers
+        self.rows = [slice(None)] if index is None else [index == k for k in range(len(windows))]
+
+    def run(self, theta, *, sigma_min, **kw):
+        """Return the :func:`~bayes_mpem.mixture.em.run_em` (``**kw``) of the EM from ``theta``.
+
+        The first ``sigma`` is the MAD of the residuals, at least ``sigma_min`` (s).
+        """
+        r = self.resid(theta)
+        sigma = max(1.4826 * float(np.median(np.abs(r - np.median(r)))), sigma_min)
+        return run_em(self, _Fit(theta, r, sigma, np.full(len(self.windows), 0.9)), **kw)
+
+    def e_step(self, fit):
+        """Return ``(None, probability that each ping is true)``."""
+        p, pred = np.empty_like(self.t), self.t - fit.r
+        for k, sel in enumerate(self.rows):
+            ld, lu = log_classes(self.t[sel], pred[sel], fit.sigma, fit.weights[k],
+                                 self.windows[k], self.outliers)
+            p[sel] = true_probability(ld, lu)
+        return None, p
+
+    def m_step(self, fit, p):
+        """Return the new parameters given the probabilities ``p`` of true pings."""
+        theta = least_squares(self.resid, fit.theta, jac=self.jac, args=(p,),
+                              x_scale=self.x_scale).x
+        r = self.resid(theta)
+        sigma = float(np.sqrt(np.sum(p * r * r) / p.sum()))
+        if self.index is None:
+            shares = np.array([np.clip(p.mean(), 1e-6, 1 - 1e-6)])
+        else:
+            k = len(self.rows)
+            shares = np.clip(np.bincount(self.index, p, k) / np.bincount(self.index, minlength=k),
+                             1e-6, 1 - 1e-6)
+        return _Fit(theta, r, sigma, shares)
+
+    def change(self, old, new, gain):
+        """Return the change of ``sigma`` (s)."""
+        return abs(new.sigma - old.sigma)
 
 
 def _warn(transponder, n_bad, n, converged, it, sd, fit_tat):

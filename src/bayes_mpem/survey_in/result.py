@@ -1,10 +1,4 @@
-"""What locating the transponders of a survey returns, and the files it writes.
-
-:class:`SurveyInResult` holds the JSON-ready summary and the per-line
-classification of :func:`~.survey.locate_survey` (and of
-:func:`~.location_sampling.locate_survey_bayes`, which returns the same pair
-with posterior intervals), and writes ``summary.json`` and ``classified.csv``.
-"""
+"""What locating the transponders of a survey returns, and the files it writes."""
 
 from __future__ import annotations
 
@@ -116,12 +110,7 @@ class SurveyInResult:
     fits: dict = field(default_factory=dict, repr=False)
 
     def to_dict(self) -> dict:
-        """Return the content of ``summary.json``.
-
-        Returns
-        -------
-        dict
-        """
+        """Return the content of ``summary.json``."""
         return self.summary
 
     def write(self, out_dir) -> dict:

@@ -1,70 +1,13 @@
 """What the simulation gets wrong: measured survey residuals against simulated ones.
 
-The simulator (and :func:`bayes_mpem.survey_in.location.locate`) assumes straight rays at one
-sound speed, a constant turn-around time, independent Gaussian noise of constant
-size on the true arrivals, and spurious returns uniform over the listening
-window. This module simulates a measured survey under exactly those assumptions
-(same ship track, same transponder, the parameters located from the measured
-travel times: :func:`simulate_like`), re-locates every simulated replicate the
-same way as the measured survey, and compares statistics of the residuals
-(:func:`gap_statistics`) between the two (:func:`simulation_gap`). A statistic
-whose measured value lies outside its simulated distribution (a small
-Monte-Carlo p-value, :func:`mc_pvalue`) is a pattern in the data that the
-simulation does not produce.
-
-Residuals are ``observed - predicted`` two-way travel times (s) with the straight-
-ray prediction of the located fit (:func:`residual_frame`). A ping is counted as a
-true arrival when its class probability ``p_true`` is at least 0.5, and as
-spurious otherwise. The fit's sound speed absorbs the mean of any refraction
-effect (and its depth and position absorb more), so only what a straight-ray fit
-cannot absorb shows in the residuals; :func:`unabsorbed` computes that part for
-any noise-free travel-time model, e.g. refracted rays through a sound-speed
-profile (:func:`refracted_twtt`).
-
-The statistics (:data:`STATISTICS`), all computed from the true pings of one
-transponder:
-
-``elevation``, ``slant_range``, ``time``
-    Dependence of the residuals on elevation angle, slant range and time: the
-    pings are sorted by the variable and split into ``n_bins`` groups of equal
-    count; the statistic is ``sum_b n_b mean_b**2 / s**2`` with ``s**2`` the mean
-    squared residual. For independent residuals of mean zero it is about
-    chi-square with ``n_bins`` degrees of freedom; a pattern that depends on the
-    variable makes it larger.
-``lag1``
-    Lag-1 autocorrelation of the residuals in time order (0 for independent noise).
-``noise_elevation``
-    ``log(sd_low / sd_high)``: the scatter of the third of the pings at the lowest
-    elevations over that of the third at the highest (0 for constant noise).
-``kurtosis``
-    Excess kurtosis of the true residuals (about 0 for Gaussian noise; the
-    classification trims the tails somewhat, which the simulation reproduces).
-``along_track``
-    Least-squares offset (m) of the acoustic position along the ship's course,
-    fitted to the residuals (with a constant): a transducer ahead of the logged
-    position, or a time lag between the position fix and the ping, makes it
-    non-zero. The course is the direction between the neighbouring pings in time.
-``late_share``
-    Share of the spurious pings arriving after the predicted true arrival
-    (NaN when there is no spurious ping). A detector that reports the first
-    threshold crossing cannot report a false detection after a detected true
-    arrival, so it would make the share 0; the simulation's uniform spurious
-    returns put it near the part of the window after the true arrival.
-
-With several transponders pinged at the same times (``common_drift``), the
-residual of each true ping is also predicted from the other transponders' true
-pings at the same time: a change of the mean sound speed scales every travel time
-alike, so the prediction is the mean of their ``residual / predicted`` times this
-ping's predicted travel time (leave-one-out). ``common_drift`` is the share of the
-residual variance this removes (negative, about ``-1/(n-1)`` for ``n``
-independent transponders), and ``elevation_detrended``, ``slant_range_detrended``
-and ``lag1_detrended`` are the statistics above on what is left (the binned
-statistics normalised by the scatter of what is left).
-
-Monte-Carlo p-values (:func:`mc_pvalue`): one-sided, upper, for the binned
-statistics and ``common_drift`` (only a larger value is a pattern); two-sided,
-twice the smaller tail, for the others. With ``N`` replicates the smallest
-possible p-value is ``1 / (N + 1)`` (one-sided) or ``2 / (N + 1)`` (two-sided).
+:func:`simulate_like` simulates a measured survey under the simulator's assumptions
+(straight rays at one speed, constant TAT, independent Gaussian noise, uniform spurious
+returns) from the fit located from the measured travel times; :func:`simulation_gap`
+re-locates every replicate the same way and compares residual statistics
+(:func:`gap_statistics`) between the two with
+Monte-Carlo p-values; :func:`unabsorbed` finds what a straight-ray fit cannot absorb of
+another travel-time model. The statistics and the findings on measured surveys:
+``docs/simulation-gap.md``.
 """
 
 from __future__ import annotations
@@ -74,11 +17,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
+from scipy.optimize import least_squares
 
 from .._rng import as_generator
-from .._validate import check_int
+from .._validate import check_choice, check_int
+from ..acoustics.turning import direct_times
 from ..exceptions import InputError, LocateWarning
-from .gap_statistics import STATISTICS, gap_statistics, mc_pvalue, remove_common_drift
 from .location import LocateResult, locate
 
 #: Columns of the pings table that :func:`simulate_like` keeps (``line`` when present).
@@ -165,12 +109,7 @@ def _straight_twtt(x, y, z, fit):
 
 
 def simulate_like(pings: pd.DataFrame, beacons: pd.DataFrame, fit, rng=None) -> pd.DataFrame:
-    """Simulate a measured survey under the simulator's assumptions.
-
-    Same ship track, the travel times drawn from the located fit(s): straight rays
-    at ``fit.sound_speed`` plus ``fit.tat``, independent Gaussian noise of sd
-    ``fit.sigma``; each ping is spurious with probability ``1 - fit.weight``,
-    and a spurious travel time is uniform over ``fit.window``.
+    """Simulate a measured survey under the simulator's assumptions, from the located fit(s).
 
     Parameters
     ----------
@@ -182,20 +121,17 @@ def simulate_like(pings: pd.DataFrame, beacons: pd.DataFrame, fit, rng=None) -> 
     fit : LocateResult or sequence of LocateResult
         One transponder, or several of the same survey.
     rng : None, int or numpy.random.Generator
-        Same seed, same table.
 
     Returns
     -------
     pandas.DataFrame
-        The fitted transponders' pings in table order (index reset): ``beacon``,
-        ``twtt`` (s), ``x``, ``y``, ``depth``, ``time``, ``line`` (when present),
-        and ``spurious`` (bool, the simulated class).
+        The fitted transponders' pings in table order: ``beacon``, ``twtt`` (s), ``x``, ``y``,
+        ``depth``, ``time``, ``line`` (when present), ``spurious`` (bool).
 
     Raises
     ------
     InputError
-        A missing column, a transponder not in ``beacons``, or a fit that was not
-        located from ``pings``.
+        A missing column, a transponder not in ``beacons``, or a fit not located from ``pings``.
     ValueError
         A fit with refracted rays or a time-varying sound speed.
     """
@@ -233,23 +169,17 @@ def residual_frame(pings: pd.DataFrame, fit: LocateResult) -> pd.DataFrame:
     Parameters
     ----------
     pings : pandas.DataFrame
-        The table the fit was located from (``beacon``, ``twtt``, ``x``, ``y``,
-        ``depth``, ``time``).
+        The table the fit was located from.
     fit : LocateResult
-        A straight-ray, one-speed fit (:func:`bayes_mpem.survey_in.location.locate`).
+        A straight-ray, one-speed fit.
 
     Returns
     -------
     pandas.DataFrame
-        One row per ping, in table order: ``row`` (position in ``pings``),
-        ``beacon``, ``time`` (s), ``x``, ``y``, ``depth`` (m), ``twtt`` (s),
-        ``pred`` (s, the straight-ray prediction with ``fit.tat``), ``residual``
-        (s, ``twtt - pred``), ``ratio`` (``twtt / pred``), ``p_true``, ``true``
-        (``p_true >= 0.5``), ``elevation`` (degrees above the horizontal, seen
-        from the transponder), ``slant_range``, ``horizontal_range`` (m), and
-        ``dtwtt_dforward`` (s/m: the change of the predicted travel time per
-        metre of ship position moved along its course; 0 where the course is
-        undefined).
+        One row per ping: ``row``, ``beacon``, ``time``, ``x``, ``y``, ``depth``, ``twtt``,
+        ``pred`` (straight ray plus TAT), ``residual``, ``ratio`` (``twtt / pred``), ``p_true``,
+        ``true``, ``elevation`` (deg), ``slant_range``, ``horizontal_range`` (m) and
+        ``dtwtt_dforward`` (s/m along the ship's course).
 
     Raises
     ------
@@ -312,23 +242,19 @@ class GapResult:
     fits : dict
         Transponder -> the measured :class:`~bayes_mpem.survey_in.location.LocateResult`.
     frames : dict
-        Transponder -> measured :func:`residual_frame` (with ``detrended`` when
-        the common drift was removed).
+        Transponder -> measured :func:`residual_frame`.
     table : pandas.DataFrame
-        One row per transponder and statistic: ``transponder``, ``statistic``,
-        ``measured``, ``sim_q05``, ``sim_median``, ``sim_q95``, ``p_value``,
-        ``side``, ``n_sim`` (replicates with a finite value).
+        One row per transponder and statistic: ``measured``, ``sim_q05``, ``sim_median``,
+        ``sim_q95``, ``p_value``, ``side``, ``n_sim``.
     simulated : dict
         ``(transponder, statistic)`` -> the replicate values.
     example : dict
-        Transponder -> the residual frame of the first replicate (for figures).
+        Transponder -> the residual frame of the first replicate.
     spurious_ratio : dict
-        Transponder -> one array per replicate: ``twtt / pred`` of the simulated
-        pings classified spurious.
+        Transponder -> per replicate, ``twtt / pred`` of the pings classified spurious.
     n_sim : int
     n_warned : int
-        Replicate fits that raised a :class:`~bayes_mpem.exceptions.LocateWarning`
-        (kept; the warning is not shown).
+        Replicate fits that raised a :class:`~bayes_mpem.exceptions.LocateWarning`.
     """
 
     fits: dict
@@ -357,12 +283,6 @@ def simulation_gap(pings: pd.DataFrame, beacons: pd.DataFrame, transponders=None
                    progress=None, **locate_kwargs) -> GapResult:
     """Compare a measured survey's residual statistics with simulated replicates.
 
-    Each transponder is located (:func:`~bayes_mpem.survey_in.location.locate`); ``n_sim``
-    replicates are drawn from the fits (:func:`simulate_like`, all transponders
-    of a replicate together) and each is located again in the same way; the
-    statistics (:func:`gap_statistics`) of the measured survey are compared with
-    their replicate distribution (:func:`mc_pvalue`).
-
     Parameters
     ----------
     pings, beacons : pandas.DataFrame
@@ -374,18 +294,11 @@ def simulation_gap(pings: pd.DataFrame, beacons: pd.DataFrame, transponders=None
     rng : None, int or numpy.random.Generator
     n_bins : int, default 6
     common_drift : bool, optional
-        Remove the drift common to the transponders (:func:`remove_common_drift`);
-        default: when there are several transponders.
+        Remove the drift common to the transponders; default: when there are several.
     progress : callable, optional
         Called with the replicate number after each replicate.
     **locate_kwargs
-        Passed to every :func:`~bayes_mpem.survey_in.location.locate` call (``tat``,
-        ``outliers``, ...); not ``ssp``, ``speed_intervals`` or ``earth_radius``
-        (the simulator's straight rays at one speed).
-
-    Returns
-    -------
-    GapResult
+        Passed to every ``locate`` call; not ``ssp``, ``speed_intervals`` or ``earth_radius``.
 
     Raises
     ------
@@ -446,3 +359,285 @@ def simulation_gap(pings: pd.DataFrame, beacons: pd.DataFrame, transponders=None
                      example=example,
                      spurious_ratio=ratios,
                      n_sim=int(n_sim), n_warned=int(n_warned))
+
+
+# ------------------------------------------------------------ residual statistics
+
+#: Statistic name -> (residual column, Monte-Carlo side, description).
+STATISTICS = {
+    "elevation": ("residual", "upper", "binned mean residual vs elevation angle (chi-square)"),
+    "slant_range": ("residual", "upper", "binned mean residual vs slant range (chi-square)"),
+    "time": ("residual", "upper", "binned mean residual vs time (chi-square)"),
+    "lag1": ("residual", "two-sided", "lag-1 autocorrelation in time order"),
+    "noise_elevation": ("residual", "two-sided",
+                        "log(sd low elevations / sd high elevations), thirds"),
+    "kurtosis": ("residual", "two-sided", "excess kurtosis of the true residuals"),
+    "along_track": ("residual", "two-sided", "fitted along-course position offset (m)"),
+    "late_share": ("residual", "two-sided",
+                   "share of spurious pings after the predicted true arrival"),
+    "common_drift": ("detrended", "upper",
+                     "share of residual variance predicted by the other transponders"),
+    "elevation_detrended": ("detrended", "upper",
+                            "elevation statistic after removing the common drift"),
+    "slant_range_detrended": ("detrended", "upper",
+                              "slant-range statistic after removing the common drift"),
+    "lag1_detrended": ("detrended", "two-sided",
+                       "lag-1 autocorrelation after removing the common drift"),
+}
+
+
+def remove_common_drift(frames) -> dict:
+    """Predict each true residual from the other transponders pinged at the same time.
+
+    Parameters
+    ----------
+    frames : dict or sequence of pandas.DataFrame
+        :func:`residual_frame` of several transponders of one survey.
+
+    Returns
+    -------
+    dict
+        Transponder -> a copy of its frame with a ``detrended`` column (s): NaN for
+        spurious pings and where no other transponder has a true ping at that time.
+    """
+    items = list(frames.items()) if isinstance(frames, dict) else \
+        [(str(f["beacon"].iloc[0]) if len(f) else str(k), f) for k, f in enumerate(frames)]
+    if not items:
+        return {}
+    allf = pd.concat([f.assign(_k=k) for k, (_, f) in enumerate(items)], ignore_index=True)
+    tr = allf["true"].to_numpy(bool)
+    rel = np.where(tr, allf["residual"].to_numpy(float) / allf["pred"].to_numpy(float), 0.0)
+    key = allf["time"].to_numpy()
+    tot = pd.Series(rel).groupby(key).transform("sum").to_numpy(float)
+    cnt = pd.Series(tr.astype(float)).groupby(key).transform("sum").to_numpy(float)
+    others = cnt - tr
+    with np.errstate(invalid="ignore", divide="ignore"):
+        eps = (tot - rel) / others
+    det = np.where(tr & (others > 0), allf["residual"].to_numpy(float)
+                   - eps * allf["pred"].to_numpy(float), np.nan)
+    out = {}
+    for k, (name, f) in enumerate(items):
+        f = f.copy()
+        f["detrended"] = det[allf["_k"].to_numpy() == k]
+        out[name] = f
+    return out
+
+
+def _binned_chi2(v, r, n_bins):
+    ok = np.isfinite(v) & np.isfinite(r)
+    v, r = v[ok], r[ok]
+    if r.size < 2 * n_bins:
+        return np.nan
+    s2 = float(np.mean(r * r))
+    if s2 <= 0:
+        return np.nan
+    groups = np.array_split(np.argsort(v, kind="stable"), n_bins)
+    return float(sum(g.size * np.mean(r[g]) ** 2 for g in groups) / s2)
+
+
+def _lag1(t, r):
+    ok = np.isfinite(t) & np.isfinite(r)
+    if ok.sum() < 3:
+        return np.nan
+    r = r[ok][np.argsort(t[ok], kind="stable")]
+    r0 = r - r.mean()
+    d = float(np.sum(r0 * r0))
+    return float(np.sum(r0[:-1] * r0[1:]) / d) if d > 0 else np.nan
+
+
+def gap_statistics(frame: pd.DataFrame, *, n_bins: int = 6) -> dict:
+    """Compute the statistics of :data:`STATISTICS` for one transponder's residuals.
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+        :func:`residual_frame`, optionally with the ``detrended`` column of
+        :func:`remove_common_drift` (else the ``*_detrended`` statistics and
+        ``common_drift`` are NaN).
+    n_bins : int, default 6
+        Equal-count bins of the binned statistics.
+
+    Returns
+    -------
+    dict
+        Statistic name -> value (NaN where undefined: too few pings, no
+        spurious ping, no detrended column).
+    """
+    n_bins = check_int("n_bins", n_bins, minimum=2)
+    tr = frame["true"].to_numpy(bool)
+    f = frame.loc[tr]
+    r = f["residual"].to_numpy(float)
+    el, sr, tm = (f[c].to_numpy(float) for c in ("elevation", "slant_range", "time"))
+    out = {k: np.nan for k in STATISTICS}
+    out["elevation"] = _binned_chi2(el, r, n_bins)
+    out["slant_range"] = _binned_chi2(sr, r, n_bins)
+    out["time"] = _binned_chi2(tm, r, n_bins)
+    out["lag1"] = _lag1(tm, r)
+    if r.size >= 9:
+        thirds = np.array_split(np.argsort(el, kind="stable"), 3)
+        lo, hi = np.std(r[thirds[0]]), np.std(r[thirds[-1]])
+        if lo > 0 and hi > 0:
+            out["noise_elevation"] = float(np.log(lo / hi))
+        r0 = r - r.mean()
+        m2 = np.mean(r0**2)
+        if m2 > 0:
+            out["kurtosis"] = float(np.mean(r0**4) / m2**2 - 3.0)
+        g = f["dtwtt_dforward"].to_numpy(float)
+        if np.any(g != 0):
+            a = np.column_stack([g, np.ones_like(g)])
+            coef, *_ = np.linalg.lstsq(a, r, rcond=None)
+            out["along_track"] = float(coef[0])
+    spur = ~tr
+    if spur.any():
+        out["late_share"] = float(np.mean(frame.loc[spur, "residual"].to_numpy(float) > 0))
+    if "detrended" in frame.columns:
+        d = f["detrended"].to_numpy(float)
+        ok = np.isfinite(d)
+        if ok.sum() >= 2 * n_bins:
+            out["common_drift"] = float(1.0 - np.mean(d[ok] ** 2) / np.mean(r[ok] ** 2))
+            out["elevation_detrended"] = _binned_chi2(el[ok], d[ok], n_bins)
+            out["slant_range_detrended"] = _binned_chi2(sr[ok], d[ok], n_bins)
+            out["lag1_detrended"] = _lag1(tm[ok], d[ok])
+    return out
+
+
+def mc_pvalue(measured: float, simulated, side: str = "two-sided") -> float:
+    """Monte-Carlo p-value of a measured statistic against simulated replicates.
+
+    ``upper = (1 + #{sim >= measured}) / (N + 1)``, ``lower`` likewise; two-sided is
+    ``min(1, 2 min(upper, lower))``. NaN replicates are dropped.
+
+    Parameters
+    ----------
+    measured : float
+    simulated : array_like
+    side : {"upper", "lower", "two-sided"}
+
+    Examples
+    --------
+    >>> mc_pvalue(5.0, [0.0, 1.0, 2.0, 3.0], "upper")
+    0.2
+    >>> mc_pvalue(1.5, [0.0, 1.0, 2.0, 3.0])
+    1.0
+    """
+    check_choice("side", side, ("upper", "lower", "two-sided"), words=True)
+    sim = np.asarray(simulated, float)
+    sim = sim[np.isfinite(sim)]
+    if not np.isfinite(measured) or sim.size == 0:
+        return np.nan
+    n = sim.size
+    up = (1 + np.sum(sim >= measured)) / (n + 1)
+    lo = (1 + np.sum(sim <= measured)) / (n + 1)
+    if side == "upper":
+        return float(up)
+    if side == "lower":
+        return float(lo)
+    return float(min(1.0, 2.0 * min(up, lo)))
+
+
+# ------------------------------------------------ what a straight-ray fit cannot absorb
+
+def unabsorbed(pings: pd.DataFrame, fit: LocateResult, twtt) -> tuple:
+    """Find the part of noise-free travel times that a straight-ray fit cannot absorb.
+
+    Parameters
+    ----------
+    pings : pandas.DataFrame
+        The table the fit was located from.
+    fit : LocateResult
+    twtt : array_like
+        Two-way travel times (s) of the fit's pings (``fit.rows`` order), from
+        another model, e.g. :func:`refracted_twtt`.
+
+    Returns
+    -------
+    residual : numpy.ndarray
+        ``twtt`` minus the best straight-ray fit (s).
+    shift : dict
+        ``east``, ``north``, ``depth``, ``sound_speed`` of that fit minus the
+        fit's own: how the straight-ray parameters absorb the model.
+
+    Examples
+    --------
+    Straight-ray times from another position are absorbed completely:
+
+    >>> import numpy as np, pandas as pd
+    >>> from bayes_mpem.survey_in.location import locate
+    >>> a = np.linspace(0, 2 * np.pi, 40, endpoint=False)
+    >>> rad = np.linspace(300.0, 3000.0, 40)
+    >>> pings = pd.DataFrame({"beacon": "T", "x": rad * np.cos(a), "y": rad * np.sin(a),
+    ...                       "depth": 0.0, "time": np.arange(40.0)})
+    >>> noise = 1e-4 * np.sin(7.0 * np.arange(40))
+    >>> pings["twtt"] = 2 * np.sqrt(pings.x**2 + pings.y**2 + 4000.0**2) / 1500.0 + noise
+    >>> beacons = pd.DataFrame({"beacon": ["T"], "x": [0.0], "y": [0.0], "depth": [4000.0]})
+    >>> fit = locate(pings, beacons, tat=0.0)
+    >>> other = 2 * np.sqrt((pings.x - 5) ** 2 + pings.y**2 + 4002.0**2) / 1501.0
+    >>> res, shift = unabsorbed(pings, fit, other)
+    >>> bool(np.abs(res).max() < 1e-9)
+    True
+    >>> round(fit.east + shift["east"], 3), round(fit.depth + shift["depth"], 3)
+    (5.0, 4002.0)
+    """
+    check_straight(fit)
+    rows = ping_rows(pings, fit)
+    target = np.asarray(twtt, float)
+    if target.shape != (rows.size,):
+        raise ValueError(f"twtt: expected {rows.size} values (the fit's pings), got shape "
+                         f"{target.shape}")
+    if not np.all(np.isfinite(target)):
+        raise ValueError("twtt: non-finite values")
+    sub = pings.iloc[rows]
+    x, y, z = (sub[c].to_numpy(float) for c in ("x", "y", "depth"))
+    th0 = np.array([fit.east, fit.north, fit.depth, fit.sound_speed])
+
+    def resid(th):
+        return target - (2.0 * np.sqrt((x - th[0]) ** 2 + (y - th[1]) ** 2 + (z - th[2]) ** 2)
+                         / th[3] + fit.tat)
+
+    sol = least_squares(resid, th0, x_scale=np.array([10.0, 10.0, 10.0, 1.0]), xtol=1e-15,
+                        ftol=1e-15, gtol=1e-15)
+    d = sol.x - th0
+    return resid(sol.x), {"east": float(d[0]), "north": float(d[1]), "depth": float(d[2]),
+                          "sound_speed": float(d[3])}
+
+
+def refracted_twtt(pings: pd.DataFrame, fit: LocateResult, profile, *,
+                   surface_depth: float = 0.0) -> np.ndarray:
+    """Two-way travel times along refracted eigenrays, at the fit's position.
+
+    Parameters
+    ----------
+    pings : pandas.DataFrame
+        The table the fit was located from.
+    fit : LocateResult
+    profile : bayes_mpem.acoustics.SoundSpeedProfile
+    surface_depth : float, default 0
+        Depth, in the pings' frame, of the profile's 0 m.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``2 T + fit.tat`` (s) for the fit's pings (``fit.rows`` order), ``T`` the
+        one-way time of the direct eigenray
+        (:func:`bayes_mpem.acoustics.turning.direct_times`, with a turning point
+        where the straight-through ray does not reach).
+
+    Raises
+    ------
+    ValueError
+        Some ping is reached by no direct eigenray at all (a speed maximum
+        between the ends, or a turning depth beyond the profile); the message
+        gives how many and the first.
+    """
+    rows = ping_rows(pings, fit)
+    sub = pings.iloc[rows]
+    x, y, z = (sub[c].to_numpy(float) for c in ("x", "y", "depth"))
+    h = np.hypot(x - fit.east, y - fit.north)
+    ray = direct_times(profile, z - surface_depth, fit.depth - surface_depth, h)
+    bad = np.flatnonzero(~ray.valid)
+    if bad.size:
+        i = bad[0]
+        raise ValueError(f"transponder {fit.transponder}: {bad.size} of {rows.size} pings have "
+                         f"no direct eigenray through the profile, even turning (first: row "
+                         f"{rows[i]}, horizontal {h[i]:.1f} m, depth {z[i]:g} m)")
+    return 2.0 * ray.time + fit.tat

@@ -1,11 +1,4 @@
-"""The sound-speed profile a survey-in asks for (``--ssp``).
-
-:func:`survey_profile` turns ``ssp`` (None, ``"straight"``, ``"survey"``,
-``"woa09"``, a file or a :class:`~bayes_mpem.acoustics.profile.SoundSpeedProfile`)
-into the profile the travel times go through, for a single transponder
-(:func:`~.survey.locate_survey`) and for an array
-(:func:`~.array_survey.locate_array_survey`).
-"""
+"""The sound-speed profile a survey-in asks for (``--ssp``)."""
 
 from __future__ import annotations
 

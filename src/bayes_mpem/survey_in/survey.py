@@ -1,15 +1,4 @@
-"""Locate every transponder of a ranging survey file (``bayes-mpem locate``).
-
-:func:`locate_survey` takes a :class:`~bayes_mpem.io.raw.RawSurvey` (a deck-box
-log or a SeaGap folder), picks the sound-speed profile it names
-(:func:`survey_profile`) and the geometry of its format, runs
-:func:`~.location.locate` on each transponder, adds what OBSrange reports beside
-the position (the drift and its azimuth from the drop point, the depth change:
-:mod:`.drift`; optionally whether a lag along the track would help:
-:func:`~.heldout.lag_check`) and returns a :class:`~.result.SurveyInResult`
-whose ``classified.csv`` holds every ping's residual. GNSS-A array surveys
-(GARPOS, GNATSS) go to :func:`~.array_survey.locate_array_survey`.
-"""
+"""Locate every transponder of a ranging survey file (``bayes-mpem locate``)."""
 
 from __future__ import annotations
 
@@ -34,10 +23,6 @@ SEAGAP_TRANSDUCER_DEPTH = 3.0
 def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", ssp=None,
                   speed_intervals=0, fit_lag=False, lag_check=False):
     """Locate every transponder of a :class:`~bayes_mpem.io.raw.RawSurvey`.
-
-    GNSS-acoustic array surveys (GARPOS, GNATSS) are located jointly by
-    :func:`~bayes_mpem.survey_in.array_survey.locate_array_survey`; every other
-    survey one transponder at a time.
 
     Parameters
     ----------
@@ -82,13 +67,6 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
     InputError
         A turn-around time, a lag or a second outlier model asked of an array
         survey (GNSS-A travel times are already corrected for delays).
-
-    Notes
-    -----
-    SeaGap positions are distances along the Earth and ellipsoidal heights, so
-    its surveys are located on a sphere (:func:`earth_radius`, at the header's
-    latitude, else 6,371 km), with the sea surface
-    :data:`SEAGAP_TRANSDUCER_DEPTH` above the mean transducer.
     """
     if raw.format in ARRAY_FORMATS:
         for name, given in (("fit_tat", fit_tat), ("fit_lag", fit_lag),

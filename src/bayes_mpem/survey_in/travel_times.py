@@ -1,19 +1,4 @@
-"""Two-way travel times of a transponder's true replies, and their derivatives.
-
-:class:`TravelTimes` predicts the two-way travel time of every ping of one
-transponder from its position, the sound speed (one value, or a B-spline in
-time from :func:`speed_basis`), the turn-around time and optionally a time lag
-of the acoustic position behind the logged one (the ship's velocity from
-:func:`ship_velocity`), with the Jacobian for Gauss-Newton fits.
-
-The straight-line distance between ship and transponder, flat or on a sphere,
-is :func:`chord` (shared with the sampler's vectorised posterior). Refracted
-rays through a sound-speed profile are the direct eigenrays of
-:func:`bayes_mpem.acoustics.turning.direct_times`, turning rays included, so a
-ping is modelled by the same solver as the LBL wing's ranges; a ping that no
-eigenray reaches at all is counted by :meth:`TravelTimes.n_invalid` (and
-reported by the fit), never hidden.
-"""
+"""Two-way travel times of a transponder's true replies, and their derivatives."""
 
 from __future__ import annotations
 
@@ -47,13 +32,6 @@ def chord(x, y, z, e, n, d, R=None, *, derivatives=False):
         Distance (m), at least 1e-9.
     dL_de, dL_dn, dL_dd : numpy.ndarray
         Only with ``derivatives=True``.
-
-    Notes
-    -----
-    The two forms keep the floating-point operations of the code they replace
-    (the distance alone sums ``dx**2 + dy**2`` once; the form with derivatives
-    squares the horizontal distance ``h``), so their ``L`` may differ in the last
-    bit.
 
     Examples
     --------
@@ -89,23 +67,10 @@ def chord(x, y, z, e, n, d, R=None, *, derivatives=False):
 class TravelTimes:
     """Two-way travel times of true arrivals, and their derivatives, for one transponder.
 
-    ``theta = [east, north, depth, *speed, (lag), (tat)]``. The speed is one value, or the
-    coefficients of a cubic B-spline in time (:func:`speed_basis`; a partition of
-    unity, so equal coefficients are a constant speed). Without a profile the
-    speed is the straight-ray sound speed (m/s); with one it is the factor the
-    profile's speeds are scaled by, which leaves the rays where they are and divides
-    their times by it.
-
-    Geometry: ``earth_radius=None`` takes ``x, y, depth`` as Cartesian (a local
-    tangent plane); with a radius, ``x, y`` are distances along the sphere and
-    ``depth`` is below it (SeaGap's convention), and the straight-line distance is
-    the chord between the two radii (:func:`chord`). The refracted ray runs between
-    the profile depths ``depth - surface_depth`` over the horizontal distance that
-    makes a constant profile give that same chord; it may turn
-    (:func:`~bayes_mpem.acoustics.turning.direct_times`). A ping no eigenray
-    reaches (a speed maximum between the ends, or a turning depth beyond the
-    profile) takes the chord at the profile's harmonic-mean speed so that a fit can
-    go on, and is counted by :meth:`n_invalid`.
+    ``theta = [east, north, depth, *speed, (lag), (tat)]``; the speed is one value or cubic
+    B-spline coefficients in time (:func:`speed_basis`), and with a profile it is the factor
+    that scales the profile's speeds. A ping no eigenray reaches takes the chord at the
+    profile's harmonic-mean speed and is counted by :meth:`n_invalid`.
 
     Parameters
     ----------
@@ -122,7 +87,7 @@ class TravelTimes:
     surface_depth : float, default 0
         Depth, in the pings' frame, of the profile's 0 m.
     earth_radius : float, optional
-        Spherical frame of that radius (m); ``None`` for a flat one.
+        Spherical frame of that radius (m; ``x, y`` along the sphere); ``None`` for a flat one.
     velocity : tuple of numpy.ndarray, optional
         The ship's velocity (m/s) at each ping (:func:`ship_velocity`).
     lag : float, default 0
@@ -287,18 +252,10 @@ class TravelTimes:
 def ship_velocity(pings: pd.DataFrame) -> tuple:
     """Estimate the ship's velocity (m/s) at each ping from the track: ``(vx, vy)``.
 
-    Columns ``vx``, ``vy`` if the table has them, else central differences of
-    ``x``, ``y`` in ``time`` over the pings in time order (pings at the same time
-    share a velocity).
-
     Parameters
     ----------
     pings : pandas.DataFrame
         ``time``, ``x``, ``y`` (or ``vx``, ``vy``).
-
-    Returns
-    -------
-    tuple of numpy.ndarray
     """
     if {"vx", "vy"} <= set(pings.columns):
         return pings["vx"].to_numpy(float), pings["vy"].to_numpy(float)

@@ -1,13 +1,4 @@
-"""The constraints of the joint model: physical planes, a second plane below the first.
-
-Every reflecting plane lies above the vehicle at every ping (with its drift in time); a
-second reflector lies at least :data:`SECOND_GAP` below the main one (:func:`main_plane`,
-the median of the beacons' planes) and above the vehicle's shallowest depth; a sound-speed
-scale stays within 50 %. :func:`is_feasible` tells whether parameters satisfy them and
-:func:`repair` moves a start just inside. Used by the ECM (:mod:`~bayes_mpem.lbl.diagnosis.ecm`)
-and the evidence
-rules (:mod:`.evidence`).
-"""
+"""The constraints of the joint model: physical planes, a second plane below the first."""
 
 from __future__ import annotations
 
@@ -25,10 +16,6 @@ def main_plane(p: Params) -> float:
     Parameters
     ----------
     p : Params
-
-    Returns
-    -------
-    float
     """
     return float(np.median(p.plane))
 

@@ -1,46 +1,5 @@
 """Find the effect hidden in a survey: which of the paper's assumptions the data break.
 
-The paper's model assumes one static reflector, a homogeneous medium, exact
-navigation and a calibrated system. :func:`diagnose` fits that model to every
-beacon at once (the *baseline*), then each extension of a fixed vocabulary
-(:data:`~bayes_mpem.lbl.simulation.effects.EFFECTS`), and keeps an extension only
-when it predicts held-out ranges clearly better (K-fold cross-validated log
-predictive density). Effects are added greedily, so two effects present at
-once are both found; then a backward step drops any kept effect whose removal
-costs less than that rule (:mod:`.search`).
-
-The joint model
----------------
-For range ``i`` of beacon ``b`` at normalised time ``tau_i`` (0 at the first
-ping of the survey, 1 at the last), with the vehicle at the reported position
-plus the navigation correction ``tau_i (e_x, e_y)``:
-
-* direct path ``mu_dp = k D_i + beta + beta_b``, multipath ``mu_mp = k M_i(P_b +
-  delta tau_i) + beta + beta_b`` off a plane at depth ``P_b + delta tau_i``, a
-  second multipath ``mu_mp2 = k M_i(P_2) + beta + beta_b``, with ``k = 1 + f``;
-  ``D_i`` and ``M_i`` from the beacon's reported position plus its correction
-  ``c_b`` (east, north);
-* Gaussian scatter per beacon and class; outliers uniform over the beacon's
-  listening window, or, with first-arrival detection, uniform between the
-  window start and the direct path;
-* learned mixing weights per beacon.
-
-Each effect switches on one part: ``range_bias`` (``beta``, m),
-``sound_speed`` (``f = factor - 1``), ``plane_drift`` (``delta``, m from the
-first to the last ping), ``second_reflector`` (``P_2``, m, with its weight and
-scatter per beacon), ``early_outliers`` (the first-arrival outlier density;
-magnitude = fraction of replies that are outliers) and ``nav_drift`` (``|(e_x,
-e_y)|``, m at the last ping). Two act on one beacon ``b``, reported with it:
-``beacon_bias`` (``beta_b``, m) and ``beacon_position`` (``|c_b|``, m). The
-baseline, all switched off, is the mixture model of
-:mod:`bayes_mpem.lbl.model.likelihood`, fitted to all beacons together.
-
-The model is :mod:`~bayes_mpem.lbl.diagnosis.model` (its parameters :mod:`.params`),
-its fit (ECM) :mod:`~bayes_mpem.lbl.diagnosis.ecm` from the starts of :mod:`.starts`,
-the search :mod:`.search`, the wording of the evidence :mod:`.evidence`, the residual
-checks :mod:`.residuals` and the result
-:class:`~bayes_mpem.lbl.diagnosis.result.Diagnosis`.
-
 Examples
 --------
 >>> from bayes_mpem.lbl.simulation.simulate import simulate_survey

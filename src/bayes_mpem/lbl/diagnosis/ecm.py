@@ -33,18 +33,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from functools import partial
+from typing import NamedTuple
 
 import numpy as np
 
+from ...mixture.em import EMModel, best_run, run_em
 from ...mixture.gauss_newton import safeguarded_step
 from ..simulation.effects import split_term
 from .constraints import is_feasible, repair
-from .model import (
-    Ranges,
-    e_step,
-    predict,
-    weighted_sse,
-)
+from .model import Ranges, e_step, predict, weighted_sse
 from .params import Params, get_vector, mean_names, set_vector
 
 
@@ -127,7 +124,7 @@ def _m_step(d, p, effects, path, resp, sigma_floor, mp2_floor):
     counts = np.bincount(d.bi, minlength=nb).astype(float)
     w = np.stack([np.bincount(d.bi, weights=resp[:, c], minlength=nb) for c in range(4)], 1)
     p.weights = w / np.maximum(counts, 1.0)[:, None]
-    p, names, info = _gauss_newton(d, p, effects, path, resp)
+    p, _, info = _gauss_newton(d, p, effects, path, resp)
     mu = predict(d, p, effects, path)
     for c, name in enumerate(("dp", "mp", "mp2")):
         if name not in mu:
@@ -141,7 +138,28 @@ def _m_step(d, p, effects, path, resp, sigma_floor, mp2_floor):
         # floor is fixed for the whole run, so every M-step stays a conditional maximisation.
         floor = mp2_floor[ok] if name == "mp2" else sigma_floor
         p.sigma[ok, c] = np.maximum(np.sqrt(num[ok] / den[ok]), floor)
-    return p, names, info
+    return _Fit(p, info)
+
+
+class _Fit(NamedTuple):
+    p: Params
+    info: np.ndarray | None  # Gauss-Newton information of the last M-step
+
+
+class _ECM(EMModel):
+    """The ECM as a :class:`~bayes_mpem.mixture.em.EMModel`: parameters a ``_Fit``."""
+
+    def __init__(self, d, effects, path, sigma_floor, mp2_floor):
+        self.d, self.effects, self.path = d, effects, path
+        self.sigma_floor, self.mp2_floor = sigma_floor, mp2_floor
+
+    def e_step(self, fit):
+        resp, ll_i, _ = e_step(self.d, fit.p, self.effects, self.path)
+        return float(ll_i.sum()), resp
+
+    def m_step(self, fit, resp):
+        return _m_step(self.d, fit.p, self.effects, self.path, resp, self.sigma_floor,
+                       self.mp2_floor)
 
 
 @dataclass
@@ -246,26 +264,18 @@ class JointFit:
 
 
 def _run(d, p, effects, path, *, max_iter, tol, sigma_floor):
+    """Run the ECM from ``p``; return its :class:`~bayes_mpem.mixture.em.EMRun`."""
     mp2_floor = np.maximum(sigma_floor, p.sigma[:, 0])
     if "second_reflector" in effects:
         p = p.copy()
         p.sigma[:, 2] = np.maximum(p.sigma[:, 2], mp2_floor)
-    resp, ll_i, mu = e_step(d, p, effects, path)
-    ll = float(ll_i.sum())
-    hist = [ll]
-    converged = False
-    info, names = None, mean_names(effects, d.ids)
-    for it in range(1, max_iter + 1):
-        p, names, info = _m_step(d, p, effects, path, resp, sigma_floor, mp2_floor)
-        resp, ll_i, mu = e_step(d, p, effects, path)
-        new = float(ll_i.sum())
-        hist.append(new)
-        if abs(new - ll) < tol * d.n:
-            ll = new
-            converged = True
-            break
-        ll = new
-    se = {}
+    return run_em(_ECM(d, effects, path, sigma_floor, mp2_floor), _Fit(p, None),
+                  tol=tol * d.n, max_iter=max_iter)
+
+
+def _joint_fit(d, effects, path, run):
+    """Build the :class:`JointFit` of a run, with the standard errors of its last M-step."""
+    se, info, names = {}, run.params.info, mean_names(effects, d.ids)
     if info is not None:
         try:
             cov = np.linalg.inv(info + np.diag(1e-12 + 1e-9 * np.abs(np.diag(info))))
@@ -274,8 +284,9 @@ def _run(d, p, effects, path, *, max_iter, tol, sigma_floor):
                 se[key] = float(np.sqrt(max(cov[i, i], 0.0)))
         except np.linalg.LinAlgError:
             pass
-    return JointFit(effects=tuple(effects), params=p, resp=resp, loglik=ll, n_iter=it,
-                    converged=converged, path=path, se=se, history=hist)
+    return JointFit(effects=tuple(effects), params=run.params.p, resp=run.resp,
+                    loglik=run.loglik, n_iter=run.n_iter, converged=run.converged, path=path,
+                    se=se, history=run.history["loglik"])
 
 
 def fit_joint(d: Ranges, effects, start: Params | list, *, path="triangle", max_iter=300,
@@ -305,19 +316,14 @@ def fit_joint(d: Ranges, effects, start: Params | list, *, path="triangle", max_
     ValueError
         When no start can be made feasible.
     """
-    starts = start if isinstance(start, list) else [start]
-    best = None
-    for s in starts:
-        if not is_feasible(d, s, effects):
-            s = repair(d, s, effects)
-            if not is_feasible(d, s, effects):
-                continue
-        r = _run(d, s, effects, path, max_iter=max_iter, tol=tol, sigma_floor=sigma_floor)
-        if best is None or r.loglik > best.loglik:
-            best = r
+    starts = [s if is_feasible(d, s, effects) else repair(d, s, effects)
+              for s in (start if isinstance(start, list) else [start])]
+    best = best_run(_run(d, s, effects, path, max_iter=max_iter, tol=tol,
+                         sigma_floor=sigma_floor)
+                    for s in starts if is_feasible(d, s, effects))
     if best is None:
         raise ValueError(f"no feasible starting point for the model with {sorted(effects)}")
-    return best
+    return _joint_fit(d, effects, path, best)
 
 
 # --------------------------------------------------------------------------- selection
@@ -348,6 +354,6 @@ def heldout(d: Ranges, effects, full: JointFit, folds, path, **kw):
         test = folds == k
         fit_k = _run(d.subset(~test), full.params.copy(), full.effects, path, **kw)
         dt = d.subset(test)
-        _, ll_i, _ = e_step(dt, fit_k.params, effects, path)
+        _, ll_i, _ = e_step(dt, fit_k.params.p, effects, path)
         out[test] = ll_i
     return out

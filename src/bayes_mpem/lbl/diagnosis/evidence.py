@@ -1,17 +1,5 @@
 """What a kept effect means, in words and numbers, and which fits are not credible.
 
-For every effect of :data:`~bayes_mpem.lbl.simulation.effects.EFFECTS` the driver
-(:func:`~bayes_mpem.lbl.diagnosis.driver.diagnose`) asks this module for
-
-* :func:`effect_evidence`: one sentence with the size of the effect in the
-  survey's terms and the held-out gain that supports it;
-* :func:`effect_magnitude_se` and :func:`effect_detail`: its standard error
-  and extra numbers (a drift's direction, a second family's share);
-* :func:`not_credible`: why a fitted extension is not a physical effect (a
-  second family of a few coincident ranges, or stuck on its bound);
-
-and validates effect names with :func:`check_effect_names`.
-
 Examples
 --------
 >>> check_effect_names(("range_bias", "tide"), "effects")

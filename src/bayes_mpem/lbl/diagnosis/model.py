@@ -1,25 +1,5 @@
 """The joint model of the diagnosis: all beacons' replies, the effects, the class densities.
 
-:class:`Ranges` holds the replies of every fitted beacon, concatenated, and
-:func:`ranges` builds it from a survey. :class:`Params` holds the parameters
-of the joint model: per beacon a plane depth, three scales (direct path,
-multipath, second multipath) and four mixing weights (those and outliers),
-plus the shared effect parameters. The effects
-(:data:`~bayes_mpem.lbl.simulation.effects.EFFECTS`) switch parts of the model on:
-
-* :func:`predict` gives the class means ``k D + beta`` (direct path) and
-  ``k M(plane) + beta`` (multipath off the beacon's plane, drifting in time,
-  or off a second plane), with the navigation corrected by a drift, and their
-  Jacobians with respect to the mean parameters; the multipath ranges are
-  :func:`bayes_mpem.lbl.model.geometry.multipath_range`;
-* :func:`log_densities` and :func:`e_step` give the class log-densities and
-  probabilities (:mod:`bayes_mpem.mixture.densities`);
-* :func:`implied_depths` inverts each range for the plane that would make it a
-  multipath.
-
-The constraints that keep the planes physical are in :mod:`.constraints`;
-the fitting (ECM) is in :mod:`~bayes_mpem.lbl.diagnosis.ecm`.
-
 Examples
 --------
 >>> from bayes_mpem.lbl.simulation.simulate import simulate_survey
@@ -102,10 +82,6 @@ class Ranges:
         ----------
         mask : numpy.ndarray
             Boolean mask or indices of the replies to keep.
-
-        Returns
-        -------
-        Ranges
         """
         return replace(self, **{k: getattr(self, k)[mask] for k in
                                 ("z", "x", "y", "vdepth", "time", "tau", "bi", "rows")})
@@ -294,9 +270,7 @@ def _beacon_columns(jac, col, key, sel, geo, levers, path, k):
 def _plane2_derivative(h, dz, d02, path, k):
     """``d mu_mp2 / d plane2 = -k d z_MP / d d0`` at the second plane.
 
-    :func:`~bayes_mpem.lbl.model.geometry.multipath_derivative` up to rounding; kept
-    in this operation order (``-k`` times the lever arm, then divided by the
-    reflected leg) so that the fits stay bit-identical.
+    ``multipath_derivative`` up to rounding; this operation order keeps the fits bit-identical.
     """
     half = 0.5 if path == "triangle" else 1.0
     lever2 = 2.0 * d02 - dz
@@ -304,10 +278,7 @@ def _plane2_derivative(h, dz, d02, path, k):
 
 
 def _nav_columns(jac, col, e, tau, direct, refl, path, k):
-    """Fill column ``col`` of every class with ``d mu / d nav`` along offset ``e``.
-
-    ``refl`` lists the reflected legs of the main plane and (if on) the second one.
-    """
+    """Fill column ``col`` of every class with ``d mu / d nav`` along offset ``e``."""
     dd = e * tau / np.maximum(direct, 1e-9)
     jac["dp"][:, col] = k * dd
     for name, r in zip(("mp", "mp2"), refl, strict=False):

@@ -1,16 +1,5 @@
 """The parameters of the diagnosis' joint model, and the vector the Gauss-Newton step moves.
 
-:class:`Params` holds, per beacon, a plane depth, three scales (direct path,
-multipath, second multipath) and four mixing weights (those and outliers); the
-shared effects' parameters (a range bias, a scale factor, a plane drift, a
-second plane, a navigation drift); and the per-beacon effects' parameters (a
-beacon's own range bias, a correction to its position). An effect's
-parameters are used only while its term is switched on (the terms are the
-names of :func:`bayes_mpem.lbl.simulation.effects.term`: ``"range_bias"``,
-``"beacon_bias:2"``, ...). :func:`mean_names` lists the mean parameters of a
-set of terms, :func:`get_vector` and :func:`set_vector` move them in and out of
-a vector, and :func:`beacons_with` says which beacons a per-beacon effect is on.
-
 Examples
 --------
 >>> mean_names(("range_bias", "beacon_bias:b"), ("a", "b"))
@@ -98,10 +87,6 @@ def beacons_with(effects, name, ids) -> list:
         ``"beacon_bias"`` or ``"beacon_position"``.
     ids : tuple of str
         The beacons, in the order of the fit.
-
-    Returns
-    -------
-    list of int
     """
     out = []
     for t in effects:
@@ -200,10 +185,6 @@ def set_vector(p: Params, names, v) -> Params:
     p : Params
     names : list of tuple
     v : array_like
-
-    Returns
-    -------
-    Params
     """
     q = p.copy()
     for (k, j), val in zip(names, v, strict=True):
@@ -230,10 +211,6 @@ def without(p: Params, term, ids) -> Params:
     p : Params
     term : str
     ids : tuple of str
-
-    Returns
-    -------
-    Params
     """
     q = p.copy()
     name, bid = split_term(term)

@@ -1,18 +1,4 @@
-"""Residual structure the fitted joint model leaves: a check for effects outside the vocabulary.
-
-After the diagnosis has kept its effects, :func:`residual_checks` bins the
-standardised residuals of the confidently classified direct-path and
-multipath replies of every beacon against each covariate of
-:func:`covariates` (time, range, elevation, vehicle depth, bearing) and tests
-the bin means against zero (:func:`bayes_mpem.lbl.survey.model_checks.binned_trend`).
-A significant check is structure no effect of
-:data:`~bayes_mpem.lbl.simulation.effects.EFFECTS` explains. :func:`beacon_flags` runs the
-per-beacon EM's quality checks and the model checks of ``fit`` and ``sample``
-(:mod:`bayes_mpem.lbl.survey.model_checks`: the direct path's offset, the outliers'
-timing, the plane against the sea surface) on the final joint fit: a beacon
-whose fit is not credible (e.g. its multipath on the direct path) is named, not
-left silent.
-"""
+"""Residual structure the fitted joint model leaves: a check for effects outside the vocabulary."""
 
 from __future__ import annotations
 
@@ -55,19 +41,13 @@ def covariates(d: Ranges) -> dict:
 def residual_checks(fit: JointFit, d: Ranges, *, n_bins=10, alpha=1e-4) -> list:
     """Residual structure the model leaves, class by class, against each covariate.
 
-    For the direct-path and multipath replies (class probability above 0.9) the
-    standardised residuals are binned into ``n_bins`` quantile bins of each
-    covariate (time, range, elevation angle, vehicle depth, bearing from the
-    beacon) per beacon; the bin means are tested against zero with a
-    chi-square test. A check is ``significant`` when its p-value is below
-    ``alpha`` divided by the number of checks (Bonferroni).
-
     Parameters
     ----------
     fit : JointFit
     d : Ranges
     n_bins : int, default 10
     alpha : float, default 1e-4
+        Family-wise level (Bonferroni over the checks).
 
     Returns
     -------
@@ -101,16 +81,6 @@ def residual_checks(fit: JointFit, d: Ranges, *, n_bins=10, alpha=1e-4) -> list:
 
 def beacon_flags(fit, data, sigma_floor: float = 0.05) -> dict:
     """Why each beacon's fit is not credible: the per-beacon EM's quality checks, jointly.
-
-    The checks of :func:`bayes_mpem.lbl.em.em_result.quality_flags`, on this
-    joint fit's per-beacon parameters; the multipath family lying on the direct
-    path (its median separation from it below twice the multipath scatter),
-    where a plane near the vehicle mimics a range bias; and the model checks of
-    :mod:`bayes_mpem.lbl.survey.model_checks` that the joint model's residuals allow:
-    the direct path's offset (a bias the effects found do not explain), the
-    outliers' timing (not with ``early_outliers``, whose outliers are all early),
-    and a plane more than 10 m below the sea surface (the quality checks flag
-    one above it).
 
     Parameters
     ----------

@@ -1,12 +1,4 @@
-"""What :func:`~.driver.diagnose` returns: the effects found and the fits behind them.
-
-:class:`Effect` is one effect of the vocabulary found in the data;
-:class:`Diagnosis` holds them with the baseline and final joint fits, every
-extension tried and the residual checks, and writes ``diagnosis.json`` and
-``replies.csv`` (what its figures draw, per reply). Its figures are drawn by
-:func:`bayes_mpem.report.write_figures`; :class:`DiagnosisRecord` is a diagnosis
-read back from those two files, enough to draw them again (``bayes-mpem plot``).
-"""
+"""What :func:`~.driver.diagnose` returns: the effects found and the fits behind them."""
 
 from __future__ import annotations
 
@@ -76,12 +68,7 @@ class Effect:
     detail: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
-        """Return the effect as a JSON-ready dict.
-
-        Returns
-        -------
-        dict
-        """
+        """Return the effect as a JSON-ready dict."""
         return {"name": self.name, "magnitude": self.magnitude, "unit": self.unit,
                 "beacons": list(self.beacons), "delta_elpd": self.delta_elpd,
                 "delta_elpd_se": self.delta_elpd_se, "magnitude_se": self.magnitude_se,
@@ -127,21 +114,11 @@ class Diagnosis:
 
     @property
     def unexplained(self) -> list:
-        """Residual checks that fail under the final model.
-
-        Returns
-        -------
-        list of dict
-        """
+        """Residual checks that fail under the final model."""
         return [c for c in self.residual_checks if c["significant"]]
 
     def to_dict(self) -> dict:
-        """Return the content of ``diagnosis.json``.
-
-        Returns
-        -------
-        dict
-        """
+        """Return the content of ``diagnosis.json``."""
         d = self.data
         final = self.final.beacons(d)
         for bid, entry in final.items():
@@ -200,8 +177,6 @@ class Diagnosis:
     def write(self, out_dir) -> dict:
         """Write ``diagnosis.json`` and ``replies.csv`` to ``out_dir``.
 
-        The figures are drawn by :func:`bayes_mpem.report.write_figures`.
-
         Parameters
         ----------
         out_dir : str or pathlib.Path
@@ -217,12 +192,7 @@ class Diagnosis:
                     "replies": write_csv(out / "replies.csv", self.replies())}
 
     def summary(self) -> str:
-        """Describe what was found in a few lines for a terminal.
-
-        Returns
-        -------
-        str
-        """
+        """Describe what was found in a few lines for a terminal."""
         flagged = {b: f for b, f in self.beacon_flags.items() if f}
         if not self.effects and not self.unexplained and not flagged:
             lines = ["No effect found: the paper's model explains these data "
@@ -254,13 +224,6 @@ class DiagnosisRecord:
         ``diagnosis.json``.
     table : pandas.DataFrame
         ``replies.csv`` (:meth:`Diagnosis.replies`).
-
-    Notes
-    -----
-    It offers what the figure functions of :mod:`bayes_mpem.plots.diagnose` read
-    of a :class:`Diagnosis`: ``candidates``, ``settings``, :meth:`replies`,
-    :meth:`figure_info`, and ``data`` (``ids``, ``bi``, ``time``, ``nb``) and
-    ``baseline``/``final`` (``resp``, ``effects``, ``path``) as plain namespaces.
     """
 
     document: dict

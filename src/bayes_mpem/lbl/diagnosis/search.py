@@ -1,41 +1,8 @@
 """The search over effects of the diagnosis: forward selection, then a backward step.
 
-:class:`Search` holds what every fit of one diagnosis shares (the replies, the
-folds, the geometry, the ECM's options) and runs the search:
-
-1. **forward**: in each round every effect not yet in the model is fitted on
-   top of it (:meth:`Search.fit`: the nested fit's parameters and a replant) and
-   scored by its gain in held-out log predictive density; the best one is kept
-   when its gain exceeds ``min_gain`` nats and ``min_z`` standard errors (the
-   keep rule);
-2. **backward**: each kept effect is removed in turn and the model refitted
-   without it; the one whose removal costs least is dropped when that cost does
-   not meet the keep rule, and so on until every kept effect earns its place.
-   An effect added early can become redundant once a later one explains the
-   same residuals (a wrong effect kept beside a small plane drift).
-
-Both run twice. First over the shared effects alone, then again with the
-per-beacon effects (:data:`~bayes_mpem.lbl.simulation.effects.PER_BEACON`) as candidates
-too, tried on the beacons whose direct-path residuals the model still leaves
-unexplained (:func:`suspects`: an offset of more than :data:`SUSPECT_Z`
-standard errors, a trend with p below :data:`SUSPECT_P`, or a direct-path weight
-below :data:`SUSPECT_DP`), one term per beacon (``"beacon_bias:2"``). The order
-matters both ways:
-
-* a beacon's own position or bias has parameters for that beacon alone and
-  absorbs locally what a shared effect explains everywhere: offered at once,
-  the greedy step took two beacons' positions and a sound speed for a range bias
-  plus a navigation drift (abe58, seed 100 of the study);
-* four shared parameters (a bias, a scale, a navigation drift) can mimic one
-  beacon's own bias well enough to leave no beacon unexplained (abe58: a 2.7 m
-  bias of beacon 3 taken for three shared effects).
-
-So when the baseline leaves a minority of the beacons unexplained, their own
-effects go first; otherwise the shared ones do. Each stage may add up to
-``max_effects`` terms, the backward step prunes, and beyond ``max_effects`` the
-weakest go. Among the terms that meet the keep rule, one within ``min_gain`` nats
-of the best with fewer parameters is taken (a beacon's bias rather than its
-position when the survey's bearings cannot tell them apart).
+An effect is kept when its held-out gain exceeds ``min_gain`` nats and ``min_z`` standard
+errors; the per-beacon effects are tried on the beacons the model leaves unexplained
+(:func:`suspects`). Why the order of the stages matters: ``docs/diagnose.md``.
 """
 
 from __future__ import annotations
@@ -70,10 +37,6 @@ def n_parameters(t) -> int:
     ----------
     t : str
         A term: an effect's name, or ``"name:beacon"`` for a per-beacon effect.
-
-    Returns
-    -------
-    int
     """
     name, bid = split_term(t)
     keys = BEACON_KEYS if bid is not None else SHARED_KEYS
@@ -193,10 +156,6 @@ class Search:
 
     def forward(self, state, effects, candidates, *, stage, max_effects, min_gain, min_z):
         """Add the best term while one meets the keep rule (``state`` updated in place).
-
-        Among the terms that meet it, one whose gain is within ``min_gain`` of the best
-        and that has fewer parameters is preferred (one beacon's bias against its
-        position, when the bearings of the survey cannot tell them apart).
 
         Parameters
         ----------

@@ -1,14 +1,5 @@
 """Starting points of the diagnosis' joint fits.
 
-* :func:`baseline_start` starts the baseline (no effect) from the per-beacon
-  mixture EM with both geometries (:func:`bayes_mpem.lbl.em.path_choice.choose_path`),
-  and picks the multipath geometry of the joint model;
-* :func:`start_for` gives starting points for a model with more effects, from a
-  fit of a nested one (for a second reflector: one per candidate plane);
-* :func:`replant` re-finds every beacon's plane for a fitted model, on ranges
-  corrected by its effects: a fresh start for a beacon whose plane was pulled to
-  a wrong family.
-
 Examples
 --------
 >>> from bayes_mpem.lbl.simulation.simulate import simulate_survey
@@ -44,12 +35,7 @@ def _modes(v, k):
 
 
 def _second_starts(d, p, effects, path, resp):
-    """Give starts for a second plane: modes of the implied depths of poorly explained ranges.
-
-    A beacon whose own plane sits on a candidate depth (its strongest multipath
-    family may be the second plane's) also gets a start with its plane moved to
-    its next mode, so that the shared plane and the beacon's own are not confused.
-    """
+    """Give starts for a second plane: modes of the implied depths of poorly explained ranges."""
     depth = implied_depths(d, p, effects, path)
     top = float(np.min(d.vdepth))
     usable = np.isfinite(depth) & (depth < top) & (depth > -0.2 * top)
@@ -167,16 +153,6 @@ def start_for(d, base: JointFit, effects, path):
 def direct_path_offset(d: Ranges, p: Params, effects, path, t, *, scale=10.0, n_iter=30):
     """Start a per-beacon term where its bias or position puts its ranges on the direct path.
 
-    When a beacon's direct path is off by metres (its own delay, or a position tens of
-    metres out), its baseline fit can lose the direct-path class altogether (weight 0:
-    the multipath family moved onto the offset direct path, the plane kilometres off),
-    and the ECM, which never revives a class of weight 0, cannot find the term from
-    there. This start fits the term's parameters to the beacon's ranges by iteratively
-    reweighted least squares on the direct-path prediction with Cauchy weights of scale
-    ``scale`` m (the direct path is the largest family; multipath and outliers get
-    weights near 0), and gives the beacon's classes fresh weights and scales, so that
-    the E-step re-assigns its ranges and the replant re-finds its plane.
-
     Parameters
     ----------
     d : Ranges
@@ -187,6 +163,7 @@ def direct_path_offset(d: Ranges, p: Params, effects, path, t, *, scale=10.0, n_
     t : str
         ``"beacon_bias:<id>"`` or ``"beacon_position:<id>"``.
     scale : float, default 10
+        Cauchy scale (m) of the reweighted least squares on the direct-path prediction.
     n_iter : int, default 30
 
     Returns
@@ -218,13 +195,6 @@ def direct_path_offset(d: Ranges, p: Params, effects, path, t, *, scale=10.0, n_
 
 def replant(d: Ranges, fit: JointFit, fittable, path, rng) -> Params | None:
     """Re-find each beacon's plane for ``fit``'s model: a fresh start.
-
-    Each beacon's plane, scales and weights are re-found by the per-beacon
-    mixture EM (its multi-start over plane heights) on ranges corrected by the
-    fitted biases (shared and the beacon's own), scale, navigation drift and
-    beacon position. A beacon whose baseline plane was
-    pulled to a wrong family (e.g. the direct path of a mis-scaled survey)
-    stays there when the effect is switched on; this gives it a way out.
 
     Parameters
     ----------

@@ -20,27 +20,19 @@ from a final E-step at the returned parameters.
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..._rng import RNGLike, as_generator
 from ..._validate import check_int, check_positive, check_range
-from ...exceptions import ConvergenceWarning
 from ...io.survey import BeaconData
 from ...mixture.densities import CLASSES
+from ...mixture.em import EMModel, best_run, run_em
 from ...mixture.gauss_newton import safeguarded_step
 from ..model.beacon_geometry import BeaconGeometry
 from ..model.likelihood import e_step
-from .em_result import (
-    EMResult,
-    check_max_iter,
-    check_options,
-    estimate_sigma_dp,
-    wdot,
-    with_flags,
-)
+from .em_result import EMResult, check_options, estimate_sigma_dp, wdot, with_flags
 
 # --------------------------------------------------------------------------
 # the mixture EM
@@ -112,36 +104,25 @@ def mixture_m_step(geom, resp, state, path, *, fit_sigma_dp, fit_weights, sigma_
     return _State(float(d0), float(s_dp), float(s_mp), np.asarray(w, float))
 
 
-def _run_mixture(geom, state, path, *, fit_sigma_dp, fit_weights, sigma_floor, tol, max_iter,
-                 d0_bounds):
-    ll, resp = e_step(geom, state.d0, state.sigma_dp, state.sigma_mp, state.weights, path)
-    first = resp
-    hist = {k: [] for k in ("d0", "sigma_mp", "sigma_dp", "p_dp", "p_mp", "p_ol", "loglik",
-                            "w_dp", "w_mp", "w_ol")}
+class _MixtureEM(EMModel):
+    """The mixture EM as a :class:`~bayes_mpem.mixture.em.EMModel`: parameters a ``_State``."""
 
-    def record():
-        hist["d0"].append(state.d0)
-        hist["sigma_mp"].append(state.sigma_mp)
-        hist["sigma_dp"].append(state.sigma_dp)
-        hist["loglik"].append(ll)
-        for j, c in enumerate(CLASSES):
-            hist["p_" + c].append(float(resp[:, j].mean()))
-            hist["w_" + c].append(float(state.weights[j]))
+    def __init__(self, geom, path, **opts):
+        self.geom, self.path, self.opts = geom, path, opts
 
-    record()
-    converged = False
-    it = 0
-    for it in range(1, max_iter + 1):
-        state = mixture_m_step(geom, resp, state, path, fit_sigma_dp=fit_sigma_dp,
-                               fit_weights=fit_weights, sigma_floor=sigma_floor,
-                               d0_bounds=d0_bounds)
-        ll_old = ll
-        ll, resp = e_step(geom, state.d0, state.sigma_dp, state.sigma_mp, state.weights, path)
-        record()
-        if abs(ll - ll_old) <= tol * max(geom.n, 1):
-            converged = True
-            break
-    return state, ll, resp, first, hist, it, converged
+    def e_step(self, state):
+        return e_step(self.geom, state.d0, state.sigma_dp, state.sigma_mp, state.weights,
+                      self.path)
+
+    def m_step(self, state, resp):
+        return mixture_m_step(self.geom, resp, state, self.path, **self.opts)
+
+    def record(self, state, loglik, resp):
+        out = {"d0": state.d0, "sigma_mp": state.sigma_mp, "sigma_dp": state.sigma_dp}
+        out.update(("p_" + c, float(resp[:, j].mean())) for j, c in enumerate(CLASSES))
+        out["loglik"] = loglik
+        out.update(("w_" + c, float(state.weights[j])) for j, c in enumerate(CLASSES))
+        return out
 
 
 def histogram_modes(v, k, *, width=5.0, sep=25.0, min_count=-1):
@@ -285,7 +266,7 @@ def fit_mixture_em(
     """
     fixed_dp = check_options(path=path, weights=weights, sigma_dp=sigma_dp)
     check_int("n_init", n_init, minimum=1)
-    check_max_iter(max_iter)
+    check_int("max_iter", max_iter, minimum=1)
     check_positive("tol", tol)
     check_range("sigma_floor", sigma_floor, low=0, include_low=True)
     if data.n < 3:
@@ -297,23 +278,14 @@ def fit_mixture_em(
     opts = dict(fit_sigma_dp=fixed_dp is None, fit_weights=weights == "learned",
                 sigma_floor=float(sigma_floor), d0_bounds=d0_bounds)
     starts = _starts(geom, init, s_dp0, fixed_dp, weights, path, int(n_init), d0_bounds)
-    best, prefix, first = _best_start(geom, starts, path, opts, subsample=subsample,
-                                      max_iter=max_iter, gen=gen)
-    used = len(prefix["d0"]) - 1 if prefix is not None else 0
-    state, ll, resp, first_new, hist, it, converged = _run_mixture(
-        geom, best, path, tol=float(tol), max_iter=int(max_iter) - used, **opts)
-    if prefix is not None:
-        hist = {k: prefix[k] + v[1:] for k, v in hist.items()}
-        it += used
-    else:
-        first = first_new
-    if not converged:
-        warnings.warn(
-            f"beacon {data.beacon}: mixture EM did not converge in {it} iterations "
-            f"(d0={state.d0:.2f} m); raise max_iter or loosen tol",
-            ConvergenceWarning,
-            stacklevel=2,
-        )
+    init, resume = _best_start(geom, starts, path, opts, subsample=subsample,
+                               max_iter=max_iter, gen=gen)
+    run = run_em(_MixtureEM(geom, path, **opts), init, tol=float(tol) * max(geom.n, 1),
+                 max_iter=int(max_iter), resume=resume,
+                 warn=lambda run: f"beacon {data.beacon}: mixture EM did not converge in "
+                 f"{run.n_iter} iterations (d0={run.params.d0:.2f} m); raise max_iter or "
+                 "loosen tol")
+    state, resp = run.params, run.resp
     jac = geom.multipath_derivative(state.d0, path)
     info = wdot(resp[:, 1], jac * jac)
     d0_se = state.sigma_mp / np.sqrt(info) if info > 0 else float("inf")
@@ -332,11 +304,11 @@ def fit_mixture_em(
         weights={c: float(w) for c, w in zip(CLASSES, state.weights, strict=True)},
         resp=resp,
         rows=np.asarray(data.rows),
-        n_iter=it,
-        converged=converged,
-        loglik=ll,
-        history={k: np.asarray(v) for k, v in hist.items()},
-        first_resp=first,
+        n_iter=run.n_iter,
+        converged=run.converged,
+        loglik=run.loglik,
+        history={k: np.asarray(v) for k, v in run.history.items()},
+        first_resp=run.first_resp,
         settings=settings,
         d0_se=float(d0_se),
     ), data, float(sigma_floor))
@@ -377,19 +349,16 @@ def _starts(geom, init, s_dp0, fixed_dp, weights, path, n_init, d0_bounds):
 def _best_start(geom, starts, path, opts, *, subsample, max_iter, gen):
     """Compare the starts by short runs on a subsample of at most ``subsample`` ranges.
 
-    Returns ``(best state, history, first responsibilities)``; the last two are
-    the winning run's, to be continued, when the comparison ran on all the
-    data, else ``None``.
+    Returns ``(best start, run)``: the winning run, to be continued, when the
+    comparison ran on all the data, else ``None``.
     """
     if len(starts) == 1:
-        return starts[0], None, None
+        return starts[0], None
     sub, full = geom, geom.n <= subsample
     if not full:
         idx = np.sort(gen.choice(geom.n, size=int(subsample), replace=False))
         sub = geom.take(idx)
-    runs = [_run_mixture(sub, s, path, tol=1e-6, max_iter=min(100, int(max_iter)), **opts)
-            for s in starts]
-    best_run = max(runs, key=lambda run: run[1])
-    if full:  # the comparison ran on all the data: continue that run
-        return best_run[0], best_run[4], best_run[3]
-    return best_run[0], None, None
+    model = _MixtureEM(sub, path, **opts)
+    best = best_run(run_em(model, s, tol=1e-6 * max(sub.n, 1), max_iter=min(100, int(max_iter)))
+                    for s in starts)
+    return best.params, best if full else None

@@ -15,20 +15,17 @@ The maximum-likelihood alternative (the package's default) is
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 from scipy import special
 
-from ..._validate import check_finite, check_positive
-from ...exceptions import ConvergenceWarning
+from ..._validate import check_finite, check_int, check_positive
 from ...io.survey import BeaconData
 from ...mixture.densities import CLASSES
+from ...mixture.em import EMModel, run_em
 from ..model import geometry
 from ..model.beacon_geometry import BeaconGeometry
 from .em_result import (
     EMResult,
-    check_max_iter,
     check_options,
     estimate_sigma_dp,
     mean_resp_history,
@@ -87,9 +84,8 @@ def paper_m_step(geom: BeaconGeometry, gamma_mp, d0_prev, alpha, path="triangle"
         Blending factor of eq. 10.
     path : {"triangle", "double"}
     d0k : numpy.ndarray, optional
-        Precomputed per-range plane heights
-        (:func:`~bayes_mpem.lbl.model.geometry.invert_plane_height`); they do not depend
-        on the parameters, so the EM loop computes them once.
+        The per-range plane heights
+        (:func:`~bayes_mpem.lbl.model.geometry.invert_plane_height`), if computed.
 
     Returns
     -------
@@ -111,38 +107,30 @@ def paper_m_step(geom: BeaconGeometry, gamma_mp, d0_prev, alpha, path="triangle"
     return d0, float(np.sqrt(var))
 
 
-def _run_paper(geom, d0, s_mp, s_dp, pol, alpha, path, *, tol, max_iter):
-    """Run the paper's iterations from ``(d0, s_mp)``.
+class _PaperEM(EMModel):
+    """The paper's EM as an :class:`~bayes_mpem.mixture.em.EMModel` of ``(d0, sigma_mp)``."""
 
-    Returns ``(d0, sigma_mp, resp, first_resp, history, n_iter, converged)``.
-    """
-    d0k = geometry.invert_plane_height(geom.z, geom.h, geom.dz, path, direct=geom.direct)
-    hist = {k: [] for k in ("d0", "sigma_mp", "sigma_dp", "p_dp", "p_mp", "p_ol")}
+    def __init__(self, geom, s_dp, pol, alpha, path):
+        self.geom, self.s_dp, self.pol, self.alpha, self.path = geom, s_dp, pol, alpha, path
+        self.d0k = geometry.invert_plane_height(geom.z, geom.h, geom.dz, path, direct=geom.direct)
 
-    def record(resp):
-        hist["d0"].append(d0)
-        hist["sigma_mp"].append(s_mp)
-        hist["sigma_dp"].append(s_dp)
-        for c, m in zip(CLASSES, mean_resp_history(resp), strict=True):
-            hist["p_" + c].append(float(m))
+    def e_step(self, params):
+        return None, paper_e_step(self.geom, *params, self.s_dp, self.pol, self.path)
 
-    resp = paper_e_step(geom, d0, s_mp, s_dp, pol, path)
-    first_resp = resp
-    record(resp)  # state 0: the initial parameters and the first classification
-    converged = False
-    it = 0
-    for it in range(1, max_iter + 1):
-        d0_new, s_new = paper_m_step(geom, resp[:, 1], d0, alpha, path, d0k=d0k)
-        done = abs(d0_new - d0) < tol and abs(s_new - s_mp) < tol
-        d0, s_mp = d0_new, s_new
-        if not np.isfinite(s_mp) or s_mp <= 0:
-            break  # sigma_MP collapsed: the probabilities stay those of the last E-step
-        resp = paper_e_step(geom, d0, s_mp, s_dp, pol, path)
-        record(resp)
-        if done:
-            converged = True
-            break
-    return d0, s_mp, resp, first_resp, hist, it, converged
+    def m_step(self, params, resp):
+        return paper_m_step(self.geom, resp[:, 1], params[0], self.alpha, self.path, d0k=self.d0k)
+
+    def change(self, old, new, gain):
+        return max(abs(new[0] - old[0]), abs(new[1] - old[1]))
+
+    def usable(self, params):
+        return bool(np.isfinite(params[1]) and params[1] > 0)  # else sigma_MP collapsed
+
+    def record(self, params, loglik, resp):
+        out = {"d0": params[0], "sigma_mp": params[1], "sigma_dp": self.s_dp}
+        out.update(("p_" + c, float(m)) for c, m in zip(CLASSES, mean_resp_history(resp),
+                                                          strict=True))
+        return out
 
 
 def fit_paper_em(
@@ -203,21 +191,21 @@ def fit_paper_em(
     fixed_dp = check_options(path=path, pol=pol, alpha=alpha, sigma_dp=sigma_dp)
     check_positive("sigma_mp2_init", sigma_mp2_init)
     check_positive("tol", tol)
-    check_max_iter(max_iter)
+    check_int("max_iter", max_iter, minimum=1)
     check_finite("d0_init", d0_init)
     geom = BeaconGeometry.from_data(data)
     s_dp = fixed_dp or estimate_sigma_dp(geom)
-    d0, s_mp, resp, first_resp, hist, it, converged = _run_paper(
-        geom, float(d0_init), float(np.sqrt(sigma_mp2_init)), s_dp, pol, alpha, path,
-        tol=tol, max_iter=max_iter)
-    if not converged:
-        warnings.warn(
-            f"beacon {data.beacon}: the paper's EM did not converge in {it} iterations "
-            f"(d0={d0:.2f} m, sigma_mp={s_mp:.3g} m"
-            + (", sigma_MP collapsed to 0)" if not s_mp > 0 else ")"),
-            ConvergenceWarning,
-            stacklevel=2,
-        )
+
+    def message(run):
+        d0, s_mp = run.params
+        return (f"beacon {data.beacon}: the paper's EM did not converge in {run.n_iter} "
+                f"iterations (d0={d0:.2f} m, sigma_mp={s_mp:.3g} m"
+                + (", sigma_MP collapsed to 0)" if not s_mp > 0 else ")"))
+
+    run = run_em(_PaperEM(geom, s_dp, pol, alpha, path),
+                 (float(d0_init), float(np.sqrt(sigma_mp2_init))), tol=tol, max_iter=max_iter,
+                 warn=message)
+    (d0, s_mp), resp = run.params, run.resp
     mean = mean_resp_history(resp)
     return with_flags(EMResult(
         beacon=data.beacon,
@@ -229,11 +217,11 @@ def fit_paper_em(
         weights={c: float(m) for c, m in zip(CLASSES, mean, strict=True)},
         resp=resp,
         rows=np.asarray(data.rows),
-        n_iter=it,
-        converged=converged,
+        n_iter=run.n_iter,
+        converged=run.converged,
         loglik=None,
-        history={k: np.asarray(v) for k, v in hist.items()},
-        first_resp=first_resp,
+        history={k: np.asarray(v) for k, v in run.history.items()},
+        first_resp=run.first_resp,
         settings={"pol": float(pol), "alpha": float(alpha), "d0_init": float(d0_init),
                   "sigma_mp2_init": float(sigma_mp2_init), "tol": float(tol),
                   "sigma_dp_fixed": sigma_dp is not None},

@@ -7,20 +7,15 @@ E-step, the iteration history and the settings. :func:`quality_flags` says
 why a fitted reflector is not credible, and :func:`with_flags` attaches those
 flags (with a :class:`~bayes_mpem.exceptions.FitQualityWarning`).
 
-The helpers both EMs use are here too: option checks (:func:`check_options`,
-:func:`check_max_iter`, built on :mod:`bayes_mpem._validate`), the robust
-direct-path scatter (:func:`estimate_sigma_dp`) and a BLAS-free weighted sum
-(:func:`wdot`).
+The helpers both EMs use are here too: the option checks
+(:func:`check_options`), the robust direct-path scatter
+(:func:`estimate_sigma_dp`) and a BLAS-free weighted sum (:func:`wdot`).
 
 Examples
 --------
 >>> import numpy as np
 >>> wdot(np.array([1.0, 2.0]), np.array([3.0, 4.0]))
 11.0
->>> check_max_iter(0)
-Traceback (most recent call last):
-...
-ValueError: max_iter: expected an integer >= 1, got 0
 """
 
 from __future__ import annotations
@@ -31,7 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..._validate import check_choice, check_int, check_positive, check_range
+from ..._validate import check_choice, check_positive, check_range
 from ...exceptions import FitQualityWarning
 from ...io.survey import BeaconData
 from ...mixture.densities import CLASSES
@@ -55,12 +50,8 @@ def quality_flags(result, data: BeaconData, *, sigma_floor: float = 0.05) -> tup
     Returns
     -------
     tuple of str
-        Checked: almost no range is multipath (fewer than 10 ranges' worth), the
-        multipath scale stuck at its floor (collapsed onto a few ranges) or above
-        100 m (no coherent multipath), almost no range on the direct path (a wrong
-        beacon position or navigation), a plane above the sea surface, and (for a
-        fit through a sound-speed profile) more than 1 % of the ranges with no
-        eigenray at all.
+        Those of :func:`reflector_flags`, and (for a fit through a sound-speed
+        profile) more than 1 % of the ranges with no eigenray at all.
     """
     depth = float(data.position[2])
     flags = reflector_flags(result.resp, result.sigma_mp, depth - result.d0,
@@ -80,12 +71,11 @@ def reflector_flags(resp, sigma_mp, plane_depth, *, sigma_floor=0.05, plane_note
     Parameters
     ----------
     resp : numpy.ndarray
-        ``(n, k)`` class probabilities of the beacon's ranges, direct path in
-        column 0 and multipath in column 1.
+        ``(n, k)`` class probabilities, direct path in column 0, multipath in 1.
     sigma_mp : float
         The multipath scale (m).
     plane_depth : float
-        Depth of the reflecting plane (m, positive down; the sea surface is 0).
+        Depth of the reflecting plane (m, positive down).
     sigma_floor : float, default 0.05
         The scale floor of the fit.
     plane_note : str, optional
@@ -94,8 +84,8 @@ def reflector_flags(resp, sigma_mp, plane_depth, *, sigma_floor=0.05, plane_note
     Returns
     -------
     list of str
-        Almost no multipath, sigma_MP at its floor or above 100 m, almost no
-        direct path, a plane more than 10 m above the sea surface.
+        Fewer than 10 ranges' worth of multipath, sigma_MP at its floor or above
+        100 m, almost no direct path, a plane more than 10 m above the sea surface.
 
     Examples
     --------
@@ -122,20 +112,7 @@ def reflector_flags(resp, sigma_mp, plane_depth, *, sigma_floor=0.05, plane_note
 
 
 def with_flags(result, data, sigma_floor):
-    """Set the quality flags of ``result``, warning once if there are any.
-
-    Parameters
-    ----------
-    result : EMResult
-    data : BeaconData
-        The beacon's replies.
-    sigma_floor : float
-        The scale floor the fit used.
-
-    Returns
-    -------
-    EMResult
-        A copy with ``flags`` set (:func:`quality_flags`).
+    """Return a copy of ``result`` with its :func:`quality_flags` set.
 
     Warns
     -----
@@ -259,17 +236,15 @@ class EMResult:
 
 
 def estimate_sigma_dp(geom: BeaconGeometry, *, window: float = 50.0) -> float:
-    """Robust direct-path scatter from residuals ``z - L_direct``.
+    """Robust direct-path scatter: residuals within ``window`` m trimmed at 3 sigma.
 
-    Residuals within ``window`` m of the direct path are trimmed iteratively
-    at 3 sigma (starting from the MAD), a robust stand-in for the paper's
-    least-squares fit of sigma_DP.
+    A robust stand-in for the paper's least-squares fit of sigma_DP.
 
     Parameters
     ----------
     geom : BeaconGeometry
     window : float
-        Initial half-width (m) of the residuals considered.
+        Half-width (m) of the residuals ``z - L_direct`` considered.
 
     Returns
     -------
@@ -291,11 +266,7 @@ def estimate_sigma_dp(geom: BeaconGeometry, *, window: float = 50.0) -> float:
 
 
 def wdot(w, x):
-    """Return ``sum(w * x)``, computed without BLAS.
-
-    ``np.dot`` on 1-D arrays calls a multi-threaded BLAS ``ddot`` that spin-waits
-    for a busy core: on 2 cores with another process running it made the EM 40x
-    slower (measured, ``benchmarks/bench_em.py``). A NumPy reduction does not.
+    """Return ``sum(w * x)`` by a NumPy reduction (a BLAS ``ddot`` spin-waits on busy cores).
 
     Parameters
     ----------
@@ -316,12 +287,10 @@ def check_options(*, path="triangle", weights="learned", pol=0.05, alpha=0.5, si
     ----------
     path : {"triangle", "double"}
     weights : {"learned", "equal"}
-    pol : float
-        In (0, 1).
-    alpha : float
-        In (0, 1].
+    pol, alpha : float
+        In (0, 1) and (0, 1].
     sigma_dp : float, optional
-        Positive when given.
+        Positive.
 
     Returns
     -------
@@ -340,32 +309,6 @@ def check_options(*, path="triangle", weights="learned", pol=0.05, alpha=0.5, si
     return check_positive("sigma_dp", sigma_dp, allow_none=True, what="a positive number")
 
 
-def check_max_iter(max_iter):
-    """Check that ``max_iter`` is an integer >= 1.
-
-    Parameters
-    ----------
-    max_iter : int
-
-    Raises
-    ------
-    ValueError
-        For anything else (``bool`` included).
-    """
-    check_int("max_iter", max_iter, minimum=1)
-
-
 def mean_resp_history(resp):
-    """Mean class probabilities of ``resp`` (NaN for no ranges).
-
-    Parameters
-    ----------
-    resp : numpy.ndarray
-        ``(n, 3)`` class probabilities.
-
-    Returns
-    -------
-    numpy.ndarray
-        ``(3,)``.
-    """
+    """Return the ``(3,)`` mean class probabilities of ``resp`` (NaN for no ranges)."""
     return resp.mean(axis=0) if resp.size else np.full(3, np.nan)

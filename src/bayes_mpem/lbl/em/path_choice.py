@@ -1,17 +1,4 @@
-"""Triangle or double bounce: the multipath geometry of one beacon, chosen by likelihood.
-
-:func:`choose_path` fits the mixture EM (:func:`~bayes_mpem.lbl.em.em_mixture.fit_mixture_em`)
-with both geometries and keeps the likelier one (``path="auto"``), or the geometry the
-caller forces, warning when the other one is better by more than :data:`CLEAR_MARGIN`
-nats. :func:`~bayes_mpem.fit`, :func:`~bayes_mpem.sample` and :func:`~bayes_mpem.compare`
-all choose through it, one beacon at a time; the choice and its margin go into their
-summaries (``PathChoice.to_dict``).
-
-The two geometries have the same parameters (``d0``, ``sigma_MP``, ``sigma_DP``, the
-weights), so their maximised log-likelihoods compare directly, with no penalty for
-size. The margin is the log-likelihood of the geometry used minus that of the other:
-positive when the geometry used is the likelier.
-"""
+"""Triangle or double bounce: the multipath geometry of one beacon, chosen by likelihood."""
 
 from __future__ import annotations
 
@@ -29,11 +16,7 @@ from .em_result import EMResult
 
 #: A forced geometry that is worse than the other by more than this many nats of
 #: maximised log-likelihood draws a :class:`~bayes_mpem.exceptions.PathChoiceWarning`.
-#: Both geometries have the same number of parameters, so this is a likelihood ratio
-#: of e^10 (about 22 000) with no size penalty; it is twice the "very strong" level
-#: of Kass & Raftery (2 ln B > 10) and above the few nats by which two EM runs from
-#: different starts can differ. A wrong geometry loses by hundreds of nats on the
-#: benchmark surveys (``docs/benchmarks.md``).
+#: A likelihood ratio of e^10 (same number of parameters); ``docs/model.md``.
 CLEAR_MARGIN = 10.0
 RULE = "maximised mixture-EM log-likelihood"
 
@@ -44,10 +27,6 @@ def check_path_choice(path: str) -> str:
     Parameters
     ----------
     path : str
-
-    Returns
-    -------
-    str
 
     Raises
     ------
@@ -92,12 +71,7 @@ class PathChoice:
         return float(self.loglik[self.path] - self.loglik[other])
 
     def to_dict(self) -> dict:
-        """JSON-ready record: ``requested``, ``path``, ``margin``, ``loglik``, ``rule``.
-
-        Returns
-        -------
-        dict
-        """
+        """JSON-ready record: ``requested``, ``path``, ``margin``, ``loglik``, ``rule``."""
         def finite(v):  # JSON has no infinity: a failed fit's -inf is written as null
             return v if math.isfinite(v) else None
 
@@ -114,10 +88,6 @@ class PathChoice:
         beacon : str
         d : dict
             A ``path_choice`` entry of ``summary.json``.
-
-        Returns
-        -------
-        PathChoice
         """
         return cls(beacon=beacon, requested=d["requested"], path=d["path"],
                    loglik={p: _score(v) for p, v in d["loglik"].items()})
@@ -183,10 +153,6 @@ def choose_path(
     **kwargs
         Passed to :func:`~bayes_mpem.lbl.em.em_mixture.fit_mixture_em` for both fits.
 
-    Returns
-    -------
-    PathChoice
-
     Warns
     -----
     PathChoiceWarning
@@ -205,9 +171,8 @@ def choose_path(
     """
     check_path_choice(path)
     gen = as_generator(rng)
-    # the geometry asked for (triangle under auto) draws from ``gen`` exactly as a single
-    # fit did before path choice existed; the other one from a child stream, so that the
-    # caller's stream (the next beacon, the sampler) is the same whichever path is chosen
+    # the geometry asked for draws from ``gen``, the other from a child stream: the
+    # caller's stream is the same whichever path is chosen
     first = PATHS[0] if path == AUTO else path
     streams = {first: gen, **{p: _child(gen) for p in PATHS if p != first}}
     fits, caught = {}, {}

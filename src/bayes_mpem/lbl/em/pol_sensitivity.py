@@ -1,11 +1,4 @@
-"""How the paper's EM answers to its outlier threshold ``Pol`` (the data of its Fig. 12).
-
-:func:`pol_sensitivity` refits one beacon with the paper's EM for each value
-of ``Pol``; :func:`survey_pol_sensitivity` does it for a beacon of a
-:class:`~.fitting.SurveyFit` over :data:`POL_GRID`, at that beacon's fitted
-direct-path scatter. The figure itself is drawn by
-:func:`bayes_mpem.plots.lbl.plot_pol_sensitivity`.
-"""
+"""How the paper's EM answers to its outlier threshold ``Pol`` (the data of its Fig. 12)."""
 
 from __future__ import annotations
 

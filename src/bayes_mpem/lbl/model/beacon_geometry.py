@@ -1,11 +1,5 @@
 """What the likelihood of one beacon needs of its geometry, computed once.
 
-:class:`BeaconGeometry` holds the per-range quantities of one beacon that do
-not depend on the parameters (reported ranges, horizontal distances, depth
-differences, direct-path lengths, the outlier window) and predicts the
-multipath ranges for a plane height through :mod:`bayes_mpem.lbl.model.geometry`.
-The EMs and samplers take one instead of the raw data.
-
 Examples
 --------
 >>> import numpy as np
@@ -43,12 +37,6 @@ class BeaconGeometry:
     d0_min : float
         Lowest physical plane height: the plane must lie above the vehicle for
         every range, ``max(0, max(dz))``.
-
-    Notes
-    -----
-    Predictions are straight-ray (:mod:`bayes_mpem.lbl.model.geometry`); the subclass
-    :class:`~bayes_mpem.lbl.model.refracted.RefractedBeaconGeometry` predicts through a
-    sound-speed profile with the same interface (``straight`` is False there).
     """
 
     straight: ClassVar[bool] = True
@@ -68,10 +56,6 @@ class BeaconGeometry:
         Parameters
         ----------
         data : BeaconData
-
-        Returns
-        -------
-        BeaconGeometry
         """
         bx, by, bz = (float(v) for v in data.position)
         h = geometry.horizontal_distance(data.x, data.y, bx, by)
@@ -150,10 +134,6 @@ class BeaconGeometry:
         Parameters
         ----------
         idx : array_like of int or bool
-
-        Returns
-        -------
-        BeaconGeometry
         """
         return BeaconGeometry(self.z[idx], self.h[idx], self.dz[idx], self.direct[idx],
                               self.lo, self.hi, self.d0_min)

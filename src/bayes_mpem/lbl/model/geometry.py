@@ -1,22 +1,10 @@
 """Straight-ray LBL geometry: direct path, image-method multipath, inversion.
 
-Conventions (see ``docs/model.md``):
-
-* depths are positive down; ``h`` is the horizontal distance beacon-vehicle;
-* ``dz = z_beacon - z_vehicle`` is how far the vehicle sits above the beacon;
-* the reflecting plane is horizontal, at height ``d0`` above the beacon, i.e. at
-  depth ``z_beacon - d0``. For a sea-surface bounce ``d0`` equals the beacon
-  depth;
-* by the image method the reflected leg has length
-  ``L_refl = sqrt(h**2 + (2 d0 - dz)**2)``: the beacon's image sits ``d0``
-  above the plane, and the vehicle ``d0 - dz`` below it. This is eq. 2 of the
-  paper, with its ``|x0 + x|`` read as the horizontal separation;
-* ranges are one-way, i.e. half the round-trip path. The **triangle** path
-  (one leg reflected, the other direct: the paper's finding) gives
-  ``(L_direct + L_refl) / 2``; the **double** bounce (both legs reflected)
-  gives ``L_refl``.
-
-Every function is vectorised with NumPy broadcasting.
+Depths positive down; ``h`` the horizontal distance beacon-vehicle;
+``dz = z_beacon - z_vehicle``; the reflecting plane lies ``d0`` above the beacon, and its
+reflected leg is ``sqrt(h**2 + (2 d0 - dz)**2)`` (eq. 2 of the paper). Ranges are one-way:
+the triangle path gives ``(L_direct + L_refl) / 2``, the double bounce ``L_refl``
+(``docs/model.md``). Every function broadcasts.
 """
 
 from __future__ import annotations
@@ -32,16 +20,11 @@ Path = Literal["triangle", "double"]
 
 
 def check_path(path: str) -> str:
-    """Return ``path`` if it names a supported multipath geometry.
+    """Return ``path`` if it is ``"triangle"`` or ``"double"``.
 
     Parameters
     ----------
     path : str
-        ``"triangle"`` or ``"double"``.
-
-    Returns
-    -------
-    str
 
     Raises
     ------
@@ -52,14 +35,12 @@ def check_path(path: str) -> str:
 
 
 def horizontal_distance(x, y, beacon_x, beacon_y):
-    """Horizontal distance between vehicle and beacon (m).
+    """Horizontal distance between vehicle ``(x, y)`` and beacon (m).
 
     Parameters
     ----------
     x, y : array_like
-        Vehicle position (m).
     beacon_x, beacon_y : float or array_like
-        Beacon position (m).
 
     Returns
     -------
@@ -73,10 +54,7 @@ def direct_path(h, dz):
 
     Parameters
     ----------
-    h : array_like
-        Horizontal distance (m).
-    dz : array_like
-        ``z_beacon - z_vehicle`` (m).
+    h, dz : array_like
 
     Returns
     -------
@@ -91,19 +69,16 @@ def direct_path(h, dz):
 
 
 def reflected_leg(h, dz, d0):
-    """Length of one leg reflected once by the plane ``d0`` above the beacon.
+    """Length ``sqrt(h**2 + (2 d0 - dz)**2)`` of one leg reflected by the plane.
 
     Parameters
     ----------
     h, dz : array_like
-        Horizontal distance and ``z_beacon - z_vehicle`` (m).
     d0 : float or array_like
-        Height of the reflecting plane above the beacon (m).
 
     Returns
     -------
     numpy.ndarray
-        ``sqrt(h**2 + (2 d0 - dz)**2)``.
     """
     return np.hypot(h, 2.0 * np.asarray(d0, float) - dz)
 
@@ -114,15 +89,12 @@ def multipath_range(h, dz, d0, path: Path = "triangle", *, direct=None):
     Parameters
     ----------
     h, dz : array_like
-        Horizontal distance and ``z_beacon - z_vehicle`` (m).
     d0 : float or array_like
-        Height of the reflecting plane above the beacon (m).
-    path : {"triangle", "double"} or array_like of str
-        One reflected leg (default, the paper's finding) or both; an array
-        gives each range its own geometry (names, or a boolean mask that is
-        True for the double bounce).
+    path : {"triangle", "double"} or array_like
+        One geometry for all ranges, or one per range (names, or a mask True for the double
+        bounce).
     direct : array_like, optional
-        Precomputed :func:`direct_path` (saves a square root in hot loops).
+        Precomputed :func:`direct_path`.
 
     Returns
     -------
@@ -156,18 +128,14 @@ def multipath_derivative(h, dz, d0, path: Path = "triangle"):
     Parameters
     ----------
     h, dz : array_like
-        Horizontal distance and ``z_beacon - z_vehicle`` (m).
     d0 : float or array_like
-        Plane height (m).
     path : {"triangle", "double"} or array_like
-        One geometry for all ranges, or one per range (names, or a boolean
-        mask that is True for the double bounce).
+        As :func:`multipath_range`.
 
     Returns
     -------
     numpy.ndarray
-        ``d z_MP / d d0``; ``2 (2 d0 - dz) / L_refl`` for the double bounce,
-        half that for the triangle path.
+        ``2 (2 d0 - dz) / L_refl`` for the double bounce, half that for the triangle path.
     """
     lever = 2.0 * np.asarray(d0, float) - dz
     d = 2.0 * lever / np.hypot(h, lever)
@@ -187,28 +155,21 @@ def _double_mask(paths):
 
 
 def invert_plane_height(z, h, dz, path: Path = "triangle", *, direct=None):
-    """Per-range plane height ``d0(k)`` that makes range ``z`` a multipath.
-
-    Closed-form inversion of :func:`multipath_range` (used by eq. 8 of the
-    paper). For the triangle path ``L_refl = 2 z - L_direct``; for the double
-    bounce ``L_refl = z``; then ``d0 = (sqrt(L_refl**2 - h**2) + dz) / 2``,
-    taking the branch with the vehicle below the plane.
+    """Per-range plane height ``d0(k)`` that makes range ``z`` a multipath (eq. 8 of the paper).
 
     Parameters
     ----------
     z : array_like
         Measured one-way ranges (m).
     h, dz : array_like
-        Horizontal distance and ``z_beacon - z_vehicle`` (m).
     path : {"triangle", "double"}
     direct : array_like, optional
-        Precomputed direct-path length.
+        Precomputed :func:`direct_path`.
 
     Returns
     -------
     numpy.ndarray
-        ``d0(k)``; NaN where no plane can produce the range (``L_refl < h``,
-        e.g. a range shorter than the direct path).
+        NaN where no plane can produce the range (``L_refl < h``).
 
     Examples
     --------
@@ -236,7 +197,6 @@ def elevation_angle(h, dz):
     Parameters
     ----------
     h, dz : array_like
-        Horizontal distance and ``z_beacon - z_vehicle`` (m).
 
     Returns
     -------
@@ -248,33 +208,23 @@ def elevation_angle(h, dz):
 def horizontal_slopes(h, dz, d0, path: Path = "triangle", *, direct=None):
     """Horizontal-position derivatives of the direct and multipath ranges, per unit offset.
 
-    The gradient of a range with respect to the vehicle's horizontal position
-    ``(x, y)`` is ``(x - x_beacon, y - y_beacon)`` times a slope: ``1 / L_direct``
-    for the direct path, ``(1 / L_direct + 1 / L_refl) / 2`` for the triangle
-    multipath and ``1 / L_refl`` for the double bounce. Returning the slopes
-    keeps the gradient finite right above the beacon (``h = 0``).
-
     Parameters
     ----------
     h, dz : array_like
-        Horizontal distance and ``z_beacon - z_vehicle`` (m).
     d0 : float or array_like
-        Plane height (m).
     path : {"triangle", "double"} or array_like
-        Multipath geometry, one for all ranges or one per range (names, or a
-        boolean mask that is True for the double bounce).
+        As :func:`multipath_range`.
     direct : array_like, optional
         Precomputed :func:`direct_path`.
 
     Returns
     -------
     slope_direct, slope_multipath : numpy.ndarray
-        Multiply by ``x - x_beacon`` (or ``y - y_beacon``) for the derivative (1/m).
+        Multiply by ``x - x_beacon`` (or ``y - y_beacon``) for the derivative; finite at ``h = 0``.
 
     Examples
     --------
-    A vehicle 3 m east of a beacon 4 m below it: the direct range grows by
-    3/5 m per metre east.
+    A vehicle 3 m east of a beacon 4 m below it: the direct range grows by 3/5 m per metre east.
 
     >>> sd, sm = horizontal_slopes(3.0, 4.0, 100.0)
     >>> round(float(3.0 * sd), 6)

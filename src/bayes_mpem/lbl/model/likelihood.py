@@ -1,16 +1,8 @@
 """The direct-path / multipath / outlier mixture likelihood, in one place.
 
-A reported range ``z`` of one beacon has density
-
-``p(z) = w_dp N(z; L_direct, s_dp) + w_mp N(z; f_MP(d0), s_mp) + w_ol U(z; lo, hi)``
-
-with ``f_MP`` from :mod:`bayes_mpem.lbl.model.geometry` and the outlier density uniform
-over the observed window ``[lo, hi]`` of that beacon's ranges (the
-component densities and their log-sum-exp are those of
-:mod:`bayes_mpem.mixture.densities`). The EM
-(:mod:`bayes_mpem.lbl.em.em_mixture`) and the samplers call these functions; every
-parameter broadcasts, so a column of walkers ``d0[:, None]`` evaluates all
-walkers at once.
+``p(z) = w_dp N(z; L_direct, s_dp) + w_mp N(z; f_MP(d0), s_mp) + w_ol U(z; lo, hi)`` over
+the window ``[lo, hi]`` of the beacon's ranges; every parameter broadcasts (``d0[:, None]``
+evaluates a column of walkers at once).
 """
 
 from __future__ import annotations
@@ -93,11 +85,6 @@ def loglik_per_range(geom: BeaconGeometry, d0, sigma_dp, sigma_mp, weights, path
 def weighted_densities(geom: BeaconGeometry, d0, sigma_dp, sigma_mp, weights, path="triangle"):
     """``w_j p(z_k | j)`` of every range for each class, in linear space (broadcasts).
 
-    Exact wherever ``w_ol > 0`` (then the outlier term keeps the sum positive,
-    and a Gaussian term that underflows is below 1e-300 of it); the posterior's
-    support guarantees it. Class probabilities are each term over their sum,
-    and the log of the sum is :func:`loglik_per_range`.
-
     Parameters
     ----------
     geom : BeaconGeometry
@@ -124,14 +111,6 @@ def weighted_densities(geom: BeaconGeometry, d0, sigma_dp, sigma_mp, weights, pa
 
 def total_loglik(geom: BeaconGeometry, d0, sigma_dp, sigma_mp, weights, path="triangle"):
     """Sum the log-likelihood for many parameter sets at once, in float64.
-
-    The same density as :func:`loglik_per_range`, evaluated in linear space by
-    :class:`~bayes_mpem.lbl.model.loglik_kernel.LoglikKernel` (two exponentials and one
-    logarithm per range instead of log-sum-exp; terms that are exactly 0 for
-    every parameter set are skipped). The uniform outlier term keeps the sum
-    positive wherever ``w_ol > 0``; the result agrees with the log-space form to
-    rounding (tested). The sampler keeps one kernel per beacon instead, so that
-    the screen of ranges is made once.
 
     Parameters
     ----------

@@ -1,48 +1,5 @@
 """The sampler's kernel: the total log-likelihood of one beacon for many parameter sets.
 
-:class:`LoglikKernel` evaluates the density of :mod:`bayes_mpem.lbl.model.likelihood`,
-summed over the ranges, for a batch of walkers. It is called some two thousand
-times per beacon, with 12 walkers each (emcee's differential-evolution move updates
-half of 24 walkers at a time), so it keeps everything that does not depend on the
-parameters out of the call:
-
-* the **screen** (which ranges can have a non-zero direct-path or multipath term)
-  and the arrays of the ranges that passed it, contiguous and in the working
-  precision, are computed once for an *envelope* of parameters (the largest
-  sigmas and a window of plane heights, with a margin) and reused while the
-  walkers stay inside it; a batch that leaves it makes a new one. A range more
-  than 40 of the largest sigma from a prediction has a Gaussian term that is
-  exactly 0 in float64 (and below 1e-300 of the outlier term), so skipping it
-  leaves the sum unchanged up to rounding;
-* the multipath residual is written without cancellation: with ``u = 2 d0 - dz``
-  and a reference height ``d_ref`` (the envelope's centre), ``L - L_ref =
-  delta (2 u_ref + delta) / (L + L_ref)`` where ``delta = 2 (d0 - d_ref)``, so
-  ``r = r_ref - s (L - L_ref)`` with ``r_ref = z - s L_ref - (1 - s) direct``
-  precomputed in float64 (``s = 1/2`` for the triangle path, 1 for the double
-  bounce). The residual, a few metres, never comes from the difference of two
-  kilometre-long ranges;
-* the log-density of every range is ``log(ol + dp + mp)`` with the three terms in
-  linear space (two exponentials, a square root and a logarithm per range), in
-  place in one buffer.
-
-**Precision.** ``"float64"`` agrees with the log-space form of
-:func:`~bayes_mpem.lbl.model.likelihood.loglik_per_range` to about 1e-11 nats (the same
-chain as before, seed for seed; tested). ``"float32"`` halves the memory traffic
-and doubles the vector width (about twice as fast per call, measured in
-``benchmarks/bench_kernel.py``); its sum is accumulated in float64, and every
-input that suffers cancellation is formed in float64 first, so its error is
-rounding of terms of order one: at most about ``n x 2^-24 x 8`` nats in the
-worst case, well below that in practice (3e-4 nats at 5,000 ranges). Why that is
-harmless: if the log-likelihood is off by ``e(theta)`` with ``|e| <= delta``, the
-sampled density is ``p e^e / Z`` and every posterior mean moves by ``Cov(f, e^e) /
-E e^e``, at most about ``delta`` posterior standard deviations of ``f``, while
-the Monte-Carlo error of a mean at ESS 1,000 is 0.03 sd. ``"auto"`` (the
-default) uses float32 while the worst-case bound stays below
-:data:`FLOAT32_MAX_ERROR` (0.01 nats: a bias below a third of the Monte-Carlo
-error), i.e. up to :data:`FLOAT32_MAX_RANGES` ranges, and float64 beyond.
-``tests/lbl/model/test_loglik_kernel.py`` checks the error and the posterior shift
-(importance weights ``e^e`` over posterior draws) at the largest float32 size.
-
 Examples
 --------
 >>> import numpy as np
@@ -90,11 +47,7 @@ _F32_MIN_OL = 1e-25
 
 @dataclass(frozen=True)
 class _Screen:
-    """The ranges that can have a non-zero Gaussian term inside an envelope of parameters.
-
-    Columns are ordered ``[direct only | both | multipath only]``; the ranges
-    outside have the outlier term only.
-    """
+    """The ranges that can have a non-zero Gaussian term inside an envelope of parameters."""
 
     sigma_dp: float
     sigma_mp: float
@@ -279,10 +232,7 @@ class LoglikKernel:
     def pointwise(self, d0, sigma_dp, sigma_mp, w_dp, w_mp, w_ol):
         """Log-likelihood and class probabilities of every range, for each parameter set.
 
-        Always in float64: these are outputs, and PSIS-LOO needs them exact (a
-        range whose log-likelihood is the same in every draw must give exact
-        ties, which float32's rounding would break into steps of 1e-6); every
-        range is evaluated.
+        Always in float64 and over every range: PSIS-LOO needs exact ties.
 
         Parameters
         ----------
@@ -317,13 +267,6 @@ class LoglikKernel:
 
     def pointwise_moments(self, d0, sigma_dp, sigma_mp, w_dp, w_mp, w_ol, *, chunk=64):
         """Make the per-range pass after sampling: :meth:`pointwise` for many draws, with moments.
-
-        The same values as :meth:`pointwise` (float64), but each Gaussian term is
-        evaluated only where the screen of all the draws' envelope says it can be
-        non-zero (elsewhere it is exactly 0 in float64, see the module notes): on a
-        5,000-range beacon about 4,400 terms per draw instead of 10,000. The
-        class probabilities are reduced to their mean and sd over the draws as
-        they are made (never a draws x ranges x classes array).
 
         Parameters
         ----------

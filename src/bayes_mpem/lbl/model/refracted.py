@@ -1,48 +1,10 @@
 """Refracted LBL ranges: direct and multipath returns through a sound-speed profile.
 
-The straight-ray model of :mod:`bayes_mpem.lbl.model.geometry` turns geometry into ranges
-with straight lines; an LBL system measures travel times and turns them into
-ranges with one nominal sound speed ``c_nom``. Through a layered ocean
-(:class:`~bayes_mpem.acoustics.SoundSpeedProfile`) the reported one-way ranges are
-
-* direct path: ``c_nom * T_direct``, ``T_direct`` the one-way eigenray time;
-* triangle multipath (one leg direct, one reflected): ``c_nom * (T_direct +
-  T_bounce) / 2``; double bounce: ``c_nom * T_bounce``, ``T_bounce`` the
-  one-way time of the ray reflected once by the horizontal plane at depth
-  ``z_beacon - d0`` (:func:`~bayes_mpem.acoustics.surface_bounce_ray`).
-
-In a homogeneous medium with ``c_nom`` equal to its speed these are the
-straight-ray ranges (tested to 1e-9 m).
-
-Direct rays that turn. :func:`~bayes_mpem.acoustics.direct_ray` solves only
-rays without a turning point. Near the seafloor the speed grows with depth
-(pressure), the rays bend upward, and a vehicle at about the beacon's depth is
-reached by a ray that dips below both and turns: on the ABE-58-like survey
-through the WOA09 profile of the Central Indian Ridge, 9-34 % of each
-beacon's direct rays are of this kind. :func:`direct_times` solves them too,
-as two legs meeting at the turning depth; the ocean is
-taken as unbounded (the seafloor is not modelled), and a turning depth is
-searched only where the speed keeps increasing away from the ends and within
-the profile's knots. Pairs with no eigenray either way (for instance a speed
-maximum between the ends, or a turning depth beyond the profile) are invalid.
-
-Rays that do not exist. Where a ray is invalid the range it would give is NaN
-(:func:`lbl_ranges`). In the mixture model (:class:`RefractedBeaconGeometry`)
-such a range has zero density under that class: a range with no direct
-eigenray cannot be direct path, one with no multipath eigenray at the plane
-cannot be multipath, and one with neither can only be an outlier. The counts
-are reported (:meth:`RefractedBeaconGeometry.ray_counts`, and
-``EMResult.settings["refraction"]``), never dropped silently.
-
-Speed. The vehicle-beacon geometry is fixed during a fit, so the bounce time
-of every range is tabulated against the plane height ``d0`` on a grid
-(``PLANE_STEP`` m) with its analytic derivative ``dT/dd0 = 2 sqrt(1/c(z_p)**2 -
-p**2)`` and interpolated by cubic Hermite polynomials. Nodes are traced lazily,
-only where the fit looks, so a fit traces a few dozen planes of one ray per
-range. The interpolation error, measured on 2,000 random ABE-58-like rays
-through the WOA09 Central Indian Ridge profile for planes 2,300-2,600 m above a
-2,472 m beacon, is at most 0.06 mm of range at 10 m spacing (0.3 mm at 25 m,
-1.1 mm at 50 m).
+Reported one-way ranges are ``c_nom * T_direct`` (direct path), ``c_nom * (T_direct +
+T_bounce) / 2`` (triangle) or ``c_nom * T_bounce`` (double bounce). A range whose ray does
+not exist has zero density under that class (counted, never dropped). Bounce times are
+tabulated against ``d0`` and interpolated by cubic Hermite polynomials. Accuracy and cost:
+``docs/refraction.md``.
 """
 
 from __future__ import annotations
@@ -103,10 +65,6 @@ def lbl_ranges(ssp: SoundSpeedProfile, sound_speed: float, horizontal, z_vehicle
     direct : DirectRays, optional
         Precomputed :func:`direct_times` of the same pairs.
 
-    Returns
-    -------
-    RefractedRanges
-
     Raises
     ------
     ValueError
@@ -135,11 +93,7 @@ def lbl_ranges(ssp: SoundSpeedProfile, sound_speed: float, horizontal, z_vehicle
 # --------------------------------------------------------------------------- the model
 
 class _BounceTable:
-    """Bounce times of fixed ranges against plane height, traced lazily on a grid.
-
-    Node ``k`` is the plane ``d0 = d0_min + k * step`` above the beacon; each holds
-    the time, its ``d0`` derivative and validity of every range's bounce ray.
-    """
+    """Bounce times of fixed ranges against plane height, traced lazily on a grid."""
 
     def __init__(self, ssp, h, z_vehicle, z_beacon, d0_min, step=PLANE_STEP):
         self.ssp = ssp
@@ -177,11 +131,7 @@ class _BounceTable:
         return np.where(ok, v, np.nan), np.where(ok, dv, np.nan)
 
     def evaluate(self, d0, cols):
-        """Bounce time and ``d0`` derivative of the ranges ``cols`` at plane heights ``d0``.
-
-        ``d0`` broadcasts against ``cols`` (a scalar, or ``(W, 1)`` for ``W`` planes);
-        NaN where the ray is invalid at either node of the cell.
-        """
+        """Bounce time and ``d0`` derivative of the ranges ``cols`` at plane heights ``d0``."""
         d0 = np.asarray(d0, float)
         if d0.ndim == 0:  # the EM's case
             u = (float(d0) - self.d0_min) / self.step
@@ -204,12 +154,6 @@ class _BounceTable:
 @dataclass(frozen=True)
 class RefractedBeaconGeometry(BeaconGeometry):
     """A :class:`~bayes_mpem.lbl.model.beacon_geometry.BeaconGeometry` predicting through a profile.
-
-    ``direct`` is ``c_nom * T_direct`` (:data:`NO_RAY` where no direct eigenray
-    exists), and :meth:`multipath` is ``c_nom (T_direct + T_bounce(d0)) / 2``
-    (triangle) or ``c_nom T_bounce(d0)`` (double), ``NO_RAY`` where the ray does
-    not exist. ``h`` and ``dz`` keep the geometry; ``d0`` is still the height of
-    the reflecting plane above the beacon.
 
     Attributes
     ----------
@@ -252,10 +196,6 @@ class RefractedBeaconGeometry(BeaconGeometry):
         plane_step : float, default PLANE_STEP
             Grid spacing of the bounce table (m).
 
-        Returns
-        -------
-        RefractedBeaconGeometry
-
         Raises
         ------
         TypeError, ValueError
@@ -285,10 +225,6 @@ class RefractedBeaconGeometry(BeaconGeometry):
         Parameters
         ----------
         idx : array_like of int or bool
-
-        Returns
-        -------
-        RefractedBeaconGeometry
         """
         return dataclasses.replace(
             self, z=self.z[idx], h=self.h[idx], dz=self.dz[idx], direct=self.direct[idx],
@@ -341,11 +277,6 @@ class RefractedBeaconGeometry(BeaconGeometry):
     def invert_plane_height(self, path: str = "triangle", *, max_iter: int = 8,
                             atol: float = 1e-3):
         """Per-range plane height that makes each range a multipath (Newton, traced).
-
-        Starts from the straight-ray inversion with the refracted direct range,
-        and takes Newton steps on ``c_nom T(d0) = z`` with every range's own
-        plane, traced directly (not tabulated). NaN where no plane within the
-        physical bounds (above the vehicle and the beacon) fits to ``atol`` m.
 
         Parameters
         ----------

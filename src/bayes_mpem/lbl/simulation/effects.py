@@ -1,14 +1,8 @@
 """The effects a survey can hide: the shared vocabulary of the simulator and the diagnosis.
 
-:func:`bayes_mpem.lbl.simulation.simulate.simulate_survey` hides them in simulated data
-(``effects={"range_bias": 5.0, ...}``) and :func:`bayes_mpem.diagnose` names
-them in measured data. Most effects are common to all beacons (one clock, one
-sound speed, one sea surface, one navigation); magnitudes are the change from
-the first to the last ping where the effect drifts. Two belong to one beacon
-(:data:`PER_BEACON`): its own range bias (a transponder's turn-around time) and
-an error in its surveyed position. The simulator takes the beacon as the option
-``"beacon"``; the diagnosis tries them beacon by beacon and names each by a
-*term* ``"<effect>:<beacon>"`` (:func:`term`, :func:`split_term`).
+Magnitudes are the change from the first to the last ping where the effect drifts. The
+effects of :data:`PER_BEACON` belong to one beacon, named by a term ``"<effect>:<beacon>"``
+(:func:`term`, :func:`split_term`).
 """
 
 from __future__ import annotations
@@ -42,10 +36,6 @@ def term(name: str, beacon=None) -> str:
     beacon : str, optional
         The beacon of a :data:`PER_BEACON` effect.
 
-    Returns
-    -------
-    str
-
     Examples
     --------
     >>> term("beacon_bias", "2"), split_term("beacon_bias:2"), split_term("range_bias")
@@ -60,10 +50,6 @@ def split_term(t: str) -> tuple:
     Parameters
     ----------
     t : str
-
-    Returns
-    -------
-    tuple
     """
     name, _, beacon = t.partition(":")
     return name, (beacon or None)
@@ -75,10 +61,6 @@ def term_order(t: str) -> tuple:
     Parameters
     ----------
     t : str
-
-    Returns
-    -------
-    tuple
     """
     name, beacon = split_term(t)
     return EFFECTS.index(name), beacon or ""

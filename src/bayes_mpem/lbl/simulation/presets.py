@@ -1,9 +1,4 @@
-"""Survey presets of the LBL simulator: the ABE dive 58 survey and random surveys.
-
-:data:`ABE58` is the configuration of the paper's dive (beacons, noise, class
-weights, track); :func:`random_config` draws a plausible random one. Both are
-dictionaries of :func:`~bayes_mpem.lbl.simulation.simulate.simulate_survey`'s settings.
-"""
+"""Survey presets of the LBL simulator: the ABE dive 58 survey and random surveys."""
 
 from __future__ import annotations
 
@@ -139,10 +134,6 @@ def preset_config(preset: str, gen, n_cycles: int | None = None,
     n_cycles : int, optional
     overrides : dict, optional
         Preset entries to replace.
-
-    Returns
-    -------
-    dict
 
     Raises
     ------

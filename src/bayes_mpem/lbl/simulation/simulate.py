@@ -1,18 +1,5 @@
 """Simulated LBL surveys with known truth.
 
-A survey is a set of seafloor beacons, a vehicle track, and for every ping
-cycle one reply (or none) from each beacon. Each reply is, at random with the
-beacon's mixing weights, the direct path (Gaussian around the straight line),
-a multipath from a horizontal plane (by default the sea surface; Gaussian
-around the image-method prediction of :mod:`bayes_mpem.lbl.model.geometry`), or an
-outlier (uniform over the listening window).
-
-The simulator's assumptions are the paper's: straight rays, one sound speed,
-a static reflector, exact navigation, constant noise. With ``ssp=`` (a
-:class:`~bayes_mpem.acoustics.SoundSpeedProfile`) the rays are refracted
-instead (:mod:`bayes_mpem.lbl.model.refracted`) and the travel times are turned into
-ranges with a nominal sound speed, as an LBL system does.
-
 Examples
 --------
 >>> from bayes_mpem.lbl.simulation.simulate import simulate_survey
@@ -50,11 +37,9 @@ class Simulation:
     Attributes
     ----------
     survey : Survey
-        Validated input, exactly as a user's files would give it. The pings
-        table carries an extra ``true_class`` column (ignored by the fits).
+        Validated input, as a user's files would give it, plus a ``true_class`` column.
     truth : dict
-        Per beacon: ``d0`` (m above the beacon), ``plane_depth``,
-        ``sigma_dp``, ``sigma_mp``, ``weights`` ``{"dp", "mp", "ol"}``, ``path``.
+        Per beacon: ``d0``, ``plane_depth``, ``sigma_dp``, ``sigma_mp``, ``weights``, ``path``.
     labels : numpy.ndarray
         True class of every ping: ``"dp"``, ``"mp"``, ``"ol"`` or ``"no_reply"``.
     config : dict
@@ -67,12 +52,11 @@ class Simulation:
     config: dict = field(default_factory=dict, repr=False)
 
     def write(self, out_dir) -> dict:
-        """Write ``pings.csv``, ``beacons.csv`` and ``truth.json`` to ``out_dir``.
+        """Write ``pings.csv``, ``beacons.csv`` and ``truth.json`` to ``out_dir`` (created).
 
         Parameters
         ----------
         out_dir : str or pathlib.Path
-            Created if missing.
 
         Returns
         -------
@@ -125,82 +109,39 @@ def simulate_lbl(
         Depth of the reflecting plane (0 = the sea surface).
     path : {"triangle", "double"}
     p_no_reply : float, default 0.05
-        Probability that a ping gets no reply (empty range).
     window : tuple of float, default (1, 6000)
-        Listening window (m) for the uniform outliers.
+        Listening window (m) of the uniform outliers.
     beacon_offset : float, default 1
         Seconds between the interrogations of successive beacons in a cycle.
     effects : dict, optional
-        Departures from the paper's assumptions to hide in the data (the
-        vocabulary of :mod:`bayes_mpem.lbl.diagnosis`), ``{name: magnitude}``:
-
-        ``"range_bias"``
-            every true return (direct and multipath) is offset by this many m.
-        ``"sound_speed"``
-            true returns are scaled by ``1 + magnitude``.
-        ``"plane_drift"``
-            the reflecting plane's depth changes linearly in time by this many
-            m from the first to the last ping.
-        ``"second_reflector"``
-            depth (m) of a second plane above the vehicle; a fraction
-            ``effects.get("second_fraction", 0.15)`` of the replies, taken from
-            the direct path, become its (triangle) multipath, with the beacon's
-            multipath noise.
-        ``"early_outliers"``
-            the outlier fraction (replaces ``weights``' third entry, the
-            direct path absorbing the difference); outliers are uniform
-            between the window start and the ping's true arrival instead of
-            over the whole window (first-arrival detection).
-        ``"nav_drift"``
-            size (m) at the last ping of a horizontal navigation error growing
-            linearly in time from zero; the pings table reports the drifted
-            positions. Direction ``effects.get("nav_drift_direction", 45.0)``
-            degrees counter-clockwise from +x.
-        ``"beacon_bias"``
-            every true return of one beacon (``effects["beacon"]``, default
-            the first) is offset by this many m (its own turn-around time).
-        ``"beacon_position"``
-            the beacons table reports that beacon this many m away from where
-            it is, towards ``effects.get("beacon_position_direction", 45.0)``
-            degrees counter-clockwise from +x and
-            ``effects.get("beacon_position_dip", 0.0)`` degrees below the
-            horizontal (its truth records ``reported_offset``, east, north, down).
+        ``{name: magnitude}`` of :data:`~bayes_mpem.lbl.simulation.effects.EFFECTS`:
+        ``range_bias`` (m added to every true return), ``sound_speed`` (returns scaled by
+        ``1 + magnitude``), ``plane_drift`` (m, linear in time), ``second_reflector`` (depth of
+        a second plane taking ``second_fraction``, default 0.15, of the direct replies),
+        ``early_outliers`` (outlier fraction, uniform before the true arrival), ``nav_drift``
+        (m at the last ping, towards ``nav_drift_direction``, default 45 deg from +x),
+        ``beacon_bias`` and ``beacon_position`` (one beacon, ``effects["beacon"]``; see
+        :data:`~bayes_mpem.lbl.simulation.effects.EFFECT_OPTIONS`).
     rng : None, int or numpy.random.Generator
     ssp : SoundSpeedProfile, optional
-        Refract the rays through this profile (:mod:`bayes_mpem.lbl.model.refracted`):
-        a direct return is ``sound_speed * T_direct`` (one-way eigenray time,
-        turning below or above the ends where it has to), a multipath
-        ``sound_speed * (T_direct + T_bounce) / 2`` on the triangle path and
-        ``sound_speed * T_bounce`` on the double bounce, ``T_bounce`` the
-        one-way time of the ray reflected by the plane at ``plane_depth``
-        (both legs refracted). Noise, outliers and effects are applied as
-        without a profile (``effects["sound_speed"]`` scales on top of the
-        nominal speed). A reply drawn from a class whose eigenray does not
-        exist becomes an outlier (labelled ``"ol"``) and is counted in
-        ``truth[id]["no_ray"]``. The profile must reach the deepest beacon or
-        vehicle. Default: straight rays, exactly as without this option (same
-        random stream, same output).
+        Refract the rays through this profile (:mod:`bayes_mpem.lbl.model.refracted`); a reply
+        of a class with no eigenray becomes an outlier, counted in ``truth[id]["no_ray"]``.
+        Default: straight rays (same random stream as before the option).
     sound_speed : float, optional
-        Nominal speed (m/s) that turns travel times into ranges; only with
-        ``ssp``. Default: the profile's harmonic mean from the surface down to
-        the mean beacon depth (:func:`~bayes_mpem.acoustics.profile_checks.nominal_sound_speed`),
-        which turns vertical travel times to the beacons into exact depths.
+        Nominal speed (m/s) that turns travel times into ranges; only with ``ssp``. Default:
+        :func:`~bayes_mpem.acoustics.profile_checks.nominal_sound_speed` at the mean beacon depth.
 
     Returns
     -------
     Simulation
-        ``truth`` gains ``"effects"``, ``{name: magnitude}`` as realised
-        (for ``early_outliers`` the fraction of replies that are outliers);
-        with ``ssp`` also ``"sound_speed"`` (the nominal speed), ``"ssp"``
-        (the profile's source) and ``"no_ray"`` (replies per class turned
-        into outliers for want of an eigenray).
+        ``truth`` also holds ``"effects"`` as realised, and with ``ssp`` ``"sound_speed"``,
+        ``"ssp"`` and ``"no_ray"``.
 
     Raises
     ------
     ValueError
-        For an unknown effect or an impossible magnitude; ``sound_speed``
-        without ``ssp``; a profile that does not reach the beacons or the
-        vehicle; a reflector below the vehicle or the beacon with ``ssp``.
+        An unknown effect or impossible magnitude; ``sound_speed`` without ``ssp``; a profile
+        that does not reach the beacons or the vehicle; a reflector below them with ``ssp``.
     TypeError
         ``ssp`` is not a :class:`~bayes_mpem.acoustics.SoundSpeedProfile`.
     """
@@ -259,12 +200,7 @@ def simulate_lbl(
 
 
 def _model_ranges(refr, h, z, depth, d0_t, path, second):
-    """Noise-free direct, multipath and second-reflector ranges, and the direct rays.
-
-    Straight rays when ``refr`` is None, else refracted through ``refr = (profile,
-    nominal speed)`` (NaN where no eigenray exists); ``second`` is the second
-    reflector's depth or None.
-    """
+    """Noise-free direct, multipath and second-reflector ranges, and the direct rays."""
     dz = depth - z
     rays = mp2 = None
     if refr is None:
@@ -285,12 +221,7 @@ def _model_ranges(refr, h, z, depth, d0_t, path, second):
 
 
 def _draw_ranges(gen, w4, model, sigma_mp, opts):
-    """Draw each ping's class and range, in the simulator's fixed order of random draws.
-
-    Returns the range (NaN for no reply or a class without an eigenray, which becomes
-    an outlier), the labels (``dp``, ``mp``, ``mp2``, ``ol``, ``no_reply``), and per
-    class the replies turned into outliers for want of an eigenray.
-    """
+    """Draw each ping's class and range, in the simulator's fixed order of random draws."""
     direct, mp, mp2, _ = model
     eff, n, window = opts["eff"], direct.size, opts["window"]
     scale, bias = opts["scale"], opts["bias"]
@@ -397,29 +328,21 @@ def simulate_survey(
     Parameters
     ----------
     preset : {"abe58", "random"}
-        ``"abe58"``: four beacons at the recorded depths of the paper's
-        Table II (2392, 2491, 2395, 2472 m), ~5,000 replies, sigma_DP = 3.97 m
-        and sigma_MP of 4.2, 10.5, 14.0 and 6.9 m, surface bounce on the
-        triangle path. ``"random"``: 3-5 beacons, water 800-4500 m deep, the
-        vehicle anywhere from near the bottom to mid-water, weights,
-        noise and layout drawn from ``rng``.
+        ``"abe58"``: the paper's dive (:data:`~bayes_mpem.lbl.simulation.presets.ABE58`);
+        ``"random"``: a plausible configuration drawn from ``rng``.
     rng : None, int or numpy.random.Generator
-        The only source of randomness (geometry of ``"random"`` and the replies).
     path : {"triangle", "double"}
         Multipath geometry used to generate the ranges.
     n_cycles : int, optional
         Number of ping cycles (one interrogation of every beacon each).
     effects : dict, optional
-        Departures from the paper's assumptions, ``{name: magnitude}``; see
-        :func:`simulate_lbl`.
+        See :func:`simulate_lbl`.
     ssp : SoundSpeedProfile, optional
-        Refracted rays through this profile; see :func:`simulate_lbl`.
+        See :func:`simulate_lbl`.
     sound_speed : float, optional
-        Nominal speed that turns travel times into ranges (only with ``ssp``;
-        default: the harmonic mean down to the mean beacon depth).
+        See :func:`simulate_lbl`.
     **overrides
-        Replace any preset entry (``weights``, ``sigma_mp``, ``sigma_dp``,
-        ``p_no_reply``, ``window``, ``plane_depth``, ``altitude``, ...).
+        Replace any preset entry (``weights``, ``sigma_mp``, ``plane_depth``, ...).
 
     Returns
     -------

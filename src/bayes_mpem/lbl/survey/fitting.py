@@ -1,10 +1,4 @@
-"""Fit every beacon of a survey and write the results.
-
-:func:`fit` is what ``bayes-mpem fit`` calls: it validates the input, fits
-each beacon on its own (the paper's practice) with the mixture EM or the
-paper's EM, and returns a :class:`SurveyFit` that writes ``summary.json``
-and ``classified.csv`` (one row per input row, nothing dropped).
-"""
+"""Fit every beacon of a survey and write the results."""
 
 from __future__ import annotations
 
@@ -72,12 +66,7 @@ class SurveyFit:
             self.skipped)
 
     def summary(self) -> dict:
-        """JSON-ready summary: per-beacon parameters, counts, skipped beacons.
-
-        Returns
-        -------
-        dict
-        """
+        """JSON-ready summary: per-beacon parameters, counts, skipped beacons."""
         beacons = {}
         for bid, res in self.results.items():
             d = res.to_dict()
@@ -103,12 +92,7 @@ class SurveyFit:
         }
 
     def to_dict(self) -> dict:
-        """Return the content of ``summary.json`` (the same as :meth:`summary`).
-
-        Returns
-        -------
-        dict
-        """
+        """Return the content of ``summary.json`` (the same as :meth:`summary`)."""
         return self.summary()
 
     def table(self) -> pd.DataFrame:
@@ -137,12 +121,7 @@ class SurveyFit:
         return pd.DataFrame(rows)
 
     def format_table(self) -> str:
-        """Format the :meth:`table` as aligned text for a terminal.
-
-        Returns
-        -------
-        str
-        """
+        """Format the :meth:`table` as aligned text for a terminal."""
         t = self.table()
         lines = [f"{'beacon':>6} {'d0 (m)':>11} {'sigma_MP (m)':>12} {'depth (m)':>10} "
                  f"{'plane (m)':>9} {'DP':>6} {'MP':>6} {'OL':>6} {'n':>6} {'path':>8} "
@@ -157,9 +136,6 @@ class SurveyFit:
 
     def write(self, out_dir, *, table_format: str = "csv") -> dict:
         """Write ``classified.csv``, ``history.json`` and, last, ``summary.json`` to ``out_dir``.
-
-        Through :func:`bayes_mpem.io.results.writing`: all or nothing, ``summary.json``
-        (the completion marker) last.
 
         Parameters
         ----------

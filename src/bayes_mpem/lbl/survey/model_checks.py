@@ -1,43 +1,11 @@
 """Model checks of one beacon's fit: whether the paper's model describes these ranges.
 
-A fit can be confident and wrong: an effect the model leaves out (a range bias,
-a wrong sound speed, a drifting plane or navigation, a wrong beacon position)
-moves the plane while its interval stays narrow. These checks compare what the
-fitted model predicts with what the ranges show, in either direction, one
-beacon at a time:
-
-``direct_path_offset``
-    The direct-path ranges (weighted by their class probability) should scatter
-    around the straight line to the beacon: their mean residual, in standard
-    errors ``sigma_DP / sqrt(n_eff)``.
-``direct_path_scatter``
-    Their spread should match the scatter assumed (only when ``sigma_DP`` is
-    fixed by the user; a fitted one matches by construction).
-``direct_path_trend``, ``multipath_trend``
-    The residuals of the confident direct-path (multipath) ranges, binned against
-    time, range, elevation, vehicle depth and bearing, should have bin means
-    near zero (:func:`binned_trend`).
-``outliers_before_direct``
-    The ranges called outliers should be spread over the listening window: the
-    share arriving before the direct path against the share a uniform window
-    predicts (a first-arrival detector puts them all before it).
-``plane_off_surface``
-    The reflecting plane should be the sea surface: a plane more than
-    :data:`PLANE_TOLERANCE` m above or below it is flagged.
-
-A check is *flagged* when its test is beyond :data:`Z_LIMIT` standard errors
-(or, for the binned trends, its p-value below ``alpha`` over the number of
-trend checks, Bonferroni) and, for the plane, beyond the tolerance. The
-numbers and the flags go into the results (``summary.json``), and a
-:class:`~bayes_mpem.exceptions.ModelCheckWarning` names the misfit and points
-to ``bayes-mpem diagnose``, which fits the effects themselves. The false-alarm
-rate on clean surveys and what the checks catch are measured by
-``benchmarks/model_checks.py`` (``docs/model-checks.md``).
-
-The checks compare the observed residuals with their distribution under the
-fitted parameters (a plug-in predictive check; for a posterior, at its mean
-and with its class probabilities). With hundreds of ranges per class the
-parameters' own uncertainty is small next to the scatter of the statistics.
+Each check compares what the fitted model predicts with what the ranges show (a plug-in
+predictive check at the fit's parameters): the direct-path offset and scatter, binned trends
+of the residuals, the outliers' timing, and the plane against the sea surface. A check is
+flagged beyond :data:`Z_LIMIT` standard errors (the trends: Bonferroni at ``alpha``); a
+:class:`~bayes_mpem.exceptions.ModelCheckWarning` then points to ``bayes-mpem diagnose``.
+The checks and their measured false-alarm rate: ``docs/model-checks.md``.
 """
 
 from __future__ import annotations
@@ -224,11 +192,8 @@ def trend_checks(residuals, sigmas, resp, cov, *, n_bins=10, alpha=TREND_ALPHA, 
     Returns
     -------
     list of dict
-        The bin means are tested against the class's mean residual (an offset is
-        :func:`direct_path_checks`' business): ``name`` (``direct_path_trend`` or
-        ``multipath_trend``), ``class``,
-        ``against``, ``chi2``, ``dof``, ``p_value``, ``value`` (largest absolute bin mean,
-        m), ``flagged``, ``message``.
+        ``name``, ``class``, ``against``, ``chi2``, ``dof``, ``p_value``, ``value`` (largest
+        absolute bin mean, m, about the class's mean residual), ``flagged``, ``message``.
     """
     found = []
     for cls, r in residuals.items():
@@ -333,13 +298,7 @@ def check_beacon(geom: BeaconGeometry, time, depth, *, d0, sigma_dp, sigma_mp, r
     plane_interval : tuple of float, optional
         The plane depth's credible interval (a posterior).
     ex, ey : numpy.ndarray, optional
-        Vehicle minus beacon east and north (for the bearing); default from ``h``
-        alone (bearing 0).
-
-    Returns
-    -------
-    list of dict
-        The checks, flagged or not.
+        Vehicle minus beacon east and north, for the bearing (default: bearing 0).
     """
     r_dp = geom.z - geom.direct
     r_mp = geom.z - geom.multipath(d0, path)
@@ -361,19 +320,12 @@ def check_fit(data, result, *, plane_interval=None, params=None, resp=None) -> l
     ----------
     data : BeaconData
     result : EMResult
-        The fit (its geometry, path, sigma_DP setting, and by default its
-        parameters and class probabilities).
     plane_interval : tuple of float, optional
         The plane depth's credible interval.
     params : dict, optional
-        ``d0``, ``sigma_dp``, ``sigma_mp`` to use instead of the result's (a
-        posterior's means).
+        ``d0``, ``sigma_dp``, ``sigma_mp`` instead of the result's (a posterior's means).
     resp : numpy.ndarray, optional
-        Class probabilities to use instead of the result's.
-
-    Returns
-    -------
-    list of dict
+        Class probabilities instead of the result's.
     """
     geom = BeaconGeometry.from_data(data)
     p = params or {"d0": result.d0, "sigma_dp": result.sigma_dp, "sigma_mp": result.sigma_mp}
@@ -386,21 +338,12 @@ def check_fit(data, result, *, plane_interval=None, params=None, resp=None) -> l
 
 
 def check_posterior(data, result) -> list:
-    """Run :func:`check_beacon` on a beacon's posterior (a :class:`PosteriorResult`).
-
-    At the posterior means of ``d0``, ``sigma_DP`` and ``sigma_MP``, with the
-    posterior mean class probabilities of every range; the plane is checked with
-    its credible interval (flagged when the whole interval is more than
-    :data:`PLANE_TOLERANCE` m from the sea surface).
+    """Run :func:`check_beacon` at a beacon's posterior means, the plane with its interval.
 
     Parameters
     ----------
     data : BeaconData
     result : PosteriorResult
-
-    Returns
-    -------
-    list of dict
     """
     s = result.summary
     depth = float(data.position[2])
@@ -420,8 +363,7 @@ def checks_record(checks) -> dict:
     Returns
     -------
     dict
-        ``flags`` (the messages of the flagged checks, with the advice when any),
-        ``checks`` (all of them).
+        ``flags`` (messages of the flagged checks, and the advice) and ``checks``.
     """
     msgs = flagged(checks)
     return {"flags": msgs + ([ADVICE] if msgs else []), "checks": list(checks)}
@@ -433,10 +375,6 @@ def flagged(checks) -> list:
     Parameters
     ----------
     checks : list of dict
-
-    Returns
-    -------
-    list of str
     """
     out, trends = [], {}
     for c in checks:

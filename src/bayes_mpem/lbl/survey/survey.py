@@ -1,11 +1,4 @@
-"""The per-beacon survey loop and the tables every survey result shares.
-
-:func:`fit`, :func:`sample` and :func:`compare` all work beacon by beacon:
-:func:`over_beacons` is their one loop (leave out beacons with too few
-replies, run the per-beacon analysis on the others, leave out with a reason
-any beacon whose analysis cannot start). :func:`classified_table` and
-:func:`beacons_table` build the parts of their output files they share.
-"""
+"""The per-beacon survey loop and the tables every survey result shares."""
 
 from __future__ import annotations
 
@@ -29,10 +22,6 @@ def check_min_pings(min_pings) -> int:
     ----------
     min_pings : int
 
-    Returns
-    -------
-    int
-
     Raises
     ------
     ValueError
@@ -49,11 +38,7 @@ def check_min_pings(min_pings) -> int:
 
 
 class Failure(str):
-    """The reason a beacon's fit failed (not finite): its rows are labelled ``failed``.
-
-    A ``str`` (it is written into ``summary.json``'s ``skipped`` like any reason)
-    that :func:`classified_table` tells apart from a beacon merely left unfitted.
-    """
+    """The reason a beacon's fit failed (not finite): its rows are labelled ``failed``."""
 
 
 def non_finite(document, where: str = "") -> list:
@@ -64,10 +49,6 @@ def non_finite(document, where: str = "") -> list:
     document : dict, list or number
     where : str, optional
         Prefix of the names.
-
-    Returns
-    -------
-    list of str
 
     Examples
     --------
@@ -86,10 +67,6 @@ def non_finite(document, where: str = "") -> list:
 
 def culprit_rows(survey: Survey, data, *, factor: float = 100.0) -> list:
     """Rows of a beacon whose values stand far out from the others (what breaks a fit).
-
-    A row stands out when its range minus the straight-line distance to the
-    beacon, or its vehicle position, lies more than ``factor`` robust standard
-    deviations (median absolute deviation, at least 1 m) from the beacon's median.
 
     Parameters
     ----------
@@ -119,10 +96,6 @@ def beacons_table(survey: Survey) -> dict:
     Parameters
     ----------
     survey : Survey
-
-    Returns
-    -------
-    dict
     """
     return {b: {k: float(v) for k, v in row.items()}
             for b, row in survey.beacons[["x", "y", "depth"]].iterrows()}
@@ -248,11 +221,9 @@ def skip_beacon(skipped: dict, beacon: str, why: str, *, stacklevel: int = 3) ->
 def over_beacons(survey: Survey, min_pings: int, analyse, *, skip_on=(), check=None):
     """Run ``analyse`` on every beacon with enough replies: the one survey loop.
 
-    Beacons with fewer than ``min_pings`` replies are left out first (each with
-    a :class:`SkippedBeaconWarning`, "left unfitted"); then ``analyse(data)``
-    runs on the others in table order. A beacon whose analysis raises one of
-    ``skip_on`` is left out too, with the exception's message as the reason
-    ("left unsampled"), instead of stopping the survey.
+    Beacons with fewer than ``min_pings`` replies are left out first, then ``analyse(data)``
+    runs on the others in table order; one that raises one of ``skip_on`` is left out with
+    the exception's message as the reason.
 
     Parameters
     ----------
@@ -273,8 +244,7 @@ def over_beacons(survey: Survey, min_pings: int, analyse, *, skip_on=(), check=N
     results : dict
         ``{beacon: result}`` in table order.
     skipped : dict
-        ``{beacon: reason}``: the beacons with too few replies first, then those
-        ``skip_on`` left out.
+        ``{beacon: reason}``.
 
     Warns
     -----

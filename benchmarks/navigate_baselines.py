@@ -16,6 +16,12 @@ the dead-reckoned pings and the beacons only, never the true positions:
 * *gate*: the classic direct-path smoother, replies beyond 3 sigma of the
   direct path gated out (``model="gate"``);
 * *Huber*: every reply the direct path with Huber's loss (``model="huber"``);
+* *trilateration*, *EKF + RTS (true sigma)*, *EKF + RTS (estimated sigma)*: the
+  reference navigators of ``navigate_reference.py`` (short-window least-squares
+  fixes; an extended Kalman filter on position, heading bias and speed scale with
+  a Rauch-Tung-Striebel smoother, at the true sigma_DP or at its own EM
+  estimate; both gate residuals at 4 sigma and take every kept reply as the
+  direct path);
 * *multipath as outliers*: the mixture without the multipath class
   (``multipath="outlier"``);
 * *this model*: ``navigate`` with its defaults (multipath as signal, path auto);
@@ -42,10 +48,12 @@ from bayes_mpem.lbl.navigate import navigate, simulate_dive
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _report import machine, write_section  # noqa: E402
+from navigate_reference import ekf_rts, trilaterate  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 PRESETS = ("abe58", "random")
-METHODS = ("dead reckoning", "Gaussian", "gate", "Huber", "multipath as outliers",
+REFERENCE = ("trilateration", "EKF + RTS (true sigma)", "EKF + RTS (estimated sigma)")
+METHODS = ("dead reckoning", "Gaussian", "gate", "Huber", *REFERENCE, "multipath as outliers",
            "this model", "oracle")
 CHI2_95 = 5.991  # 95 % quantile of chi-square with 2 degrees of freedom
 
@@ -73,6 +81,8 @@ def measure(sim, method):
         return {"rmse": _rmse(err), "rmse_blocked": _rmse(err[blocked]) if blocked.any()
                 else np.nan, "plane": np.nan, "labels3": np.nan, "labels_dp": np.nan,
                 "coverage": np.nan, "n_cov": 0, "seconds": 0.0, "corrected": False}
+    if method in REFERENCE:
+        return _reference(sim, method, truth, blocked)
     t0 = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -92,6 +102,27 @@ def measure(sim, method):
             "labels_dp": float(np.mean((pred == "dp") == (lab == "dp"))),
             "coverage": float(np.mean(m2 < CHI2_95)), "n_in": int(np.sum(m2 < CHI2_95)),
             "n_cov": int(m2.size), "seconds": sec, "corrected": nav.corrected}
+
+
+def _reference(sim, method, truth, blocked):
+    """The reference navigators of navigate_reference.py (direct path only, no classes)."""
+    from bayes_mpem.lbl.navigate.dive import build_dive
+
+    t0 = time.perf_counter()
+    dive = build_dive(sim.survey)
+    if method == "trilateration":
+        track, cov = trilaterate(dive)
+    else:
+        sigma = sim.simulation.truth[next(iter(sim.simulation.truth))]["sigma_dp"]
+        track, cov, _ = ekf_rts(dive, sigma=sigma if "true" in method else None)
+    sec = time.perf_counter() - t0
+    err = track - truth
+    ok = np.all(np.isfinite(cov), axis=(1, 2)) & (cov[:, 0, 0] < 1e10)
+    m2 = np.einsum("ka,ka->k", err[ok], np.linalg.solve(cov[ok], err[ok][..., None])[..., 0])
+    return {"rmse": _rmse(err), "rmse_blocked": _rmse(err[blocked]) if blocked.any()
+            else np.nan, "plane": np.nan, "labels3": np.nan, "labels_dp": np.nan,
+            "coverage": float(np.mean(m2 < CHI2_95)), "n_in": int(np.sum(m2 < CHI2_95)),
+            "n_cov": int(m2.size), "seconds": sec, "corrected": True}
 
 
 def _rmse(err):

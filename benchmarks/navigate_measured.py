@@ -74,7 +74,7 @@ def s05():
 SURVEYS = {"SeaGap (4 transponders)": seagap, "OBSrange CC03 (1 beacon)": cc03,
            "OBSrange S05 (1 beacon)": s05}
 METHODS = {"Gaussian smoother": {"model": "gaussian"}, "gate": {"model": "gate"},
-           "this model": {}}
+           "this model": {}, "range scale": {"range_scale": True}}
 
 
 def run(pings, beacons, *, heading_bias, q, seed, heading_sd=5.0):
@@ -122,15 +122,19 @@ def main(argv=None):
             f"`python benchmarks/navigate_measured.py` on {dt.date.today()} ({machine()}); "
             f"seeds 0 to {len(seeds) - 1} of the dead reckoning's errors, medians over them. "
             "RMSE: horizontal error of the track against the ship's GPS; coverage: epochs "
-            "whose 95 % ellipse holds the GPS position; outliers: replies this model labels "
+            "whose 95 % ellipse holds the GPS position; with the range scale: `navigate(..., "
+            "range_scale=True)`, a sound-speed scale estimated with the track; outliers: "
+            "replies this model labels "
             "outliers (seed 0); not corrected: runs with a `NavigationWarning` stretch.", "",
             "| survey | dead reckoning | ranges | epochs | DR RMSE (m) | Gaussian RMSE (m) | "
-            "gate RMSE (m) | this model RMSE (m) | this model coverage | outliers | "
-            "not corrected |", "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+            "gate RMSE (m) | this model RMSE (m) | this model coverage | with the range scale: "
+            "RMSE (m) | coverage | outliers | not corrected |",
+            "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for sname, cname, n, k, line, flagged, runs, n_ol in rows:
         text.append(f"| {sname} | {cname} | {n:,} | {k:,} | {line['dead reckoning'][0]:.2f} | "
                     f"{line['Gaussian smoother'][0]:.2f} | {line['gate'][0]:.2f} | "
-                    f"{line['this model'][0]:.2f} | {line['this model'][1]:.0%} | {n_ol} | "
+                    f"{line['this model'][0]:.2f} | {line['this model'][1]:.0%} | "
+                    f"{line['range scale'][0]:.2f} | {line['range scale'][1]:.0%} | {n_ol} | "
                     f"{flagged}/{runs} |")
     print("\n".join(text))
     if not args.quick:

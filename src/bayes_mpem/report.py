@@ -84,7 +84,8 @@ def write_figures(result, out_dir, *, beacon=None, truth=None, general=True,
         Beacon of the single-beacon figures of a fit (:func:`figure_beacon`).
     truth : dict or pandas.DataFrame, optional
         ``Simulation.truth``, marked where a figure can show it (fits, posteriors);
-        for a navigation, the true track (``DiveSimulation.true_track``).
+        for a navigation, the true track (``DiveSimulation.true_track``); for a
+        GNSS-A array, a campaign's ``truth.json`` (the true positions and sound speed).
     general : bool, default True
         Fits: also write the method-independent figures (Figs. 1, 5, 8 and 12).
     sensitivity : dict, optional
@@ -117,10 +118,19 @@ def write_figures(result, out_dir, *, beacon=None, truth=None, general=True,
     if isinstance(result, SurveyInResult):
         if not result.summary.get("transponders"):
             return []
-        return [_save(survey_in_plots.plot_survey_map(result), out / "survey_map.png"),
-                _save(survey_in_plots.plot_residuals(result), out / "residuals.png"),
-                _save(survey_in_plots.plot_residual_histogram(result),
-                      out / "residual_histogram.png")]
+        paths = [_save(survey_in_plots.plot_survey_map(result), out / "survey_map.png"),
+                 _save(survey_in_plots.plot_residuals(result), out / "residuals.png"),
+                 _save(survey_in_plots.plot_residual_histogram(result),
+                       out / "residual_histogram.png")]
+        if "array_centre" in result.summary:  # GNSS-A: the array, its sound speed, per transponder
+            truth = truth if isinstance(truth, dict) and "array_centre" in truth else None
+            paths += [_save(survey_in_plots.plot_array_map(result, truth=truth),
+                            out / "array_map.png"),
+                      _save(survey_in_plots.plot_sound_speed(result, truth=truth),
+                            out / "sound_speed.png"),
+                      _save(survey_in_plots.plot_residuals_by_transponder(result),
+                            out / "residuals_by_transponder.png")]
+        return paths
     if isinstance(result, (Navigation, NavigationRecord)):
         return [_save(nav_plots.plot_nav_track(result, truth=truth), out / "nav_track.png"),
                 _save(nav_plots.plot_nav_ranges(result), out / "nav_ranges.png"),

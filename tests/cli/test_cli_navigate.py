@@ -1,10 +1,12 @@
 import json
 import shutil
+import warnings
 
 import pandas as pd
 import pytest
 
 from bayes_mpem.cli import main
+from bayes_mpem.exceptions import NavigationWarning
 
 
 @pytest.fixture(scope="module")
@@ -114,3 +116,41 @@ def test_plot_draws_a_navigate_folder_and_refuses_unknown_ones(dive_files, tmp_p
         err = capsys.readouterr().err
         assert msg in err and "Traceback" not in err
         assert not (tmp_path / f"{name}_figs").exists()
+
+
+@pytest.fixture(scope="module")
+def ship_files(tmp_path_factory):
+    from bayes_mpem.lbl.navigate.simulate import simulate_ship
+
+    out = tmp_path_factory.mktemp("ship")
+    simulate_ship(rng=3, n_cycles=400).write(out)
+    return out
+
+
+@pytest.mark.parametrize("extra", [[], ["--sigma-dp", "0.2"]])
+def test_navigate_staggered_single_range_schedule(ship_files, tmp_path, capsys, extra):
+    """One reply per epoch, beacons in turn, a ship at 8 m: no internal error, the scale and
+    every quality flag of summary.json printed."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NavigationWarning)
+        assert main(["navigate", str(ship_files / "pings.csv"), "--beacons",
+                     str(ship_files / "beacons.csv"), "--out", str(tmp_path), *extra]) == 0
+    out = capsys.readouterr().out
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert "sigma_DP" in out and "quality flags" in out
+    for b in summary["beacons"].values():
+        for flag in b["flags"] + [b.get("reason") or ""]:
+            assert flag in out
+    assert summary["information"] in out
+    assert 0.15 < summary["sigma_dp"]["estimate"] < 0.25
+
+
+def test_navigate_convergence_advice_names_its_options(ship_files, tmp_path, capsys):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NavigationWarning)
+        assert main(["navigate", str(ship_files / "pings.csv"), "--beacons",
+                     str(ship_files / "beacons.csv"), "--out", str(tmp_path), "--max-iter", "2",
+                     "--tol", "1e-6"]) == 0
+    cap = capsys.readouterr()
+    assert "ConvergenceWarning" in cap.err and "(--max-iter)" in cap.err and "(--tol)" in cap.err
+    assert "did NOT converge: raise --max-iter or loosen --tol" in cap.out

@@ -86,8 +86,8 @@ def test_seagap_geometry_and_refraction_move_the_depths_towards_seagap_s_own():
     pings, beacons = raw.to_pings()
     from bayes_mpem.survey_in.survey import locate_survey
 
-    before = locate_survey(raw).summary
-    after_res = locate_survey(raw, ssp="survey", speed_intervals=15)
+    before = locate_survey(raw, one_at_a_time=True).summary
+    after_res = locate_survey(raw, ssp="survey", speed_intervals=15, one_at_a_time=True)
     after = after_res.summary
     for tid, b in beacons.set_index("beacon").iterrows():
         d0 = before["transponders"][str(tid)]["depth"]["mean"] - b["depth"]

@@ -58,10 +58,17 @@ def add_navigate(sub) -> None:
                    help="prior sd of the speed scale (default 0.05)")
     p.add_argument("--sigma-dp", type=opt.positive, default=None, metavar="S",
                    help="fix sigma_DP, m (default: estimated)")
+    p.add_argument("--range-scale", action="store_true",
+                   help="also estimate a range scale (a sound-speed error), prior sd 0.01")
     p.add_argument("--min-pings", type=opt.at_least(1), default=30, metavar="N",
                    help="beacons with fewer replies get no multipath class (default 30)")
     p.add_argument("--max-sd", type=opt.positive, default=10.0, metavar="M",
                    help="flag epochs whose position sd stays above this, m (default 10)")
+    p.add_argument("--max-iter", type=opt.at_least(1), default=300, metavar="N",
+                   help="most ECM iterations (default 300)")
+    p.add_argument("--tol", type=opt.positive, default=1e-3, metavar="M",
+                   help="convergence: no position, plane height or scale moves more than "
+                        "this in an iteration, m (default 0.001)")
     p.add_argument("--seed", type=opt.seed, default=0, help="random seed (default 0)")
     p.add_argument("--figures", action="store_true", help="also write the figures")
 
@@ -157,7 +164,9 @@ def navigate_kwargs(args) -> dict:
     return dict(dead_reckoning=args.dead_reckoning, multipath=args.multipath, model=args.model,
                 path=args.path, dr_noise=args.dr_noise, start_sd=args.start_sd,
                 heading_sd=args.heading_sd, scale_sd=args.scale_sd, sigma_dp=args.sigma_dp,
-                min_pings=args.min_pings, max_sd=args.max_sd, rng=args.seed)
+                range_scale=args.range_scale,
+                min_pings=args.min_pings, max_sd=args.max_sd, max_iter=args.max_iter,
+                tol=args.tol, rng=args.seed)
 
 
 def cmd_navigate(args) -> int:

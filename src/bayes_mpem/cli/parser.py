@@ -21,7 +21,7 @@ import warnings
 from .. import __version__
 from ..exceptions import InputError
 from ..lbl.model.paths import PATH_CHOICES
-from . import navigate, stream
+from . import gnssa, navigate, stream
 from . import options as opt
 from .errors import OptionError
 
@@ -101,6 +101,7 @@ def _add_demo_plot_simulate(sub):
                    help="hide an effect in the data, e.g. range_bias=5 (repeatable; names as "
                         "in 'bayes-mpem diagnose')")
     navigate.add_simulate_navigation(p)
+    gnssa.add_simulate_gnssa(p)
 
 
 def _add_fit_diagnose(sub):
@@ -148,6 +149,9 @@ def _add_locate(sub):
     p.add_argument("--out", required=True, metavar="DIR")
     p.add_argument("--figures", action="store_true",
                    help="also write the figures (map, residuals; as 'bayes-mpem plot' does)")
+    p.add_argument("--one-at-a-time", action="store_true",
+                   help="SeaGap: locate each transponder on its own (its own sound speed) "
+                        "instead of the array together with its centre")
     p.add_argument("--no-lag-check", action="store_true",
                    help="deck-box logs: do not test whether a lag along the track would fit "
                         "better (a few tenths of a second)")
@@ -221,6 +225,9 @@ def _add_sample_compare(sub):
 
 def _simulate_handler(args, cmd_simulate):
     """``simulate`` writes a survey, or a dive with ``--navigation``; refuse mixed options."""
+    chosen = gnssa.gnssa_handler(args)  # --gnssa: a GNSS-A campaign
+    if chosen is not None:
+        return chosen
     if args.navigation:
         return navigate.cmd_simulate_navigation
     given = [o for o in navigate.NAVIGATION_ONLY if getattr(args, o) is not None]

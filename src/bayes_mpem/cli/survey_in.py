@@ -40,19 +40,29 @@ def locate_kwargs(args) -> dict:
     Raises ``OptionError`` for options that do not go together (``--seed`` without ``--sample``).
     """
     _check_sample_options(args)
-    if getattr(args, "format", None) in ARRAY_FORMATS:
+    fmt = getattr(args, "format", None)
+    one = bool(getattr(args, "one_at_a_time", False))
+    if one and fmt != "seagap":
+        raise OptionError(f"--one-at-a-time: for SeaGap surveys (a {fmt} survey is "
+                          + ("located as an array)" if fmt in ARRAY_FORMATS else
+                             "located one transponder at a time anyway)"))
+    if fmt in ARRAY_FORMATS or (fmt == "seagap" and not one):
         given = [name for name, v in (("--tat", args.tat is not None),
                                       ("--fit-tat", args.fit_tat), ("--fit-lag", args.fit_lag),
                                       ("--sample", args.sample)) if v]
         if given:
-            raise OptionError(f"{', '.join(given)}: not for a {args.format} array survey (its "
+            also = ("; add --one-at-a-time to locate each transponder on its own"
+                    if fmt == "seagap" else "")
+            raise OptionError(f"{', '.join(given)}: not for a {fmt} array survey (its "
                               "travel times are corrected for the delays; the array's "
-                              "posterior is not sampled yet)")
+                              f"posterior is not sampled yet){also}")
         return dict(ci=args.ci, outliers=args.outliers, ssp=args.ssp,
                     speed_intervals=args.speed_intervals, sample=None)
     model = dict(tat=args.tat, fit_tat=args.fit_tat, ci=args.ci, outliers=args.outliers,
                  ssp=args.ssp, speed_intervals=args.speed_intervals,
                  lag_check=not getattr(args, "no_lag_check", False))
+    if one and not args.sample:  # the sampler locates one transponder at a time anyway
+        model["one_at_a_time"] = True
     if args.fit_lag:
         if args.sample:
             raise OptionError("--fit-lag with --sample is not implemented: the posterior has "
@@ -128,6 +138,8 @@ def cmd_locate(args) -> int:
         print(f"transponder {tid} not located: {why}")
     print(f"{summary['n_skipped_lines']} lines skipped (reasons in classified.csv)")
     written = [paths["summary"], paths["classified"]]
+    if "solution" in paths:  # an array: the plain-text solution
+        written.append(paths["solution"])
     if args.figures:
         written += write_figures(result, out)
     print("\n".join(f"wrote {p}" for p in written))

@@ -205,3 +205,194 @@ def plot_residual_histogram(result, *, fig=None):
     ax.legend(title="class", fontsize="small")
     ax.set_title("Residual histogram")
     return fig
+
+
+# ------------------------------------------------------------------ arrays (GNSS-A)
+
+
+def _ci(summary):
+    """Return the interval probability of a summary (its transponders')."""
+    return next(iter(summary["transponders"].values())).get("ci", 0.95)
+
+
+def plot_sound_speed(result, *, ax=None, truth=None):
+    """Plot the array's fitted sound speed against time, with its ``ci`` band.
+
+    Parameters
+    ----------
+    result : SurveyInResult
+        An array's (``summary["sound_speed"]["series"]``; without a series, the
+        survey's one value and its interval).
+    ax : matplotlib.axes.Axes, optional
+    truth : dict, optional
+        A simulated campaign's ``truth.json``
+        (:meth:`~bayes_mpem.survey_in.gnssa_simulate.GnssaSimulation.truth_record`):
+        its depth-averaged speed ``reference_m_s + dV0`` is drawn too.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    from scipy.stats import norm
+
+    if ax is None:
+        _, ax = plt.subplots(figsize=(8.5, 3.8), layout="constrained")
+    ss = result.summary["sound_speed"]
+    ci = _ci(result.summary)
+    z = float(norm.ppf(0.5 + ci / 2))
+    ser = ss.get("series")
+    if ser:
+        t = np.asarray(ser["time_s"], float) / 3600.0
+        m, sd = np.asarray(ser["mean_m_s"], float), np.asarray(ser["sd_m_s"], float)
+    else:
+        t = np.array([0.0, 1.0])
+        m, sd = np.full(2, ss["mean"]), np.full(2, ss["sd"])
+    ax.fill_between(t, m - z * sd, m + z * sd, color=SURVEY_IN_COLORS["true"], alpha=0.25,
+                    lw=0, label=f"{100 * ci:g} % band")
+    ax.plot(t, m, color=SURVEY_IN_COLORS["true"], lw=1.5, label="fitted")
+    if ss.get("reference_m_s") is not None:
+        ax.axhline(ss["reference_m_s"], color="0.4", lw=0.8, ls="--",
+                   label="the survey's profile")
+    if truth is not None:
+        ts = truth["sound_speed"]
+        ax.plot(np.asarray(ts["series"]["time_s"], float) / 3600.0,
+                ts["reference_m_s"] + np.asarray(ts["series"]["dV0_m_s"], float),
+                color="k", lw=1.0, ls=":", label="truth (depth-averaged)")
+    ax.set_xlabel("time since the first shot (h)" if ser else "(one value for the survey)")
+    ax.set_ylabel(f"sound speed ({ss.get('unit', 'm/s')})")
+    ax.ticklabel_format(axis="y", useOffset=False)
+    ax.legend(fontsize="small", loc="best")
+    ax.set_title(f"Sound speed: {ss.get('model', '')}", fontsize="medium")
+    return ax.figure
+
+
+def plot_residuals_by_transponder(result, *, fig=None):
+    """Residuals against time, one panel per transponder, by class.
+
+    Parameters
+    ----------
+    result : SurveyInResult
+    fig : matplotlib.figure.Figure, optional
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    cls, lim, _ = _pinged(result)
+    tids = [t for t in result.summary["transponders"]]
+    if fig is None:
+        fig = plt.figure(figsize=(10, 1.9 + 1.7 * len(tids)), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(len(tids), 1, sharex=True, sharey=True))
+    t0 = float(cls["time"].min()) if len(cls) else 0.0
+    cls = cls.assign(hours=(cls["time"] - t0) / 3600.0)
+    n_out = 0
+    for j, (ax, tid) in enumerate(zip(axes, tids, strict=True)):
+        sub = cls[cls["transponder"].astype(str) == str(tid)]
+        n_out += _scatter_classes(ax, sub, "hours", lim, key=True)
+        true = sub.loc[sub["label"] == "true", "residual_ms"].to_numpy(float)
+        rms = float(np.sqrt(np.mean(true**2))) if true.size else float("nan")
+        ax.text(0.01, 0.9, f"{tid}: rms {rms:.3g} ms", transform=ax.transAxes,
+                fontsize="small", va="top")
+        ax.set_ylabel("ms")
+        ax.legend(fontsize="x-small", loc="upper right", ncols=2)
+        if j == len(tids) - 1:
+            ax.set_xlabel("time since the first shot (h)")
+    fig.suptitle("Residuals per transponder (observed minus predicted two-way time)"
+                 + (f"; {n_out} beyond +-{lim:.3g} ms drawn at the edge" if n_out else ""))
+    return fig
+
+
+def _offset_panel(ax, name, delta_cm, cov_cm, up_cm, up_sd_cm, ci, true_cm=None):
+    """Draw one position against its prior, in cm: the solution, its ellipse, the prior."""
+    semi = _ellipse(ax, delta_cm, cov_cm, ci, color="k", lw=1.2,
+                    label=f"{100 * ci:g} % ellipse")
+    ax.plot(*delta_cm, "*", color="k", ms=10, label="solution")
+    half = max(3.0 * semi, 1.0)
+    dist = float(np.hypot(*delta_cm))
+    if dist <= half:
+        ax.plot(0.0, 0.0, "^", color=SURVEY_IN_COLORS["spurious"], mfc="none", ms=8,
+                label="prior")
+    else:
+        ax.text(0.03, 0.04, f"prior {dist / 100:.2f} m away", transform=ax.transAxes,
+                fontsize="x-small", color=SURVEY_IN_COLORS["spurious"])
+    if true_cm is not None:
+        ax.plot(*true_cm[:2], "o", color="k", mfc="none", ms=7,
+                label=f"truth (up {true_cm[2]:+.1f})")
+        ax.legend(fontsize="xx-small", loc="upper right")
+    ax.set_xlim(delta_cm[0] - half, delta_cm[0] + half)
+    ax.set_ylim(delta_cm[1] - half, delta_cm[1] + half)
+    ax.set_aspect("equal")
+    for axis in (ax.xaxis, ax.yaxis):
+        axis.set_major_locator(MaxNLocator(4))
+    ax.tick_params(labelsize="x-small")
+    ax.set_title(f"{name}: up {up_cm:+.1f} cm (sd {up_sd_cm:.1f})", fontsize="small")
+    ax.set_xlabel("east - prior (cm)", fontsize="x-small")
+    ax.set_ylabel("north - prior (cm)", fontsize="x-small")
+
+
+def plot_array_map(result, *, fig=None, truth=None):
+    """Plot the array: track and positions (m), each position against its prior (cm).
+
+    The close-ups are east and north minus the prior position, in cm, with the
+    ``ci`` ellipse of the solution; the array centre's prior is the priors' mean.
+
+    Parameters
+    ----------
+    result : SurveyInResult
+        An array's (``summary["array_centre"]``).
+    fig : matplotlib.figure.Figure, optional
+    truth : dict, optional
+        A simulated campaign's ``truth.json``: the true positions are marked in
+        the close-ups.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    s, cls = result.summary, result.classified
+    tids = list(s["transponders"])
+    ci = _ci(s)
+    n = len(tids) + 1
+    ncol = int(np.ceil(np.sqrt(n)))
+    nrow = int(np.ceil(n / ncol))
+    if fig is None:
+        fig = plt.figure(figsize=(6.0 + 3.0 * ncol, max(5.5, 3.0 * nrow)), layout="constrained")
+    gs = fig.add_gridspec(nrow, 2 + ncol, width_ratios=[1.6, 1.6] + [1.0] * ncol)
+    ax = fig.add_subplot(gs[:, :2])
+    pinged = cls[cls["label"] != "skipped"].sort_values("time", kind="stable")
+    ax.plot(pinged["east"], pinged["north"], "-", color="0.7", lw=0.6, label="ship's track")
+    priors, names = [], ["array centre", *tids]
+    for j, tid in enumerate(tids):
+        t = s["transponders"][tid]
+        pr = np.array([t["prior"][c] for c in ("east", "north", "up")])
+        priors.append(pr)
+        ax.plot(pr[0], pr[1], "^", color=SURVEY_IN_COLORS["spurious"], mfc="none", ms=8,
+                label="prior position" if j == 0 else None)
+        ax.plot(t["enu"]["east"]["mean"], t["enu"]["north"]["mean"], "*", color="k", ms=10,
+                label="solution" if j == 0 else None)
+        ax.annotate(tid, (t["enu"]["east"]["mean"], t["enu"]["north"]["mean"]),
+                    textcoords="offset points", xytext=(6, 6))
+    c = s["array_centre"]
+    ax.plot(c["enu"]["east"]["mean"], c["enu"]["north"]["mean"], "P", color="k", ms=9,
+            label="array centre")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("east (m)")
+    ax.set_ylabel("north (m)")
+    ax.legend(loc="best", fontsize="small")
+    entries = [(c["enu"], np.mean(priors, axis=0), c["covariance"]["matrix"])] + [
+        (s["transponders"][t]["enu"], priors[k], s["transponders"][t]["covariance"]["matrix"])
+        for k, t in enumerate(tids)]
+    trues = [None] * len(names)
+    if truth is not None:
+        trues = [truth["array_centre"]] + [truth["transponders"].get(str(t)) for t in tids]
+    for j, (name, (enu, pr, cov)) in enumerate(zip(names, entries, strict=True)):
+        r, col = divmod(j, ncol)
+        m = np.array([enu[k]["mean"] for k in ("east", "north", "up")])
+        d = 100.0 * (m - pr)
+        tr = None if trues[j] is None else 100.0 * (
+            np.array([trues[j][k] for k in ("east", "north", "up")]) - pr)
+        _offset_panel(fig.add_subplot(gs[r, 2 + col]), name, d[:2],
+                      1e4 * np.asarray(cov, float)[:2, :2], d[2], 100.0 * enu["up"]["sd"], ci,
+                      true_cm=tr)
+    fig.suptitle(f"Array: positions against their priors (cm), {100 * ci:g} % ellipses")
+    return fig

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from datetime import timedelta
+
 import numpy as np
 import pandas as pd
 from scipy.stats import chi2
@@ -12,6 +14,7 @@ from ..io.raw import ARRAY_FORMATS
 from .array import describe, locate_array
 from .result import SurveyInResult, classified_table
 from .ssp import survey_profile
+from .travel_times import speed_basis
 
 
 def array_shots(raw) -> pd.DataFrame:
@@ -20,7 +23,8 @@ def array_shots(raw) -> pd.DataFrame:
     Parameters
     ----------
     raw : RawSurvey
-        Of format ``garpos`` or ``gnatss``.
+        Of format ``garpos``, ``gnatss`` or ``seagap`` (whose 18 columns give the
+        antenna and attitude at transmit and at receive).
 
     Returns
     -------
@@ -33,9 +37,9 @@ def array_shots(raw) -> pd.DataFrame:
     InputError
         For another format.
     """
-    if raw.format not in ARRAY_FORMATS:
+    if raw.format not in (*ARRAY_FORMATS, "seagap"):
         raise InputError(f"{raw.source}: a {raw.format} survey is not an array survey "
-                         f"({', '.join(ARRAY_FORMATS)})")
+                         f"({', '.join(ARRAY_FORMATS)}, seagap)")
     pos = raw.transducer_positions()
     shots = raw.pings.copy()
     for end in ("tx", "rx"):
@@ -48,7 +52,7 @@ def _transponder_entry(fit, k, ci, origin, n_shots):
     e, n, u = fit.enu[k]
     sd = fit.sd[k]
     C = fit.position_cov(k)
-    lat, lon, h = enu_to_geodetic(e, n, u, *origin)
+    lat, lon, h = _geodetic(e, n, u, origin)
     start = fit.start[k]
     return {"east": describe(e, sd[0], ci), "north": describe(n, sd[1], ci),
             "depth": describe(-u, sd[2], ci),
@@ -68,7 +72,7 @@ def _transponder_entry(fit, k, ci, origin, n_shots):
 def _centre_entry(fit, ci, origin):
     m, C = fit.centre()
     sd = np.sqrt(np.clip(np.diag(C), 0.0, None))
-    lat, lon, h = enu_to_geodetic(*m, *origin)
+    lat, lon, h = _geodetic(*m, origin)
     return {"enu": {c: describe(v, s, ci) for c, v, s in zip(("east", "north", "up"), m, sd,
                                                               strict=True)},
             "lat": lat, "lon": lon, "height": h,
@@ -76,14 +80,172 @@ def _centre_entry(fit, ci, origin):
                            "matrix": [[float(v) for v in row] for row in C]}}
 
 
+#: What ``t_tx`` counts in each format (``summary.json`` ``epoch``).
+TIME_REFERENCES = {"garpos": "s of the day of the site file's Date(UTC) (GARPOS ST)",
+                   "gnatss": "s since J2000 (2000-01-01 12:00:00)",
+                   "seagap": "s in obsdata.inp's own time scale"}
+
+
+def _epoch_entry(fmt, shots):
+    """Return the campaign's epoch: the middle of its shots (``t_tx``), in the file's time scale."""
+    t = shots["t_tx"].to_numpy(float) if "t_tx" in shots.columns else shots["time"].to_numpy()
+    mid = 0.5 * (float(np.min(t)) + float(np.max(t)))
+    out = {"t_tx_mid": mid, "t_tx_first": float(np.min(t)), "t_tx_last": float(np.max(t)),
+           "time_reference": TIME_REFERENCES.get(fmt, "s"), "utc": None,
+           "hours": (float(np.max(t)) - float(np.min(t))) / 3600.0}
+    if fmt == "gnatss":
+        from ..io.gnatss import J2000
+
+        out["utc"] = (J2000 + timedelta(seconds=mid)).isoformat(timespec="seconds")
+    return out
+
+
+def speed_series(fit, n=121):
+    """Return the fitted sound speed against time: ``time_s``, ``mean_m_s``, ``sd_m_s``.
+
+    Parameters
+    ----------
+    fit : ArrayLocateResult
+    n : int, default 121
+        Points, evenly over the fit's time span.
+
+    Returns
+    -------
+    dict
+        Lists of ``n`` floats (m/s; the sd from the coefficients' covariance).
+    """
+    lo, hi = fit.model["time_range"]
+    t = np.linspace(lo, hi, n)
+    B = speed_basis(pd.DataFrame({"time": t}), fit.model["speed_intervals"], (lo, hi))
+    k = B.shape[1]
+    C = fit.cov[-k:, -k:]
+    unit = fit.model["unit"]
+    sd = np.sqrt(np.clip(np.einsum("ij,jk,ik->i", B, C, B), 0.0, None)) * unit
+    return {"time_s": t.tolist(), "mean_m_s": (B @ fit.speed_coef * unit).tolist(),
+            "sd_m_s": sd.tolist()}
+
+
+def sound_speed_entry(fit, ci, prof) -> dict:
+    """Return the ``sound_speed`` record of an array's ``summary.json``, a unit per field.
+
+    Parameters
+    ----------
+    fit : ArrayLocateResult
+    ci : float
+    prof : SoundSpeedProfile or None
+        The profile of the rays (None: straight rays).
+
+    Returns
+    -------
+    dict
+        ``mean``, ``sd``, ``interval`` and ``unit`` ("m/s"): the survey's mean
+        speed (``quantity`` says which); ``model``, ``speed_intervals``,
+        ``interval_minutes``; ``reference_m_s`` (the profile's harmonic mean
+        over the same span, None for straight rays); ``coefficients`` with
+        ``coefficients_unit``; ``series`` (:func:`speed_series`).
+    """
+    n_int = int(fit.model["speed_intervals"])
+    lo, hi = fit.model["time_range"]
+    refracted = prof is not None
+    return {
+        **describe(fit.sound_speed, fit.sound_speed_sd, ci), "unit": "m/s",
+        "quantity": ("harmonic mean of the fitted profile (the survey's profile times the "
+                     "fitted scale) from the ship's to the transponders' mean depth, averaged "
+                     "over the survey") if refracted else
+                    "straight-ray speed, averaged over the survey",
+        "model": "one value for the survey" if not n_int else
+                 f"cubic B-spline in time, {n_int} equal intervals",
+        "speed_intervals": n_int,
+        "interval_minutes": (hi - lo) / 60.0 / n_int if n_int else None,
+        "reference_m_s": float(fit.model["unit"]) if refracted else None,
+        "coefficients": [float(v) for v in fit.speed_coef],
+        "coefficients_unit": ("scale of the profile (dimensionless: speed = scale x profile)"
+                              if refracted else "m/s"),
+        "series": speed_series(fit)}
+
+
+def residual_entry(cls) -> dict:
+    """Return the residual rms (ms) of the true replies, overall and per transponder."""
+    pinged = cls[cls["label"].isin(["true", "spurious"])]
+    true = pinged[pinged["label"] == "true"]
+
+    def rms(x):
+        x = np.asarray(x, float)
+        return float(np.sqrt(np.mean(x**2))) if x.size else None
+
+    return {"unit": "ms", "rms_true": rms(true["residual_ms"]), "n_true": int(len(true)),
+            "n_spurious": int((pinged["label"] == "spurious").sum()),
+            "n_skipped": int((cls["label"] == "skipped").sum()),
+            "per_transponder": {str(t): {"rms_true": rms(g["residual_ms"]), "n_true": int(len(g))}
+                                for t, g in true.groupby("transponder", sort=True)}}
+
+
+def track_geometry(shots, enu) -> dict:
+    """Return how well the ship's track surrounds the array (the gradients' identifiability).
+
+    Parameters
+    ----------
+    shots : pandas.DataFrame
+        The shots used (``transponder``, the transducer's ``e/n/u_tx`` and ``_rx``).
+    enu : dict
+        ``{id: (east, north, up)}`` of the transponders.
+
+    Returns
+    -------
+    dict
+        ``spread_over_depth``: the sd of the transducer's horizontal position
+        along its least-spread direction over the mean water depth (GARPOS's
+        shallow gradient needs about 0.3 or more; a ship holding station has
+        almost 0); per transponder ``azimuth_coverage_deg`` (360 minus the
+        largest gap between the azimuths of the ship seen from it) and
+        ``max_incidence_deg`` (the largest angle of the ray from the vertical).
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> a = np.radians(np.arange(0, 360, 10))
+    >>> e, n = 1000 * np.sin(a), 1000 * np.cos(a)
+    >>> shots = pd.DataFrame({"transponder": "A", "e_tx": e, "n_tx": n, "u_tx": 0.0,
+    ...                       "e_rx": e, "n_rx": n, "u_rx": 0.0})
+    >>> g = track_geometry(shots, {"A": (0.0, 0.0, -1000.0)})
+    >>> round(g["spread_over_depth"], 2), round(g["transponders"]["A"]["azimuth_coverage_deg"])
+    (0.72, 350)
+    """
+    e = 0.5 * (shots["e_tx"].to_numpy(float) + shots["e_rx"].to_numpy(float))
+    n = 0.5 * (shots["n_tx"].to_numpy(float) + shots["n_rx"].to_numpy(float))
+    u = 0.5 * (shots["u_tx"].to_numpy(float) + shots["u_rx"].to_numpy(float))
+    tid = shots["transponder"].astype(str).to_numpy()
+    depth = float(np.mean([u.mean() - p[2] for p in enu.values()]))
+    lam = np.linalg.eigvalsh(np.cov(np.vstack([e, n]))) if e.size > 2 else np.zeros(2)
+    out = {"spread_over_depth": float(np.sqrt(max(lam[0], 0.0)) / depth), "transponders": {}}
+    for t, p in enu.items():
+        sel = tid == str(t)
+        if not sel.any():
+            continue
+        de, dn = e[sel] - p[0], n[sel] - p[1]
+        az = np.sort(np.degrees(np.arctan2(de, dn)) % 360.0)
+        gaps = np.diff(np.concatenate([az, az[:1] + 360.0]))
+        inc = np.degrees(np.arctan2(np.hypot(de, dn), u[sel] - p[2]))
+        out["transponders"][str(t)] = {"azimuth_coverage_deg": float(360.0 - gaps.max()),
+                                       "max_incidence_deg": float(inc.max())}
+    return out
+
+
+def _geodetic(e, n, u, origin):
+    """Latitude, longitude, height of a local point; None each without an origin (SeaGap)."""
+    if origin is None:
+        return None, None, None
+    return enu_to_geodetic(e, n, u, *origin)
+
+
 def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
-                        speed_intervals=0) -> SurveyInResult:
+                        speed_intervals=0, surface_depth=None) -> SurveyInResult:
     """Locate every transponder of a GNSS-A array survey together.
 
     Parameters
     ----------
     raw : RawSurvey
-        Of format ``garpos`` or ``gnatss``.
+        Of format ``garpos``, ``gnatss`` or ``seagap``.
     ci : float, default 0.95
     outliers : {"uniform", "first_arrival"}
     ssp : None, SoundSpeedProfile, str or path
@@ -93,6 +255,9 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
         The sound speed (the profile's scale) as a cubic B-spline in time with
         this many intervals, shared by the array. GNSS-A surveys last hours and
         the ocean changes in that time: one interval per 15-30 minutes.
+    surface_depth : float, optional
+        Depth (``-up``) of the profile's sea surface in the survey's frame;
+        default the header's (0 without one).
 
     Returns
     -------
@@ -102,13 +267,18 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
         ``array_centre``, ``sound_speed``, the survey's ``origin`` and files;
         ``classified``: one row per shot and per skipped line.
     """
+    if "transponders" not in raw.header:
+        raise InputError(f"{raw.source}: no prior transponder positions were read (SeaGap's "
+                         "pxp-ini.inp beside it); the array's fit starts from them")
     shots = array_shots(raw)
     prof = survey_profile(raw, "survey" if ssp is None else ssp)
     h = raw.header
+    if surface_depth is None:
+        surface_depth = float(h.get("surface_depth", 0.0))
     fit = locate_array(shots, h["transponders"], profile=prof,
-                       surface_depth=float(h.get("surface_depth", 0.0)),
+                       surface_depth=float(surface_depth),
                        speed_intervals=speed_intervals, outliers=outliers)
-    origin = (h["lat"], h["lon"], h.get("height", 0.0))
+    origin = (h["lat"], h["lon"], h.get("height", 0.0)) if "lat" in h else None
     counts = np.bincount(fit.index, minlength=len(fit.ids))
     out = {tid: _transponder_entry(fit, k, ci, origin, counts[k])
            for k, tid in enumerate(fit.ids)}
@@ -137,9 +307,11 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
     rays = "straight rays" if prof is None else f"refracted rays ({prof.source or 'profile'})"
     summary = {
         "transponders": out, "array_centre": _centre_entry(fit, ci, origin),
-        "sound_speed": {**describe(fit.sound_speed, fit.sound_speed_sd, ci),
-                        "coefficients": [float(v) for v in fit.speed_coef],
-                        "unit": "m/s" if prof is None else "scale of the profile"},
+        "sound_speed": sound_speed_entry(fit, ci, prof),
+        "residuals": residual_entry(cls),
+        "track": track_geometry(sub, {t: fit.enu[k] for k, t in enumerate(fit.ids)}),
+        "site": h.get("site"), "campaign": h.get("campaign"),
+        "epoch": _epoch_entry(raw.format, shots),
         "format": raw.format, "source": raw.source, "files": h.get("files", {}),
         "n_pings": int(n), "n_skipped_lines": int(len(raw.skipped)),
         "skipped_transponders": dict(fit.skipped),
@@ -148,9 +320,11 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
         "outliers": outliers, "ssp": None if prof is None else prof.source,
         "speed_intervals": int(speed_intervals), "fit_lag": False,
         "geometry": {"frame": "local east, north, up about the origin (m)",
-                     "origin": dict(zip(("lat", "lon", "height"), map(float, origin),
-                                        strict=True)),
-                     "surface_depth": float(h.get("surface_depth", 0.0))},
+                     "origin": None if origin is None else dict(
+                         zip(("lat", "lon", "height"), map(float, origin), strict=True)),
+                     "surface_depth": float(surface_depth),
+                     "earth": "flat: straight or refracted rays in the local frame, no Earth "
+                              "curvature"},
         "tat_fitted": False, "tat_given": 0.0,
         "position_region": f"a transponder's {100 * ci:g} % region is the ellipsoid of its "
                            f"covariance with squared radius {chi2.ppf(ci, 3):.4f}"}

@@ -389,7 +389,7 @@ def locate_survey_bayes(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="unif
     check_location_options(n_walkers=n_walkers, ci=ci, min_ess=min_ess, max_steps=max_steps)
     gen = as_generator(rng)
     located = locate_survey(raw, tat=tat, fit_tat=fit_tat, ci=ci, outliers=outliers, ssp=ssp,
-                            speed_intervals=speed_intervals)
+                            speed_intervals=speed_intervals, one_at_a_time=True)
     summary, cls = located.summary, located.classified
     pings, _ = raw.to_pings()
     p_true = cls["p_true"].to_numpy(float).copy()

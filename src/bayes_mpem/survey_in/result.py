@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from ..io.results import write_csv, write_json, writing
+from ..io.results import write_csv, write_file, write_json, writing
 
 #: Columns of ``classified.csv`` after the first seven, per ping: the ship's
 #: transducer (``east``, ``north``, m in the survey's frame) and the moment
@@ -114,7 +114,7 @@ class SurveyInResult:
         return self.summary
 
     def write(self, out_dir) -> dict:
-        """Write ``summary.json`` and ``classified.csv`` to ``out_dir``.
+        """Write ``summary.json`` and ``classified.csv`` (and an array's ``solution.txt``).
 
         Parameters
         ----------
@@ -124,8 +124,76 @@ class SurveyInResult:
         Returns
         -------
         dict
-            Paths written, keyed ``summary`` and ``classified``.
+            Paths written, keyed ``summary`` and ``classified`` (and ``solution``
+            for an array: :func:`solution_text`).
         """
         with writing(out_dir) as out:
-            return {"classified": write_csv(out / "classified.csv", self.classified),
-                    "summary": write_json(out / "summary.json", self.summary)}
+            paths = {"classified": write_csv(out / "classified.csv", self.classified)}
+            if "array_centre" in self.summary:
+                text = solution_text(self.summary)
+                paths["solution"] = write_file(out / "solution.txt",
+                                               lambda tmp: tmp.write_text(text))
+            paths["summary"] = write_json(out / "summary.json", self.summary)
+            return paths
+
+
+def _row(name, enu, width=14):
+    vals = [enu[c]["mean"] for c in ("east", "north", "up")]
+    sds = [enu[c]["sd"] for c in ("east", "north", "up")]
+    return (f"{name:<{width}}" + "".join(f"{v:14.3f}" for v in vals)
+            + "".join(f"{v:9.3f}" for v in sds))
+
+
+def solution_text(summary: dict) -> str:
+    """Return an array's solution as plain text, for a log (``solution.txt``).
+
+    Site, campaign, epoch, the array centre and each transponder (east, north,
+    up and their sds, m to the mm, in the survey's local frame), the
+    sound-speed model, the residual rms and the counts.
+
+    Parameters
+    ----------
+    summary : dict
+        An array's ``summary.json`` (with ``array_centre``).
+
+    Returns
+    -------
+    str
+    """
+    s = summary
+    ep = s.get("epoch") or {}
+    geo = s.get("geometry", {})
+    org = geo.get("origin")
+    where = ("local east, north, up (m) about lat {lat:.8f}, lon {lon:.8f}, height {height:.3f} m"
+             .format(**org) if org else "the survey's local east, north, up (m)")
+    utc = f", UTC {ep['utc']}" if ep.get("utc") else ""
+    lines = ["bayes_mpem GNSS-A array solution",
+             f"site          {s.get('site') or '-'}",
+             f"campaign      {s.get('campaign') or '-'}",
+             f"source        {s.get('source', '-')} ({s.get('format', '-')})"]
+    if ep:
+        lines.append(f"epoch         t_tx {ep['t_tx_mid']:.1f} (mid-survey; "
+                     f"{ep['time_reference']}){utc}; {ep['hours']:.2f} h of shots")
+    lines += [f"frame         {where}", "",
+              f"{'':<14}{'east':>14}{'north':>14}{'up':>14}{'sd_e':>9}{'sd_n':>9}{'sd_u':>9}",
+              _row("array centre", s["array_centre"]["enu"])]
+    for tid, t in s["transponders"].items():
+        lines.append(_row(str(tid), t["enu"]))
+    for tid, why in s.get("skipped_transponders", {}).items():
+        lines.append(f"{tid:<14}not located: {why}")
+    ss = s["sound_speed"]
+    lines += ["", f"sound speed   {ss['mean']:.3f} +- {ss['sd']:.3f} {ss['unit']} "
+                  f"({ss.get('quantity', '')})",
+              f"speed model   {ss.get('model', '-')}"
+              + (f", {ss['interval_minutes']:.1f} min each" if ss.get("interval_minutes")
+                 else "") + f"; {s.get('method', '')}"]
+    r = s.get("residuals")
+    if r:
+        per = ", ".join(f"{k} {v['rms_true']:.4f}" for k, v in r["per_transponder"].items()
+                        if v["rms_true"] is not None)
+        lines += [f"residual rms  {r['rms_true']:.4f} ms (true replies; {per})",
+                  f"shots         {s['n_pings']}: {r['n_true']} true, {r['n_spurious']} "
+                  f"spurious; {s.get('n_skipped_lines', 0)} lines skipped"]
+    lines.append(f"intervals     sd = 1 standard deviation (m); "
+                 f"{s.get('position_region', '')}")
+    return "\n".join(lines) + "\n"

@@ -20,8 +20,30 @@ from .ssp import survey_profile
 SEAGAP_TRANSDUCER_DEPTH = 3.0
 
 
+def is_array(raw, *, one_at_a_time=False) -> bool:
+    """Whether ``locate_survey`` locates a survey's transponders together, as an array.
+
+    GARPOS and GNATSS surveys always are; a SeaGap survey is when it has replies
+    from two transponders or more (one ship track shared by the array), unless
+    ``one_at_a_time``.
+
+    Parameters
+    ----------
+    raw : RawSurvey
+    one_at_a_time : bool, default False
+
+    Returns
+    -------
+    bool
+    """
+    if raw.format in ARRAY_FORMATS:
+        return True
+    return (raw.format == "seagap" and not one_at_a_time
+            and raw.pings["transponder"].astype(str).nunique() >= 2)
+
+
 def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", ssp=None,
-                  speed_intervals=0, fit_lag=False, lag_check=False):
+                  speed_intervals=0, fit_lag=False, lag_check=False, one_at_a_time=False):
     """Locate every transponder of a :class:`~bayes_mpem.io.raw.RawSurvey`.
 
     Parameters
@@ -48,6 +70,10 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
         Without ``fit_lag``: also test whether a lag would predict held-out pings
         better (:func:`~bayes_mpem.survey_in.heldout.lag_check`); reported under
         each transponder's ``lag_check``.
+    one_at_a_time : bool, default False
+        A SeaGap survey: locate each transponder on its own, with its own sound
+        speed (on SeaGap's sphere), instead of the array together
+        (:func:`is_array`); refused for GARPOS and GNATSS.
 
     Returns
     -------
@@ -65,17 +91,28 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
     Raises
     ------
     InputError
-        A turn-around time, a lag or a second outlier model asked of an array
-        survey (GNSS-A travel times are already corrected for delays).
+        A turn-around time or a lag asked of an array survey (GNSS-A travel times
+        are already corrected for delays), or ``one_at_a_time`` for GARPOS or GNATSS.
     """
-    if raw.format in ARRAY_FORMATS:
+    if one_at_a_time and raw.format in ARRAY_FORMATS:
+        raise InputError(f"one_at_a_time: a {raw.format} survey is located as an array")
+    if is_array(raw, one_at_a_time=one_at_a_time):
         for name, given in (("fit_tat", fit_tat), ("fit_lag", fit_lag),
                             ("tat", tat not in (None, 0, 0.0))):
             if given:
-                raise InputError(f"{name}: not for a {raw.format} survey (its travel times are "
-                                 "already corrected for the delays; a lag is not modelled)")
+                also = " or locate one transponder at a time" if raw.format == "seagap" else ""
+                raise InputError(f"{name}: not for a {raw.format} array survey (its travel "
+                                 f"times are already corrected for the delays; a lag is not "
+                                 f"modelled){also}")
+        geo = {}
+        if raw.format == "seagap":  # the profile's sea surface, as one at a time
+            up = raw.transducer_positions()
+            geo["surface_depth"] = (-0.5 * float(np.mean(up["tx"][2]) + np.mean(up["rx"][2]))
+                                    - SEAGAP_TRANSDUCER_DEPTH)
+            if ssp is None:  # the survey's own profile when it came with one
+                ssp = "survey" if "ss_prof" in raw.header else "straight"
         return locate_array_survey(raw, ci=ci, outliers=outliers, ssp=ssp,
-                                   speed_intervals=speed_intervals)
+                                   speed_intervals=speed_intervals, **geo)
     if tat is None:
         tat = raw.header.get("tat", 0.0 if raw.format == "seagap" else DEFAULT_TAT)
     pings, beacons = raw.to_pings()

@@ -18,6 +18,7 @@ result says so (:mod:`.observability`, a
 
 from __future__ import annotations
 
+import dataclasses
 import time
 import warnings
 
@@ -27,7 +28,7 @@ from ..._rng import RNGLike, as_generator
 from ..._validate import check_choice, check_int, check_positive, check_probability
 from ...exceptions import ConvergenceWarning, InputError, NavigationWarning
 from ...io.survey import BeaconData, load_survey
-from ...mixture.densities import CLASSES
+from ...mixture.densities import CLASSES, gaussian_logpdf
 from ..em.em_result import reflector_flags
 from ..em.path_choice import AUTO, check_path_choice, choose_path
 from ..model.geometry import PATHS
@@ -47,6 +48,20 @@ from .result import Navigation
 #: over its replies, on the dead reckoning) gets no multipath class: the vehicle is at the
 #: surface and the two arrivals are one.
 MIN_SEPARATION = 1.0
+
+#: A multipath class is kept only where its bounce lags the direct path by this many scales.
+MIN_LAG_SIGMAS = 3.0
+
+#: ... and carries this many replies' worth of probability.
+MIN_MP_REPLIES = 10.0
+
+#: ... and raises the beacon's log-likelihood ratio (2 log LR) above this: calibrated on
+#: simulated dives without multipath (benchmarks/navigate_ship.py).
+MP_LR_THRESHOLD = 30.0
+
+#: ECM iterations before a run that has not converged has its multipath classes checked
+#: (a class that collapsed onto the direct path makes the ECM crawl).
+PROBE_ITER = 60
 
 
 def _check_reflectors(reflectors, dive: Dive) -> dict:
@@ -117,35 +132,162 @@ def _choose_paths(dive: Dive, state: State, settings: ecm.Settings, gen):
     return state.replace(double=double, d0=d0, sigma_mp=s_mp), records, changed
 
 
+def _without_multipath_loglik(ldp, lol, iters: int = 200) -> float:
+    """Log-likelihood of replies as direct path or outlier, the mixing weight refitted (EM)."""
+    w = 0.9
+    for _ in range(iters):
+        a, b = np.log(w) + ldp, np.log1p(-w) + lol
+        m = np.maximum(a, b)
+        lse = m + np.log(np.exp(a - m) + np.exp(b - m))
+        w = float(np.clip(np.mean(np.exp(a - lse)), 1e-6, 1.0 - 1e-6))
+    return float(np.add.reduce(lse))
+
+
+def multipath_support(dive: Dive, state: State, resp, lse, settings: ecm.Settings) -> dict:
+    """Decide, per beacon with an estimated multipath class, whether the data support it.
+
+    A class is kept only when (1) the fitted bounce lags the direct path by at
+    least :data:`MIN_LAG_SIGMAS` times the larger scale (median over the
+    beacon's replies; a plane at the vehicle's depth, or a vehicle at the
+    surface, makes the two arrivals one), (2) it carries at least
+    :data:`MIN_MP_REPLIES` replies' worth of probability with sigma_MP above its
+    floor and the plane no more than 10 m above the sea surface, and (3) the
+    likelihood ratio of the beacon's replies with and without it (the direct
+    path / outlier weight refitted, the track kept) exceeds
+    :data:`MP_LR_THRESHOLD`, calibrated on simulated dives without multipath
+    (``benchmarks/navigate_ship.py``).
+
+    Parameters
+    ----------
+    dive : Dive
+    state : State
+    resp : numpy.ndarray
+        ``(n, 3)`` class probabilities at ``state``.
+    lse : numpy.ndarray
+        ``(n,)`` per-reply log-likelihood at ``state``.
+    settings : ecm.Settings
+
+    Returns
+    -------
+    dict
+        ``{beacon index: (kept, lr, reason)}``; ``reason`` is None when kept.
+    """
+    pred = predictions(dive, state)
+    ldp_all = gaussian_logpdf(dive.z - pred.direct, state.sigma_dp)
+    lol_all = dive.log_ol
+    out = {}
+    for j in settings.free_d0:
+        m = dive.beacon == j
+        if not m.any():
+            continue
+        scale = max(state.sigma_dp, float(state.sigma_mp[j]))
+        lag = float(np.median(pred.multipath[m] - pred.direct[m]))
+        n_mp = float(resp[m, 1].sum())
+        plane = float(dive.beacon_xyz[j, 2] - state.d0[j])
+        lr = 2.0 * (float(np.add.reduce(lse[m]))
+                    - _without_multipath_loglik(ldp_all[m], lol_all[m]))
+        reason = None
+        if lag < MIN_LAG_SIGMAS * scale:
+            reason = (f"the fitted bounce lags the direct path by {lag:.2g} m (median), less "
+                      f"than {MIN_LAG_SIGMAS:g} sigma ({scale:.2g} m): the two arrivals cannot "
+                      "be told apart (vehicle or plane at the surface)")
+        elif n_mp < MIN_MP_REPLIES or state.sigma_mp[j] <= 1.05 * settings.sigma_floor:
+            reason = (f"only {n_mp:.1f} replies' worth of multipath (sigma_MP "
+                      f"{state.sigma_mp[j]:.2g} m): no reflector identified")
+        elif plane < -10.0:
+            reason = f"the fitted plane is {-plane:.0f} m above the sea surface"
+        elif lr < MP_LR_THRESHOLD:
+            reason = (f"likelihood ratio {lr:.1f} with / without a multipath class, below "
+                      f"{MP_LR_THRESHOLD:g}: the data do not support one")
+        out[j] = (reason is None, lr, reason)
+    return out
+
+
+def _drop_multipath(state: State, settings: ecm.Settings, drop):
+    """Return settings and state with the multipath class of ``drop`` switched off."""
+    mp = settings.mp_beacons.copy()
+    mp[list(drop)] = False
+    free = tuple(j for j in settings.free_d0 if j not in drop)
+    w = state.weights.copy()
+    for j in drop:
+        w[j, 1] = 0.0
+        w[j] /= max(w[j].sum(), 1e-300)
+    return (dataclasses.replace(settings, mp_beacons=mp, free_d0=free),
+            state.replace(weights=w))
+
+
+def _positive_definite(step, cov) -> bool:
+    """Return whether the Schur complement and every epoch's covariance are positive definite."""
+    try:
+        if step.S.size:
+            np.linalg.cholesky(step.S)
+    except np.linalg.LinAlgError:
+        return False
+    det = cov[:, 0, 0] * cov[:, 1, 1] - cov[:, 0, 1] * cov[:, 1, 0]
+    return bool(np.all(np.isfinite(cov)) and np.all(cov[:, 0, 0] > 0) and np.all(det > 0))
+
+
+def _psd(cov):
+    """Return each 2x2 block symmetrised, its eigenvalues floored at a tiny positive value."""
+    sym = 0.5 * (cov + np.swapaxes(cov, 1, 2))
+    val, vec = np.linalg.eigh(sym)
+    val = np.maximum(val, 1e-12 * np.maximum(val.max(axis=1, keepdims=True), 1e-300))
+    return np.einsum("kab,kb,kcb->kac", vec, val, vec)
+
+
+#: Names of the information the uncertainty is taken from (``summary.json``'s ``information``).
+INFORMATION = {
+    "observed": "observed (Louis)",
+    "complete": "complete-data (class-weighted Gauss-Newton)",
+    "fallback": ("complete-data (class-weighted Gauss-Newton): the observed (Louis) information "
+                 "was not positive definite, so the intervals ignore the class uncertainty"),
+}
+
+
 def _uncertainty(dive, run, settings):
     """Track covariances, the globals' sd and covariance, and their cross-covariances (Laplace).
 
     The information is the observed one of the mixture (Louis' missing information
     of the uncertain classes subtracted from the class-weighted Gauss-Newton
-    Hessian) where the classes are estimated; a baseline's weights, or known
-    classes, keep the Gauss-Newton Hessian. Also returns which was used.
+    Hessian) where the classes are estimated and it is positive definite (the
+    Schur complement of the globals and every epoch's block); otherwise the
+    complete-data information (the class-weighted Gauss-Newton Hessian, positive
+    definite by the weak priors), and the result says so. A baseline's weights,
+    or known classes, keep the complete-data information. The heading bias,
+    speed scale and plane heights are eliminated by the Schur complement, so
+    their uncertainty is in every epoch's covariance. Also returns which
+    information was used.
     """
     a = run.resp[:, 0] / run.state.sigma_dp ** 2
     b = run.resp[:, 1] / run.state.sigma_mp[dive.beacon] ** 2
-    ne = normal_equations(dive, run.state, a, b, settings.priors, settings.free_d0)
-    info = "class-weighted Gauss-Newton"
-    step = None
+    fk = settings.free_range_scale
+    ne = normal_equations(dive, run.state, a, b, settings.priors, settings.free_d0, fk)
+    info, step, cov = INFORMATION["complete"], None, None
     if settings.model == "mixture" and settings.fixed_resp is None:
-        dg, dB, dC = missing_information(dive, run.state, run.resp, settings.free_d0)
+        dg, dB, dC = missing_information(dive, run.state, run.resp, settings.free_d0, fk)
         observed = ne._replace(diag=ne.diag - dg, B=ne.B - dB, C=ne.C - dC)
         try:
-            step, ne = solve(observed), observed
-            info = "observed (Louis)"
+            step = solve(observed)
+            cov = marginal_covariances(observed, step)
         except np.linalg.LinAlgError:
-            info = ("class-weighted Gauss-Newton (the observed information was not positive "
-                    "definite)")
-    step = solve(ne) if step is None else step
+            step = None
+        if step is not None and _positive_definite(step, cov):
+            ne, info = observed, INFORMATION["observed"]
+        else:
+            step, cov, info = None, None, INFORMATION["fallback"]
+    if step is None:
+        step = solve(ne)
+        cov = marginal_covariances(ne, step)
+    if not _positive_definite(step, cov):  # rounding only: the information is positive definite
+        cov = _psd(cov)
     gcov = global_covariance(step)
     gsd = np.sqrt(np.maximum(np.diag(gcov), 0.0))
     out = {"beta": float(gsd[0]), "scale": float(gsd[1])}
     out.update({f"d0:{dive.beacon_ids[j]}": float(gsd[2 + i])
                 for i, j in enumerate(settings.free_d0)})
-    return marginal_covariances(ne, step), out, gcov, cross_covariances(step), info
+    if fk:
+        out["range_scale"] = float(gsd[-1])
+    return cov, out, gcov, cross_covariances(step), info
 
 
 def surface_separation(dive: Dive) -> np.ndarray:
@@ -190,6 +332,7 @@ def _settings(dive, opts, fixed, fixed_resp) -> ecm.Settings:
     return ecm.Settings(priors=pri, model=opts["model"], mp_beacons=mp, free_d0=free,
                         fixed_resp=fixed_resp, fix_sigma_mp=fix_mp,
                         fix_sigma_dp=opts["sigma_dp"] is not None,
+                        free_range_scale=bool(opts["range_scale"]),
                         anneal_start=opts["anneal_start"], max_iter=opts["max_iter"],
                         tol=opts["tol"])
 
@@ -226,6 +369,77 @@ def _beacon_info(dive, run, settings, fixed, records, min_pings, multipath):
     return info
 
 
+def _merge(hist: dict, run: ecm.Run, index: int) -> None:
+    """Append a run's history to ``hist``, with the run's index in ``hist["run"]``."""
+    for k, v in run.history.items():
+        hist.setdefault(k, []).extend(v)
+    hist.setdefault("run", []).extend([index] * len(run.history.get("loglik", ())))
+
+
+def _check_multipath(dive, state, settings, support, skip=()):
+    """Check every multipath class at ``state`` (into ``support``); switch off the unsupported.
+
+    Beacons in ``skip`` (a geometry just changed, their weights not yet refitted) are
+    left alone. Returns the settings and state without them, and whether any was
+    switched off.
+    """
+    resp, lse = ecm.e_step(dive, state, settings)
+    found = {j: v for j, v in multipath_support(dive, state, resp, lse, settings).items()
+             if j not in skip}
+    support.update(found)
+    drop = [j for j, (kept, _, _) in found.items() if not kept]
+    if not drop:
+        return settings, state, False
+    settings, state = _drop_multipath(state, settings, drop)
+    return settings, state, True
+
+
+def _estimate(dive, settings, start, path, gen, timings):
+    """Run the ECM, the path choice and the multipath check, in order.
+
+    The ECM runs :data:`PROBE_ITER` iterations at most; then (``path="auto"``) each
+    beacon's geometry is chosen on the corrected track; where a geometry changed or
+    the ECM had not converged, the multipath classes whose geometry stayed are
+    checked and the ECM continues; at its end they are checked again, and the ECM
+    continues once more if one was switched off. Returns the last run (its
+    history that of every run, ``history["run"]`` numbering them), the
+    iterations, the path choices, the multipath checks and the final settings.
+    """
+    check = settings.model == "mixture" and settings.fixed_resp is None
+    hist, records, support = {}, {}, {}
+    t0 = time.perf_counter()
+    run = ecm.run(dive, start, dataclasses.replace(
+        settings, max_iter=min(settings.max_iter, PROBE_ITER)))
+    n_iter, state, again = run.n_iter, run.state, not run.converged
+    _merge(hist, run, 0)
+    timings["ecm"] = time.perf_counter() - t0
+    if path == AUTO and settings.free_d0:
+        t0 = time.perf_counter()
+        before = state.double
+        state, records, changed = _choose_paths(dive, state, settings, gen)
+        again |= changed
+        timings["path_choice"] = time.perf_counter() - t0
+    if again and n_iter < settings.max_iter:
+        t0 = time.perf_counter()
+        if check and settings.free_d0:
+            moved = () if path != AUTO else np.flatnonzero(state.double != before).tolist()
+            settings, state, _ = _check_multipath(dive, state, settings, support, moved)
+        run = ecm.run(dive, state, dataclasses.replace(
+            settings, max_iter=settings.max_iter - n_iter), anneal=False)
+        n_iter += run.n_iter
+        _merge(hist, run, 1)
+        timings["ecm_continued"] = time.perf_counter() - t0
+    if check and settings.free_d0:
+        t0 = time.perf_counter()
+        settings, state, dropped = _check_multipath(dive, run.state, settings, support)
+        if dropped:
+            run = ecm.run(dive, state, settings, anneal=False)
+            n_iter += run.n_iter
+            _merge(hist, run, 2)
+        timings["multipath_check"] = time.perf_counter() - t0
+    return run._replace(history=hist), n_iter, records, support, settings
+
+
 def _check_options(opts):
     check_choice("model", opts["model"], ecm.MODELS)
     check_choice("multipath", opts["multipath"], ecm.MULTIPATH)
@@ -255,6 +469,7 @@ def navigate(
     scale_sd: float = 0.05,
     plane_sd: float = 1000.0,
     sigma_dp: float | None = None,
+    range_scale: bool = False,
     classes=None,
     reflectors: dict | None = None,
     min_pings: int = 30,
@@ -301,6 +516,9 @@ def navigate(
         Prior sd (m) of each plane height about the sea surface.
     sigma_dp : float, optional
         Fix sigma_DP (m); default estimated.
+    range_scale : bool, default False
+        Also estimate a range scale: every predicted range is multiplied by it
+        (the ranges' sound speed over the true mean one), prior sd 0.01 about 1.
     classes : array_like, optional
         One class per input row (``"dp"``, ``"mp"``, ``"ol"``; anything for a
         no-reply ping): the classes are then known (the oracle of the benchmarks).
@@ -353,8 +571,8 @@ def navigate(
     t_start = time.perf_counter()
     opts = dict(multipath=multipath, model=model, path=path, dr_noise=dr_noise,
                 start_sd=start_sd, heading_sd=heading_sd, scale_sd=scale_sd, plane_sd=plane_sd,
-                sigma_dp=sigma_dp, min_pings=min_pings, anneal_start=anneal_start, max_sd=max_sd,
-                max_iter=max_iter, tol=tol, ci=ci)
+                sigma_dp=sigma_dp, range_scale=bool(range_scale), min_pings=min_pings,
+                anneal_start=anneal_start, max_sd=max_sd, max_iter=max_iter, tol=tol, ci=ci)
     _check_options(opts)
     gen = as_generator(rng)
     survey = load_survey(pings, beacons)
@@ -362,21 +580,12 @@ def navigate(
     fixed = _check_reflectors(reflectors, dive)
     settings = _settings(dive, opts, fixed, _fixed_resp(classes, dive))
     timings = {"load": time.perf_counter() - t_start}
-    t0 = time.perf_counter()
-    run = ecm.run(dive, _start(dive, settings, path, fixed, sigma_dp), settings)
-    n_iter, records = run.n_iter, {}
-    timings["ecm"] = time.perf_counter() - t0
-    if path == AUTO and settings.free_d0:
-        t0 = time.perf_counter()
-        state, records, changed = _choose_paths(dive, run.state, settings, gen)
-        timings["path_choice"] = time.perf_counter() - t0
-        if changed:
-            run = ecm.run(dive, state, settings, anneal=False)
-            n_iter += run.n_iter
-            timings["ecm_after_path_choice"] = time.perf_counter() - t0
+    run, n_iter, records, support, settings = _estimate(
+        dive, settings, _start(dive, settings, path, fixed, sigma_dp), path, gen, timings)
     if not run.converged:
         warnings.warn(f"navigate: the ECM did not converge in {n_iter} iterations; raise "
-                      "max_iter or loosen tol", ConvergenceWarning, stacklevel=2)
+                      "max_iter (--max-iter) or loosen tol (--tol)", ConvergenceWarning,
+                      stacklevel=2)
     t0 = time.perf_counter()
     cov, gsd, gcov, cross, information = _uncertainty(dive, run, settings)
     flags = observability.assess(
@@ -391,8 +600,14 @@ def navigate(
     skipped = {bid: f"beacon {bid} has no reply" for bid, c in
                zip(dive.beacon_ids, dive.replies_per_beacon(), strict=True) if c == 0}
     info = _beacon_info(dive, run, settings, fixed, records, min_pings, multipath)
+    for j, (kept, lr, reason) in support.items():
+        bid = dive.beacon_ids[j]
+        info[bid]["multipath_check"] = {"kept": kept, "likelihood_ratio": float(lr),
+                                        "threshold": MP_LR_THRESHOLD}
+        if not kept:
+            info[bid]["reason"] = "multipath class switched off: " + reason
     opts.update(oracle_classes=classes is not None, reflectors_given=sorted(fixed),
-                information=information)
+                sigma_floor=settings.sigma_floor, information=information)
     return Navigation(dive=dive, state=run.state, cov=cov, global_sd=gsd, resp=run.resp,
                       beacons=info, skipped=skipped, flags=flags, n_iter=n_iter,
                       converged=run.converged, loglik=run.loglik, history=run.history,

@@ -22,8 +22,10 @@ The start is the dead reckoning itself with the planes at the sea surface. The
 scales are **annealed**: floored at ``anneal_start`` m in the first iteration,
 the floor halved every iteration until it no longer binds; a drifted dead
 reckoning, tens of metres off, is then pulled onto the ranges before the
-scales shrink to what the data say. From then on, for the mixture, the log
-posterior never decreases (tested).
+scales shrink to what the data say. From then on, for the mixture, the E- and
+track steps never decrease the log posterior at the current scales (tested); the
+scales then move to the fixed point of the marginal likelihood
+(:func:`scales_and_weights`), which the joint log posterior does not measure.
 """
 
 from __future__ import annotations
@@ -37,9 +39,17 @@ from ...mixture.densities import gaussian_logpdf, safe_log
 from ...mixture.gauss_newton import safeguarded_step
 from .dive import Dive
 from .model import class_log_joint
-from .normal import solve
+from .normal import (
+    cross_covariances,
+    global_covariance,
+    marginal_covariances,
+    solve,
+)
 from .objective import Priors, State, normal_equations, objective, predictions, prior_penalty
 from .options import MODELS, MULTIPATH  # noqa: F401 (re-exported)
+
+#: Smallest share of a scale's replies left as residual degrees of freedom (see :func:`_scale`).
+MIN_DOF = 0.1
 
 
 @dataclass(frozen=True)
@@ -61,6 +71,8 @@ class Settings:
     fix_sigma_mp : numpy.ndarray
         ``(B,)`` bool: keep the beacon's sigma_MP as given.
     fix_sigma_dp : bool
+    free_range_scale : bool
+        Estimate the range scale (:attr:`.objective.State.range_scale`).
     sigma_floor : float
     anneal_start : float
     huber_c, gate : float
@@ -77,6 +89,7 @@ class Settings:
     fixed_resp: np.ndarray | None = None
     fix_sigma_mp: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
     fix_sigma_dp: bool = False
+    free_range_scale: bool = False
     sigma_floor: float = 0.05
     anneal_start: float = 100.0
     huber_c: float = 1.345
@@ -98,8 +111,9 @@ class Run(NamedTuple):
         Log-likelihood of the ranges at ``state`` (mixture; for a baseline the
         Gaussian log-likelihood of the weighted direct-path residuals).
     history : dict of list
-        Per iteration: ``loglik``, ``log_posterior``, ``anneal``, ``sigma_dp``,
-        ``beta``, ``scale``, ``moved`` (largest position change, m).
+        Per iteration: ``loglik``, ``log_posterior``, ``log_posterior_track`` (after
+        the E- and track steps, at the iteration's starting scales and anneal floor),
+        ``anneal``, ``sigma_dp``, ``beta``, ``scale``, ``moved`` (largest change, m).
     n_iter : int
     converged : bool
     """
@@ -169,18 +183,19 @@ def e_step(dive: Dive, state: State, settings: Settings, tau: float = 0.0):
     return resp, resp[:, 0] * gaussian_logpdf(r, s_dp)
 
 
-def _pack(state: State, free_d0):
+def _pack(state: State, free_d0, free_k=False):
     return np.concatenate([state.track.ravel(), [state.beta, state.scale],
-                           state.d0[list(free_d0)]])
+                           state.d0[list(free_d0)], [state.range_scale] if free_k else []])
 
 
-def _unpack(x, state: State, dive: Dive, free_d0):
+def _unpack(x, state: State, dive: Dive, free_d0, free_k=False):
     k = dive.n_epochs
     d0 = state.d0.copy()
     idx = list(free_d0)
-    d0[idx] = np.clip(x[2 * k + 2:], dive.d0_min[idx], None)
+    d0[idx] = np.clip(x[2 * k + 2:2 * k + 2 + len(idx)], dive.d0_min[idx], None)
+    rs = float(min(max(x[-1], 0.5), 2.0)) if free_k else state.range_scale
     return state.replace(track=x[:2 * k].reshape(k, 2), beta=float(x[2 * k]),
-                         scale=float(max(x[2 * k + 1], 1e-3)), d0=d0)
+                         scale=float(max(x[2 * k + 1], 1e-3)), d0=d0, range_scale=rs)
 
 
 def gauss_newton(dive: Dive, state: State, a, b, settings: Settings) -> State:
@@ -200,22 +215,22 @@ def gauss_newton(dive: Dive, state: State, a, b, settings: Settings) -> State:
         Where the objective is no larger than at ``state`` (plane heights kept
         above every vehicle position, the speed scale positive).
     """
-    free = settings.free_d0
+    free, fk = settings.free_d0, settings.free_range_scale
     pri = settings.priors
 
     def value(x):
-        st = _unpack(x, state, dive, free)
+        st = _unpack(x, state, dive, free, fk)
         return objective(dive, st, a, b, pri, track=st.track, beta=st.beta, scale=st.scale,
-                         d0=st.d0), st
+                         d0=st.d0, range_scale=st.range_scale), st
 
     current = objective(dive, state, a, b, pri)
     for _ in range(settings.gn_steps):
-        ne = normal_equations(dive, state, a, b, pri, free)
+        ne = normal_equations(dive, state, a, b, pri, free, fk)
         try:
             step = solve(ne)
         except np.linalg.LinAlgError:
             break
-        x = _pack(state, free)
+        x = _pack(state, free, fk)
         out = safeguarded_step(value, x, np.concatenate([step.dp.ravel(), step.dg]), current)
         if out is None:
             break
@@ -226,8 +241,15 @@ def gauss_newton(dive: Dive, state: State, a, b, settings: Settings) -> State:
     return state
 
 
-def scales_and_weights(dive: Dive, state: State, resp, settings: Settings) -> State:
-    """Closed-form sigma_DP (pooled), sigma_MP and mixing weights per beacon.
+def leverages(dive: Dive, state: State, resp, settings: Settings):
+    """Posterior variance of every reply's predicted ranges: ``J P J^T`` (Laplace).
+
+    ``P`` is the covariance of the track and plane heights under the
+    class-weighted Gauss-Newton information at ``state`` (the complete-data
+    information, positive definite by the weak priors), its epoch blocks by the
+    selected inversion of :func:`.normal.marginal_covariances`; ``J`` the
+    derivative of the reply's direct-path (multipath) range with respect to its
+    epoch's position (and its beacon's plane height).
 
     Parameters
     ----------
@@ -239,23 +261,105 @@ def scales_and_weights(dive: Dive, state: State, resp, settings: Settings) -> St
 
     Returns
     -------
+    v_dp, v_mp : numpy.ndarray or None
+        ``(n,)`` each; None when the information cannot be factored.
+    """
+    a = resp[:, 0] / state.sigma_dp ** 2
+    b = resp[:, 1] / state.sigma_mp[dive.beacon] ** 2
+    fk = settings.free_range_scale
+    ne = normal_equations(dive, state, a, b, settings.priors, settings.free_d0, fk)
+    try:
+        step = solve(ne)
+        cov = marginal_covariances(ne, step)
+    except np.linalg.LinAlgError:
+        return None, None
+    pred = predictions(dive, state)
+    pk = cov[dive.epoch]
+    gd, gm = pred.grad_direct, pred.grad_multipath
+    v_dp = np.einsum("ia,iab,ib->i", gd, pk, gd)
+    v_mp = np.einsum("ia,iab,ib->i", gm, pk, gm)
+    if settings.free_d0 or fk:
+        cross, gcov = cross_covariances(step), global_covariance(step)
+        for col, j in enumerate(settings.free_d0, start=2):
+            m = np.flatnonzero(dive.beacon == j)
+            dd = pred.d_multipath_d0[m]
+            v_mp[m] += (2.0 * dd * np.einsum("ia,ia->i", gm[m], cross[dive.epoch[m], :, col])
+                        + dd * dd * gcov[col, col])
+        if fk:  # the range scale moves every range: f / s per unit
+            c = gcov.shape[0] - 1
+            ck = cross[dive.epoch, :, c]
+            for v, f, g in ((v_dp, pred.direct, gd), (v_mp, pred.multipath, gm)):
+                jk = f / state.range_scale
+                v += 2.0 * jk * np.einsum("ia,ia->i", g, ck) + jk * jk * gcov[c, c]
+            for col, j in enumerate(settings.free_d0, start=2):
+                m = dive.beacon == j
+                v_mp[m] += (2.0 * pred.d_multipath_d0[m] * pred.multipath[m]
+                            / state.range_scale * gcov[col, c])
+    return np.maximum(v_dp, 0.0), np.maximum(v_mp, 0.0)
+
+
+def _scale(sse, count, lev, floor):
+    """``sqrt(sse / (count - lev))``: the residuals' degrees of freedom restored.
+
+    ``lev`` (the summed leverages) is capped at ``(1 - MIN_DOF) count``: where the
+    ranges cannot tell the scale from the track, at most a ``1 / MIN_DOF``-fold
+    variance inflation (documented in docs/navigate.md).
+    """
+    dof = np.maximum(count - np.minimum(lev, (1.0 - MIN_DOF) * count), 1e-300)
+    return np.maximum(np.sqrt(sse / dof), floor)
+
+
+def scales_and_weights(dive: Dive, state: State, resp, settings: Settings, *,
+                       expected: bool = True) -> State:
+    """sigma_DP (pooled), sigma_MP and mixing weights per beacon.
+
+    With ``expected`` (after the annealing), the scales are the fixed point of the
+    marginal likelihood (MacKay's update of the evidence): ``sigma^2 = sum p r^2 /
+    (sum p - gamma)`` with ``gamma = sum p J P J^T / sigma^2`` the leverages of
+    the replies on the track (:func:`leverages`). The plain weighted RMS of the
+    residuals (``expected=False``) is biased low: with one range per epoch the
+    track absorbs the noise and the scale collapses to its floor.
+
+    Parameters
+    ----------
+    dive : Dive
+    state : State
+    resp : numpy.ndarray
+        ``(n, 3)`` class probabilities or weights.
+    settings : Settings
+    expected : bool, default True
+        Restore the degrees of freedom the track takes.
+
+    Returns
+    -------
     State
     """
     pred = predictions(dive, state)
     e_dp, e_mp = dive.z - pred.direct, dive.z - pred.multipath
     floor = settings.sigma_floor
+    v_dp = v_mp = None
+    if expected:
+        v_dp, v_mp = leverages(dive, state, resp, settings)
+    h_dp = np.zeros(dive.n) if v_dp is None else v_dp / state.sigma_dp ** 2
+    h_mp = (np.zeros(dive.n) if v_mp is None
+            else v_mp / state.sigma_mp[dive.beacon] ** 2)
     s_dp = state.sigma_dp
     if not settings.fix_sigma_dp:
         if settings.model == "huber":
-            s_dp = max(1.4826 * float(np.median(np.abs(e_dp))), floor)
+            n = float(dive.n)
+            s_dp = float(_scale(n * (1.4826 * float(np.median(np.abs(e_dp)))) ** 2, n,
+                                float(h_dp.sum()), floor))
         elif resp[:, 0].sum() > 0:
-            s_dp = max(np.sqrt(np.add.reduce(resp[:, 0] * e_dp ** 2) / resp[:, 0].sum()), floor)
+            p = resp[:, 0]
+            s_dp = float(_scale(np.add.reduce(p * e_dp ** 2), p.sum(),
+                                np.add.reduce(p * h_dp), floor))
     nb = len(dive.beacon_ids)
     r_mp = np.bincount(dive.beacon, weights=resp[:, 1], minlength=nb)
     sse = np.bincount(dive.beacon, weights=resp[:, 1] * e_mp ** 2, minlength=nb)
+    lev = np.bincount(dive.beacon, weights=resp[:, 1] * h_mp, minlength=nb)
     s_mp = state.sigma_mp.copy()
     upd = settings.mp_beacons & ~settings.fix_sigma_mp & (r_mp > 0)
-    s_mp[upd] = np.maximum(np.sqrt(sse[upd] / r_mp[upd]), floor)
+    s_mp[upd] = _scale(sse[upd], r_mp[upd], lev[upd], floor)
     w = state.weights.copy()
     if settings.model == "mixture" and settings.fixed_resp is None:
         n_b = np.maximum(np.bincount(dive.beacon, minlength=nb), 1)
@@ -287,17 +391,22 @@ def run(dive: Dive, state: State, settings: Settings, *, anneal: bool = True) ->
     Run
     """
     tau = settings.anneal_start if anneal else 0.0
-    hist = {k: [] for k in ("loglik", "log_posterior", "anneal", "sigma_dp", "beta", "scale",
-                            "moved")}
+    hist = {k: [] for k in ("loglik", "log_posterior", "log_posterior_track", "anneal",
+                            "sigma_dp", "beta", "scale", "moved")}
     converged, it = False, 0
     resp, lse = e_step(dive, state, settings, tau)
     for it in range(1, settings.max_iter + 1):
         a, b = _weights(dive, state, resp, tau)
         new = gauss_newton(dive, state, a, b, settings)
-        new = scales_and_weights(dive, new, resp, settings)
+        # the log posterior after the E- and track steps, before the scales move: the
+        # ECM guarantees it is no lower than the last iteration's (at the same scales)
+        lp_track = float(np.add.reduce(e_step(dive, new, settings, tau)[1])) - prior_penalty(
+            dive, new, settings.priors)
+        new = scales_and_weights(dive, new, resp, settings, expected=tau == 0.0)
         moved = max(float(np.max(np.abs(new.track - state.track))),
                     float(np.max(np.abs(new.d0 - state.d0), initial=0.0)),
                     abs(new.sigma_dp - state.sigma_dp),
+                    abs(new.range_scale - state.range_scale) * float(np.max(dive.z, initial=0.0)),
                     float(np.max(np.abs(new.sigma_mp - state.sigma_mp), initial=0.0)))
         state = new
         s_min = min(state.sigma_dp, float(state.sigma_mp[settings.mp_beacons].min(
@@ -307,7 +416,8 @@ def run(dive: Dive, state: State, settings: Settings, *, anneal: bool = True) ->
         ll = float(np.add.reduce(lse))
         for key, v in (("loglik", ll), ("log_posterior", ll - prior_penalty(dive, state,
                                                                              settings.priors)),
-                       ("anneal", tau), ("sigma_dp", state.sigma_dp), ("beta", state.beta),
+                       ("log_posterior_track", lp_track), ("anneal", tau),
+                       ("sigma_dp", state.sigma_dp), ("beta", state.beta),
                        ("scale", state.scale), ("moved", moved)):
             hist[key].append(v)
         if tau == 0.0 and moved < settings.tol and len(hist["anneal"]) > 1 \

@@ -48,6 +48,8 @@ class Priors(NamedTuple):
         Prior sd of each plane height about the sea surface (m).
     min_dt : float
         Floor on the time between epochs (s), against an infinite weight.
+    range_scale_sd : float
+        Prior sd of the range scale (about 1), where it is estimated.
     """
 
     q: float
@@ -56,6 +58,7 @@ class Priors(NamedTuple):
     scale_sd: float
     plane_sd: float
     min_dt: float = 1e-3
+    range_scale_sd: float = 0.01
 
 
 @dataclass(frozen=True)
@@ -80,6 +83,9 @@ class State:
         ``(B,)`` multipath scales (m).
     weights : numpy.ndarray
         ``(B, 3)`` mixing weights of dp, mp, ol.
+    range_scale : float
+        Every predicted range is multiplied by it (a sound-speed scale: the
+        ranges' sound speed over the true mean one); 1 unless estimated.
     """
 
     track: np.ndarray
@@ -90,6 +96,7 @@ class State:
     sigma_dp: float
     sigma_mp: np.ndarray
     weights: np.ndarray
+    range_scale: float = 1.0
 
     def replace(self, **changes) -> State:
         """Return a copy with ``changes``.
@@ -106,8 +113,11 @@ class State:
         return dataclasses.replace(self, **changes)
 
 
-def predictions(dive: Dive, state: State, track=None, d0=None) -> RangePrediction:
+def predictions(dive: Dive, state: State, track=None, d0=None,
+                range_scale=None) -> RangePrediction:
     """Predicted ranges of every reply at ``state`` (or at another track / plane heights).
+
+    Every range and derivative is multiplied by the range scale.
 
     Parameters
     ----------
@@ -117,6 +127,8 @@ def predictions(dive: Dive, state: State, track=None, d0=None) -> RangePredictio
         ``(K, 2)`` instead of ``state.track``.
     d0 : numpy.ndarray, optional
         ``(B,)`` instead of ``state.d0``.
+    range_scale : float, optional
+        Instead of ``state.range_scale``.
 
     Returns
     -------
@@ -124,11 +136,15 @@ def predictions(dive: Dive, state: State, track=None, d0=None) -> RangePredictio
     """
     track = state.track if track is None else track
     d0 = state.d0 if d0 is None else d0
+    k = state.range_scale if range_scale is None else range_scale
     p = track[dive.epoch]
     b = dive.beacon
     xyz = dive.beacon_xyz[b]
-    return predict_ranges(p[:, 0], p[:, 1], dive.zdepth, (xyz[:, 0], xyz[:, 1], xyz[:, 2]),
+    pred = predict_ranges(p[:, 0], p[:, 1], dive.zdepth, (xyz[:, 0], xyz[:, 1], xyz[:, 2]),
                           d0[b], state.double[b])
+    if k == 1.0:
+        return pred
+    return RangePrediction(*(k * v for v in pred))
 
 
 def motion_residuals(dive: Dive, track, beta, scale):
@@ -167,7 +183,7 @@ def motion_weights(dive: Dive, priors: Priors) -> np.ndarray:
 
 
 def prior_penalty(dive: Dive, state: State, priors: Priors, track=None, beta=None, scale=None,
-                  d0=None) -> float:
+                  d0=None, range_scale=None) -> float:
     """Return the motion and prior part of the objective (``Phi`` without the ranges).
 
     Parameters
@@ -175,7 +191,7 @@ def prior_penalty(dive: Dive, state: State, priors: Priors, track=None, beta=Non
     dive : Dive
     state : State
     priors : Priors
-    track, beta, scale, d0 : optional
+    track, beta, scale, d0, range_scale : optional
         Values to use instead of the state's.
 
     Returns
@@ -186,6 +202,7 @@ def prior_penalty(dive: Dive, state: State, priors: Priors, track=None, beta=Non
     beta = state.beta if beta is None else beta
     scale = state.scale if scale is None else scale
     d0 = state.d0 if d0 is None else d0
+    k = state.range_scale if range_scale is None else range_scale
     u = motion_residuals(dive, track, beta, scale)
     lam = motion_weights(dive, priors)
     start = track[0] - dive.dr[0]
@@ -194,7 +211,8 @@ def prior_penalty(dive: Dive, state: State, priors: Priors, track=None, beta=Non
                        + (start @ start) / priors.start_sd ** 2
                        + beta * beta / priors.heading_sd ** 2
                        + (scale - 1.0) ** 2 / priors.scale_sd ** 2
-                       + np.add.reduce(plane * plane) / priors.plane_sd ** 2)
+                       + np.add.reduce(plane * plane) / priors.plane_sd ** 2
+                       + (k - 1.0) ** 2 / priors.range_scale_sd ** 2)
 
 
 def objective(dive: Dive, state: State, a, b, priors: Priors, **values) -> float:
@@ -208,13 +226,15 @@ def objective(dive: Dive, state: State, a, b, priors: Priors, **values) -> float
         ``(n,)`` weights of the direct-path and multipath squared residuals.
     priors : Priors
     **values
-        ``track``, ``beta``, ``scale``, ``d0`` to use instead of the state's.
+        ``track``, ``beta``, ``scale``, ``d0``, ``range_scale`` to use instead of the
+        state's.
 
     Returns
     -------
     float
     """
-    pred = predictions(dive, state, values.get("track"), values.get("d0"))
+    pred = predictions(dive, state, values.get("track"), values.get("d0"),
+                       values.get("range_scale"))
     e_dp, e_mp = pred.direct - dive.z, pred.multipath - dive.z
     ranges = 0.5 * float(np.add.reduce(a * e_dp * e_dp + b * e_mp * e_mp))
     return ranges + prior_penalty(dive, state, priors, **values)
@@ -235,10 +255,30 @@ def _range_terms(dive, pred, a, b, k):
     return diag, grad, e_mp
 
 
-def normal_equations(dive: Dive, state: State, a, b, priors: Priors, free_d0) -> Normal:
+def _range_scale_terms(dive, state, pred, a, b, free_d0, priors, B, C, grad_g):
+    """Fill the range scale's column (the last global) of ``B``, ``C`` and ``grad_g``."""
+    k, c = dive.n_epochs, C.shape[0] - 1
+    kk = state.range_scale
+    jd, jm = pred.direct / kk, pred.multipath / kk  # derivatives of the ranges in the scale
+    e_dp, e_mp = pred.direct - dive.z, pred.multipath - dive.z
+    gd, gm = pred.grad_direct, pred.grad_multipath
+    for ax in range(2):
+        B[:, ax, c] = np.bincount(dive.epoch, weights=a * gd[:, ax] * jd + b * gm[:, ax] * jm,
+                                  minlength=k)
+    C[c, c] = np.add.reduce(a * jd * jd + b * jm * jm) + 1.0 / priors.range_scale_sd ** 2
+    for col, j in enumerate(free_d0, start=2):
+        m = dive.beacon == j
+        C[c, col] = C[col, c] = np.add.reduce(b[m] * pred.d_multipath_d0[m] * jm[m])
+    grad_g[c] = (np.add.reduce(a * jd * e_dp + b * jm * e_mp)
+                 + (kk - 1.0) / priors.range_scale_sd ** 2)
+
+
+def normal_equations(dive: Dive, state: State, a, b, priors: Priors, free_d0,
+                     free_k: bool = False) -> Normal:
     """Gradient and Gauss-Newton Hessian of :func:`objective` in the sparse form.
 
-    The globals are ordered ``beta, scale, d0[free_d0[0]], d0[free_d0[1]], ...``.
+    The globals are ordered ``beta, scale, d0[free_d0[0]], d0[free_d0[1]], ...``,
+    then the range scale if ``free_k``.
 
     Parameters
     ----------
@@ -249,6 +289,8 @@ def normal_equations(dive: Dive, state: State, a, b, priors: Priors, free_d0) ->
     priors : Priors
     free_d0 : sequence of int
         Beacons whose plane height is estimated.
+    free_k : bool, default False
+        Estimate the range scale.
 
     Returns
     -------
@@ -257,7 +299,7 @@ def normal_equations(dive: Dive, state: State, a, b, priors: Priors, free_d0) ->
     k = dive.n_epochs
     pred = predictions(dive, state)
     diag, grad, e_mp = _range_terms(dive, pred, a, b, k)
-    g = 2 + len(free_d0)
+    g = 2 + len(free_d0) + bool(free_k)
     B = np.zeros((k, 2, g))
     C = np.zeros((g, g))
     grad_g = np.zeros(g)
@@ -270,6 +312,8 @@ def normal_equations(dive: Dive, state: State, a, b, priors: Priors, free_d0) ->
         C[col, col] = np.add.reduce(w * pred.d_multipath_d0[m]) + 1.0 / priors.plane_sd ** 2
         grad_g[col] = (np.add.reduce(w * e_mp[m])
                        + (state.d0[j] - dive.beacon_xyz[j, 2]) / priors.plane_sd ** 2)
+    if free_k:
+        _range_scale_terms(dive, state, pred, a, b, free_d0, priors, B, C, grad_g)
     lam = motion_weights(dive, priors)
     R, dR = rotation(state.beta)
     rot = dive.delta @ R.T
@@ -295,7 +339,7 @@ def normal_equations(dive: Dive, state: State, a, b, priors: Priors, free_d0) ->
     return Normal(diag, lam, B.reshape(2 * k, g), C, grad.ravel(), grad_g)
 
 
-def missing_information(dive: Dive, state: State, resp, free_d0):
+def missing_information(dive: Dive, state: State, resp, free_d0, free_k: bool = False):
     """Return the information the uncertain classes cost (Louis, 1982), in the sparse layout.
 
     The observed information of the mixture is the complete-data information
@@ -317,6 +361,8 @@ def missing_information(dive: Dive, state: State, resp, free_d0):
     free_d0 : sequence of int
         Beacons whose plane height is estimated (the globals' order of
         :func:`normal_equations`).
+    free_k : bool, default False
+        The range scale is estimated (the last global).
 
     Returns
     -------
@@ -330,7 +376,8 @@ def missing_information(dive: Dive, state: State, resp, free_d0):
     k = dive.n_epochs
     pred = predictions(dive, state)
     p_d, p_m = resp[:, 0], resp[:, 1]
-    u = ((pred.direct - dive.z) / state.sigma_dp ** 2)[:, None] * pred.grad_direct
+    su = (pred.direct - dive.z) / state.sigma_dp ** 2
+    u = su[:, None] * pred.grad_direct
     sv = (pred.multipath - dive.z) / state.sigma_mp[dive.beacon] ** 2
     v = sv[:, None] * pred.grad_multipath
     cu, cv, cx = p_d * (1 - p_d), p_m * (1 - p_m), p_d * p_m
@@ -339,7 +386,7 @@ def missing_information(dive: Dive, state: State, resp, free_d0):
              - cx[:, None, None] * (u[:, :, None] * v[:, None, :] + v[:, :, None] * u[:, None, :]))
     diag = np.column_stack([np.bincount(dive.epoch, weights=block[:, a, b], minlength=k)
                             for a, b in ((0, 0), (0, 1), (1, 1))])
-    g = 2 + len(free_d0)
+    g = 2 + len(free_d0) + bool(free_k)
     B = np.zeros((k, 2, g))
     C = np.zeros((g, g))
     vd = sv * pred.d_multipath_d0
@@ -349,4 +396,16 @@ def missing_information(dive: Dive, state: State, resp, free_d0):
             w = (cv[m] * v[m, ax] - cx[m] * u[m, ax]) * vd[m]
             B[:, ax, col] = np.bincount(dive.epoch[m], weights=w, minlength=k)
         C[col, col] = np.add.reduce(cv[m] * vd[m] ** 2)
+    if free_k:  # the scores in the range scale: su * f_dp / s, sv * f_mp / s
+        c = g - 1
+        uk = su * pred.direct / state.range_scale
+        vk = sv * pred.multipath / state.range_scale
+        for ax in range(2):
+            w = (cu * u[:, ax] * uk + cv * v[:, ax] * vk
+                 - cx * (u[:, ax] * vk + v[:, ax] * uk))
+            B[:, ax, c] = np.bincount(dive.epoch, weights=w, minlength=k)
+        C[c, c] = np.add.reduce(cu * uk * uk + cv * vk * vk - 2.0 * cx * uk * vk)
+        for col, j in enumerate(free_d0, start=2):
+            m = dive.beacon == j
+            C[c, col] = C[col, c] = np.add.reduce((cv[m] * vk[m] - cx[m] * uk[m]) * vd[m])
     return diag, B.reshape(2 * k, g), C

@@ -112,6 +112,7 @@ def describe(flags: list) -> str:
     --------
     >>> print(describe([{"kind": "track", "start": 0.0, "end": 60.0, "n_epochs": 6,
     ...                  "max_sd": 250.0, "reason": "replies from beacon 1 only"}]))
+    ... # doctest: +NORMALIZE_WHITESPACE
     navigation not corrected for t = 0-60 s (6 epochs, position sd up to 250 m): replies from
     beacon 1 only
     """

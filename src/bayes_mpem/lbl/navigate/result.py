@@ -46,16 +46,23 @@ def finite(v):
     return v if math.isfinite(v) else None
 
 
-def estimate(value, sd, z, *, lo=-np.inf) -> dict:
+def estimate(value, sd, z, *, lo=-np.inf, bound=None) -> dict:
     """``{"estimate", "sd", "interval"}``, a Wald interval ``value +- z sd`` (clipped at ``lo``).
+
+    A value at its lower bound (``bound``, default ``lo``) is not estimated as an
+    interior point: its interval is one-sided, ``[bound, value + z1 sd]`` with
+    ``z1`` the one-sided quantile of the same probability, and the record says
+    ``"at_bound": true``.
 
     Parameters
     ----------
     value, sd : float
     z : float
-        Normal quantile of the interval.
+        Normal quantile of the (two-sided) interval.
     lo : float, default -inf
         Lower end of the parameter's range.
+    bound : float, optional
+        The lower bound the estimator can reach (a floor); default ``lo``.
 
     Returns
     -------
@@ -65,9 +72,74 @@ def estimate(value, sd, z, *, lo=-np.inf) -> dict:
     --------
     >>> estimate(10.0, 1.0, 2.0)
     {'estimate': 10.0, 'sd': 1.0, 'interval': [8.0, 12.0]}
+    >>> [round(v, 4) for v in estimate(0.0, 1.0, 1.959964, lo=0.0)["interval"]]
+    [0.0, 1.6449]
     """
+    bound = lo if bound is None else bound
+    if sd is None or not math.isfinite(float(sd)) or sd < 0:
+        return {"estimate": finite(value), "sd": None, "interval": [None, None]}
+    if math.isfinite(bound) and value <= bound + 1e-9 * max(1.0, abs(bound)):
+        z1 = float(norm.ppf(2.0 * norm.cdf(z) - 1.0))
+        return {"estimate": finite(value), "sd": finite(sd),
+                "interval": [finite(bound), finite(value + z1 * sd)], "at_bound": True}
     return {"estimate": finite(value), "sd": finite(sd),
             "interval": [finite(max(value - z * sd, lo)), finite(value + z * sd)]}
+
+
+def _num(v, spec: str) -> str:
+    """``format(v, spec)``, or ``"n/a"`` for a missing value."""
+    return "n/a" if v is None else format(v, spec)
+
+
+def quality_lines(summary: dict) -> list:
+    """Every quality flag of a ``summary.json``, one line each (what the console prints).
+
+    Parameters
+    ----------
+    summary : dict
+        :meth:`Navigation.summary`.
+
+    Returns
+    -------
+    list of str
+        Beacon flags and reasons, parameters at a bound, the observability flags,
+        non-convergence and the information behind the intervals.
+
+    Examples
+    --------
+    >>> for line in quality_lines({"beacons": {"1": {"flags": ["sigma_MP at its floor"]}},
+    ...                            "converged": False, "information": "observed (Louis)"}):
+    ...     print(line)
+    beacon 1: sigma_MP at its floor
+    the ECM did NOT converge: raise --max-iter or loosen --tol
+    intervals from the observed (Louis) information
+    """
+    out = []
+    for bid, b in (summary.get("beacons") or {}).items():
+        out += [f"beacon {bid}: {f}" for f in b.get("flags") or ()]
+        if b.get("reason"):
+            out.append(f"beacon {bid}: {b['reason']}")
+        for key in ("d0", "sigma_mp"):
+            if isinstance(b.get(key), dict) and b[key].get("at_bound"):
+                out.append(f"beacon {bid}: {key} at its bound {b[key]['interval'][0]:g} "
+                           "(one-sided interval)")
+    sdp = summary.get("sigma_dp")
+    if isinstance(sdp, dict) and sdp.get("at_bound"):
+        out.append(f"sigma_DP at its floor {sdp['interval'][0]:g} m (one-sided interval)")
+    for f in summary.get("observability") or ():
+        if f.get("kind") == "track":
+            out.append(f"navigation not corrected for t = {f['start']:.0f}-{f['end']:.0f} s "
+                       f"({f['n_epochs']} epochs, position sd up to {f['max_sd']:.3g} m): "
+                       f"{f['reason']}")
+        else:
+            out.append(f["reason"])
+    if summary.get("converged") is False:
+        out.append("the ECM did NOT converge: raise --max-iter or loosen --tol")
+    if summary.get("information"):
+        out.append(f"intervals from the {summary['information']} information")
+    for bid, why in (summary.get("skipped") or {}).items():
+        out.append(f"beacon {bid} skipped: {why}")
+    return out
 
 
 @dataclass(frozen=True)
@@ -174,15 +246,21 @@ class Navigation:
         out = {"n": n, "n_no_reply": int(np.sum(d.survey.no_reply & (d.survey.beacon == bid))),
                "beacon_depth": depth}
         n_dp = float(self.resp[:, 0].sum())
-        out["sigma_dp"] = estimate(st.sigma_dp, st.sigma_dp / math.sqrt(2 * max(n_dp, 1)), z,
-                                   lo=0.0)
+        floor = float(self.options.get("sigma_floor", 0.0))
+        if self.options.get("sigma_dp") is not None:
+            out["sigma_dp"] = {"estimate": finite(st.sigma_dp), "sd": None,
+                               "interval": [None, None], "fixed": True}
+        else:
+            out["sigma_dp"] = estimate(st.sigma_dp, st.sigma_dp / math.sqrt(2 * max(n_dp, 1)),
+                                       z, lo=0.0, bound=floor)
         if info["mp"]:
             n_mp = float(resp[:, 1].sum())
             sd0 = self.global_sd.get(f"d0:{bid}", 0.0)
             out["d0"] = estimate(st.d0[j], sd0, z, lo=float(d.d0_min[j]))
             out["plane_depth"] = depth - float(st.d0[j])
             out["sigma_mp"] = estimate(st.sigma_mp[j],
-                                       st.sigma_mp[j] / math.sqrt(2 * max(n_mp, 1)), z, lo=0.0)
+                                       st.sigma_mp[j] / math.sqrt(2 * max(n_mp, 1)), z, lo=0.0,
+                                       bound=floor)
             out["path"] = "double" if st.double[j] else "triangle"
         else:
             out["d0"] = out["sigma_mp"] = out["path"] = out["plane_depth"] = None
@@ -214,8 +292,11 @@ class Navigation:
                                            np.rad2deg(self.global_sd["beta"]), z),
               "speed_scale": estimate(st.scale, self.global_sd["scale"], z, lo=0.0),
               "dr_noise": self.options.get("dr_noise"), "source": d.dr_source}
+        rs = (estimate(st.range_scale, self.global_sd["range_scale"], z, lo=0.0)
+              if "range_scale" in self.global_sd else None)
         return {
             "model": self.options.get("model"), "multipath": self.options.get("multipath"),
+            "range_scale": rs,
             "beacons": beacons, "sigma_dp": beacons[next(iter(beacons))]["sigma_dp"]
             if beacons else None,
             "dead_reckoning": dr,
@@ -256,19 +337,34 @@ class Navigation:
             if b["d0"] is None:
                 left = f"{'-':>9} {'':>5} {'-':>8} {'-':>8}"
             else:
-                half = (b["d0"]["interval"][1] - b["d0"]["interval"][0]) / 2
-                left = (f"{b['d0']['estimate']:9.1f} {half:5.1f} "
-                        f"{b['sigma_mp']['estimate']:8.2f} {b['path']:>8}")
+                lo_, hi_ = b["d0"]["interval"]
+                half = (None if lo_ is None or hi_ is None or b["d0"].get("at_bound")
+                        else (hi_ - lo_) / 2)
+                left = (f"{b['d0']['estimate']:9.1f} {_num(half, '5.1f'):>5} "
+                        f"{_num(b['sigma_mp']['estimate'], '8.2f'):>8} {b['path']:>8}")
             lines.append(f"{bid:>6} {left} {cf['dp'] or 0:6.3f} {cf['mp'] or 0:6.3f} "
                          f"{cf['ol'] or 0:6.3f} {b['n']:6d}")
         dr = s["dead_reckoning"]
-        lines.append(f"heading bias {dr['heading_bias_deg']['estimate']:.3f} deg "
-                     f"(sd {dr['heading_bias_deg']['sd']:.3f}), speed scale "
-                     f"{dr['speed_scale']['estimate']:.4f} (sd {dr['speed_scale']['sd']:.4f}); "
-                     f"track sd median {s['track']['sd_median']:.2f} m, "
-                     f"max {s['track']['sd_max']:.3g} m")
-        for bid, why in self.skipped.items():
-            lines.append(f"{bid:>6} skipped: {why}")
+        hb, sc, tr = dr["heading_bias_deg"], dr["speed_scale"], s["track"]
+        lines.append(f"heading bias {_num(hb['estimate'], '.3f')} deg "
+                     f"(sd {_num(hb['sd'], '.3f')}), speed scale "
+                     f"{_num(sc['estimate'], '.4f')} (sd {_num(sc['sd'], '.4f')}); "
+                     f"track sd median {_num(tr['sd_median'], '.2f')} m, "
+                     f"max {_num(tr['sd_max'], '.3g')} m")
+        rs = s.get("range_scale")
+        if rs:
+            lines.append(f"range scale {_num(rs['estimate'], '.6f')} "
+                         f"(sd {_num(rs['sd'], '.6f')})")
+        sdp = s.get("sigma_dp")
+        if sdp:
+            kind = ("given" if sdp.get("fixed") else
+                    f"sd {_num(sdp['sd'], '.3g')}, {s['ci']:.0%} interval "
+                    f"[{_num(sdp['interval'][0], '.3g')}, {_num(sdp['interval'][1], '.3g')}]")
+            lines.append(f"sigma_DP {_num(sdp['estimate'], '.3g')} m ({kind})")
+        notes = quality_lines(s)
+        if notes:
+            lines.append("quality flags (summary.json):")
+            lines += [f"  - {n}" for n in notes]
         return "\n".join(lines)
 
     def write(self, out_dir) -> dict:

@@ -311,3 +311,79 @@ def simulate_dive(
               "box": list(cfg["box"]), "altitude": cfg["altitude"],
               "cycle_seconds": cfg["cycle_seconds"], "navigation": nav}
     return DiveSimulation(Simulation(survey, sim.truth, labels, config), true_track, blocked)
+
+
+def stagger(sim: DiveSimulation) -> DiveSimulation:
+    """Keep one beacon per cycle, in turn: the staggered schedule of a ship over an array.
+
+    Cycle ``k`` keeps only its ping to beacon ``k mod B`` (the beacons in the
+    order of the beacons table), so every epoch has at most one range, as a
+    GNSS-A ship that interrogates one transponder per shot records them.
+
+    Parameters
+    ----------
+    sim : DiveSimulation
+
+    Returns
+    -------
+    DiveSimulation
+        The same truth, the pings thinned (``true_track`` keeps every cycle;
+        ``n_blocked`` counts the kept pings only).
+
+    Examples
+    --------
+    >>> sim = stagger(simulate_dive("abe58", rng=0, n_cycles=40))
+    >>> int(sim.survey.table.groupby("time").size().max())
+    1
+    """
+    table = sim.survey.table
+    ids = [str(b) for b in sim.survey.beacons.index]
+    cycle = np.searchsorted(sim.true_track["time"].to_numpy(), table["time"].to_numpy())
+    keep = table["beacon"].astype(str).to_numpy() == np.asarray(ids, object)[cycle % len(ids)]
+    survey = load_survey(table[keep].reset_index(drop=True),
+                         sim.survey.beacons.reset_index())
+    s = sim.simulation
+    n_blocked = np.bincount(cycle[keep], weights=sim.blocked[keep],
+                            minlength=len(sim.true_track)).astype(int)
+    config = {**s.config, "schedule": "staggered"}
+    return DiveSimulation(Simulation(survey, s.truth, s.labels[keep], config),
+                          sim.true_track.assign(n_blocked=n_blocked), sim.blocked[keep])
+
+
+def simulate_ship(*, rng: RNGLike = None, n_cycles: int = 1200, sigma_dp: float = 0.2,
+                  transducer_depth: float = 8.0, outlier_weight: float = 0.02,
+                  **kwargs) -> DiveSimulation:
+    """Simulate a surface ship over the ABE58 array: staggered schedule, no multipath.
+
+    The ``"abe58"`` preset with a flat sea floor, the transducer at
+    ``transducer_depth`` m, every reply a direct path or (``outlier_weight``)
+    an outlier, one beacon per cycle (:func:`stagger`).
+
+    Parameters
+    ----------
+    rng : None, int or numpy.random.Generator
+    n_cycles : int, default 1200
+    sigma_dp : float, default 0.2
+        Range noise (m).
+    transducer_depth : float, default 8
+        Depth of the ship's transducer (m).
+    outlier_weight : float, default 0.02
+    **kwargs
+        Passed to :func:`simulate_dive` (``heading_bias``, ``dr_noise``, ...).
+
+    Returns
+    -------
+    DiveSimulation
+
+    Examples
+    --------
+    >>> sim = simulate_ship(rng=0, n_cycles=40)
+    >>> set(sim.labels) <= {"dp", "ol", "no_reply"}
+    True
+    """
+    cfg = preset_config("abe58", as_generator(0))
+    w = (1.0 - outlier_weight, 0.0, outlier_weight)
+    return stagger(simulate_dive(
+        "abe58", rng=rng, n_cycles=n_cycles, sigma_dp=float(sigma_dp), relief=0.0,
+        altitude=cfg["seafloor"] - float(transducer_depth),
+        weights={b: w for b in cfg["beacons"]}, **kwargs))

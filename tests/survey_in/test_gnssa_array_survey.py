@@ -1,0 +1,125 @@
+"""Every multi-transponder survey is an array; the array's sound_speed record and solution.txt."""
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+
+from bayes_mpem.cli import main
+from bayes_mpem.exceptions import InputError
+from bayes_mpem.io.formats import read_survey, sample_file
+from bayes_mpem.survey_in.array_survey import locate_array_survey
+from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa
+from bayes_mpem.survey_in.survey import is_array, locate_survey
+
+
+@pytest.fixture(scope="module")
+def seagap_short(tmp_path_factory):
+    """SeaGap's sample, its first 600 shots (about 2.6 h, the four transponders)."""
+    d = tmp_path_factory.mktemp("seagap")
+    src = sample_file("seagap/obsdata.inp")
+    for name in ("pxp-ini.inp", "tr-ant.inp", "ss_prof.inp"):
+        shutil.copy(src.parent / name, d / name)
+    lines = src.read_text().splitlines()[:600]
+    (d / "obsdata.inp").write_text("\n".join(lines) + "\n")
+    return d / "obsdata.inp"
+
+
+@pytest.fixture(scope="module")
+def seagap_raw(seagap_short):
+    return read_survey(seagap_short, "seagap")
+
+
+def test_seagap_is_an_array_unless_one_at_a_time(seagap_raw):
+    assert is_array(seagap_raw) and not is_array(seagap_raw, one_at_a_time=True)
+    arr = locate_survey(seagap_raw, speed_intervals=4).summary
+    one = locate_survey(seagap_raw, one_at_a_time=True).summary
+    assert "array_centre" in arr and "array_centre" not in one
+    assert set(arr["transponders"]) == set(one["transponders"]) == {"1", "2", "3", "4"}
+    # one sound speed shared by the array; each its own one at a time
+    assert len({t["sound_speed"]["mean"] for t in arr["transponders"].values()}) == 1
+    assert len({t["sound_speed"]["mean"] for t in one["transponders"].values()}) == 4
+    assert arr["ssp"] == "ss_prof.inp" and arr["geometry"]["origin"] is None
+    assert arr["transponders"]["1"]["lat"] is None
+    prior = seagap_raw.header["transponders"]
+    for tid, t in arr["transponders"].items():  # the array agrees with the prior to a metre
+        moved = [t["enu"][c]["mean"] - prior.loc[tid, c] for c in ("east", "north", "up")]
+        assert np.all(np.abs(moved) < 2.0), (tid, moved)
+    centre = np.mean([[t["enu"][c]["mean"] for c in ("east", "north", "up")]
+                      for t in arr["transponders"].values()], axis=0)
+    np.testing.assert_allclose([arr["array_centre"]["enu"][c]["mean"]
+                                for c in ("east", "north", "up")], centre, atol=1e-6)
+
+
+def test_seagap_array_refuses_what_only_one_at_a_time_has(seagap_raw):
+    with pytest.raises(InputError, match="fit_lag.*one transponder at a time"):
+        locate_survey(seagap_raw, fit_lag=True)
+    garpos = simulate_gnssa(n_transponders=3, hours=0.3, rng=2).raw()
+    with pytest.raises(InputError, match="one_at_a_time"):
+        locate_survey(garpos, one_at_a_time=True)
+
+
+def test_locate_command_on_seagap(seagap_short, tmp_path, capsys):
+    assert main(["locate", str(seagap_short), "--out", str(tmp_path / "a"),
+                 "--speed-intervals", "4"]) == 0
+    assert "array centre" in capsys.readouterr().out
+    assert (tmp_path / "a" / "solution.txt").is_file()
+    assert main(["locate", str(seagap_short), "--out", str(tmp_path / "b"),
+                 "--one-at-a-time"]) == 0
+    assert not (tmp_path / "b" / "solution.txt").exists()
+    assert main(["locate", str(seagap_short), "--out", str(tmp_path / "c"), "--sample"]) == 2
+    assert "--one-at-a-time" in capsys.readouterr().err
+    site = simulate_gnssa(n_transponders=3, hours=0.3, rng=2).write(tmp_path / "g")["survey"]
+    assert main(["locate", str(site), "--out", str(tmp_path / "d"), "--one-at-a-time"]) == 2
+    assert "--one-at-a-time: for SeaGap" in capsys.readouterr().err
+
+
+@pytest.fixture(scope="module")
+def simulated():
+    sim = simulate_gnssa(hours=1.0, rng=4, speed_model="field")
+    return sim, locate_array_survey(sim.raw(), speed_intervals=4)
+
+
+def test_sound_speed_record_has_a_unit_per_field(simulated):
+    _, res = simulated
+    ss = res.summary["sound_speed"]
+    assert ss["unit"] == "m/s" and "scale" in ss["coefficients_unit"]
+    assert ss["reference_m_s"] == pytest.approx(1500.0, abs=10.0)
+    assert ss["interval_minutes"] == pytest.approx(res.summary["epoch"]["hours"] * 15.0,
+                                                   rel=0.02)
+    ser = ss["series"]
+    assert len(ser["time_s"]) == len(ser["mean_m_s"]) == len(ser["sd_m_s"]) == 121
+    assert np.mean(ser["mean_m_s"]) == pytest.approx(ss["mean"], abs=0.05)
+    assert min(ser["sd_m_s"]) > 0.0
+    straight = locate_array_survey(simulated[0].raw(), ssp="straight").summary["sound_speed"]
+    assert straight["coefficients_unit"] == "m/s" and straight["reference_m_s"] is None
+
+
+def test_solution_txt_holds_the_summary_to_the_mm(simulated, tmp_path):
+    _, res = simulated
+    paths = res.write(tmp_path)
+    text = paths["solution"].read_text()
+    s = json.loads(paths["summary"].read_text())
+    assert text.startswith("bayes_mpem GNSS-A array solution")
+    row = next(ln for ln in text.splitlines() if ln.startswith("array centre"))
+    vals = [float(v) for v in row.split()[2:]]
+    c = s["array_centre"]["enu"]
+    np.testing.assert_allclose(vals, [c[k]["mean"] for k in ("east", "north", "up")]
+                               + [c[k]["sd"] for k in ("east", "north", "up")], atol=6e-4)
+    for tid in s["transponders"]:
+        assert any(ln.startswith(tid) for ln in text.splitlines())
+    assert f"{s['residuals']['rms_true']:.4f} ms" in text
+    assert "SIM" in text and "cubic B-spline in time, 4 equal intervals" in text
+
+
+def test_track_geometry_tells_a_circle_from_holding_station():
+    """The shallow gradient's identifiability (docs/gnssa.md): spread over depth and azimuths."""
+    g = {tr: locate_array_survey(simulate_gnssa(n_transponders=3, hours=1.0, track=tr,
+                                                rng=2).raw()).summary["track"]
+         for tr in ("circle", "station")}
+    assert g["circle"]["spread_over_depth"] > 0.5 > 0.05 > g["station"]["spread_over_depth"]
+    for t in g["circle"]["transponders"].values():
+        assert t["azimuth_coverage_deg"] > 300 and t["max_incidence_deg"] > 45
+    for t in g["station"]["transponders"].values():
+        assert t["azimuth_coverage_deg"] < 30 and t["max_incidence_deg"] < 35

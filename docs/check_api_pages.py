@@ -14,7 +14,8 @@ Run after the docs build (``.ci/run`` does); exits 1 and lists the problems::
 
     python docs/check_api_pages.py [docs/_build/html]
 
-``tests/test_docs_api.py`` builds the API pages alone and runs the same check.
+``tests/test_api_docs.py`` tests the checker; ``pytest --with-docs-build`` also builds the API
+pages alone and runs the same check.
 """
 
 from __future__ import annotations

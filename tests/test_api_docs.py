@@ -1,10 +1,12 @@
 """The built API reference shows the docstrings (``docs/check_api_pages.py``).
 
-Builds ``docs/api.md`` alone (its generated stubs, with the real ``conf.py`` and templates,
-notebooks not executed) and checks every generated HTML page: no directive shown as text,
+CI builds the documentation (``.ci/run``: ``sphinx-build -W``) and runs
+``docs/check_api_pages.py`` on it: every generated HTML page, no directive shown as text,
 every function or method with arguments has its Parameters section, every class its
-Parameters or Attributes. Needs the ``docs`` extra; without Sphinx it is skipped, and the
-CI docs step (``.ci/run``) runs the same check on the full build.
+Parameters or Attributes. The suite tests that the checker catches what it must; with
+``pytest --with-docs-build`` (and the ``docs`` extra) it also builds ``docs/api.md`` alone
+(its generated stubs, with the real ``conf.py`` and templates, notebooks not executed) and
+runs the check, a 30 s build that CI's docs step makes anyway.
 """
 
 import importlib.util
@@ -43,6 +45,14 @@ def test_checker_catches_raw_directives_and_missing_parameters(tmp_path):
     assert any("raw directive" in p for p in check.check_html(tmp_path))
 
 
+def test_ci_runs_the_check_on_the_built_site():
+    ci = (DOCS.parent / ".ci" / "run").read_text()
+    build = ci.index("sphinx-build -W -b html docs docs/_build/html")
+    assert ci.index("docs/check_api_pages.py docs/_build/html") > build
+    assert "set -euo pipefail" in ci
+
+
+@pytest.mark.docs_build
 def test_generated_api_pages_show_the_docstrings(tmp_path):
     for name in ("sphinx", "myst_nb", "numpydoc"):
         pytest.importorskip(name, reason="the docs extra is not installed")

@@ -91,7 +91,7 @@ def test_demo_full(tmp_path, capsys):
     assert main(["demo", "--out", str(tmp_path)]) == 0
     text = capsys.readouterr().out
     assert "min ESS" in text and "verdict" in text
-    for name in ("bayes/posterior.nc", "bayes/intervals.png", "bayes/trace_4.png",
+    for name in ("bayes/posterior_4.nc", "bayes/intervals.png", "bayes/trace_4.png",
                  "compare/compare.json", "compare/compare.png"):
         assert (tmp_path / name).exists(), name
 

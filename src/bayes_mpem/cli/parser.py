@@ -289,6 +289,8 @@ def build_parser() -> argparse.ArgumentParser:
 def _output_folder(args):
     """Return the folder a command writes (checked before any work), or ``None``."""
     out = getattr(args, "out", None)
+    if args.command == "stream":  # --out is where the answers go, a file or a socket
+        return None
     if args.command == "plot" and out is None:
         out = args.result_dir
     if out is None:

@@ -244,7 +244,7 @@ def _add_batch(sub):
                    help="the command run on each survey (default fit)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="address of a running Dask scheduler (default: a local cluster)")
-    p.add_argument("--workers", type=int, default=None, metavar="N",
+    p.add_argument("--workers", type=opt.at_least(1, 1024), default=None, metavar="N",
                    help="workers of the local cluster (default 1)")
     p.add_argument("--no-progress", action="store_true", help="no progress lines on stderr")
 

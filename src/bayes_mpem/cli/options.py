@@ -112,6 +112,12 @@ probability = number("a probability in (0, 1)", 0.0, 1.0, include_low=False,
 fraction = number("a number in (0, 1]", 0.0, 1.0, include_low=False)
 #: A turn-around time in s (the limits of :data:`bayes_mpem.io.boundary.LIMITS`).
 turn_around = number("a turn-around time in [0, 10] s", 0.0, 10.0)
+#: ``--dr-noise`` of ``navigate`` and ``stream``: the dead reckoning's random walk, m/sqrt(s),
+#: within the levels the filters are tested at (below 1e-4 the smoother's covariance is
+#: singular; above 100 m/sqrt(s) the dead reckoning says nothing).
+dr_noise = number("a random-walk level in [0.0001, 100] m/sqrt(s)", 1e-4, 100.0)
+#: ``simulate --navigation --dr-noise``: the simulated random walk, m/sqrt(s) (0: none).
+dr_noise_simulated = number("a random-walk level in [0, 100] m/sqrt(s)", 0.0, 100.0)
 #: ``--seed``: a non-negative integer (NumPy's seeds).
 seed = at_least(0)
 #: ``--min-pings``: the EMs need at least :data:`bayes_mpem.lbl.survey.survey.MIN_PINGS` replies.

@@ -342,6 +342,28 @@ def _message(exc: BaseException) -> str:
     return str(exc)
 
 
+def _parse(parser: argparse.ArgumentParser, argv):
+    """Parse; an unknown option gets its sub-command's usage and the closest option's name."""
+    args, extra = parser.parse_known_args(argv)
+    if not extra:
+        return args
+    import difflib
+
+    sub = args.subparsers.get(args.command, parser)
+    known = [s for a in sub._actions for s in a.option_strings if s.startswith("--")]
+    hints = []
+    for word in extra:
+        if word.startswith("-"):
+            close = difflib.get_close_matches(word.split("=", 1)[0], known, n=1, cutoff=0.6)
+            if close:
+                hints.append(close[0] if len(extra) == 1 else
+                             f"{close[0]} for {word.split('=', 1)[0]}")
+    hint = f"; did you mean {', '.join(hints)}?" if hints else (
+        f"; see 'bayes-mpem {args.command} --help'")
+    sub.error(f"unrecognized arguments: {' '.join(extra)}{hint}")
+    return args  # pragma: no cover - error() exits
+
+
 def main(argv=None) -> int:
     """Entry point of ``bayes-mpem``.
 
@@ -365,7 +387,7 @@ def main(argv=None) -> int:
         Exit status: 0 on success, 2 on invalid input, 1 on an internal error,
         128 + signal number when terminated.
     """
-    args = build_parser().parse_args(argv)  # an invalid option exits here, with status 2
+    args = _parse(build_parser(), argv)  # an invalid option exits here, with status 2
     import matplotlib
 
     matplotlib.use("Agg")  # the command line only writes files; never opens a window

@@ -77,7 +77,7 @@ def add_stream(sub) -> None:
     p.add_argument("--path", choices=PATH_CHOICES, default="auto",
                    help="multipath geometry: chosen by the warm-up and revised online "
                         "(default auto), or forced")
-    p.add_argument("--dr-noise", type=opt.positive, default=0.1, metavar="Q",
+    p.add_argument("--dr-noise", type=opt.dr_noise, default=0.1, metavar="Q",
                    help="random-walk level of the dead reckoning, m/sqrt(s) (default 0.1)")
     p.add_argument("--sigma-dp", type=opt.positive, default=None, metavar="S",
                    help="fix sigma_DP, m (default learned)")

@@ -78,7 +78,9 @@ def _options(o: dict) -> dict:
     check_range("alpha", o["alpha"], low=0.5, high=1.0, include_low=False, include_high=True)
     check_choice("multipath", o["multipath"], ("signal", "outlier"))
     check_path_choice(o["path"])
-    for k in ("dr_noise", "start_sd", "heading_sd", "scale_sd", "plane_sd", "provisional_sd",
+    o["dr_noise"] = check_range("dr_noise", o["dr_noise"], low=1e-4, high=100.0,
+                                include_low=True, include_high=True)
+    for k in ("start_sd", "heading_sd", "scale_sd", "plane_sd", "provisional_sd",
               "prior_sigma_mp", "sigma_floor"):
         o[k] = check_positive(k, o[k])
     check_positive("sigma_dp", o["sigma_dp"], allow_none=True)

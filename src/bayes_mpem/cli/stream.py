@@ -155,7 +155,10 @@ def _answer(nav, parser, counts, n, text):
         if kind != "ping":
             counts[kind] += 1
             return None
-        out = {"line": n, **nav.update(ping).to_dict()}
+        try:
+            out = {"line": n, **nav.update(ping).to_dict()}
+        except InputError as err:  # the navigator's own checks: say which line
+            raise InputError(f"line {n}: {err}") from None
     except InputError as err:
         counts["malformed"] += 1
         return {"line": n, "error": str(err)}

@@ -47,6 +47,7 @@ from ....io.results import write_json
 from ....io.tables import read_beacons, read_pings
 from ....mixture.densities import CLASSES
 from ...em.path_choice import CLEAR_MARGIN, check_path_choice
+from ..dive import SAME_EPOCH_TOLERANCE
 from ..driver import MIN_SEPARATION
 from .ekf import PositionFilter
 from .kernel import class_probabilities, log_weight, ranges
@@ -64,6 +65,9 @@ PATH_MARGIN = CLEAR_MARGIN
 MIN_CLASS_PROB = 1e-9
 #: Default of ``max_gap`` (s): a line further ahead of the previous one is refused.
 MAX_GAP = 3600.0
+#: Lines of one time must agree on the dead-reckoned position within this (m): half the
+#: warm-up batch fit's tolerance, so that an accepted line never makes that fit refuse.
+_SAME_TIME_SPREAD = SAME_EPOCH_TOLERANCE / 2
 #: Options a state of an earlier build may lack, with the value they then take.
 _OPTION_DEFAULTS = {"max_gap": MAX_GAP}
 #: The values a line may carry (:data:`~bayes_mpem.io.boundary.LIMITS`), checked on a
@@ -207,6 +211,12 @@ class Navigator:
             if ping.time < t0:
                 raise InputError(f"time {ping.time:g} s is before the previous line's {t0:g} s: "
                                  "lines must come in time order")
+            if ping.time == t0 and max(abs(ping.x - self.last[1]),
+                                       abs(ping.y - self.last[2])) > _SAME_TIME_SPREAD:
+                raise InputError(f"x, y ({ping.x:g}, {ping.y:g}) m differ from the previous "
+                                 f"line's ({self.last[1]:g}, {self.last[2]:g}) m at the same "
+                                 f"time {t0:g} s: expected one dead-reckoned position per time "
+                                 f"(within {_SAME_TIME_SPREAD:g} m)")
             if ping.time - t0 > self.options["max_gap"]:
                 raise InputError(f"time {ping.time:g} s is {ping.time - t0:g} s after the "
                                  f"previous line's {t0:g} s: expected a gap of at most "
@@ -249,7 +259,7 @@ class Navigator:
         return self._online_step(ping)
 
     def _warmup_step(self, ping: Ping) -> PingResult:
-        self.last = (ping.time, ping.x, ping.y)
+        last, self.last = self.last, (ping.time, ping.x, ping.y)
         sd = math.sqrt(self.options["start_sd"] ** 2
                        + self._q2 * (ping.time - self.first_time))
         kind = ping.kind
@@ -258,11 +268,22 @@ class Navigator:
                               None, None, None, ping.x, ping.y, sd, sd, 0.0, "warmup",
                               _REPLY_REASON[kind])
         z = ping.range
+        had = ping.beacon in self.windows
         w = self.windows.setdefault(ping.beacon, [z, z])
+        before = list(w)
         w[0], w[1] = min(w[0], z), max(w[1], z)
         self.buffer.append([ping.time, ping.beacon, z, ping.x, ping.y, ping.depth])
         if len(self.buffer) >= self.options["warmup"]:
-            return self._finish_warmup(ping)
+            try:
+                return self._finish_warmup(ping)
+            except InputError:  # the line is refused, the navigator left as it was
+                self.buffer.pop()
+                self.last = last
+                if had:
+                    w[:] = before
+                else:
+                    del self.windows[ping.beacon]
+                raise
         p = provisional_classes(ping, self._xyz[ping.beacon], w, self.options["provisional_sd"])
         return PingResult(ping.time, ping.beacon, z, label_of(p), *p, ping.x, ping.y, sd, sd, 0.0,
                           "warmup")

@@ -33,7 +33,8 @@ def test_dr_noise_is_refused_by_the_parser_naming_it(command, value, capsys):
     with pytest.raises(SystemExit) as stop:
         main([*command, "--dr-noise", value])
     err = capsys.readouterr().err
-    assert stop.value.code == 2 and "argument --dr-noise: expected a random-walk level" in err
+    assert stop.value.code == 2
+    assert "argument --dr-noise: expected a positive number in [0.0001, 100]" in err
 
 
 @pytest.mark.parametrize("value", ["1e300", "-1", "inf"])
@@ -48,3 +49,20 @@ def test_dead_reckoning_time_errors_show_plain_numbers():
         read_dead_reckoning(pd.DataFrame({"time": [0.0, 132.0, 132.0], "x": [0, 1, 2],
                                           "y": [0, 0, 0]}))
     assert "np.float64" not in str(err.value) and "132 s" in str(err.value)
+
+
+@pytest.mark.parametrize(("option", "value"), [
+    ("--start-sd", "1e300"), ("--start-sd", "1e-300"), ("--scale-sd", "1e300"),
+    ("--scale-sd", "1e-300"), ("--sigma-dp", "1e300"), ("--heading-sd", "1e300")])
+def test_navigate_priors_are_bounded_by_the_parser(option, value, capsys):
+    with pytest.raises(SystemExit):
+        main(["navigate", "p.csv", "--beacons", "b.csv", "--out", "o", option, value])
+    assert f"argument {option}: expected a positive number in" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(("option", "value"), [("--max-gap", "1e-300"), ("--max-gap", "0.5"),
+                                               ("--sigma-dp", "1e300"), ("--max-gap", "nan")])
+def test_stream_numbers_are_bounded_by_the_parser(option, value, capsys):
+    with pytest.raises(SystemExit):
+        main(["stream", "--beacons", "b.csv", option, value])
+    assert f"argument {option}: expected a positive number in" in capsys.readouterr().err

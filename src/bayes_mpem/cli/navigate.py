@@ -50,13 +50,13 @@ def add_navigate(sub) -> None:
                    help="multipath geometry per beacon (default auto)")
     p.add_argument("--dr-noise", type=opt.dr_noise, default=0.1, metavar="Q",
                    help="random-walk level of the dead reckoning, m/sqrt(s) (default 0.1)")
-    p.add_argument("--start-sd", type=opt.positive, default=1000.0, metavar="M",
+    p.add_argument("--start-sd", type=opt.start_sd, default=1000.0, metavar="M",
                    help="prior sd of the first position about the first fix, m (default 1000)")
-    p.add_argument("--heading-sd", type=opt.positive, default=5.0, metavar="DEG",
+    p.add_argument("--heading-sd", type=opt.heading_sd, default=5.0, metavar="DEG",
                    help="prior sd of the heading bias, degrees (default 5)")
-    p.add_argument("--scale-sd", type=opt.positive, default=0.05, metavar="S",
+    p.add_argument("--scale-sd", type=opt.scale_sd, default=0.05, metavar="S",
                    help="prior sd of the speed scale (default 0.05)")
-    p.add_argument("--sigma-dp", type=opt.positive, default=None, metavar="S",
+    p.add_argument("--sigma-dp", type=opt.sigma_dp_nav, default=None, metavar="S",
                    help="fix sigma_DP, m (default: estimated)")
     p.add_argument("--min-pings", type=opt.at_least(1), default=30, metavar="N",
                    help="beacons with fewer replies get no multipath class (default 30)")

@@ -52,7 +52,7 @@ def add_stream(sub) -> None:
     p.add_argument("--append", action="store_true",
                    help="--out FILE: add the answers at the end of the file instead of "
                         "replacing it (to go on after a --state resume)")
-    p.add_argument("--max-gap", type=opt.positive, default=None, metavar="S",
+    p.add_argument("--max-gap", type=opt.max_gap, default=None, metavar="S",
                    help="refuse a line timed more than S seconds after the previous one "
                         "(a clock jump or unit slip), instead of adopting its time "
                         "(default 3600; a resumed state keeps its own unless given)")
@@ -79,7 +79,7 @@ def add_stream(sub) -> None:
                         "(default auto), or forced")
     p.add_argument("--dr-noise", type=opt.dr_noise, default=0.1, metavar="Q",
                    help="random-walk level of the dead reckoning, m/sqrt(s) (default 0.1)")
-    p.add_argument("--sigma-dp", type=opt.positive, default=None, metavar="S",
+    p.add_argument("--sigma-dp", type=opt.sigma_dp_nav, default=None, metavar="S",
                    help="fix sigma_DP, m (default learned)")
     p.add_argument("--seed", type=opt.seed, default=0, help="seed of the warm-up fit (default 0)")
 

@@ -226,7 +226,7 @@ def judge(case: Case, code, err: str, before: dict, raised: str | None) -> tuple
     return f"exit {code}", [err.strip().splitlines()[-1] if err.strip() else ""]
 
 
-class _Timeout(Exception):
+class _Timeout(BaseException):  # not caught by the command's own "except Exception"
     pass
 
 
@@ -913,6 +913,20 @@ def _check_gnssa(case: Case, out: Path, problems: list) -> None:
     lost = [i for i, _ in data if i not in listed]
     if lost:
         problems.append(f"{source.name}: lines not in classified.csv (lost): {lost[:5]}")
+    texts = dict(data)
+    beyond = sorted(i for i in listed if i not in texts)
+    if beyond:
+        problems.append(f"{source.name}: classified.csv names lines that are not data lines "
+                        f"(as grep -n counts them): {beyond[:5]}")
+    if case.kind == "garpos" and data:  # each shot points at its line: the MT field is its id
+        names = [c.strip() for c in _data_lines(text)[0][1].split(",")]
+        mt = names.index("MT") if "MT" in names else None
+        shots = cls[cls["label"].isin(["true", "spurious"])]
+        for line, tp in zip(shots["line"], shots["transponder"], strict=True):
+            fields = texts.get(int(line), "").split(",")
+            if mt is None or len(fields) <= mt or fields[mt].strip() != tp:
+                problems.append(f"classified line {line} ({tp}) does not point at its shot")
+                break
     unclassed = ~cls["label"].isin(["true", "spurious"])
     if (cls.loc[unclassed, "reason"].astype(str) == "").any():
         problems.append("a row without a class has no reason")

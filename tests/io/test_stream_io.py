@@ -71,3 +71,18 @@ def test_replay_keeps_the_time_stamps(tmp_path):
     t0 = time.monotonic()
     assert len(list(ReplayLines(threading.Event(), path, speed=None))) == 6
     assert time.monotonic() - t0 < 0.4
+
+
+def test_an_overlong_line_is_answered_once_and_the_next_keeps_its_number():
+    from bayes_mpem.io.lines import LineParser
+    from bayes_mpem.io.stream import MAX_PARTIAL, _Splitter
+
+    s = _Splitter()
+    got = list(s.feed(b"a,b\n" + b"9" * (MAX_PARTIAL + 10)))
+    assert [n for n, _ in got] == [1, 2] and s.partial == b""
+    got += list(s.feed(b"9" * 100 + b"\nnext\n"))
+    assert [(n, t) for n, t in got[2:]] == [(3, "next")]
+    parser = LineParser()
+    parser.parse("time,beacon,range,x,y,depth", 1)
+    with pytest.raises(InputError, match="line 2: expected a line of at most"):
+        parser.parse(got[1][1], 2)

@@ -914,9 +914,10 @@ def _check_gnssa(case: Case, out: Path, problems: list) -> None:
     if lost:
         problems.append(f"{source.name}: lines not in classified.csv (lost): {lost[:5]}")
     texts = dict(data)
-    beyond = sorted(i for i in listed if i not in texts)
+    n_lines = len(text.split("\n")) - (1 if text.endswith("\n") else 0)
+    beyond = sorted(i for i in listed if not 1 <= i <= n_lines)
     if beyond:
-        problems.append(f"{source.name}: classified.csv names lines that are not data lines "
+        problems.append(f"{source.name}: classified.csv names lines the file does not have "
                         f"(as grep -n counts them): {beyond[:5]}")
     if case.kind == "garpos" and data:  # each shot points at its line: the MT field is its id
         names = [c.strip() for c in _data_lines(text)[0][1].split(",")]

@@ -282,6 +282,10 @@ def build_parser() -> argparse.ArgumentParser:
             "--palette", choices=PALETTES, default="okabe-ito",
             help="class colours of the figures: colour-blind safe (default) or the "
                  "paper's blue, red and green")
+    for p in sub.choices.values():  # every command: options from a TOML file (_with_config)
+        p.add_argument("--config", default=None, metavar="FILE.toml",
+                       help="read options from this TOML file (key = the long option without "
+                            "its dashes, e.g. sigma_dp = 4.0); the command line overrides it")
     parser.set_defaults(subparsers=sub.choices)
     return parser
 
@@ -342,8 +346,99 @@ def _message(exc: BaseException) -> str:
     return str(exc)
 
 
+def _config_path(argv, commands):
+    """Return ``(command, --config value)`` from the raw arguments (None when absent)."""
+    command = next((a for a in argv if a in commands), None)
+    if command is None:
+        return None, None
+    rest = argv[argv.index(command) + 1:]
+    for i, a in enumerate(rest):
+        if a == "--config" and i + 1 < len(rest):
+            return command, rest[i + 1]
+        if a.startswith("--config="):
+            return command, a.split("=", 1)[1]
+    return command, None
+
+
+def _config_tokens(sub: argparse.ArgumentParser, path: str) -> list:
+    """Turn a TOML file's keys into the command-line tokens they amount to, each checked."""
+    import tomllib
+
+    def refuse(message):
+        sub.error(f"--config {path}: {message}")
+
+    try:
+        with open(path, "rb") as fh:
+            doc = tomllib.load(fh)
+    except FileNotFoundError:
+        refuse("no such file")
+    except IsADirectoryError:
+        refuse("a folder; expected a TOML file")
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        refuse(f"not valid TOML ({exc})")
+    except OSError as exc:
+        refuse(f"cannot be read ({exc.strerror or exc})")
+    options = {s: a for a in sub._actions for s in a.option_strings if s.startswith("--")}
+    tokens = []
+    for key, value in doc.items():
+        name = "--" + str(key).replace("_", "-")
+        action = options.get(name)
+        if action is None or name in ("--config", "--help"):
+            import difflib
+
+            close = difflib.get_close_matches(name, list(options), n=1, cutoff=0.6)
+            hint = f"; did you mean {close[0][2:].replace('-', '_')}?" if close else ""
+            positional = [a.metavar or a.dest for a in sub._actions if not a.option_strings]
+            refuse(f"key {key!r}: not an option of this command{hint} (positional "
+                   f"arguments {', '.join(map(str, positional)) or 'none'} go on the command "
+                   "line)")
+        if isinstance(value, dict):
+            refuse(f"key {key!r}: expected a value, got a table")
+        if action.nargs == 0:  # a flag
+            if not isinstance(value, bool):
+                refuse(f"key {key!r}: expected true or false, got {value!r}")
+            if value:
+                tokens.append(name)
+            continue
+        items = value if isinstance(value, list) else [value]
+        if isinstance(value, list) and not (isinstance(action, argparse._AppendAction)
+                                            or action.nargs in ("+", "*")):
+            refuse(f"key {key!r}: expected one value, got a list")
+        words = []
+        for v in items:
+            if isinstance(v, (dict, list)) or isinstance(v, bool):
+                refuse(f"key {key!r}: expected a number or text, got {v!r}")
+            text = repr(v) if isinstance(v, float) else str(v)
+            try:
+                checked = action.type(text) if action.type else text
+            except (argparse.ArgumentTypeError, ValueError, TypeError) as exc:
+                refuse(f"key {key!r} ({name}): {exc}")
+            if action.choices is not None and checked not in action.choices:
+                refuse(f"key {key!r} ({name}): expected one of "
+                       f"{', '.join(map(str, action.choices))}, got {v!r}")
+            words.append(text)
+        if isinstance(action, argparse._AppendAction):
+            for w in words:
+                tokens += [name, w]
+        else:
+            tokens += [name, *words]
+    return tokens
+
+
+def _with_config(parser: argparse.ArgumentParser, argv) -> list:
+    """Put a ``--config`` file's options before the command line's (which override them)."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    commands = parser.get_default("subparsers")
+    command, path = _config_path(argv, commands)
+    if path is None:
+        return argv
+    at = argv.index(command) + 1
+    return [*argv[:at], *_config_tokens(commands[command], path), *argv[at:]]
+
+
 def _parse(parser: argparse.ArgumentParser, argv):
     """Parse; an unknown option gets its sub-command's usage and the closest option's name."""
+    argv = _with_config(parser, argv)
     args, extra = parser.parse_known_args(argv)
     if not extra:
         return args

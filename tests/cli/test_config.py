@@ -70,3 +70,25 @@ def test_stream_from_a_config_alone(survey, tmp_path):
     assert main(["stream", "--config", str(cfg)]) == 0
     assert len(out.read_text().splitlines()) == len((survey / "pings.csv").read_text()
                                                     .splitlines()) - 1
+
+
+def test_the_examples_of_docs_cli_md_parse(tmp_path):
+    import re
+    from pathlib import Path
+
+    from bayes_mpem.cli.parser import _parse
+
+    docs = Path(__file__).resolve().parents[2] / "docs" / "cli.md"
+    if not docs.is_file():
+        pytest.skip("not a source checkout")
+    blocks = re.findall(r"```toml\n(.*?)```", docs.read_text(), re.S)
+    assert len(blocks) >= 8
+    positional = {"fit": ["p.csv"], "sample": ["p.csv"], "diagnose": ["p.csv"],
+                  "navigate": ["p.csv"], "locate": ["s.txt"], "batch": ["m.csv"]}
+    for i, block in enumerate(blocks):
+        command = re.match(r"# (\w+)\.toml", block).group(1)
+        cfg = tmp_path / f"{i}.toml"
+        cfg.write_text(block)
+        args = _parse(build_parser(), [command, *positional.get(command, []), "--config",
+                                       str(cfg)])
+        assert args.command == command

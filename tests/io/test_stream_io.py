@@ -86,3 +86,25 @@ def test_an_overlong_line_is_answered_once_and_the_next_keeps_its_number():
     parser.parse("time,beacon,range,x,y,depth", 1)
     with pytest.raises(InputError, match="line 2: expected a line of at most"):
         parser.parse(got[1][1], 2)
+
+
+@pytest.mark.parametrize(("text", "message"), [
+    ('{"a":' + "[" * 30000 + "]" * 30000 + "}", "nested too deeply"),
+    ('{"time": 1, "x": 0, "y": 0, "depth": 5, "beacon": [1], "range": 5}', "a beacon id"),
+    ('{"t": 1, "x": 0, "y": 0}', "did you mean 't' for 'time'"),
+    ("1,2,3", "expected 6 comma-separated fields"),
+])
+def test_malformed_json_and_csv_lines_are_input_errors(text, message):
+    from bayes_mpem.io.lines import LineParser
+
+    parser = LineParser()
+    parser.parse("time,beacon,range,x,y,depth", 1)
+    with pytest.raises(InputError, match=message):
+        parser.parse(text, 2)
+
+
+def test_replay_schedules_no_deeply_nested_line(tmp_path):
+    path = tmp_path / "r.jsonl"
+    path.write_text('{"a":' + "[" * 30000 + "]" * 30000 + '}\n{"time": 0, "x": 0, "y": 0}\n')
+    lines = list(ReplayLines(threading.Event(), path, 10.0))
+    assert [n for n, _ in lines] == [1, 2]

@@ -161,6 +161,9 @@ def make_ping(values: dict, where: str, beacons=None, *, json_keys: bool = False
     Ping(time=5.0, beacon=None, range=None, x=1.0, y=2.0, depth=None)
     """
     raw_b = values.get("beacon")
+    if isinstance(raw_b, (list, dict, bool)):
+        raise InputError(f"{where}, column 'beacon': expected a beacon id (text or a whole "
+                         f"number), got {json.dumps(raw_b)[:40]}")
     beacon = None if raw_b is None else (as_beacon_id(raw_b) or None)
     if json_keys:
         _missing_keys(values, where, beacon)
@@ -276,6 +279,9 @@ class LineParser:
                 at = f" at column {err.colno}" if hasattr(err, "colno") else ""
                 raise InputError(f"{where}: expected a JSON object, got invalid JSON "
                                  f"({getattr(err, 'msg', err)}{at})") from None
+            except RecursionError:
+                raise InputError(f"{where}: expected a flat JSON object, got one nested too "
+                                 "deeply") from None
             if not isinstance(obj, dict):  # pragma: no cover - "{" starts an object
                 raise InputError(f"{where}: expected a JSON object")
             return "ping", make_ping(obj, where, self.beacons, json_keys=True)

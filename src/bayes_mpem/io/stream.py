@@ -193,7 +193,8 @@ def _line_time(text: str, header):
                 names = [c.strip() for c in cells]
                 return None, (names.index("time") if "time" in names else None)
             t = float(cells[header])
-    except (ValueError, KeyError, IndexError, TypeError, OverflowError, csv.Error):
+    except (ValueError, KeyError, IndexError, TypeError, OverflowError, RecursionError,
+            csv.Error):
         return None, header
     return (None if out_of_limits("time", t).item() else t), header
 

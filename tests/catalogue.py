@@ -1016,6 +1016,11 @@ class _Cases:
                                                                               "time": None},
             "json_unknown_beacon": {**as_json, "beacon": "B9"},
             "json_extra_keys": {**as_json, "note": "hello"},
+            "json_deep": '{"a":' + "[" * 30000 + "]" * 30000 + "}",
+            "json_beacon_list": {**as_json, "beacon": [1]},
+            "json_beacon_object": {**as_json, "beacon": {"id": 1}},
+            "json_depth_text": {**as_json, "depth": "deep"},
+            "json_empty_object": "{}",
         }
         for name, obj in bad_json.items():
             text = obj if isinstance(obj, str) else json.dumps(obj)

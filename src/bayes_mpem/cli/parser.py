@@ -113,6 +113,7 @@ def _add_fit_diagnose(sub):
                    help="also write the figures (as 'bayes-mpem plot' does)")
     _add_table_format(p)
     _add_fit_options(p)
+    _add_input_units(p)
 
     p = sub.add_parser("diagnose", help="find which assumption the data break (bias, sound "
                                         "speed, drifts, second reflector, early outliers)")
@@ -217,6 +218,62 @@ def _add_sample_compare(sub):
                             "the first unless its proposal fits poorly (default auto)")
         p.add_argument("--no-progress", action="store_true",
                        help="no progress bar (terminal) or progress lines (log file)")
+
+
+def _add_input_units(p):
+    g = p.add_argument_group("input units (bayes_mpem.io.travel_time)")
+    g.add_argument("--ranges", choices=("one-way", "two-way"), default="one-way",
+                   help="the range column holds one-way (default) or two-way ranges, or "
+                        "travel times with --travel-time")
+    g.add_argument("--travel-time", action="store_true",
+                   help="the range column holds travel times (s): converted with "
+                        "--sound-speed and --turnaround")
+    g.add_argument("--sound-speed", type=opt.number("a sound speed in [1300, 1800] m/s",
+                                                    1300.0, 1800.0),
+                   default=None, metavar="C", help="--travel-time: mean sound speed, m/s")
+    g.add_argument("--turnaround", type=opt.turn_around, default=0.0, metavar="S",
+                   help="--travel-time: the beacons' turn-around time, s (default 0)")
+    g.add_argument("--origin", type=_lat_lon, default=None, metavar="LAT,LON",
+                   help="tables in lat, lon: the local frame's origin (default: the "
+                        "beacons' mean position)")
+
+
+def _lat_lon(text: str):
+    try:
+        lat, lon = (float(v) for v in text.split(","))
+    except ValueError:
+        lat = lon = float("nan")
+    if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
+        raise argparse.ArgumentTypeError(f"expected LAT,LON in degrees, got {text!r}")
+    return lat, lon
+
+
+def _units_handler(args, handler):
+    """``fit`` on travel times, two-way ranges or lat/lon: convert first (io.travel_time)."""
+    if not (args.travel_time or args.ranges != "one-way" or args.sound_speed is not None
+            or args.turnaround or args.origin is not None or _has_lat_lon(args)):
+        return handler
+
+    def convert_then(a):
+        from ..io.travel_time import convert_survey
+
+        a.pings, a.beacons = convert_survey(
+            a.pings, a.beacons, ranges=a.ranges, travel_time=a.travel_time,
+            sound_speed=a.sound_speed, turnaround=a.turnaround, origin=a.origin)
+        return handler(a)
+
+    return convert_then
+
+
+def _has_lat_lon(args) -> bool:
+    """Whether the beacons file's header names lat and lon (and not x, y)."""
+    try:
+        with open(args.beacons, encoding="utf-8-sig", errors="replace") as fh:
+            head = next((ln for ln in fh if ln.strip() and not ln.lstrip().startswith("#")), "")
+    except OSError:
+        return False
+    names = {c.strip() for c in head.split(",")}
+    return {"lat", "lon"} <= names and not {"x", "y"} <= names
 
 
 def _simulate_handler(args, cmd_simulate):
@@ -490,6 +547,8 @@ def main(argv=None) -> int:
     handler = getattr(module, f"cmd_{args.command}")
     if args.command == "simulate":
         handler = _simulate_handler(args, handler)
+    if args.command == "fit":
+        handler = _units_handler(args, handler)
     colours = contextlib.nullcontext()
     # the figures' class colours, restored on return (only when figures are drawn: the
     # plotting modules import matplotlib.pyplot)

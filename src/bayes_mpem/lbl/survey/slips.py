@@ -326,16 +326,17 @@ def check_geometry(survey: Survey):
         examples.append(f"  {survey.pings_source} {survey.row_name(row)} (beacon "
                         f"{survey.beacon[row]}): {given}{turned}; the direct path is "
                         f"{g_used[i]:.1f} m")
-    fix = {"seconds": f"multiply by the sound speed (about {k:g} m/s) to give one-way ranges "
-                      "in metres",
+    fix = {"seconds": f"multiply by the sound speed (about {k:.0f} m/s) to give one-way ranges "
+                      f"in metres (fit: --travel-time --sound-speed {k:.0f})",
            "two_way_seconds": f"give one-way ranges in metres: range = c * t / 2 (c about "
-                              f"{2 * k:g} m/s)",
+                              f"{2 * k:.0f} m/s; fit: --ranges two-way --travel-time "
+                              f"--sound-speed {2 * k:.0f} --turnaround S)",
            "milliseconds": f"give one-way ranges in metres: range = c * t / 1000 (c about "
                            f"{k * 1000:g} m/s)",
            "two_way_milliseconds": "give one-way ranges in metres: range = c * t / 2000 (c "
                                    f"about {k * 2000:g} m/s)",
            "km": "give ranges in metres (range * 1000)",
-           "two_way": "give one-way ranges (range / 2)",
+           "two_way": "give one-way ranges (range / 2; fit: --ranges two-way)",
            "depth_sign": "give depths in metres, positive down"}[name]
     slip = "depth_sign" if name == "depth_sign" else name
     text = (f"the ranges look like {what}: {share:.0%} of {rep.size} replies match the direct "

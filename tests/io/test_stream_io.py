@@ -108,3 +108,16 @@ def test_replay_schedules_no_deeply_nested_line(tmp_path):
     path.write_text('{"a":' + "[" * 30000 + "]" * 30000 + '}\n{"time": 0, "x": 0, "y": 0}\n')
     lines = list(ReplayLines(threading.Event(), path, 10.0))
     assert [n for n, _ in lines] == [1, 2]
+
+
+def test_a_line_that_is_not_utf8_is_refused_with_its_column():
+    from bayes_mpem.io.lines import LineParser
+    from bayes_mpem.io.stream import _Splitter
+
+    lines = list(_Splitter().feed(b"time,beacon,range,x,y,depth\n1,caf\xe9,3,4,5,6\nok\n"))
+    assert [n for n, _ in lines] == [1, 2, 3]
+    parser = LineParser()
+    parser.parse(lines[0][1], 1)
+    with pytest.raises(InputError, match=r"line 2, column 6: expected UTF-8 text, got the byte "
+                                         r"0xe9"):
+        parser.parse(lines[1][1], 2)

@@ -32,12 +32,15 @@ from __future__ import annotations
 import csv
 import json
 import math
+import re
 from typing import NamedTuple
 
 from ..exceptions import InputError
 from .boundary import LIMITS, limit_problem
 from .tables import PING_COLUMNS, as_beacon_id
 
+#: Bytes that were not UTF-8, as :func:`bytes.decode` with ``surrogateescape`` keeps them.
+_NOT_UTF8 = re.compile("[\udc80-\udcff]")
 #: The longest line a stream takes (characters); a longer one is refused on its line.
 MAX_LINE = 65536
 
@@ -268,6 +271,11 @@ class LineParser:
         if len(s) > MAX_LINE:
             raise InputError(f"{where}: expected a line of at most {MAX_LINE} characters, got "
                              f"{len(s)}")
+        bad = _NOT_UTF8.search(s)
+        if bad is not None:
+            byte = ord(bad.group()) - 0xDC00
+            raise InputError(f"{where}, column {len(text) - len(text.lstrip()) + bad.start() + 1}:"
+                             f" expected UTF-8 text, got the byte 0x{byte:02x}")
         if not s:
             return "blank", None
         if s.startswith("#"):

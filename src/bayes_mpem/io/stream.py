@@ -97,7 +97,8 @@ class _Splitter:
             self.partial = b""
         for raw in lines:
             self.n += 1
-            text = raw.decode("utf-8", errors="replace")
+            # bytes that are not UTF-8 stay visible (as surrogates) for the parser to refuse
+            text = raw.decode("utf-8", errors="surrogateescape")
             yield self.n, text[:-1] if text.endswith("\r") else text
 
 

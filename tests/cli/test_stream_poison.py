@@ -145,3 +145,23 @@ def test_replay_at_speed_with_a_huge_time_is_refused_on_its_line(dive, tmp_path)
     # every line answered (no OverflowError, no endless wait), the bad one with an error
     assert [a["line"] for a in got] == list(range(2, len(mixed) + 1))
     assert "error" in got[2] and all("error" not in a for i, a in enumerate(got) if i != 2)
+
+
+def test_a_real_pause_is_adopted_after_a_few_lines_a_glitch_is_not(dive):
+    from bayes_mpem.exceptions import InputError
+    from bayes_mpem.lbl.navigate.online import Navigator
+    from bayes_mpem.lbl.navigate.online.navigator import GAP_CONFIRM
+
+    folder, lines = dive
+    cols = lines[0].split(",")
+    rows = [dict(zip(cols, ln.split(","), strict=True)) for ln in lines[1:]]
+    nav = Navigator(str(folder / "beacons.csv"), warmup=60, rng=0)
+    for r in rows[:100]:
+        nav.update(r)
+    later = [{**r, "time": str(float(r["time"]) + 7200.0)} for r in rows[100:110]]
+    for r in later[:GAP_CONFIRM]:  # the first lines after a two-hour pause: refused
+        with pytest.raises(InputError, match="--max-gap"):
+            nav.update(r)
+    out = nav.update(later[GAP_CONFIRM])  # then the pause is adopted
+    assert out.time == float(later[GAP_CONFIRM]["time"])
+    assert all(nav.update(r).time == float(r["time"]) for r in later[GAP_CONFIRM + 1:])

@@ -68,6 +68,10 @@ MAX_GAP = 3600.0
 #: Lines of one time must agree on the dead-reckoned position within this (m): half the
 #: warm-up batch fit's tolerance, so that an accepted line never makes that fit refuse.
 _SAME_TIME_SPREAD = SAME_EPOCH_TOLERANCE / 2
+#: A line further ahead than ``max_gap`` is refused, unless it is the last of this many + 1
+#: lines in a row that jumped ahead together (each within ``max_gap`` of the one before): a
+#: real pause of the stream (the vehicle at the surface), not one bad time stamp.
+GAP_CONFIRM = 3
 #: Options a state of an earlier build may lack, with the value they then take.
 _OPTION_DEFAULTS = {"max_gap": MAX_GAP}
 #: The values a line may carry (:data:`~bayes_mpem.io.boundary.LIMITS`), checked on a
@@ -140,7 +144,8 @@ class Navigator:
     max_gap : float, default 3600
         A line timed more than this many seconds after the previous one is
         refused (a clock jump or a unit slip), not adopted: adopting it would
-        refuse every later line as out of time order.
+        refuse every later line as out of time order. A real pause is adopted
+        once :data:`GAP_CONFIRM` + 1 lines in a row agree on it.
     rng : None, int or numpy.random.Generator
         Seeds the warm-up fit's path choice (one seed is drawn and kept in the state).
 
@@ -180,6 +185,7 @@ class Navigator:
         self.models = {}
         self.dp = None
         self.warmup_record = None
+        self._ahead = []  # times of the latest lines refused for a gap (not saved)
         self._setup()
 
     def _setup(self):
@@ -211,19 +217,31 @@ class Navigator:
             if ping.time < t0:
                 raise InputError(f"time {ping.time:g} s is before the previous line's {t0:g} s: "
                                  "lines must come in time order")
-            if ping.time == t0 and max(abs(ping.x - self.last[1]),
-                                       abs(ping.y - self.last[2])) > _SAME_TIME_SPREAD:
+            if (self.phase == "warmup" and ping.time == t0
+                    and max(abs(ping.x - self.last[1]),
+                        abs(ping.y - self.last[2])) > _SAME_TIME_SPREAD):
                 raise InputError(f"x, y ({ping.x:g}, {ping.y:g}) m differ from the previous "
                                  f"line's ({self.last[1]:g}, {self.last[2]:g}) m at the same "
                                  f"time {t0:g} s: expected one dead-reckoned position per time "
                                  f"(within {_SAME_TIME_SPREAD:g} m)")
-            if ping.time - t0 > self.options["max_gap"]:
+            if ping.time - t0 > self.options["max_gap"] and not self._sustained_gap(ping.time):
                 raise InputError(f"time {ping.time:g} s is {ping.time - t0:g} s after the "
                                  f"previous line's {t0:g} s: expected a gap of at most "
                                  f"{self.options['max_gap']:g} s (max_gap, --max-gap); the "
-                                 "line is refused, the stream goes on from "
-                                 f"{t0:g} s")
+                                 f"line is refused, the stream goes on from {t0:g} s (a gap "
+                                 f"is adopted when {GAP_CONFIRM + 1} lines in a row agree "
+                                 "on it)")
+        self._ahead = []
         return ping
+
+    def _sustained_gap(self, t: float) -> bool:
+        """Whether ``t`` ends a run of lines that all jumped ahead together (a real pause)."""
+        run, gap = self._ahead, self.options["max_gap"]
+        if run and run[-1] <= t <= run[-1] + gap:
+            run.append(t)
+        else:
+            self._ahead = run = [t]
+        return len(run) > GAP_CONFIRM
 
     # ------------------------------------------------------------------ update
     def update(self, ping) -> PingResult:
@@ -508,6 +526,7 @@ class Navigator:
         self.models = {k: BeaconModel.from_dict(v) for k, v in d["models"].items()}
         self.dp = None if d["dp"] is None else DirectPathScale.from_dict(d["dp"])
         self.warmup_record = d["warmup_record"]
+        self._ahead = []
         self._setup()
         return self
 

@@ -1045,6 +1045,18 @@ class _Cases:
                 for h, c in zip(header, s.lines[69].split(","), strict=True))),
             "semicolons": self.inserted(70, s.lines[69].replace(",", ";")),
         }
+        t = header.index("time")
+
+        def shifted(by):
+            out = list(s.lines[:100])
+            for ln in s.lines[100:]:
+                f = ln.split(",")
+                f[t] = repr(float(f[t]) + by)
+                out.append(",".join(f))
+            return out, {k: (k if k <= 100 else None) for k in range(1, len(out) + 1)}
+
+        structural["pause_2h"] = shifted(7200.0)
+        structural["clock_reset"] = shifted(-float(s.lines[100].split(",")[t]))
         for name, (lines, mapping) in structural.items():
             self.stream(name, lines, mapping)
         body = "\n".join(s.lines).encode()

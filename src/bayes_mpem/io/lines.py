@@ -103,7 +103,9 @@ def _number(value, column, where, *, positive=False, optional=False):
         what = "a positive number (m)" if positive else "a finite number"
         hint = " or an empty cell for no reply" if column == "range" else ""
         raise InputError(f"{where}, column {column!r}: expected {what}{hint}, got {value!r}")
-    if column in LIMITS:
+    lim = LIMITS.get(column)
+    if lim is not None and not ((v >= lim.low if lim.include_low else v > lim.low)
+                                and v <= lim.high):  # plain floats: no numpy per cell
         problem = limit_problem(column, v)
         if problem is not None:
             raise InputError(f"{where}, column {column!r}: expected a value within the "

@@ -41,7 +41,7 @@ import pandas as pd
 from ...._rng import RNGLike, as_generator
 from ...._validate import check_choice, check_int, check_positive, check_range
 from ....exceptions import InputError, NavigationWarning
-from ....io.boundary import limit_problem
+from ....io.boundary import LIMITS, limit_problem
 from ....io.lines import Ping, make_ping
 from ....io.results import write_json
 from ....io.tables import read_beacons, read_pings
@@ -205,8 +205,11 @@ class Navigator:
             if ping.beacon is not None and ping.depth is None:
                 raise InputError("a ping needs the vehicle's depth")
             for k in _PING_LIMITS:
-                v = getattr(ping, k)
-                problem = None if v is None else limit_problem(k, v)
+                v, lim = getattr(ping, k), LIMITS[k]
+                if v is None or ((v >= lim.low if lim.include_low else v > lim.low)
+                                 and v <= lim.high):
+                    continue
+                problem = limit_problem(k, v)
                 if problem is not None:
                     raise InputError(f"{k}: expected a value within the limits of "
                                      f"docs/input.md, got {problem}")

@@ -3,7 +3,7 @@
 Whatever is broken, every command either exits 0 with rows in = rows out and finite
 outputs, or exits 2 with a message naming the file, line, column or option, never a
 traceback, and never leaves a complete-looking wrong folder. The judge is
-``tests/catalogue.py``; the whole catalogue (470 cases) runs in
+``tests/catalogue.py``; the whole catalogue (470 + 546 cases) runs in
 ``benchmarks/malformed_catalogue.py``, a deterministic part of it here.
 """
 
@@ -138,3 +138,32 @@ def test_any_option_value(base, tmp_path_factory, option, value):
                           if command != "locate" else None,
                           survey=base.sio if command == "locate" else None)
     _assert_fine(catalogue.run_case(case))
+
+
+# --------------------------------------------------------------------------- issue 27
+
+
+@pytest.fixture(scope="module")
+def surfaces(tmp_path_factory):
+    return catalogue.make_surfaces(tmp_path_factory.mktemp("surfaces"))
+
+
+def test_a_deterministic_part_of_the_newer_surfaces(surfaces, tmp_path_factory):
+    """navigate, stream (lines, replay, options, state), batch and GNSS-A: ok or refused."""
+    cases = catalogue.surface_cases(surfaces, tmp_path_factory.mktemp("surface_cases"))
+    assert len(cases) >= 350
+    kinds = {c.kind or c.command for c in cases}
+    assert kinds == {"navigate", "stream", "batch", "garpos", "gnatss"}
+    must = {"stream:time_0", "stream:x_18", "stream:depth_21", "stream:replay_0_realtime",
+            "stream:x_4", "stream:time_4", "stream:time_5",
+            "stream:state_filter_cov_null", "stream:state_nan_token", "stream:bare_cr",
+            "stream:json_t_for_time", "batch:latin1", "batch:--workers=-1",
+            "garpos:obs_bare_cr", "gnatss:sv_swapped", "navigate:--dr-noise=1e-8"}
+    chosen = [c for i, c in enumerate(cases) if not c.slow and (i % 6 == 0 or c.name in must)]
+    assert must <= {c.name for c in chosen} and len(chosen) >= 80
+    outcomes = [catalogue.run_case(c, limit=60) for c in chosen]
+    bad = [(o.case.name, o.verdict, o.problems[:2]) for o in outcomes
+           if o.verdict not in ("ok", "refused")]
+    assert not bad
+    verdicts = {o.verdict for o in outcomes}
+    assert verdicts == {"ok", "refused"}

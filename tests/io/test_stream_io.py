@@ -71,3 +71,53 @@ def test_replay_keeps_the_time_stamps(tmp_path):
     t0 = time.monotonic()
     assert len(list(ReplayLines(threading.Event(), path, speed=None))) == 6
     assert time.monotonic() - t0 < 0.4
+
+
+def test_an_overlong_line_is_answered_once_and_the_next_keeps_its_number():
+    from bayes_mpem.io.lines import LineParser
+    from bayes_mpem.io.stream import MAX_PARTIAL, _Splitter
+
+    s = _Splitter()
+    got = list(s.feed(b"a,b\n" + b"9" * (MAX_PARTIAL + 10)))
+    assert [n for n, _ in got] == [1, 2] and s.partial == b""
+    got += list(s.feed(b"9" * 100 + b"\nnext\n"))
+    assert [(n, t) for n, t in got[2:]] == [(3, "next")]
+    parser = LineParser()
+    parser.parse("time,beacon,range,x,y,depth", 1)
+    with pytest.raises(InputError, match="line 2: expected a line of at most"):
+        parser.parse(got[1][1], 2)
+
+
+@pytest.mark.parametrize(("text", "message"), [
+    ('{"a":' + "[" * 30000 + "]" * 30000 + "}", "nested too deeply"),
+    ('{"time": 1, "x": 0, "y": 0, "depth": 5, "beacon": [1], "range": 5}', "a beacon id"),
+    ('{"t": 1, "x": 0, "y": 0}', "did you mean 't' for 'time'"),
+    ("1,2,3", "expected 6 comma-separated fields"),
+])
+def test_malformed_json_and_csv_lines_are_input_errors(text, message):
+    from bayes_mpem.io.lines import LineParser
+
+    parser = LineParser()
+    parser.parse("time,beacon,range,x,y,depth", 1)
+    with pytest.raises(InputError, match=message):
+        parser.parse(text, 2)
+
+
+def test_replay_schedules_no_deeply_nested_line(tmp_path):
+    path = tmp_path / "r.jsonl"
+    path.write_text('{"a":' + "[" * 30000 + "]" * 30000 + '}\n{"time": 0, "x": 0, "y": 0}\n')
+    lines = list(ReplayLines(threading.Event(), path, 10.0))
+    assert [n for n, _ in lines] == [1, 2]
+
+
+def test_a_line_that_is_not_utf8_is_refused_with_its_column():
+    from bayes_mpem.io.lines import LineParser
+    from bayes_mpem.io.stream import _Splitter
+
+    lines = list(_Splitter().feed(b"time,beacon,range,x,y,depth\n1,caf\xe9,3,4,5,6\nok\n"))
+    assert [n for n, _ in lines] == [1, 2, 3]
+    parser = LineParser()
+    parser.parse(lines[0][1], 1)
+    with pytest.raises(InputError, match=r"line 2, column 6: expected UTF-8 text, got the byte "
+                                         r"0xe9"):
+        parser.parse(lines[1][1], 2)

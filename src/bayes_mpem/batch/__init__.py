@@ -12,9 +12,11 @@ outnumber the workers, so per-survey tasks keep every worker busy; a task per
 beacon would pay only for batches of fewer dives than workers), on a local
 cluster by default or on an existing scheduler. Each task writes the survey's
 own output folder ``DIR/surveys/<name>/`` (as the single command would), its
-classified rows to ``DIR/classified/name=<name>/part-0.parquet`` (one Parquet
-dataset partitioned by survey: ``pandas.read_parquet(DIR / "classified")``)
-and, last, ``batch.json`` with the content hash of its inputs and options.
+classified rows to ``DIR/classified/survey-<name>.parquet`` (with a ``name``
+column of text, so that ``pandas.read_parquet(DIR / "classified")`` reads them
+all and a survey named ``001`` stays ``"001"``) and, last, ``batch.json`` with
+the content hash of its inputs and options. A survey that fails leaves only
+``failed.json`` (its reason) in its folder, never a previous run's results.
 A re-run skips every survey whose ``batch.json`` carries the same hash, so an
 interrupted batch resumes where it stopped, and a changed input or option is
 redone. A survey that fails is recorded with its reason and the others go on.

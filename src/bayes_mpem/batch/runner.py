@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import shutil
 import sys
 import time
 import warnings
@@ -43,8 +44,13 @@ def run_task(task: BatchTask, out_dir: str, key: str | None = None) -> dict:
     folder = out / "surveys" / task.name
     done = folder / "batch.json"
     done.unlink(missing_ok=True)
-    part = out / "classified" / f"name={task.name}"
-    (part / "part-0.parquet").unlink(missing_ok=True)  # no stale rows if this run fails
+    part = classified_file(out, task.name)
+    part.unlink(missing_ok=True)  # no stale rows if this run fails
+    old = out / "classified" / f"name={task.name}"  # the layout of earlier versions
+    if old.is_dir():
+        shutil.rmtree(old)
+    if folder.is_dir():  # a previous run's results would look complete if this one fails
+        shutil.rmtree(folder)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
@@ -54,18 +60,60 @@ def run_task(task: BatchTask, out_dir: str, key: str | None = None) -> dict:
             rows = [{"name": task.name, "beacon": str(b), **flatten(v)}
                     for b, v in spec.beacons(result).items()]
             if spec.classified is not None:
-                write_parquet(output_folder(part) / "part-0.parquet", spec.classified(result))
+                output_folder(part.parent)
+                write_parquet(part, _named(spec.classified(result), task.name))
         except Exception as exc:  # noqa: BLE001 - a failed survey is a result of the batch
-            return {"name": task.name, "status": "failed",
-                    "reason": f"{type(exc).__name__}: {exc}",
-                    "seconds": time.perf_counter() - t0,
-                    "warnings": [f"{w.category.__name__}: {w.message}" for w in caught]}
+            record = {"name": task.name, "status": "failed",
+                      "reason": f"{type(exc).__name__}: {exc}",
+                      "seconds": time.perf_counter() - t0,
+                      "warnings": [f"{w.category.__name__}: {w.message}" for w in caught]}
+            _failed_folder(folder, record)
+            return record
     record = {"name": task.name, "status": "done", "hash": key, "command": task.command,
               "seconds": time.perf_counter() - t0, "rows": rows,
               "warnings": [f"{w.category.__name__}: {w.message}" for w in caught]}
     tmp = write_json(folder / "batch.json.tmp", record)
     tmp.replace(done)  # last, atomically: its presence means the survey is complete
     return record
+
+
+def classified_file(out_dir, name: str) -> Path:
+    """Return where a survey's classified rows go: ``DIR/classified/survey-<name>.parquet``.
+
+    One file per survey, each with a ``name`` column of text: a survey named ``001``
+    reads back as ``"001"`` from ``pandas.read_parquet(DIR / "classified")`` (a
+    ``name=001`` partition folder would read back as the number 1), and the
+    ``survey-`` prefix keeps a name starting with ``_`` or ``.`` from being skipped
+    as a hidden file.
+
+    Parameters
+    ----------
+    out_dir : str or pathlib.Path
+    name : str
+
+    Returns
+    -------
+    pathlib.Path
+    """
+    return Path(out_dir) / "classified" / f"survey-{name}.parquet"
+
+
+def _named(table: pd.DataFrame, name: str) -> pd.DataFrame:
+    """Return the classified rows with the survey's name first (an input ``name`` kept)."""
+    table = table.rename(columns={"name": "name_input"})  # a copy
+    table.insert(0, "name", pd.Series([name] * len(table), index=table.index, dtype=object))
+    return table
+
+
+def _failed_folder(folder: Path, record: dict) -> None:
+    """Leave only ``failed.json`` (the reason) in a failed survey's folder."""
+    try:
+        if folder.is_dir():
+            shutil.rmtree(folder)
+        write_json(output_folder(folder) / "failed.json",
+                   {k: record[k] for k in ("name", "status", "reason")})
+    except OSError:  # the record says why the survey failed in any case
+        pass
 
 
 def completed(task: BatchTask, out_dir, key: str | None) -> dict | None:
@@ -203,9 +251,12 @@ def run_batch(tasks: list, out_dir, *, scheduler: str | None = None, n_workers: 
     Raises
     ------
     InputError
-        For tasks of unknown commands or repeated names.
+        For tasks of unknown commands or repeated names, or ``n_workers`` < 1.
     """
     t0 = time.perf_counter()
+    if n_workers is not None and (isinstance(n_workers, bool) or not isinstance(n_workers, int)
+                                  or n_workers < 1):
+        raise InputError(f"n_workers (--workers): expected an integer >= 1, got {n_workers!r}")
     names = [t.name for t in tasks]
     if len(set(names)) != len(names):
         raise InputError("batch: survey names must be unique")

@@ -56,6 +56,39 @@ class BatchTask:
         return h.hexdigest()
 
 
+def _manifest_table(path: Path):
+    """Read a manifest as text cells: (table, the line number of each row).
+
+    Through :func:`~bayes_mpem.io.boundary.read_text_lines`: a folder, a binary or
+    non-UTF-8 file (Latin-1) is refused naming the manifest and the line; an empty
+    one naming the manifest; blank lines and ``#`` comments are skipped; a row
+    with more or fewer cells than the header is refused naming its line.
+    """
+    import csv
+
+    from ..io.boundary import read_text_lines
+
+    text_lines = read_text_lines(path, "manifest")
+    rows, numbers, header = [], [], None
+    for i, cells in enumerate(csv.reader(text_lines, skipinitialspace=True), start=1):
+        if not any(c.strip() for c in cells) or cells[0].lstrip().startswith("#"):
+            continue
+        if header is None:
+            header = [c.strip() for c in cells]
+            continue
+        if len(cells) != len(header):
+            raise InputError(f"{path} line {i}: expected {len(header)} comma-separated cells "
+                             f"(the header's), got {len(cells)}")
+        rows.append(cells)
+        numbers.append(i)
+    if header is None:
+        raise InputError(f"{path}: an empty manifest; expected a CSV header line (name, then "
+                         "the command's input columns) and one row per survey")
+    if not rows:
+        raise InputError(f"{path}: the manifest lists no survey (a header and no row)")
+    return pd.DataFrame(rows, columns=header, dtype=object), numbers
+
+
 def read_manifest(path, command: str = "fit") -> tuple[list, pd.DataFrame]:
     """Read a manifest: the surveys' inputs, and the option columns left to the caller.
 
@@ -87,22 +120,21 @@ def read_manifest(path, command: str = "fit") -> tuple[list, pd.DataFrame]:
     check_choice("command", command, tuple(COMMANDS))
     spec = COMMANDS[command]
     path = Path(path)
-    table = pd.read_csv(path, dtype=str, keep_default_na=False, skipinitialspace=True)
-    table.columns = [str(c).strip() for c in table.columns]
+    table, lines = _manifest_table(path)
     missing = [c for c in ("name", *spec.inputs) if c not in table.columns]
     if missing:
         raise InputError(f"{path}: the manifest of '{command}' needs the columns "
                          f"{', '.join(('name', *spec.inputs))}; missing: {', '.join(missing)}")
     tasks, seen = [], {}
     for i, row in enumerate(table.to_dict("records")):
-        where = f"{path} line {i + 2}"
+        where = f"{path} line {lines[i]}"
         name = row["name"].strip()
         if not name or name in (".", "..") or any(c in name for c in "/\\:"):
             raise InputError(f"{where}, column 'name': expected a plain folder name, "
                              f"got {row['name']!r}")
         if name in seen:
             raise InputError(f"{where}, column 'name': {name!r} already on line {seen[name]}")
-        seen[name] = i + 2
+        seen[name] = lines[i]
         inputs = {}
         for col in spec.inputs:
             value = row[col].strip()

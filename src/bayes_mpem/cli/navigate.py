@@ -48,15 +48,15 @@ def add_navigate(sub) -> None:
                    help="the mixture (default) or a baseline smoother")
     p.add_argument("--path", choices=PATH_CHOICES, default="auto",
                    help="multipath geometry per beacon (default auto)")
-    p.add_argument("--dr-noise", type=opt.positive, default=0.1, metavar="Q",
+    p.add_argument("--dr-noise", type=opt.dr_noise, default=0.1, metavar="Q",
                    help="random-walk level of the dead reckoning, m/sqrt(s) (default 0.1)")
-    p.add_argument("--start-sd", type=opt.positive, default=1000.0, metavar="M",
+    p.add_argument("--start-sd", type=opt.start_sd, default=1000.0, metavar="M",
                    help="prior sd of the first position about the first fix, m (default 1000)")
-    p.add_argument("--heading-sd", type=opt.positive, default=5.0, metavar="DEG",
+    p.add_argument("--heading-sd", type=opt.heading_sd, default=5.0, metavar="DEG",
                    help="prior sd of the heading bias, degrees (default 5)")
-    p.add_argument("--scale-sd", type=opt.positive, default=0.05, metavar="S",
+    p.add_argument("--scale-sd", type=opt.scale_sd, default=0.05, metavar="S",
                    help="prior sd of the speed scale (default 0.05)")
-    p.add_argument("--sigma-dp", type=opt.positive, default=None, metavar="S",
+    p.add_argument("--sigma-dp", type=opt.sigma_dp_nav, default=None, metavar="S",
                    help="fix sigma_DP, m (default: estimated)")
     p.add_argument("--range-scale", action="store_true",
                    help="also estimate a range scale (a sound-speed error), prior sd 0.01")
@@ -88,7 +88,7 @@ def add_simulate_navigation(p) -> None:
                    help="heading bias of the dead reckoning (default: drawn in [-2, 2])")
     g.add_argument("--speed-scale", type=opt.positive, default=None, metavar="S",
                    help="true over dead-reckoned speed (default: drawn in [0.98, 1.02])")
-    g.add_argument("--dr-noise", type=opt.non_negative, default=None, metavar="Q",
+    g.add_argument("--dr-noise", type=opt.dr_noise_simulated, default=None, metavar="Q",
                    help="random walk of the dead reckoning, m/sqrt(s) (default 0.1)")
     g.add_argument("--start-error", type=opt.non_negative, default=None, metavar="M",
                    help="sd of the first fix's error, m (default 10)")

@@ -112,6 +112,21 @@ probability = number("a probability in (0, 1)", 0.0, 1.0, include_low=False,
 fraction = number("a number in (0, 1]", 0.0, 1.0, include_low=False)
 #: A turn-around time in s (the limits of :data:`bayes_mpem.io.boundary.LIMITS`).
 turn_around = number("a turn-around time in [0, 10] s", 0.0, 10.0)
+#: ``--dr-noise`` of ``navigate`` and ``stream``: the dead reckoning's random walk, m/sqrt(s),
+#: within the levels the filters are tested at (below 1e-4 the smoother's covariance is
+#: singular; above 100 m/sqrt(s) the dead reckoning says nothing).
+dr_noise = number("a positive number in [0.0001, 100] (a random walk, m/sqrt(s))", 1e-4, 100.0)
+#: ``simulate --navigation --dr-noise``: the simulated random walk, m/sqrt(s) (0: none).
+dr_noise_simulated = number("a number in [0, 100] (a random walk, m/sqrt(s))", 0.0, 100.0)
+#: ``stream --max-gap``: seconds (below a second every ping cycle would be refused).
+max_gap = number("a positive number in [1, 1e10] (seconds)", 1.0, 1e10)
+#: ``navigate``'s priors: the first position's sd (m), the heading bias's (degrees), the speed
+#: scale's, and a fixed sigma_DP (m), within what its smoother computes with (beyond them its
+#: arithmetic overflows or divides by zero).
+start_sd = number("a positive number in [0.01, 1e6] (m)", 0.01, 1e6)
+heading_sd = number("a positive number in [1e-6, 180] (degrees)", 1e-6, 180.0)
+scale_sd = number("a positive number in [1e-6, 1]", 1e-6, 1.0)
+sigma_dp_nav = number("a positive number in [0.001, 10000] (m)", 1e-3, 1e4)
 #: ``--seed``: a non-negative integer (NumPy's seeds).
 seed = at_least(0)
 #: ``--min-pings``: the EMs need at least :data:`bayes_mpem.lbl.survey.survey.MIN_PINGS` replies.

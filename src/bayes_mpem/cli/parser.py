@@ -114,6 +114,7 @@ def _add_fit_diagnose(sub):
                    help="also write the figures (as 'bayes-mpem plot' does)")
     _add_table_format(p)
     _add_fit_options(p)
+    _add_input_units(p)
 
     p = sub.add_parser("diagnose", help="find which assumption the data break (bias, sound "
                                         "speed, drifts, second reflector, early outliers)")
@@ -239,6 +240,62 @@ def _add_sample_compare(sub):
                        help="no progress bar (terminal) or progress lines (log file)")
 
 
+def _add_input_units(p):
+    g = p.add_argument_group("input units (bayes_mpem.io.travel_time)")
+    g.add_argument("--ranges", choices=("one-way", "two-way"), default="one-way",
+                   help="the range column holds one-way (default) or two-way ranges, or "
+                        "travel times with --travel-time")
+    g.add_argument("--travel-time", action="store_true",
+                   help="the range column holds travel times (s): converted with "
+                        "--sound-speed and --turnaround")
+    g.add_argument("--sound-speed", type=opt.number("a sound speed in [1300, 1800] m/s",
+                                                    1300.0, 1800.0),
+                   default=None, metavar="C", help="--travel-time: mean sound speed, m/s")
+    g.add_argument("--turnaround", type=opt.turn_around, default=0.0, metavar="S",
+                   help="--travel-time: the beacons' turn-around time, s (default 0)")
+    g.add_argument("--origin", type=_lat_lon, default=None, metavar="LAT,LON",
+                   help="tables in lat, lon: the local frame's origin (default: the "
+                        "beacons' mean position)")
+
+
+def _lat_lon(text: str):
+    try:
+        lat, lon = (float(v) for v in text.split(","))
+    except ValueError:
+        lat = lon = float("nan")
+    if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
+        raise argparse.ArgumentTypeError(f"expected LAT,LON in degrees, got {text!r}")
+    return lat, lon
+
+
+def _units_handler(args, handler):
+    """``fit`` on travel times, two-way ranges or lat/lon: convert first (io.travel_time)."""
+    if not (args.travel_time or args.ranges != "one-way" or args.sound_speed is not None
+            or args.turnaround or args.origin is not None or _has_lat_lon(args)):
+        return handler
+
+    def convert_then(a):
+        from ..io.travel_time import convert_survey
+
+        a.pings, a.beacons = convert_survey(
+            a.pings, a.beacons, ranges=a.ranges, travel_time=a.travel_time,
+            sound_speed=a.sound_speed, turnaround=a.turnaround, origin=a.origin)
+        return handler(a)
+
+    return convert_then
+
+
+def _has_lat_lon(args) -> bool:
+    """Whether the beacons file's header names lat and lon (and not x, y)."""
+    try:
+        with open(args.beacons, encoding="utf-8-sig", errors="replace") as fh:
+            head = next((ln for ln in fh if ln.strip() and not ln.lstrip().startswith("#")), "")
+    except OSError:
+        return False
+    names = {c.strip() for c in head.split(",")}
+    return {"lat", "lon"} <= names and not {"x", "y"} <= names
+
+
 def _simulate_handler(args, cmd_simulate):
     """``simulate`` writes a survey, or a dive with ``--navigation``; refuse mixed options."""
     chosen = gnssa.gnssa_handler(args)  # --gnssa: a GNSS-A campaign
@@ -267,7 +324,7 @@ def _add_batch(sub):
                    help="the command run on each survey (default fit)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="address of a running Dask scheduler (default: a local cluster)")
-    p.add_argument("--workers", type=int, default=None, metavar="N",
+    p.add_argument("--workers", type=opt.at_least(1, 1024), default=None, metavar="N",
                    help="workers of the local cluster (default 1)")
     p.add_argument("--no-progress", action="store_true", help="no progress lines on stderr")
 
@@ -305,6 +362,10 @@ def build_parser() -> argparse.ArgumentParser:
             "--palette", choices=PALETTES, default="okabe-ito",
             help="class colours of the figures: colour-blind safe (default) or the "
                  "paper's blue, red and green")
+    for p in sub.choices.values():  # every command: options from a TOML file (_with_config)
+        p.add_argument("--config", default=None, metavar="FILE.toml",
+                       help="read options from this TOML file (key = the long option without "
+                            "its dashes, e.g. sigma_dp = 4.0); the command line overrides it")
     parser.set_defaults(subparsers=sub.choices)
     return parser
 
@@ -312,6 +373,8 @@ def build_parser() -> argparse.ArgumentParser:
 def _output_folder(args):
     """Return the folder a command writes (checked before any work), or ``None``."""
     out = getattr(args, "out", None)
+    if args.command == "stream":  # --out is where the answers go, a file or a socket
+        return None
     if args.command == "plot" and out is None:
         out = args.result_dir
     if out is None:
@@ -363,6 +426,119 @@ def _message(exc: BaseException) -> str:
     return str(exc)
 
 
+def _config_path(argv, commands):
+    """Return ``(command, --config value)`` from the raw arguments (None when absent)."""
+    command = next((a for a in argv if a in commands), None)
+    if command is None:
+        return None, None
+    rest = argv[argv.index(command) + 1:]
+    for i, a in enumerate(rest):
+        if a == "--config" and i + 1 < len(rest):
+            return command, rest[i + 1]
+        if a.startswith("--config="):
+            return command, a.split("=", 1)[1]
+    return command, None
+
+
+def _config_tokens(sub: argparse.ArgumentParser, path: str) -> list:
+    """Turn a TOML file's keys into the command-line tokens they amount to, each checked."""
+    import tomllib
+
+    def refuse(message):
+        sub.error(f"--config {path}: {message}")
+
+    try:
+        with open(path, "rb") as fh:
+            doc = tomllib.load(fh)
+    except FileNotFoundError:
+        refuse("no such file")
+    except IsADirectoryError:
+        refuse("a folder; expected a TOML file")
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        refuse(f"not valid TOML ({exc})")
+    except OSError as exc:
+        refuse(f"cannot be read ({exc.strerror or exc})")
+    options = {s: a for a in sub._actions for s in a.option_strings if s.startswith("--")}
+    tokens = []
+    for key, value in doc.items():
+        name = "--" + str(key).replace("_", "-")
+        action = options.get(name)
+        if action is None or name in ("--config", "--help"):
+            import difflib
+
+            close = difflib.get_close_matches(name, list(options), n=1, cutoff=0.6)
+            hint = f"; did you mean {close[0][2:].replace('-', '_')}?" if close else ""
+            positional = [a.metavar or a.dest for a in sub._actions if not a.option_strings]
+            refuse(f"key {key!r}: not an option of this command{hint} (positional "
+                   f"arguments {', '.join(map(str, positional)) or 'none'} go on the command "
+                   "line)")
+        if isinstance(value, dict):
+            refuse(f"key {key!r}: expected a value, got a table")
+        if action.nargs == 0:  # a flag
+            if not isinstance(value, bool):
+                refuse(f"key {key!r}: expected true or false, got {value!r}")
+            if value:
+                tokens.append(name)
+            continue
+        items = value if isinstance(value, list) else [value]
+        if isinstance(value, list) and not (isinstance(action, argparse._AppendAction)
+                                            or action.nargs in ("+", "*")):
+            refuse(f"key {key!r}: expected one value, got a list")
+        words = []
+        for v in items:
+            if isinstance(v, (dict, list)) or isinstance(v, bool):
+                refuse(f"key {key!r}: expected a number or text, got {v!r}")
+            text = repr(v) if isinstance(v, float) else str(v)
+            try:
+                checked = action.type(text) if action.type else text
+            except (argparse.ArgumentTypeError, ValueError, TypeError) as exc:
+                refuse(f"key {key!r} ({name}): {exc}")
+            if action.choices is not None and checked not in action.choices:
+                refuse(f"key {key!r} ({name}): expected one of "
+                       f"{', '.join(map(str, action.choices))}, got {v!r}")
+            words.append(text)
+        if isinstance(action, argparse._AppendAction):
+            for w in words:
+                tokens += [name, w]
+        else:
+            tokens += [name, *words]
+    return tokens
+
+
+def _with_config(parser: argparse.ArgumentParser, argv) -> list:
+    """Put a ``--config`` file's options before the command line's (which override them)."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    commands = parser.get_default("subparsers")
+    command, path = _config_path(argv, commands)
+    if path is None:
+        return argv
+    at = argv.index(command) + 1
+    return [*argv[:at], *_config_tokens(commands[command], path), *argv[at:]]
+
+
+def _parse(parser: argparse.ArgumentParser, argv):
+    """Parse; an unknown option gets its sub-command's usage and the closest option's name."""
+    argv = _with_config(parser, argv)
+    args, extra = parser.parse_known_args(argv)
+    if not extra:
+        return args
+    import difflib
+
+    sub = args.subparsers.get(args.command, parser)
+    known = [s for a in sub._actions for s in a.option_strings if s.startswith("--")]
+    hints = []
+    for word in extra:
+        if word.startswith("-"):
+            close = difflib.get_close_matches(word.split("=", 1)[0], known, n=1, cutoff=0.6)
+            if close:
+                hints.append(close[0] if len(extra) == 1 else
+                             f"{close[0]} for {word.split('=', 1)[0]}")
+    hint = f"; did you mean {', '.join(hints)}?" if hints else (
+        f"; see 'bayes-mpem {args.command} --help'")
+    sub.error(f"unrecognized arguments: {' '.join(extra)}{hint}")
+    return args  # pragma: no cover - error() exits
+
+
 def main(argv=None) -> int:
     """Entry point of ``bayes-mpem``.
 
@@ -386,7 +562,7 @@ def main(argv=None) -> int:
         Exit status: 0 on success, 2 on invalid input, 1 on an internal error,
         128 + signal number when terminated.
     """
-    args = build_parser().parse_args(argv)  # an invalid option exits here, with status 2
+    args = _parse(build_parser(), argv)  # an invalid option exits here, with status 2
     import matplotlib
 
     matplotlib.use("Agg")  # the command line only writes files; never opens a window
@@ -394,6 +570,8 @@ def main(argv=None) -> int:
     handler = getattr(module, f"cmd_{args.command}")
     if args.command == "simulate":
         handler = _simulate_handler(args, handler)
+    if args.command == "fit":
+        handler = _units_handler(args, handler)
     colours = contextlib.nullcontext()
     # the figures' class colours, restored on return (only when figures are drawn: the
     # plotting modules import matplotlib.pyplot)

@@ -47,7 +47,15 @@ def add_stream(sub) -> None:
     p.add_argument("--in", dest="source", default="-", metavar="-|udp://HOST:PORT",
                    help="where pings come from: standard input (default) or a UDP socket")
     p.add_argument("--out", default="-", metavar="-|FILE|udp://HOST:PORT",
-                   help="where answers go (default standard output)")
+                   help="where answers go (default standard output); a FILE is replaced, "
+                        "or appended to with --append")
+    p.add_argument("--append", action="store_true",
+                   help="--out FILE: add the answers at the end of the file instead of "
+                        "replacing it (to go on after a --state resume)")
+    p.add_argument("--max-gap", type=opt.max_gap, default=None, metavar="S",
+                   help="refuse a line timed more than S seconds after the previous one "
+                        "(a clock jump or unit slip), instead of adopting its time "
+                        "(default 3600; a resumed state keeps its own unless given)")
     p.add_argument("--state", default=None, metavar="FILE",
                    help="resume from this saved state if it exists; save to it on exit")
     p.add_argument("--save-every", type=opt.at_least(0), default=0, metavar="N",
@@ -69,9 +77,9 @@ def add_stream(sub) -> None:
     p.add_argument("--path", choices=PATH_CHOICES, default="auto",
                    help="multipath geometry: chosen by the warm-up and revised online "
                         "(default auto), or forced")
-    p.add_argument("--dr-noise", type=opt.positive, default=0.1, metavar="Q",
+    p.add_argument("--dr-noise", type=opt.dr_noise, default=0.1, metavar="Q",
                    help="random-walk level of the dead reckoning, m/sqrt(s) (default 0.1)")
-    p.add_argument("--sigma-dp", type=opt.positive, default=None, metavar="S",
+    p.add_argument("--sigma-dp", type=opt.sigma_dp_nav, default=None, metavar="S",
                    help="fix sigma_DP, m (default learned)")
     p.add_argument("--seed", type=opt.seed, default=0, help="seed of the warm-up fit (default 0)")
 
@@ -95,26 +103,37 @@ def _navigator(args):
     from ..lbl.navigate.online import Navigator
 
     if args.state and os.path.exists(args.state):
-        nav = Navigator.load(args.state)
+        try:
+            nav = Navigator.load(args.state)
+        except InputError as err:
+            raise InputError(f"--state: {err} (move the file away to start a new "
+                             "stream)") from None
         mine = read_beacons(args.beacons)
         if not (list(mine.index) == list(nav.beacons.index)
                 and (mine.to_numpy() == nav.beacons.to_numpy()).all()):
             raise InputError(f"--state {args.state}: its beacons differ from {args.beacons}")
+        if args.max_gap is not None:
+            nav.options["max_gap"] = args.max_gap
         print(f"resuming from {args.state} (phase {nav.phase}; the saved state's options are "
               "kept)", file=sys.stderr, flush=True)
         return nav
+    gap = {} if args.max_gap is None else {"max_gap": args.max_gap}
     return Navigator(args.beacons, warmup=args.warmup, alpha=args.alpha,
                      multipath=args.multipath, path=args.path, dr_noise=args.dr_noise,
-                     sigma_dp=args.sigma_dp, rng=args.seed)
+                     sigma_dp=args.sigma_dp, rng=args.seed, **gap)
 
 
-def _source(args, stop):
+def _source(args, stop, max_gap):
     from ..io.stream import FdLines, ReplayLines, UdpLines, parse_address
 
     if args.replay is not None:
         if args.source != "-":
             raise OptionError("--replay and --in: give one source")
-        return ReplayLines(stop, args.replay, _speed(args.speed))
+        speed = _speed(args.speed)
+        if not os.path.isfile(args.replay):
+            raise InputError(f"--replay {args.replay}: expected a file, got "
+                             f"{'a folder' if os.path.isdir(args.replay) else 'no such file'}")
+        return ReplayLines(stop, args.replay, speed, max_gap=max_gap)
     if args.speed != "realtime":
         raise OptionError("--speed applies to --replay only")
     kind, where = parse_address(args.source)
@@ -136,7 +155,10 @@ def _answer(nav, parser, counts, n, text):
         if kind != "ping":
             counts[kind] += 1
             return None
-        out = {"line": n, **nav.update(ping).to_dict()}
+        try:
+            out = {"line": n, **nav.update(ping).to_dict()}
+        except InputError as err:  # the navigator's own checks: say which line
+            raise InputError(f"line {n}: {err}") from None
     except InputError as err:
         counts["malformed"] += 1
         return {"line": n, "error": str(err)}
@@ -146,6 +168,14 @@ def _answer(nav, parser, counts, n, text):
         return {"line": n, "error": f"internal error: {type(err).__name__}: {err}"}
     counts["answered"] += 1
     return out
+
+
+def _save(nav, path) -> None:
+    """Save the state; a state that could not be resumed is not written (the message says so)."""
+    try:
+        nav.save(path)
+    except (InputError, OSError) as err:
+        print(f"bayes-mpem stream: error: --state {path}: {err}", file=sys.stderr, flush=True)
 
 
 def cmd_stream(args) -> int:
@@ -162,14 +192,16 @@ def cmd_stream(args) -> int:
     """
     if args.save_every < 0:
         raise OptionError(f"--save-every: expected a count >= 0, got {args.save_every}")
+    if args.append and (args.out == "-" or args.out.startswith("udp://")):
+        raise OptionError(f"--append applies to --out FILE only, got --out {args.out}")
     from ..io.lines import LineParser
     from ..io.stream import LineSink
 
     nav = _navigator(args)
     parser = LineParser(nav.beacons.index)
     stop = threading.Event()
-    source = _source(args, stop)
-    sink = LineSink(args.out)
+    source = _source(args, stop, nav.options["max_gap"])
+    sink = LineSink(args.out, append=args.append)
     counts = dict.fromkeys(COUNTS, 0)
     previous = {s: signal.signal(s, lambda *_: stop.set()) for s in (signal.SIGTERM,
                                                                       signal.SIGINT)}
@@ -181,7 +213,7 @@ def cmd_stream(args) -> int:
             if answer is not None:
                 sink.write(json.dumps(answer, allow_nan=False, separators=(",", ":")))
             if args.state and args.save_every and counts["read"] % args.save_every == 0:
-                nav.save(args.state)
+                _save(nav, args.state)
         if stop.is_set():
             why = "stopped by a signal"
     except BrokenPipeError:
@@ -191,7 +223,7 @@ def cmd_stream(args) -> int:
             signal.signal(s, h)
         sink.close()
         if args.state:
-            nav.save(args.state)
+            _save(nav, args.state)
         report = {"stream": why, **counts, "incomplete_line": bool(source.partial),
                   "phase": nav.phase, "seconds": round(time.monotonic() - t0, 3),
                   "state": args.state}

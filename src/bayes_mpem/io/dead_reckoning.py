@@ -71,5 +71,5 @@ def read_dead_reckoning(source: Any, *, name: str | None = None) -> tuple[pd.Dat
     t = out["time"].to_numpy()
     for pos in np.flatnonzero(np.diff(t) <= 0)[:1] + 1:
         raise InputError(f"{table.where(int(pos), 'time')}: expected a time after the previous "
-                         f"row's {t[pos - 1]!r} s, got {t[pos]!r}")
+                         f"row's {float(t[pos - 1]):g} s, got {float(t[pos]):g} s")
     return out, forms[0]

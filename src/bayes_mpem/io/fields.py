@@ -81,6 +81,8 @@ def number(text, name, *, lo=None, hi=None, lo_open=False, integer=False) -> flo
     expected = (f"expected {'a whole number' if integer else 'a number'} in "
                 f"{left}{lo_s}, {hi_s}{right}")
     try:
+        if "_" in str(text):  # float() takes 1_000 and 2.5_0; a file's numbers do not
+            raise ValueError
         v = float(str(text).strip())
     except ValueError:
         raise ValueError(f"{name}: {expected}, got {str(text).strip()!r}") from None

@@ -150,7 +150,7 @@ def _read_profile(paths):
     for path in paths:
         rows = []
         for i, text in enumerate(read_lines(path), start=1):
-            parts = text.split()
+            parts = _fields(text)
             if not parts or parts[0].startswith("#"):
                 continue
             if len(parts) < 2:
@@ -162,16 +162,29 @@ def _read_profile(paths):
             except ValueError as exc:
                 raise InputError(f"{where(path, i, 1 if 'depth' in str(exc) else 2)}: "
                                  f"{exc}") from None
+            if len(rows) > 1 and rows[-1][0] <= rows[-2][0]:
+                raise InputError(f"{where(path, i, 1, 'depth')}: expected depths going down "
+                                 f"level after level, got {-rows[-2][0]:g} then "
+                                 f"{-rows[-1][0]:g} m (a repeated or swapped level)")
         frames.append(pd.DataFrame(rows, columns=["depth", "sound_speed"]))
     prof = pd.concat(frames).drop_duplicates("depth").sort_values("depth")
     return profile_frame(prof["depth"], prof["sound_speed"], ", ".join(map(str, paths)))
+
+
+def _fields(text: str) -> list[str]:
+    """Split a line at spaces and tabs only: a CR, form feed or U+2028 stays in its field."""
+    s = text.strip(" \t")
+    return _BLANKS.split(s) if s else []
+
+
+_BLANKS = re.compile(r"[ \t]+")
 
 
 def _data_lines(paths):
     """Yield ``(path, line number, text, fields)`` of every line that is not blank or a comment."""
     for path in paths:
         for i, text in enumerate(read_lines(path), start=1):
-            parts = text.split()
+            parts = _fields(text)
             if parts and not parts[0].startswith("#"):
                 yield path, i, text, parts
 

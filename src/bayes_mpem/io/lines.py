@@ -32,10 +32,17 @@ from __future__ import annotations
 import csv
 import json
 import math
+import re
 from typing import NamedTuple
 
 from ..exceptions import InputError
+from .boundary import LIMITS, limit_problem
 from .tables import PING_COLUMNS, as_beacon_id
+
+#: Bytes that were not UTF-8, as :func:`bytes.decode` with ``surrogateescape`` keeps them.
+_NOT_UTF8 = re.compile("[\udc80-\udcff]")
+#: The longest line a stream takes (characters); a longer one is refused on its line.
+MAX_LINE = 65536
 
 #: What :meth:`LineParser.parse` says a line is.
 KINDS = ("ping", "header", "blank", "comment")
@@ -74,7 +81,10 @@ class Ping(NamedTuple):
 
 
 def _number(value, column, where, *, positive=False, optional=False):
-    """Return a finite float from a JSON value or a CSV cell, or raise an InputError naming it."""
+    """Return a finite float within :data:`~bayes_mpem.io.boundary.LIMITS` of its column.
+
+    A JSON value or a CSV cell; an :class:`InputError` naming the line and column otherwise.
+    """
     missing = value is None or (isinstance(value, str) and not value.strip()) or (
         isinstance(value, float) and math.isnan(value))  # NaN: pandas' missing value
     if missing:
@@ -93,10 +103,38 @@ def _number(value, column, where, *, positive=False, optional=False):
         what = "a positive number (m)" if positive else "a finite number"
         hint = " or an empty cell for no reply" if column == "range" else ""
         raise InputError(f"{where}, column {column!r}: expected {what}{hint}, got {value!r}")
+    lim = LIMITS.get(column)
+    if lim is not None and not ((v >= lim.low if lim.include_low else v > lim.low)
+                                and v <= lim.high):  # plain floats: no numpy per cell
+        problem = limit_problem(column, v)
+        if problem is not None:
+            raise InputError(f"{where}, column {column!r}: expected a value within the "
+                             f"limits of docs/input.md, got {problem}")
     return v
 
 
-def make_ping(values: dict, where: str, beacons=None) -> Ping:
+def _missing_keys(values: dict, where: str, beacon) -> None:
+    """Refuse a JSON object without a key its line needs, naming the keys it has."""
+    needed = ("time", "x", "y") + (("depth",) if beacon is not None else ())
+    absent = [k for k in needed if k not in values]
+    if not absent:
+        return
+    import difflib
+
+    have = [str(k) for k in values]
+    hints = []
+    for k in absent:
+        close = difflib.get_close_matches(k, have, n=1, cutoff=0.3)
+        close = close or [h for h in have if h and k.startswith(h.lower()) and h not in needed]
+        if close:
+            hints.append(f"{close[0]!r} for {k!r}?")
+    hint = f"; did you mean {' '.join(hints)}" if hints else ""
+    raise InputError(f"{where}: expected the key{'s' if len(absent) > 1 else ''} "
+                     f"{', '.join(repr(k) for k in absent)}, got the keys "
+                     f"{', '.join(repr(k) for k in have[:12]) or 'none'}{hint}")
+
+
+def make_ping(values: dict, where: str, beacons=None, *, json_keys: bool = False) -> Ping:
     """Validate one line's values into a :class:`Ping`.
 
     Parameters
@@ -107,6 +145,9 @@ def make_ping(values: dict, where: str, beacons=None) -> Ping:
         Where the line came from, for messages (``"line 17"``).
     beacons : collection of str, optional
         Known beacon ids; a ping of another beacon is refused.
+    json_keys : bool, default False
+        The values are a JSON object's: a missing key is named as such (with the
+        keys the object has and the likeliest misspelling, ``"t"`` for ``"time"``).
 
     Returns
     -------
@@ -115,7 +156,9 @@ def make_ping(values: dict, where: str, beacons=None) -> Ping:
     Raises
     ------
     InputError
-        A missing or bad value, an unknown beacon, a range on a dead-reckoning line.
+        A missing or bad value, a value outside the limits of
+        :data:`~bayes_mpem.io.boundary.LIMITS` (``docs/input.md``), an unknown
+        beacon, a range on a dead-reckoning line.
 
     Examples
     --------
@@ -123,7 +166,12 @@ def make_ping(values: dict, where: str, beacons=None) -> Ping:
     Ping(time=5.0, beacon=None, range=None, x=1.0, y=2.0, depth=None)
     """
     raw_b = values.get("beacon")
+    if isinstance(raw_b, (list, dict, bool)):
+        raise InputError(f"{where}, column 'beacon': expected a beacon id (text or a whole "
+                         f"number), got {json.dumps(raw_b)[:40]}")
     beacon = None if raw_b is None else (as_beacon_id(raw_b) or None)
+    if json_keys:
+        _missing_keys(values, where, beacon)
     rng = _number(values.get("range"), "range", where, positive=True, optional=True)
     if beacon is None and rng is not None:
         raise InputError(f"{where}, column 'beacon': expected a beacon id for a line with a "
@@ -142,6 +190,42 @@ def make_ping(values: dict, where: str, beacons=None) -> Ping:
 def _no_constant(name):
     """Refuse ``NaN`` and ``Infinity``, which are not JSON."""
     raise ValueError(f"{name} is not a JSON number")
+
+
+def csv_cells(text: str, where: str) -> list[str]:
+    r"""Split one CSV line into its cells; a malformed line is an :class:`InputError`.
+
+    Parameters
+    ----------
+    text : str
+        One line (no ``\n``).
+    where : str
+        For messages (``"line 17"``).
+
+    Returns
+    -------
+    list of str
+
+    Raises
+    ------
+    InputError
+        A carriage return inside the line, a field too long, an unclosed quote.
+
+    Examples
+    --------
+    >>> csv_cells('1,"a b",3', "line 2")
+    ['1', 'a b', '3']
+    """
+    for bad, name in (("\r", "a carriage return (\\r)"), ("\x00", "a NUL character")):
+        at = text.find(bad)
+        if at >= 0:
+            raise InputError(f"{where}, column {at + 1}: expected one line of comma-separated "
+                             f"fields, got {name} inside it")
+    try:
+        return next(csv.reader([text], strict=True))
+    except csv.Error as err:
+        raise InputError(f"{where}: expected comma-separated fields, got a malformed CSV line "
+                         f"({err})") from None
 
 
 class LineParser:
@@ -186,6 +270,14 @@ class LineParser:
         """
         s = text.strip()
         where = f"line {line_no}"
+        if len(s) > MAX_LINE:
+            raise InputError(f"{where}: expected a line of at most {MAX_LINE} characters, got "
+                             f"{len(s)}")
+        bad = _NOT_UTF8.search(s)
+        if bad is not None:
+            byte = ord(bad.group()) - 0xDC00
+            raise InputError(f"{where}, column {len(text) - len(text.lstrip()) + bad.start() + 1}:"
+                             f" expected UTF-8 text, got the byte 0x{byte:02x}")
         if not s:
             return "blank", None
         if s.startswith("#"):
@@ -197,10 +289,13 @@ class LineParser:
                 at = f" at column {err.colno}" if hasattr(err, "colno") else ""
                 raise InputError(f"{where}: expected a JSON object, got invalid JSON "
                                  f"({getattr(err, 'msg', err)}{at})") from None
+            except RecursionError:
+                raise InputError(f"{where}: expected a flat JSON object, got one nested too "
+                                 "deeply") from None
             if not isinstance(obj, dict):  # pragma: no cover - "{" starts an object
                 raise InputError(f"{where}: expected a JSON object")
-            return "ping", make_ping(obj, where, self.beacons)
-        cells = next(csv.reader([s]))
+            return "ping", make_ping(obj, where, self.beacons, json_keys=True)
+        cells = csv_cells(s, where)
         if self.header is None:
             return "header", self._set_header(cells, where)
         if len(cells) != len(self.header):

@@ -32,12 +32,12 @@ geodetic -> ECEF -> local east-north-up transform (:func:`geodetic_to_enu`).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from ..exceptions import InputError
+from .boundary import read_text_lines
 from .geodesy import antenna_to_transducer, atd_offset_enu, geodetic_to_enu
 
 #: Formats of GNSS-acoustic array surveys (several transponders, antenna or transducer
@@ -196,7 +196,13 @@ class RawSurvey:
 
 
 def read_lines(path):
-    """Read a survey file as text lines (UTF-8, a byte-order mark allowed).
+    r"""Read a survey file as text lines (UTF-8, a byte-order mark allowed).
+
+    Lines end at ``\n`` only, as ``grep -n`` counts them
+    (:func:`~bayes_mpem.io.boundary.read_text_lines`): a stray carriage return, form
+    feed or Unicode line separator stays inside its line, where the line's reader
+    refuses it with the column, instead of making two lines of one and shifting
+    every later line number.
 
     Parameters
     ----------
@@ -211,15 +217,9 @@ def read_lines(path):
     FileNotFoundError
         No such file.
     InputError
-        Not UTF-8 text.
+        A folder, a binary file, or not UTF-8 text (naming the line).
     """
-    path = Path(path)
-    if not path.exists():
-        raise FileNotFoundError(f"survey file not found: {str(path)!r}")
-    try:
-        return path.read_text(encoding="utf-8-sig", errors="strict").splitlines()
-    except UnicodeDecodeError as exc:
-        raise InputError(f"{path}: not UTF-8 text ({exc.reason})") from None
+    return read_text_lines(path, "survey file")
 
 
 def finish(fmt, source, rows, header, skipped, transponder):

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 import os
 import select
 import socket
@@ -35,6 +36,11 @@ import sys
 import time
 
 from ..exceptions import InputError
+from .boundary import out_of_limits
+
+#: The longest unfinished line kept (bytes); a longer one is passed on, cut, to be refused
+#: on its line, and the rest of it up to the next newline dropped.
+MAX_PARTIAL = 1 << 20
 
 #: Largest datagram read (bytes).
 MAX_DATAGRAM = 65535
@@ -73,17 +79,27 @@ class _Splitter:
     """Turns chunks of bytes into numbered lines; keeps the unfinished end."""
 
     def __init__(self):
-        self.n, self.partial = 0, b""
+        self.n, self.partial, self._skip = 0, b"", False
 
     def feed(self, data: bytes, *, final: bool = False):
         data = self.partial + data
         *lines, self.partial = data.split(b"\n")
+        if self._skip and lines:  # the rest of an overlong line already answered
+            lines.pop(0)
+            self._skip = False
+        if len(self.partial) > MAX_PARTIAL and not self._skip:
+            lines.append(self.partial)  # answered (refused for its length) at once
+            self.partial, self._skip = b"", True
+        elif self._skip:
+            self.partial = b""
         if final and self.partial:
             lines.append(self.partial)
             self.partial = b""
         for raw in lines:
             self.n += 1
-            yield self.n, raw.decode("utf-8", errors="replace").rstrip("\r")
+            # bytes that are not UTF-8 stay visible (as surrogates) for the parser to refuse
+            text = raw.decode("utf-8", errors="surrogateescape")
+            yield self.n, text[:-1] if text.endswith("\r") else text
 
 
 class FdLines:
@@ -161,20 +177,27 @@ class UdpLines:
 
 
 def _line_time(text: str, header):
-    """Return the ``time`` of a line, or None (a header, or a line too malformed to schedule)."""
+    """Return the ``time`` of a line, or None (a header, or a line too malformed to schedule).
+
+    A time outside :data:`~bayes_mpem.io.boundary.LIMITS` is None: the line is
+    released at once, to be refused on its line by the parser.
+    """
     s = text.strip()
     try:
         if s.startswith("{"):
-            return float(json.loads(s)["time"]), header
-        cells = next(csv.reader([s])) if s else []
-        if not cells or s.startswith("#"):
-            return None, header
-        if header is None:
-            names = [c.strip() for c in cells]
-            return None, (names.index("time") if "time" in names else None)
-        return float(cells[header]), header
-    except (ValueError, KeyError, IndexError, TypeError):
+            t = float(json.loads(s)["time"])
+        else:
+            cells = next(csv.reader([s], strict=True)) if s else []
+            if not cells or s.startswith("#"):
+                return None, header
+            if header is None:
+                names = [c.strip() for c in cells]
+                return None, (names.index("time") if "time" in names else None)
+            t = float(cells[header])
+    except (ValueError, KeyError, IndexError, TypeError, OverflowError, RecursionError,
+            csv.Error):
         return None, header
+    return (None if out_of_limits("time", t).item() else t), header
 
 
 class ReplayLines:
@@ -187,29 +210,44 @@ class ReplayLines:
         CSV (with its header) or JSON lines, as a live stream.
     speed : float or None
         ``1`` real time, ``k`` k times faster, None as fast as possible.
+    max_gap : float, default inf
+        A line timed more than this after the last scheduled one, or before it,
+        or outside the limits, is released at once (the navigator refuses it on
+        its line) and does not move the schedule.
     """
 
     partial = b""
 
-    def __init__(self, stop, path, speed):
-        self.stop, self.path, self.speed = stop, path, speed
+    def __init__(self, stop, path, speed, max_gap=math.inf):
+        self.stop, self.path, self.speed, self.max_gap = stop, path, speed, max_gap
 
     def __iter__(self):
         """Yield ``(line_number, text)``, each line at its time, until the end or a stop."""
-        header, t0, w0 = None, None, None
-        with open(self.path, "rb") as fh:
+        header, t0, w0, last = None, None, None, None
+        try:
+            fh = open(self.path, "rb")  # noqa: SIM115 - closed below
+        except IsADirectoryError:
+            raise InputError(f"--replay {self.path}: a folder; expected a file") from None
+        except FileNotFoundError:
+            raise InputError(f"--replay {self.path}: no such file") from None
+        with fh:
             split = _Splitter()
             for chunk in iter(lambda: fh.read(1 << 16), b""):
                 for n, text in split.feed(chunk):
                     if self.stop.is_set():
                         return
                     t, header = _line_time(text, header)
+                    if last is not None and t is not None and not (
+                            last <= t <= last + self.max_gap):
+                        t = None
                     if self.speed is not None and t is not None:
                         if t0 is None:
                             t0, w0 = t, time.monotonic()
                         wait = w0 + (t - t0) / self.speed - time.monotonic()
                         if wait > 0 and self.stop.wait(wait):
                             return
+                    if t is not None:
+                        last = t
                     yield n, text
             yield from split.feed(b"", final=True)
 
@@ -222,20 +260,28 @@ class LineSink:
     spec : str
         ``-`` (standard output), a file path, or ``udp://HOST:PORT``.
 
+    append : bool, default False
+        A file is appended to instead of replaced.
+
     Raises
     ------
     InputError
-        A malformed address.
+        A malformed address, a folder or a file that cannot be written.
     """
 
-    def __init__(self, spec: str):
+    def __init__(self, spec: str, *, append: bool = False):
         kind, where = parse_address(spec, option="--out")
         self.kind, self._sock, self._fh = kind, None, None
         if kind == "udp":
             self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
             self._dest = where
         elif kind == "file":
-            self._fh = open(where, "w", encoding="utf-8")  # noqa: SIM115 - closed by close()
+            try:
+                self._fh = open(where, "a" if append else "w",  # noqa: SIM115 - close()
+                                encoding="utf-8")
+            except OSError as err:
+                raise InputError(f"--out {where}: cannot be written "
+                                 f"({err.strerror or err})") from None
         else:
             self._fh = sys.stdout
 

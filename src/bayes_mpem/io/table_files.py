@@ -230,12 +230,14 @@ def _read_csv_exact(raw: bytes, label: str) -> TableText:
     n_comments = sum(1 for ln in lines if ln.lstrip().startswith("#"))
     if not kept:
         raise InputError(f"{label}: the file is empty (expected a header line of column names)")
-    reader = csv.reader((ln for _, ln in kept), skipinitialspace=True)
-    records, where = [], []
+    # each line with its newline: a quoted cell that spans lines keeps its line break
+    reader = csv.reader((ln + "\n" for _, ln in kept), skipinitialspace=True)
+    records, where, first = [], [], 0
     try:
         for rec in reader:
             records.append(rec)
-            where.append(kept[reader.line_num - 1][0])
+            where.append(kept[first][0])  # the record's first line
+            first = reader.line_num
     except csv.Error as exc:
         line = kept[min(reader.line_num, len(kept)) - 1][0]
         raise InputError(f"{label} line {line}: malformed CSV ({exc})") from None

@@ -10,12 +10,13 @@ import pandas as pd
 from ..._rng import RNGLike, as_generator
 from ..._validate import check_choice
 from ...io.results import write_json, write_table, writing
-from ...io.survey import Survey, load_survey
+from ...io.survey import Survey
 from ...io.table_files import TABLE_FORMATS
 from ..em.em_paper import fit_paper_em
 from ..em.em_result import check_options
 from ..em.path_choice import AUTO, check_path_choice, choose_path
 from .model_checks import check_fit, checks_record, warn_misfit
+from .slips import flag_impossible, load_checked
 from .survey import beacons_table, check_min_pings, classified_table, non_finite, over_beacons
 
 METHODS = ("mixture", "paper")
@@ -61,9 +62,10 @@ class SurveyFit:
             Same rows, same order as the input; labels are ``dp``, ``mp``,
             ``ol``, ``no_reply`` or ``skipped`` (``reason`` says why).
         """
-        return classified_table(
+        out = classified_table(
             self.survey, {bid: (r.rows, r.resp) for bid, r in self.results.items()},
             self.skipped)
+        return flag_impossible(out, self.survey)  # ranges shorter than any path: a reason
 
     def summary(self) -> dict:
         """JSON-ready summary: per-beacon parameters, counts, skipped beacons."""
@@ -268,7 +270,7 @@ def fit(
     check_path_choice(path)
     check_min_pings(min_pings)
     check_options(weights=weights, pol=pol, alpha=alpha, sigma_dp=sigma_dp)
-    survey = load_survey(pings, beacons)
+    survey = load_checked(pings, beacons)  # load_survey, naming the usual slips (slips.py)
     gen = as_generator(rng)
     choices = {}
 

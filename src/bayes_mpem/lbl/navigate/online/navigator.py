@@ -41,11 +41,13 @@ import pandas as pd
 from ...._rng import RNGLike, as_generator
 from ...._validate import check_choice, check_int, check_positive, check_range
 from ....exceptions import InputError, NavigationWarning
+from ....io.boundary import LIMITS, limit_problem
 from ....io.lines import Ping, make_ping
 from ....io.results import write_json
 from ....io.tables import read_beacons, read_pings
 from ....mixture.densities import CLASSES
 from ...em.path_choice import CLEAR_MARGIN, check_path_choice
+from ..dive import SAME_EPOCH_TOLERANCE
 from ..driver import MIN_SEPARATION
 from .ekf import PositionFilter
 from .kernel import class_probabilities, log_weight, ranges
@@ -61,6 +63,20 @@ STATE_VERSION = 1
 PATH_MARGIN = CLEAR_MARGIN
 #: A class whose probability is below this does not update the filter.
 MIN_CLASS_PROB = 1e-9
+#: Default of ``max_gap`` (s): a line further ahead of the previous one is refused.
+MAX_GAP = 3600.0
+#: Lines of one time must agree on the dead-reckoned position within this (m): half the
+#: warm-up batch fit's tolerance, so that an accepted line never makes that fit refuse.
+_SAME_TIME_SPREAD = SAME_EPOCH_TOLERANCE / 2
+#: A line further ahead than ``max_gap`` is refused, unless it is the last of this many + 1
+#: lines in a row that jumped ahead together (each within ``max_gap`` of the one before): a
+#: real pause of the stream (the vehicle at the surface), not one bad time stamp.
+GAP_CONFIRM = 3
+#: Options a state of an earlier build may lack, with the value they then take.
+_OPTION_DEFAULTS = {"max_gap": MAX_GAP}
+#: The values a line may carry (:data:`~bayes_mpem.io.boundary.LIMITS`), checked on a
+#: :class:`~bayes_mpem.io.lines.Ping` given directly.
+_PING_LIMITS = ("time", "range", "x", "y", "depth")
 _REPLY_REASON = {"no_reply": "empty range: the ping got no reply",
                  "dead_reckoning": "dead-reckoning line: no beacon"}
 
@@ -70,7 +86,9 @@ def _options(o: dict) -> dict:
     check_range("alpha", o["alpha"], low=0.5, high=1.0, include_low=False, include_high=True)
     check_choice("multipath", o["multipath"], ("signal", "outlier"))
     check_path_choice(o["path"])
-    for k in ("dr_noise", "start_sd", "heading_sd", "scale_sd", "plane_sd", "provisional_sd",
+    o["dr_noise"] = check_range("dr_noise", o["dr_noise"], low=1e-4, high=100.0,
+                                include_low=True, include_high=True)
+    for k in ("start_sd", "heading_sd", "scale_sd", "plane_sd", "provisional_sd",
               "prior_sigma_mp", "sigma_floor"):
         o[k] = check_positive(k, o[k])
     check_positive("sigma_dp", o["sigma_dp"], allow_none=True)
@@ -78,6 +96,7 @@ def _options(o: dict) -> dict:
         o[k] = check_range(k, o[k], low=0.0, include_low=True)
     check_int("min_pings", o["min_pings"], minimum=1)
     check_int("prior_pings", o["prior_pings"], minimum=1)
+    o["max_gap"] = check_positive("max_gap", o.get("max_gap", MAX_GAP))
     return o
 
 
@@ -122,6 +141,11 @@ class Navigator:
         Random walk of the speed scale (1 / sqrt(s)).
     sigma_floor : float, default 0.05
         Smallest scale (m).
+    max_gap : float, default 3600
+        A line timed more than this many seconds after the previous one is
+        refused (a clock jump or a unit slip), not adopted: adopting it would
+        refuse every later line as out of time order. A real pause is adopted
+        once :data:`GAP_CONFIRM` + 1 lines in a row agree on it.
     rng : None, int or numpy.random.Generator
         Seeds the warm-up fit's path choice (one seed is drawn and kept in the state).
 
@@ -143,13 +167,13 @@ class Navigator:
                  plane_sd: float = 1000.0, sigma_dp: float | None = None, min_pings: int = 30,
                  provisional_sd: float = 100.0, prior_sigma_mp: float = 20.0,
                  prior_pings: int = 20, beta_walk: float = 1e-5, scale_walk: float = 1e-6,
-                 sigma_floor: float = 0.05, rng: RNGLike = None):
+                 sigma_floor: float = 0.05, max_gap: float = MAX_GAP, rng: RNGLike = None):
         self.options = _options(dict(
             warmup=warmup, alpha=alpha, multipath=multipath, path=path, dr_noise=dr_noise,
             start_sd=start_sd, heading_sd=heading_sd, scale_sd=scale_sd, plane_sd=plane_sd,
             sigma_dp=sigma_dp, min_pings=min_pings, provisional_sd=provisional_sd,
             prior_sigma_mp=prior_sigma_mp, prior_pings=prior_pings, beta_walk=beta_walk,
-            scale_walk=scale_walk, sigma_floor=sigma_floor))
+            scale_walk=scale_walk, sigma_floor=sigma_floor, max_gap=max_gap))
         self.beacons = read_beacons(beacons)
         self.seed = int(as_generator(rng).integers(2 ** 62))
         self.phase = "warmup"
@@ -161,6 +185,7 @@ class Navigator:
         self.models = {}
         self.dp = None
         self.warmup_record = None
+        self._ahead = []  # times of the latest lines refused for a gap (not saved)
         self._setup()
 
     def _setup(self):
@@ -173,17 +198,53 @@ class Navigator:
 
     # ------------------------------------------------------------------ checks
     def _as_ping(self, ping) -> Ping:
+        """Validate a line before anything changes (a refused line leaves no trace)."""
         if isinstance(ping, Ping):
             if ping.beacon is not None and ping.beacon not in self._xyz:
                 raise InputError(f"beacon {ping.beacon!r} is not in the beacons table")
             if ping.beacon is not None and ping.depth is None:
                 raise InputError("a ping needs the vehicle's depth")
+            for k in _PING_LIMITS:
+                v, lim = getattr(ping, k), LIMITS[k]
+                if v is None or ((v >= lim.low if lim.include_low else v > lim.low)
+                                 and v <= lim.high):
+                    continue
+                problem = limit_problem(k, v)
+                if problem is not None:
+                    raise InputError(f"{k}: expected a value within the limits of "
+                                     f"docs/input.md, got {problem}")
         else:
             ping = make_ping(dict(ping), "ping", self._xyz)
-        if self.last is not None and ping.time < self.last[0]:
-            raise InputError(f"time {ping.time!r} s is before the previous line's "
-                             f"{self.last[0]!r} s: lines must come in time order")
+        if self.last is not None:
+            t0 = self.last[0]
+            if ping.time < t0:
+                raise InputError(f"time {ping.time:g} s is before the previous line's {t0:g} s: "
+                                 "lines must come in time order")
+            if (self.phase == "warmup" and ping.time == t0
+                    and max(abs(ping.x - self.last[1]),
+                        abs(ping.y - self.last[2])) > _SAME_TIME_SPREAD):
+                raise InputError(f"x, y ({ping.x:g}, {ping.y:g}) m differ from the previous "
+                                 f"line's ({self.last[1]:g}, {self.last[2]:g}) m at the same "
+                                 f"time {t0:g} s: expected one dead-reckoned position per time "
+                                 f"(within {_SAME_TIME_SPREAD:g} m)")
+            if ping.time - t0 > self.options["max_gap"] and not self._sustained_gap(ping.time):
+                raise InputError(f"time {ping.time:g} s is {ping.time - t0:g} s after the "
+                                 f"previous line's {t0:g} s: expected a gap of at most "
+                                 f"{self.options['max_gap']:g} s (max_gap, --max-gap); the "
+                                 f"line is refused, the stream goes on from {t0:g} s (a gap "
+                                 f"is adopted when {GAP_CONFIRM + 1} lines in a row agree "
+                                 "on it)")
+        self._ahead = []
         return ping
+
+    def _sustained_gap(self, t: float) -> bool:
+        """Whether ``t`` ends a run of lines that all jumped ahead together (a real pause)."""
+        run, gap = self._ahead, self.options["max_gap"]
+        if run and run[-1] <= t <= run[-1] + gap:
+            run.append(t)
+        else:
+            self._ahead = run = [t]
+        return len(run) > GAP_CONFIRM
 
     # ------------------------------------------------------------------ update
     def update(self, ping) -> PingResult:
@@ -219,7 +280,7 @@ class Navigator:
         return self._online_step(ping)
 
     def _warmup_step(self, ping: Ping) -> PingResult:
-        self.last = (ping.time, ping.x, ping.y)
+        last, self.last = self.last, (ping.time, ping.x, ping.y)
         sd = math.sqrt(self.options["start_sd"] ** 2
                        + self._q2 * (ping.time - self.first_time))
         kind = ping.kind
@@ -228,11 +289,22 @@ class Navigator:
                               None, None, None, ping.x, ping.y, sd, sd, 0.0, "warmup",
                               _REPLY_REASON[kind])
         z = ping.range
+        had = ping.beacon in self.windows
         w = self.windows.setdefault(ping.beacon, [z, z])
+        before = list(w)
         w[0], w[1] = min(w[0], z), max(w[1], z)
         self.buffer.append([ping.time, ping.beacon, z, ping.x, ping.y, ping.depth])
         if len(self.buffer) >= self.options["warmup"]:
-            return self._finish_warmup(ping)
+            try:
+                return self._finish_warmup(ping)
+            except InputError:  # the line is refused, the navigator left as it was
+                self.buffer.pop()
+                self.last = last
+                if had:
+                    w[:] = before
+                else:
+                    del self.windows[ping.beacon]
+                raise
         p = provisional_classes(ping, self._xyz[ping.beacon], w, self.options["provisional_sd"])
         return PingResult(ping.time, ping.beacon, z, label_of(p), *p, ping.x, ping.y, sd, sd, 0.0,
                           "warmup")
@@ -433,8 +505,22 @@ class Navigator:
         if d.get("version") != STATE_VERSION:
             raise InputError(f"navigator state version {d.get('version')!r}: this version "
                              f"reads version {STATE_VERSION}")
+        try:
+            self = cls._from_checked(check_state(d))
+        except InputError:
+            raise
+        except (KeyError, TypeError, ValueError, IndexError, AttributeError) as err:
+            raise InputError(f"not a valid navigator state ({type(err).__name__}: "
+                             f"{err})") from None
+        problem = _non_finite(self.to_dict())
+        if problem:
+            raise InputError(f"not a valid navigator state: {problem}")
+        return self
+
+    @classmethod
+    def _from_checked(cls, d: dict) -> Navigator:
         self = cls.__new__(cls)
-        self.options = dict(d["options"])
+        self.options = _options({**_OPTION_DEFAULTS, **d["options"]})
         self.beacons = read_beacons(pd.DataFrame(d["beacons"]))
         self.seed, self.phase, self.first_time = d["seed"], d["phase"], d["first_time"]
         self.last = None if d["last"] is None else tuple(d["last"])
@@ -443,6 +529,7 @@ class Navigator:
         self.models = {k: BeaconModel.from_dict(v) for k, v in d["models"].items()}
         self.dp = None if d["dp"] is None else DirectPathScale.from_dict(d["dp"])
         self.warmup_record = d["warmup_record"]
+        self._ahead = []
         self._setup()
         return self
 
@@ -454,8 +541,12 @@ class Navigator:
         path : str or pathlib.Path
         """
         path = os.fspath(path)
+        d = self.to_dict()
+        problem = _non_finite(d)
+        if problem:  # never overwrite a good state with one that cannot be resumed
+            raise InputError(f"{path}: the state was not saved: {problem}")
         tmp = path + ".tmp"
-        write_json(tmp, self.to_dict(), indent=None)
+        write_json(tmp, d, indent=None)
         os.replace(tmp, path)
 
     @classmethod
@@ -473,12 +564,173 @@ class Navigator:
         Raises
         ------
         InputError
-            The file is not a navigator state.
+            The file is not a navigator state, or one with a missing part, a value
+            of the wrong type or a number that is not finite (naming the file).
         """
+        name = os.fspath(path)
         try:
-            with open(path, encoding="utf-8") as fh:
-                d = json.load(fh)
+            with open(path, "rb") as fh:
+                raw = fh.read()
+            d = json.loads(raw.decode("utf-8"), parse_constant=_no_constant)
+        except UnicodeDecodeError as err:
+            raise InputError(f"{name}: not a navigator state (not UTF-8 text: "
+                             f"{err.reason})") from None
         except ValueError as err:
-            raise InputError(f"{os.fspath(path)}: not a navigator state (invalid JSON: "
-                             f"{err})") from None
-        return cls.from_dict(d)
+            raise InputError(f"{name}: not a navigator state (invalid JSON: {err})") from None
+        except IsADirectoryError:
+            raise InputError(f"{name}: not a navigator state (a folder)") from None
+        try:
+            return cls.from_dict(d)
+        except InputError as err:
+            raise InputError(f"{name}: {err}") from None
+
+
+def _no_constant(name):
+    raise ValueError(f"{name} is not a JSON number")
+
+
+#: The parts of a saved state and their JSON types (None: may also be null).
+_STATE_SCHEMA = {"options": (dict,), "beacons": (dict,), "seed": (int,),
+                 "phase": (str,), "last": (list, None), "first_time": (int, float, None),
+                 "buffer": (list,), "windows": (dict,), "filter": (dict, None),
+                 "models": (dict,), "dp": (dict, None), "warmup_record": (dict, None)}
+
+
+def check_state(d: dict) -> dict:
+    """Check a saved state's parts and types before anything is built from it.
+
+    Parameters
+    ----------
+    d : dict
+        A document of :meth:`Navigator.to_dict`.
+
+    Returns
+    -------
+    dict
+        ``d``.
+
+    Raises
+    ------
+    InputError
+        A missing part, a part of the wrong type, a phase that does not go with
+        the filter, or a number that is not finite (the part named).
+    """
+    for key, types in _STATE_SCHEMA.items():
+        if key not in d:
+            raise InputError(f"not a valid navigator state: the part {key!r} is missing")
+        v = d[key]
+        allowed = tuple(t for t in types if t is not None)
+        ok = (v is None and None in types) or (isinstance(v, allowed)
+                                               and not isinstance(v, bool))
+        if not ok:
+            raise InputError(f"not a valid navigator state: {key!r} is "
+                             f"{type(v).__name__}, expected "
+                             f"{' or '.join('null' if t is None else t.__name__ for t in types)}")
+    if d["phase"] not in ("warmup", "online"):
+        raise InputError(f"not a valid navigator state: phase {d['phase']!r}, expected "
+                         "'warmup' or 'online'")
+    if (d["phase"] == "online") != (d["filter"] is not None and d["dp"] is not None):
+        f = "null" if d["filter"] is None else "set"
+        raise InputError("not a valid navigator state: the phase and the filter disagree "
+                         f"(phase {d['phase']!r}, filter {f})")
+    if d["last"] is not None and len(d["last"]) != 3:
+        raise InputError("not a valid navigator state: 'last' is not [time, x, y]")
+    problem = _non_finite({k: d[k] for k in ("last", "first_time", "buffer", "windows",
+                                             "filter", "models", "dp")})
+    if not problem:
+        for bid, m in d["models"].items():
+            problem = _check_model(m, f"models.{bid}")
+            if problem:
+                break
+    if not problem and d["dp"] is not None:
+        problem = _check_fields(d["dp"], "dp", {"sigma": "positive", "n": "int",
+                                                "fixed": "bool", "stats": "numbers"})
+    known = set(map(str, d["beacons"].get("beacon", ()) or ()))
+    for i, row in enumerate(d["buffer"]):
+        if problem:
+            break
+        if not (isinstance(row, list) and len(row) == 6 and row[1] in known
+                and all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                        for j, v in enumerate(row) if j != 1)):
+            problem = (f"buffer[{i}] is {row!r:.60}, expected [time, a known beacon, range, x, "
+                       "y, depth]")
+    strangers = sorted({str(k) for k in (*d["models"], *d["windows"])} - known)
+    if strangers:
+        problem = f"beacon {strangers[0]!r} of its models is not among its beacons"
+    if problem:
+        raise InputError(f"not a valid navigator state: {problem}")
+    return d
+
+
+#: The fields of a beacon's model in a saved state, and what each must be.
+_MODEL_FIELDS = {"d0": "number", "d0_min": "number", "d0_ref": "number", "evidence": "number",
+                 "sigma_mp": "positive", "sumsq": "number", "n": "int", "double": "bool",
+                 "mp_on": "bool", "stats": "numbers", "weights": "numbers", "window": "numbers",
+                 "xyz": "numbers"}
+
+
+def _check_fields(m, where: str, fields: dict) -> str | None:
+    """Return what is wrong with one part of a state (a missing field, a wrong type), or None."""
+    if not isinstance(m, dict):
+        return f"{where} is {type(m).__name__}, expected an object"
+    for k, kind in fields.items():
+        if k not in m:
+            return f"{where}.{k} is missing"
+        v = m[k]
+        if kind == "bool":
+            ok = isinstance(v, bool)
+        elif kind == "int":
+            ok = isinstance(v, int) and not isinstance(v, bool) and v >= 0
+        elif kind == "numbers":
+            ok = isinstance(v, list) and all(
+                isinstance(u, (int, float)) and not isinstance(u, bool) and math.isfinite(u)
+                for u in v)
+        else:
+            ok = (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+                  and (kind != "positive" or v > 0))
+        if not ok:
+            return f"{where}.{k} is {v!r:.40}, expected {_KIND_WORDS[kind]}"
+    return None
+
+
+_KIND_WORDS = {"bool": "true or false", "int": "a count", "numbers": "a list of finite numbers",
+               "number": "a finite number", "positive": "a positive number"}
+
+
+def _check_model(m, where: str) -> str | None:
+    problem = _check_fields(m, where, _MODEL_FIELDS)
+    if problem:
+        return problem
+    for k, n in (("weights", 3), ("window", 2), ("xyz", 3)):
+        if len(m[k]) != n:
+            return f"{where}.{k} has {len(m[k])} numbers, expected {n}"
+    if "alt" in m and m["alt"] is not None:
+        return _check_model(m["alt"], f"{where}.alt")
+    return None
+
+
+#: Parts of a state in which every value is a number (no null).
+_NUMBERS_ONLY = ("last", "windows", "filter", "dp")
+
+
+def _non_finite(doc, path="") -> str | None:
+    """Return where a number is not finite (or null where a number belongs) in a state."""
+    if isinstance(doc, dict):
+        items = doc.items()
+    elif isinstance(doc, (list, tuple)):
+        items = ((f"[{i}]", v) for i, v in enumerate(doc))
+    else:
+        items = ()
+    for k, v in items:
+        if k == "warmup_record" or (k == "stats" and v is None):
+            continue
+        sub = f"{path}{k}" if str(k).startswith("[") else (f"{path}.{k}" if path else str(k))
+        if v is None and path.split(".")[0].split("[")[0] in _NUMBERS_ONLY and k != "fixed":
+            return f"{sub} is null, expected a number"
+        if isinstance(v, float) and not math.isfinite(v):
+            return f"{sub} is {v!r}, expected a finite number"
+        if isinstance(v, (dict, list, tuple)):
+            problem = _non_finite(v, sub)
+            if problem:
+                return problem
+    return None

@@ -1,0 +1,143 @@
+"""Surveys given as travel times, two-way ranges or latitude/longitude, in the package's units.
+
+``fit`` works on one-way ranges in metres and positions in a local frame (m). A survey
+recorded otherwise is converted once, before it is read as usual
+(:func:`convert_survey`):
+
+* ``ranges="two-way"``: the ``range`` column holds there-and-back ranges (m): halved;
+* ``travel_time=True``: the ``range`` column holds travel times (s), one-way or two-way
+  as ``ranges`` says, each including the beacon's turn-around time ``turnaround``:
+  ``range = (t - turnaround) * sound_speed`` (one-way) or ``/ 2`` (two-way), with the
+  mean sound speed of the water ``sound_speed`` (m/s);
+* tables with ``lat``, ``lon`` columns (degrees, WGS84) instead of ``x``, ``y``: both
+  tables are projected onto the local tangent plane at ``origin`` (default: the beacons'
+  mean position) with :func:`~bayes_mpem.io.geodesy.geodetic_to_enu`, ``x`` east and
+  ``y`` north; ``depth`` stays as given.
+
+The converted tables keep every input column; a converted ``range`` keeps its input as
+``range_input``. Every cell is checked with the messages of :mod:`.tables` (file, line,
+column); the limits of :data:`~bayes_mpem.io.boundary.LIMITS` hold for the travel times
+and the coordinates as for the ranges.
+
+Examples
+--------
+>>> import pandas as pd
+>>> pings = pd.DataFrame({"time": [0.0], "beacon": ["1"], "range": [4.013], "x": [0.0],
+...                       "y": [0.0], "depth": [10.0]})
+>>> beacons = pd.DataFrame({"beacon": ["1"], "x": [0.0], "y": [0.0], "depth": [3000.0]})
+>>> p, b = convert_survey(pings, beacons, ranges="two-way", travel_time=True,
+...                       sound_speed=1500.0, turnaround=0.013)
+>>> round(float(p["range"][0]), 6), float(p["range_input"][0])
+(3000.0, 4.013)
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from ..exceptions import InputError
+from .geodesy import geodetic_to_enu
+from .tables import Problems, load_table, numeric_column
+
+__all__ = ["RANGE_KINDS", "convert_survey"]
+
+#: What the ``range`` column holds: one-way or two-way (ranges or travel times).
+RANGE_KINDS = ("one-way", "two-way")
+
+
+def _check(ranges, travel_time, sound_speed, turnaround, origin):
+    if ranges not in RANGE_KINDS:
+        raise InputError(f"ranges: expected one of {', '.join(RANGE_KINDS)}, got {ranges!r}")
+    if travel_time:
+        if sound_speed is None or not 1300.0 <= float(sound_speed) <= 1800.0:
+            raise InputError("travel times need the sound speed (--sound-speed) in [1300, 1800] "
+                             f"m/s, got {sound_speed!r}")
+        if not 0.0 <= float(turnaround) <= 10.0:
+            raise InputError(f"turnaround (--turnaround): expected [0, 10] s, got {turnaround!r}")
+    elif sound_speed is not None or turnaround:
+        raise InputError("--sound-speed and --turnaround apply to --travel-time only")
+    if origin is not None:
+        lat0, lon0 = (float(v) for v in origin)
+        if not (-90.0 <= lat0 <= 90.0 and -180.0 <= lon0 <= 180.0):
+            raise InputError(f"origin (--origin): expected LAT,LON in degrees, got {origin!r}")
+
+
+def _positions(table, problems):
+    cols = set(map(str, table.frame.columns))
+    if {"x", "y"} <= cols:
+        return None
+    if {"lat", "lon"} <= cols:
+        return (numeric_column(table, "lat", problems), numeric_column(table, "lon", problems))
+    raise InputError(f"{table.source}: expected the columns 'x', 'y' (local metres) or 'lat', "
+                     f"'lon' (degrees); found {', '.join(map(repr, table.frame.columns))}")
+
+
+def convert_survey(pings, beacons, *, ranges: str = "one-way", travel_time: bool = False,
+                   sound_speed: float | None = None, turnaround: float = 0.0,
+                   origin=None) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Return the pings and beacons tables with one-way ranges (m) and local x, y (m).
+
+    Parameters
+    ----------
+    pings, beacons : str, os.PathLike or pandas.DataFrame
+    ranges : {"one-way", "two-way"}
+        What the ``range`` column holds.
+    travel_time : bool, default False
+        The ``range`` column holds travel times in seconds.
+    sound_speed : float, optional
+        Mean sound speed (m/s), for travel times.
+    turnaround : float, default 0
+        The beacons' turn-around time (s), included in each travel time.
+    origin : (float, float), optional
+        Latitude and longitude (degrees) of the local frame's origin, for tables in
+        ``lat``, ``lon``; default the beacons' mean position.
+
+    Returns
+    -------
+    pings, beacons : pandas.DataFrame
+        Every input column kept; ``range`` (and ``range_input``), ``x``, ``y`` as floats.
+
+    Raises
+    ------
+    InputError
+        A bad option, a bad cell (naming the file, line and column), a travel time not
+        longer than the turn-around time, tables with different position columns.
+    """
+    _check(ranges, travel_time, sound_speed, turnaround, origin)
+    p = load_table(pings, None, "pings")
+    b = load_table(beacons, None, "beacons")
+    if "range" not in p.frame.columns:
+        raise InputError(f"{p.source}: missing required column 'range'")
+    problems = Problems(p.source)
+    raw = numeric_column(p, "range", problems, allow_missing=True, positive=True)
+    pos_p, pos_b = _positions(p, problems), _positions(b, Problems(b.source))
+    if (pos_p is None) != (pos_b is None):
+        raise InputError(f"{p.source} and {b.source}: give positions the same way in both "
+                         "tables (x, y in local metres, or lat, lon in degrees)")
+    if travel_time:
+        with np.errstate(invalid="ignore"):
+            short = ~np.isnan(raw) & (raw <= turnaround)
+        problems.add_mask(short, lambda i: f"{p.where(i, 'range')}: expected a travel time "
+                                           f"longer than the turn-around time {turnaround:g} "
+                                           f"s, got {raw[i]:g} s")
+    problems.raise_if_any()
+    pings_out, beacons_out = p.frame.copy(), b.frame.copy()
+    rng = raw.copy()
+    if travel_time:
+        rng = (rng - turnaround) * float(sound_speed)
+    if ranges == "two-way":
+        rng = rng / 2.0
+    if travel_time or ranges == "two-way":
+        pings_out["range_input"] = p.frame["range"]
+        pings_out["range"] = rng
+    if pos_p is not None:
+        bp = Problems(b.source)
+        lat_b, lon_b = numeric_column(b, "lat", bp), numeric_column(b, "lon", bp)
+        bp.raise_if_any()
+        lat0, lon0 = ((float(np.mean(lat_b)), float(np.mean(lon_b))) if origin is None
+                      else (float(origin[0]), float(origin[1])))
+        for frame, (lat, lon) in ((pings_out, pos_p), (beacons_out, (lat_b, lon_b))):
+            e, n, _ = geodetic_to_enu(lat, lon, np.zeros_like(lat), lat0, lon0)
+            frame["x"], frame["y"] = np.asarray(e, float), np.asarray(n, float)
+    return pings_out, beacons_out

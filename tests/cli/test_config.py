@@ -1,0 +1,94 @@
+"""``--config FILE.toml``: options from a file, checked as on the command line, overridden by it."""
+
+import json
+
+import pytest
+
+from bayes_mpem.cli import main
+from bayes_mpem.cli.parser import build_parser
+
+
+@pytest.fixture(scope="module")
+def survey(tmp_path_factory):
+    root = tmp_path_factory.mktemp("cfg")
+    assert main(["simulate", "--seed", "2", "--n-cycles", "60", "--out", str(root / "d")]) == 0
+    return root / "d"
+
+
+def test_config_options_and_command_line_overrides(survey, tmp_path):
+    cfg = tmp_path / "run.toml"
+    cfg.write_text('method = "paper"\nsigma_dp = 4.0\nmin_pings = 40\nfigures = false\n')
+    out = tmp_path / "o"
+    assert main(["fit", str(survey / "pings.csv"), "--beacons", str(survey / "beacons.csv"),
+                 "--out", str(out), "--config", str(cfg), "--sigma-dp", "3.5"]) == 0
+    doc = json.loads((out / "summary.json").read_text())
+    assert doc["method"] == "paper"
+    assert doc["options"]["sigma_dp"] == 3.5 and doc["options"]["min_pings"] == 40
+
+
+def test_every_command_takes_a_config():
+    subs = build_parser().get_default("subparsers")
+    for name, sub in subs.items():
+        assert "--config" in {s for a in sub._actions for s in a.option_strings}, name
+
+
+@pytest.mark.parametrize(("text", "message"), [
+    ("sigma_dp = -1", "key 'sigma_dp' (--sigma-dp): expected a positive number"),
+    ("sigma_dp = nan", "expected a positive number"),
+    ("sigmadp = 4", "key 'sigmadp': not an option of this command; did you mean sigma_dp?"),
+    ('pings = "x.csv"', "positional arguments PINGS go on the command line"),
+    ('method = "best"', "expected one of mixture, paper"),
+    ('figures = "yes"', "expected true or false"),
+    ("sigma_dp = [1, 2]", "expected one value, got a list"),
+    ("sigma_dp = {a = 1}", "expected a value, got a table"),
+    ("x = ", "not valid TOML"),
+])
+def test_config_errors_name_the_file_and_key(survey, tmp_path, capsys, text, message):
+    cfg = tmp_path / "bad.toml"
+    cfg.write_text(text + "\n")
+    with pytest.raises(SystemExit) as stop:
+        main(["fit", str(survey / "pings.csv"), "--beacons", str(survey / "beacons.csv"),
+              "--out", str(tmp_path / "o"), "--config", str(cfg)])
+    err = capsys.readouterr().err
+    assert stop.value.code == 2 and f"--config {cfg}" in err and message in err
+    assert "usage: bayes-mpem fit" in err
+
+
+@pytest.mark.parametrize("bad", ["nope.toml", "."])
+def test_a_missing_or_folder_config(tmp_path, capsys, bad):
+    with pytest.raises(SystemExit):
+        main(["fit", "p.csv", "--beacons", "b.csv", "--out", "o", "--config",
+              str(tmp_path / bad)])
+    assert "--config" in capsys.readouterr().err
+
+
+def test_stream_from_a_config_alone(survey, tmp_path):
+    cfg = tmp_path / "stream.toml"
+    out = tmp_path / "answers.jsonl"
+    cfg.write_text(f'beacons = "{survey / "beacons.csv"}"\nreplay = "{survey / "pings.csv"}"\n'
+                   f'speed = "max"\nwarmup = 60\nout = "{out}"\nmax_gap = 600.0\n')
+    assert main(["stream", "--config", str(cfg)]) == 0
+    assert len(out.read_text().splitlines()) == len((survey / "pings.csv").read_text()
+                                                    .splitlines()) - 1
+
+
+def test_the_examples_of_docs_cli_md_parse(tmp_path):
+    import re
+    from pathlib import Path
+
+    from bayes_mpem.cli.parser import _parse
+
+    docs = Path(__file__).resolve().parents[2] / "docs" / "cli.md"
+    if not docs.is_file():
+        pytest.skip("not a source checkout")
+    blocks = re.findall(r"```toml\n(.*?)```", docs.read_text(), re.S)
+    assert len(blocks) >= 8
+    positional = {"fit": ["p.csv"], "sample": ["p.csv"], "diagnose": ["p.csv"],
+                  "navigate": ["p.csv"], "locate": ["s.txt"], "batch": ["m.csv"]}
+    for i, block in enumerate(blocks):
+        command = re.match(r"# (\w+)\.toml", block).group(1)
+        cfg = tmp_path / f"{i}.toml"
+        cfg.write_text(block)
+        args = _parse(build_parser(), [command, *positional.get(command, []), "--config",
+                                       str(cfg)])
+        assert args.command == command

@@ -719,8 +719,8 @@ def plot_cases(base: Base, work: Path) -> list[Case]:
     damaged("fit_history_truncated", base.fit_out, cut("history.json"))
     damaged("fit_history_list", base.fit_out, replace("history.json", "[]"))
     if base.sample_out:
-        damaged("sample_posterior_garbage", base.sample_out, replace("posterior.nc", b"junk" * 9))
-        damaged("sample_posterior_missing", base.sample_out, remove("posterior.nc"))
+        damaged("sample_posterior_garbage", base.sample_out, replace("posterior_1.nc", b"junk" * 9))
+        damaged("sample_posterior_missing", base.sample_out, remove("posterior_1.nc"))
     for name, bad in [("folder_missing", work / "nope"), ("folder_is_file", base.pings),
                       ("folder_empty", work / "empty")]:
         if name == "folder_empty":

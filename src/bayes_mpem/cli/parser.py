@@ -211,7 +211,7 @@ def _add_sample_compare(sub):
             p.add_argument("--log-likelihood", action=argparse.BooleanOptionalAction,
                            default=False,
                            help="keep each range's log-likelihood at every draw in "
-                                "posterior.nc (for LOO; default: not kept)")
+                                "posterior_<id>.nc (for LOO; default: not kept)")
             p.add_argument("--predictive", action="store_true",
                            help="also write posterior predictive ranges (one per ping and draw)")
             p.add_argument("--figures", action="store_true", help="also write PNG figures")

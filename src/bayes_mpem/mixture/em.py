@@ -57,26 +57,76 @@ class EMModel:
     final_e_step = True
 
     def e_step(self, params):
-        """Return ``(loglik or None, class probabilities)`` at ``params``."""
+        """Return ``(loglik or None, class probabilities)`` at ``params``.
+
+        Parameters
+        ----------
+        params : object
+            The model's parameters.
+
+        Returns
+        -------
+        tuple
+        """
         raise NotImplementedError
 
     def m_step(self, params, resp):
-        """Return new parameters given the probabilities ``resp`` of the E-step at ``params``."""
+        """Return new parameters given the probabilities ``resp`` of the E-step at ``params``.
+
+        Parameters
+        ----------
+        params : object
+        resp : numpy.ndarray
+            Class probabilities of the E-step at ``params``.
+
+        Returns
+        -------
+        object
+        """
         raise NotImplementedError
 
     def change(self, old, new, gain):
         """Return the size of an iteration from ``old`` to ``new`` (default ``abs(gain)``).
 
-        ``gain`` is the log-likelihood gain, None for a model without one.
+        Parameters
+        ----------
+        old, new : object
+            The parameters before and after the iteration.
+        gain : float or None
+            The log-likelihood gain, None for a model without one.
+
+        Returns
+        -------
+        float
         """
         return abs(gain)
 
     def record(self, params, loglik, resp) -> dict:
-        """Return the values the history keeps of a state (default its log-likelihood)."""
+        """Return the values the history keeps of a state (default its log-likelihood).
+
+        Parameters
+        ----------
+        params : object
+        loglik : float or None
+        resp : numpy.ndarray
+
+        Returns
+        -------
+        dict
+        """
         return {} if loglik is None else {"loglik": loglik}
 
     def usable(self, params) -> bool:
-        """Return whether an E-step is defined at ``params`` (default True)."""
+        """Return whether an E-step is defined at ``params`` (default True).
+
+        Parameters
+        ----------
+        params : object
+
+        Returns
+        -------
+        bool
+        """
         return True
 
 
@@ -181,7 +231,16 @@ def _append(history, values):
 
 
 def best_run(runs):
-    """Return the run of ``runs`` with the highest log-likelihood (the first of equals)."""
+    """Return the run of ``runs`` with the highest log-likelihood (the first of equals).
+
+    Parameters
+    ----------
+    runs : iterable of EMRun
+
+    Returns
+    -------
+    EMRun
+    """
     best = None
     for run in runs:
         if best is None or run.loglik > best.loglik:

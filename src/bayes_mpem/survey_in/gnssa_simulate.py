@@ -50,7 +50,17 @@ _ZETA, _W_ZETA = 0.5 * (_GL_NODES + 1.0), 0.5 * _GL_WEIGHTS
 
 
 def reference_speed(z):
-    """Return the reference profile of :func:`reference_profile` at depths ``z`` (m/s)."""
+    """Return the reference profile of :func:`reference_profile` at depths ``z`` (m/s).
+
+    Parameters
+    ----------
+    z : array_like
+        Depths (m).
+
+    Returns
+    -------
+    numpy.ndarray
+    """
     z = np.asarray(z, float)
     return 1482.0 + 33.0 * np.exp(-z / 350.0) + 0.017 * z
 
@@ -101,7 +111,17 @@ class SoundSpeedField:
     depth: float
 
     def bulk(self, t):
-        """Return ``b(t)``, the surface change of the speed (m/s)."""
+        """Return ``b(t)``, the surface change of the speed (m/s).
+
+        Parameters
+        ----------
+        t : array_like
+            Times (s).
+
+        Returns
+        -------
+        numpy.ndarray
+        """
         t = np.asarray(t, float)
         out = np.zeros_like(t)
         for a, p, ph in zip(self.amplitudes, self.periods, self.phases, strict=True):
@@ -109,7 +129,17 @@ class SoundSpeedField:
         return out
 
     def gradients(self, t):
-        """Return ``g_s(t)``, ``g_d(t)``: arrays ``(n, 2)`` of east, north gradients, (m/s)/m."""
+        """Return ``g_s(t)``, ``g_d(t)``: arrays ``(n, 2)`` of east, north gradients, (m/s)/m.
+
+        Parameters
+        ----------
+        t : array_like
+            Times (s).
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+        """
         t = np.asarray(t, float)
         out = []
         for size, ph in zip((self.shallow, self.deep), self.gradient_phases, strict=True):
@@ -118,7 +148,19 @@ class SoundSpeedField:
         return out
 
     def delta_v(self, z, east, north, t):
-        """Return the change of the speed (m/s) at depth ``z``, ``east``, ``north``, time ``t``."""
+        """Return the change of the speed (m/s) at depth ``z``, ``east``, ``north``, time ``t``.
+
+        Parameters
+        ----------
+        z, east, north : array_like
+            Depth, east and north of the points (m).
+        t : array_like
+            Times (s).
+
+        Returns
+        -------
+        numpy.ndarray
+        """
         gs, gd = self.gradients(t)
         z = np.asarray(z, float)
         de, dn = np.asarray(east) - self.centre[0], np.asarray(north) - self.centre[1]
@@ -131,6 +173,17 @@ class SoundSpeedField:
 
         ``-integral dV / c_ref^2 ds`` along the straight chord (the eigenray's
         horizontal course differs from the chord to second order).
+
+        Parameters
+        ----------
+        t : array_like
+            Times (s).
+        ship, pos : numpy.ndarray
+            ``(n, 3)`` east, north, up of the transducer and the transponder (m).
+
+        Returns
+        -------
+        numpy.ndarray
         """
         e, n, u = (np.asarray(v, float)[:, None] for v in ship)
         z_ = _ZETA[None, :]
@@ -150,6 +203,11 @@ class SoundSpeedField:
         ``1 / c_ref``: ``a0 = int dV / c^2 dz / int 1 / c dz`` (so that
         ``dV0 = a0 V0`` with ``V0`` the harmonic mean), and the shallow (deep)
         gradient weighted by ``1 - z / depth`` (``z / depth``), times ``L = 1 km``.
+
+        Parameters
+        ----------
+        t : array_like
+            Times (s).
         """
         t = np.atleast_1d(np.asarray(t, float))
         z = self.depth * _ZETA
@@ -169,6 +227,17 @@ class SoundSpeedField:
         """Return GARPOS's ``gamma(t, p, x)`` of one leg.
 
         ``a0 + a1 . (p - centre) / L + a2 . (x - centre) / L``, L = 1 km.
+
+        Parameters
+        ----------
+        t : array_like
+            Times (s).
+        ship, pos : numpy.ndarray
+            ``(n, 3)`` east, north, up of the transducer and the transponder (m).
+
+        Returns
+        -------
+        numpy.ndarray
         """
         a0, a1, a2 = self.coefficients(t)
         dp = np.column_stack([ship[0] - self.centre[0], ship[1] - self.centre[1]]) / 1e3
@@ -180,6 +249,11 @@ class SoundSpeedField:
 
         Columns ``time``, ``surface_dv`` (m/s), ``dV0`` (m/s), ``grad1_east``,
         ``grad1_north``, ``grad2_east``, ``grad2_north`` ((m/s)/km).
+
+        Parameters
+        ----------
+        t : array_like
+            Times (s).
         """
         t = np.atleast_1d(np.asarray(t, float))
         a0, a1, a2 = self.coefficients(t)

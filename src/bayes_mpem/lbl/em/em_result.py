@@ -114,6 +114,18 @@ def reflector_flags(resp, sigma_mp, plane_depth, *, sigma_floor=0.05, plane_note
 def with_flags(result, data, sigma_floor):
     """Return a copy of ``result`` with its :func:`quality_flags` set.
 
+    Parameters
+    ----------
+    result : EMResult
+    data : BeaconData
+        The ranges the result was fitted to.
+    sigma_floor : float
+        The scale floor the flags compare with (m).
+
+    Returns
+    -------
+    EMResult
+
     Warns
     -----
     FitQualityWarning
@@ -310,5 +322,15 @@ def check_options(*, path="triangle", weights="learned", pol=0.05, alpha=0.5, si
 
 
 def mean_resp_history(resp):
-    """Return the ``(3,)`` mean class probabilities of ``resp`` (NaN for no ranges)."""
+    """Return the ``(3,)`` mean class probabilities of ``resp`` (NaN for no ranges).
+
+    Parameters
+    ----------
+    resp : numpy.ndarray
+        ``(n, 3)`` class probabilities.
+
+    Returns
+    -------
+    numpy.ndarray
+    """
     return resp.mean(axis=0) if resp.size else np.full(3, np.nan)

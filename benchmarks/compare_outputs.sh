@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Compare two folders written by benchmarks/record_outputs.sh: the same files, JSON/CSV/Markdown
-# byte for byte (wall-clock "seconds" and the data path masked), posterior.nc as data (its
+# byte for byte (wall-clock "seconds" and the data path masked), posterior files as data (their
 # created_at stamps masked), and the logs without timing lines. Exit 1 on any difference.
 #   PYTHON=.venv/bin/python benchmarks/compare_outputs.sh BEFORE AFTER
 A=$1; B=$2; rc=0
@@ -9,6 +9,7 @@ for f in $(cd $A && find . -type f \( -name "*.json" -o -name "*.csv" -o -name "
   if ! cmp -s <(sed -E 's/"(seconds|sampling_seconds|elapsed)": [0-9.eE+-]+/"\1": X/g; s#"source": "[^"]*/data/#"source": "data/#g' "$A/$f") <(sed -E 's/"(seconds|sampling_seconds|elapsed)": [0-9.eE+-]+/"\1": X/g; s#"source": "[^"]*/data/#"source": "data/#g' "$B/$f"); then echo "DIFFERS: $f"; rc=1; fi
 done
 for f in $(cd $A && find . -name "*.nc" | sort); do
+  [ -f "$B/$f" ] || continue  # the file lists above already differ
   ${PYTHON:-python3} - "$A/$f" "$B/$f" <<'PY' || rc=1
 import sys, xarray as xr
 a = xr.open_datatree(sys.argv[1]); b = xr.open_datatree(sys.argv[2])

@@ -26,3 +26,10 @@ run loc3 locate "$D/obsrange/SIO_CC03.txt" --format obsrange --out loc_cc03s --s
     --no-progress --ssp woa09
 run loc4 locate "$D/seagap/obsdata.inp" --format seagap --out loc_seagap --ssp survey \
     --speed-intervals 5
+run simnav simulate --navigation --preset abe58 --seed 2 --out dive
+run nav navigate dive/pings.csv --beacons dive/beacons.csv --out nav
+run navo navigate dive/pings.csv --beacons dive/beacons.csv --out navo --multipath outlier
+"$BIN" stream --beacons dive/beacons.csv --replay dive/pings.csv --speed max --seed 1 \
+    > stream.jsonl 2> log_stream.txt; echo "stream $?"
+run simgnssa simulate --gnssa --format garpos --seed 5 --out gnssa
+run garpos locate gnssa/SIM.0000.sim-initcfg.ini --out loc_garpos

@@ -1,22 +1,9 @@
 """Sampling one beacon's posterior: from the EM solution to a :class:`PosteriorResult`.
 
-:func:`sample_beacon` samples :class:`~bayes_mpem.lbl.bayes.posterior.BeaconPosterior`
-(the parameters and their priors are listed there):
-
-1. the mixture EM (:func:`~bayes_mpem.lbl.em.em_mixture.fit_mixture_em`) gives the
-   start; a start outside the prior support, or one the EM flagged (no multipath,
-   a plane above the sea surface, ...), raises :class:`UnusableStartError`;
-2. :func:`~bayes_mpem.lbl.bayes.beacon_chains.beacon_chains` samples with emcee
-   (an independence ``MHMove`` from a Laplace proposal, or differential evolution
-   where that fits poorly) until the smallest bulk ESS reaches ``min_ess`` and
-   R-hat < 1.01;
-3. the kept draws (thinned evenly only beyond ``2 n_draws``) give the ArviZ data
-   (walkers as chains), the ESS, R-hat and highest-density intervals (arviz-stats,
-   from the draws written) and the posterior mean and sd of each range's class
-   probabilities; the per-range log-likelihood (for PSIS-LOO,
-   :mod:`bayes_mpem.lbl.bayes.loo`) and posterior predictive ranges only when asked.
-
-See ``docs/bayes.md``.
+:func:`sample_beacon` starts from the mixture EM, samples
+:class:`~bayes_mpem.lbl.bayes.posterior.BeaconPosterior` with
+:func:`~bayes_mpem.lbl.bayes.beacon_chains.beacon_chains` until the bulk ESS and R-hat
+meet their targets, and summarises the draws with ArviZ (``docs/bayes.md``).
 """
 
 from __future__ import annotations

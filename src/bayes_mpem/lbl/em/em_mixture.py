@@ -1,21 +1,10 @@
 """The mixture EM for one beacon: maximum likelihood of the dp / mp / outlier mixture.
 
-:func:`fit_mixture_em` (the package's default fit) maximises the likelihood of
-the density mixture of :mod:`bayes_mpem.lbl.model.likelihood`: a Gaussian around
-the direct path, a Gaussian around the multipath off a horizontal plane at
-height ``d0`` above the beacon, and outliers uniform over the observed window.
-Each iteration is a generalised EM step: the E-step of
-:func:`bayes_mpem.lbl.model.likelihood.e_step`, then the plane height improved by a
-safeguarded Gauss-Newton step (:mod:`bayes_mpem.mixture.gauss_newton`) and the
-scales and weights in closed form (:func:`mixture_m_step`), so the
-log-likelihood never decreases. The starts are the modes of the per-range
-plane heights (:func:`histogram_modes`), compared on a subsample. With
-``ssp=`` the ranges are predicted through a sound-speed profile (refracted
-rays, :mod:`bayes_mpem.lbl.model.refracted`) instead of straight lines.
-
-The paper's own EM is :mod:`bayes_mpem.lbl.em.em_paper`; both return an
-:class:`~bayes_mpem.lbl.em.em_result.EMResult` whose class probabilities come
-from a final E-step at the returned parameters.
+:func:`fit_mixture_em` (the package's default fit) runs a generalised EM on the mixture
+of :mod:`bayes_mpem.lbl.model.likelihood`: the E-step, a safeguarded Gauss-Newton step
+of the plane height and the scales and weights in closed form (:func:`mixture_m_step`),
+from the modes of the per-range plane heights (:func:`histogram_modes`). The model is
+described in ``docs/model.md``.
 """
 
 from __future__ import annotations

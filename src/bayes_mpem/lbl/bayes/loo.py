@@ -57,13 +57,9 @@ class LooResult:
 def psis_loo(result: PosteriorResult) -> LooResult:
     """PSIS-LOO with ArviZ; ranges whose Pareto tail is tied handled by plain IS-LOO.
 
-    Under equal priors a range far from both predictions has exactly the density
-    ``(1/3) / window`` in most or all draws. ArviZ fits a generalised Pareto
-    distribution to the largest importance ratios ``1 / p(z_i | theta_s)`` and
-    raises when they are all identical (it needs at least 5). For such a range the
-    ratios are bounded by a maximum that occurs at least 5 times, so plain
-    importance sampling, ``elpd_i = -log mean_s exp(-log p(z_i | theta_s))``, is
-    stable; exact when the density is the same in every draw. ArviZ does the rest.
+    A range whose importance ratios are all tied (ArviZ cannot fit their Pareto tail)
+    gets plain importance sampling, ``elpd_i = -log mean_s exp(-log p(z_i | theta_s))``,
+    stable there; ArviZ does the rest.
 
     Parameters
     ----------

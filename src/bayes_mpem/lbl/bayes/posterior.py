@@ -409,12 +409,9 @@ class BeaconPosterior:
     def start(self, n_walkers, gen):
         """Walkers around the EM solution, scattered by rough posterior widths, inside the prior.
 
-        An EM solution outside the prior's support is first moved just inside it
-        (:func:`~bayes_mpem.lbl.bayes.beacon_sampling.sample_beacon` refuses such a
-        start before it gets here; the calibration of :mod:`~bayes_mpem.lbl.bayes.sbc`
-        does not). Each parameter is scattered by half its large-sample standard error at the
-        EM solution :attr:`em`; candidates outside the prior are redrawn, at half
-        the scatter each time.
+        Each parameter is scattered by half its large-sample standard error at :attr:`em`
+        (moved inside the prior first); candidates outside the prior are redrawn at half the
+        scatter.
 
         Parameters
         ----------

@@ -249,9 +249,8 @@ class SurveyPosterior:
         """Write ``posterior_<id>.nc`` per beacon, ``classified.csv`` and, last, ``summary.json``.
 
         Each ``posterior_<id>.nc`` holds the ArviZ groups of that beacon's
-        :attr:`PosteriorResult.idata` at its root, so ArviZ of either generation opens it
-        (``docs/bayes.md``). Through :func:`bayes_mpem.io.results.writing`: all or nothing,
-        ``summary.json`` (the completion marker) last.
+        :attr:`PosteriorResult.idata` at its root (``docs/bayes.md``); all or nothing, through
+        :func:`bayes_mpem.io.results.writing`.
 
         Parameters
         ----------

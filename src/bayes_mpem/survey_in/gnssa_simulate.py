@@ -542,9 +542,6 @@ def simulate_gnssa(*, n_transponders: int = 4, depth: float = 1500.0, hours: flo
                    travel_time: str = "ray", rng: RNGLike = None) -> GnssaSimulation:
     """Simulate a GNSS-acoustic survey of an array of transponders.
 
-    The defaults (``track="star"``, ``speed_model="scale"``, no gradients) give
-    the same survey for the same seed as before the sound-speed field was added.
-
     Parameters
     ----------
     n_transponders : int, default 4

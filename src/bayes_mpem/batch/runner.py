@@ -228,7 +228,7 @@ def run_batch(tasks: list, out_dir, *, scheduler: str | None = None, n_workers: 
     tasks : list of BatchTask
         From :func:`read_manifest` (with options filled in as needed).
     out_dir : str or pathlib.Path
-        The batch's folder (see the module's description of its contents).
+        The batch's folder (its contents: ``docs/cli.md``).
     scheduler : str, optional
         Address of a running Dask scheduler (``tcp://host:8786``); default a
         local cluster of ``n_workers`` processes (one thread each).

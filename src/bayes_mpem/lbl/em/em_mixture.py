@@ -195,8 +195,7 @@ def fit_mixture_em(
     sigma_dp : float, optional
         Fix the direct-path scatter (m); estimated from the data if omitted.
     weights : {"learned", "equal"}
-        Learn the mixing weights (default) or fix them at 1/3 each, the
-        paper's equal priors.
+        Learn the mixing weights (default) or fix them at 1/3 (the paper's).
     init : dict, optional
         Extra starting point, e.g. ``result.to_dict()`` of an earlier fit
         (keys ``d0``, ``sigma_mp``, ``sigma_dp``, ``weights``).
@@ -209,17 +208,13 @@ def fit_mixture_em(
     sigma_floor : float, default 0.05
         Lower bound on the scales (m).
     subsample : int, default 20000
-        Starts are compared on a random subsample of at most this many
-        ranges; only the best is run on all of them.
+        Starts are compared on a random subsample of at most this many ranges.
     rng : None, int or numpy.random.Generator
         Seeds the subsample.
     ssp : SoundSpeedProfile, optional
-        Predict the direct and multipath ranges through this profile (refracted
-        eigenrays, :mod:`bayes_mpem.lbl.model.refracted`) instead of straight lines;
-        ``d0`` stays the height of the reflecting plane above the beacon. It
-        must reach the deepest beacon or vehicle. Ranges with no eigenray of a
-        class get zero density under it (with neither, they can only be
-        outliers); the counts are in ``settings["refraction"]``.
+        Predict the ranges along refracted eigenrays through this profile
+        (:mod:`bayes_mpem.lbl.model.refracted`, ``docs/refraction.md``) instead of
+        straight lines; it must reach the deepest beacon or vehicle.
     sound_speed : float, optional
         With ``ssp``, required: the nominal speed (m/s) the navigation used to
         turn travel times into ranges.

@@ -451,21 +451,17 @@ def navigate(
     beacons : str, pathlib.Path or pandas.DataFrame, optional
         The beacons table (not needed when ``pings`` is a Survey).
     dead_reckoning : str, pathlib.Path or pandas.DataFrame, optional
-        A dead-reckoning table at its own rate (``time, x, y`` or ``time, ve,
-        vn``, :func:`~bayes_mpem.io.dead_reckoning.read_dead_reckoning`), used instead of
-        the pings' ``x``, ``y``.
+        A dead-reckoning table at its own rate, instead of the pings' ``x``, ``y``
+        (:func:`~bayes_mpem.io.dead_reckoning.read_dead_reckoning`).
     multipath : {"signal", "outlier"}
         Multipath replies carry position information (default) or are outliers.
     model : {"mixture", "huber", "gate", "gaussian"}
         The mixture (default), or a baseline: every reply on the direct path with
         Huber's loss, with a 3-sigma residual gate, or Gaussian.
     path : {"auto", "triangle", "double"}
-        Multipath geometry per beacon: chosen on the corrected track (default),
-        or forced.
+        Multipath geometry per beacon: chosen on the corrected track (default), or forced.
     dr_noise : float, default 0.1
-        Random-walk level ``q`` of the dead reckoning (m / sqrt(s)): between
-        epochs ``dt`` apart the position may wander ``q sqrt(dt)`` m (sd, per
-        axis) from what the corrected dead reckoning says.
+        Random-walk level ``q`` of the dead reckoning (m / sqrt(s)).
     start_sd : float, default 1000
         Prior sd (m) of the first position about the first dead-reckoned fix.
     heading_sd : float, default 5
@@ -477,11 +473,9 @@ def navigate(
     sigma_dp : float, optional
         Fix sigma_DP (m); default estimated.
     range_scale : bool, default False
-        Also estimate a range scale: every predicted range is multiplied by it
-        (the ranges' sound speed over the true mean one), prior sd 0.01 about 1.
+        Also estimate a factor on every predicted range (a sound-speed error), prior sd 0.01.
     classes : array_like, optional
-        One class per input row (``"dp"``, ``"mp"``, ``"ol"``; anything for a
-        no-reply ping): the classes are then known (the oracle of the benchmarks).
+        Known classes, one per input row (``"dp"``, ``"mp"``, ``"ol"``).
     reflectors : dict, optional
         ``{beacon: {"d0", "sigma_mp", "path"}}``: reflectors known, not estimated.
     min_pings : int, default 30
@@ -489,12 +483,10 @@ def navigate(
     anneal_start : float, default 100
         First floor (m) of the annealed scales; above the dead reckoning's error.
     max_sd : float, default 10
-        An epoch whose position sd (major axis, m) stays above this is flagged as
-        not corrected.
+        Flag an epoch whose position sd (major axis, m) stays above this.
     max_iter : int, default 300
     tol : float, default 1e-3
-        Convergence: no position, plane height or scale changes by more than
-        ``tol`` m in an iteration.
+        Converged when no position, plane height or scale moves more than ``tol`` m.
     ci : float, default 0.95
         Probability of the (Wald) intervals in the summary.
     rng : None, int or numpy.random.Generator

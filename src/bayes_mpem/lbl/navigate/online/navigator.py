@@ -94,8 +94,7 @@ class Navigator:
     multipath : {"signal", "outlier"}
         Multipath replies update the position (default) or are outliers.
     path : {"auto", "triangle", "double"}
-        Multipath geometry: chosen per beacon by the warm-up fit (default;
-        triangle for a beacon first heard after it), or forced.
+        Multipath geometry: chosen per beacon by the warm-up fit (default), or forced.
     dr_noise : float, default 0.1
         Random-walk level ``q`` of the dead reckoning (m / sqrt(s)).
     start_sd, heading_sd, scale_sd, plane_sd : float
@@ -120,10 +119,8 @@ class Navigator:
     sigma_floor : float, default 0.05
         Smallest scale (m).
     max_gap : float, default 3600
-        A line timed more than this many seconds after the previous one is
-        refused (a clock jump or a unit slip), not adopted: adopting it would
-        refuse every later line as out of time order. A real pause is adopted
-        once :data:`GAP_CONFIRM` + 1 lines in a row agree on it.
+        Refuse a line timed more than this many seconds after the previous one (a
+        clock jump), unless :data:`GAP_CONFIRM` + 1 lines in a row agree on it.
     rng : None, int or numpy.random.Generator
         Seeds the warm-up fit's path choice (one seed is drawn and kept in the state).
 

@@ -188,9 +188,7 @@ def sample_beacon(
         EM fit to start from (default: :func:`~bayes_mpem.lbl.em.em_mixture.fit_mixture_em`
         with the matching weights option).
     sampler : {"auto", "independence", "ensemble"}
-        emcee's independence ``MHMove`` from a Laplace proposal, differential
-        evolution, or the first unless a pilot says its proposal fits poorly
-        (:mod:`bayes_mpem.lbl.bayes.beacon_chains`).
+        See :mod:`bayes_mpem.lbl.bayes.beacon_chains`.
     n_walkers : int, optional
         Walkers (default 32 for the independence move, ``max(24, 4 ndim)`` per ensemble).
     min_ess : float, default 1000
@@ -198,11 +196,9 @@ def sample_beacon(
     max_steps : int, default 20000
         Step cap (``SamplingWarning`` when reached).
     n_ensembles : int, optional
-        Independent ensembles of differential evolution (default 2; more than one
-        implies differential evolution).
+        Independent ensembles of differential evolution (default 2; more than one implies it).
     n_draws : int, default 2000
-        Draws kept at least: the sampler runs that many, and a longer chain is thinned
-        evenly to between ``n_draws`` and ``2 n_draws``.
+        Draws kept at least (a longer chain is thinned evenly to at most ``2 n_draws``).
     ci : float, default 0.95
         Probability of the highest-density intervals.
     log_likelihood : bool, default False
@@ -219,8 +215,7 @@ def sample_beacon(
         (:func:`~bayes_mpem.lbl.em.em_result.quality_flags`).
     precision : {"auto", "float32", "float64"}
         Of the likelihood kernel while sampling
-        (:class:`~bayes_mpem.lbl.model.loglik_kernel.LoglikKernel`). The per-range
-        log-likelihood and class probabilities are float64 either way.
+        (:class:`~bayes_mpem.lbl.model.loglik_kernel.LoglikKernel`).
 
     Returns
     -------

@@ -1,19 +1,10 @@
-r"""The input boundary every reader passes: lines as ``grep -n`` counts them, shapes, limits.
+"""The input boundary every reader passes: lines as ``grep -n`` counts them, shapes, limits.
 
 Every file reader goes through the same three steps: text lines numbered as ``grep -n``
 numbers them (:func:`read_text_lines`), each line classified by its whole shape
 (:class:`Shape`, :func:`classify`), and every value checked against the physical limits
 of :data:`LIMITS` (``docs/input.md``). :func:`sniff_delimiter` words the error for a
 table that is not comma-separated.
-
-Examples
---------
->>> out_of_limits("range", [1500.0, -3.0, 1e300, float("nan")]).tolist()
-[False, True, True, True]
->>> limit_problem("lat", 95.0)
-'latitude 95 outside [-90, 90] degrees'
->>> [k for _, k, _ in classify(["# note", "1 2", "x"], [COMMENT, Shape("ping", r"\d+ \d+")])]
-['comment', 'ping', None]
 """
 
 from __future__ import annotations

@@ -3,12 +3,6 @@
 :mod:`bayes_mpem.lbl.navigate.model`'s functions specialised to one range and written
 with :mod:`math`, as NumPy calls on scalars are slow (``docs/benchmarks.md``); the
 tests check that both agree to 1e-12.
-
-Examples
---------
->>> pred = ranges(30.0, 0.0, 0.0, 0.0, 0.0, 40.0, 40.0, False)
->>> pred[0], pred[2:4]
-(50.0, (0.6, 0.0))
 """
 
 from __future__ import annotations

@@ -1,8 +1,7 @@
 """The commands a batch runs, one entry each: how to run one on a survey, and what to keep.
 
-Adding a command to ``bayes-mpem batch`` is one more entry of :data:`COMMANDS`
-(``navigate`` was added so: this entry, its option builder in
-:data:`bayes_mpem.cli.batch.KWARGS` and its name in the parser's choices).
+Adding a command to ``bayes-mpem batch`` is one more entry of :data:`COMMANDS`, with its
+option builder in :data:`bayes_mpem.cli.batch.KWARGS` and its name in the parser's choices.
 """
 
 from __future__ import annotations

@@ -80,11 +80,8 @@ def run_task(task: BatchTask, out_dir: str, key: str | None = None) -> dict:
 def classified_file(out_dir, name: str) -> Path:
     """Return where a survey's classified rows go: ``DIR/classified/survey-<name>.parquet``.
 
-    One file per survey, each with a ``name`` column of text: a survey named ``001``
-    reads back as ``"001"`` from ``pandas.read_parquet(DIR / "classified")`` (a
-    ``name=001`` partition folder would read back as the number 1), and the
-    ``survey-`` prefix keeps a name starting with ``_`` or ``.`` from being skipped
-    as a hidden file.
+    One file per survey with a ``name`` column of text, so that a survey named ``001``
+    reads back as ``"001"`` from ``pandas.read_parquet(DIR / "classified")``.
 
     Parameters
     ----------
@@ -231,7 +228,7 @@ def run_batch(tasks: list, out_dir, *, scheduler: str | None = None, n_workers: 
     tasks : list of BatchTask
         From :func:`read_manifest` (with options filled in as needed).
     out_dir : str or pathlib.Path
-        The batch's folder (see the module's description of its contents).
+        The batch's folder (its contents: ``docs/cli.md``).
     scheduler : str, optional
         Address of a running Dask scheduler (``tcp://host:8786``); default a
         local cluster of ``n_workers`` processes (one thread each).

@@ -1,13 +1,10 @@
 """``bayes-mpem batch``: a command on every survey of a manifest, on Dask.
 
-The option columns of the manifest are the options of the command, named as
-their long option without the dashes (``sigma_dp`` for ``--sigma-dp``; a flag
-such as ``fit_tat`` takes ``true``/``false``, ``yes``/``no``, ``1``/``0``;
-an empty cell leaves the default). Each row is parsed by the command's own
-sub-parser and turned into the library's keyword arguments by the same
-function as the single command (:func:`.lbl.fit_kwargs`, ...), so a manifest
-is checked exactly as the command line would check the same options, before
-any survey runs. The batch itself is :func:`bayes_mpem.batch.run_batch`.
+The manifest's option columns are the command's long options without the dashes
+(``sigma_dp`` for ``--sigma-dp``; an empty cell leaves the default). Each row is parsed
+by the command's own sub-parser and the single command's keyword builder
+(:func:`.lbl.fit_kwargs`, ...) before any survey runs. The batch itself is
+:func:`bayes_mpem.batch.run_batch`.
 """
 
 from __future__ import annotations

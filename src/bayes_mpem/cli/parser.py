@@ -542,14 +542,10 @@ def _parse(parser: argparse.ArgumentParser, argv):
 def main(argv=None) -> int:
     """Entry point of ``bayes-mpem``.
 
-    Every option is checked by the parser (an invalid value exits there, through
-    :class:`SystemExit` with status 2, as argparse does); the output folder (``--out``) before any
-    work; the files of a run are committed together at its end
-    (:func:`bayes_mpem.io.results.writing`), so an error, Ctrl-C or ``SIGTERM``
-    leaves the previous results. Invalid input or options end with one ``error:``
-    line naming the file, line, column or option, and exit status 2; an unexpected
-    failure with one ``internal error:`` line and status 1 (set
-    ``BAYES_MPEM_TRACEBACK=1`` to see the traceback).
+    Invalid input or options end with one ``error:`` line naming the file, line, column or
+    option, and exit status 2; an unexpected failure with one ``internal error:`` line and
+    status 1 (``BAYES_MPEM_TRACEBACK=1`` shows the traceback). A run's files are committed
+    together at its end (:func:`bayes_mpem.io.results.writing`).
 
     Parameters
     ----------

@@ -1,13 +1,10 @@
 """``bayes-mpem stream``: classify each range as it arrives and keep the vehicle's position.
 
-Reads lines (:mod:`bayes_mpem.io.lines`) from standard input, a UDP socket or
-a replayed file (:mod:`bayes_mpem.io.stream`), feeds each ping to a
-:class:`~bayes_mpem.lbl.navigate.online.Navigator`, and answers every line with one
-JSON line, flushed at once, in input order: the ping's result, or ``{"line",
-"error"}`` for a malformed line (the stream goes on). Blank lines, ``#``
-comments and the CSV header are not answered, only counted. On the end of the
-input, SIGTERM or SIGINT: the lines already read are answered, the counts go to
-standard error as one JSON line, and the state to ``--state``.
+Feeds each line of standard input, a UDP socket or a replayed file to a
+:class:`~bayes_mpem.lbl.navigate.online.Navigator` and answers it with one JSON line, in
+input order (``{"line", "error"}`` for a malformed line). At the end of the input,
+SIGTERM or SIGINT, the lines read are answered, the counts go to standard error and the
+state to ``--state``.
 """
 
 from __future__ import annotations

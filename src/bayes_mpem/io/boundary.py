@@ -1,36 +1,10 @@
-r"""The input boundary every reader passes: lines as ``grep -n`` counts them, shapes, limits.
+"""The input boundary every reader passes: lines as ``grep -n`` counts them, shapes, limits.
 
-Every file reader of the package (the pings and beacons tables of
-:mod:`~bayes_mpem.io.tables`, the deck-box logs of :mod:`~bayes_mpem.io.obsrange`,
-the SeaGap files of :mod:`~bayes_mpem.io.seagap`, and any new format) goes through
-the same three steps, so that nothing is lost and nothing is silently wrong:
-
-1. **Text lines** (:func:`read_text_lines`): the file is read as UTF-8 and split
-   on ``\n`` only, a trailing ``\r`` dropped, so that line numbers are the ones
-   ``grep -n`` shows (a form feed, a vertical tab or a lone ``\r`` inside a line
-   does not start a new one, as it would with :meth:`str.splitlines`). A folder,
-   an unreadable or a binary file is an :class:`~bayes_mpem.exceptions.InputError`
-   naming the file (and the line of a byte that is not UTF-8).
-2. **Shapes** (:class:`Shape`, :func:`classify`): each line is a ping, a header
-   or comment line, or *skipped with its reason*, decided by the whole line's
-   shape (a regular expression matched from start to end), never by a character
-   it happens to contain.
-3. **Limits** (:data:`LIMITS`, :func:`out_of_limits`, :func:`limit_problem`): every
-   value is finite and physically possible. The ceilings are documented here and
-   in ``docs/input.md``; a value outside them is refused (tables) or its line
-   skipped with the reason (survey logs), never used.
-
-:func:`sniff_delimiter` names what a table's header line suggests when it is not
-comma-separated (semicolons, tabs, decimal commas), for the error message.
-
-Examples
---------
->>> out_of_limits("range", [1500.0, -3.0, 1e300, float("nan")]).tolist()
-[False, True, True, True]
->>> limit_problem("lat", 95.0)
-'latitude 95 outside [-90, 90] degrees'
->>> [k for _, k, _ in classify(["# note", "1 2", "x"], [COMMENT, Shape("ping", r"\d+ \d+")])]
-['comment', 'ping', None]
+Every file reader goes through the same three steps: text lines numbered as ``grep -n``
+numbers them (:func:`read_text_lines`), each line classified by its whole shape
+(:class:`Shape`, :func:`classify`), and every value checked against the physical limits
+of :data:`LIMITS` (``docs/input.md``). :func:`sniff_delimiter` words the error for a
+table that is not comma-separated.
 """
 
 from __future__ import annotations

@@ -1,10 +1,8 @@
 """Checked values of text fields, and where they came from (file, line, column).
 
-The GNSS-A readers (:mod:`~bayes_mpem.io.garpos`, :mod:`~bayes_mpem.io.gnatss`)
-parse every field through :func:`number` or :func:`flag`, which raise a
-``ValueError`` saying what was expected and what arrived; the reader adds the
-place (:func:`where`) and either skips the line with that reason or raises an
-:class:`~bayes_mpem.exceptions.InputError`.
+The GNSS-A readers parse every field with :func:`number` or :func:`flag` (a
+``ValueError`` saying what was expected and what arrived) and name the place with
+:func:`where`.
 
 Examples
 --------

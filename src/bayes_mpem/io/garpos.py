@@ -1,33 +1,10 @@
 """GARPOS GNSS-acoustic surveys: the site file, the shots and the sound-speed profile.
 
-A GARPOS survey is three files (format learnt from GARPOS's documentation; no
-GARPOS code or data is used here):
-
-* the **site file** ``SITE.CAMPAIGN-initcfg.ini``: sections ``[Obs-parameter]``
-  (``Site_name``, ``Campaign``, ``SoundSpeed`` = path of the profile),
-  ``[Data-file]`` (``datacsv`` = path of the shots), ``[Site-parameter]``
-  (``Latitude0``, ``Longitude0``, ``Height0``: the origin of the local
-  east-north-up frame; ``Stations``: the transponder names) and
-  ``[Model-parameter]`` (``<station>_dPos``: east, north, up of each
-  transponder and their sigmas; ``dCentPos``: a shift of the whole array;
-  ``ATDoffset``: the transducer seen from the GNSS antenna, forward, rightward,
-  downward in the vessel frame);
-* the **shots** ``obs.csv``: ``#`` comment lines, a header, then one shot per
-  line: ``MT`` (transponder), ``TT`` (two-way travel time, s, delays removed),
-  ``ST`` and ``RT`` (transmit and receive times, s), the antenna position
-  ``ant_e0, ant_n0, ant_u0`` and attitude ``head0, pitch0, roll0`` (degrees) at
-  ``ST``, the same with ``1`` at ``RT``, and ``flag`` (True: GARPOS leaves the
-  shot out); the first, unnamed column is a row index;
-* the **profile** ``svp.csv``: ``depth,speed`` (m below the sea surface, which
-  is ``up = 0`` of the frame; m/s).
-
-:func:`read_garpos` reads the site file and the two files it names (a relative
-path is taken from the working folder, else from the site file's folder, as
-GARPOS's own scripts run from their sample folder) into a
-:class:`~bayes_mpem.io.raw.RawSurvey`; :func:`write_garpos` writes one.
-Every line of ``obs.csv`` is a shot, a comment or header line, or a skipped
-line with its reason (``strict=True`` raises instead); the site file and the
-profile must parse completely.
+:func:`read_garpos` reads the site file ``*-initcfg.ini`` and the ``obs.csv`` shots and
+``svp.csv`` profile it names (formats in ``docs/gnssa.md``) into a
+:class:`~bayes_mpem.io.raw.RawSurvey`; :func:`write_garpos` writes one. Every line of
+``obs.csv`` is a shot, a comment or header, or skipped with its reason (``strict=True``
+raises). Format learnt from GARPOS's documentation; no GARPOS code or data is used.
 """
 
 from __future__ import annotations

@@ -1,17 +1,8 @@
 """Geodesy: the WGS84 ellipsoid, local east-north-up frames, and the transducer lever arm.
 
-Every constant of the Earth's figure used by the package is defined here (and
-imported from here):
-
-* :data:`WGS84_A`, :data:`WGS84_F`, :data:`WGS84_E2`: the WGS84 semi-major axis
-  (m), flattening and first eccentricity squared, for the exact geodetic <->
-  ECEF <-> local east-north-up transforms (:func:`geodetic_to_enu`,
-  :func:`enu_to_geodetic`);
-* :data:`WGS84_B`: the semi-minor axis (m) to the precision SeaGap uses, for
-  :func:`earth_radius` (the local Gaussian mean radius);
-* :data:`MEAN_EARTH_RADIUS_M` (and :data:`MEAN_EARTH_RADIUS_KM`): the mean
-  radius of a spherical Earth, 6,371 km, for great-circle distances between
-  profile casts and as the default radius of a spherical survey frame.
+Every constant of the Earth's figure used by the package is defined here: the WGS84
+ellipsoid (:data:`WGS84_A`, :data:`WGS84_F`, :data:`WGS84_E2`, :data:`WGS84_B`) and the
+mean radius of a spherical Earth (:data:`MEAN_EARTH_RADIUS_M`).
 
 Examples
 --------

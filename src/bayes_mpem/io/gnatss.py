@@ -1,36 +1,10 @@
 """GNATSS GNSS-acoustic surveys: the config, the travel times, the positions, the profile.
 
-A GNATSS survey (format learnt from GNATSS's documentation; none of its code or
-data is used here) is a ``config.yaml`` whose ``solver`` section gives
-
-* ``transponders``: a list of ``lat``, ``lon`` (degrees), ``height`` (m, the
-  ellipsoidal height is ``height + geoid_undulation``), ``internal_delay`` (s,
-  the transponder's wait before it replies; included in the logged travel
-  times), and optionally ``pxp_id`` and ``sv_mean``;
-* ``geoid_undulation`` (m), ``array_center`` (``lat``, ``lon``, ``alt``),
-  ``transducer_delay_time`` and ``travel_times_correction`` (s, added to the
-  logged interrogation time), ``gps_sigma_limit`` (m) and ``std_dev``;
-* ``input_files``: ``travel_times``, ``gps_solution`` and ``sound_speed``, each
-  a ``path`` (wildcards allowed; relative to the working folder, else to the
-  config's folder).
-
-The files:
-
-* **travel times** (``pxp_tt``): one interrogation per line, ``DD-MON-YY
-  HH:MM:SS.ss`` (or seconds since J2000, 2000-01-01 12:00:00) then one two-way
-  travel time per transponder in microseconds, in the order of
-  ``transponders``; ``0`` is no reply;
-* **positions** (``POS_FREED_TRANS_TWTT``): seconds since J2000, the
-  transducer's Earth-centred X Y Z (m) and its 3x3 covariance (9 numbers), one
-  line at every transmit and every receive time;
-* **profile**: depth (m, negative down) and sound speed (m/s), whitespace-separated.
-
-:func:`read_gnatss` reads them into a :class:`~bayes_mpem.io.raw.RawSurvey` with
-one ping per reply, its transmit time ``interrogation + transducer_delay_time +
-travel_times_correction``, its receive time that plus the logged travel time,
-the transducer at both from the positions file, and the acoustic two-way travel
-time (the logged one minus the transponder's internal delay).
-:func:`write_gnatss` writes one.
+:func:`read_gnatss` reads a ``config.yaml`` and the files it names (travel times,
+transducer positions, sound-speed profile; formats in ``docs/gnssa.md``) into a
+:class:`~bayes_mpem.io.raw.RawSurvey`, one ping per reply, the transponder's internal
+delay removed from the travel time; :func:`write_gnatss` writes one. Format learnt from
+GNATSS's documentation; none of its code or data is used.
 """
 
 from __future__ import annotations

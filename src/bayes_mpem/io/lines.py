@@ -1,20 +1,9 @@
 """Pings one line at a time: the line formats of a live stream, validated.
 
-A vehicle's navigation stack sends one line per ping, in either form (sniffed
-per line):
-
-* **CSV** with a header line first: the columns of ``fit``'s pings table
-  (``time, beacon, range, x, y, depth``, any order; extra columns ignored);
-* **JSON**, one object per line: ``{"time": 12.0, "beacon": "1", "range":
-  2875.3, "x": 101.2, "y": -40.7, "depth": 2440.0}`` (numbers or numeric
-  strings).
-
-``range`` empty (CSV) or null/absent (JSON) is a ping without a reply. A line
-without ``beacon`` and ``range`` is a **dead-reckoning** line: only ``time``,
-``x``, ``y`` (``depth`` optional). Blank lines and lines starting with ``#``
-are skipped (and counted by the caller). Every other line is a :class:`Ping`
-or an :class:`~bayes_mpem.exceptions.InputError` saying what was expected,
-what arrived and where (line number and column).
+Each line is CSV (after a header line with ``fit``'s pings columns) or one JSON object;
+an empty ``range`` is a ping without reply, a line without ``beacon`` and ``range`` a
+dead-reckoning line, blank and ``#`` lines are skipped (``docs/stream.md``). Anything
+else is an :class:`~bayes_mpem.exceptions.InputError` naming the line and column.
 
 Examples
 --------

@@ -1,32 +1,10 @@
 """A survey file as read (:class:`RawSurvey`), its conversion to pings, and reader helpers.
 
-Formats (see ``data/README.md`` for the sample files and their sources):
-
-* ``obsrange-sio``: EdgeTech deck-box text as logged by SIO (OBSrange sample
-  surveys): a ``Key: value`` header up to a line of ``=``, then ping lines such
-  as ``6306 msec. Lat: 4 52.9270 S  Lon: 132 41.4272 W  Alt: 29.42
-  Time(UTC): 2018:114:06:04:30`` (two-way travel time in ms, ship GPS in degrees
-  and decimal minutes, day-of-year time) and ``Event skipped - ...`` lines;
-* ``obsrange-whoi``: the WHOI EdgeTech CSV: ``#`` comment header (drop point,
-  ``TAT``, deck-box sound speed), then ``date time, rng m, rng ms, lat, lon, GPS
-  time, heading``; ``rng ms`` is the two-way travel time;
-* ``seagap``: SeaGap GNSS-acoustic ``obsdata.inp`` (18 columns, local E/N/U in m),
-  with ``pxp-ini.inp`` (transponder positions), ``tr-ant.inp`` and ``ss_prof.inp``;
-* ``garpos``: GARPOS's site file ``*-initcfg.ini`` with the ``obs.csv`` shots and
-  ``svp.csv`` profile it names (:mod:`bayes_mpem.io.garpos`);
-* ``gnatss``: GNATSS's ``config.yaml`` with the ``pxp_tt`` travel times,
-  ``POS_FREED_TRANS_TWTT`` transducer positions and profile it names
-  (:mod:`bayes_mpem.io.gnatss`).
-
-Every line of a file is accounted for: a ping, a header or comment line, or a
-*skipped* line with its reason (``Event skipped`` in the deck-box log, or a line
-that does not parse). ``strict=True`` turns a line that does not parse into an
-:class:`~bayes_mpem.exceptions.InputError` naming the file and line. The readers
-are in :mod:`bayes_mpem.io.obsrange`, :mod:`bayes_mpem.io.seagap`,
-:mod:`bayes_mpem.io.garpos` and :mod:`bayes_mpem.io.gnatss`.
-
-Latitude/longitude go to a local metric frame with the exact WGS84
-geodetic -> ECEF -> local east-north-up transform (:func:`geodetic_to_enu`).
+The formats (``obsrange-sio``, ``obsrange-whoi``, ``seagap``, ``garpos``, ``gnatss``)
+are described in ``docs/measured-data.md`` and ``docs/gnssa.md``, their readers in
+:mod:`bayes_mpem.io.obsrange`, :mod:`bayes_mpem.io.seagap`, :mod:`bayes_mpem.io.garpos`
+and :mod:`bayes_mpem.io.gnatss`. Every line is a ping, a header or comment, or skipped
+with its reason (``strict=True`` raises instead).
 """
 
 from __future__ import annotations

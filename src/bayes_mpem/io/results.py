@@ -1,41 +1,11 @@
 """Writing result files: the one writer behind every result's ``write()`` and every figure.
 
-Every output folder of ``bayes-mpem`` holds JSON documents (``summary.json``,
-``compare.json``, ``diagnosis.json``, ...), tables (``classified.csv`` or
-``.parquet``), NetCDF and PNG files. They are all written here, with one set of
-serialisation settings and one convention that makes an interrupted run safe:
-
-* **Check first.** :func:`check_output_folder` (the command line calls it on
-  ``--out`` before any work) refuses a path that is a file, lies under a file,
-  or cannot be created or written, naming the option.
-* **Temporary name, then rename.** Each file is written to a hidden temporary
-  name in its own folder (``.classified.partial-<pid>.csv``) and renamed into
-  place when complete; a file never exists half-written under its real name.
-* **One run, one commit.** Inside ``with writing(out_dir):`` (what every
-  ``write()`` and the command line use) the renames wait until the whole run
-  has succeeded. At the commit the old ``summary.json`` is removed first, the
-  new files are renamed in, and ``summary.json`` is written **last**, listing the
-  files of the run under ``"files"`` (files of an earlier run that this one did not
-  write are left in place, unlisted: they may be the user's inputs). It is the
-  completion marker: a folder is complete when its ``summary.json`` parses and
-  every file it lists exists
-  (:func:`read_marker`, which ``bayes-mpem plot`` uses). A run killed at any
-  moment leaves either the previous complete results or no ``summary.json``;
-  an exception leaves the previous results and removes its temporary files. A
-  folder whose result has no summary of its own (``diagnose``, ``compare``,
-  ``simulate``) gets a ``summary.json`` with only ``"files"``; a run that adds
-  files to a complete folder (``bayes-mpem plot``, ``writing(extend=True)``)
-  keeps its marker's content and lists the new files too.
-* **Valid JSON.** NaN and infinities are written as ``null`` and listed, with
-  what they were, under ``"non_finite"`` (``{"beacons.4.sigma_mp": "nan"}``); no
-  ``NaN``/``Infinity`` token is ever written.
-* **Timings apart.** Wall-clock seconds are not reproducible, so they never go
-  into ``summary.json`` (byte-identical for the same seed): results write them
-  to ``timings.json``.
-
-New results and commands get all of this by writing through :func:`write_json`,
-:func:`write_csv`, :func:`write_table` and :func:`write_file` inside
-``with writing(out_dir) as out:``.
+Each file is written under a temporary name and renamed into place; inside
+``with writing(out_dir):`` the renames wait until the whole run has succeeded, and
+``summary.json`` is written last, listing the run's files: it is the completion marker
+(:func:`read_marker`). NaN and infinities are written as ``null`` and listed under
+``"non_finite"``; wall-clock timings go to ``timings.json``. The convention is described
+in ``docs/architecture.md``.
 
 Examples
 --------

@@ -1,22 +1,9 @@
 """Where a live stream's lines come from and where the answers go.
 
-Sources yield ``(line_number, text)`` in arrival order, from 1:
-
-* :class:`FdLines`: a file descriptor (standard input, a pipe); lines are split
-  from what :func:`os.read` returns after :func:`select.select` says there is
-  something, so a stop request (SIGTERM) is seen within ``poll`` seconds even
-  while nothing arrives, and no line already read is left unanswered;
-* :class:`UdpLines`: datagrams on a UDP socket bound to ``HOST:PORT`` (port 0:
-  any free port, see :attr:`UdpLines.address`); each datagram holds one or more
-  lines;
-* :class:`ReplayLines`: a recorded file fed at its own time stamps (the
-  ``time`` column or key), or ``speed`` times faster, or as fast as possible.
-
-A source stops at its end or when ``stop`` (a :class:`threading.Event`) is set;
-the unfinished end of a line cut by a stop is kept in ``partial``.
-
-Sinks (:func:`open_sink`): standard output (``-``), a file, or ``udp://HOST:PORT``
-(one datagram per answer). Every answer is flushed at once.
+Sources yield ``(line_number, text)`` in arrival order: :class:`FdLines` (a file
+descriptor, responsive to a stop request within ``poll`` seconds), :class:`UdpLines`
+(datagrams) and :class:`ReplayLines` (a recorded file at its own time stamps). Sinks
+(:func:`open_sink`): standard output (``-``), a file or ``udp://HOST:PORT``.
 
 Examples
 --------

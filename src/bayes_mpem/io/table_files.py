@@ -1,23 +1,10 @@
 r"""Table files in and out: CSV (a typed C parser, exact line numbers) and Parquet.
 
 :func:`read_table_file` reads a pings or beacons file into a text
-:class:`pandas.DataFrame` and the file line of every row (as ``grep -n`` shows
-it), for :mod:`~bayes_mpem.io.tables` to validate. A CSV file is split into
-lines with NumPy and parsed by pyarrow's multi-threaded CSV reader when no field
-is quoted and no line ends with a lone ``\r`` (the common case, about 20x faster
-than Python's :mod:`csv`); otherwise by :mod:`csv`, line by line. Either way:
-blank lines and ``#`` comment lines are not rows (they are counted in
-:attr:`TableText.comments`), every row must have as many fields as the header,
-and a file that is not comma-separated (semicolons, tabs, decimal commas) is
-refused with a message that says what it looks like. A Parquet file
-(``.parquet``, ``.pq``) is read with its column types; its rows are named
-``row N`` (0-based).
-
-:func:`table_to_csv_bytes` writes a DataFrame as CSV byte for byte as
-``DataFrame.to_csv(index=False)`` does, but with vectorised formatting (pyarrow
-kernels; Python's ``repr`` only for the few floats whose layout pyarrow writes
-differently), and :func:`write_table_file` picks CSV or Parquet by the file's
-extension.
+:class:`pandas.DataFrame` with the file line of every row, for :mod:`~bayes_mpem.io.tables`
+to validate: CSV by pyarrow's reader when no field is quoted (else by :mod:`csv`),
+Parquet with its column types. :func:`table_to_csv_bytes` writes CSV byte for byte as
+``DataFrame.to_csv(index=False)`` does, faster.
 
 Examples
 --------

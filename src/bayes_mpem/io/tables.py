@@ -1,14 +1,8 @@
 """Reading and checking the pings and beacons tables (CSV or Parquet files, or DataFrames).
 
-The boundary where tabular user input is validated: every problem is reported
-with its column and row ("column 'range' line 17: expected a positive number,
-got -3.2"), all of a table's problems at once, as one
-:class:`~bayes_mpem.exceptions.InputError`. Files are read by
-:mod:`~bayes_mpem.io.table_files` (line numbers as ``grep -n`` shows them);
-the checks are vectorised over whole columns, and only the cells they flag are
-looked at one by one, to word the message. Every number must be finite and
-within the physical limits of :data:`~bayes_mpem.io.boundary.LIMITS` (a range
-in (0, 100 km], a depth in [-1 km, 11 km], ...).
+Every problem is reported with its column and row, all of a table's problems at once,
+as one :class:`~bayes_mpem.exceptions.InputError`; values must lie within
+:data:`~bayes_mpem.io.boundary.LIMITS`.
 """
 
 from __future__ import annotations

@@ -1,23 +1,9 @@
 """Surveys given as travel times, two-way ranges or latitude/longitude, in the package's units.
 
-``fit`` works on one-way ranges in metres and positions in a local frame (m). A survey
-recorded otherwise is converted once, before it is read as usual
-(:func:`convert_survey`):
-
-* ``ranges="two-way"``: the ``range`` column holds there-and-back ranges (m): halved;
-* ``travel_time=True``: the ``range`` column holds travel times (s), one-way or two-way
-  as ``ranges`` says, each including the beacon's turn-around time ``turnaround``:
-  ``range = (t - turnaround) * sound_speed`` (one-way) or ``/ 2`` (two-way), with the
-  mean sound speed of the water ``sound_speed`` (m/s);
-* tables with ``lat``, ``lon`` columns (degrees, WGS84) instead of ``x``, ``y``: both
-  tables are projected onto the local tangent plane at ``origin`` (default: the beacons'
-  mean position) with :func:`~bayes_mpem.io.geodesy.geodetic_to_enu`, ``x`` east and
-  ``y`` north; ``depth`` stays as given.
-
-The converted tables keep every input column; a converted ``range`` keeps its input as
-``range_input``. Every cell is checked with the messages of :mod:`.tables` (file, line,
-column); the limits of :data:`~bayes_mpem.io.boundary.LIMITS` hold for the travel times
-and the coordinates as for the ranges.
+``fit`` works on one-way ranges in metres in a local frame; :func:`convert_survey`
+converts two-way ranges (halved), travel times (``(t - turnaround) * sound_speed``,
+halved if two-way) and ``lat``, ``lon`` columns (projected onto the tangent plane at
+``origin``). A converted ``range`` keeps its input as ``range_input`` (``docs/input.md``).
 
 Examples
 --------

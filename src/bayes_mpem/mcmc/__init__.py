@@ -1,14 +1,10 @@
 """The emcee driver shared by every posterior, with ArviZ's diagnostics.
 
-Each posterior (:class:`bayes_mpem.lbl.bayes.posterior.BeaconPosterior`,
-:class:`bayes_mpem.survey_in.posterior.LocationLogPosterior`) satisfies
-:class:`LogPosterior`; :func:`run_ensembles` samples it with ``emcee.EnsembleSampler``
-(``vectorize=True``) until ArviZ's bulk ESS reaches its target and R-hat is below
-1.01. The moves (:mod:`.moves`, imported on first use: emcee costs 0.5 s): an
-independence proposal from :func:`laplace_proposal` as an ``MHMove``, or differential
-evolution. ESS, R-hat and HDI come from :mod:`arviz_stats`, the DataTree from
-:mod:`arviz_base` (:mod:`.summaries`); rank statistics of simulation-based
-calibration are in :mod:`.sbc`.
+Each posterior satisfies :class:`LogPosterior`; :func:`run_ensembles` samples it with
+``emcee.EnsembleSampler`` until ArviZ's bulk ESS reaches its target and R-hat is below
+1.01. The moves are in :mod:`.moves` (imported on first use), the summaries from
+:mod:`arviz_stats` and :mod:`arviz_base` in :mod:`.summaries`, the rank statistics of
+simulation-based calibration in :mod:`.sbc`.
 
 Examples
 --------

@@ -1,19 +1,9 @@
 """Progress of a sampling run: a bar on a terminal, plain lines in a log file.
 
-:func:`~bayes_mpem.mcmc.driver.run_ensembles` reports after every check to a
-:class:`SamplingProgress`. On a terminal it draws a tqdm bar whose total is the steps
-the stopping rule is expected to need, with the ESS and R-hat against their targets
-beside it. When standard error is not a terminal it prints one line instead, at the
-first check, then at most every :data:`LOG_INTERVAL` seconds, and at the end::
-
-    [sampler] beacon 4 (learned priors): done, 63 steps x 32 walkers: ESS 1,307,
-    target 1,000; R-hat 1.004, target < 1.01; 0.2 s
-
-(one line, cut here).
-
-``progress`` arguments everywhere (:func:`bayes_mpem.sample`, :func:`bayes_mpem.compare`,
-:func:`~bayes_mpem.survey_in.location_sampling.locate_survey_bayes`, ...) take
-``"auto"`` (the above), ``"bar"`` or True (a bar), ``"log"`` (lines), or False (silent).
+:func:`~bayes_mpem.mcmc.driver.run_ensembles` reports to a :class:`SamplingProgress`
+after every check. ``progress`` arguments everywhere take ``"auto"`` (a bar on a
+terminal, else a line at most every :data:`LOG_INTERVAL` seconds), ``"bar"`` or True,
+``"log"``, or False (silent).
 """
 
 from __future__ import annotations

@@ -1,11 +1,9 @@
 """A Laplace (Student-t) proposal for independence Metropolis-Hastings.
 
-:func:`laplace_proposal` finds the mode of a target (Newton steps on a
-finite-difference Hessian, all points of a step in one vectorised call) and
-returns a :class:`TProposal`: a Student-t at the mode with the inverse Hessian as
-its scale. :func:`bayes_mpem.mcmc.moves.independence_move` hands it to emcee as an
-``MHMove``; the Metropolis-Hastings acceptance keeps the chain exact whatever the
-proposal, its fit decides only the efficiency.
+:func:`laplace_proposal` finds the mode of a target by Newton steps on a
+finite-difference Hessian and returns a :class:`TProposal`: a Student-t at the mode with
+the inverse Hessian as its scale, for :func:`bayes_mpem.mcmc.moves.independence_move`.
+The Metropolis-Hastings acceptance keeps the chain exact whatever the proposal.
 
 References
 ----------

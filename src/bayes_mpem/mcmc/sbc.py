@@ -1,26 +1,11 @@
 """Rank statistics of simulation-based calibration (Talts et al. 2018) and their tests.
 
-In simulation-based calibration a parameter is drawn from the prior, data are
-simulated from it, and the posterior of those data is sampled; the *rank* of
-the drawn value among ``L`` posterior draws (how many draws lie below it) is
-then uniform on ``0 .. L`` for every parameter when the posterior and its
-sampler are exact. This module turns draws into ranks (:func:`rank_statistic`)
-and tests a set of ranks for uniformity (:func:`rank_uniformity`):
-
-* a chi-square test on ``n_bins`` equal bins of the ranks (Talts et al.'s
-  histogram, as a test);
-* a binomial test of the share of ranks in the outer ``tails`` of the range.
-  A posterior too narrow (an inexact sampler, a likelihood too sharp) puts the
-  drawn values in its tails too often: a U-shaped histogram; too wide, a
-  hump. This test aims at exactly that departure and is the sharper of the two
-  against it;
-* :func:`rank_dispersion`: the mean squared normal score of the ranks, which is
-  1 for uniform ranks and ``1 / r**2`` when the draws are ``r`` times too
-  narrow, tested per simulation (averaged over the parameters, so that their
-  dependence within a simulation is respected).
-
-The model-specific part (the prior, the simulator, the sampler) is the
-caller's: :mod:`bayes_mpem.lbl.bayes.sbc` for one LBL beacon.
+The rank of a value drawn from the prior among ``L`` posterior draws of data simulated
+from it is uniform on ``0 .. L`` when the posterior and sampler are exact.
+:func:`rank_statistic` computes ranks; :func:`rank_uniformity` tests them (chi-square on
+equal bins, binomial test of the outer tails) and :func:`rank_dispersion` tests whether
+the draws are too narrow or too wide. The model-specific part is the caller's
+(:mod:`bayes_mpem.lbl.bayes.sbc`).
 
 References
 ----------

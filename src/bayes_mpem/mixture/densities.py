@@ -1,19 +1,10 @@
 """Component log-densities of a mixture and their log-sum-exp, problem-independent.
 
-Both problems classify each measurement as one of a few classes with a
-Gaussian around a predicted value or an outlier density over the observed
-window. The pieces, written once here and used by :mod:`bayes_mpem.lbl`
-(ranges to beacons) and :mod:`bayes_mpem.survey_in` (two-way travel times):
-
-* :func:`gaussian_logpdf`, the normal log-density of a residual;
-* :func:`uniform_logpdf`, outliers uniform over the window ``[lo, hi]``;
-* :func:`first_arrival_logpdf`, outliers from a detector that reports the
-  first threshold crossing: uniform between the window start and the true
-  arrival, with a share :data:`EPS_LATE` spread over the whole window;
-* :func:`log_mix` (three classes) and :func:`responsibilities` (any number):
-  the log-sum-exp of weighted components and the class probabilities.
-
-Everything broadcasts and stays in log space.
+The Gaussian (:func:`gaussian_logpdf`), uniform (:func:`uniform_logpdf`) and
+first-arrival (:func:`first_arrival_logpdf`) log-densities, and the log-sum-exp of
+weighted components (:func:`log_mix`, :func:`responsibilities`), shared by
+:mod:`bayes_mpem.lbl` and :mod:`bayes_mpem.survey_in`. Everything broadcasts and stays in
+log space.
 
 Examples
 --------

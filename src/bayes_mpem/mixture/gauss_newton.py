@@ -1,13 +1,8 @@
 """The safeguard of a Gauss-Newton M-step: halve the step until the objective does not increase.
 
-A generalised EM only needs an M-step that does not decrease the expected
-complete-data log-likelihood; for a Gaussian class mean that is a weighted sum
-of squares that must not increase. Both EMs of :mod:`bayes_mpem.lbl` (the
-per-beacon mixture EM and the joint ECM of the diagnosis) compute a
-Gauss-Newton step for their mean parameters and then call
-:func:`safeguarded_step`: try the step (projected into bounds), halve it until
-the weighted objective is no larger than at the start, and give up after a
-fixed number of halvings. The log-likelihood therefore never decreases.
+A generalised EM needs an M-step that does not decrease the expected complete-data
+log-likelihood: :func:`safeguarded_step` tries a Gauss-Newton step, halving it until the
+weighted objective does not increase, so the log-likelihood never decreases.
 
 Examples
 --------

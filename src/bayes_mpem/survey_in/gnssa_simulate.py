@@ -542,9 +542,6 @@ def simulate_gnssa(*, n_transponders: int = 4, depth: float = 1500.0, hours: flo
                    travel_time: str = "ray", rng: RNGLike = None) -> GnssaSimulation:
     """Simulate a GNSS-acoustic survey of an array of transponders.
 
-    The defaults (``track="star"``, ``speed_model="scale"``, no gradients) give
-    the same survey for the same seed as before the sound-speed field was added.
-
     Parameters
     ----------
     n_transponders : int, default 4
@@ -576,16 +573,13 @@ def simulate_gnssa(*, n_transponders: int = 4, depth: float = 1500.0, hours: flo
     prior_sd : tuple of float, default (3, 3, 5)
         Standard deviations (m) of the prior positions' errors (east, north, up).
     track : {"star", "circle", "star+circle", "station"}, default "star"
-        The ship's track about the array centre: a star of transits (four
-        diameters joined by chords: crossing lines over the array), a circle, the
-        star then the circle, or holding station within 50 m of the centre (a
-        wave glider; the shallow gradient is then not identifiable).
+        The ship's track about the array centre: crossing transits, a circle, both, or
+        holding station within 50 m of the centre (a wave glider).
     track_radius : float, optional
         Radius (m) of the star and the circle; default ``0.9 depth``.
     speed_model : {"scale", "field"}, default "scale"
-        ``"scale"``: the profile scaled in time (``speed_amplitude``);
-        ``"field"``: a :class:`SoundSpeedField` added to the profile: a sum of
-        sinusoids in time, decaying with depth, plus the horizontal gradients.
+        The profile scaled in time (``speed_amplitude``), or a :class:`SoundSpeedField`
+        added to it.
     speed_amplitudes : tuple of float, default (1.0, 0.7, 0.5)
         ``"field"``: surface amplitudes (m/s) of the sinusoids.
     speed_periods : tuple of float, default (12.42, 6.0, 2.0)
@@ -606,8 +600,7 @@ def simulate_gnssa(*, n_transponders: int = 4, depth: float = 1500.0, hours: flo
         (``T exp(-gamma)`` with the field's ``a0``, ``a1``, ``a2``), to tell an
         estimator's error from the model's.
     rng : None, int or numpy.random.Generator
-        The field's phases come from a child generator: the same seed gives the
-        same track, noise and replies with and without the field.
+        The same seed gives the same track, noise and replies with and without the field.
 
     Returns
     -------

@@ -1,14 +1,8 @@
 """Posterior of a transponder location jointly with the class of every ping (emcee).
 
-The model, its priors and its travel times are those of
-:class:`bayes_mpem.survey_in.posterior.LocationLogPosterior`.
-
-Sampling (:func:`sample_location`) uses the shared emcee driver
-(:func:`bayes_mpem.mcmc.run_ensembles`) with differential evolution, until ArviZ's bulk
-ESS reaches ``min_ess`` and R-hat (walkers as chains) is below 1.01. The result,
-:class:`LocationPosterior`, holds the kept draws, each ping's probability of being a
-true arrival and equal-tailed intervals; :func:`locate_survey_bayes` does it for
-every transponder of a survey.
+:func:`sample_location` samples :class:`bayes_mpem.survey_in.posterior.LocationLogPosterior`
+with :func:`bayes_mpem.mcmc.run_ensembles` (differential evolution) into a
+:class:`LocationPosterior`; :func:`locate_survey_bayes` does it for every transponder.
 """
 
 from __future__ import annotations

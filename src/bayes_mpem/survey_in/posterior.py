@@ -16,16 +16,10 @@ arrival); the walkers start from the EM solution. Parameters and priors:
                         on the true and spurious weights
 ======================  ========================================================
 
-Travel times, vectorised over walkers and pings: straight rays are exact. Through
-a profile, the eigenray solve per walker and step is replaced by a ray-bending
-correction computed once, at the EM solution ``theta_0``: the one-way time is
-``L(theta) / v + delta``, ``L`` the straight chord (flat or on the sphere), ``v``
-the profile's harmonic mean at ``theta_0`` and ``delta = T_refracted - L / v``
-per ping. OBSrange holds ``delta`` fixed (``bending="fixed"``); by default
-(``bending="linear"``) it also follows its gradient at ``theta_0``, ``delta_0 +
-(grad T_refracted - grad L / v) . (position - position_0)``, from the same ray
-solve (:meth:`LocationLogPosterior.exact_loglik` solves the rays at any draw, for
-checks; ``docs/measured-data.md`` has the measured difference).
+Through a sound-speed profile the ray bending is computed once at the EM solution and
+held fixed (``bending="fixed"``, as OBSrange) or followed to first order
+(``bending="linear"``, the default); :meth:`LocationLogPosterior.exact_loglik` solves the
+rays at any draw (``docs/measured-data.md``).
 """
 
 from __future__ import annotations

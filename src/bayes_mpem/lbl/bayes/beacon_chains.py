@@ -1,25 +1,19 @@
 """The chains of one beacon's posterior: emcee with an independence proposal, or DE.
 
 :func:`beacon_chains` samples :class:`~bayes_mpem.lbl.bayes.posterior.BeaconPosterior`
-in free coordinates (:class:`FreeCoordinates`) with
-:func:`bayes_mpem.mcmc.run_ensembles`:
+in free coordinates (:class:`FreeCoordinates`) with :func:`bayes_mpem.mcmc.run_ensembles`,
+with ``moves``:
 
 ``"independence"``
-    emcee's ``MHMove`` with a Student-t proposal (10 degrees of freedom) at the
-    posterior mode, the inverse Hessian as its scale
-    (:func:`~bayes_mpem.mcmc.laplace_proposal`); :data:`N_WALKERS` walkers, each its
-    own chain, started at proposal draws (no burn-in).
+    emcee's ``MHMove`` with a Student-t proposal at the posterior mode
+    (:func:`~bayes_mpem.mcmc.laplace_proposal`), walkers started at proposal draws.
 ``"ensemble"``
-    emcee's differential evolution from balls around the EM solution, with burn-in:
-    two independent ensembles by default, so that R-hat compares them.
+    Differential evolution from balls around the EM solution, two ensembles, burn-in.
 ``"auto"`` (the default)
-    The independence move unless a discarded pilot (:data:`PILOT_WALKERS` walkers x
-    :data:`PILOT_STEPS` steps) gives
-    less than :data:`MIN_ESS_PER_DRAW` bulk ESS per draw or R-hat above
-    :data:`MAX_PILOT_RHAT` (or the Hessian at the mode is not negative definite):
-    then differential evolution; also when the independence move has not met the
-    stopping rule after :data:`INDEPENDENCE_BUDGET` steps. The choice and its reason are
-    recorded.
+    The independence move unless a discarded pilot mixes poorly (below
+    :data:`MIN_ESS_PER_DRAW` or above :data:`MAX_PILOT_RHAT`) or it exceeds
+    :data:`INDEPENDENCE_BUDGET` steps; then differential evolution. The choice and
+    its reason are recorded (``docs/bayes.md``).
 """
 
 from __future__ import annotations

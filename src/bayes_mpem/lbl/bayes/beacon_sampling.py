@@ -1,22 +1,9 @@
 """Sampling one beacon's posterior: from the EM solution to a :class:`PosteriorResult`.
 
-:func:`sample_beacon` samples :class:`~bayes_mpem.lbl.bayes.posterior.BeaconPosterior`
-(the parameters and their priors are listed there):
-
-1. the mixture EM (:func:`~bayes_mpem.lbl.em.em_mixture.fit_mixture_em`) gives the
-   start; a start outside the prior support, or one the EM flagged (no multipath,
-   a plane above the sea surface, ...), raises :class:`UnusableStartError`;
-2. :func:`~bayes_mpem.lbl.bayes.beacon_chains.beacon_chains` samples with emcee
-   (an independence ``MHMove`` from a Laplace proposal, or differential evolution
-   where that fits poorly) until the smallest bulk ESS reaches ``min_ess`` and
-   R-hat < 1.01;
-3. the kept draws (thinned evenly only beyond ``2 n_draws``) give the ArviZ data
-   (walkers as chains), the ESS, R-hat and highest-density intervals (arviz-stats,
-   from the draws written) and the posterior mean and sd of each range's class
-   probabilities; the per-range log-likelihood (for PSIS-LOO,
-   :mod:`bayes_mpem.lbl.bayes.loo`) and posterior predictive ranges only when asked.
-
-See ``docs/bayes.md``.
+:func:`sample_beacon` starts from the mixture EM, samples
+:class:`~bayes_mpem.lbl.bayes.posterior.BeaconPosterior` with
+:func:`~bayes_mpem.lbl.bayes.beacon_chains.beacon_chains` until the bulk ESS and R-hat
+meet their targets, and summarises the draws with ArviZ (``docs/bayes.md``).
 """
 
 from __future__ import annotations
@@ -201,9 +188,7 @@ def sample_beacon(
         EM fit to start from (default: :func:`~bayes_mpem.lbl.em.em_mixture.fit_mixture_em`
         with the matching weights option).
     sampler : {"auto", "independence", "ensemble"}
-        emcee's independence ``MHMove`` from a Laplace proposal, differential
-        evolution, or the first unless a pilot says its proposal fits poorly
-        (:mod:`bayes_mpem.lbl.bayes.beacon_chains`).
+        See :mod:`bayes_mpem.lbl.bayes.beacon_chains`.
     n_walkers : int, optional
         Walkers (default 32 for the independence move, ``max(24, 4 ndim)`` per ensemble).
     min_ess : float, default 1000
@@ -211,11 +196,9 @@ def sample_beacon(
     max_steps : int, default 20000
         Step cap (``SamplingWarning`` when reached).
     n_ensembles : int, optional
-        Independent ensembles of differential evolution (default 2; more than one
-        implies differential evolution).
+        Independent ensembles of differential evolution (default 2; more than one implies it).
     n_draws : int, default 2000
-        Draws kept at least: the sampler runs that many, and a longer chain is thinned
-        evenly to between ``n_draws`` and ``2 n_draws``.
+        Draws kept at least (a longer chain is thinned evenly to at most ``2 n_draws``).
     ci : float, default 0.95
         Probability of the highest-density intervals.
     log_likelihood : bool, default False
@@ -232,8 +215,7 @@ def sample_beacon(
         (:func:`~bayes_mpem.lbl.em.em_result.quality_flags`).
     precision : {"auto", "float32", "float64"}
         Of the likelihood kernel while sampling
-        (:class:`~bayes_mpem.lbl.model.loglik_kernel.LoglikKernel`). The per-range
-        log-likelihood and class probabilities are float64 either way.
+        (:class:`~bayes_mpem.lbl.model.loglik_kernel.LoglikKernel`).
 
     Returns
     -------

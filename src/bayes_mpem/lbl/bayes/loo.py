@@ -1,21 +1,17 @@
 """Equal against learned mixing priors: PSIS-LOO, interval shifts, class changes.
 
-For each beacon both posteriors are sampled, PSIS-LOO (ArviZ) gives each
-model's expected log pointwise predictive density, and the paired difference
-``elpd_diff = elpd_learned - elpd_equal`` gets the standard error
-``sqrt(n var(elpd_i,learned - elpd_i,equal))`` (Vehtari, Gelman & Gabry
-2017). A difference is called clear when it exceeds both two standard errors
-and 4 nats: below 4 the models predict about equally well and the normal
-approximation behind the SE is unreliable (Sivula, Magnusson & Vehtari 2020;
-Vehtari's cross-validation FAQ; the measured case is in ``docs/bayes.md``).
+:func:`psis_loo` computes the PSIS-LOO of one
+:class:`~bayes_mpem.lbl.bayes.beacon_sampling.PosteriorResult`; :func:`compare_beacon`
+samples both posteriors of one beacon and returns a :class:`PriorComparison`. A
+difference ``elpd_learned - elpd_equal`` is called clear when it exceeds both two
+paired standard errors and 4 nats (``docs/bayes.md``).
 
-:func:`psis_loo` computes the LOO of one
-:class:`~bayes_mpem.lbl.bayes.beacon_sampling.PosteriorResult`
-(its ``log_likelihood`` group), handling ranges whose importance ratios have a
-tied tail by plain importance sampling; :func:`compare_beacon` samples both
-posteriors of one beacon and returns a :class:`PriorComparison` (ELPD
-difference, Pareto k, interval shifts, ranges whose class changes). The survey
-loop is :func:`bayes_mpem.lbl.survey.comparison.compare`.
+References
+----------
+Vehtari, A., Gelman, A. and Gabry, J. (2017). Practical Bayesian model evaluation using
+leave-one-out cross-validation and WAIC. *Statistics and Computing* 27, 1413-1432.
+Sivula, T., Magnusson, M. and Vehtari, A. (2020). Uncertainty in Bayesian leave-one-out
+cross-validation based model comparison. arXiv:2008.10296.
 """
 
 from __future__ import annotations
@@ -61,13 +57,9 @@ class LooResult:
 def psis_loo(result: PosteriorResult) -> LooResult:
     """PSIS-LOO with ArviZ; ranges whose Pareto tail is tied handled by plain IS-LOO.
 
-    Under equal priors a range far from both predictions has exactly the density
-    ``(1/3) / window`` in most or all draws. ArviZ fits a generalised Pareto
-    distribution to the largest importance ratios ``1 / p(z_i | theta_s)`` and
-    raises when they are all identical (it needs at least 5). For such a range the
-    ratios are bounded by a maximum that occurs at least 5 times, so plain
-    importance sampling, ``elpd_i = -log mean_s exp(-log p(z_i | theta_s))``, is
-    stable; exact when the density is the same in every draw. ArviZ does the rest.
+    A range whose importance ratios are all tied (ArviZ cannot fit their Pareto tail)
+    gets plain importance sampling, ``elpd_i = -log mean_s exp(-log p(z_i | theta_s))``,
+    stable there; ArviZ does the rest.
 
     Parameters
     ----------

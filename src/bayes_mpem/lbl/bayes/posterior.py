@@ -18,19 +18,10 @@ coordinates:
                     uniform on the simplex); equal priors fix all at 1/3
 ==================  =====================================================
 
-The default prior of ``d0`` is bounded above by the data (the largest range:
-a plane higher than that would put every multipath beyond the data, where the
-likelihood no longer depends on ``d0``), so it is not a prior one can draw
-parameters from before seeing the ranges. ``d0_bounds`` makes it proper and
-data-independent (``max dz`` comes from the vehicle depths, the design, not
-from the ranges); ``window`` fixes the outliers' window to the listening
-window instead of the observed ranges. Both are used by the simulation-based
-calibration (:mod:`bayes_mpem.lbl.bayes.sbc`), which draws parameters from the prior
-(:meth:`BeaconPosterior.draw_prior`); neither changes the default posterior.
-
-The walkers start in a small ball around the EM solution
-(:meth:`BeaconPosterior.start`); :func:`check_sample_options` validates the
-sampler's options before any work. Sampling itself is
+The default ``d0`` prior is bounded by the largest range, so it depends on the data;
+``d0_bounds`` and ``window`` make it proper and data-independent for the
+simulation-based calibration (:mod:`bayes_mpem.lbl.bayes.sbc`). The walkers start around
+the EM solution (:meth:`BeaconPosterior.start`); sampling is
 :func:`bayes_mpem.lbl.bayes.beacon_sampling.sample_beacon`.
 """
 
@@ -418,12 +409,9 @@ class BeaconPosterior:
     def start(self, n_walkers, gen):
         """Walkers around the EM solution, scattered by rough posterior widths, inside the prior.
 
-        An EM solution outside the prior's support is first moved just inside it
-        (:func:`~bayes_mpem.lbl.bayes.beacon_sampling.sample_beacon` refuses such a
-        start before it gets here; the calibration of :mod:`~bayes_mpem.lbl.bayes.sbc`
-        does not). Each parameter is scattered by half its large-sample standard error at the
-        EM solution :attr:`em`; candidates outside the prior are redrawn, at half
-        the scatter each time.
+        Each parameter is scattered by half its large-sample standard error at :attr:`em`
+        (moved inside the prior first); candidates outside the prior are redrawn at half the
+        scatter.
 
         Parameters
         ----------

@@ -1,31 +1,10 @@
 """Simulation-based calibration (Talts et al. 2018) of one beacon's posterior and sampler.
 
-:func:`run_sbc` repeats, for one fixed *design* (a beacon and the vehicle
-positions of its pings; the ranges are simulated):
-
-1. draw the parameters from a proper prior that does not look at the ranges
-   (:func:`sbc_posterior`: :class:`~bayes_mpem.lbl.bayes.posterior.BeaconPosterior` with
-   ``d0`` uniform within ``plane_halfwidth`` of the sea surface, the outliers'
-   window fixed, log-uniform scales on ``sigma_bounds`` and Dirichlet weights);
-2. simulate one range per ping from the model's own mixture at those parameters
-   (:func:`simulate_ranges`);
-3. sample the posterior of those ranges as ``bayes-mpem sample`` does: the
-   mixture EM gives the start, :func:`~bayes_mpem.lbl.bayes.beacon_chains.beacon_chains`
-   runs the shipped sampler to its stopping rule, and ``n_draws`` draws are thinned
-   evenly from the kept chain;
-4. record the rank of every true parameter among its draws
-   (:func:`~bayes_mpem.mcmc.sbc.rank_statistic`).
-
-With an exact posterior and sampler the ranks are uniform
-(:meth:`SBCResult.tests`). The prior options exist only here; the default
-posterior of ``sample`` is unchanged (its ``d0`` prior is bounded by the largest
-range, see :mod:`bayes_mpem.lbl.bayes.posterior`). ``benchmarks/sbc.py`` runs the
-study (``docs/bayes-calibration.md``); ``tests/lbl/bayes/test_sbc.py`` a small sentinel.
-
-Pings whose direct path is shorter than ``min_direct`` are left out of the
-design, so that no simulated direct or multipath range can leave the window
-(the model's outlier density is uniform over it, and a range outside would
-make the simulated data and the likelihood disagree).
+:func:`run_sbc` repeats, for one fixed design (a beacon and its vehicle positions): draw
+the parameters from a proper prior (:func:`sbc_posterior`), simulate ranges from the
+model (:func:`simulate_ranges`), sample their posterior as ``bayes-mpem sample`` does,
+and record the rank of every true parameter among its draws. The study is
+``benchmarks/sbc.py`` (``docs/bayes-calibration.md``).
 """
 
 from __future__ import annotations

@@ -1,21 +1,10 @@
 """The mixture EM for one beacon: maximum likelihood of the dp / mp / outlier mixture.
 
-:func:`fit_mixture_em` (the package's default fit) maximises the likelihood of
-the density mixture of :mod:`bayes_mpem.lbl.model.likelihood`: a Gaussian around
-the direct path, a Gaussian around the multipath off a horizontal plane at
-height ``d0`` above the beacon, and outliers uniform over the observed window.
-Each iteration is a generalised EM step: the E-step of
-:func:`bayes_mpem.lbl.model.likelihood.e_step`, then the plane height improved by a
-safeguarded Gauss-Newton step (:mod:`bayes_mpem.mixture.gauss_newton`) and the
-scales and weights in closed form (:func:`mixture_m_step`), so the
-log-likelihood never decreases. The starts are the modes of the per-range
-plane heights (:func:`histogram_modes`), compared on a subsample. With
-``ssp=`` the ranges are predicted through a sound-speed profile (refracted
-rays, :mod:`bayes_mpem.lbl.model.refracted`) instead of straight lines.
-
-The paper's own EM is :mod:`bayes_mpem.lbl.em.em_paper`; both return an
-:class:`~bayes_mpem.lbl.em.em_result.EMResult` whose class probabilities come
-from a final E-step at the returned parameters.
+:func:`fit_mixture_em` (the package's default fit) runs a generalised EM on the mixture
+of :mod:`bayes_mpem.lbl.model.likelihood`: the E-step, a safeguarded Gauss-Newton step
+of the plane height and the scales and weights in closed form (:func:`mixture_m_step`),
+from the modes of the per-range plane heights (:func:`histogram_modes`). The model is
+described in ``docs/model.md``.
 """
 
 from __future__ import annotations
@@ -206,8 +195,7 @@ def fit_mixture_em(
     sigma_dp : float, optional
         Fix the direct-path scatter (m); estimated from the data if omitted.
     weights : {"learned", "equal"}
-        Learn the mixing weights (default) or fix them at 1/3 each, the
-        paper's equal priors.
+        Learn the mixing weights (default) or fix them at 1/3 (the paper's).
     init : dict, optional
         Extra starting point, e.g. ``result.to_dict()`` of an earlier fit
         (keys ``d0``, ``sigma_mp``, ``sigma_dp``, ``weights``).
@@ -220,17 +208,13 @@ def fit_mixture_em(
     sigma_floor : float, default 0.05
         Lower bound on the scales (m).
     subsample : int, default 20000
-        Starts are compared on a random subsample of at most this many
-        ranges; only the best is run on all of them.
+        Starts are compared on a random subsample of at most this many ranges.
     rng : None, int or numpy.random.Generator
         Seeds the subsample.
     ssp : SoundSpeedProfile, optional
-        Predict the direct and multipath ranges through this profile (refracted
-        eigenrays, :mod:`bayes_mpem.lbl.model.refracted`) instead of straight lines;
-        ``d0`` stays the height of the reflecting plane above the beacon. It
-        must reach the deepest beacon or vehicle. Ranges with no eigenray of a
-        class get zero density under it (with neither, they can only be
-        outliers); the counts are in ``settings["refraction"]``.
+        Predict the ranges along refracted eigenrays through this profile
+        (:mod:`bayes_mpem.lbl.model.refracted`, ``docs/refraction.md``) instead of
+        straight lines; it must reach the deepest beacon or vehicle.
     sound_speed : float, optional
         With ``ssp``, required: the nominal speed (m/s) the navigation used to
         turn travel times into ranges.

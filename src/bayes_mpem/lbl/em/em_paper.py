@@ -1,16 +1,9 @@
 """The paper's EM for one beacon, as written (eqs. 3-10).
 
-:func:`fit_paper_em` follows the paper's algorithm: chi-square tail
-probabilities in the E-step (:func:`paper_e_step`) with the ``Pol`` rule for
-outliers and equal priors, then (:func:`paper_m_step`) the gamma_MP-weighted
-average of the per-range plane heights of eq. 8, blended with the previous
-one by ``alpha`` (eq. 10), and eq. 9 (as a variance) for the multipath
-scatter. It maximises no likelihood, so it reports none. Every
+:func:`fit_paper_em`: chi-square tail probabilities and the ``Pol`` rule in the E-step
+(:func:`paper_e_step`), the weighted plane height of eq. 8 blended by ``alpha`` (eq. 10)
+and eq. 9 in the M-step (:func:`paper_m_step`). It maximises no likelihood. Every
 interpretation is listed in ``docs/paper-em.md``.
-
-The maximum-likelihood alternative (the package's default) is
-:mod:`bayes_mpem.lbl.em.em_mixture`; both return an
-:class:`~bayes_mpem.lbl.em.em_result.EMResult`.
 """
 
 from __future__ import annotations

@@ -1,15 +1,8 @@
 """The result of a one-beacon EM and what both EMs share.
 
-:class:`EMResult` is the frozen result of :func:`~bayes_mpem.lbl.em.em_mixture.fit_mixture_em`
-and :func:`~bayes_mpem.lbl.em.em_paper.fit_paper_em`: the fitted plane height,
-scales and weights, the class probabilities of every range from a final
-E-step, the iteration history and the settings. :func:`quality_flags` says
-why a fitted reflector is not credible, and :func:`with_flags` attaches those
-flags (with a :class:`~bayes_mpem.exceptions.FitQualityWarning`).
-
-The helpers both EMs use are here too: the option checks
-(:func:`check_options`), the robust direct-path scatter
-(:func:`estimate_sigma_dp`) and a BLAS-free weighted sum (:func:`wdot`).
+:class:`EMResult` is the result of both one-beacon EMs; :func:`quality_flags` and
+:func:`with_flags` say why a reflector is not credible. Shared helpers:
+:func:`check_options`, :func:`estimate_sigma_dp`, :func:`wdot`.
 
 Examples
 --------

@@ -1,18 +1,8 @@
 """A dive as the navigation estimator sees it: epochs, dead reckoning and the ranges.
 
-:func:`build_dive` turns a validated :class:`~bayes_mpem.io.survey.Survey`
-(``x``, ``y`` are the dead-reckoned position at each ping, ``depth`` the
-trusted pressure depth) and, optionally, a separate dead-reckoning table into a
-:class:`Dive`: the **epochs** (the distinct ping times; an LBL cycle
-interrogates every beacon at once, so one epoch holds several ranges), the
-dead-reckoned position at each epoch, and per reply its epoch, beacon, depth
-and the beacon's outlier window. No-reply pings define epochs too (the
-vehicle was somewhere then), but carry no range.
-
-A dead-reckoning table (:func:`bayes_mpem.io.dead_reckoning.read_dead_reckoning`) at
-its own rate replaces the pings' ``x``, ``y``: positions are interpolated
-linearly to the epochs; velocities are integrated (trapezoids) from the pings'
-first position. Every epoch must lie within the table's time span.
+An epoch is a distinct ping time (one LBL cycle); no-reply pings define epochs too. A
+separate dead-reckoning table is interpolated (positions) or integrated (velocities) to
+the epochs.
 """
 
 from __future__ import annotations
@@ -206,10 +196,6 @@ def build_dive(survey: Survey, dead_reckoning=None) -> Dive:
 def dive_with_dead_reckoning(survey: Survey, times, dr, source: str = "pings") -> Dive:
     """Rebuild the :class:`Dive` of a navigation from its pings and its epochs' dead reckoning.
 
-    What :func:`build_dive` returns, with the dead-reckoned positions given
-    (as ``track.csv`` holds them) instead of derived: reading a ``navigate``
-    output folder back needs no dead-reckoning table.
-
     Parameters
     ----------
     survey : Survey
@@ -217,7 +203,7 @@ def dive_with_dead_reckoning(survey: Survey, times, dr, source: str = "pings") -
     times : array_like
         ``(K,)`` epoch times (s): the distinct ping times, increasing.
     dr : array_like
-        ``(K, 2)`` dead-reckoned position at each epoch (m).
+        ``(K, 2)`` dead-reckoned position at each epoch (m), as ``track.csv`` holds it.
     source : str, default "pings"
         :attr:`Dive.dr_source`.
 

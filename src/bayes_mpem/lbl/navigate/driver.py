@@ -1,19 +1,8 @@
 """``navigate``: the vehicle's track jointly with the class of every range and each reflector.
 
-The pings' ``x``, ``y`` are a drifting dead reckoning and ``depth`` the trusted
-pressure depth. :func:`navigate` estimates the horizontal track at every ping
-epoch, the dead reckoning's heading bias and speed scale, per beacon the plane
-height, sigma_MP and mixing weights, and sigma_DP, by the ECM of
-:mod:`~bayes_mpem.lbl.navigate.ecm`,
-started from the dead reckoning with annealed scales and the planes at the sea
-surface; then (``path="auto"``) each beacon's multipath geometry is chosen as
-:func:`~bayes_mpem.lbl.em.path_choice.choose_path` does, on the corrected track,
-and the ECM continues with it. The track's uncertainty is the Laplace
-approximation at the estimate (:mod:`.normal`), with the observed information
-of the mixture (the class-weighted Gauss-Newton Hessian less the information the
-uncertain classes cost, :func:`.objective.missing_information`); where it stays wide the
-result says so (:mod:`.observability`, a
-:class:`~bayes_mpem.exceptions.NavigationWarning`).
+The ECM of :mod:`~bayes_mpem.lbl.navigate.ecm` from the dead reckoning, the path choice
+of :func:`~bayes_mpem.lbl.em.path_choice.choose_path` on the corrected track, and the
+Laplace uncertainty of :mod:`.normal`; the estimator is described in ``docs/navigate.md``.
 """
 
 from __future__ import annotations
@@ -146,16 +135,8 @@ def _without_multipath_loglik(ldp, lol, iters: int = 200) -> float:
 def multipath_support(dive: Dive, state: State, resp, lse, settings: ecm.Settings) -> dict:
     """Decide, per beacon with an estimated multipath class, whether the data support it.
 
-    A class is kept only when (1) the fitted bounce lags the direct path by at
-    least :data:`MIN_LAG_SIGMAS` times the larger scale (median over the
-    beacon's replies; a plane at the vehicle's depth, or a vehicle at the
-    surface, makes the two arrivals one), (2) it carries at least
-    :data:`MIN_MP_REPLIES` replies' worth of probability with sigma_MP above its
-    floor and the plane no more than 10 m above the sea surface, and (3) the
-    likelihood ratio of the beacon's replies with and without it (the direct
-    path / outlier weight refitted, the track kept) exceeds
-    :data:`MP_LR_THRESHOLD`, calibrated on simulated dives without multipath
-    (``benchmarks/navigate_ship.py``).
+    Three tests (bounce lag, class size, likelihood ratio against
+    :data:`MP_LR_THRESHOLD`), described in ``docs/navigate.md``.
 
     Parameters
     ----------
@@ -245,18 +226,10 @@ INFORMATION = {
 
 
 def _uncertainty(dive, run, settings):
-    """Track covariances, the globals' sd and covariance, and their cross-covariances (Laplace).
+    """Laplace covariances of the track and the globals, and which information was used.
 
-    The information is the observed one of the mixture (Louis' missing information
-    of the uncertain classes subtracted from the class-weighted Gauss-Newton
-    Hessian) where the classes are estimated and it is positive definite (the
-    Schur complement of the globals and every epoch's block); otherwise the
-    complete-data information (the class-weighted Gauss-Newton Hessian, positive
-    definite by the weak priors), and the result says so. A baseline's weights,
-    or known classes, keep the complete-data information. The heading bias,
-    speed scale and plane heights are eliminated by the Schur complement, so
-    their uncertainty is in every epoch's covariance. Also returns which
-    information was used.
+    The observed (Louis) information where the classes are estimated and it is positive
+    definite, else the complete-data one (``docs/navigate.md``).
     """
     a = run.resp[:, 0] / run.state.sigma_dp ** 2
     b = run.resp[:, 1] / run.state.sigma_mp[dive.beacon] ** 2
@@ -293,9 +266,6 @@ def _uncertainty(dive, run, settings):
 def surface_separation(dive: Dive) -> np.ndarray:
     """Return the median lag (m) of a surface bounce behind the direct path, per beacon.
 
-    Evaluated on the dead reckoning with the plane at the sea surface (depth 0);
-    a reply from a vehicle at or above depth 0 counts as no lag.
-
     Parameters
     ----------
     dive : Dive
@@ -303,8 +273,7 @@ def surface_separation(dive: Dive) -> np.ndarray:
     Returns
     -------
     numpy.ndarray
-        ``(B,)``; 0 for a vehicle at the surface (the bounce is the direct path),
-        NaN for a beacon without replies.
+        ``(B,)``; 0 for a vehicle at the surface, NaN for a beacon without replies.
     """
     d0 = dive.beacon_xyz[:, 2]
     st = State(dive.dr, 0.0, 1.0, d0, np.zeros(d0.size, bool), 1.0, np.ones(d0.size),
@@ -395,16 +364,7 @@ def _check_multipath(dive, state, settings, support, skip=()):
 
 
 def _estimate(dive, settings, start, path, gen, timings):
-    """Run the ECM, the path choice and the multipath check, in order.
-
-    The ECM runs :data:`PROBE_ITER` iterations at most; then (``path="auto"``) each
-    beacon's geometry is chosen on the corrected track; where a geometry changed or
-    the ECM had not converged, the multipath classes whose geometry stayed are
-    checked and the ECM continues; at its end they are checked again, and the ECM
-    continues once more if one was switched off. Returns the last run (its
-    history that of every run, ``history["run"]`` numbering them), the
-    iterations, the path choices, the multipath checks and the final settings.
-    """
+    """Run the ECM, the path choice and the multipath check, then the ECM again where needed."""
     check = settings.model == "mixture" and settings.fixed_resp is None
     hist, records, support = {}, {}, {}
     t0 = time.perf_counter()
@@ -491,21 +451,17 @@ def navigate(
     beacons : str, pathlib.Path or pandas.DataFrame, optional
         The beacons table (not needed when ``pings`` is a Survey).
     dead_reckoning : str, pathlib.Path or pandas.DataFrame, optional
-        A dead-reckoning table at its own rate (``time, x, y`` or ``time, ve,
-        vn``, :func:`~bayes_mpem.io.dead_reckoning.read_dead_reckoning`), used instead of
-        the pings' ``x``, ``y``.
+        A dead-reckoning table at its own rate, instead of the pings' ``x``, ``y``
+        (:func:`~bayes_mpem.io.dead_reckoning.read_dead_reckoning`).
     multipath : {"signal", "outlier"}
         Multipath replies carry position information (default) or are outliers.
     model : {"mixture", "huber", "gate", "gaussian"}
         The mixture (default), or a baseline: every reply on the direct path with
         Huber's loss, with a 3-sigma residual gate, or Gaussian.
     path : {"auto", "triangle", "double"}
-        Multipath geometry per beacon: chosen on the corrected track (default),
-        or forced.
+        Multipath geometry per beacon: chosen on the corrected track (default), or forced.
     dr_noise : float, default 0.1
-        Random-walk level ``q`` of the dead reckoning (m / sqrt(s)): between
-        epochs ``dt`` apart the position may wander ``q sqrt(dt)`` m (sd, per
-        axis) from what the corrected dead reckoning says.
+        Random-walk level ``q`` of the dead reckoning (m / sqrt(s)).
     start_sd : float, default 1000
         Prior sd (m) of the first position about the first dead-reckoned fix.
     heading_sd : float, default 5
@@ -517,11 +473,9 @@ def navigate(
     sigma_dp : float, optional
         Fix sigma_DP (m); default estimated.
     range_scale : bool, default False
-        Also estimate a range scale: every predicted range is multiplied by it
-        (the ranges' sound speed over the true mean one), prior sd 0.01 about 1.
+        Also estimate a factor on every predicted range (a sound-speed error), prior sd 0.01.
     classes : array_like, optional
-        One class per input row (``"dp"``, ``"mp"``, ``"ol"``; anything for a
-        no-reply ping): the classes are then known (the oracle of the benchmarks).
+        Known classes, one per input row (``"dp"``, ``"mp"``, ``"ol"``).
     reflectors : dict, optional
         ``{beacon: {"d0", "sigma_mp", "path"}}``: reflectors known, not estimated.
     min_pings : int, default 30
@@ -529,12 +483,10 @@ def navigate(
     anneal_start : float, default 100
         First floor (m) of the annealed scales; above the dead reckoning's error.
     max_sd : float, default 10
-        An epoch whose position sd (major axis, m) stays above this is flagged as
-        not corrected.
+        Flag an epoch whose position sd (major axis, m) stays above this.
     max_iter : int, default 300
     tol : float, default 1e-3
-        Convergence: no position, plane height or scale changes by more than
-        ``tol`` m in an iteration.
+        Converged when no position, plane height or scale moves more than ``tol`` m.
     ci : float, default 0.95
         Probability of the (Wald) intervals in the summary.
     rng : None, int or numpy.random.Generator

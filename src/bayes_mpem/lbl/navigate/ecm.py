@@ -1,31 +1,10 @@
 """The ECM of the navigation model: E-step, conditional M-steps and the annealed loop.
 
-One iteration:
-
-1. **E-step.** The class probabilities of every reply at the current track and
-   reflectors (:func:`e_step`): the direct-path / multipath / outlier mixture
-   of :func:`.model.class_log_joint` (``model="mixture"``; with
-   ``multipath="outlier"`` the multipath class is switched off, so multipath
-   replies can only be outliers). The baselines replace it by weights: every
-   reply on the direct path (``"gaussian"``), Huber's weights
-   (``"huber"``, ``min(1, c sigma / |r|)``), or a residual gate (``"gate"``,
-   1 within ``k sigma`` of the direct path, else 0). Fixed probabilities (an
-   oracle that knows the classes) skip it.
-2. **CM-step 1.** A few safeguarded Gauss-Newton steps on the track, the
-   dead-reckoning nuisances and the plane heights (:func:`gauss_newton`: the
-   sparse normal equations of :mod:`.objective`, solved by :mod:`.normal`, each
-   step halved until the objective does not increase,
-   :func:`~bayes_mpem.mixture.gauss_newton.safeguarded_step`).
-3. **CM-step 2.** The scales and mixing weights in closed form (:func:`scales_and_weights`).
-
-The start is the dead reckoning itself with the planes at the sea surface. The
-scales are **annealed**: floored at ``anneal_start`` m in the first iteration,
-the floor halved every iteration until it no longer binds; a drifted dead
-reckoning, tens of metres off, is then pulled onto the ranges before the
-scales shrink to what the data say. From then on, for the mixture, the E- and
-track steps never decrease the log posterior at the current scales (tested); the
-scales then move to the fixed point of the marginal likelihood
-(:func:`scales_and_weights`), which the joint log posterior does not measure.
+One iteration: the class probabilities (:func:`e_step`; or a baseline's weights), a few
+safeguarded Gauss-Newton steps on the track, nuisances and plane heights
+(:func:`gauss_newton`), then the scales and weights in closed form
+(:func:`scales_and_weights`). The scales are annealed from ``anneal_start`` m
+(``docs/navigate.md``).
 """
 
 from __future__ import annotations
@@ -250,12 +229,7 @@ def gauss_newton(dive: Dive, state: State, a, b, settings: Settings) -> State:
 def leverages(dive: Dive, state: State, resp, settings: Settings):
     """Posterior variance of every reply's predicted ranges: ``J P J^T`` (Laplace).
 
-    ``P`` is the covariance of the track and plane heights under the
-    class-weighted Gauss-Newton information at ``state`` (the complete-data
-    information, positive definite by the weak priors), its epoch blocks by the
-    selected inversion of :func:`.normal.marginal_covariances`; ``J`` the
-    derivative of the reply's direct-path (multipath) range with respect to its
-    epoch's position (and its beacon's plane height).
+    ``P`` from the class-weighted Gauss-Newton information at ``state``.
 
     Parameters
     ----------
@@ -319,12 +293,8 @@ def scales_and_weights(dive: Dive, state: State, resp, settings: Settings, *,
                        expected: bool = True) -> State:
     """sigma_DP (pooled), sigma_MP and mixing weights per beacon.
 
-    With ``expected`` (after the annealing), the scales are the fixed point of the
-    marginal likelihood (MacKay's update of the evidence): ``sigma^2 = sum p r^2 /
-    (sum p - gamma)`` with ``gamma = sum p J P J^T / sigma^2`` the leverages of
-    the replies on the track (:func:`leverages`). The plain weighted RMS of the
-    residuals (``expected=False``) is biased low: with one range per epoch the
-    track absorbs the noise and the scale collapses to its floor.
+    With ``expected``, the scales take MacKay's evidence update
+    ``sigma^2 = sum p r^2 / (sum p - gamma)`` (``gamma`` from :func:`leverages`).
 
     Parameters
     ----------

@@ -1,22 +1,9 @@
 """The per-ping pieces of the navigation model, as small pure functions.
 
-Everything the batch estimator (:mod:`~bayes_mpem.lbl.navigate.ecm`) needs of one range or one
-dead-reckoning step, written once so that a recursive (streaming) estimator
-can call the same functions one ping at a time:
-
-* :func:`predict_ranges`: the direct-path and multipath ranges of a vehicle at
-  a horizontal position, with their derivatives with respect to that position
-  and the plane height (straight rays, :mod:`bayes_mpem.lbl.model.geometry`);
-* :func:`class_log_joint`: ``log w_j + log p(z | j)`` of every class (direct
-  path, multipath, outlier) and their log-sum-exp, from the shared densities
-  of :mod:`bayes_mpem.mixture.densities`;
-* :func:`dr_step` and :func:`dr_noise_var`: the dead-reckoning motion model
-  ``p_k = p_{k-1} + s R(beta) Delta_k + w_k``, ``w_k ~ N(0, q^2 dt I)``.
-
-Conventions: horizontal positions ``(x, y)`` in metres, depths positive down,
-the heading bias ``beta`` in radians counter-clockwise (a rotation of the
-dead-reckoned displacement in the x-y plane), the speed scale ``s``
-dimensionless.
+Range prediction (:func:`predict_ranges`), class log-joint (:func:`class_log_joint`) and
+the dead-reckoning motion model (:func:`dr_step`, :func:`dr_noise_var`), shared by the
+batch and the streaming estimators. Positions in metres, depths positive down, heading
+bias in radians counter-clockwise.
 
 Examples
 --------

@@ -1,19 +1,11 @@
 """Sparse normal equations of a track: banded solve, Schur complement, selected inversion.
 
-The Gauss-Newton system of the navigation model has two parts. The track
-positions ``p_1 .. p_K`` (2 unknowns per epoch) interact only with their
-neighbours in time, through the random walk of the dead reckoning: their
-block ``A`` is block-tridiagonal with 2x2 diagonal blocks ``D_k`` and
-off-diagonal blocks ``-lambda_k I``. A few global unknowns (heading bias,
-speed scale, plane heights) touch every epoch: the dense ``B`` (``2K x G``)
-and ``C`` (``G x G``). :func:`solve` eliminates the globals by the Schur
-complement ``S = C - B^T A^{-1} B``, with ``A`` factored once as a band
-(LAPACK ``pbtrf`` through :func:`scipy.linalg.cholesky_banded`): the cost is
-linear in ``K``. :func:`marginal_covariances` returns the 2x2 diagonal blocks of
-the full inverse, ``[A^{-1}]_kk + X_k S^{-1} X_k^T`` with ``X = A^{-1} B``, by
-the block recursion of a Rauch-Tung-Striebel smoother, never forming a dense
-inverse; :func:`cross_covariances` the covariances of every epoch with the
-globals, ``-X_k S^{-1}``.
+The track block ``A`` is block-tridiagonal (2x2 blocks, neighbours linked by the random
+walk); a few globals (heading bias, speed scale, plane heights) touch every epoch.
+:func:`solve` eliminates the globals by the Schur complement ``S = C - B^T A^{-1} B``
+with ``A`` factored as a band (cost linear in ``K``); :func:`marginal_covariances` gives
+the 2x2 diagonal blocks of the inverse by a Rauch-Tung-Striebel recursion, and
+:func:`cross_covariances` the epoch-global covariances ``-X_k S^{-1}``.
 
 Examples
 --------

@@ -1,14 +1,8 @@
 """Where the ranges did not correct the navigation: stretches of wide covariance, and the nuisances.
 
-A dead reckoning is corrected where the ranges pin the position down. Where
-they do not (one beacon seen from a straight line, no reply for a long
-stretch, ...), the Laplace covariance of the track stays wide, bounded only by
-the weak priors of :class:`~.objective.Priors`. :func:`assess` turns that into
-flags a user can read: every stretch of epochs whose position standard
-deviation (major axis of the 2x2 covariance) exceeds ``max_sd``, with the reason
-(no usable reply, replies from one beacon only, or a geometry that leaves a
-direction open), and each dead-reckoning nuisance the ranges did not identify
-(posterior sd more than half the prior's).
+:func:`assess` flags every stretch of epochs whose position sd (major axis) exceeds
+``max_sd``, with the reason (no usable reply, one beacon only, an open direction), and
+each dead-reckoning nuisance whose posterior sd is more than half the prior's.
 
 Examples
 --------

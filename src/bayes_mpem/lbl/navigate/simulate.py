@@ -1,19 +1,7 @@
 """Simulated dives for navigation: a true track, a drifting dead reckoning, LBL replies.
 
-:func:`simulate_dive` runs the LBL simulator of :mod:`bayes_mpem.lbl.simulation.simulate`
-along a preset's true track (one interrogation of every beacon per cycle, all
-at the same time), then
-
-* makes the **dead reckoning** the navigation model assumes
-  (:mod:`~bayes_mpem.lbl.navigate.model`): the true displacement between cycles, less a random walk
-  ``w_k ~ N(0, q^2 dt I)``, rotated by ``-beta`` and divided by the speed scale
-  ``s`` (so that ``p_k = p_{k-1} + s R(beta) Delta_k + w_k``), started at the
-  true first position plus an error; the pings table reports it in ``x``, ``y``
-  (``depth`` stays the true, pressure, depth);
-* optionally **blocks the direct path** (acoustic shadowing) beyond a
-  horizontal range from a beacon, or within time windows: a reply that would
-  have been the direct path is the surface bounce instead (its multipath
-  range, with the beacon's multipath noise, labelled ``"mp"``).
+The LBL simulator along a preset's track, then a dead reckoning degraded as the
+navigation model assumes (:func:`degrade`) and optionally a blocked direct path.
 
 Examples
 --------
@@ -97,12 +85,6 @@ class DiveSimulation:
 def degrade(time, x, y, *, heading_bias, speed_scale, dr_noise, start_error, rng=None):
     """Make a dead reckoning from a true track, with the errors the navigation model assumes.
 
-    The true step between consecutive points, less a random walk ``w_k ~ N(0,
-    q^2 dt I)``, rotated by ``-heading_bias`` and divided by ``speed_scale``;
-    started at the true first point plus a Gaussian error. Then
-    ``p_k = p_{k-1} + s R(beta) Delta_k + w_k`` holds exactly
-    (:mod:`~bayes_mpem.lbl.navigate.model`).
-
     Parameters
     ----------
     time, x, y : array_like
@@ -143,15 +125,10 @@ def degrade_pings(pings, *, heading_bias, speed_scale=1.0, dr_noise=0.1, start_e
                   rng=None):
     """Replace a pings table's true positions by a dead reckoning made from them (:func:`degrade`).
 
-    For measured surveys whose positions are a truth (GPS): the track at the
-    distinct ping times becomes a drifting dead reckoning, and the truth is
-    returned beside it.
-
     Parameters
     ----------
     pings : pandas.DataFrame
-        Columns ``time``, ``x``, ``y`` (the truth) and the rest of a pings table;
-        pings of one time share one position (their mean is taken).
+        Columns ``time``, ``x``, ``y`` (the truth) and the rest of a pings table.
     heading_bias, speed_scale, dr_noise, start_error, rng
         As :func:`degrade`.
 

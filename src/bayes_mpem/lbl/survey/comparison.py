@@ -126,11 +126,9 @@ def compare(pings, beacons=None, *, min_pings: int = 30, rng: RNGLike = None,
     min_pings : int, default 30
     rng : None, int or numpy.random.Generator
     **kwargs
-        Passed to :func:`~bayes_mpem.lbl.bayes.beacon_sampling.sample_beacon`. ``path``
-        may also be ``"auto"`` (the default): per beacon the geometry is chosen
-        by the mixture EM with learned weights
-        (:func:`~bayes_mpem.lbl.em.path_choice.choose_path`), then both priors are
-        sampled with it; a forced geometry that loses by more than 10 nats warns.
+        Passed to :func:`~bayes_mpem.lbl.bayes.beacon_sampling.sample_beacon`; ``path``
+        may also be ``"auto"`` (the default, :func:`~bayes_mpem.lbl.em.path_choice.choose_path`,
+        with learned weights; both priors use it).
 
     Returns
     -------

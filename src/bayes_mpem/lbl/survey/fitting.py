@@ -217,11 +217,8 @@ def fit(
         The density-mixture EM (default) or the paper's EM.
     path : {"auto", "triangle", "double"}
         Multipath geometry: one reflected leg, both, or (default) per beacon the
-        one whose mixture-EM fit has the higher log-likelihood
-        (:func:`~bayes_mpem.lbl.em.path_choice.choose_path`). Both are fitted in
-        every case; a forced geometry that loses by more than 10 nats warns. With
-        ``method="paper"`` the geometry is chosen by the mixture EM too (the
-        paper's EM has no likelihood of its own), then the paper's EM runs on it.
+        likelier under the mixture EM (:func:`~bayes_mpem.lbl.em.path_choice.choose_path`,
+        also for ``method="paper"``).
     sigma_dp : float, optional
         Direct-path scatter (m); estimated from the data if omitted.
     pol, alpha : float
@@ -254,9 +251,7 @@ def fit(
         For a beacon whose forced ``path`` is clearly worse than the other.
     ModelCheckWarning
         For a beacon whose ranges the fitted model does not describe
-        (:mod:`~bayes_mpem.lbl.survey.model_checks`: the direct path's offset or trends,
-        the outliers' timing, a plane far from the sea surface); the checks of
-        every beacon are in ``checks`` and ``summary.json``.
+        (:mod:`~bayes_mpem.lbl.survey.model_checks`).
 
     Examples
     --------

@@ -249,9 +249,8 @@ class SurveyPosterior:
         """Write ``posterior_<id>.nc`` per beacon, ``classified.csv`` and, last, ``summary.json``.
 
         Each ``posterior_<id>.nc`` holds the ArviZ groups of that beacon's
-        :attr:`PosteriorResult.idata` at its root, so ArviZ of either generation opens it
-        (``docs/bayes.md``). Through :func:`bayes_mpem.io.results.writing`: all or nothing,
-        ``summary.json`` (the completion marker) last.
+        :attr:`PosteriorResult.idata` at its root (``docs/bayes.md``); all or nothing, through
+        :func:`bayes_mpem.io.results.writing`.
 
         Parameters
         ----------
@@ -311,12 +310,8 @@ def sample(
     min_pings : int, default 30
     rng : None, int or numpy.random.Generator
     **kwargs
-        Passed to :func:`~bayes_mpem.lbl.bayes.beacon_sampling.sample_beacon` (``sigma_dp``,
-        ``concentration``, ``n_ensembles``, ``progress``, ...). ``path`` may also be
-        ``"auto"`` (the default): per beacon, the mixture EM is fitted with both
-        geometries, the likelier is kept (:func:`~bayes_mpem.lbl.em.path_choice.choose_path`)
-        and its fit starts the walkers; a forced geometry that loses by more than 10
-        nats warns.
+        Passed to :func:`~bayes_mpem.lbl.bayes.beacon_sampling.sample_beacon`; ``path``
+        may also be ``"auto"`` (the default, :func:`~bayes_mpem.lbl.em.path_choice.choose_path`).
 
     Returns
     -------
@@ -336,8 +331,7 @@ def sample(
         For a beacon whose forced ``path`` is clearly worse than the other.
     ModelCheckWarning
         For a beacon whose ranges the posterior's model does not describe
-        (:mod:`~bayes_mpem.lbl.survey.model_checks`); every beacon's checks are in
-        ``checks`` and ``summary.json``.
+        (:mod:`~bayes_mpem.lbl.survey.model_checks`).
 
     Examples
     --------

@@ -1,27 +1,11 @@
 """The slips a new user makes with a survey's two tables, named once with the likely cause.
 
-A survey that cannot be read, or whose ranges fit no direct path at all, is tested
-against the usual slips before anything is fitted:
-
-* **read-time** (:func:`explain_read_error`, when the tables are refused): the two
-  files given the wrong way round (the pings as ``--beacons``), depths given
-  positive up (negative below the surface), beacon ids spelled differently in the
-  two files (``B1`` against ``1``) or from another survey;
-* **geometry** (:func:`check_geometry`, on a survey that was read): when almost no
-  range matches the direct path from the vehicle to its beacon, the ranges are
-  tried as one-way or two-way travel times in seconds (times a sound speed found
-  between 1400 and 1600 m/s), in kilometres, as two-way ranges in metres, and the
-  vehicle's or the beacons' depths with the other sign. A slip is named when its
-  transformed ranges match the direct path for most replies where the ranges as
-  given match almost none.
-
-The message names the slip and what to do, with at most :data:`MAX_EXAMPLES`
-example lines and a count, and stays under :data:`MAX_MESSAGE` characters
-(:class:`SlipError`, an :class:`~bayes_mpem.exceptions.InputError`: ``fit``
-refuses such a survey, and ``batch`` records it as ``failed``).
-
-:func:`impossible_rows` flags each reply shorter than the vertical distance to its
-beacon (no acoustic path is that short); ``fit`` gives those rows a ``reason``.
+Before anything is fitted, a survey that cannot be read (:func:`explain_read_error`:
+tables swapped, depths positive up, beacon ids that differ) or whose ranges fit no
+direct path (:func:`check_geometry`: travel times, kilometres, two-way ranges, depth
+signs) is tested against the usual slips; a :class:`SlipError` names the slip and what
+to do. :func:`impossible_rows` flags replies shorter than the vertical distance to their
+beacon.
 
 Examples
 --------

@@ -1,18 +1,8 @@
 """The forward filter of the vehicle's position: an extended Kalman filter in plain floats.
 
-State ``(x, y, beta, s)``: the horizontal position, the dead reckoning's heading
-bias and speed scale (the nuisances of :mod:`bayes_mpem.lbl.navigate`, here
-estimated as filter states). Between two pings the dead-reckoned displacement
-``Delta`` moves it by the navigation model's motion step
-(:func:`.kernel.dr_step`, ``p_k = p_{k-1} + s R(beta) Delta_k + w_k``,
-``w_k ~ N(0, q^2 dt I)``); ``beta`` and ``s`` take a small random walk of their
-own (``beta_walk``, ``scale_walk`` per sqrt(s)) that keeps the filter able to
-follow a slow change and its covariance well conditioned over a million pings.
-A range updates it as a scalar measurement with gradient ``(gx, gy, 0, 0)``.
-
-The covariance is the 10 distinct entries of a symmetric 4 x 4 matrix, held as
-Python floats: every operation is a few dozen multiplications, cheaper than one
-NumPy call on a small array.
+State ``(x, y, beta, s)``: the position, the dead reckoning's heading bias and speed
+scale. The covariance is held as the 10 distinct entries of the 4 x 4 matrix in Python
+floats, cheaper than NumPy on arrays this small.
 
 Examples
 --------

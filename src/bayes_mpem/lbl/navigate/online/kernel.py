@@ -1,22 +1,8 @@
 """The navigation model of one ping, in plain Python floats.
 
-These are :mod:`bayes_mpem.lbl.navigate.model`'s functions specialised to one
-range: the same formulas (straight rays, the image-method multipath of
-:mod:`bayes_mpem.lbl.model.geometry`, the Gaussian and uniform densities of
-:mod:`bayes_mpem.mixture.densities`, the dead-reckoning motion model), written
-with :mod:`math` because a NumPy call on a scalar costs about a microsecond
-and the vectorised functions make dozens of them: on this machine
-``predict_ranges`` + ``class_log_joint`` + ``dr_step`` take about 115 us per
-ping, these about 5 us (``benchmarks/bench_stream.py``). The tests
-(``tests/lbl/navigate/online/test_kernel.py``) check that they agree with the
-vectorised functions to 1e-12 on random inputs, so the model is defined once,
-in :mod:`~bayes_mpem.lbl.navigate.model`, and these follow it.
-
-Examples
---------
->>> pred = ranges(30.0, 0.0, 0.0, 0.0, 0.0, 40.0, 40.0, False)
->>> pred[0], pred[2:4]
-(50.0, (0.6, 0.0))
+:mod:`bayes_mpem.lbl.navigate.model`'s functions specialised to one range and written
+with :mod:`math`, as NumPy calls on scalars are slow (``docs/benchmarks.md``); the
+tests check that both agree to 1e-12.
 """
 
 from __future__ import annotations

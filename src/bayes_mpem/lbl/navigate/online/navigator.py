@@ -1,31 +1,9 @@
 """``Navigator``: classify each range as it arrives and keep the vehicle's position.
 
-One :meth:`Navigator.update` per input line, in time order, at a constant cost
-and in constant memory:
-
-1. **Predict.** The filter (:mod:`.ekf`) moves by the dead-reckoned
-   displacement since the previous line (``x``, ``y`` of every line are the
-   dead reckoning), with the random walk ``q^2 dt``. A ping without a reply and
-   a dead-reckoning line stop here: they advance the filter and are answered
-   with its position.
-2. **Classify.** The reply's class probabilities from the model as it stands:
-   the mixture of :func:`~bayes_mpem.lbl.navigate.model.class_log_joint` at the
-   predicted position, each Gaussian widened by the variance the range inherits
-   from the position's uncertainty (``g^T P g``; for the multipath also from
-   ``d0``'s): the predictive density of the range.
-3. **Correct.** The range updates the filter as a direct path with variance
-   ``sigma_DP^2 / p_dp`` and as a multipath with variance
-   ``(sigma_MP^2 + J^2 var d0) / p_mp`` (the EM's class-weighted least squares,
-   one Kalman update each; a class below ``1e-9`` is skipped).
-4. **Learn.** The beacon's reflector, weights and the pooled sigma_DP take one
-   online-EM step (:mod:`.reflector`) with the reply's statistics at the
-   corrected position.
-
-Before the first ``warmup`` replies the answers are provisional and the replies
-are kept for the batch fit that starts the online estimator (:mod:`.warmup`).
-The whole state is a JSON document (:meth:`Navigator.to_dict`,
-:meth:`Navigator.save`, :meth:`Navigator.load`); a restored navigator gives
-the very same answers as one that never stopped.
+Per input line: predict the filter (:mod:`.ekf`) with the dead reckoning, classify the
+reply with its predictive density, correct the filter with it, and take one online-EM
+step of the reflector (:mod:`.reflector`); before that, a warm-up (:mod:`.warmup`).
+The state is a JSON document. The steps are described in ``docs/stream.md``.
 """
 
 from __future__ import annotations
@@ -116,8 +94,7 @@ class Navigator:
     multipath : {"signal", "outlier"}
         Multipath replies update the position (default) or are outliers.
     path : {"auto", "triangle", "double"}
-        Multipath geometry: chosen per beacon by the warm-up fit (default;
-        triangle for a beacon first heard after it), or forced.
+        Multipath geometry: chosen per beacon by the warm-up fit (default), or forced.
     dr_noise : float, default 0.1
         Random-walk level ``q`` of the dead reckoning (m / sqrt(s)).
     start_sd, heading_sd, scale_sd, plane_sd : float
@@ -142,10 +119,8 @@ class Navigator:
     sigma_floor : float, default 0.05
         Smallest scale (m).
     max_gap : float, default 3600
-        A line timed more than this many seconds after the previous one is
-        refused (a clock jump or a unit slip), not adopted: adopting it would
-        refuse every later line as out of time order. A real pause is adopted
-        once :data:`GAP_CONFIRM` + 1 lines in a row agree on it.
+        Refuse a line timed more than this many seconds after the previous one (a
+        clock jump), unless :data:`GAP_CONFIRM` + 1 lines in a row agree on it.
     rng : None, int or numpy.random.Generator
         Seeds the warm-up fit's path choice (one seed is drawn and kept in the state).
 

@@ -1,40 +1,12 @@
 """Online EM of a beacon's reflector and mixing weights, and of the pooled sigma_DP.
 
-Stochastic approximation of the sufficient statistics (Cappé and Moulines,
-2009, *On-line expectation-maximization algorithm for latent data models*,
-JRSS B 71:593-613): with ``s_n`` the running average of the complete-data
-statistics,
+Stochastic approximation of the sufficient statistics with step ``gamma_n = n^-alpha``;
+the statistics and M-step are written out in ``docs/stream.md``.
 
-``s_n = s_{n-1} + gamma_n (S(z_n; theta_{n-1}) - s_{n-1})``, ``theta_n = M(s_n)``,
-
-where ``S`` is the statistic of one reply given the class probabilities and
-the filtered position (the E-step), ``M`` the closed-form M-step, and the step
-``gamma_n = n^-alpha`` with ``n`` the beacon's reply count (so ``alpha = 1`` is
-the plain running mean; ``1/2 < alpha < 1`` forgets the early, worse-modelled
-replies faster; Cappé and Moulines' conditions). The first statistics are the
-batch warm-up's, counted as its ``n`` replies.
-
-Per beacon, with ``g`` the class probabilities, ``J = d f_MP / d d0`` at the
-plane height ``d0_n`` of the moment and ``u = z - f_MP(p, d0_n) + J (d0_n -
-d0_ref)`` (the multipath residual as a linear function of ``delta = d0 -
-d0_ref``, ``d0_ref`` fixed for the beacon, against cancellation):
-
-* weights ``w_j = <g_j>``;
-* ``<g_MP J^2>``, ``<g_MP J u>``, ``<g_MP u^2>``: the multipath M-step is the
-  weighted least squares ``delta = <g J u> / <g J^2>``, and
-  ``sigma_MP^2 = <g (u - J delta)^2> / <g_MP>`` from the same three numbers.
-  ``f_MP`` is linearised about the ``d0`` of each reply's moment, an error of
-  ``(Delta d0)^2 / L``: centimetres;
-
-and pooled over beacons ``<g_DP r^2>``, ``<g_DP>`` for ``sigma_DP`` (one
-scale, a property of the sensor, as :func:`~bayes_mpem.lbl.navigate.navigate`).
-The squared residuals are their expectation under the filtered position:
-``r^2 + g^T P g``.
-
-``d0``'s variance, for the filter's multipath measurement noise, is
-``sigma_MP^2 / (N_eff <g_MP J^2>)`` with ``N_eff = 1 / sum_i w_i^2`` the
-effective number of replies behind the weighted average (``w_i`` the weight
-the averaging has left on reply ``i``; ``n`` for ``alpha = 1``).
+References
+----------
+Cappé, O. and Moulines, E. (2009). On-line expectation-maximization algorithm for
+latent data models. *JRSS B* 71:593-613.
 
 Examples
 --------
@@ -151,13 +123,6 @@ class BeaconModel:
     def weigh(self, diff, alpha, margin):
         """Add one reply's log-likelihood difference (``alt`` minus this); switch if due.
 
-        Called after :meth:`learn` (which counted the reply). The evidence is
-        the running average of the differences with the step sizes of the
-        statistics; times the effective number of replies, ``N_eff``, it is the
-        log-likelihood ratio of the two geometries over those replies (the whole
-        sum for ``alpha = 1``, as :func:`~bayes_mpem.lbl.em.path_choice.choose_path`
-        compares them).
-
         Parameters
         ----------
         diff : float
@@ -169,8 +134,7 @@ class BeaconModel:
         Returns
         -------
         BeaconModel
-            ``alt`` (now holding this model as its alternative) if it has won by
-            ``margin``, else this model.
+            ``alt`` if it has won by ``margin``, else this model.
         """
         self.evidence += step_size(self.n, alpha) * (diff - self.evidence)
         if self.evidence <= margin * self.sumsq:

@@ -1,21 +1,9 @@
 """The start of a stream: provisional answers, then a small batch fit that seeds the filter.
 
-Until ``warmup`` replies have arrived the :class:`~.navigator.Navigator` keeps
-them (and only them: memory bounded by ``warmup``) and answers each ping
-provisionally: the dead-reckoned position, its sd ``sqrt(start_sd^2 + q^2
-t)``, and the classes at that position with the plane at the sea surface and
-both scales at ``provisional_sd`` (100 m, the first annealing floor of
-:func:`~bayes_mpem.lbl.navigate.navigate`). Those answers are marked
-``phase="warmup"``.
-
-At the ``warmup``-th reply, :func:`batch_start` runs
-:func:`~bayes_mpem.lbl.navigate.navigate` (the ECM with its annealing, path
-choice and priors) on the kept replies, and starts the online estimator from
-its estimate at the last epoch: the filter at the last position with its 2 x 2
-covariance, the heading bias and speed scale with their posterior variances
-(their correlation with the position is dropped); per beacon the reflector,
-weights and the batch's sufficient statistics, counted as that beacon's replies
-so far (:mod:`.reflector`); the pooled sigma_DP likewise.
+Until ``warmup`` replies have arrived, each ping gets a provisional answer at its
+dead-reckoned position; then :func:`batch_start` runs
+:func:`~bayes_mpem.lbl.navigate.navigate` on the kept replies and starts the online
+estimator from its last epoch (``docs/stream.md``).
 """
 
 from __future__ import annotations
@@ -156,11 +144,6 @@ def prior_model(xyz, prior, *, mp_on, path, d0_min, window):
 def endpoint_covariance(nav) -> np.ndarray:
     """Return the joint covariance of ``(x, y, beta, s)`` at a navigation's last epoch.
 
-    The smoother's Laplace covariance (:attr:`~bayes_mpem.lbl.navigate.Navigation.cov`,
-    ``global_cov``, ``track_global_cov``) marginalised over the plane heights:
-    the filter starts with the position's correlation with the heading bias
-    and the speed scale, as the batch fit leaves it.
-
     Parameters
     ----------
     nav : Navigation
@@ -168,7 +151,7 @@ def endpoint_covariance(nav) -> np.ndarray:
     Returns
     -------
     numpy.ndarray
-        ``(4, 4)``.
+        ``(4, 4)``, marginalised over the plane heights.
     """
     out = np.zeros((4, 4))
     out[:2, :2] = nav.cov[-1]

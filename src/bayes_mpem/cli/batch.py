@@ -26,9 +26,9 @@ KWARGS = {"fit": lbl.fit_kwargs, "sample": lbl.sample_command_kwargs,
 #: (``dead_reckoning`` names a file: a batch hashes only the manifest's input columns)
 NOT_OPTIONS = {"help", "out", "pings", "beacons", "survey", "format", "figures", "no_figures",
                "no_progress", "palette", "dead_reckoning", "config",
-               # the input units of fit (bayes_mpem.io.travel_time): per survey files, not
-               # options a batch passes on
-               "ranges", "travel_time", "sound_speed", "turnaround", "origin"}
+               # the input units (bayes_mpem.io.travel_time): a batch's surveys are read as
+               # one-way ranges in local x, y; convert them first
+               "ranges", "travel_time", "sound_speed", "travel_ssp", "turnaround", "origin"}
 TRUE, FALSE = {"true", "yes", "1"}, {"false", "no", "0", ""}
 
 

@@ -81,26 +81,25 @@ def test_every_lbl_command_takes_the_input_units(command):
 def test_a_profile_converts_with_the_harmonic_mean_between_the_depths(survey, tmp_path):
     root, pings, beacons = survey
     prof = SoundSpeedProfile([0.0, 1000.0, 5000.0], [1520.0, 1490.0, 1550.0])
-    (tmp_path / "ssp.txt").write_text("depth speed\n0 1520\n1000 1490\n5000 1550\n")
     tt = pings.copy()
     tt["range"] = tt["range"] / C + TAT  # one-way travel times, from a mean speed C
     tt.to_csv(tmp_path / "tt.csv", index=False)
     p, _ = convert_survey(tmp_path / "tt.csv", root / "d" / "beacons.csv", travel_time=True,
-                          ssp=tmp_path / "ssp.txt", turnaround=TAT)
+                          ssp=prof, turnaround=TAT)
     depth_of = dict(zip(beacons["beacon"].astype(str), beacons["depth"], strict=True))
     c = prof.harmonic_mean(pings["depth"], pings["beacon"].astype(str).map(depth_of))
     np.testing.assert_allclose(p["range"], (tt["range"] - TAT) * c, rtol=1e-12)
     assert not np.allclose(p["range"], pings["range"], rtol=1e-3, equal_nan=True)
     # a constant profile is the constant speed
-    (tmp_path / "flat.txt").write_text(f"0 {C}\n6000 {C}\n")
+    flat = SoundSpeedProfile.constant(C)
     p, _ = convert_survey(tmp_path / "tt.csv", root / "d" / "beacons.csv", travel_time=True,
-                          ssp=tmp_path / "flat.txt", turnaround=TAT)
+                          ssp=flat, turnaround=TAT)
     np.testing.assert_allclose(p["range"], pings["range"], rtol=1e-9)
     with pytest.raises(InputError, match="not both"):
         convert_survey(tmp_path / "tt.csv", root / "d" / "beacons.csv", travel_time=True,
-                       ssp=tmp_path / "flat.txt", sound_speed=C)
+                       ssp=flat, sound_speed=C)
     with pytest.raises(InputError, match="apply to --travel-time only"):
-        convert_survey(tmp_path / "tt.csv", root / "d" / "beacons.csv", ssp=tmp_path / "flat.txt")
+        convert_survey(tmp_path / "tt.csv", root / "d" / "beacons.csv", ssp=flat)
 
 
 def test_errors_after_a_conversion_name_the_file_line(survey, tmp_path, capsys):
@@ -115,3 +114,22 @@ def test_errors_after_a_conversion_name_the_file_line(survey, tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 2
     assert "bad.csv line 11, column 'depth'" in err and "DataFrame" not in err
+
+
+def test_ssp_from_the_command_line(survey, tmp_path):
+    """``--ssp FILE`` with a constant profile gives the planes of ``--sound-speed``."""
+    root, pings, _ = survey
+    tt = pings.copy()
+    tt["range"] = tt["range"] / C + TAT
+    tt.to_csv(tmp_path / "tt.csv", index=False)
+    (tmp_path / "ssp.txt").write_text(f"depth speed\n0 {C}\n6000 {C}\n")
+    b = str(root / "d" / "beacons.csv")
+    units = ["--travel-time", "--turnaround", str(TAT)]
+    assert main(["fit", str(tmp_path / "tt.csv"), "--beacons", b, "--out", str(tmp_path / "c"),
+                 "--sound-speed", str(C), *units]) == 0
+    assert main(["fit", str(tmp_path / "tt.csv"), "--beacons", b, "--out", str(tmp_path / "s"),
+                 "--ssp", str(tmp_path / "ssp.txt"), *units]) == 0
+    planes = [json.loads((tmp_path / d / "summary.json").read_text())["beacons"] for d in "cs"]
+    assert planes[0].keys() == planes[1].keys()
+    for k in planes[0]:
+        assert abs(planes[0][k]["d0"] - planes[1][k]["d0"]) < 1e-6

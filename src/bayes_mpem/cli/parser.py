@@ -286,12 +286,13 @@ def _units_handler(args, handler):
         return handler
 
     def convert_then(a):
+        from ..acoustics.profile import SoundSpeedProfile
         from ..io.travel_time import convert_survey
 
+        ssp = None if a.travel_ssp is None else SoundSpeedProfile.from_file(a.travel_ssp)
         a.pings, a.beacons = convert_survey(
             a.pings, a.beacons, ranges=a.ranges, travel_time=a.travel_time,
-            sound_speed=a.sound_speed, turnaround=a.turnaround, origin=a.origin,
-            ssp=a.travel_ssp)
+            sound_speed=a.sound_speed, turnaround=a.turnaround, origin=a.origin, ssp=ssp)
         return handler(a)
 
     return convert_then

@@ -66,20 +66,16 @@ def _positions(table, problems):
 
 def _profile_speeds(ssp, p, b, problems):
     """Each ping's harmonic-mean sound speed between its vehicle's and its beacon's depths."""
-    from ..acoustics.profile import SoundSpeedProfile
     from .cells import as_beacon_id
 
-    prof = ssp if isinstance(ssp, SoundSpeedProfile) else SoundSpeedProfile.from_file(ssp)
     bp = Problems(b.source)
     z_b = numeric_column(b, "depth", bp)
     bp.raise_if_any()
     depth_of = {as_beacon_id(v): float(z) for v, z in zip(b.frame["beacon"], z_b, strict=True)}
     z_v = numeric_column(p, "depth", problems)
-    # a ping of an unknown beacon keeps a NaN speed: the survey's reader names it
-    z_p = np.array([depth_of.get(as_beacon_id(v), np.nan) for v in p.frame["beacon"]])
-    with np.errstate(invalid="ignore"):
-        return np.asarray(prof.harmonic_mean(np.nan_to_num(z_v), np.nan_to_num(z_p, nan=0.0)),
-                          float)
+    # a ping of an unknown beacon gets a speed at depth 0: the survey's reader refuses it
+    z_p = np.array([depth_of.get(as_beacon_id(v), 0.0) for v in p.frame["beacon"]])
+    return np.asarray(ssp.harmonic_mean(np.nan_to_num(z_v), z_p), float)
 
 
 def convert_survey(pings, beacons, *, ranges: str = "one-way", travel_time: bool = False,
@@ -101,10 +97,12 @@ def convert_survey(pings, beacons, *, ranges: str = "one-way", travel_time: bool
     origin : (float, float), optional
         Latitude and longitude (degrees) of the local frame's origin, for tables in
         ``lat``, ``lon``; default the beacons' mean position.
-    ssp : str, os.PathLike or SoundSpeedProfile, optional
-        Instead of ``sound_speed``: a profile (depth m, speed m/s); each travel time is
-        converted with the harmonic-mean speed between the vehicle's and the beacon's
-        depths (ray bending and the horizontal offset neglected).
+    ssp : SoundSpeedProfile, optional
+        Instead of ``sound_speed``: a profile
+        (:class:`~bayes_mpem.acoustics.profile.SoundSpeedProfile`, or anything with its
+        ``harmonic_mean(z_top, z_bottom)``); each travel time is converted with the
+        harmonic-mean speed between the vehicle's and the beacon's depths (ray bending and
+        the horizontal offset neglected).
 
     Returns
     -------

@@ -76,8 +76,8 @@ def _add_demo_plot_simulate(sub):
                    help="output folder (default: demo-output)")
     p.add_argument("--seed", type=opt.seed, default=0, help="random seed (default 0)")
     p.add_argument("--no-bayes", action="store_true",
-                   help="skip the Bayesian part (sampling and prior comparison: most of the "
-                        "demo's ~30 s)")
+                   help="skip the Bayesian part (sampling and prior comparison): about 4 s "
+                        "instead of the demo's 16 s")
 
     p = sub.add_parser("plot", help="draw the figures of an output folder (fit, sample, "
                                     "compare, diagnose, locate, navigate)")

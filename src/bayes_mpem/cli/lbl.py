@@ -292,8 +292,8 @@ def cmd_sample(args) -> int:
     print(result.format_table())
     for bid, r in result.results.items():
         if not r.diagnostics["converged"]:
-            print(f"warning: beacon {bid}: max_steps reached before the bulk ESS reached "
-                  f"{r.diagnostics['min_ess']:,.0f} and R-hat 1.01", file=sys.stderr)
+            print(f"warning: beacon {bid} (the posterior): max_steps reached before the bulk ESS "
+                  f"reached {r.diagnostics['min_ess']:,.0f} and R-hat 1.01", file=sys.stderr)
     _print_written(paths)
     return 0
 

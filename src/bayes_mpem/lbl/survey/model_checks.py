@@ -439,7 +439,11 @@ def warn_misfit(beacon, checks, *, method="mixture", stacklevel=2):
     """
     msgs = flagged(checks)
     if msgs:
-        warnings.warn(f"beacon {beacon} ({FIT_NAMES.get(method, method)}): the model does not "
-                      "describe these ranges: " + "; ".join(msgs)
-                      + f". The interval of d0 assumes it does: {advice(method)}",
+        if method == "paper":  # its own failure is the likelier cause: no claim on the model
+            text = (f"the fit does not describe these ranges: {'; '.join(msgs)}. "
+                    f"{PAPER_ADVICE[0].upper()}{PAPER_ADVICE[1:]}")
+        else:
+            text = (f"the model does not describe these ranges: {'; '.join(msgs)}. The "
+                    f"interval of d0 assumes it does: {ADVICE}")
+        warnings.warn(f"beacon {beacon} ({FIT_NAMES.get(method, method)}): {text}",
                       ModelCheckWarning, stacklevel=stacklevel + 1)

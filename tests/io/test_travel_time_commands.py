@@ -133,3 +133,13 @@ def test_ssp_from_the_command_line(survey, tmp_path):
     assert planes[0].keys() == planes[1].keys()
     for k in planes[0]:
         assert abs(planes[0][k]["d0"] - planes[1][k]["d0"]) < 1e-6
+
+
+def test_a_batch_manifest_with_input_units_says_how_to_convert(survey, tmp_path, capsys):
+    root, *_ = survey
+    (tmp_path / "m.csv").write_text(f"name,pings,beacons,travel_time\n"
+                                    f"a,{root / 'd' / 'pings.csv'},{root / 'd' / 'beacons.csv'},"
+                                    "true\n")
+    assert main(["batch", str(tmp_path / "m.csv"), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "line 2, column 'travel_time'" in err and "convert_survey" in err

@@ -25,6 +25,8 @@ nb_execution_mode = "force"
 nb_execution_timeout = 600
 nb_execution_raise_on_error = True
 myst_heading_anchors = 3
+# maths: $...$ inline, $$...$$ and amsmath environments as display (rendered by MathJax)
+myst_enable_extensions = ["dollarmath", "amsmath"]
 suppress_warnings = ["myst.header"]
 
 autosummary_generate = True

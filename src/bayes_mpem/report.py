@@ -176,7 +176,7 @@ def _posterior_figures(result, out, *, truth):
 
 
 def demo_markdown(simulation, fit, paper, out_dir, figures, *, seed, posterior=None,
-                  comparison=None) -> str:
+                  comparison=None, warnings=()) -> str:
     """Return the ``summary.md`` of ``bayes-mpem demo``.
 
     Parameters
@@ -193,6 +193,8 @@ def demo_markdown(simulation, fit, paper, out_dir, figures, *, seed, posterior=N
     posterior : SurveyPosterior, optional
     comparison : SurveyComparison, optional
         With ``posterior``: the Bayesian part, when it ran.
+    warnings : sequence of str, default ()
+        The warnings the run showed, listed under "Warnings".
 
     Returns
     -------
@@ -211,6 +213,8 @@ def demo_markdown(simulation, fit, paper, out_dir, figures, *, seed, posterior=N
                "![intervals](bayes/intervals.png)", "",
                "## Equal against learned priors", "", "```", comparison.format_table(), "```",
                "", "![compare](compare/compare.png)", ""]
+    listed = [f"- {' '.join(w.split())}" for w in warnings]  # one line each
+    md += ["## Warnings", ""] + (listed or ["None."]) + [""]
     out = Path(out_dir)
     md += ["## Figures", ""] + [f"![{p.stem}]({p.relative_to(out).as_posix()})"
                                 for p in figures]

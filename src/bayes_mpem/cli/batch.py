@@ -26,9 +26,11 @@ KWARGS = {"fit": lbl.fit_kwargs, "sample": lbl.sample_command_kwargs,
 #: (``dead_reckoning`` names a file: a batch hashes only the manifest's input columns)
 NOT_OPTIONS = {"help", "out", "pings", "beacons", "survey", "format", "figures", "no_figures",
                "no_progress", "palette", "dead_reckoning", "config",
-               # the input units of fit (bayes_mpem.io.travel_time): per survey files, not
-               # options a batch passes on
-               "ranges", "travel_time", "sound_speed", "turnaround", "origin"}
+               # the input units (bayes_mpem.io.travel_time): a batch's surveys are read as
+               # one-way ranges in local x, y; convert them first
+               "ranges", "travel_time", "sound_speed", "travel_ssp", "turnaround", "origin"}
+#: the input units' columns (their options' names), refused with the way to convert
+UNIT_OPTIONS = {"ranges", "travel_time", "sound_speed", "travel_ssp", "turnaround", "origin"}
 TRUE, FALSE = {"true", "yes", "1"}, {"false", "no", "0", ""}
 
 
@@ -42,6 +44,10 @@ def _argv(sub: argparse.ArgumentParser, command: str, task, options: dict) -> li
     for col, cell in options.items():
         value = str(cell).strip()
         action = actions.get(col)
+        if col in UNIT_OPTIONS:
+            raise InputError(f"{task.where}, column {col!r}: a batch reads one-way ranges in "
+                             "local x, y; convert travel times, two-way ranges or lat/lon "
+                             "first (bayes_mpem.io.travel_time.convert_survey, docs/input.md)")
         if action is None or col in NOT_OPTIONS:
             known = sorted(set(actions) - NOT_OPTIONS)
             raise InputError(f"{task.where}, column {col!r}: not an option of "

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
 import sys
+import warnings
 from pathlib import Path
 
 from ..io.results import write_file
@@ -110,11 +112,14 @@ def _demo_fits(sim, out, seed):
         f"{b['sigma_mp']:.1f}" for b in sim.truth.values()) + " m)")
     written = list(result.write(out).values())
     written += write_figures(result, out, truth=sim.truth)
-    paper = fit(sim.survey, method="paper", sigma_dp=sim.truth["1"]["sigma_dp"])
+    # the paper fixes sigma_DP; the demo fixes it at the simulation's true value
+    sigma_dp = sim.truth["1"]["sigma_dp"]
+    paper = fit(sim.survey, method="paper", sigma_dp=sigma_dp)
     written += list(paper.write(out / "paper").values())
     written += write_figures(paper, out / "paper", truth=sim.truth, general=False)
     print(result.format_table())
-    print("\nThe paper's EM (Pol = 0.05, alpha = 0.5, sigma_DP = 3.97 m):")
+    print(f"\nThe paper's EM (Pol = 0.05, alpha = 0.5, sigma_DP fixed at the simulation's "
+          f"true {sigma_dp:.2f} m):")
     print(paper.format_table())
     missed = [b for b, r in paper.results.items() if abs(r.d0 - sim.truth[b]["d0"]) > 10.0]
     if missed:
@@ -141,8 +146,35 @@ def _demo_bayes(sim, out, seed):
     return post, cmp, written
 
 
+@contextlib.contextmanager
+def recorded_warnings():
+    """Keep the text of every warning shown meanwhile (still shown): a list, filled on exit.
+
+    Yields
+    ------
+    list of str
+        ``"Category: message"`` of each warning shown, in order.
+    """
+    seen, show = [], warnings.showwarning
+
+    def record(message, category, *args, **kwargs):
+        seen.append(f"{category.__name__}: {message}")
+        show(message, category, *args, **kwargs)
+
+    warnings.showwarning = record
+    try:
+        yield seen
+    finally:
+        warnings.showwarning = show
+
+
 def cmd_demo(args) -> int:
     """Run ``bayes-mpem demo``: simulate, fit, sample, compare, write figures and summary.md."""
+    with recorded_warnings() as seen:
+        return _demo(args, seen)
+
+
+def _demo(args, seen) -> int:
     out = Path(args.out)
     sim = simulate_survey("abe58", rng=args.seed)
     written = list(sim.write(out / "survey").values())
@@ -158,7 +190,7 @@ def cmd_demo(args) -> int:
     from ..report import demo_markdown
 
     md = demo_markdown(sim, result, paper, out, figs, seed=args.seed, posterior=post,
-                       comparison=cmp)
+                       comparison=cmp, warnings=seen)
     written.append(write_file(out / "summary.md", lambda tmp: tmp.write_text(md)))
     print(f"\nwrote {len(written)} files under {out}/ (summary.md links every figure)")
     return 0
@@ -260,8 +292,8 @@ def cmd_sample(args) -> int:
     print(result.format_table())
     for bid, r in result.results.items():
         if not r.diagnostics["converged"]:
-            print(f"warning: beacon {bid}: max_steps reached before the bulk ESS reached "
-                  f"{r.diagnostics['min_ess']:,.0f} and R-hat 1.01", file=sys.stderr)
+            print(f"warning: beacon {bid} (the posterior): max_steps reached before the bulk ESS "
+                  f"reached {r.diagnostics['min_ess']:,.0f} and R-hat 1.01", file=sys.stderr)
     _print_written(paths)
     return 0
 

@@ -76,8 +76,8 @@ def _add_demo_plot_simulate(sub):
                    help="output folder (default: demo-output)")
     p.add_argument("--seed", type=opt.seed, default=0, help="random seed (default 0)")
     p.add_argument("--no-bayes", action="store_true",
-                   help="skip the Bayesian part (sampling and prior comparison: most of the "
-                        "demo's ~30 s)")
+                   help="skip the Bayesian part (sampling and prior comparison): about 4 s "
+                        "instead of the demo's 16 s")
 
     p = sub.add_parser("plot", help="draw the figures of an output folder (fit, sample, "
                                     "compare, diagnose, locate, navigate)")
@@ -134,6 +134,7 @@ def _add_fit_diagnose(sub):
     p.add_argument("--min-pings", type=opt.min_pings, default=30, metavar="N")
     p.add_argument("--no-figures", action="store_true", help="write diagnosis.json only")
     p.add_argument("--no-progress", action="store_true", help="no progress lines on stderr")
+    _add_input_units(p)
 
 
 def _add_locate(sub):
@@ -238,6 +239,11 @@ def _add_sample_compare(sub):
                             "(default 1000)")
         p.add_argument("--no-progress", action="store_true",
                        help="no progress bar (terminal) or progress lines (log file)")
+        _add_input_units(p)
+
+
+#: The commands that read a pings and a beacons table, and so take the input units.
+UNIT_COMMANDS = ("fit", "sample", "compare", "diagnose", "navigate")
 
 
 def _add_input_units(p):
@@ -251,6 +257,10 @@ def _add_input_units(p):
     g.add_argument("--sound-speed", type=opt.number("a sound speed in [1300, 1800] m/s",
                                                     1300.0, 1800.0),
                    default=None, metavar="C", help="--travel-time: mean sound speed, m/s")
+    g.add_argument("--ssp", dest="travel_ssp", default=None, metavar="FILE",
+                   help="--travel-time: a sound-speed profile (depth m, speed m/s) instead of "
+                        "--sound-speed: each ping's harmonic-mean speed between the vehicle's "
+                        "and the beacon's depths")
     g.add_argument("--turnaround", type=opt.turn_around, default=0.0, metavar="S",
                    help="--travel-time: the beacons' turn-around time, s (default 0)")
     g.add_argument("--origin", type=_lat_lon, default=None, metavar="LAT,LON",
@@ -269,17 +279,20 @@ def _lat_lon(text: str):
 
 
 def _units_handler(args, handler):
-    """``fit`` on travel times, two-way ranges or lat/lon: convert first (io.travel_time)."""
+    """Convert travel times, two-way ranges or lat/lon first, for :data:`UNIT_COMMANDS`."""
     if not (args.travel_time or args.ranges != "one-way" or args.sound_speed is not None
-            or args.turnaround or args.origin is not None or _has_lat_lon(args)):
+            or args.travel_ssp is not None or args.turnaround or args.origin is not None
+            or _has_lat_lon(args)):
         return handler
 
     def convert_then(a):
+        from ..acoustics.profile import SoundSpeedProfile
         from ..io.travel_time import convert_survey
 
+        ssp = None if a.travel_ssp is None else SoundSpeedProfile.from_file(a.travel_ssp)
         a.pings, a.beacons = convert_survey(
             a.pings, a.beacons, ranges=a.ranges, travel_time=a.travel_time,
-            sound_speed=a.sound_speed, turnaround=a.turnaround, origin=a.origin)
+            sound_speed=a.sound_speed, turnaround=a.turnaround, origin=a.origin, ssp=ssp)
         return handler(a)
 
     return convert_then
@@ -355,6 +368,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_locate(sub)
     _add_sample_compare(sub)
     navigate.add_navigate(sub)
+    _add_input_units(sub.choices["navigate"])
     stream.add_stream(sub)
     _add_batch(sub)
     for name in FIGURE_COMMANDS:
@@ -566,7 +580,7 @@ def main(argv=None) -> int:
     handler = getattr(module, f"cmd_{args.command}")
     if args.command == "simulate":
         handler = _simulate_handler(args, handler)
-    if args.command == "fit":
+    if args.command in UNIT_COMMANDS:
         handler = _units_handler(args, handler)
     colours = contextlib.nullcontext()
     # the figures' class colours, restored on return (only when figures are drawn: the

@@ -77,6 +77,10 @@ def load_table(source: Any, name: str | None, kind: str) -> _Table:
         frame = source.copy()
         frame.columns = [c.strip() if isinstance(c, str) else c for c in frame.columns]
         table = _Table(frame.reset_index(drop=True), label, labels=source.index)
+        lines = source.attrs.get("lines")  # a table converted from a file (io.travel_time)
+        if lines is not None and len(lines) == len(source) and source.attrs.get("source"):
+            table = _Table(table.frame, name or str(source.attrs["source"]),
+                           lines=np.asarray(lines))
     elif isinstance(source, (str, os.PathLike)):
         label = name or str(source)
         text = read_table_file(source, label, f"{kind} file")

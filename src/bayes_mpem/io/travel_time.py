@@ -1,9 +1,12 @@
 """Surveys given as travel times, two-way ranges or latitude/longitude, in the package's units.
 
-``fit`` works on one-way ranges in metres in a local frame; :func:`convert_survey`
+The LBL commands work on one-way ranges in metres in a local frame; :func:`convert_survey`
 converts two-way ranges (halved), travel times (``(t - turnaround) * sound_speed``,
-halved if two-way) and ``lat``, ``lon`` columns (projected onto the tangent plane at
-``origin``). A converted ``range`` keeps its input as ``range_input`` (``docs/input.md``).
+halved if two-way; the speed a constant, or each ping's harmonic mean through a
+sound-speed profile between the vehicle's and the beacon's depths) and ``lat``, ``lon``
+columns (projected onto the tangent plane at ``origin``). A converted ``range`` keeps its
+input as ``range_input``; the converted tables remember their file's lines, so later
+messages name them (``docs/input.md``).
 
 Examples
 --------
@@ -32,17 +35,19 @@ __all__ = ["RANGE_KINDS", "convert_survey"]
 RANGE_KINDS = ("one-way", "two-way")
 
 
-def _check(ranges, travel_time, sound_speed, turnaround, origin):
+def _check(ranges, travel_time, sound_speed, turnaround, origin, ssp):
     if ranges not in RANGE_KINDS:
         raise InputError(f"ranges: expected one of {', '.join(RANGE_KINDS)}, got {ranges!r}")
     if travel_time:
-        if sound_speed is None or not 1300.0 <= float(sound_speed) <= 1800.0:
+        if sound_speed is not None and ssp is not None:
+            raise InputError("travel times: give --sound-speed or --ssp, not both")
+        if ssp is None and (sound_speed is None or not 1300.0 <= float(sound_speed) <= 1800.0):
             raise InputError("travel times need the sound speed (--sound-speed) in [1300, 1800] "
-                             f"m/s, got {sound_speed!r}")
+                             f"m/s or a profile (--ssp FILE), got {sound_speed!r}")
         if not 0.0 <= float(turnaround) <= 10.0:
             raise InputError(f"turnaround (--turnaround): expected [0, 10] s, got {turnaround!r}")
-    elif sound_speed is not None or turnaround:
-        raise InputError("--sound-speed and --turnaround apply to --travel-time only")
+    elif sound_speed is not None or turnaround or ssp is not None:
+        raise InputError("--sound-speed, --ssp and --turnaround apply to --travel-time only")
     if origin is not None:
         lat0, lon0 = (float(v) for v in origin)
         if not (-90.0 <= lat0 <= 90.0 and -180.0 <= lon0 <= 180.0):
@@ -59,9 +64,23 @@ def _positions(table, problems):
                      f"'lon' (degrees); found {', '.join(map(repr, table.frame.columns))}")
 
 
+def _profile_speeds(ssp, p, b, problems):
+    """Each ping's harmonic-mean sound speed between its vehicle's and its beacon's depths."""
+    from .cells import as_beacon_id
+
+    bp = Problems(b.source)
+    z_b = numeric_column(b, "depth", bp)
+    bp.raise_if_any()
+    depth_of = {as_beacon_id(v): float(z) for v, z in zip(b.frame["beacon"], z_b, strict=True)}
+    z_v = numeric_column(p, "depth", problems)
+    # a ping of an unknown beacon gets a speed at depth 0: the survey's reader refuses it
+    z_p = np.array([depth_of.get(as_beacon_id(v), 0.0) for v in p.frame["beacon"]])
+    return np.asarray(ssp.harmonic_mean(np.nan_to_num(z_v), z_p), float)
+
+
 def convert_survey(pings, beacons, *, ranges: str = "one-way", travel_time: bool = False,
                    sound_speed: float | None = None, turnaround: float = 0.0,
-                   origin=None) -> tuple[pd.DataFrame, pd.DataFrame]:
+                   origin=None, ssp=None) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Return the pings and beacons tables with one-way ranges (m) and local x, y (m).
 
     Parameters
@@ -78,6 +97,12 @@ def convert_survey(pings, beacons, *, ranges: str = "one-way", travel_time: bool
     origin : (float, float), optional
         Latitude and longitude (degrees) of the local frame's origin, for tables in
         ``lat``, ``lon``; default the beacons' mean position.
+    ssp : SoundSpeedProfile, optional
+        Instead of ``sound_speed``: a profile
+        (:class:`~bayes_mpem.acoustics.profile.SoundSpeedProfile`, or anything with its
+        ``harmonic_mean(z_top, z_bottom)``); each travel time is converted with the
+        harmonic-mean speed between the vehicle's and the beacon's depths (ray bending and
+        the horizontal offset neglected).
 
     Returns
     -------
@@ -90,7 +115,7 @@ def convert_survey(pings, beacons, *, ranges: str = "one-way", travel_time: bool
         A bad option, a bad cell (naming the file, line and column), a travel time not
         longer than the turn-around time, tables with different position columns.
     """
-    _check(ranges, travel_time, sound_speed, turnaround, origin)
+    _check(ranges, travel_time, sound_speed, turnaround, origin, ssp)
     p = load_table(pings, None, "pings")
     b = load_table(beacons, None, "beacons")
     if "range" not in p.frame.columns:
@@ -107,11 +132,13 @@ def convert_survey(pings, beacons, *, ranges: str = "one-way", travel_time: bool
         problems.add_mask(short, lambda i: f"{p.where(i, 'range')}: expected a travel time "
                                            f"longer than the turn-around time {turnaround:g} "
                                            f"s, got {raw[i]:g} s")
+    speed = (_profile_speeds(ssp, p, b, problems) if travel_time and ssp is not None
+             else None if sound_speed is None else float(sound_speed))
     problems.raise_if_any()
     pings_out, beacons_out = p.frame.copy(), b.frame.copy()
     rng = raw.copy()
     if travel_time:
-        rng = (rng - turnaround) * float(sound_speed)
+        rng = (rng - turnaround) * speed
     if ranges == "two-way":
         rng = rng / 2.0
     if travel_time or ranges == "two-way":
@@ -126,4 +153,7 @@ def convert_survey(pings, beacons, *, ranges: str = "one-way", travel_time: bool
         for frame, (lat, lon) in ((pings_out, pos_p), (beacons_out, (lat_b, lon_b))):
             e, n, _ = geodetic_to_enu(lat, lon, np.zeros_like(lat), lat0, lon0)
             frame["x"], frame["y"] = np.asarray(e, float), np.asarray(n, float)
+    for frame, table in ((pings_out, p), (beacons_out, b)):  # messages name the file's lines
+        if table.lines is not None:  # a tuple: pandas compares attrs when it combines frames
+            frame.attrs.update(source=table.source, lines=tuple(map(int, table.lines)))
     return pings_out, beacons_out

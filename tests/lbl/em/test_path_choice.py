@@ -39,7 +39,8 @@ def test_forced_wrong_path_warns_per_beacon_and_right_one_does_not(double):
         warnings.simplefilter("always")
         res = bm.fit(double.survey, path="triangle", rng=0)
     warned = [w for w in seen if issubclass(w.category, PathChoiceWarning)]
-    assert len(warned) == 4 and "beacon 1: path='triangle' was forced" in str(warned[0].message)
+    assert len(warned) == 4 and ("beacon 1 (the mixture EM's path choice): path='triangle' "
+                                 "was forced") in str(warned[0].message)
     assert warned[0].filename == __file__  # points at the caller of fit
     assert all(c.margin < -CLEAR_MARGIN and c.path == "triangle"
                for c in res.path_choices.values())

@@ -71,7 +71,7 @@ def test_summary_contract(sim, tmp_path):
 def test_paper_method_through_fit(sim, tmp_path):
     with pytest.warns(bm.FitQualityWarning) as record:
         res = bm.fit(sim.survey, method="paper", sigma_dp=3.97, pol=0.1, alpha=0.5)
-    assert any("beacon 1 (paper EM)" in str(w.message) for w in record)
+    assert any("beacon 1 (the paper's EM)" in str(w.message) for w in record)
     assert res.method == "paper"
     assert res.results["4"].settings["pol"] == 0.1
     assert abs(res.results["4"].d0 - 2472.0) < 5 and not res.results["4"].flags

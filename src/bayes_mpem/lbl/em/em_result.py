@@ -126,7 +126,8 @@ def with_flags(result, data, sigma_floor):
     """
     flags = quality_flags(result, data, sigma_floor=sigma_floor)
     if flags:
-        warnings.warn(f"beacon {data.beacon} ({result.method} EM): " + "; ".join(flags),
+        fit_name = "the paper's EM" if result.method == "paper" else "the mixture EM"
+        warnings.warn(f"beacon {data.beacon} ({fit_name}): " + "; ".join(flags),
                       FitQualityWarning, stacklevel=3)
     return dataclasses.replace(result, flags=flags)
 

@@ -190,7 +190,8 @@ def choose_path(
     if path != AUTO and choice.margin < -warn_margin:
         other = next(p for p in PATHS if p != path)
         warnings.warn(
-            f"beacon {data.beacon}: path={path!r} was forced, but the {other} bounce is "
+            f"beacon {data.beacon} (the mixture EM's path choice): path={path!r} was forced, "
+            f"but the {other} bounce is "
             f"likelier by {-choice.margin:.0f} nats (more than {warn_margin:g}); the fit "
             f"(d0={choice.fit.d0:.1f} m, sigma_MP={choice.fit.sigma_mp:.1f} m) is probably "
             f"not the reflector: use path='auto' or path={other!r}",

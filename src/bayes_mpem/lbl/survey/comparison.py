@@ -61,7 +61,7 @@ class SurveyComparison:
             if b in self.path_choices:
                 entry["path_choice"] = self.path_choices[b].to_dict()
             if b in self.checks:
-                entry["model_checks"] = checks_record(self.checks[b])
+                entry["model_checks"] = checks_record(self.checks[b], "posterior")
         return {"beacons": beacons,
                 "skipped": dict(self.skipped),
                 "rule": f"a difference is clear when |elpd_diff| > {CLEAR:g} elpd_diff_se "
@@ -171,6 +171,6 @@ def compare(pings, beacons=None, *, min_pings: int = 30, rng: RNGLike = None,
                                     skip_on=(UnusableStartError,))
     checks = {b: check_posterior(survey.for_beacon(b), r.learned) for b, r in results.items()}
     for b, ch in checks.items():
-        warn_misfit(b, ch, stacklevel=2)
+        warn_misfit(b, ch, method="posterior", stacklevel=2)
     return SurveyComparison(survey=survey, results=results, skipped=skipped,
                             path_choices=choices, checks=checks)

@@ -79,7 +79,7 @@ class SurveyFit:
             if bid in self.path_choices:
                 d["path_choice"] = self.path_choices[bid].to_dict()
             if bid in self.checks:
-                d["model_checks"] = checks_record(self.checks[bid])
+                d["model_checks"] = checks_record(self.checks[bid], self.method)
             beacons[bid] = d
         return {
             "method": self.method,
@@ -287,7 +287,7 @@ def fit(
     for bid, res in results.items():
         if kwargs.get("ssp") is None:  # the checks predict straight rays
             checks[bid] = check_fit(survey.for_beacon(bid), res)
-            warn_misfit(bid, checks[bid], stacklevel=2)
+            warn_misfit(bid, checks[bid], method=method, stacklevel=2)
     options = {"path": path, "sigma_dp": sigma_dp, "min_pings": min_pings, **kwargs}
     if method == "mixture":
         options["weights"] = weights

@@ -30,6 +30,13 @@ COVARIATES = ("time", "range", "elevation", "vehicle_depth", "bearing")
 #: Where a flagged check sends the user.
 ADVICE = ("run 'bayes-mpem diagnose' to find which of the model's assumptions the data break "
           "(a range bias, a sound speed, a drifting plane or navigation, a beacon position)")
+#: Where a flagged check of the paper's EM sends the user: that EM misses the plane on data
+#: the model describes too (``docs/paper-em.md``), so its flags say little about the data.
+PAPER_ADVICE = ("the paper's EM fails this way on data the model describes too "
+                "(docs/paper-em.md): fit with the mixture EM (--method mixture) and read "
+                "its checks before looking for a cause in the data")
+#: What each fit is called in the warnings.
+FIT_NAMES = {"mixture": "the mixture EM", "paper": "the paper's EM", "posterior": "the posterior"}
 
 
 def covariates(ex, ey, dz, time, vehicle_depth) -> dict:
@@ -165,8 +172,8 @@ def direct_path_checks(r_dp, resp_dp, sigma_dp, *, sigma_fixed=False):
         z = (ratio ** 2 - 1.0) / np.sqrt(2.0 / sw)
         out.append(_check(
             "direct_path_scatter", ratio, z, abs(z) > Z_LIMIT,
-            f"direct-path ranges scatter {ratio:.2f} times the sigma_DP = {sigma_dp:.2f} m "
-            "given: fit sigma_DP instead, or check the sensor's noise"))
+            f"direct-path ranges scatter {ratio:.2f} times the fixed sigma_DP = {sigma_dp:.2f} m "
+            "(--sigma-dp): fit sigma_DP instead, or check the sensor's noise"))
     return out
 
 
@@ -278,8 +285,13 @@ def plane_check(plane_depth, interval=None):
 
 def check_beacon(geom: BeaconGeometry, time, depth, *, d0, sigma_dp, sigma_mp, resp, path,
                  plane_depth, sigma_dp_fixed=False, plane_interval=None, ex=None,
-                 ey=None) -> list:
+                 ey=None, method="mixture") -> list:
     """Every check of one beacon's straight-ray fit.
+
+    The paper's EM gets the offset, trend and plane checks only: its class probabilities
+    are chi-square tail probabilities and the ``Pol`` rule, not a mixture's, so its
+    "outliers" are the ranges in both bands' tails (mostly after the direct path) and its
+    direct-path class is narrower than the ``sigma_DP`` it is given, on clean data too.
 
     Parameters
     ----------
@@ -299,16 +311,20 @@ def check_beacon(geom: BeaconGeometry, time, depth, *, d0, sigma_dp, sigma_mp, r
         The plane depth's credible interval (a posterior).
     ex, ey : numpy.ndarray, optional
         Vehicle minus beacon east and north, for the bearing (default: bearing 0).
+    method : {"mixture", "paper"}, default "mixture"
+        The EM that made the fit (a posterior: ``"mixture"``).
     """
+    paper = method == "paper"
     r_dp = geom.z - geom.direct
     r_mp = geom.z - geom.multipath(d0, path)
     ex = geom.h if ex is None else ex
     ey = np.zeros_like(geom.h) if ey is None else ey
     cov = covariates(ex, ey, geom.dz, time, depth)
-    out = direct_path_checks(r_dp, resp[:, 0], sigma_dp, sigma_fixed=sigma_dp_fixed)
+    out = direct_path_checks(r_dp, resp[:, 0], sigma_dp, sigma_fixed=sigma_dp_fixed and not paper)
     out += trend_checks({"dp": r_dp, "mp": r_mp}, {"dp": sigma_dp, "mp": sigma_mp},
                         {"dp": resp[:, 0], "mp": resp[:, 1]}, cov)
-    out += outlier_timing_check(geom.z, geom.direct, resp[:, 2], geom.lo, geom.hi)
+    if not paper:
+        out += outlier_timing_check(geom.z, geom.direct, resp[:, 2], geom.lo, geom.hi)
     out += plane_check(plane_depth, plane_interval)
     return out
 
@@ -334,7 +350,8 @@ def check_fit(data, result, *, plane_interval=None, params=None, resp=None) -> l
     return check_beacon(geom, data.time, data.depth, d0=p["d0"], sigma_dp=p["sigma_dp"],
                         sigma_mp=p["sigma_mp"], resp=result.resp if resp is None else resp,
                         path=result.path, plane_depth=bz - p["d0"], sigma_dp_fixed=fixed,
-                        plane_interval=plane_interval, ex=data.x - bx, ey=data.y - by)
+                        plane_interval=plane_interval, ex=data.x - bx, ey=data.y - by,
+                        method=result.method)
 
 
 def check_posterior(data, result) -> list:
@@ -353,12 +370,14 @@ def check_posterior(data, result) -> list:
                      plane_interval=(depth - hi, depth - lo))
 
 
-def checks_record(checks) -> dict:
+def checks_record(checks, method="mixture") -> dict:
     """Return the record of a beacon's checks in ``summary.json``: flags, then every check.
 
     Parameters
     ----------
     checks : list of dict
+    method : {"mixture", "paper", "posterior"}, default "mixture"
+        The fit checked (the paper's EM gets :data:`PAPER_ADVICE`).
 
     Returns
     -------
@@ -366,7 +385,17 @@ def checks_record(checks) -> dict:
         ``flags`` (messages of the flagged checks, and the advice) and ``checks``.
     """
     msgs = flagged(checks)
-    return {"flags": msgs + ([ADVICE] if msgs else []), "checks": list(checks)}
+    return {"flags": msgs + ([advice(method)] if msgs else []), "checks": list(checks)}
+
+
+def advice(method) -> str:
+    """Return what a flagged check of a fit by ``method`` suggests doing next.
+
+    Parameters
+    ----------
+    method : {"mixture", "paper", "posterior"}
+    """
+    return PAPER_ADVICE if method == "paper" else ADVICE
 
 
 def flagged(checks) -> list:
@@ -392,13 +421,15 @@ def flagged(checks) -> list:
     return out
 
 
-def warn_misfit(beacon, checks, *, stacklevel=2):
-    """Warn once for a beacon whose checks flag a misfit.
+def warn_misfit(beacon, checks, *, method="mixture", stacklevel=2):
+    """Warn once for a beacon whose checks flag a misfit, naming the fit.
 
     Parameters
     ----------
     beacon : str
     checks : list of dict
+    method : {"mixture", "paper", "posterior"}, default "mixture"
+        The fit checked, named in the message.
     stacklevel : int, default 2
 
     Warns
@@ -408,6 +439,11 @@ def warn_misfit(beacon, checks, *, stacklevel=2):
     """
     msgs = flagged(checks)
     if msgs:
-        warnings.warn(f"beacon {beacon}: the model does not describe these ranges: "
-                      + "; ".join(msgs) + f". The interval of d0 assumes it does: {ADVICE}",
+        if method == "paper":  # its own failure is the likelier cause: no claim on the model
+            text = (f"the fit does not describe these ranges: {'; '.join(msgs)}. "
+                    f"{PAPER_ADVICE[0].upper()}{PAPER_ADVICE[1:]}")
+        else:
+            text = (f"the model does not describe these ranges: {'; '.join(msgs)}. The "
+                    f"interval of d0 assumes it does: {ADVICE}")
+        warnings.warn(f"beacon {beacon} ({FIT_NAMES.get(method, method)}): {text}",
                       ModelCheckWarning, stacklevel=stacklevel + 1)

@@ -159,7 +159,7 @@ class SurveyPosterior:
             if bid in self.path_choices:
                 d["path_choice"] = self.path_choices[bid].to_dict()
             if bid in self.checks:
-                d["model_checks"] = checks_record(self.checks[bid])
+                d["model_checks"] = checks_record(self.checks[bid], "posterior")
             beacons[bid] = d
         return {"priors": self.priors, "ci": self.ci, "beacons": beacons,
                 "beacons_table": beacons_table(self.survey), "skipped": dict(self.skipped),
@@ -362,7 +362,7 @@ def sample(
                                     check=_non_finite_posterior)
     checks = {bid: check_posterior(survey.for_beacon(bid), r) for bid, r in results.items()}
     for bid, ch in checks.items():
-        warn_misfit(bid, ch, stacklevel=2)
+        warn_misfit(bid, ch, method="posterior", stacklevel=2)
     return SurveyPosterior(survey=survey, results=results, skipped=skipped, priors=priors,
                            ci=float(ci), options={"min_pings": min_pings, "path": path, **kwargs},
                            path_choices=choices, checks=checks)

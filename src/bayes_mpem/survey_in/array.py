@@ -67,10 +67,17 @@ class ArrayTravelTimes:
         Refracted rays (the speed is then the profile's scale); straight if None.
     surface_depth : float, default 0
         Depth (``-up``) of the profile's sea surface in the frame.
+    gradients : numpy.ndarray, optional
+        ``(n, m)`` design of the horizontal gradient terms (:func:`gradient_design`):
+        the prediction is multiplied by ``exp(-gradients @ g)``, ``g`` the last ``m``
+        entries of ``theta``.
     """
 
-    def __init__(self, shots, index, n_transponders, basis, *, profile=None, surface_depth=0.0):
+    def __init__(self, shots, index, n_transponders, basis, *, profile=None, surface_depth=0.0,
+                 gradients=None):
         self.index, self.K, self.basis = np.asarray(index), int(n_transponders), basis
+        self.grad = gradients
+        self.k = basis.shape[1]
         self.rows = [np.flatnonzero(self.index == k) for k in range(self.K)]
         self.legs = []
         for rows in self.rows:
@@ -84,7 +91,7 @@ class ArrayTravelTimes:
     @property
     def n_params(self) -> int:
         """Number of parameters: 3 per transponder and the speed coefficients."""
-        return 3 * self.K + self.basis.shape[1]
+        return 3 * self.K + self.k + (0 if self.grad is None else self.grad.shape[1])
 
     def _paths(self, theta):
         """Per shot: summed leg times (or lengths), their position derivatives, invalid count."""
@@ -103,11 +110,17 @@ class ArrayTravelTimes:
 
     def speed(self, theta):
         """Return the speed (or the profile's scale) at each shot, given ``theta``."""
-        return self.basis @ theta[3 * self.K:]
+        return self.basis @ theta[3 * self.K:3 * self.K + self.k]
+
+    def _gain(self, theta):
+        """``exp(-gamma)`` of the gradient terms at each shot (1 without them)."""
+        if self.grad is None:
+            return 1.0
+        return np.exp(-self.grad @ theta[3 * self.K + self.k:])
 
     def predict(self, theta):
         """Return the two-way travel time (s) of a true reply to each shot, given ``theta``."""
-        return self._paths(theta)[0] / self.speed(theta)
+        return self._paths(theta)[0] / self.speed(theta) * self._gain(theta)
 
     def jac(self, theta):
         """Return d(prediction)/d(theta), ``(shots, n_params)``."""
@@ -117,7 +130,11 @@ class ArrayTravelTimes:
         rows = np.arange(T.size)
         for c, d in enumerate((dE, dN, dU)):
             J[rows, 3 * self.index + c] = d / s
-        J[:, 3 * self.K:] = (-T / s**2)[:, None] * self.basis
+        J[:, 3 * self.K:3 * self.K + self.k] = (-T / s**2)[:, None] * self.basis
+        if self.grad is not None:
+            gain = self._gain(theta)
+            J[:, :3 * self.K + self.k] *= gain[:, None]
+            J[:, 3 * self.K + self.k:] = (-T / s * gain)[:, None] * self.grad
         return J
 
     def n_invalid(self, theta) -> int:
@@ -253,7 +270,7 @@ def _check_shots(shots, transponders):
 def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=None,
                  surface_depth=0.0, speed_intervals=None, knot_minutes=KNOT_MINUTES,
                  sound_speed=None, outliers="uniform", time_range=None, fixed=None,
-                 shift=False, max_iter=200, tol=1e-10) -> ArrayLocateResult:
+                 shift=False, gradients=False, max_iter=200, tol=1e-10) -> ArrayLocateResult:
     """Locate every transponder of an array by EM, classifying each shot true or spurious.
 
     Parameters
@@ -292,6 +309,12 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
         Fixed geometry: the transponders keep their prior positions relative to
         each other and the array moves as a rigid body (3 parameters); ``fixed``
         then applies to the shift's east, north, up (its first row).
+    gradients : bool, default False
+        Also fit GARPOS's horizontal gradient terms (:func:`gradient_design`): the
+        shallow ``a1`` (east, north; felt as the ship moves) and the deep ``a2`` (across
+        the array), each a spline on the speed's knots; with the smooth speed their
+        roughness penalty has its own weight, chosen the same way. Needs a track
+        that surrounds the array (``track_geometry``).
     max_iter : int, default 200
     tol : float, default 1e-10
         Stop when sigma (s) changes by less than this (and the smoothing weight by
@@ -333,6 +356,9 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
     if profile is not None:
         unit = float(profile.harmonic_mean(z_ship - surface_depth, z_tp - surface_depth))
     c0 = float(sound_speed or (unit if profile is not None else 1500.0))
+    if gradients and not (smooth or speed_intervals):
+        raise InputError("gradients: need a time-varying sound speed (the smooth default or "
+                         "speed_intervals > 0)")
     G = _free_map(K, _fixed_mask(fixed, transponders, ids, K), shift)
     # the robust start: straight rays, one speed
     straight = ArrayTravelTimes(sub, index, K, np.ones((len(sub), 1)))
@@ -342,20 +368,29 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
     theta = least_squares(resid, x0, jac=jac, loss="cauchy", f_scale=1e-3,
                           x_scale=x_scale).x
     basis = speed_basis(sub, speed_intervals, time_range)
+    design = gradient_design(sub, index, start, basis) if gradients else None
     model = ArrayTravelTimes(sub, index, K, basis, profile=profile,
-                             surface_depth=surface_depth)
+                             surface_depth=surface_depth, gradients=design)
     k = basis.shape[1]
+    kg = 0 if design is None else design.shape[1]
     nf = G.shape[1]
     coef0 = theta[-1] / unit
-    phi = np.concatenate([theta[:nf], np.full(k, coef0)])
-    x_scale = np.array([1.0] * nf + [abs(coef0) / 1500.0] * k)
-    resid, jac = _mapped(*weighted_residuals(t, model), G, start, k)
+    phi = np.concatenate([theta[:nf], np.full(k, coef0), np.zeros(kg)])
+    x_scale = np.array([1.0] * nf + [abs(coef0) / 1500.0] * k + [1e-4] * kg)
+    resid, jac = _mapped(*weighted_residuals(t, model), G, start, k + kg)
     windows = np.array([[t[index == j].min(), t[index == j].max()] for j in range(K)])
-    H = None
+    H = Hg = None
     if smooth:
-        H = np.zeros((nf + k, nf + k))
-        H[nf:, nf:] = speed_penalty(speed_intervals, time_range)
-        em = _SmoothArrayEM(t, resid, jac, x_scale, windows, index, outliers, H, coef0)
+        P = nf + k + kg
+        H = np.zeros((P, P))
+        H0 = speed_penalty(speed_intervals, time_range)
+        H[nf:nf + k, nf:nf + k] = H0
+        if kg:
+            Hg = np.zeros((P, P))
+            for j in range(4):
+                a = nf + k + j * k
+                Hg[a:a + k, a:a + k] = H0
+        em = _SmoothArrayEM(t, resid, jac, x_scale, windows, index, outliers, H, coef0, Hg)
     else:
         em = TravelTimeEM(t, resid, jac, x_scale, windows, index, outliers)
     run = em.run(phi, sigma_min=1e-7, tol=tol, max_iter=max_iter)
@@ -364,18 +399,25 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
     J = jac(phi, p)
     smoothing = None
     if smooth:
+        fixed_prior = None if Hg is None else run.params.lam_g * Hg
         cov_phi, cov_model_phi, smoothing = _smooth_covariance(
-            J, resid(phi, p), phi, H, sigma, run.params.lam, clusters)
+            J, resid(phi, p), phi, H, sigma, run.params.lam, clusters, fixed_prior)
+        if Hg is not None:
+            smoothing.update(gradient_weight=float(run.params.lam_g),
+                             log10_gradient_weight=float(np.log10(run.params.lam_g)))
         smoothing.update(knot_minutes=(time_range[1] - time_range[0]) / 60.0 / speed_intervals,
                          knot_minutes_asked=float(knot_minutes))
     else:
         cov_phi = robust_covariance(J, resid(phi, p), clusters)
         cov_model_phi = np.linalg.pinv(J.T @ J) * sigma**2
-    Gf = _full_map(G, k)
-    theta = _expand(phi, G, start, k)
+    Gf = _full_map(G, k + kg)
+    theta = _expand(phi, G, start, k + kg)
     cov, cov_model = Gf @ cov_phi @ Gf.T, Gf @ cov_model_phi @ Gf.T
     g = basis.mean(axis=0)
-    kk = slice(3 * K, None)
+    kk = slice(3 * K, 3 * K + k)
+    grad_record = None if not kg else _gradient_record(
+        theta, cov, 3 * K + k, g, unit * float(g @ theta[kk]) if profile is not None
+        else float(g @ theta[kk]))
     n_bad = model.n_invalid(theta)
     _warn(n_bad, 2 * t.size, run.converged, run.n_iter)
     return ArrayLocateResult(
@@ -389,7 +431,57 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
         model={"profile": profile, "surface_depth": float(surface_depth),
                "speed_intervals": int(speed_intervals), "time_range": time_range,
                "unit": unit, "n_invalid": n_bad, "smoothing": smoothing,
+               "gradients": grad_record,
                "positions": _positions_record(G, K, shift)})
+
+
+#: Length (m) the gradient regressors are divided by (GARPOS's L).
+GRADIENT_LENGTH = 1000.0
+#: Names of the gradient series, in ``theta``'s order.
+GRADIENT_NAMES = ("shallow_east", "shallow_north", "deep_east", "deep_north")
+
+
+def gradient_design(shots, index, start, basis) -> np.ndarray:
+    """Return the design of GARPOS's gradient terms: ``gamma = a1 . dp / L + a2 . dx / L``.
+
+    ``dp`` is the transducer's horizontal offset (mean of transmit and receive) from its
+    mean over the shots, ``dx`` the transponder's prior offset from the priors' mean
+    (held fixed, so ``gamma`` is linear in the coefficients), ``L`` = 1 km; ``a1`` and
+    ``a2`` (east, north) are splines on ``basis``.
+
+    Parameters
+    ----------
+    shots : pandas.DataFrame
+        ``e/n_tx``, ``e/n_rx``.
+    index : numpy.ndarray
+        Transponder number of each shot.
+    start : numpy.ndarray
+        ``(K, 3)`` prior positions.
+    basis : numpy.ndarray
+        ``(n, k)`` the speed's basis.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(n, 4 k)``: the columns of ``a1`` east, north, then ``a2`` east, north.
+    """
+    pe = 0.5 * (shots["e_tx"].to_numpy(float) + shots["e_rx"].to_numpy(float))
+    pn = 0.5 * (shots["n_tx"].to_numpy(float) + shots["n_rx"].to_numpy(float))
+    dx = start[index, :2] - start[:, :2].mean(axis=0)
+    regs = (pe - pe.mean(), pn - pn.mean(), dx[:, 0], dx[:, 1])
+    return np.hstack([basis * (r / GRADIENT_LENGTH)[:, None] for r in regs])
+
+
+def _gradient_record(theta, cov, first, g, v0):
+    """Return the time-averaged gradients (m/s)/km with their sds (``summary.json``)."""
+    k = g.size
+    out = {"unit": "(m/s)/km", "quantity": "time average over the survey of GARPOS's gradV "
+           "(a V0): shallow a1 (ship's offset), deep a2 (transponder's offset)"}
+    for j, name in enumerate(GRADIENT_NAMES):
+        sl = slice(first + j * k, first + (j + 1) * k)
+        out[name] = {"mean": float(g @ theta[sl]) * v0,
+                     "sd": float(np.sqrt(max(g @ cov[sl, sl] @ g, 0.0))) * v0}
+    return out
 
 
 def _fixed_mask(fixed, transponders, ids, K):
@@ -450,9 +542,10 @@ class _SmoothFit(NamedTuple):
     sigma: float
     weights: np.ndarray
     lam: float  # smoothing weight: prior precision lam * H on the coefficients
+    lam_g: float = None  # the gradients' weight
 
 
-def log_evidence(J, r, theta, H, sigma, lam, rank=None):
+def log_evidence(J, r, theta, H, sigma, lam, rank=None, H_fixed=None):
     """Linearised log marginal likelihood of a penalised weighted least-squares fit.
 
     The model ``r(theta + d) = r + J d`` (weighted residuals), Gaussian noise of sd
@@ -473,6 +566,8 @@ def log_evidence(J, r, theta, H, sigma, lam, rank=None):
     sigma, lam : float
     rank : int, optional
         Of ``H`` (default computed).
+    H_fixed : numpy.ndarray, optional
+        A further prior precision, weight included (its determinant is left out).
 
     Returns
     -------
@@ -499,7 +594,8 @@ def log_evidence(J, r, theta, H, sigma, lam, rank=None):
         JtJ, Jtr = J[0] / sigma**2, J[1] / sigma**2
     else:
         JtJ, Jtr = J.T @ J / sigma**2, J.T @ r / sigma**2
-    A = JtJ + lam * H
+    Q = lam * H if H_fixed is None else lam * H + H_fixed
+    A = JtJ + Q
     d = np.diag(JtJ).copy()
     d[d <= 0] = 1.0
     s = 1.0 / np.sqrt(d)
@@ -507,20 +603,19 @@ def log_evidence(J, r, theta, H, sigma, lam, rank=None):
         c = cho_factor(A * s[:, None] * s[None, :])
     except np.linalg.LinAlgError:
         return -np.inf, np.zeros_like(theta), A
-    step = s * cho_solve(c, -s * (Jtr + lam * (H @ theta)))
+    step = s * cho_solve(c, -s * (Jtr + Q @ theta))
+    th = theta + step
     if isinstance(J, tuple):  # ||r + J d||^2 = r'r + 2 d'J'r + d'J'J d
         rr2 = J[2] + 2 * step @ J[1] + step @ J[0] @ step
-        th = theta + step
-        logml = (-0.5 * (rr2 / sigma**2 + lam * th @ H @ th) + 0.5 * rank * np.log(lam)
-                 - np.sum(np.log(np.diag(c[0]))))
-        return float(logml), step, A
-    th, rr = theta + step, r + J @ step
-    logml = (-0.5 * (rr @ rr / sigma**2 + lam * th @ H @ th) + 0.5 * rank * np.log(lam)
+    else:
+        rr = r + J @ step
+        rr2 = rr @ rr
+    logml = (-0.5 * (rr2 / sigma**2 + th @ Q @ th) + 0.5 * rank * np.log(lam)
              - np.sum(np.log(np.diag(c[0]))))
     return float(logml), step, A
 
 
-def choose_smoothing(J, r, theta, H, sigma, lam=None):
+def choose_smoothing(J, r, theta, H, sigma, lam=None, H_fixed=None):
     """Return the smoothing weight of largest :func:`log_evidence` (a 1-D search).
 
     A grid of half-decades about ``lam`` (or, without one, of decades over the whole
@@ -536,6 +631,8 @@ def choose_smoothing(J, r, theta, H, sigma, lam=None):
         As for :func:`log_evidence`.
     lam : float, optional
         The previous weight.
+    H_fixed : numpy.ndarray, optional
+        A further prior precision held fixed (:func:`log_evidence`).
 
     Returns
     -------
@@ -547,7 +644,7 @@ def choose_smoothing(J, r, theta, H, sigma, lam=None):
     pre = (J.T @ J, J.T @ r, float(r @ r))
 
     def f(x):
-        return log_evidence(pre, r, theta, H, sigma, 10.0 ** x, rank)[0]
+        return log_evidence(pre, r, theta, H, sigma, 10.0 ** x, rank, H_fixed)[0]
 
     pen = np.diag(H) > 0
     ratio = np.trace(pre[0][np.ix_(pen, pen)]) / sigma**2 / np.trace(H)
@@ -587,11 +684,11 @@ class _SmoothArrayEM(TravelTimeEM):
     ``tol`` and the weight by less than 1 %.
     """
 
-    def __init__(self, t, resid, jac, x_scale, windows, index, outliers, H, coef0):
+    def __init__(self, t, resid, jac, x_scale, windows, index, outliers, H, coef0, Hg=None):
         super().__init__(t, resid, jac, x_scale, windows, index, outliers)
-        e, U = np.linalg.eigh(H)
-        keep = e > 1e-10 * e.max()
-        self.H, self.root = H, np.sqrt(e[keep])[:, None] * U[:, keep].T
+        self.H, self.Hg = H, Hg
+        self.root = _root(H)
+        self.root_g = None if Hg is None else _root(Hg)
 
     def run(self, theta, *, sigma_min, **kw):
         """Return the EM's run from ``theta`` (as :meth:`TravelTimeEM.run`)."""
@@ -604,9 +701,17 @@ class _SmoothArrayEM(TravelTimeEM):
 
     def m_step(self, fit, p):
         """Return the new parameters given the probabilities ``p`` of true shots."""
-        lam = choose_smoothing(self.jac(fit.theta, p), self.resid(fit.theta, p), fit.theta,
-                               self.H, fit.sigma, fit.lam)
-        root = np.sqrt(lam) * fit.sigma * self.root
+        J, r0 = self.jac(fit.theta, p), self.resid(fit.theta, p)
+        lam_g = fit.lam_g
+        if self.Hg is None:
+            lam = choose_smoothing(J, r0, fit.theta, self.H, fit.sigma, fit.lam)
+            root = np.sqrt(lam) * fit.sigma * self.root
+        else:
+            if lam_g is None:  # start the gradients stiff: they enter as they are supported
+                lam_g = 1e6 * (fit.lam or choose_smoothing(J, r0, fit.theta, self.H, fit.sigma))
+            lam = choose_smoothing(J, r0, fit.theta, self.H, fit.sigma, fit.lam, lam_g * self.Hg)
+            lam_g = choose_smoothing(J, r0, fit.theta, self.Hg, fit.sigma, lam_g, lam * self.H)
+            root = fit.sigma * np.vstack([np.sqrt(lam) * self.root, np.sqrt(lam_g) * self.root_g])
 
         def aug(th):
             return np.concatenate([self.resid(th, p), root @ th])
@@ -623,16 +728,26 @@ class _SmoothArrayEM(TravelTimeEM):
         else:
             shares = np.clip(np.bincount(self.index, p, k) / np.bincount(self.index, minlength=k),
                              1e-6, 1 - 1e-6)
-        return _SmoothFit(theta, r, sigma, shares, lam)
+        return _SmoothFit(theta, r, sigma, shares, lam, lam_g)
 
     def change(self, old, new, gain):
-        """Return the change of ``sigma`` (s); infinite while the weight still moves."""
+        """Return the change of ``sigma`` (s); infinite while a weight still moves."""
         if old.lam is None or abs(np.log(new.lam / old.lam)) > 0.01:
+            return np.inf
+        if new.lam_g is not None and (old.lam_g is None
+                                      or abs(np.log(new.lam_g / old.lam_g)) > 0.01):
             return np.inf
         return abs(new.sigma - old.sigma)
 
 
-def _smooth_covariance(J, r, theta, H, sigma, lam, clusters):
+def _root(H):
+    """Return ``R`` with ``R'R = H`` (rows for the positive eigenvalues)."""
+    e, U = np.linalg.eigh(H)
+    keep = e > 1e-10 * e.max()
+    return np.sqrt(e[keep])[:, None] * U[:, keep].T
+
+
+def _smooth_covariance(J, r, theta, H, sigma, lam, clusters, H_fixed=None):
     """Covariance of a smooth-speed fit, averaged over the smoothing weights near the best.
 
     For each weight ``lam_g = lam 10^x`` (``x`` in :data:`WEIGHT_GRID`): the step to
@@ -660,10 +775,11 @@ def _smooth_covariance(J, r, theta, H, sigma, lam, clusters):
     rows = []
     for x in WEIGHT_GRID:
         lg = lam * 10.0 ** x
-        logml, step, A = log_evidence(J, r, theta, H, sigma, lg, rank)
+        logml, step, A = log_evidence(J, r, theta, H, sigma, lg, rank, H_fixed)
         Ainv = np.linalg.inv(A)
         edf = float(np.trace(Ainv @ (J.T @ J)) / sigma**2)
-        C = Ainv @ (meat * n_clusters / max(n_clusters - edf, 1.0) + lg * H) @ Ainv
+        prior = lg * H if H_fixed is None else lg * H + H_fixed
+        C = Ainv @ (meat * n_clusters / max(n_clusters - edf, 1.0) + prior) @ Ainv
         rows.append((x, logml, step, C, Ainv, edf))
     ll = np.array([row[1] for row in rows])
     w = np.exp(ll - ll.max())

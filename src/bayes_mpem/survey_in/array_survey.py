@@ -117,8 +117,8 @@ def speed_series(fit, n=121):
     lo, hi = fit.model["time_range"]
     t = np.linspace(lo, hi, n)
     B = speed_basis(pd.DataFrame({"time": t}), fit.model["speed_intervals"], (lo, hi))
-    k = B.shape[1]
-    C = fit.cov[-k:, -k:]
+    k, first = B.shape[1], 3 * len(fit.ids)
+    C = fit.cov[first:first + k, first:first + k]
     unit = fit.model["unit"]
     sd = np.sqrt(np.clip(np.einsum("ij,jk,ik->i", B, C, B), 0.0, None)) * unit
     return {"time_s": t.tolist(), "mean_m_s": (B @ fit.speed_coef * unit).tolist(),
@@ -290,7 +290,8 @@ def position_constraints(header, ids=None):
 
 def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
                         speed_intervals=None, surface_depth=None,
-                        knot_minutes=KNOT_MINUTES, shift=None) -> SurveyInResult:
+                        knot_minutes=KNOT_MINUTES, shift=None,
+                        gradients=False) -> SurveyInResult:
     """Locate every transponder of a GNSS-A array survey together.
 
     Parameters
@@ -315,6 +316,9 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
         Solve a rigid shift of the prior geometry; default from the site file's
         sigmas (:func:`position_constraints`), which also fix the coordinates
         whose sigma is 0.
+    gradients : bool, default False
+        Fit GARPOS's shallow and deep horizontal gradients too (``summary.json``
+        ``gradients``: their time averages in (m/s)/km).
 
     Returns
     -------
@@ -339,7 +343,8 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
     fit = locate_array(shots, h["transponders"], profile=prof,
                        surface_depth=float(surface_depth),
                        speed_intervals=speed_intervals, outliers=outliers,
-                       knot_minutes=knot_minutes, fixed=fixed, shift=shift)
+                       knot_minutes=knot_minutes, fixed=fixed, shift=shift,
+                       gradients=gradients)
     origin = (h["lat"], h["lon"], h.get("height", 0.0)) if "lat" in h else None
     counts = np.bincount(fit.index, minlength=len(fit.ids))
     out = {tid: _transponder_entry(fit, k, ci, origin, counts[k])
@@ -381,7 +386,7 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
                   "interrogation)",
         "outliers": outliers, "ssp": None if prof is None else prof.source,
         "speed_intervals": int(fit.model["speed_intervals"]), "fit_lag": False,
-        "positions": fit.model["positions"],
+        "positions": fit.model["positions"], "gradients": fit.model.get("gradients"),
         "geometry": {"frame": "local east, north, up about the origin (m)",
                      "origin": None if origin is None else dict(
                          zip(("lat", "lon", "height"), map(float, origin), strict=True)),

@@ -596,9 +596,9 @@ def log_evidence(J, r, theta, H, sigma, lam, rank=None, H_fixed=None):
         JtJ, Jtr = J.T @ J / sigma**2, J.T @ r / sigma**2
     Q = lam * H if H_fixed is None else lam * H + H_fixed
     A = JtJ + Q
-    d = np.diag(JtJ).copy()
+    d = np.diag(A).copy()
     d[d <= 0] = 1.0
-    s = 1.0 / np.sqrt(d)
+    s = 1.0 / np.sqrt(d)  # unit diagonal: log|A| = log|S A S| + sum(log d)
     try:
         c = cho_factor(A * s[:, None] * s[None, :])
     except np.linalg.LinAlgError:
@@ -611,7 +611,7 @@ def log_evidence(J, r, theta, H, sigma, lam, rank=None, H_fixed=None):
         rr = r + J @ step
         rr2 = rr @ rr
     logml = (-0.5 * (rr2 / sigma**2 + th @ Q @ th) + 0.5 * rank * np.log(lam)
-             - np.sum(np.log(np.diag(c[0]))))
+             - np.sum(np.log(np.diag(c[0]))) - 0.5 * np.sum(np.log(d)))
     return float(logml), step, A
 
 
@@ -620,7 +620,7 @@ def choose_smoothing(J, r, theta, H, sigma, lam=None, H_fixed=None):
 
     A grid of half-decades about ``lam`` (or, without one, of decades over the whole
     range), re-centred while the best is at an edge, then a parabola through the best
-    three points. The weight stays within ``10^-10`` and ``10^8`` times the ratio of the
+    three points. The weight stays within ``10^-8`` and ``10^5`` times the ratio of the
     data's information on the coefficients to the penalty's (a bound is returned
     where the evidence keeps rising towards it: the data want no more, or no less,
     smoothing).
@@ -648,7 +648,7 @@ def choose_smoothing(J, r, theta, H, sigma, lam=None, H_fixed=None):
 
     pen = np.diag(H) > 0
     ratio = np.trace(pre[0][np.ix_(pen, pen)]) / sigma**2 / np.trace(H)
-    lo, hi = np.log10(ratio) - 10.0, np.log10(ratio) + 8.0  # data-relative bounds
+    lo, hi = np.log10(ratio) - 8.0, np.log10(ratio) + 5.0  # data-relative bounds
     x = (np.arange(lo, hi + 0.01, 1.0) if lam is None else
          np.clip(np.log10(lam), lo, hi) + np.arange(-2.0, 2.01, 0.5))
     for _ in range(40):

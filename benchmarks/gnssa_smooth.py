@@ -14,9 +14,15 @@ the knot spacing moves each centre coordinate by less than its reported sd, and 
 seconds per fit (default knots; the first fit of the process is left out of the timing
 because it warms up the ray tracer).
 
-Writes the section ``gnssa-smooth`` of ``docs/gnssa.md`` and prints it::
+``SIM_GRADIENTS`` 1 simulates the horizontal gradients (0.5 and 0.1 (m/s)/km at the surface
+and through the column, turning once in 12 h); ``FIT_GRADIENTS`` 1 fits GARPOS's gradient
+terms (``gradients=True``) and reports how often their time averages are within 2 sd of the
+truth's.
 
-    python benchmarks/gnssa_smooth.py [N_SEEDS] [HOURS]
+Writes the section ``gnssa-smooth`` (``gnssa-smooth-SIM-FIT`` with gradient options) of
+``docs/gnssa.md`` and prints it::
+
+    python benchmarks/gnssa_smooth.py [N_SEEDS] [HOURS] [SIM_GRADIENTS] [FIT_GRADIENTS]
 """
 
 from __future__ import annotations
@@ -48,25 +54,38 @@ def _centre(res):
     return m, np.sqrt(np.diag(C)), fit
 
 
-def run(n_seeds, hours):
+GRAD_TRUTH = {"shallow_east": "grad1_east", "shallow_north": "grad1_north",
+              "deep_east": "grad2_east", "deep_north": "grad2_north"}
+
+
+def run(n_seeds, hours, sim_grad=False, fit_grad=False):
     """Return the per-seed records."""
     locate_array_survey(simulate_gnssa(hours=0.5, rng=999, speed_model="field").raw())  # warm
     rows = []
     for seed in range(n_seeds):
         sim = simulate_gnssa(hours=hours, rng=seed, speed_model="field", track="star+circle",
-                             gradients=False)
+                             gradients=sim_grad)
         raw = sim.raw()
-        truth = sim.truth["transponders"][["east", "north", "up"]].to_numpy().mean(axis=0)
+        true_tp = sim.truth["transponders"][["east", "north", "up"]].to_numpy()
+        truth = true_tp.mean(axis=0)
+        rec = sim.truth_record()["gradients"]
         out = {}
         for km in SPACINGS:
             t0 = time.perf_counter()
-            m, sd, fit = _centre(locate_array_survey(raw, knot_minutes=km))
+            m, sd, fit = _centre(locate_array_survey(raw, knot_minutes=km,
+                                                     gradients=fit_grad))
             out[km] = (m, sd, time.perf_counter() - t0, fit)
         m, sd, secs, fit = out[5.0]
         err = m - truth
         moves = np.array([np.abs(out[km][0] - m) < sd for km in (2.5, 10.0)])
         sm = fit.model["smoothing"]
+        grad_z = None
+        if fit_grad:
+            g = fit.model["gradients"]
+            grad_z = np.array([(g[k]["mean"] - (np.mean(rec[v]) if rec else 0.0)) / g[k]["sd"]
+                               for k, v in GRAD_TRUTH.items()])
         rows.append({"seed": seed, "err": err, "sd": sd, "z": err / sd, "moves_ok": moves,
+                     "tp_err": np.abs(fit.enu - true_tp).max(), "grad_z": grad_z,
                      "moves": np.array([out[km][0] - m for km in (2.5, 10.0)]),
                      "seconds": secs, "n_shots": int(fit.index.size),
                      "log10_weight": sm["log10_weight"], "edf": sm["effective_dof"]})
@@ -78,7 +97,7 @@ def run(n_seeds, hours):
     return rows
 
 
-def report(rows, n_seeds, hours, seconds):
+def report(rows, n_seeds, hours, seconds, sim_grad=False, fit_grad=False):
     """Return the Markdown section."""
     err = np.array([r["err"] for r in rows])
     z = np.array([r["z"] for r in rows])
@@ -91,12 +110,13 @@ def report(rows, n_seeds, hours, seconds):
     secs = np.array([r["seconds"] for r in rows])
     shots = np.array([r["n_shots"] for r in rows])
     return "\n".join([
-        f"Written by `python benchmarks/gnssa_smooth.py {n_seeds} {hours:g}` ({machine()}; "
-        f"{seconds:.0f} s; git {git}).",
+        f"Written by `python benchmarks/gnssa_smooth.py {n_seeds} {hours:g} {int(sim_grad)} "
+        f"{int(fit_grad)}` ({machine()}; {seconds:.0f} s; git {git}).",
         "",
-        f"{n_seeds} campaigns of {hours:g} h (`star+circle`, the sound-speed field, no "
-        f"gradients; {int(np.median(shots))} replies each, median), located with the "
-        "defaults (smooth spline, knots every 5 min), then with knots every 2.5 and 10 min.",
+        f"{n_seeds} campaigns of {hours:g} h (`star+circle`, the sound-speed field, "
+        f"{'with' if sim_grad else 'no'} gradients; {int(np.median(shots))} replies each, "
+        "median), located with the defaults (smooth spline, knots every 5 min"
+        f"{', gradients=True' if fit_grad else ''}), then with knots every 2.5 and 10 min.",
         "",
         "| measure | value | goal |",
         "|---|---|---|",
@@ -123,7 +143,16 @@ def report(rows, n_seeds, hours, seconds):
         f"({min(r['log10_weight'] for r in rows):.2f} to "
         f"{max(r['log10_weight'] for r in rows):.2f}) | |",
         f"| effective degrees of freedom of the fit, median | "
-        f"{np.median([r['edf'] for r in rows]):.1f} | |"])
+        f"{np.median([r['edf'] for r in rows]):.1f} | |",
+        f"| largest transponder error, median (largest) (cm) | "
+        f"{100 * np.median([r['tp_err'] for r in rows]):.2f} "
+        f"({100 * max(r['tp_err'] for r in rows):.2f}) | 3 |"]
+        + ([] if not fit_grad else [
+            "| time-averaged gradients within 2 sd of the truth, shallow E / N, deep E / N "
+            "(% of seeds) | " + " / ".join(
+                f"{100 * v:.0f}" for v in np.mean([np.abs(r['grad_z']) < 2 for r in rows],
+                                                  axis=0))
+            + " | >= 90 without gradients |"]))
 
 
 def main(argv=None):
@@ -131,11 +160,14 @@ def main(argv=None):
     argv = sys.argv[1:] if argv is None else argv
     n_seeds = int(argv[0]) if argv else 20
     hours = float(argv[1]) if len(argv) > 1 else 6.0
+    sim_grad = len(argv) > 2 and argv[2] == "1"
+    fit_grad = len(argv) > 3 and argv[3] == "1"
     t0 = time.perf_counter()
-    rows = run(n_seeds, hours)
-    text = report(rows, n_seeds, hours, time.perf_counter() - t0)
+    rows = run(n_seeds, hours, sim_grad, fit_grad)
+    text = report(rows, n_seeds, hours, time.perf_counter() - t0, sim_grad, fit_grad)
     print(text)
-    write_section(ROOT / "docs" / "gnssa.md", "gnssa-smooth", text)
+    name = "gnssa-smooth" + (f"-{int(sim_grad)}{int(fit_grad)}" if sim_grad or fit_grad else "")
+    write_section(ROOT / "docs" / "gnssa.md", name, text)
 
 
 if __name__ == "__main__":

@@ -267,6 +267,8 @@ def _check_shots(shots, transponders):
     return ids, skipped, index
 
 
+# The steps of the array's fit (checks, robust start, model, EM, covariance, result) read
+# long function: each step is a few lines and they read best in sequence
 def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=None,
                  surface_depth=0.0, speed_intervals=None, knot_minutes=KNOT_MINUTES,
                  sound_speed=None, outliers="uniform", time_range=None, fixed=None,
@@ -581,7 +583,7 @@ def log_evidence(J, r, theta, H, sigma, lam, rank=None, H_fixed=None):
     Examples
     --------
     >>> import numpy as np
-    >>> J = np.eye(3); H = np.diag([0.0, 1.0, 1.0]); r = np.array([0.0, -1.0, 1.0])
+    >>> J = np.eye(3); H = np.diag([0.0, 1.0, 1.0]); r = np.array([0.0, -3.0, 3.0])
     >>> a = log_evidence(J, r, np.zeros(3), H, 1.0, 0.5)[0]
     >>> b = log_evidence(J, r, np.zeros(3), H, 1.0, 50.0)[0]
     >>> bool(a > b)

@@ -271,7 +271,7 @@ def position_constraints(header, ids=None):
     >>> sig = pd.DataFrame({"east": [0.0, 0.0], "north": [0.0, 0.0], "up": [0.0, 0.0]},
     ...                    index=["A", "B"])
     >>> fixed, shift = position_constraints({"position_sigmas": sig,
-    ...                                      "centre_sigmas": [3.0, 3.0, 0.0]})
+    ...                                      "centre_sigmas": [3.0, 3.0, 0.0]}, ["A", "B"])
     >>> shift, fixed[0].tolist()
     (True, [False, False, True])
     """

@@ -181,3 +181,21 @@ def test_gradients_of_garpos_own_model_are_recovered():
         assert abs(g[name]["mean"] - np.mean(rec[key])) < 3 * g[name]["sd"] + 0.005, name
     truth = sim.truth["transponders"].to_numpy()
     assert np.abs(res.fits["array"].enu - truth).max() < 0.05
+
+
+def test_the_gradient_gate_says_why():
+    from bayes_mpem.survey_in.array_survey import gradient_gate
+
+    station = simulate_gnssa(hours=0.5, rng=17, track="station")
+    fit, why = gradient_gate(array_shots(station.raw()), station.header["transponders"])
+    assert not fit and "not identifiable" in why
+    two = simulate_gnssa(n_transponders=2, hours=0.5, rng=17, track="circle")
+    fit, why = gradient_gate(array_shots(two.raw()), two.header["transponders"])
+    assert not fit and "3 or more" in why
+    circle = simulate_gnssa(hours=1.0, rng=17, track="circle")
+    shots = array_shots(circle.raw())
+    assert gradient_gate(shots, circle.header["transponders"])[0]
+    assert not gradient_gate(shots, circle.header["transponders"], speed_intervals=0)[0]
+    res = locate_array_survey(station.raw())
+    assert res.summary["gradients"]["fitted"] is False
+    assert "not asked for" in res.summary["gradients"]["reason"]

@@ -288,6 +288,47 @@ def position_constraints(header, ids=None):
     return (zero if zero.any() else None), False
 
 
+#: Least ``spread_over_depth`` of the track (:func:`track_geometry`) for the gradients.
+MIN_SPREAD = 0.3
+
+
+def gradient_gate(shots, priors, speed_intervals=None):
+    """Return whether the survey can fit the horizontal gradients, and why (not).
+
+    Fitted when the sound speed varies in time, three transponders or more reply and
+    the ship's track spreads over at least :data:`MIN_SPREAD` of the water depth in
+    its least-spread direction (a ship circling or crossing the array; a glider holding
+    station cannot tell the shallow gradient from the array's position).
+
+    Parameters
+    ----------
+    shots : pandas.DataFrame
+        The shots (``transponder``, the transducer's ``e/n/u_tx`` and ``_rx``).
+    priors : pandas.DataFrame
+        ``east``, ``north``, ``up`` by transponder id.
+    speed_intervals : int, optional
+        As for :func:`locate_array_survey` (0: one speed, no gradients).
+
+    Returns
+    -------
+    fit : bool
+    reason : str
+    """
+    if speed_intervals == 0:
+        return False, "one sound speed for the survey (speed_intervals=0)"
+    ids = [t for t in map(str, priors.index)
+           if int(np.sum(shots["transponder"].astype(str) == t)) >= 6]
+    if len(ids) < 3:
+        return False, f"{len(ids)} transponders located; the deep gradient needs 3 or more"
+    geo = track_geometry(shots, {t: priors.loc[t, ["east", "north", "up"]].to_numpy(float)
+                                 for t in ids})
+    spread = geo["spread_over_depth"]
+    if spread < MIN_SPREAD:
+        return False, (f"the track spreads over {spread:.2f} of the depth (need "
+                       f"{MIN_SPREAD}): the shallow gradient is not identifiable")
+    return True, f"the track spreads over {spread:.2f} of the depth, {len(ids)} transponders"
+
+
 def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
                         speed_intervals=None, surface_depth=None,
                         knot_minutes=KNOT_MINUTES, shift=None,
@@ -316,9 +357,13 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
         Solve a rigid shift of the prior geometry; default from the site file's
         sigmas (:func:`position_constraints`), which also fix the coordinates
         whose sigma is 0.
-    gradients : bool, default False
+    gradients : bool or None, default False
         Fit GARPOS's shallow and deep horizontal gradients too (``summary.json``
-        ``gradients``: their time averages in (m/s)/km).
+        ``gradients``: their time averages in (m/s)/km). None: where
+        :func:`gradient_gate` allows (not the default: on short campaigns its test
+        lets through tracks on which the gradients trade off against the positions
+        by decimetres; the gate is not calibrated yet). ``summary.json`` records the
+        gate's verdict either way.
 
     Returns
     -------
@@ -336,6 +381,11 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
     h = raw.header
     if surface_depth is None:
         surface_depth = float(h.get("surface_depth", 0.0))
+    gate, why = gradient_gate(shots, h["transponders"], speed_intervals)
+    if gradients is None:
+        gradients = gate
+    else:
+        why = ("asked for" if gradients else "not asked for") + f" (the gate: {why})"
     fixed, auto_shift = position_constraints(h)
     shift = auto_shift if shift is None else bool(shift)
     if shift and not auto_shift:
@@ -386,7 +436,9 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
                   "interrogation)",
         "outliers": outliers, "ssp": None if prof is None else prof.source,
         "speed_intervals": int(fit.model["speed_intervals"]), "fit_lag": False,
-        "positions": fit.model["positions"], "gradients": fit.model.get("gradients"),
+        "positions": fit.model["positions"],
+        "gradients": {"fitted": bool(gradients), "reason": why,
+                      **(fit.model.get("gradients") or {})},
         "geometry": {"frame": "local east, north, up about the origin (m)",
                      "origin": None if origin is None else dict(
                          zip(("lat", "lon", "height"), map(float, origin), strict=True)),

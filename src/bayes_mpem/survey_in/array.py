@@ -45,6 +45,8 @@ MIN_SHOTS = 6
 KNOT_MINUTES = 5.0
 #: Decades about the best smoothing weight over which the intervals average (step 0.25).
 WEIGHT_GRID = np.arange(-2.0, 2.0001, 0.25)
+#: M-steps after which the smoothing weights are held (:class:`_SmoothArrayEM`).
+FREEZE_AFTER = 12
 #: Columns :func:`locate_array` needs.
 SHOT_COLUMNS = ("transponder", "twtt", "time", "e_tx", "n_tx", "u_tx", "e_rx", "n_rx", "u_rx")
 
@@ -683,7 +685,8 @@ class _SmoothArrayEM(TravelTimeEM):
     weighted least squares from the current point (``sigma^2 lam H`` added to the
     normal equations: the residuals are augmented by a root of ``H``), then ``sigma``
     and the shares in closed form. Converged when ``sigma`` changes by less than
-    ``tol`` and the weight by less than 1 %.
+    ``tol`` and the weight by less than 1 %; after :data:`FREEZE_AFTER` M-steps the
+    weights are held (two weights chosen in turn may alternate between two values).
     """
 
     def __init__(self, t, resid, jac, x_scale, windows, index, outliers, H, coef0, Hg=None):
@@ -691,6 +694,7 @@ class _SmoothArrayEM(TravelTimeEM):
         self.H, self.Hg = H, Hg
         self.root = _root(H)
         self.root_g = None if Hg is None else _root(Hg)
+        self.n_steps = 0
 
     def run(self, theta, *, sigma_min, **kw):
         """Return the EM's run from ``theta`` (as :meth:`TravelTimeEM.run`)."""
@@ -705,7 +709,12 @@ class _SmoothArrayEM(TravelTimeEM):
         """Return the new parameters given the probabilities ``p`` of true shots."""
         J, r0 = self.jac(fit.theta, p), self.resid(fit.theta, p)
         lam_g = fit.lam_g
-        if self.Hg is None:
+        self.n_steps += 1
+        if self.n_steps > FREEZE_AFTER:  # the weights stop moving (a 2-cycle cannot go on)
+            lam = fit.lam
+            root = fit.sigma * (np.sqrt(lam) * self.root if self.Hg is None else np.vstack(
+                [np.sqrt(lam) * self.root, np.sqrt(lam_g) * self.root_g]))
+        elif self.Hg is None:
             lam = choose_smoothing(J, r0, fit.theta, self.H, fit.sigma, fit.lam)
             root = np.sqrt(lam) * fit.sigma * self.root
         else:

@@ -685,8 +685,9 @@ class _SmoothArrayEM(TravelTimeEM):
     weighted least squares from the current point (``sigma^2 lam H`` added to the
     normal equations: the residuals are augmented by a root of ``H``), then ``sigma``
     and the shares in closed form. Converged when ``sigma`` changes by less than
-    ``tol`` and the weight by less than 1 %; after :data:`FREEZE_AFTER` M-steps the
-    weights are held (two weights chosen in turn may alternate between two values).
+    ``tol`` and the weight by less than 1 %; with the gradients' weight too, both are
+    held after :data:`FREEZE_AFTER` M-steps (chosen in turn, they may alternate between
+    two values).
     """
 
     def __init__(self, t, resid, jac, x_scale, windows, index, outliers, H, coef0, Hg=None):
@@ -710,10 +711,10 @@ class _SmoothArrayEM(TravelTimeEM):
         J, r0 = self.jac(fit.theta, p), self.resid(fit.theta, p)
         lam_g = fit.lam_g
         self.n_steps += 1
-        if self.n_steps > FREEZE_AFTER:  # the weights stop moving (a 2-cycle cannot go on)
-            lam = fit.lam
-            root = fit.sigma * (np.sqrt(lam) * self.root if self.Hg is None else np.vstack(
-                [np.sqrt(lam) * self.root, np.sqrt(lam_g) * self.root_g]))
+        if self.Hg is not None and self.n_steps > FREEZE_AFTER:  # two weights: held, so
+            lam = fit.lam  # that choosing them in turn cannot alternate for ever
+            root = fit.sigma * np.vstack([np.sqrt(lam) * self.root,
+                                          np.sqrt(lam_g) * self.root_g])
         elif self.Hg is None:
             lam = choose_smoothing(J, r0, fit.theta, self.H, fit.sigma, fit.lam)
             root = np.sqrt(lam) * fit.sigma * self.root

@@ -433,7 +433,8 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
         "n_pings": int(n), "n_skipped_lines": int(len(raw.skipped)),
         "skipped_transponders": dict(fit.skipped),
         "method": f"array EM, {rays}; intervals approximate (Wald, cluster-robust by "
-                  "interrogation)",
+                  "interrogation" + (", averaged over the sound speed's smoothing weights)"
+                                     if fit.model.get("smoothing") else ")"),
         "outliers": outliers, "ssp": None if prof is None else prof.source,
         "speed_intervals": int(fit.model["speed_intervals"]), "fit_lag": False,
         "positions": fit.model["positions"],

@@ -46,11 +46,18 @@ def test_array_jacobian_matches_finite_differences(refracted):
 def test_a_constant_profile_gives_the_straight_ray_fit():
     sim = simulate_gnssa(n_transponders=3, hours=0.5, rng=3)
     shots = array_shots(sim.raw())
-    straight = locate_array(shots, sim.header["transponders"], sound_speed=1500.0)
-    flat = locate_array(shots, sim.header["transponders"],
+    straight = locate_array(shots, sim.header["transponders"], sound_speed=1500.0,
+                            speed_intervals=0)
+    flat = locate_array(shots, sim.header["transponders"], speed_intervals=0,
                         profile=SoundSpeedProfile.constant(1500.0))
     np.testing.assert_allclose(flat.enu, straight.enu, atol=1e-5)
     assert flat.sound_speed == pytest.approx(straight.sound_speed, abs=1e-6)
+    # the smooth default: the weight is found on a grid that depends on the coefficients'
+    # unit (a scale, or m/s), so the two agree to its interpolation
+    straight = locate_array(shots, sim.header["transponders"], sound_speed=1500.0)
+    flat = locate_array(shots, sim.header["transponders"],
+                        profile=SoundSpeedProfile.constant(1500.0))
+    np.testing.assert_allclose(flat.enu, straight.enu, atol=1e-3)
 
 
 @pytest.fixture(scope="module")
@@ -118,9 +125,11 @@ def test_summary_keeps_the_locate_shape_and_adds_enu(located):
 def test_a_time_varying_speed_needs_its_intervals():
     sim = simulate_gnssa(hours=1.0, rng=5, speed_amplitude=1.0)
     raw = sim.raw()
-    one = locate_array_survey(raw).fits["array"]
+    one = locate_array_survey(raw, speed_intervals=0).fits["array"]
     timed = locate_array_survey(raw, speed_intervals=4).fits["array"]
     assert one.sigma > 2 * timed.sigma  # the unmodelled change is most of the misfit
+    smooth = locate_array_survey(raw).fits["array"]  # the default: the data choose
+    assert smooth.sigma < 1.1 * timed.sigma
 
 
 def test_a_transponder_with_too_few_shots_is_left_out_with_the_reason(tmp_path):

@@ -172,9 +172,11 @@ def _add_locate(sub):
                         "'survey' (the survey's own: SeaGap's ss_prof.inp, GARPOS's svp.csv, "
                         "GNATSS's sound_speed); 'straight' for straight rays; default straight "
                         "rays, except the survey's own profile for GARPOS and GNATSS")
-    p.add_argument("--speed-intervals", type=opt.at_least(0, 1000), default=0, metavar="N",
-                   help="let the sound speed vary in time (cubic B-spline, N intervals over "
-                        "the survey; default 0: one speed); GNSS-A surveys: one per 15-30 min")
+    p.add_argument("--speed-intervals", type=opt.at_least(0, 1000), default=None, metavar="N",
+                   help="the sound speed as an unpenalised cubic B-spline in time with N "
+                        "intervals (0: one speed); default: one speed for a single "
+                        "transponder, and for an array (GARPOS, GNATSS, SeaGap) a smooth "
+                        "spline, knots every 5 min, its smoothness chosen by the data")
     p.add_argument("--fit-lag", action="store_true",
                    help="fit a time lag of the acoustic position along the track (a position "
                         "fix logged at another moment, or a transducer ahead of the antenna)")

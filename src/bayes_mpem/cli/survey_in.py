@@ -59,7 +59,7 @@ def locate_kwargs(args) -> dict:
         return dict(ci=args.ci, outliers=args.outliers, ssp=args.ssp,
                     speed_intervals=args.speed_intervals, sample=None)
     model = dict(tat=args.tat, fit_tat=args.fit_tat, ci=args.ci, outliers=args.outliers,
-                 ssp=args.ssp, speed_intervals=args.speed_intervals,
+                 ssp=args.ssp, speed_intervals=args.speed_intervals or 0,
                  lag_check=not getattr(args, "no_lag_check", False))
     if one and not args.sample:  # the sampler locates one transponder at a time anyway
         model["one_at_a_time"] = True

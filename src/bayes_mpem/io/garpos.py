@@ -127,6 +127,15 @@ def _values(ini, path, section, key, n, names, ranges=None):
         raise InputError(f"{where(path, line, name=key)}: {exc}") from None
 
 
+def _sigmas(ini, path, key):
+    """Return the sigmas (fields 4-6) of a position key; None where absent (0 fixes it)."""
+    parts = _get(ini, path, "Model-parameter", key)[0].split()[3:6]
+    try:
+        return [abs(float(v)) for v in parts] + [None] * (3 - len(parts))
+    except ValueError:
+        return [None] * 3
+
+
 def profile_frame(depth, speed, source) -> pd.DataFrame:
     """Check a sound-speed profile read from a survey's file.
 
@@ -341,11 +350,12 @@ def read_garpos(site_file, *, obs=None, svp=None, strict=False) -> RawSurvey:
                          f"transponder names, got {text!r}")
     cent = (_values(ini, site_file, "Model-parameter", "dCentPos", 3, ["east", "north", "up"])
             if "dCentPos" in ini.get("Model-parameter", {}) else [0.0, 0.0, 0.0])
-    pos = {}
+    pos, sig = {}, {}
     for st in stations:
         e, n, u = _values(ini, site_file, "Model-parameter", f"{st}_dPos", 3,
                           ["east", "north", "up"], {"up": {"lo": -12000.0, "hi": 0.0}})
         pos[st] = (e + cent[0], n + cent[1], u + cent[2])
+        sig[st] = _sigmas(ini, site_file, f"{st}_dPos")
     atd = _values(ini, site_file, "Model-parameter", "ATDoffset", 3,
                   ["forward", "rightward", "downward"],
                   {k: {"lo": -100.0, "hi": 100.0} for k in ("forward", "rightward", "downward")})
@@ -365,6 +375,9 @@ def read_garpos(site_file, *, obs=None, svp=None, strict=False) -> RawSurvey:
               "transponders": transponders, "atd_offset": np.asarray(atd, float),
               "ss_prof": read_svp(svp_path), "ss_prof_source": svp_path.name,
               "surface_depth": 0.0,
+              "position_sigmas": pd.DataFrame(sig, index=["east", "north", "up"]).T,
+              "centre_sigmas": (_sigmas(ini, site_file, "dCentPos")
+                                if "dCentPos" in ini.get("Model-parameter", {}) else None),
               "files": {"site": str(site_file), "obs": str(obs_path), "svp": str(svp_path)}}
     return RawSurvey("garpos", str(site_file), pings, header,
                      pd.DataFrame(skipped, columns=["line", "text", "reason"]))

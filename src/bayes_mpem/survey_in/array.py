@@ -25,9 +25,11 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
+from scipy.linalg import cho_factor, cho_solve
 from scipy.optimize import least_squares
 from scipy.stats import norm
 
@@ -35,10 +37,16 @@ from .._validate import check_choice, check_int
 from ..exceptions import InputError, LocateWarning
 from .classes import OUTLIER_MODELS
 from .location import TravelTimeEM, weighted_residuals
-from .travel_times import TravelTimes, speed_basis
+from .travel_times import TravelTimes, smooth_intervals, speed_basis, speed_penalty
 
 #: Fewest shots a transponder needs to be located.
 MIN_SHOTS = 6
+#: Default knot spacing (minutes) of the smooth sound speed.
+KNOT_MINUTES = 5.0
+#: Decades about the best smoothing weight over which the intervals average (step 0.25).
+WEIGHT_GRID = np.arange(-2.0, 2.0001, 0.25)
+#: M-steps after which the smoothing weights are held (:class:`_SmoothArrayEM`).
+FREEZE_AFTER = 12
 #: Columns :func:`locate_array` needs.
 SHOT_COLUMNS = ("transponder", "twtt", "time", "e_tx", "n_tx", "u_tx", "e_rx", "n_rx", "u_rx")
 
@@ -61,10 +69,17 @@ class ArrayTravelTimes:
         Refracted rays (the speed is then the profile's scale); straight if None.
     surface_depth : float, default 0
         Depth (``-up``) of the profile's sea surface in the frame.
+    gradients : numpy.ndarray, optional
+        ``(n, m)`` design of the horizontal gradient terms (:func:`gradient_design`):
+        the prediction is multiplied by ``exp(-gradients @ g)``, ``g`` the last ``m``
+        entries of ``theta``.
     """
 
-    def __init__(self, shots, index, n_transponders, basis, *, profile=None, surface_depth=0.0):
+    def __init__(self, shots, index, n_transponders, basis, *, profile=None, surface_depth=0.0,
+                 gradients=None):
         self.index, self.K, self.basis = np.asarray(index), int(n_transponders), basis
+        self.grad = gradients
+        self.k = basis.shape[1]
         self.rows = [np.flatnonzero(self.index == k) for k in range(self.K)]
         self.legs = []
         for rows in self.rows:
@@ -78,7 +93,7 @@ class ArrayTravelTimes:
     @property
     def n_params(self) -> int:
         """Number of parameters: 3 per transponder and the speed coefficients."""
-        return 3 * self.K + self.basis.shape[1]
+        return 3 * self.K + self.k + (0 if self.grad is None else self.grad.shape[1])
 
     def _paths(self, theta):
         """Per shot: summed leg times (or lengths), their position derivatives, invalid count."""
@@ -97,11 +112,17 @@ class ArrayTravelTimes:
 
     def speed(self, theta):
         """Return the speed (or the profile's scale) at each shot, given ``theta``."""
-        return self.basis @ theta[3 * self.K:]
+        return self.basis @ theta[3 * self.K:3 * self.K + self.k]
+
+    def _gain(self, theta):
+        """``exp(-gamma)`` of the gradient terms at each shot (1 without them)."""
+        if self.grad is None:
+            return 1.0
+        return np.exp(-self.grad @ theta[3 * self.K + self.k:])
 
     def predict(self, theta):
         """Return the two-way travel time (s) of a true reply to each shot, given ``theta``."""
-        return self._paths(theta)[0] / self.speed(theta)
+        return self._paths(theta)[0] / self.speed(theta) * self._gain(theta)
 
     def jac(self, theta):
         """Return d(prediction)/d(theta), ``(shots, n_params)``."""
@@ -111,7 +132,11 @@ class ArrayTravelTimes:
         rows = np.arange(T.size)
         for c, d in enumerate((dE, dN, dU)):
             J[rows, 3 * self.index + c] = d / s
-        J[:, 3 * self.K:] = (-T / s**2)[:, None] * self.basis
+        J[:, 3 * self.K:3 * self.K + self.k] = (-T / s**2)[:, None] * self.basis
+        if self.grad is not None:
+            gain = self._gain(theta)
+            J[:, :3 * self.K + self.k] *= gain[:, None]
+            J[:, 3 * self.K + self.k:] = (-T / s * gain)[:, None] * self.grad
         return J
 
     def n_invalid(self, theta) -> int:
@@ -244,9 +269,12 @@ def _check_shots(shots, transponders):
     return ids, skipped, index
 
 
+# The steps of the array's fit (checks, robust start, model, EM, covariance, result) read
+# long function: each step is a few lines and they read best in sequence
 def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=None,
-                 surface_depth=0.0, speed_intervals=0, sound_speed=None, outliers="uniform",
-                 time_range=None, max_iter=200, tol=1e-10) -> ArrayLocateResult:
+                 surface_depth=0.0, speed_intervals=None, knot_minutes=KNOT_MINUTES,
+                 sound_speed=None, outliers="uniform", time_range=None, fixed=None,
+                 shift=False, gradients=False, max_iter=200, tol=1e-10) -> ArrayLocateResult:
     """Locate every transponder of an array by EM, classifying each shot true or spurious.
 
     Parameters
@@ -263,18 +291,38 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
         coefficient(s); default straight rays.
     surface_depth : float, default 0
         Depth (``-up``) in the frame of the profile's 0 m.
-    speed_intervals : int, default 0
-        The speed (or the profile's scale) as a cubic B-spline in time with this
-        many intervals (0: one value), shared by every transponder.
+    speed_intervals : int, optional
+        None (default): the speed (or the profile's scale) is a smooth function of
+        time, a cubic B-spline with knots every ``knot_minutes`` and a roughness
+        penalty (the integrated squared second derivative) whose weight maximises the
+        marginal likelihood (:func:`choose_smoothing`); the intervals average over
+        the weights near the best (``model["smoothing"]``). An integer: an
+        unpenalised B-spline with this many equal intervals (0: one value).
+    knot_minutes : float, default :data:`KNOT_MINUTES`
+        Largest knot spacing of the smooth speed (min).
     sound_speed : float, optional
         Starting straight-ray speed (m/s); default the profile's harmonic mean
         over the water column, else 1500.
     outliers : {"uniform", "first_arrival"}
     time_range : tuple of float, optional
         Span of the B-spline; default the shots'.
+    fixed : array_like of bool, optional
+        ``(K, 3)`` (rows in ``transponders``' order): the east, north, up held at
+        the prior position (GARPOS's sigma of 0).
+    shift : bool, default False
+        Fixed geometry: the transponders keep their prior positions relative to
+        each other and the array moves as a rigid body (3 parameters); ``fixed``
+        then applies to the shift's east, north, up (its first row).
+    gradients : bool, default False
+        Also fit GARPOS's horizontal gradient terms (:func:`gradient_design`): the
+        shallow ``a1`` (east, north; felt as the ship moves) and the deep ``a2`` (across
+        the array), each a spline on the speed's knots; with the smooth speed their
+        roughness penalty has its own weight, chosen the same way. Needs a track
+        that surrounds the array (``track_geometry``).
     max_iter : int, default 200
     tol : float, default 1e-10
-        Stop when sigma (s) changes by less than this.
+        Stop when sigma (s) changes by less than this (and the smoothing weight by
+        less than 1 %).
 
     Returns
     -------
@@ -286,15 +334,25 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
         A missing column, or no transponder with enough shots.
     """
     check_choice("outliers", outliers, OUTLIER_MODELS)
-    check_int("speed_intervals", speed_intervals, minimum=0)
+    smooth = speed_intervals is None
+    if not smooth:
+        check_int("speed_intervals", speed_intervals, minimum=0)
     ids, skipped, index = _check_shots(shots, transponders)
     rows = np.flatnonzero(index >= 0)
     sub, index = shots.iloc[rows].reset_index(drop=True), index[rows]
     K, t = len(ids), sub["twtt"].to_numpy(float)
     if time_range is None:
         time_range = (float(sub["time"].min()), float(sub["time"].max()))
-    if speed_intervals and not time_range[1] > time_range[0]:
-        raise InputError("shots: a time-varying sound speed needs shots at more than one time")
+    varying = smooth or speed_intervals
+    if varying and not time_range[1] > time_range[0]:
+        if not smooth:
+            raise InputError("shots: a time-varying sound speed needs shots at more than one "
+                             "time")
+        smooth, speed_intervals = False, 0
+    if smooth:
+        if not float(knot_minutes) > 0:
+            raise InputError(f"knot_minutes: expected a positive number, got {knot_minutes}")
+        speed_intervals = smooth_intervals(time_range, knot_minutes)
     start = transponders.loc[list(ids), ["east", "north", "up"]].to_numpy(float)
     z_ship = float(-0.5 * (sub["u_tx"].mean() + sub["u_rx"].mean()))
     z_tp = float(-start[:, 2].mean())
@@ -302,29 +360,68 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
     if profile is not None:
         unit = float(profile.harmonic_mean(z_ship - surface_depth, z_tp - surface_depth))
     c0 = float(sound_speed or (unit if profile is not None else 1500.0))
+    if gradients and not (smooth or speed_intervals):
+        raise InputError("gradients: need a time-varying sound speed (the smooth default or "
+                         "speed_intervals > 0)")
+    G = _free_map(K, _fixed_mask(fixed, transponders, ids, K), shift)
     # the robust start: straight rays, one speed
     straight = ArrayTravelTimes(sub, index, K, np.ones((len(sub), 1)))
-    resid, jac = weighted_residuals(t, straight)
-    theta = least_squares(resid, np.concatenate([start.ravel(), [c0]]), jac=jac,
-                          loss="cauchy", f_scale=1e-3,
-                          x_scale=np.array([10.0] * 3 * K + [1.0])).x
+    resid, jac = _mapped(*weighted_residuals(t, straight), G, start, 1)
+    x0 = np.concatenate([np.zeros(G.shape[1]), [c0]])
+    x_scale = np.array([10.0] * G.shape[1] + [1.0])
+    theta = least_squares(resid, x0, jac=jac, loss="cauchy", f_scale=1e-3,
+                          x_scale=x_scale).x
     basis = speed_basis(sub, speed_intervals, time_range)
+    design = gradient_design(sub, index, start, basis) if gradients else None
     model = ArrayTravelTimes(sub, index, K, basis, profile=profile,
-                             surface_depth=surface_depth)
+                             surface_depth=surface_depth, gradients=design)
+    k = basis.shape[1]
+    kg = 0 if design is None else design.shape[1]
+    nf = G.shape[1]
     coef0 = theta[-1] / unit
-    theta = np.concatenate([theta[:3 * K], np.full(basis.shape[1], coef0)])
-    x_scale = np.array([1.0] * 3 * K + [abs(coef0) / 1500.0] * basis.shape[1])
-    resid, jac = weighted_residuals(t, model)
-    windows = np.array([[t[index == k].min(), t[index == k].max()] for k in range(K)])
-    run = TravelTimeEM(t, resid, jac, x_scale, windows, index, outliers).run(
-        theta, sigma_min=1e-7, tol=tol, max_iter=max_iter)
-    (theta, _, sigma, weights), p = run.params, run.resp
+    phi = np.concatenate([theta[:nf], np.full(k, coef0), np.zeros(kg)])
+    x_scale = np.array([1.0] * nf + [abs(coef0) / 1500.0] * k + [1e-4] * kg)
+    resid, jac = _mapped(*weighted_residuals(t, model), G, start, k + kg)
+    windows = np.array([[t[index == j].min(), t[index == j].max()] for j in range(K)])
+    H = Hg = None
+    if smooth:
+        P = nf + k + kg
+        H = np.zeros((P, P))
+        H0 = speed_penalty(speed_intervals, time_range)
+        H[nf:nf + k, nf:nf + k] = H0
+        if kg:
+            Hg = np.zeros((P, P))
+            for j in range(4):
+                a = nf + k + j * k
+                Hg[a:a + k, a:a + k] = H0
+        em = _SmoothArrayEM(t, resid, jac, x_scale, windows, index, outliers, H, coef0, Hg)
+    else:
+        em = TravelTimeEM(t, resid, jac, x_scale, windows, index, outliers)
+    run = em.run(phi, sigma_min=1e-7, tol=tol, max_iter=max_iter)
+    (phi, _, sigma, weights), p = run.params[:4], run.resp
     clusters = sub["t_tx"].to_numpy() if "t_tx" in sub.columns else np.arange(len(sub))
-    J = jac(theta, p)
-    cov = robust_covariance(J, resid(theta, p), clusters)
-    cov_model = np.linalg.pinv(J.T @ J) * sigma**2
+    J = jac(phi, p)
+    smoothing = None
+    if smooth:
+        fixed_prior = None if Hg is None else run.params.lam_g * Hg
+        cov_phi, cov_model_phi, smoothing = _smooth_covariance(
+            J, resid(phi, p), phi, H, sigma, run.params.lam, clusters, fixed_prior)
+        if Hg is not None:
+            smoothing.update(gradient_weight=float(run.params.lam_g),
+                             log10_gradient_weight=float(np.log10(run.params.lam_g)))
+        smoothing.update(knot_minutes=(time_range[1] - time_range[0]) / 60.0 / speed_intervals,
+                         knot_minutes_asked=float(knot_minutes))
+    else:
+        cov_phi = robust_covariance(J, resid(phi, p), clusters)
+        cov_model_phi = np.linalg.pinv(J.T @ J) * sigma**2
+    Gf = _full_map(G, k + kg)
+    theta = _expand(phi, G, start, k + kg)
+    cov, cov_model = Gf @ cov_phi @ Gf.T, Gf @ cov_model_phi @ Gf.T
     g = basis.mean(axis=0)
-    kk = slice(3 * K, None)
+    kk = slice(3 * K, 3 * K + k)
+    grad_record = None if not kg else _gradient_record(
+        theta, cov, 3 * K + k, g, unit * float(g @ theta[kk]) if profile is not None
+        else float(g @ theta[kk]))
     n_bad = model.n_invalid(theta)
     _warn(n_bad, 2 * t.size, run.converged, run.n_iter)
     return ArrayLocateResult(
@@ -333,11 +430,453 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
         sound_speed=float(g @ theta[kk]) * unit,
         sound_speed_sd=float(np.sqrt(max(g @ cov[kk, kk] @ g, 0.0))) * unit,
         speed_coef=theta[kk].copy(), sigma=sigma, weights=weights, p_true=p,
-        residual=resid(theta), rows=rows, index=index, windows=windows, skipped=skipped,
+        residual=resid(phi), rows=rows, index=index, windows=windows, skipped=skipped,
         n_iter=run.n_iter, converged=run.converged, outliers=outliers,
         model={"profile": profile, "surface_depth": float(surface_depth),
                "speed_intervals": int(speed_intervals), "time_range": time_range,
-               "unit": unit, "n_invalid": n_bad})
+               "unit": unit, "n_invalid": n_bad, "smoothing": smoothing,
+               "gradients": grad_record,
+               "positions": _positions_record(G, K, shift)})
+
+
+#: Length (m) the gradient regressors are divided by (GARPOS's L).
+GRADIENT_LENGTH = 1000.0
+#: Names of the gradient series, in ``theta``'s order.
+GRADIENT_NAMES = ("shallow_east", "shallow_north", "deep_east", "deep_north")
+
+
+def gradient_design(shots, index, start, basis) -> np.ndarray:
+    """Return the design of GARPOS's gradient terms: ``gamma = a1 . dp / L + a2 . dx / L``.
+
+    ``dp`` is the transducer's horizontal offset (mean of transmit and receive) from its
+    mean over the shots, ``dx`` the transponder's prior offset from the priors' mean
+    (held fixed, so ``gamma`` is linear in the coefficients), ``L`` = 1 km; ``a1`` and
+    ``a2`` (east, north) are splines on ``basis``.
+
+    Parameters
+    ----------
+    shots : pandas.DataFrame
+        ``e/n_tx``, ``e/n_rx``.
+    index : numpy.ndarray
+        Transponder number of each shot.
+    start : numpy.ndarray
+        ``(K, 3)`` prior positions.
+    basis : numpy.ndarray
+        ``(n, k)`` the speed's basis.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(n, 4 k)``: the columns of ``a1`` east, north, then ``a2`` east, north.
+    """
+    pe = 0.5 * (shots["e_tx"].to_numpy(float) + shots["e_rx"].to_numpy(float))
+    pn = 0.5 * (shots["n_tx"].to_numpy(float) + shots["n_rx"].to_numpy(float))
+    dx = start[index, :2] - start[:, :2].mean(axis=0)
+    regs = (pe - pe.mean(), pn - pn.mean(), dx[:, 0], dx[:, 1])
+    return np.hstack([basis * (r / GRADIENT_LENGTH)[:, None] for r in regs])
+
+
+def _gradient_record(theta, cov, first, g, v0):
+    """Return the time-averaged gradients (m/s)/km with their sds (``summary.json``)."""
+    k = g.size
+    out = {"unit": "(m/s)/km", "quantity": "time average over the survey of GARPOS's gradV "
+           "(a V0): shallow a1 (ship's offset), deep a2 (transponder's offset)"}
+    for j, name in enumerate(GRADIENT_NAMES):
+        sl = slice(first + j * k, first + (j + 1) * k)
+        out[name] = {"mean": float(g @ theta[sl]) * v0,
+                     "sd": float(np.sqrt(max(g @ cov[sl, sl] @ g, 0.0))) * v0}
+    return out
+
+
+def _fixed_mask(fixed, transponders, ids, K):
+    """Return the ``(K, 3)`` mask of fixed coordinates, in the order of those located."""
+    if fixed is None:
+        return np.zeros((K, 3), bool)
+    mask = np.asarray(fixed, bool)
+    if mask.shape != (len(transponders), 3):
+        raise InputError(f"fixed: expected a ({len(transponders)}, 3) mask (east, north, up of "
+                         f"each transponder), got shape {mask.shape}")
+    order = {str(t): i for i, t in enumerate(transponders.index)}
+    return mask[[order[t] for t in ids]]
+
+
+def _free_map(K, mask, shift):
+    """``(3K, F)`` map from the free parameters to the position offsets from the priors."""
+    if shift:
+        M = np.tile(np.eye(3), (K, 1))
+        return M[:, ~mask[0]]
+    return np.eye(3 * K)[:, ~mask.ravel()]
+
+
+def _full_map(G, k):
+    """``G`` with the ``k`` speed coefficients appended (identity)."""
+    out = np.zeros((G.shape[0] + k, G.shape[1] + k))
+    out[:G.shape[0], :G.shape[1]] = G
+    out[G.shape[0]:, G.shape[1]:] = np.eye(k)
+    return out
+
+
+def _expand(phi, G, start, k):
+    """Full ``theta`` (positions, speed) from the free parameters ``phi``."""
+    nf = G.shape[1]
+    return np.concatenate([start.ravel() + G @ phi[:nf], phi[nf:nf + k]])
+
+
+def _mapped(resid, jac, G, start, k):
+    """Residual and Jacobian functions of the free parameters (positions = prior + G phi)."""
+    def r(phi, w=None):
+        return resid(_expand(phi, G, start, k), w)
+
+    def j(phi, w=None):
+        J = jac(_expand(phi, G, start, k), w)
+        return np.column_stack([J[:, :G.shape[0]] @ G, J[:, G.shape[0]:]])
+
+    return r, j
+
+
+def _positions_record(G, K, shift):
+    """Return what was solved for the positions (``summary.json``)."""
+    return {"mode": "rigid shift of the prior geometry" if shift else "each transponder",
+            "n_free": int(G.shape[1]), "n_fixed": int((3 if shift else 3 * K) - G.shape[1])}
+
+
+class _SmoothFit(NamedTuple):
+    theta: np.ndarray
+    r: np.ndarray
+    sigma: float
+    weights: np.ndarray
+    lam: float  # smoothing weight: prior precision lam * H on the coefficients
+    lam_g: float = None  # the gradients' weight
+
+
+def log_evidence(J, r, theta, H, sigma, lam, rank=None, H_fixed=None):
+    """Linearised log marginal likelihood of a penalised weighted least-squares fit.
+
+    The model ``r(theta + d) = r + J d`` (weighted residuals), Gaussian noise of sd
+    ``sigma`` and the prior ``N(0, (lam H)^+)`` on ``theta`` (flat where ``H`` is
+    zero): ``-(||r + J d||^2 / sigma^2 + lam th' H th) / 2 + rank log(lam) / 2 -
+    log|J'J / sigma^2 + lam H| / 2`` at the posterior mode ``th = theta + d``, up to
+    a constant that does not depend on ``lam`` (minus half of GARPOS's ABIC).
+
+    Parameters
+    ----------
+    J : numpy.ndarray or tuple
+        ``(n, P)`` Jacobian of the weighted residuals, or ``(J'J, J'r, r'r)``.
+    r : numpy.ndarray
+        ``(n,)`` weighted residuals at ``theta``.
+    theta : numpy.ndarray
+    H : numpy.ndarray
+        ``(P, P)`` penalty (positive semi-definite).
+    sigma, lam : float
+    rank : int, optional
+        Of ``H`` (default computed).
+    H_fixed : numpy.ndarray, optional
+        A further prior precision, weight included (its determinant is left out).
+
+    Returns
+    -------
+    logml : float
+        ``-inf`` where the posterior precision is numerically singular.
+    step : numpy.ndarray
+        ``d``, to the posterior mode.
+    A : numpy.ndarray
+        The posterior precision ``J'J / sigma^2 + lam H``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> J = np.eye(3); H = np.diag([0.0, 1.0, 1.0]); r = np.array([0.0, -3.0, 3.0])
+    >>> a = log_evidence(J, r, np.zeros(3), H, 1.0, 0.5)[0]
+    >>> b = log_evidence(J, r, np.zeros(3), H, 1.0, 50.0)[0]
+    >>> bool(a > b)
+    True
+    """
+    if rank is None:
+        e = np.linalg.eigvalsh(H)
+        rank = int(np.sum(e > 1e-10 * max(e.max(), 1e-300)))
+    if isinstance(J, tuple):  # (J'J, J'r) precomputed
+        JtJ, Jtr = J[0] / sigma**2, J[1] / sigma**2
+    else:
+        JtJ, Jtr = J.T @ J / sigma**2, J.T @ r / sigma**2
+    Q = lam * H if H_fixed is None else lam * H + H_fixed
+    A = JtJ + Q
+    d = np.diag(A).copy()
+    d[d <= 0] = 1.0
+    s = 1.0 / np.sqrt(d)  # unit diagonal: log|A| = log|S A S| + sum(log d)
+    try:
+        c = cho_factor(A * s[:, None] * s[None, :])
+    except np.linalg.LinAlgError:
+        return -np.inf, np.zeros_like(theta), A
+    step = s * cho_solve(c, -s * (Jtr + Q @ theta))
+    th = theta + step
+    if isinstance(J, tuple):  # ||r + J d||^2 = r'r + 2 d'J'r + d'J'J d
+        rr2 = J[2] + 2 * step @ J[1] + step @ J[0] @ step
+    else:
+        rr = r + J @ step
+        rr2 = rr @ rr
+    logml = (-0.5 * (rr2 / sigma**2 + th @ Q @ th) + 0.5 * rank * np.log(lam)
+             - np.sum(np.log(np.diag(c[0]))) - 0.5 * np.sum(np.log(d)))
+    return float(logml), step, A
+
+
+def choose_smoothing(J, r, theta, H, sigma, lam=None, H_fixed=None):
+    """Return the smoothing weight of largest :func:`log_evidence` (a 1-D search).
+
+    A grid of half-decades about ``lam`` (or, without one, of decades over the whole
+    range), re-centred while the best is at an edge, then a parabola through the best
+    three points. The weight stays within ``10^-8`` and ``10^5`` times the ratio of the
+    data's information on the coefficients to the penalty's (a bound is returned
+    where the evidence keeps rising towards it: the data want no more, or no less,
+    smoothing).
+
+    Parameters
+    ----------
+    J, r, theta, H, sigma
+        As for :func:`log_evidence`.
+    lam : float, optional
+        The previous weight.
+    H_fixed : numpy.ndarray, optional
+        A further prior precision held fixed (:func:`log_evidence`).
+
+    Returns
+    -------
+    float
+    """
+    e = np.linalg.eigvalsh(H)
+    rank = int(np.sum(e > 1e-10 * max(e.max(), 1e-300)))
+
+    pre = (J.T @ J, J.T @ r, float(r @ r))
+
+    def f(x):
+        return log_evidence(pre, r, theta, H, sigma, 10.0 ** x, rank, H_fixed)[0]
+
+    pen = np.diag(H) > 0
+    ratio = np.trace(pre[0][np.ix_(pen, pen)]) / sigma**2 / np.trace(H)
+    lo, hi = np.log10(ratio) - 8.0, np.log10(ratio) + 5.0  # data-relative bounds
+    x = (np.arange(lo, hi + 0.01, 1.0) if lam is None else
+         np.clip(np.log10(lam), lo, hi) + np.arange(-2.0, 2.01, 0.5))
+    for _ in range(40):
+        y = np.array([f(v) for v in x])
+        i = int(np.argmax(y))
+        if 0 < i < x.size - 1 or x[i] <= lo or x[i] >= hi:
+            break
+        x = np.clip(x[i] + (x[1] - x[0]) * np.arange(-4, 5), lo, hi)
+    if x[i] <= lo or x[i] >= hi:  # the evidence is flat or monotone: at a bound
+        return float(10.0 ** x[i])
+    i = int(np.clip(i, 1, x.size - 2))
+    step = x[1] - x[0]
+    if step > 0.3:  # refine
+        x = x[i] + np.arange(-1.0, 1.01, 0.25) * step
+        y = np.array([f(v) for v in x])
+        i = int(np.clip(np.argmax(y), 1, x.size - 2))
+    y0, y1, y2 = y[i - 1], y[i], y[i + 1]
+    h = x[1] - x[0]
+    den = y0 - 2 * y1 + y2
+    ok = np.isfinite([y0, y1, y2]).all() and den < 0
+    best = x[i] + (0.5 * h * (y0 - y2) / den if ok else 0.0)
+    return float(10.0 ** np.clip(best, x[i] - h, x[i] + h))
+
+
+class _SmoothArrayEM(TravelTimeEM):
+    """:class:`TravelTimeEM` with a roughness penalty on the speed coefficients.
+
+    M-step: the weight of the penalty that maximises the linearised marginal likelihood
+    at the E-step's probabilities (:func:`choose_smoothing`), then the penalised
+    weighted least squares from the current point (``sigma^2 lam H`` added to the
+    normal equations: the residuals are augmented by a root of ``H``), then ``sigma``
+    and the shares in closed form. Converged when ``sigma`` changes by less than
+    ``tol`` and the weight by less than 1 %; with the gradients' weight too, both are
+    held after :data:`FREEZE_AFTER` M-steps (chosen in turn, they may alternate between
+    two values).
+    """
+
+    def __init__(self, t, resid, jac, x_scale, windows, index, outliers, H, coef0, Hg=None):
+        super().__init__(t, resid, jac, x_scale, windows, index, outliers)
+        self.H, self.Hg = H, Hg
+        self.root = _root(H)
+        self.root_g = None if Hg is None else _root(Hg)
+        self.n_steps = 0
+
+    def run(self, theta, *, sigma_min, **kw):
+        """Return the EM's run from ``theta`` (as :meth:`TravelTimeEM.run`)."""
+        from ..mixture.em import run_em
+
+        r = self.resid(theta)
+        sigma = max(1.4826 * float(np.median(np.abs(r - np.median(r)))), sigma_min)
+        return run_em(self, _SmoothFit(theta, r, sigma, np.full(len(self.windows), 0.9), None),
+                      **kw)
+
+    def m_step(self, fit, p):
+        """Return the new parameters given the probabilities ``p`` of true shots."""
+        J, r0 = self.jac(fit.theta, p), self.resid(fit.theta, p)
+        lam_g = fit.lam_g
+        self.n_steps += 1
+        if self.Hg is not None and self.n_steps > FREEZE_AFTER:  # two weights: held, so
+            lam = fit.lam  # that choosing them in turn cannot alternate for ever
+            root = fit.sigma * np.vstack([np.sqrt(lam) * self.root,
+                                          np.sqrt(lam_g) * self.root_g])
+        elif self.Hg is None:
+            lam = choose_smoothing(J, r0, fit.theta, self.H, fit.sigma, fit.lam)
+            root = np.sqrt(lam) * fit.sigma * self.root
+        else:
+            if lam_g is None:  # start the gradients stiff: they enter as they are supported
+                lam_g = 1e6 * (fit.lam or choose_smoothing(J, r0, fit.theta, self.H, fit.sigma))
+            lam = choose_smoothing(J, r0, fit.theta, self.H, fit.sigma, fit.lam, lam_g * self.Hg)
+            lam_g = choose_smoothing(J, r0, fit.theta, self.Hg, fit.sigma, lam_g, lam * self.H)
+            root = fit.sigma * np.vstack([np.sqrt(lam) * self.root, np.sqrt(lam_g) * self.root_g])
+
+        theta = penalised_gauss_newton(lambda th: self.resid(th, p),
+                                       lambda th: self.jac(th, p), fit.theta, root.T @ root)
+        r = self.resid(theta)
+        sigma = float(np.sqrt(np.sum(p * r * r) / p.sum()))
+        k = len(self.rows)
+        if self.index is None:
+            shares = np.array([np.clip(p.mean(), 1e-6, 1 - 1e-6)])
+        else:
+            shares = np.clip(np.bincount(self.index, p, k) / np.bincount(self.index, minlength=k),
+                             1e-6, 1 - 1e-6)
+        return _SmoothFit(theta, r, sigma, shares, lam, lam_g)
+
+    def change(self, old, new, gain):
+        """Return the change of ``sigma`` (s); infinite while a weight still moves."""
+        if old.lam is None or abs(np.log(new.lam / old.lam)) > 0.01:
+            return np.inf
+        if new.lam_g is not None and (old.lam_g is None
+                                      or abs(np.log(new.lam_g / old.lam_g)) > 0.01):
+            return np.inf
+        return abs(new.sigma - old.sigma)
+
+
+def penalised_gauss_newton(resid, jac, theta, Q, *, max_steps=50, rtol=1e-12):
+    """Minimise ``||resid(theta)||^2 + theta' Q theta`` by damped Gauss-Newton steps.
+
+    Each step solves ``(J'J + Q + mu D) d = -(J'r + Q theta)`` (``D`` the diagonal of
+    ``J'J + Q``) by Cholesky, ``mu`` raised tenfold until the objective decreases and
+    lowered after a success: the normal equations of a few hundred parameters, not a
+    factorisation of the tall Jacobian.
+
+    Parameters
+    ----------
+    resid, jac : callable
+        Residuals ``(n,)`` and their Jacobian ``(n, P)`` at ``theta``.
+    theta : numpy.ndarray
+        Start.
+    Q : numpy.ndarray
+        ``(P, P)`` penalty (positive semi-definite).
+    max_steps : int, default 50
+    rtol : float, default 1e-12
+        Stop when a step lowers the objective by less than this fraction.
+
+    Returns
+    -------
+    numpy.ndarray
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> th = penalised_gauss_newton(lambda t: t - 1.0, lambda t: np.eye(2), np.zeros(2),
+    ...                             np.diag([0.0, 1.0]))
+    >>> np.round(th, 6).tolist()
+    [1.0, 0.5]
+    """
+    th = np.asarray(theta, float).copy()
+    r = resid(th)
+    f = r @ r + th @ Q @ th
+    mu = 0.0
+    for _ in range(max_steps):
+        J = jac(th)
+        A = J.T @ J + Q
+        g = J.T @ r + Q @ th
+        d = np.diag(A).copy()
+        d[d <= 0] = 1.0
+        s = 1.0 / np.sqrt(d)
+        for _ in range(12):
+            try:
+                c = cho_factor((A + mu * np.diag(d)) * s[:, None] * s[None, :])
+            except np.linalg.LinAlgError:
+                mu = max(10.0 * mu, 1e-8)
+                continue
+            step = -s * cho_solve(c, s * g)
+            if -(g @ step) <= rtol * f:  # the expected decrease is round-off: converged
+                return th
+            new = th + step
+            r_new = resid(new)
+            f_new = r_new @ r_new + new @ Q @ new
+            if f_new <= f:
+                break
+            mu = max(10.0 * mu, 1e-6)
+        else:
+            return th
+        gain = f - f_new
+        th, r, f, mu = new, r_new, f_new, mu / 10.0 if mu > 1e-6 else 0.0
+        if gain <= rtol * f:
+            break
+    return th
+
+
+def _root(H):
+    """Return ``R`` with ``R'R = H`` (rows for the positive eigenvalues)."""
+    e, U = np.linalg.eigh(H)
+    keep = e > 1e-10 * e.max()
+    return np.sqrt(e[keep])[:, None] * U[:, keep].T
+
+
+def _smooth_covariance(J, r, theta, H, sigma, lam, clusters, H_fixed=None):
+    """Covariance of a smooth-speed fit, averaged over the smoothing weights near the best.
+
+    For each weight ``lam_g = lam 10^x`` (``x`` in :data:`WEIGHT_GRID`): the step to
+    its posterior mode ``theta_g`` and ``C_g = A^-1 (B + lam_g H) A^-1`` with
+    ``A = J'J / sigma^2 + lam_g H`` and ``B`` the cluster-robust meat (the scores'
+    outer products over interrogations, over ``sigma^4``; ``C_g`` is the posterior
+    covariance when the noise is independent). Weights ``w_g`` proportional to the
+    marginal likelihood (a flat prior on ``log lam``); the covariance is
+    ``sum w_g C_g + sum w_g (theta_g - mean)(theta_g - mean)'``.
+
+    Returns
+    -------
+    cov, cov_model : numpy.ndarray
+        The averaged covariance, and the model-based ``A^-1`` at ``lam``.
+    record : dict
+        The ``smoothing`` record of the fit's model.
+    """
+    e = np.linalg.eigvalsh(H)
+    rank = int(np.sum(e > 1e-10 * e.max()))
+    codes = np.unique(np.asarray(clusters), return_inverse=True)[1]
+    n_clusters = int(codes.max()) + 1
+    S = np.zeros((n_clusters, J.shape[1]))
+    np.add.at(S, codes, J * r[:, None])
+    meat = S.T @ S / sigma**4
+    rows = []
+    for x in WEIGHT_GRID:
+        lg = lam * 10.0 ** x
+        logml, step, A = log_evidence(J, r, theta, H, sigma, lg, rank, H_fixed)
+        Ainv = np.linalg.inv(A)
+        edf = float(np.trace(Ainv @ (J.T @ J)) / sigma**2)
+        prior = lg * H if H_fixed is None else lg * H + H_fixed
+        C = Ainv @ (meat * n_clusters / max(n_clusters - edf, 1.0) + prior) @ Ainv
+        rows.append((x, logml, step, C, Ainv, edf))
+    ll = np.array([row[1] for row in rows])
+    w = np.exp(ll - ll.max())
+    w /= w.sum()
+    steps = np.array([row[2] for row in rows])
+    mean = w @ steps
+    dev = steps - mean
+    cov = sum(wi * row[3] for wi, row in zip(w, rows, strict=True)) + (dev.T * w) @ dev
+    mid = int(np.argmin(np.abs(WEIGHT_GRID)))
+    record = {
+        "penalty": "integral over time (hours) of the squared second derivative of the speed "
+                   "coefficient (profile scale, or m/s for straight rays)",
+        "weight": float(lam), "log10_weight": float(np.log10(lam)),
+        "criterion": "maximum marginal likelihood (linearised at the solution, at the EM's "
+                     "class probabilities; equivalently minimum ABIC = -2 log evidence)",
+        "effective_dof": rows[mid][5], "penalty_rank": rank,
+        "intervals": "averaged over the smoothing weights of the grid, each weighted by its "
+                     "marginal likelihood (flat prior on log weight), with the spread of the "
+                     "solutions between weights added",
+        "grid": {"log10_weight": [float(np.log10(lam) + x) for x in WEIGHT_GRID],
+                 "log_evidence": [float(v - ll.max()) for v in ll],
+                 "posterior_weight": [float(v) for v in w]}}
+    return cov, rows[mid][4], record
 
 
 def robust_covariance(J, r, clusters) -> np.ndarray:

@@ -11,7 +11,7 @@ from scipy.stats import chi2
 from ..exceptions import InputError
 from ..io.geodesy import enu_to_geodetic
 from ..io.raw import ARRAY_FORMATS
-from .array import describe, locate_array
+from .array import KNOT_MINUTES, describe, locate_array
 from .result import SurveyInResult, classified_table
 from .ssp import survey_profile
 from .travel_times import speed_basis
@@ -117,8 +117,8 @@ def speed_series(fit, n=121):
     lo, hi = fit.model["time_range"]
     t = np.linspace(lo, hi, n)
     B = speed_basis(pd.DataFrame({"time": t}), fit.model["speed_intervals"], (lo, hi))
-    k = B.shape[1]
-    C = fit.cov[-k:, -k:]
+    k, first = B.shape[1], 3 * len(fit.ids)
+    C = fit.cov[first:first + k, first:first + k]
     unit = fit.model["unit"]
     sd = np.sqrt(np.clip(np.einsum("ij,jk,ik->i", B, C, B), 0.0, None)) * unit
     return {"time_s": t.tolist(), "mean_m_s": (B @ fit.speed_coef * unit).tolist(),
@@ -140,11 +140,14 @@ def sound_speed_entry(fit, ci, prof) -> dict:
     dict
         ``mean``, ``sd``, ``interval`` and ``unit`` ("m/s"): the survey's mean
         speed (``quantity`` says which); ``model``, ``speed_intervals``,
-        ``interval_minutes``; ``reference_m_s`` (the profile's harmonic mean
+        ``interval_minutes``; ``smoothing`` (None, or the smooth spline's
+        ``weight``, ``knot_minutes``, ``criterion``, ``effective_dof`` and the
+        marginal likelihood over a grid of weights); ``reference_m_s`` (the profile's harmonic mean
         over the same span, None for straight rays); ``coefficients`` with
         ``coefficients_unit``; ``series`` (:func:`speed_series`).
     """
     n_int = int(fit.model["speed_intervals"])
+    sm = fit.model.get("smoothing")
     lo, hi = fit.model["time_range"]
     refracted = prof is not None
     return {
@@ -154,9 +157,12 @@ def sound_speed_entry(fit, ci, prof) -> dict:
                      "over the survey") if refracted else
                     "straight-ray speed, averaged over the survey",
         "model": "one value for the survey" if not n_int else
-                 f"cubic B-spline in time, {n_int} equal intervals",
+                 (f"cubic B-spline in time, {n_int} equal intervals" if sm is None else
+                  f"smooth cubic B-spline in time, knots every {sm['knot_minutes']:.3g} min, "
+                  "roughness penalty weighted by maximum marginal likelihood"),
         "speed_intervals": n_int,
         "interval_minutes": (hi - lo) / 60.0 / n_int if n_int else None,
+        "smoothing": sm,
         "reference_m_s": float(fit.model["unit"]) if refracted else None,
         "coefficients": [float(v) for v in fit.speed_coef],
         "coefficients_unit": ("scale of the profile (dimensionless: speed = scale x profile)"
@@ -238,8 +244,95 @@ def _geodetic(e, n, u, origin):
     return enu_to_geodetic(e, n, u, *origin)
 
 
+def position_constraints(header, ids=None):
+    """Return the fixed coordinates and the fixed-geometry mode from a site file's sigmas.
+
+    GARPOS's convention: a sigma of 0 in ``<station>_dPos`` fixes that coordinate
+    of that transponder; when every ``_dPos`` sigma is 0 and ``dCentPos`` has a
+    sigma above 0, the array moves as a rigid body (the shift's coordinates with a
+    sigma of 0 fixed). Sigmas above 0 leave the coordinate free (no prior is added).
+
+    Parameters
+    ----------
+    header : dict
+        A survey's header (``position_sigmas``, ``centre_sigmas``: absent means free).
+    ids : list of str, optional
+        The transponders, in the order of ``header["transponders"]`` (default its index).
+
+    Returns
+    -------
+    fixed : numpy.ndarray or None
+        ``(K, 3)`` bool; None when nothing is fixed.
+    shift : bool
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> sig = pd.DataFrame({"east": [0.0, 0.0], "north": [0.0, 0.0], "up": [0.0, 0.0]},
+    ...                    index=["A", "B"])
+    >>> fixed, shift = position_constraints({"position_sigmas": sig,
+    ...                                      "centre_sigmas": [3.0, 3.0, 0.0]}, ["A", "B"])
+    >>> shift, fixed[0].tolist()
+    (True, [False, False, True])
+    """
+    sig = header.get("position_sigmas")
+    if sig is None:
+        return None, False
+    ids = list(header["transponders"].index) if ids is None else ids
+    s = sig.reindex([str(i) for i in ids])[["east", "north", "up"]].to_numpy(float)
+    zero = s == 0.0  # NaN (absent) is free
+    cen = header.get("centre_sigmas")
+    cen = np.array([np.nan if v is None else v for v in (cen or [None] * 3)], float)
+    if zero.all() and (cen > 0).any():
+        return np.tile(cen == 0.0, (len(ids), 1)), True
+    return (zero if zero.any() else None), False
+
+
+#: Least ``spread_over_depth`` of the track (:func:`track_geometry`) for the gradients.
+MIN_SPREAD = 0.3
+
+
+def gradient_gate(shots, priors, speed_intervals=None):
+    """Return whether the survey can fit the horizontal gradients, and why (not).
+
+    Fitted when the sound speed varies in time, three transponders or more reply and
+    the ship's track spreads over at least :data:`MIN_SPREAD` of the water depth in
+    its least-spread direction (a ship circling or crossing the array; a glider holding
+    station cannot tell the shallow gradient from the array's position).
+
+    Parameters
+    ----------
+    shots : pandas.DataFrame
+        The shots (``transponder``, the transducer's ``e/n/u_tx`` and ``_rx``).
+    priors : pandas.DataFrame
+        ``east``, ``north``, ``up`` by transponder id.
+    speed_intervals : int, optional
+        As for :func:`locate_array_survey` (0: one speed, no gradients).
+
+    Returns
+    -------
+    fit : bool
+    reason : str
+    """
+    if speed_intervals == 0:
+        return False, "one sound speed for the survey (speed_intervals=0)"
+    ids = [t for t in map(str, priors.index)
+           if int(np.sum(shots["transponder"].astype(str) == t)) >= 6]
+    if len(ids) < 3:
+        return False, f"{len(ids)} transponders located; the deep gradient needs 3 or more"
+    geo = track_geometry(shots, {t: priors.loc[t, ["east", "north", "up"]].to_numpy(float)
+                                 for t in ids})
+    spread = geo["spread_over_depth"]
+    if spread < MIN_SPREAD:
+        return False, (f"the track spreads over {spread:.2f} of the depth (need "
+                       f"{MIN_SPREAD}): the shallow gradient is not identifiable")
+    return True, f"the track spreads over {spread:.2f} of the depth, {len(ids)} transponders"
+
+
 def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
-                        speed_intervals=0, surface_depth=None) -> SurveyInResult:
+                        speed_intervals=None, surface_depth=None,
+                        knot_minutes=KNOT_MINUTES, shift=None,
+                        gradients=False) -> SurveyInResult:
     """Locate every transponder of a GNSS-A array survey together.
 
     Parameters
@@ -251,13 +344,26 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
     ssp : None, SoundSpeedProfile, str or path
         None (default): the survey's own profile; ``"straight"``: straight rays;
         otherwise as for :func:`~.ssp.survey_profile`.
-    speed_intervals : int, default 0
-        The sound speed (the profile's scale) as a cubic B-spline in time with
-        this many intervals, shared by the array. GNSS-A surveys last hours and
-        the ocean changes in that time: one interval per 15-30 minutes.
+    speed_intervals : int, optional
+        None (default): the sound speed (the profile's scale) is a smooth cubic
+        B-spline in time, knots every ``knot_minutes``, its smoothness chosen by
+        maximum marginal likelihood (:func:`~.array.locate_array`). An integer: an
+        unpenalised B-spline with this many intervals (0: one speed).
     surface_depth : float, optional
         Depth (``-up``) of the profile's sea surface in the survey's frame;
         default the header's (0 without one).
+    knot_minutes : float, default 5
+    shift : bool, optional
+        Solve a rigid shift of the prior geometry; default from the site file's
+        sigmas (:func:`position_constraints`), which also fix the coordinates
+        whose sigma is 0.
+    gradients : bool or None, default False
+        Fit GARPOS's shallow and deep horizontal gradients too (``summary.json``
+        ``gradients``: their time averages in (m/s)/km). None: where
+        :func:`gradient_gate` allows (not the default: on short campaigns its test
+        lets through tracks on which the gradients trade off against the positions
+        by decimetres; the gate is not calibrated yet). ``summary.json`` records the
+        gate's verdict either way.
 
     Returns
     -------
@@ -275,9 +381,20 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
     h = raw.header
     if surface_depth is None:
         surface_depth = float(h.get("surface_depth", 0.0))
+    gate, why = gradient_gate(shots, h["transponders"], speed_intervals)
+    if gradients is None:
+        gradients = gate
+    else:
+        why = ("asked for" if gradients else "not asked for") + f" (the gate: {why})"
+    fixed, auto_shift = position_constraints(h)
+    shift = auto_shift if shift is None else bool(shift)
+    if shift and not auto_shift:
+        fixed = None
     fit = locate_array(shots, h["transponders"], profile=prof,
                        surface_depth=float(surface_depth),
-                       speed_intervals=speed_intervals, outliers=outliers)
+                       speed_intervals=speed_intervals, outliers=outliers,
+                       knot_minutes=knot_minutes, fixed=fixed, shift=shift,
+                       gradients=gradients)
     origin = (h["lat"], h["lon"], h.get("height", 0.0)) if "lat" in h else None
     counts = np.bincount(fit.index, minlength=len(fit.ids))
     out = {tid: _transponder_entry(fit, k, ci, origin, counts[k])
@@ -316,9 +433,13 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
         "n_pings": int(n), "n_skipped_lines": int(len(raw.skipped)),
         "skipped_transponders": dict(fit.skipped),
         "method": f"array EM, {rays}; intervals approximate (Wald, cluster-robust by "
-                  "interrogation)",
+                  "interrogation" + (", averaged over the sound speed's smoothing weights)"
+                                     if fit.model.get("smoothing") else ")"),
         "outliers": outliers, "ssp": None if prof is None else prof.source,
-        "speed_intervals": int(speed_intervals), "fit_lag": False,
+        "speed_intervals": int(fit.model["speed_intervals"]), "fit_lag": False,
+        "positions": fit.model["positions"],
+        "gradients": {"fitted": bool(gradients), "reason": why,
+                      **(fit.model.get("gradients") or {})},
         "geometry": {"frame": "local east, north, up about the origin (m)",
                      "origin": None if origin is None else dict(
                          zip(("lat", "lon", "height"), map(float, origin), strict=True)),

@@ -313,3 +313,71 @@ def speed_basis(pings, n_intervals, time_range):
     knots = np.concatenate([[lo] * k, np.linspace(lo, hi, int(n_intervals) + 1), [hi] * k])
     tc = np.clip(t, lo, hi)
     return BSpline.design_matrix(tc, knots, k).toarray()
+
+
+def smooth_intervals(time_range, knot_minutes) -> int:
+    """Return the number of equal B-spline intervals with knots at most ``knot_minutes`` apart.
+
+    Parameters
+    ----------
+    time_range : tuple of float
+        Span (s).
+    knot_minutes : float
+        Largest knot spacing (min).
+
+    Returns
+    -------
+    int
+        At least 1.
+
+    Examples
+    --------
+    >>> smooth_intervals((0.0, 6 * 3600.0), 5.0)
+    72
+    """
+    span = float(time_range[1]) - float(time_range[0])
+    return max(1, int(np.ceil(span / (60.0 * float(knot_minutes)) - 1e-9)))
+
+
+def speed_penalty(n_intervals, time_range, *, order=2, time_unit=3600.0) -> np.ndarray:
+    """Gram matrix of the roughness ``int (d^q s / du^q)^2 du`` of :func:`speed_basis`'s spline.
+
+    ``u = t / time_unit``: the penalty is an integral over time, so its weight means
+    the same at any knot spacing. Exact (Gauss-Legendre on each interval).
+
+    Parameters
+    ----------
+    n_intervals : int
+        Intervals of the spline (at least 1).
+    time_range : tuple of float
+        Its span (s).
+    order : int, default 2
+        ``q``: the derivative penalised (2: curvature; constant and linear trends are free).
+    time_unit : float, default 3600
+        Seconds per unit of ``u`` (hours).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(n_intervals + 3, n_intervals + 3)``, symmetric, rank ``n_intervals + 3 - order``.
+
+    Examples
+    --------
+    >>> H = speed_penalty(4, (0.0, 3600.0))
+    >>> H.shape, bool(abs(H @ np.ones(7)).max() < 1e-9)
+    ((7, 7), True)
+    """
+    from scipy.interpolate import BSpline
+
+    lo, hi = map(float, time_range)
+    k, n = 3, int(n_intervals)
+    edges = np.linspace(lo, hi, n + 1)
+    knots = np.concatenate([[lo] * k, edges, [hi] * k])
+    m = n + k
+    deriv = BSpline(knots, np.eye(m), k).derivative(order)
+    x, w = np.polynomial.legendre.leggauss(4)
+    a, b = edges[:-1, None], edges[1:, None]
+    t = (0.5 * (b - a) * x + 0.5 * (a + b)).ravel()
+    wt = (0.5 * (b - a) * w).ravel() / time_unit  # du
+    D = deriv(t) * time_unit ** order  # d/du = time_unit d/dt
+    return (D * wt[:, None]).T @ D

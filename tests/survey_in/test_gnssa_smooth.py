@@ -1,0 +1,201 @@
+"""The array's smooth sound speed, fixed coordinates and the fixed-geometry shift (issue 26)."""
+
+import numpy as np
+import pandas as pd
+import pytest
+from scipy.interpolate import BSpline
+
+from bayes_mpem.io.garpos import read_garpos, write_garpos
+from bayes_mpem.survey_in.array import choose_smoothing, locate_array, log_evidence
+from bayes_mpem.survey_in.array_survey import array_shots, locate_array_survey, position_constraints
+from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa
+from bayes_mpem.survey_in.travel_times import smooth_intervals, speed_penalty
+
+
+@pytest.mark.parametrize("n", [4, 9])
+def test_the_penalty_is_the_integral_of_the_squared_curvature(n):
+    span = 2 * 3600.0
+    knots = np.concatenate([[0.0] * 3, np.linspace(0.0, span, n + 1), [span] * 3])
+    t = np.linspace(0.0, span, 200)
+    B = BSpline.design_matrix(t, knots, 3).toarray()
+    c = np.linalg.lstsq(B, (t / 3600.0) ** 2, rcond=None)[0]  # u^2, u in hours: u'' = 2
+    H = speed_penalty(n, (0.0, span))
+    assert c @ H @ c == pytest.approx(4.0 * 2.0, rel=1e-8)  # int_0^2 2^2 du, any knots
+    assert np.abs(H @ (1.0 + t[:n + 3] * 0)).max() < 1e-8  # a constant is free
+
+
+def test_smooth_intervals():
+    assert smooth_intervals((0.0, 3600.0), 10.0) == 6
+    assert smooth_intervals((0.0, 3601.0), 10.0) == 7
+    assert smooth_intervals((0.0, 10.0), 10.0) == 1
+
+
+def test_the_evidence_picks_the_smoothing_a_smooth_truth_needs():
+    gen = np.random.default_rng(0)
+    n, span = 40, (0.0, 4 * 3600.0)
+    t = np.linspace(*span, 400)
+    knots = np.concatenate([[0.0] * 3, np.linspace(*span, n + 1), [span[1]] * 3])
+    B = BSpline.design_matrix(t, knots, 3).toarray()
+    H = speed_penalty(n, span)
+    y = np.sin(2 * np.pi * t / (4 * 3600.0)) + gen.normal(0, 0.1, t.size)
+    # residuals r(theta) = y - B theta: J = -B, at theta = 0
+    lam = choose_smoothing(-B, y, np.zeros(n + 3), H, 0.1)
+    fit = log_evidence(-B, y, np.zeros(n + 3), H, 0.1, lam)[1]
+    truth = np.sin(2 * np.pi * t / (4 * 3600.0))
+    rough = log_evidence(-B, y, np.zeros(n + 3), H, 0.1, lam * 1e-4)[1]
+    assert np.sqrt(np.mean((B @ fit - truth) ** 2)) < 0.5 * np.sqrt(
+        np.mean((B @ rough - truth) ** 2))
+    for other in (lam / 10, lam * 10):
+        assert (log_evidence(-B, y, np.zeros(n + 3), H, 0.1, lam)[0]
+                > log_evidence(-B, y, np.zeros(n + 3), H, 0.1, other)[0])
+
+
+@pytest.fixture(scope="module")
+def campaign():
+    return simulate_gnssa(n_transponders=3, hours=1.5, rng=11, speed_model="field")
+
+
+def test_the_default_is_smooth_and_recorded(campaign):
+    res = locate_array_survey(campaign.raw())
+    ss = res.summary["sound_speed"]
+    sm = ss["smoothing"]
+    assert "smooth cubic B-spline" in ss["model"]
+    assert sm["knot_minutes"] == pytest.approx(5.0, abs=0.1) and sm["knot_minutes_asked"] == 5.0
+    assert np.isfinite(sm["weight"]) and sm["weight"] > 0
+    assert "marginal likelihood" in sm["criterion"]
+    assert sum(sm["grid"]["posterior_weight"]) == pytest.approx(1.0)
+    assert max(sm["grid"]["log_evidence"]) == 0.0
+    assert res.summary["speed_intervals"] == 18
+    fit = res.fits["array"]
+    truth = campaign.truth["transponders"].to_numpy().mean(axis=0)
+    m, C = fit.centre()
+    assert np.all(np.abs(m - truth) < 4 * np.sqrt(np.diag(C)) + 0.005)
+    # an unpenalised override is still there
+    fixed = locate_array_survey(campaign.raw(), speed_intervals=3)
+    assert fixed.summary["sound_speed"]["smoothing"] is None
+
+
+def test_halving_or_doubling_the_knot_spacing_moves_the_centre_less_than_its_sd(campaign):
+    raw = campaign.raw()
+    m, C = locate_array_survey(raw).fits["array"].centre()
+    sd = np.sqrt(np.diag(C))
+    for km in (2.5, 10.0):
+        other, _ = locate_array_survey(raw, knot_minutes=km).fits["array"].centre()
+        assert np.all(np.abs(other - m) < sd)
+
+
+def _with_sigmas(site, sigmas, centre):
+    """Rewrite a GARPOS site file's position sigmas."""
+    lines = []
+    for ln in site.read_text().splitlines():
+        key = ln.split("=")[0].strip()
+        if key.endswith("_dPos") or key == "dCentPos":
+            parts = ln.split("=")[1].split()
+            s = centre if key == "dCentPos" else sigmas.get(key[:-5], map(float, parts[3:6]))
+            ln = f" {key} = " + " ".join(parts[:3] + [f"{v:.4f}" for v in s] + parts[6:])
+        lines.append(ln)
+    site.write_text("\n".join(lines) + "\n")
+
+
+def test_a_rigid_shift_of_the_given_geometry_is_recovered(tmp_path):
+    sim = simulate_gnssa(n_transponders=4, hours=1.0, rng=12)
+    true = sim.truth["transponders"]
+    shift = np.array([0.8, -0.5, 0.3])
+    header = dict(sim.header, transponders=true - shift)  # the geometry, moved
+    site = write_garpos(tmp_path, sim.pings, header)
+    _with_sigmas(site, {t: [0.0] * 3 for t in true.index}, [3.0, 3.0, 3.0])
+    raw = read_garpos(site)
+    fixed, mode = position_constraints(raw.header)
+    assert mode and not fixed.any()
+    res = locate_array_survey(raw)
+    fit = res.fits["array"]
+    assert res.summary["positions"]["mode"].startswith("rigid shift")
+    assert res.summary["positions"]["n_free"] == 3
+    moved = fit.enu - fit.start
+    np.testing.assert_allclose(moved, np.tile(moved[0], (4, 1)), atol=1e-9)  # rigid
+    np.testing.assert_allclose(moved[0], shift, atol=0.01)
+    # the shift's sd is that of a common move: no larger than a free transponder's
+    free = locate_array_survey(sim.raw()).fits["array"]
+    assert fit.centre()[1][0, 0] <= 1.05 * free.centre()[1][0, 0]
+
+
+def test_a_sigma_of_zero_fixes_that_coordinate(tmp_path):
+    sim = simulate_gnssa(n_transponders=3, hours=0.5, rng=13)
+    site = write_garpos(tmp_path, sim.pings, sim.header)
+    _with_sigmas(site, {"M02": [3.0, 3.0, 0.0]}, [0.0, 0.0, 0.0])
+    raw = read_garpos(site)
+    fixed, mode = position_constraints(raw.header)
+    assert not mode and fixed.tolist() == [[False] * 3, [False, False, True], [False] * 3]
+    fit = locate_array_survey(raw, speed_intervals=0).fits["array"]
+    assert fit.enu[1, 2] == fit.start[1, 2]  # held
+    assert fit.sd[1, 2] == 0.0
+    assert abs(fit.enu[0, 2] - fit.start[0, 2]) > 1e-3  # the others solved
+
+
+def test_fixed_must_match_the_transponders():
+    sim = simulate_gnssa(n_transponders=3, hours=0.3, rng=14)
+    shots = array_shots(sim.raw())
+    with pytest.raises(Exception, match="fixed: expected a"):
+        locate_array(shots, sim.header["transponders"], speed_intervals=0,
+                     fixed=np.zeros((2, 3), bool))
+    out = locate_array(shots, sim.header["transponders"], speed_intervals=0,
+                       fixed=pd.DataFrame(np.ones((3, 3), bool)).to_numpy())
+    np.testing.assert_array_equal(out.enu, out.start)
+
+
+def test_the_gradient_jacobian_matches_finite_differences():
+    from bayes_mpem.survey_in.array import ArrayTravelTimes, gradient_design
+    from bayes_mpem.survey_in.travel_times import speed_basis
+
+    sim = simulate_gnssa(n_transponders=3, hours=0.3, rng=15)
+    shots = array_shots(sim.raw())
+    index = pd.Categorical(shots["transponder"], categories=["M01", "M02", "M03"]).codes
+    basis = speed_basis(shots, 2, None)
+    start = sim.header["transponders"].to_numpy()
+    model = ArrayTravelTimes(shots, index, 3, basis,
+                             gradients=gradient_design(shots, index, start, basis))
+    gen = np.random.default_rng(0)
+    theta = np.concatenate([start.ravel(), 1500 + gen.normal(0, 0.1, 5),
+                            gen.normal(0, 1e-4, 20)])
+    J = model.jac(theta)
+    for j in range(theta.size):
+        h = 1e-4 if j < 14 else 1e-5
+        up, dn = theta.copy(), theta.copy()
+        up[j] += h
+        dn[j] -= h
+        num = (model.predict(up) - model.predict(dn)) / (2 * h)
+        np.testing.assert_allclose(J[:, j], num, rtol=1e-5, atol=1e-10)
+
+
+def test_gradients_of_garpos_own_model_are_recovered():
+    sim = simulate_gnssa(hours=3.0, rng=16, speed_model="field", gradients=True,
+                         track="star+circle", travel_time="gamma", shallow_gradient=1.0,
+                         deep_gradient=0.3)
+    rec = sim.truth_record()["gradients"]
+    res = locate_array_survey(sim.raw(), gradients=True, knot_minutes=10.0)
+    g = res.summary["gradients"]
+    assert g["unit"] == "(m/s)/km"
+    assert res.summary["sound_speed"]["smoothing"]["gradient_weight"] > 0
+    for name, key in (("shallow_east", "grad1_east"), ("shallow_north", "grad1_north"),
+                      ("deep_east", "grad2_east"), ("deep_north", "grad2_north")):
+        assert abs(g[name]["mean"] - np.mean(rec[key])) < 3 * g[name]["sd"] + 0.005, name
+    truth = sim.truth["transponders"].to_numpy()
+    assert np.abs(res.fits["array"].enu - truth).max() < 0.05
+
+
+def test_the_gradient_gate_says_why():
+    from bayes_mpem.survey_in.array_survey import gradient_gate
+
+    station = simulate_gnssa(hours=0.5, rng=17, track="station")
+    fit, why = gradient_gate(array_shots(station.raw()), station.header["transponders"])
+    assert not fit and "not identifiable" in why
+    two = simulate_gnssa(n_transponders=2, hours=0.5, rng=17, track="circle")
+    fit, why = gradient_gate(array_shots(two.raw()), two.header["transponders"])
+    assert not fit and "3 or more" in why
+    circle = simulate_gnssa(hours=1.0, rng=17, track="circle")
+    shots = array_shots(circle.raw())
+    assert gradient_gate(shots, circle.header["transponders"])[0]
+    assert not gradient_gate(shots, circle.header["transponders"], speed_intervals=0)[0]
+    res = locate_array_survey(station.raw())
+    assert res.summary["gradients"]["fitted"] is False
+    assert "not asked for" in res.summary["gradients"]["reason"]

@@ -111,7 +111,17 @@ class ArrayTravelTimes:
         return T, dE, dN, dU, bad
 
     def speed(self, theta):
-        """Return the speed (or the profile's scale) at each shot, given ``theta``."""
+        """Return the speed (or the profile's scale) at each shot, given ``theta``.
+
+        Parameters
+        ----------
+        theta : numpy.ndarray
+            The parameter vector (positions, speed coefficients, ...).
+
+        Returns
+        -------
+        numpy.ndarray
+        """
         return self.basis @ theta[3 * self.K:3 * self.K + self.k]
 
     def _gain(self, theta):
@@ -121,11 +131,31 @@ class ArrayTravelTimes:
         return np.exp(-self.grad @ theta[3 * self.K + self.k:])
 
     def predict(self, theta):
-        """Return the two-way travel time (s) of a true reply to each shot, given ``theta``."""
+        """Return the two-way travel time (s) of a true reply to each shot, given ``theta``.
+
+        Parameters
+        ----------
+        theta : numpy.ndarray
+            The parameter vector (positions, speed coefficients, ...).
+
+        Returns
+        -------
+        numpy.ndarray
+        """
         return self._paths(theta)[0] / self.speed(theta) * self._gain(theta)
 
     def jac(self, theta):
-        """Return d(prediction)/d(theta), ``(shots, n_params)``."""
+        """Return d(prediction)/d(theta), ``(shots, n_params)``.
+
+        Parameters
+        ----------
+        theta : numpy.ndarray
+            The parameter vector (positions, speed coefficients, ...).
+
+        Returns
+        -------
+        numpy.ndarray
+        """
         T, dE, dN, dU, _ = self._paths(theta)
         s = self.speed(theta)
         J = np.zeros((T.size, self.n_params))
@@ -140,7 +170,17 @@ class ArrayTravelTimes:
         return J
 
     def n_invalid(self, theta) -> int:
-        """Count the legs no eigenray reaches at ``theta`` (0 for straight rays)."""
+        """Count the legs no eigenray reaches at ``theta`` (0 for straight rays).
+
+        Parameters
+        ----------
+        theta : numpy.ndarray
+            The parameter vector (positions, speed coefficients, ...).
+
+        Returns
+        -------
+        int
+        """
         return int(self._paths(theta)[4])
 
 
@@ -226,16 +266,46 @@ class ArrayLocateResult:
         return self.enu.mean(axis=0), G @ self.cov @ G.T
 
     def position_cov(self, k: int) -> np.ndarray:
-        """Return the ``(3, 3)`` covariance of east, north, up of transponder number ``k``."""
+        """Return the ``(3, 3)`` covariance of east, north, up of transponder number ``k``.
+
+        Parameters
+        ----------
+        k : int
+            The transponder's number (its order in the result).
+
+        Returns
+        -------
+        numpy.ndarray
+        """
         return self.cov[3 * k:3 * k + 3, 3 * k:3 * k + 3]
 
     def n_spurious(self, k: int) -> int:
-        """Count the shots of transponder number ``k`` more likely spurious than true."""
+        """Count the shots of transponder number ``k`` more likely spurious than true.
+
+        Parameters
+        ----------
+        k : int
+            The transponder's number (its order in the result).
+
+        Returns
+        -------
+        int
+        """
         return int(np.sum(self.p_true[self.index == k] < 0.5))
 
 
 def describe(mean, sd, ci):
     """Return ``{"mean", "sd", "interval"}``, a Wald interval with probability ``ci``.
+
+    Parameters
+    ----------
+    mean, sd : float
+    ci : float
+        Probability of the interval, in (0, 1).
+
+    Returns
+    -------
+    dict
 
     Examples
     --------
@@ -446,7 +516,9 @@ GRADIENT_NAMES = ("shallow_east", "shallow_north", "deep_east", "deep_north")
 
 
 def gradient_design(shots, index, start, basis) -> np.ndarray:
-    """Return the design of GARPOS's gradient terms: ``gamma = a1 . dp / L + a2 . dx / L``.
+    """Return the design of GARPOS's gradient terms (``gamma`` linear in their coefficients).
+
+    ``gamma = a1 . dp / L + a2 . dx / L``.
 
     ``dp`` is the transducer's horizontal offset (mean of transmit and receive) from its
     mean over the shots, ``dx`` the transponder's prior offset from the priors' mean

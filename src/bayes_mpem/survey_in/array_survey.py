@@ -171,7 +171,13 @@ def sound_speed_entry(fit, ci, prof) -> dict:
 
 
 def residual_entry(cls) -> dict:
-    """Return the residual rms (ms) of the true replies, overall and per transponder."""
+    """Return the residual rms (ms) of the true replies, overall and per transponder.
+
+    Parameters
+    ----------
+    cls : pandas.DataFrame
+        The classified shots (``label``, ``residual`` in s, ``transponder``).
+    """
     pinged = cls[cls["label"].isin(["true", "spurious"])]
     true = pinged[pinged["label"] == "true"]
 

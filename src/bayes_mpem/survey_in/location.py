@@ -120,6 +120,11 @@ class LocateResult:
 
         ``pings`` has ``x``, ``y``, ``depth`` (and ``time`` for a lag or a
         time-varying speed); ``theta`` is ``(east, north, depth, speed coefficients...)``.
+
+        Parameters
+        ----------
+        pings : pandas.DataFrame
+            ``x``, ``y``, ``depth`` (and ``time`` for a lag or a speed in time).
         """
         x, y, z = (pings[c].to_numpy(float) for c in ("x", "y", "depth"))
         m = self.model
@@ -133,12 +138,32 @@ class LocateResult:
         return tt, np.concatenate([[self.east, self.north, self.depth], coef])
 
     def predict(self, pings: pd.DataFrame) -> np.ndarray:
-        """Return the two-way travel time (s) of a true arrival for each of ``pings``."""
+        """Return the two-way travel time (s) of a true arrival for each of ``pings``.
+
+        Parameters
+        ----------
+        pings : pandas.DataFrame
+            ``x``, ``y``, ``depth`` (and ``time`` for a lag or a speed in time).
+
+        Returns
+        -------
+        numpy.ndarray
+        """
         model, theta = self.travel_times(pings)
         return model.predict(theta)
 
     def logpdf(self, pings: pd.DataFrame) -> np.ndarray:
-        """Return the log density (1/s) of the ``twtt`` of each of ``pings`` (e.g. held out)."""
+        """Return the log density (1/s) of the ``twtt`` of each of ``pings`` (e.g. held out).
+
+        Parameters
+        ----------
+        pings : pandas.DataFrame
+            ``x``, ``y``, ``depth`` ``twtt`` (and ``time`` for a lag or a speed in time).
+
+        Returns
+        -------
+        numpy.ndarray
+        """
         t = pings["twtt"].to_numpy(float)
         pred = self.predict(pings)
         ld, lu = log_classes(t, pred, self.sigma, self.weight, self.window, self.outliers)
@@ -150,7 +175,18 @@ class LocateResult:
         return int(np.sum(self.p_true < 0.5))
 
     def interval(self, name: str, ci: float = 0.95) -> list:
-        """Return the Wald interval ``[lower, upper]`` of parameter ``name``, probability ``ci``."""
+        """Return the Wald interval ``[lower, upper]`` of parameter ``name``, probability ``ci``.
+
+        Parameters
+        ----------
+        name : str
+            A fitted parameter (``east``, ``north``, ``depth``, ``sound_speed``, ...).
+        ci : float, default 0.95
+
+        Returns
+        -------
+        list of float
+        """
         from scipy.stats import norm
 
         v = {"east": self.east, "north": self.north, "depth": self.depth,
@@ -159,7 +195,16 @@ class LocateResult:
         return [v - half, v + half]
 
     def to_dict(self, ci: float = 0.95) -> dict:
-        """Return a JSON-ready summary, with Wald intervals of probability ``ci``."""
+        """Return a JSON-ready summary, with Wald intervals of probability ``ci``.
+
+        Parameters
+        ----------
+        ci : float, default 0.95
+
+        Returns
+        -------
+        dict
+        """
         out = {k: {"mean": getattr(self, k), "sd": self.sd.get(k, 0.0),
                    "interval": self.interval(k, ci)}
                for k in ("east", "north", "depth", "sound_speed")}
@@ -402,13 +447,36 @@ class TravelTimeEM(EMModel):
         """Return the :func:`~bayes_mpem.mixture.em.run_em` (``**kw``) of the EM from ``theta``.
 
         The first ``sigma`` is the MAD of the residuals, at least ``sigma_min`` (s).
+
+        Parameters
+        ----------
+        theta : numpy.ndarray
+            The start.
+        sigma_min : float
+            Floor of the first ``sigma`` (s).
+        **kw
+            Passed to :func:`~bayes_mpem.mixture.em.run_em`.
+
+        Returns
+        -------
+        EMRun
         """
         r = self.resid(theta)
         sigma = max(1.4826 * float(np.median(np.abs(r - np.median(r)))), sigma_min)
         return run_em(self, _Fit(theta, r, sigma, np.full(len(self.windows), 0.9)), **kw)
 
     def e_step(self, fit):
-        """Return ``(None, probability that each ping is true)``."""
+        """Return ``(None, probability that each ping is true)``.
+
+        Parameters
+        ----------
+        fit : object
+            The current parameters (``theta``, residuals ``r``, ``sigma``, weight).
+
+        Returns
+        -------
+        tuple
+        """
         p, pred = np.empty_like(self.t), self.t - fit.r
         for k, sel in enumerate(self.rows):
             ld, lu = log_classes(self.t[sel], pred[sel], fit.sigma, fit.weights[k],
@@ -417,7 +485,19 @@ class TravelTimeEM(EMModel):
         return None, p
 
     def m_step(self, fit, p):
-        """Return the new parameters given the probabilities ``p`` of true pings."""
+        """Return the new parameters given the probabilities ``p`` of true pings.
+
+        Parameters
+        ----------
+        fit : object
+            The current parameters.
+        p : numpy.ndarray
+            Probability that each ping is true.
+
+        Returns
+        -------
+        object
+        """
         theta = least_squares(self.resid, fit.theta, jac=self.jac, args=(p,),
                               x_scale=self.x_scale).x
         r = self.resid(theta)
@@ -431,7 +511,19 @@ class TravelTimeEM(EMModel):
         return _Fit(theta, r, sigma, shares)
 
     def change(self, old, new, gain):
-        """Return the change of ``sigma`` (s)."""
+        """Return the change of ``sigma`` (s).
+
+        Parameters
+        ----------
+        old, new : object
+            The parameters before and after an iteration.
+        gain : float or None
+            Unused (the EM has no log-likelihood gain to measure).
+
+        Returns
+        -------
+        float
+        """
         return abs(new.sigma - old.sigma)
 
 

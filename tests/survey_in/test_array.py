@@ -168,3 +168,28 @@ def test_locate_command_on_garpos_and_gnatss_files(located, tmp_path, capsys):
     for extra in (["--sample"], ["--fit-lag"], ["--tat", "0.1"]):
         assert main(["locate", str(config), "--out", str(tmp_path / "x"), *extra]) == 2
         assert "not for a gnatss array survey" in capsys.readouterr().err
+
+
+def test_one_shot_logged_a_kilometre_off_does_not_pull_its_transponder(tmp_path):
+    """One shot's antenna east set to -1 m (it was ~969 m) in a 12-minute campaign: the
+    robust start leaves it out (it pulled M03 1.9 km away before), the EM calls it
+    spurious, and the array is where the clean campaign puts it."""
+    from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa
+    from bayes_mpem.survey_in.survey import locate_survey
+
+    sim = simulate_gnssa(n_transponders=3, hours=0.2, rng=4, origin=(38.0, 143.0, 25.0))
+    clean = locate_survey(read_garpos(write_garpos(tmp_path / "c", sim.pings, sim.header)))
+    site = write_garpos(tmp_path / "g", sim.pings, sim.header)
+    obs = site.parent / site.name.replace("initcfg.ini", "obs.csv")
+    lines = obs.read_text().split("\n")
+    fields = lines[9].split(",")
+    assert abs(float(fields[10]) - (-1.0)) > 500  # the antenna east at transmit
+    fields[10] = "-1"
+    lines[9] = ",".join(fields)
+    obs.write_text("\n".join(lines))
+    bad = locate_survey(read_garpos(site))
+    for axis in ("east", "north", "up"):
+        a, b = clean.summary["array_centre"]["enu"][axis], bad.summary["array_centre"]["enu"][axis]
+        assert b["sd"] is not None and abs(a["mean"] - b["mean"]) < 0.2 * a["sd"], axis
+    assert (bad.classified["label"] == "spurious").sum() == (
+        clean.classified["label"] == "spurious").sum() + 1

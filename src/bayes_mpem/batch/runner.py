@@ -208,8 +208,10 @@ def _client(scheduler, n_workers):
 
     if scheduler:
         return Client(scheduler), None
+    # ":0": the dashboard on a free port (None still asks for 8787, and a second cluster on
+    # the machine then fails to start where warnings are errors)
     cluster = LocalCluster(n_workers=n_workers or 1, threads_per_worker=1, processes=True,
-                           dashboard_address=None, silence_logs=40)
+                           dashboard_address=":0", silence_logs=40)
     return Client(cluster), cluster
 
 

@@ -146,7 +146,7 @@ class SurveyPosterior:
         -------
         dict
         """
-        beacons = {}
+        beacons, files = {}, self.files()
         for bid, r in self.results.items():
             d = r.to_dict()
             depth = float(self.survey.beacons.loc[bid, "depth"])
@@ -155,7 +155,7 @@ class SurveyPosterior:
             d["plane_depth"] = {"mean": depth - r.summary["d0"]["mean"],
                                 "interval": [depth - hi, depth - lo]}
             d["n"] = int(r.rows.size)
-            d["file"] = self.files()[bid]
+            d["file"] = files[bid]
             if bid in self.path_choices:
                 d["path_choice"] = self.path_choices[bid].to_dict()
             if bid in self.checks:

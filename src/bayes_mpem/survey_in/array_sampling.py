@@ -170,13 +170,22 @@ class ArrayLogPosterior:
         speed = ["speed"] if self.k == 1 else [f"speed_{i}" for i in range(self.k)]
         self.names = tuple(pos_names + speed + [f"gradient_{i}" for i in range(self.kg)]
                            + ["log_sigma"] + [f"logit_weight_{t}" for t in self.ids])
-        coef = np.asarray(fit.speed_coef, float)
-        width = SPEED_PRIOR_WIDTH * np.abs(coef)
-        self.speed_bounds = (coef - width, coef + width)
+        self.coef_em = theta[P:P + self.k].copy()
+        self.gc_em = theta[P + self.k:].copy()
+        self.width = SPEED_PRIOR_WIDTH * np.abs(self.coef_em)
         T = np.zeros((self.F + self.k + self.kg, P + self.k + self.kg))
         T[:self.F, :P] = self.B.T
         T[self.F:, P:] = np.eye(self.k + self.kg)
-        self.cov_geo = T @ C[:T.shape[1], :T.shape[1]] @ T.T
+        cov = T @ C[:T.shape[1], :T.shape[1]] @ T.T
+        # speed and gradient coordinates: offsets from the EM in units of their sds, so the
+        # proposal's scale matrix is well conditioned (a stiff spline's coefficients are
+        # known to 1e-9 while the positions are known to 1e-2)
+        sd = np.sqrt(np.maximum(np.diag(cov), 1e-300))
+        self.scale = np.concatenate([np.ones(self.F), sd[self.F:]])
+        self.cov_geo = cov / np.outer(self.scale, self.scale)
+        self.Hc = None if self.H is None else self.H @ self.coef_em
+        self.Hg = (None if self.H is None or not self.kg else
+                   np.concatenate([self.H @ g for g in self.gc_em.reshape(-1, self.k)]))
 
     @property
     def ndim(self) -> int:
@@ -231,9 +240,8 @@ class ArrayLogPosterior:
         -------
         numpy.ndarray
         """
-        P = 3 * self.K
         w = np.clip(np.asarray(self.fit.weights, float), 1e-6, 1 - 1e-6)
-        return np.concatenate([np.zeros(self.F), self.theta_em[P:], [np.log(self.fit.sigma)],
+        return np.concatenate([np.zeros(self.F + self.k + self.kg), [np.log(self.fit.sigma)],
                                np.log(w) - np.log1p(-w)])
 
     def split(self, u):
@@ -251,8 +259,8 @@ class ArrayLogPosterior:
         u = np.atleast_2d(np.asarray(u, float))
         F, k, kg = self.F, self.k, self.kg
         pos = (self.theta_em[:3 * self.K] + u[:, :F] @ self.B.T).reshape(-1, self.K, 3)
-        coef = u[:, F:F + k]
-        gc = u[:, F + k:F + k + kg]
+        coef = self.coef_em + u[:, F:F + k] * self.scale[F:F + k]
+        gc = self.gc_em + u[:, F + k:F + k + kg] * self.scale[F + k:]
         sigma = np.exp(u[:, F + k + kg])
         w = 1.0 / (1.0 + np.exp(-u[:, F + k + kg + 1:]))
         return pos, coef, gc, sigma, w
@@ -289,17 +297,22 @@ class ArrayLogPosterior:
         """
         u = np.atleast_2d(np.asarray(u, float))
         F, k, kg = self.F, self.k, self.kg
-        coef, gc = u[:, F:F + k], u[:, F + k:F + k + kg]
+        # offsets from the EM's coefficients: the penalty c'Hc of a stiff spline, evaluated
+        # directly, cancels to round-off (c near 1, H c near 0) times a weight of 1e13
+        dc = u[:, F:F + k] * self.scale[F:F + k]
+        dg = u[:, F + k:F + k + kg] * self.scale[F + k:]
         ls, lw = u[:, F + k + kg], u[:, F + k + kg + 1:]
         ok = np.all(np.isfinite(u), axis=1)
-        ok &= np.all((coef >= self.speed_bounds[0]) & (coef <= self.speed_bounds[1]), axis=1)
+        ok &= np.all(np.abs(dc) <= self.width, axis=1)
         ok &= (ls >= np.log(SIGMA_BOUNDS[0])) & (ls <= np.log(SIGMA_BOUNDS[1]))
         lp = np.zeros(u.shape[0])
         if self.H is not None:
-            lp -= 0.5 * self.lam * np.einsum("wi,ij,wj->w", coef, self.H, coef)
+            lp -= 0.5 * self.lam * (2.0 * dc @ self.Hc + np.einsum("wi,ij,wj->w", dc, self.H,
+                                                                   dc))
             if kg and self.lam_g is not None:
+                lp -= self.lam_g * (dg @ self.Hg)
                 for j in range(kg // k):
-                    g = gc[:, j * k:(j + 1) * k]
+                    g = dg[:, j * k:(j + 1) * k]
                     lp -= 0.5 * self.lam_g * np.einsum("wi,ij,wj->w", g, self.H, g)
         # a flat prior on each share: the Jacobian of the logit
         lp -= np.sum(np.logaddexp(0.0, lw) + np.logaddexp(0.0, -lw), axis=1)
@@ -598,21 +611,22 @@ class ArrayPosterior:
                                   "gradient", "sigma", "weight") if k in d}
         dims = {"position": ["transponder", "axis"], "centre": ["axis"],
                 "speed_coef": ["knot"], "gradient": ["gradient_term"],
-                "weight": ["transponder"], "twtt": ["shot"], "p_true": ["shot"],
-                "p_true_sd": ["shot"]}
+                "weight": ["transponder"], "twtt": ["shot"]}
         coords = {"transponder": list(self.ids), "axis": list(AXES),
                   "knot": np.arange(d["speed_coef"].shape[-1]),
                   "gradient_term": list(GRADIENT_NAMES), "shot": np.asarray(self.rows)}
         tree = to_datatree(
             {"posterior": post, "sample_stats": {"lp": d["lp"]},
-             "observed_data": {"twtt": self.shots["twtt"].to_numpy(float)},
-             "class_probabilities": {"p_true": self.p_true, "p_true_sd": self.p_true_sd}},
+             "observed_data": {"twtt": self.shots["twtt"].to_numpy(float)}},
             dims=dims, coords=coords,
             attrs={"kind": "GNSS-A array", "transponders": ",".join(self.ids),
                    "sampler": f"emcee {emcee.__version__} ({self.diagnostics.get('moves')})",
                    "frame": "local east, north, up (m) of the survey",
                    "speed_coef_unit": self.diagnostics.get("speed_coef_unit", ""),
                    "ci": self.ci})
+        tree["class_probabilities"] = xr.DataTree(xr.Dataset(
+            {"p_true": ("shot", self.p_true), "p_true_sd": ("shot", self.p_true_sd)},
+            coords={"shot": coords["shot"]}))
         for name in tree.children:
             ds = tree[name].to_dataset()
             if "shot" in ds.dims:
@@ -809,3 +823,126 @@ def sample_array(shots: pd.DataFrame, fit: ArrayLocateResult, *, n_walkers: int 
                           p_true_sd=p_sd[:, 0], rows=np.asarray(fit.rows), shots=table,
                           ess=ess, rhat={k: rhat(v) for k, v in series.items()}, em=fit,
                           diagnostics=diagnostics, ci=float(ci))
+
+
+def _covariance(x) -> dict:
+    """``{"names", "matrix"}`` of the sample covariance of ``(..., 3)`` east, north, up draws."""
+    C = np.cov(np.asarray(x).reshape(-1, 3), rowvar=False)
+    return {"names": list(AXES), "matrix": [[float(v) for v in row] for row in C]}
+
+
+def _with_posterior(em: dict, enu: dict, origin) -> dict:
+    """Return an EM entry with its east, north, up (depth, lat, lon) from the posterior."""
+    from ..io.geodesy import enu_to_geodetic
+
+    out = dict(em)
+    out["enu"] = {a: {**enu[a], "interval_method": "posterior"} for a in AXES}
+    if "east" in em:
+        out["east"], out["north"] = out["enu"]["east"], out["enu"]["north"]
+        up = enu["up"]
+        out["depth"] = {"mean": -up["mean"], "sd": up["sd"],
+                        "interval": [-up["interval"][1], -up["interval"][0]],
+                        "interval_method": "posterior"}
+    if origin:
+        lat, lon, h = enu_to_geodetic(enu["east"]["mean"], enu["north"]["mean"],
+                                      enu["up"]["mean"], origin["lat"], origin["lon"],
+                                      origin["height"])
+        out.update(lat=float(lat), lon=float(lon), height=float(h))
+    return out
+
+
+def locate_array_survey_bayes(raw, *, ci=0.95, outliers="uniform", ssp=None,
+                              speed_intervals=None, n_walkers=None, min_ess=1000.0,
+                              max_steps=20000, n_draws=4000, rng: RNGLike = None,
+                              progress="auto"):
+    """Locate a GNSS-A array by EM, then sample its posterior (``locate --sample``).
+
+    Parameters
+    ----------
+    raw : RawSurvey
+        A GARPOS or GNATSS survey (or a SeaGap survey of several transponders).
+    ci, outliers, ssp, speed_intervals
+        As for :func:`~bayes_mpem.survey_in.array_survey.locate_array_survey`.
+    n_walkers, min_ess, max_steps, n_draws, progress
+        As for :func:`sample_array`.
+    rng : None, int or numpy.random.Generator
+
+    Returns
+    -------
+    SurveyInResult
+        As ``locate_array_survey``'s, every position, the array centre, the sound
+        speed (and the gradients) from the posterior (mean, sd and equal-tailed
+        interval, ``"interval_method": "posterior"``, the EM's entry kept under
+        ``em``; each transponder's bulk ESS and R-hat under ``posterior``), the
+        classes from the posterior (with ``p_true_sd``), and ``posteriors``
+        ``{"array": ArrayPosterior}`` (written as ``posterior_array.nc``).
+    """
+    import copy
+
+    from .array_survey import array_shots, locate_array_survey
+    from .result import SurveyInResult
+
+    check_location_options(n_walkers=n_walkers, ci=ci, min_ess=min_ess, max_steps=max_steps,
+                           n_draws=n_draws)
+    located = locate_array_survey(raw, ci=ci, outliers=outliers, ssp=ssp,
+                                  speed_intervals=speed_intervals)
+    fit = located.fits["array"]
+    shots = array_shots(raw)
+    post = sample_array(shots, fit, n_walkers=n_walkers, ci=ci, min_ess=min_ess,
+                        max_steps=max_steps, n_draws=n_draws, rng=rng, progress=progress)
+    s = copy.deepcopy(located.summary)
+    origin = s["geometry"].get("origin")
+    d = post.draws
+    for j, tid in enumerate(post.ids):
+        em = s["transponders"][tid]
+        entry = _with_posterior(em, post.position(tid, ci), origin)
+        true = post.p_true[fit.index == j]
+        entry.update(
+            covariance=_covariance(d["position"][..., j, :]),
+            sigma_ms=1e3 * float(np.mean(d["sigma"])),
+            weight_true=float(np.mean(d["weight"][..., j])), n_spurious=int(np.sum(true < 0.5)),
+            sound_speed={**post.describe(d["sound_speed"], ci), "interval_method": "posterior"},
+            interval_method="posterior", converged=post.converged,
+            posterior={"ess": {a: post.ess[f"{a}_{tid}"] for a in AXES},
+                       "rhat": {a: post.rhat[f"{a}_{tid}"] for a in AXES},
+                       "diagnostics": dict(post.diagnostics)},
+            em=em)
+        s["transponders"][tid] = entry
+    cen = s["array_centre"]
+    s["array_centre"] = {**_with_posterior(cen, post.centre(ci), origin),
+                         "covariance": _covariance(d["centre"]),
+                         "ess": {a: post.ess[f"centre_{a}"] for a in AXES},
+                         "rhat": {a: post.rhat[f"centre_{a}"] for a in AXES}, "em": cen}
+    ss = s["sound_speed"]
+    s["sound_speed"] = {**ss, **post.describe(d["sound_speed"], ci),
+                        "interval_method": "posterior",
+                        "em": {k: ss[k] for k in ("mean", "sd", "interval")}}
+    if "gradient" in d:
+        g = s["gradients"]
+        s["gradients"] = {**g, **{name: {**post.describe(d["gradient"][..., j], ci),
+                                         "em": g.get(name)}
+                                  for j, name in enumerate(GRADIENT_NAMES)}}
+    summary_post = post.to_dict(ci)
+    s["posterior"] = {k: summary_post[k] for k in ("sigma_ms", "weight_true", "ess", "rhat",
+                                                    "diagnostics")}
+    s["posterior"]["file"] = "posterior_array.nc"
+    s["method"] = (s["method"] + "; emcee posterior from the EM solution (smoothing weights "
+                   "held at the EM's), equal-tailed intervals")
+    s["interval_method"] = "posterior"
+    s["ci"] = ci
+    s["position_region"] = (f"posterior sds and equal-tailed {100 * ci:g} % intervals; "
+                            "covariances from the draws")
+    cls = located.classified.copy()
+    keys = [c for c in ("file", "line") if c in cls.columns and c in shots.columns]
+    used = shots.iloc[fit.rows][keys].reset_index(drop=True)
+    at = pd.MultiIndex.from_frame(cls[keys]).get_indexer(pd.MultiIndex.from_frame(used))
+    p_sd = np.full(len(cls), np.nan)
+    p_true = cls["p_true"].to_numpy(float).copy()
+    p_true[at], p_sd[at] = post.p_true, post.p_true_sd
+    located_rows = np.zeros(len(cls), bool)
+    located_rows[at] = True
+    cls["p_true"], cls["p_spurious"] = p_true, 1.0 - p_true
+    cls.loc[located_rows, "label"] = np.where(p_true[located_rows] >= 0.5, "true", "spurious")
+    cls.insert(cls.columns.get_loc("p_spurious") + 1, "p_true_sd", p_sd)
+    return SurveyInResult(summary=s, classified=cls, posteriors={"array": post},
+                          fits={"array": fit})

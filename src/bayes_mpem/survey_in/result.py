@@ -125,10 +125,17 @@ class SurveyInResult:
         -------
         dict
             Paths written, keyed ``summary`` and ``classified`` (and ``solution``
-            for an array: :func:`solution_text`).
+            for an array: :func:`solution_text`; ``posterior_<id>`` for each sampled
+            posterior: :func:`~.posterior.write_posterior`).
         """
+        from .posterior import posterior_file, write_posterior
+
         with writing(out_dir) as out:
             paths = {"classified": write_csv(out / "classified.csv", self.classified)}
+            for name, post in self.posteriors.items():
+                paths[posterior_file(name)[:-3]] = write_file(
+                    out / posterior_file(name),
+                    lambda tmp, post=post: write_posterior(tmp, post.to_inference_data()))
             if "array_centre" in self.summary:
                 text = solution_text(self.summary)
                 paths["solution"] = write_file(out / "solution.txt",

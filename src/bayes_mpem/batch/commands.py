@@ -14,7 +14,7 @@ from ..exceptions import InputError
 
 LBL_INPUTS = ("pings", "beacons")
 SURVEY_INPUTS = ("survey", "format")
-#: the options of an array survey's location (GARPOS, GNATSS): no TAT, lag or sampling
+#: the options of an array survey's location (GARPOS, GNATSS): no TAT or lag
 ARRAY_OPTIONS = ("ci", "outliers", "ssp", "speed_intervals")
 
 
@@ -54,7 +54,8 @@ def locate_raw(raw, options: dict):
         :func:`~bayes_mpem.survey_in.location_sampling.locate_survey_bayes`'s sampler;
         ``lag_check``: look for a lag along the track (deck-box logs only, not sampled).
         An array survey (:data:`~bayes_mpem.io.raw.ARRAY_FORMATS`) takes only
-        :data:`ARRAY_OPTIONS`.
+        :data:`ARRAY_OPTIONS` (and ``sample``: those of
+        :func:`~bayes_mpem.survey_in.array_sampling.locate_array_survey_bayes`).
 
     Returns
     -------
@@ -63,7 +64,7 @@ def locate_raw(raw, options: dict):
     Raises
     ------
     InputError
-        For TAT, lag or sampling options given for an array survey.
+        For TAT or lag options given for an array survey.
     """
     from ..io.raw import ARRAY_FORMATS
     from ..survey_in.location_sampling import locate_survey_bayes
@@ -76,12 +77,15 @@ def locate_raw(raw, options: dict):
     if raw.format in ARRAY_FORMATS:
         given = sorted(k for k, v in options.items()
                        if k not in ARRAY_OPTIONS and v not in (None, False))
-        if given or sampling is not None:
-            raise InputError(f"{', '.join(given + ['sample'] * (sampling is not None))}: not "
-                             f"for a {raw.format} array survey (its travel times are "
-                             "corrected for the delays; the array's posterior is not sampled "
-                             "yet)")
-        return locate_survey(raw, **{k: v for k, v in options.items() if k in ARRAY_OPTIONS})
+        if given:
+            raise InputError(f"{', '.join(given)}: not for a {raw.format} array survey (its "
+                             "travel times are corrected for the delays)")
+        array = {k: v for k, v in options.items() if k in ARRAY_OPTIONS}
+        if sampling is None:
+            return locate_survey(raw, **array)
+        from ..survey_in.array_sampling import locate_array_survey_bayes
+
+        return locate_array_survey_bayes(raw, **array, **sampling)
     if sampling is None:
         return locate_survey(raw, **options,
                              lag_check=bool(lag_check) and raw.format.startswith("obsrange"))

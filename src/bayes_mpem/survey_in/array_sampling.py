@@ -933,9 +933,17 @@ def locate_array_survey_bayes(raw, *, ci=0.95, outliers="uniform", ssp=None,
     s["position_region"] = (f"posterior sds and equal-tailed {100 * ci:g} % intervals; "
                             "covariances from the draws")
     cls = located.classified.copy()
+    # a line may hold the replies of several transponders (GNATSS): the shot is its file,
+    # line, transponder and travel time
     keys = [c for c in ("file", "line") if c in cls.columns and c in shots.columns]
-    used = shots.iloc[fit.rows][keys].reset_index(drop=True)
+    sub = shots.iloc[fit.rows]
+    used = sub[keys + ["twtt"]].reset_index(drop=True)
+    used.insert(len(keys), "transponder", sub["transponder"].astype(str).to_numpy())
+    keys += ["transponder", "twtt"]
     at = pd.MultiIndex.from_frame(cls[keys]).get_indexer(pd.MultiIndex.from_frame(used))
+    if np.any(at < 0):
+        raise RuntimeError("array posterior: a located shot was not found in the classified "
+                           "table (a bug: please report it)")
     p_sd = np.full(len(cls), np.nan)
     p_true = cls["p_true"].to_numpy(float).copy()
     p_true[at], p_sd[at] = post.p_true, post.p_true_sd

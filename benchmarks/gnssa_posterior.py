@@ -38,13 +38,13 @@ from bayes_mpem.survey_in.array_survey import array_shots, locate_array_survey  
 from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa  # noqa: E402
 
 CI = 0.95
-HOURS, SHOT_INTERVAL = 1.0, 30.0
+HOURS, SHOT_INTERVAL, TRACK = 2.0, 30.0, "star"
 AXES = ("east", "north", "up")
 
 
 def one_campaign(seed):
     """Locate and sample one campaign; the standardised errors and intervals' verdicts."""
-    sim = simulate_gnssa(rng=seed, hours=HOURS, shot_interval=SHOT_INTERVAL)
+    sim = simulate_gnssa(rng=seed, hours=HOURS, shot_interval=SHOT_INTERVAL, track=TRACK)
     raw = sim.raw()
     t0 = time.perf_counter()
     fit = locate_array_survey(raw).fits["array"]
@@ -116,6 +116,7 @@ def main(n=20):
         f"{time.perf_counter() - t0:.0f} s, load average {load[0]:.1f} / {load[1]:.1f} / "
         f"{load[2]:.1f}; git {_commit()}).\n\n"
         f"{n} campaigns (seeds 0-{n - 1}) of {HOURS:g} h, a shot every {SHOT_INTERVAL:g} s, "
+        f"transits across the array (track \"{TRACK}\"), "
         f"4 transponders ({int(np.median(stack['n_shots']))} replies in the median), the "
         f"simulator's defaults otherwise; EM with `locate`'s defaults, then `sample_array` "
         f"({100 * CI:g} % intervals).\n\n" + "\n".join(lines) + "\n\n"

@@ -159,13 +159,15 @@ class ArrayLogPosterior:
         self.ratio = T_em / L_em[0]
         self.corr = dT - self.ratio[:, None] * dL[0]
         # the free directions of the positions (fixed coordinates, a rigid shift)
-        C = np.asarray(fit.cov_model if fit.cov_model is not None else fit.cov, float)
-        Cp = C[:P, :P]
-        vals, vecs = np.linalg.eigh(0.5 * (Cp + Cp.T))
-        keep = vals > 1e-12 * max(vals.max(), 1e-300)
-        self.B = np.eye(P) if keep.all() else vecs[:, keep]
+        # the free directions of the positions: a fixed coordinate has a zero row in the
+        # EM's covariance; a rigid shift moves every transponder alike
+        free = np.any(np.asarray(fit.cov, float)[:P, :P] != 0.0, axis=1)
+        if (m.get("positions") or {}).get("mode", "").startswith("rigid"):
+            self.B = np.tile(np.eye(3), (self.K, 1))[:, free[:3]] / np.sqrt(self.K)
+        else:
+            self.B = np.eye(P)[:, free]
         self.F = self.B.shape[1]
-        pos_names = ([f"{a}_{t}" for t in self.ids for a in AXES] if keep.all()
+        pos_names = ([f"{a}_{t}" for t in self.ids for a in AXES] if self.F == P
                      else [f"position_{j}" for j in range(self.F)])
         speed = ["speed"] if self.k == 1 else [f"speed_{i}" for i in range(self.k)]
         self.names = tuple(pos_names + speed + [f"gradient_{i}" for i in range(self.kg)]
@@ -173,10 +175,7 @@ class ArrayLogPosterior:
         self.coef_em = theta[P:P + self.k].copy()
         self.gc_em = theta[P + self.k:].copy()
         self.width = SPEED_PRIOR_WIDTH * np.abs(self.coef_em)
-        T = np.zeros((self.F + self.k + self.kg, P + self.k + self.kg))
-        T[:self.F, :P] = self.B.T
-        T[self.F:, P:] = np.eye(self.k + self.kg)
-        cov = T @ C[:T.shape[1], :T.shape[1]] @ T.T
+        cov = self._laplace(J, fit)
         # speed and gradient coordinates: offsets from the EM in units of their sds, so the
         # proposal's scale matrix is well conditioned (a stiff spline's coefficients are
         # known to 1e-9 while the positions are known to 1e-2)
@@ -186,6 +185,30 @@ class ArrayLogPosterior:
         self.Hc = None if self.H is None else self.H @ self.coef_em
         self.Hg = (None if self.H is None or not self.kg else
                    np.concatenate([self.H @ g for g in self.gc_em.reshape(-1, self.k)]))
+
+    def _laplace(self, J, fit):
+        """Return the Laplace covariance of (free positions, speed, gradients) at the EM.
+
+        The inverse of ``J'WJ / sigma^2 + lam H (+ lam_g H_g)``, Jacobi-scaled and inverted
+        by eigenvalues (the EM's own ``cov_model``, an unscaled inverse, loses its positive
+        definiteness when a stiff spline meets a depth-speed trade-off).
+        """
+        P, k, kg = 3 * self.K, self.k, self.kg
+        M = np.zeros((P + k + kg, self.F + k + kg))
+        M[:P, :self.F] = self.B
+        M[P:, self.F:] = np.eye(k + kg)
+        Jw = np.sqrt(np.asarray(fit.p_true, float))[:, None] * (J @ M)
+        A = Jw.T @ Jw / fit.sigma**2
+        if self.H is not None:
+            A[self.F:self.F + k, self.F:self.F + k] += self.lam * self.H
+            if kg and self.lam_g is not None:
+                for j in range(kg // k):
+                    a = self.F + k + j * k
+                    A[a:a + k, a:a + k] += self.lam_g * self.H
+        d = np.sqrt(np.maximum(np.diag(A), 1e-300))
+        vals, vecs = np.linalg.eigh(A / np.outer(d, d))
+        vals = np.maximum(vals, 1e-12 * vals.max())
+        return (vecs / vals) @ vecs.T / np.outer(d, d)
 
     @property
     def ndim(self) -> int:

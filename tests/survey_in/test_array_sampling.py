@@ -123,3 +123,23 @@ def test_survey_summary_takes_the_posterior(campaign):
     used = cls["label"].isin(["true", "spurious"])
     assert cls.loc[used, "p_true_sd"].notna().all()
     assert int((cls.loc[used, "label"] == "spurious").sum()) == int(np.sum(post.p_true < 0.5))
+
+
+def test_one_transponder_posterior_is_written_the_same_way(tmp_path):
+    import pandas as pd
+    import xarray as xr
+
+    from bayes_mpem.survey_in.location_sampling import LocationPosterior
+    from bayes_mpem.survey_in.posterior import posterior_file
+    from bayes_mpem.survey_in.result import SurveyInResult
+
+    gen = np.random.default_rng(0)
+    draws = {k: gen.normal(size=(8, 50)) for k in ("east", "north", "depth", "sound_speed",
+                                                  "sigma", "weight")}
+    post = LocationPosterior("T", ("east",), draws, np.ones(3), np.zeros(3), np.arange(3))
+    res = SurveyInResult({"transponders": {}}, pd.DataFrame({"line": [1]}),
+                         posteriors={"T": post})
+    paths = res.write(tmp_path)
+    assert paths["posterior_T"].name == posterior_file("T") == "posterior_T.nc"
+    tree = xr.open_datatree(paths["posterior_T"])
+    np.testing.assert_array_equal(tree["posterior"]["depth"], draws["depth"])

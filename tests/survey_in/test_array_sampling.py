@@ -143,3 +143,19 @@ def test_one_transponder_posterior_is_written_the_same_way(tmp_path):
     assert paths["posterior_T"].name == posterior_file("T") == "posterior_T.nc"
     tree = xr.open_datatree(paths["posterior_T"])
     np.testing.assert_array_equal(tree["posterior"]["depth"], draws["depth"])
+
+
+def test_fixed_coordinates_stay_fixed(campaign):
+    from bayes_mpem.survey_in.array import locate_array
+
+    _, raw, _, shots = campaign
+    priors = raw.header["transponders"]
+    fixed = np.zeros((len(priors), 3), bool)
+    fixed[:, 2] = True  # every up held at its prior (GARPOS's sigma of 0)
+    fit = locate_array(shots, priors, profile=None, fixed=fixed)
+    post = ArrayLogPosterior(shots, fit)
+    assert post.F == 2 * len(fit.ids) and post.names[0] == "position_0"
+    res = sample_array(shots, fit, min_ess=200, n_draws=1000, rng=0, progress=False)
+    up = res.draws["position"][..., 2]
+    np.testing.assert_array_equal(up, np.broadcast_to(fit.start[:, 2], up.shape))
+    assert res.draws["position"][..., 0].std() > 0

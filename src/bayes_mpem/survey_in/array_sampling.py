@@ -167,6 +167,8 @@ class ArrayLogPosterior:
         else:
             self.B = np.eye(P)[:, free]
         self.F = self.B.shape[1]
+        #: ``(K, 3)``: which coordinates are sampled (the others stay at the prior)
+        self.free = np.any(self.B != 0.0, axis=1).reshape(self.K, 3)
         pos_names = ([f"{a}_{t}" for t in self.ids for a in AXES] if self.F == P
                      else [f"position_{j}" for j in range(self.F)])
         speed = ["speed"] if self.k == 1 else [f"speed_{i}" for i in range(self.k)]
@@ -510,11 +512,13 @@ def _series(post: ArrayLogPosterior, chain) -> dict:
     """Return the ``(steps, walkers)`` series whose ESS and R-hat the stopping rule checks."""
     nat = post.natural(chain)
     out = {}
-    for j, tid in enumerate(post.ids):
+    for j, tid in enumerate(post.ids):  # fixed coordinates are constants: no ESS
         for a, axis in enumerate(AXES):
-            out[f"{axis}_{tid}"] = nat["position"][..., j, a]
+            if post.free[j, a]:
+                out[f"{axis}_{tid}"] = nat["position"][..., j, a]
     for a, axis in enumerate(AXES):
-        out[f"centre_{axis}"] = nat["centre"][..., a]
+        if post.free[:, a].any():
+            out[f"centre_{axis}"] = nat["centre"][..., a]
     out["sound_speed"] = nat["sound_speed"]
     out["sigma"] = nat["sigma"]
     return out
@@ -926,16 +930,20 @@ def locate_array_survey_bayes(raw, *, ci=0.95, outliers="uniform", ssp=None,
             weight_true=float(np.mean(d["weight"][..., j])), n_spurious=int(np.sum(true < 0.5)),
             sound_speed={**post.describe(d["sound_speed"], ci), "interval_method": "posterior"},
             interval_method="posterior", converged=post.converged,
-            posterior={"ess": {a: post.ess[f"{a}_{tid}"] for a in AXES},
-                       "rhat": {a: post.rhat[f"{a}_{tid}"] for a in AXES},
+            posterior={"ess": {a: post.ess[f"{a}_{tid}"] for a in AXES
+                               if f"{a}_{tid}" in post.ess},
+                       "rhat": {a: post.rhat[f"{a}_{tid}"] for a in AXES
+                                if f"{a}_{tid}" in post.rhat},
                        "diagnostics": dict(post.diagnostics)},
             em=em)
         s["transponders"][tid] = entry
     cen = s["array_centre"]
     s["array_centre"] = {**_with_posterior(cen, post.centre(ci), origin),
                          "covariance": _covariance(d["centre"]),
-                         "ess": {a: post.ess[f"centre_{a}"] for a in AXES},
-                         "rhat": {a: post.rhat[f"centre_{a}"] for a in AXES}, "em": cen}
+                         "ess": {a: post.ess[f"centre_{a}"] for a in AXES
+                                 if f"centre_{a}" in post.ess},
+                         "rhat": {a: post.rhat[f"centre_{a}"] for a in AXES
+                                  if f"centre_{a}" in post.rhat}, "em": cen}
     ss = s["sound_speed"]
     s["sound_speed"] = {**ss, **post.describe(d["sound_speed"], ci),
                         "interval_method": "posterior",

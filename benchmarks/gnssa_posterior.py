@@ -40,6 +40,8 @@ from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa  # noqa: E402
 CI = 0.95
 HOURS, SHOT_INTERVAL, TRACK = 2.0, 30.0, "star"
 AXES = ("east", "north", "up")
+#: a bound on a campaign whose proposal fits poorly (differential evolution then)
+MAX_STEPS = 3000
 
 
 def one_campaign(seed):
@@ -50,7 +52,7 @@ def one_campaign(seed):
     fit = locate_array_survey(raw).fits["array"]
     t_em = time.perf_counter() - t0
     t0 = time.perf_counter()
-    post = sample_array(array_shots(raw), fit, rng=seed, progress=False)
+    post = sample_array(array_shots(raw), fit, rng=seed, progress=False, max_steps=MAX_STEPS)
     t_post = time.perf_counter() - t0
     truth = sim.truth["transponders"].loc[list(fit.ids), list(AXES)].to_numpy()
     K = len(fit.ids)

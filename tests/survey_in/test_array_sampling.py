@@ -159,3 +159,26 @@ def test_fixed_coordinates_stay_fixed(campaign):
     up = res.draws["position"][..., 2]
     np.testing.assert_array_equal(up, np.broadcast_to(fit.start[:, 2], up.shape))
     assert res.draws["position"][..., 0].std() > 0
+
+
+def test_gradient_terms_are_sampled_from_the_ems_solution():
+    from bayes_mpem.survey_in.array import GRADIENT_NAMES
+
+    sim = simulate_gnssa(rng=4, hours=1.0, shot_interval=30.0, speed_model="field",
+                         gradients=True, track="star+circle")
+    raw = sim.raw()
+    res = locate_array_survey(raw, gradients=True)
+    fit, shots = res.fits["array"], array_shots(raw)
+    post = ArrayLogPosterior(shots, fit)
+    assert post.kg == 4 * post.k
+    # the gradient coefficients recovered at the EM's positions and speed give its residuals
+    np.testing.assert_allclose(post.model.predict(post.theta_em), post.t - fit.residual,
+                               rtol=0, atol=1e-9)
+    out = sample_array(shots, fit, min_ess=400, n_draws=2000, rng=0, progress=False)
+    assert "MHMove" in out.diagnostics["moves"] and out.converged
+    g = out.to_inference_data()["posterior"]["gradient"]
+    assert list(g["gradient_term"].values) == list(GRADIENT_NAMES)
+    assert g.attrs["units"] == "(m/s)/km"
+    for j, name in enumerate(GRADIENT_NAMES):  # the EM's time averages, within their sds
+        em = res.summary["gradients"][name]
+        assert abs(float(g[..., j].mean()) - em["mean"]) < em["sd"]

@@ -99,7 +99,7 @@ def test_observed_information_not_positive_definite_falls_back(navs, monkeypatch
         dg, dB, dC = driver.missing_information(nav.dive, nav.state, nav.resp, settings.free_d0)
         step = driver.solve(ne._replace(C=ne.C - dC))
         assert np.any(np.linalg.eigvalsh(step.S) < 0)
-    cov, gsd, gcov, _, info = driver._uncertainty(nav.dive, run, settings)
+    cov, gsd, gcov, *_, info = driver._uncertainty(nav.dive, run, settings)
     assert info == driver.INFORMATION["fallback"]
     assert np.all(np.linalg.eigvalsh(cov) > 0)
     assert all(np.isfinite(v) and v >= 0 for v in gsd.values())

@@ -23,7 +23,13 @@ from ..em.path_choice import AUTO, check_path_choice, choose_path
 from ..model.geometry import PATHS
 from . import ecm, observability
 from .dive import Dive, build_dive
-from .normal import cross_covariances, global_covariance, marginal_covariances, solve
+from .normal import (
+    cross_covariances,
+    global_covariance,
+    marginal_covariances,
+    solve,
+    solve_columns,
+)
 from .objective import (
     Priors,
     State,
@@ -225,6 +231,102 @@ INFORMATION = {
 }
 
 
+def _free_scales(dive, state, resp, settings):
+    """Return the estimated noise scales as ``(a, b, name)``: their range terms' weights.
+
+    sigma_DP and every sigma_MP that is estimated, above its floor and has replies.
+    """
+    floor = 1.001 * settings.sigma_floor
+    out = []
+    if not settings.fix_sigma_dp and state.sigma_dp > floor and resp[:, 0].sum() > 0:
+        out.append((resp[:, 0] / state.sigma_dp ** 2, np.zeros(dive.n), "sigma_dp"))
+    b = resp[:, 1] / state.sigma_mp[dive.beacon] ** 2
+    for j, bid in enumerate(dive.beacon_ids):
+        m = dive.beacon == j
+        fixed = settings.fix_sigma_mp.size > j and settings.fix_sigma_mp[j]
+        if (settings.mp_beacons[j] and not fixed
+                and state.sigma_mp[j] > floor and resp[m, 1].sum() > 0):
+            out.append((np.zeros(dive.n), np.where(m, b, 0.0), f"sigma_mp:{bid}"))
+    return out
+
+
+def propagate_scales(dive, state, resp, settings, ne, step, cov, gcov, cross):
+    """Add the noise scales' uncertainty to the track's and the globals' covariances.
+
+    The joint Laplace approximation over the track, the globals and ``log sigma``
+    of every estimated scale: with ``H`` the information of the track and globals,
+    ``c_j = d grad / d log sigma_j = -2 grad_j`` (``grad_j`` the gradient of the
+    scale's range terms) and ``I_j = 2 sum p r^2 / sigma_j^2`` (at the scales'
+    fixed point ``2 (n - gamma)``: the residual degrees of freedom), the
+    covariance of the track and globals is ``H^-1 + D V D^T`` with ``D = H^-1 C``
+    and ``V = (I - C^T D)^-1``, the Schur complement of the scales. Where that
+    complement is not positive definite, ``V = I^-1`` (the delta method). The
+    class probabilities are held: the scales' effect through the classes and the
+    weights' uncertainty are left out (``docs/navigate.md``).
+
+    Parameters
+    ----------
+    dive : Dive
+    state : State
+    resp : numpy.ndarray
+        ``(n, 3)`` class probabilities.
+    settings : ecm.Settings
+    ne : Normal
+        The information behind ``cov`` (:func:`.objective.normal_equations`,
+        less Louis' missing information where that was used).
+    step : Step
+        :func:`.normal.solve` of ``ne``.
+    cov : numpy.ndarray
+        ``(K, 2, 2)`` the track's covariances given the scales.
+    gcov : numpy.ndarray
+        ``(G, G)`` the globals'.
+    cross : numpy.ndarray
+        ``(K, 2, G)`` the track's with the globals.
+
+    Returns
+    -------
+    cov, gcov, cross : numpy.ndarray
+        With the scales' share added (the inputs unchanged where no scale is estimated).
+    sd_log : dict
+        ``{scale name: posterior sd of log sigma}``.
+    """
+    scales = _free_scales(dive, state, resp, settings)
+    if not scales:
+        return cov, gcov, cross, {}
+    pri, fk = settings.priors, settings.free_range_scale
+    zero = np.zeros(dive.n)
+    base = normal_equations(dive, state, zero, zero, pri, settings.free_d0, fk)
+    pred = predictions(dive, state)
+    e_dp, e_mp = dive.z - pred.direct, dive.z - pred.multipath
+    cols_p, cols_g, info = [], [], []
+    for a, b, _ in scales:
+        ne_j = normal_equations(dive, state, a, b, pri, settings.free_d0, fk)
+        cols_p.append(2.0 * (ne_j.grad_p - base.grad_p))
+        cols_g.append(2.0 * (ne_j.grad_g - base.grad_g))
+        n = float(np.add.reduce(a * state.sigma_dp ** 2 + b * state.sigma_mp[dive.beacon] ** 2))
+        sse = float(np.add.reduce(a * e_dp * e_dp + b * e_mp * e_mp))  # sum p r^2 / sigma^2
+        info.append(max(2.0 * sse, 2.0 * ecm.MIN_DOF * n))
+    C_p, C_g = np.column_stack(cols_p), np.column_stack(cols_g)
+    try:
+        D_p, D_g = solve_columns(ne, step, C_p, C_g)
+    except np.linalg.LinAlgError:
+        return cov, gcov, cross, {}
+    S = np.diag(info) - np.einsum("im,in->mn", C_p, D_p) - np.einsum("gm,gn->mn", C_g, D_g)
+    try:
+        np.linalg.cholesky(S)
+        V = np.linalg.inv(S)
+    except np.linalg.LinAlgError:
+        V = np.diag(1.0 / np.asarray(info))
+    V = 0.5 * (V + V.T)
+    k = dive.n_epochs
+    Dk = D_p.reshape(k, 2, -1)
+    cov = cov + np.einsum("kam,mn,kbn->kab", Dk, V, Dk)
+    gcov = gcov + np.einsum("gm,mn,hn->gh", D_g, V, D_g)
+    cross = cross + np.einsum("kam,mn,gn->kag", Dk, V, D_g)
+    return cov, gcov, cross, {name: float(np.sqrt(V[i, i]))
+                              for i, (_, _, name) in enumerate(scales)}
+
+
 def _uncertainty(dive, run, settings):
     """Laplace covariances of the track and the globals, and which information was used.
 
@@ -253,14 +355,24 @@ def _uncertainty(dive, run, settings):
         cov = marginal_covariances(ne, step)
     if not _positive_definite(step, cov):  # rounding only: the information is positive definite
         cov = _psd(cov)
-    gcov = global_covariance(step)
+    gcov, cross = global_covariance(step), cross_covariances(step)
+    record = None
+    if settings.model == "mixture":
+        given = cov
+        cov, gcov, cross, sd_log = propagate_scales(dive, run.state, run.resp, settings, ne,
+                                                    step, cov, gcov, cross)
+        # how much the scales widen the ellipses: sd ratio, sqrt of the area ratio
+        widen = (np.linalg.det(cov) / np.linalg.det(given)) ** 0.25 - 1.0
+        record = {"sd_log_sigma": sd_log,
+                  "ellipse_widening": {"median": float(np.median(widen)),
+                                       "max": float(np.max(widen))}}
     gsd = np.sqrt(np.maximum(np.diag(gcov), 0.0))
     out = {"beta": float(gsd[0]), "scale": float(gsd[1])}
     out.update({f"d0:{dive.beacon_ids[j]}": float(gsd[2 + i])
                 for i, j in enumerate(settings.free_d0)})
     if fk:
         out["range_scale"] = float(gsd[-1])
-    return cov, out, gcov, cross_covariances(step), info
+    return cov, out, gcov, cross, record, info
 
 
 def surface_separation(dive: Dive) -> np.ndarray:
@@ -539,7 +651,7 @@ def navigate(
                       "max_iter (--max-iter) or loosen tol (--tol)", ConvergenceWarning,
                       stacklevel=2)
     t0 = time.perf_counter()
-    cov, gsd, gcov, cross, information = _uncertainty(dive, run, settings)
+    cov, gsd, gcov, cross, scales, information = _uncertainty(dive, run, settings)
     flags = observability.assess(
         dive, cov, run.resp,
         {"heading_bias": (np.rad2deg(gsd["beta"]), opts["heading_sd"], "deg"),
@@ -559,7 +671,8 @@ def navigate(
         if not kept:
             info[bid]["reason"] = "multipath class switched off: " + reason
     opts.update(oracle_classes=classes is not None, reflectors_given=sorted(fixed),
-                sigma_floor=settings.sigma_floor, information=information)
+                sigma_floor=settings.sigma_floor, information=information,
+                scale_uncertainty=scales)
     return Navigation(dive=dive, state=run.state, cov=cov, global_sd=gsd, resp=run.resp,
                       beacons=info, skipped=skipped, flags=flags, n_iter=n_iter,
                       converged=run.converged, loglik=run.loglik, history=run.history,

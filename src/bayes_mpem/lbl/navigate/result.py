@@ -309,8 +309,9 @@ class Navigation:
             "n_no_reply": int(d.survey.no_reply.sum()), "ci": ci,
             "pings": d.survey.pings_source, "beacons_file": d.survey.beacons_source,
             "information": self.options.get("information"),
+            "scale_uncertainty": self.options.get("scale_uncertainty"),
             "options": {k: v for k, v in self.options.items()
-                        if k not in ("rng", "ci", "information")},
+                        if k not in ("rng", "ci", "information", "scale_uncertainty")},
         }
 
     def to_dict(self) -> dict:

@@ -91,6 +91,26 @@ def _num(v, spec: str) -> str:
     return "n/a" if v is None else format(v, spec)
 
 
+def _at_bound(node, path=()):
+    """Yield ``(path, record)`` of every estimate in ``node`` marked ``"at_bound"``."""
+    if isinstance(node, dict):
+        if node.get("at_bound") is True:
+            yield path, node
+        for k, v in node.items():
+            if k != "sigma_dp" or not path:  # a beacon's sigma_DP is the shared one
+                yield from _at_bound(v, (*path, str(k)))
+
+
+def _bound_line(path, rec) -> str:
+    lo = rec["interval"][0]
+    if path == ("sigma_dp",):
+        return f"sigma_DP at its floor {lo:g} m (one-sided interval)"
+    if len(path) >= 3 and path[0] == "beacons":
+        what = " ".join(("weight of" if p == "weights" else p) for p in path[2:])
+        return f"beacon {path[1]}: {what} at its bound {lo:g} (one-sided interval)"
+    return f"{' '.join(path)} at its bound {lo:g} (one-sided interval)"
+
+
 def quality_lines(summary: dict) -> list:
     """Every quality flag of a ``summary.json``, one line each (what the console prints).
 
@@ -102,8 +122,9 @@ def quality_lines(summary: dict) -> list:
     Returns
     -------
     list of str
-        Beacon flags and reasons, parameters at a bound, the observability flags,
-        non-convergence and the information behind the intervals.
+        Beacon flags and reasons, every estimate at a bound (wherever the summary
+        marks one ``"at_bound"``), the observability flags, non-convergence, the
+        information behind the intervals and the skipped beacons.
 
     Examples
     --------
@@ -119,13 +140,7 @@ def quality_lines(summary: dict) -> list:
         out += [f"beacon {bid}: {f}" for f in b.get("flags") or ()]
         if b.get("reason"):
             out.append(f"beacon {bid}: {b['reason']}")
-        for key in ("d0", "sigma_mp"):
-            if isinstance(b.get(key), dict) and b[key].get("at_bound"):
-                out.append(f"beacon {bid}: {key} at its bound {b[key]['interval'][0]:g} "
-                           "(one-sided interval)")
-    sdp = summary.get("sigma_dp")
-    if isinstance(sdp, dict) and sdp.get("at_bound"):
-        out.append(f"sigma_DP at its floor {sdp['interval'][0]:g} m (one-sided interval)")
+    out += [_bound_line(path, rec) for path, rec in _at_bound(summary)]
     for f in summary.get("observability") or ():
         if f.get("kind") == "track":
             out.append(f"navigation not corrected for t = {f['start']:.0f}-{f['end']:.0f} s "
@@ -268,6 +283,9 @@ class Navigation:
         w = st.weights[j]
         out["weights"] = {c: estimate(w[i], math.sqrt(w[i] * (1 - w[i]) / max(n, 1)), z, lo=0.0)
                           for i, c in enumerate(CLASSES)}
+        if not info["mp"]:  # no multipath class: its weight is 0 by the model, not estimated
+            out["weights"]["mp"] = {"estimate": 0.0, "sd": None, "interval": [None, None],
+                                    "fixed": True}
         lab = np.argmax(resp, axis=1) if n else np.zeros(0, int)
         out["class_fractions"] = {c: finite(np.mean(lab == i)) if n else None
                                   for i, c in enumerate(CLASSES)}

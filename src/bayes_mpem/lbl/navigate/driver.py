@@ -362,7 +362,8 @@ def _uncertainty(dive, run, settings):
         cov, gcov, cross, sd_log = propagate_scales(dive, run.state, run.resp, settings, ne,
                                                     step, cov, gcov, cross)
         # how much the scales widen the ellipses: sd ratio, sqrt of the area ratio
-        widen = (np.linalg.det(cov) / np.linalg.det(given)) ** 0.25 - 1.0
+        d0, d1 = np.linalg.det(given), np.linalg.det(cov)
+        widen = np.sqrt(np.sqrt(np.divide(d1, d0, out=np.ones_like(d0), where=d0 > 0))) - 1.0
         record = {"sd_log_sigma": sd_log,
                   "ellipse_widening": {"median": float(np.median(widen)),
                                        "max": float(np.max(widen))}}

@@ -87,6 +87,7 @@ def ship_dive(seed, n_cycles=1200):
                          "n_beacons": len(nav.beacons), "lr": _lrs(nav),
                          "n_checked": _n_checked(nav), "information": nav.options["information"],
                          "widen": nav.summary()["scale_uncertainty"]["ellipse_widening"],
+                         "sigma_interval": nav.summary()["sigma_dp"]["interval"],
                          "online_sigma": _online_sigma(sim)}
     g = _navigate(sim, model="gaussian")
     out["Gaussian"] = {**_score(g.track, g.cov, truth), "sigma": g.state.sigma_dp}
@@ -107,6 +108,11 @@ def _online_sigma(sim):
         warnings.simplefilter("ignore")
         nav.run(sim.survey.table)
     return nav.dp.sigma
+
+
+def _holds(interval):
+    lo, hi = interval
+    return lo is not None and hi is not None and lo <= SIGMA <= hi
 
 
 def _lrs(nav, decided=True):
@@ -180,6 +186,9 @@ def summarise(rows, deep):
            f"{ok(pooled['this model'] <= 1.05 * best_pooled)};",
            f"* information behind the intervals: "
            f"{sorted({r['information'] for r in me})};",
+           "* sigma_DP's 95 % interval (MacKay's sd of log sigma, the residual degrees of "
+           f"freedom) holds the truth on {sum(_holds(r['sigma_interval']) for r in me)} of "
+           f"{len(me)} dives;",
            "* the noise scales' uncertainty propagated into the ellipses widens their sd by "
            f"{np.median([r['widen']['median'] for r in me]):.3%} (median epoch, median dive; "
            f"at most {max(r['widen']['max'] for r in me):.2%});",

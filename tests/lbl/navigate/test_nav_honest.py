@@ -47,6 +47,10 @@ def test_one_range_per_epoch_the_scale_does_not_collapse(ships, navs):
         assert 0.85 <= _coverage(nav, sim) <= 0.995
         s = nav.summary()
         assert not s["sigma_dp"].get("at_bound")
+        # its interval counts the residual degrees of freedom the track leaves (MacKay),
+        # wider than sigma / sqrt(2 n) where one range per epoch leaves few
+        n = float(nav.resp[:, 0].sum())
+        assert s["sigma_dp"]["sd"] > 1.3 * s["sigma_dp"]["estimate"] / np.sqrt(2 * n)
 
 
 def test_plain_rms_collapses_where_the_track_absorbs_the_noise(navs):

@@ -253,16 +253,15 @@ def _free_scales(dive, state, resp, settings):
 def propagate_scales(dive, state, resp, settings, ne, step, cov, gcov, cross):
     """Add the noise scales' uncertainty to the track's and the globals' covariances.
 
-    The joint Laplace approximation over the track, the globals and ``log sigma``
-    of every estimated scale: with ``H`` the information of the track and globals,
-    ``c_j = d grad / d log sigma_j = -2 grad_j`` (``grad_j`` the gradient of the
-    scale's range terms) and ``I_j = 2 sum p r^2 / sigma_j^2`` (at the scales'
-    fixed point ``2 (n - gamma)``: the residual degrees of freedom), the
-    covariance of the track and globals is ``H^-1 + D V D^T`` with ``D = H^-1 C``
-    and ``V = (I - C^T D)^-1``, the Schur complement of the scales. Where that
-    complement is not positive definite, ``V = I^-1`` (the delta method). The
-    class probabilities are held: the scales' effect through the classes and the
-    weights' uncertainty are left out (``docs/navigate.md``).
+    The law of total variance to first order: the estimate of the track and globals
+    given the scales moves with ``log sigma_j`` as ``D = H^-1 C``, ``C``'s column
+    ``2 grad_j`` (``grad_j`` the gradient of the scale's range terms: ``d grad / d
+    log sigma_j = -2 grad_j``), and ``log sigma_j`` has MacKay's evidence variance
+    ``1 / (2 (n_j - gamma_j))`` (``n_j`` the class's expected count, ``gamma_j`` its
+    summed leverages, :func:`.ecm.leverages`: the residual degrees of freedom of the
+    scales' update, capped as there). The covariances gain ``D V D^T``, a positive
+    semi-definite term. The class probabilities are held: the scales' effect through
+    the classes and the weights' uncertainty are left out (``docs/navigate.md``).
 
     Parameters
     ----------
@@ -289,6 +288,11 @@ def propagate_scales(dive, state, resp, settings, ne, step, cov, gcov, cross):
         With the scales' share added (the inputs unchanged where no scale is estimated).
     sd_log : dict
         ``{scale name: posterior sd of log sigma}``.
+
+    References
+    ----------
+    MacKay, D. J. C. (1992). Bayesian interpolation. *Neural Computation* 4:415-447
+    (the evidence's error bar on a noise level).
     """
     scales = _free_scales(dive, state, resp, settings)
     if not scales:
@@ -296,35 +300,31 @@ def propagate_scales(dive, state, resp, settings, ne, step, cov, gcov, cross):
     pri, fk = settings.priors, settings.free_range_scale
     zero = np.zeros(dive.n)
     base = normal_equations(dive, state, zero, zero, pri, settings.free_d0, fk)
-    pred = predictions(dive, state)
-    e_dp, e_mp = dive.z - pred.direct, dive.z - pred.multipath
-    cols_p, cols_g, info = [], [], []
+    v_dp, v_mp = ecm.leverages(dive, state, resp, settings)
+    if v_dp is None:
+        v_dp = v_mp = zero
+    cols_p, cols_g, var = [], [], []
     for a, b, _ in scales:
         ne_j = normal_equations(dive, state, a, b, pri, settings.free_d0, fk)
         cols_p.append(2.0 * (ne_j.grad_p - base.grad_p))
         cols_g.append(2.0 * (ne_j.grad_g - base.grad_g))
+        # a = p / sigma^2: n = sum p, gamma = sum p v / sigma^2
         n = float(np.add.reduce(a * state.sigma_dp ** 2 + b * state.sigma_mp[dive.beacon] ** 2))
-        sse = float(np.add.reduce(a * e_dp * e_dp + b * e_mp * e_mp))  # sum p r^2 / sigma^2
-        info.append(max(2.0 * sse, 2.0 * ecm.MIN_DOF * n))
+        gamma = float(np.add.reduce(a * v_dp + b * v_mp))
+        var.append(0.5 / max(n - min(gamma, (1.0 - ecm.MIN_DOF) * n), 1e-12))
     C_p, C_g = np.column_stack(cols_p), np.column_stack(cols_g)
     try:
         D_p, D_g = solve_columns(ne, step, C_p, C_g)
     except np.linalg.LinAlgError:
         return cov, gcov, cross, {}
-    S = np.diag(info) - np.einsum("im,in->mn", C_p, D_p) - np.einsum("gm,gn->mn", C_g, D_g)
-    try:
-        np.linalg.cholesky(S)
-        V = np.linalg.inv(S)
-    except np.linalg.LinAlgError:
-        V = np.diag(1.0 / np.asarray(info))
-    V = 0.5 * (V + V.T)
+    V = np.diag(var)
     k = dive.n_epochs
     Dk = D_p.reshape(k, 2, -1)
     cov = cov + np.einsum("kam,mn,kbn->kab", Dk, V, Dk)
     gcov = gcov + np.einsum("gm,mn,hn->gh", D_g, V, D_g)
     cross = cross + np.einsum("kam,mn,gn->kag", Dk, V, D_g)
-    return cov, gcov, cross, {name: float(np.sqrt(V[i, i]))
-                              for i, (_, _, name) in enumerate(scales)}
+    return cov, gcov, cross, {name: float(np.sqrt(v))
+                              for v, (_, _, name) in zip(var, scales, strict=True)}
 
 
 def _uncertainty(dive, run, settings):

@@ -262,19 +262,21 @@ class Navigation:
                "beacon_depth": depth}
         n_dp = float(self.resp[:, 0].sum())
         floor = float(self.options.get("sigma_floor", 0.0))
+        # MacKay's sd of log sigma (the residual degrees of freedom), else sqrt(2 n)'s
+        sd_log = (self.options.get("scale_uncertainty") or {}).get("sd_log_sigma", {})
         if self.options.get("sigma_dp") is not None:
             out["sigma_dp"] = {"estimate": finite(st.sigma_dp), "sd": None,
                                "interval": [None, None], "fixed": True}
         else:
-            out["sigma_dp"] = estimate(st.sigma_dp, st.sigma_dp / math.sqrt(2 * max(n_dp, 1)),
-                                       z, lo=0.0, bound=floor)
+            rel = sd_log.get("sigma_dp", 1.0 / math.sqrt(2 * max(n_dp, 1)))
+            out["sigma_dp"] = estimate(st.sigma_dp, st.sigma_dp * rel, z, lo=0.0, bound=floor)
         if info["mp"]:
             n_mp = float(resp[:, 1].sum())
             sd0 = self.global_sd.get(f"d0:{bid}", 0.0)
             out["d0"] = estimate(st.d0[j], sd0, z, lo=float(d.d0_min[j]))
             out["plane_depth"] = depth - float(st.d0[j])
-            out["sigma_mp"] = estimate(st.sigma_mp[j],
-                                       st.sigma_mp[j] / math.sqrt(2 * max(n_mp, 1)), z, lo=0.0,
+            rel = sd_log.get(f"sigma_mp:{bid}", 1.0 / math.sqrt(2 * max(n_mp, 1)))
+            out["sigma_mp"] = estimate(st.sigma_mp[j], st.sigma_mp[j] * rel, z, lo=0.0,
                                        bound=floor)
             out["path"] = "double" if st.double[j] else "triangle"
         else:

@@ -46,9 +46,10 @@ TRAVEL_TIMES = ("one-way", "two-way")
 #: tables' depths are then not the profile's (ellipsoidal heights: set ``surface_depth``).
 ABOVE_SURFACE = 1.0
 
-#: Newton stops when the ray's time misses the measured one by less than this (s;
-#: 1e-8 s is 15 micrometres of range).
-TIME_TOL = 1e-8
+#: Newton stops once its step in the horizontal distance is below this (m): the error
+#: after it is then of the order of its square (Newton converges quadratically on the
+#: convex ``T(h)``), so two ray traces per reply are enough from the harmonic-mean start.
+STEP_TOL = 1e-4
 
 
 def _profile(profile) -> SoundSpeedProfile:
@@ -89,7 +90,7 @@ def equivalent_ranges(time, z_vehicle, z_beacon, profile: SoundSpeedProfile, *,
         (not even a turning one) is converted with the harmonic-mean speed between
         the two depths.
     valid : numpy.ndarray of bool
-        Where the eigenray was found and matches the time to ``TIME_TOL``.
+        Where the eigenray was found and Newton's last step was below ``STEP_TOL``.
 
     Examples
     --------
@@ -120,12 +121,11 @@ def equivalent_ranges(time, z_vehicle, z_beacon, profile: SoundSpeedProfile, *,
         if not todo.size:
             break
         ray = direct_times(profile, za[todo], zb[todo], h[todo])
-        miss = t[todo] - ray.time
-        ok = ray.valid & (np.abs(miss) < TIME_TOL)
-        valid[todo[ok]] = True
         lost = ~ray.valid
-        step = np.where(ray.valid, miss / np.maximum(ray.p, 1e-9), 0.0)
+        step = np.where(lost, 0.0, (t[todo] - ray.time) / np.maximum(ray.p, 1e-9))
         h[todo] = np.clip(h[todo] + step, 0.0, h_max[todo])
+        ok = ~lost & (np.abs(step) < STEP_TOL)
+        valid[todo[ok]] = True
         todo = todo[~ok & ~lost]
     out = np.hypot(h, dz)
     out[short] = dz[short] * t[short] / np.maximum(t_vert[short], 1e-300)

@@ -265,7 +265,8 @@ def travel_time_pings(pings, beacons, model: RangeModel) -> tuple[pd.DataFrame, 
         "are minus ellipsoidal heights, set surface_depth (--surface-depth) to the sea "
         "surface's depth in the tables' frame"))
     problems.raise_if_any()
-    deepest = float(np.nanmax(zb, initial=0.0)) - model.surface_depth
+    deepest = float(max(np.nanmax(zb, initial=0.0), np.max(zt, initial=0.0))
+                    - model.surface_depth)
     try:
         check_profile(model.profile, deepest, name="profile (--ssp)")
     except ValueError as err:

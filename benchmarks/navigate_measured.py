@@ -72,7 +72,7 @@ def seagap_times():
     pings, beacons = raw.to_pings()
     pings["range"] = pings["twtt"]
     prof = raw.header["ss_prof"]
-    ray = {"travel_times": "two-way", "turn_around": 0.0,
+    ray = {"travel_times": "two-way", "turnaround": 0.0,
            "profile": SoundSpeedProfile(prof["depth"].to_numpy(), prof["sound_speed"].to_numpy(),
                                         source="ss_prof.inp"),
            "surface_depth": float(pings["depth"].mean()) - SEAGAP_TRANSDUCER_DEPTH}

@@ -57,7 +57,7 @@ def test_two_way_times_through_the_profile(files, tmp_path, capsys):
                 "0.05") == 0
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["options"]["range_model"] == {
-        "travel_times": "two-way", "profile": str(files[0] / "ssp.csv"), "turn_around": TAT,
+        "travel_times": "two-way", "profile": str(files[0] / "ssp.csv"), "turnaround": TAT,
         "transducer_offset": -1.5, "surface_depth": 20.0}
     track = pd.read_csv(tmp_path / "track.csv")[["x", "y"]].to_numpy()
     assert np.sqrt(np.mean(np.sum((track - files[1]) ** 2, axis=1))) < 1.0

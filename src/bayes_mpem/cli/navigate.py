@@ -178,7 +178,7 @@ def navigate_kwargs(args) -> dict:
     if travel and ssp is not None and args.sound_speed is not None:
         raise OptionError("--travel-time: give --sound-speed or --ssp, not both")
     units = dict(travel_times=args.ranges, profile=ssp if ssp is not None else args.sound_speed,
-                 turn_around=args.turnaround) if travel else {}
+                 turnaround=args.turnaround) if travel else {}
     return dict(dead_reckoning=args.dead_reckoning, multipath=args.multipath, model=args.model,
                 path=args.path, dr_noise=args.dr_noise, start_sd=args.start_sd,
                 heading_sd=args.heading_sd, scale_sd=args.scale_sd, sigma_dp=args.sigma_dp,

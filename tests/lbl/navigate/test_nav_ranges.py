@@ -59,8 +59,8 @@ def _tables(times, depth=8.0):
     return p, b
 
 
-def test_two_way_times_with_turn_around_and_transducer_offset():
-    m = RangeModel("two-way", 1500.0, turn_around=0.05, transducer_offset=2.0)
+def test_two_way_times_with_turnaround_and_transducer_offset():
+    m = RangeModel("two-way", 1500.0, turnaround=0.05, transducer_offset=2.0)
     p, b = _tables([2 * 2000.0 / 1500.0 + 0.05, np.nan], depth=6.0)
     out, _ = travel_time_pings(p, b, m)
     assert out["range"][0] == pytest.approx(2000.0, abs=1e-6)
@@ -75,7 +75,7 @@ def test_bad_cells_are_named_with_file_line_and_column(tmp_path):
     b.to_csv(tmp_path / "beacons.csv", index=False)
     with pytest.raises(InputError, match=r"pings.csv line 3, column 'range'.*turn-around"):
         prepare(str(tmp_path / "pings.csv"), str(tmp_path / "beacons.csv"),
-                travel_times="two-way", profile=PROFILE, turn_around=0.013)
+                travel_times="two-way", profile=PROFILE, turnaround=0.013)
     p["depth"] = [8.0, -30.0, 8.0]
     p.to_csv(tmp_path / "pings.csv", index=False)
     with pytest.raises(InputError, match=r"pings.csv line 3, column 'depth'.*surface_depth"):
@@ -96,11 +96,11 @@ def test_a_profile_that_ends_above_the_beacons_is_refused():
 
 @pytest.mark.parametrize("kw, match", [
     ({"profile": 1500.0}, r"profile \(--ssp\) applies to travel times only"),
-    ({"turn_around": 0.1}, r"--turnaround\) applies to travel times only"),
+    ({"turnaround": 0.1}, r"--turnaround\) applies to travel times only"),
     ({"travel_times": "both", "profile": 1500.0}, "expected one of one-way, two-way"),
     ({"travel_times": "two-way"}, "need a sound-speed profile"),
     ({"travel_times": "two-way", "profile": 900.0}, r"\[1300, 1800\] m/s"),
-    ({"travel_times": "two-way", "profile": 1500.0, "turn_around": -1}, "turn_around"),
+    ({"travel_times": "two-way", "profile": 1500.0, "turnaround": -1}, "turnaround"),
     ({"transducer_offset": "deep"}, r"transducer_offset \(--transducer-offset\)"),
 ])
 def test_bad_options_are_named(kw, match):

@@ -432,7 +432,7 @@ def navigate(
     range_scale: bool = False,
     travel_times: str | None = None,
     profile=None,
-    turn_around: float = 0.0,
+    turnaround: float = 0.0,
     transducer_offset: float = 0.0,
     surface_depth: float = 0.0,
     classes=None,
@@ -485,7 +485,7 @@ def navigate(
     profile : SoundSpeedProfile, str or float, optional
         With ``travel_times``: a profile, a profile file (depth m, speed m/s) or a
         constant sound speed (m/s).
-    turn_around : float, default 0
+    turnaround : float, default 0
         With ``travel_times``: the beacons' turn-around time (s).
     transducer_offset : float, default 0
         Depth of the transducer below the pings' ``depth`` (m, positive down).
@@ -545,7 +545,7 @@ def navigate(
     _check_options(opts)
     gen = as_generator(rng)
     pings, beacons, opts["range_model"] = ranges.prepare(
-        pings, beacons, travel_times=travel_times, profile=profile, turn_around=turn_around,
+        pings, beacons, travel_times=travel_times, profile=profile, turnaround=turnaround,
         transducer_offset=transducer_offset, surface_depth=surface_depth)
     survey = load_survey(pings, beacons)
     dive = build_dive(survey, dead_reckoning)

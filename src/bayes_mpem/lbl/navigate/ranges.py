@@ -142,7 +142,7 @@ class RangeModel:
     travel_times : {"one-way", "two-way"}
     profile : SoundSpeedProfile, str, os.PathLike or float
         A profile, a profile file (depth m, speed m/s) or a constant sound speed (m/s).
-    turn_around : float, default 0
+    turnaround : float, default 0
         The beacons' turn-around time (s), subtracted from every travel time.
     transducer_offset : float, default 0
         Depth of the acoustic transducer below the pings' ``depth`` (m, positive down).
@@ -159,12 +159,12 @@ class RangeModel:
 
     Examples
     --------
-    >>> m = RangeModel("two-way", 1500.0, turn_around=0.013)
+    >>> m = RangeModel("two-way", 1500.0, turnaround=0.013)
     >>> m.describe()["profile"]
     'constant 1500.0 m/s'
     """
 
-    def __init__(self, travel_times, profile, *, turn_around=0.0, transducer_offset=0.0,
+    def __init__(self, travel_times, profile, *, turnaround=0.0, transducer_offset=0.0,
                  surface_depth=0.0):
         if travel_times not in TRAVEL_TIMES:
             raise ValueError(f"travel_times (--travel-time with --ranges): expected one of "
@@ -174,7 +174,7 @@ class RangeModel:
                              "or a constant speed (--sound-speed C)")
         self.travel_times = travel_times
         self.profile = _profile(profile)
-        self.turn_around = _number("turn_around (--turnaround)", turn_around, 0.0, 10.0, "s")
+        self.turnaround = _number("turnaround (--turnaround)", turnaround, 0.0, 10.0, "s")
         self.transducer_offset = _number("transducer_offset (--transducer-offset)",
                                          transducer_offset, -100.0, 100.0, "m")
         self.surface_depth = _number("surface_depth (--surface-depth)", surface_depth,
@@ -189,7 +189,7 @@ class RangeModel:
         """
         return {"travel_times": self.travel_times,
                 "profile": self.profile.source or f"{len(self.profile)} knots",
-                "turn_around": self.turn_around, "transducer_offset": self.transducer_offset,
+                "turnaround": self.turnaround, "transducer_offset": self.transducer_offset,
                 "surface_depth": self.surface_depth}
 
 
@@ -234,7 +234,7 @@ def travel_time_pings(pings, beacons, model: RangeModel) -> tuple[pd.DataFrame, 
     >>> p = pd.DataFrame({"time": [0.0], "beacon": ["1"], "range": [4.013], "x": [0.0],
     ...                   "y": [0.0], "depth": [10.0]})
     >>> b = pd.DataFrame({"beacon": ["1"], "x": [0.0], "y": [0.0], "depth": [3010.0]})
-    >>> out, _ = travel_time_pings(p, b, RangeModel("two-way", 1500.0, turn_around=0.013))
+    >>> out, _ = travel_time_pings(p, b, RangeModel("two-way", 1500.0, turnaround=0.013))
     >>> round(float(out["range"][0]), 6), float(out["range_input"][0])
     (3000.0, 4.013)
     """
@@ -249,7 +249,7 @@ def travel_time_pings(pings, beacons, model: RangeModel) -> tuple[pd.DataFrame, 
     z_v = numeric_column(p, "depth", problems)
     z_b = numeric_column(b, "depth", bp)
     bp.raise_if_any()
-    tat = model.turn_around
+    tat = model.turnaround
     with np.errstate(invalid="ignore"):
         short = ~np.isnan(raw) & (raw <= tat)
     problems.add_mask(short, lambda i: f"{p.where(i, 'range')}: expected a travel time longer "
@@ -293,7 +293,7 @@ def travel_time_pings(pings, beacons, model: RangeModel) -> tuple[pd.DataFrame, 
     return out, beacons_out
 
 
-def prepare(pings, beacons, *, travel_times=None, profile=None, turn_around=0.0,
+def prepare(pings, beacons, *, travel_times=None, profile=None, turnaround=0.0,
             transducer_offset=0.0, surface_depth=0.0):
     """Apply :func:`navigate`'s range-model options to its input tables.
 
@@ -302,7 +302,7 @@ def prepare(pings, beacons, *, travel_times=None, profile=None, turn_around=0.0,
     pings, beacons : str, os.PathLike, pandas.DataFrame or Survey
     travel_times : {"one-way", "two-way"}, optional
         The pings' ``range`` holds travel times (s); default: one-way ranges (m).
-    profile, turn_around, surface_depth
+    profile, turnaround, surface_depth
         See :class:`RangeModel`; they apply to travel times only.
     transducer_offset : float, default 0
         Depth of the transducer below the pings' ``depth`` (m); with ranges as well as
@@ -333,7 +333,7 @@ def prepare(pings, beacons, *, travel_times=None, profile=None, turn_around=0.0,
     """
     if travel_times is None:
         given = [n for n, v in (("profile (--ssp)", profile is not None),
-                                ("turn_around (--turnaround)", bool(turn_around)),
+                                ("turnaround (--turnaround)", bool(turnaround)),
                                 ("surface_depth (--surface-depth)", bool(surface_depth))) if v]
         if given:
             raise ValueError(f"{given[0]} applies to travel times only (travel_times='one-way' "
@@ -353,7 +353,7 @@ def prepare(pings, beacons, *, travel_times=None, profile=None, turn_around=0.0,
             out.attrs.update(source=p.source, lines=tuple(map(int, p.lines)))
         return out, beacons, {"transducer_offset": offset}
     _not_a_survey(pings, "travel_times")
-    model = RangeModel(travel_times, profile, turn_around=turn_around,
+    model = RangeModel(travel_times, profile, turnaround=turnaround,
                        transducer_offset=transducer_offset, surface_depth=surface_depth)
     p, b = travel_time_pings(pings, beacons, model)
     return p, b, model.describe()

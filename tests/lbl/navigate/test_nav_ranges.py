@@ -175,3 +175,18 @@ def test_the_range_scale_with_ray_traced_ranges_finds_a_sound_speed_error():
     assert abs(k["estimate"] - 1.001) < 4 * k["sd"] + 1e-5
     r, c = _scores(nav, truth)
     assert r < 0.6 and 0.9 <= c <= 0.99
+
+
+def test_a_time_no_eigenray_takes_keeps_the_harmonic_mean_conversion_and_says_so():
+    p, b = _tables([2.6, 40.0])  # the second: 60 km away, beyond every direct ray
+    out, _ = travel_time_pings(p, b, RangeModel("one-way", PROFILE))
+    assert out["ray_traced"].tolist() == [True, False]
+    hm = float(PROFILE.harmonic_mean(8.0, 2008.0))
+    assert out["range"][1] == pytest.approx(40.0 * hm, rel=1e-12)
+
+
+def test_a_bad_profile_file_is_named_with_its_line(tmp_path):
+    (tmp_path / "ssp.txt").write_text("depth speed\n0 1540\n100 fast\n")
+    p, b = _tables([2.7])
+    with pytest.raises(InputError, match=r"ssp.txt line 3"):
+        prepare(p, b, travel_times="one-way", profile=tmp_path / "ssp.txt")

@@ -582,8 +582,8 @@ def main(argv=None) -> int:
     handler = getattr(module, f"cmd_{args.command}")
     if args.command == "simulate":
         handler = _simulate_handler(args, handler)
-    if args.command in UNIT_COMMANDS:
-        handler = _units_handler(args, handler)
+    if args.command in UNIT_COMMANDS and not (args.command == "navigate" and args.travel_time):
+        handler = _units_handler(args, handler)  # navigate traces travel times itself
     colours = contextlib.nullcontext()
     # the figures' class colours, restored on return (only when figures are drawn: the
     # plotting modules import matplotlib.pyplot)

@@ -21,7 +21,7 @@ from ...mixture.densities import CLASSES, gaussian_logpdf
 from ..em.em_result import reflector_flags
 from ..em.path_choice import AUTO, check_path_choice, choose_path
 from ..model.geometry import PATHS
-from . import ecm, observability
+from . import ecm, observability, ranges
 from .dive import Dive, build_dive
 from .normal import (
     cross_covariances,
@@ -543,6 +543,11 @@ def navigate(
     plane_sd: float = 1000.0,
     sigma_dp: float | None = None,
     range_scale: bool = False,
+    travel_times: str | None = None,
+    profile=None,
+    turnaround: float = 0.0,
+    transducer_offset: float = 0.0,
+    surface_depth: float = 0.0,
     classes=None,
     reflectors: dict | None = None,
     min_pings: int = 30,
@@ -587,6 +592,18 @@ def navigate(
         Fix sigma_DP (m); default estimated.
     range_scale : bool, default False
         Also estimate a factor on every predicted range (a sound-speed error), prior sd 0.01.
+    travel_times : {"one-way", "two-way"}, optional
+        The pings' ``range`` holds travel times (s), converted to equivalent
+        straight-line ranges through ``profile`` (:mod:`.ranges`).
+    profile : SoundSpeedProfile, str or float, optional
+        With ``travel_times``: a profile, a profile file (depth m, speed m/s) or a
+        constant sound speed (m/s).
+    turnaround : float, default 0
+        With ``travel_times``: the beacons' turn-around time (s).
+    transducer_offset : float, default 0
+        Depth of the transducer below the pings' ``depth`` (m, positive down).
+    surface_depth : float, default 0
+        With ``travel_times``: depth of the profile's 0 m in the tables' frame (m).
     classes : array_like, optional
         Known classes, one per input row (``"dp"``, ``"mp"``, ``"ol"``).
     reflectors : dict, optional
@@ -640,6 +657,9 @@ def navigate(
                 anneal_start=anneal_start, max_sd=max_sd, max_iter=max_iter, tol=tol, ci=ci)
     _check_options(opts)
     gen = as_generator(rng)
+    pings, beacons, opts["range_model"] = ranges.prepare(
+        pings, beacons, travel_times=travel_times, profile=profile, turnaround=turnaround,
+        transducer_offset=transducer_offset, surface_depth=surface_depth)
     survey = load_survey(pings, beacons)
     dive = build_dive(survey, dead_reckoning)
     fixed = _check_reflectors(reflectors, dive)

@@ -22,6 +22,7 @@ from ...exceptions import InputError
 from ...io.results import write_csv, write_json, writing
 from ...mixture.densities import CLASSES
 from ..survey.survey import beacons_table, classified_table
+from .checks import model_checks
 from .dive import Dive, dive_with_dead_reckoning
 from .objective import State
 
@@ -154,6 +155,7 @@ def quality_lines(summary: dict) -> list:
         out.append(f"intervals from the {summary['information']} information")
     for bid, why in (summary.get("skipped") or {}).items():
         out.append(f"beacon {bid} skipped: {why}")
+    out += [f"model check, {f}" for f in (summary.get("model_checks") or {}).get("flags", ())]
     return out
 
 
@@ -316,7 +318,7 @@ class Navigation:
               if "range_scale" in self.global_sd else None)
         return {
             "model": self.options.get("model"), "multipath": self.options.get("multipath"),
-            "range_scale": rs,
+            "range_scale": rs, "model_checks": model_checks(self),
             "beacons": beacons, "sigma_dp": beacons[next(iter(beacons))]["sigma_dp"]
             if beacons else None,
             "dead_reckoning": dr,

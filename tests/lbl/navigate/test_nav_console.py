@@ -50,6 +50,8 @@ def _check_printed(summary, text):
     assert f"intervals from the {summary['information']} information" in text
     for bid, why in summary["skipped"].items():
         assert why in text
+    for f in (summary.get("model_checks") or {}).get("flags", ()):
+        assert f"model check, {f}" in text
     paths = list(_bounds(summary))
     assert text.count("(one-sided interval)") == len(paths)
     for path in paths:
@@ -76,6 +78,7 @@ def test_every_bound_anywhere_in_the_summary_is_printed(navs):
     s["range_scale"] = dict(marked)
     s["converged"] = False
     s["skipped"] = {"9": "beacon 9 has no reply"}
+    s["model_checks"] = {**(s.get("model_checks") or {}), "flags": ["beacon 1: mean residual"]}
     lines = quality_lines(s)
     text = "\n".join(lines)
     _check_printed(s, text)

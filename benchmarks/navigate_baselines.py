@@ -246,8 +246,8 @@ def acceptance(rows):
             f"{len(rows)} dives (per dive {min(per):.1%} to {max(per):.1%}), "
             f"{ok(0.90 <= cov <= 0.98)}.",
             "",
-            "The noise scales' uncertainty (sigma_DP, every sigma_MP; the joint Laplace "
-            "approximation over the track, the globals and log sigma, issue 25 item 4) widens "
+            "The noise scales' uncertainty (sigma_DP, every sigma_MP; the law of total "
+            "variance with MacKay's variance of log sigma, issue 25 item 4) widens "
             "the ellipses' sd by "
             f"{np.median([r[3]['this model']['widen_median'] for r in rows]):.3%} (median "
             "epoch, median dive; at most "

@@ -1,0 +1,147 @@
+"""The commands of ``bayes-mpem``, in one table.
+
+The parser, the dispatch, the batch and ``bayes-mpem plot`` are drawn from it.
+
+Each entry names its objects by ``"module:attribute"`` text relative to the package,
+loaded on first use by :func:`load`, so reading the table imports nothing (``bayes-mpem
+--help`` loads no numpy). Each layer loads only its own names or lower ones: the command
+line its functions, options and keyword builders; ``report`` the result types and their
+figures; ``batch`` the library calls. Adding a command is one more entry.
+"""
+
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass
+
+LBL_INPUTS = ("pings", "beacons")
+
+
+@dataclass(frozen=True)
+class Batch:
+    """How ``bayes-mpem batch`` runs a command on one survey of a manifest.
+
+    Attributes
+    ----------
+    kwargs : str
+        The command line's builder of the library's keyword arguments from the parsed options.
+    run : str
+        The library call, ``run(*inputs, **options)``, returning the command's result.
+    rows : str
+        ``rows(result) -> (per-beacon summaries, classified table or None)``.
+    inputs : tuple of str
+        Manifest columns naming the survey's inputs, in the order ``run`` takes them.
+    files : tuple of str
+        Those of ``inputs`` that are files (hashed, resolved against the manifest).
+    quiet : bool
+        ``run`` takes ``progress``, set False unless given.
+    """
+
+    kwargs: str
+    run: str
+    rows: str = "batch.commands:survey_rows"
+    inputs: tuple = LBL_INPUTS
+    files: tuple = LBL_INPUTS
+    quiet: bool = False
+
+
+@dataclass(frozen=True)
+class Command:
+    """One sub-command of ``bayes-mpem``.
+
+    Attributes
+    ----------
+    module : str
+        The command-line module of its ``cmd_<name>`` function.
+    options : str
+        The function that adds its sub-parser: ``options(subparsers)``.
+    result : str or None
+        Its result type, with ``write(folder)`` and the classmethod ``read(folder)``.
+    folder : tuple
+        ``(file, keys)``: a folder holds this result when ``file`` exists and its JSON
+        object has every key of ``keys`` (``bayes-mpem plot``).
+    figures : str or None
+        ``figures(result, out, *, truth=None, ...)``: draws the result, returns the paths.
+    palette : bool
+        It draws figures, so takes ``--palette``.
+    units : bool
+        It reads a pings and a beacons table, so takes the input units.
+    batch : Batch or None
+        How ``bayes-mpem batch --command`` runs it, if it can.
+    """
+
+    module: str
+    options: str
+    result: str | None = None
+    folder: tuple = ("summary.json", ())
+    figures: str | None = None
+    palette: bool = False
+    units: bool = False
+    batch: Batch | None = None
+
+
+#: Every sub-command, in the order ``bayes-mpem --help`` lists them.
+COMMANDS: dict[str, Command] = {
+    "demo": Command("cli.lbl", "cli.parser:add_demo", palette=True),
+    "plot": Command("cli.lbl", "cli.parser:add_plot", palette=True),
+    "simulate": Command("cli.lbl", "cli.parser:add_simulate"),
+    "fit": Command(
+        "cli.lbl", "cli.parser:add_fit", "lbl.survey.fitting:SurveyFit",
+        ("summary.json", ("beacons_table", "method")), "report:fit_figures", True, True,
+        Batch("cli.lbl:fit_kwargs", "lbl.survey.fitting:fit")),
+    "diagnose": Command(
+        "cli.lbl", "cli.parser:add_diagnose", "lbl.diagnosis.result:Diagnosis",
+        ("diagnosis.json", ()), "report:diagnosis_figures", True, True,
+        Batch("cli.lbl:diagnose_kwargs", "lbl.diagnosis.driver:diagnose",
+              "batch.commands:diagnosis_rows", quiet=True)),
+    "locate": Command(
+        "cli.survey_in", "cli.parser:add_locate", "survey_in.result:SurveyInResult",
+        ("summary.json", ("transponders",)), "report:locate_figures", True, False,
+        Batch("cli.survey_in:locate_kwargs", "batch.commands:locate_file",
+              "batch.commands:locate_rows", ("survey", "format"), ("survey",))),
+    "sample": Command(
+        "cli.lbl", "cli.parser:add_sample", "lbl.survey.sampling:SurveyPosterior",
+        ("summary.json", ("beacons_table", "priors")), "report:posterior_figures", True, True,
+        Batch("cli.lbl:sample_command_kwargs", "lbl.survey.sampling:sample", quiet=True)),
+    "compare": Command(
+        "cli.lbl", "cli.parser:add_compare", "lbl.survey.comparison:SurveyComparison",
+        ("compare.json", ()), "report:comparison_figures", True, True),
+    "navigate": Command(
+        "cli.navigate", "cli.navigate:add_navigate", "lbl.navigate.result:Navigation",
+        ("summary.json", ("dead_reckoning", "track", "beacons_table")),
+        "report:navigation_figures", True, True,
+        Batch("cli.navigate:navigate_kwargs", "lbl.navigate:navigate")),
+    "stream": Command("cli.stream", "cli.stream:add_stream"),
+    "batch": Command("cli.batch", "cli.parser:add_batch"),
+}
+
+
+def load(name: str):
+    """Return the object a table entry names (``"module:attribute"``, relative to the package).
+
+    Parameters
+    ----------
+    name : str
+
+    Returns
+    -------
+    object
+
+    Examples
+    --------
+    >>> load("commands:load") is load
+    True
+    """
+    module, _, attribute = name.partition(":")
+    return getattr(importlib.import_module(f"{__package__}.{module}"), attribute)
+
+
+def with_results() -> dict:
+    """Return the commands that write a result ``bayes-mpem plot`` reads back, by name.
+
+    Returns
+    -------
+    dict
+        Name to :class:`Command`, in the table's order.
+    """
+    return {name: c for name, c in COMMANDS.items() if c.result is not None}

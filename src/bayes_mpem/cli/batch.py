@@ -19,15 +19,13 @@ from ..exceptions import InputError
 from . import survey_in
 from .errors import OptionError
 
+#: the input units' columns (their options' names), refused with the way to convert: a
+#: batch's surveys are read as one-way ranges in local x, y (bayes_mpem.io.travel_time)
+UNIT_OPTIONS = {"ranges", "travel_time", "sound_speed", "travel_ssp", "turnaround", "origin"}
 #: options a batch sets itself (or never uses): not allowed as manifest columns
 #: (``dead_reckoning`` names a file: a batch hashes only the manifest's input columns)
 NOT_OPTIONS = {"help", "out", "pings", "beacons", "survey", "format", "figures", "no_figures",
-               "no_progress", "palette", "dead_reckoning", "config",
-               # the input units (bayes_mpem.io.travel_time): a batch's surveys are read as
-               # one-way ranges in local x, y; convert them first
-               "ranges", "travel_time", "sound_speed", "travel_ssp", "turnaround", "origin"}
-#: the input units' columns (their options' names), refused with the way to convert
-UNIT_OPTIONS = {"ranges", "travel_time", "sound_speed", "travel_ssp", "turnaround", "origin"}
+               "no_progress", "palette", "dead_reckoning", "config", *UNIT_OPTIONS}
 TRUE, FALSE = {"true", "yes", "1"}, {"false", "no", "0", ""}
 
 

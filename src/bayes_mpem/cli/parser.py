@@ -67,8 +67,8 @@ def add_plot(sub):
     kinds = list(with_results())
     p = sub.add_parser("plot", help=f"draw the figures of an output folder ({', '.join(kinds)})")
     p.add_argument("result_dir", metavar="RESULT_DIR",
-                   help=f"output folder of 'bayes-mpem {', '.join(kinds[:-1])}' or "
-                        f"'{kinds[-1]}'")
+                   help="output folder of 'bayes-mpem " + "', '".join(kinds[:-1])
+                        + f"' or '{kinds[-1]}'")
     p.add_argument("--out", default=None, metavar="DIR",
                    help="where to write (default: RESULT_DIR)")
     p.add_argument("--beacon", default=None, metavar="ID",

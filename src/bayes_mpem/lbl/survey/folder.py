@@ -21,63 +21,36 @@ from ...mixture.densities import CLASSES
 _ADDED = set(RESERVED_COLUMNS)
 
 
-def classified_frame(folder, summary: dict) -> pd.DataFrame:
-    """Read the classified table of an output folder as text, checked against its summary.
-
-    Parameters
-    ----------
-    folder : str or pathlib.Path
-    summary : dict
-        The folder's ``summary.json``.
-
-    Returns
-    -------
-    pandas.DataFrame
-
-    Raises
-    ------
-    InputError
-        When the table is truncated or lacks the class columns.
-    """
-    d = Path(folder)
-    files = summary.get("files", [])
-    name = next((f for f in ("classified.parquet", "classified.csv") if f in files),
-                "classified.csv")
-    frame = read_table_file(d / name, str(d / name), "classified table").frame
-    n_rows = summary.get("n_rows")
-    if n_rows is not None and len(frame) != n_rows:
-        raise InputError(f"{d / name}: {len(frame)} rows, but {d / MARKER} says n_rows = "
-                         f"{n_rows}: the table is truncated or from another run")
-    missing = [c for c in ("p_dp", "p_mp", "p_ol", "label") if c not in frame.columns]
-    if missing:
-        raise InputError(f"{d / name}: missing column(s) {', '.join(missing)}; not a "
-                         "classified table of 'bayes-mpem fit', 'sample' or 'navigate'")
-    return frame_as_text(frame) if name.endswith(".parquet") else frame
-
-
-def survey_and_classes(folder, summary: dict):
-    """Return the survey, the ``(N, 3)`` class probabilities and every probability column.
-
-    Parameters
-    ----------
-    folder : str or pathlib.Path
-    summary : dict
-        The folder's ``summary.json`` (its ``beacons_table``).
+def survey_and_classes(folder: Path, summary: dict):
+    """Read the classified table of an output folder, checked against its ``summary.json``.
 
     Returns
     -------
     survey : Survey
+        The pings and the summary's ``beacons_table``.
     probs : numpy.ndarray
-        ``p_dp``, ``p_mp``, ``p_ol`` of every input row (NaN without a reply).
+        ``(N, 3)`` ``p_dp``, ``p_mp``, ``p_ol`` of every input row (NaN without a reply).
     columns : dict
         Every added probability column (``p_dp_sd``, ...) as floats.
 
     Raises
     ------
     InputError
-        For a cell that is not a probability.
+        When the table is truncated, lacks the class columns or holds a cell that is not
+        a probability.
     """
-    classified = classified_frame(folder, summary)
+    name = next((f for f in ("classified.parquet", "classified.csv")
+                 if f in summary.get("files", [])), "classified.csv")
+    path = folder / name
+    frame = read_table_file(path, str(path), "classified table").frame
+    if summary.get("n_rows") is not None and len(frame) != summary["n_rows"]:
+        raise InputError(f"{path}: {len(frame)} rows, but {folder / MARKER} says n_rows = "
+                         f"{summary['n_rows']}: the table is truncated or from another run")
+    missing = [c for c in ("p_dp", "p_mp", "p_ol", "label") if c not in frame.columns]
+    if missing:
+        raise InputError(f"{path}: missing column(s) {', '.join(missing)}; not a "
+                         "classified table of 'bayes-mpem fit', 'sample' or 'navigate'")
+    classified = frame_as_text(frame) if name.endswith(".parquet") else frame
     table = classified[[c for c in classified.columns if c not in _ADDED]]
     beacons = pd.DataFrame([{"beacon": b, **v} for b, v in summary["beacons_table"].items()])
     survey = load_survey(table, beacons)
@@ -96,25 +69,7 @@ def survey_and_classes(folder, summary: dict):
 
 
 def together(folder, load, *args):
-    """Return ``load(*args)``; a key or a type missing in the files is an InputError.
-
-    Parameters
-    ----------
-    folder : str or pathlib.Path
-    load : callable
-    *args
-        Its arguments.
-
-    Returns
-    -------
-    object
-        What ``load`` returns.
-
-    Raises
-    ------
-    InputError
-        When ``load`` meets a missing key, a wrong type or a short list.
-    """
+    """Return ``load(*args)``; a key or a type missing in the files is an ``InputError``."""
     try:
         return load(*args)
     except (KeyError, TypeError, IndexError) as exc:

@@ -21,20 +21,11 @@ LBL_INPUTS = ("pings", "beacons")
 class Batch:
     """How ``bayes-mpem batch`` runs a command on one survey of a manifest.
 
-    Attributes
-    ----------
-    kwargs : str
-        The command line's builder of the library's keyword arguments from the parsed options.
-    run : str
-        The library call, ``run(*inputs, **options)``, returning the command's result.
-    rows : str
-        ``rows(result) -> (per-beacon summaries, classified table or None)``.
-    inputs : tuple of str
-        Manifest columns naming the survey's inputs, in the order ``run`` takes them.
-    files : tuple of str
-        Those of ``inputs`` that are files (hashed, resolved against the manifest).
-    quiet : bool
-        ``run`` takes ``progress``, set False unless given.
+    ``kwargs``: the command line's builder of the library's keywords from the parsed
+    options; ``run``: the library call, ``run(*inputs, **options)``; ``rows``:
+    ``rows(result) -> (per-beacon summaries, classified table or None)``; ``inputs``: the
+    manifest's input columns, in ``run``'s order; ``files``: those that are files (hashed,
+    resolved against the manifest); ``quiet``: ``run`` takes ``progress``, off unless given.
     """
 
     kwargs: str
@@ -49,25 +40,14 @@ class Batch:
 class Command:
     """One sub-command of ``bayes-mpem``.
 
-    Attributes
-    ----------
-    module : str
-        The command-line module of its ``cmd_<name>`` function.
-    options : str
-        The function that adds its sub-parser: ``options(subparsers)``.
-    result : str or None
-        Its result type, with ``write(folder)`` and the classmethod ``read(folder)``.
-    folder : tuple
-        ``(file, keys)``: a folder holds this result when ``file`` exists and its JSON
-        object has every key of ``keys`` (``bayes-mpem plot``).
-    figures : str or None
-        ``figures(result, out, *, truth=None, ...)``: draws the result, returns the paths.
-    palette : bool
-        It draws figures, so takes ``--palette``.
-    units : bool
-        It reads a pings and a beacons table, so takes the input units.
-    batch : Batch or None
-        How ``bayes-mpem batch --command`` runs it, if it can.
+    ``module``: the command-line module of its ``cmd_<name>``; ``options``:
+    ``options(subparsers)`` adds its sub-parser; ``result``: its result type, with
+    ``write(folder)`` and the classmethod ``read(folder)``; ``folder``: ``(file, keys)``, a
+    folder holds this result when ``file``'s JSON object has every key of ``keys``
+    (``bayes-mpem plot``); ``figures``: ``figures(result, out, *, truth=None, ...)`` draws the
+    result and returns the paths; ``palette``: it draws figures, so takes ``--palette``;
+    ``units``: it reads pings and beacons tables, so takes the input units; ``batch``: how
+    ``bayes-mpem batch`` runs it, if it can.
     """
 
     module: str
@@ -119,14 +99,6 @@ COMMANDS: dict[str, Command] = {
 def load(name: str):
     """Return the object a table entry names (``"module:attribute"``, relative to the package).
 
-    Parameters
-    ----------
-    name : str
-
-    Returns
-    -------
-    object
-
     Examples
     --------
     >>> load("commands:load") is load
@@ -137,11 +109,5 @@ def load(name: str):
 
 
 def with_results() -> dict:
-    """Return the commands that write a result ``bayes-mpem plot`` reads back, by name.
-
-    Returns
-    -------
-    dict
-        Name to :class:`Command`, in the table's order.
-    """
+    """Return the commands whose result ``bayes-mpem plot`` reads back, in the table's order."""
     return {name: c for name, c in COMMANDS.items() if c.result is not None}

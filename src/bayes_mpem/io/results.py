@@ -377,21 +377,7 @@ def write_csv(path, table) -> Path:
 
 
 def read_document(path) -> dict:
-    """Read a JSON object a result wrote (``summary.json``, ``compare.json``, ...).
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-
-    Returns
-    -------
-    dict
-
-    Raises
-    ------
-    InputError
-        When the file is not valid JSON (truncated, edited) or not an object.
-    """
+    """Read the JSON object a result wrote (``summary.json``, ...); ``InputError`` if it is not."""
     try:
         doc = json.loads(Path(path).read_text())
     except (ValueError, UnicodeDecodeError) as exc:

@@ -138,23 +138,10 @@ class SurveyInResult:
 
     @classmethod
     def read(cls, folder) -> SurveyInResult:
-        """Read a located survey back from the folder :meth:`write` wrote.
+        """Read a located survey back from the folder :meth:`write` wrote (no fits or posteriors).
 
-        Parameters
-        ----------
-        folder : str or pathlib.Path
-
-        Returns
-        -------
-        SurveyInResult
-            Its ``summary`` and ``classified`` (no fits, no posteriors).
-
-        Raises
-        ------
-        FileNotFoundError
-            When ``classified.csv`` is missing.
-        InputError
-            When ``classified.csv`` lacks the per-ping columns (an older version's).
+        A missing ``classified.csv`` is a ``FileNotFoundError``, one of an older version an
+        ``InputError``.
         """
         from pathlib import Path
 

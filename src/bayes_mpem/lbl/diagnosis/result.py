@@ -204,20 +204,9 @@ class Diagnosis:
     def read(cls, folder) -> Diagnosis:
         """Read a diagnosis back from the folder :meth:`write` wrote: enough for its figures.
 
-        Parameters
-        ----------
-        folder : str or pathlib.Path
-
-        Returns
-        -------
-        Diagnosis
-            Its fits carry ``resp``, ``effects`` and ``path`` only, its ``data`` the
-            replies' ``ids``, ``bi``, ``time`` and ``nb``; no survey.
-
-        Raises
-        ------
-        FileNotFoundError
-            When ``replies.csv`` is missing (or the folder is an older version's).
+        Its fits carry ``resp``, ``effects`` and ``path`` only, its ``data`` the replies'
+        ``ids``, ``bi``, ``time`` and ``nb``; no survey. A missing ``replies.csv`` is a
+        ``FileNotFoundError``.
         """
         from pathlib import Path
 

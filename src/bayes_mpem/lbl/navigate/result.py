@@ -388,27 +388,13 @@ class Navigation:
 
     @classmethod
     def read(cls, folder) -> Navigation:
-        """Read a navigation back from the folder :meth:`write` wrote (never by fitting again).
+        """Read a navigation back from the folder :meth:`write` wrote, never by fitting again.
 
-        Parameters
-        ----------
-        folder : str or pathlib.Path
-
-        Returns
-        -------
-        Navigation
-            The pings of ``classified.csv`` grouped into epochs with the dead reckoning
-            of ``track.csv`` (:func:`.dive.dive_with_dead_reckoning`), the track and its
-            covariances, the class probabilities and the estimates of ``summary.json``
-            (NaN where it holds none); no history, timings or joint covariances.
-
-        Raises
-        ------
-        FileNotFoundError
-            When ``track.csv`` or the classified table is missing.
-        InputError
-            When the track's epochs are not those of the pings, or a column is missing
-            or holds a cell that is not a number.
+        The pings of ``classified.csv`` in epochs with the dead reckoning of ``track.csv``
+        (:func:`.dive.dive_with_dead_reckoning`), the track and its covariances, the classes
+        and the estimates of ``summary.json`` (NaN where it has none); no history, timings
+        or joint covariances. A missing file is a ``FileNotFoundError``, a track that does
+        not fit the pings an ``InputError``.
         """
         from pathlib import Path
 

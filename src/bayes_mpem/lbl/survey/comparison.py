@@ -118,20 +118,8 @@ class SurveyComparison:
     def read(cls, folder) -> SurveyComparison:
         """Read a comparison back from ``compare.json``: what its figure draws.
 
-        Parameters
-        ----------
-        folder : str or pathlib.Path
-
-        Returns
-        -------
-        SurveyComparison
-            No survey; per beacon a namespace with ``elpd_diff``, ``elpd_diff_se``,
-            ``shifts`` and ``learned.em.d0`` (as :class:`~.loo.PriorComparison`).
-
-        Raises
-        ------
-        InputError
-            For a ``compare.json`` without ``em_d0`` (an older version's).
+        No survey; per beacon a namespace with ``elpd_diff``, ``elpd_diff_se``, ``shifts``
+        and ``learned.em.d0`` (as :class:`~.loo.PriorComparison`).
         """
         from pathlib import Path
         from types import SimpleNamespace

@@ -185,23 +185,10 @@ class SurveyFit:
 
     @classmethod
     def read(cls, folder) -> SurveyFit:
-        """Read a fit back from the folder :meth:`write` wrote (never by fitting again).
+        """Read a fit back from the folder :meth:`write` wrote, never by fitting again.
 
-        Parameters
-        ----------
-        folder : str or pathlib.Path
-
-        Returns
-        -------
-        SurveyFit
-            Without ``history.json``, each beacon gets a one-entry history.
-
-        Raises
-        ------
-        FileNotFoundError
-            When a needed file is missing.
-        InputError
-            When the files do not fit together.
+        Without ``history.json``, each beacon gets a one-entry history. A missing file is a
+        ``FileNotFoundError``, files that do not fit together an ``InputError``.
         """
         from pathlib import Path
 

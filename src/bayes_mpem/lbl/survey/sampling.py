@@ -283,23 +283,10 @@ class SurveyPosterior:
 
     @classmethod
     def read(cls, folder) -> SurveyPosterior:
-        """Read a posterior back from the folder :meth:`write` wrote (never by sampling again).
+        """Read a posterior back from the folder :meth:`write` wrote, never by sampling again.
 
-        Parameters
-        ----------
-        folder : str or pathlib.Path
-
-        Returns
-        -------
-        SurveyPosterior
-            Each beacon's ``em`` is a namespace of the EM start's parameters.
-
-        Raises
-        ------
-        FileNotFoundError
-            When a needed file is missing.
-        InputError
-            When the files do not fit together, or a posterior file is not NetCDF.
+        Each beacon's ``em`` is a namespace of the EM start's parameters. A missing file is
+        a ``FileNotFoundError``, files that do not fit together an ``InputError``.
         """
         from pathlib import Path
         from types import SimpleNamespace

@@ -21,7 +21,6 @@ from ..exceptions import InputError
 from ..lbl.model.paths import PATH_CHOICES
 from . import gnssa, navigate
 from . import options as opt
-from .errors import OptionError
 
 PALETTES = ("okabe-ito", "paper")  # bayes_mpem.plots.style.PALETTES, without numpy
 
@@ -309,24 +308,6 @@ def _has_lat_lon(args) -> bool:
     return {"lat", "lon"} <= names and not {"x", "y"} <= names
 
 
-def _simulate_handler(args, cmd_simulate):
-    """``simulate`` writes a survey, or a dive with ``--navigation``; refuse mixed options."""
-    chosen = gnssa.gnssa_handler(args)  # --gnssa: a GNSS-A campaign
-    if chosen is not None:
-        return chosen
-    if args.navigation:
-        return navigate.cmd_simulate_navigation
-    given = [o for o in navigate.NAVIGATION_ONLY if getattr(args, o) is not None]
-    if given:
-        names = ", ".join("--" + o.replace("_", "-") for o in given)
-
-        def refuse(_args):
-            raise OptionError(f"{names}: only with --navigation")
-
-        return refuse
-    return cmd_simulate
-
-
 def add_batch(sub):
     """Add ``batch``'s sub-parser: ``--command`` is any command with a batch entry."""
     p = sub.add_parser("batch", help="run a command on every survey of a manifest (Dask)")
@@ -575,8 +556,6 @@ def main(argv=None) -> int:
 
     matplotlib.use("Agg")  # the command line only writes files; never opens a window
     handler = load(f"{COMMANDS[args.command].module}:cmd_{args.command}")
-    if args.command == "simulate":
-        handler = _simulate_handler(args, handler)
     if args.command in UNIT_COMMANDS:
         handler = _units_handler(args, handler)
     colours = contextlib.nullcontext()

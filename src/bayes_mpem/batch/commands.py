@@ -20,22 +20,7 @@ ARRAY_OPTIONS = ("ci", "outliers", "ssp", "speed_intervals")
 
 
 def run(command: str, inputs: dict, options: dict):
-    """Run a batch command on one survey.
-
-    Parameters
-    ----------
-    command : str
-        A key of :data:`COMMANDS`.
-    inputs : dict
-        The survey's inputs, by manifest column.
-    options : dict
-        Keyword arguments of the command's library call.
-
-    Returns
-    -------
-    object
-        The command's result (with ``write``).
-    """
+    """Return the result of a batch command (a key of :data:`COMMANDS`) on one survey."""
     spec = COMMANDS[command]
     if spec.quiet:
         options = {"progress": False, **options}
@@ -107,21 +92,7 @@ def locate_raw(raw, options: dict):
 
 
 def locate_file(survey, format, **options):  # noqa: A002 - the manifest's column
-    """Read a survey file and locate it (:func:`locate_raw`).
-
-    Parameters
-    ----------
-    survey : str
-        The survey file.
-    format : str
-        Its format (:func:`~bayes_mpem.io.formats.read_survey`).
-    **options
-        As :func:`locate_raw`.
-
-    Returns
-    -------
-    SurveyInResult
-    """
+    """Read a survey file in ``format`` and locate it (:func:`locate_raw` with ``options``)."""
     from ..io.formats import read_survey
 
     return locate_raw(read_survey(survey, format), options)

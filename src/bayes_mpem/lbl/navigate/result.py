@@ -392,8 +392,9 @@ class Navigation:
 
         The pings of ``classified.csv`` in epochs with the dead reckoning of ``track.csv``
         (:func:`.dive.dive_with_dead_reckoning`), the track and its covariances, the classes
-        and the estimates of ``summary.json`` (NaN where it has none); no history, timings
-        or joint covariances. A missing file is a ``FileNotFoundError``, a track that does
+        and the estimates of ``summary.json`` (NaN where it has none); no history, timings,
+        joint covariances or per-beacon model records, so it draws but does not write. A
+        missing file is a ``FileNotFoundError``, a track that does
         not fit the pings an ``InputError``.
         """
         from pathlib import Path

@@ -119,7 +119,7 @@ class SurveyComparison:
         """Read a comparison back from ``compare.json``: what its figure draws.
 
         No survey; per beacon a namespace with ``elpd_diff``, ``elpd_diff_se``, ``shifts``
-        and ``learned.em.d0`` (as :class:`~.loo.PriorComparison`).
+        and ``learned.em.d0`` (as :class:`~.loo.PriorComparison`): it draws, it does not write.
         """
         from pathlib import Path
         from types import SimpleNamespace

@@ -1,4 +1,4 @@
-"""The LBL sub-commands: demo, simulate, fit, sample, compare, plot and diagnose."""
+"""The LBL sub-commands (the entries of :data:`bayes_mpem.commands.COMMANDS` naming this module)."""
 
 from __future__ import annotations
 

@@ -12,52 +12,34 @@ figures; ``batch`` the library calls. Adding a command is one more entry.
 from __future__ import annotations
 
 import importlib
-from dataclasses import dataclass
+from collections import namedtuple  # not dataclasses: `--help` would import inspect
 
 LBL_INPUTS = ("pings", "beacons")
 
+Batch = namedtuple("Batch", "kwargs run rows inputs files quiet", defaults=(
+    "batch.commands:survey_rows", LBL_INPUTS, LBL_INPUTS, False))
+Batch.__doc__ = """How ``bayes-mpem batch`` runs a command on one survey of a manifest.
 
-@dataclass(frozen=True)
-class Batch:
-    """How ``bayes-mpem batch`` runs a command on one survey of a manifest.
+``kwargs``: the command line's builder of the library's keywords from the parsed
+options; ``run``: the library call, ``run(*inputs, **options)``; ``rows``:
+``rows(result) -> (per-beacon summaries, classified table or None)``; ``inputs``: the
+manifest's input columns, in ``run``'s order; ``files``: those that are files (hashed,
+resolved against the manifest); ``quiet``: ``run`` takes ``progress``, off unless given.
+"""
 
-    ``kwargs``: the command line's builder of the library's keywords from the parsed
-    options; ``run``: the library call, ``run(*inputs, **options)``; ``rows``:
-    ``rows(result) -> (per-beacon summaries, classified table or None)``; ``inputs``: the
-    manifest's input columns, in ``run``'s order; ``files``: those that are files (hashed,
-    resolved against the manifest); ``quiet``: ``run`` takes ``progress``, off unless given.
-    """
+Command = namedtuple("Command", "module options result folder figures palette units batch",
+                     defaults=(None, ("summary.json", ()), None, False, False, None))
+Command.__doc__ = """One sub-command of ``bayes-mpem``.
 
-    kwargs: str
-    run: str
-    rows: str = "batch.commands:survey_rows"
-    inputs: tuple = LBL_INPUTS
-    files: tuple = LBL_INPUTS
-    quiet: bool = False
-
-
-@dataclass(frozen=True)
-class Command:
-    """One sub-command of ``bayes-mpem``.
-
-    ``module``: the command-line module of its ``cmd_<name>``; ``options``:
-    ``options(subparsers)`` adds its sub-parser; ``result``: its result type, with
-    ``write(folder)`` and the classmethod ``read(folder)``; ``folder``: ``(file, keys)``, a
-    folder holds this result when ``file``'s JSON object has every key of ``keys``
-    (``bayes-mpem plot``); ``figures``: ``figures(result, out, *, truth=None, ...)`` draws the
-    result and returns the paths; ``palette``: it draws figures, so takes ``--palette``;
-    ``units``: it reads pings and beacons tables, so takes the input units; ``batch``: how
-    ``bayes-mpem batch`` runs it, if it can.
-    """
-
-    module: str
-    options: str
-    result: str | None = None
-    folder: tuple = ("summary.json", ())
-    figures: str | None = None
-    palette: bool = False
-    units: bool = False
-    batch: Batch | None = None
+``module``: the command-line module of its ``cmd_<name>``; ``options``:
+``options(subparsers)`` adds its sub-parser; ``result``: its result type, with
+``write(folder)`` and the classmethod ``read(folder)``; ``folder``: ``(file, keys)``, a
+folder holds this result when ``file``'s JSON object has every key of ``keys``
+(``bayes-mpem plot``); ``figures``: ``figures(result, out, *, truth=None, ...)`` draws the
+result and returns the paths; ``palette``: it draws figures, so takes ``--palette``;
+``units``: it reads pings and beacons tables, so takes the input units; ``batch``: how
+``bayes-mpem batch`` runs it, if it can.
+"""
 
 
 #: Every sub-command, in the order ``bayes-mpem --help`` lists them.

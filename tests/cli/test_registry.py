@@ -53,3 +53,13 @@ def test_no_second_list_of_command_names():
              for line, words in _name_lists(ast.parse(p.read_text()))]
     assert not found, "\n".join(found)
     assert list(_name_lists(ast.parse('BATCH = ("fit", "sample")\n')))
+
+
+def test_no_folder_kind_hides_another():
+    """Two kinds marked by one file: neither's keys are a subset of the other's, so a folder
+    matches one kind whatever the table's order."""
+    kinds = list(with_results().values())
+    for a in kinds:
+        for b in kinds:
+            if a is not b and a.folder[0] == b.folder[0]:
+                assert not set(a.folder[1]) <= set(b.folder[1]), (a.result, b.result)

@@ -376,6 +376,17 @@ def write_csv(path, table) -> Path:
     return write_table(path, table)
 
 
+def read_document(path) -> dict:
+    """Read the JSON object a result wrote (``summary.json``, ...); ``InputError`` if it is not."""
+    try:
+        doc = json.loads(Path(path).read_text())
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise InputError(f"{path}: not valid JSON ({exc}); the file is damaged") from None
+    if not isinstance(doc, dict):
+        raise InputError(f"{path}: expected a JSON object, got {type(doc).__name__}")
+    return doc
+
+
 def read_marker(folder, *, check: bool = True) -> dict:
     """Read a folder's ``summary.json`` and check that the run it describes is complete.
 
@@ -403,12 +414,7 @@ def read_marker(folder, *, check: bool = True) -> dict:
     if not path.is_file():
         raise FileNotFoundError(f"{path}: not found; the folder holds no complete output "
                                 "(an interrupted run leaves none)")
-    try:
-        doc = json.loads(path.read_text())
-    except (ValueError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: not valid JSON ({exc}); the file is damaged") from None
-    if not isinstance(doc, dict):
-        raise InputError(f"{path}: expected a JSON object, got {type(doc).__name__}")
+    doc = read_document(path)
     if check:
         missing = [f for f in doc.get("files", []) if not (Path(folder) / f).exists()]
         if missing:

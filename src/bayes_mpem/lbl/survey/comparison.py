@@ -114,6 +114,36 @@ class SurveyComparison:
             return {"compare": write_json(out / "compare.json", self.to_dict()),
                     "changed": write_csv(out / "changed.csv", self.changed())}
 
+    @classmethod
+    def read(cls, folder) -> SurveyComparison:
+        """Read a comparison back from ``compare.json``: what its figure draws.
+
+        No survey; per beacon a namespace with ``elpd_diff``, ``elpd_diff_se``, ``shifts``
+        and ``learned.em.d0`` (as :class:`~.loo.PriorComparison`): it draws, it does not write.
+        """
+        from pathlib import Path
+        from types import SimpleNamespace
+
+        from ...exceptions import InputError
+        from ...io.results import read_document
+        from .folder import together
+
+        path = Path(folder) / "compare.json"
+        doc = read_document(path)
+
+        def rebuild():
+            results = {}
+            for b, r in doc["beacons"].items():
+                if "em_d0" not in r:
+                    raise InputError(f"{path}: no 'em_d0'; it was written by an older "
+                                     "bayes_mpem: run 'bayes-mpem compare' again")
+                results[b] = SimpleNamespace(
+                    elpd_diff=r["elpd_diff"], elpd_diff_se=r["elpd_diff_se"],
+                    shifts=r["shifts"], learned=SimpleNamespace(em=SimpleNamespace(d0=r["em_d0"])))
+            return cls(survey=None, results=results, skipped=doc.get("skipped", {}))
+
+        return together(folder, rebuild)
+
 
 def compare(pings, beacons=None, *, min_pings: int = 30, rng: RNGLike = None,
             **kwargs) -> SurveyComparison:

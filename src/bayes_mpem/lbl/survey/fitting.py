@@ -183,6 +183,45 @@ class SurveyFit:
                       "first_resp": first(r)}
                 for bid, r in self.results.items()}
 
+    @classmethod
+    def read(cls, folder) -> SurveyFit:
+        """Read a fit back from the folder :meth:`write` wrote, never by fitting again.
+
+        Without ``history.json``, each beacon gets a one-entry history. A missing file is a
+        ``FileNotFoundError``, files that do not fit together an ``InputError``.
+        """
+        from pathlib import Path
+
+        from ...io.results import MARKER, read_document
+        from ..em.em_result import EMResult
+        from ..em.path_choice import choices_from_summary
+        from .folder import survey_and_classes, together
+
+        d = Path(folder)
+        summary = read_document(d / MARKER)
+        survey, probs, _ = survey_and_classes(d, summary)
+        hist = read_document(d / "history.json") if (d / "history.json").exists() else {}
+
+        def rebuild():
+            results = {}
+            for b, s in summary["beacons"].items():
+                rows = survey.for_beacon(b).rows
+                h = hist.get(b, {})
+                history = {k: np.asarray(v) for k, v in h.get("history", {}).items()} or {
+                    "d0": np.array([s["d0"]]), "sigma_mp": np.array([s["sigma_mp"]])}
+                results[b] = EMResult(
+                    beacon=b, method=s["method"], path=s["path"], d0=s["d0"],
+                    sigma_mp=s["sigma_mp"], sigma_dp=s["sigma_dp"], weights=s["weights"],
+                    resp=probs[rows], rows=rows, n_iter=s["iterations"],
+                    converged=s["converged"], loglik=s.get("loglik"), history=history,
+                    first_resp=np.asarray(h["first_resp"]) if "first_resp" in h else probs[rows],
+                    settings=s.get("settings", {}), d0_se=s.get("d0_se"))
+            return cls(survey=survey, results=results, skipped=summary.get("skipped", {}),
+                       method=summary["method"], options=summary.get("options", {}),
+                       path_choices=choices_from_summary(summary["beacons"]))
+
+        return together(d, rebuild)
+
 
 def _non_finite_fit(res) -> list:
     """Names of a fit's values that are not finite (the fit then failed)."""

@@ -281,6 +281,53 @@ class SurveyPosterior:
             paths["summary"] = write_json(out / "summary.json", self.summary())
         return paths
 
+    @classmethod
+    def read(cls, folder) -> SurveyPosterior:
+        """Read a posterior back from the folder :meth:`write` wrote, never by sampling again.
+
+        Each beacon's ``em`` is a namespace of the EM start's parameters. A missing file is
+        a ``FileNotFoundError``, files that do not fit together an ``InputError``.
+        """
+        from pathlib import Path
+        from types import SimpleNamespace
+
+        import xarray as xr
+
+        from ...exceptions import InputError
+        from ...io.results import MARKER, read_document
+        from ..em.path_choice import choices_from_summary
+        from .folder import survey_and_classes, together
+
+        d = Path(folder)
+        summary = read_document(d / MARKER)
+        survey, probs, num = survey_and_classes(d, summary)
+
+        def rebuild():
+            sd = np.column_stack([num["p_" + c + "_sd"] for c in CLASSES])
+            results = {}
+            for b, s in summary["beacons"].items():
+                path = d / posterior_file(b) if "file" not in s else d / Path(s["file"]).name
+                if not path.exists():
+                    raise FileNotFoundError(f"{path}: not found; 'bayes-mpem sample' writes it")
+                try:
+                    tree = xr.open_datatree(path, engine="h5netcdf").load()
+                except (OSError, ValueError) as exc:
+                    raise InputError(f"{path}: not a readable NetCDF file ({exc})") from None
+                rows = survey.for_beacon(b).rows
+                results[b] = PosteriorResult(
+                    beacon=b, priors=s["priors"], path=s["path"], idata=tree,
+                    summary={k: s[k] for k in ("d0", "sigma_mp", "sigma_dp", "weights")},
+                    tau=s["tau"], ess=s["ess"], ess_bulk=s.get("ess_bulk", {}),
+                    rhat=s.get("rhat"), class_probs=probs[rows], class_probs_sd=sd[rows],
+                    rows=rows, em=SimpleNamespace(**s.get("em", {})),
+                    diagnostics=s.get("diagnostics", {}), ci=s.get("ci", summary.get("ci", 0.95)))
+            return cls(survey=survey, results=results, skipped=summary.get("skipped", {}),
+                       priors=summary["priors"], ci=summary.get("ci", 0.95),
+                       options=summary.get("options", {}),
+                       path_choices=choices_from_summary(summary["beacons"]))
+
+        return together(d, rebuild)
+
 
 def _non_finite_posterior(res) -> list:
     """Names of a posterior's summaries that are not finite (the beacon then failed)."""

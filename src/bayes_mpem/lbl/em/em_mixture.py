@@ -1,11 +1,4 @@
-"""The mixture EM for one beacon: maximum likelihood of the dp / mp / outlier mixture.
-
-:func:`fit_mixture_em` (the package's default fit) runs a generalised EM on the mixture
-of :mod:`bayes_mpem.lbl.model.likelihood`: the E-step, a safeguarded Gauss-Newton step
-of the plane height and the scales and weights in closed form (:func:`mixture_m_step`),
-from the modes of the per-range plane heights (:func:`histogram_modes`). The model is
-described in ``docs/model.md``.
-"""
+"""The mixture EM for one beacon: maximum likelihood of the dp / mp / ol mixture (docs/model.md)."""
 
 from __future__ import annotations
 
@@ -74,7 +67,7 @@ def mixture_m_step(geom, resp, state, path, *, fit_sigma_dp, fit_weights, sigma_
     fit_sigma_dp, fit_weights : bool
         Whether sigma_DP and the weights are free.
     sigma_floor : float
-        Lower bound on both scales (m), against collapse onto single ranges.
+        Lower bound on both scales (m).
     d0_bounds : tuple of float
 
     Returns
@@ -115,31 +108,26 @@ class _MixtureEM(EMModel):
 
 
 def histogram_modes(v, k, *, width=5.0, sep=25.0, min_count=-1):
-    """Return the ``k`` strongest modes of ``v`` from a smoothed histogram.
+    """Return the ``k`` strongest modes of ``v`` (bin centres) from a smoothed histogram.
 
     Parameters
     ----------
     v : numpy.ndarray
-        Values (e.g. per-range plane heights).
     k : int
-        Number of modes wanted.
     width : float, default 5
         Bin width.
     sep : float, default 25
         Smallest separation of two modes.
     min_count : float, default -1
-        A mode's 3-bin smoothed count must exceed this (default: any bin,
-        empty ones included).
+        A mode's 3-bin smoothed count must exceed this.
 
     Returns
     -------
     list of float
-        Bin centres, strongest first (at most ``k``).
 
     Examples
     --------
-    >>> v = np.r_[np.full(50, 100.0), np.full(20, 300.0)]
-    >>> histogram_modes(v, 2)
+    >>> histogram_modes(np.r_[np.full(50, 100.0), np.full(20, 300.0)], 2)
     [102.5, 297.5]
     """
     nb = int(min(max((v.max() - v.min()) / width, 1), 20000))

@@ -65,11 +65,5 @@ def nominal_sound_speed(ssp: SoundSpeedProfile, depth) -> float:
     ssp : SoundSpeedProfile
     depth : float
         m, positive down.
-
-    Examples
-    --------
-    >>> prof = SoundSpeedProfile([0.0, 100.0], [1500.0, 1510.0])
-    >>> round(nominal_sound_speed(prof, 100.0), 6)
-    1504.994463
     """
     return float(ssp.harmonic_mean(0.0, float(depth)))

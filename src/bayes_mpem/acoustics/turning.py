@@ -177,19 +177,6 @@ def direct_times(ssp: SoundSpeedProfile, z_a, z_b, horizontal, *, tol: float = 1
         Horizontal distance (m, >= 0). All three broadcast.
     tol : float, default 1e-9
         Relative tolerance on the horizontal run.
-
-    Examples
-    --------
-    Speed growing with depth: two points 3 km apart at the same depth are
-    joined by a ray that dips below them (a circular arc here; both numbers
-    agree with its closed form to 1e-8 m).
-
-    >>> prof = SoundSpeedProfile([0.0, 5000.0], [1450.0, 1530.0])
-    >>> rays = direct_times(prof, 2400.0, 2400.0, 3000.0)
-    >>> bool(rays.valid), round(float(rays.turning_depth) - 2400.0, 4)
-    (True, 12.0927)
-    >>> round(float(rays.time) * float(prof.speed(2400.0)) - 3000.0, 4)  # faster below
-    -0.13
     """
     ray = direct_ray(ssp, z_a, z_b, horizontal, tol=tol)
     shape = ray.time.shape

@@ -20,11 +20,6 @@ def number_parts(parts):
     Returns
     -------
     bool
-
-    Examples
-    --------
-    >>> number_parts(["1.5", "-2"]), number_parts(["1.5", "x"])
-    (True, False)
     """
     try:
         [float(p) for p in parts]

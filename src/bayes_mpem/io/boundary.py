@@ -1,10 +1,6 @@
 """The input boundary every reader passes: lines as ``grep -n`` counts them, shapes, limits.
 
-Every file reader goes through the same three steps: text lines numbered as ``grep -n``
-numbers them (:func:`read_text_lines`), each line classified by its whole shape
-(:class:`Shape`, :func:`classify`), and every value checked against the physical limits
-of :data:`LIMITS` (``docs/input.md``). :func:`sniff_delimiter` words the error for a
-table that is not comma-separated.
+Details: ``docs/input.md``.
 """
 
 from __future__ import annotations
@@ -95,11 +91,6 @@ def out_of_limits(kind: str, values) -> np.ndarray:
     -------
     numpy.ndarray
         Boolean, True where the value is unusable.
-
-    Examples
-    --------
-    >>> out_of_limits("lat", [0.0, -90.0, 90.5]).tolist()
-    [False, False, True]
     """
     lim = LIMITS[kind]
     v = np.asarray(values, dtype=float)
@@ -122,13 +113,6 @@ def limit_problem(kind: str, value) -> str | None:
     -------
     str or None
         E.g. ``"range 1e+300 outside (0, 100000] m"``.
-
-    Examples
-    --------
-    >>> limit_problem("range", 1e300)
-    'range 1e+300 outside (0, 100000] m'
-    >>> limit_problem("minutes", 59.99) is None
-    True
     """
     lim = LIMITS[kind]
     v = float(value)
@@ -188,11 +172,6 @@ def split_lines(text: str) -> list[str]:
     -------
     list of str
         Line ``i`` (1-based, as ``grep -n``) is element ``i - 1``.
-
-    Examples
-    --------
-    >>> split_lines("a\r\nb\fc\n\nd")
-    ['a', 'b\x0cc', '', 'd']
     """
     lines = text.split("\n")
     if lines and lines[-1] == "":
@@ -299,11 +278,6 @@ def classify(lines, shapes):
     list of tuple
         ``(line number, kind or None, match or None)``, 1-based as ``grep -n``;
         ``None`` for a line of no listed shape (the caller skips it with its reason).
-
-    Examples
-    --------
-    >>> classify(["", "A: 1"], [Shape("header", r"(?P<key>\w+):\s*(?P<value>.*)")])[1][1]
-    'header'
     """
     out = []
     for i, text in enumerate(lines, start=1):
@@ -335,13 +309,6 @@ def sniff_delimiter(header: str, first_row: str | None = None) -> str | None:
     str or None
         ``"semicolon-separated (with decimal commas)"``, ``"tab-separated"``, ... or
         ``None`` when the header has commas.
-
-    Examples
-    --------
-    >>> sniff_delimiter("time;beacon;range", "0,5;1;1971,5")
-    'semicolon-separated, with decimal commas'
-    >>> sniff_delimiter("time,beacon") is None
-    True
     """
     if "," in header:
         return None

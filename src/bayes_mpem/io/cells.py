@@ -1,10 +1,4 @@
-"""The cells of input tables: how an offending cell is worded, beacon ids, collected problems.
-
-:func:`show` words a cell for an error message, :func:`as_beacon_id` gives a
-beacon id its canonical form, and :class:`Problems` collects a table's problems
-by row and raises them as one :class:`~bayes_mpem.exceptions.InputError`. Used by
-:mod:`~bayes_mpem.io.tables` and the readers built on it.
-"""
+"""The cells of input tables: how an offending cell is worded, beacon ids, collected problems."""
 
 from __future__ import annotations
 
@@ -48,11 +42,6 @@ def show(v: Any) -> str:
     -------
     str
         Its ``repr`` (cut at 40 characters), or words for an empty or missing cell.
-
-    Examples
-    --------
-    >>> show(" "), show(-3.2)
-    ('an empty cell', '-3.2')
     """
     if isinstance(v, str):
         return repr(v) if v.strip() else "an empty cell"
@@ -75,11 +64,6 @@ def as_beacon_id(v: Any) -> str:
     Returns
     -------
     str
-
-    Examples
-    --------
-    >>> as_beacon_id(4.0), as_beacon_id(" B2 "), as_beacon_id(float("nan"))
-    ('4', 'B2', '')
     """
     if is_missing(v):
         return ""

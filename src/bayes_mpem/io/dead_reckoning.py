@@ -1,9 +1,4 @@
-"""Dead-reckoning tables: a vehicle's own positions or velocities at their own rate.
-
-:func:`read_dead_reckoning` reads and checks the optional dead-reckoning table of
-:func:`~bayes_mpem.lbl.navigate.navigate` (``time, x, y[, depth]`` or
-``time, ve, vn[, depth]``) with the cell and column checks of :mod:`.tables`.
-"""
+"""Dead-reckoning tables: a vehicle's own positions or velocities at their own rate."""
 
 from __future__ import annotations
 
@@ -44,13 +39,6 @@ def read_dead_reckoning(source: Any, *, name: str | None = None) -> tuple[pd.Dat
     InputError
         Missing or ambiguous columns, fewer than two rows, a bad cell, or a time not after
         the previous one (naming the line and column).
-
-    Examples
-    --------
-    >>> t, form = read_dead_reckoning(pd.DataFrame({"time": [0, 10], "ve": [1.0, 1.0],
-    ...                                             "vn": [0.0, 0.5]}))
-    >>> form, t["vn"].tolist()
-    ('velocity', [0.0, 0.5])
     """
     table = load_table(source, name, "dead-reckoning")
     cols = set(table.frame.columns)

@@ -1,11 +1,4 @@
-"""JSON documents of the result files: NumPy values, non-finite numbers, timings.
-
-The serialisation rules :mod:`bayes_mpem.io.results` applies to every JSON file it
-writes: NumPy scalars and arrays become plain JSON (:func:`numpy_to_json`), a NaN or an
-infinity becomes ``null`` listed under ``"non_finite"`` (:func:`finite_json`,
-:func:`json_text`: strict JSON, never a ``NaN`` token), and wall-clock timings leave
-``summary.json`` for ``timings.json`` (:func:`split_timings`).
-"""
+"""JSON documents of the result files: NumPy values, non-finite numbers, timings."""
 
 from __future__ import annotations
 
@@ -30,12 +23,6 @@ def numpy_to_json(value):
     ------
     TypeError
         For any other type.
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> numpy_to_json(np.float64(1.5)), numpy_to_json(np.arange(2))
-    (1.5, [0, 1])
     """
     if isinstance(value, (np.floating, np.integer, np.bool_)):
         return value.item()
@@ -59,11 +46,6 @@ def finite_json(document, numpy: bool = False):
         With ``None`` for every non-finite float.
     replaced : dict
         ``{"dotted.path[i]": "nan" | "inf" | "-inf"}``.
-
-    Examples
-    --------
-    >>> finite_json({"a": [1.0, float("inf")], "b": {"c": float("nan")}})
-    ({'a': [1.0, None], 'b': {'c': None}}, {'a[1]': 'inf', 'b.c': 'nan'})
     """
     replaced = {}
 
@@ -95,11 +77,6 @@ def split_timings(document):
         Without the timing keys (a copy; the input is not changed).
     timings : dict
         The timings at the same places (empty if none).
-
-    Examples
-    --------
-    >>> split_timings({"a": {"seconds": 2.5, "n": 1}, "b": 3})
-    ({'a': {'n': 1}, 'b': 3}, {'a': {'seconds': 2.5}})
     """
     def is_timing(key):
         return isinstance(key, str) and (key == "seconds" or key.endswith("_seconds"))
@@ -179,11 +156,6 @@ def json_text(document, indent, numpy=False) -> str:
     Returns
     -------
     str
-
-    Examples
-    --------
-    >>> json_text({"a": float("nan")}, None)
-    '{"a": null, "non_finite": {"a": "nan"}}\n'
     """
     try:  # the common case, in C: nothing to replace
         if numpy and indent is None:

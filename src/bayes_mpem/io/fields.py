@@ -1,21 +1,4 @@
-"""Checked values of text fields, and where they came from (file, line, column).
-
-The GNSS-A readers parse every field with :func:`number` or :func:`flag` (a
-``ValueError`` saying what was expected and what arrived) and name the place with
-:func:`where`.
-
-Examples
---------
->>> number("2.5", "TT", lo=0.0, hi=60.0, lo_open=True)
-2.5
->>> try:
-...     number("-1", "TT", lo=0.0, hi=60.0, lo_open=True)
-... except ValueError as exc:
-...     print(exc)
-TT: expected a number in (0, 60], got '-1'
->>> where("obs.csv", 7, 5, "TT")
-'obs.csv line 7, column 5 (TT)'
-"""
+"""Checked values of text fields, and where they came from (file, line, column)."""
 
 from __future__ import annotations
 
@@ -106,11 +89,6 @@ def flag(text, name) -> bool:
     ------
     ValueError
         For anything else.
-
-    Examples
-    --------
-    >>> flag(" false", "flag"), flag("1", "flag")
-    (False, True)
     """
     s = str(text).strip().lower()
     if s in ("true", "1"):

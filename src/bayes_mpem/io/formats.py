@@ -1,10 +1,4 @@
-"""The survey file formats by name, format sniffing, and the sample surveys shipped.
-
-:func:`read_survey` dispatches a path to the reader of one of :data:`FORMATS`
-(:mod:`bayes_mpem.io.obsrange`, :mod:`bayes_mpem.io.seagap`,
-:mod:`bayes_mpem.io.garpos`, :mod:`bayes_mpem.io.gnatss`), or to the one
-:func:`sniff_format` recognises; :func:`sample_file` finds a measured sample survey.
-"""
+"""The survey file formats by name, format sniffing, and the sample surveys shipped."""
 
 from __future__ import annotations
 
@@ -46,11 +40,6 @@ def sample_file(name: str) -> Path:
     ------
     FileNotFoundError
         If there is no such sample.
-
-    Examples
-    --------
-    >>> sample_file("obsrange/SIO_CC03.txt").name
-    'SIO_CC03.txt'
     """
     here = Path(__file__).resolve().parents[1]  # the bayes_mpem package
     for root in (here / "_samples", here.parents[1] / "data"):
@@ -95,11 +84,6 @@ def sniff_format(path) -> str:
         No such file.
     InputError
         None of them.
-
-    Examples
-    --------
-    >>> sniff_format(sample_file("obsrange/WHOI_S05.txt"))
-    'obsrange-whoi'
     """
     path = Path(path)
     if not path.is_file():

@@ -1,10 +1,6 @@
 """GARPOS GNSS-acoustic surveys: the site file, the shots and the sound-speed profile.
 
-:func:`read_garpos` reads the site file ``*-initcfg.ini`` and the ``obs.csv`` shots and
-``svp.csv`` profile it names (formats in ``docs/gnssa.md``) into a
-:class:`~bayes_mpem.io.raw.RawSurvey`; :func:`write_garpos` writes one. Every line of
-``obs.csv`` is a shot, a comment or header, or skipped with its reason (``strict=True``
-raises). Format learnt from GARPOS's documentation; no GARPOS code or data is used.
+Details: ``docs/gnssa.md``.
 """
 
 from __future__ import annotations

@@ -1,16 +1,4 @@
-"""Geodesy: the WGS84 ellipsoid, local east-north-up frames, and the transducer lever arm.
-
-Every constant of the Earth's figure used by the package is defined here: the WGS84
-ellipsoid (:data:`WGS84_A`, :data:`WGS84_F`, :data:`WGS84_E2`, :data:`WGS84_B`) and the
-mean radius of a spherical Earth (:data:`MEAN_EARTH_RADIUS_M`).
-
-Examples
---------
->>> round(earth_radius(0.0) / 1000.0, 3)
-6356.752
->>> MEAN_EARTH_RADIUS_M == 1000.0 * MEAN_EARTH_RADIUS_KM
-True
-"""
+"""Geodesy: the WGS84 ellipsoid, local east-north-up frames, and the transducer lever arm."""
 
 from __future__ import annotations
 
@@ -87,12 +75,6 @@ def atd_offset_enu(forward, rightward, downward, heading, pitch, roll):
     -------
     east, north, up : numpy.ndarray
         The offset in the local frame (m), to add to the antenna position.
-
-    Examples
-    --------
-    >>> e, n, u = atd_offset_enu(1.0, 0.0, 2.0, [90.0], [0.0], [0.0])
-    >>> [round(float(v[0]), 6) for v in (e, n, u)]
-    [1.0, 0.0, -2.0]
     """
     from scipy.spatial.transform import Rotation
 
@@ -121,11 +103,6 @@ def earth_radius(lat: float) -> float:
     -------
     float
         Radius (m).
-
-    Examples
-    --------
-    >>> round(earth_radius(45.0), 1)
-    6378101.0
     """
     a, b = WGS84_A, WGS84_B
     e2 = 1.0 - (b / a) ** 2
@@ -167,12 +144,6 @@ def geodetic_to_enu(lat, lon, height, lat0, lon0, height0=0.0):
     Returns
     -------
     e, n, u : numpy.ndarray
-
-    Examples
-    --------
-    >>> e, n, u = geodetic_to_enu(0.0, 0.001, 0.0, 0.0, 0.0)
-    >>> round(float(e), 3), round(float(n), 6)
-    (111.319, 0.0)
     """
     return ecef_to_enu(*geodetic_to_ecef(lat, lon, height), lat0, lon0, height0)
 
@@ -190,11 +161,6 @@ def geodetic_to_ecef(lat, lon, height):
     Returns
     -------
     x, y, z : numpy.ndarray
-
-    Examples
-    --------
-    >>> [round(float(v)) for v in geodetic_to_ecef(0.0, 0.0, 0.0)]
-    [6378137, 0, 0]
     """
     lat, lon, height = np.broadcast_arrays(*(np.asarray(v, float) for v in (lat, lon, height)))
     x, y, z = _ecef(lat, lon, height)
@@ -214,12 +180,6 @@ def ecef_to_enu(x, y, z, lat0, lon0, height0=0.0):
     Returns
     -------
     e, n, u : numpy.ndarray
-
-    Examples
-    --------
-    >>> x, y, z = geodetic_to_ecef(10.0, 20.0, -1500.0)
-    >>> [round(float(v), 6) + 0.0 for v in ecef_to_enu(x, y, z, 10.0, 20.0, 0.0)]
-    [0.0, 0.0, -1500.0]
     """
     x, y, z = np.broadcast_arrays(*(np.asarray(v, float) for v in (x, y, z)))
     d = np.stack([x, y, z]) - _ecef(float(lat0), float(lon0), float(height0)).reshape(
@@ -243,12 +203,6 @@ def enu_to_ecef(east, north, up, lat0, lon0, height0=0.0):
     Returns
     -------
     x, y, z : numpy.ndarray
-
-    Examples
-    --------
-    >>> x, y, z = enu_to_ecef(100.0, -50.0, 10.0, 45.0, 7.0)
-    >>> [round(float(v), 6) for v in ecef_to_enu(x, y, z, 45.0, 7.0)]
-    [100.0, -50.0, 10.0]
     """
     e, n, u = np.broadcast_arrays(*(np.asarray(v, float) for v in (east, north, up)))
     xyz = np.tensordot(_enu_rotation(lat0, lon0).T, np.stack([e, n, u]), axes=1)

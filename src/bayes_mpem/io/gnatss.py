@@ -1,10 +1,6 @@
 """GNATSS GNSS-acoustic surveys: the config, the travel times, the positions, the profile.
 
-:func:`read_gnatss` reads a ``config.yaml`` and the files it names (travel times,
-transducer positions, sound-speed profile; formats in ``docs/gnssa.md``) into a
-:class:`~bayes_mpem.io.raw.RawSurvey`, one ping per reply, the transponder's internal
-delay removed from the travel time; :func:`write_gnatss` writes one. Format learnt from
-GNATSS's documentation; none of its code or data is used.
+Details: ``docs/gnssa.md``.
 """
 
 from __future__ import annotations

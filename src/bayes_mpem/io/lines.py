@@ -1,19 +1,6 @@
 """Pings one line at a time: the line formats of a live stream, validated.
 
-Each line is CSV (after a header line with ``fit``'s pings columns) or one JSON object;
-an empty ``range`` is a ping without reply, a line without ``beacon`` and ``range`` a
-dead-reckoning line, blank and ``#`` lines are skipped (``docs/stream.md``). Anything
-else is an :class:`~bayes_mpem.exceptions.InputError` naming the line and column.
-
-Examples
---------
->>> p = LineParser()
->>> p.parse("time,beacon,range,x,y,depth", 1)
-('header', None)
->>> p.parse("12,1,2875.5,10,20,2440", 2)
-('ping', Ping(time=12.0, beacon='1', range=2875.5, x=10.0, y=20.0, depth=2440.0))
->>> p.parse('{"time": 13, "x": 11, "y": 20}', 3)[1].kind
-'dead_reckoning'
+Details: ``docs/stream.md``.
 """
 
 from __future__ import annotations
@@ -148,11 +135,6 @@ def make_ping(values: dict, where: str, beacons=None, *, json_keys: bool = False
         A missing or bad value, a value outside the limits of
         :data:`~bayes_mpem.io.boundary.LIMITS` (``docs/input.md``), an unknown
         beacon, a range on a dead-reckoning line.
-
-    Examples
-    --------
-    >>> make_ping({"time": "5", "beacon": "", "range": "", "x": "1", "y": "2"}, "line 2")
-    Ping(time=5.0, beacon=None, range=None, x=1.0, y=2.0, depth=None)
     """
     raw_b = values.get("beacon")
     if isinstance(raw_b, (list, dict, bool)):
@@ -199,11 +181,6 @@ def csv_cells(text: str, where: str) -> list[str]:
     ------
     InputError
         A carriage return inside the line, a field too long, an unclosed quote.
-
-    Examples
-    --------
-    >>> csv_cells('1,"a b",3', "line 2")
-    ['1', 'a b', '3']
     """
     for bad, name in (("\r", "a carriage return (\\r)"), ("\x00", "a NUL character")):
         at = text.find(bad)

@@ -1,7 +1,6 @@
 """Readers of OBSrange EdgeTech deck-box logs (SIO text and WHOI CSV).
 
-Each returns a :class:`~bayes_mpem.io.raw.RawSurvey` that accounts for every
-line of the file (see :mod:`bayes_mpem.io.raw` for the formats).
+Details: ``docs/measured-data.md``.
 """
 
 from __future__ import annotations

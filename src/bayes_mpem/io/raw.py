@@ -1,10 +1,6 @@
 """A survey file as read (:class:`RawSurvey`), its conversion to pings, and reader helpers.
 
-The formats (``obsrange-sio``, ``obsrange-whoi``, ``seagap``, ``garpos``, ``gnatss``)
-are described in ``docs/measured-data.md`` and ``docs/gnssa.md``, their readers in
-:mod:`bayes_mpem.io.obsrange`, :mod:`bayes_mpem.io.seagap`, :mod:`bayes_mpem.io.garpos`
-and :mod:`bayes_mpem.io.gnatss`. Every line is a ping, a header or comment, or skipped
-with its reason (``strict=True`` raises instead).
+Details: ``docs/measured-data.md``.
 """
 
 from __future__ import annotations

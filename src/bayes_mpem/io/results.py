@@ -1,36 +1,6 @@
 """Writing result files: the one writer behind every result's ``write()`` and every figure.
 
-Each file is written under a temporary name and renamed into place; inside
-``with writing(out_dir):`` the renames wait until the whole run has succeeded, and
-``summary.json`` is written last, listing the run's files: it is the completion marker
-(:func:`read_marker`). NaN and infinities are written as ``null`` and listed under
-``"non_finite"``; wall-clock timings go to ``timings.json``. The convention is described
-in ``docs/architecture.md``.
-
-Examples
---------
->>> import json, tempfile
->>> import pandas as pd
->>> with tempfile.TemporaryDirectory() as tmp:
-...     with writing(tmp + "/run") as out:
-...         _ = write_json(out / "summary.json", {"n": 1, "sd": float("nan")})
-...         _ = write_csv(out / "t.csv", pd.DataFrame({"a": [1, 2]}))
-...     print((out / "summary.json").read_text(), end="")
-...     print((out / "t.csv").read_text(), end="")
-{
-  "n": 1,
-  "sd": null,
-  "non_finite": {
-    "sd": "nan"
-  },
-  "files": [
-    "summary.json",
-    "t.csv"
-  ]
-}
-a
-1
-2
+Details: ``docs/architecture.md``.
 """
 
 from __future__ import annotations
@@ -71,15 +41,6 @@ def check_output_folder(out_dir, option: str = "--out") -> Path:
     InputError
         The path is a file, lies under a file, or its nearest existing folder
         cannot be written (permissions, a read-only file system).
-
-    Examples
-    --------
-    >>> import tempfile
-    >>> with tempfile.NamedTemporaryFile() as f:
-    ...     check_output_folder(f.name + "/sub")
-    Traceback (most recent call last):
-    ...
-    bayes_mpem.exceptions.InputError: --out ...: lies under the file ...; expected a folder
     """
     out = Path(out_dir)
     if str(out_dir).strip() == "":
@@ -446,15 +407,6 @@ def write_parquet(path, table) -> Path:
     -------
     pathlib.Path
         ``path``.
-
-    Examples
-    --------
-    >>> import tempfile
-    >>> import pandas as pd
-    >>> with tempfile.TemporaryDirectory() as tmp:
-    ...     p = write_parquet(tmp + "/t.parquet", pd.DataFrame({"a": [1, None], "b": ["x", 2]}))
-    ...     pd.read_parquet(p)["b"].tolist()
-    ['x', '2']
     """
     table = table.copy()
     for name in table.columns:

@@ -1,8 +1,6 @@
 """Reader of SeaGap GNSS-acoustic surveys (``obsdata.inp`` and companion files).
 
-Returns a :class:`~bayes_mpem.io.raw.RawSurvey` with the transducer positions
-from the antenna track and the lever arm, the transponders' prior positions and
-the sound-speed profile (see :mod:`bayes_mpem.io.raw` for the format).
+Details: ``docs/gnssa.md``.
 """
 
 from __future__ import annotations

@@ -1,15 +1,4 @@
-"""Where a live stream's lines come from and where the answers go.
-
-Sources yield ``(line_number, text)`` in arrival order: :class:`FdLines` (a file
-descriptor, responsive to a stop request within ``poll`` seconds), :class:`UdpLines`
-(datagrams) and :class:`ReplayLines` (a recorded file at its own time stamps). Sinks
-(:func:`open_sink`): standard output (``-``), a file or ``udp://HOST:PORT``.
-
-Examples
---------
->>> parse_address("udp://127.0.0.1:9000"), parse_address("-")
-(('udp', ('127.0.0.1', 9000)), ('stdio', None))
-"""
+"""Where a live stream's lines come from and where the answers go."""
 
 from __future__ import annotations
 

@@ -1,8 +1,4 @@
-"""Reading and validating ping and beacon tables: the one place where user input is checked.
-
-An empty ``range`` cell is a ping with no reply; any other bad cell raises one
-:class:`InputError` naming source, line (CSV) or row label (DataFrame), column, expected and got.
-"""
+"""Reading and validating ping and beacon tables: the one place where user input is checked."""
 
 from __future__ import annotations
 
@@ -39,12 +35,6 @@ class BeaconData:
         Shape (n,) int64: 0-based positions of these pings in :attr:`Survey.table`.
     n_no_reply : int
         Pings to this beacon that got no reply.
-
-    Examples
-    --------
-    >>> bd = BeaconData.from_arrays([10.0, 11.0], [0, 1], [0, 0], [5, 5], [0, 0, 10])
-    >>> bd.n, bd.beacon
-    (2, '1')
     """
 
     beacon: str
@@ -92,11 +82,6 @@ class BeaconData:
         ------
         InputError
             Naming the argument and the first bad index.
-
-        Examples
-        --------
-        >>> BeaconData.from_arrays([5.0], [0.0], [0.0], [1.0], [3, 4, 1]).position.tolist()
-        [3.0, 4.0, 1.0]
         """
         def as_float(arg: str, a: Any) -> np.ndarray:
             try:
@@ -233,14 +218,6 @@ class Survey:
         ------
         InputError
             If the id is not in the beacons table (the message lists the known ids).
-
-        Examples
-        --------
-        >>> s = load_survey(pd.DataFrame({"time": [0], "beacon": [7], "range": [9.5], "x": [0],
-        ...                               "y": [0], "depth": [1]}),
-        ...                 pd.DataFrame({"beacon": ["7"], "x": [0], "y": [0], "depth": [10]}))
-        >>> s.for_beacon(7).range.tolist()
-        [9.5]
         """
         bid = as_beacon_id(beacon_id)
         if bid not in self.beacons.index:

@@ -1,21 +1,4 @@
-r"""Table files in and out: CSV (a typed C parser, exact line numbers) and Parquet.
-
-:func:`read_table_file` reads a pings or beacons file into a text
-:class:`pandas.DataFrame` with the file line of every row, for :mod:`~bayes_mpem.io.tables`
-to validate: CSV by pyarrow's reader when no field is quoted (else by :mod:`csv`),
-Parquet with its column types. :func:`table_to_csv_bytes` writes CSV byte for byte as
-``DataFrame.to_csv(index=False)`` does, faster.
-
-Examples
---------
->>> import tempfile, pathlib
->>> with tempfile.TemporaryDirectory() as tmp:
-...     p = pathlib.Path(tmp) / "t.csv"
-...     _ = p.write_text("# made by hand\na,b\n1,x\n\n2,y\n")
-...     t = read_table_file(p, "t.csv")
->>> t.frame["b"].tolist(), t.lines.tolist(), t.comments
-(['x', 'y'], [3, 5], 1)
-"""
+r"""Table files in and out: CSV (a typed C parser, exact line numbers) and Parquet."""
 
 from __future__ import annotations
 
@@ -66,11 +49,6 @@ def is_parquet(path) -> bool:
     Returns
     -------
     bool
-
-    Examples
-    --------
-    >>> is_parquet("pings.parquet"), is_parquet("pings.csv")
-    (True, False)
     """
     return Path(path).suffix.lower() in PARQUET_SUFFIXES
 
@@ -271,11 +249,6 @@ def format_floats(values) -> pa.Array:
     Returns
     -------
     pyarrow.StringArray
-
-    Examples
-    --------
-    >>> format_floats([0.0, 1e-5, 2.5, float("nan")]).to_pylist()
-    ['0.0', '1e-05', '2.5', '']
     """
     v = np.asarray(values, dtype=float)
     arrow = pc.cast(pa.array(v), pa.string())
@@ -400,11 +373,6 @@ def frame_as_text(frame: pd.DataFrame) -> pd.DataFrame:
     -------
     pandas.DataFrame
         Same columns, text cells.
-
-    Examples
-    --------
-    >>> frame_as_text(pd.DataFrame({"p": [0.5, float("nan")], "s": ["a", None]}))["p"].tolist()
-    ['0.5', '']
     """
     cols = {}
     for j, name in enumerate(frame.columns):
@@ -430,12 +398,6 @@ def table_to_csv_bytes(frame: pd.DataFrame) -> bytes:
     Returns
     -------
     bytes
-
-    Examples
-    --------
-    >>> f = pd.DataFrame({"a": ["x", "y,z"], "p": [0.5, float("nan")], "n": [1, 2]})
-    >>> table_to_csv_bytes(f) == f.to_csv(index=False).encode()
-    True
     """
     header = frame.head(0).to_csv(index=False).encode()
     if len(frame) == 0:

@@ -1,9 +1,4 @@
-"""Reading and checking the pings and beacons tables (CSV or Parquet files, or DataFrames).
-
-Every problem is reported with its column and row, all of a table's problems at once,
-as one :class:`~bayes_mpem.exceptions.InputError`; values must lie within
-:data:`~bayes_mpem.io.boundary.LIMITS`.
-"""
+"""Reading and checking the pings and beacons tables (CSV or Parquet files, or DataFrames)."""
 
 from __future__ import annotations
 

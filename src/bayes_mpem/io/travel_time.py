@@ -1,23 +1,6 @@
 """Surveys given as travel times, two-way ranges or latitude/longitude, in the package's units.
 
-The LBL commands work on one-way ranges in metres in a local frame; :func:`convert_survey`
-converts two-way ranges (halved), travel times (``(t - turnaround) * sound_speed``,
-halved if two-way; the speed a constant, or each ping's harmonic mean through a
-sound-speed profile between the vehicle's and the beacon's depths) and ``lat``, ``lon``
-columns (projected onto the tangent plane at ``origin``). A converted ``range`` keeps its
-input as ``range_input``; the converted tables remember their file's lines, so later
-messages name them (``docs/input.md``).
-
-Examples
---------
->>> import pandas as pd
->>> pings = pd.DataFrame({"time": [0.0], "beacon": ["1"], "range": [4.013], "x": [0.0],
-...                       "y": [0.0], "depth": [10.0]})
->>> beacons = pd.DataFrame({"beacon": ["1"], "x": [0.0], "y": [0.0], "depth": [3000.0]})
->>> p, b = convert_survey(pings, beacons, ranges="two-way", travel_time=True,
-...                       sound_speed=1500.0, turnaround=0.013)
->>> round(float(p["range"][0]), 6), float(p["range_input"][0])
-(3000.0, 4.013)
+Details: ``docs/input.md``.
 """
 
 from __future__ import annotations

@@ -1,7 +1,4 @@
-"""Figures of the Bayesian variant.
-
-Every function takes ``fig=`` or ``ax=`` and returns the Figure.
-"""
+"""Figures of the Bayesian variant."""
 
 from __future__ import annotations
 

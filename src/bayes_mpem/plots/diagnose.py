@@ -28,13 +28,6 @@ def running_mean(p, window: int):
     Returns
     -------
     numpy.ndarray
-
-    Examples
-    --------
-    >>> running_mean([1.0, 1.0, 1.0, 1.0], 3).tolist()
-    [1.0, 1.0, 1.0, 1.0]
-    >>> running_mean([0.0, 3.0, 6.0], 3).tolist()
-    [1.5, 3.0, 4.5]
     """
     p = np.asarray(p, float)
     c = np.concatenate([[0.0], np.cumsum(p)])

@@ -1,12 +1,4 @@
-"""Figures of a navigated dive (:class:`~bayes_mpem.lbl.navigate.Navigation`).
-
-Three figures, each taking ``ax=`` or ``fig=`` and returning the Figure: the
-track against the dead reckoning with error ellipses (:func:`plot_nav_track`),
-the ranges against time coloured by class with the paper's colour map
-(:func:`plot_nav_ranges`), and the position correction against time with its
-uncertainty (:func:`plot_nav_correction`). A true track (a simulated dive's
-``true_track``) is drawn where given.
-"""
+"""Figures of a navigated dive (:class:`~bayes_mpem.lbl.navigate.Navigation`)."""
 
 from __future__ import annotations
 
@@ -39,13 +31,6 @@ def ellipse_axes(cov, *, q=CHI2_95):
     Returns
     -------
     widths, heights, angles : numpy.ndarray
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> w, h, a = ellipse_axes(np.array([[[4.0, 0.0], [0.0, 1.0]]]), q=1.0)
-    >>> w.tolist(), h.tolist(), a.tolist()
-    ([4.0], [2.0], [0.0])
     """
     vals, vecs = np.linalg.eigh(cov)
     w = 2.0 * np.sqrt(np.maximum(vals[:, 1], 0.0) * q)
@@ -66,11 +51,6 @@ def magnification(size, target):
     -------
     float
         1 when ``size`` is already as large as ``target`` (or not positive).
-
-    Examples
-    --------
-    >>> magnification(3.0, 180.0), magnification(500.0, 180.0)
-    (50.0, 1.0)
     """
     if not size > 0 or size >= target:
         return 1.0

@@ -1,9 +1,4 @@
-"""The class colours, the colour key and the labels shared by every figure.
-
-A range's colour mixes the class colours by its class probabilities. Palettes:
-``"okabe-ito"`` (default, colour-blind safe; Okabe & Ito 2008) and ``"paper"`` (the
-paper's Fig. 8); switch with :func:`use_palette` or :func:`palette_context`.
-"""
+"""The class colours, the colour key and the labels shared by every figure."""
 
 from __future__ import annotations
 
@@ -45,14 +40,6 @@ def use_palette(name: str) -> str:
     ------
     ValueError
         For an unknown palette.
-
-    Examples
-    --------
-    >>> old = use_palette("paper")
-    >>> class_color("mp")
-    (1.0, 0.0, 0.0)
-    >>> use_palette(old)
-    'paper'
     """
     if name not in PALETTES:
         raise ValueError(f"palette: expected one of {tuple(PALETTES)}, got {name!r}")
@@ -72,14 +59,6 @@ def palette_context(name: str):
     ------
     str
         ``name``.
-
-    Examples
-    --------
-    >>> with palette_context("paper"):
-    ...     class_color("ol")
-    (0.0, 1.0, 0.0)
-    >>> class_color("ol")
-    (0.6, 0.6, 0.6)
     """
     old = use_palette(name)
     try:
@@ -120,13 +99,6 @@ def class_colors(resp, palette: str | None = None):
     numpy.ndarray
         ``(n, 3)`` RGB in [0, 1]. With ``palette="paper"``: red = p_mp, green = p_ol,
         blue = p_dp.
-
-    Examples
-    --------
-    >>> class_colors([[1.0, 0.0, 0.0]], palette="paper").tolist()
-    [[0.0, 0.0, 1.0]]
-    >>> class_colors([[0.0, 0.0, 1.0]], palette="okabe-ito").tolist()
-    [[0.6, 0.6, 0.6]]
     """
     resp = np.clip(np.asarray(resp, float), 0.0, 1.0)
     base = np.array([class_color(c, palette) for c in ("dp", "mp", "ol")])

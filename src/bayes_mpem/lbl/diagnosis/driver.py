@@ -1,14 +1,6 @@
 """Find the effect hidden in a survey: which of the paper's assumptions the data break.
 
-Examples
---------
->>> from bayes_mpem.lbl.simulation.simulate import simulate_survey
->>> sim = simulate_survey("abe58", rng=2, n_cycles=700, effects={"range_bias": 6.0})
->>> dx = diagnose(sim.survey, rng=0, progress=False)
->>> [e.name for e in dx.effects]
-['range_bias']
->>> abs(dx.effects[0].magnitude - 6.0) < 0.5
-True
+Details: ``docs/diagnose.md``.
 """
 
 from __future__ import annotations

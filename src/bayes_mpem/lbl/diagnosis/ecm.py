@@ -1,33 +1,4 @@
-"""Fitting the joint model of the diagnosis by ECM, and its held-out predictive density.
-
-The joint model (:mod:`~bayes_mpem.lbl.diagnosis.model`) is fitted to all beacons at once by an ECM
-algorithm: an E-step; closed-form mixing weights; a safeguarded Gauss-Newton
-step on the mean parameters (plane depths and effect parameters, analytic
-Jacobian; :func:`bayes_mpem.mixture.gauss_newton.safeguarded_step`) that never
-increases the weighted squared error; closed-form scatters. The
-log-likelihood therefore never decreases. A plane held on its bound (just
-above the vehicle) by the step is kept there while the other parameters move.
-
-* :func:`fit_joint` runs the ECM from several starts (:mod:`.starts`) and keeps
-  the best, a :class:`JointFit`;
-* :func:`heldout` scores each reply by K-fold cross-validation, the
-  criterion the driver (:func:`bayes_mpem.lbl.diagnosis.driver.diagnose`)
-  keeps an effect by.
-
-Examples
---------
->>> from bayes_mpem.lbl.simulation.simulate import simulate_survey
->>> from bayes_mpem.lbl.survey.survey import fittable_beacons
->>> from bayes_mpem.lbl.diagnosis.model import ranges
->>> from bayes_mpem.lbl.diagnosis.starts import baseline_start
->>> sim = simulate_survey("abe58", rng=2, n_cycles=300, effects={"range_bias": 6.0})
->>> fittable, _ = fittable_beacons(sim.survey, 30)
->>> d = ranges(sim.survey, fittable)
->>> start, path, _ = baseline_start(d, fittable, "triangle", 0)
->>> fit = fit_joint(d, ("range_bias",), start, path=path)
->>> abs(fit.magnitudes(d)["range_bias"] - 6.0) < 0.5
-True
-"""
+"""Fitting the joint model of the diagnosis by ECM, and its held-out predictive density."""
 
 from __future__ import annotations
 

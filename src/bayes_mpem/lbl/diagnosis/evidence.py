@@ -1,14 +1,4 @@
-"""What a kept effect means, in words and numbers, and which fits are not credible.
-
-Examples
---------
->>> check_effect_names(("range_bias", "tide"), "effects")
-Traceback (most recent call last):
-...
-ValueError: effects: unknown effect(s) ['tide']; known: ['range_bias', 'sound_speed', \
-'plane_drift', 'second_reflector', 'early_outliers', 'nav_drift', 'beacon_bias', \
-'beacon_position']
-"""
+"""What a kept effect means, in words and numbers, and which fits are not credible."""
 
 from __future__ import annotations
 

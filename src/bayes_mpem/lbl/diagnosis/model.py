@@ -1,14 +1,4 @@
-"""The joint model of the diagnosis: all beacons' replies, the effects, the class densities.
-
-Examples
---------
->>> from bayes_mpem.lbl.simulation.simulate import simulate_survey
->>> from bayes_mpem.lbl.survey.survey import fittable_beacons
->>> sim = simulate_survey("abe58", rng=0, n_cycles=50)
->>> d = ranges(sim.survey, fittable_beacons(sim.survey, 30)[0])
->>> d.ids, d.nb
-(('1', '2', '3', '4'), 4)
-"""
+"""The joint model of the diagnosis: all beacons' replies, the effects, the class densities."""
 
 from __future__ import annotations
 

@@ -1,10 +1,4 @@
-"""The parameters of the diagnosis' joint model, and the vector the Gauss-Newton step moves.
-
-Examples
---------
->>> mean_names(("range_bias", "beacon_bias:b"), ("a", "b"))
-[('plane', 0), ('plane', 1), ('bias', None), ('bbias', 1)]
-"""
+"""The parameters of the diagnosis' joint model, and the vector the Gauss-Newton step moves."""
 
 from __future__ import annotations
 

@@ -1,8 +1,6 @@
 """The search over effects of the diagnosis: forward selection, then a backward step.
 
-An effect is kept when its held-out gain exceeds ``min_gain`` nats and ``min_z`` standard
-errors; the per-beacon effects are tried on the beacons the model leaves unexplained
-(:func:`suspects`). Why the order of the stages matters: ``docs/diagnose.md``.
+Details: ``docs/diagnose.md``.
 """
 
 from __future__ import annotations

@@ -1,16 +1,4 @@
-"""Starting points of the diagnosis' joint fits.
-
-Examples
---------
->>> from bayes_mpem.lbl.simulation.simulate import simulate_survey
->>> from bayes_mpem.lbl.survey.survey import fittable_beacons
->>> from bayes_mpem.lbl.diagnosis.model import ranges
->>> sim = simulate_survey("abe58", rng=2, n_cycles=300)
->>> fittable, _ = fittable_beacons(sim.survey, 30)
->>> start, path, logliks = baseline_start(ranges(sim.survey, fittable), fittable, "auto", 0)
->>> path, sorted(logliks)
-('triangle', ['double', 'triangle'])
-"""
+"""Starting points of the diagnosis' joint fits."""
 
 from __future__ import annotations
 

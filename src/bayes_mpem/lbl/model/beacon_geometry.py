@@ -1,14 +1,4 @@
-"""What the likelihood of one beacon needs of its geometry, computed once.
-
-Examples
---------
->>> import numpy as np
->>> g = BeaconGeometry(z=np.array([5.0, 9.0]), h=np.array([3.0, 3.0]),
-...                    dz=np.array([4.0, 4.0]), direct=np.array([5.0, 5.0]),
-...                    lo=5.0, hi=9.0, d0_min=4.0)
->>> round(g.log_ol_density, 6)
--1.386294
-"""
+"""What the likelihood of one beacon needs of its geometry, computed once."""
 
 from __future__ import annotations
 

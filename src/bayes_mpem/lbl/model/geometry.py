@@ -1,10 +1,6 @@
 """Straight-ray LBL geometry: direct path, image-method multipath, inversion.
 
-Depths positive down; ``h`` the horizontal distance beacon-vehicle;
-``dz = z_beacon - z_vehicle``; the reflecting plane lies ``d0`` above the beacon, and its
-reflected leg is ``sqrt(h**2 + (2 d0 - dz)**2)`` (eq. 2 of the paper). Ranges are one-way:
-the triangle path gives ``(L_direct + L_refl) / 2``, the double bounce ``L_refl``
-(``docs/model.md``). Every function broadcasts.
+Details: ``docs/model.md``.
 """
 
 from __future__ import annotations
@@ -59,11 +55,6 @@ def direct_path(h, dz):
     Returns
     -------
     numpy.ndarray
-
-    Examples
-    --------
-    >>> float(direct_path(3.0, 4.0))
-    5.0
     """
     return np.hypot(h, dz)
 
@@ -99,13 +90,6 @@ def multipath_range(h, dz, d0, path: Path = "triangle", *, direct=None):
     Returns
     -------
     numpy.ndarray
-
-    Examples
-    --------
-    A vehicle 3 km from a beacon 2472 m deep, both near the floor:
-
-    >>> round(float(multipath_range(3000.0, 0.0, 2472.0)), 1)
-    4391.5
     """
     refl = reflected_leg(h, dz, d0)
     if not isinstance(path, str):  # one geometry per range
@@ -170,12 +154,6 @@ def invert_plane_height(z, h, dz, path: Path = "triangle", *, direct=None):
     -------
     numpy.ndarray
         NaN where no plane can produce the range (``L_refl < h``).
-
-    Examples
-    --------
-    >>> z = multipath_range(1500.0, 40.0, 2400.0)
-    >>> round(float(invert_plane_height(z, 1500.0, 40.0)), 6)
-    2400.0
     """
     z = np.asarray(z, float)
     if check_path(path) == "triangle":
@@ -221,14 +199,6 @@ def horizontal_slopes(h, dz, d0, path: Path = "triangle", *, direct=None):
     -------
     slope_direct, slope_multipath : numpy.ndarray
         Multiply by ``x - x_beacon`` (or ``y - y_beacon``) for the derivative; finite at ``h = 0``.
-
-    Examples
-    --------
-    A vehicle 3 m east of a beacon 4 m below it: the direct range grows by 3/5 m per metre east.
-
-    >>> sd, sm = horizontal_slopes(3.0, 4.0, 100.0)
-    >>> round(float(3.0 * sd), 6)
-    0.6
     """
     if direct is None:
         direct = direct_path(h, dz)

@@ -1,9 +1,4 @@
-"""The direct-path / multipath / outlier mixture likelihood, in one place.
-
-``p(z) = w_dp N(z; L_direct, s_dp) + w_mp N(z; f_MP(d0), s_mp) + w_ol U(z; lo, hi)`` over
-the window ``[lo, hi]`` of the beacon's ranges; every parameter broadcasts (``d0[:, None]``
-evaluates a column of walkers at once).
-"""
+"""The direct-path / multipath / outlier mixture likelihood, in one place."""
 
 from __future__ import annotations
 

@@ -1,20 +1,4 @@
-"""The sampler's kernel: the total log-likelihood of one beacon for many parameter sets.
-
-Examples
---------
->>> import numpy as np
->>> from bayes_mpem.lbl.model.beacon_geometry import BeaconGeometry
->>> from bayes_mpem.lbl.model.likelihood import loglik_per_range
->>> from bayes_mpem.lbl.simulation.simulate import simulate_survey
->>> geom = BeaconGeometry.from_data(simulate_survey("abe58", rng=0).survey.for_beacon("4"))
->>> kern = LoglikKernel(geom, precision="float64")
->>> d0, s_dp, s_mp = np.array([2471.0, 2473.0]), np.array([4.0, 4.1]), np.array([7.0, 6.8])
->>> w = [np.array([0.5, 0.5]), np.array([0.35, 0.34]), np.array([0.15, 0.16])]
->>> ref = loglik_per_range(geom, d0[:, None], s_dp[:, None], s_mp[:, None],
-...                        [x[:, None] for x in w]).sum(axis=1)
->>> bool(np.allclose(kern(d0, s_dp, s_mp, *w), ref, rtol=1e-12))
-True
-"""
+"""The sampler's kernel: the total log-likelihood of one beacon for many parameter sets."""
 
 from __future__ import annotations
 

@@ -1,10 +1,6 @@
 """Refracted LBL ranges: direct and multipath returns through a sound-speed profile.
 
-Reported one-way ranges are ``c_nom * T_direct`` (direct path), ``c_nom * (T_direct +
-T_bounce) / 2`` (triangle) or ``c_nom * T_bounce`` (double bounce). A range whose ray does
-not exist has zero density under that class (counted, never dropped). Bounce times are
-tabulated against ``d0`` and interpolated by cubic Hermite polynomials. Accuracy and cost:
-``docs/refraction.md``.
+Details: ``docs/refraction.md``.
 """
 
 from __future__ import annotations
@@ -69,15 +65,6 @@ def lbl_ranges(ssp: SoundSpeedProfile, sound_speed: float, horizontal, z_vehicle
     ------
     ValueError
         An unknown path, a non-positive speed, or a plane below an end.
-
-    Examples
-    --------
-    A homogeneous medium gives the straight-ray ranges:
-
-    >>> r = lbl_ranges(SoundSpeedProfile.constant(1500.0), 1500.0, 3000.0, 2400.0, 2472.0, 0.0)
-    >>> L = geometry.multipath_range(3000.0, 72.0, 2472.0)
-    >>> abs(float(r.multipath) - float(L)) < 1e-9
-    True
     """
     geometry.check_path(path)
     c_nom = check_sound_speed(sound_speed)

@@ -1,9 +1,4 @@
-"""The effects a survey can hide: the shared vocabulary of the simulator and the diagnosis.
-
-Magnitudes are the change from the first to the last ping where the effect drifts. The
-effects of :data:`PER_BEACON` belong to one beacon, named by a term ``"<effect>:<beacon>"``
-(:func:`term`, :func:`split_term`).
-"""
+"""The effects a survey can hide: the shared vocabulary of the simulator and the diagnosis."""
 
 from __future__ import annotations
 
@@ -35,11 +30,6 @@ def term(name: str, beacon=None) -> str:
         One of :data:`EFFECTS`.
     beacon : str, optional
         The beacon of a :data:`PER_BEACON` effect.
-
-    Examples
-    --------
-    >>> term("beacon_bias", "2"), split_term("beacon_bias:2"), split_term("range_bias")
-    ('beacon_bias:2', ('beacon_bias', '2'), ('range_bias', None))
     """
     return name if beacon is None else f"{name}:{beacon}"
 
@@ -158,12 +148,6 @@ def per_beacon_target(eff, beacons):
     ------
     ValueError
         For an unknown ``effects["beacon"]``.
-
-    Examples
-    --------
-    >>> per_beacon_target({"beacon_position": 10.0, "beacon_position_direction": 90.0},
-    ...                   {"A": {}, "B": {}})[1].round(6).tolist()
-    [0.0, 10.0, 0.0]
     """
     if not any(k in eff for k in PER_BEACON):
         return None, None

@@ -1,14 +1,4 @@
-"""Simulated LBL surveys with known truth.
-
-Examples
---------
->>> from bayes_mpem.lbl.simulation.simulate import simulate_survey
->>> sim = simulate_survey("abe58", rng=0)
->>> sorted(sim.truth)
-['1', '2', '3', '4']
->>> round(sim.truth["4"]["d0"])
-2472
-"""
+"""Simulated LBL surveys with known truth."""
 
 from __future__ import annotations
 

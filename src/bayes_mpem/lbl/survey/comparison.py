@@ -1,10 +1,4 @@
-"""Equal against learned mixing priors on every beacon of a survey (``bayes-mpem compare``).
-
-:func:`compare` runs :func:`~.loo.compare_beacon` (PSIS-LOO of the two
-posteriors) on each beacon and returns a :class:`SurveyComparison`, which
-writes ``compare.json`` and ``changed.csv``; its figure is drawn by
-:func:`bayes_mpem.report.write_figures`.
-"""
+"""Equal against learned mixing priors on every beacon of a survey (``bayes-mpem compare``)."""
 
 from __future__ import annotations
 

@@ -49,11 +49,6 @@ def posterior_file(bid: str) -> str:
     Returns
     -------
     str
-
-    Examples
-    --------
-    >>> posterior_file("4"), posterior_file("B/2 east")
-    ('posterior_4.nc', 'posterior_B_2_east.nc')
     """
     return "posterior_" + re.sub(r"[^A-Za-z0-9_.-]", "_", str(bid)) + ".nc"
 

@@ -1,24 +1,4 @@
-"""The slips a new user makes with a survey's two tables, named once with the likely cause.
-
-Before anything is fitted, a survey that cannot be read (:func:`explain_read_error`:
-tables swapped, depths positive up, beacon ids that differ) or whose ranges fit no
-direct path (:func:`check_geometry`: travel times, kilometres, two-way ranges, depth
-signs) is tested against the usual slips; a :class:`SlipError` names the slip and what
-to do. :func:`impossible_rows` flags replies shorter than the vertical distance to their
-beacon.
-
-Examples
---------
->>> import pandas as pd
->>> beacons = pd.DataFrame({"beacon": ["1"], "x": [0.0], "y": [0.0], "depth": [2000.0]})
->>> pings = pd.DataFrame({"time": range(40), "beacon": "1", "x": 500.0, "y": 0.0,
-...                       "depth": 50.0, "range": 2 * (500 ** 2 + 1950 ** 2) ** 0.5 / 1500})
->>> try:
-...     load_checked(pings, beacons)
-... except SlipError as err:
-...     print(err.slip)
-two_way_seconds
-"""
+"""The slips a new user makes with a survey's two tables, named once with the likely cause."""
 
 from __future__ import annotations
 

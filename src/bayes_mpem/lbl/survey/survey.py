@@ -26,13 +26,6 @@ def check_min_pings(min_pings) -> int:
     ------
     ValueError
         Naming ``min_pings``.
-
-    Examples
-    --------
-    >>> check_min_pings(2)
-    Traceback (most recent call last):
-    ...
-    ValueError: min_pings: expected an integer >= 3, got 2
     """
     return check_int("min_pings", min_pings, minimum=MIN_PINGS)
 
@@ -49,11 +42,6 @@ def non_finite(document, where: str = "") -> list:
     document : dict, list or number
     where : str, optional
         Prefix of the names.
-
-    Examples
-    --------
-    >>> non_finite({"d0": 1.0, "weights": {"dp": float("nan")}, "n": 3})
-    ['weights.dp']
     """
     if isinstance(document, dict):
         return [n for k, v in document.items()
@@ -191,11 +179,6 @@ def option_subset(kwargs: dict) -> dict:
     dict
         ``n_ensembles``, ``concentration``, ``sigma_dp``, ``path``, ``tau_factor``,
         ``min_ess``, ``max_steps``, ``n_draws`` and ``sampler`` where given.
-
-    Examples
-    --------
-    >>> option_subset({"path": "double", "progress": False})
-    {'path': 'double'}
     """
     keys = ("n_ensembles", "concentration", "sigma_dp", "path", "tau_factor", "min_ess",
             "max_steps", "n_draws", "sampler")
@@ -250,14 +233,6 @@ def over_beacons(survey: Survey, min_pings: int, analyse, *, skip_on=(), check=N
     -----
     SkippedBeaconWarning
         For every beacon left out.
-
-    Examples
-    --------
-    >>> import bayes_mpem
-    >>> sim = bayes_mpem.simulate_survey("abe58", rng=0, n_cycles=40)
-    >>> res, skipped = over_beacons(sim.survey, 30, lambda data: data.n)
-    >>> sorted(res), skipped
-    (['1', '2', '3', '4'], {})
     """
     # stacklevel 4: past the helper, this function and fit/sample/compare, to their caller
     fittable, skipped = fittable_beacons(survey, min_pings, stacklevel=4)

@@ -24,14 +24,11 @@ class Limit:
 
     Attributes
     ----------
-    what : str
-        Name in messages (``"range"``, ``"latitude"``).
-    unit : str
-        Unit in messages (``"m"``, ``"s"``, ``"degrees"``).
+    what, unit : str
+        Name and unit in messages.
     low, high : float
-        The bounds.
     include_low : bool
-        Whether ``low`` itself is possible (a range of 0 m is not).
+        Whether ``low`` itself is possible.
     """
 
     what: str

@@ -20,25 +20,18 @@ def read_dead_reckoning(source: Any, *, name: str | None = None) -> tuple[pd.Dat
     Parameters
     ----------
     source : str, os.PathLike or pandas.DataFrame
-        Columns ``time`` (s, strictly increasing) and either ``x``, ``y`` (dead-reckoned
-        position, m) or ``ve``, ``vn`` (velocity east and north, m/s); an optional ``depth``
-        column is checked and kept; others are ignored.
+        ``time`` (s, increasing) and ``x``, ``y`` (m) or ``ve``, ``vn`` (m/s); ``depth`` optional.
     name : str, optional
-        Label for error messages; default the path or ``"dead-reckoning DataFrame"``.
+        Label for error messages.
 
     Returns
     -------
     table : pandas.DataFrame
-        float64 columns ``time`` and the two of the form (and ``depth`` if given).
     form : {"position", "velocity"}
 
     Raises
     ------
-    FileNotFoundError
-        If the path does not exist.
-    InputError
-        Missing or ambiguous columns, fewer than two rows, a bad cell, or a time not after
-        the previous one (naming the line and column).
+    FileNotFoundError, InputError
     """
     table = load_table(source, name, "dead-reckoning")
     cols = set(table.frame.columns)

@@ -19,18 +19,12 @@ _READERS = {"obsrange-sio": read_obsrange_sio, "obsrange-whoi": read_obsrange_wh
 
 
 def sample_file(name: str) -> Path:
-    """Path of a measured sample survey shipped with the package.
-
-    The OBSrange samples (``"obsrange/SIO_CC03.txt"``, ``SIO_EC03.txt``,
-    ``SIO_WC03.txt``, ``WHOI_S05.txt``, ``CC03_ssp.txt``,
-    ``CC03_obsrange_solution.txt``) and the SeaGap example (``"seagap/obsdata.inp"``
-    with its companion files); their sources and licences are in the ``README.md``
-    beside them (``data/README.md`` in the source repository).
+    """Path of a measured sample survey shipped with the package (``data/README.md``).
 
     Parameters
     ----------
     name : str
-        Path relative to the sample folder.
+        Path relative to the sample folder, e.g. ``"obsrange/SIO_CC03.txt"``.
 
     Returns
     -------
@@ -61,13 +55,7 @@ def _first_lines(path, n=40):
 
 
 def sniff_format(path) -> str:
-    """Recognise a survey file's format from its first lines.
-
-    * a ``[Site-parameter]`` or ``[Obs-parameter]`` section: ``garpos`` (the site file);
-    * a YAML ``solver:`` key: ``gnatss`` (its ``config.yaml``);
-    * a ``#`` comment header and comma-separated lines: ``obsrange-whoi``;
-    * ``msec.`` ping lines or an SIO ``Key: value`` header: ``obsrange-sio``;
-    * lines of 18 numbers: ``seagap`` (``obsdata.inp``).
+    """Recognise a survey file's format (one of :data:`FORMATS`) from its first lines.
 
     Parameters
     ----------
@@ -76,14 +64,10 @@ def sniff_format(path) -> str:
     Returns
     -------
     str
-        One of :data:`FORMATS`.
 
     Raises
     ------
-    FileNotFoundError
-        No such file.
-    InputError
-        None of them.
+    FileNotFoundError, InputError
     """
     path = Path(path)
     if not path.is_file():
@@ -112,13 +96,9 @@ def read_survey(path, format: str = "auto", **kwargs) -> RawSurvey:
     Parameters
     ----------
     path : str or pathlib.Path
-        The survey file: the deck-box log, SeaGap's ``obsdata.inp``, GARPOS's
-        site file ``*-initcfg.ini`` or GNATSS's ``config.yaml``.
     format : {"auto", "obsrange-sio", "obsrange-whoi", "seagap", "garpos", "gnatss"}
-        ``"auto"`` (the default) recognises it (:func:`sniff_format`).
     **kwargs
-        Passed to the reader (``strict``; SeaGap's companion paths; GARPOS's
-        ``obs``, ``svp``).
+        Passed to the reader.
 
     Returns
     -------

@@ -33,14 +33,12 @@ UNKNOWN_STATION = "M00"
 
 
 def resolve_path(text, base) -> Path:
-    """Find a file a survey's control file names: from the working folder, else from ``base``.
+    """Find a file a control file names: from the working folder, else from ``base``.
 
     Parameters
     ----------
     text : str
-        The path as written (absolute, or relative).
     base : str or pathlib.Path
-        The folder of the file that names it.
 
     Returns
     -------
@@ -61,7 +59,7 @@ def resolve_path(text, base) -> Path:
 
 
 def read_ini(path) -> dict:
-    """Read an INI-style control file, keeping the line of every value.
+    """Read an INI-style control file as ``{section: {key: (value, line)}}``.
 
     Parameters
     ----------
@@ -70,13 +68,11 @@ def read_ini(path) -> dict:
     Returns
     -------
     dict
-        ``{section: {key: (value, line)}}``; ``#`` and ``;`` start comment lines.
 
     Raises
     ------
     InputError
-        A line that is neither a section, a ``key = value``, a comment nor blank,
-        a key before any section, or a key given twice.
+        A line that does not parse, a key before any section, or a key given twice.
     """
     out, section = {}, None
     for i, text in enumerate(read_lines(path), start=1):
@@ -133,19 +129,16 @@ def _sigmas(ini, path, key):
 
 
 def profile_frame(depth, speed, source) -> pd.DataFrame:
-    """Check a sound-speed profile read from a survey's file.
+    """Check a sound-speed profile read from a survey's file; return ``depth``, ``sound_speed``.
 
     Parameters
     ----------
     depth, speed : array_like
-        m below the sea surface (increasing), m/s.
     source : str
-        The file, for messages.
 
     Returns
     -------
     pandas.DataFrame
-        ``depth``, ``sound_speed``.
 
     Raises
     ------
@@ -166,7 +159,7 @@ def profile_frame(depth, speed, source) -> pd.DataFrame:
 
 
 def read_svp(path) -> pd.DataFrame:
-    """Read GARPOS's ``svp.csv`` (``depth,speed`` header, then one level per line).
+    """Read GARPOS's ``svp.csv`` into ``depth`` (m), ``sound_speed`` (m/s).
 
     Parameters
     ----------
@@ -175,12 +168,10 @@ def read_svp(path) -> pd.DataFrame:
     Returns
     -------
     pandas.DataFrame
-        ``depth`` (m), ``sound_speed`` (m/s).
 
     Raises
     ------
     InputError
-        Naming the file, line and column of a value that does not parse.
     """
     rows, cols = [], None
     for i, text in enumerate(read_lines(path), start=1):
@@ -253,21 +244,17 @@ def read_obs(path, stations, *, strict=False):
     ----------
     path : str or pathlib.Path
     stations : sequence of str
-        The site's transponders; a shot to another one is skipped with the reason.
+        The site's transponders; a shot to another one is skipped.
     strict : bool, default False
-        Raise on a line that does not parse instead of skipping it.
 
     Returns
     -------
     rows : list of dict
-        One per shot (RawSurvey columns, ``line`` first).
     skipped : list of tuple
-        ``(line, text, reason)``.
 
     Raises
     ------
     InputError
-        A missing header or column; with ``strict``, any line that does not parse.
     """
     rows, skipped, cols = [], [], None
     for i, text in enumerate(read_lines(path), start=1):
@@ -301,30 +288,20 @@ def read_obs(path, stations, *, strict=False):
 
 
 def read_garpos(site_file, *, obs=None, svp=None, strict=False) -> RawSurvey:
-    """Read a GARPOS survey: the site file and the shots and profile it names.
+    """Read a GARPOS survey: the site file and the shots and profile it names (``docs/gnssa.md``).
 
     Parameters
     ----------
     site_file : str or pathlib.Path
         ``*-initcfg.ini``.
     obs, svp : str or pathlib.Path, optional
-        The shots and profile files, instead of the site file's ``datacsv`` and
-        ``SoundSpeed``.
+        Instead of the site file's ``datacsv`` and ``SoundSpeed``.
     strict : bool, default False
         Raise on a shot line that does not parse instead of skipping it.
 
     Returns
     -------
     RawSurvey
-        ``format="garpos"``; ``pings``: ``line``, ``transponder``, ``twtt`` (s),
-        ``time`` (s from the earliest transmission), ``t_tx``, ``t_rx`` and the
-        antenna ``e/n/u`` and ``head/pitch/roll`` at transmit (``_tx``) and receive
-        (``_rx``), plus ``set``, ``survey_line``, ``file_flag`` when present;
-        ``header``: ``site``, ``campaign``, ``lat``, ``lon``, ``height`` (the frame's
-        origin), ``transponders`` (DataFrame of ``east``, ``north``, ``up``, the
-        prior positions, ``dCentPos`` added), ``atd_offset`` (forward, rightward,
-        downward, m), ``ss_prof`` (DataFrame), ``surface_depth`` (0: ``up = 0`` is the
-        profile's sea surface) and ``files``.
 
     Raises
     ------
@@ -381,28 +358,20 @@ def read_garpos(site_file, *, obs=None, svp=None, strict=False) -> RawSurvey:
 
 def write_garpos(out_dir, pings, header, *, site="SIM", campaign="0000.sim",
                  date="2024-01-01") -> Path:
-    """Write a survey as GARPOS's three files.
+    """Write a survey as GARPOS's site, shots and profile files; return the site file.
 
     Parameters
     ----------
     out_dir : str or pathlib.Path
-        Created if missing; receives ``SITE.CAMPAIGN-initcfg.ini``,
-        ``SITE.CAMPAIGN-obs.csv`` and ``SITE.CAMPAIGN-svp.csv`` (the site file
-        names the other two by their bare names, found beside it).
     pings : pandas.DataFrame
-        ``transponder``, ``twtt``, ``t_tx``, ``t_rx`` and the antenna ``e/n/u`` and
-        ``head/pitch/roll`` at ``_tx`` and ``_rx`` (as :func:`read_garpos` returns;
-        ``file_flag``, ``set``, ``survey_line`` optional).
+        As :func:`read_garpos` returns.
     header : dict
-        ``lat``, ``lon``, ``height``, ``transponders`` (``east``, ``north``, ``up``),
-        ``atd_offset`` and ``ss_prof`` (``depth``, ``sound_speed``).
+        ``lat``, ``lon``, ``height``, ``transponders``, ``atd_offset`` and ``ss_prof``.
     site, campaign, date : str
-        Written into the site file.
 
     Returns
     -------
     pathlib.Path
-        The site file.
     """
     out = output_folder(out_dir)
     stem = f"{site}.{campaign}"

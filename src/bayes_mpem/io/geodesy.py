@@ -58,11 +58,8 @@ def antenna_to_transducer(east, north, up, heading, pitch, roll, offset):
 def atd_offset_enu(forward, rightward, downward, heading, pitch, roll):
     """East, north, up of a vessel-frame offset (forward, rightward, downward) under an attitude.
 
-    The convention of GARPOS's ``ATDoffset`` and GNATSS's ``atd_offsets``: the
-    offset from the GNSS antenna to the transducer is given in the vessel's
-    frame (x forward, y to starboard, z down) and turned into north, east, down
-    by the yaw-pitch-roll rotation ``R = Rz(heading) Ry(pitch) Rx(roll)``
-    (heading clockwise from north; pitch bow up; roll starboard down).
+    GARPOS's ``ATDoffset`` convention: ``R = Rz(heading) Ry(pitch) Rx(roll)``, heading
+    clockwise from north, pitch bow up, roll starboard down.
 
     Parameters
     ----------
@@ -74,7 +71,6 @@ def atd_offset_enu(forward, rightward, downward, heading, pitch, roll):
     Returns
     -------
     east, north, up : numpy.ndarray
-        The offset in the local frame (m), to add to the antenna position.
     """
     from scipy.spatial.transform import Rotation
 
@@ -88,21 +84,15 @@ def atd_offset_enu(forward, rightward, downward, heading, pitch, roll):
 
 
 def earth_radius(lat: float) -> float:
-    """Gaussian mean radius of the WGS84 ellipsoid at latitude ``lat`` (m).
-
-    ``a sqrt(1 - e2) / (1 - e2 sin(lat)**2)`` with ``e2 = 1 - (b / a)**2``
-    from :data:`WGS84_A` and :data:`WGS84_B` (SeaGap's radius of its spherical
-    frame).
+    """Gaussian mean radius (m) of the WGS84 ellipsoid at latitude ``lat`` (degrees).
 
     Parameters
     ----------
     lat : float
-        Latitude (degrees).
 
     Returns
     -------
     float
-        Radius (m).
     """
     a, b = WGS84_A, WGS84_B
     e2 = 1.0 - (b / a) ** 2
@@ -127,19 +117,13 @@ def _enu_rotation(lat0, lon0):
 
 
 def geodetic_to_enu(lat, lon, height, lat0, lon0, height0=0.0):
-    """Local east, north, up (m) of WGS84 points relative to an origin.
-
-    Exact: geodetic -> Earth-centred Earth-fixed -> rotation to the local
-    tangent plane at the origin.
+    """Local east, north, up (m) of WGS84 points relative to an origin (exact, through ECEF).
 
     Parameters
     ----------
-    lat, lon : array_like
-        Degrees.
-    height : array_like
-        Height above the ellipsoid (m).
+    lat, lon, height : array_like
+        Degrees, degrees, m above the ellipsoid.
     lat0, lon0, height0 : float
-        The origin.
 
     Returns
     -------
@@ -153,10 +137,8 @@ def geodetic_to_ecef(lat, lon, height):
 
     Parameters
     ----------
-    lat, lon : array_like
-        Degrees.
-    height : array_like
-        Height above the ellipsoid (m).
+    lat, lon, height : array_like
+        Degrees, degrees, m above the ellipsoid.
 
     Returns
     -------
@@ -173,9 +155,7 @@ def ecef_to_enu(x, y, z, lat0, lon0, height0=0.0):
     Parameters
     ----------
     x, y, z : array_like
-        ECEF coordinates (m).
     lat0, lon0, height0 : float
-        The origin (degrees, degrees, m above the ellipsoid).
 
     Returns
     -------
@@ -191,14 +171,10 @@ def ecef_to_enu(x, y, z, lat0, lon0, height0=0.0):
 def enu_to_ecef(east, north, up, lat0, lon0, height0=0.0):
     """Earth-centred Earth-fixed coordinates (m) of local east, north, up points.
 
-    The inverse of :func:`ecef_to_enu`.
-
     Parameters
     ----------
     east, north, up : array_like
-        Local coordinates (m).
     lat0, lon0, height0 : float
-        The origin.
 
     Returns
     -------
@@ -217,9 +193,7 @@ def enu_to_geodetic(east, north, up, lat0, lon0, height0=0.0):
     Parameters
     ----------
     east, north, up : float
-        Local coordinates (m).
     lat0, lon0, height0 : float
-        The origin.
 
     Returns
     -------

@@ -39,8 +39,7 @@ def check_output_folder(out_dir, option: str = "--out") -> Path:
     Raises
     ------
     InputError
-        The path is a file, lies under a file, or its nearest existing folder
-        cannot be written (permissions, a read-only file system).
+        A file, a path under a file, or a folder that cannot be written.
     """
     out = Path(out_dir)
     if str(out_dir).strip() == "":
@@ -139,29 +138,21 @@ def _alive(pid: int) -> bool:
 
 @contextlib.contextmanager
 def writing(out_dir, *, extend: bool = False, option: str = "--out", create: bool = True):
-    """Write one run's files into ``out_dir``, all or nothing (see the module's description).
-
-    Blocks nest: a ``writing()`` inside another whose folder contains it joins the
-    outer run, so a command's data files, figures and sub-folders are committed
-    together, when the outermost block ends without an exception.
+    """Write one run's files into ``out_dir``, all or nothing; nested blocks join the outer run.
 
     Parameters
     ----------
     out_dir : str or os.PathLike
-        Checked (:func:`check_output_folder`) and created.
     extend : bool, default False
-        Add files to a complete folder, keeping its ``summary.json`` content
-        (``bayes-mpem plot``); by default the run replaces the folder's results.
+        Add files to a complete folder, keeping its ``summary.json`` (``bayes-mpem plot``).
     option : str, default "--out"
-        The option named in the messages of :func:`check_output_folder`.
+        The option named in messages.
     create : bool, default True
-        Create the folder now; ``False`` leaves it to the first file written (a run
-        that fails before writing anything leaves no folder behind).
+        Create the folder now, else at the first file written.
 
     Yields
     ------
     pathlib.Path
-        The folder.
 
     Raises
     ------
@@ -187,15 +178,11 @@ def writing(out_dir, *, extend: bool = False, option: str = "--out", create: boo
 
 
 def abort_open_runs() -> int:
-    """Remove the temporary files of every open run (a process being terminated).
-
-    For a signal handler: the folders keep their previous results (or, killed
-    during a commit, no ``summary.json``), and no ``.partial`` file is left.
+    """Remove the temporary files of every open run (for a signal handler); return how many.
 
     Returns
     -------
     int
-        The number of runs aborted.
     """
     runs = _RUNS.get()
     for run in runs:
@@ -205,9 +192,6 @@ def abort_open_runs() -> int:
 
 def output_folder(out_dir) -> Path:
     """Create ``out_dir`` (and its parents) if missing, after :func:`check_output_folder`.
-
-    Files written into it outside a :func:`writing` block are still written under
-    a temporary name and renamed, one by one.
 
     Parameters
     ----------
@@ -245,14 +229,12 @@ def write_file(path, write) -> Path:
     Parameters
     ----------
     path : str or os.PathLike
-        The final name; its folder must exist.
     write : callable
         ``write(tmp)`` writes the whole file at ``tmp`` (same folder and suffix).
 
     Returns
     -------
     pathlib.Path
-        ``path``.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -273,24 +255,19 @@ def write_file(path, write) -> Path:
 
 
 def write_json(path, document, *, indent: int | None = 2, numpy: bool = False) -> Path:
-    """Write ``document`` as strict JSON and a newline (:mod:`~bayes_mpem.io.documents`).
-
-    A ``summary.json`` inside a :func:`writing` block is the run's completion
-    marker: it is written last, at the commit, with ``"files"`` added.
+    """Write ``document`` as strict JSON (a run's ``summary.json`` last, with ``"files"``).
 
     Parameters
     ----------
     path : str or pathlib.Path
     document : dict or list
     indent : int or None, default 2
-        ``None`` writes one line (used for the large ``history.json``).
     numpy : bool, default False
-        Also accept NumPy scalars and arrays (:func:`~bayes_mpem.io.documents.numpy_to_json`).
+        Also accept NumPy scalars and arrays.
 
     Returns
     -------
     pathlib.Path
-        ``path``.
     """
     path = Path(path)
     run = _current_run(path)
@@ -316,7 +293,6 @@ def write_table(path, table) -> Path:
     Returns
     -------
     pathlib.Path
-        ``path``.
     """
     return write_file(path, lambda tmp: write_table_file(tmp, table))
 
@@ -332,7 +308,6 @@ def write_csv(path, table) -> Path:
     Returns
     -------
     pathlib.Path
-        ``path``.
     """
     return write_table(path, table)
 
@@ -349,16 +324,11 @@ def read_marker(folder, *, check: bool = True) -> dict:
     Returns
     -------
     dict
-        The document. Folders written before the marker existed have no
-        ``"files"``; they are taken as they are.
 
     Raises
     ------
-    FileNotFoundError
-        No ``summary.json``: the folder holds no complete run.
-    InputError
-        ``summary.json`` is not valid JSON (truncated, edited), or a listed file is
-        missing; the message names the file.
+    FileNotFoundError, InputError
+        No ``summary.json``; one that is not valid JSON, or a listed file missing.
     """
     path = Path(folder) / MARKER
     if not path.is_file():
@@ -393,10 +363,7 @@ def _uniform_column(col):
 
 
 def write_parquet(path, table) -> Path:
-    """Write a table as Parquet (pyarrow) without its index, through :func:`write_file`.
-
-    Object columns that mix kinds of values (text and numbers, lists) are stored
-    as JSON text, so that every column has one Parquet type.
+    """Write a table as Parquet without its index (mixed object columns as JSON text).
 
     Parameters
     ----------
@@ -406,7 +373,6 @@ def write_parquet(path, table) -> Path:
     Returns
     -------
     pathlib.Path
-        ``path``.
     """
     table = table.copy()
     for name in table.columns:

@@ -72,31 +72,28 @@ def convert_survey(pings, beacons, *, ranges: str = "one-way", travel_time: bool
     ranges : {"one-way", "two-way"}
         What the ``range`` column holds.
     travel_time : bool, default False
-        The ``range`` column holds travel times in seconds.
+        The ``range`` column holds travel times (s).
     sound_speed : float, optional
         Mean sound speed (m/s), for travel times.
     turnaround : float, default 0
         The beacons' turn-around time (s), included in each travel time.
     origin : (float, float), optional
-        Latitude and longitude (degrees) of the local frame's origin, for tables in
-        ``lat``, ``lon``; default the beacons' mean position.
+        Latitude, longitude of the local frame's origin (tables in ``lat``, ``lon``);
+        default the beacons' mean position.
     ssp : SoundSpeedProfile, optional
-        Instead of ``sound_speed``: a profile
-        (:class:`~bayes_mpem.acoustics.profile.SoundSpeedProfile`, or anything with its
-        ``harmonic_mean(z_top, z_bottom)``); each travel time is converted with the
-        harmonic-mean speed between the vehicle's and the beacon's depths (ray bending and
-        the horizontal offset neglected).
+        Instead of ``sound_speed``: each travel time is converted with the harmonic-mean
+        speed between the vehicle's and the beacon's depths.
 
     Returns
     -------
     pings, beacons : pandas.DataFrame
-        Every input column kept; ``range`` (and ``range_input``), ``x``, ``y`` as floats.
+        Every input column kept; ``range`` (input kept as ``range_input``), ``x``, ``y``.
 
     Raises
     ------
     InputError
-        A bad option, a bad cell (naming the file, line and column), a travel time not
-        longer than the turn-around time, tables with different position columns.
+        A bad option or cell (naming file, line, column), a travel time not longer than the
+        turn-around time, tables with different position columns.
     """
     _check(ranges, travel_time, sound_speed, turnaround, origin, ssp)
     p = load_table(pings, None, "pings")

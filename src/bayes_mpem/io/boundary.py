@@ -82,12 +82,10 @@ def out_of_limits(kind: str, values) -> np.ndarray:
     kind : str
         A key of :data:`LIMITS`.
     values : array_like
-        Numbers; NaN and infinities are out.
 
     Returns
     -------
     numpy.ndarray
-        Boolean, True where the value is unusable.
     """
     lim = LIMITS[kind]
     v = np.asarray(values, dtype=float)
@@ -100,16 +98,16 @@ def out_of_limits(kind: str, values) -> np.ndarray:
 def limit_problem(kind: str, value) -> str | None:
     """Why one value is unusable (``None`` when it is fine).
 
+    E.g. ``"range 1e+300 outside (0, 100000] m"``.
+
     Parameters
     ----------
     kind : str
-        A key of :data:`LIMITS`.
     value : float
 
     Returns
     -------
     str or None
-        E.g. ``"range 1e+300 outside (0, 100000] m"``.
     """
     lim = LIMITS[kind]
     v = float(value)
@@ -130,7 +128,7 @@ def open_input(path, what: str = "input file") -> bytes:
     ----------
     path : str or os.PathLike
     what : str, default "input file"
-        What the file is, for the messages (``"pings file"``).
+        What the file is, for the messages.
 
     Returns
     -------
@@ -138,10 +136,7 @@ def open_input(path, what: str = "input file") -> bytes:
 
     Raises
     ------
-    FileNotFoundError
-        No such file (the message names it).
-    InputError
-        A folder, a file that cannot be read (permissions, I/O), naming it.
+    FileNotFoundError, InputError
     """
     p = Path(path)
     if p.is_dir():
@@ -155,11 +150,7 @@ def open_input(path, what: str = "input file") -> bytes:
 
 
 def split_lines(text: str) -> list[str]:
-    r"""Split text into lines as ``grep -n`` numbers them.
-
-    Only ``\n`` ends a line; one ``\r`` before it is dropped (CRLF files). A
-    final newline does not start an empty last line. Form feeds, vertical tabs,
-    lone carriage returns and Unicode line separators stay inside their line.
+    r"""Split text into lines as ``grep -n`` numbers them: only ``\n`` (or ``\r\n``) ends a line.
 
     Parameters
     ----------
@@ -168,7 +159,6 @@ def split_lines(text: str) -> list[str]:
     Returns
     -------
     list of str
-        Line ``i`` (1-based, as ``grep -n``) is element ``i - 1``.
     """
     lines = text.split("\n")
     if lines and lines[-1] == "":
@@ -177,26 +167,21 @@ def split_lines(text: str) -> list[str]:
 
 
 def read_text_lines(path, what: str = "survey file") -> list[str]:
-    """Read a text file as lines numbered as ``grep -n`` numbers them.
+    """Read a UTF-8 text file as lines numbered as ``grep -n`` numbers them (:func:`split_lines`).
 
     Parameters
     ----------
     path : str or os.PathLike
     what : str, default "survey file"
-        What the file is, for the messages.
 
     Returns
     -------
     list of str
-        See :func:`split_lines`; a UTF-8 byte-order mark is dropped.
 
     Raises
     ------
-    FileNotFoundError
-        No such file.
-    InputError
-        A folder, an unreadable file, a binary file (NUL bytes) or bytes that are
-        not UTF-8 (naming the line).
+    FileNotFoundError, InputError
+        No file; a folder, an unreadable or binary file, or bytes that are not UTF-8.
     """
     raw = open_input(path, what)
     if raw.startswith(b"\xef\xbb\xbf"):
@@ -224,8 +209,7 @@ class Shape:
     kind : str
         What such a line is (``"ping"``, ``"header"``, ``"comment"``, ``"event"``).
     pattern : str
-        A regular expression the stripped line must match from start to end;
-        its named groups are the line's fields.
+        A regular expression the stripped line must match whole; its named groups are fields.
     """
 
     kind: str
@@ -266,15 +250,13 @@ def classify(lines, shapes):
     Parameters
     ----------
     lines : sequence of str
-        From :func:`read_text_lines`.
     shapes : sequence of Shape
-        Tried in order; blank lines are recognised first without being listed.
+        Tried in order (blank lines are recognised first).
 
     Returns
     -------
     list of tuple
-        ``(line number, kind or None, match or None)``, 1-based as ``grep -n``;
-        ``None`` for a line of no listed shape (the caller skips it with its reason).
+        ``(line number, kind or None, match or None)``, 1-based.
     """
     out = []
     for i, text in enumerate(lines, start=1):
@@ -297,14 +279,12 @@ def sniff_delimiter(header: str, first_row: str | None = None) -> str | None:
     Parameters
     ----------
     header : str
-        The header line as read.
     first_row : str, optional
         The first data line, to spot decimal commas.
 
     Returns
     -------
     str or None
-        ``"semicolon-separated (with decimal commas)"``, ``"tab-separated"``, ... or
         ``None`` when the header has commas.
     """
     if "," in header:

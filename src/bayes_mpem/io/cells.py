@@ -31,17 +31,15 @@ def is_missing(v: Any) -> bool:
 
 
 def show(v: Any) -> str:
-    """Describe an offending cell for an error message.
+    """Describe an offending cell for an error message (its ``repr`` cut at 40 characters).
 
     Parameters
     ----------
     v : object
-        The cell's value.
 
     Returns
     -------
     str
-        Its ``repr`` (cut at 40 characters), or words for an empty or missing cell.
     """
     if isinstance(v, str):
         return repr(v) if v.strip() else "an empty cell"
@@ -59,7 +57,6 @@ def as_beacon_id(v: Any) -> str:
     Parameters
     ----------
     v : object
-        A beacon id as read (str, int, float, missing).
 
     Returns
     -------
@@ -82,8 +79,7 @@ def as_beacon_id(v: Any) -> str:
 class Problems:
     """Collects problems by row position and raises one InputError for all of them.
 
-    Vectorised checks hand over whole masks (:meth:`add_mask`); only the first
-    :data:`MAX_LISTED` flagged cells of each check are worded, the rest counted.
+    Only the first :data:`MAX_LISTED` flagged cells of each check are worded, the rest counted.
 
     Parameters
     ----------
@@ -106,14 +102,12 @@ class Problems:
         self.count += 1
 
     def add_mask(self, mask: np.ndarray, word) -> None:
-        """Record the rows flagged by ``mask``; ``word(pos)`` words the first few.
+        """Record the rows flagged by the boolean ``mask``; ``word(pos)`` words the first few.
 
         Parameters
         ----------
         mask : numpy.ndarray
-            Boolean, one per row: the rows with this problem.
         word : callable
-            ``word(pos) -> str``: the message for the row at position ``pos``.
         """
         flagged = np.flatnonzero(mask)
         for pos in flagged[:MAX_LISTED]:

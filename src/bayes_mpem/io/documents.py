@@ -22,7 +22,6 @@ def numpy_to_json(value):
     Raises
     ------
     TypeError
-        For any other type.
     """
     if isinstance(value, (np.floating, np.integer, np.bool_)):
         return value.item()
@@ -43,7 +42,6 @@ def finite_json(document, numpy: bool = False):
     Returns
     -------
     clean : same structure
-        With ``None`` for every non-finite float.
     replaced : dict
         ``{"dotted.path[i]": "nan" | "inf" | "-inf"}``.
     """
@@ -65,7 +63,7 @@ def finite_json(document, numpy: bool = False):
 
 
 def split_timings(document):
-    """Move wall-clock timings (keys ``seconds`` or ``*_seconds``) out of a document.
+    """Move wall-clock timings (keys ``seconds`` or ``*_seconds``) out of a copy of ``document``.
 
     Parameters
     ----------
@@ -73,10 +71,7 @@ def split_timings(document):
 
     Returns
     -------
-    document : dict
-        Without the timing keys (a copy; the input is not changed).
-    timings : dict
-        The timings at the same places (empty if none).
+    document, timings : dict
     """
     def is_timing(key):
         return isinstance(key, str) and (key == "seconds" or key.endswith("_seconds"))
@@ -151,7 +146,6 @@ def json_text(document, indent, numpy=False) -> str:
     document : dict or list
     indent : int or None
     numpy : bool, default False
-        Also accept NumPy scalars and arrays.
 
     Returns
     -------

@@ -6,16 +6,13 @@ import math
 
 
 def where(source, line=None, column=None, name=None) -> str:
-    """Name a place in a file: ``"FILE line L, column C (NAME)"``.
+    """Name a place in a file: ``"FILE line L, column C (NAME)"`` (1-based).
 
     Parameters
     ----------
     source : str or pathlib.Path
-        The file.
     line, column : int, optional
-        1-based.
     name : str, optional
-        The column's or key's name.
 
     Returns
     -------
@@ -36,10 +33,8 @@ def number(text, name, *, lo=None, hi=None, lo_open=False, integer=False) -> flo
 
     Parameters
     ----------
-    text : str
-        The field as read.
-    name : str
-        What it is, for the message.
+    text, name : str
+        The field as read, and what it is.
     lo, hi : float, optional
         Bounds, inclusive (``lo_open=True`` excludes ``lo``).
     lo_open : bool, default False
@@ -78,8 +73,7 @@ def flag(text, name) -> bool:
 
     Parameters
     ----------
-    text : str
-    name : str
+    text, name : str
 
     Returns
     -------
@@ -88,7 +82,6 @@ def flag(text, name) -> bool:
     Raises
     ------
     ValueError
-        For anything else.
     """
     s = str(text).strip().lower()
     if s in ("true", "1"):

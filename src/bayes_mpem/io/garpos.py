@@ -58,22 +58,8 @@ def resolve_path(text, base) -> Path:
                             + " and ".join(str(c) for c in tried) + ")")
 
 
-def read_ini(path) -> dict:
-    """Read an INI-style control file as ``{section: {key: (value, line)}}``.
-
-    Parameters
-    ----------
-    path : str or pathlib.Path
-
-    Returns
-    -------
-    dict
-
-    Raises
-    ------
-    InputError
-        A line that does not parse, a key before any section, or a key given twice.
-    """
+def _read_ini(path) -> dict:
+    """Read an INI-style control file as ``{section: {key: (value, line)}}``."""
     out, section = {}, None
     for i, text in enumerate(read_lines(path), start=1):
         s = text.strip()
@@ -158,21 +144,8 @@ def profile_frame(depth, speed, source) -> pd.DataFrame:
     return pd.DataFrame({"depth": d, "sound_speed": c})
 
 
-def read_svp(path) -> pd.DataFrame:
-    """Read GARPOS's ``svp.csv`` into ``depth`` (m), ``sound_speed`` (m/s).
-
-    Parameters
-    ----------
-    path : str or pathlib.Path
-
-    Returns
-    -------
-    pandas.DataFrame
-
-    Raises
-    ------
-    InputError
-    """
+def _read_svp(path) -> pd.DataFrame:
+    """Read GARPOS's ``svp.csv`` into ``depth`` (m), ``sound_speed`` (m/s)."""
     rows, cols = [], None
     for i, text in enumerate(read_lines(path), start=1):
         s = text.strip()
@@ -237,25 +210,8 @@ def _parse_shot(parts, cols, stations):
     return row
 
 
-def read_obs(path, stations, *, strict=False):
-    """Read GARPOS's ``obs.csv`` shots.
-
-    Parameters
-    ----------
-    path : str or pathlib.Path
-    stations : sequence of str
-        The site's transponders; a shot to another one is skipped.
-    strict : bool, default False
-
-    Returns
-    -------
-    rows : list of dict
-    skipped : list of tuple
-
-    Raises
-    ------
-    InputError
-    """
+def _read_obs(path, stations, *, strict=False):
+    """Read GARPOS's ``obs.csv`` shots."""
     rows, skipped, cols = [], [], None
     for i, text in enumerate(read_lines(path), start=1):
         s = text.strip()
@@ -308,7 +264,7 @@ def read_garpos(site_file, *, obs=None, svp=None, strict=False) -> RawSurvey:
     FileNotFoundError, InputError
     """
     site_file = Path(site_file)
-    ini = read_ini(site_file)
+    ini = _read_ini(site_file)
     here = site_file.parent
     origin = _values(ini, site_file, "Site-parameter", "Latitude0", 1, ["value"],
                      {"value": {"lo": -90.0, "hi": 90.0}})
@@ -336,7 +292,7 @@ def read_garpos(site_file, *, obs=None, svp=None, strict=False) -> RawSurvey:
         _get(ini, site_file, "Data-file", "datacsv")[0], here)
     svp_path = Path(svp) if svp is not None else resolve_path(
         _get(ini, site_file, "Obs-parameter", "SoundSpeed")[0], here)
-    rows, skipped = read_obs(obs_path, stations, strict=strict)
+    rows, skipped = _read_obs(obs_path, stations, strict=strict)
     if not rows:
         raise InputError(f"{obs_path}: no shot lines found ({len(skipped)} lines skipped)")
     pings = pd.DataFrame(rows)
@@ -346,7 +302,7 @@ def read_garpos(site_file, *, obs=None, svp=None, strict=False) -> RawSurvey:
               "campaign": _get(ini, site_file, "Obs-parameter", "Campaign", ("", 0))[0],
               "lat": origin[0], "lon": origin[1], "height": origin[2],
               "transponders": transponders, "atd_offset": np.asarray(atd, float),
-              "ss_prof": read_svp(svp_path), "ss_prof_source": svp_path.name,
+              "ss_prof": _read_svp(svp_path), "ss_prof_source": svp_path.name,
               "surface_depth": 0.0,
               "position_sigmas": pd.DataFrame(sig, index=["east", "north", "up"]).T,
               "centre_sigmas": (_sigmas(ini, site_file, "dCentPos")

@@ -39,19 +39,8 @@ def ellipse_axes(cov, *, q=CHI2_95):
     return w, h, ang
 
 
-def magnification(size, target):
-    """Return a round factor (1, 2 or 5 times a power of 10) taking ``size`` up to ``target``.
-
-    Parameters
-    ----------
-    size, target : float
-        Lengths (m).
-
-    Returns
-    -------
-    float
-        1 when ``size`` is already as large as ``target`` (or not positive).
-    """
+def _magnification(size, target):
+    """Return a round factor (1, 2 or 5 times a power of 10) taking ``size`` up to ``target``."""
     if not size > 0 or size >= target:
         return 1.0
     ratio = target / size
@@ -87,7 +76,7 @@ def plot_nav_track(nav, *, truth=None, ax=None, n_ellipses=40):
     idx = np.unique(np.linspace(0, d.n_epochs - 1, max(int(n_ellipses), 1)).astype(int))
     w, h, ang = ellipse_axes(nav.cov[idx])
     span = float(np.ptp(np.concatenate([nav.track, d.dr]), axis=0).max()) or 1.0
-    mag = magnification(float(np.median(w)), 0.04 * span)
+    mag = _magnification(float(np.median(w)), 0.04 * span)
     ax.add_collection(EllipseCollection(w * mag, h * mag, ang, units="xy",
                                         offsets=nav.track[idx], offset_transform=ax.transData,
                                         facecolors="none", edgecolors="tab:orange", lw=0.8))

@@ -141,16 +141,15 @@ class JointFit:
     ----------
     effects : tuple of str
         The extensions switched on.
-    params : object
-        Fitted parameters (internal layout; use :meth:`beacons` and :meth:`magnitudes`).
+    params : Params
+        Use :meth:`beacons` and :meth:`magnitudes` to read them.
     resp : numpy.ndarray
         ``(n, 4)`` class probabilities (dp, mp, mp2, ol) of every reply.
     loglik : float
     n_iter : int
     converged : bool
     se : dict
-        Approximate standard errors of the mean parameters (Gauss-Newton
-        information given the class probabilities).
+        Approximate standard errors of the mean parameters (Gauss-Newton information).
     """
 
     effects: tuple
@@ -169,7 +168,6 @@ class JointFit:
         Parameters
         ----------
         data : Ranges
-            The replies the fit was made on.
 
         Returns
         -------
@@ -196,18 +194,15 @@ class JointFit:
         return {k: float(v) for k, v in out.items()}
 
     def beacons(self, data: Ranges) -> dict:
-        """Per-beacon parameters: ``d0`` (plane height above the beacon at the first ping), ...
+        """Per-beacon parameters: ``n_ranges``, ``d0``, ``plane_depth``, scales and weights.
 
         Parameters
         ----------
         data : Ranges
-            The replies the fit was made on.
 
         Returns
         -------
         dict
-            Per beacon id: ``n_ranges``, ``d0``, ``plane_depth``, ``sigma_dp``,
-            ``sigma_mp``, ``weights`` (``d0_last``, ``sigma_mp2`` with the effects).
         """
         p, out = self.params, {}
         for j, bid in enumerate(data.ids):
@@ -267,11 +262,9 @@ def fit_joint(d: Ranges, effects, start: Params | list, *, path="triangle", max_
     Parameters
     ----------
     d : Ranges
-        The replies (``Diagnosis.data``).
     effects : tuple of str
-        Extensions switched on (names of :data:`~bayes_mpem.lbl.simulation.effects.EFFECTS`).
-    start : parameters or list of them
-        Starting points; infeasible ones are moved just inside the constraints.
+    start : Params or list of them
+        Infeasible starts are moved just inside the constraints.
     path : {"triangle", "double"}
     max_iter : int, default 300
     tol : float, default 1e-7
@@ -301,14 +294,13 @@ def fit_joint(d: Ranges, effects, start: Params | list, *, path="triangle", max_
 
 
 def heldout(d: Ranges, effects, full: JointFit, folds, path, **kw):
-    """Score every range by K-fold cross-validation, each fold warm-started at ``full``.
+    """Score every range by K-fold cross-validation (held-out log density; warm starts at ``full``).
 
     Parameters
     ----------
     d : Ranges
     effects : tuple of str
     full : JointFit
-        The fit to all ranges (its parameters start every fold).
     folds : numpy.ndarray
         Fold number of every range.
     path : {"triangle", "double"}
@@ -318,7 +310,6 @@ def heldout(d: Ranges, effects, full: JointFit, folds, path, **kw):
     Returns
     -------
     numpy.ndarray
-        Held-out log predictive density of every range.
     """
     out = np.empty(d.n)
     for k in np.unique(folds):

@@ -16,16 +16,11 @@ Path = Literal["triangle", "double"]
 
 
 def check_path(path: str) -> str:
-    """Return ``path`` if it is ``"triangle"`` or ``"double"``.
+    """Return ``path`` if it is ``"triangle"`` or ``"double"``, else raise ValueError.
 
     Parameters
     ----------
     path : str
-
-    Raises
-    ------
-    ValueError
-        For any other value.
     """
     return check_choice("path", path, PATHS)
 
@@ -82,8 +77,7 @@ def multipath_range(h, dz, d0, path: Path = "triangle", *, direct=None):
     h, dz : array_like
     d0 : float or array_like
     path : {"triangle", "double"} or array_like
-        One geometry for all ranges, or one per range (names, or a mask True for the double
-        bounce).
+        One geometry for all ranges, or one per range (names, or True for the double bounce).
     direct : array_like, optional
         Precomputed :func:`direct_path`.
 
@@ -114,12 +108,10 @@ def multipath_derivative(h, dz, d0, path: Path = "triangle"):
     h, dz : array_like
     d0 : float or array_like
     path : {"triangle", "double"} or array_like
-        As :func:`multipath_range`.
 
     Returns
     -------
     numpy.ndarray
-        ``2 (2 d0 - dz) / L_refl`` for the double bounce, half that for the triangle path.
     """
     lever = 2.0 * np.asarray(d0, float) - dz
     d = 2.0 * lever / np.hypot(h, lever)
@@ -144,16 +136,14 @@ def invert_plane_height(z, h, dz, path: Path = "triangle", *, direct=None):
     Parameters
     ----------
     z : array_like
-        Measured one-way ranges (m).
     h, dz : array_like
     path : {"triangle", "double"}
     direct : array_like, optional
-        Precomputed :func:`direct_path`.
 
     Returns
     -------
     numpy.ndarray
-        NaN where no plane can produce the range (``L_refl < h``).
+        NaN where no plane can produce the range.
     """
     z = np.asarray(z, float)
     if check_path(path) == "triangle":
@@ -191,14 +181,12 @@ def horizontal_slopes(h, dz, d0, path: Path = "triangle", *, direct=None):
     h, dz : array_like
     d0 : float or array_like
     path : {"triangle", "double"} or array_like
-        As :func:`multipath_range`.
     direct : array_like, optional
-        Precomputed :func:`direct_path`.
 
     Returns
     -------
     slope_direct, slope_multipath : numpy.ndarray
-        Multiply by ``x - x_beacon`` (or ``y - y_beacon``) for the derivative; finite at ``h = 0``.
+        Times ``x - x_beacon`` (or ``y - y_beacon``): the derivative; finite at ``h = 0``.
     """
     if direct is None:
         direct = direct_path(h, dz)

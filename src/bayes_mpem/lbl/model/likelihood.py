@@ -9,46 +9,29 @@ from .beacon_geometry import BeaconGeometry
 from .loglik_kernel import LoglikKernel
 
 
-def component_logpdf(geom: BeaconGeometry, d0, sigma_dp, sigma_mp, path: str = "triangle"):
-    """Log densities of every range under each class.
-
-    Parameters
-    ----------
-    geom : BeaconGeometry
-    d0, sigma_dp, sigma_mp : float or array_like
-        Plane height and the two Gaussian scales (m); arrays broadcast
-        against the ranges (use shape ``(W, 1)`` for ``W`` walkers).
-    path : {"triangle", "double"}
-
-    Returns
-    -------
-    tuple of numpy.ndarray
-        ``(log p(z|dp), log p(z|mp), log p(z|ol))``; the last is a scalar.
-    """
+def _component_logpdf(geom: BeaconGeometry, d0, sigma_dp, sigma_mp, path: str = "triangle"):
+    """Log densities of every range under each class."""
     ldp = gaussian_logpdf(geom.z - geom.direct, sigma_dp)
     lmp = gaussian_logpdf(geom.z - geom.multipath(d0, path), sigma_mp)
     return ldp, lmp, geom.log_ol_density
 
 
 def e_step(geom: BeaconGeometry, d0, sigma_dp, sigma_mp, weights, path: str = "triangle"):
-    """Responsibilities and log-likelihood at the given parameters.
+    """Return the log-likelihood and the ``(n, 3)`` class probabilities (dp, mp, ol).
 
     Parameters
     ----------
     geom : BeaconGeometry
     d0, sigma_dp, sigma_mp : float
     weights : sequence of 3 floats
-        Mixing weights of dp, mp, ol.
     path : {"triangle", "double"}
 
     Returns
     -------
     loglik : float
-        Total log-likelihood ``sum_k log p(z_k)``.
     resp : numpy.ndarray
-        ``(n, 3)`` class probabilities (columns dp, mp, ol).
     """
-    ldp, lmp, lol = component_logpdf(geom, d0, sigma_dp, sigma_mp, path)
+    ldp, lmp, lol = _component_logpdf(geom, d0, sigma_dp, sigma_mp, path)
     joint, lse = log_mix(ldp, lmp, lol, safe_log(weights))
     resp = np.zeros((geom.n, 3))
     for j in range(3):
@@ -73,7 +56,7 @@ def loglik_per_range(geom: BeaconGeometry, d0, sigma_dp, sigma_mp, weights, path
     -------
     numpy.ndarray
     """
-    ldp, lmp, lol = component_logpdf(geom, d0, sigma_dp, sigma_mp, path)
+    ldp, lmp, lol = _component_logpdf(geom, d0, sigma_dp, sigma_mp, path)
     return log_mix(ldp, lmp, lol, [safe_log(w) for w in weights])[1]
 
 
@@ -91,7 +74,6 @@ def weighted_densities(geom: BeaconGeometry, d0, sigma_dp, sigma_mp, weights, pa
     Returns
     -------
     tuple of numpy.ndarray
-        ``(dp, mp, ol)`` terms, each broadcast to ``(W, n)``.
     """
     sigma_dp = np.asarray(sigma_dp, float)
     sigma_mp = np.asarray(sigma_mp, float)
@@ -105,27 +87,25 @@ def weighted_densities(geom: BeaconGeometry, d0, sigma_dp, sigma_mp, weights, pa
 
 
 def total_loglik(geom: BeaconGeometry, d0, sigma_dp, sigma_mp, weights, path="triangle"):
-    """Sum the log-likelihood for many parameter sets at once, in float64.
+    """Sum the log-likelihood for many parameter sets at once (straight rays), in float64.
 
     Parameters
     ----------
     geom : BeaconGeometry
-        Straight-ray only.
     d0, sigma_dp, sigma_mp : numpy.ndarray
         Shape ``(W, 1)`` for ``W`` parameter sets.
     weights : sequence of 3 numpy.ndarray
-        ``w_dp, w_mp, w_ol``, each of shape ``(W, 1)``.
     path : {"triangle", "double"}
 
     Returns
     -------
     numpy.ndarray
-        ``(W,)`` log-likelihoods; ``-inf`` where a range has zero density.
+        ``(W,)``; ``-inf`` where a range has zero density.
 
     Raises
     ------
     NotImplementedError
-        For a refracted geometry (``geom.straight`` False).
+        For a refracted geometry.
     """
     d0, sigma_dp, sigma_mp, *weights = np.broadcast_arrays(
         *(np.asarray(v, float) for v in (d0, sigma_dp, sigma_mp, *weights)))

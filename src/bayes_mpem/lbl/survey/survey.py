@@ -53,21 +53,8 @@ def non_finite(document, where: str = "") -> list:
     return []
 
 
-def culprit_rows(survey: Survey, data, *, factor: float = 100.0) -> list:
-    """Rows of a beacon whose values stand far out from the others (what breaks a fit).
-
-    Parameters
-    ----------
-    survey : Survey
-    data : BeaconData
-        The beacon's replies.
-    factor : float, default 100
-
-    Returns
-    -------
-    list of str
-        Where those rows are (``"line 17"``), at most 10.
-    """
+def _culprit_rows(survey: Survey, data, *, factor: float = 100.0) -> list:
+    """Rows of a beacon whose values stand far out from the others (what breaks a fit)."""
     dist = np.sqrt((data.x - data.position[0]) ** 2 + (data.y - data.position[1]) ** 2
                    + (data.depth - data.position[2]) ** 2)
     out = np.zeros(data.n, bool)
@@ -185,18 +172,8 @@ def option_subset(kwargs: dict) -> dict:
     return {k: kwargs[k] for k in keys if k in kwargs}
 
 
-def skip_beacon(skipped: dict, beacon: str, why: str, *, stacklevel: int = 3) -> None:
-    """Record ``beacon`` as left unsampled with ``why``, and warn.
-
-    Parameters
-    ----------
-    skipped : dict
-        ``{beacon: reason}``, updated in place.
-    beacon : str
-    why : str
-    stacklevel : int, default 3
-        Of the :class:`SkippedBeaconWarning`.
-    """
+def _skip_beacon(skipped: dict, beacon: str, why: str, *, stacklevel: int = 3) -> None:
+    """Record ``beacon`` as left unsampled with ``why``, and warn."""
     warnings.warn(why + "; left unsampled", SkippedBeaconWarning, stacklevel=stacklevel)
     skipped[beacon] = why
 
@@ -220,7 +197,7 @@ def over_beacons(survey: Survey, min_pings: int, analyse, *, skip_on=(), check=N
         ``check(result) -> list of str``: the names of the result's values that are
         not finite. A beacon with any is *failed*: left out with a :class:`Failure`
         reason naming those values and the rows that stand out
-        (:func:`culprit_rows`), its rows labelled ``failed``.
+        (``_culprit_rows``), its rows labelled ``failed``.
 
     Returns
     -------
@@ -241,11 +218,11 @@ def over_beacons(survey: Survey, min_pings: int, analyse, *, skip_on=(), check=N
         try:
             result = analyse(data)
         except skip_on as exc:
-            skip_beacon(skipped, data.beacon, str(exc), stacklevel=4)
+            _skip_beacon(skipped, data.beacon, str(exc), stacklevel=4)
             continue
         bad = check(result) if check is not None else []
         if bad:
-            rows = culprit_rows(survey, data)
+            rows = _culprit_rows(survey, data)
             why = (f"beacon {data.beacon}: the fit failed: {', '.join(bad[:5])} not finite; "
                    + (f"rows that stand out: {', '.join(rows)}" if rows else
                       "no single row stands out"))

@@ -21,9 +21,7 @@ def running_mean(p, window: int):
     Parameters
     ----------
     p : array_like
-        Values in order (e.g. class probabilities sorted by time).
     window : int
-        Values averaged; at the ends the window shrinks to those that exist.
 
     Returns
     -------

@@ -51,17 +51,13 @@ def _magnification(size, target):
 def plot_nav_track(nav, *, truth=None, ax=None, n_ellipses=40):
     """Draw the corrected track over the dead reckoning, with 95 % error ellipses, and the beacons.
 
-    The ellipses are magnified by a factor shown in the legend when they would
-    be too small to see at the scale of the dive.
-
     Parameters
     ----------
     nav : Navigation
     truth : pandas.DataFrame, optional
-        ``x``, ``y`` of the true track (one row per epoch).
+        ``x``, ``y`` of the true track.
     ax : matplotlib.axes.Axes, optional
     n_ellipses : int, default 40
-        Ellipses drawn at this many epochs, evenly spaced.
 
     Returns
     -------

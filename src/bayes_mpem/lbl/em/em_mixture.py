@@ -185,11 +185,9 @@ def fit_mixture_em(
     weights : {"learned", "equal"}
         Learn the mixing weights (default) or fix them at 1/3 (the paper's).
     init : dict, optional
-        Extra starting point, e.g. ``result.to_dict()`` of an earlier fit
-        (keys ``d0``, ``sigma_mp``, ``sigma_dp``, ``weights``).
+        Extra starting point, e.g. ``result.to_dict()`` of an earlier fit.
     n_init : int, default 4
-        Number of data-driven starts: the strongest modes of the per-range
-        plane heights :func:`~bayes_mpem.lbl.model.geometry.invert_plane_height`.
+        Data-driven starts: the strongest modes of the per-range plane heights.
     max_iter : int, default 500
     tol : float, default 1e-8
         Stop when the log-likelihood gains less than ``tol`` per range.
@@ -198,14 +196,11 @@ def fit_mixture_em(
     subsample : int, default 20000
         Starts are compared on a random subsample of at most this many ranges.
     rng : None, int or numpy.random.Generator
-        Seeds the subsample.
     ssp : SoundSpeedProfile, optional
-        Predict the ranges along refracted eigenrays through this profile
-        (:mod:`bayes_mpem.lbl.model.refracted`, ``docs/refraction.md``) instead of
-        straight lines; it must reach the deepest beacon or vehicle.
+        Predict the ranges along refracted eigenrays through this profile instead of straight
+        lines (``docs/refraction.md``); it must reach the deepest beacon or vehicle.
     sound_speed : float, optional
-        With ``ssp``, required: the nominal speed (m/s) the navigation used to
-        turn travel times into ranges.
+        With ``ssp``, required: the nominal speed (m/s) that turned travel times into ranges.
 
     Returns
     -------
@@ -213,19 +208,14 @@ def fit_mixture_em(
 
     Raises
     ------
-    ValueError
-        A bad option, fewer than 3 ranges, ``sound_speed`` without ``ssp`` or
-        ``ssp`` without ``sound_speed``, a profile that does not reach the beacon
-        or vehicle.
-    TypeError
-        ``ssp`` not a :class:`~bayes_mpem.acoustics.SoundSpeedProfile`.
+    ValueError, TypeError
+        A bad option, fewer than 3 ranges, ``ssp`` and ``sound_speed`` not given together, a
+        profile that does not reach the beacon or vehicle; ``ssp`` not a profile.
 
     Warns
     -----
-    ConvergenceWarning
-        When ``max_iter`` is reached first.
-    FitQualityWarning
-        When the result is not a credible reflector (:func:`quality_flags`).
+    ConvergenceWarning, FitQualityWarning
+        ``max_iter`` reached first; a result that is not a credible reflector.
 
     Examples
     --------

@@ -133,9 +133,7 @@ def fit_paper_em(
     alpha : float, default 0.5
         Convergence factor of eq. 10, in (0, 1].
     sigma_dp : float, optional
-        Direct-path scatter (m). The paper takes it as known (3.97 m for
-        ABE58); if omitted it is estimated robustly from the ranges near the
-        direct path (:func:`estimate_sigma_dp`).
+        Direct-path scatter (m), known in the paper (3.97 m for ABE58); estimated if omitted.
     path : {"triangle", "double"}
     d0_init : float, default 4000
         Initial plane height (m), the paper's value.
@@ -151,10 +149,8 @@ def fit_paper_em(
 
     Warns
     -----
-    ConvergenceWarning
-        When ``max_iter`` is reached first.
-    FitQualityWarning
-        When the result is not a credible reflector (:func:`quality_flags`).
+    ConvergenceWarning, FitQualityWarning
+        ``max_iter`` reached first; a result that is not a credible reflector.
 
     Examples
     --------

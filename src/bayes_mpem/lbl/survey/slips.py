@@ -39,8 +39,8 @@ class SlipError(InputError):
     Parameters
     ----------
     slip : str
-        ``"seconds"``, ``"two_way_seconds"``, ``"km"``, ``"two_way"``,
-        ``"depth_sign"``, ``"beacon_ids"``, ``"swapped"``.
+        ``"seconds"``, ``"two_way_seconds"``, ``"km"``, ``"two_way"``, ``"depth_sign"``,
+        ``"beacon_ids"`` or ``"swapped"``.
     message : str
     """
 
@@ -251,8 +251,6 @@ def check_geometry(survey: Survey):
     Returns
     -------
     tuple of (str, str) or None
-        ``(slip, message)``; None when the ranges fit the direct path (or no slip
-        explains why they do not).
     """
     rep, pos = _replies(survey)
     if rep.size < 10:
@@ -337,18 +335,17 @@ def impossible_rows(survey: Survey) -> dict:
 
 
 def flag_impossible(table: pd.DataFrame, survey: Survey) -> pd.DataFrame:
-    """Give each impossible reply (:func:`impossible_rows`) of a classified table a ``reason``.
+    """Fill the empty ``reason`` of each impossible reply (:func:`impossible_rows`) of a table.
 
     Parameters
     ----------
     table : pandas.DataFrame
-        One row per row of ``survey.table``, with a ``reason`` column (empty: none).
+        One row per row of ``survey.table``, with a ``reason`` column.
     survey : Survey
 
     Returns
     -------
     pandas.DataFrame
-        ``table``, its empty reasons of impossible replies filled in.
     """
     short = impossible_rows(survey)
     if not short:

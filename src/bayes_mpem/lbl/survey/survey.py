@@ -83,8 +83,7 @@ def classified_table(survey: Survey, fitted: dict, skipped: dict, extra: dict | 
     ----------
     survey : Survey
     fitted : dict
-        ``{beacon: (rows, probs)}``: positions in the input table and ``(n, 3)``
-        class probabilities (dp, mp, ol).
+        ``{beacon: (rows, probs)}``: rows of the input table and ``(n, 3)`` probabilities.
     skipped : dict
         ``{beacon: reason}`` of beacons left unfitted.
     extra : dict, optional
@@ -93,9 +92,7 @@ def classified_table(survey: Survey, fitted: dict, skipped: dict, extra: dict | 
     Returns
     -------
     pandas.DataFrame
-        The input table, same rows and order, plus ``p_dp``, ``p_mp``, ``p_ol``,
-        any ``extra`` columns, ``label`` (``dp``, ``mp``, ``ol``, ``no_reply``,
-        ``skipped``) and ``reason``.
+        The input table plus ``p_dp``, ``p_mp``, ``p_ol``, ``extra``, ``label``, ``reason``.
     """
     n = len(survey)
     probs = np.full((n, 3), np.nan)
@@ -125,20 +122,19 @@ def classified_table(survey: Survey, fitted: dict, skipped: dict, extra: dict | 
 
 
 def fittable_beacons(survey: Survey, min_pings: int, *, stacklevel: int = 3):
-    """Split the beacons into those with enough replies and those left unfitted.
+    """Split the beacons into those with enough replies and those left unfitted (warned).
 
     Parameters
     ----------
     survey : Survey
     min_pings : int
     stacklevel : int, default 3
-        Of the warnings (3: the caller of the function that calls this one).
 
     Returns
     -------
     fittable : list of BeaconData
     skipped : dict
-        ``{beacon: reason}``; a :class:`SkippedBeaconWarning` is issued for each.
+        ``{beacon: reason}``.
     """
     fittable, skipped = [], {}
     for bid in survey.beacon_ids:
@@ -159,13 +155,10 @@ def option_subset(kwargs: dict) -> dict:
     Parameters
     ----------
     kwargs : dict
-        Keyword arguments meant for the per-beacon sampler.
 
     Returns
     -------
     dict
-        ``n_ensembles``, ``concentration``, ``sigma_dp``, ``path``, ``tau_factor``,
-        ``min_ess``, ``max_steps``, ``n_draws`` and ``sampler`` where given.
     """
     keys = ("n_ensembles", "concentration", "sigma_dp", "path", "tau_factor", "min_ess",
             "max_steps", "n_draws", "sampler")
@@ -181,35 +174,22 @@ def _skip_beacon(skipped: dict, beacon: str, why: str, *, stacklevel: int = 3) -
 def over_beacons(survey: Survey, min_pings: int, analyse, *, skip_on=(), check=None):
     """Run ``analyse`` on every beacon with enough replies: the one survey loop.
 
-    Beacons with fewer than ``min_pings`` replies are left out first, then ``analyse(data)``
-    runs on the others in table order; one that raises one of ``skip_on`` is left out with
-    the exception's message as the reason.
-
     Parameters
     ----------
     survey : Survey
     min_pings : int
     analyse : callable
-        ``analyse(BeaconData) -> result`` for one beacon.
+        ``analyse(BeaconData) -> result`` for one beacon, in table order.
     skip_on : tuple of exception classes, default ()
-        Exceptions that leave one beacon out; any other propagates.
+        Exceptions that leave one beacon out (the message its reason); any other propagates.
     check : callable, optional
-        ``check(result) -> list of str``: the names of the result's values that are
-        not finite. A beacon with any is *failed*: left out with a :class:`Failure`
-        reason naming those values and the rows that stand out
-        (``_culprit_rows``), its rows labelled ``failed``.
+        ``check(result) -> list of str``: the result's non-finite values. A beacon with any is
+        left out with a :class:`Failure` naming them and the rows that stand out.
 
     Returns
     -------
-    results : dict
-        ``{beacon: result}`` in table order.
-    skipped : dict
-        ``{beacon: reason}``.
-
-    Warns
-    -----
-    SkippedBeaconWarning
-        For every beacon left out.
+    results, skipped : dict
+        ``{beacon: result}`` and ``{beacon: reason}`` (each warned as SkippedBeaconWarning).
     """
     # stacklevel 4: past the helper, this function and fit/sample/compare, to their caller
     fittable, skipped = fittable_beacons(survey, min_pings, stacklevel=4)

@@ -99,6 +99,7 @@ def earth_radius(lat: float) -> float:
     s2 = np.sin(np.radians(lat)) ** 2
     return float(a * np.sqrt(1.0 - e2) / (1.0 - e2 * s2))
 
+
 def _ecef(lat, lon, height):
     """WGS84 geodetic (degrees, m) to Earth-centred Earth-fixed (m)."""
     la, lo = np.radians(lat), np.radians(lon)

@@ -159,20 +159,6 @@ def invert_plane_height(z, h, dz, path: Path = "triangle", *, direct=None):
     return out
 
 
-def elevation_angle(h, dz):
-    """Elevation of the vehicle seen from the beacon (degrees, 90 = overhead).
-
-    Parameters
-    ----------
-    h, dz : array_like
-
-    Returns
-    -------
-    numpy.ndarray
-    """
-    return np.degrees(np.arctan2(dz, h))
-
-
 def horizontal_slopes(h, dz, d0, path: Path = "triangle", *, direct=None):
     """Horizontal-position derivatives of the direct and multipath ranges, per unit offset.
 

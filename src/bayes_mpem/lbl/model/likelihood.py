@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...mixture.densities import LOG_SQRT_2PI, LOG_TINY, gaussian_logpdf, log_mix, safe_log
+from ...mixture.densities import LOG_TINY, gaussian_logpdf, log_mix, safe_log
 from .beacon_geometry import BeaconGeometry
 from .loglik_kernel import LoglikKernel
 
@@ -58,32 +58,6 @@ def loglik_per_range(geom: BeaconGeometry, d0, sigma_dp, sigma_mp, weights, path
     """
     ldp, lmp, lol = _component_logpdf(geom, d0, sigma_dp, sigma_mp, path)
     return log_mix(ldp, lmp, lol, [safe_log(w) for w in weights])[1]
-
-
-def weighted_densities(geom: BeaconGeometry, d0, sigma_dp, sigma_mp, weights, path="triangle"):
-    """``w_j p(z_k | j)`` of every range for each class, in linear space (broadcasts).
-
-    Parameters
-    ----------
-    geom : BeaconGeometry
-    d0, sigma_dp, sigma_mp : float or numpy.ndarray
-        Shape ``(W, 1)`` for ``W`` parameter sets.
-    weights : sequence of 3 float or numpy.ndarray
-    path : {"triangle", "double"}
-
-    Returns
-    -------
-    tuple of numpy.ndarray
-    """
-    sigma_dp = np.asarray(sigma_dp, float)
-    sigma_mp = np.asarray(sigma_mp, float)
-    r_dp = geom.z - geom.direct
-    r_mp = geom.z - geom.multipath(d0, path)
-    c = np.exp(-LOG_SQRT_2PI)
-    dp = (c * weights[0] / sigma_dp) * np.exp(-0.5 * (r_dp * r_dp) / (sigma_dp * sigma_dp))
-    mp = (c * weights[1] / sigma_mp) * np.exp(-0.5 * (r_mp * r_mp) / (sigma_mp * sigma_mp))
-    ol = np.broadcast_to(np.asarray(weights[2], float) * np.exp(geom.log_ol_density), mp.shape)
-    return np.broadcast_to(dp, mp.shape), mp, ol
 
 
 def total_loglik(geom: BeaconGeometry, d0, sigma_dp, sigma_mp, weights, path="triangle"):

@@ -1,4 +1,4 @@
-"""The EM loop the mixture models of the package share (docs/architecture.md, "One EM driver").
+"""The EM loop the mixture models of the package share (docs/architecture.md, "One EM loop").
 
 A model (:class:`EMModel`) gives its E-step and M-step; :func:`run_em` owns the loop,
 convergence, history, warning and final E-step, as scikit-learn's ``BaseMixture`` does.

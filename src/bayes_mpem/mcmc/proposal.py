@@ -140,8 +140,8 @@ def laplace_proposal(target, start, step, *, df: float = 10.0, newton: int = 3):
     """
     u = np.asarray(start, dtype=float).copy()
     h = 0.25 * np.asarray(step, dtype=float)
+    v = target(_hessian_points(u, h))
     for it in range(newton + 1):
-        v = target(_hessian_points(u, h))
         if not np.all(np.isfinite(v)):
             return None
         grad, hess = _derivatives(v, h)
@@ -154,10 +154,13 @@ def laplace_proposal(target, start, step, *, df: float = 10.0, newton: int = 3):
         if it == newton:
             break
         du = np.linalg.solve(chol.T, np.linalg.solve(chol, grad))
-        for _ in range(10):  # a step that does not lower the density
-            cand = target((u + du)[None, :])[0]
-            if np.isfinite(cand) and cand >= v[0] - 1e-9:
-                u = u + du
+        for _ in range(10):  # a step that does not lower the density (the next difference
+            # points come with its centre, so an accepted step costs no extra call)
+            w = target(_hessian_points(u + du, h))
+            if np.isfinite(w[0]) and w[0] >= v[0] - 1e-9:
+                u, v = u + du, w
                 break
             du = du / 2
+        else:
+            v = target(_hessian_points(u, h))
     return TProposal(centre=u, chol=np.linalg.cholesky(cov), df=float(df))

@@ -77,7 +77,9 @@ class IndependenceMove(emcee.moves.MHMove):
         if self._queue is None or self._pos == self._queue[0].shape[0]:
             k = min(self._left, max(1, self.block_points // n))
             q = self.proposal.draw(k * n, model.random)
-            lp, _ = model.compute_log_prob_fn(q)
+            lp = np.asarray(model.log_prob_fn(q), dtype=float)  # vectorised, no blobs: one call
+            if lp.shape != (k * n,):  # not so: emcee's own evaluation
+                lp, _ = model.compute_log_prob_fn(q)
             self._queue = (q.reshape(k, n, -1), np.reshape(lp, (k, n)),
                            self.proposal.log_density(q).reshape(k, n))
             self._pos = 0

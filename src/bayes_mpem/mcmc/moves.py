@@ -70,7 +70,22 @@ class IndependenceMove(emcee.moves.MHMove):
         self._left, self._queue = int(steps), None
 
     def propose(self, model, state):
-        """One step: the next planned proposal of every walker, accepted by emcee's rule."""
+        """Take one step: the next planned proposal of every walker, accepted by emcee's rule.
+
+        Parameters
+        ----------
+        model : emcee.model.Model
+            emcee's view of the sampler (the target and its random state).
+        state : emcee.State
+            The walkers now.
+
+        Returns
+        -------
+        state : emcee.State
+            The walkers after the step.
+        accepted : numpy.ndarray
+            ``(walkers,)`` booleans.
+        """
         n = state.coords.shape[0]
         if self._left <= 0:
             return super().propose(model, state)

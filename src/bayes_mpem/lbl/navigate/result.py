@@ -409,86 +409,76 @@ class Navigation:
                     "timings": write_json(out / "timings.json", dict(self.timings)),
                     "summary": write_json(out / "summary.json", self.summary())}
 
-
-@dataclass(frozen=True)
-class NavigationRecord:
-    """A navigation read back from its output folder: what its figures draw, no fit re-run.
-
-    Attributes
-    ----------
-    dive : Dive
-        The pings of ``classified.csv`` grouped into epochs, with the dead
-        reckoning of ``track.csv`` (:func:`.dive.dive_with_dead_reckoning`).
-    track : numpy.ndarray
-        ``(K, 2)`` the navigated positions (``track.csv``'s ``x``, ``y``).
-    cov : numpy.ndarray
-        ``(K, 2, 2)`` their covariances (``sd_x``, ``sd_y``, ``cov_xy``).
-    resp : numpy.ndarray
-        ``(n, 3)`` class probabilities of every reply (``classified.csv``).
-    skipped : dict
-        Beacons without a reply, with the reason (``summary.json``).
-    summary : dict
-        ``summary.json``.
-
-    Notes
-    -----
-    It offers what :mod:`bayes_mpem.plots.navigate` reads of a
-    :class:`Navigation`: ``dive``, ``track``, ``cov``, ``resp`` and ``skipped``.
-    """
-
-    dive: Dive = field(repr=False)
-    track: np.ndarray = field(repr=False)
-    cov: np.ndarray = field(repr=False)
-    resp: np.ndarray = field(repr=False)
-    skipped: dict
-    summary: dict = field(repr=False)
-
     @classmethod
-    def from_tables(cls, summary: dict, survey, track: pd.DataFrame,
-                    probs: np.ndarray) -> NavigationRecord:
-        """Rebuild a navigation from its files' content.
+    def read(cls, folder) -> Navigation:
+        """Read a navigation back from the folder :meth:`write` wrote, never by fitting again.
 
-        Parameters
-        ----------
-        summary : dict
-            ``summary.json``.
-        survey : Survey
-            The pings and beacons of ``classified.csv`` and ``summary.json``'s
-            ``beacons_table``.
-        track : pandas.DataFrame
-            ``track.csv`` (:meth:`Navigation.track_table`), as text or numbers.
-        probs : numpy.ndarray
-            ``(N, 3)`` ``p_dp``, ``p_mp``, ``p_ol`` of every input row (NaN without a reply).
-
-        Returns
-        -------
-        NavigationRecord
-
-        Raises
-        ------
-        InputError
-            When the track's epochs are not those of the pings, or a column is missing
-            or holds a cell that is not a number.
+        The pings of ``classified.csv`` in epochs with the dead reckoning of ``track.csv``
+        (:func:`.dive.dive_with_dead_reckoning`), the track and its covariances, the classes
+        and the estimates of ``summary.json`` (NaN where it has none); no history, timings,
+        joint covariances or per-beacon model records, so it draws but does not write. A
+        missing file is a ``FileNotFoundError``, a track that does
+        not fit the pings an ``InputError``.
         """
-        missing = [c for c in ("time", "x", "y", "sd_x", "sd_y", "cov_xy", "dr_x", "dr_y")
-                   if c not in track.columns]
-        if missing:
-            raise InputError(f"track.csv: no column(s) {missing}; expected the track of "
-                             "'bayes-mpem navigate'")
-        col = {}
-        for c in ("time", "x", "y", "sd_x", "sd_y", "cov_xy", "dr_x", "dr_y"):
-            text = track[c].astype(str).str.strip()
-            col[c] = pd.to_numeric(text.replace({"": "nan"}), errors="coerce").to_numpy(float)
-            bad = np.flatnonzero(np.isnan(col[c]) & ~text.str.lower().isin(["", "nan"]).to_numpy())
-            if bad.size:
-                raise InputError(f"track.csv row {int(bad[0]) + 1}, column {c!r}: expected a "
-                                 f"number, got {track[c].iloc[bad[0]]!r}")
-        dive = dive_with_dead_reckoning(
-            survey, col["time"], np.column_stack([col["dr_x"], col["dr_y"]]),
-            str((summary.get("dead_reckoning") or {}).get("source") or "pings"))
-        cov = np.empty((dive.n_epochs, 2, 2))
-        cov[:, 0, 0], cov[:, 1, 1] = col["sd_x"] ** 2, col["sd_y"] ** 2
-        cov[:, 0, 1] = cov[:, 1, 0] = col["cov_xy"]
-        return cls(dive=dive, track=np.column_stack([col["x"], col["y"]]), cov=cov,
-                   resp=np.asarray(probs, float)[dive.rows], skipped=dict(summary["skipped"]),
-                   summary=summary)
+        from pathlib import Path
+
+        from ...io.results import MARKER, read_document
+        from ...io.table_files import read_table_file
+        from ..survey.folder import survey_and_classes, together
+
+        d = Path(folder)
+        summary = read_document(d / MARKER)
+        path = d / "track.csv"
+        if not path.exists():
+            raise FileNotFoundError(f"{path}: not found; 'bayes-mpem navigate' writes it")
+        track = read_table_file(path, str(path), "track file").frame
+        survey, probs, _ = survey_and_classes(d, summary)
+        return together(d, _from_tables, cls, summary, survey, track, probs)
+
+
+def _value(entry) -> float:
+    """Return the estimate of a ``summary.json`` entry (a number or ``{"estimate": ...}``)."""
+    v = entry.get("estimate") if isinstance(entry, dict) else entry
+    return np.nan if v is None else float(v)
+
+
+def _from_tables(cls, summary: dict, survey, track: pd.DataFrame, probs: np.ndarray):
+    """Rebuild a :class:`Navigation` from its files' content (:meth:`Navigation.read`)."""
+    missing = [c for c in ("time", "x", "y", "sd_x", "sd_y", "cov_xy", "dr_x", "dr_y")
+               if c not in track.columns]
+    if missing:
+        raise InputError(f"track.csv: no column(s) {missing}; expected the track of "
+                         "'bayes-mpem navigate'")
+    col = {}
+    for c in ("time", "x", "y", "sd_x", "sd_y", "cov_xy", "dr_x", "dr_y"):
+        text = track[c].astype(str).str.strip()
+        col[c] = pd.to_numeric(text.replace({"": "nan"}), errors="coerce").to_numpy(float)
+        bad = np.flatnonzero(np.isnan(col[c]) & ~text.str.lower().isin(["", "nan"]).to_numpy())
+        if bad.size:
+            raise InputError(f"track.csv row {int(bad[0]) + 1}, column {c!r}: expected a "
+                             f"number, got {track[c].iloc[bad[0]]!r}")
+    dive = dive_with_dead_reckoning(
+        survey, col["time"], np.column_stack([col["dr_x"], col["dr_y"]]),
+        str((summary.get("dead_reckoning") or {}).get("source") or "pings"))
+    cov = np.empty((dive.n_epochs, 2, 2))
+    cov[:, 0, 0], cov[:, 1, 1] = col["sd_x"] ** 2, col["sd_y"] ** 2
+    cov[:, 0, 1] = cov[:, 1, 0] = col["cov_xy"]
+    beacons = [summary["beacons"].get(b, {}) for b in dive.beacon_ids]
+    dr = summary.get("dead_reckoning") or {}
+    state = State(
+        track=np.column_stack([col["x"], col["y"]]),
+        beta=np.deg2rad(_value(dr.get("heading_bias_deg"))),
+        scale=_value(dr.get("speed_scale")),
+        d0=np.array([_value(b.get("d0")) for b in beacons]),
+        double=np.array([b.get("path") == "double" for b in beacons]),
+        sigma_dp=_value(summary.get("sigma_dp")),
+        sigma_mp=np.array([_value(b.get("sigma_mp")) for b in beacons]),
+        weights=np.array([[_value((b.get("weights") or {}).get(c)) for c in CLASSES]
+                          for b in beacons]).reshape(len(beacons), 3),
+        range_scale=1.0 if summary.get("range_scale") is None
+        else _value(summary["range_scale"]))
+    return cls(dive=dive, state=state, cov=cov, global_sd={},
+               resp=np.asarray(probs, float)[dive.rows], beacons={},
+               skipped=dict(summary["skipped"]), flags=list(summary.get("observability") or []),
+               n_iter=summary.get("iterations", 0), converged=summary.get("converged"),
+               loglik=summary.get("loglik"), history={}, options=summary.get("options", {}))

@@ -1,16 +1,4 @@
-"""Small validators for options and scalar arguments, in one message style.
-
-Every check raises ``ValueError`` with ``"<name>: expected <what>, got <value>"`` and returns
-the value converted (``tol = check_positive("tol", tol)``). Tables read from files are
-checked by :mod:`bayes_mpem.io.tables`.
-
-Examples
---------
->>> check_probability("ci", 1.5)
-Traceback (most recent call last):
-...
-ValueError: ci: expected a probability in (0, 1), got 1.5
-"""
+"""Validators of options and scalar arguments (``name``: the argument's, for messages)."""
 
 from __future__ import annotations
 
@@ -38,22 +26,15 @@ def check_positive(name: str, value: Any, *, allow_none: bool = False,
     Parameters
     ----------
     name : str
-        The argument's name, for the message.
     value : Any
     allow_none : bool, default False
         Accept ``None`` (and return it).
     what : str, optional
-        What the message says is expected, instead of ``"a positive number"``.
+        What the message says is expected.
 
     Raises
     ------
     ValueError
-        Not a finite number > 0.
-
-    Examples
-    --------
-    >>> check_positive("tol", 1e-9)
-    1e-09
     """
     if value is None and allow_none:
         return None
@@ -71,13 +52,11 @@ def check_finite(name: str, value: Any) -> float:
     Parameters
     ----------
     name : str
-        The argument's name, for the message.
     value : Any
 
     Raises
     ------
     ValueError
-        Not a finite number (NaN, inf, a string, a bool, ...).
     """
     v = _as_float(value)
     if v is None or not math.isfinite(v):
@@ -91,15 +70,12 @@ def check_probability(name: str, value: Any, *, open_interval: bool = True) -> f
     Parameters
     ----------
     name : str
-        The argument's name, for the message.
     value : Any
     open_interval : bool, default True
-        Exclude 0 and 1.
 
     Raises
     ------
     ValueError
-        Not a number in the interval.
     """
     v = _as_float(value)
     ok = v is not None and ((0.0 < v < 1.0) if open_interval else (0.0 <= v <= 1.0))
@@ -115,7 +91,6 @@ def check_choice(name: str, value: Any, choices: Iterable, *, words: bool = Fals
     Parameters
     ----------
     name : str
-        The argument's name, for the message.
     value : Any
     choices : iterable
     words : bool, default False
@@ -124,19 +99,10 @@ def check_choice(name: str, value: Any, choices: Iterable, *, words: bool = Fals
     Returns
     -------
     Any
-        ``value``.
 
     Raises
     ------
     ValueError
-        ``value`` is not among ``choices``.
-
-    Examples
-    --------
-    >>> check_choice("path", "single", ("triangle", "double"))
-    Traceback (most recent call last):
-    ...
-    ValueError: path: expected one of ('triangle', 'double'), got 'single'
     """
     choices = tuple(choices)
     try:
@@ -157,14 +123,12 @@ def check_int(name: str, value: Any, *, minimum: int) -> int:
     Parameters
     ----------
     name : str
-        The argument's name, for the message.
     value : Any
     minimum : int
 
     Raises
     ------
     ValueError
-        Not an integer, or below ``minimum``.
     """
     if (isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer))
             or value < minimum):
@@ -179,24 +143,14 @@ def check_range(name: str, value: Any, *, low: float | None = None, high: float 
     Parameters
     ----------
     name : str
-        The argument's name, for the message.
     value : Any
     low, high : float, optional
         The bounds; ``None`` for none.
     include_low, include_high : bool, default False
-        Whether the bound itself is allowed.
 
     Raises
     ------
     ValueError
-        Not a number, NaN, or out of the bounds.
-
-    Examples
-    --------
-    >>> check_range("min_ess", -1, low=0, include_low=True)
-    Traceback (most recent call last):
-    ...
-    ValueError: min_ess: expected a number >= 0, got -1
     """
     v = _as_float(value)
     ok = v is not None and not math.isnan(v)
@@ -225,12 +179,10 @@ def check_increasing(name: str, values: Any, *, context: str = "",
     Parameters
     ----------
     name : str
-        The array's name, for the message.
     values : array_like
     context : str, optional
         Put before the name (``"SoundSpeedProfile: "``).
     what : str, default "strictly increasing values"
-        What the message says is expected.
 
     Raises
     ------

@@ -1,7 +1,4 @@
-"""Every public exception and warning class of the package.
-
-Errors derive from ``ValueError``, warnings from ``UserWarning``.
-"""
+"""Every public exception and warning class of the package."""
 
 from __future__ import annotations
 

@@ -184,14 +184,18 @@ def test_flatten_keeps_every_field():
 
 
 def test_every_batch_command_has_its_option_builder():
-    """A command is one entry of COMMANDS, one of the CLI's KWARGS and one parser choice."""
+    """A batch command is one entry of the command table: its builder, call and rows load."""
     from bayes_mpem.batch import COMMANDS
-    from bayes_mpem.cli.batch import KWARGS
-    from bayes_mpem.cli.parser import BATCH_COMMANDS
+    from bayes_mpem.commands import load
 
-    assert set(KWARGS) == set(COMMANDS) == set(BATCH_COMMANDS) == {
-        "fit", "sample", "diagnose", "locate", "navigate"}
-    assert build_parser().parse_args(["batch", "m.csv", "--out", "o"]).batch_command == "fit"
+    assert set(COMMANDS) == {"fit", "sample", "diagnose", "locate", "navigate"}
+    for spec in COMMANDS.values():
+        assert all(callable(load(name)) for name in (spec.kwargs, spec.run, spec.rows))
+        assert set(spec.files) <= set(spec.inputs)
+    batch = build_parser().parse_args(["batch", "m.csv", "--out", "o"])
+    assert batch.batch_command == "fit"
+    assert set(batch.subparsers["batch"]._option_string_actions["--command"].choices) == set(
+        COMMANDS)
 
 
 def test_navigate_in_a_batch_gives_the_same_files_as_alone(scheduler, tmp_path):

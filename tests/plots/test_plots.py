@@ -274,8 +274,11 @@ def test_results_and_library_never_import_plots_or_report():
 
 
 def test_plot_reads_every_output_folder_kind():
-    """fit, sample, compare, diagnose, locate, navigate folders (each redrawn in its own test)."""
-    from bayes_mpem.report import FOLDER_KINDS
+    """fit, sample, compare, diagnose, locate, navigate folders (each redrawn in its own test):
+    each result type of the command table reads a folder back and has figures."""
+    from bayes_mpem.commands import load, with_results
 
-    assert [k for k, *_ in FOLDER_KINDS] == ["fit", "sample", "locate", "compare", "diagnose",
-                                            "navigate"]
+    kinds = with_results()
+    assert set(kinds) == {"fit", "sample", "locate", "compare", "diagnose", "navigate"}
+    for command in kinds.values():
+        assert callable(load(command.result).read) and callable(load(command.figures))

@@ -72,7 +72,7 @@ def _assert_same(a, b):
 
 def test_a_navigate_folder_read_back_draws_the_same_figures(nav_and_sim, tmp_path, monkeypatch):
     from bayes_mpem.lbl.navigate import ecm, normal
-    from bayes_mpem.lbl.navigate.result import NavigationRecord
+    from bayes_mpem.lbl.navigate.result import Navigation
     from bayes_mpem.report import load_output
 
     nav, _ = nav_and_sim
@@ -80,7 +80,7 @@ def test_a_navigate_folder_read_back_draws_the_same_figures(nav_and_sim, tmp_pat
     for mod, name in ((ecm, "run"), (ecm, "gauss_newton"), (normal, "solve")):
         monkeypatch.setattr(mod, name, lambda *a, **k: pytest.fail("the record ran a fit"))
     rec = load_output(tmp_path)
-    assert isinstance(rec, NavigationRecord)
+    assert isinstance(rec, Navigation)
     assert rec.dive.n_epochs == nav.dive.n_epochs and rec.skipped == nav.skipped
     np.testing.assert_array_equal(rec.dive.epoch, nav.dive.epoch)
     np.testing.assert_array_equal(rec.dive.beacon, nav.dive.beacon)

@@ -1,10 +1,6 @@
 """Refracted eigenrays without a turning point through a layered ocean.
 
-Depth positive down (m), speed (m/s), times (s). Each ray keeps its ray parameter
-``p = sin(theta) / c``; the layer formulas (:class:`Legs`) are written without
-dividing by the gradient, so they stay exact as it goes to 0. A horizontal distance that
-needs a turning point is NaN here; :func:`bayes_mpem.acoustics.turning.direct_times`
-solves those. Formulas and timings: ``docs/refraction.md``.
+Details: ``docs/refraction.md``.
 """
 
 from __future__ import annotations
@@ -207,8 +203,7 @@ class Eigenray:
     p : numpy.ndarray
         Ray parameter ``sin(theta) / c`` (s/m), ``theta`` from the vertical.
     launch_angle, arrival_angle : numpy.ndarray
-        Direction of travel at ``z_a`` and at ``z_b``, degrees from the downward
-        vertical: 0 straight down, 90 horizontal, 180 straight up.
+        Direction of travel at ``z_a`` and ``z_b``, degrees from the downward vertical.
     valid : numpy.ndarray of bool
         False where no eigenray of this kind exists without a turning point.
     kind : str
@@ -349,44 +344,24 @@ def direct_ray(profile: SoundSpeedProfile, z_a, z_b, horizontal, *, tol: float =
     ----------
     profile : SoundSpeedProfile
     z_a, z_b : array_like
-        Depths of the two ends (m, positive down); either may be the deeper.
+        Depths of the two ends (m, positive down).
     horizontal : array_like
         Horizontal distance between the ends (m, >= 0). All three broadcast.
     tol : float, default 1e-9
-        Stop when the ray's horizontal run misses ``horizontal`` by at most
-        ``tol * max(horizontal, |z_b - z_a|)``.
+        Relative tolerance on the horizontal run.
     max_iter : int, default 100
-        Newton/bisection steps per ray; a ray not converged by then is invalid.
+        Newton/bisection steps per ray.
 
     Returns
     -------
     Eigenray
-        ``time`` is symmetric in the ends. Invalid (NaN) where the horizontal
-        distance needs a turning point, including ``z_a == z_b`` with
-        ``horizontal > 0`` unless the speed is constant around that depth (then
-        the ray is the horizontal line, ``time = horizontal / c``).
+        Invalid (NaN) where the ray would need a turning point.
 
     Raises
     ------
     ValueError
-        Non-finite input, negative horizontal distance, shapes that do not
-        broadcast, or a non-positive ``tol``.
-
-    Examples
-    --------
-    In a homogeneous medium the ray is the straight line:
-
-    >>> ray = direct_ray(SoundSpeedProfile.constant(1500.0), 0.0, 400.0, 300.0)
-    >>> round(float(ray.time * 1500.0), 9), round(float(ray.launch_angle), 4)
-    (500.0, 36.8699)
-
-    Speed falling with depth bends the ray down; a far, shallow target would need
-    a turning point:
-
-    >>> prof = SoundSpeedProfile([0.0, 1000.0], [1540.0, 1490.0])
-    >>> ray = direct_ray(prof, 1000.0, [900.0, 900.0], [500.0, 5000.0])
-    >>> ray.valid.tolist()
-    [True, False]
+        Non-finite input, negative horizontal distance, shapes that do not broadcast, or a
+        non-positive ``tol``.
     """
     shape, (za, zb, H) = _as_rays(z_a, z_b, horizontal)
     top, bot = np.minimum(za, zb), np.maximum(za, zb)
@@ -409,33 +384,21 @@ def surface_bounce_ray(profile: SoundSpeedProfile, z_a, z_b, horizontal, plane_d
     Parameters
     ----------
     profile : SoundSpeedProfile
-    z_a, z_b : array_like
-        Depths of the two ends (m); both at or below ``plane_depth``.
-    horizontal : array_like
-        Horizontal distance between the ends (m, >= 0).
+    z_a, z_b, horizontal : array_like
+        As :func:`direct_ray`; both ends at or below ``plane_depth``.
     plane_depth : array_like, default 0.0
-        Depth of the reflector (m); 0 is the sea surface. Broadcasts with the rest.
+        Depth of the reflector (m); 0 is the sea surface.
     tol : float, default 1e-9
-        Stop when the horizontal run misses by at most ``tol * max(horizontal,
-        vertical path)``.
     max_iter : int, default 100
 
     Returns
     -------
     Eigenray
-        ``launch_angle`` points up (> 90), ``arrival_angle`` down (< 90).
 
     Raises
     ------
     ValueError
-        As :func:`direct_ray`, and an end above the plane (names the index).
-
-    Examples
-    --------
-    >>> ray = surface_bounce_ray(SoundSpeedProfile.constant(1500.0), 2400.0, 10.0, 3000.0)
-    >>> d = float(np.hypot(3000.0, 2400.0 + 10.0))  # to the image of z_b above the surface
-    >>> abs(float(ray.time) * 1500.0 - d) < 1e-9
-    True
+        As :func:`direct_ray`, and an end above the plane.
     """
     shape, (za, zb, H, zp) = _as_rays(z_a, z_b, horizontal, (plane_depth,))
     bad = np.flatnonzero((za < zp) | (zb < zp))
@@ -457,34 +420,24 @@ def surface_bounce_ray(profile: SoundSpeedProfile, z_a, z_b, horizontal, plane_d
 
 
 def shoot(profile: SoundSpeedProfile, z_a, z_b, p):
-    """Horizontal run and travel time of the non-turning ray with ray parameter ``p``.
+    """Horizontal run (m) and travel time (s) of the non-turning ray with ray parameter ``p``.
 
     Parameters
     ----------
     profile : SoundSpeedProfile
     z_a, z_b : array_like
-        Depths of the ends (m).
     p : array_like
-        Ray parameter (s/m), ``0 <= p <= 1 / c_max`` with ``c_max`` the fastest
-        speed between the ends. All three broadcast.
+        Ray parameter (s/m), ``0 <= p <= 1 / c_max``. All three broadcast.
 
     Returns
     -------
     horizontal, time : numpy.ndarray
-        m and s; NaN where ``p`` is negative or the ray would turn
-        (``p c_max > 1``); inf at ``p = 1 / c_max`` when the fastest speed holds
-        over a layer of finite thickness (the ray runs along it for ever).
+        NaN where ``p`` is negative or the ray would turn; inf along a layer at ``c_max``.
 
     Raises
     ------
     ValueError
         Non-finite input or shapes that do not broadcast.
-
-    Examples
-    --------
-    >>> x, t = shoot(SoundSpeedProfile.constant(1500.0), 0.0, 400.0, 0.6 / 1500.0)
-    >>> round(float(x), 9), round(float(t) * 1500.0, 9)
-    (300.0, 500.0)
     """
     shape, (za, zb, _, pp) = _as_rays(z_a, z_b, 0.0, (p,), ("z_a", "z_b", "", "p"))
     top, bot = np.minimum(za, zb), np.maximum(za, zb)

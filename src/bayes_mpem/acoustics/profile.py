@@ -35,23 +35,8 @@ def _as_1d(values, name):
     return arr
 
 
-def log1p_ratio(u):
-    """``log1p(u) / u``, 1 at ``u = 0`` (no cancellation for tiny ``u``).
-
-    Parameters
-    ----------
-    u : array_like
-        Values greater than -1.
-
-    Returns
-    -------
-    ndarray
-
-    Examples
-    --------
-    >>> float(log1p_ratio(0.0)), round(float(log1p_ratio(1.0)), 6)
-    (1.0, 0.693147)
-    """
+def _log1p_ratio(u):
+    """``log1p(u) / u``, 1 at ``u = 0`` (no cancellation for tiny ``u``)."""
     u = np.asarray(u, float)
     small = np.abs(u) < 1e-6
     safe = np.where(small, 1.0, u)
@@ -68,21 +53,12 @@ class SoundSpeedProfile:
     speed : array_like
         Sound speed at the knots (m/s), positive.
     source : str, optional
-        Where the profile came from (file, atlas cell, ...), for messages and ``repr``.
+        Where the profile came from, for messages and ``repr``.
 
     Raises
     ------
     ValueError
-        Not 1-D, different lengths, empty, a non-finite value, depths not strictly
-        increasing or a speed not positive; the message names the index and value.
-
-    Examples
-    --------
-    >>> prof = SoundSpeedProfile([0.0, 1000.0, 3000.0], [1520.0, 1480.0, 1510.0])
-    >>> prof.speed([500.0, 4000.0]).tolist()
-    [1500.0, 1510.0]
-    >>> round(float(prof.harmonic_mean(0.0, 1000.0)), 3)
-    1499.911
+        A bad shape or value (the message names the index and value).
     """
 
     __slots__ = ("_depth", "_speed", "_grad", "_cum", "_rz", "_rc", "source")
@@ -104,7 +80,7 @@ class SoundSpeedProfile:
         h = np.diff(z)
         grad = np.diff(c) / h
         # vertical slowness integral from the first knot to every knot
-        layer = h / c[:-1] * log1p_ratio(np.diff(c) / c[:-1])
+        layer = h / c[:-1] * _log1p_ratio(np.diff(c) / c[:-1])
         cum = np.concatenate([[0.0], np.cumsum(layer)])
         # knots the ray tracer needs: drop interior knots on a straight line (same gradient
         # on both sides to 1e-12 relative), which changes the medium by nothing
@@ -120,44 +96,32 @@ class SoundSpeedProfile:
     # ----------------------------------------------------------------- constructors
     @classmethod
     def constant(cls, c: float) -> SoundSpeedProfile:
-        """Make a homogeneous medium.
+        """Make a homogeneous medium of speed ``c`` (m/s).
 
         Parameters
         ----------
         c : float
-            Sound speed (m/s), positive.
 
         Returns
         -------
         SoundSpeedProfile
-            One knot at 0 m; the speed is ``c`` at every depth.
-
-        Examples
-        --------
-        >>> float(SoundSpeedProfile.constant(1500.0).speed(4000.0))
-        1500.0
         """
         return cls([0.0], [c], source=f"constant {c} m/s")
 
     @classmethod
     def from_file(cls, path, *, columns=(0, 1)) -> SoundSpeedProfile:
-        """Read a text profile: depth (m), sound speed (m/s).
-
-        Fields are separated by whitespace or commas, ``#`` starts a comment, and lines before the
-        first numeric data line are a header.
+        """Read a text profile: depth (m), sound speed (m/s); ``#`` comments and a header allowed.
 
         Parameters
         ----------
         path : str or pathlib.Path
         columns : tuple of int, default (0, 1)
-            Zero-based columns holding depth and sound speed.
+            Zero-based columns of depth and sound speed.
 
         Raises
         ------
-        FileNotFoundError
-        InputError
-            A bad data line, no data, depths not strictly increasing or a speed not positive; the
-            message names the file and line.
+        FileNotFoundError, InputError
+            No file; a bad line or profile (naming the file and line).
         """
         path = Path(path)
         ci, cj = (int(k) for k in columns)
@@ -201,31 +165,24 @@ class SoundSpeedProfile:
     @classmethod
     def from_woa09(cls, lat: float, lon: float, directory=None, *,
                    max_distance_km: float = 150.0) -> SoundSpeedProfile:
-        """Annual climatological profile from the World Ocean Atlas 2009 (1 degree grid).
+        """Annual climatological profile of the nearest World Ocean Atlas 2009 cell (1 degree).
 
-        The nearest cell with data, its levels down to the first missing one
-        (``c = 1000 + 0.01 * stored value``). The atlas has no seafloor: levels deeper than the
-        water at the site are extrapolations.
+        The atlas has no seafloor: levels deeper than the water at the site are extrapolations.
 
         Parameters
         ----------
         lat, lon : float
             Degrees; longitude east, either -180-180 or 0-360.
         directory : str or pathlib.Path, optional
-            Folder with ``lev_latlonZ.mat`` and ``lev_ann.mat``. Default: the ``BAYES_MPEM_WOA09``
-            environment variable, else the copy installed with the package.
+            Folder with ``lev_latlonZ.mat`` and ``lev_ann.mat``; default ``$BAYES_MPEM_WOA09``,
+            else the copy installed with the package.
         max_distance_km : float, default 150
             Refuse a cell farther than this.
 
         Raises
         ------
-        FileNotFoundError
-            No atlas found.
-        InputError
-            A file without the expected variables or shapes.
-        ValueError
-            Latitude outside [-90, 90], non-finite input, or no cell with data
-            within ``max_distance_km``.
+        FileNotFoundError, InputError, ValueError
+            No atlas; an atlas file not as expected; bad input or no cell within reach.
         """
         lat, lon = float(lat), float(lon)
         if not (np.isfinite(lat) and np.isfinite(lon)) or abs(lat) > 90:
@@ -261,26 +218,19 @@ class SoundSpeedProfile:
         Parameters
         ----------
         pressure_dbar : array_like
-            Sea pressure (dbar), strictly increasing (bin-average a cast first).
-        SP : array_like
-            Practical salinity.
-        t : array_like
-            In-situ temperature (deg C, ITS-90).
+            Sea pressure (dbar), strictly increasing.
+        SP, t : array_like
+            Practical salinity and in-situ temperature (deg C, ITS-90).
         lat, lon : float
-            Position of the cast (degrees).
 
         Returns
         -------
         SoundSpeedProfile
-            Depth ``-gsw.z_from_p(p, lat)``, speed ``gsw.sound_speed(SA, CT, p)``.
 
         Raises
         ------
-        ImportError
-            ``gsw`` is not installed.
-        ValueError
-            Arrays not 1-D or of different lengths, pressure not strictly
-            increasing, or values for which TEOS-10 gives no speed.
+        ImportError, ValueError
+            ``gsw`` not installed; bad arrays, or values TEOS-10 gives no speed for.
         """
         try:
             import gsw
@@ -324,17 +274,15 @@ class SoundSpeedProfile:
                 f"{c.min():.2f}-{c.max():.2f} m/s{src})")
 
     def speed(self, z):
-        """Sound speed at depth(s) ``z`` (m/s).
+        """Sound speed (m/s) at depth(s) ``z`` (m).
 
         Parameters
         ----------
         z : array_like
-            Depth (m, positive down).
 
         Returns
         -------
         numpy.ndarray
-            Linear between knots, constant beyond the first and last knot.
         """
         return np.interp(z, self._depth, self._speed)
 
@@ -349,18 +297,10 @@ class SoundSpeedProfile:
         Parameters
         ----------
         z_top, z_bottom : array_like
-            Depths (m).
 
         Returns
         -------
         numpy.ndarray
-            Positive where ``z_bottom`` is deeper.
-
-        Examples
-        --------
-        >>> prof = SoundSpeedProfile([0.0, 100.0], [1500.0, 1500.0])
-        >>> float(prof.vertical_time(0.0, 150.0))
-        0.1
         """
         kt, rt = self._vertical_time(z_top)
         kb, rb = self._vertical_time(z_bottom)
@@ -374,26 +314,18 @@ class SoundSpeedProfile:
         g = np.append(self._grad, 0.0)[k]
         dz = z - zk[k]
         g = np.where(dz < 0, 0.0, g)  # above the first knot: constant speed
-        return k, dz / ck[k] * log1p_ratio(g * dz / ck[k])
+        return k, dz / ck[k] * _log1p_ratio(g * dz / ck[k])
 
     def harmonic_mean(self, z_top, z_bottom):
-        """Time-averaged (harmonic mean) sound speed along a vertical path.
+        """Harmonic-mean (time-averaged) sound speed (m/s) along a vertical path, either order.
 
         Parameters
         ----------
         z_top, z_bottom : array_like
-            The ends of the vertical path (m), broadcast together; either order.
 
         Returns
         -------
         numpy.ndarray
-            m/s.
-
-        Examples
-        --------
-        >>> prof = SoundSpeedProfile([0.0, 100.0], [1500.0, 1510.0])
-        >>> round(float(prof.harmonic_mean(0.0, 100.0)), 6)  # 100 * 0.1 / ln(1510 / 1500)
-        1504.994463
         """
         zt, zb = np.broadcast_arrays(np.asarray(z_top, float), np.asarray(z_bottom, float))
         dt = np.abs(self.vertical_time(zt, zb))
@@ -407,12 +339,10 @@ class SoundSpeedProfile:
         Parameters
         ----------
         z : array_like
-            Depths (m).
 
         Returns
         -------
         ndarray of bool
-            True where the gradient is zero just above and just below ``z``.
         """
         gext = np.concatenate([[0.0], self._grad, [0.0]])
         z = np.asarray(z, float)

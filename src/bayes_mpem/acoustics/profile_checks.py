@@ -10,23 +10,20 @@ from .profile import SoundSpeedProfile
 def check_profile(ssp, deepest: float | None = None, *, name: str = "ssp") -> SoundSpeedProfile:
     """Validate a sound-speed profile for ranges down to ``deepest``.
 
+    A profile of several knots must reach ``deepest`` (below its last knot the speed would be
+    an extrapolation); a one-knot profile is homogeneous and accepted at any depth.
+
     Parameters
     ----------
     ssp : SoundSpeedProfile
     deepest : float, optional
-        Deepest point a ray has to reach (m): the deepest beacon or vehicle.
+        The deepest beacon or vehicle (m).
     name : str
         Argument name used in messages.
 
     Raises
     ------
-    TypeError
-        ``ssp`` is not a :class:`~bayes_mpem.acoustics.SoundSpeedProfile`.
-    ValueError
-        The profile has more than one knot and ends above ``deepest``: below its
-        last knot it would be extended at a constant speed, which is no
-        measurement. A one-knot profile is homogeneous by construction and is
-        accepted at any depth.
+    TypeError, ValueError
     """
     if not isinstance(ssp, SoundSpeedProfile):
         raise TypeError(f"{name}: expected a SoundSpeedProfile (bayes_mpem.acoustics), got "
@@ -41,18 +38,12 @@ def check_profile(ssp, deepest: float | None = None, *, name: str = "ssp") -> So
 
 
 def check_sound_speed(sound_speed, name: str = "sound_speed") -> float:
-    """``sound_speed`` as a float, if it is a plausible speed (m/s).
+    """``sound_speed`` as a float, if it is a plausible speed (m/s); else ValueError.
 
     Parameters
     ----------
     sound_speed : float
     name : str
-        Argument name used in messages.
-
-    Raises
-    ------
-    ValueError
-        Not a finite positive number.
     """
     return check_positive(name, sound_speed, what="a positive sound speed in m/s")
 
@@ -65,11 +56,5 @@ def nominal_sound_speed(ssp: SoundSpeedProfile, depth) -> float:
     ssp : SoundSpeedProfile
     depth : float
         m, positive down.
-
-    Examples
-    --------
-    >>> prof = SoundSpeedProfile([0.0, 100.0], [1500.0, 1510.0])
-    >>> round(nominal_sound_speed(prof, 100.0), 6)
-    1504.994463
     """
     return float(ssp.harmonic_mean(0.0, float(depth)))

@@ -23,13 +23,12 @@ class DirectRays:
     Attributes
     ----------
     time : numpy.ndarray
-        One-way travel time (s); NaN where ``valid`` is False.
+        One-way travel time (s); NaN where not ``valid``.
     p : numpy.ndarray
         Ray parameter (s/m).
     valid : numpy.ndarray of bool
     turning_depth : numpy.ndarray
-        Depth (m) of the turning point of rays that turn; NaN for rays that
-        do not (and for invalid ones).
+        Depth (m) of the turning point; NaN for rays that do not turn.
     """
 
     time: np.ndarray = field(repr=False)
@@ -177,19 +176,6 @@ def direct_times(ssp: SoundSpeedProfile, z_a, z_b, horizontal, *, tol: float = 1
         Horizontal distance (m, >= 0). All three broadcast.
     tol : float, default 1e-9
         Relative tolerance on the horizontal run.
-
-    Examples
-    --------
-    Speed growing with depth: two points 3 km apart at the same depth are
-    joined by a ray that dips below them (a circular arc here; both numbers
-    agree with its closed form to 1e-8 m).
-
-    >>> prof = SoundSpeedProfile([0.0, 5000.0], [1450.0, 1530.0])
-    >>> rays = direct_times(prof, 2400.0, 2400.0, 3000.0)
-    >>> bool(rays.valid), round(float(rays.turning_depth) - 2400.0, 4)
-    (True, 12.0927)
-    >>> round(float(rays.time) * float(prof.speed(2400.0)) - 3000.0, 4)  # faster below
-    -0.13
     """
     ray = direct_ray(ssp, z_a, z_b, horizontal, tol=tol)
     shape = ray.time.shape
@@ -230,16 +216,15 @@ def bounce_times(ssp: SoundSpeedProfile, z_a, z_b, horizontal, plane_depth, *,
     ----------
     ssp : SoundSpeedProfile
     z_a, z_b, horizontal, plane_depth : array_like
-        As :func:`~bayes_mpem.acoustics.surface_bounce_ray` (broadcast).
+        As :func:`~bayes_mpem.acoustics.surface_bounce_ray`.
     tol : float, default 1e-9
 
     Returns
     -------
     time : numpy.ndarray
-        s; NaN where no eigenray without a turning point exists.
+        NaN where no eigenray without a turning point exists.
     dtime_dd0 : numpy.ndarray
-        Derivative with respect to raising the plane (s/m):
-        ``2 sqrt(1 / c(z_p)**2 - p**2)``; NaN where invalid.
+        Derivative with respect to raising the plane (s/m).
     valid : numpy.ndarray of bool
     """
     ray = surface_bounce_ray(ssp, z_a, z_b, horizontal, plane_depth, tol=tol)

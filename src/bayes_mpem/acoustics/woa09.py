@@ -20,11 +20,6 @@ def number_parts(parts):
     Returns
     -------
     bool
-
-    Examples
-    --------
-    >>> number_parts(["1.5", "-2"]), number_parts(["1.5", "x"])
-    (True, False)
     """
     try:
         [float(p) for p in parts]
@@ -55,18 +50,15 @@ def load_woa09(directory: str):
     Parameters
     ----------
     directory : str
-        Folder with ``lev_latlonZ.mat`` and ``lev_ann.mat``.
 
     Returns
     -------
     tuple
-        Cell latitudes, longitudes (0-360), level depths, speeds, and the number
-        of valid levels per cell.
+        Cell latitudes, longitudes (0-360), level depths, speeds, valid levels per cell.
 
     Raises
     ------
     FileNotFoundError
-        A file is missing.
     """
     from scipy.io import loadmat
 

@@ -8,9 +8,9 @@ others go on. The tables gathered at the end (``beacons.parquet``, ``surveys.par
 ``failures.parquet``) and the manifest's columns are described in ``docs/cli.md``.
 """
 
-from .commands import COMMANDS, Command, flatten, locate_raw
+from .commands import COMMANDS, flatten, locate_raw
 from .runner import BatchResult, completed, run_batch, run_task
 from .tasks import BatchTask, read_manifest
 
-__all__ = ["COMMANDS", "BatchResult", "BatchTask", "Command", "completed", "flatten",
+__all__ = ["COMMANDS", "BatchResult", "BatchTask", "completed", "flatten",
            "locate_raw", "read_manifest", "run_batch", "run_task"]

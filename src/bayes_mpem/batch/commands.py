@@ -1,45 +1,47 @@
-"""The commands a batch runs, one entry each: how to run one on a survey, and what to keep.
+"""How a batch runs a command on one survey, and what it keeps of the result.
 
-Adding a command to ``bayes-mpem batch`` is one more entry of :data:`COMMANDS`, with its
-option builder in :data:`bayes_mpem.cli.batch.KWARGS` and its name in the parser's choices.
+The commands a batch runs are those of :data:`bayes_mpem.commands.COMMANDS` with a
+:class:`~bayes_mpem.commands.Batch` entry (:data:`COMMANDS` here, by name); adding one is
+that entry.
 """
 
 from __future__ import annotations
 
 import json
-from collections.abc import Callable
-from dataclasses import dataclass, field
 
+from ..commands import COMMANDS as ALL
+from ..commands import load
 from ..exceptions import InputError
 
-LBL_INPUTS = ("pings", "beacons")
-SURVEY_INPUTS = ("survey", "format")
+#: The commands a batch can run, by name (``bayes-mpem batch --command``): their batch entries.
+COMMANDS = {name: c.batch for name, c in ALL.items() if c.batch is not None}
 #: the options of an array survey's location (GARPOS, GNATSS): no TAT or lag
 ARRAY_OPTIONS = ("ci", "outliers", "ssp", "speed_intervals")
 
 
-def _run_fit(inputs, options):
-    from ..lbl.survey.fitting import fit
-
-    return fit(inputs["pings"], inputs["beacons"], **options)
-
-
-def _run_sample(inputs, options):
-    from ..lbl.survey.sampling import sample
-
-    return sample(inputs["pings"], inputs["beacons"], **{"progress": False, **options})
+def run(command: str, inputs: dict, options: dict):
+    """Return the result of a batch command (a key of :data:`COMMANDS`) on one survey."""
+    spec = COMMANDS[command]
+    if spec.quiet:
+        options = {"progress": False, **options}
+    return load(spec.run)(*(inputs[c] for c in spec.inputs), **options)
 
 
-def _run_diagnose(inputs, options):
-    from ..lbl.diagnosis.driver import diagnose
+def survey_rows(result):
+    """Per-beacon summaries and the classified table of a fit, a posterior or a navigation."""
+    return result.summary()["beacons"], result.classified()
 
-    return diagnose(inputs["pings"], inputs["beacons"], **{"progress": False, **options})
+
+def locate_rows(result):
+    """Per-transponder summaries and the classified table of a located survey."""
+    return result.summary["transponders"], result.classified
 
 
-def _run_navigate(inputs, options):
-    from ..lbl.navigate import navigate
-
-    return navigate(inputs["pings"], inputs["beacons"], **options)
+def diagnosis_rows(result):
+    """Per-beacon final-model summaries of a diagnosis, with the effects found; no table."""
+    d = result.to_dict()
+    effects = ",".join(e["name"] for e in d["effects"]) or "none"
+    return {b: {**v, "effects": effects} for b, v in d["final_model"]["beacons"].items()}, None
 
 
 def locate_raw(raw, options: dict):
@@ -93,57 +95,11 @@ def locate_raw(raw, options: dict):
     return SurveyInResult(summary=summary, classified=classified, posteriors=posteriors)
 
 
-def _run_locate(inputs, options):
+def locate_file(survey, format, **options):  # noqa: A002 - the manifest's column
+    """Read a survey file in ``format`` and locate it (:func:`locate_raw` with ``options``)."""
     from ..io.formats import read_survey
 
-    return locate_raw(read_survey(inputs["survey"], inputs["format"]), options)
-
-
-@dataclass(frozen=True)
-class Command:
-    """How the batch runs one command on one survey.
-
-    Attributes
-    ----------
-    name : str
-    inputs : tuple of str
-        Manifest columns naming the survey's inputs (files, or the ``format``).
-    files : tuple of str
-        Those of ``inputs`` that are files (hashed, resolved against the manifest).
-    run : callable
-        ``run(inputs, options)`` returns the command's result (with ``write``).
-    beacons : callable
-        ``beacons(result)`` returns ``{beacon id: summary dict}``.
-    classified : callable or None
-        ``classified(result)`` returns the classified table, if the command has one.
-    """
-
-    name: str
-    inputs: tuple
-    files: tuple
-    run: Callable = field(repr=False)
-    beacons: Callable = field(repr=False)
-    classified: Callable | None = field(default=None, repr=False)
-
-
-def _diagnosis_beacons(result) -> dict:
-    d = result.to_dict()
-    effects = ",".join(e["name"] for e in d["effects"]) or "none"
-    return {b: {**v, "effects": effects} for b, v in d["final_model"]["beacons"].items()}
-
-
-#: The commands a batch can run, by name (``bayes-mpem batch --command``).
-COMMANDS = {
-    "fit": Command("fit", LBL_INPUTS, LBL_INPUTS, _run_fit,
-                   lambda r: r.summary()["beacons"], lambda r: r.classified()),
-    "sample": Command("sample", LBL_INPUTS, LBL_INPUTS, _run_sample,
-                      lambda r: r.summary()["beacons"], lambda r: r.classified()),
-    "diagnose": Command("diagnose", LBL_INPUTS, LBL_INPUTS, _run_diagnose, _diagnosis_beacons),
-    "navigate": Command("navigate", LBL_INPUTS, LBL_INPUTS, _run_navigate,
-                        lambda r: r.summary()["beacons"], lambda r: r.classified()),
-    "locate": Command("locate", SURVEY_INPUTS, ("survey",), _run_locate,
-                      lambda r: r.summary["transponders"], lambda r: r.classified),
-}
+    return locate_raw(read_survey(survey, format), options)
 
 
 def flatten(d: dict, prefix: str = "") -> dict:

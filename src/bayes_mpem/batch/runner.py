@@ -13,9 +13,10 @@ from pathlib import Path
 
 import pandas as pd
 
+from ..commands import load
 from ..exceptions import InputError
 from ..io.results import output_folder, write_json, write_parquet
-from .commands import COMMANDS, flatten
+from .commands import COMMANDS, flatten, run
 from .tasks import BatchTask
 
 
@@ -39,7 +40,7 @@ def run_task(task: BatchTask, out_dir: str, key: str | None = None) -> dict:
         and ``reason`` (failed) or ``rows`` (done: one flattened dict per beacon).
     """
     t0 = time.perf_counter()
-    spec = COMMANDS[task.command]
+    rows_of = load(COMMANDS[task.command].rows)
     out = Path(out_dir)
     folder = out / "surveys" / task.name
     done = folder / "batch.json"
@@ -55,13 +56,14 @@ def run_task(task: BatchTask, out_dir: str, key: str | None = None) -> dict:
         warnings.simplefilter("always")
         try:
             key = key or task.key()
-            result = spec.run(task.inputs, task.options)
+            result = run(task.command, task.inputs, task.options)
             result.write(folder)
+            beacons, classified = rows_of(result)
             rows = [{"name": task.name, "beacon": str(b), **flatten(v)}
-                    for b, v in spec.beacons(result).items()]
-            if spec.classified is not None:
+                    for b, v in beacons.items()]
+            if classified is not None:
                 output_folder(part.parent)
-                write_parquet(part, _named(spec.classified(result), task.name))
+                write_parquet(part, _named(classified, task.name))
         except Exception as exc:  # noqa: BLE001 - a failed survey is a result of the batch
             record = {"name": task.name, "status": "failed",
                       "reason": f"{type(exc).__name__}: {exc}",

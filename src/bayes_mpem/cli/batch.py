@@ -2,8 +2,8 @@
 
 The manifest's option columns are the command's long options without the dashes
 (``sigma_dp`` for ``--sigma-dp``; an empty cell leaves the default). Each row is parsed
-by the command's own sub-parser and the single command's keyword builder
-(:func:`.lbl.fit_kwargs`, ...) before any survey runs. The batch itself is
+by the command's own sub-parser and the single command's keyword builder (its
+:class:`~bayes_mpem.commands.Batch` entry) before any survey runs. The batch itself is
 :func:`bayes_mpem.batch.run_batch`.
 """
 
@@ -14,30 +14,25 @@ import sys
 from dataclasses import replace
 
 from ..batch import read_manifest, run_batch
+from ..commands import COMMANDS, load
 from ..exceptions import InputError
-from . import lbl, navigate, survey_in
+from . import survey_in
 from .errors import OptionError
 
-#: per command, the library keyword arguments from the parsed options
-KWARGS = {"fit": lbl.fit_kwargs, "sample": lbl.sample_command_kwargs,
-          "diagnose": lbl.diagnose_kwargs, "locate": survey_in.locate_kwargs,
-          "navigate": navigate.navigate_kwargs}
+#: the input units' columns (their options' names), refused with the way to convert: a
+#: batch's surveys are read as one-way ranges in local x, y (bayes_mpem.io.travel_time)
+UNIT_OPTIONS = {"ranges", "travel_time", "sound_speed", "travel_ssp", "turnaround", "origin"}
 #: options a batch sets itself (or never uses): not allowed as manifest columns
 #: (``dead_reckoning`` names a file: a batch hashes only the manifest's input columns)
 NOT_OPTIONS = {"help", "out", "pings", "beacons", "survey", "format", "figures", "no_figures",
-               "no_progress", "palette", "dead_reckoning", "config",
-               # the input units (bayes_mpem.io.travel_time): a batch's surveys are read as
-               # one-way ranges in local x, y; convert them first
-               "ranges", "travel_time", "sound_speed", "travel_ssp", "turnaround", "origin"}
-#: the input units' columns (their options' names), refused with the way to convert
-UNIT_OPTIONS = {"ranges", "travel_time", "sound_speed", "travel_ssp", "turnaround", "origin"}
+               "no_progress", "palette", "dead_reckoning", "config", *UNIT_OPTIONS}
 TRUE, FALSE = {"true", "yes", "1"}, {"false", "no", "0", ""}
 
 
 def _argv(sub: argparse.ArgumentParser, command: str, task, options: dict) -> list:
     """Return the command line that the options of one manifest row amount to."""
     actions = {a.dest: a for a in sub._actions if a.option_strings}
-    if command == "locate":
+    if "format" in task.inputs:
         argv = ["SURVEY", "--format", task.inputs["format"], "--out", "OUT"]
     else:
         argv = ["PINGS", "--beacons", "BEACONS", "--out", "OUT"]
@@ -63,6 +58,12 @@ def _argv(sub: argparse.ArgumentParser, command: str, task, options: dict) -> li
     return argv
 
 
+def _quiet(kwargs: dict) -> dict:
+    """Turn every ``progress`` off, nested ones too: a batch reports per survey."""
+    return {k: False if k == "progress" else _quiet(v) if isinstance(v, dict) else v
+            for k, v in kwargs.items()}
+
+
 def tasks_from_manifest(path, command: str, subparsers: dict) -> list:
     """Read a manifest and turn each row's option columns into the command's keyword arguments.
 
@@ -86,8 +87,9 @@ def tasks_from_manifest(path, command: str, subparsers: dict) -> list:
     sub = subparsers[command]
     sub.exit_on_error = False  # raise ArgumentError instead of exiting
     out = []
+    kwargs_of = load(COMMANDS[command].batch.kwargs)
     for task, row in zip(tasks, options.to_dict("records"), strict=True):
-        if command == "locate":
+        if "format" in task.inputs:
             try:
                 fmt = survey_in.survey_format(task.inputs["survey"], task.inputs["format"])
             except OSError:
@@ -95,13 +97,9 @@ def tasks_from_manifest(path, command: str, subparsers: dict) -> list:
             task = replace(task, inputs={**task.inputs, "format": fmt})
         try:
             args = sub.parse_args(_argv(sub, command, task, row))
-            kwargs = KWARGS[command](args)
+            kwargs = _quiet(kwargs_of(args))
         except (argparse.ArgumentError, OptionError) as exc:
             raise InputError(f"{task.where}: {exc}") from None
-        if command in ("sample", "diagnose"):
-            kwargs["progress"] = False
-        elif command == "locate" and kwargs["sample"] is not None:
-            kwargs["sample"]["progress"] = False
         out.append(replace(task, options=kwargs))
     return out
 

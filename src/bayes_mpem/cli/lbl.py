@@ -1,4 +1,4 @@
-"""The LBL sub-commands: demo, simulate, fit, sample, compare, plot and diagnose."""
+"""The LBL sub-commands (the entries of :data:`bayes_mpem.commands.COMMANDS` naming this module)."""
 
 from __future__ import annotations
 
@@ -12,6 +12,7 @@ from ..io.results import write_file
 from ..lbl.simulation.effects import EFFECTS
 from ..lbl.simulation.simulate import simulate_survey
 from ..lbl.survey.fitting import fit
+from . import gnssa, navigate
 from .errors import OptionError
 
 # sample, compare, diagnose and the report (emcee, ArviZ, matplotlib) are imported by the
@@ -246,7 +247,19 @@ def _plot_batch(args) -> int:
 
 
 def cmd_simulate(args) -> int:
-    """Run ``bayes-mpem simulate``; ``OptionError`` for an ``--effect`` not ``NAME=NUMBER``."""
+    """Run ``bayes-mpem simulate``: a survey, a dive (``--navigation``) or a GNSS-A campaign.
+
+    ``OptionError`` for an ``--effect`` not ``NAME=NUMBER``, or options of another kind.
+    """
+    chosen = gnssa.gnssa_handler(args)  # --gnssa: a GNSS-A campaign
+    if chosen is not None:
+        return chosen(args)
+    if args.navigation:
+        return navigate.cmd_simulate_navigation(args)
+    given = [o for o in navigate.NAVIGATION_ONLY if getattr(args, o) is not None]
+    if given:
+        names = ", ".join("--" + o.replace("_", "-") for o in given)
+        raise OptionError(f"{names}: only with --navigation")
     effects = {}
     for item in args.effect:
         name, sep, value = item.partition("=")

@@ -60,6 +60,13 @@ def add_navigate(sub) -> None:
                    help="fix sigma_DP, m (default: estimated)")
     p.add_argument("--range-scale", action="store_true",
                    help="also estimate a range scale (a sound-speed error), prior sd 0.01")
+    p.add_argument("--transducer-offset", default=0.0, metavar="M",
+                   type=opt.number("a depth offset in [-100, 100] m", -100.0, 100.0),
+                   help="depth of the acoustic transducer below the pings' depth, m (default 0)")
+    p.add_argument("--surface-depth", default=0.0, metavar="M",
+                   type=opt.number("a depth in [-1000, 1000] m", -1000.0, 1000.0),
+                   help="--travel-time --ssp: depth of the profile's sea surface in the "
+                        "tables' frame, m (depths that are minus ellipsoidal heights; default 0)")
     p.add_argument("--min-pings", type=opt.at_least(1), default=30, metavar="N",
                    help="beacons with fewer replies get no multipath class (default 30)")
     p.add_argument("--max-sd", type=opt.positive, default=10.0, metavar="M",
@@ -160,11 +167,24 @@ def navigate_kwargs(args) -> dict:
     Returns
     -------
     dict
+
+    Raises
+    ------
+    OptionError
+        ``--sound-speed`` and ``--ssp`` both given.
     """
+    travel = bool(getattr(args, "travel_time", False))
+    ssp = getattr(args, "travel_ssp", None)
+    if travel and ssp is not None and args.sound_speed is not None:
+        raise OptionError("--travel-time: give --sound-speed or --ssp, not both")
+    units = dict(travel_times=args.ranges, profile=ssp if ssp is not None else args.sound_speed,
+                 turnaround=args.turnaround) if travel else {}
     return dict(dead_reckoning=args.dead_reckoning, multipath=args.multipath, model=args.model,
                 path=args.path, dr_noise=args.dr_noise, start_sd=args.start_sd,
                 heading_sd=args.heading_sd, scale_sd=args.scale_sd, sigma_dp=args.sigma_dp,
-                range_scale=args.range_scale,
+                range_scale=args.range_scale, **units,
+                transducer_offset=getattr(args, "transducer_offset", 0.0),
+                surface_depth=getattr(args, "surface_depth", 0.0),
                 min_pings=args.min_pings, max_sd=args.max_sd, max_iter=args.max_iter,
                 tol=args.tol, rng=args.seed)
 
@@ -184,7 +204,12 @@ def cmd_navigate(args) -> int:
     from ..lbl.navigate import navigate
     from ..report import write_figures
 
-    nav = navigate(args.pings, args.beacons, **navigate_kwargs(args))
+    pings, beacons = args.pings, args.beacons
+    if getattr(args, "travel_time", False):  # traced through --ssp here, not converted before
+        from ..io.travel_time import convert_survey
+
+        pings, beacons = convert_survey(pings, beacons, origin=args.origin)  # lat, lon only
+    nav = navigate(pings, beacons, **navigate_kwargs(args))
     out = Path(args.out)
     paths = list(nav.write(out).values())
     if args.figures:

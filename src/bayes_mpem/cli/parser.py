@@ -1,10 +1,8 @@
 """The ``bayes-mpem`` command line: the parser, the dispatch and the error handling.
 
-The sub-commands themselves live in :mod:`.lbl` (``demo``, ``simulate``,
-``fit``, ``sample``, ``compare``, ``plot``, ``diagnose``), :mod:`.navigate`
-(``navigate``, ``simulate --navigation``), :mod:`.stream` (``stream``) and
-:mod:`.survey_in` (``locate``);
-each parses nothing, calls the library and reports. Invalid input ends a
+The sub-commands are the entries of :data:`bayes_mpem.commands.COMMANDS`: the parser adds
+each one's options, and the dispatch imports its ``cmd_<name>`` function only to run it.
+Each parses nothing, calls the library and reports. Invalid input ends a
 command with one ``error:`` line and exit status 2.
 """
 
@@ -12,36 +10,18 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import importlib
 import os
 import signal
 import sys
 import warnings
 
 from .. import __version__
+from ..commands import COMMANDS, load, with_results
 from ..exceptions import InputError
 from ..lbl.model.paths import PATH_CHOICES
-from . import gnssa, navigate, stream
+from . import gnssa, navigate
 from . import options as opt
-from .errors import OptionError
 
-#: sub-command -> the module of its ``cmd_<name>`` function, imported only when the command
-#: runs: building the parser loads no numpy, so ``bayes-mpem --help`` answers at once
-#: (``benchmarks/bench_startup.py``).
-COMMANDS: dict[str, str] = {
-    **dict.fromkeys(("demo", "simulate", "fit", "plot", "sample", "compare", "diagnose"),
-                    "lbl"),
-    "locate": "survey_in",
-    "navigate": "navigate",
-    "stream": "stream",
-    "batch": "batch",
-}
-#: the commands ``bayes-mpem batch --command`` runs: the keys of ``bayes_mpem.batch.COMMANDS``
-#: (spelled out here so that building the parser imports neither pandas nor Dask; a test
-#: keeps the two equal)
-BATCH_COMMANDS = ("fit", "sample", "diagnose", "locate", "navigate")
-#: the sub-commands that draw figures take ``--palette`` (the class colours)
-FIGURE_COMMANDS = ("demo", "fit", "sample", "compare", "plot", "diagnose", "navigate", "locate")
 PALETTES = ("okabe-ito", "paper")  # bayes_mpem.plots.style.PALETTES, without numpy
 
 
@@ -70,7 +50,8 @@ def _add_table_format(p):
                         "may be either (by its extension)")
 
 
-def _add_demo_plot_simulate(sub):
+def add_demo(sub):
+    """Add ``demo``'s sub-parser."""
     p = sub.add_parser("demo", help="simulate an ABE58-like survey, fit it, write figures")
     p.add_argument("--out", default="demo-output", metavar="DIR",
                    help="output folder (default: demo-output)")
@@ -79,17 +60,23 @@ def _add_demo_plot_simulate(sub):
                    help="skip the Bayesian part (sampling and prior comparison): about 4 s "
                         "instead of the demo's 16 s")
 
-    p = sub.add_parser("plot", help="draw the figures of an output folder (fit, sample, "
-                                    "compare, diagnose, locate, navigate)")
+
+def add_plot(sub):
+    """Add ``plot``'s sub-parser: it reads the folders of the commands with a result."""
+    kinds = list(with_results())
+    p = sub.add_parser("plot", help=f"draw the figures of an output folder ({', '.join(kinds)})")
     p.add_argument("result_dir", metavar="RESULT_DIR",
-                   help="output folder of 'bayes-mpem fit', 'sample', 'compare', 'diagnose', "
-                        "'locate' or 'navigate'")
+                   help="output folder of 'bayes-mpem " + "', '".join(kinds[:-1])
+                        + f"' or '{kinds[-1]}'")
     p.add_argument("--out", default=None, metavar="DIR",
                    help="where to write (default: RESULT_DIR)")
     p.add_argument("--beacon", default=None, metavar="ID",
                    help="fit folders: beacon of the single-beacon figures (default: the last "
                         "one)")
 
+
+def add_simulate(sub):
+    """Add ``simulate``'s sub-parser (a survey, a dive or a GNSS-A campaign)."""
     p = sub.add_parser("simulate", help="write a simulated survey (pings, beacons, truth)")
     p.add_argument("--preset", choices=["abe58", "random"], default="abe58")
     p.add_argument("--out", required=True, metavar="DIR")
@@ -104,7 +91,8 @@ def _add_demo_plot_simulate(sub):
     gnssa.add_simulate_gnssa(p)
 
 
-def _add_fit_diagnose(sub):
+def add_fit(sub):
+    """Add ``fit``'s sub-parser."""
     p = sub.add_parser("fit", help="fit every beacon of a survey")
     p.add_argument("pings", metavar="PINGS", help="pings CSV (time, beacon, range, x, y, depth)")
     p.add_argument("--beacons", required=True, metavar="BEACONS",
@@ -114,8 +102,10 @@ def _add_fit_diagnose(sub):
                    help="also write the figures (as 'bayes-mpem plot' does)")
     _add_table_format(p)
     _add_fit_options(p)
-    _add_input_units(p)
 
+
+def add_diagnose(sub):
+    """Add ``diagnose``'s sub-parser."""
     p = sub.add_parser("diagnose", help="find which assumption the data break (bias, sound "
                                         "speed, drifts, second reflector, early outliers)")
     p.add_argument("pings", metavar="PINGS", help="pings CSV (time, beacon, range, x, y, depth)")
@@ -134,10 +124,10 @@ def _add_fit_diagnose(sub):
     p.add_argument("--min-pings", type=opt.min_pings, default=30, metavar="N")
     p.add_argument("--no-figures", action="store_true", help="write diagnosis.json only")
     p.add_argument("--no-progress", action="store_true", help="no progress lines on stderr")
-    _add_input_units(p)
 
 
-def _add_locate(sub):
+def add_locate(sub):
+    """Add ``locate``'s sub-parser."""
     p = sub.add_parser("locate", help="locate the transponders of a ranging survey (EM, and "
                                       "optionally the posterior)")
     p.add_argument("survey", metavar="SURVEY",
@@ -194,58 +184,65 @@ def _add_locate(sub):
                    help="--sample: no progress bar (terminal) or progress lines (log file)")
 
 
-def _add_sample_compare(sub):
-    for name, helptext in (("sample", "sample each beacon's posterior (MCMC)"),
-                           ("compare", "compare equal (paper) and learned mixing priors by LOO")):
-        p = sub.add_parser(name, help=helptext)
-        p.add_argument("pings", metavar="PINGS", help="pings CSV")
-        p.add_argument("--beacons", required=True, metavar="BEACONS", help="beacons CSV")
-        p.add_argument("--out", required=True, metavar="DIR")
-        p.add_argument("--seed", type=opt.seed, default=0, help="random seed (default 0)")
-        if name == "sample":
-            p.add_argument("--priors", choices=["learned", "equal"], default="learned",
-                           help="Dirichlet-learned mixing weights (default) or equal 1/3")
-            p.add_argument("--ci", type=opt.probability, default=0.95,
-                           help="probability of the highest-density intervals (default 0.95)")
-            p.add_argument("--ensembles", type=opt.at_least(1, 64), default=None, metavar="K",
-                           help="independent emcee ensembles of differential evolution "
-                                "(default 2; K > 1 implies --sampler ensemble); R-hat "
-                                "compares them")
-            p.add_argument("--log-likelihood", action=argparse.BooleanOptionalAction,
-                           default=False,
-                           help="keep each range's log-likelihood at every draw in "
-                                "posterior_<id>.nc (for LOO; default: not kept)")
-            p.add_argument("--predictive", action="store_true",
-                           help="also write posterior predictive ranges (one per ping and draw)")
-            p.add_argument("--figures", action="store_true", help="also write PNG figures")
-            _add_table_format(p)
-        p.add_argument("--path", choices=PATH_CHOICES, default="auto",
-                       help="multipath geometry (default auto: per beacon the one the mixture "
-                            "EM finds likelier)")
-        p.add_argument("--sigma-dp", type=opt.positive, default=None, metavar="S",
-                       help="fix sigma_DP (m) instead of sampling it")
-        p.add_argument("--concentration", type=opt.positive, default=None, metavar="C",
-                       help="Dirichlet concentration of the learned weights (default 1)")
-        p.add_argument("--min-pings", type=opt.min_pings, default=30, metavar="N")
-        p.add_argument("--sampler", choices=["auto", "independence", "ensemble"], default="auto",
-                       help="emcee's moves: an independence proposal (Laplace Student-t), "
-                            "differential evolution, or the first unless a pilot finds its "
-                            "proposal fits poorly (default auto)")
-        p.add_argument("--draws", type=opt.at_least(10), default=2000, metavar="N",
-                       help="draws kept per beacon, at least (default 2000)")
-        p.add_argument("--walkers", type=opt.at_least(12, 4096), default=None, metavar="N",
-                       help="emcee walkers (default 16 with the independence proposal, "
-                            "max(24, 4 x parameters) with differential evolution)")
-        p.add_argument("--min-ess", type=opt.non_negative, default=1000.0, metavar="N",
-                       help="run until the smallest bulk ESS reaches N and R-hat < 1.01 "
-                            "(default 1000)")
-        p.add_argument("--no-progress", action="store_true",
-                       help="no progress bar (terminal) or progress lines (log file)")
-        _add_input_units(p)
+def add_sample(sub):
+    """Add ``sample``'s sub-parser."""
+    _add_posterior(sub, "sample", "sample each beacon's posterior (MCMC)")
+
+
+def add_compare(sub):
+    """Add ``compare``'s sub-parser."""
+    _add_posterior(sub, "compare", "compare equal (paper) and learned mixing priors by LOO")
+
+
+def _add_posterior(sub, name, helptext):
+    p = sub.add_parser(name, help=helptext)
+    p.add_argument("pings", metavar="PINGS", help="pings CSV")
+    p.add_argument("--beacons", required=True, metavar="BEACONS", help="beacons CSV")
+    p.add_argument("--out", required=True, metavar="DIR")
+    p.add_argument("--seed", type=opt.seed, default=0, help="random seed (default 0)")
+    if name == "sample":
+        p.add_argument("--priors", choices=["learned", "equal"], default="learned",
+                       help="Dirichlet-learned mixing weights (default) or equal 1/3")
+        p.add_argument("--ci", type=opt.probability, default=0.95,
+                       help="probability of the highest-density intervals (default 0.95)")
+        p.add_argument("--ensembles", type=opt.at_least(1, 64), default=None, metavar="K",
+                       help="independent emcee ensembles of differential evolution "
+                            "(default 2; K > 1 implies --sampler ensemble); R-hat "
+                            "compares them")
+        p.add_argument("--log-likelihood", action=argparse.BooleanOptionalAction,
+                       default=False,
+                       help="keep each range's log-likelihood at every draw in "
+                            "posterior_<id>.nc (for LOO; default: not kept)")
+        p.add_argument("--predictive", action="store_true",
+                       help="also write posterior predictive ranges (one per ping and draw)")
+        p.add_argument("--figures", action="store_true", help="also write PNG figures")
+        _add_table_format(p)
+    p.add_argument("--path", choices=PATH_CHOICES, default="auto",
+                   help="multipath geometry (default auto: per beacon the one the mixture "
+                        "EM finds likelier)")
+    p.add_argument("--sigma-dp", type=opt.positive, default=None, metavar="S",
+                   help="fix sigma_DP (m) instead of sampling it")
+    p.add_argument("--concentration", type=opt.positive, default=None, metavar="C",
+                   help="Dirichlet concentration of the learned weights (default 1)")
+    p.add_argument("--min-pings", type=opt.min_pings, default=30, metavar="N")
+    p.add_argument("--sampler", choices=["auto", "independence", "ensemble"], default="auto",
+                   help="emcee's moves: an independence proposal (Laplace Student-t), "
+                        "differential evolution, or the first unless a pilot finds its "
+                        "proposal fits poorly (default auto)")
+    p.add_argument("--draws", type=opt.at_least(10), default=2000, metavar="N",
+                   help="draws kept per beacon, at least (default 2000)")
+    p.add_argument("--walkers", type=opt.at_least(12, 4096), default=None, metavar="N",
+                   help="emcee walkers (default 16 with the independence proposal, "
+                        "max(24, 4 x parameters) with differential evolution)")
+    p.add_argument("--min-ess", type=opt.non_negative, default=1000.0, metavar="N",
+                   help="run until the smallest bulk ESS reaches N and R-hat < 1.01 "
+                        "(default 1000)")
+    p.add_argument("--no-progress", action="store_true",
+                   help="no progress bar (terminal) or progress lines (log file)")
 
 
 #: The commands that read a pings and a beacons table, and so take the input units.
-UNIT_COMMANDS = ("fit", "sample", "compare", "diagnose", "navigate")
+UNIT_COMMANDS = tuple(name for name, c in COMMANDS.items() if c.units)
 
 
 def _add_input_units(p):
@@ -311,31 +308,15 @@ def _has_lat_lon(args) -> bool:
     return {"lat", "lon"} <= names and not {"x", "y"} <= names
 
 
-def _simulate_handler(args, cmd_simulate):
-    """``simulate`` writes a survey, or a dive with ``--navigation``; refuse mixed options."""
-    chosen = gnssa.gnssa_handler(args)  # --gnssa: a GNSS-A campaign
-    if chosen is not None:
-        return chosen
-    if args.navigation:
-        return navigate.cmd_simulate_navigation
-    given = [o for o in navigate.NAVIGATION_ONLY if getattr(args, o) is not None]
-    if given:
-        names = ", ".join("--" + o.replace("_", "-") for o in given)
-
-        def refuse(_args):
-            raise OptionError(f"{names}: only with --navigation")
-
-        return refuse
-    return cmd_simulate
-
-
-def _add_batch(sub):
+def add_batch(sub):
+    """Add ``batch``'s sub-parser: ``--command`` is any command with a batch entry."""
     p = sub.add_parser("batch", help="run a command on every survey of a manifest (Dask)")
     p.add_argument("manifest", metavar="MANIFEST",
                    help="CSV: name, pings, beacons (or name, survey, format for locate), then "
                         "option columns named as the command's options (e.g. sigma_dp)")
     p.add_argument("--out", required=True, metavar="DIR")
-    p.add_argument("--command", dest="batch_command", choices=BATCH_COMMANDS, default="fit",
+    p.add_argument("--command", dest="batch_command", default="fit",
+                   choices=[name for name, c in COMMANDS.items() if c.batch is not None],
                    help="the command run on each survey (default fit)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="address of a running Dask scheduler (default: a local cluster)")
@@ -365,15 +346,11 @@ def build_parser() -> argparse.ArgumentParser:
                     "each beacon's reflector.")
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    _add_demo_plot_simulate(sub)
-    _add_fit_diagnose(sub)
-    _add_locate(sub)
-    _add_sample_compare(sub)
-    navigate.add_navigate(sub)
-    _add_input_units(sub.choices["navigate"])
-    stream.add_stream(sub)
-    _add_batch(sub)
-    for name in FIGURE_COMMANDS:
+    for name, command in COMMANDS.items():
+        load(command.options)(sub)
+        if command.units:
+            _add_input_units(sub.choices[name])
+    for name in (name for name, c in COMMANDS.items() if c.palette):
         sub.choices[name].add_argument(
             "--palette", choices=PALETTES, default="okabe-ito",
             help="class colours of the figures: colour-blind safe (default) or the "
@@ -578,12 +555,9 @@ def main(argv=None) -> int:
     import matplotlib
 
     matplotlib.use("Agg")  # the command line only writes files; never opens a window
-    module = importlib.import_module(f"{__package__}.{COMMANDS[args.command]}")
-    handler = getattr(module, f"cmd_{args.command}")
-    if args.command == "simulate":
-        handler = _simulate_handler(args, handler)
-    if args.command in UNIT_COMMANDS:
-        handler = _units_handler(args, handler)
+    handler = load(f"{COMMANDS[args.command].module}:cmd_{args.command}")
+    if args.command in UNIT_COMMANDS and not (args.command == "navigate" and args.travel_time):
+        handler = _units_handler(args, handler)  # navigate traces travel times itself
     colours = contextlib.nullcontext()
     # the figures' class colours, restored on return (only when figures are drawn: the
     # plotting modules import matplotlib.pyplot)

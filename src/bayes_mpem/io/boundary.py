@@ -1,10 +1,6 @@
 """The input boundary every reader passes: lines as ``grep -n`` counts them, shapes, limits.
 
-Every file reader goes through the same three steps: text lines numbered as ``grep -n``
-numbers them (:func:`read_text_lines`), each line classified by its whole shape
-(:class:`Shape`, :func:`classify`), and every value checked against the physical limits
-of :data:`LIMITS` (``docs/input.md``). :func:`sniff_delimiter` words the error for a
-table that is not comma-separated.
+Details: ``docs/input.md``.
 """
 
 from __future__ import annotations
@@ -28,14 +24,11 @@ class Limit:
 
     Attributes
     ----------
-    what : str
-        Name in messages (``"range"``, ``"latitude"``).
-    unit : str
-        Unit in messages (``"m"``, ``"s"``, ``"degrees"``).
+    what, unit : str
+        Name and unit in messages.
     low, high : float
-        The bounds.
     include_low : bool
-        Whether ``low`` itself is possible (a range of 0 m is not).
+        Whether ``low`` itself is possible.
     """
 
     what: str
@@ -89,17 +82,10 @@ def out_of_limits(kind: str, values) -> np.ndarray:
     kind : str
         A key of :data:`LIMITS`.
     values : array_like
-        Numbers; NaN and infinities are out.
 
     Returns
     -------
     numpy.ndarray
-        Boolean, True where the value is unusable.
-
-    Examples
-    --------
-    >>> out_of_limits("lat", [0.0, -90.0, 90.5]).tolist()
-    [False, False, True]
     """
     lim = LIMITS[kind]
     v = np.asarray(values, dtype=float)
@@ -112,23 +98,16 @@ def out_of_limits(kind: str, values) -> np.ndarray:
 def limit_problem(kind: str, value) -> str | None:
     """Why one value is unusable (``None`` when it is fine).
 
+    E.g. ``"range 1e+300 outside (0, 100000] m"``.
+
     Parameters
     ----------
     kind : str
-        A key of :data:`LIMITS`.
     value : float
 
     Returns
     -------
     str or None
-        E.g. ``"range 1e+300 outside (0, 100000] m"``.
-
-    Examples
-    --------
-    >>> limit_problem("range", 1e300)
-    'range 1e+300 outside (0, 100000] m'
-    >>> limit_problem("minutes", 59.99) is None
-    True
     """
     lim = LIMITS[kind]
     v = float(value)
@@ -149,7 +128,7 @@ def open_input(path, what: str = "input file") -> bytes:
     ----------
     path : str or os.PathLike
     what : str, default "input file"
-        What the file is, for the messages (``"pings file"``).
+        What the file is, for the messages.
 
     Returns
     -------
@@ -157,10 +136,7 @@ def open_input(path, what: str = "input file") -> bytes:
 
     Raises
     ------
-    FileNotFoundError
-        No such file (the message names it).
-    InputError
-        A folder, a file that cannot be read (permissions, I/O), naming it.
+    FileNotFoundError, InputError
     """
     p = Path(path)
     if p.is_dir():
@@ -174,11 +150,7 @@ def open_input(path, what: str = "input file") -> bytes:
 
 
 def split_lines(text: str) -> list[str]:
-    r"""Split text into lines as ``grep -n`` numbers them.
-
-    Only ``\n`` ends a line; one ``\r`` before it is dropped (CRLF files). A
-    final newline does not start an empty last line. Form feeds, vertical tabs,
-    lone carriage returns and Unicode line separators stay inside their line.
+    r"""Split text into lines as ``grep -n`` numbers them: only ``\n`` (or ``\r\n``) ends a line.
 
     Parameters
     ----------
@@ -187,12 +159,6 @@ def split_lines(text: str) -> list[str]:
     Returns
     -------
     list of str
-        Line ``i`` (1-based, as ``grep -n``) is element ``i - 1``.
-
-    Examples
-    --------
-    >>> split_lines("a\r\nb\fc\n\nd")
-    ['a', 'b\x0cc', '', 'd']
     """
     lines = text.split("\n")
     if lines and lines[-1] == "":
@@ -201,26 +167,21 @@ def split_lines(text: str) -> list[str]:
 
 
 def read_text_lines(path, what: str = "survey file") -> list[str]:
-    """Read a text file as lines numbered as ``grep -n`` numbers them.
+    """Read a UTF-8 text file as lines numbered as ``grep -n`` numbers them (:func:`split_lines`).
 
     Parameters
     ----------
     path : str or os.PathLike
     what : str, default "survey file"
-        What the file is, for the messages.
 
     Returns
     -------
     list of str
-        See :func:`split_lines`; a UTF-8 byte-order mark is dropped.
 
     Raises
     ------
-    FileNotFoundError
-        No such file.
-    InputError
-        A folder, an unreadable file, a binary file (NUL bytes) or bytes that are
-        not UTF-8 (naming the line).
+    FileNotFoundError, InputError
+        No file; a folder, an unreadable or binary file, or bytes that are not UTF-8.
     """
     raw = open_input(path, what)
     if raw.startswith(b"\xef\xbb\xbf"):
@@ -248,8 +209,7 @@ class Shape:
     kind : str
         What such a line is (``"ping"``, ``"header"``, ``"comment"``, ``"event"``).
     pattern : str
-        A regular expression the stripped line must match from start to end;
-        its named groups are the line's fields.
+        A regular expression the stripped line must match whole; its named groups are fields.
     """
 
     kind: str
@@ -290,20 +250,13 @@ def classify(lines, shapes):
     Parameters
     ----------
     lines : sequence of str
-        From :func:`read_text_lines`.
     shapes : sequence of Shape
-        Tried in order; blank lines are recognised first without being listed.
+        Tried in order (blank lines are recognised first).
 
     Returns
     -------
     list of tuple
-        ``(line number, kind or None, match or None)``, 1-based as ``grep -n``;
-        ``None`` for a line of no listed shape (the caller skips it with its reason).
-
-    Examples
-    --------
-    >>> classify(["", "A: 1"], [Shape("header", r"(?P<key>\w+):\s*(?P<value>.*)")])[1][1]
-    'header'
+        ``(line number, kind or None, match or None)``, 1-based.
     """
     out = []
     for i, text in enumerate(lines, start=1):
@@ -326,22 +279,13 @@ def sniff_delimiter(header: str, first_row: str | None = None) -> str | None:
     Parameters
     ----------
     header : str
-        The header line as read.
     first_row : str, optional
         The first data line, to spot decimal commas.
 
     Returns
     -------
     str or None
-        ``"semicolon-separated (with decimal commas)"``, ``"tab-separated"``, ... or
         ``None`` when the header has commas.
-
-    Examples
-    --------
-    >>> sniff_delimiter("time;beacon;range", "0,5;1;1971,5")
-    'semicolon-separated, with decimal commas'
-    >>> sniff_delimiter("time,beacon") is None
-    True
     """
     if "," in header:
         return None

@@ -1,10 +1,4 @@
-"""The cells of input tables: how an offending cell is worded, beacon ids, collected problems.
-
-:func:`show` words a cell for an error message, :func:`as_beacon_id` gives a
-beacon id its canonical form, and :class:`Problems` collects a table's problems
-by row and raises them as one :class:`~bayes_mpem.exceptions.InputError`. Used by
-:mod:`~bayes_mpem.io.tables` and the readers built on it.
-"""
+"""The cells of input tables: how an offending cell is worded, beacon ids, collected problems."""
 
 from __future__ import annotations
 
@@ -37,22 +31,15 @@ def is_missing(v: Any) -> bool:
 
 
 def show(v: Any) -> str:
-    """Describe an offending cell for an error message.
+    """Describe an offending cell for an error message (its ``repr`` cut at 40 characters).
 
     Parameters
     ----------
     v : object
-        The cell's value.
 
     Returns
     -------
     str
-        Its ``repr`` (cut at 40 characters), or words for an empty or missing cell.
-
-    Examples
-    --------
-    >>> show(" "), show(-3.2)
-    ('an empty cell', '-3.2')
     """
     if isinstance(v, str):
         return repr(v) if v.strip() else "an empty cell"
@@ -70,16 +57,10 @@ def as_beacon_id(v: Any) -> str:
     Parameters
     ----------
     v : object
-        A beacon id as read (str, int, float, missing).
 
     Returns
     -------
     str
-
-    Examples
-    --------
-    >>> as_beacon_id(4.0), as_beacon_id(" B2 "), as_beacon_id(float("nan"))
-    ('4', 'B2', '')
     """
     if is_missing(v):
         return ""
@@ -98,8 +79,7 @@ def as_beacon_id(v: Any) -> str:
 class Problems:
     """Collects problems by row position and raises one InputError for all of them.
 
-    Vectorised checks hand over whole masks (:meth:`add_mask`); only the first
-    :data:`MAX_LISTED` flagged cells of each check are worded, the rest counted.
+    Only the first :data:`MAX_LISTED` flagged cells of each check are worded, the rest counted.
 
     Parameters
     ----------
@@ -122,14 +102,12 @@ class Problems:
         self.count += 1
 
     def add_mask(self, mask: np.ndarray, word) -> None:
-        """Record the rows flagged by ``mask``; ``word(pos)`` words the first few.
+        """Record the rows flagged by the boolean ``mask``; ``word(pos)`` words the first few.
 
         Parameters
         ----------
         mask : numpy.ndarray
-            Boolean, one per row: the rows with this problem.
         word : callable
-            ``word(pos) -> str``: the message for the row at position ``pos``.
         """
         flagged = np.flatnonzero(mask)
         for pos in flagged[:MAX_LISTED]:

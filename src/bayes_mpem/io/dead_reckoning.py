@@ -1,9 +1,4 @@
-"""Dead-reckoning tables: a vehicle's own positions or velocities at their own rate.
-
-:func:`read_dead_reckoning` reads and checks the optional dead-reckoning table of
-:func:`~bayes_mpem.lbl.navigate.navigate` (``time, x, y[, depth]`` or
-``time, ve, vn[, depth]``) with the cell and column checks of :mod:`.tables`.
-"""
+"""Dead-reckoning tables: a vehicle's own positions or velocities at their own rate."""
 
 from __future__ import annotations
 
@@ -25,32 +20,18 @@ def read_dead_reckoning(source: Any, *, name: str | None = None) -> tuple[pd.Dat
     Parameters
     ----------
     source : str, os.PathLike or pandas.DataFrame
-        Columns ``time`` (s, strictly increasing) and either ``x``, ``y`` (dead-reckoned
-        position, m) or ``ve``, ``vn`` (velocity east and north, m/s); an optional ``depth``
-        column is checked and kept; others are ignored.
+        ``time`` (s, increasing) and ``x``, ``y`` (m) or ``ve``, ``vn`` (m/s); ``depth`` optional.
     name : str, optional
-        Label for error messages; default the path or ``"dead-reckoning DataFrame"``.
+        Label for error messages.
 
     Returns
     -------
     table : pandas.DataFrame
-        float64 columns ``time`` and the two of the form (and ``depth`` if given).
     form : {"position", "velocity"}
 
     Raises
     ------
-    FileNotFoundError
-        If the path does not exist.
-    InputError
-        Missing or ambiguous columns, fewer than two rows, a bad cell, or a time not after
-        the previous one (naming the line and column).
-
-    Examples
-    --------
-    >>> t, form = read_dead_reckoning(pd.DataFrame({"time": [0, 10], "ve": [1.0, 1.0],
-    ...                                             "vn": [0.0, 0.5]}))
-    >>> form, t["vn"].tolist()
-    ('velocity', [0.0, 0.5])
+    FileNotFoundError, InputError
     """
     table = load_table(source, name, "dead-reckoning")
     cols = set(table.frame.columns)

@@ -1,11 +1,4 @@
-"""JSON documents of the result files: NumPy values, non-finite numbers, timings.
-
-The serialisation rules :mod:`bayes_mpem.io.results` applies to every JSON file it
-writes: NumPy scalars and arrays become plain JSON (:func:`numpy_to_json`), a NaN or an
-infinity becomes ``null`` listed under ``"non_finite"`` (:func:`finite_json`,
-:func:`json_text`: strict JSON, never a ``NaN`` token), and wall-clock timings leave
-``summary.json`` for ``timings.json`` (:func:`split_timings`).
-"""
+"""JSON documents of the result files: NumPy values, non-finite numbers, timings."""
 
 from __future__ import annotations
 
@@ -29,13 +22,6 @@ def numpy_to_json(value):
     Raises
     ------
     TypeError
-        For any other type.
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> numpy_to_json(np.float64(1.5)), numpy_to_json(np.arange(2))
-    (1.5, [0, 1])
     """
     if isinstance(value, (np.floating, np.integer, np.bool_)):
         return value.item()
@@ -56,14 +42,8 @@ def finite_json(document, numpy: bool = False):
     Returns
     -------
     clean : same structure
-        With ``None`` for every non-finite float.
     replaced : dict
         ``{"dotted.path[i]": "nan" | "inf" | "-inf"}``.
-
-    Examples
-    --------
-    >>> finite_json({"a": [1.0, float("inf")], "b": {"c": float("nan")}})
-    ({'a': [1.0, None], 'b': {'c': None}}, {'a[1]': 'inf', 'b.c': 'nan'})
     """
     replaced = {}
 
@@ -83,7 +63,7 @@ def finite_json(document, numpy: bool = False):
 
 
 def split_timings(document):
-    """Move wall-clock timings (keys ``seconds`` or ``*_seconds``) out of a document.
+    """Move wall-clock timings (keys ``seconds`` or ``*_seconds``) out of a copy of ``document``.
 
     Parameters
     ----------
@@ -91,15 +71,7 @@ def split_timings(document):
 
     Returns
     -------
-    document : dict
-        Without the timing keys (a copy; the input is not changed).
-    timings : dict
-        The timings at the same places (empty if none).
-
-    Examples
-    --------
-    >>> split_timings({"a": {"seconds": 2.5, "n": 1}, "b": 3})
-    ({'a': {'n': 1}, 'b': 3}, {'a': {'seconds': 2.5}})
+    document, timings : dict
     """
     def is_timing(key):
         return isinstance(key, str) and (key == "seconds" or key.endswith("_seconds"))
@@ -174,16 +146,10 @@ def json_text(document, indent, numpy=False) -> str:
     document : dict or list
     indent : int or None
     numpy : bool, default False
-        Also accept NumPy scalars and arrays.
 
     Returns
     -------
     str
-
-    Examples
-    --------
-    >>> json_text({"a": float("nan")}, None)
-    '{"a": null, "non_finite": {"a": "nan"}}\n'
     """
     try:  # the common case, in C: nothing to replace
         if numpy and indent is None:

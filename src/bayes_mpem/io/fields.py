@@ -1,21 +1,4 @@
-"""Checked values of text fields, and where they came from (file, line, column).
-
-The GNSS-A readers parse every field with :func:`number` or :func:`flag` (a
-``ValueError`` saying what was expected and what arrived) and name the place with
-:func:`where`.
-
-Examples
---------
->>> number("2.5", "TT", lo=0.0, hi=60.0, lo_open=True)
-2.5
->>> try:
-...     number("-1", "TT", lo=0.0, hi=60.0, lo_open=True)
-... except ValueError as exc:
-...     print(exc)
-TT: expected a number in (0, 60], got '-1'
->>> where("obs.csv", 7, 5, "TT")
-'obs.csv line 7, column 5 (TT)'
-"""
+"""Checked values of text fields, and where they came from (file, line, column)."""
 
 from __future__ import annotations
 
@@ -23,16 +6,13 @@ import math
 
 
 def where(source, line=None, column=None, name=None) -> str:
-    """Name a place in a file: ``"FILE line L, column C (NAME)"``.
+    """Name a place in a file: ``"FILE line L, column C (NAME)"`` (1-based).
 
     Parameters
     ----------
     source : str or pathlib.Path
-        The file.
     line, column : int, optional
-        1-based.
     name : str, optional
-        The column's or key's name.
 
     Returns
     -------
@@ -53,10 +33,8 @@ def number(text, name, *, lo=None, hi=None, lo_open=False, integer=False) -> flo
 
     Parameters
     ----------
-    text : str
-        The field as read.
-    name : str
-        What it is, for the message.
+    text, name : str
+        The field as read, and what it is.
     lo, hi : float, optional
         Bounds, inclusive (``lo_open=True`` excludes ``lo``).
     lo_open : bool, default False
@@ -95,8 +73,7 @@ def flag(text, name) -> bool:
 
     Parameters
     ----------
-    text : str
-    name : str
+    text, name : str
 
     Returns
     -------
@@ -105,12 +82,6 @@ def flag(text, name) -> bool:
     Raises
     ------
     ValueError
-        For anything else.
-
-    Examples
-    --------
-    >>> flag(" false", "flag"), flag("1", "flag")
-    (False, True)
     """
     s = str(text).strip().lower()
     if s in ("true", "1"):

@@ -1,10 +1,4 @@
-"""The survey file formats by name, format sniffing, and the sample surveys shipped.
-
-:func:`read_survey` dispatches a path to the reader of one of :data:`FORMATS`
-(:mod:`bayes_mpem.io.obsrange`, :mod:`bayes_mpem.io.seagap`,
-:mod:`bayes_mpem.io.garpos`, :mod:`bayes_mpem.io.gnatss`), or to the one
-:func:`sniff_format` recognises; :func:`sample_file` finds a measured sample survey.
-"""
+"""The survey file formats by name, format sniffing, and the sample surveys shipped."""
 
 from __future__ import annotations
 
@@ -25,18 +19,12 @@ _READERS = {"obsrange-sio": read_obsrange_sio, "obsrange-whoi": read_obsrange_wh
 
 
 def sample_file(name: str) -> Path:
-    """Path of a measured sample survey shipped with the package.
-
-    The OBSrange samples (``"obsrange/SIO_CC03.txt"``, ``SIO_EC03.txt``,
-    ``SIO_WC03.txt``, ``WHOI_S05.txt``, ``CC03_ssp.txt``,
-    ``CC03_obsrange_solution.txt``) and the SeaGap example (``"seagap/obsdata.inp"``
-    with its companion files); their sources and licences are in the ``README.md``
-    beside them (``data/README.md`` in the source repository).
+    """Path of a measured sample survey shipped with the package (``data/README.md``).
 
     Parameters
     ----------
     name : str
-        Path relative to the sample folder.
+        Path relative to the sample folder, e.g. ``"obsrange/SIO_CC03.txt"``.
 
     Returns
     -------
@@ -46,11 +34,6 @@ def sample_file(name: str) -> Path:
     ------
     FileNotFoundError
         If there is no such sample.
-
-    Examples
-    --------
-    >>> sample_file("obsrange/SIO_CC03.txt").name
-    'SIO_CC03.txt'
     """
     here = Path(__file__).resolve().parents[1]  # the bayes_mpem package
     for root in (here / "_samples", here.parents[1] / "data"):
@@ -72,13 +55,7 @@ def _first_lines(path, n=40):
 
 
 def sniff_format(path) -> str:
-    """Recognise a survey file's format from its first lines.
-
-    * a ``[Site-parameter]`` or ``[Obs-parameter]`` section: ``garpos`` (the site file);
-    * a YAML ``solver:`` key: ``gnatss`` (its ``config.yaml``);
-    * a ``#`` comment header and comma-separated lines: ``obsrange-whoi``;
-    * ``msec.`` ping lines or an SIO ``Key: value`` header: ``obsrange-sio``;
-    * lines of 18 numbers: ``seagap`` (``obsdata.inp``).
+    """Recognise a survey file's format (one of :data:`FORMATS`) from its first lines.
 
     Parameters
     ----------
@@ -87,19 +64,10 @@ def sniff_format(path) -> str:
     Returns
     -------
     str
-        One of :data:`FORMATS`.
 
     Raises
     ------
-    FileNotFoundError
-        No such file.
-    InputError
-        None of them.
-
-    Examples
-    --------
-    >>> sniff_format(sample_file("obsrange/WHOI_S05.txt"))
-    'obsrange-whoi'
+    FileNotFoundError, InputError
     """
     path = Path(path)
     if not path.is_file():
@@ -128,13 +96,9 @@ def read_survey(path, format: str = "auto", **kwargs) -> RawSurvey:
     Parameters
     ----------
     path : str or pathlib.Path
-        The survey file: the deck-box log, SeaGap's ``obsdata.inp``, GARPOS's
-        site file ``*-initcfg.ini`` or GNATSS's ``config.yaml``.
     format : {"auto", "obsrange-sio", "obsrange-whoi", "seagap", "garpos", "gnatss"}
-        ``"auto"`` (the default) recognises it (:func:`sniff_format`).
     **kwargs
-        Passed to the reader (``strict``; SeaGap's companion paths; GARPOS's
-        ``obs``, ``svp``).
+        Passed to the reader.
 
     Returns
     -------

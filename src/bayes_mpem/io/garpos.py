@@ -1,10 +1,6 @@
 """GARPOS GNSS-acoustic surveys: the site file, the shots and the sound-speed profile.
 
-:func:`read_garpos` reads the site file ``*-initcfg.ini`` and the ``obs.csv`` shots and
-``svp.csv`` profile it names (formats in ``docs/gnssa.md``) into a
-:class:`~bayes_mpem.io.raw.RawSurvey`; :func:`write_garpos` writes one. Every line of
-``obs.csv`` is a shot, a comment or header, or skipped with its reason (``strict=True``
-raises). Format learnt from GARPOS's documentation; no GARPOS code or data is used.
+Details: ``docs/gnssa.md``.
 """
 
 from __future__ import annotations
@@ -37,14 +33,12 @@ UNKNOWN_STATION = "M00"
 
 
 def resolve_path(text, base) -> Path:
-    """Find a file a survey's control file names: from the working folder, else from ``base``.
+    """Find a file a control file names: from the working folder, else from ``base``.
 
     Parameters
     ----------
     text : str
-        The path as written (absolute, or relative).
     base : str or pathlib.Path
-        The folder of the file that names it.
 
     Returns
     -------
@@ -64,24 +58,8 @@ def resolve_path(text, base) -> Path:
                             + " and ".join(str(c) for c in tried) + ")")
 
 
-def read_ini(path) -> dict:
-    """Read an INI-style control file, keeping the line of every value.
-
-    Parameters
-    ----------
-    path : str or pathlib.Path
-
-    Returns
-    -------
-    dict
-        ``{section: {key: (value, line)}}``; ``#`` and ``;`` start comment lines.
-
-    Raises
-    ------
-    InputError
-        A line that is neither a section, a ``key = value``, a comment nor blank,
-        a key before any section, or a key given twice.
-    """
+def _read_ini(path) -> dict:
+    """Read an INI-style control file as ``{section: {key: (value, line)}}``."""
     out, section = {}, None
     for i, text in enumerate(read_lines(path), start=1):
         s = text.strip()
@@ -137,19 +115,16 @@ def _sigmas(ini, path, key):
 
 
 def profile_frame(depth, speed, source) -> pd.DataFrame:
-    """Check a sound-speed profile read from a survey's file.
+    """Check a sound-speed profile read from a survey's file; return ``depth``, ``sound_speed``.
 
     Parameters
     ----------
     depth, speed : array_like
-        m below the sea surface (increasing), m/s.
     source : str
-        The file, for messages.
 
     Returns
     -------
     pandas.DataFrame
-        ``depth``, ``sound_speed``.
 
     Raises
     ------
@@ -169,23 +144,8 @@ def profile_frame(depth, speed, source) -> pd.DataFrame:
     return pd.DataFrame({"depth": d, "sound_speed": c})
 
 
-def read_svp(path) -> pd.DataFrame:
-    """Read GARPOS's ``svp.csv`` (``depth,speed`` header, then one level per line).
-
-    Parameters
-    ----------
-    path : str or pathlib.Path
-
-    Returns
-    -------
-    pandas.DataFrame
-        ``depth`` (m), ``sound_speed`` (m/s).
-
-    Raises
-    ------
-    InputError
-        Naming the file, line and column of a value that does not parse.
-    """
+def _read_svp(path) -> pd.DataFrame:
+    """Read GARPOS's ``svp.csv`` into ``depth`` (m), ``sound_speed`` (m/s)."""
     rows, cols = [], None
     for i, text in enumerate(read_lines(path), start=1):
         s = text.strip()
@@ -250,29 +210,8 @@ def _parse_shot(parts, cols, stations):
     return row
 
 
-def read_obs(path, stations, *, strict=False):
-    """Read GARPOS's ``obs.csv`` shots.
-
-    Parameters
-    ----------
-    path : str or pathlib.Path
-    stations : sequence of str
-        The site's transponders; a shot to another one is skipped with the reason.
-    strict : bool, default False
-        Raise on a line that does not parse instead of skipping it.
-
-    Returns
-    -------
-    rows : list of dict
-        One per shot (RawSurvey columns, ``line`` first).
-    skipped : list of tuple
-        ``(line, text, reason)``.
-
-    Raises
-    ------
-    InputError
-        A missing header or column; with ``strict``, any line that does not parse.
-    """
+def _read_obs(path, stations, *, strict=False):
+    """Read GARPOS's ``obs.csv`` shots."""
     rows, skipped, cols = [], [], None
     for i, text in enumerate(read_lines(path), start=1):
         s = text.strip()
@@ -305,37 +244,27 @@ def read_obs(path, stations, *, strict=False):
 
 
 def read_garpos(site_file, *, obs=None, svp=None, strict=False) -> RawSurvey:
-    """Read a GARPOS survey: the site file and the shots and profile it names.
+    """Read a GARPOS survey: the site file and the shots and profile it names (``docs/gnssa.md``).
 
     Parameters
     ----------
     site_file : str or pathlib.Path
         ``*-initcfg.ini``.
     obs, svp : str or pathlib.Path, optional
-        The shots and profile files, instead of the site file's ``datacsv`` and
-        ``SoundSpeed``.
+        Instead of the site file's ``datacsv`` and ``SoundSpeed``.
     strict : bool, default False
         Raise on a shot line that does not parse instead of skipping it.
 
     Returns
     -------
     RawSurvey
-        ``format="garpos"``; ``pings``: ``line``, ``transponder``, ``twtt`` (s),
-        ``time`` (s from the earliest transmission), ``t_tx``, ``t_rx`` and the
-        antenna ``e/n/u`` and ``head/pitch/roll`` at transmit (``_tx``) and receive
-        (``_rx``), plus ``set``, ``survey_line``, ``file_flag`` when present;
-        ``header``: ``site``, ``campaign``, ``lat``, ``lon``, ``height`` (the frame's
-        origin), ``transponders`` (DataFrame of ``east``, ``north``, ``up``, the
-        prior positions, ``dCentPos`` added), ``atd_offset`` (forward, rightward,
-        downward, m), ``ss_prof`` (DataFrame), ``surface_depth`` (0: ``up = 0`` is the
-        profile's sea surface) and ``files``.
 
     Raises
     ------
     FileNotFoundError, InputError
     """
     site_file = Path(site_file)
-    ini = read_ini(site_file)
+    ini = _read_ini(site_file)
     here = site_file.parent
     origin = _values(ini, site_file, "Site-parameter", "Latitude0", 1, ["value"],
                      {"value": {"lo": -90.0, "hi": 90.0}})
@@ -363,7 +292,7 @@ def read_garpos(site_file, *, obs=None, svp=None, strict=False) -> RawSurvey:
         _get(ini, site_file, "Data-file", "datacsv")[0], here)
     svp_path = Path(svp) if svp is not None else resolve_path(
         _get(ini, site_file, "Obs-parameter", "SoundSpeed")[0], here)
-    rows, skipped = read_obs(obs_path, stations, strict=strict)
+    rows, skipped = _read_obs(obs_path, stations, strict=strict)
     if not rows:
         raise InputError(f"{obs_path}: no shot lines found ({len(skipped)} lines skipped)")
     pings = pd.DataFrame(rows)
@@ -373,7 +302,7 @@ def read_garpos(site_file, *, obs=None, svp=None, strict=False) -> RawSurvey:
               "campaign": _get(ini, site_file, "Obs-parameter", "Campaign", ("", 0))[0],
               "lat": origin[0], "lon": origin[1], "height": origin[2],
               "transponders": transponders, "atd_offset": np.asarray(atd, float),
-              "ss_prof": read_svp(svp_path), "ss_prof_source": svp_path.name,
+              "ss_prof": _read_svp(svp_path), "ss_prof_source": svp_path.name,
               "surface_depth": 0.0,
               "position_sigmas": pd.DataFrame(sig, index=["east", "north", "up"]).T,
               "centre_sigmas": (_sigmas(ini, site_file, "dCentPos")
@@ -385,28 +314,20 @@ def read_garpos(site_file, *, obs=None, svp=None, strict=False) -> RawSurvey:
 
 def write_garpos(out_dir, pings, header, *, site="SIM", campaign="0000.sim",
                  date="2024-01-01") -> Path:
-    """Write a survey as GARPOS's three files.
+    """Write a survey as GARPOS's site, shots and profile files; return the site file.
 
     Parameters
     ----------
     out_dir : str or pathlib.Path
-        Created if missing; receives ``SITE.CAMPAIGN-initcfg.ini``,
-        ``SITE.CAMPAIGN-obs.csv`` and ``SITE.CAMPAIGN-svp.csv`` (the site file
-        names the other two by their bare names, found beside it).
     pings : pandas.DataFrame
-        ``transponder``, ``twtt``, ``t_tx``, ``t_rx`` and the antenna ``e/n/u`` and
-        ``head/pitch/roll`` at ``_tx`` and ``_rx`` (as :func:`read_garpos` returns;
-        ``file_flag``, ``set``, ``survey_line`` optional).
+        As :func:`read_garpos` returns.
     header : dict
-        ``lat``, ``lon``, ``height``, ``transponders`` (``east``, ``north``, ``up``),
-        ``atd_offset`` and ``ss_prof`` (``depth``, ``sound_speed``).
+        ``lat``, ``lon``, ``height``, ``transponders``, ``atd_offset`` and ``ss_prof``.
     site, campaign, date : str
-        Written into the site file.
 
     Returns
     -------
     pathlib.Path
-        The site file.
     """
     out = output_folder(out_dir)
     stem = f"{site}.{campaign}"

@@ -1,10 +1,6 @@
 """GNATSS GNSS-acoustic surveys: the config, the travel times, the positions, the profile.
 
-:func:`read_gnatss` reads a ``config.yaml`` and the files it names (travel times,
-transducer positions, sound-speed profile; formats in ``docs/gnssa.md``) into a
-:class:`~bayes_mpem.io.raw.RawSurvey`, one ping per reply, the transponder's internal
-delay removed from the travel time; :func:`write_gnatss` writes one. Format learnt from
-GNATSS's documentation; none of its code or data is used.
+Details: ``docs/gnssa.md``.
 """
 
 from __future__ import annotations
@@ -256,35 +252,25 @@ def _read_travel_times(paths, tp, cfg, positions, strict, skipped):
 def read_gnatss(config, *, strict=False) -> RawSurvey:
     """Read a GNATSS survey: the config and the travel times, positions and profile it names.
 
+    The files and the columns read: ``docs/gnssa.md``.
+
     Parameters
     ----------
     config : str or pathlib.Path
         GNATSS's ``config.yaml``.
     strict : bool, default False
-        Raise on a travel-time or position line that does not parse instead of
-        skipping it with the reason.
+        Raise on a line that does not parse instead of skipping it with the reason.
 
     Returns
     -------
     RawSurvey
-        ``format="gnatss"``; ``pings``: one row per reply, ``line`` and ``file`` of
-        its travel-time line, ``transponder``, ``twtt`` (s, the acoustic two-way
-        time: logged minus internal delay), ``time`` (s from the first
-        transmission), ``t_tx``, ``t_rx`` (J2000 s) and the transducer ``e/n/u``
-        at ``_tx`` and ``_rx`` in the local frame; ``header``: ``site``, ``lat``,
-        ``lon``, ``height`` (the frame's origin: the array centre),
-        ``transponders`` (``east``, ``north``, ``up``, ``internal_delay``),
-        ``ss_prof``, ``surface_depth`` (the sea surface, ellipsoidal height
-        ``geoid_undulation``, in the frame's depth) and ``files``; ``skipped``: a
-        line that does not parse, a line with no reply, or a reply without a
-        position at its transmit or receive time (or one less precise than
-        ``gps_sigma_limit``), with its ``file``.
+        ``format="gnatss"``; one ping a reply (``twtt`` the logged time minus the internal
+        delay), the transducer ``e/n/u`` at ``_tx`` and ``_rx``; the array centre as origin.
 
     Raises
     ------
     FileNotFoundError, InputError
-        An InputError also when no reply finds its positions (the two files'
-        timings do not align: check ``transducer_delay_time``).
+        An InputError also when no reply finds its positions (check ``transducer_delay_time``).
     """
     cfg = _Config(config)
     tp = _transponders(cfg)
@@ -345,24 +331,15 @@ def write_gnatss(out_dir, pings, header, *, site="SIM", internal_delays=None,
     Parameters
     ----------
     out_dir : str or pathlib.Path
-        Receives ``config.yaml``, ``pxp_tt``, ``POS_FREED_TRANS_TWTT`` and ``ctd_sv``.
     pings : pandas.DataFrame
-        As :func:`~bayes_mpem.io.garpos.read_garpos` returns: ``transponder``,
-        ``twtt`` (acoustic, s), ``t_tx`` (s after ``start``; shots of one
-        interrogation share it) and the antenna ``e/n/u`` (and attitude) at
-        ``_tx`` and ``_rx``.
+        As :func:`~bayes_mpem.io.garpos.read_garpos` returns.
     header : dict
-        ``lat``, ``lon``, ``height`` (the frame's origin), ``transponders``
-        (``east``, ``north``, ``up``), ``ss_prof``, and optionally ``atd_offset``
-        (the transducer is written, antenna plus offset) and ``surface_depth``
-        (the profile's sea surface in the frame: ``geoid_undulation`` is written
-        as ``height - surface_depth``, the sea surface's ellipsoidal height).
+        ``lat``, ``lon``, ``height``, ``transponders``, ``ss_prof``, and optionally
+        ``atd_offset`` and ``surface_depth``.
     site : str
     internal_delays : sequence of float, optional
-        Per transponder (s), added to the logged travel times; default 0.2, 0.32,
-        0.44, ... .
+        Per transponder (s); default 0.2, 0.32, 0.44, ... .
     transducer_delay : float, default 0
-        ``transducer_delay_time``: the logged interrogation is this much before ``t_tx``.
     start : datetime.datetime
         The moment ``t_tx = 0``.
     position_sd : float, default 0.02

@@ -1,19 +1,6 @@
 """Pings one line at a time: the line formats of a live stream, validated.
 
-Each line is CSV (after a header line with ``fit``'s pings columns) or one JSON object;
-an empty ``range`` is a ping without reply, a line without ``beacon`` and ``range`` a
-dead-reckoning line, blank and ``#`` lines are skipped (``docs/stream.md``). Anything
-else is an :class:`~bayes_mpem.exceptions.InputError` naming the line and column.
-
-Examples
---------
->>> p = LineParser()
->>> p.parse("time,beacon,range,x,y,depth", 1)
-('header', None)
->>> p.parse("12,1,2875.5,10,20,2440", 2)
-('ping', Ping(time=12.0, beacon='1', range=2875.5, x=10.0, y=20.0, depth=2440.0))
->>> p.parse('{"time": 13, "x": 11, "y": 20}', 3)[1].kind
-'dead_reckoning'
+Details: ``docs/stream.md``.
 """
 
 from __future__ import annotations
@@ -43,15 +30,12 @@ class Ping(NamedTuple):
     Attributes
     ----------
     time : float
-        Seconds.
     beacon : str or None
         None on a dead-reckoning line.
     range : float or None
-        One-way range (m); None for no reply (or a dead-reckoning line).
+        One-way range (m); None for no reply or a dead-reckoning line.
     x, y : float
-        Dead-reckoned position (m).
     depth : float or None
-        Pressure depth (m, positive down); may be None on a dead-reckoning line.
     """
 
     time: float
@@ -131,12 +115,11 @@ def make_ping(values: dict, where: str, beacons=None, *, json_keys: bool = False
     values : dict
         Column name to raw value (str, number or None).
     where : str
-        Where the line came from, for messages (``"line 17"``).
+        For messages (``"line 17"``).
     beacons : collection of str, optional
-        Known beacon ids; a ping of another beacon is refused.
+        Known beacon ids.
     json_keys : bool, default False
-        The values are a JSON object's: a missing key is named as such (with the
-        keys the object has and the likeliest misspelling, ``"t"`` for ``"time"``).
+        The values are a JSON object's (a missing key named with the likeliest misspelling).
 
     Returns
     -------
@@ -145,14 +128,7 @@ def make_ping(values: dict, where: str, beacons=None, *, json_keys: bool = False
     Raises
     ------
     InputError
-        A missing or bad value, a value outside the limits of
-        :data:`~bayes_mpem.io.boundary.LIMITS` (``docs/input.md``), an unknown
-        beacon, a range on a dead-reckoning line.
-
-    Examples
-    --------
-    >>> make_ping({"time": "5", "beacon": "", "range": "", "x": "1", "y": "2"}, "line 2")
-    Ping(time=5.0, beacon=None, range=None, x=1.0, y=2.0, depth=None)
+        A missing or bad value, an unknown beacon, a range on a dead-reckoning line.
     """
     raw_b = values.get("beacon")
     if isinstance(raw_b, (list, dict, bool)):
@@ -181,30 +157,8 @@ def _no_constant(name):
     raise ValueError(f"{name} is not a JSON number")
 
 
-def csv_cells(text: str, where: str) -> list[str]:
-    r"""Split one CSV line into its cells; a malformed line is an :class:`InputError`.
-
-    Parameters
-    ----------
-    text : str
-        One line (no ``\n``).
-    where : str
-        For messages (``"line 17"``).
-
-    Returns
-    -------
-    list of str
-
-    Raises
-    ------
-    InputError
-        A carriage return inside the line, a field too long, an unclosed quote.
-
-    Examples
-    --------
-    >>> csv_cells('1,"a b",3', "line 2")
-    ['1', 'a b', '3']
-    """
+def _csv_cells(text: str, where: str) -> list[str]:
+    """Split one CSV line into its cells; a malformed line is an :class:`InputError`."""
     for bad, name in (("\r", "a carriage return (\\r)"), ("\x00", "a NUL character")):
         at = text.find(bad)
         if at >= 0:
@@ -236,21 +190,18 @@ class LineParser:
         self.header = None
 
     def parse(self, text: str, line_no: int):
-        """Classify and parse one line.
+        """Classify and parse one line (``line_no`` from 1, for messages).
 
         Parameters
         ----------
         text : str
-            The line, with or without its newline.
         line_no : int
-            Its number in the input (from 1), for messages.
 
         Returns
         -------
         kind : str
             One of :data:`KINDS`.
         ping : Ping or None
-            The ping for ``kind == "ping"``.
 
         Raises
         ------
@@ -284,7 +235,7 @@ class LineParser:
             if not isinstance(obj, dict):  # pragma: no cover - "{" starts an object
                 raise InputError(f"{where}: expected a JSON object")
             return "ping", make_ping(obj, where, self.beacons, json_keys=True)
-        cells = csv_cells(s, where)
+        cells = _csv_cells(s, where)
         if self.header is None:
             return "header", self._set_header(cells, where)
         if len(cells) != len(self.header):

@@ -1,7 +1,6 @@
 """Readers of OBSrange EdgeTech deck-box logs (SIO text and WHOI CSV).
 
-Each returns a :class:`~bayes_mpem.io.raw.RawSurvey` that accounts for every
-line of the file (see :mod:`bayes_mpem.io.raw` for the formats).
+Details: ``docs/measured-data.md``.
 """
 
 from __future__ import annotations
@@ -80,18 +79,14 @@ def _sio_ping(g):
 def read_obsrange_sio(path, *, strict=False) -> RawSurvey:
     """Read an SIO EdgeTech deck-box log (OBSrange sample format).
 
-    Every line is classified by its shape (:func:`~bayes_mpem.io.boundary.classify`):
-    a ping line is a ping wherever it stands (with or without the ``=====`` line
-    that ends the header), ``Key: value`` lines before the first ping are the
-    header, ``Event skipped`` lines are the deck box's, and any other line, or a
-    ping whose values are not physically possible (a travel time of 0 ms, a
-    latitude beyond 90 degrees, 75 arc-minutes), is skipped with its reason.
+    Each line is classified by its shape; a line that is not a ping or header, or a ping
+    whose values are not physically possible, is skipped with its reason.
 
     Parameters
     ----------
     path : str or pathlib.Path
     strict : bool, default False
-        Raise on a line that does not parse, instead of skipping it with a reason.
+        Raise on a line that does not parse instead of skipping it.
 
     Returns
     -------
@@ -100,8 +95,6 @@ def read_obsrange_sio(path, *, strict=False) -> RawSurvey:
     Raises
     ------
     FileNotFoundError, InputError
-        A header value that is not a number or not possible (a drop-point latitude
-        of 123) is an error naming the file and line.
     """
     source = str(path)
     rows, skipped, header = [], [], {}
@@ -197,13 +190,7 @@ def _whoi_ping(parts):
 
 
 def read_obsrange_whoi(path, *, strict=False) -> RawSurvey:
-    """Read a WHOI EdgeTech CSV log (OBSrange sample format).
-
-    ``#`` lines are the header (drop point, ``TAT``, deck-box sound speed; a
-    value that is not possible is an error naming the line); a ping line has 7
-    comma-separated fields, all physically possible (travel time, latitude,
-    longitude with minutes below 60, heading); any other line is skipped with its
-    reason.
+    """Read a WHOI EdgeTech CSV log (OBSrange sample format; ``#`` lines are the header).
 
     Parameters
     ----------
@@ -213,9 +200,6 @@ def read_obsrange_whoi(path, *, strict=False) -> RawSurvey:
     Returns
     -------
     RawSurvey
-        ``header`` has the drop point, ``tat`` (s) and ``sound_speed`` (m/s, the
-        deck box's) when present; ``pings`` keep ``rng_m`` (the deck box's
-        range, computed with its sound speed) beside ``twtt``.
 
     Raises
     ------

@@ -1,10 +1,6 @@
 """A survey file as read (:class:`RawSurvey`), its conversion to pings, and reader helpers.
 
-The formats (``obsrange-sio``, ``obsrange-whoi``, ``seagap``, ``garpos``, ``gnatss``)
-are described in ``docs/measured-data.md`` and ``docs/gnssa.md``, their readers in
-:mod:`bayes_mpem.io.obsrange`, :mod:`bayes_mpem.io.seagap`, :mod:`bayes_mpem.io.garpos`
-and :mod:`bayes_mpem.io.gnatss`. Every line is a ping, a header or comment, or skipped
-with its reason (``strict=True`` raises instead).
+Details: ``docs/measured-data.md``.
 """
 
 from __future__ import annotations
@@ -29,16 +25,12 @@ class RawSurvey:
 
     Attributes
     ----------
-    format : str
-    source : str
+    format, source : str
     pings : pandas.DataFrame
-        One row per ping: ``line`` (1-based file line), ``transponder``,
-        ``twtt`` (two-way travel time, s), ``time`` (s since the first ping),
-        ``lat``, ``lon`` (degrees) or ``east``, ``north``, ``up`` (m, SeaGap),
-        plus format-specific columns.
+        One row per ping: ``line`` (1-based), ``transponder``, ``twtt`` (s), ``time`` (s since
+        the first ping), ``lat``, ``lon`` or ``east``, ``north``, ``up``, and the format's columns.
     header : dict
-        Drop point (``lat``, ``lon``, ``depth``), ``tat`` (turn-around time, s)
-        and ``sound_speed`` (m/s) where the file gives them.
+        Drop point (``lat``, ``lon``, ``depth``), ``tat`` (s) and ``sound_speed`` where given.
     skipped : pandas.DataFrame
         ``line``, ``text``, ``reason`` of every line that is neither a ping nor header.
     """
@@ -50,42 +42,30 @@ class RawSurvey:
     skipped: pd.DataFrame = field(repr=False)
 
     def to_pings(self, *, sound_speed=None, tat=None, origin=None, transducer_depth=0.0):
-        """Convert to the project's pings and beacons tables (one-way ranges, local metres).
+        """Convert to the package's pings and beacons tables (one-way ranges, local metres).
 
-        ``range = sound_speed * (twtt - tat) / 2``. Pings are kept in file order;
-        skipped lines are not pings and are not included (see :attr:`skipped`).
+        ``range = sound_speed * (twtt - tat) / 2``; GNSS-A surveys are in local metres already
+        (their vehicle position the transducer's mean at transmit and receive; ``docs/gnssa.md``).
 
         Parameters
         ----------
         sound_speed : float, optional
-            Mean sound speed (m/s); default: the file's deck-box value, else 1500.
+            Mean sound speed (m/s); default the file's, else the profile's harmonic mean, else 1500.
         tat : float, optional
-            Turn-around time (s); default: the file's, else 0.
+            Turn-around time (s); default the file's, else 0.
         origin : tuple of float, optional
-            ``(lat, lon)`` of the local frame; default: the drop point.
+            ``(lat, lon)`` of the local frame; default the drop point.
         transducer_depth : float, default 0
             Depth of the ship's transducer (m, positive down).
 
         Returns
         -------
         pings, beacons : pandas.DataFrame
-            Ready for :func:`bayes_mpem.load_survey`; the beacon is the
-            transponder at its drop point (the position a survey-in refines).
 
         Raises
         ------
         InputError
             For a deck-box survey without a drop point and no ``origin``.
-
-        Notes
-        -----
-        SeaGap, GARPOS and GNATSS surveys are already in local metres: the vehicle
-        position is the mean of the transducer at transmit and at receive
-        (:meth:`transducer_positions`), its depth is minus ``up``, the beacons are
-        the transponders of the survey's control file, and the default sound
-        speed is the harmonic mean of the survey's profile from the surface to
-        the mean transponder depth (the straight-ray equivalent for vertical
-        paths).
         """
         if self.format in ("seagap", *ARRAY_FORMATS):
             return self._to_pings_seagap(sound_speed)
@@ -114,19 +94,15 @@ class RawSurvey:
 
 
     def transducer_positions(self) -> dict:
-        """East, north, up of the ship's transducer at transmit and at receive, per ping.
+        """East, north, up (m) of the ship's transducer at transmit and at receive, per ping.
 
-        GNSS-acoustic formats log the GNSS antenna: SeaGap's ``tr-ant.inp`` lever
-        arm is turned by SeaGap's attitude convention
-        (:func:`~bayes_mpem.io.geodesy.antenna_to_transducer`), GARPOS's
-        ``ATDoffset`` (forward, rightward, downward) by the yaw-pitch-roll one
-        (:func:`~bayes_mpem.io.geodesy.atd_offset_enu`); GNATSS's positions are
-        the transducer's already.
+        The GNSS antenna's positions are turned by each format's lever-arm convention
+        (``docs/gnssa.md``); GNATSS's are the transducer's already.
 
         Returns
         -------
         dict
-            ``{"tx": (east, north, up), "rx": (east, north, up)}`` of numpy arrays (m).
+            ``{"tx": (east, north, up), "rx": (east, north, up)}`` of numpy arrays.
 
         Raises
         ------
@@ -174,13 +150,7 @@ class RawSurvey:
 
 
 def read_lines(path):
-    r"""Read a survey file as text lines (UTF-8, a byte-order mark allowed).
-
-    Lines end at ``\n`` only, as ``grep -n`` counts them
-    (:func:`~bayes_mpem.io.boundary.read_text_lines`): a stray carriage return, form
-    feed or Unicode line separator stays inside its line, where the line's reader
-    refuses it with the column, instead of making two lines of one and shifting
-    every later line number.
+    r"""Read a survey file as text lines (UTF-8), ending at ``\n`` only as ``grep -n`` counts them.
 
     Parameters
     ----------
@@ -192,10 +162,8 @@ def read_lines(path):
 
     Raises
     ------
-    FileNotFoundError
-        No such file.
-    InputError
-        A folder, a binary file, or not UTF-8 text (naming the line).
+    FileNotFoundError, InputError
+        No such file; a folder, a binary file, or not UTF-8 text (naming the line).
     """
     return read_text_lines(path, "survey file")
 
@@ -205,18 +173,13 @@ def finish(fmt, source, rows, header, skipped, transponder):
 
     Parameters
     ----------
-    fmt : str
-        The format's name.
-    source : str
-        The file, for messages.
+    fmt, source, transponder : str
+        The format, the file and the transponder's name.
     rows : list of dict
         One per ping, with an ``_epoch`` (s) that becomes ``time`` from the first ping.
     header : dict
-        Header values.
     skipped : list of tuple
         ``(line, text, reason)`` of every skipped line.
-    transponder : str
-        The transponder's name.
 
     Returns
     -------
@@ -239,22 +202,14 @@ def finish(fmt, source, rows, header, skipped, transponder):
 
 
 def bad(strict, source, line, text, reason, skipped):
-    """Record a line that does not parse, or raise if ``strict``.
+    """Record a line that does not parse in ``skipped``, or raise if ``strict``.
 
     Parameters
     ----------
     strict : bool
-        Raise instead of recording.
-    source : str
-        The file, for messages.
+    source, text, reason : str
     line : int
-        Line number (1-based).
-    text : str
-        The line.
-    reason : str
-        Why it does not parse.
     skipped : list
-        Receives ``(line, text, reason)``.
 
     Raises
     ------

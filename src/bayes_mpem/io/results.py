@@ -1,36 +1,6 @@
 """Writing result files: the one writer behind every result's ``write()`` and every figure.
 
-Each file is written under a temporary name and renamed into place; inside
-``with writing(out_dir):`` the renames wait until the whole run has succeeded, and
-``summary.json`` is written last, listing the run's files: it is the completion marker
-(:func:`read_marker`). NaN and infinities are written as ``null`` and listed under
-``"non_finite"``; wall-clock timings go to ``timings.json``. The convention is described
-in ``docs/architecture.md``.
-
-Examples
---------
->>> import json, tempfile
->>> import pandas as pd
->>> with tempfile.TemporaryDirectory() as tmp:
-...     with writing(tmp + "/run") as out:
-...         _ = write_json(out / "summary.json", {"n": 1, "sd": float("nan")})
-...         _ = write_csv(out / "t.csv", pd.DataFrame({"a": [1, 2]}))
-...     print((out / "summary.json").read_text(), end="")
-...     print((out / "t.csv").read_text(), end="")
-{
-  "n": 1,
-  "sd": null,
-  "non_finite": {
-    "sd": "nan"
-  },
-  "files": [
-    "summary.json",
-    "t.csv"
-  ]
-}
-a
-1
-2
+Details: ``docs/architecture.md``.
 """
 
 from __future__ import annotations
@@ -69,17 +39,7 @@ def check_output_folder(out_dir, option: str = "--out") -> Path:
     Raises
     ------
     InputError
-        The path is a file, lies under a file, or its nearest existing folder
-        cannot be written (permissions, a read-only file system).
-
-    Examples
-    --------
-    >>> import tempfile
-    >>> with tempfile.NamedTemporaryFile() as f:
-    ...     check_output_folder(f.name + "/sub")
-    Traceback (most recent call last):
-    ...
-    bayes_mpem.exceptions.InputError: --out ...: lies under the file ...; expected a folder
+        A file, a path under a file, or a folder that cannot be written.
     """
     out = Path(out_dir)
     if str(out_dir).strip() == "":
@@ -178,29 +138,21 @@ def _alive(pid: int) -> bool:
 
 @contextlib.contextmanager
 def writing(out_dir, *, extend: bool = False, option: str = "--out", create: bool = True):
-    """Write one run's files into ``out_dir``, all or nothing (see the module's description).
-
-    Blocks nest: a ``writing()`` inside another whose folder contains it joins the
-    outer run, so a command's data files, figures and sub-folders are committed
-    together, when the outermost block ends without an exception.
+    """Write one run's files into ``out_dir``, all or nothing; nested blocks join the outer run.
 
     Parameters
     ----------
     out_dir : str or os.PathLike
-        Checked (:func:`check_output_folder`) and created.
     extend : bool, default False
-        Add files to a complete folder, keeping its ``summary.json`` content
-        (``bayes-mpem plot``); by default the run replaces the folder's results.
+        Add files to a complete folder, keeping its ``summary.json`` (``bayes-mpem plot``).
     option : str, default "--out"
-        The option named in the messages of :func:`check_output_folder`.
+        The option named in messages.
     create : bool, default True
-        Create the folder now; ``False`` leaves it to the first file written (a run
-        that fails before writing anything leaves no folder behind).
+        Create the folder now, else at the first file written.
 
     Yields
     ------
     pathlib.Path
-        The folder.
 
     Raises
     ------
@@ -226,15 +178,11 @@ def writing(out_dir, *, extend: bool = False, option: str = "--out", create: boo
 
 
 def abort_open_runs() -> int:
-    """Remove the temporary files of every open run (a process being terminated).
-
-    For a signal handler: the folders keep their previous results (or, killed
-    during a commit, no ``summary.json``), and no ``.partial`` file is left.
+    """Remove the temporary files of every open run (for a signal handler); return how many.
 
     Returns
     -------
     int
-        The number of runs aborted.
     """
     runs = _RUNS.get()
     for run in runs:
@@ -244,9 +192,6 @@ def abort_open_runs() -> int:
 
 def output_folder(out_dir) -> Path:
     """Create ``out_dir`` (and its parents) if missing, after :func:`check_output_folder`.
-
-    Files written into it outside a :func:`writing` block are still written under
-    a temporary name and renamed, one by one.
 
     Parameters
     ----------
@@ -284,14 +229,12 @@ def write_file(path, write) -> Path:
     Parameters
     ----------
     path : str or os.PathLike
-        The final name; its folder must exist.
     write : callable
         ``write(tmp)`` writes the whole file at ``tmp`` (same folder and suffix).
 
     Returns
     -------
     pathlib.Path
-        ``path``.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -312,24 +255,19 @@ def write_file(path, write) -> Path:
 
 
 def write_json(path, document, *, indent: int | None = 2, numpy: bool = False) -> Path:
-    """Write ``document`` as strict JSON and a newline (:mod:`~bayes_mpem.io.documents`).
-
-    A ``summary.json`` inside a :func:`writing` block is the run's completion
-    marker: it is written last, at the commit, with ``"files"`` added.
+    """Write ``document`` as strict JSON (a run's ``summary.json`` last, with ``"files"``).
 
     Parameters
     ----------
     path : str or pathlib.Path
     document : dict or list
     indent : int or None, default 2
-        ``None`` writes one line (used for the large ``history.json``).
     numpy : bool, default False
-        Also accept NumPy scalars and arrays (:func:`~bayes_mpem.io.documents.numpy_to_json`).
+        Also accept NumPy scalars and arrays.
 
     Returns
     -------
     pathlib.Path
-        ``path``.
     """
     path = Path(path)
     run = _current_run(path)
@@ -355,7 +293,6 @@ def write_table(path, table) -> Path:
     Returns
     -------
     pathlib.Path
-        ``path``.
     """
     return write_file(path, lambda tmp: write_table_file(tmp, table))
 
@@ -371,9 +308,19 @@ def write_csv(path, table) -> Path:
     Returns
     -------
     pathlib.Path
-        ``path``.
     """
     return write_table(path, table)
+
+
+def read_document(path) -> dict:
+    """Read the JSON object a result wrote (``summary.json``, ...); ``InputError`` if it is not."""
+    try:
+        doc = json.loads(Path(path).read_text())
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise InputError(f"{path}: not valid JSON ({exc}); the file is damaged") from None
+    if not isinstance(doc, dict):
+        raise InputError(f"{path}: expected a JSON object, got {type(doc).__name__}")
+    return doc
 
 
 def read_marker(folder, *, check: bool = True) -> dict:
@@ -388,27 +335,17 @@ def read_marker(folder, *, check: bool = True) -> dict:
     Returns
     -------
     dict
-        The document. Folders written before the marker existed have no
-        ``"files"``; they are taken as they are.
 
     Raises
     ------
-    FileNotFoundError
-        No ``summary.json``: the folder holds no complete run.
-    InputError
-        ``summary.json`` is not valid JSON (truncated, edited), or a listed file is
-        missing; the message names the file.
+    FileNotFoundError, InputError
+        No ``summary.json``; one that is not valid JSON, or a listed file missing.
     """
     path = Path(folder) / MARKER
     if not path.is_file():
         raise FileNotFoundError(f"{path}: not found; the folder holds no complete output "
                                 "(an interrupted run leaves none)")
-    try:
-        doc = json.loads(path.read_text())
-    except (ValueError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: not valid JSON ({exc}); the file is damaged") from None
-    if not isinstance(doc, dict):
-        raise InputError(f"{path}: expected a JSON object, got {type(doc).__name__}")
+    doc = read_document(path)
     if check:
         missing = [f for f in doc.get("files", []) if not (Path(folder) / f).exists()]
         if missing:
@@ -432,10 +369,7 @@ def _uniform_column(col):
 
 
 def write_parquet(path, table) -> Path:
-    """Write a table as Parquet (pyarrow) without its index, through :func:`write_file`.
-
-    Object columns that mix kinds of values (text and numbers, lists) are stored
-    as JSON text, so that every column has one Parquet type.
+    """Write a table as Parquet without its index (mixed object columns as JSON text).
 
     Parameters
     ----------
@@ -445,16 +379,6 @@ def write_parquet(path, table) -> Path:
     Returns
     -------
     pathlib.Path
-        ``path``.
-
-    Examples
-    --------
-    >>> import tempfile
-    >>> import pandas as pd
-    >>> with tempfile.TemporaryDirectory() as tmp:
-    ...     p = write_parquet(tmp + "/t.parquet", pd.DataFrame({"a": [1, None], "b": ["x", 2]}))
-    ...     pd.read_parquet(p)["b"].tolist()
-    ['x', '2']
     """
     table = table.copy()
     for name in table.columns:

@@ -1,8 +1,6 @@
 """Reader of SeaGap GNSS-acoustic surveys (``obsdata.inp`` and companion files).
 
-Returns a :class:`~bayes_mpem.io.raw.RawSurvey` with the transducer positions
-from the antenna track and the lever arm, the transponders' prior positions and
-the sound-speed profile (see :mod:`bayes_mpem.io.raw` for the format).
+Details: ``docs/gnssa.md``.
 """
 
 from __future__ import annotations
@@ -112,36 +110,26 @@ def _companions(here, paths):
 
 
 def read_seagap(obsdata, *, pxp=None, tr_ant=None, ss_prof=None, strict=False) -> RawSurvey:
-    """Read SeaGap GNSS-acoustic data (``obsdata.inp`` and its companion files).
+    """Read SeaGap GNSS-acoustic data (``obsdata.inp`` and its companion files; ``docs/gnssa.md``).
 
-    Every ``obsdata.inp`` line is a ping only when its 18 fields are exact: the
-    transponder, shot and flag integers (``1.7`` is not truncated to 1), every
-    number finite and physically possible, and the transponder one of
-    ``pxp-ini.inp`` (when read); otherwise the line is skipped with its reason.
+    A line is a ping only when its 18 fields are exact (integers whole, numbers finite and
+    possible, the transponder one of ``pxp-ini.inp``); otherwise it is skipped with its reason.
 
     Parameters
     ----------
     obsdata : str or pathlib.Path
-        ``obsdata.inp``: transponder, two-way travel time (s), transmit time,
-        antenna E N U (m) and heading pitch roll at transmit, the same at
-        receive, shot number, flag.
     pxp, tr_ant, ss_prof : str or pathlib.Path, optional
-        ``pxp-ini.inp`` (transponder E N U and 3 more columns), ``tr-ant.inp``
-        (transducer offset from the antenna, vessel frame, m), ``ss_prof.inp``
-        (depth m, sound speed m/s). Default: beside ``obsdata``, when present.
+        ``pxp-ini.inp``, ``tr-ant.inp``, ``ss_prof.inp``; default beside ``obsdata``, if there.
     strict : bool, default False
 
     Returns
     -------
     RawSurvey
-        ``pings`` has the 18 columns (``twtt`` in s, ``time`` from ``t_tx``);
-        ``header`` has ``transponders`` (DataFrame of E N U), ``tr_ant`` and
-        ``ss_prof`` (DataFrame) when read.
 
     Raises
     ------
     FileNotFoundError, InputError
-        Companion files must parse completely (they are small and authoritative).
+        Companion files must parse completely.
     """
     obsdata = Path(obsdata)
     header = _companions(obsdata.parent, {"transponders": pxp, "tr_ant": tr_ant,

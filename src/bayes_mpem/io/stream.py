@@ -1,15 +1,4 @@
-"""Where a live stream's lines come from and where the answers go.
-
-Sources yield ``(line_number, text)`` in arrival order: :class:`FdLines` (a file
-descriptor, responsive to a stop request within ``poll`` seconds), :class:`UdpLines`
-(datagrams) and :class:`ReplayLines` (a recorded file at its own time stamps). Sinks
-(:func:`open_sink`): standard output (``-``), a file or ``udp://HOST:PORT``.
-
-Examples
---------
->>> parse_address("udp://127.0.0.1:9000"), parse_address("-")
-(('udp', ('127.0.0.1', 9000)), ('stdio', None))
-"""
+"""Where a live stream's lines come from and where the answers go."""
 
 from __future__ import annotations
 
@@ -34,7 +23,7 @@ MAX_DATAGRAM = 65535
 
 
 def parse_address(spec: str, *, option: str = "--in"):
-    """Split ``-``, ``udp://HOST:PORT`` or a file path.
+    """Split ``-``, ``udp://HOST:PORT`` or a file path into ``(kind, where)``.
 
     Parameters
     ----------
@@ -50,7 +39,6 @@ def parse_address(spec: str, *, option: str = "--in"):
     Raises
     ------
     InputError
-        A malformed ``udp://`` address.
     """
     if spec == "-":
         return "stdio", None
@@ -194,13 +182,10 @@ class ReplayLines:
     ----------
     stop : threading.Event
     path : str or pathlib.Path
-        CSV (with its header) or JSON lines, as a live stream.
     speed : float or None
         ``1`` real time, ``k`` k times faster, None as fast as possible.
     max_gap : float, default inf
-        A line timed more than this after the last scheduled one, or before it,
-        or outside the limits, is released at once (the navigator refuses it on
-        its line) and does not move the schedule.
+        A line timed more than this after the last one, or before it, is released at once.
     """
 
     partial = b""
@@ -246,14 +231,11 @@ class LineSink:
     ----------
     spec : str
         ``-`` (standard output), a file path, or ``udp://HOST:PORT``.
-
     append : bool, default False
-        A file is appended to instead of replaced.
 
     Raises
     ------
     InputError
-        A malformed address, a folder or a file that cannot be written.
     """
 
     def __init__(self, spec: str, *, append: bool = False):

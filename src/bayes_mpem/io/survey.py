@@ -1,8 +1,4 @@
-"""Reading and validating ping and beacon tables: the one place where user input is checked.
-
-An empty ``range`` cell is a ping with no reply; any other bad cell raises one
-:class:`InputError` naming source, line (CSV) or row label (DataFrame), column, expected and got.
-"""
+"""Reading and validating ping and beacon tables: the one place where user input is checked."""
 
 from __future__ import annotations
 
@@ -30,21 +26,13 @@ class BeaconData:
     Attributes
     ----------
     beacon : str
-        Beacon id.
     position : numpy.ndarray
-        Shape (3,): beacon x, y, depth (depth positive down).
+        Beacon x, y, depth (positive down).
     range, x, y, depth, time : numpy.ndarray
-        Shape (n,): reported one-way ranges (finite, > 0) and vehicle position/time per reply.
+        Reported one-way ranges and the vehicle's position and time per reply.
     rows : numpy.ndarray
-        Shape (n,) int64: 0-based positions of these pings in :attr:`Survey.table`.
+        Positions of these pings in :attr:`Survey.table`.
     n_no_reply : int
-        Pings to this beacon that got no reply.
-
-    Examples
-    --------
-    >>> bd = BeaconData.from_arrays([10.0, 11.0], [0, 1], [0, 0], [5, 5], [0, 0, 10])
-    >>> bd.n, bd.beacon
-    (2, '1')
     """
 
     beacon: str
@@ -77,26 +65,20 @@ class BeaconData:
         range, x, y, depth : array_like
             1-D, equal length, finite; ``range`` > 0.
         position : array_like
-            Beacon x, y, depth (length 3, finite).
+            Beacon x, y, depth.
         time : array_like, optional
-            Ping times; default ``arange(n)``.
+            Default ``arange(n)``.
         beacon : str or int, optional
-            Beacon id (stored as str), default ``"1"``.
+            Default ``"1"``.
 
         Returns
         -------
         BeaconData
-            With ``rows = arange(n)`` and ``n_no_reply = 0``.
 
         Raises
         ------
         InputError
             Naming the argument and the first bad index.
-
-        Examples
-        --------
-        >>> BeaconData.from_arrays([5.0], [0.0], [0.0], [1.0], [3, 4, 1]).position.tolist()
-        [3.0, 4.0, 1.0]
         """
         def as_float(arg: str, a: Any) -> np.ndarray:
             try:
@@ -139,33 +121,20 @@ class BeaconData:
 class Survey:
     """All pings (no-replies included) and the beacons, validated; see :func:`load_survey`.
 
-    Arrays are read-only with one entry per row of :attr:`table` (RangeIndex 0..N-1).
-
     Attributes
     ----------
     table : pandas.DataFrame
-        Pings as given (CSV: text columns as read; DataFrame: a copy), extra columns kept.
+        Pings as given, extra columns kept.
     beacon : numpy.ndarray
-        (N,) object array of str beacon ids.
+        (N,) str beacon ids.
     time, range, x, y, depth : numpy.ndarray
-        (N,) float64; ``range`` is NaN for a ping with no reply.
+        (N,) float64, read-only; ``range`` is NaN for a ping with no reply.
     beacons : pandas.DataFrame
-        Index = beacon id (str), float columns ``x``, ``y``, ``depth``, in file order.
+        Index = beacon id, float columns ``x``, ``y``, ``depth``, in file order.
     pings_source, beacons_source : str
-        Labels of the inputs (path or ``"pings DataFrame"``).
     lines : numpy.ndarray or None
-        ``(N,)`` file line of each row (CSV; as ``grep -n``), else ``None``.
+        File line of each row (CSV), else ``None``.
     comment_lines : int
-        ``#`` comment lines skipped in the pings file.
-
-    Examples
-    --------
-    >>> pings = pd.DataFrame({"time": [0, 1], "beacon": ["A", "A"], "range": [10.0, None],
-    ...                       "x": [0, 1], "y": [0, 0], "depth": [5, 5]})
-    >>> beacons = pd.DataFrame({"beacon": ["A"], "x": [3], "y": [4], "depth": [20]})
-    >>> s = load_survey(pings, beacons)
-    >>> len(s), int(s.no_reply.sum()), s.for_beacon("A").n
-    (2, 1, 1)
     """
 
     table: pd.DataFrame
@@ -182,12 +151,11 @@ class Survey:
     comment_lines: int = 0
 
     def row_name(self, pos: int) -> str:
-        """Where row ``pos`` is in the input: ``"line 17"`` (CSV) or ``"row 15"``.
+        """Where row ``pos`` (0-based) is in the input: ``"line 17"`` (CSV) or ``"row 15"``.
 
         Parameters
         ----------
         pos : int
-            0-based position in :attr:`table`.
 
         Returns
         -------
@@ -217,30 +185,20 @@ class Survey:
                 f"beacons {self.beacon_ids}, from {self.pings_source!r})")
 
     def for_beacon(self, beacon_id: Any) -> BeaconData:
-        """Select the replies of one beacon.
+        """Select the replies of one beacon (``1`` and ``"1"`` are the same id).
 
         Parameters
         ----------
         beacon_id : str or int
-            Beacon id (compared as a stripped string; ``1`` and ``"1"`` are the same).
 
         Returns
         -------
         BeaconData
-            Replies only; ``rows`` index :attr:`table`, ``n_no_reply`` counts the rest.
 
         Raises
         ------
         InputError
-            If the id is not in the beacons table (the message lists the known ids).
-
-        Examples
-        --------
-        >>> s = load_survey(pd.DataFrame({"time": [0], "beacon": [7], "range": [9.5], "x": [0],
-        ...                               "y": [0], "depth": [1]}),
-        ...                 pd.DataFrame({"beacon": ["7"], "x": [0], "y": [0], "depth": [10]}))
-        >>> s.for_beacon(7).range.tolist()
-        [9.5]
+            If the id is not in the beacons table.
         """
         bid = as_beacon_id(beacon_id)
         if bid not in self.beacons.index:
@@ -260,10 +218,8 @@ def load_survey(pings: Any, beacons: Any = None) -> Survey:
     Parameters
     ----------
     pings : str, os.PathLike, pandas.DataFrame or Survey
-        The pings table; an existing :class:`Survey` is returned unchanged (``beacons`` must
-        then be None).
+        An existing :class:`Survey` is returned unchanged (``beacons`` must then be None).
     beacons : str, os.PathLike or pandas.DataFrame
-        The beacons table.
 
     Returns
     -------
@@ -271,10 +227,8 @@ def load_survey(pings: Any, beacons: Any = None) -> Survey:
 
     Raises
     ------
-    FileNotFoundError
-        If a path does not exist.
-    InputError
-        On any invalid input, including pings to beacons absent from the beacons table.
+    FileNotFoundError, InputError
+        A path that does not exist; any invalid input (all problems in one message).
 
     Examples
     --------

@@ -1,21 +1,4 @@
-r"""Table files in and out: CSV (a typed C parser, exact line numbers) and Parquet.
-
-:func:`read_table_file` reads a pings or beacons file into a text
-:class:`pandas.DataFrame` with the file line of every row, for :mod:`~bayes_mpem.io.tables`
-to validate: CSV by pyarrow's reader when no field is quoted (else by :mod:`csv`),
-Parquet with its column types. :func:`table_to_csv_bytes` writes CSV byte for byte as
-``DataFrame.to_csv(index=False)`` does, faster.
-
-Examples
---------
->>> import tempfile, pathlib
->>> with tempfile.TemporaryDirectory() as tmp:
-...     p = pathlib.Path(tmp) / "t.csv"
-...     _ = p.write_text("# made by hand\na,b\n1,x\n\n2,y\n")
-...     t = read_table_file(p, "t.csv")
->>> t.frame["b"].tolist(), t.lines.tolist(), t.comments
-(['x', 'y'], [3, 5], 1)
-"""
+r"""Table files in and out: CSV (a typed C parser, exact line numbers) and Parquet."""
 
 from __future__ import annotations
 
@@ -46,7 +29,7 @@ class TableText:
     frame : pandas.DataFrame
         Column names stripped, RangeIndex; CSV: every cell as text.
     lines : numpy.ndarray or None
-        ``(n,)`` int: the file line of each row (CSV), ``None`` for Parquet.
+        The file line of each row (CSV), ``None`` for Parquet.
     comments : int
         ``#`` comment lines skipped (CSV).
     """
@@ -56,35 +39,19 @@ class TableText:
     comments: int = 0
 
 
-def is_parquet(path) -> bool:
-    """Whether ``path`` names a Parquet file (by its extension).
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-
-    Returns
-    -------
-    bool
-
-    Examples
-    --------
-    >>> is_parquet("pings.parquet"), is_parquet("pings.csv")
-    (True, False)
-    """
+def _is_parquet(path) -> bool:
+    """Whether ``path`` names a Parquet file (by its extension)."""
     return Path(path).suffix.lower() in PARQUET_SUFFIXES
 
 
 def read_table_file(path, label: str, what: str = "table file") -> TableText:
-    """Read a CSV or Parquet table file (see the module's description).
+    """Read a CSV or Parquet table file (CSV by pyarrow unless a field is quoted; lines kept).
 
     Parameters
     ----------
     path : str or os.PathLike
-    label : str
-        The file's name in messages.
-    what : str
-        What the file is, in messages (``"pings file"``).
+    label, what : str
+        The file's name and what it is, for messages.
 
     Returns
     -------
@@ -92,13 +59,10 @@ def read_table_file(path, label: str, what: str = "table file") -> TableText:
 
     Raises
     ------
-    FileNotFoundError
-        No such file.
-    InputError
-        A folder, an unreadable, binary, non-UTF-8, empty or ragged file, or one that
-        is not comma-separated (the message says what it looks like and where).
+    FileNotFoundError, InputError
+        No file; an unreadable, binary, non-UTF-8, empty, ragged or not comma-separated file.
     """
-    if is_parquet(path):
+    if _is_parquet(path):
         return _read_parquet(path, label, what)
     raw = open_input(path, what)
     if raw.startswith(b"\xef\xbb\xbf"):
@@ -258,24 +222,15 @@ def _check_shape(label, header, records, where, kept):
 
 
 def format_floats(values) -> pa.Array:
-    """Format floats as ``repr`` does ('' for NaN), vectorised.
-
-    pyarrow's shortest digits; Python's ``repr`` only where pyarrow lays them out otherwise
-    (``1e-05``, ``1000000000000000.0``). What ``DataFrame.to_csv`` and ``json.dumps`` write.
+    """Format floats as ``repr`` does ('' for NaN), vectorised by pyarrow.
 
     Parameters
     ----------
     values : array_like
-        Floats.
 
     Returns
     -------
     pyarrow.StringArray
-
-    Examples
-    --------
-    >>> format_floats([0.0, 1e-5, 2.5, float("nan")]).to_pylist()
-    ['0.0', '1e-05', '2.5', '']
     """
     v = np.asarray(values, dtype=float)
     arrow = pc.cast(pa.array(v), pa.string())
@@ -390,8 +345,6 @@ def _quote(arr: pa.Array) -> pa.Array:
 def frame_as_text(frame: pd.DataFrame) -> pd.DataFrame:
     """Return every cell as the text CSV would hold ('' for missing; floats as ``repr``).
 
-    What a Parquet table becomes when it is read back like a CSV file.
-
     Parameters
     ----------
     frame : pandas.DataFrame
@@ -399,12 +352,6 @@ def frame_as_text(frame: pd.DataFrame) -> pd.DataFrame:
     Returns
     -------
     pandas.DataFrame
-        Same columns, text cells.
-
-    Examples
-    --------
-    >>> frame_as_text(pd.DataFrame({"p": [0.5, float("nan")], "s": ["a", None]}))["p"].tolist()
-    ['0.5', '']
     """
     cols = {}
     for j, name in enumerate(frame.columns):
@@ -430,12 +377,6 @@ def table_to_csv_bytes(frame: pd.DataFrame) -> bytes:
     Returns
     -------
     bytes
-
-    Examples
-    --------
-    >>> f = pd.DataFrame({"a": ["x", "y,z"], "p": [0.5, float("nan")], "n": [1, 2]})
-    >>> table_to_csv_bytes(f) == f.to_csv(index=False).encode()
-    True
     """
     header = frame.head(0).to_csv(index=False).encode()
     if len(frame) == 0:
@@ -464,7 +405,7 @@ def write_table_file(path, frame: pd.DataFrame) -> None:
     frame : pandas.DataFrame
         Written without its index.
     """
-    if is_parquet(path):
+    if _is_parquet(path):
         import pyarrow.parquet as pq
 
         pq.write_table(pa.Table.from_pandas(frame, preserve_index=False), path)

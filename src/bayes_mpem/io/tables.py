@@ -1,9 +1,4 @@
-"""Reading and checking the pings and beacons tables (CSV or Parquet files, or DataFrames).
-
-Every problem is reported with its column and row, all of a table's problems at once,
-as one :class:`~bayes_mpem.exceptions.InputError`; values must lie within
-:data:`~bayes_mpem.io.boundary.LIMITS`.
-"""
+"""Reading and checking the pings and beacons tables (CSV or Parquet files, or DataFrames)."""
 
 from __future__ import annotations
 
@@ -60,17 +55,14 @@ def load_table(source: Any, name: str | None, kind: str) -> _Table:
     name : str or None
         Label for messages (default: the path, or ``"<kind> DataFrame"``).
     kind : str
-        What the table is (``"pings"``, ``"beacons"``, ...), for messages.
 
     Returns
     -------
     _Table
-        ``frame``, ``source``, and the file ``lines`` or DataFrame ``labels`` of its rows.
 
     Raises
     ------
     FileNotFoundError, InputError, TypeError
-        As :func:`~bayes_mpem.io.table_files.read_table_file`; duplicated column names.
     """
     if isinstance(source, pd.DataFrame):
         label = name or f"{kind} DataFrame"
@@ -103,12 +95,10 @@ def check_columns(table: _Table, required: tuple[str, ...], kind: str) -> None:
     table : _Table
     required : tuple of str
     kind : str
-        What the table is, for messages.
 
     Raises
     ------
     InputError
-        Naming the missing columns (and what the header looks like) or the empty table.
     """
     missing = [c for c in required if c not in table.frame.columns]
     if missing:
@@ -180,19 +170,16 @@ def _parse_numbers(col: pd.Series) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def numeric_column(table: _Table, column: str, problems: Problems, *,
                    allow_missing: bool = False, positive: bool = False) -> np.ndarray:
-    """Parse and check one numeric column, vectorised; problems go to ``problems``.
+    """Parse and check one numeric column (vectorised); bad cells go to ``problems``.
 
     Parameters
     ----------
     table : _Table
     column : str
     problems : Problems
-        Receives every bad cell (not a number, not finite, not positive, missing, or
-        beyond the physical limits of :data:`~bayes_mpem.io.boundary.LIMITS`).
     allow_missing : bool, default False
-        An empty cell is allowed (NaN: the ``range`` of a ping with no reply).
+        Empty cells allowed (NaN: a ping with no reply).
     positive : bool, default False
-        Values must be > 0.
 
     Returns
     -------
@@ -252,14 +239,11 @@ def pings_table(source: Any, name: str | None) -> tuple[_Table, dict[str, np.nda
     Parameters
     ----------
     source : str, os.PathLike or pandas.DataFrame
-        The pings table (CSV or Parquet file, or a frame).
     name : str or None
-        How the messages name a frame.
 
     Returns
     -------
     table, arrays, problems
-        The table read, its numeric columns, and the problems found so far.
     """
     table = load_table(source, name, "pings")
     check_columns(table, PING_COLUMNS, "pings")
@@ -285,7 +269,7 @@ def read_pings(source: Any, *, name: str | None = None
     Parameters
     ----------
     source : str, os.PathLike or pandas.DataFrame
-        CSV path (read entirely as text) or a DataFrame (copied, never modified).
+        A CSV or Parquet path, or a DataFrame (never modified).
     name : str, optional
         Label for error messages; default the path or ``"pings DataFrame"``.
 
@@ -294,14 +278,12 @@ def read_pings(source: Any, *, name: str | None = None
     table : pandas.DataFrame
         The pings as given (CSV: all text), column names stripped, RangeIndex.
     arrays : dict of str to numpy.ndarray
-        Keys :data:`PING_COLUMNS`: float64 (``range`` NaN = no reply); ``beacon`` str objects.
+        Keys :data:`PING_COLUMNS` (``range`` NaN = no reply).
 
     Raises
     ------
-    FileNotFoundError
-        If the path does not exist.
-    InputError
-        On missing columns, an empty table, or any bad cell (all problems in one message).
+    FileNotFoundError, InputError
+        No such file; missing columns, an empty table, or bad cells (all in one message).
 
     Examples
     --------
@@ -322,21 +304,16 @@ def beacons_frame(source: Any, name: str | None) -> tuple[pd.DataFrame, str]:
     Parameters
     ----------
     source : Any
-        As :func:`read_beacons`.
     name : str or None
-        Label of the source in messages.
 
     Returns
     -------
     frame : pandas.DataFrame
-        Columns ``beacon``, ``x``, ``y``, ``depth``.
     source : str
-        The source's label.
 
     Raises
     ------
     InputError
-        Missing columns, bad values or repeated beacon ids (naming the rows).
     """
     table = load_table(source, name, "beacons")
     check_columns(table, BEACON_COLUMNS, "beacons")
@@ -358,12 +335,11 @@ def beacons_frame(source: Any, name: str | None) -> tuple[pd.DataFrame, str]:
 
 
 def read_beacons(source: Any, *, name: str | None = None) -> pd.DataFrame:
-    """Read and validate a beacons table.
+    """Read and validate a beacons table (``beacon``, ``x``, ``y``, ``depth``; extras ignored).
 
     Parameters
     ----------
     source : str, os.PathLike or pandas.DataFrame
-        CSV path or DataFrame with columns ``beacon``, ``x``, ``y``, ``depth`` (extras ignored).
     name : str, optional
         Label for error messages; default the path or ``"beacons DataFrame"``.
 
@@ -374,15 +350,7 @@ def read_beacons(source: Any, *, name: str | None = None) -> pd.DataFrame:
 
     Raises
     ------
-    FileNotFoundError
-        If the path does not exist.
-    InputError
-        On missing columns, an empty table, bad coordinates, empty or duplicated ids.
-
-    Examples
-    --------
-    >>> read_beacons(pd.DataFrame({"beacon": [1, 2], "x": [0, 100], "y": [0, 0],
-    ...                            "depth": [50, 50]})).index.tolist()
-    ['1', '2']
+    FileNotFoundError, InputError
+        No such file; missing columns, bad coordinates, empty or duplicated ids.
     """
     return beacons_frame(source, name)[0]

@@ -1,23 +1,6 @@
 """Surveys given as travel times, two-way ranges or latitude/longitude, in the package's units.
 
-The LBL commands work on one-way ranges in metres in a local frame; :func:`convert_survey`
-converts two-way ranges (halved), travel times (``(t - turnaround) * sound_speed``,
-halved if two-way; the speed a constant, or each ping's harmonic mean through a
-sound-speed profile between the vehicle's and the beacon's depths) and ``lat``, ``lon``
-columns (projected onto the tangent plane at ``origin``). A converted ``range`` keeps its
-input as ``range_input``; the converted tables remember their file's lines, so later
-messages name them (``docs/input.md``).
-
-Examples
---------
->>> import pandas as pd
->>> pings = pd.DataFrame({"time": [0.0], "beacon": ["1"], "range": [4.013], "x": [0.0],
-...                       "y": [0.0], "depth": [10.0]})
->>> beacons = pd.DataFrame({"beacon": ["1"], "x": [0.0], "y": [0.0], "depth": [3000.0]})
->>> p, b = convert_survey(pings, beacons, ranges="two-way", travel_time=True,
-...                       sound_speed=1500.0, turnaround=0.013)
->>> round(float(p["range"][0]), 6), float(p["range_input"][0])
-(3000.0, 4.013)
+Details: ``docs/input.md``.
 """
 
 from __future__ import annotations
@@ -89,31 +72,28 @@ def convert_survey(pings, beacons, *, ranges: str = "one-way", travel_time: bool
     ranges : {"one-way", "two-way"}
         What the ``range`` column holds.
     travel_time : bool, default False
-        The ``range`` column holds travel times in seconds.
+        The ``range`` column holds travel times (s).
     sound_speed : float, optional
         Mean sound speed (m/s), for travel times.
     turnaround : float, default 0
         The beacons' turn-around time (s), included in each travel time.
     origin : (float, float), optional
-        Latitude and longitude (degrees) of the local frame's origin, for tables in
-        ``lat``, ``lon``; default the beacons' mean position.
+        Latitude, longitude of the local frame's origin (tables in ``lat``, ``lon``);
+        default the beacons' mean position.
     ssp : SoundSpeedProfile, optional
-        Instead of ``sound_speed``: a profile
-        (:class:`~bayes_mpem.acoustics.profile.SoundSpeedProfile`, or anything with its
-        ``harmonic_mean(z_top, z_bottom)``); each travel time is converted with the
-        harmonic-mean speed between the vehicle's and the beacon's depths (ray bending and
-        the horizontal offset neglected).
+        Instead of ``sound_speed``: each travel time is converted with the harmonic-mean
+        speed between the vehicle's and the beacon's depths.
 
     Returns
     -------
     pings, beacons : pandas.DataFrame
-        Every input column kept; ``range`` (and ``range_input``), ``x``, ``y`` as floats.
+        Every input column kept; ``range`` (input kept as ``range_input``), ``x``, ``y``.
 
     Raises
     ------
     InputError
-        A bad option, a bad cell (naming the file, line and column), a travel time not
-        longer than the turn-around time, tables with different position columns.
+        A bad option or cell (naming file, line, column), a travel time not longer than the
+        turn-around time, tables with different position columns.
     """
     _check(ranges, travel_time, sound_speed, turnaround, origin, ssp)
     p = load_table(pings, None, "pings")

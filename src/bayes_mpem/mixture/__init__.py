@@ -1,10 +1,4 @@
-"""What the mixture models of both problems share (log space, broadcasting).
-
-:mod:`.densities` holds the component log-densities (Gaussian, uniform and
-first-arrival outliers) and the log-sum-exp of a mixture; :mod:`.gauss_newton`
-the safeguard of a Gauss-Newton M-step; :mod:`.em` the EM loop (convergence,
-history, warning, final E-step) that the EMs of both problems run on.
-"""
+"""What the mixture models of both problems share: log-densities, EM loop, safeguarded step."""
 
 from .densities import (
     CLASSES,

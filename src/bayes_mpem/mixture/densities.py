@@ -1,20 +1,4 @@
-"""Component log-densities of a mixture and their log-sum-exp, problem-independent.
-
-The Gaussian (:func:`gaussian_logpdf`), uniform (:func:`uniform_logpdf`) and
-first-arrival (:func:`first_arrival_logpdf`) log-densities, and the log-sum-exp of
-weighted components (:func:`log_mix`, :func:`responsibilities`), shared by
-:mod:`bayes_mpem.lbl` and :mod:`bayes_mpem.survey_in`. Everything broadcasts and stays in
-log space.
-
-Examples
---------
->>> import numpy as np
->>> round(float(gaussian_logpdf(0.0, 1.0)), 6)
--0.918939
->>> resp, lse = responsibilities(np.log([[0.25, 0.75]]))
->>> np.round(resp, 12).tolist(), round(float(lse[0]), 12)
-([[0.25, 0.75]], 0.0)
-"""
+"""Component log-densities of a mixture and their log-sum-exp (broadcasting, in log space)."""
 
 from __future__ import annotations
 
@@ -36,15 +20,12 @@ def gaussian_logpdf(resid, sigma):
 
     Parameters
     ----------
-    resid : array_like
-        Measurement minus prediction.
-    sigma : array_like
-        Standard deviation (same unit as ``resid``).
+    resid, sigma : array_like
+        Measurement minus prediction, and its standard deviation.
 
     Returns
     -------
     numpy.ndarray
-        ``-(resid / sigma)**2 / 2 - log(sigma) - log(sqrt(2 pi))``.
 
     Examples
     --------
@@ -68,12 +49,6 @@ def uniform_logpdf(lo, hi, *, min_width=1e-9):
     Returns
     -------
     numpy.ndarray
-        ``-log(max(hi - lo, min_width))``.
-
-    Examples
-    --------
-    >>> round(float(uniform_logpdf(10.0, 20.0)), 6)
-    -2.302585
     """
     return -np.log(np.maximum(np.subtract(hi, lo), min_width))
 
@@ -81,29 +56,21 @@ def uniform_logpdf(lo, hi, *, min_width=1e-9):
 def first_arrival_logpdf(x, arrival, lo, hi, *, min_early, min_width=1e-9):
     """Log-density of outliers reported by a first-arrival detector (broadcasts).
 
-    A detector reporting the first threshold crossing cannot report a false
-    detection after the true arrival: outliers are uniform between the window
-    start ``lo`` and the true ``arrival``, with a share :data:`EPS_LATE` of the
-    density spread over the whole window ``[lo, hi]``.
+    A first-arrival detector cannot report a false detection after the true arrival:
+    outliers are uniform on ``[lo, arrival]``, a share :data:`EPS_LATE` spread over ``[lo, hi]``.
 
     Parameters
     ----------
-    x : array_like
-        Measured values.
-    arrival : array_like
-        Predicted true arrival of each measurement.
+    x, arrival : array_like
+        Measured values and the predicted true arrival of each.
     lo, hi : array_like
         Window bounds.
-    min_early : float
-        Floor on ``arrival - lo`` (the early part's width).
-    min_width : float, default 1e-9
-        Floor on ``hi - lo``.
+    min_early, min_width : float
+        Floors on ``arrival - lo`` and on ``hi - lo`` (default 1e-9).
 
     Returns
     -------
     numpy.ndarray
-        ``log((1 - EPS_LATE) / (arrival - lo) + EPS_LATE / (hi - lo))`` where
-        ``x <= arrival``, ``log(EPS_LATE / (hi - lo))`` after it.
 
     Examples
     --------
@@ -125,20 +92,14 @@ def log_mix(ldp, lmp, lol, log_weights):
     ldp, lmp, lol : array_like
         Component log densities (broadcastable).
     log_weights : sequence of three array_like
-        Log mixing weights of dp, mp, ol (broadcastable).
+        Log mixing weights of dp, mp, ol.
 
     Returns
     -------
     joint : tuple of numpy.ndarray
         The three ``log w_j + log p(z|j)``.
     lse : numpy.ndarray
-        Per-range log-likelihood ``log sum_j w_j p(z|j)``.
-
-    Examples
-    --------
-    >>> _, lse = log_mix(np.log(0.2), np.log(0.3), np.log(0.5), [0.0, 0.0, 0.0])
-    >>> round(float(lse), 12)
-    0.0
+        Per-range log-likelihood.
     """
     a = ldp + log_weights[0]
     b = lmp + log_weights[1]
@@ -154,15 +115,12 @@ def responsibilities(log_joint):
     Parameters
     ----------
     log_joint : numpy.ndarray
-        ``log w_j + log p(x|j)``, one column per class; every row needs one
-        finite entry.
+        ``log w_j + log p(x|j)``, one column per class; every row needs one finite entry.
 
     Returns
     -------
-    resp : numpy.ndarray
-        Class probabilities, same shape, rows summing to 1.
-    log_norm : numpy.ndarray
-        ``log sum_j w_j p(x|j)`` of every row.
+    resp, log_norm : numpy.ndarray
+        Class probabilities (rows summing to 1) and ``log sum_j w_j p(x|j)`` of every row.
 
     Examples
     --------
@@ -187,11 +145,6 @@ def safe_log(w):
     Returns
     -------
     numpy.ndarray
-
-    Examples
-    --------
-    >>> safe_log([1.0, 0.0]).tolist()
-    [0.0, -inf]
     """
     w = np.asarray(w, float)
     with np.errstate(divide="ignore"):

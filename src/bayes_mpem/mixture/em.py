@@ -1,10 +1,7 @@
-"""The EM loop the mixture models of the package share.
+"""The EM loop the mixture models of the package share (docs/architecture.md, "One EM loop").
 
-:func:`run_em` owns the loop, the convergence test, the history, the
-:class:`~bayes_mpem.exceptions.ConvergenceWarning` and the final E-step (so the
-returned probabilities are those of the returned parameters); :func:`best_run`
-keeps the best of several starts. A model (:class:`EMModel`) gives its E-step
-and M-step, as in scikit-learn's ``BaseMixture`` (``sklearn/mixture/_base.py``).
+A model (:class:`EMModel`) gives its E-step and M-step; :func:`run_em` owns the loop,
+convergence, history, warning and final E-step, as scikit-learn's ``BaseMixture`` does.
 
 References
 ----------
@@ -42,16 +39,14 @@ from ..exceptions import ConvergenceWarning
 class EMModel:
     """What a model gives :func:`run_em`: its E-step, its M-step and optional hooks.
 
-    A subclass overrides :meth:`e_step` and :meth:`m_step`; the other hooks
-    default to a maximum-likelihood EM. The parameters are whatever object the
-    two steps exchange.
+    Subclasses override :meth:`e_step` and :meth:`m_step`; the other hooks default to a
+    maximum-likelihood EM. The parameters are whatever object the two steps exchange.
 
     Attributes
     ----------
     final_e_step : bool
-        True (default): return the probabilities of an E-step at the returned
-        parameters. False: those the last M-step used (for a model whose
-        covariance is that of its last weighted least-squares step).
+        True (default): return the probabilities of an E-step at the returned parameters;
+        False: those the last M-step used.
     """
 
     final_e_step = True
@@ -62,7 +57,6 @@ class EMModel:
         Parameters
         ----------
         params : object
-            The model's parameters.
 
         Returns
         -------
@@ -77,7 +71,6 @@ class EMModel:
         ----------
         params : object
         resp : numpy.ndarray
-            Class probabilities of the E-step at ``params``.
 
         Returns
         -------
@@ -91,7 +84,6 @@ class EMModel:
         Parameters
         ----------
         old, new : object
-            The parameters before and after the iteration.
         gain : float or None
             The log-likelihood gain, None for a model without one.
 
@@ -139,8 +131,7 @@ class EMRun:
     params : object
         The last parameters.
     resp : numpy.ndarray
-        Class probabilities at ``params`` (see :attr:`EMModel.final_e_step`); those
-        of the last E-step when the loop stopped on unusable parameters.
+        Class probabilities at ``params`` (see :attr:`EMModel.final_e_step`).
     loglik : float or None
         Log-likelihood of the last E-step.
     n_iter : int
@@ -166,9 +157,6 @@ def run_em(model: EMModel, init=None, *, tol: float, max_iter: int, resume: EMRu
            stacklevel: int = 2) -> EMRun:
     """Run EM from ``init`` until an iteration changes less than ``tol``, or ``max_iter``.
 
-    Each iteration is an M-step, then an E-step at the new parameters; parameters
-    that are not :meth:`EMModel.usable` stop the loop unconverged.
-
     Parameters
     ----------
     model : EMModel
@@ -179,23 +167,16 @@ def run_em(model: EMModel, init=None, *, tol: float, max_iter: int, resume: EMRu
     max_iter : int
         Most iterations, counting those of ``resume``.
     resume : EMRun, optional
-        Continue this run (of a model with ``final_e_step``): its iterations,
-        history and first probabilities are kept.
+        Continue this run: its iterations, history and first probabilities are kept.
     warn : callable, optional
-        ``warn(run) -> message``: warn with it (``category``) when the run did not
-        converge.
+        ``warn(run) -> message``, warned with (as ``category``, at ``stacklevel`` from the
+        caller) when the run did not converge.
     category : type, default ConvergenceWarning
     stacklevel : int, default 2
-        Its stack level, counted from the caller of :func:`run_em`.
 
     Returns
     -------
     EMRun
-
-    Warns
-    -----
-    ConvergenceWarning
-        (or ``category``) With ``warn``, when the run did not converge.
     """
     if resume is None:
         params, done = init, 0

@@ -1,17 +1,4 @@
-"""The safeguard of a Gauss-Newton M-step: halve the step until the objective does not increase.
-
-A generalised EM needs an M-step that does not decrease the expected complete-data
-log-likelihood: :func:`safeguarded_step` tries a Gauss-Newton step, halving it until the
-weighted objective does not increase, so the log-likelihood never decreases.
-
-Examples
---------
-Minimise ``(x - 3)**2`` from ``x = 0`` with a step that overshoots:
-
->>> out = safeguarded_step(lambda x: ((x - 3.0) ** 2, None), 0.0, 10.0, 9.0)
->>> out.x, out.value, out.step
-(5.0, 4.0, 5.0)
-"""
+"""The safeguard of a Gauss-Newton M-step: halve the step until the objective does not increase."""
 
 from __future__ import annotations
 
@@ -25,7 +12,7 @@ MAX_HALVINGS = 30
 
 
 class Step(NamedTuple):
-    """An accepted step of :func:`safeguarded_step`.
+    """An accepted step of :func:`safeguarded_step`: ``x``, ``value``, ``aux``, ``step``.
 
     Attributes
     ----------
@@ -34,10 +21,9 @@ class Step(NamedTuple):
     value : float
         The objective there (no larger than at the start).
     aux : object
-        What the objective returned with its value (e.g. residuals or a
-        parameter object built from ``x``).
+        What the objective returned with its value.
     step : float or numpy.ndarray
-        The step finally taken, before projection into the bounds.
+        The step taken, before projection into the bounds.
     """
 
     x: Any
@@ -53,34 +39,25 @@ def safeguarded_step(objective: Callable, x, step, value, *, bounds=None,
     Parameters
     ----------
     objective : callable
-        ``objective(x) -> (value, aux)``, or ``None`` where ``x`` is infeasible
-        (then the step is halved as for an increase).
-    x : float or numpy.ndarray
-        The current point.
-    step : float or numpy.ndarray
-        The proposed (Gauss-Newton) step.
+        ``objective(x) -> (value, aux)``, or ``None`` where ``x`` is infeasible.
+    x, step : float or numpy.ndarray
+        The current point and the proposed (Gauss-Newton) step.
     value : float
         The objective at ``x``.
     bounds : tuple of float, optional
-        ``(lo, hi)``: every candidate ``x + step`` is clipped into them (a
-        scalar ``x`` with ``min(max(x + step, lo), hi)``).
+        ``(lo, hi)``: every candidate is clipped into them.
     max_halvings : int, default 30
-        Candidates tried before giving up.
 
     Returns
     -------
     Step or None
-        The first candidate whose objective is ``<= value``; ``None`` when all
-        ``max_halvings`` candidates were infeasible or worse.
+        The first candidate whose objective is ``<= value``; ``None`` when none was.
 
     Examples
     --------
-    A bound stops the step at 2:
-
-    >>> out = safeguarded_step(lambda x: ((x - 3.0) ** 2, None), 0.0, 3.0, 9.0,
-    ...                        bounds=(-1.0, 2.0))
-    >>> out.x, out.value
-    (2.0, 1.0)
+    >>> out = safeguarded_step(lambda x: ((x - 3.0) ** 2, None), 0.0, 10.0, 9.0)
+    >>> out.x, out.value, out.step
+    (5.0, 4.0, 5.0)
     """
     for _ in range(int(max_halvings)):
         cand = x + step

@@ -1,7 +1,4 @@
-"""Figures of the Bayesian variant.
-
-Every function takes ``fig=`` or ``ax=`` and returns the Figure.
-"""
+"""Figures of the Bayesian variant."""
 
 from __future__ import annotations
 
@@ -219,11 +216,7 @@ def plot_prior_comparison(survey_comparison, *, fig=None):
 
 
 def plot_class_uncertainty(survey_posterior, beacon, *, fig=None):
-    """Range against time coloured by posterior class probability, and its uncertainty.
-
-    Top: ranges coloured by the posterior mean class probabilities (the colour key on
-    the figure). Bottom: the probability of the most probable class with +- 1
-    posterior sd, so the ranges whose class is uncertain stand out.
+    """Range against time coloured by posterior class probability (top), and its sd (bottom).
 
     Parameters
     ----------
@@ -257,20 +250,19 @@ def plot_class_uncertainty(survey_posterior, beacon, *, fig=None):
 
 
 def plot_sbc_ranks(results, *, n_bins=10, fig=None):
-    """Rank histograms of simulation-based calibration, one row per run, one column per parameter.
+    """Rank histograms of simulation-based calibration (grey: the 99 % band of uniform ranks).
 
     Parameters
     ----------
     results : SBCResult or dict of str to SBCResult
         :func:`bayes_mpem.lbl.bayes.sbc.run_sbc` results, labelled (e.g. by move set).
     n_bins : int, default 10
-        Bins of the ranks (a divisor of ``n_draws + 1``).
+        A divisor of ``n_draws + 1``.
     fig : matplotlib.figure.Figure, optional
 
     Returns
     -------
     matplotlib.figure.Figure
-        The grey band is the 99 % range of a bin's count under uniform ranks.
     """
     from scipy import stats
 

@@ -21,20 +21,11 @@ def running_mean(p, window: int):
     Parameters
     ----------
     p : array_like
-        Values in order (e.g. class probabilities sorted by time).
     window : int
-        Values averaged; at the ends the window shrinks to those that exist.
 
     Returns
     -------
     numpy.ndarray
-
-    Examples
-    --------
-    >>> running_mean([1.0, 1.0, 1.0, 1.0], 3).tolist()
-    [1.0, 1.0, 1.0, 1.0]
-    >>> running_mean([0.0, 3.0, 6.0], 3).tolist()
-    [1.5, 3.0, 4.5]
     """
     p = np.asarray(p, float)
     c = np.concatenate([[0.0], np.cumsum(p)])

@@ -31,7 +31,7 @@ def plot_classification(survey_fit, beacon, *, ax=None, iteration="last", lines=
         Draw the predicted direct path and multipath.
     title : str, optional
     key : bool, default True
-        Add the legend: the class colours and the predicted lines.
+        Add the legend.
 
     Returns
     -------

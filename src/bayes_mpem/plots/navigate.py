@@ -1,12 +1,4 @@
-"""Figures of a navigated dive (:class:`~bayes_mpem.lbl.navigate.Navigation`).
-
-Three figures, each taking ``ax=`` or ``fig=`` and returning the Figure: the
-track against the dead reckoning with error ellipses (:func:`plot_nav_track`),
-the ranges against time coloured by class with the paper's colour map
-(:func:`plot_nav_ranges`), and the position correction against time with its
-uncertainty (:func:`plot_nav_correction`). A true track (a simulated dive's
-``true_track``) is drawn where given.
-"""
+"""Figures of a navigated dive (:class:`~bayes_mpem.lbl.navigate.Navigation`)."""
 
 from __future__ import annotations
 
@@ -39,13 +31,6 @@ def ellipse_axes(cov, *, q=CHI2_95):
     Returns
     -------
     widths, heights, angles : numpy.ndarray
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> w, h, a = ellipse_axes(np.array([[[4.0, 0.0], [0.0, 1.0]]]), q=1.0)
-    >>> w.tolist(), h.tolist(), a.tolist()
-    ([4.0], [2.0], [0.0])
     """
     vals, vecs = np.linalg.eigh(cov)
     w = 2.0 * np.sqrt(np.maximum(vals[:, 1], 0.0) * q)
@@ -54,24 +39,8 @@ def ellipse_axes(cov, *, q=CHI2_95):
     return w, h, ang
 
 
-def magnification(size, target):
-    """Return a round factor (1, 2 or 5 times a power of 10) taking ``size`` up to ``target``.
-
-    Parameters
-    ----------
-    size, target : float
-        Lengths (m).
-
-    Returns
-    -------
-    float
-        1 when ``size`` is already as large as ``target`` (or not positive).
-
-    Examples
-    --------
-    >>> magnification(3.0, 180.0), magnification(500.0, 180.0)
-    (50.0, 1.0)
-    """
+def _magnification(size, target):
+    """Return a round factor (1, 2 or 5 times a power of 10) taking ``size`` up to ``target``."""
     if not size > 0 or size >= target:
         return 1.0
     ratio = target / size
@@ -82,17 +51,13 @@ def magnification(size, target):
 def plot_nav_track(nav, *, truth=None, ax=None, n_ellipses=40):
     """Draw the corrected track over the dead reckoning, with 95 % error ellipses, and the beacons.
 
-    The ellipses are magnified by a factor shown in the legend when they would
-    be too small to see at the scale of the dive.
-
     Parameters
     ----------
     nav : Navigation
     truth : pandas.DataFrame, optional
-        ``x``, ``y`` of the true track (one row per epoch).
+        ``x``, ``y`` of the true track.
     ax : matplotlib.axes.Axes, optional
     n_ellipses : int, default 40
-        Ellipses drawn at this many epochs, evenly spaced.
 
     Returns
     -------
@@ -107,7 +72,7 @@ def plot_nav_track(nav, *, truth=None, ax=None, n_ellipses=40):
     idx = np.unique(np.linspace(0, d.n_epochs - 1, max(int(n_ellipses), 1)).astype(int))
     w, h, ang = ellipse_axes(nav.cov[idx])
     span = float(np.ptp(np.concatenate([nav.track, d.dr]), axis=0).max()) or 1.0
-    mag = magnification(float(np.median(w)), 0.04 * span)
+    mag = _magnification(float(np.median(w)), 0.04 * span)
     ax.add_collection(EllipseCollection(w * mag, h * mag, ang, units="xy",
                                         offsets=nav.track[idx], offset_transform=ax.transData,
                                         facecolors="none", edgecolors="tab:orange", lw=0.8))

@@ -1,9 +1,4 @@
-"""The class colours, the colour key and the labels shared by every figure.
-
-A range's colour mixes the class colours by its class probabilities. Palettes:
-``"okabe-ito"`` (default, colour-blind safe; Okabe & Ito 2008) and ``"paper"`` (the
-paper's Fig. 8); switch with :func:`use_palette` or :func:`palette_context`.
-"""
+"""The class colours, the colour key and the labels shared by every figure."""
 
 from __future__ import annotations
 
@@ -30,7 +25,7 @@ _current = {"palette": DEFAULT_PALETTE}
 
 
 def use_palette(name: str) -> str:
-    """Draw the class colours of every later figure with the palette ``name``.
+    """Draw the class colours of every later figure with palette ``name``; return the one before.
 
     Parameters
     ----------
@@ -39,20 +34,10 @@ def use_palette(name: str) -> str:
     Returns
     -------
     str
-        The palette used until now (to restore it).
 
     Raises
     ------
     ValueError
-        For an unknown palette.
-
-    Examples
-    --------
-    >>> old = use_palette("paper")
-    >>> class_color("mp")
-    (1.0, 0.0, 0.0)
-    >>> use_palette(old)
-    'paper'
     """
     if name not in PALETTES:
         raise ValueError(f"palette: expected one of {tuple(PALETTES)}, got {name!r}")
@@ -72,14 +57,6 @@ def palette_context(name: str):
     ------
     str
         ``name``.
-
-    Examples
-    --------
-    >>> with palette_context("paper"):
-    ...     class_color("ol")
-    (0.0, 1.0, 0.0)
-    >>> class_color("ol")
-    (0.6, 0.6, 0.6)
     """
     old = use_palette(name)
     try:
@@ -89,18 +66,17 @@ def palette_context(name: str):
 
 
 def class_color(name: str, palette: str | None = None) -> tuple[float, float, float]:
-    """Return the colour of one class.
+    """Return the RGB colour (in [0, 1]) of one class.
 
     Parameters
     ----------
     name : {"dp", "mp", "mp2", "ol"}
     palette : str, optional
-        Default: the one in use (:func:`use_palette`).
+        Default: the one in use.
 
     Returns
     -------
     tuple of float
-        RGB in [0, 1].
     """
     return PALETTES[palette or _current["palette"]][name]
 
@@ -113,20 +89,11 @@ def class_colors(resp, palette: str | None = None):
     resp : array_like
         ``(n, 3)`` probabilities of dp, mp, ol.
     palette : str, optional
-        Default: the one in use (:func:`use_palette`).
+        Default: the one in use (``"paper"``: red = p_mp, green = p_ol, blue = p_dp).
 
     Returns
     -------
     numpy.ndarray
-        ``(n, 3)`` RGB in [0, 1]. With ``palette="paper"``: red = p_mp, green = p_ol,
-        blue = p_dp.
-
-    Examples
-    --------
-    >>> class_colors([[1.0, 0.0, 0.0]], palette="paper").tolist()
-    [[0.0, 0.0, 1.0]]
-    >>> class_colors([[0.0, 0.0, 1.0]], palette="okabe-ito").tolist()
-    [[0.6, 0.6, 0.6]]
     """
     resp = np.clip(np.asarray(resp, float), 0.0, 1.0)
     base = np.array([class_color(c, palette) for c in ("dp", "mp", "ol")])
@@ -139,13 +106,12 @@ def class_key(ax, classes=("dp", "mp", "ol"), *, extra=(), where=None, **kwargs)
     Parameters
     ----------
     ax : matplotlib.axes.Axes or matplotlib.figure.Figure
-        Where the legend goes (a figure gets one legend for all its panels).
+        A figure gets one legend for all its panels, above them.
     classes : sequence of str
-        The classes shown.
     extra : sequence of matplotlib.artist.Artist
-        Further handles (with labels), e.g. predicted lines, after the classes.
+        Further handles (with labels) after the classes.
     where : str, optional
-        The legend's ``loc`` (default ``"upper right"``; a figure: above the panels).
+        The legend's ``loc``.
     **kwargs
         Passed to ``legend``.
 

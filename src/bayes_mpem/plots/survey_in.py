@@ -221,13 +221,10 @@ def plot_sound_speed(result, *, ax=None, truth=None):
     Parameters
     ----------
     result : SurveyInResult
-        An array's (``summary["sound_speed"]["series"]``; without a series, the
-        survey's one value and its interval).
+        An array's (without a series: the survey's one value and its interval).
     ax : matplotlib.axes.Axes, optional
     truth : dict, optional
-        A simulated campaign's ``truth.json``
-        (:meth:`~bayes_mpem.survey_in.gnssa_simulate.GnssaSimulation.truth_record`):
-        its depth-averaged speed ``reference_m_s + dV0`` is drawn too.
+        A simulated campaign's ``truth.json``: its depth-averaged speed is drawn too.
 
     Returns
     -------
@@ -331,19 +328,15 @@ def _offset_panel(ax, name, delta_cm, cov_cm, up_cm, up_sd_cm, ci, true_cm=None)
 
 
 def plot_array_map(result, *, fig=None, truth=None):
-    """Plot the array: track and positions (m), each position against its prior (cm).
-
-    The close-ups are east and north minus the prior position, in cm, with the
-    ``ci`` ellipse of the solution; the array centre's prior is the priors' mean.
+    """Plot the array: track and positions (m), each position minus its prior (cm, with ellipse).
 
     Parameters
     ----------
     result : SurveyInResult
-        An array's (``summary["array_centre"]``).
+        An array's.
     fig : matplotlib.figure.Figure, optional
     truth : dict, optional
-        A simulated campaign's ``truth.json``: the true positions are marked in
-        the close-ups.
+        A simulated campaign's ``truth.json``: the true positions are marked.
 
     Returns
     -------

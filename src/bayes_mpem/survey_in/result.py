@@ -143,6 +143,32 @@ class SurveyInResult:
             paths["summary"] = write_json(out / "summary.json", self.summary)
             return paths
 
+    @classmethod
+    def read(cls, folder) -> SurveyInResult:
+        """Read a located survey back from the folder :meth:`write` wrote (no fits or posteriors).
+
+        A missing ``classified.csv`` is a ``FileNotFoundError``, one of an older version an
+        ``InputError``.
+        """
+        from pathlib import Path
+
+        from ..exceptions import InputError
+        from ..io.results import MARKER, read_document
+
+        summary = read_document(Path(folder) / MARKER)
+        path = Path(folder) / "classified.csv"
+        if not path.exists():
+            raise FileNotFoundError(f"{path}: not found; 'bayes-mpem locate' writes it")
+        cls_ = pd.read_csv(path, keep_default_na=False, na_values=[""],
+                           dtype={"transponder": str, "label": str, "reason": str})
+        cls_["transponder"] = cls_["transponder"].fillna("")
+        missing = [c for c in ("residual_ms", "azimuth_deg", "east", "north", "time")
+                   if c not in cls_.columns]
+        if missing:
+            raise InputError(f"{path}: no column(s) {missing}; it was written by an older "
+                             "bayes_mpem: run 'bayes-mpem locate' again")
+        return cls(summary=summary, classified=cls_)
+
 
 def _row(name, enu, width=14):
     vals = [enu[c]["mean"] for c in ("east", "north", "up")]

@@ -71,11 +71,6 @@ def test_unknown_path_is_rejected():
         geometry.multipath_range(1.0, 1.0, 1.0, "single")
 
 
-def test_elevation_angle():
-    assert geometry.elevation_angle(0.0, 100.0) == pytest.approx(90.0)
-    assert geometry.elevation_angle(100.0, 100.0) == pytest.approx(45.0)
-
-
 def test_horizontal_slopes_match_finite_differences():
     rng = np.random.default_rng(0)
     h, dz, d0 = rng.uniform(10, 3000, 20), rng.uniform(-50, 300, 20), rng.uniform(400, 2500, 20)

@@ -88,17 +88,6 @@ def test_total_loglik_screening_is_exact_on_survey_data(path, spread):
     np.testing.assert_allclose(total_loglik(g, d0, sdp, smp, ws, path), slow, rtol=1e-12)
 
 
-def test_weighted_densities_match_log_space(geom):
-    from bayes_mpem.lbl.model.likelihood import e_step, weighted_densities
-
-    w = [0.5, 0.3, 0.2]
-    terms = weighted_densities(geom, 2450.0, 4.0, 9.0, w)
-    total = terms[0] + terms[1] + terms[2]
-    ll, resp = e_step(geom, 2450.0, 4.0, 9.0, w)
-    assert np.log(total).sum() == pytest.approx(ll, rel=1e-12)
-    np.testing.assert_allclose(np.stack(terms, axis=1) / total[:, None], resp, atol=1e-12)
-
-
 def test_total_loglik_zero_outlier_weight_is_finite_when_every_range_is_near():
     """No range left for the outlier-only term: 0 * log(0) must not make a NaN."""
     from bayes_mpem.lbl.model.likelihood import total_loglik

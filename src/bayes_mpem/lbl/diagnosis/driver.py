@@ -1,14 +1,6 @@
 """Find the effect hidden in a survey: which of the paper's assumptions the data break.
 
-Examples
---------
->>> from bayes_mpem.lbl.simulation.simulate import simulate_survey
->>> sim = simulate_survey("abe58", rng=2, n_cycles=700, effects={"range_bias": 6.0})
->>> dx = diagnose(sim.survey, rng=0, progress=False)
->>> [e.name for e in dx.effects]
-['range_bias']
->>> abs(dx.effects[0].magnitude - 6.0) < 0.5
-True
+Details: ``docs/diagnose.md``.
 """
 
 from __future__ import annotations
@@ -47,7 +39,7 @@ def diagnose(
     rng: RNGLike = None,
     progress: bool = True,
 ) -> Diagnosis:
-    """Find which of the paper's assumptions the survey breaks, and by how much.
+    """Find which of the paper's assumptions the survey breaks, and by how much (docs/diagnose.md).
 
     Parameters
     ----------
@@ -58,21 +50,16 @@ def diagnose(
     effects : sequence of str, default all of :data:`~bayes_mpem.lbl.simulation.effects.EFFECTS`
         The candidate extensions.
     path : {"auto", "triangle", "double"}
-        Multipath geometry: one reflected leg (the paper's finding), both, or
-        (default) whichever gives the baseline the higher likelihood.
+        Multipath geometry; ``"auto"`` (default) the one the baseline finds likelier.
     n_folds : int, default 5
-        Folds of the cross-validation (replies assigned at random).
-    min_gain : float, default 4
-        An effect is kept only if it raises the held-out log predictive
-        density by more than this many nats ...
-    min_z : float, default 2
-        ... and by more than ``min_z`` standard errors of that gain.
+        Folds of the cross-validation.
+    min_gain, min_z : float, default 4 and 2
+        An effect is kept only if it raises the held-out log predictive density by more
+        than ``min_gain`` nats and ``min_z`` standard errors of that gain.
     max_effects : int, default 3
-        Stop after this many effects.
     min_pings : int, default 30
         Beacons with fewer replies are left out.
     rng : None, int or numpy.random.Generator
-        Seeds the folds and the baseline's starts.
     progress : bool, default True
         Print one line per step to stderr.
 

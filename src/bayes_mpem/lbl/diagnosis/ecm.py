@@ -1,33 +1,4 @@
-"""Fitting the joint model of the diagnosis by ECM, and its held-out predictive density.
-
-The joint model (:mod:`~bayes_mpem.lbl.diagnosis.model`) is fitted to all beacons at once by an ECM
-algorithm: an E-step; closed-form mixing weights; a safeguarded Gauss-Newton
-step on the mean parameters (plane depths and effect parameters, analytic
-Jacobian; :func:`bayes_mpem.mixture.gauss_newton.safeguarded_step`) that never
-increases the weighted squared error; closed-form scatters. The
-log-likelihood therefore never decreases. A plane held on its bound (just
-above the vehicle) by the step is kept there while the other parameters move.
-
-* :func:`fit_joint` runs the ECM from several starts (:mod:`.starts`) and keeps
-  the best, a :class:`JointFit`;
-* :func:`heldout` scores each reply by K-fold cross-validation, the
-  criterion the driver (:func:`bayes_mpem.lbl.diagnosis.driver.diagnose`)
-  keeps an effect by.
-
-Examples
---------
->>> from bayes_mpem.lbl.simulation.simulate import simulate_survey
->>> from bayes_mpem.lbl.survey.survey import fittable_beacons
->>> from bayes_mpem.lbl.diagnosis.model import ranges
->>> from bayes_mpem.lbl.diagnosis.starts import baseline_start
->>> sim = simulate_survey("abe58", rng=2, n_cycles=300, effects={"range_bias": 6.0})
->>> fittable, _ = fittable_beacons(sim.survey, 30)
->>> d = ranges(sim.survey, fittable)
->>> start, path, _ = baseline_start(d, fittable, "triangle", 0)
->>> fit = fit_joint(d, ("range_bias",), start, path=path)
->>> abs(fit.magnitudes(d)["range_bias"] - 6.0) < 0.5
-True
-"""
+"""Fitting the joint model of the diagnosis by ECM, and its held-out predictive density."""
 
 from __future__ import annotations
 
@@ -170,16 +141,15 @@ class JointFit:
     ----------
     effects : tuple of str
         The extensions switched on.
-    params : object
-        Fitted parameters (internal layout; use :meth:`beacons` and :meth:`magnitudes`).
+    params : Params
+        Use :meth:`beacons` and :meth:`magnitudes` to read them.
     resp : numpy.ndarray
         ``(n, 4)`` class probabilities (dp, mp, mp2, ol) of every reply.
     loglik : float
     n_iter : int
     converged : bool
     se : dict
-        Approximate standard errors of the mean parameters (Gauss-Newton
-        information given the class probabilities).
+        Approximate standard errors of the mean parameters (Gauss-Newton information).
     """
 
     effects: tuple
@@ -198,7 +168,6 @@ class JointFit:
         Parameters
         ----------
         data : Ranges
-            The replies the fit was made on.
 
         Returns
         -------
@@ -225,18 +194,15 @@ class JointFit:
         return {k: float(v) for k, v in out.items()}
 
     def beacons(self, data: Ranges) -> dict:
-        """Per-beacon parameters: ``d0`` (plane height above the beacon at the first ping), ...
+        """Per-beacon parameters: ``n_ranges``, ``d0``, ``plane_depth``, scales and weights.
 
         Parameters
         ----------
         data : Ranges
-            The replies the fit was made on.
 
         Returns
         -------
         dict
-            Per beacon id: ``n_ranges``, ``d0``, ``plane_depth``, ``sigma_dp``,
-            ``sigma_mp``, ``weights`` (``d0_last``, ``sigma_mp2`` with the effects).
         """
         p, out = self.params, {}
         for j, bid in enumerate(data.ids):
@@ -296,11 +262,9 @@ def fit_joint(d: Ranges, effects, start: Params | list, *, path="triangle", max_
     Parameters
     ----------
     d : Ranges
-        The replies (``Diagnosis.data``).
     effects : tuple of str
-        Extensions switched on (names of :data:`~bayes_mpem.lbl.simulation.effects.EFFECTS`).
-    start : parameters or list of them
-        Starting points; infeasible ones are moved just inside the constraints.
+    start : Params or list of them
+        Infeasible starts are moved just inside the constraints.
     path : {"triangle", "double"}
     max_iter : int, default 300
     tol : float, default 1e-7
@@ -330,14 +294,13 @@ def fit_joint(d: Ranges, effects, start: Params | list, *, path="triangle", max_
 
 
 def heldout(d: Ranges, effects, full: JointFit, folds, path, **kw):
-    """Score every range by K-fold cross-validation, each fold warm-started at ``full``.
+    """Score every range by K-fold cross-validation (held-out log density; warm starts at ``full``).
 
     Parameters
     ----------
     d : Ranges
     effects : tuple of str
     full : JointFit
-        The fit to all ranges (its parameters start every fold).
     folds : numpy.ndarray
         Fold number of every range.
     path : {"triangle", "double"}
@@ -347,7 +310,6 @@ def heldout(d: Ranges, effects, full: JointFit, folds, path, **kw):
     Returns
     -------
     numpy.ndarray
-        Held-out log predictive density of every range.
     """
     out = np.empty(d.n)
     for k in np.unique(folds):

@@ -1,14 +1,4 @@
-"""What a kept effect means, in words and numbers, and which fits are not credible.
-
-Examples
---------
->>> check_effect_names(("range_bias", "tide"), "effects")
-Traceback (most recent call last):
-...
-ValueError: effects: unknown effect(s) ['tide']; known: ['range_bias', 'sound_speed', \
-'plane_drift', 'second_reflector', 'early_outliers', 'nav_drift', 'beacon_bias', \
-'beacon_position']
-"""
+"""What a kept effect means, in words and numbers, and which fits are not credible."""
 
 from __future__ import annotations
 
@@ -26,14 +16,11 @@ def effect_evidence(name, fit: JointFit, d: Ranges, delta, se, n_folds):
     Parameters
     ----------
     name : str
-        The effect's term (:func:`~bayes_mpem.lbl.simulation.effects.term`: an effect of
-        :data:`~bayes_mpem.lbl.simulation.effects.EFFECTS`,
-        ``"<effect>:<beacon>"`` for one beacon's).
+        The effect's term.
     fit : JointFit
-        The fit with the effect switched on.
     d : Ranges
     delta, se : float
-        Held-out log predictive density gain (nats) and its standard error.
+        Held-out gain (nats) and its standard error.
     n_folds : int
 
     Returns
@@ -89,7 +76,7 @@ def _late_share(d, fit: JointFit):
 
 
 def check_effect_names(names, what):
-    """Check that every name is an effect of the vocabulary.
+    """Check that every name is in :data:`~bayes_mpem.lbl.simulation.effects.EFFECTS`.
 
     Parameters
     ----------
@@ -100,7 +87,6 @@ def check_effect_names(names, what):
     Raises
     ------
     ValueError
-        For a name not in :data:`~bayes_mpem.lbl.simulation.effects.EFFECTS`.
     """
     bad = [e for e in names if split_term(e)[0] not in EFFECTS]
     if bad:
@@ -138,7 +124,7 @@ def not_credible(name, fit: JointFit, d: Ranges):
 
 
 def effect_magnitude_se(name, fit: JointFit):
-    """Approximate standard error of an effect's magnitude.
+    """Approximate standard error of an effect's magnitude (None where the fit gives none).
 
     Parameters
     ----------
@@ -148,7 +134,6 @@ def effect_magnitude_se(name, fit: JointFit):
     Returns
     -------
     float or None
-        ``None`` where the fit gives none (``early_outliers``).
     """
     se = fit.se
     name, bid = split_term(name)
@@ -171,22 +156,18 @@ def effect_magnitude_se(name, fit: JointFit):
 
 
 def effect_detail(name, fit: JointFit, d: Ranges | None = None):
-    """Extra numbers of an effect for the report.
+    """Extra numbers of an effect for the report (error at the last ping, share, position offset).
 
     Parameters
     ----------
     name : str
-        The effect's term.
     fit : JointFit
     d : Ranges, optional
-        Needed for a ``beacon_position`` term (the beacon's index).
+        Needed for a ``beacon_position`` term.
 
     Returns
     -------
     dict
-        ``nav_drift``: the error at the last ping (east, north, direction);
-        ``second_reflector``: the share of replies; ``beacon_position``: the
-        reported minus the fitted position (east, north, direction); others: empty.
     """
     p = fit.params
     name, bid = split_term(name)

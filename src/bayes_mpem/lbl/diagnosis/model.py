@@ -1,14 +1,4 @@
-"""The joint model of the diagnosis: all beacons' replies, the effects, the class densities.
-
-Examples
---------
->>> from bayes_mpem.lbl.simulation.simulate import simulate_survey
->>> from bayes_mpem.lbl.survey.survey import fittable_beacons
->>> sim = simulate_survey("abe58", rng=0, n_cycles=50)
->>> d = ranges(sim.survey, fittable_beacons(sim.survey, 30)[0])
->>> d.ids, d.nb
-(('1', '2', '3', '4'), 4)
-"""
+"""The joint model of the diagnosis: all beacons' replies, the effects, the class densities."""
 
 from __future__ import annotations
 
@@ -37,17 +27,16 @@ class Ranges:
     Attributes
     ----------
     z, x, y, vdepth, time : numpy.ndarray
-        Per reply: the range (m), the vehicle's position and depth (m), the time (s).
+        Per reply: the range, the vehicle's position and depth (m), the time (s).
     tau : numpy.ndarray
-        Per reply: the time normalised to ``[0, 1]`` over the survey's first to last ping.
+        Per reply: the time normalised to ``[0, 1]`` over the survey.
     bi : numpy.ndarray
         Per reply: the index of its beacon in ``ids``.
     rows : numpy.ndarray
         Per reply: its row in the input pings table.
     bx, by, bz, lo, hi : numpy.ndarray
-        Per beacon: its position (m) and outlier window ``[lo, hi]`` (m).
+        Per beacon: its position and outlier window ``[lo, hi]`` (m).
     ids : tuple of str
-        The beacon ids.
     """
 
     z: np.ndarray
@@ -76,32 +65,28 @@ class Ranges:
         return len(self.ids)
 
     def subset(self, mask) -> Ranges:
-        """Restrict the replies to ``mask`` (windows and beacons kept).
+        """Restrict the replies to ``mask`` (a boolean mask or indices; windows and beacons kept).
 
         Parameters
         ----------
         mask : numpy.ndarray
-            Boolean mask or indices of the replies to keep.
         """
         return replace(self, **{k: getattr(self, k)[mask] for k in
                                 ("z", "x", "y", "vdepth", "time", "tau", "bi", "rows")})
 
 
 def ranges(survey: Survey, fittable) -> Ranges:
-    """Concatenate the replies of the fitted beacons.
+    """Concatenate the replies of the fitted beacons (outlier windows: their range span).
 
     Parameters
     ----------
     survey : Survey
-        The whole survey (its first and last ping set the normalised time ``tau``).
+        The whole survey (its first and last ping set ``tau``).
     fittable : list of BeaconData
-        The beacons to fit.
 
     Returns
     -------
     Ranges
-        With each beacon's outlier window ``[lo, hi]`` (its smallest and
-        largest range, at least 1e-6 m wide).
     """
     t_all = survey.time
     t0, t1 = float(np.min(t_all)), float(np.max(t_all))
@@ -131,22 +116,19 @@ def ranges(survey: Survey, fittable) -> Ranges:
 
 
 def offsets(d: Ranges, p: Params | None = None, effects=()):
-    """Offsets of the vehicle from the beacon at every reply.
+    """Offsets of the vehicle from the beacon at every reply (navigation and positions corrected).
 
     Parameters
     ----------
     d : Ranges
     p : Params, optional
-        Needed when ``nav_drift`` or a ``beacon_position`` term is in ``effects``.
+        Needed with ``nav_drift`` or a ``beacon_position`` term.
     effects : tuple of str
-        With ``nav_drift`` the navigation is corrected by ``tau * p.nav``; with
-        ``beacon_position:<id>`` that beacon's position by ``p.bpos``.
 
     Returns
     -------
     ex, ey, h, dz : numpy.ndarray
-        Vehicle minus beacon (east, north), horizontal distance and ``dz =
-        z_beacon - z_vehicle`` (m).
+        Vehicle minus beacon (east, north), horizontal distance, ``z_beacon - z_vehicle`` (m).
     """
     bx, by, bz = d.bx[d.bi], d.by[d.bi], d.bz[d.bi]
     if p is not None:
@@ -192,8 +174,7 @@ def predict(d: Ranges, p: Params, effects, path, names=None):
     effects : tuple of str
     path : {"triangle", "double"}
     names : list of tuple, optional
-        Mean parameters (:func:`~bayes_mpem.lbl.diagnosis.params.mean_names`)
-        to differentiate by.
+        Mean parameters (:func:`~bayes_mpem.lbl.diagnosis.params.mean_names`).
 
     Returns
     -------
@@ -286,28 +267,8 @@ def _nav_columns(jac, col, e, tau, direct, refl, path, k):
         jac[name][:, col] = k * (0.5 * (dd + dr) if path == "triangle" else dr)
 
 
-def log_densities(d: Ranges, p: Params, effects, path, mu=None):
-    """Log densities of every range under each class.
-
-    Parameters
-    ----------
-    d : Ranges
-    p : Params
-    effects : tuple of str
-    path : {"triangle", "double"}
-    mu : dict, optional
-        The class means (:func:`predict`), when already computed.
-
-    Returns
-    -------
-    logdens : numpy.ndarray
-        ``(n, 4)`` log densities under dp, mp, mp2 and ol (mp2 ``-inf`` when
-        ``second_reflector`` is off). Outliers are uniform over the beacon's
-        window, or with ``early_outliers`` the first-arrival density (below a
-        direct path at least 1 m after the window start).
-    mu : dict
-        The class means.
-    """
+def _log_densities(d: Ranges, p: Params, effects, path, mu=None):
+    """Log densities of every range under each class."""
     if mu is None:
         mu = predict(d, p, effects, path)
     sig = p.sigma[d.bi]
@@ -342,17 +303,15 @@ def e_step(d, p, effects, path, mu=None):
     resp : numpy.ndarray
         ``(n, 4)`` class probabilities (dp, mp, mp2, ol).
     loglik : numpy.ndarray
-        ``(n,)`` log-likelihood of every range.
     mu : dict
-        The class means.
     """
-    ld, mu = log_densities(d, p, effects, path, mu)
+    ld, mu = _log_densities(d, p, effects, path, mu)
     resp, loglik = responsibilities(ld + safe_log(p.weights)[d.bi])
     return resp, loglik, mu
 
 
 def weighted_sse(d, p, effects, path, resp):
-    """Weighted squared error of the Gaussian classes: the ECM's mean objective.
+    """Weighted squared error of the Gaussian classes, ``sum resp (z - mu)**2 / sigma**2``.
 
     Parameters
     ----------
@@ -361,12 +320,10 @@ def weighted_sse(d, p, effects, path, resp):
     effects : tuple of str
     path : {"triangle", "double"}
     resp : numpy.ndarray
-        ``(n, 4)`` class probabilities.
 
     Returns
     -------
     float
-        ``sum_i sum_c resp_ic (z_i - mu_ic)**2 / sigma_c**2`` over dp, mp (and mp2).
     """
     mu = predict(d, p, effects, path)
     sig = p.sigma[d.bi]
@@ -379,21 +336,19 @@ def weighted_sse(d, p, effects, path, resp):
 
 
 def implied_depths(d, p, effects, path):
-    """Per-range depth of the plane that would make each range a multipath.
+    """Per-range depth of the plane that would make each range a multipath (NaN where none).
 
     Parameters
     ----------
     d : Ranges
     p : Params
     effects : tuple of str
-        The biases, scale, navigation drift and beacon positions are removed first
-        when switched on.
+        The effects switched on are removed first.
     path : {"triangle", "double"}
 
     Returns
     -------
     numpy.ndarray
-        NaN where no plane can produce the range.
     """
     k = 1.0 + (p.scale if "sound_speed" in effects else 0.0)
     z = (d.z - biases(d, p, effects)) / k

@@ -1,10 +1,4 @@
-"""The parameters of the diagnosis' joint model, and the vector the Gauss-Newton step moves.
-
-Examples
---------
->>> mean_names(("range_bias", "beacon_bias:b"), ("a", "b"))
-[('plane', 0), ('plane', 1), ('bias', None), ('bbias', 1)]
-"""
+"""The parameters of the diagnosis' joint model, and the vector the Gauss-Newton step moves."""
 
 from __future__ import annotations
 
@@ -32,25 +26,20 @@ class Params:
     Attributes
     ----------
     plane : numpy.ndarray
-        Per beacon (``B``), the depth of its reflecting plane at the first ping (m).
+        Per beacon, the depth of its reflecting plane at the first ping (m).
     sigma : numpy.ndarray
-        ``(B, 3)``: the scatter (m) of the direct path, multipath and second multipath.
+        ``(B, 3)`` scatter (m) of the direct path, multipath and second multipath.
     weights : numpy.ndarray
-        ``(B, 4)``: the weights of direct path, multipath, second multipath, outlier.
-    bias : float
-        Range bias (m).
-    scale : float
-        Sound-speed scale minus 1 (ranges scaled by ``1 + scale``).
-    drift : float
-        Change of the plane depth from the first to the last ping (m).
-    plane2 : float
-        Depth of the second reflecting plane (m).
+        ``(B, 4)`` weights of direct path, multipath, second multipath, outlier.
+    bias, scale, drift, plane2 : float
+        Range bias (m), sound-speed scale minus 1, plane drift over the survey (m), depth of
+        the second plane (m).
     nav : numpy.ndarray
         Navigation correction (east, north; m) at the last ping, growing linearly from 0.
     bbias : numpy.ndarray
-        ``(B,)``: each beacon's own range bias (m).
+        ``(B,)`` each beacon's own range bias (m).
     bpos : numpy.ndarray
-        ``(B, 3)``: true minus reported beacon position (east, north, down; m).
+        ``(B, 3)`` true minus reported beacon position (east, north, down; m).
     """
 
     plane: np.ndarray       # (B,) plane depth at the first ping
@@ -82,11 +71,8 @@ def beacons_with(effects, name, ids) -> list:
     Parameters
     ----------
     effects : tuple of str
-        Terms.
     name : str
-        ``"beacon_bias"`` or ``"beacon_position"``.
     ids : tuple of str
-        The beacons, in the order of the fit.
     """
     out = []
     for t in effects:
@@ -97,16 +83,13 @@ def beacons_with(effects, name, ids) -> list:
 
 
 def beacon_mask(effects, name, ids):
-    """Return a boolean per beacon: is ``name`` on for it (see :func:`beacons_with`).
+    """Return a boolean per beacon: is ``name`` on for it.
 
     Parameters
     ----------
     effects : tuple of str
-        The terms switched on.
     name : str
-        A per-beacon effect.
     ids : sequence of str
-        The beacon ids.
 
     Returns
     -------
@@ -118,22 +101,18 @@ def beacon_mask(effects, name, ids):
 
 
 def mean_names(effects, ids):
-    """Names of the mean parameters fitted by Gauss-Newton.
+    """Names of the mean parameters fitted by Gauss-Newton: planes, shared, then per-beacon.
 
     Parameters
     ----------
     effects : tuple of str
-        Terms.
     ids : tuple of str
-        The beacons, in the order of the fit.
 
     Returns
     -------
     list of tuple
-        ``("plane", j)`` for every beacon, then ``(name, None)`` for the shared
-        effects' parameters (``bias``, ``scale``, ``drift``, ``plane2``, ``nav_x``,
-        ``nav_y``), then ``(name, j)`` for the per-beacon ones (``bbias``,
-        ``bpos_x``, ``bpos_y``).
+        ``("plane", j)`` for every beacon, ``(name, None)`` for the shared effects' parameters,
+        ``(name, j)`` for the per-beacon ones.
     """
     names = [("plane", j) for j in range(len(ids))]
     for e, keys in SHARED_KEYS.items():

@@ -111,6 +111,9 @@ class Diagnosis:
     data: Ranges = field(repr=False)
     settings: dict = field(default_factory=dict)
     beacon_flags: dict = field(default_factory=dict)
+    #: a diagnosis read back (:meth:`read`): ``diagnosis.json`` and ``replies.csv``, which
+    #: :meth:`to_dict`, :meth:`replies` and :meth:`figure_info` then return
+    saved: dict | None = field(default=None, repr=False)
 
     @property
     def unexplained(self) -> list:
@@ -119,6 +122,8 @@ class Diagnosis:
 
     def to_dict(self) -> dict:
         """Return the content of ``diagnosis.json``."""
+        if self.saved is not None:
+            return self.saved["document"]
         d = self.data
         final = self.final.beacons(d)
         for bid, entry in final.items():
@@ -150,6 +155,8 @@ class Diagnosis:
             minus each class mean, m) and ``m_p_dp``, ``m_p_mp``, ``m_p_mp2``,
             ``m_p_ol``.
         """
+        if self.saved is not None:
+            return self.saved["replies"]
         d = self.data
         out = {"beacon": np.asarray(d.ids, dtype=object)[d.bi], **covariates(d)}
         for name, fit in (("baseline", self.baseline), ("final", self.final)):
@@ -169,6 +176,8 @@ class Diagnosis:
             ``{"baseline": {...}, "final": {...}}`` with ``effects``, ``path``,
             ``sigma_dp`` and ``sigma_mp`` (the median over beacons, m).
         """
+        if self.saved is not None:
+            return self.saved["document"]["figures"]
         return {name: {"effects": list(fit.effects), "path": fit.path,
                        "sigma_dp": float(np.median(fit.params.sigma[:, 0])),
                        "sigma_mp": float(np.median(fit.params.sigma[:, 1]))}
@@ -191,6 +200,46 @@ class Diagnosis:
             return {"diagnosis": write_json(out / "diagnosis.json", self.to_dict(), numpy=True),
                     "replies": write_csv(out / "replies.csv", self.replies())}
 
+    @classmethod
+    def read(cls, folder) -> Diagnosis:
+        """Read a diagnosis back from the folder :meth:`write` wrote: enough for its figures.
+
+        Its fits carry ``resp``, ``effects`` and ``path`` only, its ``data`` the replies'
+        ``ids``, ``bi``, ``time`` and ``nb``; no survey. A missing ``replies.csv`` is a
+        ``FileNotFoundError``.
+        """
+        from pathlib import Path
+
+        from ...io.results import read_document
+        from ..survey.folder import together
+
+        d = Path(folder)
+        doc = read_document(d / "diagnosis.json")
+        path = d / "replies.csv"
+        if not path.exists() or "figures" not in doc:
+            raise FileNotFoundError(f"{path}: not found; 'bayes-mpem diagnose' writes it (a "
+                                    "folder of an older bayes_mpem: run it again)")
+        table = pd.read_csv(path, dtype={"beacon": str})
+        beacon = table["beacon"].astype(str).to_numpy()
+        ids = tuple(dict.fromkeys(beacon))
+        data = SimpleNamespace(ids=ids, bi=np.array([ids.index(b) for b in beacon]),
+                               time=table["time"].to_numpy(float), nb=len(ids))
+
+        def fit(name):
+            resp = np.column_stack([table[f"{name}_p_{c}"].to_numpy(float)
+                                    for c in FIT_CLASSES])
+            info = doc["figures"][name]
+            return SimpleNamespace(resp=resp, effects=tuple(info["effects"]), path=info["path"])
+
+        return together(d, lambda: cls(
+            effects=[Effect(**e) for e in doc["effects"]], baseline=fit("baseline"),
+            final=fit("final"), candidates=doc["candidates"],
+            residual_checks=doc["residual_checks"], skipped=doc["skipped_beacons"],
+            survey=None, data=data, settings=doc["settings"],
+            beacon_flags={b: v.get("flags", []) for b, v in
+                          doc["final_model"]["beacons"].items()},
+            saved={"document": doc, "replies": table}))
+
     def summary(self) -> str:
         """Describe what was found in a few lines for a terminal."""
         flagged = {b: f for b, f in self.beacon_flags.items() if f}
@@ -211,63 +260,3 @@ class Diagnosis:
         for bid, reasons in flagged.items():
             lines.append(f"  beacon {bid}: fit not credible: {'; '.join(reasons)}")
         return "\n".join(lines)
-
-
-
-@dataclass(frozen=True)
-class DiagnosisRecord:
-    """A diagnosis read back from its output folder: enough to draw its figures again.
-
-    Attributes
-    ----------
-    document : dict
-        ``diagnosis.json``.
-    table : pandas.DataFrame
-        ``replies.csv`` (:meth:`Diagnosis.replies`).
-    """
-
-    document: dict
-    table: pd.DataFrame = field(repr=False)
-
-    @property
-    def candidates(self) -> list:
-        """Every extension tried (``diagnosis.json``'s ``candidates``)."""
-        return self.document["candidates"]
-
-    @property
-    def settings(self) -> dict:
-        """The diagnosis' settings."""
-        return self.document["settings"]
-
-    def replies(self) -> pd.DataFrame:
-        """Return the per-reply table (:meth:`Diagnosis.replies`)."""
-        return self.table
-
-    def figure_info(self) -> dict:
-        """Per fit: effects, path and scatters (:meth:`Diagnosis.figure_info`)."""
-        return self.document["figures"]
-
-    @property
-    def data(self):
-        """``ids``, ``bi`` (beacon index per reply), ``time`` and ``nb``."""
-        beacon = self.table["beacon"].astype(str).to_numpy()
-        ids = tuple(dict.fromkeys(beacon))
-        bi = np.array([ids.index(b) for b in beacon])
-        return SimpleNamespace(ids=ids, bi=bi, time=self.table["time"].to_numpy(float),
-                               nb=len(ids))
-
-    def _fit(self, name):
-        info = self.figure_info()[name]
-        resp = np.column_stack([self.table[f"{name}_p_{c}"].to_numpy(float)
-                                for c in FIT_CLASSES])
-        return SimpleNamespace(resp=resp, effects=tuple(info["effects"]), path=info["path"])
-
-    @property
-    def baseline(self):
-        """The baseline fit's ``resp``, ``effects``, ``path``."""
-        return self._fit("baseline")
-
-    @property
-    def final(self):
-        """The final fit's ``resp``, ``effects``, ``path``."""
-        return self._fit("final")

@@ -1,8 +1,6 @@
 """The search over effects of the diagnosis: forward selection, then a backward step.
 
-An effect is kept when its held-out gain exceeds ``min_gain`` nats and ``min_z`` standard
-errors; the per-beacon effects are tried on the beacons the model leaves unexplained
-(:func:`suspects`). Why the order of the stages matters: ``docs/diagnose.md``.
+Details: ``docs/diagnose.md``.
 """
 
 from __future__ import annotations
@@ -30,32 +28,15 @@ SUSPECT_P = 1e-3
 SUSPECT_DP = 0.05
 
 
-def n_parameters(t) -> int:
-    """Return the number of mean parameters of a term (:data:`.params.SHARED_KEYS`, ...).
-
-    Parameters
-    ----------
-    t : str
-        A term: an effect's name, or ``"name:beacon"`` for a per-beacon effect.
-    """
+def _n_parameters(t) -> int:
+    """Return the number of mean parameters of a term (:data:`.params.SHARED_KEYS`, ...)."""
     name, bid = split_term(t)
     keys = BEACON_KEYS if bid is not None else SHARED_KEYS
     return len(keys.get(name, ())) or 1
 
 
-def suspects(fit, d: Ranges) -> list:
-    """List the beacons whose direct-path residuals ``fit`` leaves unexplained.
-
-    Parameters
-    ----------
-    fit : JointFit
-    d : Ranges
-
-    Returns
-    -------
-    list of str
-        Beacon ids, in the order of ``d``.
-    """
+def _suspects(fit, d: Ranges) -> list:
+    """List the beacons whose direct-path residuals ``fit`` leaves unexplained."""
     mu = predict(d, fit.params, fit.effects, fit.path)
     ex, ey, _, dz = offsets(d, fit.params, fit.effects)
     cov = covariates(ex, ey, dz, d.time, d.vdepth)
@@ -78,16 +59,13 @@ def suspects(fit, d: Ranges) -> list:
 
 @dataclass(frozen=True)
 class Search:
-    """The search over effects on fixed data, folds and geometry (see the module).
+    """The search over effects on fixed data, folds and geometry.
 
     Parameters
     ----------
     d : Ranges
-        The replies of the fitted beacons.
     fittable : list of BeaconData
-        Those beacons' data (for the replant of each fit).
     path : {"triangle", "double"}
-        The multipath geometry, fixed for the search.
     folds : numpy.ndarray
         Per reply, its cross-validation fold.
     seed : int
@@ -112,9 +90,7 @@ class Search:
         Parameters
         ----------
         base : JointFit
-            The baseline.
         effects : tuple of str
-            The candidate effects (names of :data:`~bayes_mpem.lbl.simulation.effects.EFFECTS`).
         max_effects : int
         min_gain, min_z : float
             The keep rule.
@@ -122,25 +98,24 @@ class Search:
         Returns
         -------
         current : JointFit
-            The final fit.
         kept : list of tuple
-            ``(term, delta, se)`` of the effects kept, with the gain they brought.
+            ``(term, delta, se)`` of the effects kept.
         candidates : list of dict
-            Every fit tried (the backward step's with ``round`` ``"backward"``).
+            Every fit tried.
         """
         state = {"fit": base, "ho": heldout(self.d, (), base, self.folds, self.path, **self.kw),
                  "kept": [], "round": 0, "tried": {}}
         candidates = []
         rule = {"min_gain": min_gain, "min_z": min_z}
         per_beacon = any(e in PER_BEACON for e in effects)
-        first = suspects(base, self.d) if per_beacon else []
+        first = _suspects(base, self.d) if per_beacon else []
         # shared effects first (one clock, one sound speed, one navigation explain every
         # beacon at once), then all, per-beacon ones on the beacons still unexplained; but
         # when only a minority of beacons is unexplained at the baseline, their own effects
         # first (four shared parameters can mimic one beacon's bias)
         stages = ("own", "all") if 0 < len(first) < self.d.nb / 2 else ("shared", "all")
         for stage in stages:
-            if stage == "all" and not (per_beacon and suspects(state["fit"], self.d)):
+            if stage == "all" and not (per_beacon and _suspects(state["fit"], self.d)):
                 break
             # each stage may add max_effects terms: the shared stage may have used them all
             # on what one beacon's own effect explains; the backward step then prunes
@@ -160,18 +135,13 @@ class Search:
         Parameters
         ----------
         state : dict
-            ``fit`` (the current JointFit), ``ho`` (its held-out densities), ``kept``
-            (the kept terms with their gains); updated in place.
+            ``fit``, ``ho`` (its held-out densities), ``kept``.
         effects : tuple of str
-            The candidate effects.
         candidates : list of dict
-            Every term tried, with its gain (appended to).
+            Every term tried (appended to).
         stage : {"shared", "own", "all"}
-            Which terms to try (:meth:`terms`).
         max_effects : int
-            Stop when this many terms are kept.
         min_gain, min_z : float
-            The keep rule.
         """
         while len(state["kept"]) < max_effects:
             current, cur_ho = state["fit"], state["ho"]
@@ -196,7 +166,7 @@ class Search:
             best = max(t[0] for t in good)
             delta, se, name, fit_e, ho = min(
                 (t for t in good if t[0] >= best - min_gain),
-                key=lambda t: (n_parameters(t[2]), -t[0]))
+                key=lambda t: (_n_parameters(t[2]), -t[0]))
             for c in candidates:
                 if c["round"] == rnd and c["name"] == name:
                     c["kept"] = True
@@ -206,25 +176,22 @@ class Search:
                      f"{UNITS[split_term(name)[0]]}")
 
     def terms(self, current, effects, *, stage="all"):
-        """List the terms to try on top of ``current``: shared effects, then suspects' own.
+        """List the terms to try on top of ``current``: shared effects, then suspect beacons' own.
 
         Parameters
         ----------
         current : JointFit
         effects : tuple of str
-            The candidate effects.
         stage : {"all", "shared", "own"}
-            Shared effects only, per-beacon ones only (on the suspect beacons), or both.
 
         Returns
         -------
         list of str
-            Terms (:func:`~bayes_mpem.lbl.simulation.effects.term`).
         """
         shared = ([e for e in effects if e not in PER_BEACON and e not in current.effects]
                   if stage != "own" else [])
         per = [e for e in effects if e in PER_BEACON] if stage != "shared" else []
-        beacons = suspects(current, self.d) if per else []
+        beacons = _suspects(current, self.d) if per else []
         return shared + [term(e, b) for b in beacons for e in per
                          if term(e, b) not in current.effects]
 
@@ -235,21 +202,17 @@ class Search:
         ----------
         current : JointFit
         cur_ho : numpy.ndarray
-            Its held-out log densities, per reply.
+            Its held-out log densities.
         kept : list of tuple
-            ``(term, gain, se)`` of the kept effects.
         candidates : list of dict
-            Every term tried (the drops are appended).
         min_gain, min_z : float
-            The keep rule.
         once : bool, default False
             Drop at most one effect.
 
         Returns
         -------
         fit, held_out, kept
-            The fit, its held-out densities and the kept effects, each with what
-            removing it from the final model costs (its gain in that model).
+            The kept effects each with what removing it from the final model costs.
         """
         d = self.d
         while kept:
@@ -292,7 +255,6 @@ class Search:
         Parameters
         ----------
         effects : tuple of str
-            The terms switched on.
         starts : list of Params
 
         Returns
@@ -315,18 +277,16 @@ class Search:
         return fit_e
 
     def fit(self, current, name):
-        """Fit the model of ``current`` plus effect ``name`` (best of its starts and a replant).
+        """Fit the model of ``current`` plus effect ``name``; return the fit (or None) and a note.
 
         Parameters
         ----------
         current : JointFit
         name : str
-            The term to add.
 
         Returns
         -------
         fit, note
-            The fit (or None) and a note saying why there is none.
         """
         eff = tuple(sorted(set(current.effects) | {name}, key=term_order))
         starts = start_for(self.d, current, eff, self.path)
@@ -344,17 +304,13 @@ class Search:
         ----------
         current : JointFit
         cur_ho : numpy.ndarray
-            Its held-out log densities, per reply.
         name : str
-            The term to try.
         rnd : int
-            The round of the search (recorded in the entry).
+            The round of the search.
 
         Returns
         -------
         entry, trial
-            The candidate's entry (gain, its standard error, kept or not, a note) and,
-            when it could be fitted, the fit with its held-out densities.
         """
         d = self.d
         fit_e, note = self.fit(current, name)

@@ -1,16 +1,4 @@
-"""Starting points of the diagnosis' joint fits.
-
-Examples
---------
->>> from bayes_mpem.lbl.simulation.simulate import simulate_survey
->>> from bayes_mpem.lbl.survey.survey import fittable_beacons
->>> from bayes_mpem.lbl.diagnosis.model import ranges
->>> sim = simulate_survey("abe58", rng=2, n_cycles=300)
->>> fittable, _ = fittable_beacons(sim.survey, 30)
->>> start, path, logliks = baseline_start(ranges(sim.survey, fittable), fittable, "auto", 0)
->>> path, sorted(logliks)
-('triangle', ['double', 'triangle'])
-"""
+"""Starting points of the diagnosis' joint fits."""
 
 from __future__ import annotations
 
@@ -76,11 +64,8 @@ def baseline_start(d: Ranges, fittable, path, rng):
     ----------
     d : Ranges
     fittable : list of BeaconData
-        The beacons of ``d``, in order.
     path : {"auto", "triangle", "double"}
-        ``"auto"`` picks the multipath geometry with the higher total likelihood.
     rng : None, int or numpy.random.Generator
-        Seeds the per-beacon fits.
 
     Returns
     -------
@@ -123,23 +108,21 @@ def baseline_start(d: Ranges, fittable, path, rng):
 
 
 def start_for(d, base: JointFit, effects, path):
-    """Give starting points for a model with ``effects``, from a fit of a nested model.
+    """Give starting points for a model with ``effects`` from a fit of a nested model.
+
+    ``base``'s parameters; for a new ``second_reflector``, one start per candidate plane;
+    for a new per-beacon term, also one from its ranges alone (:func:`direct_path_offset`).
 
     Parameters
     ----------
     d : Ranges
     base : JointFit
-        The fit of a model with fewer effects.
     effects : tuple of str
     path : {"triangle", "double"}
 
     Returns
     -------
     list of Params
-        ``base``'s parameters; for a new ``second_reflector``, one start per
-        candidate plane (possibly none); for a new per-beacon term, also a start
-        with that beacon's bias or position found from its ranges alone
-        (:func:`direct_path_offset`).
     """
     p = base.params.copy()
     if "second_reflector" in effects and "second_reflector" not in base.effects:
@@ -158,12 +141,11 @@ def direct_path_offset(d: Ranges, p: Params, effects, path, t, *, scale=10.0, n_
     d : Ranges
     p : Params
     effects : tuple of str
-        The terms of the model, ``t`` among them.
     path : {"triangle", "double"}
     t : str
         ``"beacon_bias:<id>"`` or ``"beacon_position:<id>"``.
     scale : float, default 10
-        Cauchy scale (m) of the reweighted least squares on the direct-path prediction.
+        Cauchy scale (m) of the reweighted least squares.
     n_iter : int, default 30
 
     Returns
@@ -194,23 +176,19 @@ def direct_path_offset(d: Ranges, p: Params, effects, path, t, *, scale=10.0, n_
 
 
 def replant(d: Ranges, fit: JointFit, fittable, path, rng) -> Params | None:
-    """Re-find each beacon's plane for ``fit``'s model: a fresh start.
+    """Re-find each beacon's plane for ``fit``'s model: a fresh start (None if nothing moves).
 
     Parameters
     ----------
     d : Ranges
     fit : JointFit
     fittable : list of BeaconData
-        The beacons of ``d``, in order.
     path : {"triangle", "double"}
     rng : None, int or numpy.random.Generator
-        Seeds the per-beacon fits.
 
     Returns
     -------
     Params or None
-        ``None`` when no plane moves by more than 5 m and no beacon's direct-path or
-        multipath weight by more than 0.05.
     """
     p = fit.params
     k = 1.0 + (p.scale if "sound_speed" in fit.effects else 0.0)

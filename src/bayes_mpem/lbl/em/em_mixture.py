@@ -1,11 +1,4 @@
-"""The mixture EM for one beacon: maximum likelihood of the dp / mp / outlier mixture.
-
-:func:`fit_mixture_em` (the package's default fit) runs a generalised EM on the mixture
-of :mod:`bayes_mpem.lbl.model.likelihood`: the E-step, a safeguarded Gauss-Newton step
-of the plane height and the scales and weights in closed form (:func:`mixture_m_step`),
-from the modes of the per-range plane heights (:func:`histogram_modes`). The model is
-described in ``docs/model.md``.
-"""
+"""The mixture EM for one beacon: maximum likelihood of the dp / mp / ol mixture (docs/model.md)."""
 
 from __future__ import annotations
 
@@ -74,7 +67,7 @@ def mixture_m_step(geom, resp, state, path, *, fit_sigma_dp, fit_weights, sigma_
     fit_sigma_dp, fit_weights : bool
         Whether sigma_DP and the weights are free.
     sigma_floor : float
-        Lower bound on both scales (m), against collapse onto single ranges.
+        Lower bound on both scales (m).
     d0_bounds : tuple of float
 
     Returns
@@ -115,31 +108,26 @@ class _MixtureEM(EMModel):
 
 
 def histogram_modes(v, k, *, width=5.0, sep=25.0, min_count=-1):
-    """Return the ``k`` strongest modes of ``v`` from a smoothed histogram.
+    """Return the ``k`` strongest modes of ``v`` (bin centres) from a smoothed histogram.
 
     Parameters
     ----------
     v : numpy.ndarray
-        Values (e.g. per-range plane heights).
     k : int
-        Number of modes wanted.
     width : float, default 5
         Bin width.
     sep : float, default 25
         Smallest separation of two modes.
     min_count : float, default -1
-        A mode's 3-bin smoothed count must exceed this (default: any bin,
-        empty ones included).
+        A mode's 3-bin smoothed count must exceed this.
 
     Returns
     -------
     list of float
-        Bin centres, strongest first (at most ``k``).
 
     Examples
     --------
-    >>> v = np.r_[np.full(50, 100.0), np.full(20, 300.0)]
-    >>> histogram_modes(v, 2)
+    >>> histogram_modes(np.r_[np.full(50, 100.0), np.full(20, 300.0)], 2)
     [102.5, 297.5]
     """
     nb = int(min(max((v.max() - v.min()) / width, 1), 20000))
@@ -197,11 +185,9 @@ def fit_mixture_em(
     weights : {"learned", "equal"}
         Learn the mixing weights (default) or fix them at 1/3 (the paper's).
     init : dict, optional
-        Extra starting point, e.g. ``result.to_dict()`` of an earlier fit
-        (keys ``d0``, ``sigma_mp``, ``sigma_dp``, ``weights``).
+        Extra starting point, e.g. ``result.to_dict()`` of an earlier fit.
     n_init : int, default 4
-        Number of data-driven starts: the strongest modes of the per-range
-        plane heights :func:`~bayes_mpem.lbl.model.geometry.invert_plane_height`.
+        Data-driven starts: the strongest modes of the per-range plane heights.
     max_iter : int, default 500
     tol : float, default 1e-8
         Stop when the log-likelihood gains less than ``tol`` per range.
@@ -210,14 +196,11 @@ def fit_mixture_em(
     subsample : int, default 20000
         Starts are compared on a random subsample of at most this many ranges.
     rng : None, int or numpy.random.Generator
-        Seeds the subsample.
     ssp : SoundSpeedProfile, optional
-        Predict the ranges along refracted eigenrays through this profile
-        (:mod:`bayes_mpem.lbl.model.refracted`, ``docs/refraction.md``) instead of
-        straight lines; it must reach the deepest beacon or vehicle.
+        Predict the ranges along refracted eigenrays through this profile instead of straight
+        lines (``docs/refraction.md``); it must reach the deepest beacon or vehicle.
     sound_speed : float, optional
-        With ``ssp``, required: the nominal speed (m/s) the navigation used to
-        turn travel times into ranges.
+        With ``ssp``, required: the nominal speed (m/s) that turned travel times into ranges.
 
     Returns
     -------
@@ -225,19 +208,14 @@ def fit_mixture_em(
 
     Raises
     ------
-    ValueError
-        A bad option, fewer than 3 ranges, ``sound_speed`` without ``ssp`` or
-        ``ssp`` without ``sound_speed``, a profile that does not reach the beacon
-        or vehicle.
-    TypeError
-        ``ssp`` not a :class:`~bayes_mpem.acoustics.SoundSpeedProfile`.
+    ValueError, TypeError
+        A bad option, fewer than 3 ranges, ``ssp`` and ``sound_speed`` not given together, a
+        profile that does not reach the beacon or vehicle; ``ssp`` not a profile.
 
     Warns
     -----
-    ConvergenceWarning
-        When ``max_iter`` is reached first.
-    FitQualityWarning
-        When the result is not a credible reflector (:func:`quality_flags`).
+    ConvergenceWarning, FitQualityWarning
+        ``max_iter`` reached first; a result that is not a credible reflector.
 
     Examples
     --------

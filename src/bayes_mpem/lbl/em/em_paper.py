@@ -1,10 +1,4 @@
-"""The paper's EM for one beacon, as written (eqs. 3-10).
-
-:func:`fit_paper_em`: chi-square tail probabilities and the ``Pol`` rule in the E-step
-(:func:`paper_e_step`), the weighted plane height of eq. 8 blended by ``alpha`` (eq. 10)
-and eq. 9 in the M-step (:func:`paper_m_step`). It maximises no likelihood. Every
-interpretation is listed in ``docs/paper-em.md``.
-"""
+"""The paper's EM for one beacon, as written (eqs. 3-10; interpretations: docs/paper-em.md)."""
 
 from __future__ import annotations
 
@@ -31,12 +25,7 @@ from .em_result import (
 
 
 def paper_e_step(geom: BeaconGeometry, d0, sigma_mp, sigma_dp, pol, path="triangle"):
-    """E-step of the paper (eqs. 3-6 and the ``Pol`` rule).
-
-    ``P(z|j) = 1 - chi2.cdf(u, 1)`` with ``u = (z - z_hat_j)^2 / sigma_j^2``
-    for j = DP, MP (computed as ``erfc(sqrt(u / 2))``); ``P(z|OL) = Pol``
-    unless ``1 - P(z|DP) - P(z|MP) < Pol``, then that difference clipped at 0.
-    Priors are equal and cancel.
+    """E-step of the paper (eqs. 3-6 and the ``Pol`` rule; ``docs/paper-em.md``).
 
     Parameters
     ----------
@@ -77,16 +66,11 @@ def paper_m_step(geom: BeaconGeometry, gamma_mp, d0_prev, alpha, path="triangle"
         Blending factor of eq. 10.
     path : {"triangle", "double"}
     d0k : numpy.ndarray, optional
-        The per-range plane heights
-        (:func:`~bayes_mpem.lbl.model.geometry.invert_plane_height`), if computed.
+        The per-range plane heights, if computed.
 
     Returns
     -------
     d0, sigma_mp : float
-        ``d0`` is the gamma_MP-weighted mean of the per-range ``d0(k)`` (ranges
-        with no real inversion are left out), blended with ``d0_prev``;
-        ``sigma_mp`` is the square root of the weighted mean squared
-        multipath residual at that ``d0``.
     """
     if d0k is None:
         d0k = geometry.invert_plane_height(geom.z, geom.h, geom.dz, path, direct=geom.direct)
@@ -149,9 +133,7 @@ def fit_paper_em(
     alpha : float, default 0.5
         Convergence factor of eq. 10, in (0, 1].
     sigma_dp : float, optional
-        Direct-path scatter (m). The paper takes it as known (3.97 m for
-        ABE58); if omitted it is estimated robustly from the ranges near the
-        direct path (:func:`estimate_sigma_dp`).
+        Direct-path scatter (m), known in the paper (3.97 m for ABE58); estimated if omitted.
     path : {"triangle", "double"}
     d0_init : float, default 4000
         Initial plane height (m), the paper's value.
@@ -167,10 +149,8 @@ def fit_paper_em(
 
     Warns
     -----
-    ConvergenceWarning
-        When ``max_iter`` is reached first.
-    FitQualityWarning
-        When the result is not a credible reflector (:func:`quality_flags`).
+    ConvergenceWarning, FitQualityWarning
+        ``max_iter`` reached first; a result that is not a credible reflector.
 
     Examples
     --------

@@ -1,15 +1,4 @@
-"""The result of a one-beacon EM and what both EMs share.
-
-:class:`EMResult` is the result of both one-beacon EMs; :func:`quality_flags` and
-:func:`with_flags` say why a reflector is not credible. Shared helpers:
-:func:`check_options`, :func:`estimate_sigma_dp`, :func:`wdot`.
-
-Examples
---------
->>> import numpy as np
->>> wdot(np.array([1.0, 2.0]), np.array([3.0, 4.0]))
-11.0
-"""
+"""The result of a one-beacon EM, its quality flags, and what both EMs share."""
 
 from __future__ import annotations
 
@@ -43,8 +32,7 @@ def quality_flags(result, data: BeaconData, *, sigma_floor: float = 0.05) -> tup
     Returns
     -------
     tuple of str
-        Those of :func:`reflector_flags`, and (for a fit through a sound-speed
-        profile) more than 1 % of the ranges with no eigenray at all.
+        Those of :func:`reflector_flags`, and more than 1 % of the ranges with no eigenray.
     """
     depth = float(data.position[2])
     flags = reflector_flags(result.resp, result.sigma_mp, depth - result.d0,
@@ -66,25 +54,15 @@ def reflector_flags(resp, sigma_mp, plane_depth, *, sigma_floor=0.05, plane_note
     resp : numpy.ndarray
         ``(n, k)`` class probabilities, direct path in column 0, multipath in 1.
     sigma_mp : float
-        The multipath scale (m).
     plane_depth : float
         Depth of the reflecting plane (m, positive down).
     sigma_floor : float, default 0.05
-        The scale floor of the fit.
     plane_note : str, optional
         Appended to the message of a plane above the sea surface.
 
     Returns
     -------
     list of str
-        Fewer than 10 ranges' worth of multipath, sigma_MP at its floor or above
-        100 m, almost no direct path, a plane more than 10 m above the sea surface.
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> reflector_flags(np.tile([0.7, 0.3], (100, 1)), 5.0, -20.0)
-    ['the plane is 20 m above the sea surface']
     """
     flags = []
     n = resp.shape[0]
@@ -105,24 +83,17 @@ def reflector_flags(resp, sigma_mp, plane_depth, *, sigma_floor=0.05, plane_note
 
 
 def with_flags(result, data, sigma_floor):
-    """Return a copy of ``result`` with its :func:`quality_flags` set.
+    """Return a copy of ``result`` with its :func:`quality_flags` set (warned as FitQualityWarning).
 
     Parameters
     ----------
     result : EMResult
     data : BeaconData
-        The ranges the result was fitted to.
     sigma_floor : float
-        The scale floor the flags compare with (m).
 
     Returns
     -------
     EMResult
-
-    Warns
-    -----
-    FitQualityWarning
-        When there are flags.
     """
     flags = quality_flags(result, data, sigma_floor=sigma_floor)
     if flags:
@@ -139,18 +110,15 @@ class EMResult:
     Attributes
     ----------
     beacon : str
-        Beacon id.
     method : {"mixture", "paper"}
     path : {"triangle", "double"}
-        Multipath geometry.
     d0 : float
         Height of the reflecting plane above the beacon (m).
     sigma_mp, sigma_dp : float
         Multipath and direct-path range scatter (m).
     weights : dict
-        Mixing weights ``{"dp", "mp", "ol"}``. The paper's EM has none (its
-        priors are equal and dropped); there they are the mean class
-        probabilities, the quantity of the paper's Fig. 12c.
+        Mixing weights ``{"dp", "mp", "ol"}``; for the paper's EM (which has none) the mean
+        class probabilities (the paper's Fig. 12c).
     resp : numpy.ndarray
         ``(n, 3)`` class probabilities of every range (dp, mp, ol).
     rows : numpy.ndarray
@@ -158,19 +126,13 @@ class EMResult:
     n_iter : int
     converged : bool
     loglik : float or None
-        Mixture log-likelihood at the returned parameters (mixture EM only).
+        Mixture log-likelihood (mixture EM only).
     d0_se : float or None
-        Approximate standard error of ``d0`` (m, mixture EM only):
-        ``sigma_mp / sqrt(sum_k p_mp(k) (d z_MP / d d0)_k^2)``, the Fisher
-        information of the multipath ranges given their class probabilities.
-        Calibrated on simulated surveys (``docs/recovery.md``).
+        Approximate standard error of ``d0`` (m, mixture EM only; ``docs/recovery.md``).
     flags : tuple of str
-        Why the result is not a credible reflector (:func:`quality_flags`);
-        empty for a good fit. A :class:`FitQualityWarning` repeats them.
+        Why the result is not a credible reflector (:func:`quality_flags`).
     history : dict of numpy.ndarray
-        Per-iteration values, index 0 being the initial state: ``d0``,
-        ``sigma_mp``, ``sigma_dp``, ``p_dp``, ``p_mp``, ``p_ol`` (mean class
-        probabilities) and, for the mixture EM, ``loglik``.
+        Per-iteration values, index 0 the start.
     first_resp : numpy.ndarray
         Class probabilities after the first E-step (the paper's Fig. 7).
     settings : dict
@@ -242,9 +204,7 @@ class EMResult:
 
 
 def estimate_sigma_dp(geom: BeaconGeometry, *, window: float = 50.0) -> float:
-    """Robust direct-path scatter: residuals within ``window`` m trimmed at 3 sigma.
-
-    A robust stand-in for the paper's least-squares fit of sigma_DP.
+    """Robust direct-path scatter (m): residuals within ``window`` m trimmed at 3 sigma.
 
     Parameters
     ----------
@@ -255,7 +215,7 @@ def estimate_sigma_dp(geom: BeaconGeometry, *, window: float = 50.0) -> float:
     Returns
     -------
     float
-        Standard deviation (m); 1.0 if fewer than 5 ranges fall in the window.
+        1.0 if fewer than 5 ranges fall in the window.
     """
     r = geom.z - geom.direct
     r = r[np.abs(r) < window]
@@ -277,7 +237,6 @@ def wdot(w, x):
     Parameters
     ----------
     w, x : numpy.ndarray
-        Weights and values (broadcastable).
 
     Returns
     -------
@@ -287,21 +246,16 @@ def wdot(w, x):
 
 
 def check_options(*, path="triangle", weights="learned", pol=0.05, alpha=0.5, sigma_dp=None):
-    """Validate the options of both EMs up front.
+    """Validate the options of both EMs; return ``sigma_dp`` as a float or None.
 
     Parameters
     ----------
-    path : {"triangle", "double"}
-    weights : {"learned", "equal"}
-    pol, alpha : float
-        In (0, 1) and (0, 1].
-    sigma_dp : float, optional
-        Positive.
+    path, weights : str
+    pol, alpha, sigma_dp : float
 
     Returns
     -------
     float or None
-        ``sigma_dp`` as a float (``None`` when it is to be estimated).
 
     Raises
     ------
@@ -321,7 +275,6 @@ def mean_resp_history(resp):
     Parameters
     ----------
     resp : numpy.ndarray
-        ``(n, 3)`` class probabilities.
 
     Returns
     -------

@@ -22,16 +22,11 @@ RULE = "maximised mixture-EM log-likelihood"
 
 
 def check_path_choice(path: str) -> str:
-    """Return ``path`` if it is ``"auto"``, ``"triangle"`` or ``"double"``.
+    """Return ``path`` if it is ``"auto"``, ``"triangle"`` or ``"double"``, else raise ValueError.
 
     Parameters
     ----------
     path : str
-
-    Raises
-    ------
-    ValueError
-        For any other value.
     """
     return check_choice("path", path, PATH_CHOICES)
 
@@ -42,15 +37,12 @@ class PathChoice:
 
     Attributes
     ----------
-    beacon : str
-    requested : str
-        ``"auto"``, or the geometry the caller forced.
-    path : str
-        The geometry used (``"triangle"`` or ``"double"``).
+    beacon, requested, path : str
+        The beacon, ``"auto"`` or the geometry forced, and the geometry used.
     loglik : dict
         Maximised mixture-EM log-likelihood of each geometry (nats).
     fits : dict
-        The mixture-EM fit of each geometry (:class:`~bayes_mpem.lbl.em.em_result.EMResult`).
+        The mixture-EM fit of each geometry.
     """
 
     beacon: str
@@ -87,24 +79,21 @@ class PathChoice:
         ----------
         beacon : str
         d : dict
-            A ``path_choice`` entry of ``summary.json``.
         """
         return cls(beacon=beacon, requested=d["requested"], path=d["path"],
                    loglik={p: _score(v) for p, v in d["loglik"].items()})
 
 
 def choices_from_summary(beacons: dict) -> dict:
-    """Rebuild the :class:`PathChoice` of every beacon of a summary that records one.
+    """Rebuild the :class:`PathChoice` of every beacon of a ``summary.json`` that records one.
 
     Parameters
     ----------
     beacons : dict
-        The ``beacons`` entry of a ``summary.json``.
 
     Returns
     -------
     dict of str to PathChoice
-        Empty for output written before ``path="auto"`` existed.
     """
     return {b: PathChoice.from_dict(b, s["path_choice"]) for b, s in beacons.items()
             if "path_choice" in s}
@@ -137,29 +126,20 @@ def choose_path(
     Parameters
     ----------
     data : BeaconData
-        The replies of one beacon.
     path : {"auto", "triangle", "double"}
-        ``"auto"`` keeps the geometry with the higher maximised log-likelihood;
-        a geometry forces it (both are still fitted, to measure the margin).
+        ``"auto"`` keeps the likelier geometry; a geometry forces it (both are fitted).
     rng : None, int or numpy.random.Generator
-        Seeds the fits (one generator, the geometry used first).
     warn_margin : float, default :data:`CLEAR_MARGIN`
-        Warn when a forced geometry loses by more than this many nats.
+        Warn (PathChoiceWarning) when a forced geometry loses by more than this many nats.
     fit_warnings : bool, default True
-        Issue again the warnings of the fit kept (False: drop them, when the fit
-        only serves to choose the geometry, as for the paper's EM).
+        Issue again the warnings of the fit kept.
     stacklevel : int, default 2
-        Of the warnings (the chosen fit's own warnings are issued again here).
     **kwargs
         Passed to :func:`~bayes_mpem.lbl.em.em_mixture.fit_mixture_em` for both fits.
 
-    Warns
-    -----
-    PathChoiceWarning
-        When ``path`` is forced and the other geometry is likelier by more than
-        ``warn_margin`` nats.
-    ConvergenceWarning, FitQualityWarning
-        Those of the fit kept, with ``fit_warnings`` (the other fit's are dropped).
+    Returns
+    -------
+    PathChoice
 
     Examples
     --------

@@ -22,14 +22,12 @@ def pol_sensitivity(data, pols, **kwargs):
     data : BeaconData
     pols : sequence of float
     **kwargs
-        Passed to :func:`~.em_paper.fit_paper_em` (``alpha``, ``sigma_dp``, ...).
+        Passed to :func:`~.em_paper.fit_paper_em`.
 
     Returns
     -------
     dict of numpy.ndarray
-        ``pol``, ``d0``, ``sigma_mp``, ``p_dp``, ``p_mp``, ``p_ol`` (mean class
-        probabilities), ``converged`` and ``flags`` (the fit-quality flags of each
-        run, collected instead of warned about).
+        ``pol``, ``d0``, ``sigma_mp``, ``p_dp``, ``p_mp``, ``p_ol``, ``converged``, ``flags``.
     """
     out = {k: [] for k in ("pol", "d0", "sigma_mp", "p_dp", "p_mp", "p_ol", "converged",
                            "flags")}
@@ -55,13 +53,11 @@ def survey_pol_sensitivity(survey_fit, beacon, *, pols=POL_GRID):
     ----------
     survey_fit : SurveyFit
     beacon : str
-        A fitted beacon of ``survey_fit``.
     pols : sequence of float, default POL_GRID
 
     Returns
     -------
     dict of numpy.ndarray
-        As :func:`pol_sensitivity`.
 
     Raises
     ------

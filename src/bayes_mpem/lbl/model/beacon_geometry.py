@@ -1,14 +1,4 @@
-"""What the likelihood of one beacon needs of its geometry, computed once.
-
-Examples
---------
->>> import numpy as np
->>> g = BeaconGeometry(z=np.array([5.0, 9.0]), h=np.array([3.0, 3.0]),
-...                    dz=np.array([4.0, 4.0]), direct=np.array([5.0, 5.0]),
-...                    lo=5.0, hi=9.0, d0_min=4.0)
->>> round(g.log_ol_density, 6)
--1.386294
-"""
+"""What the likelihood of one beacon needs of its geometry, computed once."""
 
 from __future__ import annotations
 
@@ -35,8 +25,7 @@ class BeaconGeometry:
     lo, hi : float
         Outlier window: the smallest and largest reported range (m).
     d0_min : float
-        Lowest physical plane height: the plane must lie above the vehicle for
-        every range, ``max(0, max(dz))``.
+        Lowest physical plane height (the plane above the vehicle): ``max(0, max(dz))``.
     """
 
     straight: ClassVar[bool] = True
@@ -83,19 +72,16 @@ class BeaconGeometry:
         return float(uniform_logpdf(self.lo, self.hi))
 
     def multipath(self, d0, path: str = "triangle"):
-        """Predicted multipath ranges for plane height ``d0`` (broadcasts).
+        """Predicted multipath range (m) of every range for plane height ``d0`` (broadcasts).
 
         Parameters
         ----------
         d0 : float or array_like
-            Height of the reflecting plane above the beacon (m).
         path : {"triangle", "double"}
-            One leg reflected, or both.
 
         Returns
         -------
         ndarray
-            One predicted range (m) per range of the beacon.
         """
         return geometry.multipath_range(self.h, self.dz, d0, path, direct=self.direct)
 
@@ -105,7 +91,6 @@ class BeaconGeometry:
         Parameters
         ----------
         d0 : float or array_like
-            Height of the reflecting plane above the beacon (m).
         path : {"triangle", "double"}
 
         Returns
@@ -124,7 +109,6 @@ class BeaconGeometry:
         Returns
         -------
         ndarray
-            The ``d0`` that would make each range a multipath (NaN where none does).
         """
         return geometry.invert_plane_height(self.z, self.h, self.dz, path, direct=self.direct)
 

@@ -1,10 +1,6 @@
 """Straight-ray LBL geometry: direct path, image-method multipath, inversion.
 
-Depths positive down; ``h`` the horizontal distance beacon-vehicle;
-``dz = z_beacon - z_vehicle``; the reflecting plane lies ``d0`` above the beacon, and its
-reflected leg is ``sqrt(h**2 + (2 d0 - dz)**2)`` (eq. 2 of the paper). Ranges are one-way:
-the triangle path gives ``(L_direct + L_refl) / 2``, the double bounce ``L_refl``
-(``docs/model.md``). Every function broadcasts.
+Details: ``docs/model.md``.
 """
 
 from __future__ import annotations
@@ -20,16 +16,11 @@ Path = Literal["triangle", "double"]
 
 
 def check_path(path: str) -> str:
-    """Return ``path`` if it is ``"triangle"`` or ``"double"``.
+    """Return ``path`` if it is ``"triangle"`` or ``"double"``, else raise ValueError.
 
     Parameters
     ----------
     path : str
-
-    Raises
-    ------
-    ValueError
-        For any other value.
     """
     return check_choice("path", path, PATHS)
 
@@ -59,11 +50,6 @@ def direct_path(h, dz):
     Returns
     -------
     numpy.ndarray
-
-    Examples
-    --------
-    >>> float(direct_path(3.0, 4.0))
-    5.0
     """
     return np.hypot(h, dz)
 
@@ -91,21 +77,13 @@ def multipath_range(h, dz, d0, path: Path = "triangle", *, direct=None):
     h, dz : array_like
     d0 : float or array_like
     path : {"triangle", "double"} or array_like
-        One geometry for all ranges, or one per range (names, or a mask True for the double
-        bounce).
+        One geometry for all ranges, or one per range (names, or True for the double bounce).
     direct : array_like, optional
         Precomputed :func:`direct_path`.
 
     Returns
     -------
     numpy.ndarray
-
-    Examples
-    --------
-    A vehicle 3 km from a beacon 2472 m deep, both near the floor:
-
-    >>> round(float(multipath_range(3000.0, 0.0, 2472.0)), 1)
-    4391.5
     """
     refl = reflected_leg(h, dz, d0)
     if not isinstance(path, str):  # one geometry per range
@@ -130,12 +108,10 @@ def multipath_derivative(h, dz, d0, path: Path = "triangle"):
     h, dz : array_like
     d0 : float or array_like
     path : {"triangle", "double"} or array_like
-        As :func:`multipath_range`.
 
     Returns
     -------
     numpy.ndarray
-        ``2 (2 d0 - dz) / L_refl`` for the double bounce, half that for the triangle path.
     """
     lever = 2.0 * np.asarray(d0, float) - dz
     d = 2.0 * lever / np.hypot(h, lever)
@@ -160,22 +136,14 @@ def invert_plane_height(z, h, dz, path: Path = "triangle", *, direct=None):
     Parameters
     ----------
     z : array_like
-        Measured one-way ranges (m).
     h, dz : array_like
     path : {"triangle", "double"}
     direct : array_like, optional
-        Precomputed :func:`direct_path`.
 
     Returns
     -------
     numpy.ndarray
-        NaN where no plane can produce the range (``L_refl < h``).
-
-    Examples
-    --------
-    >>> z = multipath_range(1500.0, 40.0, 2400.0)
-    >>> round(float(invert_plane_height(z, 1500.0, 40.0)), 6)
-    2400.0
+        NaN where no plane can produce the range.
     """
     z = np.asarray(z, float)
     if check_path(path) == "triangle":
@@ -191,20 +159,6 @@ def invert_plane_height(z, h, dz, path: Path = "triangle", *, direct=None):
     return out
 
 
-def elevation_angle(h, dz):
-    """Elevation of the vehicle seen from the beacon (degrees, 90 = overhead).
-
-    Parameters
-    ----------
-    h, dz : array_like
-
-    Returns
-    -------
-    numpy.ndarray
-    """
-    return np.degrees(np.arctan2(dz, h))
-
-
 def horizontal_slopes(h, dz, d0, path: Path = "triangle", *, direct=None):
     """Horizontal-position derivatives of the direct and multipath ranges, per unit offset.
 
@@ -213,22 +167,12 @@ def horizontal_slopes(h, dz, d0, path: Path = "triangle", *, direct=None):
     h, dz : array_like
     d0 : float or array_like
     path : {"triangle", "double"} or array_like
-        As :func:`multipath_range`.
     direct : array_like, optional
-        Precomputed :func:`direct_path`.
 
     Returns
     -------
     slope_direct, slope_multipath : numpy.ndarray
-        Multiply by ``x - x_beacon`` (or ``y - y_beacon``) for the derivative; finite at ``h = 0``.
-
-    Examples
-    --------
-    A vehicle 3 m east of a beacon 4 m below it: the direct range grows by 3/5 m per metre east.
-
-    >>> sd, sm = horizontal_slopes(3.0, 4.0, 100.0)
-    >>> round(float(3.0 * sd), 6)
-    0.6
+        Times ``x - x_beacon`` (or ``y - y_beacon``): the derivative; finite at ``h = 0``.
     """
     if direct is None:
         direct = direct_path(h, dz)

@@ -1,59 +1,37 @@
-"""The direct-path / multipath / outlier mixture likelihood, in one place.
-
-``p(z) = w_dp N(z; L_direct, s_dp) + w_mp N(z; f_MP(d0), s_mp) + w_ol U(z; lo, hi)`` over
-the window ``[lo, hi]`` of the beacon's ranges; every parameter broadcasts (``d0[:, None]``
-evaluates a column of walkers at once).
-"""
+"""The direct-path / multipath / outlier mixture likelihood, in one place."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from ...mixture.densities import LOG_SQRT_2PI, LOG_TINY, gaussian_logpdf, log_mix, safe_log
+from ...mixture.densities import LOG_TINY, gaussian_logpdf, log_mix, safe_log
 from .beacon_geometry import BeaconGeometry
 from .loglik_kernel import LoglikKernel
 
 
-def component_logpdf(geom: BeaconGeometry, d0, sigma_dp, sigma_mp, path: str = "triangle"):
-    """Log densities of every range under each class.
-
-    Parameters
-    ----------
-    geom : BeaconGeometry
-    d0, sigma_dp, sigma_mp : float or array_like
-        Plane height and the two Gaussian scales (m); arrays broadcast
-        against the ranges (use shape ``(W, 1)`` for ``W`` walkers).
-    path : {"triangle", "double"}
-
-    Returns
-    -------
-    tuple of numpy.ndarray
-        ``(log p(z|dp), log p(z|mp), log p(z|ol))``; the last is a scalar.
-    """
+def _component_logpdf(geom: BeaconGeometry, d0, sigma_dp, sigma_mp, path: str = "triangle"):
+    """Log densities of every range under each class."""
     ldp = gaussian_logpdf(geom.z - geom.direct, sigma_dp)
     lmp = gaussian_logpdf(geom.z - geom.multipath(d0, path), sigma_mp)
     return ldp, lmp, geom.log_ol_density
 
 
 def e_step(geom: BeaconGeometry, d0, sigma_dp, sigma_mp, weights, path: str = "triangle"):
-    """Responsibilities and log-likelihood at the given parameters.
+    """Return the log-likelihood and the ``(n, 3)`` class probabilities (dp, mp, ol).
 
     Parameters
     ----------
     geom : BeaconGeometry
     d0, sigma_dp, sigma_mp : float
     weights : sequence of 3 floats
-        Mixing weights of dp, mp, ol.
     path : {"triangle", "double"}
 
     Returns
     -------
     loglik : float
-        Total log-likelihood ``sum_k log p(z_k)``.
     resp : numpy.ndarray
-        ``(n, 3)`` class probabilities (columns dp, mp, ol).
     """
-    ldp, lmp, lol = component_logpdf(geom, d0, sigma_dp, sigma_mp, path)
+    ldp, lmp, lol = _component_logpdf(geom, d0, sigma_dp, sigma_mp, path)
     joint, lse = log_mix(ldp, lmp, lol, safe_log(weights))
     resp = np.zeros((geom.n, 3))
     for j in range(3):
@@ -78,59 +56,30 @@ def loglik_per_range(geom: BeaconGeometry, d0, sigma_dp, sigma_mp, weights, path
     -------
     numpy.ndarray
     """
-    ldp, lmp, lol = component_logpdf(geom, d0, sigma_dp, sigma_mp, path)
+    ldp, lmp, lol = _component_logpdf(geom, d0, sigma_dp, sigma_mp, path)
     return log_mix(ldp, lmp, lol, [safe_log(w) for w in weights])[1]
 
 
-def weighted_densities(geom: BeaconGeometry, d0, sigma_dp, sigma_mp, weights, path="triangle"):
-    """``w_j p(z_k | j)`` of every range for each class, in linear space (broadcasts).
-
-    Parameters
-    ----------
-    geom : BeaconGeometry
-    d0, sigma_dp, sigma_mp : float or numpy.ndarray
-        Shape ``(W, 1)`` for ``W`` parameter sets.
-    weights : sequence of 3 float or numpy.ndarray
-    path : {"triangle", "double"}
-
-    Returns
-    -------
-    tuple of numpy.ndarray
-        ``(dp, mp, ol)`` terms, each broadcast to ``(W, n)``.
-    """
-    sigma_dp = np.asarray(sigma_dp, float)
-    sigma_mp = np.asarray(sigma_mp, float)
-    r_dp = geom.z - geom.direct
-    r_mp = geom.z - geom.multipath(d0, path)
-    c = np.exp(-LOG_SQRT_2PI)
-    dp = (c * weights[0] / sigma_dp) * np.exp(-0.5 * (r_dp * r_dp) / (sigma_dp * sigma_dp))
-    mp = (c * weights[1] / sigma_mp) * np.exp(-0.5 * (r_mp * r_mp) / (sigma_mp * sigma_mp))
-    ol = np.broadcast_to(np.asarray(weights[2], float) * np.exp(geom.log_ol_density), mp.shape)
-    return np.broadcast_to(dp, mp.shape), mp, ol
-
-
 def total_loglik(geom: BeaconGeometry, d0, sigma_dp, sigma_mp, weights, path="triangle"):
-    """Sum the log-likelihood for many parameter sets at once, in float64.
+    """Sum the log-likelihood for many parameter sets at once (straight rays), in float64.
 
     Parameters
     ----------
     geom : BeaconGeometry
-        Straight-ray only.
     d0, sigma_dp, sigma_mp : numpy.ndarray
         Shape ``(W, 1)`` for ``W`` parameter sets.
     weights : sequence of 3 numpy.ndarray
-        ``w_dp, w_mp, w_ol``, each of shape ``(W, 1)``.
     path : {"triangle", "double"}
 
     Returns
     -------
     numpy.ndarray
-        ``(W,)`` log-likelihoods; ``-inf`` where a range has zero density.
+        ``(W,)``; ``-inf`` where a range has zero density.
 
     Raises
     ------
     NotImplementedError
-        For a refracted geometry (``geom.straight`` False).
+        For a refracted geometry.
     """
     d0, sigma_dp, sigma_mp, *weights = np.broadcast_arrays(
         *(np.asarray(v, float) for v in (d0, sigma_dp, sigma_mp, *weights)))

@@ -1,20 +1,4 @@
-"""The sampler's kernel: the total log-likelihood of one beacon for many parameter sets.
-
-Examples
---------
->>> import numpy as np
->>> from bayes_mpem.lbl.model.beacon_geometry import BeaconGeometry
->>> from bayes_mpem.lbl.model.likelihood import loglik_per_range
->>> from bayes_mpem.lbl.simulation.simulate import simulate_survey
->>> geom = BeaconGeometry.from_data(simulate_survey("abe58", rng=0).survey.for_beacon("4"))
->>> kern = LoglikKernel(geom, precision="float64")
->>> d0, s_dp, s_mp = np.array([2471.0, 2473.0]), np.array([4.0, 4.1]), np.array([7.0, 6.8])
->>> w = [np.array([0.5, 0.5]), np.array([0.35, 0.34]), np.array([0.15, 0.16])]
->>> ref = loglik_per_range(geom, d0[:, None], s_dp[:, None], s_mp[:, None],
-...                        [x[:, None] for x in w]).sum(axis=1)
->>> bool(np.allclose(kern(d0, s_dp, s_mp, *w), ref, rtol=1e-12))
-True
-"""
+"""The sampler's kernel: the total log-likelihood of one beacon for many parameter sets."""
 
 from __future__ import annotations
 
@@ -71,30 +55,26 @@ class _Screen:
 
 
 class LoglikKernel:
-    """Total log-likelihood of one beacon's ranges for a batch of parameter sets.
+    """Total log-likelihood of one beacon's ranges for a batch of parameter sets (straight rays).
 
     Parameters
     ----------
     geom : BeaconGeometry
-        Straight-ray geometry of the beacon.
     path : {"triangle", "double"}
     precision : {"auto", "float32", "float64"}
-        Working precision of the per-range terms (the sum is always float64);
-        ``"auto"``: float32 up to :data:`FLOAT32_MAX_RANGES` ranges.
+        Of the per-range terms (the sum is float64); ``"auto"``: float32 up to
+        :data:`FLOAT32_MAX_RANGES` ranges.
 
     Attributes
     ----------
     dtype : numpy.dtype
-        The working precision chosen.
     n_screens : int
         Envelopes made so far (a diagnostic of the cache).
 
     Raises
     ------
-    NotImplementedError
-        For a refracted geometry (``geom.straight`` False).
-    ValueError
-        For an unknown ``path`` or ``precision``.
+    NotImplementedError, ValueError
+        A refracted geometry; an unknown ``path`` or ``precision``.
     """
 
     def __init__(self, geom: BeaconGeometry, path: str = "triangle", *, precision="auto"):
@@ -182,17 +162,16 @@ class LoglikKernel:
         return dp, r
 
     def __call__(self, d0, sigma_dp, sigma_mp, w_dp, w_mp, w_ol):
-        """Log-likelihood of every parameter set of a batch.
+        """Log-likelihood (``(W,)`` float64) of every parameter set of a batch.
 
         Parameters
         ----------
         d0, sigma_dp, sigma_mp, w_dp, w_mp, w_ol : numpy.ndarray
-            ``(W,)`` (or ``(W, 1)``) each: plane height, scales (m) and weights.
+            ``(W,)`` (or ``(W, 1)``) each.
 
         Returns
         -------
         numpy.ndarray
-            ``(W,)`` float64; ``-inf`` where a range has zero density.
         """
         d0, sigma_dp, sigma_mp, w_dp, w_mp, w_ol = (
             np.asarray(v, float).ravel() for v in (d0, sigma_dp, sigma_mp, w_dp, w_mp, w_ol))
@@ -230,9 +209,7 @@ class LoglikKernel:
         return self._screens[key]
 
     def pointwise(self, d0, sigma_dp, sigma_mp, w_dp, w_mp, w_ol):
-        """Log-likelihood and class probabilities of every range, for each parameter set.
-
-        Always in float64 and over every range: PSIS-LOO needs exact ties.
+        """Log-likelihood and class probabilities of every range, in float64 (for PSIS-LOO).
 
         Parameters
         ----------
@@ -242,7 +219,7 @@ class LoglikKernel:
         Returns
         -------
         loglik : numpy.ndarray
-            ``(W, n)``: ``log p(z_k)``.
+            ``(W, n)``.
         probs : list of numpy.ndarray
             Per class (dp, mp, ol), ``(W, n)``.
         """
@@ -278,10 +255,9 @@ class LoglikKernel:
         Returns
         -------
         loglik : numpy.ndarray
-            ``(W, n)``: ``log p(z_k)`` of every range at every draw, input order.
+            ``(W, n)``.
         mean, sd : numpy.ndarray
-            ``(n, 3)``: mean and sd over the draws of each range's probabilities of
-            dp, mp and ol.
+            ``(n, 3)`` mean and sd over the draws of each range's class probabilities.
         """
         d0, sigma_dp, sigma_mp, w_dp, w_mp, w_ol = (
             np.asarray(v, float).ravel() for v in (d0, sigma_dp, sigma_mp, w_dp, w_mp, w_ol))

@@ -1,10 +1,6 @@
 """Refracted LBL ranges: direct and multipath returns through a sound-speed profile.
 
-Reported one-way ranges are ``c_nom * T_direct`` (direct path), ``c_nom * (T_direct +
-T_bounce) / 2`` (triangle) or ``c_nom * T_bounce`` (double bounce). A range whose ray does
-not exist has zero density under that class (counted, never dropped). Bounce times are
-tabulated against ``d0`` and interpolated by cubic Hermite polynomials. Accuracy and cost:
-``docs/refraction.md``.
+Details: ``docs/refraction.md``.
 """
 
 from __future__ import annotations
@@ -33,11 +29,8 @@ class RefractedRanges:
     Attributes
     ----------
     direct, multipath : numpy.ndarray
-        One-way ranges (m), ``c_nom`` times the travel times; NaN where no
-        eigenray exists.
-    direct_valid, multipath_valid : numpy.ndarray of bool
-    turning : numpy.ndarray of bool
-        Direct rays with a turning point.
+        One-way ranges (m), ``c_nom`` times the travel times; NaN where no eigenray exists.
+    direct_valid, multipath_valid, turning : numpy.ndarray of bool
     """
 
     direct: np.ndarray = field(repr=False)
@@ -58,26 +51,20 @@ def lbl_ranges(ssp: SoundSpeedProfile, sound_speed: float, horizontal, z_vehicle
     sound_speed : float
         Nominal speed ``c_nom`` (m/s) that turns travel times into ranges.
     horizontal, z_vehicle, z_beacon : array_like
-        Horizontal distance, vehicle depth and beacon depth (m); broadcast.
     plane_depth : float or array_like
         Depth of the reflecting plane (m), above both ends.
     path : {"triangle", "double"}
     direct : DirectRays, optional
         Precomputed :func:`direct_times` of the same pairs.
 
+    Returns
+    -------
+    RefractedRanges
+
     Raises
     ------
     ValueError
         An unknown path, a non-positive speed, or a plane below an end.
-
-    Examples
-    --------
-    A homogeneous medium gives the straight-ray ranges:
-
-    >>> r = lbl_ranges(SoundSpeedProfile.constant(1500.0), 1500.0, 3000.0, 2400.0, 2472.0, 0.0)
-    >>> L = geometry.multipath_range(3000.0, 72.0, 2472.0)
-    >>> abs(float(r.multipath) - float(L)) < 1e-9
-    True
     """
     geometry.check_path(path)
     c_nom = check_sound_speed(sound_speed)
@@ -159,9 +146,7 @@ class RefractedBeaconGeometry(BeaconGeometry):
     ----------
     ssp : SoundSpeedProfile
     sound_speed : float
-        Nominal speed ``c_nom`` (m/s).
     direct_valid, turning : numpy.ndarray of bool
-        Ranges with a direct eigenray; those whose direct ray turns.
     direct_time : numpy.ndarray
         One-way direct time (s; NaN where invalid).
     table : _BounceTable
@@ -190,16 +175,14 @@ class RefractedBeaconGeometry(BeaconGeometry):
         ----------
         data : BeaconData
         ssp : SoundSpeedProfile
-            Must reach the deepest beacon or vehicle (:func:`check_profile`).
+            Must reach the deepest beacon or vehicle.
         sound_speed : float
-            Nominal speed the navigation used to turn times into ranges (m/s).
         plane_step : float, default PLANE_STEP
             Grid spacing of the bounce table (m).
 
         Raises
         ------
         TypeError, ValueError
-            A bad profile or speed (named).
         """
         base = BeaconGeometry.from_data(data)
         bz = float(data.position[2])
@@ -240,13 +223,11 @@ class RefractedBeaconGeometry(BeaconGeometry):
         Parameters
         ----------
         d0 : float or array_like
-            Height of the reflecting plane above the beacon (m).
         path : {"triangle", "double"}
 
         Returns
         -------
         numpy.ndarray
-            Nominal-speed ranges (m) of the refracted surface bounce.
         """
         t_sb, _ = self._bounce(d0)
         if path == "triangle":
@@ -261,7 +242,6 @@ class RefractedBeaconGeometry(BeaconGeometry):
         Parameters
         ----------
         d0 : float or array_like
-            Height of the reflecting plane above the beacon (m).
         path : {"triangle", "double"}
 
         Returns
@@ -282,14 +262,12 @@ class RefractedBeaconGeometry(BeaconGeometry):
         ----------
         path : {"triangle", "double"}
         max_iter : int
-            Newton steps at most.
         atol : float
             Tolerance on the range (m).
 
         Returns
         -------
         numpy.ndarray
-            One plane height ``d0`` (m) per range.
         """
         geometry.check_path(path)
         dlow = np.maximum(self.dz, 0.0)
@@ -329,10 +307,8 @@ class RefractedBeaconGeometry(BeaconGeometry):
         Returns
         -------
         dict
-            ``no_direct_ray``, ``no_multipath_ray`` (at ``d0``), ``no_ray``
-            (neither: these ranges can only be outliers), ``turning_direct``
-            (direct rays with a turning point) and ``planes_traced`` (bounce
-            table nodes traced so far).
+            ``no_direct_ray``, ``no_multipath_ray``, ``no_ray`` (neither), ``turning_direct``,
+            ``planes_traced``.
         """
         no_mp = self.multipath(d0, path) >= NO_RAY
         no_dp = ~self.direct_valid

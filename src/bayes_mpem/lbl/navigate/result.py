@@ -22,6 +22,7 @@ from ...exceptions import InputError
 from ...io.results import write_csv, write_json, writing
 from ...mixture.densities import CLASSES
 from ..survey.survey import beacons_table, classified_table
+from .checks import model_checks
 from .dive import Dive, dive_with_dead_reckoning
 from .objective import State
 
@@ -91,6 +92,26 @@ def _num(v, spec: str) -> str:
     return "n/a" if v is None else format(v, spec)
 
 
+def _at_bound(node, path=()):
+    """Yield ``(path, record)`` of every estimate in ``node`` marked ``"at_bound"``."""
+    if isinstance(node, dict):
+        if node.get("at_bound") is True:
+            yield path, node
+        for k, v in node.items():
+            if k != "sigma_dp" or not path:  # a beacon's sigma_DP is the shared one
+                yield from _at_bound(v, (*path, str(k)))
+
+
+def _bound_line(path, rec) -> str:
+    lo = rec["interval"][0]
+    if path == ("sigma_dp",):
+        return f"sigma_DP at its floor {lo:g} m (one-sided interval)"
+    if len(path) >= 3 and path[0] == "beacons":
+        what = " ".join(("weight of" if p == "weights" else p) for p in path[2:])
+        return f"beacon {path[1]}: {what} at its bound {lo:g} (one-sided interval)"
+    return f"{' '.join(path)} at its bound {lo:g} (one-sided interval)"
+
+
 def quality_lines(summary: dict) -> list:
     """Every quality flag of a ``summary.json``, one line each (what the console prints).
 
@@ -102,8 +123,9 @@ def quality_lines(summary: dict) -> list:
     Returns
     -------
     list of str
-        Beacon flags and reasons, parameters at a bound, the observability flags,
-        non-convergence and the information behind the intervals.
+        Beacon flags and reasons, every estimate at a bound (wherever the summary
+        marks one ``"at_bound"``), the observability flags, non-convergence, the
+        information behind the intervals and the skipped beacons.
 
     Examples
     --------
@@ -119,13 +141,7 @@ def quality_lines(summary: dict) -> list:
         out += [f"beacon {bid}: {f}" for f in b.get("flags") or ()]
         if b.get("reason"):
             out.append(f"beacon {bid}: {b['reason']}")
-        for key in ("d0", "sigma_mp"):
-            if isinstance(b.get(key), dict) and b[key].get("at_bound"):
-                out.append(f"beacon {bid}: {key} at its bound {b[key]['interval'][0]:g} "
-                           "(one-sided interval)")
-    sdp = summary.get("sigma_dp")
-    if isinstance(sdp, dict) and sdp.get("at_bound"):
-        out.append(f"sigma_DP at its floor {sdp['interval'][0]:g} m (one-sided interval)")
+    out += [_bound_line(path, rec) for path, rec in _at_bound(summary)]
     for f in summary.get("observability") or ():
         if f.get("kind") == "track":
             out.append(f"navigation not corrected for t = {f['start']:.0f}-{f['end']:.0f} s "
@@ -139,6 +155,7 @@ def quality_lines(summary: dict) -> list:
         out.append(f"intervals from the {summary['information']} information")
     for bid, why in (summary.get("skipped") or {}).items():
         out.append(f"beacon {bid} skipped: {why}")
+    out += [f"model check, {f}" for f in (summary.get("model_checks") or {}).get("flags", ())]
     return out
 
 
@@ -247,19 +264,21 @@ class Navigation:
                "beacon_depth": depth}
         n_dp = float(self.resp[:, 0].sum())
         floor = float(self.options.get("sigma_floor", 0.0))
+        # MacKay's sd of log sigma (the residual degrees of freedom), else sqrt(2 n)'s
+        sd_log = (self.options.get("scale_uncertainty") or {}).get("sd_log_sigma", {})
         if self.options.get("sigma_dp") is not None:
             out["sigma_dp"] = {"estimate": finite(st.sigma_dp), "sd": None,
                                "interval": [None, None], "fixed": True}
         else:
-            out["sigma_dp"] = estimate(st.sigma_dp, st.sigma_dp / math.sqrt(2 * max(n_dp, 1)),
-                                       z, lo=0.0, bound=floor)
+            rel = sd_log.get("sigma_dp", 1.0 / math.sqrt(2 * max(n_dp, 1)))
+            out["sigma_dp"] = estimate(st.sigma_dp, st.sigma_dp * rel, z, lo=0.0, bound=floor)
         if info["mp"]:
             n_mp = float(resp[:, 1].sum())
             sd0 = self.global_sd.get(f"d0:{bid}", 0.0)
             out["d0"] = estimate(st.d0[j], sd0, z, lo=float(d.d0_min[j]))
             out["plane_depth"] = depth - float(st.d0[j])
-            out["sigma_mp"] = estimate(st.sigma_mp[j],
-                                       st.sigma_mp[j] / math.sqrt(2 * max(n_mp, 1)), z, lo=0.0,
+            rel = sd_log.get(f"sigma_mp:{bid}", 1.0 / math.sqrt(2 * max(n_mp, 1)))
+            out["sigma_mp"] = estimate(st.sigma_mp[j], st.sigma_mp[j] * rel, z, lo=0.0,
                                        bound=floor)
             out["path"] = "double" if st.double[j] else "triangle"
         else:
@@ -268,6 +287,9 @@ class Navigation:
         w = st.weights[j]
         out["weights"] = {c: estimate(w[i], math.sqrt(w[i] * (1 - w[i]) / max(n, 1)), z, lo=0.0)
                           for i, c in enumerate(CLASSES)}
+        if not info["mp"]:  # no multipath class: its weight is 0 by the model, not estimated
+            out["weights"]["mp"] = {"estimate": 0.0, "sd": None, "interval": [None, None],
+                                    "fixed": True}
         lab = np.argmax(resp, axis=1) if n else np.zeros(0, int)
         out["class_fractions"] = {c: finite(np.mean(lab == i)) if n else None
                                   for i, c in enumerate(CLASSES)}
@@ -296,7 +318,7 @@ class Navigation:
               if "range_scale" in self.global_sd else None)
         return {
             "model": self.options.get("model"), "multipath": self.options.get("multipath"),
-            "range_scale": rs,
+            "range_scale": rs, "model_checks": model_checks(self),
             "beacons": beacons, "sigma_dp": beacons[next(iter(beacons))]["sigma_dp"]
             if beacons else None,
             "dead_reckoning": dr,
@@ -309,8 +331,9 @@ class Navigation:
             "n_no_reply": int(d.survey.no_reply.sum()), "ci": ci,
             "pings": d.survey.pings_source, "beacons_file": d.survey.beacons_source,
             "information": self.options.get("information"),
+            "scale_uncertainty": self.options.get("scale_uncertainty"),
             "options": {k: v for k, v in self.options.items()
-                        if k not in ("rng", "ci", "information")},
+                        if k not in ("rng", "ci", "information", "scale_uncertainty")},
         }
 
     def to_dict(self) -> dict:
@@ -386,86 +409,76 @@ class Navigation:
                     "timings": write_json(out / "timings.json", dict(self.timings)),
                     "summary": write_json(out / "summary.json", self.summary())}
 
-
-@dataclass(frozen=True)
-class NavigationRecord:
-    """A navigation read back from its output folder: what its figures draw, no fit re-run.
-
-    Attributes
-    ----------
-    dive : Dive
-        The pings of ``classified.csv`` grouped into epochs, with the dead
-        reckoning of ``track.csv`` (:func:`.dive.dive_with_dead_reckoning`).
-    track : numpy.ndarray
-        ``(K, 2)`` the navigated positions (``track.csv``'s ``x``, ``y``).
-    cov : numpy.ndarray
-        ``(K, 2, 2)`` their covariances (``sd_x``, ``sd_y``, ``cov_xy``).
-    resp : numpy.ndarray
-        ``(n, 3)`` class probabilities of every reply (``classified.csv``).
-    skipped : dict
-        Beacons without a reply, with the reason (``summary.json``).
-    summary : dict
-        ``summary.json``.
-
-    Notes
-    -----
-    It offers what :mod:`bayes_mpem.plots.navigate` reads of a
-    :class:`Navigation`: ``dive``, ``track``, ``cov``, ``resp`` and ``skipped``.
-    """
-
-    dive: Dive = field(repr=False)
-    track: np.ndarray = field(repr=False)
-    cov: np.ndarray = field(repr=False)
-    resp: np.ndarray = field(repr=False)
-    skipped: dict
-    summary: dict = field(repr=False)
-
     @classmethod
-    def from_tables(cls, summary: dict, survey, track: pd.DataFrame,
-                    probs: np.ndarray) -> NavigationRecord:
-        """Rebuild a navigation from its files' content.
+    def read(cls, folder) -> Navigation:
+        """Read a navigation back from the folder :meth:`write` wrote, never by fitting again.
 
-        Parameters
-        ----------
-        summary : dict
-            ``summary.json``.
-        survey : Survey
-            The pings and beacons of ``classified.csv`` and ``summary.json``'s
-            ``beacons_table``.
-        track : pandas.DataFrame
-            ``track.csv`` (:meth:`Navigation.track_table`), as text or numbers.
-        probs : numpy.ndarray
-            ``(N, 3)`` ``p_dp``, ``p_mp``, ``p_ol`` of every input row (NaN without a reply).
-
-        Returns
-        -------
-        NavigationRecord
-
-        Raises
-        ------
-        InputError
-            When the track's epochs are not those of the pings, or a column is missing
-            or holds a cell that is not a number.
+        The pings of ``classified.csv`` in epochs with the dead reckoning of ``track.csv``
+        (:func:`.dive.dive_with_dead_reckoning`), the track and its covariances, the classes
+        and the estimates of ``summary.json`` (NaN where it has none); no history, timings,
+        joint covariances or per-beacon model records, so it draws but does not write. A
+        missing file is a ``FileNotFoundError``, a track that does
+        not fit the pings an ``InputError``.
         """
-        missing = [c for c in ("time", "x", "y", "sd_x", "sd_y", "cov_xy", "dr_x", "dr_y")
-                   if c not in track.columns]
-        if missing:
-            raise InputError(f"track.csv: no column(s) {missing}; expected the track of "
-                             "'bayes-mpem navigate'")
-        col = {}
-        for c in ("time", "x", "y", "sd_x", "sd_y", "cov_xy", "dr_x", "dr_y"):
-            text = track[c].astype(str).str.strip()
-            col[c] = pd.to_numeric(text.replace({"": "nan"}), errors="coerce").to_numpy(float)
-            bad = np.flatnonzero(np.isnan(col[c]) & ~text.str.lower().isin(["", "nan"]).to_numpy())
-            if bad.size:
-                raise InputError(f"track.csv row {int(bad[0]) + 1}, column {c!r}: expected a "
-                                 f"number, got {track[c].iloc[bad[0]]!r}")
-        dive = dive_with_dead_reckoning(
-            survey, col["time"], np.column_stack([col["dr_x"], col["dr_y"]]),
-            str((summary.get("dead_reckoning") or {}).get("source") or "pings"))
-        cov = np.empty((dive.n_epochs, 2, 2))
-        cov[:, 0, 0], cov[:, 1, 1] = col["sd_x"] ** 2, col["sd_y"] ** 2
-        cov[:, 0, 1] = cov[:, 1, 0] = col["cov_xy"]
-        return cls(dive=dive, track=np.column_stack([col["x"], col["y"]]), cov=cov,
-                   resp=np.asarray(probs, float)[dive.rows], skipped=dict(summary["skipped"]),
-                   summary=summary)
+        from pathlib import Path
+
+        from ...io.results import MARKER, read_document
+        from ...io.table_files import read_table_file
+        from ..survey.folder import survey_and_classes, together
+
+        d = Path(folder)
+        summary = read_document(d / MARKER)
+        path = d / "track.csv"
+        if not path.exists():
+            raise FileNotFoundError(f"{path}: not found; 'bayes-mpem navigate' writes it")
+        track = read_table_file(path, str(path), "track file").frame
+        survey, probs, _ = survey_and_classes(d, summary)
+        return together(d, _from_tables, cls, summary, survey, track, probs)
+
+
+def _value(entry) -> float:
+    """Return the estimate of a ``summary.json`` entry (a number or ``{"estimate": ...}``)."""
+    v = entry.get("estimate") if isinstance(entry, dict) else entry
+    return np.nan if v is None else float(v)
+
+
+def _from_tables(cls, summary: dict, survey, track: pd.DataFrame, probs: np.ndarray):
+    """Rebuild a :class:`Navigation` from its files' content (:meth:`Navigation.read`)."""
+    missing = [c for c in ("time", "x", "y", "sd_x", "sd_y", "cov_xy", "dr_x", "dr_y")
+               if c not in track.columns]
+    if missing:
+        raise InputError(f"track.csv: no column(s) {missing}; expected the track of "
+                         "'bayes-mpem navigate'")
+    col = {}
+    for c in ("time", "x", "y", "sd_x", "sd_y", "cov_xy", "dr_x", "dr_y"):
+        text = track[c].astype(str).str.strip()
+        col[c] = pd.to_numeric(text.replace({"": "nan"}), errors="coerce").to_numpy(float)
+        bad = np.flatnonzero(np.isnan(col[c]) & ~text.str.lower().isin(["", "nan"]).to_numpy())
+        if bad.size:
+            raise InputError(f"track.csv row {int(bad[0]) + 1}, column {c!r}: expected a "
+                             f"number, got {track[c].iloc[bad[0]]!r}")
+    dive = dive_with_dead_reckoning(
+        survey, col["time"], np.column_stack([col["dr_x"], col["dr_y"]]),
+        str((summary.get("dead_reckoning") or {}).get("source") or "pings"))
+    cov = np.empty((dive.n_epochs, 2, 2))
+    cov[:, 0, 0], cov[:, 1, 1] = col["sd_x"] ** 2, col["sd_y"] ** 2
+    cov[:, 0, 1] = cov[:, 1, 0] = col["cov_xy"]
+    beacons = [summary["beacons"].get(b, {}) for b in dive.beacon_ids]
+    dr = summary.get("dead_reckoning") or {}
+    state = State(
+        track=np.column_stack([col["x"], col["y"]]),
+        beta=np.deg2rad(_value(dr.get("heading_bias_deg"))),
+        scale=_value(dr.get("speed_scale")),
+        d0=np.array([_value(b.get("d0")) for b in beacons]),
+        double=np.array([b.get("path") == "double" for b in beacons]),
+        sigma_dp=_value(summary.get("sigma_dp")),
+        sigma_mp=np.array([_value(b.get("sigma_mp")) for b in beacons]),
+        weights=np.array([[_value((b.get("weights") or {}).get(c)) for c in CLASSES]
+                          for b in beacons]).reshape(len(beacons), 3),
+        range_scale=1.0 if summary.get("range_scale") is None
+        else _value(summary["range_scale"]))
+    return cls(dive=dive, state=state, cov=cov, global_sd={},
+               resp=np.asarray(probs, float)[dive.rows], beacons={},
+               skipped=dict(summary["skipped"]), flags=list(summary.get("observability") or []),
+               n_iter=summary.get("iterations", 0), converged=summary.get("converged"),
+               loglik=summary.get("loglik"), history={}, options=summary.get("options", {}))

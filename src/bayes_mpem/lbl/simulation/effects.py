@@ -1,9 +1,4 @@
-"""The effects a survey can hide: the shared vocabulary of the simulator and the diagnosis.
-
-Magnitudes are the change from the first to the last ping where the effect drifts. The
-effects of :data:`PER_BEACON` belong to one beacon, named by a term ``"<effect>:<beacon>"``
-(:func:`term`, :func:`split_term`).
-"""
+"""The effects a survey can hide: the shared vocabulary of the simulator and the diagnosis."""
 
 from __future__ import annotations
 
@@ -18,10 +13,12 @@ PER_BEACON = ("beacon_bias", "beacon_position")
 #: reported and the true position).
 UNITS = {"range_bias": "m", "sound_speed": "1", "plane_drift": "m", "second_reflector": "m",
          "early_outliers": "1", "nav_drift": "m", "beacon_bias": "m", "beacon_position": "m"}
-#: Options of the simulator's effects that are not effects themselves: ``beacon`` (the
-#: id of the beacon of the per-beacon effects; default the first), and the direction of
-#: a position error, ``beacon_position_direction`` (degrees counter-clockwise from +x,
-#: default 45) and ``beacon_position_dip`` (degrees below the horizontal, default 0).
+#: Options of the simulator's effects that are not effects themselves: ``second_fraction``
+#: (the direct replies the second plane takes, default 0.15), ``nav_drift_direction``
+#: (degrees from +x, default 45), ``beacon`` (the beacon of the per-beacon effects; default
+#: the first), and the direction of a position error, ``beacon_position_direction`` (degrees
+#: counter-clockwise from +x, default 45) and ``beacon_position_dip`` (degrees below the
+#: horizontal, default 0).
 EFFECT_OPTIONS = ("second_fraction", "nav_drift_direction", "beacon",
                   "beacon_position_direction", "beacon_position_dip")
 
@@ -32,14 +29,7 @@ def term(name: str, beacon=None) -> str:
     Parameters
     ----------
     name : str
-        One of :data:`EFFECTS`.
     beacon : str, optional
-        The beacon of a :data:`PER_BEACON` effect.
-
-    Examples
-    --------
-    >>> term("beacon_bias", "2"), split_term("beacon_bias:2"), split_term("range_bias")
-    ('beacon_bias:2', ('beacon_bias', '2'), ('range_bias', None))
     """
     return name if beacon is None else f"{name}:{beacon}"
 
@@ -67,18 +57,16 @@ def term_order(t: str) -> tuple:
 
 
 def check_effects(effects):
-    """Validate a mapping of effect names to magnitudes (and the effect options).
+    """Validate a mapping of effect names (and options) to magnitudes; return it as floats.
 
     Parameters
     ----------
     effects : dict or None
-        Names of :data:`EFFECTS` or :data:`EFFECT_OPTIONS` to finite numbers
-        (``"beacon"``: a beacon id).
+        Names of :data:`EFFECTS` or :data:`EFFECT_OPTIONS` (``"beacon"``: a beacon id).
 
     Returns
     -------
     dict
-        The same, as floats (``"beacon"`` as a string).
 
     Raises
     ------
@@ -116,14 +104,11 @@ def effect_weights(w, eff, bid):
     w : sequence of 3 float
         The beacon's weights of dp, mp and ol without effects.
     eff : dict
-        Checked effects (:func:`check_effects`).
     bid : str
-        The beacon, for the error message.
 
     Returns
     -------
     numpy.ndarray
-        Four probabilities.
     """
     w_dp, w_mp, w_ol = (float(v) for v in w)
     w_mp2 = eff.get("second_fraction", 0.15) if "second_reflector" in eff else 0.0
@@ -138,19 +123,17 @@ def effect_weights(w, eff, bid):
 
 
 def per_beacon_target(eff, beacons):
-    """Return the beacon of the per-beacon effects, and the offset of its reported position.
+    """Return the beacon of the per-beacon effects (or None) and its reported position's offset.
 
     Parameters
     ----------
     eff : dict
-        Checked effects (:func:`check_effects`).
     beacons : dict
         The survey's beacons, by id (the first is the default target).
 
     Returns
     -------
     target : str or None
-        None when no per-beacon effect is asked for.
     offset : numpy.ndarray or None
         Reported minus true position (east, north, down; m) with ``beacon_position``.
 
@@ -158,12 +141,6 @@ def per_beacon_target(eff, beacons):
     ------
     ValueError
         For an unknown ``effects["beacon"]``.
-
-    Examples
-    --------
-    >>> per_beacon_target({"beacon_position": 10.0, "beacon_position_direction": 90.0},
-    ...                   {"A": {}, "B": {}})[1].round(6).tolist()
-    [0.0, 10.0, 0.0]
     """
     if not any(k in eff for k in PER_BEACON):
         return None, None

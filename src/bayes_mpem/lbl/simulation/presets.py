@@ -38,24 +38,8 @@ ABE58 = {
 
 
 
-def random_config(gen):
-    """Draw a random survey configuration (3-5 beacons, depths 800-4,500 m).
-
-    Parameters
-    ----------
-    gen : numpy.random.Generator
-
-    Returns
-    -------
-    dict
-        The keys of :data:`ABE58`.
-
-    Examples
-    --------
-    >>> cfg = random_config(np.random.default_rng(0))
-    >>> sorted(cfg) == sorted(ABE58)
-    True
-    """
+def _random_config(gen):
+    """Draw a random survey configuration (3-5 beacons, depths 800-4,500 m)."""
     nb = int(gen.integers(3, 6))
     seafloor = float(gen.uniform(800.0, 4500.0))
     half = float(gen.uniform(600.0, 2000.0))
@@ -90,14 +74,13 @@ def random_config(gen):
 
 
 def lawnmower_track(box, spacing, n_points):
-    """Points evenly spaced along a lawnmower pattern covering ``box``.
+    """Points evenly spaced along a lawnmower pattern covering ``box`` (tracklines along x).
 
     Parameters
     ----------
     box : tuple of 4 floats
-        ``(xmin, xmax, ymin, ymax)`` (m); tracklines run along x.
+        ``(xmin, xmax, ymin, ymax)`` (m).
     spacing : float
-        Distance between tracklines (m).
     n_points : int
 
     Returns
@@ -130,10 +113,8 @@ def preset_config(preset: str, gen, n_cycles: int | None = None,
     ----------
     preset : {"abe58", "random"}
     gen : numpy.random.Generator
-        Draws the ``"random"`` configuration.
     n_cycles : int, optional
     overrides : dict, optional
-        Preset entries to replace.
 
     Raises
     ------
@@ -141,7 +122,7 @@ def preset_config(preset: str, gen, n_cycles: int | None = None,
         For an unknown preset or override.
     """
     check_choice("preset", preset, PRESETS)
-    cfg = dict(ABE58) if preset == "abe58" else random_config(gen)
+    cfg = dict(ABE58) if preset == "abe58" else _random_config(gen)
     cfg.setdefault("plane_depth", 0.0)
     unknown = set(overrides or {}) - set(cfg)
     if unknown:

@@ -1,14 +1,4 @@
-"""Simulated LBL surveys with known truth.
-
-Examples
---------
->>> from bayes_mpem.lbl.simulation.simulate import simulate_survey
->>> sim = simulate_survey("abe58", rng=0)
->>> sorted(sim.truth)
-['1', '2', '3', '4']
->>> round(sim.truth["4"]["d0"])
-2472
-"""
+"""Simulated LBL surveys with known truth."""
 
 from __future__ import annotations
 
@@ -37,11 +27,11 @@ class Simulation:
     Attributes
     ----------
     survey : Survey
-        Validated input, as a user's files would give it, plus a ``true_class`` column.
+        As a user's files would give it, plus a ``true_class`` column.
     truth : dict
         Per beacon: ``d0``, ``plane_depth``, ``sigma_dp``, ``sigma_mp``, ``weights``, ``path``.
     labels : numpy.ndarray
-        True class of every ping: ``"dp"``, ``"mp"``, ``"ol"`` or ``"no_reply"``.
+        True class of every ping (``"no_reply"`` too).
     config : dict
         Everything needed to rerun the simulation.
     """
@@ -100,13 +90,9 @@ def simulate_lbl(
     track : dict
         Arrays ``time`` (s, one per ping cycle), ``x``, ``y``, ``depth``.
     sigma_dp : float
-        Direct-path noise (m).
-    sigma_mp : dict
-        Multipath noise per beacon (m).
-    weights : dict
-        ``(w_dp, w_mp, w_ol)`` per beacon; each sums to 1.
+    sigma_mp, weights : dict
+        Per beacon: the multipath scatter (m) and ``(w_dp, w_mp, w_ol)``.
     plane_depth : float, default 0
-        Depth of the reflecting plane (0 = the sea surface).
     path : {"triangle", "double"}
     p_no_reply : float, default 0.05
     window : tuple of float, default (1, 6000)
@@ -114,28 +100,17 @@ def simulate_lbl(
     beacon_offset : float, default 1
         Seconds between the interrogations of successive beacons in a cycle.
     effects : dict, optional
-        ``{name: magnitude}`` of :data:`~bayes_mpem.lbl.simulation.effects.EFFECTS`:
-        ``range_bias`` (m added to every true return), ``sound_speed`` (returns scaled by
-        ``1 + magnitude``), ``plane_drift`` (m, linear in time), ``second_reflector`` (depth of
-        a second plane taking ``second_fraction``, default 0.15, of the direct replies),
-        ``early_outliers`` (outlier fraction, uniform before the true arrival), ``nav_drift``
-        (m at the last ping, towards ``nav_drift_direction``, default 45 deg from +x),
-        ``beacon_bias`` and ``beacon_position`` (one beacon, ``effects["beacon"]``; see
-        :data:`~bayes_mpem.lbl.simulation.effects.EFFECT_OPTIONS`).
+        ``{name: magnitude}`` of :data:`~bayes_mpem.lbl.simulation.effects.EFFECTS`
+        and :data:`~bayes_mpem.lbl.simulation.effects.EFFECT_OPTIONS` (``docs/diagnose.md``).
     rng : None, int or numpy.random.Generator
     ssp : SoundSpeedProfile, optional
-        Refract the rays through this profile (:mod:`bayes_mpem.lbl.model.refracted`); a reply
-        of a class with no eigenray becomes an outlier, counted in ``truth[id]["no_ray"]``.
-        Default: straight rays (same random stream as before the option).
+        Refract the rays through this profile; a reply with no eigenray becomes an outlier.
     sound_speed : float, optional
-        Nominal speed (m/s) that turns travel times into ranges; only with ``ssp``. Default:
-        :func:`~bayes_mpem.acoustics.profile_checks.nominal_sound_speed` at the mean beacon depth.
+        Nominal speed (m/s) that turns travel times into ranges; only with ``ssp``.
 
     Returns
     -------
     Simulation
-        ``truth`` also holds ``"effects"`` as realised, and with ``ssp`` ``"sound_speed"``,
-        ``"ssp"`` and ``"no_ray"``.
 
     Raises
     ------
@@ -328,18 +303,13 @@ def simulate_survey(
     Parameters
     ----------
     preset : {"abe58", "random"}
-        ``"abe58"``: the paper's dive (:data:`~bayes_mpem.lbl.simulation.presets.ABE58`);
-        ``"random"``: a plausible configuration drawn from ``rng``.
+        The paper's dive (:data:`~bayes_mpem.lbl.simulation.presets.ABE58`), or a plausible
+        configuration drawn from ``rng``.
     rng : None, int or numpy.random.Generator
     path : {"triangle", "double"}
-        Multipath geometry used to generate the ranges.
     n_cycles : int, optional
-        Number of ping cycles (one interrogation of every beacon each).
-    effects : dict, optional
-        See :func:`simulate_lbl`.
-    ssp : SoundSpeedProfile, optional
-        See :func:`simulate_lbl`.
-    sound_speed : float, optional
+        Ping cycles (one interrogation of every beacon each).
+    effects, ssp, sound_speed : optional
         See :func:`simulate_lbl`.
     **overrides
         Replace any preset entry (``weights``, ``sigma_mp``, ``plane_depth``, ...).

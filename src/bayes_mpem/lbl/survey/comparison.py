@@ -1,10 +1,4 @@
-"""Equal against learned mixing priors on every beacon of a survey (``bayes-mpem compare``).
-
-:func:`compare` runs :func:`~.loo.compare_beacon` (PSIS-LOO of the two
-posteriors) on each beacon and returns a :class:`SurveyComparison`, which
-writes ``compare.json`` and ``changed.csv``; its figure is drawn by
-:func:`bayes_mpem.report.write_figures`.
-"""
+"""Equal against learned mixing priors on every beacon of a survey (``bayes-mpem compare``)."""
 
 from __future__ import annotations
 
@@ -25,22 +19,18 @@ from .survey import check_min_pings, option_subset, over_beacons
 
 @dataclass(frozen=True)
 class SurveyComparison:
-    """:class:`~.loo.PriorComparison` of every beacon of a survey.
+    """:class:`~bayes_mpem.lbl.bayes.loo.PriorComparison` of every beacon of a survey.
 
     Attributes
     ----------
     survey : Survey
-        The validated input.
     results : dict of str to PriorComparison
-        One comparison per beacon.
     skipped : dict of str to str
         Beacons left out, with the reason.
     path_choices : dict of str to PathChoice
-        Per beacon, the multipath geometry sampled and its EM margin over the
-        other (:func:`~bayes_mpem.lbl.em.path_choice.choose_path`).
+        Per beacon, the multipath geometry sampled.
     checks : dict of str to list
-        Per beacon, the model checks of the learned-priors posterior
-        (:func:`~bayes_mpem.lbl.survey.model_checks.check_posterior`).
+        Per beacon, the model checks of the learned-priors posterior.
     """
 
     survey: Survey
@@ -89,21 +79,16 @@ class SurveyComparison:
         Returns
         -------
         pandas.DataFrame
-            Each beacon's :attr:`~.loo.PriorComparison.changed` rows with a
-            ``beacon`` column; empty when no beacon was compared.
         """
         frames = [r.changed.assign(beacon=b) for b, r in self.results.items()]
         return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
 
     def write(self, out_dir) -> dict:
-        """Write ``compare.json`` and ``changed.csv`` to ``out_dir``.
-
-        The figure (``compare.png``) is drawn by :func:`bayes_mpem.report.write_figures`.
+        """Write ``compare.json`` and ``changed.csv`` to ``out_dir`` (figures: ``report.py``).
 
         Parameters
         ----------
         out_dir : str or pathlib.Path
-            Created if missing.
 
         Returns
         -------
@@ -113,6 +98,36 @@ class SurveyComparison:
         with writing(out_dir) as out:
             return {"compare": write_json(out / "compare.json", self.to_dict()),
                     "changed": write_csv(out / "changed.csv", self.changed())}
+
+    @classmethod
+    def read(cls, folder) -> SurveyComparison:
+        """Read a comparison back from ``compare.json``: what its figure draws.
+
+        No survey; per beacon a namespace with ``elpd_diff``, ``elpd_diff_se``, ``shifts``
+        and ``learned.em.d0`` (as :class:`~.loo.PriorComparison`): it draws, it does not write.
+        """
+        from pathlib import Path
+        from types import SimpleNamespace
+
+        from ...exceptions import InputError
+        from ...io.results import read_document
+        from .folder import together
+
+        path = Path(folder) / "compare.json"
+        doc = read_document(path)
+
+        def rebuild():
+            results = {}
+            for b, r in doc["beacons"].items():
+                if "em_d0" not in r:
+                    raise InputError(f"{path}: no 'em_d0'; it was written by an older "
+                                     "bayes_mpem: run 'bayes-mpem compare' again")
+                results[b] = SimpleNamespace(
+                    elpd_diff=r["elpd_diff"], elpd_diff_se=r["elpd_diff_se"],
+                    shifts=r["shifts"], learned=SimpleNamespace(em=SimpleNamespace(d0=r["em_d0"])))
+            return cls(survey=None, results=results, skipped=doc.get("skipped", {}))
+
+        return together(folder, rebuild)
 
 
 def compare(pings, beacons=None, *, min_pings: int = 30, rng: RNGLike = None,
@@ -126,9 +141,8 @@ def compare(pings, beacons=None, *, min_pings: int = 30, rng: RNGLike = None,
     min_pings : int, default 30
     rng : None, int or numpy.random.Generator
     **kwargs
-        Passed to :func:`~bayes_mpem.lbl.bayes.beacon_sampling.sample_beacon`; ``path``
-        may also be ``"auto"`` (the default, :func:`~bayes_mpem.lbl.em.path_choice.choose_path`,
-        with learned weights; both priors use it).
+        Passed to :func:`~bayes_mpem.lbl.bayes.beacon_sampling.sample_beacon`; ``path`` may
+        also be ``"auto"`` (the default; both priors use the geometry chosen).
 
     Returns
     -------
@@ -141,13 +155,8 @@ def compare(pings, beacons=None, *, min_pings: int = 30, rng: RNGLike = None,
 
     Warns
     -----
-    SkippedBeaconWarning
-        For a beacon with too few replies or an unusable EM start.
-    PathChoiceWarning
-        For a beacon whose forced ``path`` is clearly worse than the other.
-    ModelCheckWarning
-        For a beacon whose ranges the learned-priors posterior's model does not
-        describe (:mod:`~bayes_mpem.lbl.survey.model_checks`; in ``compare.json``).
+    SkippedBeaconWarning, PathChoiceWarning, ModelCheckWarning
+        As :func:`bayes_mpem.sample`.
     """
     path = check_path_choice(kwargs.pop("path", AUTO))
     check_sample_options(**option_subset(kwargs))

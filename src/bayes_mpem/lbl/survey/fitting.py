@@ -29,20 +29,16 @@ class SurveyFit:
     Attributes
     ----------
     survey : Survey
-        The validated input.
     results : dict of str to EMResult
-        One fit per fitted beacon.
     skipped : dict of str to str
         Beacons left unfitted, with the reason.
     method : str
     options : dict
         The options passed to the per-beacon fits.
     path_choices : dict of str to PathChoice
-        Per fitted beacon, the multipath geometry used and its margin over the
-        other (:func:`~bayes_mpem.lbl.em.path_choice.choose_path`).
+        Per fitted beacon, the multipath geometry used.
     checks : dict of str to list
-        Per fitted beacon, the model checks of its fit
-        (:func:`~bayes_mpem.lbl.survey.model_checks.check_fit`; empty for a refracted fit).
+        Per fitted beacon, its model checks (empty for a refracted fit).
     """
 
     survey: Survey
@@ -59,8 +55,8 @@ class SurveyFit:
         Returns
         -------
         pandas.DataFrame
-            Same rows, same order as the input; labels are ``dp``, ``mp``,
-            ``ol``, ``no_reply`` or ``skipped`` (``reason`` says why).
+            Same rows and order as the input; labels ``dp``, ``mp``, ``ol``, ``no_reply``,
+            ``skipped``.
         """
         out = classified_table(
             self.survey, {bid: (r.rows, r.resp) for bid, r in self.results.items()},
@@ -103,12 +99,8 @@ class SurveyFit:
         Returns
         -------
         pandas.DataFrame
-            Columns ``beacon``, ``d0_m`` (height of the reflecting plane above the
-            beacon, the paper's HRP),
-            ``sigma_mp_m``, ``beacon_depth_m``, ``plane_depth_m``, ``sigma_dp_m``,
-            ``dp``, ``mp``, ``ol`` (fractions of ranges per label), ``n``,
-            ``converged``, ``path`` and ``path_margin`` (log-likelihood of the
-            geometry used minus the other's, nats; NaN when not measured).
+            ``beacon``, ``d0_m``, ``sigma_mp_m``, ``beacon_depth_m``, ``plane_depth_m``,
+            ``sigma_dp_m``, ``dp``, ``mp``, ``ol``, ``n``, ``converged``, ``path``, ``path_margin``.
         """
         rows = []
         for bid, res in self.results.items():
@@ -142,9 +134,7 @@ class SurveyFit:
         Parameters
         ----------
         out_dir : str or pathlib.Path
-            Created if missing.
         table_format : {"csv", "parquet"}, default "csv"
-            Of the classified table (``classified.csv`` or ``classified.parquet``).
 
         Returns
         -------
@@ -165,15 +155,12 @@ class SurveyFit:
         Parameters
         ----------
         as_arrays : bool, default False
-            Give ``first_resp`` as a NumPy array (what ``write()`` serialises, vectorised)
-            instead of nested lists.
+            Give ``first_resp`` as a NumPy array instead of nested lists.
 
         Returns
         -------
         dict
-            ``{beacon: {"history": {name: [..]}, "first_resp": [[p_dp, p_mp, p_ol], ..]}}``,
-            ``first_resp`` in the order of that beacon's replies (what the paper's
-            Figs. 7, 10 and 11 show).
+            ``{beacon: {"history": {name: [..]}, "first_resp": [[p_dp, p_mp, p_ol], ..]}}``.
         """
         def first(r):
             rounded = np.round(r.first_resp, 3)
@@ -182,6 +169,45 @@ class SurveyFit:
         return {bid: {"history": {k: np.asarray(v).tolist() for k, v in r.history.items()},
                       "first_resp": first(r)}
                 for bid, r in self.results.items()}
+
+    @classmethod
+    def read(cls, folder) -> SurveyFit:
+        """Read a fit back from the folder :meth:`write` wrote, never by fitting again.
+
+        Without ``history.json``, each beacon gets a one-entry history. A missing file is a
+        ``FileNotFoundError``, files that do not fit together an ``InputError``.
+        """
+        from pathlib import Path
+
+        from ...io.results import MARKER, read_document
+        from ..em.em_result import EMResult
+        from ..em.path_choice import choices_from_summary
+        from .folder import survey_and_classes, together
+
+        d = Path(folder)
+        summary = read_document(d / MARKER)
+        survey, probs, _ = survey_and_classes(d, summary)
+        hist = read_document(d / "history.json") if (d / "history.json").exists() else {}
+
+        def rebuild():
+            results = {}
+            for b, s in summary["beacons"].items():
+                rows = survey.for_beacon(b).rows
+                h = hist.get(b, {})
+                history = {k: np.asarray(v) for k, v in h.get("history", {}).items()} or {
+                    "d0": np.array([s["d0"]]), "sigma_mp": np.array([s["sigma_mp"]])}
+                results[b] = EMResult(
+                    beacon=b, method=s["method"], path=s["path"], d0=s["d0"],
+                    sigma_mp=s["sigma_mp"], sigma_dp=s["sigma_dp"], weights=s["weights"],
+                    resp=probs[rows], rows=rows, n_iter=s["iterations"],
+                    converged=s["converged"], loglik=s.get("loglik"), history=history,
+                    first_resp=np.asarray(h["first_resp"]) if "first_resp" in h else probs[rows],
+                    settings=s.get("settings", {}), d0_se=s.get("d0_se"))
+            return cls(survey=survey, results=results, skipped=summary.get("skipped", {}),
+                       method=summary["method"], options=summary.get("options", {}),
+                       path_choices=choices_from_summary(summary["beacons"]))
+
+        return together(d, rebuild)
 
 
 def _non_finite_fit(res) -> list:
@@ -210,23 +236,21 @@ def fit(
     Parameters
     ----------
     pings : str, pathlib.Path, pandas.DataFrame or Survey
-        The pings table (see ``docs/input.md``), or an already loaded survey.
+        The pings table (``docs/input.md``), or a loaded survey.
     beacons : str, pathlib.Path or pandas.DataFrame, optional
         The beacons table (not needed when ``pings`` is a Survey).
     method : {"mixture", "paper"}
         The density-mixture EM (default) or the paper's EM.
     path : {"auto", "triangle", "double"}
-        Multipath geometry: one reflected leg, both, or (default) per beacon the
-        likelier under the mixture EM (:func:`~bayes_mpem.lbl.em.path_choice.choose_path`,
-        also for ``method="paper"``).
+        Multipath geometry: one reflected leg, both, or (default) per beacon the likelier.
     sigma_dp : float, optional
-        Direct-path scatter (m); estimated from the data if omitted.
+        Direct-path scatter (m); estimated if omitted.
     pol, alpha : float
         The paper's EM knobs (``method="paper"`` only).
     weights : {"learned", "equal"}
         Mixing weights of the mixture EM.
     min_pings : int, default 30
-        Beacons with fewer replies are left unfitted, with a warning.
+        Beacons with fewer replies are left unfitted.
     rng : None, int or numpy.random.Generator
     **kwargs
         Passed to :func:`~bayes_mpem.lbl.em.em_mixture.fit_mixture_em` or
@@ -245,13 +269,9 @@ def fit(
 
     Warns
     -----
-    SkippedBeaconWarning
-        For every beacon left unfitted.
-    PathChoiceWarning
-        For a beacon whose forced ``path`` is clearly worse than the other.
-    ModelCheckWarning
-        For a beacon whose ranges the fitted model does not describe
-        (:mod:`~bayes_mpem.lbl.survey.model_checks`).
+    SkippedBeaconWarning, PathChoiceWarning, ModelCheckWarning
+        A beacon left unfitted; a forced ``path`` clearly worse than the other; ranges the
+        fitted model does not describe.
 
     Examples
     --------

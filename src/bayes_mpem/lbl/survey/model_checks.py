@@ -1,11 +1,6 @@
 """Model checks of one beacon's fit: whether the paper's model describes these ranges.
 
-Each check compares what the fitted model predicts with what the ranges show (a plug-in
-predictive check at the fit's parameters): the direct-path offset and scatter, binned trends
-of the residuals, the outliers' timing, and the plane against the sea surface. A check is
-flagged beyond :data:`Z_LIMIT` standard errors (the trends: Bonferroni at ``alpha``); a
-:class:`~bayes_mpem.exceptions.ModelCheckWarning` then points to ``bayes-mpem diagnose``.
-The checks and their measured false-alarm rate: ``docs/model-checks.md``.
+Details: ``docs/model-checks.md``.
 """
 
 from __future__ import annotations
@@ -44,18 +39,14 @@ def covariates(ex, ey, dz, time, vehicle_depth) -> dict:
 
     Parameters
     ----------
-    ex, ey : numpy.ndarray
-        Vehicle minus beacon, east and north (m).
-    dz : numpy.ndarray
-        Beacon depth minus vehicle depth (m).
+    ex, ey, dz : numpy.ndarray
+        Vehicle minus beacon, east and north, and beacon minus vehicle depth (m).
     time, vehicle_depth : numpy.ndarray
 
     Returns
     -------
     dict of numpy.ndarray
-        ``time`` (s), ``range`` (direct-path length, m), ``elevation`` (deg,
-        positive when the vehicle is above the beacon), ``vehicle_depth`` (m),
-        ``bearing`` (deg clockwise from +y, of the vehicle seen from the beacon).
+        ``time``, ``range``, ``elevation`` (deg), ``vehicle_depth``, ``bearing`` (deg).
     """
     h = np.hypot(ex, ey)
     return {"time": np.asarray(time, float), "range": np.hypot(h, dz),
@@ -76,25 +67,13 @@ def binned_trend(r, sigma, v, n_bins=10, *, centred=False):
     v : numpy.ndarray
         The covariate at each residual.
     n_bins : int, default 10
-        Quantile bins of ``v``.
     centred : bool, default False
-        Test the bin means against the residuals' overall mean (a trend alone,
-        one degree of freedom fewer) instead of against zero (a trend or an offset).
+        Test against the residuals' mean (a trend alone) instead of zero.
 
     Returns
     -------
     dict or None
-        ``chi2``, ``dof``, ``p_value``, ``max_bin_mean`` (m, from the centre); None
-        when ``v`` is constant.
-
-    Examples
-    --------
-    >>> gen = np.random.default_rng(0)
-    >>> v = np.arange(500.0)
-    >>> binned_trend(gen.normal(0, 1, 500), 1.0, v)["p_value"] > 1e-3
-    True
-    >>> binned_trend(gen.normal(0, 1, 500) + v / 250, 1.0, v)["p_value"] < 1e-10
-    True
+        ``chi2``, ``dof``, ``p_value``, ``max_bin_mean``; None when ``v`` is constant.
     """
     from scipy.special import chdtrc  # chi2.sf, without importing scipy.stats (0.7 s)
 
@@ -143,18 +122,14 @@ def direct_path_checks(r_dp, resp_dp, sigma_dp, *, sigma_fixed=False):
     Parameters
     ----------
     r_dp : numpy.ndarray
-        Range minus predicted direct path (m), every range.
+        Range minus predicted direct path (m).
     resp_dp : numpy.ndarray
-        Direct-path probability of every range.
     sigma_dp : float
-        The scatter assumed (m).
     sigma_fixed : bool, default False
-        ``sigma_DP`` was given, not fitted: check the spread against it.
 
     Returns
     -------
     list of dict
-        One entry per check (``name``, ``value``, ``z``, ``flagged``, ``message``).
     """
     out = []
     off = _offset(r_dp, resp_dp, sigma_dp)
@@ -178,29 +153,22 @@ def direct_path_checks(r_dp, resp_dp, sigma_dp, *, sigma_fixed=False):
 
 
 def trend_checks(residuals, sigmas, resp, cov, *, n_bins=10, alpha=TREND_ALPHA, min_per_bin=5):
-    """Binned trend checks of the confident ranges of each class against each covariate.
+    """Binned trend checks of the confident ranges (p > 0.9) of each class against each covariate.
 
     Parameters
     ----------
-    residuals : dict of str to numpy.ndarray
-        Class name (``"dp"``, ``"mp"``) to the residuals of every range (m).
-    sigmas : dict of str to float
-        The class scatters (m).
-    resp : dict of str to numpy.ndarray
-        The class probabilities of every range; ranges above 0.9 are used.
+    residuals, sigmas, resp : dict
+        Per class (``"dp"``, ``"mp"``): residuals, scatter and probabilities.
     cov : dict of str to numpy.ndarray
         :func:`covariates`.
     n_bins : int, default 10
     alpha : float, default :data:`TREND_ALPHA`
-        Family-wise level over the checks made (Bonferroni).
+        Family-wise level (Bonferroni).
     min_per_bin : int, default 5
-        A class needs ``min_per_bin * n_bins`` confident ranges to be checked.
 
     Returns
     -------
     list of dict
-        ``name``, ``class``, ``against``, ``chi2``, ``dof``, ``p_value``, ``value`` (largest
-        absolute bin mean, m, about the class's mean residual), ``flagged``, ``message``.
     """
     found = []
     for cls, r in residuals.items():
@@ -229,10 +197,7 @@ def outlier_timing_check(z, direct, resp_ol, lo, hi):
 
     Parameters
     ----------
-    z, direct : numpy.ndarray
-        Ranges and predicted direct paths (m).
-    resp_ol : numpy.ndarray
-        Outlier probability of every range.
+    z, direct, resp_ol : numpy.ndarray
     lo, hi : float
         The listening window (m).
 
@@ -264,14 +229,12 @@ def plane_check(plane_depth, interval=None):
     Parameters
     ----------
     plane_depth : float
-        Depth of the fitted plane (m, positive down; the sea surface is 0).
     interval : tuple of float, optional
-        Its credible interval; the check then uses the end nearer the surface.
+        Its credible interval (the end nearer the surface is used).
 
     Returns
     -------
     list of dict
-        One check.
     """
     lo, hi = interval if interval is not None else (plane_depth, plane_depth)
     near = 0.0 if lo <= 0.0 <= hi else (lo if lo > 0 else hi)
@@ -286,33 +249,25 @@ def plane_check(plane_depth, interval=None):
 def check_beacon(geom: BeaconGeometry, time, depth, *, d0, sigma_dp, sigma_mp, resp, path,
                  plane_depth, sigma_dp_fixed=False, plane_interval=None, ex=None,
                  ey=None, method="mixture") -> list:
-    """Every check of one beacon's straight-ray fit.
-
-    The paper's EM gets the offset, trend and plane checks only: its class probabilities
-    are chi-square tail probabilities and the ``Pol`` rule, not a mixture's, so its
-    "outliers" are the ranges in both bands' tails (mostly after the direct path) and its
-    direct-path class is narrower than the ``sigma_DP`` it is given, on clean data too.
+    """Every check of one beacon's straight-ray fit (the paper's EM: offset, trend, plane only).
 
     Parameters
     ----------
     geom : BeaconGeometry
-        The beacon's ranges and geometry.
     time, depth : numpy.ndarray
-        Time and vehicle depth of each range.
     d0, sigma_dp, sigma_mp : float
-        The fitted parameters (for a posterior: its means).
     resp : numpy.ndarray
-        ``(n, 3)`` class probabilities (dp, mp, ol).
     path : {"triangle", "double"}
     plane_depth : float
-        The plane's depth (m): beacon depth minus ``d0``.
     sigma_dp_fixed : bool, default False
     plane_interval : tuple of float, optional
-        The plane depth's credible interval (a posterior).
     ex, ey : numpy.ndarray, optional
-        Vehicle minus beacon east and north, for the bearing (default: bearing 0).
+        Vehicle minus beacon east and north, for the bearing.
     method : {"mixture", "paper"}, default "mixture"
-        The EM that made the fit (a posterior: ``"mixture"``).
+
+    Returns
+    -------
+    list of dict
     """
     paper = method == "paper"
     r_dp = geom.z - geom.direct
@@ -337,9 +292,8 @@ def check_fit(data, result, *, plane_interval=None, params=None, resp=None) -> l
     data : BeaconData
     result : EMResult
     plane_interval : tuple of float, optional
-        The plane depth's credible interval.
     params : dict, optional
-        ``d0``, ``sigma_dp``, ``sigma_mp`` instead of the result's (a posterior's means).
+        ``d0``, ``sigma_dp``, ``sigma_mp`` instead of the result's.
     resp : numpy.ndarray, optional
         Class probabilities instead of the result's.
     """
@@ -371,18 +325,16 @@ def check_posterior(data, result) -> list:
 
 
 def checks_record(checks, method="mixture") -> dict:
-    """Return the record of a beacon's checks in ``summary.json``: flags, then every check.
+    """Return the record of a beacon's checks in ``summary.json``: ``flags``, then ``checks``.
 
     Parameters
     ----------
     checks : list of dict
     method : {"mixture", "paper", "posterior"}, default "mixture"
-        The fit checked (the paper's EM gets :data:`PAPER_ADVICE`).
 
     Returns
     -------
     dict
-        ``flags`` (messages of the flagged checks, and the advice) and ``checks``.
     """
     msgs = flagged(checks)
     return {"flags": msgs + ([advice(method)] if msgs else []), "checks": list(checks)}
@@ -422,20 +374,14 @@ def flagged(checks) -> list:
 
 
 def warn_misfit(beacon, checks, *, method="mixture", stacklevel=2):
-    """Warn once for a beacon whose checks flag a misfit, naming the fit.
+    """Warn (ModelCheckWarning) once for a beacon whose checks flag a misfit, naming the fit.
 
     Parameters
     ----------
     beacon : str
     checks : list of dict
     method : {"mixture", "paper", "posterior"}, default "mixture"
-        The fit checked, named in the message.
     stacklevel : int, default 2
-
-    Warns
-    -----
-    ModelCheckWarning
-        When a check is flagged.
     """
     msgs = flagged(checks)
     if msgs:

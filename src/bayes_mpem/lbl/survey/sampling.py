@@ -36,11 +36,7 @@ CONTENTS = ("one beacon's posterior: the ArviZ groups posterior, sample_stats an
 
 
 def posterior_file(bid: str) -> str:
-    """Return the file name of beacon ``bid``'s posterior, ``posterior_<id>.nc``.
-
-    Characters other than letters, digits, ``-``, ``_`` and ``.`` become ``_`` (the
-    name stays a plain file name whatever the id); ``summary.json`` records each
-    beacon's file under ``file``.
+    """Return the file name of beacon ``bid``'s posterior, ``posterior_<id>.nc`` (file-safe).
 
     Parameters
     ----------
@@ -49,11 +45,6 @@ def posterior_file(bid: str) -> str:
     Returns
     -------
     str
-
-    Examples
-    --------
-    >>> posterior_file("4"), posterior_file("B/2 east")
-    ('posterior_4.nc', 'posterior_B_2_east.nc')
     """
     return "posterior_" + re.sub(r"[^A-Za-z0-9_.-]", "_", str(bid)) + ".nc"
 
@@ -65,8 +56,6 @@ GZIP = {"compression": "gzip", "compression_opts": 4, "shuffle": True}
 def encoding(tree, *, compress: bool = True) -> dict:
     """NetCDF encoding of every variable of ``tree``: gzip, the per-range log-likelihood float32.
 
-    float32 keeps 7 significant digits of each range's log-likelihood, ample for LOO.
-
     Parameters
     ----------
     tree : xarray.DataTree
@@ -75,7 +64,6 @@ def encoding(tree, *, compress: bool = True) -> dict:
     Returns
     -------
     dict
-        Group path -> variable -> encoding, for ``DataTree.to_netcdf``.
     """
     enc = {}
     for node in tree.subtree:
@@ -107,12 +95,8 @@ class SurveyPosterior:
     ci : float
     options : dict
     path_choices : dict of str to PathChoice
-        Per beacon, the multipath geometry sampled and its EM margin over the
-        other (:func:`~bayes_mpem.lbl.em.path_choice.choose_path`).
     checks : dict of str to list
-        Per beacon, the model checks at the posterior means, with the posterior
-        class probabilities and the plane's interval
-        (:func:`~bayes_mpem.lbl.survey.model_checks.check_posterior`).
+        Per beacon, the model checks at the posterior means.
     """
 
     survey: Survey
@@ -125,13 +109,11 @@ class SurveyPosterior:
     checks: dict = field(default_factory=dict)
 
     def classified(self):
-        """Every input row with posterior class probabilities, their sd, ``label``, ``reason``.
+        """Every input row with posterior class probabilities (mean, sd), ``label``, ``reason``.
 
         Returns
         -------
         pandas.DataFrame
-            The input rows plus ``p_dp``, ``p_mp``, ``p_ol`` (posterior means over
-            draws), ``p_dp_sd``, ``p_mp_sd``, ``p_ol_sd``, ``label`` and ``reason``.
         """
         extra = {f"p_{c}_sd": {b: r.class_probs_sd[:, j] for b, r in self.results.items()}
                  for j, c in enumerate(CLASSES)}
@@ -204,16 +186,11 @@ class SurveyPosterior:
         return "\n".join(lines)
 
     def table(self) -> pd.DataFrame:
-        """Per-beacon table with the columns of :meth:`SurveyFit.table` and the intervals.
+        """Per-beacon table: the columns of :meth:`SurveyFit.table`, the intervals and ``min_ess``.
 
         Returns
         -------
         pandas.DataFrame
-            Columns ``beacon``, ``d0_m`` (posterior mean height of the reflecting plane),
-            ``d0_lo_m``, ``d0_hi_m`` (its interval), ``sigma_mp_m``, ``sigma_mp_lo_m``,
-            ``sigma_mp_hi_m``, ``beacon_depth_m``, ``plane_depth_m``, ``sigma_dp_m``, ``dp``,
-            ``mp``, ``ol`` (fractions of ranges by most probable class), ``n``,
-            ``converged``, ``path`` and ``min_ess``.
         """
         rows = []
         for bid, r in self.results.items():
@@ -248,17 +225,11 @@ class SurveyPosterior:
     def write(self, out_dir, *, table_format: str = "csv", compress: bool = True) -> dict:
         """Write ``posterior_<id>.nc`` per beacon, ``classified.csv`` and, last, ``summary.json``.
 
-        Each ``posterior_<id>.nc`` holds the ArviZ groups of that beacon's
-        :attr:`PosteriorResult.idata` at its root (``docs/bayes.md``); all or nothing, through
-        :func:`bayes_mpem.io.results.writing`.
-
         Parameters
         ----------
         out_dir : str or pathlib.Path
         table_format : {"csv", "parquet"}, default "csv"
-            Of the classified table.
         compress : bool, default True
-            Gzip every variable (:func:`encoding`).
 
         Returns
         -------
@@ -280,6 +251,53 @@ class SurveyPosterior:
                                               self.classified())
             paths["summary"] = write_json(out / "summary.json", self.summary())
         return paths
+
+    @classmethod
+    def read(cls, folder) -> SurveyPosterior:
+        """Read a posterior back from the folder :meth:`write` wrote, never by sampling again.
+
+        Each beacon's ``em`` is a namespace of the EM start's parameters. A missing file is
+        a ``FileNotFoundError``, files that do not fit together an ``InputError``.
+        """
+        from pathlib import Path
+        from types import SimpleNamespace
+
+        import xarray as xr
+
+        from ...exceptions import InputError
+        from ...io.results import MARKER, read_document
+        from ..em.path_choice import choices_from_summary
+        from .folder import survey_and_classes, together
+
+        d = Path(folder)
+        summary = read_document(d / MARKER)
+        survey, probs, num = survey_and_classes(d, summary)
+
+        def rebuild():
+            sd = np.column_stack([num["p_" + c + "_sd"] for c in CLASSES])
+            results = {}
+            for b, s in summary["beacons"].items():
+                path = d / posterior_file(b) if "file" not in s else d / Path(s["file"]).name
+                if not path.exists():
+                    raise FileNotFoundError(f"{path}: not found; 'bayes-mpem sample' writes it")
+                try:
+                    tree = xr.open_datatree(path, engine="h5netcdf").load()
+                except (OSError, ValueError) as exc:
+                    raise InputError(f"{path}: not a readable NetCDF file ({exc})") from None
+                rows = survey.for_beacon(b).rows
+                results[b] = PosteriorResult(
+                    beacon=b, priors=s["priors"], path=s["path"], idata=tree,
+                    summary={k: s[k] for k in ("d0", "sigma_mp", "sigma_dp", "weights")},
+                    tau=s["tau"], ess=s["ess"], ess_bulk=s.get("ess_bulk", {}),
+                    rhat=s.get("rhat"), class_probs=probs[rows], class_probs_sd=sd[rows],
+                    rows=rows, em=SimpleNamespace(**s.get("em", {})),
+                    diagnostics=s.get("diagnostics", {}), ci=s.get("ci", summary.get("ci", 0.95)))
+            return cls(survey=survey, results=results, skipped=summary.get("skipped", {}),
+                       priors=summary["priors"], ci=summary.get("ci", 0.95),
+                       options=summary.get("options", {}),
+                       path_choices=choices_from_summary(summary["beacons"]))
+
+        return together(d, rebuild)
 
 
 def _non_finite_posterior(res) -> list:
@@ -311,7 +329,7 @@ def sample(
     rng : None, int or numpy.random.Generator
     **kwargs
         Passed to :func:`~bayes_mpem.lbl.bayes.beacon_sampling.sample_beacon`; ``path``
-        may also be ``"auto"`` (the default, :func:`~bayes_mpem.lbl.em.path_choice.choose_path`).
+        may also be ``"auto"`` (the default).
 
     Returns
     -------
@@ -324,14 +342,9 @@ def sample(
 
     Warns
     -----
-    SkippedBeaconWarning
-        For a beacon with too few replies, or whose EM solution lies outside the
-        prior (it is left unsampled, with the reason, instead of stopping the survey).
-    PathChoiceWarning
-        For a beacon whose forced ``path`` is clearly worse than the other.
-    ModelCheckWarning
-        For a beacon whose ranges the posterior's model does not describe
-        (:mod:`~bayes_mpem.lbl.survey.model_checks`).
+    SkippedBeaconWarning, PathChoiceWarning, ModelCheckWarning
+        A beacon with too few replies or an EM solution outside the prior (left unsampled);
+        a forced ``path`` clearly worse than the other; ranges the model does not describe.
 
     Examples
     --------

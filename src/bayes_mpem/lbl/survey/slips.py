@@ -1,24 +1,4 @@
-"""The slips a new user makes with a survey's two tables, named once with the likely cause.
-
-Before anything is fitted, a survey that cannot be read (:func:`explain_read_error`:
-tables swapped, depths positive up, beacon ids that differ) or whose ranges fit no
-direct path (:func:`check_geometry`: travel times, kilometres, two-way ranges, depth
-signs) is tested against the usual slips; a :class:`SlipError` names the slip and what
-to do. :func:`impossible_rows` flags replies shorter than the vertical distance to their
-beacon.
-
-Examples
---------
->>> import pandas as pd
->>> beacons = pd.DataFrame({"beacon": ["1"], "x": [0.0], "y": [0.0], "depth": [2000.0]})
->>> pings = pd.DataFrame({"time": range(40), "beacon": "1", "x": 500.0, "y": 0.0,
-...                       "depth": 50.0, "range": 2 * (500 ** 2 + 1950 ** 2) ** 0.5 / 1500})
->>> try:
-...     load_checked(pings, beacons)
-... except SlipError as err:
-...     print(err.slip)
-two_way_seconds
-"""
+"""The slips a new user makes with a survey's two tables, named once with the likely cause."""
 
 from __future__ import annotations
 
@@ -59,8 +39,8 @@ class SlipError(InputError):
     Parameters
     ----------
     slip : str
-        ``"seconds"``, ``"two_way_seconds"``, ``"km"``, ``"two_way"``,
-        ``"depth_sign"``, ``"beacon_ids"``, ``"swapped"``.
+        ``"seconds"``, ``"two_way_seconds"``, ``"km"``, ``"two_way"``, ``"depth_sign"``,
+        ``"beacon_ids"`` or ``"swapped"``.
     message : str
     """
 
@@ -271,8 +251,6 @@ def check_geometry(survey: Survey):
     Returns
     -------
     tuple of (str, str) or None
-        ``(slip, message)``; None when the ranges fit the direct path (or no slip
-        explains why they do not).
     """
     rep, pos = _replies(survey)
     if rep.size < 10:
@@ -357,18 +335,17 @@ def impossible_rows(survey: Survey) -> dict:
 
 
 def flag_impossible(table: pd.DataFrame, survey: Survey) -> pd.DataFrame:
-    """Give each impossible reply (:func:`impossible_rows`) of a classified table a ``reason``.
+    """Fill the empty ``reason`` of each impossible reply (:func:`impossible_rows`) of a table.
 
     Parameters
     ----------
     table : pandas.DataFrame
-        One row per row of ``survey.table``, with a ``reason`` column (empty: none).
+        One row per row of ``survey.table``, with a ``reason`` column.
     survey : Survey
 
     Returns
     -------
     pandas.DataFrame
-        ``table``, its empty reasons of impossible replies filled in.
     """
     short = impossible_rows(survey)
     if not short:

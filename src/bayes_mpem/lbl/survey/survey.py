@@ -26,13 +26,6 @@ def check_min_pings(min_pings) -> int:
     ------
     ValueError
         Naming ``min_pings``.
-
-    Examples
-    --------
-    >>> check_min_pings(2)
-    Traceback (most recent call last):
-    ...
-    ValueError: min_pings: expected an integer >= 3, got 2
     """
     return check_int("min_pings", min_pings, minimum=MIN_PINGS)
 
@@ -49,11 +42,6 @@ def non_finite(document, where: str = "") -> list:
     document : dict, list or number
     where : str, optional
         Prefix of the names.
-
-    Examples
-    --------
-    >>> non_finite({"d0": 1.0, "weights": {"dp": float("nan")}, "n": 3})
-    ['weights.dp']
     """
     if isinstance(document, dict):
         return [n for k, v in document.items()
@@ -65,21 +53,8 @@ def non_finite(document, where: str = "") -> list:
     return []
 
 
-def culprit_rows(survey: Survey, data, *, factor: float = 100.0) -> list:
-    """Rows of a beacon whose values stand far out from the others (what breaks a fit).
-
-    Parameters
-    ----------
-    survey : Survey
-    data : BeaconData
-        The beacon's replies.
-    factor : float, default 100
-
-    Returns
-    -------
-    list of str
-        Where those rows are (``"line 17"``), at most 10.
-    """
+def _culprit_rows(survey: Survey, data, *, factor: float = 100.0) -> list:
+    """Rows of a beacon whose values stand far out from the others (what breaks a fit)."""
     dist = np.sqrt((data.x - data.position[0]) ** 2 + (data.y - data.position[1]) ** 2
                    + (data.depth - data.position[2]) ** 2)
     out = np.zeros(data.n, bool)
@@ -108,8 +83,7 @@ def classified_table(survey: Survey, fitted: dict, skipped: dict, extra: dict | 
     ----------
     survey : Survey
     fitted : dict
-        ``{beacon: (rows, probs)}``: positions in the input table and ``(n, 3)``
-        class probabilities (dp, mp, ol).
+        ``{beacon: (rows, probs)}``: rows of the input table and ``(n, 3)`` probabilities.
     skipped : dict
         ``{beacon: reason}`` of beacons left unfitted.
     extra : dict, optional
@@ -118,9 +92,7 @@ def classified_table(survey: Survey, fitted: dict, skipped: dict, extra: dict | 
     Returns
     -------
     pandas.DataFrame
-        The input table, same rows and order, plus ``p_dp``, ``p_mp``, ``p_ol``,
-        any ``extra`` columns, ``label`` (``dp``, ``mp``, ``ol``, ``no_reply``,
-        ``skipped``) and ``reason``.
+        The input table plus ``p_dp``, ``p_mp``, ``p_ol``, ``extra``, ``label``, ``reason``.
     """
     n = len(survey)
     probs = np.full((n, 3), np.nan)
@@ -150,20 +122,19 @@ def classified_table(survey: Survey, fitted: dict, skipped: dict, extra: dict | 
 
 
 def fittable_beacons(survey: Survey, min_pings: int, *, stacklevel: int = 3):
-    """Split the beacons into those with enough replies and those left unfitted.
+    """Split the beacons into those with enough replies and those left unfitted (warned).
 
     Parameters
     ----------
     survey : Survey
     min_pings : int
     stacklevel : int, default 3
-        Of the warnings (3: the caller of the function that calls this one).
 
     Returns
     -------
     fittable : list of BeaconData
     skipped : dict
-        ``{beacon: reason}``; a :class:`SkippedBeaconWarning` is issued for each.
+        ``{beacon: reason}``.
     """
     fittable, skipped = [], {}
     for bid in survey.beacon_ids:
@@ -184,36 +155,18 @@ def option_subset(kwargs: dict) -> dict:
     Parameters
     ----------
     kwargs : dict
-        Keyword arguments meant for the per-beacon sampler.
 
     Returns
     -------
     dict
-        ``n_ensembles``, ``concentration``, ``sigma_dp``, ``path``, ``tau_factor``,
-        ``min_ess``, ``max_steps``, ``n_draws`` and ``sampler`` where given.
-
-    Examples
-    --------
-    >>> option_subset({"path": "double", "progress": False})
-    {'path': 'double'}
     """
     keys = ("n_ensembles", "concentration", "sigma_dp", "path", "tau_factor", "min_ess",
             "max_steps", "n_draws", "sampler")
     return {k: kwargs[k] for k in keys if k in kwargs}
 
 
-def skip_beacon(skipped: dict, beacon: str, why: str, *, stacklevel: int = 3) -> None:
-    """Record ``beacon`` as left unsampled with ``why``, and warn.
-
-    Parameters
-    ----------
-    skipped : dict
-        ``{beacon: reason}``, updated in place.
-    beacon : str
-    why : str
-    stacklevel : int, default 3
-        Of the :class:`SkippedBeaconWarning`.
-    """
+def _skip_beacon(skipped: dict, beacon: str, why: str, *, stacklevel: int = 3) -> None:
+    """Record ``beacon`` as left unsampled with ``why``, and warn."""
     warnings.warn(why + "; left unsampled", SkippedBeaconWarning, stacklevel=stacklevel)
     skipped[beacon] = why
 
@@ -221,43 +174,22 @@ def skip_beacon(skipped: dict, beacon: str, why: str, *, stacklevel: int = 3) ->
 def over_beacons(survey: Survey, min_pings: int, analyse, *, skip_on=(), check=None):
     """Run ``analyse`` on every beacon with enough replies: the one survey loop.
 
-    Beacons with fewer than ``min_pings`` replies are left out first, then ``analyse(data)``
-    runs on the others in table order; one that raises one of ``skip_on`` is left out with
-    the exception's message as the reason.
-
     Parameters
     ----------
     survey : Survey
     min_pings : int
     analyse : callable
-        ``analyse(BeaconData) -> result`` for one beacon.
+        ``analyse(BeaconData) -> result`` for one beacon, in table order.
     skip_on : tuple of exception classes, default ()
-        Exceptions that leave one beacon out; any other propagates.
+        Exceptions that leave one beacon out (the message its reason); any other propagates.
     check : callable, optional
-        ``check(result) -> list of str``: the names of the result's values that are
-        not finite. A beacon with any is *failed*: left out with a :class:`Failure`
-        reason naming those values and the rows that stand out
-        (:func:`culprit_rows`), its rows labelled ``failed``.
+        ``check(result) -> list of str``: the result's non-finite values. A beacon with any is
+        left out with a :class:`Failure` naming them and the rows that stand out.
 
     Returns
     -------
-    results : dict
-        ``{beacon: result}`` in table order.
-    skipped : dict
-        ``{beacon: reason}``.
-
-    Warns
-    -----
-    SkippedBeaconWarning
-        For every beacon left out.
-
-    Examples
-    --------
-    >>> import bayes_mpem
-    >>> sim = bayes_mpem.simulate_survey("abe58", rng=0, n_cycles=40)
-    >>> res, skipped = over_beacons(sim.survey, 30, lambda data: data.n)
-    >>> sorted(res), skipped
-    (['1', '2', '3', '4'], {})
+    results, skipped : dict
+        ``{beacon: result}`` and ``{beacon: reason}`` (each warned as SkippedBeaconWarning).
     """
     # stacklevel 4: past the helper, this function and fit/sample/compare, to their caller
     fittable, skipped = fittable_beacons(survey, min_pings, stacklevel=4)
@@ -266,11 +198,11 @@ def over_beacons(survey: Survey, min_pings: int, analyse, *, skip_on=(), check=N
         try:
             result = analyse(data)
         except skip_on as exc:
-            skip_beacon(skipped, data.beacon, str(exc), stacklevel=4)
+            _skip_beacon(skipped, data.beacon, str(exc), stacklevel=4)
             continue
         bad = check(result) if check is not None else []
         if bad:
-            rows = culprit_rows(survey, data)
+            rows = _culprit_rows(survey, data)
             why = (f"beacon {data.beacon}: the fit failed: {', '.join(bad[:5])} not finite; "
                    + (f"rows that stand out: {', '.join(rows)}" if rows else
                       "no single row stands out"))

@@ -1,0 +1,100 @@
+"""The commands of ``bayes-mpem``, in one table.
+
+The parser, the dispatch, the batch and ``bayes-mpem plot`` are drawn from it.
+
+Each entry names its objects by ``"module:attribute"`` text relative to the package,
+loaded on first use by :func:`load`, so reading the table imports nothing (``bayes-mpem
+--help`` loads no numpy). Each layer loads only its own names or lower ones: the command
+line its functions, options and keyword builders; ``report`` the result types and their
+figures; ``batch`` the library calls. Adding a command is one more entry.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections import namedtuple  # not dataclasses: `--help` would import inspect
+
+LBL_INPUTS = ("pings", "beacons")
+
+Batch = namedtuple("Batch", "kwargs run rows inputs files quiet", defaults=(
+    "batch.commands:survey_rows", LBL_INPUTS, LBL_INPUTS, False))
+Batch.__doc__ = """How ``bayes-mpem batch`` runs a command on one survey of a manifest.
+
+``kwargs``: the command line's builder of the library's keywords from the parsed
+options; ``run``: the library call, ``run(*inputs, **options)``; ``rows``:
+``rows(result) -> (per-beacon summaries, classified table or None)``; ``inputs``: the
+manifest's input columns, in ``run``'s order; ``files``: those that are files (hashed,
+resolved against the manifest); ``quiet``: ``run`` takes ``progress``, off unless given.
+"""
+
+Command = namedtuple("Command", "module options result folder figures palette units batch",
+                     defaults=(None, ("summary.json", ()), None, False, False, None))
+Command.__doc__ = """One sub-command of ``bayes-mpem``.
+
+``module``: the command-line module of its ``cmd_<name>``; ``options``:
+``options(subparsers)`` adds its sub-parser; ``result``: its result type, with
+``write(folder)`` and the classmethod ``read(folder)``; ``folder``: ``(file, keys)``, a
+folder holds this result when ``file``'s JSON object has every key of ``keys``
+(``bayes-mpem plot``); ``figures``: ``figures(result, out, *, truth=None, ...)`` draws the
+result and returns the paths; ``palette``: it draws figures, so takes ``--palette``;
+``units``: it reads pings and beacons tables, so takes the input units; ``batch``: how
+``bayes-mpem batch`` runs it, if it can.
+"""
+
+
+#: Every sub-command, in the order ``bayes-mpem --help`` lists them.
+COMMANDS: dict[str, Command] = {
+    "demo": Command("cli.lbl", "cli.parser:add_demo", palette=True),
+    "plot": Command("cli.lbl", "cli.parser:add_plot", palette=True),
+    "simulate": Command("cli.lbl", "cli.parser:add_simulate"),
+    "fit": Command(
+        "cli.lbl", "cli.parser:add_fit", "lbl.survey.fitting:SurveyFit",
+        ("summary.json", ("beacons_table", "method")), "report:fit_figures",
+        palette=True, units=True,
+        batch=Batch("cli.lbl:fit_kwargs", "lbl.survey.fitting:fit")),
+    "diagnose": Command(
+        "cli.lbl", "cli.parser:add_diagnose", "lbl.diagnosis.result:Diagnosis",
+        ("diagnosis.json", ()), "report:diagnosis_figures",
+        palette=True, units=True,
+        batch=Batch("cli.lbl:diagnose_kwargs", "lbl.diagnosis.driver:diagnose",
+                    "batch.commands:diagnosis_rows", quiet=True)),
+    "locate": Command(
+        "cli.survey_in", "cli.parser:add_locate", "survey_in.result:SurveyInResult",
+        ("summary.json", ("transponders",)), "report:locate_figures",
+        palette=True,
+        batch=Batch("cli.survey_in:locate_kwargs", "batch.commands:locate_file",
+                    "batch.commands:locate_rows", ("survey", "format"), ("survey",))),
+    "sample": Command(
+        "cli.lbl", "cli.parser:add_sample", "lbl.survey.sampling:SurveyPosterior",
+        ("summary.json", ("beacons_table", "priors")), "report:posterior_figures",
+        palette=True, units=True,
+        batch=Batch("cli.lbl:sample_command_kwargs", "lbl.survey.sampling:sample", quiet=True)),
+    "compare": Command(
+        "cli.lbl", "cli.parser:add_compare", "lbl.survey.comparison:SurveyComparison",
+        ("compare.json", ()), "report:comparison_figures",
+        palette=True, units=True),
+    "navigate": Command(
+        "cli.navigate", "cli.navigate:add_navigate", "lbl.navigate.result:Navigation",
+        ("summary.json", ("dead_reckoning", "track", "beacons_table")), "report:navigation_figures",
+        palette=True, units=True,
+        batch=Batch("cli.navigate:navigate_kwargs", "lbl.navigate:navigate")),
+    "stream": Command("cli.stream", "cli.stream:add_stream"),
+    "batch": Command("cli.batch", "cli.parser:add_batch"),
+}
+
+
+def load(name: str):
+    """Return the object a table entry names (``"module:attribute"``, relative to the package).
+
+    Examples
+    --------
+    >>> load("commands:load") is load
+    True
+    """
+    module, _, attribute = name.partition(":")
+    return getattr(importlib.import_module(f"{__package__}.{module}"), attribute)
+
+
+def with_results() -> dict:
+    """Return the commands whose result ``bayes-mpem plot`` reads back, in the table's order."""
+    return {name: c for name, c in COMMANDS.items() if c.result is not None}

@@ -123,3 +123,24 @@ def test_track_geometry_tells_a_circle_from_holding_station():
         assert t["azimuth_coverage_deg"] > 300 and t["max_incidence_deg"] > 45
     for t in g["station"]["transponders"].values():
         assert t["azimuth_coverage_deg"] < 30 and t["max_incidence_deg"] < 35
+
+
+def test_locate_gradients_and_knot_options(tmp_path, capsys):
+    sim = simulate_gnssa(n_transponders=3, hours=0.5, rng=21, speed_model="field")
+    ini = sim.write(tmp_path / "camp", "garpos")["survey"]
+    assert main(["locate", str(ini), "--out", str(tmp_path / "r"), "--knot-minutes", "10",
+                 "--gradients", "on"]) == 0
+    printed = capsys.readouterr().out
+    s = json.loads((tmp_path / "r" / "summary.json").read_text())
+    g = s["gradients"]
+    assert g["fitted"] and g["choice"] == "on" and "gradients=on asked for" in g["reason"]
+    assert s["sound_speed"]["smoothing"]["knot_minutes_asked"] == 10.0
+    assert "gradients     fitted" in printed and "shallow east" in printed
+    assert "gradients     fitted" in (tmp_path / "r" / "solution.txt").read_text()
+    assert main(["locate", str(ini), "--out", str(tmp_path / "a")]) == 0
+    s = json.loads((tmp_path / "a" / "summary.json").read_text())
+    assert s["gradients"]["choice"] == "auto" and not s["gradients"]["fitted"]
+    assert "need 2" in capsys.readouterr().out  # the reason, printed
+    deck = sample_file("obsrange/SIO_CC03.txt")
+    assert main(["locate", str(deck), "--out", str(tmp_path / "d"), "--gradients", "off"]) == 2
+    assert "--gradients: for array surveys only" in capsys.readouterr().err

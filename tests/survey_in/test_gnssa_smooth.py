@@ -5,6 +5,7 @@ import pandas as pd
 import pytest
 from scipy.interpolate import BSpline
 
+from bayes_mpem.exceptions import InputError
 from bayes_mpem.io.garpos import read_garpos, write_garpos
 from bayes_mpem.survey_in.array import choose_smoothing, locate_array, log_evidence
 from bayes_mpem.survey_in.array_survey import array_shots, locate_array_survey, position_constraints
@@ -188,14 +189,26 @@ def test_the_gradient_gate_says_why():
 
     station = simulate_gnssa(hours=0.5, rng=17, track="station")
     fit, why = gradient_gate(array_shots(station.raw()), station.header["transponders"])
-    assert not fit and "not identifiable" in why
+    assert not fit and "0.49 h (need 2)" in why
     two = simulate_gnssa(n_transponders=2, hours=0.5, rng=17, track="circle")
     fit, why = gradient_gate(array_shots(two.raw()), two.header["transponders"])
     assert not fit and "3 or more" in why
-    circle = simulate_gnssa(hours=1.0, rng=17, track="circle")
+    circle = simulate_gnssa(hours=2.2, rng=17, track="circle", shot_interval=60.0)
     shots = array_shots(circle.raw())
     assert gradient_gate(shots, circle.header["transponders"])[0]
     assert not gradient_gate(shots, circle.header["transponders"], speed_intervals=0)[0]
+    fit, why = gradient_gate(shots, circle.header["transponders"], speed_intervals=8)
+    assert not fit and "unpenalised" in why
+    short = shots[shots["time"] < 3600.0]
+    fit, why = gradient_gate(short, circle.header["transponders"])
+    assert not fit and "span" in why
+    held = simulate_gnssa(hours=2.2, rng=17, track="station", shot_interval=60.0)
+    fit, why = gradient_gate(array_shots(held.raw()), held.header["transponders"])
+    assert not fit and "not identifiable" in why
     res = locate_array_survey(station.raw())
-    assert res.summary["gradients"]["fitted"] is False
-    assert "not asked for" in res.summary["gradients"]["reason"]
+    g = res.summary["gradients"]
+    assert g["fitted"] is False and g["choice"] == "auto" and g["reason"].startswith("auto:")
+    res = locate_array_survey(station.raw(), gradients="off")
+    assert "gradients=off asked for" in res.summary["gradients"]["reason"]
+    with pytest.raises(InputError, match="auto, on, off"):
+        locate_array_survey(station.raw(), gradients="maybe")

@@ -10,6 +10,7 @@ from ..io.formats import read_survey, sniff_format
 from ..io.raw import ARRAY_FORMATS
 from ..report import write_figures
 from ..survey_in.posterior import check_location_options
+from ..survey_in.result import gradients_line
 from .errors import OptionError
 
 
@@ -57,7 +58,14 @@ def locate_kwargs(args) -> dict:
                               "travel times are corrected for the delays; the array's "
                               f"posterior is not sampled yet){also}")
         return dict(ci=args.ci, outliers=args.outliers, ssp=args.ssp,
-                    speed_intervals=args.speed_intervals, sample=None)
+                    speed_intervals=args.speed_intervals, sample=None,
+                    gradients=getattr(args, "gradients", None) or "auto",
+                    knot_minutes=getattr(args, "knot_minutes", None))
+    array_only = [o for o in ("gradients", "knot_minutes") if getattr(args, o, None) is not None]
+    if array_only:
+        raise OptionError(f"{', '.join('--' + o.replace('_', '-') for o in array_only)}: for "
+                          "array surveys only (GARPOS, GNATSS, SeaGap with two transponders "
+                          "or more)")
     model = dict(tat=args.tat, fit_tat=args.fit_tat, ci=args.ci, outliers=args.outliers,
                  ssp=args.ssp, speed_intervals=args.speed_intervals or 0,
                  lag_check=not getattr(args, "no_lag_check", False))
@@ -134,6 +142,7 @@ def cmd_locate(args) -> int:
         c = summary["array_centre"]["enu"]
         print(f"array centre: east {_interval(c['east'], '{:.3f}')}, north "
               f"{_interval(c['north'], '{:.3f}')}, up {_interval(c['up'], '{:.3f}')} m")
+        print(gradients_line(summary))
     for tid, why in summary.get("skipped_transponders", {}).items():
         print(f"transponder {tid} not located: {why}")
     print(f"{summary['n_skipped_lines']} lines skipped (reasons in classified.csv)")

@@ -9,7 +9,7 @@ import pandas as pd
 from scipy.stats import chi2
 
 from ..exceptions import InputError
-from ..io.geodesy import enu_to_geodetic
+from ..io.geodesy import MEAN_EARTH_RADIUS_M, earth_radius, enu_to_geodetic
 from ..io.raw import ARRAY_FORMATS
 from .array import KNOT_MINUTES, describe, locate_array
 from .result import SurveyInResult, classified_table
@@ -366,7 +366,7 @@ def _gradient_choice(gradients):
 def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
                         speed_intervals=None, surface_depth=None,
                         knot_minutes=KNOT_MINUTES, shift=None,
-                        gradients="auto") -> SurveyInResult:
+                        gradients="auto", earth="sphere") -> SurveyInResult:
     """Locate every transponder of a GNSS-A array survey together.
 
     Parameters
@@ -397,6 +397,12 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
         :func:`gradient_gate` says the track constrains them, and records its reason
         either way; ``"on"`` (or True) and ``"off"`` (or False) force the choice
         (None is ``"auto"``).
+    earth : {"sphere", "flat"}, default "sphere"
+        ``"sphere"``: the profile's layers follow the Earth (a sphere of the WGS84
+        Gaussian radius at the site's latitude): SeaGap's frame is already along the
+        sphere; GARPOS's and GNATSS's Cartesian east-north-up frames are turned into it
+        (:func:`~.array.to_sphere`) and the result back. ``"flat"``: the frame as
+        given, flat layers (the model before curvature).
 
     Returns
     -------
@@ -426,11 +432,16 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
     shift = auto_shift if shift is None else bool(shift)
     if shift and not auto_shift:
         fixed = None
+    if earth not in ("sphere", "flat"):
+        raise InputError(f"earth: expected 'sphere' or 'flat', got {earth!r}")
+    radius = None if earth == "flat" else (earth_radius(h["lat"]) if "lat" in h
+                                           else MEAN_EARTH_RADIUS_M)
+    cartesian = radius is not None and raw.format != "seagap"
     fit = locate_array(shots, h["transponders"], profile=prof,
                        surface_depth=float(surface_depth),
                        speed_intervals=speed_intervals, outliers=outliers,
                        knot_minutes=knot_minutes, fixed=fixed, shift=shift,
-                       gradients=gradients)
+                       gradients=gradients, earth_radius=radius, along_sphere=not cartesian)
     origin = (h["lat"], h["lon"], h.get("height", 0.0)) if "lat" in h else None
     counts = np.bincount(fit.index, minlength=len(fit.ids))
     out = {tid: _transponder_entry(fit, k, ci, origin, counts[k])
@@ -480,8 +491,14 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
                      "origin": None if origin is None else dict(
                          zip(("lat", "lon", "height"), map(float, origin), strict=True)),
                      "surface_depth": float(surface_depth),
-                     "earth": "flat: straight or refracted rays in the local frame, no Earth "
-                              "curvature"},
+                     "earth": ("flat: straight or refracted rays in the local frame, no Earth "
+                               "curvature") if radius is None else
+                              (f"sphere of radius {radius:.1f} m (the WGS84 Gaussian radius at "
+                               "the site's latitude): the profile's layers follow it"
+                               + ("; the rays traced in its frame (east, north along it, "
+                                  "height above it), the positions Cartesian"
+                                  if cartesian else "; the frame is along it (SeaGap's)")),
+                     "earth_radius_m": radius},
         "tat_fitted": False, "tat_given": 0.0,
         "position_region": f"a transponder's {100 * ci:g} % region is the ellipsoid of its "
                            f"covariance with squared radius {chi2.ppf(ci, 3):.4f}"}

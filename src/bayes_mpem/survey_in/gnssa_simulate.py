@@ -551,8 +551,8 @@ def _field_settings(field, periods, gradients, gradient_period, travel_time):
                 gradient_period=float(gradient_period), travel_time=travel_time)
 
 
-# the simulation's steps (geometry, track, travel times, replies, truth) read best in sequence:
-# long function
+# the simulation's steps (geometry, track, travel times, replies, truth) read best in order
+# long function: each step is a few lines
 def simulate_gnssa(*, n_transponders: int = 4, depth: float = 1500.0, hours: float = 4.0,
                    shot_interval: float = 20.0, ship_speed: float = 2.5, sigma: float = 5e-5,
                    p_spurious: float = 0.05, p_missing: float = 0.02,

@@ -144,3 +144,18 @@ def test_locate_gradients_and_knot_options(tmp_path, capsys):
     deck = sample_file("obsrange/SIO_CC03.txt")
     assert main(["locate", str(deck), "--out", str(tmp_path / "d"), "--gradients", "off"]) == 2
     assert "--gradients: for array surveys only" in capsys.readouterr().err
+
+
+def test_seagap_array_on_the_sphere(seagap_raw):
+    """SeaGap's frame is along the sphere: read flat, the array came out 0.6 m too deep."""
+    from bayes_mpem.survey_in.survey import SEAGAP_TRANSDUCER_DEPTH
+
+    sphere = locate_survey(seagap_raw, speed_intervals=2, gradients="off")
+    up = seagap_raw.transducer_positions()
+    surface = -0.5 * float(np.mean(up["tx"][2]) + np.mean(up["rx"][2])) - SEAGAP_TRANSDUCER_DEPTH
+    flat = locate_array_survey(seagap_raw, ssp="survey", speed_intervals=2, gradients="off",
+                               surface_depth=surface, earth="flat")
+    assert "SeaGap's" in sphere.summary["geometry"]["earth"]
+    for tid, t in sphere.summary["transponders"].items():
+        deeper = flat.summary["transponders"][tid]["depth"]["mean"] - t["depth"]["mean"]
+        assert 0.4 < deeper < 0.8, (tid, deeper)

@@ -212,3 +212,19 @@ def test_the_gradient_gate_says_why():
     assert "gradients=off asked for" in res.summary["gradients"]["reason"]
     with pytest.raises(InputError, match="auto, on, off"):
         locate_array_survey(station.raw(), gradients="maybe")
+
+
+def test_auto_gradients_on_a_campaign_without_them_are_compatible_with_zero():
+    """Sentinel of the acceptance study (docs/gnssa.md): gradients off in the simulation."""
+    sim = simulate_gnssa(hours=2.5, rng=18, speed_model="field", track="star+circle",
+                         shot_interval=30.0)
+    res = locate_array_survey(sim.raw())
+    g = res.summary["gradients"]
+    assert g["fitted"] and g["choice"] == "auto" and g["reason"].startswith("auto: the track")
+    for name in ("shallow_east", "shallow_north", "deep_east", "deep_north"):
+        assert abs(g[name]["mean"]) < 2 * g[name]["sd"], (name, g[name])
+    fit = res.fits["array"]
+    m, C = fit.centre()
+    z = (m - sim.truth["transponders"].to_numpy().mean(axis=0)) / np.sqrt(np.diag(C))
+    assert np.all(np.abs(z) < 3), z
+    assert "gradient_grid" in res.summary["sound_speed"]["smoothing"]

@@ -228,3 +228,19 @@ def test_auto_gradients_on_a_campaign_without_them_are_compatible_with_zero():
     z = (m - sim.truth["transponders"].to_numpy().mean(axis=0)) / np.sqrt(np.diag(C))
     assert np.all(np.abs(z) < 3), z
     assert "gradient_grid" in res.summary["sound_speed"]["smoothing"]
+
+
+def test_a_staggered_schedule_without_outliers():
+    """Data the model did not make: one transponder per interrogation, no spurious replies."""
+    sim = simulate_gnssa(hours=2.5, rng=19, speed_model="field", track="star+circle",
+                         gradients=True, schedule="staggered", p_spurious=0.0)
+    shot = np.rint(sim.pings["t_tx"].to_numpy() / 20.0).astype(int)
+    assert np.unique(shot).size == shot.size  # no two replies share an interrogation
+    assert sim.settings["schedule"] == "staggered" and not sim.truth["spurious"].any()
+    res = locate_array_survey(sim.raw())
+    assert res.summary["gradients"]["fitted"]
+    fit = res.fits["array"]
+    m, C = fit.centre()
+    z = (m - sim.truth["transponders"].to_numpy().mean(axis=0)) / np.sqrt(np.diag(C))
+    assert np.all(np.abs(z) < 3), z
+    assert fit.n_spurious(0) + fit.n_spurious(1) + fit.n_spurious(2) + fit.n_spurious(3) == 0

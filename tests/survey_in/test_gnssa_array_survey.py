@@ -159,3 +159,18 @@ def test_seagap_array_on_the_sphere(seagap_raw):
     for tid, t in sphere.summary["transponders"].items():
         deeper = flat.summary["transponders"][tid]["depth"]["mean"] - t["depth"]["mean"]
         assert 0.4 < deeper < 0.8, (tid, deeper)
+
+
+def test_batch_passes_the_array_options(tmp_path):
+    from bayes_mpem.batch import locate_raw
+    from bayes_mpem.cli.batch import tasks_from_manifest
+    from bayes_mpem.cli.parser import build_parser
+
+    sim = simulate_gnssa(n_transponders=3, hours=0.4, rng=22, speed_model="field")
+    ini = sim.write(tmp_path / "camp", "garpos")["survey"]
+    manifest = tmp_path / "m.csv"
+    manifest.write_text(f"name,survey,format,gradients,knot_minutes\na,{ini},garpos,on,10\n")
+    task, = tasks_from_manifest(manifest, "locate", build_parser().get_default("subparsers"))
+    assert task.options["gradients"] == "on" and task.options["knot_minutes"] == 10.0
+    s = locate_raw(read_survey(ini, "garpos"), task.options).summary
+    assert s["gradients"]["fitted"] and s["sound_speed"]["smoothing"]["knot_minutes_asked"] == 10

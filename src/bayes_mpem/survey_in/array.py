@@ -257,7 +257,8 @@ class ArrayLocateResult:
     outliers : str
     model : dict
         ``profile``, ``surface_depth``, ``speed_intervals``, ``time_range``, ``unit``
-        (m/s per unit of speed coefficient), ``n_invalid``.
+        (m/s per unit of speed coefficient), ``n_invalid``, ``earth_radius`` (None: flat
+        layers), ``smoothing``, ``gradients``, ``positions``.
     """
 
     ids: tuple

@@ -10,6 +10,7 @@ from ..io.formats import read_survey, sniff_format
 from ..io.raw import ARRAY_FORMATS
 from ..report import write_figures
 from ..survey_in.posterior import check_location_options
+from ..survey_in.result import gradients_line
 from .errors import OptionError
 
 
@@ -58,7 +59,14 @@ def locate_kwargs(args) -> dict:
             raise OptionError(f"{', '.join(given)}: not for a {fmt} array survey (its "
                               f"travel times are corrected for the delays{sampled}){also}")
         return dict(ci=args.ci, outliers=args.outliers, ssp=args.ssp,
-                    speed_intervals=args.speed_intervals, sample=_sample_options(args))
+                    speed_intervals=args.speed_intervals, sample=_sample_options(args),
+                    gradients=getattr(args, "gradients", None) or "auto",
+                    knot_minutes=getattr(args, "knot_minutes", None))
+    array_only = [o for o in ("gradients", "knot_minutes") if getattr(args, o, None) is not None]
+    if array_only:
+        raise OptionError(f"{', '.join('--' + o.replace('_', '-') for o in array_only)}: for "
+                          "array surveys only (GARPOS, GNATSS, SeaGap with two transponders "
+                          "or more)")
     model = dict(tat=args.tat, fit_tat=args.fit_tat, ci=args.ci, outliers=args.outliers,
                  ssp=args.ssp, speed_intervals=args.speed_intervals or 0,
                  lag_check=not getattr(args, "no_lag_check", False))
@@ -153,6 +161,7 @@ def cmd_locate(args) -> int:
         c = summary["array_centre"]["enu"]
         print(f"array centre: east {_interval(c['east'], '{:.3f}')}, north "
               f"{_interval(c['north'], '{:.3f}')}, up {_interval(c['up'], '{:.3f}')} m")
+        print(gradients_line(summary))
         if "posterior" in summary:
             _print_array_posterior(summary)
     for tid, why in summary.get("skipped_transponders", {}).items():

@@ -882,17 +882,18 @@ def _with_posterior(em: dict, enu: dict, origin) -> dict:
 
 
 def locate_array_survey_bayes(raw, *, ci=0.95, outliers="uniform", ssp=None,
-                              speed_intervals=None, n_walkers=None, min_ess=1000.0,
-                              max_steps=20000, n_draws=4000, rng: RNGLike = None,
-                              progress="auto"):
+                              speed_intervals=None, gradients="auto", knot_minutes=None,
+                              n_walkers=None, min_ess=1000.0, max_steps=20000, n_draws=4000,
+                              rng: RNGLike = None, progress="auto"):
     """Locate a GNSS-A array by EM, then sample its posterior (``locate --sample``).
 
     Parameters
     ----------
     raw : RawSurvey
         A GARPOS or GNATSS survey (or a SeaGap survey of several transponders).
-    ci, outliers, ssp, speed_intervals
-        As for :func:`~bayes_mpem.survey_in.array_survey.locate_array_survey`.
+    ci, outliers, ssp, speed_intervals, gradients, knot_minutes
+        As for :func:`~bayes_mpem.survey_in.array_survey.locate_array_survey`
+        (``knot_minutes=None``: its default).
     n_walkers, min_ess, max_steps, n_draws, progress
         As for :func:`sample_array`.
     rng : None, int or numpy.random.Generator
@@ -914,8 +915,9 @@ def locate_array_survey_bayes(raw, *, ci=0.95, outliers="uniform", ssp=None,
 
     check_location_options(n_walkers=n_walkers, ci=ci, min_ess=min_ess, max_steps=max_steps,
                            n_draws=n_draws)
+    knots = {} if knot_minutes is None else {"knot_minutes": knot_minutes}
     located = locate_array_survey(raw, ci=ci, outliers=outliers, ssp=ssp,
-                                  speed_intervals=speed_intervals)
+                                  speed_intervals=speed_intervals, gradients=gradients, **knots)
     fit = located.fits["array"]
     shots = array_shots(raw)
     post = sample_array(shots, fit, n_walkers=n_walkers, ci=ci, min_ess=min_ess,

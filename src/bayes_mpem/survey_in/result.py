@@ -177,6 +177,27 @@ def _row(name, enu, width=14):
             + "".join(f"{v:9.3f}" for v in sds))
 
 
+def gradients_line(summary: dict) -> str:
+    """Return one line: the array's horizontal gradients, fitted or not and why.
+
+    Parameters
+    ----------
+    summary : dict
+        An array's ``summary.json`` (with ``gradients``).
+
+    Returns
+    -------
+    str
+    """
+    g = summary.get("gradients") or {}
+    line = f"gradients     {'fitted' if g.get('fitted') else 'not fitted'} ({g.get('reason', '-')})"
+    if g.get("fitted") and "shallow_east" in g:
+        line += "; time averages (m/s)/km: " + ", ".join(
+            f"{k.replace('_', ' ')} {g[k]['mean']:+.4f} +- {g[k]['sd']:.4f}"
+            for k in ("shallow_east", "shallow_north", "deep_east", "deep_north"))
+    return line
+
+
 def solution_text(summary: dict) -> str:
     """Return an array's solution as plain text, for a log (``solution.txt``).
 
@@ -227,6 +248,8 @@ def solution_text(summary: dict) -> str:
         lines += [f"residual rms  {r['rms_true']:.4f} ms (true replies; {per})",
                   f"shots         {s['n_pings']}: {r['n_true']} true, {r['n_spurious']} "
                   f"spurious; {s.get('n_skipped_lines', 0)} lines skipped"]
+    if "gradients" in s:
+        lines.append(gradients_line(s))
     lines.append(f"intervals     sd = 1 standard deviation (m); "
                  f"{s.get('position_region', '')}")
     return "\n".join(lines) + "\n"

@@ -165,7 +165,7 @@ def test_locate_command_on_garpos_and_gnatss_files(located, tmp_path, capsys):
                  "--out", str(tmp_path / "on")]) == 0
     s = json.loads((tmp_path / "on" / "summary.json").read_text())
     assert s["format"] == "gnatss" and s["ssp"] is None
-    for extra in (["--sample"], ["--fit-lag"], ["--tat", "0.1"]):
+    for extra in (["--fit-lag"], ["--tat", "0.1"]):  # --sample is taken: the array posterior
         assert main(["locate", str(config), "--out", str(tmp_path / "x"), *extra]) == 2
         assert "not for a gnatss array survey" in capsys.readouterr().err
 

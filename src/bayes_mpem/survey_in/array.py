@@ -258,7 +258,7 @@ class ArrayLocateResult:
     model : dict
         ``profile``, ``surface_depth``, ``speed_intervals``, ``time_range``, ``unit``
         (m/s per unit of speed coefficient), ``n_invalid``, ``earth_radius`` (None: flat
-        layers), ``smoothing``, ``gradients``, ``positions``.
+        layers), ``along_sphere``, ``smoothing``, ``gradients``, ``positions``.
     """
 
     ids: tuple
@@ -544,7 +544,7 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
                "speed_intervals": int(speed_intervals), "time_range": time_range,
                "unit": unit, "n_invalid": n_bad, "smoothing": smoothing,
                "earth_radius": None if earth_radius is None else float(earth_radius),
-               "gradients": grad_record,
+               "along_sphere": bool(along_sphere), "gradients": grad_record,
                "positions": _positions_record(G, K, shift)})
 
 

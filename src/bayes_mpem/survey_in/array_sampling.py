@@ -17,7 +17,7 @@ Through a sound-speed profile the ray bending is followed to first order about t
 EM solution: a shot's travel time is ``r L(P) + c . (P - P_em)``, ``L`` the
 straight transmit and receive chords to the transponder ``P``, ``r`` the ratio of
 the eigenray time to the chord at the EM solution and ``c`` the difference of their
-gradients there (exact for straight rays; centimetres from the EM solution the
+gradients there (exact for straight rays in flat layers; centimetres from the EM solution the
 error is below a nanosecond).
 """
 
@@ -132,7 +132,9 @@ class ArrayLogPosterior:
                   else None)
         self.kg = 0 if design is None else design.shape[1]
         self.model = ArrayTravelTimes(sub, self.index, self.K, basis, profile=m["profile"],
-                                      surface_depth=m["surface_depth"], gradients=design)
+                                      surface_depth=m["surface_depth"], gradients=design,
+                                      earth_radius=m.get("earth_radius"),
+                                      along_sphere=m.get("along_sphere", False))
         self.basis_t = np.ascontiguousarray(basis.T)
         self.design_t = None if design is None else np.ascontiguousarray(design.T)
         self.unit = float(m["unit"])

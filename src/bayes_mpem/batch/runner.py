@@ -217,10 +217,12 @@ def _client(scheduler, n_workers):
     return Client(cluster), cluster
 
 
-def _progress(progress):
-    if progress == "auto":
-        progress = sys.stderr.isatty()
-    return progress
+def _report(record, done, total):
+    """Print the progress line of one survey on standard error."""
+    what = (f"failed: {record['reason']}" if record["status"] == "failed" else
+            "already complete" if record["status"] == "complete" else
+            f"done in {record.get('seconds', 0.0):.1f} s")
+    print(f"[{done}/{total}] {record['name']}: {what}", file=sys.stderr, flush=True)
 
 
 def run_batch(tasks: list, out_dir, *, scheduler: str | None = None, n_workers: int | None = None,
@@ -241,8 +243,7 @@ def run_batch(tasks: list, out_dir, *, scheduler: str | None = None, n_workers: 
     progress : bool or "auto"
         A line on standard error per survey done (``"auto"``: when it is a terminal).
     report : callable, optional
-        ``report(record, done, total)`` after each survey (the command line's
-        progress lines); overrides ``progress``.
+        ``report(record, done, total)`` after each survey, instead of the progress line.
 
     Returns
     -------
@@ -265,11 +266,8 @@ def run_batch(tasks: list, out_dir, *, scheduler: str | None = None, n_workers: 
     if unknown:
         raise InputError(f"batch: unknown command(s) {unknown}; expected one of {list(COMMANDS)}")
     out = output_folder(out_dir)
-    if report is None and _progress(progress):
-        def report(record, done, total):
-            print(f"[{done}/{total}] {record['name']}: {record['status']}"
-                  + (f" ({record['reason']})" if record["status"] == "failed" else
-                     f" in {record.get('seconds', 0.0):.1f} s"), file=sys.stderr, flush=True)
+    if report is None and (sys.stderr.isatty() if progress == "auto" else progress):
+        report = _report
     records, todo = {}, []
     for task in tasks:
         key = _key_or_none(task)

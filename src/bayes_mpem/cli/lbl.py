@@ -14,6 +14,7 @@ from ..lbl.simulation.simulate import simulate_survey
 from ..lbl.survey.fitting import fit
 from . import gnssa, navigate
 from .errors import OptionError
+from .output import print_written, write_result
 
 # sample, compare, diagnose and the report (emcee, ArviZ, matplotlib) are imported by the
 # commands that use them: `fit` starts without them
@@ -27,10 +28,7 @@ def write_figures(*args, **kwargs):
 
 
 def fit_kwargs(args) -> dict:
-    """Keyword arguments of :func:`~bayes_mpem.lbl.survey.fitting.fit` from ``fit``'s options.
-
-    Raises ``OptionError`` for an option of the other method.
-    """
+    """Keyword arguments of ``fit`` from its options; ``OptionError`` for the other method's."""
     if args.method == "mixture" and (args.pol is not None or args.alpha is not None):
         raise OptionError("--pol and --alpha apply to --method paper only")
     if args.method == "paper" and args.weights is not None:
@@ -42,18 +40,8 @@ def fit_kwargs(args) -> dict:
                 weights=args.weights or "learned", min_pings=args.min_pings, rng=args.seed)
 
 
-def sample_kwargs(args) -> dict:
-    """Keyword arguments of ``sample`` and ``compare`` from their shared options.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-
-    Raises
-    ------
-    OptionError
-        For ``--concentration`` with ``--priors equal``.
-    """
+def _sample_kwargs(args) -> dict:
+    """Keyword arguments of ``sample`` and ``compare`` from their shared options."""
     if getattr(args, "priors", None) == "equal" and args.concentration is not None:
         raise OptionError("--concentration applies to --priors learned only")
     return dict(path=args.path, sigma_dp=args.sigma_dp,
@@ -64,15 +52,10 @@ def sample_kwargs(args) -> dict:
 
 
 def sample_command_kwargs(args) -> dict:
-    """Keyword arguments of :func:`~bayes_mpem.lbl.survey.sampling.sample` from ``sample``.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-    """
+    """Keyword arguments of :func:`~bayes_mpem.lbl.survey.sampling.sample` from ``sample``."""
     return dict(priors=args.priors, ci=args.ci, n_ensembles=args.ensembles,
                 log_likelihood=args.log_likelihood, predictive=args.predictive,
-                **sample_kwargs(args))
+                **_sample_kwargs(args))
 
 
 def diagnose_kwargs(args) -> dict:
@@ -87,11 +70,6 @@ def diagnose_kwargs(args) -> dict:
                 min_pings=args.min_pings, rng=args.seed, progress=not args.no_progress)
 
 
-def _print_written(paths) -> None:
-    for p in paths:
-        print(f"wrote {p}")
-
-
 def _report_fit(result, paths):
     print(result.format_table())
     for bid, res in result.results.items():
@@ -102,7 +80,7 @@ def _report_fit(result, paths):
     if result.survey.comment_lines:
         print(f"{result.survey.comment_lines} comment line(s) (starting with #) in "
               f"{result.survey.pings_source} were not read as rows")
-    _print_written(paths)
+    print_written(paths)
 
 
 def _demo_fits(sim, out, seed):
@@ -148,14 +126,8 @@ def _demo_bayes(sim, out, seed):
 
 
 @contextlib.contextmanager
-def recorded_warnings():
-    """Keep the text of every warning shown meanwhile (still shown): a list, filled on exit.
-
-    Yields
-    ------
-    list of str
-        ``"Category: message"`` of each warning shown, in order.
-    """
+def _recorded_warnings():
+    """Yield a list that gets ``"Category: message"`` of every warning shown meanwhile."""
     seen, show = [], warnings.showwarning
 
     def record(message, category, *args, **kwargs):
@@ -171,7 +143,7 @@ def recorded_warnings():
 
 def cmd_demo(args) -> int:
     """Run ``bayes-mpem demo``: simulate, fit, sample, compare, write figures and summary.md."""
-    with recorded_warnings() as seen:
+    with _recorded_warnings() as seen:
         return _demo(args, seen)
 
 
@@ -215,7 +187,7 @@ def cmd_plot(args) -> int:
         print(f"bayes-mpem plot: {args.result_dir} holds no fitted beacon or located "
               f"transponder (skipped: {skipped or 'none'}); nothing to draw", file=sys.stderr)
         return 2
-    _print_written(paths)
+    print_written(paths)
     return 0
 
 
@@ -242,7 +214,7 @@ def _plot_batch(args) -> int:
               file=sys.stderr)
         return 2
     print(f"{len(folders)} surveys of the batch drawn")
-    _print_written(paths)
+    print_written(paths)
     return 0
 
 
@@ -278,17 +250,14 @@ def cmd_simulate(args) -> int:
                           effects=effects or None)
     paths = sim.write(args.out)
     print(f"{len(sim.survey)} pings to {len(sim.truth)} beacons")
-    _print_written(paths.values())
+    print_written(paths.values())
     return 0
 
 
 def cmd_fit(args) -> int:
     """Run ``bayes-mpem fit``."""
     result = fit(args.pings, args.beacons, **fit_kwargs(args))
-    out = Path(args.out)
-    paths = list(result.write(out, table_format=args.table_format).values())
-    if args.figures:
-        paths += write_figures(result, out)
+    paths = write_result(result, args.out, figures=args.figures, table_format=args.table_format)
     _report_fit(result, paths)
     return 0
 
@@ -298,16 +267,13 @@ def cmd_sample(args) -> int:
     from ..lbl.survey.sampling import sample
 
     result = sample(args.pings, args.beacons, **sample_command_kwargs(args))
-    out = Path(args.out)
-    paths = list(result.write(out, table_format=args.table_format).values())
-    if args.figures:
-        paths += write_figures(result, out)
+    paths = write_result(result, args.out, figures=args.figures, table_format=args.table_format)
     print(result.format_table())
     for bid, r in result.results.items():
         if not r.diagnostics["converged"]:
             print(f"warning: beacon {bid} (the posterior): max_steps reached before the bulk ESS "
                   f"reached {r.diagnostics['min_ess']:,.0f} and R-hat 1.01", file=sys.stderr)
-    _print_written(paths)
+    print_written(paths)
     return 0
 
 
@@ -315,11 +281,10 @@ def cmd_compare(args) -> int:
     """Run ``bayes-mpem compare``."""
     from ..lbl.survey.comparison import compare
 
-    result = compare(args.pings, args.beacons, **sample_kwargs(args))
-    paths = list(result.write(args.out).values())
-    paths += write_figures(result, args.out)
+    result = compare(args.pings, args.beacons, **_sample_kwargs(args))
+    paths = write_result(result, args.out)
     print(result.format_table())
-    _print_written(paths)
+    print_written(paths)
     return 0
 
 
@@ -328,9 +293,7 @@ def cmd_diagnose(args) -> int:
     from ..lbl.diagnosis.driver import diagnose
 
     result = diagnose(args.pings, args.beacons, **diagnose_kwargs(args))
-    paths = list(result.write(args.out).values())
-    if not args.no_figures:
-        paths += write_figures(result, args.out)
+    paths = write_result(result, args.out, figures=not args.no_figures)
     print(result.summary())
-    _print_written(paths)
+    print_written(paths)
     return 0

@@ -1,5 +1,4 @@
-"""Types of the command-line options: each an ``argparse`` ``type=`` that refuses NaN,
-infinities and values out of range before any work.
+"""Types of the command-line options: ``argparse`` ``type=`` refusing NaN and out-of-range values.
 
 Examples
 --------

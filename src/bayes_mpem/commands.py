@@ -1,12 +1,7 @@
-"""The commands of ``bayes-mpem``, in one table.
+"""The commands of ``bayes-mpem`` in one table, every object named as text (docs/architecture.md).
 
-The parser, the dispatch, the batch and ``bayes-mpem plot`` are drawn from it.
-
-Each entry names its objects by ``"module:attribute"`` text relative to the package,
-loaded on first use by :func:`load`, so reading the table imports nothing (``bayes-mpem
---help`` loads no numpy). Each layer loads only its own names or lower ones: the command
-line its functions, options and keyword builders; ``report`` the result types and their
-figures; ``batch`` the library calls. Adding a command is one more entry.
+Reading the table imports nothing (``bayes-mpem --help`` loads no numpy); :func:`load`
+imports a ``"module:attribute"`` name on first use. Adding a command is one more entry.
 """
 
 from __future__ import annotations
@@ -84,7 +79,7 @@ COMMANDS: dict[str, Command] = {
 
 
 def load(name: str):
-    """Return the object a table entry names (``"module:attribute"``, relative to the package).
+    """Return the object ``"module:attribute"`` (relative to the package) names.
 
     Examples
     --------

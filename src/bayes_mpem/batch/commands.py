@@ -1,9 +1,4 @@
-"""How a batch runs a command on one survey, and what it keeps of the result.
-
-The commands a batch runs are those of :data:`bayes_mpem.commands.COMMANDS` with a
-:class:`~bayes_mpem.commands.Batch` entry (:data:`COMMANDS` here, by name); adding one is
-that entry.
-"""
+"""How a batch runs a command on one survey (its ``Batch`` entry), and what it keeps of the result."""
 
 from __future__ import annotations
 
@@ -51,11 +46,10 @@ def locate_raw(raw, options: dict):
     ----------
     raw : RawSurvey
     options : dict
-        Keyword arguments of :func:`~bayes_mpem.survey_in.survey.locate_survey`,
-        and ``sample``: None, or those of
-        :func:`~bayes_mpem.survey_in.location_sampling.locate_survey_bayes`'s sampler;
-        ``lag_check``: look for a lag along the track (deck-box logs only, not sampled).
-        An array survey (:data:`~bayes_mpem.io.raw.ARRAY_FORMATS`) takes only
+        Keyword arguments of :func:`~bayes_mpem.survey_in.survey.locate_survey`;
+        ``sample``: None or the sampler's of
+        :func:`~bayes_mpem.survey_in.location_sampling.locate_survey_bayes`;
+        ``lag_check`` (deck-box logs, not sampled). An array survey takes only
         :data:`ARRAY_OPTIONS`.
 
     Returns

@@ -45,7 +45,7 @@ def run_task(task: BatchTask, out_dir: str, key: str | None = None) -> dict:
     folder = out / "surveys" / task.name
     done = folder / "batch.json"
     done.unlink(missing_ok=True)
-    part = classified_file(out, task.name)
+    part = _classified_file(out, task.name)
     part.unlink(missing_ok=True)  # no stale rows if this run fails
     old = out / "classified" / f"name={task.name}"  # the layout of earlier versions
     if old.is_dir():
@@ -79,21 +79,8 @@ def run_task(task: BatchTask, out_dir: str, key: str | None = None) -> dict:
     return record
 
 
-def classified_file(out_dir, name: str) -> Path:
-    """Return where a survey's classified rows go: ``DIR/classified/survey-<name>.parquet``.
-
-    One file per survey with a ``name`` column of text, so that a survey named ``001``
-    reads back as ``"001"`` from ``pandas.read_parquet(DIR / "classified")``.
-
-    Parameters
-    ----------
-    out_dir : str or pathlib.Path
-    name : str
-
-    Returns
-    -------
-    pathlib.Path
-    """
+def _classified_file(out_dir, name: str) -> Path:
+    """Return ``DIR/classified/survey-<name>.parquet`` (``name`` a text column in it)."""
     return Path(out_dir) / "classified" / f"survey-{name}.parquet"
 
 
@@ -115,20 +102,8 @@ def _failed_folder(folder: Path, record: dict) -> None:
         pass
 
 
-def completed(task: BatchTask, out_dir, key: str | None) -> dict | None:
-    """Return the record of the survey if already complete with this hash, else None.
-
-    Parameters
-    ----------
-    task : BatchTask
-    out_dir : str or pathlib.Path
-    key : str or None
-        :meth:`BatchTask.key` (None when an input could not be read).
-
-    Returns
-    -------
-    dict or None
-    """
+def _completed(task: BatchTask, out_dir, key: str | None) -> dict | None:
+    """Return the survey's record if complete with the hash ``key``, else None."""
     done = Path(out_dir) / "surveys" / task.name / "batch.json"
     if key is None or not done.is_file():
         return None
@@ -271,7 +246,7 @@ def run_batch(tasks: list, out_dir, *, scheduler: str | None = None, n_workers: 
     records, todo = {}, []
     for task in tasks:
         key = _key_or_none(task)
-        old = completed(task, out, key)
+        old = _completed(task, out, key)
         if old is not None:
             records[task.name] = {**old, "status": "complete"}
         else:

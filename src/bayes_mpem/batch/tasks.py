@@ -57,13 +57,7 @@ class BatchTask:
 
 
 def _manifest_table(path: Path):
-    """Read a manifest as text cells: (table, the line number of each row).
-
-    Through :func:`~bayes_mpem.io.boundary.read_text_lines`: a folder, a binary or
-    non-UTF-8 file (Latin-1) is refused naming the manifest and the line; an empty
-    one naming the manifest; blank lines and ``#`` comments are skipped; a row
-    with more or fewer cells than the header is refused naming its line.
-    """
+    """Read a manifest as text cells: ``(table, the line number of each row)``."""
     import csv
 
     from ..io.boundary import read_text_lines

@@ -1,4 +1,4 @@
-"""How a batch runs a command on one survey (its ``Batch`` entry), and what it keeps of the result."""
+"""How a batch runs a command on one survey (its ``Batch`` entry), and what it keeps of it."""
 
 from __future__ import annotations
 

@@ -283,7 +283,7 @@ def write_json(path, document, *, indent: int | None = 2, numpy: bool = False) -
 
 
 def write_table(path, table) -> Path:
-    """Write a table without its index: CSV, or Parquet for a ``.parquet`` path.
+    """Write a table without its index: CSV (vectorised), or Parquet for a ``.parquet`` path.
 
     Parameters
     ----------
@@ -297,19 +297,8 @@ def write_table(path, table) -> Path:
     return write_file(path, lambda tmp: write_table_file(tmp, table))
 
 
-def write_csv(path, table) -> Path:
-    """Write a table as CSV without its index (as ``DataFrame.to_csv``, but vectorised).
-
-    Parameters
-    ----------
-    path : str or pathlib.Path
-    table : pandas.DataFrame
-
-    Returns
-    -------
-    pathlib.Path
-    """
-    return write_table(path, table)
+#: :func:`write_table` under the name the result classes use for their CSV tables.
+write_csv = write_table
 
 
 def read_document(path) -> dict:

@@ -1,17 +1,6 @@
-"""Ranges from travel times through a sound-speed profile, for the navigation.
+"""Travel times through a sound-speed profile as equivalent straight-line ranges, for navigation.
 
-``navigate`` fits straight-line ranges. A travel time through a layered ocean is
-turned into the **equivalent straight-line range**: the slant range
-``sqrt(h^2 + dz^2)`` of the horizontal distance ``h`` at which the refracted
-direct eigenray between the transducer's and the beacon's depths takes exactly the
-measured one-way time. The depths are known (the pressure depth, the beacon's), so
-``h`` is the only unknown; it is found per reply by Newton's method on the ray's
-travel time ``T(h)``, whose derivative is the ray parameter ``p = dT/dh``
-(:func:`~bayes_mpem.acoustics.turning.direct_times`). The straight-line model
-then predicts the range of the true position without the refraction bias: where
-the vehicle is at ``h`` from the beacon, the equivalent range of the exact time
-is the straight range of ``h``. Why this rather than predicting travel times in
-the estimator: ``docs/navigate.md`` (*Ranges through the sound-speed profile*).
+The method and why: ``docs/navigate.md`` (*Ranges through the sound-speed profile*).
 
 Examples
 --------
@@ -46,9 +35,7 @@ TRAVEL_TIMES = ("one-way", "two-way")
 #: tables' depths are then not the profile's (ellipsoidal heights: set ``surface_depth``).
 ABOVE_SURFACE = 1.0
 
-#: Newton stops once its step in the horizontal distance is below this (m): the error
-#: after it is then of the order of its square (Newton converges quadratically on the
-#: convex ``T(h)``), so two ray traces per reply are enough from the harmonic-mean start.
+#: Newton stops once its step in the horizontal distance is below this (m).
 STEP_TOL = 1e-4
 
 
@@ -94,9 +81,6 @@ def equivalent_ranges(time, z_vehicle, z_beacon, profile: SoundSpeedProfile, *,
 
     Examples
     --------
-    Speed growing with depth: a time converted with the speed at the vehicle would be
-    short, the equivalent range is the straight range of the ray's horizontal distance.
-
     >>> prof = SoundSpeedProfile([0.0, 3000.0], [1480.0, 1520.0])
     >>> t = direct_times(prof, 10.0, 2500.0, 1200.0).time
     >>> r, ok = equivalent_ranges(t, 10.0, 2500.0, prof)
@@ -313,7 +297,7 @@ def prepare(pings, beacons, *, travel_times=None, profile=None, turnaround=0.0,
     pings, beacons
         Unchanged without options, else the converted tables.
     description : dict or None
-        :meth:`RangeModel.describe` (or the transducer offset alone), for ``summary.json``.
+        For ``summary.json``.
 
     Raises
     ------

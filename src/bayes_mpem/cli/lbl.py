@@ -20,13 +20,6 @@ from .output import print_written, write_result
 # commands that use them: `fit` starts without them
 
 
-def write_figures(*args, **kwargs):
-    """Call :func:`bayes_mpem.report.write_figures` (imported on first use)."""
-    from ..report import write_figures as draw
-
-    return draw(*args, **kwargs)
-
-
 def fit_kwargs(args) -> dict:
     """Keyword arguments of ``fit`` from its options; ``OptionError`` for the other method's."""
     if args.method == "mixture" and (args.pol is not None or args.alpha is not None):
@@ -89,13 +82,11 @@ def _demo_fits(sim, out, seed):
     print("Mixture EM, per beacon (cf. Table II of the paper; truth: plane at the surface,")
     print("d0 = beacon depth; sigma_MP = " + ", ".join(
         f"{b['sigma_mp']:.1f}" for b in sim.truth.values()) + " m)")
-    written = list(result.write(out).values())
-    written += write_figures(result, out, truth=sim.truth)
+    written = write_result(result, out, truth=sim.truth)
     # the paper fixes sigma_DP; the demo fixes it at the simulation's true value
     sigma_dp = sim.truth["1"]["sigma_dp"]
     paper = fit(sim.survey, method="paper", sigma_dp=sigma_dp)
-    written += list(paper.write(out / "paper").values())
-    written += write_figures(paper, out / "paper", truth=sim.truth, general=False)
+    written += write_result(paper, out / "paper", truth=sim.truth, general=False)
     print(result.format_table())
     print(f"\nThe paper's EM (Pol = 0.05, alpha = 0.5, sigma_DP fixed at the simulation's "
           f"true {sigma_dp:.2f} m):")
@@ -114,13 +105,11 @@ def _demo_bayes(sim, out, seed):
 
     print("\nSampling the posterior of every beacon (MCMC, learned priors)...")
     post = sample(sim.survey, rng=seed, progress="auto")
-    written = list(post.write(out / "bayes").values())
-    written += write_figures(post, out / "bayes", truth=sim.truth)
+    written = write_result(post, out / "bayes", truth=sim.truth)
     print(post.format_table())
     print("\nEqual (paper) against learned mixing priors, PSIS-LOO...")
     cmp = compare(sim.survey, rng=seed, progress="auto")
-    written += list(cmp.write(out / "compare").values())
-    written += write_figures(cmp, out / "compare")
+    written += write_result(cmp, out / "compare")
     print(cmp.format_table())
     return post, cmp, written
 
@@ -171,7 +160,7 @@ def _demo(args, seen) -> int:
 
 def cmd_plot(args) -> int:
     """Run ``bayes-mpem plot``; exit status 2 when the folder holds nothing to draw."""
-    from ..report import load_output
+    from ..report import load_output, write_figures
 
     if _is_batch_folder(args.result_dir):
         return _plot_batch(args)
@@ -198,7 +187,7 @@ def _is_batch_folder(folder) -> bool:
 
 def _plot_batch(args) -> int:
     """Draw every survey of a ``bayes-mpem batch`` folder, each into ``OUT/surveys/<name>``."""
-    from ..report import load_output
+    from ..report import load_output, write_figures
 
     root = Path(args.result_dir)
     if args.beacon is not None:

@@ -3,17 +3,18 @@
 from __future__ import annotations
 
 
-def write_result(result, out, *, figures: bool = True, **write) -> list:
-    """Write ``result`` into ``out`` (``write`` its keywords), then its figures if asked.
+def write_result(result, out, *, figures: bool = True, table_format=None, **draw) -> list:
+    """Write ``result`` into ``out``, then its figures if asked; return the paths written.
 
-    Returns the paths written; the figures come from :func:`bayes_mpem.report.write_figures`,
-    imported only when drawn (``fit`` starts without matplotlib).
+    ``table_format`` goes to ``result.write``, ``draw`` to :func:`bayes_mpem.report.write_figures`
+    (imported only when drawn: ``fit`` starts without matplotlib).
     """
-    paths = list(result.write(out, **write).values())
+    paths = list(result.write(out, **({} if table_format is None else
+                                      {"table_format": table_format})).values())
     if figures:
         from ..report import write_figures
 
-        paths += write_figures(result, out)
+        paths += write_figures(result, out, **draw)
     return paths
 
 

@@ -207,15 +207,6 @@ def dive_with_dead_reckoning(survey: Survey, times, dr, source: str = "pings") -
     InputError
         When ``times`` are not the pings' distinct times, or ``dr`` is not ``(K, 2)``.
 
-    Examples
-    --------
-    >>> import pandas as pd
-    >>> from bayes_mpem.io.survey import load_survey
-    >>> s = load_survey(pd.DataFrame({"time": [0, 5], "beacon": [1, 1], "range": [100.0, 101.0],
-    ...                               "x": [0, 3], "y": [0, 0], "depth": [10, 10]}),
-    ...                 pd.DataFrame({"beacon": [1], "x": [0], "y": [0], "depth": [100]}))
-    >>> dive_with_dead_reckoning(s, [0.0, 5.0], [[0.0, 0.0], [2.5, 0.0]]).dr.tolist()
-    [[0.0, 0.0], [2.5, 0.0]]
     """
     own, inverse = np.unique(np.asarray(survey.time), return_inverse=True)
     times = np.asarray(times, float)

@@ -269,12 +269,14 @@ def travel_time_pings(pings, beacons, model: RangeModel) -> tuple[pd.DataFrame, 
     if model.transducer_offset:
         out["depth_input"] = p.frame["depth"]
         out["depth"] = zt
-    if p.lines is not None:  # later messages name the file's lines
-        out.attrs.update(source=p.source, lines=tuple(map(int, p.lines)))
-    beacons_out = b.frame.copy()
-    if b.lines is not None:
-        beacons_out.attrs.update(source=b.source, lines=tuple(map(int, b.lines)))
-    return out, beacons_out
+    return _with_lines(out, p), _with_lines(b.frame.copy(), b)
+
+
+def _with_lines(frame, table):
+    """Return ``frame`` carrying ``table``'s source and line numbers (for later messages)."""
+    if table.lines is not None:
+        frame.attrs.update(source=table.source, lines=tuple(map(int, table.lines)))
+    return frame
 
 
 def prepare(pings, beacons, *, travel_times=None, profile=None, turnaround=0.0,
@@ -333,9 +335,7 @@ def prepare(pings, beacons, *, travel_times=None, profile=None, turnaround=0.0,
         problems.raise_if_any()
         out = p.frame.copy()
         out["depth_input"], out["depth"] = p.frame["depth"], z + offset
-        if p.lines is not None:
-            out.attrs.update(source=p.source, lines=tuple(map(int, p.lines)))
-        return out, beacons, {"transducer_offset": offset}
+        return _with_lines(out, p), beacons, {"transducer_offset": offset}
     _not_a_survey(pings, "travel_times")
     model = RangeModel(travel_times, profile, turnaround=turnaround,
                        transducer_offset=transducer_offset, surface_depth=surface_depth)

@@ -65,10 +65,8 @@ def run_task(task: BatchTask, out_dir: str, key: str | None = None) -> dict:
                 output_folder(part.parent)
                 write_parquet(part, _named(classified, task.name))
         except Exception as exc:  # noqa: BLE001 - a failed survey is a result of the batch
-            record = {"name": task.name, "status": "failed",
-                      "reason": f"{type(exc).__name__}: {exc}",
-                      "seconds": time.perf_counter() - t0,
-                      "warnings": [f"{w.category.__name__}: {w.message}" for w in caught]}
+            record = _failure(task.name, exc, seconds=time.perf_counter() - t0,
+                              warnings=[f"{w.category.__name__}: {w.message}" for w in caught])
             _failed_folder(folder, record)
             return record
     record = {"name": task.name, "status": "done", "hash": key, "command": task.command,
@@ -82,6 +80,11 @@ def run_task(task: BatchTask, out_dir: str, key: str | None = None) -> dict:
 def _classified_file(out_dir, name: str) -> Path:
     """Return ``DIR/classified/survey-<name>.parquet`` (``name`` a text column in it)."""
     return Path(out_dir) / "classified" / f"survey-{name}.parquet"
+
+
+def _failure(name: str, exc: BaseException, **more) -> dict:
+    """Return the record of a survey that failed with ``exc``."""
+    return {"name": name, "status": "failed", "reason": f"{type(exc).__name__}: {exc}", **more}
 
 
 def _named(table: pd.DataFrame, name: str) -> pd.DataFrame:
@@ -276,9 +279,7 @@ def _submit(todo, out, scheduler, n_workers, report, n_done, total) -> dict:
         for fut in as_completed(futures):
             task = futures[fut]
             if fut.status == "error":  # the worker itself died (memory, a crash)
-                exc = fut.exception()
-                record = {"name": task.name, "status": "failed",
-                          "reason": f"{type(exc).__name__}: {exc}", "warnings": []}
+                record = _failure(task.name, fut.exception(), warnings=[])
             else:
                 record = fut.result()
             fut.release()

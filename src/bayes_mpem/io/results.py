@@ -297,12 +297,22 @@ def write_table(path, table) -> Path:
     return write_file(path, lambda tmp: write_table_file(tmp, table))
 
 
-#: :func:`write_table` under the name the result classes use for their CSV tables.
+# the name the result classes use for their CSV tables
 write_csv = write_table
 
 
 def read_document(path) -> dict:
-    """Read the JSON object a result wrote (``summary.json``, ...); ``InputError`` if it is not."""
+    """Read the JSON object a result wrote (``summary.json``, ...).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+
+    Raises
+    ------
+    InputError
+        When the file is not a JSON object.
+    """
     try:
         doc = json.loads(Path(path).read_text())
     except (ValueError, UnicodeDecodeError) as exc:

@@ -391,7 +391,7 @@ def _run(handler, args) -> int:
     from ..io.results import writing
 
     try:
-        with writing(out, extend=args.command == "plot", create=False):
+        with writing(out, create=False):
             code = handler(args)
             if code and args.command not in _COMMITS_ON_FAILURE:
                 raise _Failed(code)

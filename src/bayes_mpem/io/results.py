@@ -67,8 +67,8 @@ def check_output_folder(out_dir, option: str = "--out") -> Path:
 class _Run:
     """The files staged by one ``writing()`` block, renamed into place at its commit."""
 
-    def __init__(self, root: Path, extend: bool) -> None:
-        self.root, self.extend = root, extend
+    def __init__(self, root: Path) -> None:
+        self.root = root
         self.staged: dict[Path, Path] = {}  # final path -> temporary path
         self.markers: dict[Path, dict] = {}  # final path of a summary.json -> its document
 
@@ -137,14 +137,14 @@ def _alive(pid: int) -> bool:
 
 
 @contextlib.contextmanager
-def writing(out_dir, *, extend: bool = False, option: str = "--out", create: bool = True):
+def writing(out_dir, *, option: str = "--out", create: bool = True):
     """Write one run's files into ``out_dir``, all or nothing; nested blocks join the outer run.
+
+    A run that writes no ``summary.json`` keeps the folder's (``bayes-mpem plot`` adds figures).
 
     Parameters
     ----------
     out_dir : str or os.PathLike
-    extend : bool, default False
-        Add files to a complete folder, keeping its ``summary.json`` (``bayes-mpem plot``).
     option : str, default "--out"
         The option named in messages.
     create : bool, default True
@@ -165,7 +165,7 @@ def writing(out_dir, *, extend: bool = False, option: str = "--out", create: boo
     if any(run.owns(out / "x") for run in _RUNS.get()):
         yield out
         return
-    run = _Run(out, extend)
+    run = _Run(out)
     token = _RUNS.set((*_RUNS.get(), run))
     try:
         yield out

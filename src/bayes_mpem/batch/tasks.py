@@ -39,13 +39,7 @@ class BatchTask:
     where: str = ""
 
     def key(self) -> str:
-        """Content hash of the inputs (file bytes), options, command and package version.
-
-        Returns
-        -------
-        str
-            Hex SHA-256.
-        """
+        """Return the hex SHA-256 of the inputs (file bytes), options, command and version."""
         h = hashlib.sha256()
         h.update(json.dumps([self.command, __version__, self.inputs, self.options],
                             sort_keys=True, default=str).encode())

@@ -178,12 +178,7 @@ def writing(out_dir, *, option: str = "--out", create: bool = True):
 
 
 def abort_open_runs() -> int:
-    """Remove the temporary files of every open run (for a signal handler); return how many.
-
-    Returns
-    -------
-    int
-    """
+    """Remove the temporary files of every open run (for a signal handler); return how many."""
     runs = _RUNS.get()
     for run in runs:
         run.abort()

@@ -165,12 +165,7 @@ class RangeModel:
                                      -1000.0, 1000.0, "m")
 
     def describe(self) -> dict:
-        """Return the options as JSON-ready values (for ``summary.json``).
-
-        Returns
-        -------
-        dict
-        """
+        """Return the options as a JSON-ready dict (for ``summary.json``)."""
         return {"travel_times": self.travel_times,
                 "profile": self.profile.source or f"{len(self.profile)} knots",
                 "turnaround": self.turnaround, "transducer_offset": self.transducer_offset,

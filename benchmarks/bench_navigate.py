@@ -4,6 +4,7 @@ Run from the repository root on a quiet machine::
 
     python benchmarks/bench_navigate.py           # writes its section of docs/benchmarks.md
     python benchmarks/bench_navigate.py --quick   # 5k and 20k only, prints, writes nothing
+    python benchmarks/bench_navigate.py --sizes 5000,100000   # the goals only, prints
 
 Dives: ``simulate_dive("abe58", rng=0, n_cycles=N / 3.8)`` (four beacons, one
 interrogation of all of them per 12 s cycle, 5 % of pings unanswered, so about
@@ -62,8 +63,11 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--sizes", help="comma-separated sizes (e.g. 5000,100000); prints only")
     args = ap.parse_args(argv)
     sizes = (5_000, 20_000) if args.quick else (5_000, 20_000, 100_000, 400_000)
+    if args.sizes:
+        sizes, args.quick = tuple(int(v) for v in args.sizes.split(",")), True
     rows = []
     for n in sizes:
         r = one_size(n, 1 if n > 100_000 else args.repeat)

@@ -45,6 +45,7 @@ import numpy as np
 
 from bayes_mpem.lbl.navigate import navigate, simulate_dive
 from bayes_mpem.lbl.navigate.dive import build_dive
+from bayes_mpem.lbl.navigate.online import Navigator
 from bayes_mpem.lbl.navigate.simulate import simulate_ship
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -84,7 +85,10 @@ def ship_dive(seed, n_cycles=1200):
     out["this model"] = {**_score(nav.track, nav.cov, truth), "sigma": nav.state.sigma_dp,
                          "seconds": sec, "mp": sum(b["mp"] for b in nav.beacons.values()),
                          "n_beacons": len(nav.beacons), "lr": _lrs(nav),
-                         "n_checked": _n_checked(nav), "information": nav.options["information"]}
+                         "n_checked": _n_checked(nav), "information": nav.options["information"],
+                         "widen": nav.summary()["scale_uncertainty"]["ellipse_widening"],
+                         "sigma_interval": nav.summary()["sigma_dp"]["interval"],
+                         "online_sigma": _online_sigma(sim)}
     g = _navigate(sim, model="gaussian")
     out["Gaussian"] = {**_score(g.track, g.cov, truth), "sigma": g.state.sigma_dp}
     dive = build_dive(sim.survey)
@@ -95,6 +99,20 @@ def ship_dive(seed, n_cycles=1200):
     tr, cov, s = ekf_rts(dive)
     out["EKF + RTS (estimated sigma)"] = {**_score(tr, cov, truth), "sigma": s}
     return out
+
+
+def _online_sigma(sim):
+    """sigma_DP the online navigator ends with on the same dive (issue 25, item 1)."""
+    nav = Navigator(sim.survey.beacons.reset_index(), rng=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        nav.run(sim.survey.table)
+    return nav.dp.sigma
+
+
+def _holds(interval):
+    lo, hi = interval
+    return lo is not None and hi is not None and lo <= SIGMA <= hi
 
 
 def _lrs(nav, decided=True):
@@ -167,7 +185,16 @@ def summarise(rows, deep):
            f"{best_pooled:.3f} m ({pooled['this model'] / best_pooled:.3f}x), "
            f"{ok(pooled['this model'] <= 1.05 * best_pooled)};",
            f"* information behind the intervals: "
-           f"{sorted({r['information'] for r in me})};"]
+           f"{sorted({r['information'] for r in me})};",
+           "* sigma_DP's 95 % interval (MacKay's sd of log sigma, the residual degrees of "
+           f"freedom) holds the truth on {sum(_holds(r['sigma_interval']) for r in me)} of "
+           f"{len(me)} dives;",
+           "* the noise scales' uncertainty propagated into the ellipses widens their sd by "
+           f"{np.median([r['widen']['median'] for r in me]):.3%} (median epoch, median dive; "
+           f"at most {max(r['widen']['max'] for r in me):.2%});",
+           "* the online navigator (`lbl/navigate/online`, warm-up 200 replies) ends with "
+           f"sigma_DP {min(r['online_sigma'] for r in me) / SIGMA:.3f}x to "
+           f"{max(r['online_sigma'] for r in me) / SIGMA:.3f}x the truth;"]
     if deep:
         acc.append(f"* vehicle 30 m above the sea floor, all beacons per cycle, no multipath "
                    f"({len(deep)} dives): a multipath class claimed on {d_mp} of {d_b} beacons "

@@ -123,3 +123,54 @@ def test_track_geometry_tells_a_circle_from_holding_station():
         assert t["azimuth_coverage_deg"] > 300 and t["max_incidence_deg"] > 45
     for t in g["station"]["transponders"].values():
         assert t["azimuth_coverage_deg"] < 30 and t["max_incidence_deg"] < 35
+
+
+def test_locate_gradients_and_knot_options(tmp_path, capsys):
+    sim = simulate_gnssa(n_transponders=3, hours=0.5, rng=21, speed_model="field")
+    ini = sim.write(tmp_path / "camp", "garpos")["survey"]
+    assert main(["locate", str(ini), "--out", str(tmp_path / "r"), "--knot-minutes", "10",
+                 "--gradients", "on"]) == 0
+    printed = capsys.readouterr().out
+    s = json.loads((tmp_path / "r" / "summary.json").read_text())
+    g = s["gradients"]
+    assert g["fitted"] and g["choice"] == "on" and "gradients=on asked for" in g["reason"]
+    assert s["sound_speed"]["smoothing"]["knot_minutes_asked"] == 10.0
+    assert "gradients     fitted" in printed and "shallow east" in printed
+    assert "gradients     fitted" in (tmp_path / "r" / "solution.txt").read_text()
+    assert main(["locate", str(ini), "--out", str(tmp_path / "a")]) == 0
+    s = json.loads((tmp_path / "a" / "summary.json").read_text())
+    assert s["gradients"]["choice"] == "auto" and not s["gradients"]["fitted"]
+    assert "need 2" in capsys.readouterr().out  # the reason, printed
+    deck = sample_file("obsrange/SIO_CC03.txt")
+    assert main(["locate", str(deck), "--out", str(tmp_path / "d"), "--gradients", "off"]) == 2
+    assert "--gradients: for array surveys only" in capsys.readouterr().err
+
+
+def test_seagap_array_on_the_sphere(seagap_raw):
+    """SeaGap's frame is along the sphere: read flat, the array came out 0.6 m too deep."""
+    from bayes_mpem.survey_in.survey import SEAGAP_TRANSDUCER_DEPTH
+
+    sphere = locate_survey(seagap_raw, speed_intervals=2, gradients="off")
+    up = seagap_raw.transducer_positions()
+    surface = -0.5 * float(np.mean(up["tx"][2]) + np.mean(up["rx"][2])) - SEAGAP_TRANSDUCER_DEPTH
+    flat = locate_array_survey(seagap_raw, ssp="survey", speed_intervals=2, gradients="off",
+                               surface_depth=surface, earth="flat")
+    assert "SeaGap's" in sphere.summary["geometry"]["earth"]
+    for tid, t in sphere.summary["transponders"].items():
+        deeper = flat.summary["transponders"][tid]["depth"]["mean"] - t["depth"]["mean"]
+        assert 0.4 < deeper < 0.8, (tid, deeper)
+
+
+def test_batch_passes_the_array_options(tmp_path):
+    from bayes_mpem.batch import locate_raw
+    from bayes_mpem.cli.batch import tasks_from_manifest
+    from bayes_mpem.cli.parser import build_parser
+
+    sim = simulate_gnssa(n_transponders=3, hours=0.4, rng=22, speed_model="field")
+    ini = sim.write(tmp_path / "camp", "garpos")["survey"]
+    manifest = tmp_path / "m.csv"
+    manifest.write_text(f"name,survey,format,gradients,knot_minutes\na,{ini},garpos,on,10\n")
+    task, = tasks_from_manifest(manifest, "locate", build_parser().get_default("subparsers"))
+    assert task.options["gradients"] == "on" and task.options["knot_minutes"] == 10.0
+    s = locate_raw(read_survey(ini, "garpos"), task.options).summary
+    assert s["gradients"]["fitted"] and s["sound_speed"]["smoothing"]["knot_minutes_asked"] == 10

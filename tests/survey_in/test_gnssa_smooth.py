@@ -5,6 +5,7 @@ import pandas as pd
 import pytest
 from scipy.interpolate import BSpline
 
+from bayes_mpem.exceptions import InputError
 from bayes_mpem.io.garpos import read_garpos, write_garpos
 from bayes_mpem.survey_in.array import choose_smoothing, locate_array, log_evidence
 from bayes_mpem.survey_in.array_survey import array_shots, locate_array_survey, position_constraints
@@ -188,14 +189,58 @@ def test_the_gradient_gate_says_why():
 
     station = simulate_gnssa(hours=0.5, rng=17, track="station")
     fit, why = gradient_gate(array_shots(station.raw()), station.header["transponders"])
-    assert not fit and "not identifiable" in why
+    assert not fit and "0.49 h (need 2)" in why
     two = simulate_gnssa(n_transponders=2, hours=0.5, rng=17, track="circle")
     fit, why = gradient_gate(array_shots(two.raw()), two.header["transponders"])
     assert not fit and "3 or more" in why
-    circle = simulate_gnssa(hours=1.0, rng=17, track="circle")
+    circle = simulate_gnssa(hours=2.2, rng=17, track="circle", shot_interval=60.0)
     shots = array_shots(circle.raw())
     assert gradient_gate(shots, circle.header["transponders"])[0]
     assert not gradient_gate(shots, circle.header["transponders"], speed_intervals=0)[0]
+    fit, why = gradient_gate(shots, circle.header["transponders"], speed_intervals=8)
+    assert not fit and "unpenalised" in why
+    short = shots[shots["time"] < 3600.0]
+    fit, why = gradient_gate(short, circle.header["transponders"])
+    assert not fit and "span" in why
+    held = simulate_gnssa(hours=2.2, rng=17, track="station", shot_interval=60.0)
+    fit, why = gradient_gate(array_shots(held.raw()), held.header["transponders"])
+    assert not fit and "not identifiable" in why
     res = locate_array_survey(station.raw())
-    assert res.summary["gradients"]["fitted"] is False
-    assert "not asked for" in res.summary["gradients"]["reason"]
+    g = res.summary["gradients"]
+    assert g["fitted"] is False and g["choice"] == "auto" and g["reason"].startswith("auto:")
+    res = locate_array_survey(station.raw(), gradients="off")
+    assert "gradients=off asked for" in res.summary["gradients"]["reason"]
+    with pytest.raises(InputError, match="auto, on, off"):
+        locate_array_survey(station.raw(), gradients="maybe")
+
+
+def test_auto_gradients_on_a_campaign_without_them_are_compatible_with_zero():
+    """Sentinel of the acceptance study (docs/gnssa.md): gradients off in the simulation."""
+    sim = simulate_gnssa(hours=2.5, rng=18, speed_model="field", track="star+circle",
+                         shot_interval=30.0)
+    res = locate_array_survey(sim.raw())
+    g = res.summary["gradients"]
+    assert g["fitted"] and g["choice"] == "auto" and g["reason"].startswith("auto: the track")
+    for name in ("shallow_east", "shallow_north", "deep_east", "deep_north"):
+        assert abs(g[name]["mean"]) < 2 * g[name]["sd"], (name, g[name])
+    fit = res.fits["array"]
+    m, C = fit.centre()
+    z = (m - sim.truth["transponders"].to_numpy().mean(axis=0)) / np.sqrt(np.diag(C))
+    assert np.all(np.abs(z) < 3), z
+    assert "gradient_grid" in res.summary["sound_speed"]["smoothing"]
+
+
+def test_a_staggered_schedule_without_outliers():
+    """Data the model did not make: one transponder per interrogation, no spurious replies."""
+    sim = simulate_gnssa(hours=2.5, rng=19, speed_model="field", track="star+circle",
+                         gradients=True, schedule="staggered", p_spurious=0.0)
+    shot = np.rint(sim.pings["t_tx"].to_numpy() / 20.0).astype(int)
+    assert np.unique(shot).size == shot.size  # no two replies share an interrogation
+    assert sim.settings["schedule"] == "staggered" and not sim.truth["spurious"].any()
+    res = locate_array_survey(sim.raw())
+    assert res.summary["gradients"]["fitted"]
+    fit = res.fits["array"]
+    m, C = fit.centre()
+    z = (m - sim.truth["transponders"].to_numpy().mean(axis=0)) / np.sqrt(np.diag(C))
+    assert np.all(np.abs(z) < 3), z
+    assert fit.n_spurious(0) + fit.n_spurious(1) + fit.n_spurious(2) + fit.n_spurious(3) == 0

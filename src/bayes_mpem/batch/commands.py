@@ -10,8 +10,8 @@ from ..exceptions import InputError
 
 #: The commands a batch can run, by name (``bayes-mpem batch --command``): their batch entries.
 COMMANDS = {name: c.batch for name, c in ALL.items() if c.batch is not None}
-#: the options of an array survey's location (GARPOS, GNATSS): no TAT, lag or sampling
-ARRAY_OPTIONS = ("ci", "outliers", "ssp", "speed_intervals")
+#: the options of an array survey's location (GARPOS, GNATSS): no TAT or lag
+ARRAY_OPTIONS = ("ci", "outliers", "ssp", "speed_intervals", "gradients", "knot_minutes")
 
 
 def run(command: str, inputs: dict, options: dict):
@@ -71,7 +71,8 @@ def locate_raw(raw, options: dict):
     options : dict
         Keyword arguments of :func:`~bayes_mpem.survey_in.survey.locate_survey`;
         ``sample``: None or the sampler's of
-        :func:`~bayes_mpem.survey_in.location_sampling.locate_survey_bayes`;
+        :func:`~bayes_mpem.survey_in.location_sampling.locate_survey_bayes` (an array's:
+        :func:`~bayes_mpem.survey_in.array_sampling.locate_array_survey_bayes`);
         ``lag_check`` (deck-box logs, not sampled). An array survey takes only
         :data:`ARRAY_OPTIONS`.
 
@@ -82,7 +83,7 @@ def locate_raw(raw, options: dict):
     Raises
     ------
     InputError
-        For TAT, lag or sampling options given for an array survey.
+        For TAT or lag options given for an array survey.
     """
     from ..io.raw import ARRAY_FORMATS
     from ..survey_in.location_sampling import locate_survey_bayes
@@ -95,12 +96,15 @@ def locate_raw(raw, options: dict):
     if raw.format in ARRAY_FORMATS:
         given = sorted(k for k, v in options.items()
                        if k not in ARRAY_OPTIONS and v not in (None, False))
-        if given or sampling is not None:
-            raise InputError(f"{', '.join(given + ['sample'] * (sampling is not None))}: not "
-                             f"for a {raw.format} array survey (its travel times are "
-                             "corrected for the delays; the array's posterior is not sampled "
-                             "yet)")
-        return locate_survey(raw, **{k: v for k, v in options.items() if k in ARRAY_OPTIONS})
+        if given:
+            raise InputError(f"{', '.join(given)}: not for a {raw.format} array survey (its "
+                             "travel times are corrected for the delays)")
+        array = {k: v for k, v in options.items() if k in ARRAY_OPTIONS}
+        if sampling is None:
+            return locate_survey(raw, **array)
+        from ..survey_in.array_sampling import locate_array_survey_bayes
+
+        return locate_array_survey_bayes(raw, **array, **sampling)
     if sampling is None:
         return locate_survey(raw, **options,
                              lag_check=bool(lag_check) and raw.format.startswith("obsrange"))

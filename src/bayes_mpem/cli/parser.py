@@ -161,6 +161,14 @@ def add_locate(sub):
                         "intervals (0: one speed); default: one speed for a single "
                         "transponder, and for an array (GARPOS, GNATSS, SeaGap) a smooth "
                         "spline, knots every 5 min, its smoothness chosen by the data")
+    p.add_argument("--knot-minutes", type=opt.number("a knot spacing in minutes in (0, 1440]",
+                                                     0.0, 1440.0, include_low=False),
+                   default=None, metavar="M",
+                   help="array surveys: the smooth sound speed's knot spacing (default 5)")
+    p.add_argument("--gradients", choices=["auto", "on", "off"], default=None,
+                   help="array surveys: horizontal sound-speed gradients (GARPOS's shallow and "
+                        "deep terms); default auto: fitted where the track constrains them, "
+                        "the reason recorded and printed")
     p.add_argument("--fit-lag", action="store_true",
                    help="fit a time lag of the acoustic position along the track (a position "
                         "fix logged at another moment, or a transducer ahead of the antenna)")

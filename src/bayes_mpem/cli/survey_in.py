@@ -10,6 +10,7 @@ from ..io.formats import read_survey, sniff_format
 from ..io.raw import ARRAY_FORMATS
 from ..report import write_figures
 from ..survey_in.posterior import check_location_options
+from ..survey_in.result import gradients_line
 from .errors import OptionError
 
 
@@ -49,15 +50,23 @@ def locate_kwargs(args) -> dict:
     if fmt in ARRAY_FORMATS or (fmt == "seagap" and not one):
         given = [name for name, v in (("--tat", args.tat is not None),
                                       ("--fit-tat", args.fit_tat), ("--fit-lag", args.fit_lag),
-                                      ("--sample", args.sample)) if v]
+                                      ("--sample", args.sample and fmt == "seagap")) if v]
         if given:
             also = ("; add --one-at-a-time to locate each transponder on its own"
                     if fmt == "seagap" else "")
+            sampled = ("; a SeaGap array's posterior is not sampled yet"
+                       if "--sample" in given else "")
             raise OptionError(f"{', '.join(given)}: not for a {fmt} array survey (its "
-                              "travel times are corrected for the delays; the array's "
-                              f"posterior is not sampled yet){also}")
+                              f"travel times are corrected for the delays{sampled}){also}")
         return dict(ci=args.ci, outliers=args.outliers, ssp=args.ssp,
-                    speed_intervals=args.speed_intervals, sample=None)
+                    speed_intervals=args.speed_intervals, sample=_sample_options(args),
+                    gradients=getattr(args, "gradients", None) or "auto",
+                    knot_minutes=getattr(args, "knot_minutes", None))
+    array_only = [o for o in ("gradients", "knot_minutes") if getattr(args, o, None) is not None]
+    if array_only:
+        raise OptionError(f"{', '.join('--' + o.replace('_', '-') for o in array_only)}: for "
+                          "array surveys only (GARPOS, GNATSS, SeaGap with two transponders "
+                          "or more)")
     model = dict(tat=args.tat, fit_tat=args.fit_tat, ci=args.ci, outliers=args.outliers,
                  ssp=args.ssp, speed_intervals=args.speed_intervals or 0,
                  lag_check=not getattr(args, "no_lag_check", False))
@@ -68,11 +77,16 @@ def locate_kwargs(args) -> dict:
             raise OptionError("--fit-lag with --sample is not implemented: the posterior has "
                               "no lag parameter yet")
         model["fit_lag"] = True
-    model["sample"] = None if not args.sample else dict(
+    model["sample"] = _sample_options(args)
+    return model
+
+
+def _sample_options(args):
+    """Return the sampler's options of ``locate --sample`` (None without ``--sample``)."""
+    return None if not args.sample else dict(
         n_walkers=args.walkers, min_ess=1000.0 if args.min_ess is None else args.min_ess,
         rng=0 if args.seed is None else args.seed,
         progress=False if args.no_progress else "auto")
-    return model
 
 
 def _interval(d, fmt="{:.2f}", scale=1.0):
@@ -119,6 +133,19 @@ def _print_transponder(tid, t, *, ci, sampled):
               + ("" if d["converged"] else " (NOT converged: max_steps reached)"))
 
 
+def _print_array_posterior(summary):
+    """Print the array centre's posterior sds against the EM's, and how the chain went."""
+    c = summary["array_centre"]
+    sds = "/".join(f"{1e3 * c['enu'][a]['sd']:.1f}" for a in ("east", "north", "up"))
+    em = "/".join(f"{1e3 * c['em']['enu'][a]['sd']:.1f}" for a in ("east", "north", "up"))
+    p = summary["posterior"]
+    d = p["diagnostics"]
+    print(f"  centre sd east/north/up: posterior {sds} mm, EM {em} mm; min ESS "
+          f"{min(p['ess'].values()):,.0f}, {d['n_steps']} steps x {d['n_walkers']} walkers, "
+          f"{d['moves'].split(' (')[0]}, {d['seconds']:.1f} s"
+          + ("" if d["converged"] else " (NOT converged: max_steps reached)"))
+
+
 def cmd_locate(args) -> int:
     """Run ``bayes-mpem locate``."""
     args.format = survey_format(args.survey, args.format)
@@ -134,10 +161,14 @@ def cmd_locate(args) -> int:
         c = summary["array_centre"]["enu"]
         print(f"array centre: east {_interval(c['east'], '{:.3f}')}, north "
               f"{_interval(c['north'], '{:.3f}')}, up {_interval(c['up'], '{:.3f}')} m")
+        print(gradients_line(summary))
+        if "posterior" in summary:
+            _print_array_posterior(summary)
     for tid, why in summary.get("skipped_transponders", {}).items():
         print(f"transponder {tid} not located: {why}")
     print(f"{summary['n_skipped_lines']} lines skipped (reasons in classified.csv)")
     written = [paths["summary"], paths["classified"]]
+    written += [p for k, p in paths.items() if k.startswith("posterior_")]
     if "solution" in paths:  # an array: the plain-text solution
         written.append(paths["solution"])
     if args.figures:

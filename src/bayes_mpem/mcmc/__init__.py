@@ -33,13 +33,15 @@ from .summaries import (
     to_datatree,
 )
 
-__all__ = ["DEFAULT_MOVES_LABEL", "EnsembleRun", "INDEPENDENCE_LABEL", "LogPosterior",
+__all__ = ["DEFAULT_MOVES_LABEL", "EnsembleRun", "INDEPENDENCE_LABEL", "IndependenceMove",
+           "LogPosterior",
            "SamplingProgress", "TProposal", "bulk_ess", "default_moves", "draw_moments",
            "equal_tailed", "ess", "hdi", "independence_move", "laplace_proposal",
            "place_walkers", "progress_bar", "progress_mode", "rhat", "rhat_across_ensembles",
            "run_ensembles", "thin_index", "to_datatree"]
 
-_MOVES = ("DEFAULT_MOVES_LABEL", "INDEPENDENCE_LABEL", "default_moves", "independence_move")
+_MOVES = ("DEFAULT_MOVES_LABEL", "INDEPENDENCE_LABEL", "IndependenceMove", "default_moves",
+          "independence_move")
 
 
 def __getattr__(name):

@@ -79,6 +79,10 @@ class TProposal:
             np.einsum("ij,ij->i", r, r) / self.df)
 
 
+#: step lengths tried by the line search: du, du / 2, ..., du / 2**(_HALVINGS - 1)
+_HALVINGS = 10
+
+
 def _hessian_points(u, h):
     """Return the centre, axial and diagonal points of a central-difference Hessian."""
     d = u.size
@@ -140,8 +144,8 @@ def laplace_proposal(target, start, step, *, df: float = 10.0, newton: int = 3):
     """
     u = np.asarray(start, dtype=float).copy()
     h = 0.25 * np.asarray(step, dtype=float)
+    v = target(_hessian_points(u, h))
     for it in range(newton + 1):
-        v = target(_hessian_points(u, h))
         if not np.all(np.isfinite(v)):
             return None
         grad, hess = _derivatives(v, h)
@@ -154,10 +158,17 @@ def laplace_proposal(target, start, step, *, df: float = 10.0, newton: int = 3):
         if it == newton:
             break
         du = np.linalg.solve(chol.T, np.linalg.solve(chol, grad))
-        for _ in range(10):  # a step that does not lower the density
-            cand = target((u + du)[None, :])[0]
-            if np.isfinite(cand) and cand >= v[0] - 1e-9:
-                u = u + du
-                break
-            du = du / 2
+        # the first of the steps du, du / 2, ..., du / 512 that does not lower the density,
+        # in one call with the difference points around u + du (the usual next centre)
+        pts = _hessian_points(u + du, h)
+        steps = du / 2.0 ** np.arange(1, _HALVINGS)[:, None]
+        w = target(np.vstack([pts, u + steps]))
+        cand = np.concatenate([w[:1], w[len(pts):]])  # at u + du, u + du / 2, ...
+        ok = np.flatnonzero(np.isfinite(cand) & (cand >= v[0] - 1e-9))
+        if ok.size and ok[0] == 0:
+            u, v = u + du, w[:len(pts)]
+        else:
+            if ok.size:
+                u = u + steps[ok[0] - 1]
+            v = target(_hessian_points(u, h))
     return TProposal(centre=u, chol=np.linalg.cholesky(cov), df=float(df))

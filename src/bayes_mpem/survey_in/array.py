@@ -73,21 +73,34 @@ class ArrayTravelTimes:
         ``(n, m)`` design of the horizontal gradient terms (:func:`gradient_design`):
         the prediction is multiplied by ``exp(-gradients @ g)``, ``g`` the last ``m``
         entries of ``theta``.
+    earth_radius : float, optional
+        The profile's layers follow a sphere of this radius (m) touching the frame's
+        origin: the shots and the transponders are turned into the sphere's frame
+        (:func:`to_sphere`; ``theta`` stays Cartesian); None (default) flat layers.
+    along_sphere : bool, default False
+        With ``earth_radius``: the frame is already along the sphere (east and north
+        distances along it, up the height above it: SeaGap's frame), not turned.
     """
 
     def __init__(self, shots, index, n_transponders, basis, *, profile=None, surface_depth=0.0,
-                 gradients=None):
+                 gradients=None, earth_radius=None, along_sphere=False):
         self.index, self.K, self.basis = np.asarray(index), int(n_transponders), basis
         self.grad = gradients
         self.k = basis.shape[1]
         self.rows = [np.flatnonzero(self.index == k) for k in range(self.K)]
+        # a Cartesian frame with a radius: the shots along the sphere, the transponders
+        # turned into it at every evaluation (_sphere_point)
+        self.R = None if earth_radius is None or along_sphere else float(earth_radius)
         self.legs = []
         for rows in self.rows:
             sub = shots.iloc[rows]
-            self.legs.append([TravelTimes(sub[f"e_{end}"].to_numpy(float),
-                                          sub[f"n_{end}"].to_numpy(float),
-                                          -sub[f"u_{end}"].to_numpy(float), 0.0,
-                                          profile=profile, surface_depth=surface_depth)
+            ends = {}
+            for end in ("tx", "rx"):
+                e, n, u = (sub[f"{c}_{end}"].to_numpy(float) for c in "enu")
+                ends[end] = (e, n, u) if self.R is None else to_sphere(e, n, u, self.R)
+            self.legs.append([TravelTimes(ends[end][0], ends[end][1], -ends[end][2], 0.0,
+                                          profile=profile, surface_depth=surface_depth,
+                                          earth_radius=earth_radius)
                               for end in ("tx", "rx")])
 
     @property
@@ -100,15 +113,31 @@ class ArrayTravelTimes:
         n = self.index.size
         T, dE, dN, dU, bad = np.empty(n), np.empty(n), np.empty(n), np.empty(n), 0
         for k, (rows, legs) in enumerate(zip(self.rows, self.legs, strict=True)):
-            e, nn, u = theta[3 * k:3 * k + 3]
-            th = np.array([e, nn, -u])
+            point, M = self._sphere_point(theta[3 * k:3 * k + 3])
+            th = np.array([point[0], point[1], -point[2]])
             parts = [leg.rays(th) for leg in legs]
             T[rows] = parts[0][0] + parts[1][0]
-            dE[rows] = parts[0][1] + parts[1][1]
-            dN[rows] = parts[0][2] + parts[1][2]
-            dU[rows] = -(parts[0][3] + parts[1][3])
+            d = np.vstack([parts[0][1] + parts[1][1], parts[0][2] + parts[1][2],
+                           -(parts[0][3] + parts[1][3])])
+            if M is not None:  # chain rule: d(sphere point) / d(Cartesian point)
+                d = M.T @ d
+            dE[rows], dN[rows], dU[rows] = d
             bad += parts[0][4] + parts[1][4]
         return T, dE, dN, dU, bad
+
+    def _sphere_point(self, enu):
+        """Return a transponder in the rays' frame, and the derivative matrix (None if flat)."""
+        enu = np.asarray(enu, float)
+        if self.R is None:
+            return enu, None
+        point = np.array(to_sphere(*enu, self.R), float)
+        M = np.empty((3, 3))
+        for c in range(3):
+            d = np.zeros(3)
+            d[c] = 1e-3
+            M[:, c] = (np.array(to_sphere(*(enu + d), self.R)) -
+                       np.array(to_sphere(*(enu - d), self.R))) / 2e-3
+        return point, M
 
     def speed(self, theta):
         """Return the speed (or the profile's scale) at each shot, given ``theta``.
@@ -228,7 +257,8 @@ class ArrayLocateResult:
     outliers : str
     model : dict
         ``profile``, ``surface_depth``, ``speed_intervals``, ``time_range``, ``unit``
-        (m/s per unit of speed coefficient), ``n_invalid``.
+        (m/s per unit of speed coefficient), ``n_invalid``, ``earth_radius`` (None: flat
+        layers), ``smoothing``, ``gradients``, ``positions``.
     """
 
     ids: tuple
@@ -344,7 +374,8 @@ def _check_shots(shots, transponders):
 def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=None,
                  surface_depth=0.0, speed_intervals=None, knot_minutes=KNOT_MINUTES,
                  sound_speed=None, outliers="uniform", time_range=None, fixed=None,
-                 shift=False, gradients=False, max_iter=200, tol=1e-10) -> ArrayLocateResult:
+                 shift=False, gradients=False, max_iter=200, tol=1e-10,
+                 earth_radius=None, along_sphere=False) -> ArrayLocateResult:
     """Locate every transponder of an array by EM, classifying each shot true or spurious.
 
     Parameters
@@ -393,6 +424,12 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
     tol : float, default 1e-10
         Stop when sigma (s) changes by less than this (and the smoothing weight by
         less than 1 %).
+    earth_radius : float, optional
+        The profile's layers follow a sphere of this radius (m) touching the frame's
+        origin (:class:`ArrayTravelTimes`; the positions stay in the frame's Cartesian
+        east, north, up); None (default) flat layers.
+    along_sphere : bool, default False
+        With ``earth_radius``: the frame is already along the sphere (SeaGap's).
 
     Returns
     -------
@@ -444,7 +481,8 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
     basis = speed_basis(sub, speed_intervals, time_range)
     design = gradient_design(sub, index, start, basis) if gradients else None
     model = ArrayTravelTimes(sub, index, K, basis, profile=profile,
-                             surface_depth=surface_depth, gradients=design)
+                             surface_depth=surface_depth, gradients=design,
+                             earth_radius=earth_radius, along_sphere=along_sphere)
     k = basis.shape[1]
     kg = 0 if design is None else design.shape[1]
     nf = G.shape[1]
@@ -473,9 +511,9 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
     J = jac(phi, p)
     smoothing = None
     if smooth:
-        fixed_prior = None if Hg is None else run.params.lam_g * Hg
         cov_phi, cov_model_phi, smoothing = _smooth_covariance(
-            J, resid(phi, p), phi, H, sigma, run.params.lam, clusters, fixed_prior)
+            J, resid(phi, p), phi, H, sigma, run.params.lam, clusters, Hg,
+            None if Hg is None else run.params.lam_g)
         if Hg is not None:
             smoothing.update(gradient_weight=float(run.params.lam_g),
                              log10_gradient_weight=float(np.log10(run.params.lam_g)))
@@ -505,8 +543,69 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
         model={"profile": profile, "surface_depth": float(surface_depth),
                "speed_intervals": int(speed_intervals), "time_range": time_range,
                "unit": unit, "n_invalid": n_bad, "smoothing": smoothing,
+               "earth_radius": None if earth_radius is None else float(earth_radius),
                "gradients": grad_record,
                "positions": _positions_record(G, K, shift)})
+
+
+def to_sphere(east, north, up, radius):
+    """Return a Cartesian east-north-up point in the spherical frame tangent at its origin.
+
+    The sphere of radius ``radius`` touches the frame's origin (its centre at
+    ``up = -radius``); the point's east and north become distances along the sphere
+    (azimuthal equidistant about the origin) and its up the height above the sphere: the
+    frame of :class:`ArrayTravelTimes` with ``earth_radius``, in which the profile's
+    layers follow the Earth. :func:`from_sphere` is the inverse.
+
+    Parameters
+    ----------
+    east, north, up : array_like
+        Metres, in a Cartesian (tangent-plane) frame.
+    radius : float
+        The sphere's radius (m; e.g. :func:`~bayes_mpem.io.geodesy.earth_radius`).
+
+    Returns
+    -------
+    x, y, height : numpy.ndarray
+
+    Examples
+    --------
+    >>> x, y, h = to_sphere(1500.0, 0.0, 0.0, 6371000.0)
+    >>> round(float(h), 4), round(float(x), 4)
+    (0.1766, 1500.0)
+    """
+    e, n, u = (np.asarray(v, float) for v in (east, north, up))
+    rho, w = np.hypot(e, n), u + radius
+    psi = np.arctan2(rho, w)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        s = np.where(rho > 0, radius * psi / np.where(rho > 0, rho, 1.0), radius / w)
+    return e * s, n * s, np.hypot(rho, w) - radius
+
+
+def from_sphere(x, y, height, radius):
+    """Return the Cartesian east, north, up of a point of :func:`to_sphere`'s frame.
+
+    Parameters
+    ----------
+    x, y, height : array_like
+        Distances along the sphere and the height above it (m).
+    radius : float
+
+    Returns
+    -------
+    east, north, up : numpy.ndarray
+
+    Examples
+    --------
+    >>> e, n, u = from_sphere(*to_sphere(900.0, -1200.0, -1500.0, 6371000.0), 6371000.0)
+    >>> [round(float(v), 9) for v in (e, n, u)]
+    [900.0, -1200.0, -1500.0]
+    """
+    x, y, h = (np.asarray(v, float) for v in (x, y, height))
+    a = np.hypot(x, y)
+    psi, r = a / radius, radius + h
+    s = np.where(a > 0, r * np.sin(psi) / np.where(a > 0, a, 1.0), r / radius)
+    return x * s, y * s, r * np.cos(psi) - radius
 
 
 #: Length (m) the gradient regressors are divided by (GARPOS's L).
@@ -940,7 +1039,43 @@ def _root(H):
     return np.sqrt(e[keep])[:, None] * U[:, keep].T
 
 
-def _smooth_covariance(J, r, theta, H, sigma, lam, clusters, H_fixed=None):
+#: Decades about the gradients' best weight over which the intervals average (step 0.5).
+GRADIENT_WEIGHT_GRID = np.arange(-2.0, 2.0001, 0.5)
+
+
+def _weight_rank(H):
+    e = np.linalg.eigvalsh(H)
+    return int(np.sum(e > 1e-10 * e.max()))
+
+
+def _grid_average(J, r, theta, H, sigma, lam, H_fixed, meat, n_clusters, grid):
+    """Posterior modes and covariances over weights ``lam 10^x``, and their average.
+
+    Returns the weights (marginal likelihood, flat prior on ``log lam``), the average
+    covariance ``sum w_g C_g``, the spread ``sum w_g (theta_g - mean)(theta_g - mean)'``,
+    the rows ``(x, logml, step, C, A^-1, edf)`` and the log evidences.
+    """
+    rank = _weight_rank(H)
+    rows = []
+    JtJ = J.T @ J
+    for x in grid:
+        lg = lam * 10.0 ** x
+        logml, step, A = log_evidence(J, r, theta, H, sigma, lg, rank, H_fixed)
+        Ainv = np.linalg.inv(A)
+        edf = float(np.trace(Ainv @ JtJ) / sigma**2)
+        prior = lg * H if H_fixed is None else lg * H + H_fixed
+        C = Ainv @ (meat * n_clusters / max(n_clusters - edf, 1.0) + prior) @ Ainv
+        rows.append((x, logml, step, C, Ainv, edf))
+    ll = np.array([row[1] for row in rows])
+    w = np.exp(ll - ll.max())
+    w /= w.sum()
+    steps = np.array([row[2] for row in rows])
+    dev = steps - w @ steps
+    mean_cov = sum(wi * row[3] for wi, row in zip(w, rows, strict=True))
+    return w, mean_cov, (dev.T * w) @ dev, rows, ll
+
+
+def _smooth_covariance(J, r, theta, H, sigma, lam, clusters, Hg=None, lam_g=None):
     """Covariance of a smooth-speed fit, averaged over the smoothing weights near the best.
 
     For each weight ``lam_g = lam 10^x`` (``x`` in :data:`WEIGHT_GRID`): the step to
@@ -949,7 +1084,11 @@ def _smooth_covariance(J, r, theta, H, sigma, lam, clusters, H_fixed=None):
     outer products over interrogations, over ``sigma^4``; ``C_g`` is the posterior
     covariance when the noise is independent). Weights ``w_g`` proportional to the
     marginal likelihood (a flat prior on ``log lam``); the covariance is
-    ``sum w_g C_g + sum w_g (theta_g - mean)(theta_g - mean)'``.
+    ``sum w_g C_g + sum w_g (theta_g - mean)(theta_g - mean)'``. With the gradients
+    (their penalty ``Hg``, weight ``lam_g``), the same over their weight
+    (:data:`GRADIENT_WEIGHT_GRID`, the speed's held at its best) is added, the two
+    weights' effects taken as additive: ``sum w_i C_i + sum v_j C_j - C_best`` plus
+    both spreads.
 
     Returns
     -------
@@ -958,43 +1097,42 @@ def _smooth_covariance(J, r, theta, H, sigma, lam, clusters, H_fixed=None):
     record : dict
         The ``smoothing`` record of the fit's model.
     """
-    e = np.linalg.eigvalsh(H)
-    rank = int(np.sum(e > 1e-10 * e.max()))
     codes = np.unique(np.asarray(clusters), return_inverse=True)[1]
     n_clusters = int(codes.max()) + 1
     S = np.zeros((n_clusters, J.shape[1]))
     np.add.at(S, codes, J * r[:, None])
     meat = S.T @ S / sigma**4
-    rows = []
-    for x in WEIGHT_GRID:
-        lg = lam * 10.0 ** x
-        logml, step, A = log_evidence(J, r, theta, H, sigma, lg, rank, H_fixed)
-        Ainv = np.linalg.inv(A)
-        edf = float(np.trace(Ainv @ (J.T @ J)) / sigma**2)
-        prior = lg * H if H_fixed is None else lg * H + H_fixed
-        C = Ainv @ (meat * n_clusters / max(n_clusters - edf, 1.0) + prior) @ Ainv
-        rows.append((x, logml, step, C, Ainv, edf))
-    ll = np.array([row[1] for row in rows])
-    w = np.exp(ll - ll.max())
-    w /= w.sum()
-    steps = np.array([row[2] for row in rows])
-    mean = w @ steps
-    dev = steps - mean
-    cov = sum(wi * row[3] for wi, row in zip(w, rows, strict=True)) + (dev.T * w) @ dev
+    H_fixed = None if Hg is None else lam_g * Hg
+    w, cov, spread, rows, ll = _grid_average(J, r, theta, H, sigma, lam, H_fixed, meat,
+                                             n_clusters, WEIGHT_GRID)
     mid = int(np.argmin(np.abs(WEIGHT_GRID)))
+    cov = cov + spread
+    grad_grid = None
+    if Hg is not None:
+        v, cov_g, spread_g, rows_g, ll_g = _grid_average(J, r, theta, Hg, sigma, lam_g,
+                                                         lam * H, meat, n_clusters,
+                                                         GRADIENT_WEIGHT_GRID)
+        cov = cov + cov_g - rows[mid][3] + spread_g
+        grad_grid = {"log10_weight": [float(np.log10(lam_g) + x) for x in GRADIENT_WEIGHT_GRID],
+                     "log_evidence": [float(x - ll_g.max()) for x in ll_g],
+                     "posterior_weight": [float(x) for x in v]}
     record = {
         "penalty": "integral over time (hours) of the squared second derivative of the speed "
                    "coefficient (profile scale, or m/s for straight rays)",
         "weight": float(lam), "log10_weight": float(np.log10(lam)),
         "criterion": "maximum marginal likelihood (linearised at the solution, at the EM's "
                      "class probabilities; equivalently minimum ABIC = -2 log evidence)",
-        "effective_dof": rows[mid][5], "penalty_rank": rank,
+        "effective_dof": rows[mid][5], "penalty_rank": _weight_rank(H),
         "intervals": "averaged over the smoothing weights of the grid, each weighted by its "
                      "marginal likelihood (flat prior on log weight), with the spread of the "
-                     "solutions between weights added",
+                     "solutions between weights added"
+                     + ("; the same over the gradients' weight (gradient_grid), the two "
+                        "weights' effects taken as additive" if Hg is not None else ""),
         "grid": {"log10_weight": [float(np.log10(lam) + x) for x in WEIGHT_GRID],
                  "log_evidence": [float(v - ll.max()) for v in ll],
                  "posterior_weight": [float(v) for v in w]}}
+    if grad_grid is not None:
+        record["gradient_grid"] = grad_grid
     return cov, rows[mid][4], record
 
 

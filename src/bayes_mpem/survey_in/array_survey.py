@@ -9,7 +9,7 @@ import pandas as pd
 from scipy.stats import chi2
 
 from ..exceptions import InputError
-from ..io.geodesy import enu_to_geodetic
+from ..io.geodesy import MEAN_EARTH_RADIUS_M, earth_radius, enu_to_geodetic
 from ..io.raw import ARRAY_FORMATS
 from .array import KNOT_MINUTES, describe, locate_array
 from .result import SurveyInResult, classified_table
@@ -296,24 +296,33 @@ def position_constraints(header, ids=None):
 
 #: Least ``spread_over_depth`` of the track (:func:`track_geometry`) for the gradients.
 MIN_SPREAD = 0.3
+#: Shortest campaign (hours of shots) on which the gradients are fitted by default.
+MIN_GRADIENT_HOURS = 2.0
+#: The choices of ``gradients`` (``locate --gradients``).
+GRADIENT_CHOICES = ("auto", "on", "off")
 
 
 def gradient_gate(shots, priors, speed_intervals=None):
     """Return whether the survey can fit the horizontal gradients, and why (not).
 
-    Fitted when the sound speed varies in time, three transponders or more reply and
-    the ship's track spreads over at least :data:`MIN_SPREAD` of the water depth in
-    its least-spread direction (a ship circling or crossing the array; a glider holding
-    station cannot tell the shallow gradient from the array's position).
+    Fitted when the sound speed is the smooth default (an unpenalised spline,
+    ``speed_intervals``, would leave the gradients unpenalised too), three
+    transponders or more reply, the shots span :data:`MIN_GRADIENT_HOURS` or more
+    and the ship's track spreads over at least :data:`MIN_SPREAD` of the water depth
+    in its least-spread direction (a ship circling or crossing the array; a glider
+    holding station cannot tell the shallow gradient from the array's position).
+    The gradients' constant and trend are unpenalised: on a 1-hour star campaign
+    without gradients they moved the centre by 2-4 cm (against 1 cm without them;
+    ``docs/gnssa.md``).
 
     Parameters
     ----------
     shots : pandas.DataFrame
-        The shots (``transponder``, the transducer's ``e/n/u_tx`` and ``_rx``).
+        The shots (``transponder``, ``time``, the transducer's ``e/n/u_tx`` and ``_rx``).
     priors : pandas.DataFrame
         ``east``, ``north``, ``up`` by transponder id.
     speed_intervals : int, optional
-        As for :func:`locate_array_survey` (0: one speed, no gradients).
+        As for :func:`locate_array_survey` (None: the smooth speed).
 
     Returns
     -------
@@ -322,10 +331,19 @@ def gradient_gate(shots, priors, speed_intervals=None):
     """
     if speed_intervals == 0:
         return False, "one sound speed for the survey (speed_intervals=0)"
+    if speed_intervals is not None:
+        return False, (f"an unpenalised speed spline ({speed_intervals} intervals asked for): "
+                       "the gradients would be unpenalised too and trade against the "
+                       "positions by decimetres")
     ids = [t for t in map(str, priors.index)
            if int(np.sum(shots["transponder"].astype(str) == t)) >= 6]
     if len(ids) < 3:
         return False, f"{len(ids)} transponders located; the deep gradient needs 3 or more"
+    if "time" in shots.columns and len(shots):
+        hours = float(shots["time"].max() - shots["time"].min()) / 3600.0
+        if hours < MIN_GRADIENT_HOURS:
+            return False, (f"the shots span {hours:.2f} h (need {MIN_GRADIENT_HOURS:g}): the "
+                           "gradients' constant and trend would trade against the positions")
     geo = track_geometry(shots, {t: priors.loc[t, ["east", "north", "up"]].to_numpy(float)
                                  for t in ids})
     spread = geo["spread_over_depth"]
@@ -335,10 +353,20 @@ def gradient_gate(shots, priors, speed_intervals=None):
     return True, f"the track spreads over {spread:.2f} of the depth, {len(ids)} transponders"
 
 
+def _gradient_choice(gradients):
+    """Return ``"auto"``, ``"on"`` or ``"off"`` from the ``gradients`` argument."""
+    if gradients is None or gradients is True or gradients is False:
+        return {None: "auto", True: "on", False: "off"}[gradients]
+    if gradients not in GRADIENT_CHOICES:
+        raise InputError(f"gradients: expected one of {', '.join(GRADIENT_CHOICES)} (or "
+                         f"True, False, None), got {gradients!r}")
+    return gradients
+
+
 def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
                         speed_intervals=None, surface_depth=None,
                         knot_minutes=KNOT_MINUTES, shift=None,
-                        gradients=False) -> SurveyInResult:
+                        gradients="auto", earth="sphere") -> SurveyInResult:
     """Locate every transponder of a GNSS-A array survey together.
 
     Parameters
@@ -363,13 +391,18 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
         Solve a rigid shift of the prior geometry; default from the site file's
         sigmas (:func:`position_constraints`), which also fix the coordinates
         whose sigma is 0.
-    gradients : bool or None, default False
-        Fit GARPOS's shallow and deep horizontal gradients too (``summary.json``
-        ``gradients``: their time averages in (m/s)/km). None: where
-        :func:`gradient_gate` allows (not the default: on short campaigns its test
-        lets through tracks on which the gradients trade off against the positions
-        by decimetres; the gate is not calibrated yet). ``summary.json`` records the
-        gate's verdict either way.
+    gradients : {"auto", "on", "off"}, default "auto"
+        GARPOS's shallow and deep horizontal gradients (``summary.json``
+        ``gradients``: their time averages in (m/s)/km): ``"auto"`` fits them where
+        :func:`gradient_gate` says the track constrains them, and records its reason
+        either way; ``"on"`` (or True) and ``"off"`` (or False) force the choice
+        (None is ``"auto"``).
+    earth : {"sphere", "flat"}, default "sphere"
+        ``"sphere"``: the profile's layers follow the Earth (a sphere of the WGS84
+        Gaussian radius at the site's latitude): SeaGap's frame is already along the
+        sphere; GARPOS's and GNATSS's Cartesian east-north-up frames are turned into it
+        (:func:`~.array.to_sphere`) and the result back. ``"flat"``: the frame as
+        given, flat layers (the model before curvature).
 
     Returns
     -------
@@ -387,20 +420,28 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
     h = raw.header
     if surface_depth is None:
         surface_depth = float(h.get("surface_depth", 0.0))
+    choice = _gradient_choice(gradients)
     gate, why = gradient_gate(shots, h["transponders"], speed_intervals)
-    if gradients is None:
+    if choice == "auto":
         gradients = gate
+        why = "auto: " + why
     else:
-        why = ("asked for" if gradients else "not asked for") + f" (the gate: {why})"
+        gradients = choice == "on"
+        why = f"gradients={choice} asked for (the gate: {why})"
     fixed, auto_shift = position_constraints(h)
     shift = auto_shift if shift is None else bool(shift)
     if shift and not auto_shift:
         fixed = None
+    if earth not in ("sphere", "flat"):
+        raise InputError(f"earth: expected 'sphere' or 'flat', got {earth!r}")
+    radius = None if earth == "flat" else (earth_radius(h["lat"]) if "lat" in h
+                                           else MEAN_EARTH_RADIUS_M)
+    cartesian = radius is not None and raw.format != "seagap"
     fit = locate_array(shots, h["transponders"], profile=prof,
                        surface_depth=float(surface_depth),
                        speed_intervals=speed_intervals, outliers=outliers,
                        knot_minutes=knot_minutes, fixed=fixed, shift=shift,
-                       gradients=gradients)
+                       gradients=gradients, earth_radius=radius, along_sphere=not cartesian)
     origin = (h["lat"], h["lon"], h.get("height", 0.0)) if "lat" in h else None
     counts = np.bincount(fit.index, minlength=len(fit.ids))
     out = {tid: _transponder_entry(fit, k, ci, origin, counts[k])
@@ -415,8 +456,8 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
                                            n_mid - fit.enu[fit.index, 1])) % 360.0
     reasons = np.full(n, "", dtype=object)
     tid = shots["transponder"].astype(str).to_numpy()
-    for t, why in fit.skipped.items():
-        reasons[tid == t] = f"transponder {t} not located: {why}"
+    for t, skip_why in fit.skipped.items():
+        reasons[tid == t] = f"transponder {t} not located: {skip_why}"
     table = pd.DataFrame({"line": shots["line"], "transponder": tid, "twtt": shots["twtt"],
                           "time": shots["time"],
                           "east": 0.5 * (shots["e_tx"] + shots["e_rx"]),
@@ -444,14 +485,20 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
         "outliers": outliers, "ssp": None if prof is None else prof.source,
         "speed_intervals": int(fit.model["speed_intervals"]), "fit_lag": False,
         "positions": fit.model["positions"],
-        "gradients": {"fitted": bool(gradients), "reason": why,
+        "gradients": {"fitted": bool(gradients), "choice": choice, "reason": why,
                       **(fit.model.get("gradients") or {})},
         "geometry": {"frame": "local east, north, up about the origin (m)",
                      "origin": None if origin is None else dict(
                          zip(("lat", "lon", "height"), map(float, origin), strict=True)),
                      "surface_depth": float(surface_depth),
-                     "earth": "flat: straight or refracted rays in the local frame, no Earth "
-                              "curvature"},
+                     "earth": ("flat: straight or refracted rays in the local frame, no Earth "
+                               "curvature") if radius is None else
+                              (f"sphere of radius {radius:.1f} m (the WGS84 Gaussian radius at "
+                               "the site's latitude): the profile's layers follow it"
+                               + ("; the rays traced in its frame (east, north along it, "
+                                  "height above it), the positions Cartesian"
+                                  if cartesian else "; the frame is along it (SeaGap's)")),
+                     "earth_radius_m": radius},
         "tat_fitted": False, "tat_given": 0.0,
         "position_region": f"a transponder's {100 * ci:g} % region is the ellipsoid of its "
                            f"covariance with squared radius {chi2.ppf(ci, 3):.4f}"}

@@ -11,8 +11,9 @@ from .._rng import RNGLike, as_generator
 from .._validate import check_choice, check_int, check_positive, check_probability
 from ..acoustics.profile import SoundSpeedProfile
 from ..acoustics.turning import direct_times
-from ..io.geodesy import atd_offset_enu
+from ..io.geodesy import atd_offset_enu, earth_radius
 from ..io.raw import RawSurvey
+from .array import to_sphere
 
 
 def reference_profile(max_depth: float, step: float = 25.0) -> pd.DataFrame:
@@ -450,12 +451,23 @@ def _logged(ship, sd, gen):
     return [ship[0] + noise[0], ship[1] + noise[1], ship[2] + noise[2], *ship[3:]]
 
 
-def _legs(profile, tx, rx, pos):
-    """One-way times (s, unscaled) from the transducer at transmit and to it at receive."""
+def _legs(profile, tx, rx, pos, radius=None):
+    """One-way times (s, unscaled) from the transducer at transmit and to it at receive.
+
+    With ``radius`` the layers follow a sphere touching the frame's origin: each end's
+    depth is its depth below the sphere (:func:`~.array.to_sphere`) and the horizontal
+    range the one that, with those depths, gives the (Cartesian) chord.
+    """
     out = []
     for e, n, u in (tx, rx):
         h = np.hypot(e - pos[0], n - pos[1])
-        ray = direct_times(profile, -u, np.full(u.size, -pos[2]), h)
+        za, zb = -u, np.full(u.size, -pos[2])
+        if radius is not None:
+            L = np.sqrt(h * h + (u - pos[2]) ** 2)
+            za = -to_sphere(e, n, u, radius)[2]
+            zb = np.full(u.size, -float(to_sphere(*pos, radius)[2]))
+            h = np.sqrt(np.maximum(L * L - (za - zb) ** 2, 0.0))
+        ray = direct_times(profile, za, zb, h)
         if not ray.valid.all():  # pragma: no cover - the reference profile has none
             raise RuntimeError("simulated geometry has pings no eigenray reaches")
         out.append(ray.time)
@@ -465,8 +477,10 @@ def _legs(profile, tx, rx, pos):
 def _check_options(*, n_transponders, depth, hours, shot_interval, ship_speed, sigma,
                    p_spurious, p_missing, track, speed_model, travel_time, gradients,
                    speed_decay, shallow_decay, gradient_period, speed_periods,
-                   speed_amplitudes):
+                   speed_amplitudes, earth="sphere", schedule="all"):
     """Raise ValueError for an option :func:`simulate_gnssa` cannot take."""
+    check_choice("earth", earth, ("sphere", "flat"))
+    check_choice("schedule", schedule, ("all", "staggered"))
     check_int("n_transponders", n_transponders, minimum=1)
     for name, v in (("depth", depth), ("hours", hours), ("shot_interval", shot_interval),
                     ("ship_speed", ship_speed), ("sigma", sigma)):
@@ -508,6 +522,14 @@ def _replies(pings, ids, track_at, settings, phases, sigma, p_spurious, p_missin
     return pings[keep].reset_index(drop=True), spurious[keep]
 
 
+def _staggered(pings, spurious, ids, shot_interval):
+    """Keep the reply of transponder ``i mod K`` to interrogation ``i`` only."""
+    shot = np.rint(pings["t_tx"].to_numpy() / shot_interval).astype(int)
+    mine = shot % len(ids) == pings["transponder"].map(
+        {st: k for k, st in enumerate(ids)}).to_numpy()
+    return pings[mine].reset_index(drop=True), spurious[mine]
+
+
 def _make_field(gen, true, amplitudes, periods, decay, sizes, shallow_decay, period):
     """Build the :class:`SoundSpeedField` of :func:`simulate_gnssa` (periods in hours)."""
     return SoundSpeedField(
@@ -529,6 +551,8 @@ def _field_settings(field, periods, gradients, gradient_period, travel_time):
                 gradient_period=float(gradient_period), travel_time=travel_time)
 
 
+# the simulation's steps (geometry, track, travel times, replies, truth) read best in order
+# long function: each step is a few lines
 def simulate_gnssa(*, n_transponders: int = 4, depth: float = 1500.0, hours: float = 4.0,
                    shot_interval: float = 20.0, ship_speed: float = 2.5, sigma: float = 5e-5,
                    p_spurious: float = 0.05, p_missing: float = 0.02,
@@ -539,7 +563,8 @@ def simulate_gnssa(*, n_transponders: int = 4, depth: float = 1500.0, hours: flo
                    speed_decay: float = 400.0, gradients: bool = False,
                    shallow_gradient: float = 0.5, deep_gradient: float = 0.1,
                    shallow_decay: float = 300.0, gradient_period: float = 12.0,
-                   travel_time: str = "ray", rng: RNGLike = None) -> GnssaSimulation:
+                   travel_time: str = "ray", earth: str = "sphere",
+                   schedule: str = "all", rng: RNGLike = None) -> GnssaSimulation:
     """Simulate a GNSS-acoustic survey of an array of transponders.
 
     Parameters
@@ -599,6 +624,14 @@ def simulate_gnssa(*, n_transponders: int = 4, depth: float = 1500.0, hours: flo
         (``-int dV / c^2 ds``), or GARPOS's model itself
         (``T exp(-gamma)`` with the field's ``a0``, ``a1``, ``a2``), to tell an
         estimator's error from the model's.
+    earth : {"sphere", "flat"}, default "sphere"
+        The profile's layers follow the Earth (a sphere of the WGS84 Gaussian radius at
+        the origin's latitude, touching the frame's origin; the frame itself is
+        Cartesian, as GARPOS's and GNATSS's), or are flat in the frame.
+    schedule : {"all", "staggered"}, default "all"
+        Every transponder replies to each interrogation, or they are interrogated in
+        turn (interrogation ``i`` to transponder ``i mod n_transponders``): no two
+        replies share a transducer position.
     rng : None, int or numpy.random.Generator
         The same seed gives the same track, noise and replies with and without the field.
 
@@ -629,7 +662,8 @@ def simulate_gnssa(*, n_transponders: int = 4, depth: float = 1500.0, hours: flo
                    speed_model=speed_model, travel_time=travel_time, gradients=gradients,
                    speed_decay=speed_decay, shallow_decay=shallow_decay,
                    gradient_period=gradient_period, speed_periods=speed_periods,
-                   speed_amplitudes=speed_amplitudes)
+                   speed_amplitudes=speed_amplitudes, earth=earth, schedule=schedule)
+    radius_earth = earth_radius(origin[0]) if earth == "sphere" else None
     gen = as_generator(rng)
     field_gen = gen.spawn(1)[0] if speed_model == "field" else None  # gen's state untouched
     ids = [f"M{k + 1:02d}" for k in range(n_transponders)]
@@ -676,7 +710,7 @@ def simulate_gnssa(*, n_transponders: int = 4, depth: float = 1500.0, hours: flo
         twtt = 2 * np.hypot(np.hypot(tx[0] - pos[0], tx[1] - pos[1]), tx[2] - pos[2]) / 1500.0
         for _ in range(3):  # the receive position depends on the travel time
             rx = _transducer(_ship(t_tx + twtt, track_at, settings, phases), atd_offset)
-            t_a, t_b = _legs(profile, tx, rx, pos)
+            t_a, t_b = _legs(profile, tx, rx, pos, radius_earth)
             if field is None:
                 twtt = (t_a + t_b) / s
             elif travel_time == "ray":
@@ -692,6 +726,8 @@ def simulate_gnssa(*, n_transponders: int = 4, depth: float = 1500.0, hours: flo
     pings = pings.reset_index(drop=True)
     pings, spurious = _replies(pings, ids, track_at, settings, phases, sigma, p_spurious,
                                p_missing, gen)
+    if schedule == "staggered":
+        pings, spurious = _staggered(pings, spurious, ids, shot_interval)
     hm = profile.harmonic_mean(0.0, float(-true["up"].mean()))
     truth = {"transponders": true, "spurious": spurious, "scale": pings.pop("scale").to_numpy(),
              "sigma": float(sigma)}
@@ -709,7 +745,8 @@ def simulate_gnssa(*, n_transponders: int = 4, depth: float = 1500.0, hours: flo
     sets = {"n_transponders": n_transponders, "depth": depth, "hours": hours,
             "shot_interval": shot_interval, "ship_speed": ship_speed, "sigma": sigma,
             "p_spurious": p_spurious, "p_missing": p_missing,
-            "speed_amplitude": speed_amplitude, "atd_offset": list(map(float, atd_offset))}
+            "speed_amplitude": speed_amplitude, "atd_offset": list(map(float, atd_offset)),
+            "earth": earth, "schedule": schedule}
     if track != "star" or track_radius is not None:
         sets.update(track=track, track_radius=radius)
     if field is not None:

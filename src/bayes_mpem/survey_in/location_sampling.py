@@ -1,7 +1,8 @@
 """Posterior of a transponder location jointly with the class of every ping (emcee).
 
 :func:`sample_location` samples :class:`bayes_mpem.survey_in.posterior.LocationLogPosterior`
-with :func:`bayes_mpem.mcmc.run_ensembles` (differential evolution) into a
+with :func:`bayes_mpem.mcmc.run_ensembles` (differential evolution, two independent
+ensembles) into a
 :class:`LocationPosterior`; :func:`locate_survey_bayes` does it for every transponder.
 """
 
@@ -34,6 +35,11 @@ from .posterior import (
     check_location_options,
 )
 
+#: independent ensembles of differential evolution: the stopping rule's R-hat compares them
+#: (over the walkers of one ensemble, which are not independent chains, R-hat < 1.01 asked
+#: for ~3 times the target ESS)
+N_ENSEMBLES = 2
+
 
 @dataclass(frozen=True)
 class LocationPosterior:
@@ -48,7 +54,7 @@ class LocationPosterior:
         Thinned draws of each reported parameter (``east``, ``north``, ``depth``,
         ``sound_speed`` m/s, ``sigma`` s, ``weight``, ``tat`` when fitted), shape
         ``(walker, draw)``, and ``theta``: ``(walker, draw, ndim)`` in the
-        sampler's coordinates.
+        sampler's coordinates; the walkers of both ensembles, one after the other.
     p_true, p_true_sd : numpy.ndarray
         Per ping (table order of ``rows``): posterior mean and standard deviation
         over the draws of the probability of being a true arrival.
@@ -58,11 +64,13 @@ class LocationPosterior:
         Per reported parameter: ``steps x walkers / ESS`` (steps), and ArviZ's bulk ESS
         of :attr:`draws` (walkers as chains; the same dict under both names).
     rhat : dict
-        ArviZ's R-hat of :attr:`draws` (walkers as chains).
+        ArviZ's R-hat of :attr:`draws` across the two ensembles (each ensemble's walkers,
+        which are not independent chains, pooled into one chain).
     em : LocateResult
         The EM fit the walkers started from.
     diagnostics : dict
-        ``n_walkers``, ``n_steps``, ``burn``, ``thin``, ``n_draws``, ``converged``,
+        ``n_walkers`` (per ensemble), ``n_ensembles``, ``n_steps``, ``burn``, ``thin``,
+        ``n_draws``, ``converged``,
         ``acceptance``, ``seconds``, ``min_ess``, ``travel_times``.
     ci : float
     """
@@ -243,13 +251,13 @@ def sample_location(pings: pd.DataFrame, fit: LocateResult, *, n_walkers: int | 
     fit : LocateResult
         The EM fit (:func:`~bayes_mpem.survey_in.location.locate`): the model and the start.
     n_walkers : int, optional
-        Default ``max(32, 2 ndim + 2)``, the least that lets differential
-        evolution reach every direction.
+        Walkers of each of the two ensembles; default ``max(32, 2 ndim + 2)``, the least
+        that lets differential evolution reach every direction.
     ci : float, default 0.95
         Probability of the equal-tailed intervals.
     min_ess : float, default 1000
         Run until the smallest bulk ESS of the reported parameters reaches this and
-        R-hat < 1.01.
+        R-hat across the two ensembles < 1.01.
     max_steps : int, default 20000
         Step cap (``SamplingWarning`` when reached first).
     n_draws : int, default 4000
@@ -288,21 +296,22 @@ def sample_location(pings: pd.DataFrame, fit: LocateResult, *, n_walkers: int | 
 
     gen = as_generator(rng)
     t0 = time.perf_counter()
-    start = post.start(n_walkers, gen)
+    starts = [post.start(n_walkers, gen) for _ in range(N_ENSEMBLES)]
 
     def natural(chain):
         return {k: v for k, v in post.natural(chain).items() if k in PARAMS}
 
-    run = run_ensembles(post, [start], moves=default_moves(), gen=gen, min_ess=float(min_ess),
+    run = run_ensembles(post, starts, moves=default_moves(), gen=gen, min_ess=float(min_ess),
                         max_steps=int(max_steps), n_draws=int(n_draws), burn_in=True,
                         natural=natural, progress=progress,
                         label=f"transponder {fit.transponder}", stacklevel=2)
     seconds = time.perf_counter() - t0
-    idx, thin = thin_index(run.chain.shape[0], n_walkers, n_draws)
-    theta = np.swapaxes(run.chain[idx], 0, 1)  # (walker, draw, ndim)
+    idx, thin = thin_index(run.chain.shape[0], N_ENSEMBLES * n_walkers, n_draws)
+    theta = np.swapaxes(run.chain[idx], 0, 1)  # (walker, draw, ndim), ensemble by ensemble
     draws = {k: np.ascontiguousarray(v) for k, v in natural(theta).items()}
     ess = bulk_ess(draws)
-    tau = {k: float(idx.size * thin * n_walkers / ess[k]) for k in draws}
+    tau = {k: float(idx.size * thin * N_ENSEMBLES * n_walkers / ess[k]) for k in draws}
+    rhat_ = {k: _rhat_across(draws[k]) for k in ess}
     draws["theta"] = theta
     flat = theta.reshape(-1, post.ndim)
     _, p, p_sd = draw_moments(flat, lambda t: _true_probability(post, t))
@@ -311,13 +320,24 @@ def sample_location(pings: pd.DataFrame, fit: LocateResult, *, n_walkers: int | 
     return LocationPosterior(
         transponder=fit.transponder, names=post.names, draws=draws, p_true=p[:, 0],
         p_true_sd=p_sd[:, 0], rows=np.asarray(fit.rows), tau=tau, ess=ess, ess_bulk=ess,
-        rhat={k: rhat(draws[k]) for k in ess}, em=fit,
-        diagnostics={"n_walkers": n_walkers, "n_steps": run.n_steps, "burn": int(run.burn),
+        rhat=rhat_, em=fit,
+        diagnostics={"n_walkers": n_walkers, "n_ensembles": N_ENSEMBLES,
+                     "n_steps": run.n_steps, "burn": int(run.burn),
                      "thin": int(thin), "n_draws": int(flat.shape[0]),
                      "converged": bool(run.converged), "acceptance": run.acceptance,
                      "seconds": float(seconds), "min_ess": float(min_ess),
                      "moves": "DEMove 1.0 (differential evolution)", "travel_times": travel},
         ci=float(ci))
+
+
+def _rhat_across(x) -> float:
+    """ArviZ's R-hat across the :data:`N_ENSEMBLES` ensembles of ``(walker, draw)`` draws.
+
+    An ensemble's walkers are not independent chains: each ensemble's draws, step by step,
+    make one chain.
+    """
+    x = np.asarray(x).reshape(N_ENSEMBLES, -1, x.shape[1])  # (ensemble, walker, draw)
+    return rhat(x.transpose(0, 2, 1).reshape(N_ENSEMBLES, -1))
 
 
 def _merge(em: dict, post: LocationPosterior, ci: float, header: dict) -> dict:

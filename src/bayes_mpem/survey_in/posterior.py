@@ -411,3 +411,52 @@ class LocationLogPosterior:
         at = dict(zip(self.names, centre, strict=True))
         raise RuntimeError(f"transponder {self.beacon}: could not place walkers inside the "
                            f"prior around the EM solution {at}")
+
+
+#: gzip with byte shuffling (netCDF4's deflate) on every variable of a posterior file
+GZIP = {"compression": "gzip", "compression_opts": 4, "shuffle": True}
+
+
+def posterior_file(name) -> str:
+    """Return the file name of a survey-in posterior: ``posterior_<name>.nc``.
+
+    One file per located transponder (``locate --sample`` one at a time) or one for a
+    GNSS-A array (``posterior_array.nc``), each an ArviZ DataTree.
+
+    Parameters
+    ----------
+    name : str
+        The transponder, or ``"array"``.
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> posterior_file("array"), posterior_file("../x y")
+    ('posterior_array.nc', 'posterior_.._x_y.nc')
+    """
+    import re
+
+    return f"posterior_{re.sub(r'[^A-Za-z0-9._-]', '_', str(name))}.nc"
+
+
+def write_posterior(path, tree) -> None:
+    """Write an ArviZ DataTree as NetCDF4 (h5netcdf), every variable gzip-compressed.
+
+    The file opens with :func:`arviz_base.from_netcdf` and :func:`xarray.open_datatree`.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+    tree : xarray.DataTree
+    """
+    enc = {}
+    for node in tree.subtree:
+        ds = node.dataset
+        variables = {name: dict(GZIP) for name, var in ds.variables.items()
+                     if var.ndim and name not in ds.dims and var.dtype.kind in "fiub"}
+        if variables:
+            enc[node.path] = variables
+    tree.to_netcdf(path, engine="h5netcdf", encoding=enc)

@@ -125,10 +125,17 @@ class SurveyInResult:
         -------
         dict
             Paths written, keyed ``summary`` and ``classified`` (and ``solution``
-            for an array: :func:`solution_text`).
+            for an array: :func:`solution_text`; ``posterior_<id>`` for each sampled
+            posterior: :func:`~.posterior.write_posterior`).
         """
+        from .posterior import posterior_file, write_posterior
+
         with writing(out_dir) as out:
             paths = {"classified": write_csv(out / "classified.csv", self.classified)}
+            for name, post in self.posteriors.items():
+                paths[posterior_file(name)[:-3]] = write_file(
+                    out / posterior_file(name),
+                    lambda tmp, post=post: write_posterior(tmp, post.to_inference_data()))
             if "array_centre" in self.summary:
                 text = solution_text(self.summary)
                 paths["solution"] = write_file(out / "solution.txt",
@@ -168,6 +175,27 @@ def _row(name, enu, width=14):
     sds = [enu[c]["sd"] for c in ("east", "north", "up")]
     return (f"{name:<{width}}" + "".join(f"{v:14.3f}" for v in vals)
             + "".join(f"{v:9.3f}" for v in sds))
+
+
+def gradients_line(summary: dict) -> str:
+    """Return one line: the array's horizontal gradients, fitted or not and why.
+
+    Parameters
+    ----------
+    summary : dict
+        An array's ``summary.json`` (with ``gradients``).
+
+    Returns
+    -------
+    str
+    """
+    g = summary.get("gradients") or {}
+    line = f"gradients     {'fitted' if g.get('fitted') else 'not fitted'} ({g.get('reason', '-')})"
+    if g.get("fitted") and "shallow_east" in g:
+        line += "; time averages (m/s)/km: " + ", ".join(
+            f"{k.replace('_', ' ')} {g[k]['mean']:+.4f} +- {g[k]['sd']:.4f}"
+            for k in ("shallow_east", "shallow_north", "deep_east", "deep_north"))
+    return line
 
 
 def solution_text(summary: dict) -> str:
@@ -220,6 +248,8 @@ def solution_text(summary: dict) -> str:
         lines += [f"residual rms  {r['rms_true']:.4f} ms (true replies; {per})",
                   f"shots         {s['n_pings']}: {r['n_true']} true, {r['n_spurious']} "
                   f"spurious; {s.get('n_skipped_lines', 0)} lines skipped"]
+    if "gradients" in s:
+        lines.append(gradients_line(s))
     lines.append(f"intervals     sd = 1 standard deviation (m); "
                  f"{s.get('position_region', '')}")
     return "\n".join(lines) + "\n"

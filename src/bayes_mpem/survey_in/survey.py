@@ -43,7 +43,8 @@ def is_array(raw, *, one_at_a_time=False) -> bool:
 
 
 def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", ssp=None,
-                  speed_intervals=0, fit_lag=False, lag_check=False, one_at_a_time=False):
+                  speed_intervals=0, fit_lag=False, lag_check=False, one_at_a_time=False,
+                  gradients="auto", knot_minutes=None):
     """Locate every transponder of a :class:`~bayes_mpem.io.raw.RawSurvey`.
 
     Parameters
@@ -74,6 +75,10 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
         A SeaGap survey: locate each transponder on its own, with its own sound
         speed (on SeaGap's sphere), instead of the array together
         (:func:`is_array`); refused for GARPOS and GNATSS.
+    gradients : {"auto", "on", "off"}, default "auto"
+        An array survey: its horizontal gradients (:func:`locate_array_survey`).
+    knot_minutes : float, optional
+        An array survey: the smooth speed's knot spacing (default 5 min).
 
     Returns
     -------
@@ -111,8 +116,10 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
                                     - SEAGAP_TRANSDUCER_DEPTH)
             if ssp is None:  # the survey's own profile when it came with one
                 ssp = "survey" if "ss_prof" in raw.header else "straight"
+        if knot_minutes is not None:
+            geo["knot_minutes"] = knot_minutes
         return locate_array_survey(raw, ci=ci, outliers=outliers, ssp=ssp,
-                                   speed_intervals=speed_intervals, **geo)
+                                   speed_intervals=speed_intervals, gradients=gradients, **geo)
     if tat is None:
         tat = raw.header.get("tat", 0.0 if raw.format == "seagap" else DEFAULT_TAT)
     pings, beacons = raw.to_pings()

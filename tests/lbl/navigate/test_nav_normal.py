@@ -11,6 +11,7 @@ from bayes_mpem.lbl.navigate.normal import (
     global_covariance,
     marginal_covariances,
     solve,
+    solve_columns,
 )
 from bayes_mpem.lbl.navigate.objective import (
     Priors,
@@ -199,3 +200,11 @@ def test_missing_information_is_louis_identity_for_every_reply(free_k):
     np.testing.assert_allclose(got, want, rtol=1e-5, atol=1e-5 * np.abs(want).max())
     hard = (resp == resp.max(axis=1, keepdims=True)).astype(float)
     assert not np.any(_dense(*missing_information(dive, st, hard, free, free_k)))
+
+
+@pytest.mark.parametrize(("k", "g", "m"), [(5, 0, 2), (40, 3, 4)])
+def test_solve_columns_matches_the_dense_system(k, g, m):
+    ne, H = _random_system(k, g, seed=10 * k + g)
+    rhs = np.random.default_rng(k).normal(size=(2 * k + g, m))
+    x, y = solve_columns(ne, solve(ne), rhs[:2 * k], rhs[2 * k:])
+    np.testing.assert_allclose(np.vstack([x, y]), np.linalg.solve(H, rhs), atol=1e-9)

@@ -180,13 +180,15 @@ def _natural(post: BeaconPosterior, free: FreeCoordinates):
 
 
 def _proposal_start(free: FreeCoordinates, proposal, n: int, gen, rounds: int = 1000):
-    """``n`` proposal draws inside the support: the independence chains need no burn-in."""
+    """``n`` proposal draws inside the support, and the target there: no burn-in needed."""
     out = proposal.draw(n, gen)
+    lp = free(out)
     for _ in range(rounds):
-        bad = np.flatnonzero(~np.isfinite(free(out)))
+        bad = np.flatnonzero(~np.isfinite(lp))
         if bad.size == 0:
-            return out
+            return out, lp
         out[bad] = proposal.draw(bad.size, gen)
+        lp[bad] = free(out[bad])
     raise ValueError(f"the proposal put {rounds} draws in a row outside the support")
 
 
@@ -238,7 +240,8 @@ def beacon_chains(post: BeaconPosterior, gen: np.random.Generator, *, sampler="a
             info["fallback"] = ("no Gaussian approximation at the mode (Hessian not negative "
                                 "definite)")
         elif sampler == "auto":
-            pilot = run_ensembles(free, [_proposal_start(free, proposal, PILOT_WALKERS, gen)],
+            start, lp = _proposal_start(free, proposal, PILOT_WALKERS, gen)
+            pilot = run_ensembles(free, [start], start_log_prob=[lp],
                                   moves=independence_move(proposal), gen=gen,
                                   min_ess=np.inf, max_steps=PILOT_STEPS,
                                   n_draws=PILOT_WALKERS * PILOT_STEPS, natural=natural,
@@ -253,7 +256,8 @@ def beacon_chains(post: BeaconPosterior, gen: np.random.Generator, *, sampler="a
                     f"acceptance {pilot.acceptance:.2f})")
         if info["fallback"] is None:
             budget = sampler == "auto" and max_steps > INDEPENDENCE_BUDGET
-            run = run_ensembles(free, [_proposal_start(free, proposal, walkers, gen)],
+            start, lp = _proposal_start(free, proposal, walkers, gen)
+            run = run_ensembles(free, [start], start_log_prob=[lp],
                                 moves=independence_move(proposal), progress=progress,
                                 **{**opts, "max_steps": INDEPENDENCE_BUDGET if budget
                                    else max_steps, "warn": not budget})

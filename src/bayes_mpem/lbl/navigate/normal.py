@@ -142,6 +142,50 @@ def solve(ne: Normal) -> Step:
     return Step(dp.reshape(k, 2), dg, X, S)
 
 
+def solve_columns(ne: Normal, step: Step, rhs_p, rhs_g):
+    """Solve ``H [x; y] = [rhs_p; rhs_g]`` for several right-hand sides at once.
+
+    The same block elimination as :func:`solve`, reusing its ``X`` and Schur complement.
+
+    Parameters
+    ----------
+    ne : Normal
+    step : Step
+        :func:`solve` of ``ne``.
+    rhs_p : numpy.ndarray
+        ``(2K, m)`` track part of the right-hand sides.
+    rhs_g : numpy.ndarray
+        ``(G, m)`` globals' part.
+
+    Returns
+    -------
+    x : numpy.ndarray
+        ``(2K, m)``.
+    y : numpy.ndarray
+        ``(G, m)``.
+
+    Raises
+    ------
+    numpy.linalg.LinAlgError
+        When ``A`` is not positive definite.
+
+    Examples
+    --------
+    >>> ne = Normal(diag=np.array([[2.0, 0.0, 2.0]]), lam=np.zeros(0), B=np.array([[1.0], [0.0]]),
+    ...             C=np.array([[2.0]]), grad_p=np.zeros(2), grad_g=np.zeros(1))
+    >>> x, y = solve_columns(ne, solve(ne), np.array([[1.0], [0.0]]), np.array([[0.0]]))
+    >>> H = np.array([[2.0, 0, 1], [0, 2, 0], [1, 0, 2]])
+    >>> bool(np.allclose(np.r_[x[:, 0], y[:, 0]], np.linalg.solve(H, [1.0, 0, 0])))
+    True
+    """
+    cb = cholesky_banded(band(ne.diag, ne.lam), lower=True)
+    Y = cho_solve_banded((cb, True), rhs_p)
+    if not step.S.size:
+        return Y, np.zeros((0, rhs_p.shape[1]))
+    y = np.linalg.solve(step.S, rhs_g - _mat(ne.B, Y))
+    return Y - np.einsum("ig,gm->im", step.X, y), y
+
+
 def _track_inverse_blocks(diag, lam) -> np.ndarray:
     """Diagonal 2x2 blocks of ``A^{-1}`` by the forward-backward block recursion.
 

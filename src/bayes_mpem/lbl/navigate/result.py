@@ -92,6 +92,26 @@ def _num(v, spec: str) -> str:
     return "n/a" if v is None else format(v, spec)
 
 
+def _at_bound(node, path=()):
+    """Yield ``(path, record)`` of every estimate in ``node`` marked ``"at_bound"``."""
+    if isinstance(node, dict):
+        if node.get("at_bound") is True:
+            yield path, node
+        for k, v in node.items():
+            if k != "sigma_dp" or not path:  # a beacon's sigma_DP is the shared one
+                yield from _at_bound(v, (*path, str(k)))
+
+
+def _bound_line(path, rec) -> str:
+    lo = rec["interval"][0]
+    if path == ("sigma_dp",):
+        return f"sigma_DP at its floor {lo:g} m (one-sided interval)"
+    if len(path) >= 3 and path[0] == "beacons":
+        what = " ".join(("weight of" if p == "weights" else p) for p in path[2:])
+        return f"beacon {path[1]}: {what} at its bound {lo:g} (one-sided interval)"
+    return f"{' '.join(path)} at its bound {lo:g} (one-sided interval)"
+
+
 def quality_lines(summary: dict) -> list:
     """Every quality flag of a ``summary.json``, one line each (what the console prints).
 
@@ -103,8 +123,9 @@ def quality_lines(summary: dict) -> list:
     Returns
     -------
     list of str
-        Beacon flags and reasons, parameters at a bound, the observability flags,
-        non-convergence and the information behind the intervals.
+        Beacon flags and reasons, every estimate at a bound (wherever the summary
+        marks one ``"at_bound"``), the observability flags, non-convergence, the
+        information behind the intervals and the skipped beacons.
 
     Examples
     --------
@@ -120,13 +141,7 @@ def quality_lines(summary: dict) -> list:
         out += [f"beacon {bid}: {f}" for f in b.get("flags") or ()]
         if b.get("reason"):
             out.append(f"beacon {bid}: {b['reason']}")
-        for key in ("d0", "sigma_mp"):
-            if isinstance(b.get(key), dict) and b[key].get("at_bound"):
-                out.append(f"beacon {bid}: {key} at its bound {b[key]['interval'][0]:g} "
-                           "(one-sided interval)")
-    sdp = summary.get("sigma_dp")
-    if isinstance(sdp, dict) and sdp.get("at_bound"):
-        out.append(f"sigma_DP at its floor {sdp['interval'][0]:g} m (one-sided interval)")
+    out += [_bound_line(path, rec) for path, rec in _at_bound(summary)]
     for f in summary.get("observability") or ():
         if f.get("kind") == "track":
             out.append(f"navigation not corrected for t = {f['start']:.0f}-{f['end']:.0f} s "
@@ -249,19 +264,21 @@ class Navigation:
                "beacon_depth": depth}
         n_dp = float(self.resp[:, 0].sum())
         floor = float(self.options.get("sigma_floor", 0.0))
+        # MacKay's sd of log sigma (the residual degrees of freedom), else sqrt(2 n)'s
+        sd_log = (self.options.get("scale_uncertainty") or {}).get("sd_log_sigma", {})
         if self.options.get("sigma_dp") is not None:
             out["sigma_dp"] = {"estimate": finite(st.sigma_dp), "sd": None,
                                "interval": [None, None], "fixed": True}
         else:
-            out["sigma_dp"] = estimate(st.sigma_dp, st.sigma_dp / math.sqrt(2 * max(n_dp, 1)),
-                                       z, lo=0.0, bound=floor)
+            rel = sd_log.get("sigma_dp", 1.0 / math.sqrt(2 * max(n_dp, 1)))
+            out["sigma_dp"] = estimate(st.sigma_dp, st.sigma_dp * rel, z, lo=0.0, bound=floor)
         if info["mp"]:
             n_mp = float(resp[:, 1].sum())
             sd0 = self.global_sd.get(f"d0:{bid}", 0.0)
             out["d0"] = estimate(st.d0[j], sd0, z, lo=float(d.d0_min[j]))
             out["plane_depth"] = depth - float(st.d0[j])
-            out["sigma_mp"] = estimate(st.sigma_mp[j],
-                                       st.sigma_mp[j] / math.sqrt(2 * max(n_mp, 1)), z, lo=0.0,
+            rel = sd_log.get(f"sigma_mp:{bid}", 1.0 / math.sqrt(2 * max(n_mp, 1)))
+            out["sigma_mp"] = estimate(st.sigma_mp[j], st.sigma_mp[j] * rel, z, lo=0.0,
                                        bound=floor)
             out["path"] = "double" if st.double[j] else "triangle"
         else:
@@ -270,6 +287,9 @@ class Navigation:
         w = st.weights[j]
         out["weights"] = {c: estimate(w[i], math.sqrt(w[i] * (1 - w[i]) / max(n, 1)), z, lo=0.0)
                           for i, c in enumerate(CLASSES)}
+        if not info["mp"]:  # no multipath class: its weight is 0 by the model, not estimated
+            out["weights"]["mp"] = {"estimate": 0.0, "sd": None, "interval": [None, None],
+                                    "fixed": True}
         lab = np.argmax(resp, axis=1) if n else np.zeros(0, int)
         out["class_fractions"] = {c: finite(np.mean(lab == i)) if n else None
                                   for i, c in enumerate(CLASSES)}
@@ -311,8 +331,9 @@ class Navigation:
             "n_no_reply": int(d.survey.no_reply.sum()), "ci": ci,
             "pings": d.survey.pings_source, "beacons_file": d.survey.beacons_source,
             "information": self.options.get("information"),
+            "scale_uncertainty": self.options.get("scale_uncertainty"),
             "options": {k: v for k, v in self.options.items()
-                        if k not in ("rng", "ci", "information")},
+                        if k not in ("rng", "ci", "information", "scale_uncertainty")},
         }
 
     def to_dict(self) -> dict:

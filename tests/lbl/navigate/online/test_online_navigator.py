@@ -128,3 +128,21 @@ def test_online_matches_batch(preset, seed):
     rmse_online = np.sqrt(np.mean(np.sum((out.loc[sel, ["x", "y"]].to_numpy() - truth) ** 2, 1)))
     rmse_batch = np.sqrt(np.mean(np.sum((whole.track[k] - truth) ** 2, 1)))
     assert rmse_online < 1.5 * rmse_batch
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_staggered_ship_online_scale_does_not_collapse(seed):
+    """One range per epoch (issue 25): the online sigma_DP stays at the truth (0.2 m).
+
+    Before the warm-up handed the filter the batch's expected squares (the track's
+    uncertainty included), the plain squares restarted it at about 0.14 m.
+    """
+    from bayes_mpem.lbl.navigate.simulate import simulate_ship
+
+    sim = simulate_ship(rng=seed, n_cycles=500)
+    nav = Navigator(_beacons(sim), rng=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        out = nav.run(sim.survey.table)
+    assert (out["phase"] == "online").sum() > 250
+    assert 0.17 <= nav.dp.sigma <= 0.23

@@ -21,7 +21,6 @@ from .. import navigate
 from ..dive import build_dive
 from ..driver import MIN_SEPARATION, surface_separation
 from ..model import predict_ranges
-from ..objective import predictions
 from .ekf import PositionFilter
 from .kernel import class_probabilities, ranges
 from .reflector import BeaconModel, DirectPathScale
@@ -92,6 +91,35 @@ def beacon_stats(z, xy, depth, xyz, d0, double, resp):
     g = resp[:, 1]
     return (float(resp[:, 0].mean()), float(g.mean()), float(resp[:, 2].mean()),
             float(np.mean(g * jac * jac)), float(np.mean(g * jac * r)), float(np.mean(g * r * r)))
+
+
+def expected_squares(stats, sigma_mp):
+    """Replace the plain sum of squares of :func:`beacon_stats` by the batch's expected one.
+
+    The batch ECM's ``sigma_MP`` is the fixed point of the expected squared residual
+    ``r^2 + J P J^T`` (the track's uncertainty included); the plain ``<g r^2>`` is biased
+    low by the degrees of freedom the track takes. The returned statistics give back
+    ``sigma_mp`` exactly at the batch's plane height.
+
+    Parameters
+    ----------
+    stats : tuple of 6 float
+        :data:`.reflector.BEACON_STATS`.
+    sigma_mp : float
+        The batch's sigma_MP (m).
+
+    Returns
+    -------
+    tuple of 6 float
+
+    Examples
+    --------
+    >>> expected_squares((0.7, 0.2, 0.1, 0.2, 0.0, 0.2 * 4.0), 3.0)[5]
+    1.8
+    """
+    g_dp, g_mp, g_ol, jj, ju, _ = stats
+    uu = g_mp * sigma_mp ** 2 + (ju * ju / jj if jj > 0.0 else 0.0)
+    return (g_dp, g_mp, g_ol, jj, ju, uu)
 
 
 def _alternative(model, data, xy, depth, seed):
@@ -214,10 +242,12 @@ def batch_start(buffer, beacons: pd.DataFrame, opts: dict, seed: int, prior: dic
         m = dive.beacon == j
         xy, depth = st.track[dive.epoch[m]], dive.zdepth[m]
         if nav.beacons[bid]["mp"] and not nav.beacons[bid].get("flags"):
+            stats = expected_squares(
+                beacon_stats(dive.z[m], xy, depth, xyz, float(st.d0[j]), bool(st.double[j]),
+                             nav.resp[m]), float(st.sigma_mp[j]))
             models[bid] = BeaconModel.start(
                 d0=float(st.d0[j]), sigma_mp=float(st.sigma_mp[j]), weights=tuple(st.weights[j]),
-                stats=beacon_stats(dive.z[m], xy, depth, xyz, float(st.d0[j]), bool(st.double[j]),
-                                   nav.resp[m]), **common)
+                stats=stats, **common)
             if opts["path"] == AUTO:
                 data = BeaconData.from_arrays(dive.z[m], xy[:, 0], xy[:, 1], depth, xyz,
                                               time=dive.times[dive.epoch[m]], beacon=bid)
@@ -225,10 +255,11 @@ def batch_start(buffer, beacons: pd.DataFrame, opts: dict, seed: int, prior: dic
         else:  # too few replies, no multipath class, or a flagged fit: the prior
             models[bid] = prior_model(xyz, prior, mp_on=mp_on, path=opts["path"],
                                       d0_min=common["d0_min"], window=common["window"])
-    r_dp = dive.z - predictions(dive, st).direct
-    g = nav.resp[:, 0]
-    dp = DirectPathScale(st.sigma_dp, dive.n,
-                         stats=(float(g.mean()), float(np.mean(g * r_dp ** 2))),
+    # the batch's expected squares, <g (r^2 + J P J^T)> = <g> sigma^2 at its scales' fixed
+    # point (docs/navigate.md): the plain <g r^2> would restart the filter from the scale
+    # the track's degrees of freedom bias low (issue 25)
+    g = float(nav.resp[:, 0].mean())
+    dp = DirectPathScale(st.sigma_dp, dive.n, stats=(g, g * st.sigma_dp ** 2),
                          fixed=opts["sigma_dp"] is not None)
     record = {"replies": dive.n, "epochs": dive.n_epochs, "iterations": nav.n_iter,
               "converged": nav.converged, "corrected": nav.corrected,

@@ -1,0 +1,992 @@
+"""Posterior of a GNSS-A array (positions, sound speed, gradients, shot classes) with emcee.
+
+:class:`ArrayLogPosterior` is the array's mixture likelihood (that of
+:func:`~bayes_mpem.survey_in.array.locate_array`: each shot a true reply,
+``N(prediction, sigma)``, with its transponder's share ``w_k``, or spurious) with the
+EM's priors: flat positions, the sound speed's B-spline coefficients under the
+roughness penalty ``N(0, (lam H)^+)`` at the EM's smoothing weight (flat within
++-10 % of the EM's values), the gradient coefficients under their own penalty
+when fitted, ``p(sigma) ~ 1 / sigma`` and a flat prior on each share.
+:func:`sample_array` samples it with :func:`bayes_mpem.mcmc.run_ensembles`, started
+from the EM solution: an independence move from a Student-t proposal built from the
+EM's model-based covariance (the Laplace approximation at the EM's mode), unless a
+discarded pilot finds it fits poorly; then differential evolution. The result,
+:class:`ArrayPosterior`, writes an ArviZ DataTree (``posterior_array.nc``).
+
+Through a sound-speed profile the ray bending is followed to first order about the
+EM solution: a shot's travel time is ``r L(P) + c . (P - P_em)``, ``L`` the
+straight transmit and receive chords to the transponder ``P``, ``r`` the ratio of
+the eigenray time to the chord at the EM solution and ``c`` the difference of their
+gradients there (exact for straight rays; centimetres from the EM solution the
+error is below a nanosecond).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from .._rng import RNGLike, as_generator
+from ..mcmc import (
+    TProposal,
+    bulk_ess,
+    draw_moments,
+    equal_tailed,
+    rhat,
+    run_ensembles,
+    thin_index,
+    to_datatree,
+)
+from .array import (
+    GRADIENT_NAMES,
+    ArrayLocateResult,
+    ArrayTravelTimes,
+    gradient_design,
+    penalised_gauss_newton,
+)
+from .classes import log_classes, true_probability
+from .posterior import SIGMA_BOUNDS, SPEED_PRIOR_WIDTH, check_location_options
+from .travel_times import speed_basis, speed_penalty
+
+#: the pilot keeps the independence move at or above this bulk ESS per draw: lower than the
+#: beacon's 0.2, as differential evolution on 30-100 correlated parameters is far slower
+#: than an independence move at 0.05 (1,000 ESS in some 600 steps of 32 walkers)
+MIN_ESS_PER_DRAW = 0.05
+#: ... and at or below this R-hat
+MAX_PILOT_RHAT = 1.1
+#: walkers and steps of the pilot (discarded): twice the beacon's steps, as the largest
+#: R-hat of some 17 series of 32 draws exceeded 1.1 by chance (1.102 at 0.63 acceptance)
+PILOT_WALKERS, PILOT_STEPS = 32, 64
+#: walkers of the independence move
+N_WALKERS = 32
+#: degrees of freedom of the Student-t proposal (tens of dimensions: a lighter tail than
+#: the beacon's 10 keeps the proposal's radius near the target's)
+PROPOSAL_DF = 30.0
+#: rounds and draws of the importance-sampling re-centring of the proposal
+RECENTRE_ROUNDS, RECENTRE_DRAWS = 2, 2000
+#: an independence move that has not met the stopping rule after this many steps hands
+#: over to differential evolution
+INDEPENDENCE_BUDGET = 2000
+#: the three axes of a position
+AXES = ("east", "north", "up")
+#: units of the variables written (``units`` attributes)
+UNITS = {"position": "m", "centre": "m", "sound_speed": "m/s", "sigma": "s", "weight": "1",
+         "gradient": "(m/s)/km", "twtt": "s", "time": "s", "p_true": "1", "p_true_sd": "1",
+         "lp": "1"}
+
+
+def _sd(x):
+    return float(np.std(x, ddof=1))
+
+
+class ArrayLogPosterior:
+    """Log-posterior of an array's positions, sound speed, gradients and shot classes.
+
+    Parameters
+    ----------
+    shots : pandas.DataFrame
+        The shots the EM was fitted to (``fit.rows`` index it):
+        :data:`~bayes_mpem.survey_in.array.SHOT_COLUMNS`.
+    fit : ArrayLocateResult
+        The EM solution: fixes the model (profile, speed basis and smoothing weight,
+        gradients, windows, outlier density, which coordinates are free) and the start.
+
+    Attributes
+    ----------
+    names : tuple of str
+        The sampler's coordinates: the free position coordinates (``east_<id>``, ...;
+        ``position_<j>`` along the free directions when some are fixed or the array
+        moves as a rigid body), ``speed_<i>``, ``gradient_<i>``, ``log_sigma`` and
+        ``logit_weight_<id>``.
+    ndim : int
+    label : str
+
+    Examples
+    --------
+    >>> from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa
+    >>> from bayes_mpem.survey_in.array_survey import array_shots, locate_array_survey
+    >>> sim = simulate_gnssa(rng=0, hours=0.5, shot_interval=30.0)
+    >>> fit = locate_array_survey(sim.raw()).fits["array"]
+    >>> post = ArrayLogPosterior(array_shots(sim.raw()), fit)
+    >>> u = post.u_em()
+    >>> bool(np.allclose(post.predict(u[None])[0], post.model.predict(post.theta_em),
+    ...                  rtol=0, atol=1e-12))
+    True
+    """
+
+    def __init__(self, shots: pd.DataFrame, fit: ArrayLocateResult):
+        if not isinstance(fit, ArrayLocateResult):
+            raise TypeError(f"fit: expected an ArrayLocateResult, got {type(fit).__name__}")
+        m = fit.model
+        self.fit, self.ids, self.K = fit, tuple(fit.ids), len(fit.ids)
+        sub = shots.iloc[fit.rows].reset_index(drop=True)
+        self.index = np.asarray(fit.index)
+        self.t = sub["twtt"].to_numpy(float)
+        self.n = self.t.size
+        basis = speed_basis(sub, m["speed_intervals"], m["time_range"])
+        self.k = basis.shape[1]
+        design = (gradient_design(sub, self.index, fit.start, basis) if m.get("gradients")
+                  else None)
+        self.kg = 0 if design is None else design.shape[1]
+        self.model = ArrayTravelTimes(sub, self.index, self.K, basis, profile=m["profile"],
+                                      surface_depth=m["surface_depth"], gradients=design)
+        self.basis_t = np.ascontiguousarray(basis.T)
+        self.design_t = None if design is None else np.ascontiguousarray(design.T)
+        self.unit = float(m["unit"])
+        self.g = basis.mean(axis=0)  # the reported speed: the mean over the shots
+        sm = m.get("smoothing") or {}
+        self.lam = sm.get("weight")
+        self.lam_g = sm.get("gradient_weight")
+        self.H = None if self.lam is None else speed_penalty(m["speed_intervals"],
+                                                             m["time_range"])
+        P = 3 * self.K
+        theta = np.concatenate([np.asarray(fit.enu, float).ravel(), fit.speed_coef,
+                                np.zeros(self.kg)])
+        if self.kg:
+            theta[P + self.k:] = self._gradients_at_em(theta, fit)
+        self.theta_em = theta
+        self.pos_em = theta[:P].reshape(self.K, 3)
+        # geometry of the first-order ray bending about the EM solution
+        self.tx = np.column_stack([sub[f"{c}_tx"].to_numpy(float) for c in "enu"])
+        self.rx = np.column_stack([sub[f"{c}_rx"].to_numpy(float) for c in "enu"])
+        s_em, gain_em = basis @ fit.speed_coef, self._gain(theta[None, P + self.k:])[0]
+        T_em = self.model.predict(theta) * s_em / gain_em
+        J = self.model.jac(theta)
+        rows = np.arange(self.n)
+        dT = np.column_stack([J[rows, 3 * self.index + c] for c in range(3)])
+        dT *= (s_em / gain_em)[:, None]
+        L_em, dL = self._chords(self.pos_em[self.index][None], derivatives=True)
+        self.ratio = T_em / L_em[0]
+        self.corr = dT - self.ratio[:, None] * dL[0]
+        # the free directions of the positions (fixed coordinates, a rigid shift)
+        # the free directions of the positions: a fixed coordinate has a zero row in the
+        # EM's covariance; a rigid shift moves every transponder alike
+        free = np.any(np.asarray(fit.cov, float)[:P, :P] != 0.0, axis=1)
+        if (m.get("positions") or {}).get("mode", "").startswith("rigid"):
+            self.B = np.tile(np.eye(3), (self.K, 1))[:, free[:3]] / np.sqrt(self.K)
+        else:
+            self.B = np.eye(P)[:, free]
+        self.F = self.B.shape[1]
+        #: ``(K, 3)``: which coordinates are sampled (the others stay at the prior)
+        self.free = np.any(self.B != 0.0, axis=1).reshape(self.K, 3)
+        pos_names = ([f"{a}_{t}" for t in self.ids for a in AXES] if self.F == P
+                     else [f"position_{j}" for j in range(self.F)])
+        speed = ["speed"] if self.k == 1 else [f"speed_{i}" for i in range(self.k)]
+        self.names = tuple(pos_names + speed + [f"gradient_{i}" for i in range(self.kg)]
+                           + ["log_sigma"] + [f"logit_weight_{t}" for t in self.ids])
+        self.coef_em = theta[P:P + self.k].copy()
+        self.gc_em = theta[P + self.k:].copy()
+        self.width = SPEED_PRIOR_WIDTH * np.abs(self.coef_em)
+        cov = self._laplace(J, fit)
+        # speed and gradient coordinates: offsets from the EM in units of their sds, so the
+        # proposal's scale matrix is well conditioned (a stiff spline's coefficients are
+        # known to 1e-9 while the positions are known to 1e-2)
+        sd = np.sqrt(np.maximum(np.diag(cov), 1e-300))
+        self.scale = np.concatenate([np.ones(self.F), sd[self.F:]])
+        self.cov_geo = cov / np.outer(self.scale, self.scale)
+        self.Hc = None if self.H is None else self.H @ self.coef_em
+        self.Hg = (None if self.H is None or not self.kg else
+                   np.concatenate([self.H @ g for g in self.gc_em.reshape(-1, self.k)]))
+
+    def _laplace(self, J, fit):
+        """Return the Laplace covariance of (free positions, speed, gradients) at the EM.
+
+        The inverse of ``J'WJ / sigma^2 + lam H (+ lam_g H_g)``, Jacobi-scaled and inverted
+        by eigenvalues (the EM's own ``cov_model``, an unscaled inverse, loses its positive
+        definiteness when a stiff spline meets a depth-speed trade-off).
+        """
+        P, k, kg = 3 * self.K, self.k, self.kg
+        M = np.zeros((P + k + kg, self.F + k + kg))
+        M[:P, :self.F] = self.B
+        M[P:, self.F:] = np.eye(k + kg)
+        Jw = np.sqrt(np.asarray(fit.p_true, float))[:, None] * (J @ M)
+        A = Jw.T @ Jw / fit.sigma**2
+        if self.H is not None:
+            A[self.F:self.F + k, self.F:self.F + k] += self.lam * self.H
+            if kg and self.lam_g is not None:
+                for j in range(kg // k):
+                    a = self.F + k + j * k
+                    A[a:a + k, a:a + k] += self.lam_g * self.H
+        d = np.sqrt(np.maximum(np.diag(A), 1e-300))
+        vals, vecs = np.linalg.eigh(A / np.outer(d, d))
+        vals = np.maximum(vals, 1e-12 * vals.max())
+        return (vecs / vals) @ vecs.T / np.outer(d, d)
+
+    @property
+    def ndim(self) -> int:
+        """Number of sampled parameters."""
+        return len(self.names)
+
+    @property
+    def label(self) -> str:
+        """Progress-bar label."""
+        return f"array ({self.K} transponders)"
+
+    def _gradients_at_em(self, theta, fit):
+        """Return the gradient coefficients at the EM's positions and speed (conditional mode)."""
+        P, k = 3 * self.K, self.k
+        sw = np.sqrt(np.asarray(fit.p_true, float))
+
+        def full(gc):
+            return np.concatenate([theta[:P + k], gc])
+
+        def resid(gc):
+            return sw * (self.t - self.model.predict(full(gc)))
+
+        def jac(gc):
+            return -sw[:, None] * self.model.jac(full(gc))[:, P + k:]
+
+        Q = np.zeros((self.kg, self.kg))
+        if self.lam_g is not None:
+            for j in range(self.kg // k):
+                Q[j * k:(j + 1) * k, j * k:(j + 1) * k] = self.H
+            Q *= fit.sigma**2 * self.lam_g
+        return penalised_gauss_newton(resid, jac, np.zeros(self.kg), Q)
+
+    def _chords(self, P, derivatives=False):
+        """Transmit plus receive chord to ``P`` (``(W, n, 3)``), and its gradient in ``P``."""
+        a, b = P - self.tx, P - self.rx
+        la, lb = np.sqrt(np.einsum("...i,...i->...", a, a)), np.sqrt(np.einsum("...i,...i->...",
+                                                                                b, b))
+        if not derivatives:
+            return la + lb
+        return la + lb, a / la[..., None] + b / lb[..., None]
+
+    def _gain(self, gc):
+        """``exp(-gamma)`` of the gradient terms, ``(W, n)`` (1 without them)."""
+        if self.design_t is None:
+            return np.ones((gc.shape[0], self.n))
+        return np.exp(-(gc @ self.design_t))
+
+    def u_em(self) -> np.ndarray:
+        """Return the EM solution in the sampler's coordinates.
+
+        Returns
+        -------
+        numpy.ndarray
+        """
+        w = np.clip(np.asarray(self.fit.weights, float), 1e-6, 1 - 1e-6)
+        return np.concatenate([np.zeros(self.F + self.k + self.kg), [np.log(self.fit.sigma)],
+                               np.log(w) - np.log1p(-w)])
+
+    def split(self, u):
+        """Positions ``(W, K, 3)``, speed ``(W, k)``, gradients ``(W, kg)``, sigma, weights.
+
+        Parameters
+        ----------
+        u : array_like
+            ``(W, ndim)`` in the order of :attr:`names` (or one ``(ndim,)`` point).
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+        """
+        u = np.atleast_2d(np.asarray(u, float))
+        F, k, kg = self.F, self.k, self.kg
+        pos = (self.theta_em[:3 * self.K] + u[:, :F] @ self.B.T).reshape(-1, self.K, 3)
+        coef = self.coef_em + u[:, F:F + k] * self.scale[F:F + k]
+        gc = self.gc_em + u[:, F + k:F + k + kg] * self.scale[F + k:]
+        sigma = np.exp(u[:, F + k + kg])
+        w = 1.0 / (1.0 + np.exp(-u[:, F + k + kg + 1:]))
+        return pos, coef, gc, sigma, w
+
+    def predict(self, u):
+        """Predicted two-way travel times of a true reply, ``(W, n)``.
+
+        Parameters
+        ----------
+        u : array_like
+            ``(W, ndim)`` in the order of :attr:`names`.
+
+        Returns
+        -------
+        numpy.ndarray
+        """
+        pos, coef, gc, _, _ = self.split(u)
+        P = pos[:, self.index, :]  # (W, n, 3)
+        T = (self.ratio * self._chords(P)
+             + np.einsum("wni,ni->wn", P - self.pos_em[self.index], self.corr))
+        return T / (coef @ self.basis_t) * self._gain(gc)
+
+    def log_prior(self, u):
+        """Log prior density (up to a constant), ``(W,)``; ``-inf`` outside the support.
+
+        Parameters
+        ----------
+        u : array_like
+            ``(W, ndim)`` in the order of :attr:`names`.
+
+        Returns
+        -------
+        numpy.ndarray
+        """
+        u = np.atleast_2d(np.asarray(u, float))
+        F, k, kg = self.F, self.k, self.kg
+        # offsets from the EM's coefficients: the penalty c'Hc of a stiff spline, evaluated
+        # directly, cancels to round-off (c near 1, H c near 0) times a weight of 1e13
+        dc = u[:, F:F + k] * self.scale[F:F + k]
+        dg = u[:, F + k:F + k + kg] * self.scale[F + k:]
+        ls, lw = u[:, F + k + kg], u[:, F + k + kg + 1:]
+        ok = np.all(np.isfinite(u), axis=1)
+        ok &= np.all(np.abs(dc) <= self.width, axis=1)
+        ok &= (ls >= np.log(SIGMA_BOUNDS[0])) & (ls <= np.log(SIGMA_BOUNDS[1]))
+        lp = np.zeros(u.shape[0])
+        if self.H is not None:
+            lp -= 0.5 * self.lam * (2.0 * dc @ self.Hc + np.einsum("wi,ij,wj->w", dc, self.H,
+                                                                   dc))
+            if kg and self.lam_g is not None:
+                lp -= self.lam_g * (dg @ self.Hg)
+                for j in range(kg // k):
+                    g = dg[:, j * k:(j + 1) * k]
+                    lp -= 0.5 * self.lam_g * np.einsum("wi,ij,wj->w", g, self.H, g)
+        # a flat prior on each share: the Jacobian of the logit
+        lp -= np.sum(np.logaddexp(0.0, lw) + np.logaddexp(0.0, -lw), axis=1)
+        return np.where(ok, lp, -np.inf)
+
+    def class_log_densities(self, u):
+        """Weighted log densities (true, spurious) of every shot, each ``(W, n)``.
+
+        Parameters
+        ----------
+        u : array_like
+            ``(W, ndim)`` in the order of :attr:`names`.
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+        """
+        pred = self.predict(u)
+        _, _, _, sigma, w = self.split(u)
+        ld, lu = np.empty_like(pred), np.empty_like(pred)
+        for j, rows in enumerate(self.model.rows):
+            # log_classes at a weight of 1/2, re-weighted here for an array of weights
+            a, b = log_classes(self.t[rows], pred[:, rows], sigma[:, None], 0.5,
+                               self.fit.windows[j], self.fit.outliers)
+            ld[:, rows] = a + (np.log(w[:, [j]]) - np.log(0.5))
+            lu[:, rows] = b + (np.log1p(-w[:, [j]]) - np.log(0.5))
+        return ld, lu
+
+    def loglik(self, u):
+        """Log-likelihood, ``(W,)``.
+
+        Parameters
+        ----------
+        u : array_like
+            ``(W, ndim)`` in the order of :attr:`names`.
+
+        Returns
+        -------
+        numpy.ndarray
+        """
+        return np.logaddexp(*self.class_log_densities(u)).sum(axis=1)
+
+    def __call__(self, u):
+        """Log posterior (up to a constant) of a ``(W, ndim)`` array: emcee's target.
+
+        Parameters
+        ----------
+        u : numpy.ndarray
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(W,)``; ``-inf`` outside the prior.
+        """
+        u = np.atleast_2d(u)
+        lp = self.log_prior(u)
+        ok = np.isfinite(lp)
+        if ok.any():
+            lp[ok] += self.loglik(u[ok])
+        return lp
+
+    def natural(self, u) -> dict:
+        """Convert ``(..., ndim)`` to the reported quantities.
+
+        Parameters
+        ----------
+        u : array_like
+            ``(..., ndim)``.
+
+        Returns
+        -------
+        dict
+            ``position`` ``(..., K, 3)`` (m), ``centre`` ``(..., 3)``, ``speed_coef``
+            ``(..., k)``, ``sound_speed`` (m/s, the mean over the shots as the EM
+            reports it), ``gradient`` ``(..., 4)`` ((m/s)/km, time averages; only when
+            fitted), ``sigma`` (s) and ``weight`` ``(..., K)``.
+        """
+        u = np.asarray(u, float)
+        shape = u.shape[:-1]
+        pos, coef, gc, sigma, w = self.split(u.reshape(-1, self.ndim))
+        speed = (coef @ self.g) * self.unit
+        out = {"position": pos.reshape(*shape, self.K, 3),
+               "centre": pos.mean(axis=1).reshape(*shape, 3),
+               "speed_coef": coef.reshape(*shape, self.k), "sound_speed": speed.reshape(shape),
+               "sigma": sigma.reshape(shape), "weight": w.reshape(*shape, self.K)}
+        if self.kg:
+            per = gc.reshape(-1, self.kg // self.k, self.k) @ self.g  # (W, 4)
+            out["gradient"] = (per * speed[:, None]).reshape(*shape, self.kg // self.k)
+        return out
+
+    def proposal_cov(self) -> np.ndarray:
+        """Return the Laplace covariance at the EM solution, in the sampler's coordinates.
+
+        Positions, speed and gradients from the EM's model-based covariance
+        ``(J'WJ / sigma^2 + lam H)^-1``, ``log sigma`` with variance ``1 / (2 n_true)``,
+        each share's logit with ``1 / (n_k w_k (1 - w_k))``.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(ndim, ndim)``.
+        """
+        d = self.ndim
+        C = np.zeros((d, d))
+        ng = self.cov_geo.shape[0]
+        C[:ng, :ng] = self.cov_geo
+        p = np.asarray(self.fit.p_true, float)
+        C[ng, ng] = 1.0 / (2.0 * max(p.sum(), 2.0))
+        w = np.clip(np.asarray(self.fit.weights, float), 1e-3, 1 - 1e-3)
+        counts = np.bincount(self.index, minlength=self.K)
+        C[ng + 1:, ng + 1:] = np.diag(1.0 / (counts * w * (1 - w)))
+        return 0.5 * (C + C.T)
+
+    def proposal(self) -> TProposal | None:
+        """Return the Student-t proposal at the EM solution, scaled by :meth:`proposal_cov`.
+
+        Returns
+        -------
+        TProposal or None
+            None when the covariance is not positive definite.
+        """
+        try:
+            chol = np.linalg.cholesky(self.proposal_cov())
+        except np.linalg.LinAlgError:
+            return None
+        return TProposal(centre=self.u_em(), chol=chol, df=PROPOSAL_DF)
+
+
+def recentre(post, proposal: TProposal, gen, *, rounds=RECENTRE_ROUNDS,
+             n=RECENTRE_DRAWS) -> TProposal:
+    """Move the proposal's centre to the posterior mean estimated by importance sampling.
+
+    The EM's mode is not the posterior's mean in the sampler's coordinates (the
+    shares' logits, ``log sigma``, the classes' uncertainty); ``rounds`` times, ``n``
+    draws of the proposal weighted by ``p / q`` give the mean, the scale is kept.
+
+    Parameters
+    ----------
+    post : callable
+        Log density of ``(W, ndim)`` points.
+    proposal : TProposal
+    gen : numpy.random.Generator
+    rounds, n : int
+
+    Returns
+    -------
+    TProposal
+    """
+    for _ in range(rounds):
+        x = proposal.draw(n, gen)
+        lw = post(x) - proposal.log_density(x)
+        if not np.isfinite(lw).any():
+            break
+        w = np.exp(lw - np.max(lw[np.isfinite(lw)]))
+        w[~np.isfinite(w)] = 0.0
+        proposal = TProposal(centre=(w @ x) / w.sum(), chol=proposal.chol, df=proposal.df)
+    return proposal
+
+
+def _proposal_start(post, proposal, n, gen, rounds=1000):
+    """``n`` proposal draws inside the support."""
+    out = proposal.draw(n, gen)
+    for _ in range(rounds):
+        bad = np.flatnonzero(~np.isfinite(post(out)))
+        if bad.size == 0:
+            return out
+        out[bad] = proposal.draw(bad.size, gen)
+    raise ValueError(f"the proposal put {rounds} draws in a row outside the support")
+
+
+def _series(post: ArrayLogPosterior, chain) -> dict:
+    """Return the ``(steps, walkers)`` series whose ESS and R-hat the stopping rule checks."""
+    nat = post.natural(chain)
+    out = {}
+    for j, tid in enumerate(post.ids):  # fixed coordinates are constants: no ESS
+        for a, axis in enumerate(AXES):
+            if post.free[j, a]:
+                out[f"{axis}_{tid}"] = nat["position"][..., j, a]
+    for a, axis in enumerate(AXES):
+        if post.free[:, a].any():
+            out[f"centre_{axis}"] = nat["centre"][..., a]
+    out["sound_speed"] = nat["sound_speed"]
+    out["sigma"] = nat["sigma"]
+    return out
+
+
+@dataclass(frozen=True)
+class ArrayPosterior:
+    """Posterior of an array: positions, centre, sound speed, gradients, shot classes.
+
+    Attributes
+    ----------
+    ids : tuple of str
+        The transponders, in the order of the ``transponder`` axis.
+    names : tuple of str
+        The sampler's coordinates.
+    draws : dict
+        Thinned draws, ``(walker, draw, ...)``: ``position`` (``..., K, 3``, m),
+        ``centre`` (``..., 3``), ``speed_coef``, ``sound_speed`` (m/s), ``gradient``
+        (when fitted), ``sigma`` (s), ``weight`` (``..., K``), ``lp``, and ``theta`` in
+        the sampler's coordinates.
+    p_true, p_true_sd : numpy.ndarray
+        Per shot used: mean and sd over the draws of the probability of a true reply.
+    rows : numpy.ndarray
+        Positions of those shots in the input table.
+    shots : pandas.DataFrame
+        ``line``, ``time`` (s), ``transponder``, ``twtt`` (s) of those shots.
+    ess, rhat : dict
+        ArviZ's bulk ESS and R-hat of the written draws (walkers as chains): keys
+        ``<axis>_<id>``, ``centre_<axis>``, ``sound_speed``, ``sigma``.
+    em : ArrayLocateResult
+    diagnostics : dict
+    ci : float
+    """
+
+    ids: tuple
+    names: tuple
+    draws: dict = field(repr=False)
+    p_true: np.ndarray = field(repr=False)
+    p_true_sd: np.ndarray = field(repr=False)
+    rows: np.ndarray = field(repr=False)
+    shots: pd.DataFrame = field(repr=False)
+    ess: dict = field(default_factory=dict)
+    rhat: dict = field(default_factory=dict)
+    em: ArrayLocateResult = field(default=None, repr=False)
+    diagnostics: dict = field(default_factory=dict)
+    ci: float = 0.95
+
+    @property
+    def converged(self) -> bool:
+        """Whether the chain met its stopping rule before ``max_steps``."""
+        return bool(self.diagnostics.get("converged", False))
+
+    def describe(self, x, ci: float | None = None) -> dict:
+        """``mean``, ``sd`` and equal-tailed ``interval`` of draws ``x``.
+
+        Parameters
+        ----------
+        x : numpy.ndarray
+            Draws (all axes pooled).
+        ci : float, optional
+            Default: the probability the posterior was summarised with.
+
+        Returns
+        -------
+        dict
+        """
+        ci = self.ci if ci is None else float(ci)
+        return {"mean": float(np.mean(x)), "sd": _sd(x), "interval": equal_tailed(x, ci)}
+
+    def position(self, tid: str, ci: float | None = None) -> dict:
+        """East, north, up of one transponder, each described (:meth:`describe`).
+
+        Parameters
+        ----------
+        tid : str
+        ci : float, optional
+
+        Returns
+        -------
+        dict
+        """
+        j = self.ids.index(str(tid))
+        return {a: self.describe(self.draws["position"][..., j, i], ci)
+                for i, a in enumerate(AXES)}
+
+    def centre(self, ci: float | None = None) -> dict:
+        """East, north, up of the array centre, each described (:meth:`describe`).
+
+        Parameters
+        ----------
+        ci : float, optional
+
+        Returns
+        -------
+        dict
+        """
+        return {a: self.describe(self.draws["centre"][..., i], ci) for i, a in enumerate(AXES)}
+
+    def to_inference_data(self):
+        """ArviZ data of the kept draws, walkers as chains; units and shot times attached.
+
+        Returns
+        -------
+        xarray.DataTree
+            ``posterior`` (``position`` over ``transponder`` and ``axis``, ``centre``,
+            ``speed_coef`` over ``knot``, ``sound_speed``, ``gradient`` over
+            ``gradient_term`` when fitted, ``sigma``, ``weight``), ``sample_stats``
+            (``lp``), ``observed_data`` (``twtt`` over ``shot``: the input row, with the
+            shot's ``time``, ``transponder`` and file ``line``) and ``class_probabilities``
+            (``p_true``, ``p_true_sd`` per shot, averaged over the draws).
+        """
+        import emcee
+        import xarray as xr
+
+        d = self.draws
+        post = {k: d[k] for k in ("position", "centre", "speed_coef", "sound_speed",
+                                  "gradient", "sigma", "weight") if k in d}
+        dims = {"position": ["transponder", "axis"], "centre": ["axis"],
+                "speed_coef": ["knot"], "gradient": ["gradient_term"],
+                "weight": ["transponder"], "twtt": ["shot"]}
+        coords = {"transponder": list(self.ids), "axis": list(AXES),
+                  "knot": np.arange(d["speed_coef"].shape[-1]),
+                  "gradient_term": list(GRADIENT_NAMES), "shot": np.asarray(self.rows)}
+        tree = to_datatree(
+            {"posterior": post, "sample_stats": {"lp": d["lp"]},
+             "observed_data": {"twtt": self.shots["twtt"].to_numpy(float)}},
+            dims=dims, coords=coords,
+            attrs={"kind": "GNSS-A array", "transponders": ",".join(self.ids),
+                   "sampler": f"emcee {emcee.__version__} ({self.diagnostics.get('moves')})",
+                   "frame": "local east, north, up (m) of the survey",
+                   "speed_coef_unit": self.diagnostics.get("speed_coef_unit", ""),
+                   "ci": self.ci})
+        tree["class_probabilities"] = xr.DataTree(xr.Dataset(
+            {"p_true": ("shot", self.p_true), "p_true_sd": ("shot", self.p_true_sd)},
+            coords={"shot": coords["shot"]}))
+        for name in tree.children:
+            ds = tree[name].to_dataset()
+            if "shot" in ds.dims:
+                ds = ds.assign_coords(
+                    time=("shot", self.shots["time"].to_numpy(float)),
+                    shot_transponder=("shot", self.shots["transponder"].astype(str).to_numpy()),
+                    line=("shot", self.shots["line"].to_numpy()))
+                ds["shot"].attrs.update(long_name="input row")
+            for var in list(ds.data_vars) + list(ds.coords):
+                if var in UNITS:
+                    ds[var].attrs["units"] = UNITS[var]
+            tree[name] = xr.DataTree(ds)
+        return tree
+
+    def to_dict(self, ci: float | None = None) -> dict:
+        """JSON-ready summary: positions, centre, sound speed, gradients, diagnostics.
+
+        Parameters
+        ----------
+        ci : float, optional
+
+        Returns
+        -------
+        dict
+        """
+        ci = self.ci if ci is None else float(ci)
+        d = self.draws
+        out = {"transponders": {t: self.position(t, ci) for t in self.ids},
+               "array_centre": self.centre(ci),
+               "sound_speed": {**self.describe(d["sound_speed"], ci), "unit": "m/s"},
+               "sigma_ms": {k: (1e3 * v if k != "interval" else [1e3 * x for x in v])
+                            for k, v in self.describe(d["sigma"], ci).items()},
+               "weight_true": {t: self.describe(d["weight"][..., j], ci)
+                               for j, t in enumerate(self.ids)},
+               "ess": dict(self.ess), "rhat": dict(self.rhat),
+               "diagnostics": dict(self.diagnostics), "ci": ci}
+        if "gradient" in d:
+            out["gradients"] = {name: self.describe(d["gradient"][..., j], ci)
+                                for j, name in enumerate(GRADIENT_NAMES)}
+        return out
+
+
+def sample_array(shots: pd.DataFrame, fit: ArrayLocateResult, *, n_walkers: int | None = None,
+                 ci: float = 0.95, min_ess: float = 1000.0, max_steps: int = 20000,
+                 n_draws: int = 4000, sampler: str = "auto", rng: RNGLike = None,
+                 progress="auto") -> ArrayPosterior:
+    """Sample the posterior of an array and its shot classes, from the EM solution.
+
+    Parameters
+    ----------
+    shots : pandas.DataFrame
+        The shots ``fit`` was located from
+        (:func:`~bayes_mpem.survey_in.array_survey.array_shots`).
+    fit : ArrayLocateResult
+        The EM solution (:func:`~bayes_mpem.survey_in.array.locate_array`).
+    n_walkers : int, optional
+        Default :data:`N_WALKERS` (independence move) or ``max(32, 2 ndim + 2)``
+        (differential evolution).
+    ci : float, default 0.95
+        Probability of the equal-tailed intervals.
+    min_ess : float, default 1000
+        Run until the smallest bulk ESS (positions, centre, mean speed, sigma) reaches
+        this and R-hat < 1.01.
+    max_steps : int, default 20000
+    n_draws : int, default 4000
+        Draws kept at least (a longer chain is thinned evenly).
+    sampler : {"auto", "independence", "ensemble"}
+        The independence move from the Laplace proposal, differential evolution, or
+        the first unless a discarded pilot finds it fits poorly (the default).
+    rng : None, int or numpy.random.Generator
+        Same seed, same chain.
+    progress : bool or {"auto", "bar", "log"}
+
+    Returns
+    -------
+    ArrayPosterior
+
+    Raises
+    ------
+    TypeError
+        When ``fit`` is not an :class:`ArrayLocateResult`.
+    ValueError
+        For invalid options.
+
+    Warns
+    -----
+    SamplingWarning
+        When the chain reaches ``max_steps`` before its stopping rule.
+
+    Examples
+    --------
+    >>> from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa
+    >>> from bayes_mpem.survey_in.array_survey import array_shots, locate_array_survey
+    >>> sim = simulate_gnssa(rng=0, hours=0.5, shot_interval=30.0)
+    >>> fit = locate_array_survey(sim.raw()).fits["array"]
+    >>> post = sample_array(array_shots(sim.raw()), fit, min_ess=200, rng=0, progress=False)
+    >>> post.draws["position"].shape[-2:], post.converged
+    ((4, 3), True)
+    """
+    from ..mcmc.moves import (
+        DEFAULT_MOVES_LABEL,
+        INDEPENDENCE_LABEL,
+        default_moves,
+        independence_move,
+    )
+    from ..mcmc.progress import progress_mode, say
+
+    check_location_options(n_walkers=n_walkers, ci=ci, min_ess=min_ess, max_steps=max_steps,
+                           n_draws=n_draws)
+    if sampler not in ("auto", "independence", "ensemble"):
+        raise ValueError(f"sampler: expected one of auto, independence, ensemble, got "
+                         f"{sampler!r}")
+    post = ArrayLogPosterior(shots, fit)
+    gen = as_generator(rng)
+    t0 = time.perf_counter()
+
+    def natural(chain):
+        return _series(post, chain)
+
+    opts = {"gen": gen, "min_ess": float(min_ess), "n_draws": int(n_draws), "natural": natural,
+            "label": post.label, "stacklevel": 2}
+    info = {"fallback": None}
+    proposal = post.proposal() if sampler != "ensemble" else None
+    if proposal is not None:
+        proposal = recentre(post, proposal, gen)
+    run = None
+    if sampler != "ensemble" and proposal is None:
+        info["fallback"] = "the EM's covariance is not positive definite"
+    elif sampler == "auto":
+        pilot = run_ensembles(post, [_proposal_start(post, proposal, PILOT_WALKERS, gen)],
+                              moves=independence_move(proposal), gen=gen, min_ess=np.inf,
+                              max_steps=PILOT_STEPS, n_draws=PILOT_WALKERS * PILOT_STEPS,
+                              natural=natural, progress=False, warn=False)
+        per_draw = pilot.ess / (PILOT_WALKERS * PILOT_STEPS)
+        info["pilot"] = {"ess_per_draw": per_draw, "rhat": pilot.rhat,
+                         "acceptance": pilot.acceptance,
+                         "draws": PILOT_WALKERS * PILOT_STEPS}
+        if per_draw < MIN_ESS_PER_DRAW or not pilot.rhat <= MAX_PILOT_RHAT:
+            info["fallback"] = (f"the Laplace proposal fits poorly (pilot: ESS {per_draw:.2f} "
+                                f"per draw, R-hat {pilot.rhat:.3f}, acceptance "
+                                f"{pilot.acceptance:.2f})")
+    if sampler != "ensemble" and info["fallback"] is None:
+        walkers = int(n_walkers or N_WALKERS)
+        budget = sampler == "auto" and max_steps > INDEPENDENCE_BUDGET
+        run = run_ensembles(post, [_proposal_start(post, proposal, walkers, gen)],
+                            moves=independence_move(proposal), progress=progress,
+                            max_steps=INDEPENDENCE_BUDGET if budget else int(max_steps),
+                            warn=not budget, **opts)
+        info.update(moves=INDEPENDENCE_LABEL, proposal_df=PROPOSAL_DF)
+        if budget and not run.converged:
+            info["fallback"] = (f"the independence move did not meet the stopping rule in "
+                                f"{INDEPENDENCE_BUDGET} steps ({run.status})")
+            run = None
+    if run is None:
+        if progress_mode(progress) == "log" and info["fallback"]:
+            say(post.label, f"{info['fallback']}; differential evolution instead")
+        walkers = int(n_walkers or max(32, 2 * post.ndim + 2))
+        q = proposal or TProposal(centre=post.u_em(), chol=np.diag(np.sqrt(np.maximum(
+            np.abs(np.diag(post.proposal_cov())), 1e-30))), df=PROPOSAL_DF)
+        ball = TProposal(centre=q.centre, chol=0.5 * q.chol, df=q.df)
+        run = run_ensembles(post, [_proposal_start(post, ball, walkers, gen)],
+                            moves=default_moves(), burn_in=True, progress=progress,
+                            max_steps=int(max_steps), **opts)
+        info["moves"] = DEFAULT_MOVES_LABEL
+    seconds = time.perf_counter() - t0
+    idx, thin = thin_index(run.chain.shape[0], walkers, n_draws)
+    theta = np.swapaxes(run.chain[idx], 0, 1)  # (walker, draw, ndim)
+    draws = {k: np.ascontiguousarray(v) for k, v in post.natural(theta).items()}
+    draws["lp"] = np.ascontiguousarray(np.swapaxes(run.log_prob[idx], 0, 1))
+    draws["theta"] = theta
+    series = _series(post, theta)
+    ess = bulk_ess(series)
+    flat = theta.reshape(-1, post.ndim)
+    _, p, p_sd = draw_moments(
+        flat, lambda u: (None, [true_probability(*post.class_log_densities(u))]))
+    sub = shots.iloc[fit.rows]
+    table = pd.DataFrame({"line": (sub["line"].to_numpy() if "line" in sub.columns
+                                   else np.asarray(fit.rows)),
+                          "time": sub["time"].to_numpy(float),
+                          "transponder": sub["transponder"].astype(str).to_numpy(),
+                          "twtt": sub["twtt"].to_numpy(float)})
+    refracted = fit.model.get("profile") is not None
+    diagnostics = {
+        "n_walkers": walkers, "n_steps": run.n_steps, "burn": int(run.burn), "thin": int(thin),
+        "n_draws": int(flat.shape[0]), "converged": bool(run.converged),
+        "acceptance": run.acceptance, "seconds": float(seconds), "min_ess": float(min_ess),
+        "ndim": post.ndim, **{k: v for k, v in info.items() if v is not None},
+        "smoothing_weight": post.lam, "gradient_weight": post.lam_g,
+        "hyperparameters": "the smoothing weights held at the EM's marginal-likelihood choice",
+        "speed_coef_unit": ("scale of the profile (dimensionless)" if refracted else "m/s"),
+        "travel_times": ("refracted rays: ray bending to first order about the EM solution"
+                         if refracted else "straight rays (exact)")}
+    return ArrayPosterior(ids=post.ids, names=post.names, draws=draws, p_true=p[:, 0],
+                          p_true_sd=p_sd[:, 0], rows=np.asarray(fit.rows), shots=table,
+                          ess=ess, rhat={k: rhat(v) for k, v in series.items()}, em=fit,
+                          diagnostics=diagnostics, ci=float(ci))
+
+
+def _covariance(x) -> dict:
+    """``{"names", "matrix"}`` of the sample covariance of ``(..., 3)`` east, north, up draws."""
+    C = np.cov(np.asarray(x).reshape(-1, 3), rowvar=False)
+    return {"names": list(AXES), "matrix": [[float(v) for v in row] for row in C]}
+
+
+def _with_posterior(em: dict, enu: dict, origin) -> dict:
+    """Return an EM entry with its east, north, up (depth, lat, lon) from the posterior."""
+    from ..io.geodesy import enu_to_geodetic
+
+    out = dict(em)
+    out["enu"] = {a: {**enu[a], "interval_method": "posterior"} for a in AXES}
+    if "east" in em:
+        out["east"], out["north"] = out["enu"]["east"], out["enu"]["north"]
+        up = enu["up"]
+        out["depth"] = {"mean": -up["mean"], "sd": up["sd"],
+                        "interval": [-up["interval"][1], -up["interval"][0]],
+                        "interval_method": "posterior"}
+    if origin:
+        lat, lon, h = enu_to_geodetic(enu["east"]["mean"], enu["north"]["mean"],
+                                      enu["up"]["mean"], origin["lat"], origin["lon"],
+                                      origin["height"])
+        out.update(lat=float(lat), lon=float(lon), height=float(h))
+    return out
+
+
+def locate_array_survey_bayes(raw, *, ci=0.95, outliers="uniform", ssp=None,
+                              speed_intervals=None, gradients="auto", knot_minutes=None,
+                              n_walkers=None, min_ess=1000.0, max_steps=20000, n_draws=4000,
+                              rng: RNGLike = None, progress="auto"):
+    """Locate a GNSS-A array by EM, then sample its posterior (``locate --sample``).
+
+    Parameters
+    ----------
+    raw : RawSurvey
+        A GARPOS or GNATSS survey (or a SeaGap survey of several transponders).
+    ci, outliers, ssp, speed_intervals, gradients, knot_minutes
+        As for :func:`~bayes_mpem.survey_in.array_survey.locate_array_survey`
+        (``knot_minutes=None``: its default).
+    n_walkers, min_ess, max_steps, n_draws, progress
+        As for :func:`sample_array`.
+    rng : None, int or numpy.random.Generator
+
+    Returns
+    -------
+    SurveyInResult
+        As ``locate_array_survey``'s, every position, the array centre, the sound
+        speed (and the gradients) from the posterior (mean, sd and equal-tailed
+        interval, ``"interval_method": "posterior"``, the EM's entry kept under
+        ``em``; each transponder's bulk ESS and R-hat under ``posterior``), the
+        classes from the posterior (with ``p_true_sd``), and ``posteriors``
+        ``{"array": ArrayPosterior}`` (written as ``posterior_array.nc``).
+    """
+    import copy
+
+    from .array_survey import array_shots, locate_array_survey
+    from .result import SurveyInResult
+
+    check_location_options(n_walkers=n_walkers, ci=ci, min_ess=min_ess, max_steps=max_steps,
+                           n_draws=n_draws)
+    knots = {} if knot_minutes is None else {"knot_minutes": knot_minutes}
+    located = locate_array_survey(raw, ci=ci, outliers=outliers, ssp=ssp,
+                                  speed_intervals=speed_intervals, gradients=gradients, **knots)
+    fit = located.fits["array"]
+    shots = array_shots(raw)
+    post = sample_array(shots, fit, n_walkers=n_walkers, ci=ci, min_ess=min_ess,
+                        max_steps=max_steps, n_draws=n_draws, rng=rng, progress=progress)
+    s = copy.deepcopy(located.summary)
+    origin = s["geometry"].get("origin")
+    d = post.draws
+    for j, tid in enumerate(post.ids):
+        em = s["transponders"][tid]
+        entry = _with_posterior(em, post.position(tid, ci), origin)
+        true = post.p_true[fit.index == j]
+        entry.update(
+            covariance=_covariance(d["position"][..., j, :]),
+            sigma_ms=1e3 * float(np.mean(d["sigma"])),
+            weight_true=float(np.mean(d["weight"][..., j])), n_spurious=int(np.sum(true < 0.5)),
+            sound_speed={**post.describe(d["sound_speed"], ci), "interval_method": "posterior"},
+            interval_method="posterior", converged=post.converged,
+            posterior={"ess": {a: post.ess[f"{a}_{tid}"] for a in AXES
+                               if f"{a}_{tid}" in post.ess},
+                       "rhat": {a: post.rhat[f"{a}_{tid}"] for a in AXES
+                                if f"{a}_{tid}" in post.rhat},
+                       "diagnostics": dict(post.diagnostics)},
+            em=em)
+        s["transponders"][tid] = entry
+    cen = s["array_centre"]
+    s["array_centre"] = {**_with_posterior(cen, post.centre(ci), origin),
+                         "covariance": _covariance(d["centre"]),
+                         "ess": {a: post.ess[f"centre_{a}"] for a in AXES
+                                 if f"centre_{a}" in post.ess},
+                         "rhat": {a: post.rhat[f"centre_{a}"] for a in AXES
+                                  if f"centre_{a}" in post.rhat}, "em": cen}
+    ss = s["sound_speed"]
+    s["sound_speed"] = {**ss, **post.describe(d["sound_speed"], ci),
+                        "interval_method": "posterior",
+                        "em": {k: ss[k] for k in ("mean", "sd", "interval")}}
+    if "gradient" in d:
+        g = s["gradients"]
+        s["gradients"] = {**g, **{name: {**post.describe(d["gradient"][..., j], ci),
+                                         "em": g.get(name)}
+                                  for j, name in enumerate(GRADIENT_NAMES)}}
+    summary_post = post.to_dict(ci)
+    s["posterior"] = {k: summary_post[k] for k in ("sigma_ms", "weight_true", "ess", "rhat",
+                                                    "diagnostics")}
+    s["posterior"]["file"] = "posterior_array.nc"
+    s["method"] = (s["method"] + "; emcee posterior from the EM solution (smoothing weights "
+                   "held at the EM's), equal-tailed intervals")
+    s["interval_method"] = "posterior"
+    s["ci"] = ci
+    s["position_region"] = (f"posterior sds and equal-tailed {100 * ci:g} % intervals; "
+                            "covariances from the draws")
+    cls = located.classified.copy()
+    # a line may hold the replies of several transponders (GNATSS): the shot is its file,
+    # line, transponder and travel time
+    keys = [c for c in ("file", "line") if c in cls.columns and c in shots.columns]
+    sub = shots.iloc[fit.rows]
+    used = sub[keys + ["twtt"]].reset_index(drop=True)
+    used.insert(len(keys), "transponder", sub["transponder"].astype(str).to_numpy())
+    keys += ["transponder", "twtt"]
+    at = pd.MultiIndex.from_frame(cls[keys]).get_indexer(pd.MultiIndex.from_frame(used))
+    if np.any(at < 0):
+        raise RuntimeError("array posterior: a located shot was not found in the classified "
+                           "table (a bug: please report it)")
+    p_sd = np.full(len(cls), np.nan)
+    p_true = cls["p_true"].to_numpy(float).copy()
+    p_true[at], p_sd[at] = post.p_true, post.p_true_sd
+    located_rows = np.zeros(len(cls), bool)
+    located_rows[at] = True
+    cls["p_true"], cls["p_spurious"] = p_true, 1.0 - p_true
+    cls.loc[located_rows, "label"] = np.where(p_true[located_rows] >= 0.5, "true", "spurious")
+    cls.insert(cls.columns.get_loc("p_spurious") + 1, "p_true_sd", p_sd)
+    return SurveyInResult(summary=s, classified=cls, posteriors={"array": post},
+                          fits={"array": fit})

@@ -1,12 +1,7 @@
-"""The commands of ``bayes-mpem``, in one table.
+"""The commands of ``bayes-mpem`` in one table, every object named as text (docs/architecture.md).
 
-The parser, the dispatch, the batch and ``bayes-mpem plot`` are drawn from it.
-
-Each entry names its objects by ``"module:attribute"`` text relative to the package,
-loaded on first use by :func:`load`, so reading the table imports nothing (``bayes-mpem
---help`` loads no numpy). Each layer loads only its own names or lower ones: the command
-line its functions, options and keyword builders; ``report`` the result types and their
-figures; ``batch`` the library calls. Adding a command is one more entry.
+Reading the table imports nothing (``bayes-mpem --help`` loads no numpy); :func:`load`
+imports a ``"module:attribute"`` name on first use. Adding a command is one more entry.
 """
 
 from __future__ import annotations
@@ -20,25 +15,42 @@ Batch = namedtuple("Batch", "kwargs run rows inputs files quiet", defaults=(
     "batch.commands:survey_rows", LBL_INPUTS, LBL_INPUTS, False))
 Batch.__doc__ = """How ``bayes-mpem batch`` runs a command on one survey of a manifest.
 
-``kwargs``: the command line's builder of the library's keywords from the parsed
-options; ``run``: the library call, ``run(*inputs, **options)``; ``rows``:
-``rows(result) -> (per-beacon summaries, classified table or None)``; ``inputs``: the
-manifest's input columns, in ``run``'s order; ``files``: those that are files (hashed,
-resolved against the manifest); ``quiet``: ``run`` takes ``progress``, off unless given.
+Attributes
+----------
+kwargs : str
+    The command line's builder of the library's keywords from the parsed options.
+run : str
+    The library call, ``run(*inputs, **options)``.
+rows : str
+    ``rows(result) -> (per-beacon summaries, classified table or None)``.
+inputs, files : tuple of str
+    The manifest's input columns, in ``run``'s order; those that are files (hashed).
+quiet : bool
+    ``run`` takes ``progress``, off unless given.
 """
 
 Command = namedtuple("Command", "module options result folder figures palette units batch",
                      defaults=(None, ("summary.json", ()), None, False, False, None))
 Command.__doc__ = """One sub-command of ``bayes-mpem``.
 
-``module``: the command-line module of its ``cmd_<name>``; ``options``:
-``options(subparsers)`` adds its sub-parser; ``result``: its result type, with
-``write(folder)`` and the classmethod ``read(folder)``; ``folder``: ``(file, keys)``, a
-folder holds this result when ``file``'s JSON object has every key of ``keys``
-(``bayes-mpem plot``); ``figures``: ``figures(result, out, *, truth=None, ...)`` draws the
-result and returns the paths; ``palette``: it draws figures, so takes ``--palette``;
-``units``: it reads pings and beacons tables, so takes the input units; ``batch``: how
-``bayes-mpem batch`` runs it, if it can.
+Attributes
+----------
+module : str
+    The command-line module of its ``cmd_<name>``.
+options : str
+    ``options(subparsers)`` adds its sub-parser.
+result : str or None
+    Its result type, with ``write(folder)`` and the classmethod ``read(folder)``.
+folder : tuple
+    ``(file, keys)``: a folder holds this result when ``file``'s JSON object has every
+    key of ``keys`` (``bayes-mpem plot``).
+figures : str or None
+    ``figures(result, out, *, truth=None, ...)`` draws the result, returns the paths.
+palette, units : bool
+    It draws figures (takes ``--palette``); it reads pings and beacons tables (takes
+    the input units).
+batch : Batch or None
+    How ``bayes-mpem batch`` runs it, if it can.
 """
 
 
@@ -84,7 +96,12 @@ COMMANDS: dict[str, Command] = {
 
 
 def load(name: str):
-    """Return the object a table entry names (``"module:attribute"``, relative to the package).
+    """Return the object a name of the table stands for.
+
+    Parameters
+    ----------
+    name : str
+        ``"module:attribute"``, the module relative to the package.
 
     Examples
     --------

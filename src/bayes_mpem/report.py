@@ -1,9 +1,4 @@
-"""Figures and summaries written to an output folder, and reading such a folder back.
-
-Both follow the command table (:data:`bayes_mpem.commands.COMMANDS`): a result is drawn by
-the ``figures`` of the command whose result type it is, and a folder is read by the
-``read`` of the first result type whose ``folder`` entry it matches.
-"""
+"""Figures and ``summary.md`` of an output folder, and the folder read back (``docs/cli.md``)."""
 
 from __future__ import annotations
 
@@ -23,8 +18,8 @@ from .plots import survey_in as survey_in_plots
 from .plots.diagnose import write_figures as write_diagnosis_figures
 
 __all__ = ["POL_GRID", "comparison_figures", "demo_markdown", "diagnosis_figures",
-           "figure_beacon", "fit_figures", "load_output", "locate_figures",
-           "navigation_figures", "posterior_figures", "write_figures"]
+           "fit_figures", "load_output", "locate_figures", "navigation_figures",
+           "posterior_figures", "write_figures"]
 
 
 def _save(fig, path, dpi=110):
@@ -32,25 +27,6 @@ def _save(fig, path, dpi=110):
         return write_file(path, lambda tmp: fig.savefig(tmp, dpi=dpi))
     finally:
         plt.close(fig)
-
-
-def figure_beacon(survey_fit, beacon=None) -> str:
-    """Return the beacon of a fit's single-beacon figures (the paper's Figs. 7, 9-12).
-
-    Parameters
-    ----------
-    survey_fit : SurveyFit
-        With at least one fitted beacon.
-    beacon : str, optional
-        Default: the last fitted beacon (the paper uses its beacon 4).
-
-    Raises
-    ------
-    ValueError
-        When ``beacon`` was not fitted.
-    """
-    b = beacon or list(survey_fit.results)[-1]
-    return check_choice("beacon", b, sorted(survey_fit.results))
 
 
 def write_figures(result, out_dir, *, beacon=None, truth=None, general=True,
@@ -61,13 +37,12 @@ def write_figures(result, out_dir, *, beacon=None, truth=None, general=True,
     ----------
     result : object
         The result type of a command (:data:`bayes_mpem.commands.COMMANDS`), drawn by
-        that command's ``figures``; made by the library or read back by
-        :func:`load_output`. A result with nothing to draw (no fitted beacon or
-        transponder) writes no figure.
+        that command's ``figures``; one with nothing to draw writes no figure.
     out_dir : str or pathlib.Path
         Created if missing.
     beacon : str, optional
-        Beacon of the single-beacon figures of a fit (:func:`figure_beacon`).
+        Beacon of a fit's single-beacon figures (the paper's Figs. 7, 9-12; default the
+        last fitted beacon, as the paper's beacon 4).
     truth : dict or pandas.DataFrame, optional
         ``Simulation.truth``, marked where a figure can show it (fits, posteriors);
         for a navigation, the true track (``DiveSimulation.true_track``); for a
@@ -101,11 +76,14 @@ def write_figures(result, out_dir, *, beacon=None, truth=None, general=True,
 def fit_figures(result, out, *, beacon=None, truth=None, general=True, sensitivity=None) -> list:
     """Write the paper's figures of a :class:`~bayes_mpem.lbl.survey.fitting.SurveyFit`.
 
-    Parameters are those of :func:`write_figures`; returns the paths written.
+    Parameters
+    ----------
+    result, out, **kwargs
+        As :func:`write_figures` (``out`` a :class:`pathlib.Path`); returns the paths written.
     """
     if not result.results:
         return []
-    b = figure_beacon(result, beacon)
+    b = check_choice("beacon", beacon or list(result.results)[-1], sorted(result.results))
     if sensitivity is None and general:
         sensitivity = survey_pol_sensitivity(result, b)
     r = result.results[b]
@@ -128,7 +106,13 @@ def fit_figures(result, out, *, beacon=None, truth=None, general=True, sensitivi
 
 
 def posterior_figures(result, out, *, truth=None, **_) -> list:
-    """Write the intervals, traces, pairs and class uncertainty of a posterior."""
+    """Write the intervals, traces, pairs and class uncertainty of a posterior.
+
+    Parameters
+    ----------
+    result, out, **kwargs
+        As :func:`write_figures` (``out`` a :class:`pathlib.Path`); returns the paths written.
+    """
     if not result.results:
         return []
     paths = [_save(bayes_plots.plot_intervals(result, truth=truth), out / "intervals.png")]
@@ -141,19 +125,37 @@ def posterior_figures(result, out, *, truth=None, **_) -> list:
 
 
 def comparison_figures(result, out, **_) -> list:
-    """Write ``compare.png``, equal against learned priors."""
+    """Write ``compare.png``, equal against learned priors.
+
+    Parameters
+    ----------
+    result, out, **kwargs
+        As :func:`write_figures` (``out`` a :class:`pathlib.Path`); returns the paths written.
+    """
     if not result.results:
         return []
     return [_save(bayes_plots.plot_prior_comparison(result), out / "compare.png")]
 
 
 def diagnosis_figures(result, out, **_) -> list:
-    """Write the figures of a diagnosis (:func:`bayes_mpem.plots.diagnose.write_figures`)."""
+    """Write the figures of a diagnosis (:func:`bayes_mpem.plots.diagnose.write_figures`).
+
+    Parameters
+    ----------
+    result, out, **kwargs
+        As :func:`write_figures` (``out`` a :class:`pathlib.Path`); returns the paths written.
+    """
     return list(write_diagnosis_figures(result, out).values())
 
 
 def locate_figures(result, out, *, truth=None, **_) -> list:
-    """Write the map and residuals of a located survey; an array's sound speed too."""
+    """Write the map and residuals of a located survey; an array's sound speed too.
+
+    Parameters
+    ----------
+    result, out, **kwargs
+        As :func:`write_figures` (``out`` a :class:`pathlib.Path`); returns the paths written.
+    """
     if not result.summary.get("transponders"):
         return []
     paths = [_save(survey_in_plots.plot_survey_map(result), out / "survey_map.png"),
@@ -172,7 +174,13 @@ def locate_figures(result, out, *, truth=None, **_) -> list:
 
 
 def navigation_figures(result, out, *, truth=None, **_) -> list:
-    """Write ``nav_track.png``, ``nav_ranges.png`` and ``nav_correction.png``."""
+    """Write ``nav_track.png``, ``nav_ranges.png`` and ``nav_correction.png``.
+
+    Parameters
+    ----------
+    result, out, **kwargs
+        As :func:`write_figures` (``out`` a :class:`pathlib.Path`); returns the paths written.
+    """
     return [_save(nav_plots.plot_nav_track(result, truth=truth), out / "nav_track.png"),
             _save(nav_plots.plot_nav_ranges(result), out / "nav_ranges.png"),
             _save(nav_plots.plot_nav_correction(result, truth=truth),
@@ -186,7 +194,6 @@ def demo_markdown(simulation, fit, paper, out_dir, figures, *, seed, posterior=N
     Parameters
     ----------
     simulation : Simulation
-        The simulated survey (its ``survey`` and ``truth``).
     fit, paper : SurveyFit
         The mixture EM's and the paper's EM's fits.
     out_dir : str or pathlib.Path
@@ -198,12 +205,12 @@ def demo_markdown(simulation, fit, paper, out_dir, figures, *, seed, posterior=N
     comparison : SurveyComparison, optional
         With ``posterior``: the Bayesian part, when it ran.
     warnings : sequence of str, default ()
-        The warnings the run showed, listed under "Warnings".
+        The warnings the run showed.
 
     Returns
     -------
     str
-        Markdown, ending with a newline.
+        Markdown.
     """
     sim = simulation
     md = ["# bayes-mpem demo", "",
@@ -231,14 +238,13 @@ def load_output(result_dir):
     Parameters
     ----------
     result_dir : str or pathlib.Path
-        The output folder of a command with a result type: of the first one whose
-        ``folder`` entry it matches (:data:`bayes_mpem.commands.COMMANDS`).
+        The output folder of a command with a result type.
 
     Returns
     -------
     object
-        That result type's ``read(result_dir)``: rebuilt from the files, never by
-        fitting again.
+        The ``read(result_dir)`` of the first result type whose ``folder`` entry the
+        folder matches (:data:`bayes_mpem.commands.COMMANDS`): never a fit again.
 
     Raises
     ------

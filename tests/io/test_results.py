@@ -79,11 +79,11 @@ def test_earlier_files_stay_unlisted_and_dead_partials_are_cleaned(tmp_path):
     assert read_marker(out) == {"run": 2, "files": ["summary.json"]}
 
 
-def test_extending_a_complete_folder_keeps_its_marker(tmp_path):
+def test_a_run_without_a_marker_keeps_the_folders(tmp_path):
     out = tmp_path / "run"
     with writing(out) as d:
         write_json(d / "summary.json", {"run": 1})
-    with writing(out, extend=True) as d:
+    with writing(out) as d:
         write_file(d / "fig.png", lambda tmp: tmp.write_bytes(b"png"))
     assert read_marker(out) == {"run": 1, "files": ["fig.png", "summary.json"]}
 

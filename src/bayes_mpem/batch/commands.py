@@ -1,9 +1,4 @@
-"""How a batch runs a command on one survey, and what it keeps of the result.
-
-The commands a batch runs are those of :data:`bayes_mpem.commands.COMMANDS` with a
-:class:`~bayes_mpem.commands.Batch` entry (:data:`COMMANDS` here, by name); adding one is
-that entry.
-"""
+"""How a batch runs a command on one survey (its ``Batch`` entry), and what it keeps of it."""
 
 from __future__ import annotations
 
@@ -20,7 +15,15 @@ ARRAY_OPTIONS = ("ci", "outliers", "ssp", "speed_intervals", "gradients", "knot_
 
 
 def run(command: str, inputs: dict, options: dict):
-    """Return the result of a batch command (a key of :data:`COMMANDS`) on one survey."""
+    """Return the result of a batch command on one survey.
+
+    Parameters
+    ----------
+    command : str
+        A key of :data:`COMMANDS`.
+    inputs, options : dict
+        The survey's manifest inputs; the library call's keyword arguments.
+    """
     spec = COMMANDS[command]
     if spec.quiet:
         options = {"progress": False, **options}
@@ -28,17 +31,32 @@ def run(command: str, inputs: dict, options: dict):
 
 
 def survey_rows(result):
-    """Per-beacon summaries and the classified table of a fit, a posterior or a navigation."""
+    """Per-beacon summaries and the classified table of a fit, a posterior or a navigation.
+
+    Parameters
+    ----------
+    result : SurveyFit, SurveyPosterior or Navigation
+    """
     return result.summary()["beacons"], result.classified()
 
 
 def locate_rows(result):
-    """Per-transponder summaries and the classified table of a located survey."""
+    """Per-transponder summaries and the classified table of a located survey.
+
+    Parameters
+    ----------
+    result : SurveyInResult
+    """
     return result.summary["transponders"], result.classified
 
 
 def diagnosis_rows(result):
-    """Per-beacon final-model summaries of a diagnosis, with the effects found; no table."""
+    """Per-beacon final-model summaries of a diagnosis, with the effects found; no table.
+
+    Parameters
+    ----------
+    result : Diagnosis
+    """
     d = result.to_dict()
     effects = ",".join(e["name"] for e in d["effects"]) or "none"
     return {b: {**v, "effects": effects} for b, v in d["final_model"]["beacons"].items()}, None
@@ -51,13 +69,12 @@ def locate_raw(raw, options: dict):
     ----------
     raw : RawSurvey
     options : dict
-        Keyword arguments of :func:`~bayes_mpem.survey_in.survey.locate_survey`,
-        and ``sample``: None, or those of
-        :func:`~bayes_mpem.survey_in.location_sampling.locate_survey_bayes`'s sampler;
-        ``lag_check``: look for a lag along the track (deck-box logs only, not sampled).
-        An array survey (:data:`~bayes_mpem.io.raw.ARRAY_FORMATS`) takes only
-        :data:`ARRAY_OPTIONS` (and ``sample``: those of
-        :func:`~bayes_mpem.survey_in.array_sampling.locate_array_survey_bayes`).
+        Keyword arguments of :func:`~bayes_mpem.survey_in.survey.locate_survey`;
+        ``sample``: None or the sampler's of
+        :func:`~bayes_mpem.survey_in.location_sampling.locate_survey_bayes` (an array's:
+        :func:`~bayes_mpem.survey_in.array_sampling.locate_array_survey_bayes`);
+        ``lag_check`` (deck-box logs, not sampled). An array survey takes only
+        :data:`ARRAY_OPTIONS`.
 
     Returns
     -------
@@ -96,7 +113,15 @@ def locate_raw(raw, options: dict):
 
 
 def locate_file(survey, format, **options):  # noqa: A002 - the manifest's column
-    """Read a survey file in ``format`` and locate it (:func:`locate_raw` with ``options``)."""
+    """Read a survey file and locate it.
+
+    Parameters
+    ----------
+    survey, format : str
+        The manifest's columns: the file and its format.
+    **options
+        As :func:`locate_raw`'s ``options``.
+    """
     from ..io.formats import read_survey
 
     return locate_raw(read_survey(survey, format), options)

@@ -45,7 +45,7 @@ def run_task(task: BatchTask, out_dir: str, key: str | None = None) -> dict:
     folder = out / "surveys" / task.name
     done = folder / "batch.json"
     done.unlink(missing_ok=True)
-    part = classified_file(out, task.name)
+    part = _classified_file(out, task.name)
     part.unlink(missing_ok=True)  # no stale rows if this run fails
     old = out / "classified" / f"name={task.name}"  # the layout of earlier versions
     if old.is_dir():
@@ -65,10 +65,8 @@ def run_task(task: BatchTask, out_dir: str, key: str | None = None) -> dict:
                 output_folder(part.parent)
                 write_parquet(part, _named(classified, task.name))
         except Exception as exc:  # noqa: BLE001 - a failed survey is a result of the batch
-            record = {"name": task.name, "status": "failed",
-                      "reason": f"{type(exc).__name__}: {exc}",
-                      "seconds": time.perf_counter() - t0,
-                      "warnings": [f"{w.category.__name__}: {w.message}" for w in caught]}
+            record = _failure(task.name, exc, seconds=time.perf_counter() - t0,
+                              warnings=[f"{w.category.__name__}: {w.message}" for w in caught])
             _failed_folder(folder, record)
             return record
     record = {"name": task.name, "status": "done", "hash": key, "command": task.command,
@@ -79,22 +77,14 @@ def run_task(task: BatchTask, out_dir: str, key: str | None = None) -> dict:
     return record
 
 
-def classified_file(out_dir, name: str) -> Path:
-    """Return where a survey's classified rows go: ``DIR/classified/survey-<name>.parquet``.
-
-    One file per survey with a ``name`` column of text, so that a survey named ``001``
-    reads back as ``"001"`` from ``pandas.read_parquet(DIR / "classified")``.
-
-    Parameters
-    ----------
-    out_dir : str or pathlib.Path
-    name : str
-
-    Returns
-    -------
-    pathlib.Path
-    """
+def _classified_file(out_dir, name: str) -> Path:
+    """Return ``DIR/classified/survey-<name>.parquet`` (``name`` a text column in it)."""
     return Path(out_dir) / "classified" / f"survey-{name}.parquet"
+
+
+def _failure(name: str, exc: BaseException, **more) -> dict:
+    """Return the record of a survey that failed with ``exc``."""
+    return {"name": name, "status": "failed", "reason": f"{type(exc).__name__}: {exc}", **more}
 
 
 def _named(table: pd.DataFrame, name: str) -> pd.DataFrame:
@@ -115,20 +105,8 @@ def _failed_folder(folder: Path, record: dict) -> None:
         pass
 
 
-def completed(task: BatchTask, out_dir, key: str | None) -> dict | None:
-    """Return the record of the survey if already complete with this hash, else None.
-
-    Parameters
-    ----------
-    task : BatchTask
-    out_dir : str or pathlib.Path
-    key : str or None
-        :meth:`BatchTask.key` (None when an input could not be read).
-
-    Returns
-    -------
-    dict or None
-    """
+def _completed(task: BatchTask, out_dir, key: str | None) -> dict | None:
+    """Return the survey's record if complete with the hash ``key``, else None."""
     done = Path(out_dir) / "surveys" / task.name / "batch.json"
     if key is None or not done.is_file():
         return None
@@ -217,10 +195,12 @@ def _client(scheduler, n_workers):
     return Client(cluster), cluster
 
 
-def _progress(progress):
-    if progress == "auto":
-        progress = sys.stderr.isatty()
-    return progress
+def _report(record, done, total):
+    """Print the progress line of one survey on standard error."""
+    what = (f"failed: {record['reason']}" if record["status"] == "failed" else
+            "already complete" if record["status"] == "complete" else
+            f"done in {record.get('seconds', 0.0):.1f} s")
+    print(f"[{done}/{total}] {record['name']}: {what}", file=sys.stderr, flush=True)
 
 
 def run_batch(tasks: list, out_dir, *, scheduler: str | None = None, n_workers: int | None = None,
@@ -241,8 +221,7 @@ def run_batch(tasks: list, out_dir, *, scheduler: str | None = None, n_workers: 
     progress : bool or "auto"
         A line on standard error per survey done (``"auto"``: when it is a terminal).
     report : callable, optional
-        ``report(record, done, total)`` after each survey (the command line's
-        progress lines); overrides ``progress``.
+        ``report(record, done, total)`` after each survey, instead of the progress line.
 
     Returns
     -------
@@ -265,15 +244,12 @@ def run_batch(tasks: list, out_dir, *, scheduler: str | None = None, n_workers: 
     if unknown:
         raise InputError(f"batch: unknown command(s) {unknown}; expected one of {list(COMMANDS)}")
     out = output_folder(out_dir)
-    if report is None and _progress(progress):
-        def report(record, done, total):
-            print(f"[{done}/{total}] {record['name']}: {record['status']}"
-                  + (f" ({record['reason']})" if record["status"] == "failed" else
-                     f" in {record.get('seconds', 0.0):.1f} s"), file=sys.stderr, flush=True)
+    if report is None and (sys.stderr.isatty() if progress == "auto" else progress):
+        report = _report
     records, todo = {}, []
     for task in tasks:
         key = _key_or_none(task)
-        old = completed(task, out, key)
+        old = _completed(task, out, key)
         if old is not None:
             records[task.name] = {**old, "status": "complete"}
         else:
@@ -303,9 +279,7 @@ def _submit(todo, out, scheduler, n_workers, report, n_done, total) -> dict:
         for fut in as_completed(futures):
             task = futures[fut]
             if fut.status == "error":  # the worker itself died (memory, a crash)
-                exc = fut.exception()
-                record = {"name": task.name, "status": "failed",
-                          "reason": f"{type(exc).__name__}: {exc}", "warnings": []}
+                record = _failure(task.name, fut.exception(), warnings=[])
             else:
                 record = fut.result()
             fut.release()

@@ -39,13 +39,7 @@ class BatchTask:
     where: str = ""
 
     def key(self) -> str:
-        """Content hash of the inputs (file bytes), options, command and package version.
-
-        Returns
-        -------
-        str
-            Hex SHA-256.
-        """
+        """Return the hex SHA-256 of the inputs (file bytes), options, command and version."""
         h = hashlib.sha256()
         h.update(json.dumps([self.command, __version__, self.inputs, self.options],
                             sort_keys=True, default=str).encode())
@@ -57,13 +51,7 @@ class BatchTask:
 
 
 def _manifest_table(path: Path):
-    """Read a manifest as text cells: (table, the line number of each row).
-
-    Through :func:`~bayes_mpem.io.boundary.read_text_lines`: a folder, a binary or
-    non-UTF-8 file (Latin-1) is refused naming the manifest and the line; an empty
-    one naming the manifest; blank lines and ``#`` comments are skipped; a row
-    with more or fewer cells than the header is refused naming its line.
-    """
+    """Read a manifest as text cells: ``(table, the line number of each row)``."""
     import csv
 
     from ..io.boundary import read_text_lines

@@ -1,11 +1,4 @@
-"""``bayes-mpem batch``: a command on every survey of a manifest, on Dask.
-
-The manifest's option columns are the command's long options without the dashes
-(``sigma_dp`` for ``--sigma-dp``; an empty cell leaves the default). Each row is parsed
-by the command's own sub-parser and the single command's keyword builder (its
-:class:`~bayes_mpem.commands.Batch` entry) before any survey runs. The batch itself is
-:func:`bayes_mpem.batch.run_batch`.
-"""
+"""``bayes-mpem batch``: manifest rows checked by the command's own sub-parser (``docs/cli.md``)."""
 
 from __future__ import annotations
 
@@ -65,23 +58,9 @@ def _quiet(kwargs: dict) -> dict:
 
 
 def tasks_from_manifest(path, command: str, subparsers: dict) -> list:
-    """Read a manifest and turn each row's option columns into the command's keyword arguments.
+    """Return a manifest's tasks, each row's options parsed by ``subparsers[command]``.
 
-    Parameters
-    ----------
-    path : str or pathlib.Path
-    command : str
-    subparsers : dict
-        Command name -> its sub-parser (:func:`~bayes_mpem.cli.build_parser`).
-
-    Returns
-    -------
-    list of BatchTask
-
-    Raises
-    ------
-    InputError
-        For a manifest or an option cell the command would refuse, naming the line.
+    ``InputError`` naming the line for a cell the command would refuse.
     """
     tasks, options = read_manifest(path, command)
     sub = subparsers[command]
@@ -104,28 +83,11 @@ def tasks_from_manifest(path, command: str, subparsers: dict) -> list:
     return out
 
 
-def _report(record, done, total):
-    what = (f"failed: {record['reason']}" if record["status"] == "failed" else
-            "already complete" if record["status"] == "complete" else
-            f"done in {record.get('seconds', 0.0):.1f} s")
-    print(f"[{done}/{total}] {record['name']}: {what}", file=sys.stderr, flush=True)
-
-
 def cmd_batch(args) -> int:
-    """Run ``bayes-mpem batch``.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-
-    Returns
-    -------
-    int
-        Exit status: 0 when every survey is complete, 1 when some failed.
-    """
+    """Run ``bayes-mpem batch``: status 0 when every survey is complete, 1 when some failed."""
     tasks = tasks_from_manifest(args.manifest, args.batch_command, args.subparsers)
     result = run_batch(tasks, args.out, scheduler=args.scheduler, n_workers=args.workers,
-                       report=None if args.no_progress else _report)
+                       progress=not args.no_progress)
     counts = result.surveys["status"].value_counts()
     print(f"{len(tasks)} surveys: {counts.get('done', 0)} done, "
           f"{counts.get('complete', 0)} already complete, {counts.get('failed', 0)} failed "

@@ -14,23 +14,14 @@ from ..lbl.simulation.simulate import simulate_survey
 from ..lbl.survey.fitting import fit
 from . import gnssa, navigate
 from .errors import OptionError
+from .output import print_written, write_result
 
 # sample, compare, diagnose and the report (emcee, ArviZ, matplotlib) are imported by the
 # commands that use them: `fit` starts without them
 
 
-def write_figures(*args, **kwargs):
-    """Call :func:`bayes_mpem.report.write_figures` (imported on first use)."""
-    from ..report import write_figures as draw
-
-    return draw(*args, **kwargs)
-
-
 def fit_kwargs(args) -> dict:
-    """Keyword arguments of :func:`~bayes_mpem.lbl.survey.fitting.fit` from ``fit``'s options.
-
-    Raises ``OptionError`` for an option of the other method.
-    """
+    """Keyword arguments of ``fit`` from its options; ``OptionError`` for the other method's."""
     if args.method == "mixture" and (args.pol is not None or args.alpha is not None):
         raise OptionError("--pol and --alpha apply to --method paper only")
     if args.method == "paper" and args.weights is not None:
@@ -42,18 +33,8 @@ def fit_kwargs(args) -> dict:
                 weights=args.weights or "learned", min_pings=args.min_pings, rng=args.seed)
 
 
-def sample_kwargs(args) -> dict:
-    """Keyword arguments of ``sample`` and ``compare`` from their shared options.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-
-    Raises
-    ------
-    OptionError
-        For ``--concentration`` with ``--priors equal``.
-    """
+def _sample_kwargs(args) -> dict:
+    """Keyword arguments of ``sample`` and ``compare`` from their shared options."""
     if getattr(args, "priors", None) == "equal" and args.concentration is not None:
         raise OptionError("--concentration applies to --priors learned only")
     return dict(path=args.path, sigma_dp=args.sigma_dp,
@@ -64,15 +45,10 @@ def sample_kwargs(args) -> dict:
 
 
 def sample_command_kwargs(args) -> dict:
-    """Keyword arguments of :func:`~bayes_mpem.lbl.survey.sampling.sample` from ``sample``.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-    """
+    """Keyword arguments of :func:`~bayes_mpem.lbl.survey.sampling.sample` from ``sample``."""
     return dict(priors=args.priors, ci=args.ci, n_ensembles=args.ensembles,
                 log_likelihood=args.log_likelihood, predictive=args.predictive,
-                **sample_kwargs(args))
+                **_sample_kwargs(args))
 
 
 def diagnose_kwargs(args) -> dict:
@@ -87,11 +63,6 @@ def diagnose_kwargs(args) -> dict:
                 min_pings=args.min_pings, rng=args.seed, progress=not args.no_progress)
 
 
-def _print_written(paths) -> None:
-    for p in paths:
-        print(f"wrote {p}")
-
-
 def _report_fit(result, paths):
     print(result.format_table())
     for bid, res in result.results.items():
@@ -102,7 +73,7 @@ def _report_fit(result, paths):
     if result.survey.comment_lines:
         print(f"{result.survey.comment_lines} comment line(s) (starting with #) in "
               f"{result.survey.pings_source} were not read as rows")
-    _print_written(paths)
+    print_written(paths)
 
 
 def _demo_fits(sim, out, seed):
@@ -111,13 +82,11 @@ def _demo_fits(sim, out, seed):
     print("Mixture EM, per beacon (cf. Table II of the paper; truth: plane at the surface,")
     print("d0 = beacon depth; sigma_MP = " + ", ".join(
         f"{b['sigma_mp']:.1f}" for b in sim.truth.values()) + " m)")
-    written = list(result.write(out).values())
-    written += write_figures(result, out, truth=sim.truth)
+    written = write_result(result, out, truth=sim.truth)
     # the paper fixes sigma_DP; the demo fixes it at the simulation's true value
     sigma_dp = sim.truth["1"]["sigma_dp"]
     paper = fit(sim.survey, method="paper", sigma_dp=sigma_dp)
-    written += list(paper.write(out / "paper").values())
-    written += write_figures(paper, out / "paper", truth=sim.truth, general=False)
+    written += write_result(paper, out / "paper", truth=sim.truth, general=False)
     print(result.format_table())
     print(f"\nThe paper's EM (Pol = 0.05, alpha = 0.5, sigma_DP fixed at the simulation's "
           f"true {sigma_dp:.2f} m):")
@@ -136,26 +105,18 @@ def _demo_bayes(sim, out, seed):
 
     print("\nSampling the posterior of every beacon (MCMC, learned priors)...")
     post = sample(sim.survey, rng=seed, progress="auto")
-    written = list(post.write(out / "bayes").values())
-    written += write_figures(post, out / "bayes", truth=sim.truth)
+    written = write_result(post, out / "bayes", truth=sim.truth)
     print(post.format_table())
     print("\nEqual (paper) against learned mixing priors, PSIS-LOO...")
     cmp = compare(sim.survey, rng=seed, progress="auto")
-    written += list(cmp.write(out / "compare").values())
-    written += write_figures(cmp, out / "compare")
+    written += write_result(cmp, out / "compare")
     print(cmp.format_table())
     return post, cmp, written
 
 
 @contextlib.contextmanager
-def recorded_warnings():
-    """Keep the text of every warning shown meanwhile (still shown): a list, filled on exit.
-
-    Yields
-    ------
-    list of str
-        ``"Category: message"`` of each warning shown, in order.
-    """
+def _recorded_warnings():
+    """Yield a list that gets ``"Category: message"`` of every warning shown meanwhile."""
     seen, show = [], warnings.showwarning
 
     def record(message, category, *args, **kwargs):
@@ -171,7 +132,7 @@ def recorded_warnings():
 
 def cmd_demo(args) -> int:
     """Run ``bayes-mpem demo``: simulate, fit, sample, compare, write figures and summary.md."""
-    with recorded_warnings() as seen:
+    with _recorded_warnings() as seen:
         return _demo(args, seen)
 
 
@@ -199,7 +160,7 @@ def _demo(args, seen) -> int:
 
 def cmd_plot(args) -> int:
     """Run ``bayes-mpem plot``; exit status 2 when the folder holds nothing to draw."""
-    from ..report import load_output
+    from ..report import load_output, write_figures
 
     if _is_batch_folder(args.result_dir):
         return _plot_batch(args)
@@ -215,7 +176,7 @@ def cmd_plot(args) -> int:
         print(f"bayes-mpem plot: {args.result_dir} holds no fitted beacon or located "
               f"transponder (skipped: {skipped or 'none'}); nothing to draw", file=sys.stderr)
         return 2
-    _print_written(paths)
+    print_written(paths)
     return 0
 
 
@@ -226,7 +187,7 @@ def _is_batch_folder(folder) -> bool:
 
 def _plot_batch(args) -> int:
     """Draw every survey of a ``bayes-mpem batch`` folder, each into ``OUT/surveys/<name>``."""
-    from ..report import load_output
+    from ..report import load_output, write_figures
 
     root = Path(args.result_dir)
     if args.beacon is not None:
@@ -242,7 +203,7 @@ def _plot_batch(args) -> int:
               file=sys.stderr)
         return 2
     print(f"{len(folders)} surveys of the batch drawn")
-    _print_written(paths)
+    print_written(paths)
     return 0
 
 
@@ -278,17 +239,14 @@ def cmd_simulate(args) -> int:
                           effects=effects or None)
     paths = sim.write(args.out)
     print(f"{len(sim.survey)} pings to {len(sim.truth)} beacons")
-    _print_written(paths.values())
+    print_written(paths.values())
     return 0
 
 
 def cmd_fit(args) -> int:
     """Run ``bayes-mpem fit``."""
     result = fit(args.pings, args.beacons, **fit_kwargs(args))
-    out = Path(args.out)
-    paths = list(result.write(out, table_format=args.table_format).values())
-    if args.figures:
-        paths += write_figures(result, out)
+    paths = write_result(result, args.out, figures=args.figures, table_format=args.table_format)
     _report_fit(result, paths)
     return 0
 
@@ -298,16 +256,13 @@ def cmd_sample(args) -> int:
     from ..lbl.survey.sampling import sample
 
     result = sample(args.pings, args.beacons, **sample_command_kwargs(args))
-    out = Path(args.out)
-    paths = list(result.write(out, table_format=args.table_format).values())
-    if args.figures:
-        paths += write_figures(result, out)
+    paths = write_result(result, args.out, figures=args.figures, table_format=args.table_format)
     print(result.format_table())
     for bid, r in result.results.items():
         if not r.diagnostics["converged"]:
             print(f"warning: beacon {bid} (the posterior): max_steps reached before the bulk ESS "
                   f"reached {r.diagnostics['min_ess']:,.0f} and R-hat 1.01", file=sys.stderr)
-    _print_written(paths)
+    print_written(paths)
     return 0
 
 
@@ -315,11 +270,10 @@ def cmd_compare(args) -> int:
     """Run ``bayes-mpem compare``."""
     from ..lbl.survey.comparison import compare
 
-    result = compare(args.pings, args.beacons, **sample_kwargs(args))
-    paths = list(result.write(args.out).values())
-    paths += write_figures(result, args.out)
+    result = compare(args.pings, args.beacons, **_sample_kwargs(args))
+    paths = write_result(result, args.out)
     print(result.format_table())
-    _print_written(paths)
+    print_written(paths)
     return 0
 
 
@@ -328,9 +282,7 @@ def cmd_diagnose(args) -> int:
     from ..lbl.diagnosis.driver import diagnose
 
     result = diagnose(args.pings, args.beacons, **diagnose_kwargs(args))
-    paths = list(result.write(args.out).values())
-    if not args.no_figures:
-        paths += write_figures(result, args.out)
+    paths = write_result(result, args.out, figures=not args.no_figures)
     print(result.summary())
-    _print_written(paths)
+    print_written(paths)
     return 0

@@ -1,22 +1,14 @@
-"""The navigation sub-commands: ``navigate``, and ``simulate --navigation``.
-
-``bayes-mpem navigate PINGS --beacons BEACONS --out DIR`` estimates the track
-from the ranges and the dead-reckoned pings (:func:`~bayes_mpem.lbl.navigate.navigate`)
-and writes ``track.csv``, ``classified.csv``, ``summary.json``, ``timings.json``
-and, with ``--figures``, the three figures. ``bayes-mpem simulate --navigation``
-writes a simulated dive (:func:`~bayes_mpem.lbl.navigate.simulate_dive`): the
-dead-reckoned pings, the beacons, ``truth.json`` and ``true_track.csv``.
-"""
+"""The sub-commands ``navigate`` and ``simulate --navigation`` (``docs/navigate.md``)."""
 
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 from ..lbl.model.paths import PATH_CHOICES
 from ..lbl.navigate.options import MODELS, MULTIPATH
 from . import options as opt
 from .errors import OptionError
+from .output import print_written, write_result
 
 #: ``simulate`` options that only apply with ``--navigation``.
 NAVIGATION_ONLY = ("heading_bias", "speed_scale", "dr_noise", "start_error", "shadow_range",
@@ -24,12 +16,7 @@ NAVIGATION_ONLY = ("heading_bias", "speed_scale", "dr_noise", "start_error", "sh
 
 
 def add_navigate(sub) -> None:
-    """Add the ``navigate`` sub-command to the parser's sub-parsers.
-
-    Parameters
-    ----------
-    sub : argparse._SubParsersAction
-    """
+    """Add ``navigate``'s sub-parser."""
     p = sub.add_parser("navigate", help="estimate the vehicle track from the ranges and a "
                                         "drifting dead reckoning, with every range's class")
     p.add_argument("pings", metavar="PINGS",
@@ -81,12 +68,7 @@ def add_navigate(sub) -> None:
 
 
 def add_simulate_navigation(p) -> None:
-    """Add the ``--navigation`` options to the ``simulate`` sub-parser.
-
-    Parameters
-    ----------
-    p : argparse.ArgumentParser
-    """
+    """Add the ``--navigation`` options to the ``simulate`` sub-parser ``p``."""
     g = p.add_argument_group("dives (--navigation)")
     g.add_argument("--navigation", action="store_true",
                    help="simulate a dive: dead-reckoned pings and the true track")
@@ -121,22 +103,7 @@ def _windows(items):
 
 
 def cmd_simulate_navigation(args) -> int:
-    """Run ``bayes-mpem simulate --navigation``: write a simulated dive.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-
-    Returns
-    -------
-    int
-        Exit status 0.
-
-    Raises
-    ------
-    OptionError
-        For ``--effect`` (not simulated in dives) or a malformed ``--shadow-window``.
-    """
+    """Run ``bayes-mpem simulate --navigation``: write a simulated dive."""
     from ..lbl.navigate import simulate_dive
 
     if args.effect:
@@ -146,33 +113,18 @@ def cmd_simulate_navigation(args) -> int:
           if getattr(args, k) is not None}
     sim = simulate_dive(args.preset, rng=args.seed, path=args.path, n_cycles=args.n_cycles,
                         shadow_windows=_windows(args.shadow_window), **kw)
-    paths = sim.write(args.out)
+    paths = sim.write(args.out).values()
     nav = sim.truth["navigation"]
     print(f"{len(sim.survey)} pings to {len(sim.simulation.truth)} beacons; dead reckoning: "
           f"heading bias {nav['heading_bias_deg']:.2f} deg, speed scale "
           f"{nav['speed_scale']:.4f}, random walk {nav['dr_noise']:g} m/sqrt(s); "
           f"{nav['blocked_replies']} replies with the direct path blocked")
-    for p in paths.values():
-        print(f"wrote {p}")
+    print_written(paths)
     return 0
 
 
 def navigate_kwargs(args) -> dict:
-    """Keyword arguments of :func:`~bayes_mpem.lbl.navigate.navigate` from its options.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-
-    Returns
-    -------
-    dict
-
-    Raises
-    ------
-    OptionError
-        ``--sound-speed`` and ``--ssp`` both given.
-    """
+    """Keyword arguments of :func:`~bayes_mpem.lbl.navigate.navigate` from its options."""
     travel = bool(getattr(args, "travel_time", False))
     ssp = getattr(args, "travel_ssp", None)
     if travel and ssp is not None and args.sound_speed is not None:
@@ -190,19 +142,8 @@ def navigate_kwargs(args) -> dict:
 
 
 def cmd_navigate(args) -> int:
-    """Run ``bayes-mpem navigate``.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-
-    Returns
-    -------
-    int
-        Exit status 0.
-    """
+    """Run ``bayes-mpem navigate``."""
     from ..lbl.navigate import navigate
-    from ..report import write_figures
 
     pings, beacons = args.pings, args.beacons
     if getattr(args, "travel_time", False):  # traced through --ssp here, not converted before
@@ -210,15 +151,11 @@ def cmd_navigate(args) -> int:
 
         pings, beacons = convert_survey(pings, beacons, origin=args.origin)  # lat, lon only
     nav = navigate(pings, beacons, **navigate_kwargs(args))
-    out = Path(args.out)
-    paths = list(nav.write(out).values())
-    if args.figures:
-        paths += write_figures(nav, out)
+    paths = write_result(nav, args.out, figures=args.figures)
     print(nav.format_table())
     print(f"\n{nav.dive.n_epochs} epochs, {nav.dive.n} replies, {len(nav.dive.survey)} rows; "
           f"{nav.n_iter} iterations, " + ("converged" if nav.converged else "NOT converged")
           + ("" if nav.corrected else "; part of the track is NOT corrected (summary.json, "
                                        "'observability')"))
-    for p in paths:
-        print(f"wrote {p}")
+    print_written(paths)
     return 0

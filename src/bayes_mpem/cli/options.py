@@ -1,23 +1,11 @@
-"""Types of the command-line options: every value checked by argparse, before any work.
-
-Each name here is an ``argparse`` ``type=``: it turns the option's text into a value or
-raises :class:`argparse.ArgumentTypeError`, which argparse reports as ``bayes-mpem
-COMMAND: error: argument --ci: expected a probability in (0, 1), got '1.5'`` with exit
-status 2, naming the option, before any file is read. No NaN, infinity or out-of-range
-value gets through.
+"""Types of the command-line options: ``argparse`` ``type=`` refusing NaN and out-of-range values.
 
 Examples
 --------
->>> probability("0.9")
-0.9
 >>> probability("1.5")
 Traceback (most recent call last):
 ...
 argparse.ArgumentTypeError: expected a probability in (0, 1), got '1.5'
->>> at_least(3)("2")
-Traceback (most recent call last):
-...
-argparse.ArgumentTypeError: expected an integer >= 3, got '2'
 """
 
 from __future__ import annotations
@@ -35,21 +23,7 @@ TABLE_FORMATS = ("csv", "parquet")
 
 def number(what: str, low: float = -math.inf, high: float = math.inf, *,
            include_low: bool = True, include_high: bool = True):
-    """Make the ``type=`` of a finite number option within bounds.
-
-    Parameters
-    ----------
-    what : str
-        What the message says is expected (``"a probability in (0, 1)"``).
-    low, high : float
-        The bounds (infinite: none).
-    include_low, include_high : bool, default True
-        Whether a bound itself is allowed.
-
-    Returns
-    -------
-    callable
-        ``parse(text) -> float``, raising :class:`argparse.ArgumentTypeError`.
+    """Make the ``type=`` of a finite number within ``low``, ``high`` (``what``: the message's).
 
     Examples
     --------
@@ -72,18 +46,7 @@ def number(what: str, low: float = -math.inf, high: float = math.inf, *,
 
 
 def at_least(minimum: int, maximum: int | None = None):
-    """Make the ``type=`` of an integer option with bounds.
-
-    Parameters
-    ----------
-    minimum : int
-    maximum : int, optional
-
-    Returns
-    -------
-    callable
-        ``parse(text) -> int``, raising :class:`argparse.ArgumentTypeError`.
-    """
+    """Make the ``type=`` of an integer in ``[minimum, maximum]``."""
     def parse(text: str) -> int:
         try:
             v = int(text)

@@ -1,10 +1,4 @@
-"""The ``bayes-mpem`` command line: the parser, the dispatch and the error handling.
-
-The sub-commands are the entries of :data:`bayes_mpem.commands.COMMANDS`: the parser adds
-each one's options, and the dispatch imports its ``cmd_<name>`` function only to run it.
-Each parses nothing, calls the library and reports. Invalid input ends a
-command with one ``error:`` line and exit status 2.
-"""
+"""The ``bayes-mpem`` parser, dispatch and error handling (the commands: ``commands.COMMANDS``)."""
 
 from __future__ import annotations
 
@@ -62,7 +56,7 @@ def add_demo(sub):
 
 
 def add_plot(sub):
-    """Add ``plot``'s sub-parser: it reads the folders of the commands with a result."""
+    """Add ``plot``'s sub-parser."""
     kinds = list(with_results())
     p = sub.add_parser("plot", help=f"draw the figures of an output folder ({', '.join(kinds)})")
     p.add_argument("result_dir", metavar="RESULT_DIR",
@@ -76,7 +70,7 @@ def add_plot(sub):
 
 
 def add_simulate(sub):
-    """Add ``simulate``'s sub-parser (a survey, a dive or a GNSS-A campaign)."""
+    """Add ``simulate``'s sub-parser."""
     p = sub.add_parser("simulate", help="write a simulated survey (pings, beacons, truth)")
     p.add_argument("--preset", choices=["abe58", "random"], default="abe58")
     p.add_argument("--out", required=True, metavar="DIR")
@@ -317,7 +311,7 @@ def _has_lat_lon(args) -> bool:
 
 
 def add_batch(sub):
-    """Add ``batch``'s sub-parser: ``--command`` is any command with a batch entry."""
+    """Add ``batch``'s sub-parser."""
     p = sub.add_parser("batch", help="run a command on every survey of a manifest (Dask)")
     p.add_argument("manifest", metavar="MANIFEST",
                    help="CSV: name, pings, beacons (or name, survey, format for locate), then "
@@ -334,14 +328,7 @@ def add_batch(sub):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """Build the argument parser of ``bayes-mpem`` (exposed for the docs).
-
-    Returns
-    -------
-    argparse.ArgumentParser
-        With one sub-parser per command, in the order ``--help`` lists them; the
-        parsed arguments carry them as ``subparsers`` (``bayes-mpem batch`` checks
-        the option columns of a manifest with the command's own sub-parser).
+    """Build the parser of ``bayes-mpem``; parsed arguments carry the sub-parsers as ``subparsers``.
 
     Examples
     --------
@@ -412,7 +399,7 @@ def _run(handler, args) -> int:
     from ..io.results import writing
 
     try:
-        with writing(out, extend=args.command == "plot", create=False):
+        with writing(out, create=False):
             code = handler(args)
             if code and args.command not in _COMMITS_ON_FAILURE:
                 raise _Failed(code)
@@ -465,10 +452,8 @@ def _config_tokens(sub: argparse.ArgumentParser, path: str) -> list:
         name = "--" + str(key).replace("_", "-")
         action = options.get(name)
         if action is None or name in ("--config", "--help"):
-            import difflib
-
-            close = difflib.get_close_matches(name, list(options), n=1, cutoff=0.6)
-            hint = f"; did you mean {close[0][2:].replace('-', '_')}?" if close else ""
+            close = _closest(name, options)
+            hint = f"; did you mean {close[2:].replace('-', '_')}?" if close else ""
             positional = [a.metavar or a.dest for a in sub._actions if not a.option_strings]
             refuse(f"key {key!r}: not an option of this command{hint} (positional "
                    f"arguments {', '.join(map(str, positional)) or 'none'} go on the command "
@@ -506,6 +491,13 @@ def _config_tokens(sub: argparse.ArgumentParser, path: str) -> list:
     return tokens
 
 
+def _closest(word: str, known):
+    """Return the option of ``known`` closest to ``word``, or None."""
+    import difflib
+
+    return next(iter(difflib.get_close_matches(word, list(known), n=1, cutoff=0.6)), None)
+
+
 def _with_config(parser: argparse.ArgumentParser, argv) -> list:
     """Put a ``--config`` file's options before the command line's (which override them)."""
     argv = list(sys.argv[1:] if argv is None else argv)
@@ -523,17 +515,13 @@ def _parse(parser: argparse.ArgumentParser, argv):
     args, extra = parser.parse_known_args(argv)
     if not extra:
         return args
-    import difflib
-
     sub = args.subparsers.get(args.command, parser)
     known = [s for a in sub._actions for s in a.option_strings if s.startswith("--")]
     hints = []
     for word in extra:
-        if word.startswith("-"):
-            close = difflib.get_close_matches(word.split("=", 1)[0], known, n=1, cutoff=0.6)
-            if close:
-                hints.append(close[0] if len(extra) == 1 else
-                             f"{close[0]} for {word.split('=', 1)[0]}")
+        close = _closest(word.split("=", 1)[0], known) if word.startswith("-") else None
+        if close:
+            hints.append(close if len(extra) == 1 else f"{close} for {word.split('=', 1)[0]}")
     hint = f"; did you mean {', '.join(hints)}?" if hints else (
         f"; see 'bayes-mpem {args.command} --help'")
     sub.error(f"unrecognized arguments: {' '.join(extra)}{hint}")
@@ -541,12 +529,7 @@ def _parse(parser: argparse.ArgumentParser, argv):
 
 
 def main(argv=None) -> int:
-    """Entry point of ``bayes-mpem``.
-
-    Invalid input or options end with one ``error:`` line naming the file, line, column or
-    option, and exit status 2; an unexpected failure with one ``internal error:`` line and
-    status 1 (``BAYES_MPEM_TRACEBACK=1`` shows the traceback). A run's files are committed
-    together at its end (:func:`bayes_mpem.io.results.writing`).
+    """Entry point of ``bayes-mpem``: one ``error:`` line for invalid input (``docs/cli.md``).
 
     Parameters
     ----------

@@ -1,11 +1,4 @@
-"""``bayes-mpem stream``: classify each range as it arrives and keep the vehicle's position.
-
-Feeds each line of standard input, a UDP socket or a replayed file to a
-:class:`~bayes_mpem.lbl.navigate.online.Navigator` and answers it with one JSON line, in
-input order (``{"line", "error"}`` for a malformed line). At the end of the input,
-SIGTERM or SIGINT, the lines read are answered, the counts go to standard error and the
-state to ``--state``.
-"""
+"""``bayes-mpem stream``: each line is answered by one JSON line, in order (``docs/stream.md``)."""
 
 from __future__ import annotations
 
@@ -31,12 +24,7 @@ COUNTS = ("read", "answered", "malformed", "header", "blank", "comment", "intern
 
 
 def add_stream(sub) -> None:
-    """Add the ``stream`` sub-command.
-
-    Parameters
-    ----------
-    sub : argparse._SubParsersAction
-    """
+    """Add ``stream``'s sub-parser."""
     p = sub.add_parser("stream", help="classify ranges as they arrive and filter the vehicle's "
                                       "position (stdin, UDP or a replayed file; JSON lines out)")
     p.add_argument("--beacons", required=True, metavar="BEACONS",
@@ -176,17 +164,7 @@ def _save(nav, path) -> None:
 
 
 def cmd_stream(args) -> int:
-    """Run ``bayes-mpem stream``.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-
-    Returns
-    -------
-    int
-        Exit status 0 (end of input, SIGTERM or SIGINT).
-    """
+    """Run ``bayes-mpem stream`` until the end of the input, SIGTERM or SIGINT (status 0)."""
     if args.save_every < 0:
         raise OptionError(f"--save-every: expected a count >= 0, got {args.save_every}")
     if args.append and (args.out == "-" or args.out.startswith("udp://")):

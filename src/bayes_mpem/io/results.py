@@ -67,8 +67,8 @@ def check_output_folder(out_dir, option: str = "--out") -> Path:
 class _Run:
     """The files staged by one ``writing()`` block, renamed into place at its commit."""
 
-    def __init__(self, root: Path, extend: bool) -> None:
-        self.root, self.extend = root, extend
+    def __init__(self, root: Path) -> None:
+        self.root = root
         self.staged: dict[Path, Path] = {}  # final path -> temporary path
         self.markers: dict[Path, dict] = {}  # final path of a summary.json -> its document
 
@@ -137,14 +137,14 @@ def _alive(pid: int) -> bool:
 
 
 @contextlib.contextmanager
-def writing(out_dir, *, extend: bool = False, option: str = "--out", create: bool = True):
+def writing(out_dir, *, option: str = "--out", create: bool = True):
     """Write one run's files into ``out_dir``, all or nothing; nested blocks join the outer run.
+
+    A run that writes no ``summary.json`` keeps the folder's (``bayes-mpem plot`` adds figures).
 
     Parameters
     ----------
     out_dir : str or os.PathLike
-    extend : bool, default False
-        Add files to a complete folder, keeping its ``summary.json`` (``bayes-mpem plot``).
     option : str, default "--out"
         The option named in messages.
     create : bool, default True
@@ -165,7 +165,7 @@ def writing(out_dir, *, extend: bool = False, option: str = "--out", create: boo
     if any(run.owns(out / "x") for run in _RUNS.get()):
         yield out
         return
-    run = _Run(out, extend)
+    run = _Run(out)
     token = _RUNS.set((*_RUNS.get(), run))
     try:
         yield out
@@ -178,12 +178,7 @@ def writing(out_dir, *, extend: bool = False, option: str = "--out", create: boo
 
 
 def abort_open_runs() -> int:
-    """Remove the temporary files of every open run (for a signal handler); return how many.
-
-    Returns
-    -------
-    int
-    """
+    """Remove the temporary files of every open run (for a signal handler); return how many."""
     runs = _RUNS.get()
     for run in runs:
         run.abort()
@@ -283,7 +278,7 @@ def write_json(path, document, *, indent: int | None = 2, numpy: bool = False) -
 
 
 def write_table(path, table) -> Path:
-    """Write a table without its index: CSV, or Parquet for a ``.parquet`` path.
+    """Write a table without its index: CSV (vectorised), or Parquet for a ``.parquet`` path.
 
     Parameters
     ----------
@@ -297,23 +292,22 @@ def write_table(path, table) -> Path:
     return write_file(path, lambda tmp: write_table_file(tmp, table))
 
 
-def write_csv(path, table) -> Path:
-    """Write a table as CSV without its index (as ``DataFrame.to_csv``, but vectorised).
-
-    Parameters
-    ----------
-    path : str or pathlib.Path
-    table : pandas.DataFrame
-
-    Returns
-    -------
-    pathlib.Path
-    """
-    return write_table(path, table)
+# the name the result classes use for their CSV tables
+write_csv = write_table
 
 
 def read_document(path) -> dict:
-    """Read the JSON object a result wrote (``summary.json``, ...); ``InputError`` if it is not."""
+    """Read the JSON object a result wrote (``summary.json``, ...).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+
+    Raises
+    ------
+    InputError
+        When the file is not a JSON object.
+    """
     try:
         doc = json.loads(Path(path).read_text())
     except (ValueError, UnicodeDecodeError) as exc:

@@ -1,11 +1,6 @@
-"""Model checks of a navigation: what the range model leaves in the direct-path residuals.
+"""Model checks of a navigation: ``fit``'s checks of the direct-path residuals at the track.
 
-The checks of ``fit`` (:mod:`bayes_mpem.lbl.survey.model_checks`, ``docs/model-checks.md``)
-applied per beacon to the residuals at the navigated track: the direct-path offset, and
-binned trends of the confident direct paths against time, range, elevation, vehicle depth
-and bearing. What the range model does not describe (refraction left by straight rays at
-one speed, a sound speed that changes in time, a lever arm) shows here as an offset or a
-trend; the track cannot absorb it all when several beacons see the same epochs.
+What they find and why: ``docs/model-checks.md``.
 """
 
 from __future__ import annotations
@@ -27,9 +22,8 @@ def model_checks(nav) -> dict:
     Returns
     -------
     dict
-        ``{"flags": [messages], "beacons": {id: [checks]}}``; each check as in
-        :mod:`bayes_mpem.lbl.survey.model_checks` (``name``, ``value``, ``z``,
-        ``flagged``, ``message``; the trends also ``against`` and ``p_value``).
+        ``{"flags": [messages], "beacons": {id: [checks]}}``, each check as in
+        :mod:`bayes_mpem.lbl.survey.model_checks`.
 
     Examples
     --------

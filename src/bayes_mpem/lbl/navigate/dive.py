@@ -1,9 +1,4 @@
-"""A dive as the navigation estimator sees it: epochs, dead reckoning and the ranges.
-
-An epoch is a distinct ping time (one LBL cycle); no-reply pings define epochs too. A
-separate dead-reckoning table is interpolated (positions) or integrated (velocities) to
-the epochs.
-"""
+"""A dive as the navigation sees it: epochs (distinct ping times), dead reckoning, ranges."""
 
 from __future__ import annotations
 
@@ -30,7 +25,6 @@ class Dive:
     Attributes
     ----------
     survey : Survey
-        The validated input.
     times : numpy.ndarray
         ``(K,)`` epoch times (s), increasing.
     dr : numpy.ndarray
@@ -49,8 +43,7 @@ class Dive:
         ``(B, 3)`` beacon x, y, depth.
     window : numpy.ndarray
         ``(B, 2)`` outlier window of each beacon: its smallest and largest range
-        (with fewer than :data:`MIN_WINDOW_REPLIES` replies, those of all replies,
-        at least 1 m wide).
+        (of all replies below :data:`MIN_WINDOW_REPLIES`).
     d0_min : numpy.ndarray
         ``(B,)`` lowest physical plane height (above every vehicle position).
     dr_source : str
@@ -105,7 +98,7 @@ class Dive:
 
 
 def _epoch_dr(survey: Survey, inverse: np.ndarray, k: int) -> np.ndarray:
-    """Dead-reckoned position of each epoch from the pings, refusing disagreeing pings."""
+    """Dead-reckoned position of each epoch from the pings (which must agree)."""
     xy = np.column_stack([survey.x, survey.y])
     sums = np.zeros((k, 2))
     np.add.at(sums, inverse, xy)
@@ -125,7 +118,7 @@ def _epoch_dr(survey: Survey, inverse: np.ndarray, k: int) -> np.ndarray:
 
 
 def _table_dr(survey: Survey, times: np.ndarray, first_xy, source) -> tuple[np.ndarray, str]:
-    """Dead-reckoned position at ``times`` from a separate table (interpolated or integrated)."""
+    """Dead-reckoned position at ``times`` from a table (positions or velocities)."""
     table, form = read_dead_reckoning(source)
     label = source if isinstance(source, str) else "dead-reckoning DataFrame"
     t = table["time"].to_numpy()
@@ -156,8 +149,7 @@ def build_dive(survey: Survey, dead_reckoning=None) -> Dive:
     survey : Survey
         Pings (``x``, ``y``: dead-reckoned; ``depth``: pressure) and beacons.
     dead_reckoning : str, os.PathLike or pandas.DataFrame, optional
-        A separate dead-reckoning table (:func:`~bayes_mpem.io.dead_reckoning.read_dead_reckoning`);
-        default: the pings' own ``x``, ``y``.
+        A dead-reckoning table; default: the pings' own ``x``, ``y``.
 
     Returns
     -------
@@ -199,7 +191,6 @@ def dive_with_dead_reckoning(survey: Survey, times, dr, source: str = "pings") -
     Parameters
     ----------
     survey : Survey
-        The pings and beacons of the navigation.
     times : array_like
         ``(K,)`` epoch times (s): the distinct ping times, increasing.
     dr : array_like
@@ -216,15 +207,6 @@ def dive_with_dead_reckoning(survey: Survey, times, dr, source: str = "pings") -
     InputError
         When ``times`` are not the pings' distinct times, or ``dr`` is not ``(K, 2)``.
 
-    Examples
-    --------
-    >>> import pandas as pd
-    >>> from bayes_mpem.io.survey import load_survey
-    >>> s = load_survey(pd.DataFrame({"time": [0, 5], "beacon": [1, 1], "range": [100.0, 101.0],
-    ...                               "x": [0, 3], "y": [0, 0], "depth": [10, 10]}),
-    ...                 pd.DataFrame({"beacon": [1], "x": [0], "y": [0], "depth": [100]}))
-    >>> dive_with_dead_reckoning(s, [0.0, 5.0], [[0.0, 0.0], [2.5, 0.0]]).dr.tolist()
-    [[0.0, 0.0], [2.5, 0.0]]
     """
     own, inverse = np.unique(np.asarray(survey.time), return_inverse=True)
     times = np.asarray(times, float)
@@ -239,7 +221,7 @@ def dive_with_dead_reckoning(survey: Survey, times, dr, source: str = "pings") -
 
 
 def _assemble(survey: Survey, times, inverse, dr, source) -> Dive:
-    """Return the :class:`Dive` of grouped pings (``inverse``: epoch of every row), with DR."""
+    """Return the :class:`Dive` of pings grouped by ``inverse`` (each row's epoch)."""
     k = times.size
     depth = np.bincount(inverse, weights=survey.depth, minlength=k) / np.bincount(
         inverse, minlength=k)

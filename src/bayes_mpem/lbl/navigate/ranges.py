@@ -1,17 +1,6 @@
-"""Ranges from travel times through a sound-speed profile, for the navigation.
+"""Travel times through a sound-speed profile as equivalent straight-line ranges, for navigation.
 
-``navigate`` fits straight-line ranges. A travel time through a layered ocean is
-turned into the **equivalent straight-line range**: the slant range
-``sqrt(h^2 + dz^2)`` of the horizontal distance ``h`` at which the refracted
-direct eigenray between the transducer's and the beacon's depths takes exactly the
-measured one-way time. The depths are known (the pressure depth, the beacon's), so
-``h`` is the only unknown; it is found per reply by Newton's method on the ray's
-travel time ``T(h)``, whose derivative is the ray parameter ``p = dT/dh``
-(:func:`~bayes_mpem.acoustics.turning.direct_times`). The straight-line model
-then predicts the range of the true position without the refraction bias: where
-the vehicle is at ``h`` from the beacon, the equivalent range of the exact time
-is the straight range of ``h``. Why this rather than predicting travel times in
-the estimator: ``docs/navigate.md`` (*Ranges through the sound-speed profile*).
+The method and why: ``docs/navigate.md`` (*Ranges through the sound-speed profile*).
 
 Examples
 --------
@@ -46,9 +35,7 @@ TRAVEL_TIMES = ("one-way", "two-way")
 #: tables' depths are then not the profile's (ellipsoidal heights: set ``surface_depth``).
 ABOVE_SURFACE = 1.0
 
-#: Newton stops once its step in the horizontal distance is below this (m): the error
-#: after it is then of the order of its square (Newton converges quadratically on the
-#: convex ``T(h)``), so two ray traces per reply are enough from the harmonic-mean start.
+#: Newton stops once its step in the horizontal distance is below this (m).
 STEP_TOL = 1e-4
 
 
@@ -94,9 +81,6 @@ def equivalent_ranges(time, z_vehicle, z_beacon, profile: SoundSpeedProfile, *,
 
     Examples
     --------
-    Speed growing with depth: a time converted with the speed at the vehicle would be
-    short, the equivalent range is the straight range of the ray's horizontal distance.
-
     >>> prof = SoundSpeedProfile([0.0, 3000.0], [1480.0, 1520.0])
     >>> t = direct_times(prof, 10.0, 2500.0, 1200.0).time
     >>> r, ok = equivalent_ranges(t, 10.0, 2500.0, prof)
@@ -181,12 +165,7 @@ class RangeModel:
                                      -1000.0, 1000.0, "m")
 
     def describe(self) -> dict:
-        """Return the options as JSON-ready values (for ``summary.json``).
-
-        Returns
-        -------
-        dict
-        """
+        """Return the options as a JSON-ready dict (for ``summary.json``)."""
         return {"travel_times": self.travel_times,
                 "profile": self.profile.source or f"{len(self.profile)} knots",
                 "turnaround": self.turnaround, "transducer_offset": self.transducer_offset,
@@ -285,12 +264,14 @@ def travel_time_pings(pings, beacons, model: RangeModel) -> tuple[pd.DataFrame, 
     if model.transducer_offset:
         out["depth_input"] = p.frame["depth"]
         out["depth"] = zt
-    if p.lines is not None:  # later messages name the file's lines
-        out.attrs.update(source=p.source, lines=tuple(map(int, p.lines)))
-    beacons_out = b.frame.copy()
-    if b.lines is not None:
-        beacons_out.attrs.update(source=b.source, lines=tuple(map(int, b.lines)))
-    return out, beacons_out
+    return _with_lines(out, p), _with_lines(b.frame.copy(), b)
+
+
+def _with_lines(frame, table):
+    """Return ``frame`` carrying ``table``'s source and line numbers (for later messages)."""
+    if table.lines is not None:
+        frame.attrs.update(source=table.source, lines=tuple(map(int, table.lines)))
+    return frame
 
 
 def prepare(pings, beacons, *, travel_times=None, profile=None, turnaround=0.0,
@@ -313,7 +294,7 @@ def prepare(pings, beacons, *, travel_times=None, profile=None, turnaround=0.0,
     pings, beacons
         Unchanged without options, else the converted tables.
     description : dict or None
-        :meth:`RangeModel.describe` (or the transducer offset alone), for ``summary.json``.
+        For ``summary.json``.
 
     Raises
     ------
@@ -349,9 +330,7 @@ def prepare(pings, beacons, *, travel_times=None, profile=None, turnaround=0.0,
         problems.raise_if_any()
         out = p.frame.copy()
         out["depth_input"], out["depth"] = p.frame["depth"], z + offset
-        if p.lines is not None:
-            out.attrs.update(source=p.source, lines=tuple(map(int, p.lines)))
-        return out, beacons, {"transducer_offset": offset}
+        return _with_lines(out, p), beacons, {"transducer_offset": offset}
     _not_a_survey(pings, "travel_times")
     model = RangeModel(travel_times, profile, turnaround=turnaround,
                        transducer_offset=transducer_offset, surface_depth=surface_depth)

@@ -149,6 +149,15 @@ class SurveyInResult:
 
         A missing ``classified.csv`` is a ``FileNotFoundError``, one of an older version an
         ``InputError``.
+
+        Parameters
+        ----------
+        folder : str or pathlib.Path
+            The output folder.
+
+        Returns
+        -------
+        SurveyInResult
         """
         from pathlib import Path
 

@@ -207,6 +207,15 @@ class Diagnosis:
         Its fits carry ``resp``, ``effects`` and ``path`` only, its ``data`` the replies'
         ``ids``, ``bi``, ``time`` and ``nb``; no survey. A missing ``replies.csv`` is a
         ``FileNotFoundError``.
+
+        Parameters
+        ----------
+        folder : str or pathlib.Path
+            The output folder.
+
+        Returns
+        -------
+        Diagnosis
         """
         from pathlib import Path
 

@@ -419,6 +419,15 @@ class Navigation:
         joint covariances or per-beacon model records, so it draws but does not write. A
         missing file is a ``FileNotFoundError``, a track that does
         not fit the pings an ``InputError``.
+
+        Parameters
+        ----------
+        folder : str or pathlib.Path
+            The output folder.
+
+        Returns
+        -------
+        Navigation
         """
         from pathlib import Path
 

@@ -105,6 +105,15 @@ class SurveyComparison:
 
         No survey; per beacon a namespace with ``elpd_diff``, ``elpd_diff_se``, ``shifts``
         and ``learned.em.d0`` (as :class:`~.loo.PriorComparison`): it draws, it does not write.
+
+        Parameters
+        ----------
+        folder : str or pathlib.Path
+            The output folder.
+
+        Returns
+        -------
+        SurveyComparison
         """
         from pathlib import Path
         from types import SimpleNamespace

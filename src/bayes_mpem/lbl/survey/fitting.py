@@ -176,6 +176,15 @@ class SurveyFit:
 
         Without ``history.json``, each beacon gets a one-entry history. A missing file is a
         ``FileNotFoundError``, files that do not fit together an ``InputError``.
+
+        Parameters
+        ----------
+        folder : str or pathlib.Path
+            The output folder.
+
+        Returns
+        -------
+        SurveyFit
         """
         from pathlib import Path
 

@@ -24,6 +24,13 @@ _ADDED = set(RESERVED_COLUMNS)
 def survey_and_classes(folder: Path, summary: dict):
     """Read the classified table of an output folder, checked against its ``summary.json``.
 
+    Parameters
+    ----------
+    folder : pathlib.Path
+        The output folder.
+    summary : dict
+        Its ``summary.json``.
+
     Returns
     -------
     survey : Survey
@@ -69,7 +76,22 @@ def survey_and_classes(folder: Path, summary: dict):
 
 
 def together(folder, load, *args):
-    """Return ``load(*args)``; a key or a type missing in the files is an ``InputError``."""
+    """Return ``load(*args)``; a key or a type missing in the files is an ``InputError``.
+
+    Parameters
+    ----------
+    folder : str or pathlib.Path
+        The output folder (named in the error).
+    load : callable
+        The reader.
+    *args
+        Its arguments.
+
+    Returns
+    -------
+    object
+        What ``load`` returns.
+    """
     try:
         return load(*args)
     except (KeyError, TypeError, IndexError) as exc:

@@ -258,6 +258,15 @@ class SurveyPosterior:
 
         Each beacon's ``em`` is a namespace of the EM start's parameters. A missing file is
         a ``FileNotFoundError``, files that do not fit together an ``InputError``.
+
+        Parameters
+        ----------
+        folder : str or pathlib.Path
+            The output folder.
+
+        Returns
+        -------
+        SurveyPosterior
         """
         from pathlib import Path
         from types import SimpleNamespace

@@ -1,13 +1,4 @@
-"""The result of :func:`~.driver.navigate`: the corrected track, the classes, the reflectors.
-
-:class:`Navigation` writes ``track.csv`` (one row per epoch: time, position,
-depth, its 2x2 covariance, the dead reckoning), ``classified.csv`` (every input
-row with its class probabilities, label and reason, as ``fit`` writes it),
-``summary.json`` (per beacon the reflector with intervals, the dead-reckoning
-nuisances with intervals, the observability flags, iterations; byte-identical
-for the same input and options) and ``timings.json`` (wall-clock seconds of
-each stage, kept out of ``summary.json`` for that reason).
-"""
+"""The result of :func:`~.driver.navigate` and its files (``docs/navigate.md``, ``docs/cli.md``)."""
 
 from __future__ import annotations
 
@@ -50,10 +41,8 @@ def finite(v):
 def estimate(value, sd, z, *, lo=-np.inf, bound=None) -> dict:
     """``{"estimate", "sd", "interval"}``, a Wald interval ``value +- z sd`` (clipped at ``lo``).
 
-    A value at its lower bound (``bound``, default ``lo``) is not estimated as an
-    interior point: its interval is one-sided, ``[bound, value + z1 sd]`` with
-    ``z1`` the one-sided quantile of the same probability, and the record says
-    ``"at_bound": true``.
+    A value at its lower bound gets the one-sided interval ``[bound, value + z1 sd]`` and
+    ``"at_bound": true`` (``docs/navigate.md``).
 
     Parameters
     ----------

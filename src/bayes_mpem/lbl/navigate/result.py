@@ -402,12 +402,8 @@ class Navigation:
     def read(cls, folder) -> Navigation:
         """Read a navigation back from the folder :meth:`write` wrote, never by fitting again.
 
-        The pings of ``classified.csv`` in epochs with the dead reckoning of ``track.csv``
-        (:func:`.dive.dive_with_dead_reckoning`), the track and its covariances, the classes
-        and the estimates of ``summary.json`` (NaN where it has none); no history, timings,
-        joint covariances or per-beacon model records, so it draws but does not write. A
-        missing file is a ``FileNotFoundError``, a track that does
-        not fit the pings an ``InputError``.
+        No history, timings, joint covariances or per-beacon model records: it draws but
+        does not write.
 
         Parameters
         ----------
@@ -417,6 +413,13 @@ class Navigation:
         Returns
         -------
         Navigation
+
+        Raises
+        ------
+        FileNotFoundError
+            A missing file.
+        InputError
+            A track that does not fit the pings.
         """
         from pathlib import Path
 

@@ -223,7 +223,7 @@ def batch_start(buffer, beacons: pd.DataFrame, opts: dict, seed: int, prior: dic
         if nav.beacons[bid]["mp"] and not nav.beacons[bid].get("flags"):
             stats = expected_squares(
                 _beacon_stats(dive.z[m], xy, depth, xyz, float(st.d0[j]), bool(st.double[j]),
-                             nav.resp[m]), float(st.sigma_mp[j]))
+                              nav.resp[m]), float(st.sigma_mp[j]))
             models[bid] = BeaconModel.start(
                 d0=float(st.d0[j]), sigma_mp=float(st.sigma_mp[j]), weights=tuple(st.weights[j]),
                 stats=stats, **common)
@@ -234,9 +234,8 @@ def batch_start(buffer, beacons: pd.DataFrame, opts: dict, seed: int, prior: dic
         else:  # too few replies, no multipath class, or a flagged fit: the prior
             models[bid] = prior_model(xyz, prior, mp_on=mp_on, path=opts["path"],
                                       d0_min=common["d0_min"], window=common["window"])
-    # the batch's expected squares, <g (r^2 + J P J^T)> = <g> sigma^2 at its scales' fixed
-    # point (docs/navigate.md): the plain <g r^2> would restart the filter from the scale
-    # the track's degrees of freedom bias low (issue 25)
+    # the batch's expected squares <g (r^2 + J P J^T)> = <g> sigma^2 (its scales' fixed point,
+    # docs/navigate.md), not the plain <g r^2> that the track's degrees of freedom bias low
     g = float(nav.resp[:, 0].mean())
     dp = DirectPathScale(st.sigma_dp, dive.n, stats=(g, g * st.sigma_dp ** 2),
                          fixed=opts["sigma_dp"] is not None)

@@ -1,8 +1,6 @@
-"""``navigate``: the vehicle's track jointly with the class of every range and each reflector.
+"""``navigate``: the track jointly with every range's class and each reflector.
 
-The ECM of :mod:`~bayes_mpem.lbl.navigate.ecm` from the dead reckoning, the path choice
-of :func:`~bayes_mpem.lbl.em.path_choice.choose_path` on the corrected track, and the
-Laplace uncertainty of :mod:`.normal`; the estimator is described in ``docs/navigate.md``.
+The estimator: ``docs/navigate.md``.
 """
 
 from __future__ import annotations
@@ -253,15 +251,8 @@ def _free_scales(dive, state, resp, settings):
 def propagate_scales(dive, state, resp, settings, ne, step, cov, gcov, cross):
     """Add the noise scales' uncertainty to the track's and the globals' covariances.
 
-    The law of total variance to first order: the estimate of the track and globals
-    given the scales moves with ``log sigma_j`` as ``D = H^-1 C``, ``C``'s column
-    ``2 grad_j`` (``grad_j`` the gradient of the scale's range terms: ``d grad / d
-    log sigma_j = -2 grad_j``), and ``log sigma_j`` has MacKay's evidence variance
-    ``1 / (2 (n_j - gamma_j))`` (``n_j`` the class's expected count, ``gamma_j`` its
-    summed leverages, :func:`.ecm.leverages`: the residual degrees of freedom of the
-    scales' update, capped as there). The covariances gain ``D V D^T``, a positive
-    semi-definite term. The class probabilities are held: the scales' effect through
-    the classes and the weights' uncertainty are left out (``docs/navigate.md``).
+    The law of total variance to first order, ``log sigma_j`` with MacKay's evidence
+    variance (``docs/navigate.md``, *The noise scales' uncertainty*).
 
     Parameters
     ----------

@@ -1,10 +1,6 @@
-"""The ECM of the navigation model: E-step, conditional M-steps and the annealed loop.
+"""The ECM of the navigation model: E-step, conditional M-steps, annealed loop.
 
-One iteration: the class probabilities (:func:`e_step`; or a baseline's weights), a few
-safeguarded Gauss-Newton steps on the track, nuisances and plane heights
-(:func:`gauss_newton`), then the scales and weights in closed form
-(:func:`scales_and_weights`). The scales are annealed from ``anneal_start`` m
-(``docs/navigate.md``).
+The steps: ``docs/navigate.md`` (*The estimator*).
 """
 
 from __future__ import annotations
@@ -111,19 +107,8 @@ class Run(NamedTuple):
     converged: bool
 
 
-def effective_scales(state: State, tau: float):
-    """Return the scales used at anneal floor ``tau``: ``max(sigma, tau)``.
-
-    Parameters
-    ----------
-    state : State
-    tau : float
-
-    Returns
-    -------
-    sigma_dp : float
-    sigma_mp : numpy.ndarray
-    """
+def _effective_scales(state: State, tau: float):
+    """Return sigma_DP and the sigma_MPs used at anneal floor ``tau``: ``max(sigma, tau)``."""
     return max(state.sigma_dp, tau), np.maximum(state.sigma_mp, tau)
 
 
@@ -145,7 +130,7 @@ def e_step(dive: Dive, state: State, settings: Settings, tau: float = 0.0):
     lse : numpy.ndarray
         ``(n,)`` per-reply log-likelihood.
     """
-    s_dp, s_mp = effective_scales(state, tau)
+    s_dp, s_mp = _effective_scales(state, tau)
     pred = predictions(dive, state)
     b = dive.beacon
     if settings.model == "mixture" or settings.fixed_resp is not None:
@@ -345,7 +330,7 @@ def scales_and_weights(dive: Dive, state: State, resp, settings: Settings, *,
 
 
 def _weights(dive, state, resp, tau):
-    s_dp, s_mp = effective_scales(state, tau)
+    s_dp, s_mp = _effective_scales(state, tau)
     return resp[:, 0] / s_dp ** 2, resp[:, 1] / s_mp[dive.beacon] ** 2
 
 

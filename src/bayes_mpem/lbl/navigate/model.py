@@ -1,9 +1,6 @@
-"""The per-ping pieces of the navigation model, as small pure functions.
+"""The per-ping pieces of the navigation model, shared by batch and streaming.
 
-Range prediction (:func:`predict_ranges`), class log-joint (:func:`class_log_joint`) and
-the dead-reckoning motion model (:func:`dr_step`, :func:`dr_noise_var`), shared by the
-batch and the streaming estimators. Positions in metres, depths positive down, heading
-bias in radians counter-clockwise.
+Metres, depths positive down, heading bias in radians counter-clockwise (``docs/navigate.md``).
 
 Examples
 --------

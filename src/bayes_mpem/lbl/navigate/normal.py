@@ -1,11 +1,6 @@
 """Sparse normal equations of a track: banded solve, Schur complement, selected inversion.
 
-The track block ``A`` is block-tridiagonal (2x2 blocks, neighbours linked by the random
-walk); a few globals (heading bias, speed scale, plane heights) touch every epoch.
-:func:`solve` eliminates the globals by the Schur complement ``S = C - B^T A^{-1} B``
-with ``A`` factored as a band (cost linear in ``K``); :func:`marginal_covariances` gives
-the 2x2 diagonal blocks of the inverse by a Rauch-Tung-Striebel recursion, and
-:func:`cross_covariances` the epoch-global covariances ``-X_k S^{-1}``.
+The method: ``docs/navigate.md`` (*The estimator*).
 
 Examples
 --------

@@ -1,7 +1,6 @@
 """The M-step's objective of the navigation model, and its Gauss-Newton normal equations.
 
-Given the class probabilities of every reply (the E-step) and the scales, the
-unknowns ``theta = (p_1 .. p_K, beta, s, d0_1 .. d0_B)`` minimise::
+Given the class probabilities and the scales, ``(p_1 .. p_K, beta, s, d0_1 .. d0_B)`` minimise::
 
     Phi = 1/2 sum_i [a_i (f_dp,i - z_i)^2 + b_i (f_mp,i - z_i)^2]
         + 1/2 sum_k lambda_k |p_k - p_{k-1} - s R(beta) Delta_k|^2
@@ -10,12 +9,8 @@ unknowns ``theta = (p_1 .. p_K, beta, s, d0_1 .. d0_B)`` minimise::
 
 with ``a_i = P(dp)_i / sigma_DP^2``, ``b_i = P(mp)_i / sigma_MP,b^2``,
 ``lambda_k = 1 / (q^2 dt_k)`` (the dead-reckoning random walk), ``d_1`` the
-first dead-reckoned fix and ``z_b`` the beacon depth (a plane at the sea
-surface). The priors are weak (:class:`Priors`): they keep the system
-positive definite where the ranges say nothing, so that the covariances grow
-wide there instead of the solve failing. :func:`objective` evaluates ``Phi``
-(for the safeguard of the step); :func:`normal_equations` its gradient and
-Gauss-Newton Hessian in the sparse form of :mod:`.normal`.
+first dead-reckoned fix and ``z_b`` the beacon depth; the weak priors of
+``docs/navigate.md`` (*The model*).
 """
 
 from __future__ import annotations
@@ -147,38 +142,14 @@ def predictions(dive: Dive, state: State, track=None, d0=None,
     return RangePrediction(*(k * v for v in pred))
 
 
-def motion_residuals(dive: Dive, track, beta, scale):
-    """``p_k - p_{k-1} - s R(beta) Delta_k`` for every step.
-
-    Parameters
-    ----------
-    dive : Dive
-    track : numpy.ndarray
-        ``(K, 2)``.
-    beta, scale : float
-
-    Returns
-    -------
-    numpy.ndarray
-        ``(K - 1, 2)``.
-    """
+def _motion_residuals(dive: Dive, track, beta, scale):
+    """``(K - 1, 2)``: ``p_k - p_{k-1} - s R(beta) Delta_k`` for every step."""
     R, _ = rotation(beta)
     return track[1:] - track[:-1] - scale * (dive.delta @ R.T)
 
 
-def motion_weights(dive: Dive, priors: Priors) -> np.ndarray:
-    """``lambda_k = 1 / (q^2 dt_k)`` of every step (``dt`` floored at ``priors.min_dt``).
-
-    Parameters
-    ----------
-    dive : Dive
-    priors : Priors
-
-    Returns
-    -------
-    numpy.ndarray
-        ``(K - 1,)``.
-    """
+def _motion_weights(dive: Dive, priors: Priors) -> np.ndarray:
+    """``lambda_k = 1 / (q^2 dt_k)`` of every step (``dt`` floored at ``priors.min_dt``)."""
     return 1.0 / (priors.q ** 2 * np.maximum(dive.dt, priors.min_dt))
 
 
@@ -203,8 +174,8 @@ def prior_penalty(dive: Dive, state: State, priors: Priors, track=None, beta=Non
     scale = state.scale if scale is None else scale
     d0 = state.d0 if d0 is None else d0
     k = state.range_scale if range_scale is None else range_scale
-    u = motion_residuals(dive, track, beta, scale)
-    lam = motion_weights(dive, priors)
+    u = _motion_residuals(dive, track, beta, scale)
+    lam = _motion_weights(dive, priors)
     start = track[0] - dive.dr[0]
     plane = d0 - dive.beacon_xyz[:, 2]
     return 0.5 * float(np.add.reduce(lam * (u * u).sum(axis=1))
@@ -314,7 +285,7 @@ def normal_equations(dive: Dive, state: State, a, b, priors: Priors, free_d0,
                        + (state.d0[j] - dive.beacon_xyz[j, 2]) / priors.plane_sd ** 2)
     if free_k:
         _range_scale_terms(dive, state, pred, a, b, free_d0, priors, B, C, grad_g)
-    lam = motion_weights(dive, priors)
+    lam = _motion_weights(dive, priors)
     R, dR = rotation(state.beta)
     rot = dive.delta @ R.T
     u = state.track[1:] - state.track[:-1] - state.scale * rot
@@ -342,15 +313,8 @@ def normal_equations(dive: Dive, state: State, a, b, priors: Priors, free_d0,
 def missing_information(dive: Dive, state: State, resp, free_d0, free_k: bool = False):
     """Return the information the uncertain classes cost (Louis, 1982), in the sparse layout.
 
-    The observed information of the mixture is the complete-data information
-    (the class-weighted Gauss-Newton Hessian of :func:`normal_equations`) less
-    the covariance, given the data, of the complete-data score. Reply ``i``
-    scores ``u_i = e_dp,i / sigma_DP^2 grad f_dp,i`` as a direct path and
-    ``v_i = e_mp,i / sigma_MP^2 grad f_mp,i`` as a multipath (the outlier
-    class scores 0), so its share is ``p_dp (1 - p_dp) u u^T + p_mp (1 - p_mp)
-    v v^T - p_dp p_mp (u v^T + v u^T)``: it touches the reply's epoch and its
-    beacon's plane height only, and the normal equations stay sparse. Known
-    classes (0 or 1) cost nothing.
+    Subtracted from :func:`normal_equations`, it gives the observed information of the
+    mixture (``docs/navigate.md``, *Uncertainty*).
 
     Parameters
     ----------

@@ -1,8 +1,6 @@
-"""Where the ranges did not correct the navigation: stretches of wide covariance, and the nuisances.
+"""Where the ranges did not correct the navigation.
 
-:func:`assess` flags every stretch of epochs whose position sd (major axis) exceeds
-``max_sd``, with the reason (no usable reply, one beacon only, an open direction), and
-each dead-reckoning nuisance whose posterior sd is more than half the prior's.
+The flags: ``docs/navigate.md`` (*Where it cannot correct*).
 
 Examples
 --------

@@ -1,13 +1,4 @@
-"""The result of :func:`~.driver.navigate`: the corrected track, the classes, the reflectors.
-
-:class:`Navigation` writes ``track.csv`` (one row per epoch: time, position,
-depth, its 2x2 covariance, the dead reckoning), ``classified.csv`` (every input
-row with its class probabilities, label and reason, as ``fit`` writes it),
-``summary.json`` (per beacon the reflector with intervals, the dead-reckoning
-nuisances with intervals, the observability flags, iterations; byte-identical
-for the same input and options) and ``timings.json`` (wall-clock seconds of
-each stage, kept out of ``summary.json`` for that reason).
-"""
+"""The result of :func:`~.driver.navigate` and its files (``docs/navigate.md``, ``docs/cli.md``)."""
 
 from __future__ import annotations
 
@@ -50,10 +41,8 @@ def finite(v):
 def estimate(value, sd, z, *, lo=-np.inf, bound=None) -> dict:
     """``{"estimate", "sd", "interval"}``, a Wald interval ``value +- z sd`` (clipped at ``lo``).
 
-    A value at its lower bound (``bound``, default ``lo``) is not estimated as an
-    interior point: its interval is one-sided, ``[bound, value + z1 sd]`` with
-    ``z1`` the one-sided quantile of the same probability, and the record says
-    ``"at_bound": true``.
+    A value at its lower bound gets the one-sided interval ``[bound, value + z1 sd]`` and
+    ``"at_bound": true`` (``docs/navigate.md``).
 
     Parameters
     ----------
@@ -413,12 +402,8 @@ class Navigation:
     def read(cls, folder) -> Navigation:
         """Read a navigation back from the folder :meth:`write` wrote, never by fitting again.
 
-        The pings of ``classified.csv`` in epochs with the dead reckoning of ``track.csv``
-        (:func:`.dive.dive_with_dead_reckoning`), the track and its covariances, the classes
-        and the estimates of ``summary.json`` (NaN where it has none); no history, timings,
-        joint covariances or per-beacon model records, so it draws but does not write. A
-        missing file is a ``FileNotFoundError``, a track that does
-        not fit the pings an ``InputError``.
+        No history, timings, joint covariances or per-beacon model records: it draws but
+        does not write.
 
         Parameters
         ----------
@@ -428,6 +413,13 @@ class Navigation:
         Returns
         -------
         Navigation
+
+        Raises
+        ------
+        FileNotFoundError
+            A missing file.
+        InputError
+            A track that does not fit the pings.
         """
         from pathlib import Path
 

@@ -1,8 +1,5 @@
 """Simulated dives for navigation: a true track, a drifting dead reckoning, LBL replies.
 
-The LBL simulator along a preset's track, then a dead reckoning degraded as the
-navigation model assumes (:func:`degrade`) and optionally a blocked direct path.
-
 Examples
 --------
 >>> sim = simulate_dive("abe58", rng=0, n_cycles=50, heading_bias=1.0)

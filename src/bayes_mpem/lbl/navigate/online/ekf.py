@@ -1,8 +1,6 @@
-"""The forward filter of the vehicle's position: an extended Kalman filter in plain floats.
+"""The forward filter of the position: an extended Kalman filter in plain floats.
 
-State ``(x, y, beta, s)``: the position, the dead reckoning's heading bias and speed
-scale. The covariance is held as the 10 distinct entries of the 4 x 4 matrix in Python
-floats, cheaper than NumPy on arrays this small.
+State ``(x, y, beta, s)``; the covariance as its 10 distinct entries (``docs/stream.md``).
 
 Examples
 --------

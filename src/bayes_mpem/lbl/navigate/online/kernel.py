@@ -1,9 +1,4 @@
-"""The navigation model of one ping, in plain Python floats.
-
-:mod:`bayes_mpem.lbl.navigate.model`'s functions specialised to one range and written
-with :mod:`math`, as NumPy calls on scalars are slow (``docs/benchmarks.md``); the
-tests check that both agree to 1e-12.
-"""
+"""The navigation model of one ping in plain Python floats (``docs/stream.md``)."""
 
 from __future__ import annotations
 

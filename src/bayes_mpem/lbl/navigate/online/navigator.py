@@ -1,10 +1,4 @@
-"""``Navigator``: classify each range as it arrives and keep the vehicle's position.
-
-Per input line: predict the filter (:mod:`.ekf`) with the dead reckoning, classify the
-reply with its predictive density, correct the filter with it, and take one online-EM
-step of the reflector (:mod:`.reflector`); before that, a warm-up (:mod:`.warmup`).
-The state is a JSON document. The steps are described in ``docs/stream.md``.
-"""
+"""``Navigator``: classify each range as it arrives and keep the position (``docs/stream.md``)."""
 
 from __future__ import annotations
 
@@ -481,7 +475,7 @@ class Navigator:
             raise InputError(f"navigator state version {d.get('version')!r}: this version "
                              f"reads version {STATE_VERSION}")
         try:
-            self = cls._from_checked(check_state(d))
+            self = cls._from_checked(_check_state(d))
         except InputError:
             raise
         except (KeyError, TypeError, ValueError, IndexError, AttributeError) as err:
@@ -571,25 +565,8 @@ _STATE_SCHEMA = {"options": (dict,), "beacons": (dict,), "seed": (int,),
                  "models": (dict,), "dp": (dict, None), "warmup_record": (dict, None)}
 
 
-def check_state(d: dict) -> dict:
-    """Check a saved state's parts and types before anything is built from it.
-
-    Parameters
-    ----------
-    d : dict
-        A document of :meth:`Navigator.to_dict`.
-
-    Returns
-    -------
-    dict
-        ``d``.
-
-    Raises
-    ------
-    InputError
-        A missing part, a part of the wrong type, a phase that does not go with
-        the filter, or a number that is not finite (the part named).
-    """
+def _check_state(d: dict) -> dict:
+    """Return ``d`` (:meth:`Navigator.to_dict`), its parts and types checked (else InputError)."""
     for key, types in _STATE_SCHEMA.items():
         if key not in d:
             raise InputError(f"not a valid navigator state: the part {key!r} is missing")

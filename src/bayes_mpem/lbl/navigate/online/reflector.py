@@ -1,7 +1,4 @@
-"""Online EM of a beacon's reflector and mixing weights, and of the pooled sigma_DP.
-
-Stochastic approximation of the sufficient statistics with step ``gamma_n = n^-alpha``;
-the statistics and M-step are written out in ``docs/stream.md``.
+"""Online EM of a beacon's reflector and weights, and of the pooled sigma_DP (``docs/stream.md``).
 
 References
 ----------

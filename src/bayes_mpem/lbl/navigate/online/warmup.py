@@ -1,9 +1,6 @@
-"""The start of a stream: provisional answers, then a small batch fit that seeds the filter.
+"""The start of a stream: provisional answers, then a batch fit that seeds the filter.
 
-Until ``warmup`` replies have arrived, each ping gets a provisional answer at its
-dead-reckoned position; then :func:`batch_start` runs
-:func:`~bayes_mpem.lbl.navigate.navigate` on the kept replies and starts the online
-estimator from its last epoch (``docs/stream.md``).
+The warm-up: ``docs/stream.md``.
 """
 
 from __future__ import annotations
@@ -65,26 +62,8 @@ def provisional_classes(ping, xyz, window, sd):
                                _THIRD)[:3]
 
 
-def beacon_stats(z, xy, depth, xyz, d0, double, resp):
-    """Compute a beacon's batch sufficient statistics (:data:`.reflector.BEACON_STATS`).
-
-    Parameters
-    ----------
-    z, depth : numpy.ndarray
-        ``(n,)`` ranges and vehicle depths (m).
-    xy : numpy.ndarray
-        ``(n, 2)`` vehicle positions (m).
-    xyz : sequence of 3 float
-        The beacon.
-    d0 : float
-    double : bool
-    resp : numpy.ndarray
-        ``(n, 3)`` class probabilities.
-
-    Returns
-    -------
-    tuple of 6 float
-    """
+def _beacon_stats(z, xy, depth, xyz, d0, double, resp):
+    """Return a beacon's batch sufficient statistics (:data:`.reflector.BEACON_STATS`)."""
     pred = predict_ranges(xy[:, 0], xy[:, 1], depth, xyz, d0, "double" if double else "triangle")
     r = z - pred.multipath
     jac = pred.d_multipath_d0
@@ -94,7 +73,7 @@ def beacon_stats(z, xy, depth, xyz, d0, double, resp):
 
 
 def expected_squares(stats, sigma_mp):
-    """Replace the plain sum of squares of :func:`beacon_stats` by the batch's expected one.
+    """Replace the plain sum of squares in ``stats`` by the batch's expected one.
 
     The batch ECM's ``sigma_MP`` is the fixed point of the expected squared residual
     ``r^2 + J P J^T`` (the track's uncertainty included); the plain ``<g r^2>`` is biased
@@ -131,7 +110,7 @@ def _alternative(model, data, xy, depth, seed):
     return BeaconModel.start(d0=d0, sigma_mp=max(fit.sigma_mp, 0.05), weights=w, n=model.n,
                              double=not model.double, mp_on=True, xyz=model.xyz,
                              d0_min=model.d0_min, window=model.window,
-                             stats=beacon_stats(data.range, xy, depth, model.xyz, d0,
+                             stats=_beacon_stats(data.range, xy, depth, model.xyz, d0,
                                                 not model.double, fit.resp))
 
 
@@ -243,8 +222,8 @@ def batch_start(buffer, beacons: pd.DataFrame, opts: dict, seed: int, prior: dic
         xy, depth = st.track[dive.epoch[m]], dive.zdepth[m]
         if nav.beacons[bid]["mp"] and not nav.beacons[bid].get("flags"):
             stats = expected_squares(
-                beacon_stats(dive.z[m], xy, depth, xyz, float(st.d0[j]), bool(st.double[j]),
-                             nav.resp[m]), float(st.sigma_mp[j]))
+                _beacon_stats(dive.z[m], xy, depth, xyz, float(st.d0[j]), bool(st.double[j]),
+                              nav.resp[m]), float(st.sigma_mp[j]))
             models[bid] = BeaconModel.start(
                 d0=float(st.d0[j]), sigma_mp=float(st.sigma_mp[j]), weights=tuple(st.weights[j]),
                 stats=stats, **common)
@@ -255,9 +234,8 @@ def batch_start(buffer, beacons: pd.DataFrame, opts: dict, seed: int, prior: dic
         else:  # too few replies, no multipath class, or a flagged fit: the prior
             models[bid] = prior_model(xyz, prior, mp_on=mp_on, path=opts["path"],
                                       d0_min=common["d0_min"], window=common["window"])
-    # the batch's expected squares, <g (r^2 + J P J^T)> = <g> sigma^2 at its scales' fixed
-    # point (docs/navigate.md): the plain <g r^2> would restart the filter from the scale
-    # the track's degrees of freedom bias low (issue 25)
+    # the batch's expected squares <g (r^2 + J P J^T)> = <g> sigma^2 (its scales' fixed point,
+    # docs/navigate.md), not the plain <g r^2> that the track's degrees of freedom bias low
     g = float(nav.resp[:, 0].mean())
     dp = DirectPathScale(st.sigma_dp, dive.n, stats=(g, g * st.sigma_dp ** 2),
                          fixed=opts["sigma_dp"] is not None)

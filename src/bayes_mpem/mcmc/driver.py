@@ -11,7 +11,7 @@ import numpy as np
 
 from ..exceptions import SamplingWarning
 from .progress import SamplingProgress
-from .summaries import ensemble_rhat, ess, rhat
+from .summaries import ess_and_rhat
 
 
 @runtime_checkable
@@ -169,13 +169,8 @@ def _check(chain, natural, n_ens):
     """Bulk ESS and R-hat of each series of the kept chain (walkers as chains): two dicts."""
     series = (natural(chain) if natural is not None
               else {i: chain[:, :, i] for i in range(chain.shape[2])})
-    ess_by, rhat_by = {}, {}
-    for k, v in series.items():
-        x = np.ascontiguousarray(np.asarray(v).T)  # (chain, draw)
-        ess_by[k] = ess(x)
-        # an ensemble's walkers are not independent: one chain per ensemble
-        rhat_by[k] = ensemble_rhat(x, n_ens) if n_ens > 1 else rhat(x)
-    return ess_by, rhat_by
+    return ess_and_rhat({k: np.ascontiguousarray(np.asarray(v).T) for k, v in series.items()},
+                        n_ens)
 
 
 def run_ensembles(target, starts, *, moves, gen: np.random.Generator, min_ess=1000.0,

@@ -75,21 +75,29 @@ def rhat(x) -> float:
     return float(_array_stats().rhat(np.asarray(x, float)))
 
 
-def ensemble_rhat(x, n_ens: int) -> float:
-    """ArviZ's R-hat across ``n_ens`` ensembles, each ensemble's walkers pooled into one chain.
+def ess_and_rhat(series: dict, n_ens: int = 1) -> tuple[dict, dict]:
+    """ArviZ's bulk ESS and R-hat of each ``(walker, draw)`` series, walkers as chains.
 
     Parameters
     ----------
-    x : array_like
-        ``(walker, draw)``, the walkers of each ensemble consecutive.
-    n_ens : int
+    series : dict of str to array_like
+        ``(walker, draw)`` arrays, the walkers of each ensemble consecutive.
+    n_ens : int, default 1
+        Ensembles: with more than one, R-hat compares them (the walkers of one ensemble
+        are not independent chains), each ensemble's draws pooled into one chain.
 
     Returns
     -------
-    float
+    ess, rhat : dict
     """
-    x = np.asarray(x)
-    return rhat(x.reshape(n_ens, -1, x.shape[1]).transpose(0, 2, 1).reshape(n_ens, -1))
+    ess_by, rhat_by = {}, {}
+    for k, v in series.items():
+        x = np.asarray(v)
+        ess_by[k] = ess(x)
+        if n_ens > 1:
+            x = x.reshape(n_ens, -1, x.shape[1]).transpose(0, 2, 1).reshape(n_ens, -1)
+        rhat_by[k] = rhat(x)
+    return ess_by, rhat_by
 
 
 def bulk_ess(series: dict) -> dict:
@@ -218,21 +226,3 @@ def to_datatree(groups: dict, *, dims: dict | None = None, coords: dict | None =
     tree = from_dict(groups, dims=dims, coords=coords, check_conventions=False)
     tree.attrs.update(attrs or {})
     return tree
-
-
-def rhat_across_ensembles(ds, n_ens: int) -> dict:
-    """:func:`ensemble_rhat` of every variable of ``ds``.
-
-    Parameters
-    ----------
-    ds : xarray.Dataset
-        ``(chain, draw)`` variables, the walkers of each ensemble consecutive.
-    n_ens : int
-        Number of ensembles (at least 2).
-
-    Returns
-    -------
-    dict
-        Variable -> R-hat.
-    """
-    return {k: ensemble_rhat(v.values, n_ens) for k, v in ds.data_vars.items()}

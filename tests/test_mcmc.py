@@ -186,6 +186,12 @@ def test_intervals_and_ess_are_arviz_stats():
     series = rng.normal(size=(8, 2000))  # (chain, draw), independent draws
     assert mcmc.bulk_ess({"x": series})["x"] == pytest.approx(16000, rel=0.1)
     assert mcmc.rhat(series) == pytest.approx(1.0, abs=0.01)
+    # two ensembles of 4 walkers: R-hat compares the ensembles, each pooled into one chain
+    shifted = series + np.repeat([0.0, 1.0], 4)[:, None]
+    ess, rhat = mcmc.ess_and_rhat({"x": shifted}, n_ens=2)
+    pooled = shifted.reshape(2, 4, 2000).transpose(0, 2, 1).reshape(2, -1)
+    assert ess == {"x": mcmc.ess(shifted)} and rhat == {"x": mcmc.rhat(pooled)}
+    assert rhat["x"] > 1.1 and mcmc.ess_and_rhat({"x": series})[1]["x"] < 1.01
 
 
 # ----------------------------------------------------------------------- exact moves

@@ -1,20 +1,10 @@
-"""bayes_mpem: acoustic multipath identification for LBL ranging.
-
-Classify every acoustic range as direct path, multipath or outlier and identify each
-beacon's reflector, with the paper's EM or a mixture EM; sample the same likelihood for
-posterior intervals (:func:`sample`, :func:`compare`); find which assumption a survey breaks
-(:func:`diagnose`); navigate with multipath as signal (:func:`navigate`); locate a
-transponder from a survey-in (:mod:`bayes_mpem.survey_in`). The layout:
-``docs/architecture.md``.
-"""
+"""bayes_mpem: acoustic multipath identification for LBL ranging (layout: docs/architecture.md)."""
 
 __version__ = "0.1.0"
 
 import importlib  # noqa: E402
 
-#: public name -> the module that defines it (relative to ``bayes_mpem``). The names are
-#: imported on first use (PEP 562), so ``import bayes_mpem`` and ``bayes-mpem --help``
-#: stay fast: numpy, scipy, pandas, emcee, ArviZ and matplotlib load only when needed.
+#: public name -> the module that defines it, imported on first use (PEP 562; keeps --help fast)
 _PUBLIC: dict[str, str] = {
     **dict.fromkeys(("ConvergenceWarning", "FitQualityWarning", "InputError", "LocateWarning",
                      "ModelCheckWarning", "NavigationWarning", "PathChoiceWarning",

@@ -1,9 +1,4 @@
-"""The emcee driver: the :class:`LogPosterior` protocol and the sampling loop.
-
-:func:`run_ensembles` runs one or more ``emcee.EnsembleSampler`` (``vectorize=True``)
-in blocks until ArviZ's bulk ESS reaches its target and R-hat is below its bound;
-:func:`place_walkers` fills a start ball inside the prior.
-"""
+"""The emcee driver: the :class:`LogPosterior` protocol, the sampling loop and the start ball."""
 
 from __future__ import annotations
 
@@ -16,7 +11,7 @@ import numpy as np
 
 from ..exceptions import SamplingWarning
 from .progress import SamplingProgress
-from .summaries import ess, rhat
+from .summaries import ess_and_rhat
 
 
 @runtime_checkable
@@ -44,7 +39,6 @@ class LogPosterior(Protocol):
         ----------
         n_walkers : int
         gen : numpy.random.Generator
-            The stream to draw the positions from.
 
         Returns
         -------
@@ -151,14 +145,9 @@ def _burn(samplers) -> int:
 
 
 def _sampler_class():
-    """Return emcee's ``EnsembleSampler`` without a snapshot of its generator at every step.
+    """Return emcee's ``EnsembleSampler`` reading ``random_state`` as None (no snapshots).
 
-    emcee copies its generator's state (MT19937, 2.5 kB) into each step's ``State`` so a
-    run can be resumed from any step: 40 % of its own time per step on a small target.
-    :func:`run_ensembles` continues every block from the sampler's generator itself and
-    never resumes from a ``State``, so this subclass reads ``random_state`` as None (emcee
-    then leaves the generator as it is, as setting it to its own state would); setting it
-    is emcee's. The chain is the same, seed for seed (tested).
+    The chain is the same, seed for seed; why: ``docs/bayes.md`` (One driver).
     """
     import emcee
 
@@ -180,14 +169,8 @@ def _check(chain, natural, n_ens):
     """Bulk ESS and R-hat of each series of the kept chain (walkers as chains): two dicts."""
     series = (natural(chain) if natural is not None
               else {i: chain[:, :, i] for i in range(chain.shape[2])})
-    ess_by, rhat_by = {}, {}
-    for k, v in series.items():
-        x = np.ascontiguousarray(np.asarray(v).T)  # (chain, draw)
-        ess_by[k] = ess(x)
-        if n_ens > 1:  # an ensemble's walkers are not independent: one chain per ensemble
-            x = x.reshape(n_ens, -1, x.shape[1]).transpose(0, 2, 1).reshape(n_ens, -1)
-        rhat_by[k] = rhat(x)
-    return ess_by, rhat_by
+    return ess_and_rhat({k: np.ascontiguousarray(np.asarray(v).T) for k, v in series.items()},
+                        n_ens)
 
 
 def run_ensembles(target, starts, *, moves, gen: np.random.Generator, min_ess=1000.0,
@@ -196,9 +179,8 @@ def run_ensembles(target, starts, *, moves, gen: np.random.Generator, min_ess=10
                   stacklevel=2, start_log_prob=None) -> EnsembleRun:
     """Run emcee ensembles until the bulk ESS reaches ``min_ess`` and R-hat < ``max_rhat``.
 
-    Every check uses ArviZ's rank-normalised estimators on the kept chain, walkers as
-    chains (exact for an independence move, where every walker is its own Markov
-    chain); with several ensembles R-hat compares the ensembles.
+    ESS and R-hat are ArviZ's over the kept chain, walkers as chains; with several
+    ensembles R-hat compares the ensembles.
 
     Parameters
     ----------
@@ -246,6 +228,16 @@ def run_ensembles(target, starts, *, moves, gen: np.random.Generator, min_ess=10
     -----
     SamplingWarning
         When ``max_steps`` is reached before the stopping rule (and ``warn``).
+
+    Examples
+    --------
+    >>> from bayes_mpem.mcmc.moves import default_moves
+    >>> gen = np.random.default_rng(0)
+    >>> target = lambda x: -0.5 * (x ** 2).sum(axis=1)
+    >>> run = run_ensembles(target, [gen.standard_normal((16, 1))], moves=default_moves(),
+    ...                     gen=gen, min_ess=400, burn_in=True, progress=False)
+    >>> run.converged, run.ess >= 400
+    (True, True)
     """
     import emcee
 

@@ -1,19 +1,4 @@
-"""The emcee moves of both posteriors: an independence proposal, or differential evolution.
-
-Imported on first use (emcee's import costs 0.5 s).
-
-References
-----------
-Tierney, L. (1994). Markov chains for exploring posterior distributions. Annals of
-Statistics 22(4), 1701-1728 (section 2.3.3: independence chains).
-ter Braak, C. J. F. and Vrugt, J. A. (2008). Differential Evolution Markov Chain with
-snooker updater and fewer chains. Statistics and Computing 18, 435-446.
-
-Examples
---------
->>> [(type(m).__name__, w) for m, w in default_moves()]
-[('DEMove', 1.0)]
-"""
+"""The emcee moves of every posterior: an independence proposal, or differential evolution."""
 
 from __future__ import annotations
 
@@ -33,12 +18,8 @@ BLOCK_POINTS = 256
 class IndependenceMove(emcee.moves.MHMove):
     """emcee's ``MHMove`` with an independence proposal, evaluated a block of steps at a time.
 
-    The proposal ignores the walkers' positions, so the proposals of the next steps can be
-    drawn, and the target evaluated at all of them in one vectorised call, before the steps
-    are taken: emcee still accepts or rejects each step (``log q(x) - log q(x')`` as the log
-    ratio, Tierney 1994), and the chain is the same Markov chain as one proposal per step.
-    :meth:`plan` says how many steps the next ``run_mcmc`` takes (the driver calls it), so
-    no evaluation is wasted; unplanned steps propose one at a time.
+    :meth:`plan` says how many steps the next ``run_mcmc`` takes; unplanned steps propose
+    one at a time. Why it is the same Markov chain: ``docs/bayes.md`` (Which move).
 
     Parameters
     ----------
@@ -47,6 +28,11 @@ class IndependenceMove(emcee.moves.MHMove):
         (:func:`~bayes_mpem.mcmc.proposal.laplace_proposal`).
     block_points : int, default :data:`BLOCK_POINTS`
         Proposals (walkers x steps) per call of the target.
+
+    References
+    ----------
+    Tierney, L. (1994). Markov chains for exploring posterior distributions. Annals of
+    Statistics 22(4), 1701-1728 (section 2.3.3: independence chains).
     """
 
     def __init__(self, proposal, *, block_points: int | None = None):
@@ -75,9 +61,7 @@ class IndependenceMove(emcee.moves.MHMove):
         Parameters
         ----------
         model : emcee.model.Model
-            emcee's view of the sampler (the target and its random state).
         state : emcee.State
-            The walkers now.
 
         Returns
         -------
@@ -109,10 +93,6 @@ class IndependenceMove(emcee.moves.MHMove):
 def independence_move(proposal) -> list:
     """Independence Metropolis-Hastings from ``proposal`` as emcee's moves.
 
-    Each walker proposes a fresh draw of ``proposal`` whatever its position, so
-    each walker is its own Markov chain: ESS and R-hat over walkers as chains are
-    exact.
-
     Parameters
     ----------
     proposal : TProposal
@@ -122,8 +102,7 @@ def independence_move(proposal) -> list:
     Returns
     -------
     list
-        ``[(IndependenceMove, 1.0)]``, an ``emcee.moves.MHMove``; its log ratio is
-        ``log q(x) - log q(x')``.
+        ``[(IndependenceMove, 1.0)]``.
     """
     return [(IndependenceMove(proposal), 1.0)]
 
@@ -135,5 +114,15 @@ def default_moves() -> list:
     -------
     list
         ``[(DEMove, 1.0)]``, emcee's ``moves`` argument.
+
+    References
+    ----------
+    ter Braak, C. J. F. and Vrugt, J. A. (2008). Differential Evolution Markov Chain with
+    snooker updater and fewer chains. Statistics and Computing 18, 435-446.
+
+    Examples
+    --------
+    >>> [(type(m).__name__, w) for m, w in default_moves()]
+    [('DEMove', 1.0)]
     """
     return [(emcee.moves.DEMove(), 1.0)]

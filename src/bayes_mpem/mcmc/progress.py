@@ -1,10 +1,4 @@
-"""Progress of a sampling run: a bar on a terminal, plain lines in a log file.
-
-:func:`~bayes_mpem.mcmc.driver.run_ensembles` reports to a :class:`SamplingProgress`
-after every check. ``progress`` arguments everywhere take ``"auto"`` (a bar on a
-terminal, else a line at most every :data:`LOG_INTERVAL` seconds), ``"bar"`` or True,
-``"log"``, or False (silent).
-"""
+"""Progress of a sampling run: a bar on a terminal, plain lines in a log (``docs/bayes.md``)."""
 
 from __future__ import annotations
 
@@ -51,22 +45,8 @@ def progress_mode(progress) -> str | None:
     return progress
 
 
-def progress_bar(progress, desc: str, total: int | None = None):
-    """Open a tqdm bar counting steps labelled ``desc``; None unless ``progress`` is a bar.
-
-    Parameters
-    ----------
-    progress : bool, None or {"auto", "bar", "log"}
-        As for :func:`progress_mode`; a bar only when it resolves to ``"bar"``.
-    desc : str
-        The bar's label.
-    total : int, optional
-        The expected number of steps.
-
-    Returns
-    -------
-    tqdm.tqdm or None
-    """
+def _progress_bar(progress, desc: str, total: int | None = None):
+    """Open a tqdm bar counting steps labelled ``desc``; None unless ``progress`` is a bar."""
     if progress_mode(progress) != "bar":
         return None
     from tqdm.auto import tqdm
@@ -101,7 +81,7 @@ class SamplingProgress:
         self.stream = stream
         self.t0 = self.last_line = time.perf_counter()
         self.lines = 0
-        self.bar = progress_bar(self.mode, label, total=self.max_steps) if self.mode else None
+        self.bar = _progress_bar(self.mode, label, total=self.max_steps) if self.mode else None
 
     def _rule(self, ess: float, rhat: float) -> str:
         return (f"ESS {_count(ess)}, target {_count(self.min_ess)}; R-hat {rhat:.3f}, "
@@ -165,13 +145,7 @@ class SamplingProgress:
 
 
 def _count(x: float) -> str:
-    """Format a count with thousands separators (``1,307``), ``inf`` as is.
-
-    Examples
-    --------
-    >>> _count(1307.4), _count(float("inf"))
-    ('1,307', 'inf')
-    """
+    """Format a count with thousands separators (``1,307``), ``inf`` as is."""
     return f"{x:,.0f}" if math.isfinite(x) else f"{x}"
 
 
@@ -181,7 +155,6 @@ def say(label: str, text: str, stream=None) -> None:
     Parameters
     ----------
     label : str
-        Names the posterior.
     text : str
     stream : file-like, optional
     """

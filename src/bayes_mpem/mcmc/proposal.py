@@ -1,18 +1,4 @@
-"""A Laplace (Student-t) proposal for independence Metropolis-Hastings.
-
-:func:`laplace_proposal` finds the mode of a target by Newton steps on a
-finite-difference Hessian and returns a :class:`TProposal`: a Student-t at the mode with
-the inverse Hessian as its scale, for :func:`bayes_mpem.mcmc.moves.independence_move`.
-The Metropolis-Hastings acceptance keeps the chain exact whatever the proposal.
-
-References
-----------
-Tierney (1994), Markov chains for exploring posterior distributions, Annals
-of Statistics 22(4), 1701-1728 (section 2.3.3: independence chains).
-Mengersen and Tweedie (1996), Rates of convergence of the Hastings and
-Metropolis algorithms, Annals of Statistics 24(1), 101-121 (uniform
-ergodicity when ``p / q`` is bounded, as with heavier-tailed proposals).
-"""
+"""A Laplace (Student-t) proposal for independence Metropolis-Hastings (``docs/bayes.md``)."""
 
 from __future__ import annotations
 
@@ -46,7 +32,6 @@ class TProposal:
         ----------
         n : int
         gen : numpy.random.Generator or numpy.random.RandomState
-            emcee passes its ``RandomState``.
 
         Returns
         -------
@@ -59,6 +44,7 @@ class TProposal:
 
     @cached_property
     def _inv_chol_t(self) -> np.ndarray:
+        """The transposed inverse of :attr:`chol`."""
         return np.linalg.inv(self.chol).T
 
     def log_density(self, u) -> np.ndarray:
@@ -134,6 +120,12 @@ def laplace_proposal(target, start, step, *, df: float = 10.0, newton: int = 3):
     TProposal or None
         None when the Hessian is not negative definite, or a difference point
         falls outside the support (no Gaussian approximation there).
+
+    References
+    ----------
+    Mengersen, K. L. and Tweedie, R. L. (1996). Rates of convergence of the Hastings and
+    Metropolis algorithms. Annals of Statistics 24(1), 101-121 (uniform ergodicity when
+    ``p / q`` is bounded, as with heavier-tailed proposals).
 
     Examples
     --------

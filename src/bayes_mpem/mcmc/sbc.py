@@ -1,35 +1,10 @@
-"""Rank statistics of simulation-based calibration (Talts et al. 2018) and their tests.
-
-The rank of a value drawn from the prior among ``L`` posterior draws of data simulated
-from it is uniform on ``0 .. L`` when the posterior and sampler are exact.
-:func:`rank_statistic` computes ranks; :func:`rank_uniformity` tests them (chi-square on
-equal bins, binomial test of the outer tails) and :func:`rank_dispersion` tests whether
-the draws are too narrow or too wide. The model-specific part is the caller's
-(:mod:`bayes_mpem.lbl.bayes.sbc`).
+"""Rank statistics of simulation-based calibration and their tests (``docs/bayes-calibration.md``).
 
 References
 ----------
 Talts, S., Betancourt, M., Simpson, D., Vehtari, A. and Gelman, A. (2018).
 Validating Bayesian inference algorithms with simulation-based calibration.
 arXiv:1804.06788.
-
-Examples
---------
-Ranks of values drawn from the distribution the draws come from are uniform:
-
->>> import numpy as np
->>> gen = np.random.default_rng(0)
->>> ranks = [rank_statistic(gen.normal(size=99), gen.normal()) for _ in range(2000)]
->>> test = rank_uniformity(ranks, 99)
->>> bool(test["p_value"] > 0.01), bool(test["tails_p_value"] > 0.01)
-(True, True)
-
-Draws that are too narrow put the truth in their tails:
-
->>> ranks = [rank_statistic(0.8 * gen.normal(size=99), gen.normal()) for _ in range(2000)]
->>> test = rank_uniformity(ranks, 99)
->>> bool(test["tails_p_value"] < 1e-6), test["tails"] > 0.1
-(True, True)
 """
 
 from __future__ import annotations
@@ -43,8 +18,7 @@ def rank_statistic(draws, truth) -> int:
     Parameters
     ----------
     draws : array_like
-        ``L`` posterior draws of one parameter (independent, or thinned to be
-        nearly so).
+        ``L`` posterior draws of one parameter (independent, or thinned to be so).
     truth : float
         The value the data were simulated from.
 
@@ -70,8 +44,7 @@ def rank_histogram(ranks, n_draws: int, n_bins: int = 10) -> np.ndarray:
     n_draws : int
         ``L``, the number of posterior draws each rank was taken among.
     n_bins : int, default 10
-        Must divide ``n_draws + 1`` (every bin then holds the same number of rank
-        values and, under uniformity, the same expected count).
+        A divisor of ``n_draws + 1`` (equal expected counts under uniformity).
 
     Returns
     -------

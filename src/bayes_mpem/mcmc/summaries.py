@@ -1,8 +1,4 @@
-"""Summaries of a kept chain: thinning, moments over draws, and ArviZ's diagnostics.
-
-ESS, R-hat and HDI come from :mod:`arviz_stats`, the DataTree from :mod:`arviz_base`
-(both imported on first use).
-"""
+"""Summaries of a kept chain: thinning, moments over draws, and ArviZ's diagnostics."""
 
 from __future__ import annotations
 
@@ -10,6 +6,7 @@ import numpy as np
 
 
 def _array_stats():
+    """ArviZ's array functions, imported on first use."""
     from arviz_stats.base import array_stats
 
     return array_stats
@@ -55,7 +52,6 @@ def ess(x, method: str = "bulk") -> float:
     x : array_like
         ``(chain, draw)``.
     method : str, default "bulk"
-        ``"bulk"``, ``"tail"``, ``"mean"``, ...
 
     Returns
     -------
@@ -77,6 +73,31 @@ def rhat(x) -> float:
     float
     """
     return float(_array_stats().rhat(np.asarray(x, float)))
+
+
+def ess_and_rhat(series: dict, n_ens: int = 1) -> tuple[dict, dict]:
+    """ArviZ's bulk ESS and R-hat of each ``(walker, draw)`` series, walkers as chains.
+
+    Parameters
+    ----------
+    series : dict of str to array_like
+        ``(walker, draw)`` arrays, the walkers of each ensemble consecutive.
+    n_ens : int, default 1
+        Ensembles: with more than one, R-hat compares them (the walkers of one ensemble
+        are not independent chains), each ensemble's draws pooled into one chain.
+
+    Returns
+    -------
+    ess, rhat : dict
+    """
+    ess_by, rhat_by = {}, {}
+    for k, v in series.items():
+        x = np.asarray(v)
+        ess_by[k] = ess(x)
+        if n_ens > 1:
+            x = x.reshape(n_ens, -1, x.shape[1]).transpose(0, 2, 1).reshape(n_ens, -1)
+        rhat_by[k] = rhat(x)
+    return ess_by, rhat_by
 
 
 def bulk_ess(series: dict) -> dict:
@@ -114,8 +135,6 @@ def hdi(x, ci: float) -> list:
 def equal_tailed(x, ci: float) -> list:
     """Equal-tailed interval ``[lower, upper]`` of all values of ``x``, probability ``ci``.
 
-    The ``(1 - ci) / 2`` and ``(1 + ci) / 2`` quantiles.
-
     Parameters
     ----------
     x : array_like
@@ -138,8 +157,6 @@ def equal_tailed(x, ci: float) -> list:
 
 def draw_moments(flat, fn, *, chunk: int = 64):
     """Pointwise values and the mean and sd of per-item probabilities over draws, in chunks.
-
-    One pass over chunks of draws: never a draws x items x classes array.
 
     Parameters
     ----------
@@ -209,29 +226,3 @@ def to_datatree(groups: dict, *, dims: dict | None = None, coords: dict | None =
     tree = from_dict(groups, dims=dims, coords=coords, check_conventions=False)
     tree.attrs.update(attrs or {})
     return tree
-
-
-def rhat_across_ensembles(ds, n_ens: int) -> dict:
-    """ArviZ's rank-normalised split R-hat across independent ensembles.
-
-    The walkers of one ensemble are not independent chains: each ensemble's
-    walkers are regrouped into one chain (draws = walkers x kept draws) first.
-
-    Parameters
-    ----------
-    ds : xarray.Dataset
-        ``(chain, draw)`` variables, the walkers of each ensemble consecutive.
-    n_ens : int
-        Number of ensembles (at least 2).
-
-    Returns
-    -------
-    dict
-        Variable -> R-hat.
-    """
-    out = {}
-    for k, v in ds.data_vars.items():
-        a = v.values  # (chain, draw)
-        a = a.reshape(n_ens, -1, a.shape[1])  # (ensemble, walker, draw)
-        out[k] = rhat(a.transpose(0, 2, 1).reshape(n_ens, -1))
-    return out

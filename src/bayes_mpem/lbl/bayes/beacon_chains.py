@@ -1,20 +1,4 @@
-"""The chains of one beacon's posterior: emcee with an independence proposal, or DE.
-
-:func:`beacon_chains` samples :class:`~bayes_mpem.lbl.bayes.posterior.BeaconPosterior`
-in free coordinates (:class:`FreeCoordinates`) with :func:`bayes_mpem.mcmc.run_ensembles`,
-with ``moves``:
-
-``"independence"``
-    emcee's ``MHMove`` with a Student-t proposal at the posterior mode
-    (:func:`~bayes_mpem.mcmc.laplace_proposal`), walkers started at proposal draws.
-``"ensemble"``
-    Differential evolution from balls around the EM solution, two ensembles, burn-in.
-``"auto"`` (the default)
-    The independence move unless a discarded pilot mixes poorly (below
-    :data:`MIN_ESS_PER_DRAW` or above :data:`MAX_PILOT_RHAT`) or it exceeds
-    :data:`INDEPENDENCE_BUDGET` steps; then differential evolution. The choice and
-    its reason are recorded (``docs/bayes.md``).
-"""
+"""The chains of one beacon's posterior: emcee, an independence proposal or DE (docs/bayes.md)."""
 
 from __future__ import annotations
 
@@ -47,9 +31,7 @@ _CHUNK_CELLS = 4_000_000
 class FreeCoordinates:
     """The beacon posterior in unconstrained coordinates: the weights as log-ratios to ``w_ol``.
 
-    ``u = (d0, log_sigma_mp[, log_sigma_dp][, log(w_dp / w_ol), log(w_mp / w_ol)])``;
-    the density in ``u`` is the posterior times the Jacobian
-    ``|d(w_dp, w_mp) / d(a_dp, a_mp)| = w_dp w_mp w_ol``.
+    The density there is the posterior times the Jacobian ``w_dp w_mp w_ol``.
 
     Parameters
     ----------
@@ -202,7 +184,7 @@ def beacon_chains(post: BeaconPosterior, gen: np.random.Generator, *, sampler="a
     post : BeaconPosterior
     gen : numpy.random.Generator
     sampler : {"auto", "independence", "ensemble"}
-        See the module's description; ``n_ensembles > 1`` implies the ensemble.
+        The move (``docs/bayes.md``, Which move); ``n_ensembles > 1`` implies the ensemble.
     n_walkers : int, optional
         Default :data:`N_WALKERS` (independence) or ``max(24, 4 ndim)`` (ensemble).
     min_ess, max_steps, n_draws

@@ -1,10 +1,4 @@
-"""Sampling one beacon's posterior: from the EM solution to a :class:`PosteriorResult`.
-
-:func:`sample_beacon` starts from the mixture EM, samples
-:class:`~bayes_mpem.lbl.bayes.posterior.BeaconPosterior` with
-:func:`~bayes_mpem.lbl.bayes.beacon_chains.beacon_chains` until the bulk ESS and R-hat
-meet their targets, and summarises the draws with ArviZ (``docs/bayes.md``).
-"""
+"""Sampling one beacon's posterior: from the EM solution to a :class:`PosteriorResult`."""
 
 from __future__ import annotations
 
@@ -16,7 +10,7 @@ import numpy as np
 from ..._rng import RNGLike, as_generator
 from ...exceptions import UnusableStartError
 from ...io.survey import BeaconData
-from ...mcmc import ess, hdi, rhat, rhat_across_ensembles, thin_index, to_datatree
+from ...mcmc import ess_and_rhat, hdi, thin_index, to_datatree
 from ...mixture.densities import CLASSES
 from ..em.em_mixture import fit_mixture_em
 from ..em.em_result import EMResult
@@ -99,8 +93,6 @@ class PosteriorResult:
         """Smallest ESS over the sampled parameters."""
         return float(min(self.ess.values()))
 
-    # the names an EMResult answers to, as posterior means: fit and sample results read alike
-
     @property
     def d0(self) -> float:
         """Posterior mean height of the reflecting plane above the beacon (m)."""
@@ -147,7 +139,6 @@ class PosteriorResult:
                        "sigma_dp": self.em.sigma_dp, "weights": dict(self.em.weights)}}
 
 
-
 def sample_beacon(
     data: BeaconData,
     *,
@@ -188,9 +179,9 @@ def sample_beacon(
         EM fit to start from (default: :func:`~bayes_mpem.lbl.em.em_mixture.fit_mixture_em`
         with the matching weights option).
     sampler : {"auto", "independence", "ensemble"}
-        See :mod:`bayes_mpem.lbl.bayes.beacon_chains`.
+        The move (``docs/bayes.md``, Which move).
     n_walkers : int, optional
-        Walkers (default 32 for the independence move, ``max(24, 4 ndim)`` per ensemble).
+        Walkers (default 16 for the independence move, ``max(24, 4 ndim)`` per ensemble).
     min_ess : float, default 1000
         Stop when the smallest bulk ESS reaches this and R-hat < 1.01.
     max_steps : int, default 20000
@@ -266,9 +257,8 @@ def sample_beacon(
     if thin == 1 and idx.size == chains.chain.shape[0]:  # the draws written are those checked
         ess_, rhat_ = dict(run.ess_by), dict(run.rhat_by)
     else:
-        ess_ = {k: ess(idata.posterior[k].values) for k in names}
-        rhat_ = (rhat_across_ensembles(idata.posterior.to_dataset()[names], run.n_ensembles)
-                 if run.n_ensembles > 1 else {k: rhat(idata.posterior[k].values) for k in names})
+        ess_, rhat_ = ess_and_rhat({k: idata.posterior[k].values for k in names},
+                                   run.n_ensembles)
     tau = {k: float(idx.size * thin * theta.shape[0] / ess_[k]) for k in names}
     diagnostics = {"sampler": chains.sampler, "moves": chains.info["moves"],
                    "fallback": chains.info["fallback"], "n_walkers": run.n_walkers,

@@ -1,10 +1,4 @@
-"""Equal against learned mixing priors: PSIS-LOO, interval shifts, class changes.
-
-:func:`psis_loo` computes the PSIS-LOO of one
-:class:`~bayes_mpem.lbl.bayes.beacon_sampling.PosteriorResult`; :func:`compare_beacon`
-samples both posteriors of one beacon and returns a :class:`PriorComparison`. A
-difference ``elpd_learned - elpd_equal`` is called clear when it exceeds both two
-paired standard errors and 4 nats (``docs/bayes.md``).
+"""Equal against learned mixing priors: PSIS-LOO, interval shifts, class changes (docs/bayes.md).
 
 References
 ----------
@@ -57,9 +51,7 @@ class LooResult:
 def psis_loo(result: PosteriorResult) -> LooResult:
     """PSIS-LOO with ArviZ; ranges whose Pareto tail is tied handled by plain IS-LOO.
 
-    A range whose importance ratios are all tied (ArviZ cannot fit their Pareto tail)
-    gets plain importance sampling, ``elpd_i = -log mean_s exp(-log p(z_i | theta_s))``,
-    stable there; ArviZ does the rest.
+    Why the tied tails: ``docs/bayes.md`` (Equal against learned priors).
 
     Parameters
     ----------
@@ -138,10 +130,7 @@ class PriorComparison:
 
     @property
     def verdict(self) -> str:
-        """``"learned"`` or ``"equal"`` if the ELPD difference exceeds 2 SE and 4 nats.
-
-        Otherwise ``"no clear difference"``.
-        """
+        """``"learned"`` or ``"equal"`` if the ELPD difference exceeds 2 SE and 4 nats, or not."""
         if abs(self.elpd_diff) <= max(CLEAR * self.elpd_diff_se, MIN_DIFF):
             return "no clear difference"
         return "learned" if self.elpd_diff > 0 else "equal"
@@ -161,6 +150,7 @@ class PriorComparison:
 
 
 def _shift(eq: dict, le: dict) -> dict:
+    """Both intervals of one parameter, the shifts of its mean and ends, the width ratio."""
     (el, eh), (ll, lh) = eq["interval"], le["interval"]
     return {"equal": {"mean": eq["mean"], "interval": [el, eh]},
             "learned": {"mean": le["mean"], "interval": [ll, lh]},

@@ -1,29 +1,4 @@
-"""The posterior of one beacon: parameters, priors and log-density, vectorised over walkers.
-
-:class:`BeaconPosterior` samples the same density as the mixture EM
-(:mod:`bayes_mpem.lbl.em.em_mixture`, :mod:`bayes_mpem.lbl.model.likelihood`) and
-satisfies :class:`bayes_mpem.mcmc.LogPosterior`. Parameters, in the sampler's
-coordinates:
-
-==================  =====================================================
-``d0``              plane height above the beacon (m); prior uniform on
-                    ``[max(0, max dz), hi + max(0, max dz) + 1]``, the EM's bounds
-                    (``hi``: the largest range); with ``d0_bounds=(a, b)``
-                    uniform on ``[max(a, max(0, max dz)), b]`` instead
-``log_sigma_mp``    prior uniform on ``[log 0.05, log 500]``, i.e.
-                    ``p(sigma) ~ 1 / sigma`` (scale-invariant) on 0.05-500 m
-``log_sigma_dp``    the same prior; absent when ``sigma_dp`` is fixed
-``w_dp, w_mp``      learned priors only: ``w_ol = 1 - w_dp - w_mp``, prior
-                    ``Dirichlet(c, c, c)`` (``c = concentration``, default 1:
-                    uniform on the simplex); equal priors fix all at 1/3
-==================  =====================================================
-
-The default ``d0`` prior is bounded by the largest range, so it depends on the data;
-``d0_bounds`` and ``window`` make it proper and data-independent for the
-simulation-based calibration (:mod:`bayes_mpem.lbl.bayes.sbc`). The walkers start around
-the EM solution (:meth:`BeaconPosterior.start`); sampling is
-:func:`bayes_mpem.lbl.bayes.beacon_sampling.sample_beacon`.
-"""
+"""The posterior of one beacon, vectorised over walkers (parameters and priors: docs/bayes.md)."""
 
 from __future__ import annotations
 
@@ -49,7 +24,7 @@ PARAMS = ("d0", "sigma_mp", "sigma_dp", "w_dp", "w_mp", "w_ol")
 def check_sample_options(*, priors="learned", ci=0.95, n_ensembles=None, concentration=1.0,
                          sigma_dp=None, path="triangle", min_ess=1000.0,
                          max_steps=20000, n_draws=2000, sampler="auto", n_walkers=None):
-    """Validate the sampler's options before any work (``ValueError`` naming the option).
+    """Validate the sampler's options before any work.
 
     Parameters
     ----------
@@ -183,10 +158,7 @@ class BeaconPosterior:
         Returns
         -------
         numpy.ndarray
-            ``(n, ndim)``: ``d0`` uniform on :attr:`d0_bounds`, the log scales
-            uniform, the weights Dirichlet. (With the default ``d0`` bounds the
-            prior depends on the ranges; pass ``d0_bounds`` for a prior one can
-            draw from before seeing them.)
+            ``(n, ndim)`` (with the default ``d0`` bounds the prior depends on the ranges).
 
         Examples
         --------
@@ -234,9 +206,6 @@ class BeaconPosterior:
 
     def log_prior(self, theta):
         """Log prior density of a ``(W, ndim)`` array (``-inf`` outside the support).
-
-        Works on the sampler's coordinates directly, so a proposal far outside
-        the support is rejected without overflowing ``exp``.
 
         Parameters
         ----------
@@ -305,9 +274,6 @@ class BeaconPosterior:
     def loglik_and_classes(self, theta):
         """Log-likelihood and class probabilities of every range, at each row of ``theta``.
 
-        Linear-space densities in float64 (:meth:`LoglikKernel.pointwise`): exact
-        to rounding, as ``w_ol > 0`` in the posterior's support.
-
         Parameters
         ----------
         theta : numpy.ndarray
@@ -326,9 +292,6 @@ class BeaconPosterior:
 
     def pointwise_moments(self, theta):
         """Per-range log-likelihood at every draw, and the class probabilities' mean and sd.
-
-        :meth:`loglik_and_classes` for all draws at once, reduced as it goes
-        (:meth:`LoglikKernel.pointwise_moments`): the per-range pass after sampling.
 
         Parameters
         ----------
@@ -407,11 +370,7 @@ class BeaconPosterior:
         return np.array([min(width[name], extent[name]) for name in self.names])
 
     def start(self, n_walkers, gen):
-        """Walkers around the EM solution, scattered by rough posterior widths, inside the prior.
-
-        Each parameter is scattered by half its large-sample standard error at :attr:`em`
-        (moved inside the prior first); candidates outside the prior are redrawn at half the
-        scatter.
+        """Walkers around the EM solution, scattered by half :meth:`rough_sd`, inside the prior.
 
         Parameters
         ----------

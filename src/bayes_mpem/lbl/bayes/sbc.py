@@ -1,11 +1,4 @@
-"""Simulation-based calibration (Talts et al. 2018) of one beacon's posterior and sampler.
-
-:func:`run_sbc` repeats, for one fixed design (a beacon and its vehicle positions): draw
-the parameters from a proper prior (:func:`sbc_posterior`), simulate ranges from the
-model (:func:`simulate_ranges`), sample their posterior as ``bayes-mpem sample`` does,
-and record the rank of every true parameter among its draws. The study is
-``benchmarks/sbc.py`` (``docs/bayes-calibration.md``).
-"""
+"""Simulation-based calibration of a beacon's posterior and sampler (docs/bayes-calibration.md)."""
 
 from __future__ import annotations
 
@@ -19,8 +12,8 @@ from ...io.survey import BeaconData
 from ...mcmc.sbc import rank_statistic, rank_uniformity
 from ..em.em_mixture import fit_mixture_em
 from ..model.beacon_geometry import BeaconGeometry
-from .beacon_chains import beacon_chains
-from .posterior import PARAMS, BeaconPosterior
+from .beacon_chains import beacon_chains, sampled
+from .posterior import BeaconPosterior
 
 #: The prior of the calibration: plane depth within this many m of the sea surface ...
 PLANE_HALFWIDTH = 30.0
@@ -101,11 +94,8 @@ def sbc_posterior(design: BeaconData, *, path: str = "triangle",
                   concentration: float = 1.0, priors: str = "learned") -> BeaconPosterior:
     """Build the calibration's posterior for ``design``: a prior that ignores the ranges.
 
-    ``d0`` is uniform on ``[depth - plane_halfwidth, depth + plane_halfwidth]``
-    (the plane within that distance of the sea surface; raised to the vehicle's
-    highest point if needed), the scales log-uniform on ``sigma_bounds``, the
-    weights ``Dirichlet(concentration)``, and the outliers uniform from 1 m to
-    ``1.25`` times the longest multipath the prior allows plus 200 m.
+    ``d0`` within ``plane_halfwidth`` of the sea surface, the scales log-uniform on
+    ``sigma_bounds``, the outliers uniform over a window that holds every simulated range.
 
     Parameters
     ----------
@@ -145,8 +135,7 @@ def simulate_ranges(post: BeaconPosterior, theta, gen) -> np.ndarray:
     Returns
     -------
     numpy.ndarray
-        ``(n,)`` ranges: per ping a class drawn with the weights, then a Gaussian
-        around the direct path or the multipath, or a uniform outlier.
+        ``(n,)``.
 
     Raises
     ------
@@ -201,8 +190,7 @@ def run_sbc(design: BeaconData, n_sims: int, *, rng: RNGLike = None, sampler="au
     opts = {"path": path, "priors": base.priors, "concentration": base.concentration,
             "sigma_bounds": tuple(np.exp(base.log_sigma_bounds)), "d0_bounds": base.d0_bounds,
             "window": (base.geom.lo, base.geom.hi)}
-    names = [k for k in PARAMS if k in ("d0", "sigma_mp", "sigma_dp")
-             or (k.startswith("w_") and base.priors == "learned")]
+    names = sampled(base)
     ranks = np.empty((int(n_sims), len(names)), int)
     truths = np.empty((int(n_sims), len(names)))
     diag = {"n_steps": [], "sampler": [], "converged": []}

@@ -471,26 +471,9 @@ class ArrayLogPosterior:
         return TProposal(centre=self.u_em(), chol=chol, df=PROPOSAL_DF)
 
 
-def recentre(post, proposal: TProposal, gen, *, rounds=RECENTRE_ROUNDS,
-             n=RECENTRE_DRAWS) -> TProposal:
-    """Move the proposal's centre to the posterior mean estimated by importance sampling.
-
-    The EM's mode is not the posterior's mean in the sampler's coordinates (the
-    shares' logits, ``log sigma``, the classes' uncertainty); ``rounds`` times, ``n``
-    draws of the proposal weighted by ``p / q`` give the mean, the scale is kept.
-
-    Parameters
-    ----------
-    post : callable
-        Log density of ``(W, ndim)`` points.
-    proposal : TProposal
-    gen : numpy.random.Generator
-    rounds, n : int
-
-    Returns
-    -------
-    TProposal
-    """
+def _recentre(post, proposal: TProposal, gen, *, rounds=RECENTRE_ROUNDS,
+              n=RECENTRE_DRAWS) -> TProposal:
+    """Move the proposal's centre to the posterior mean estimated by importance sampling."""
     for _ in range(rounds):
         x = proposal.draw(n, gen)
         lw = post(x) - proposal.log_density(x)
@@ -783,7 +766,7 @@ def sample_array(shots: pd.DataFrame, fit: ArrayLocateResult, *, n_walkers: int 
     info = {"fallback": None}
     proposal = post.proposal() if sampler != "ensemble" else None
     if proposal is not None:
-        proposal = recentre(post, proposal, gen)
+        proposal = _recentre(post, proposal, gen)
     run = None
     if sampler != "ensemble" and proposal is None:
         info["fallback"] = "the EM's covariance is not positive definite"

@@ -1,25 +1,4 @@
-"""Posterior of a GNSS-A array (positions, sound speed, gradients, shot classes) with emcee.
-
-:class:`ArrayLogPosterior` is the array's mixture likelihood (that of
-:func:`~bayes_mpem.survey_in.array.locate_array`: each shot a true reply,
-``N(prediction, sigma)``, with its transponder's share ``w_k``, or spurious) with the
-EM's priors: flat positions, the sound speed's B-spline coefficients under the
-roughness penalty ``N(0, (lam H)^+)`` at the EM's smoothing weight (flat within
-+-10 % of the EM's values), the gradient coefficients under their own penalty
-when fitted, ``p(sigma) ~ 1 / sigma`` and a flat prior on each share.
-:func:`sample_array` samples it with :func:`bayes_mpem.mcmc.run_ensembles`, started
-from the EM solution: an independence move from a Student-t proposal built from the
-EM's model-based covariance (the Laplace approximation at the EM's mode), unless a
-discarded pilot finds it fits poorly; then differential evolution. The result,
-:class:`ArrayPosterior`, writes an ArviZ DataTree (``posterior_array.nc``).
-
-Through a sound-speed profile the ray bending is followed to first order about the
-EM solution: a shot's travel time is ``r L(P) + c . (P - P_em)``, ``L`` the
-straight transmit and receive chords to the transponder ``P``, ``r`` the ratio of
-the eigenray time to the chord at the EM solution and ``c`` the difference of their
-gradients there (exact for straight rays in flat layers; centimetres from the EM solution the
-error is below a nanosecond).
-"""
+"""Posterior of a GNSS-A array with emcee (docs/gnssa.md, the array posterior)."""
 
 from __future__ import annotations
 
@@ -194,12 +173,7 @@ class ArrayLogPosterior:
                    np.concatenate([self.H @ g for g in self.gc_em.reshape(-1, self.k)]))
 
     def _laplace(self, J, fit):
-        """Return the Laplace covariance of (free positions, speed, gradients) at the EM.
-
-        The inverse of ``J'WJ / sigma^2 + lam H (+ lam_g H_g)``, Jacobi-scaled and inverted
-        by eigenvalues (the EM's own ``cov_model``, an unscaled inverse, loses its positive
-        definiteness when a stiff spline meets a depth-speed trade-off).
-        """
+        """Return the Laplace covariance of (free positions, speed, gradients) at the EM."""
         P, k, kg = 3 * self.K, self.k, self.kg
         M = np.zeros((P + k + kg, self.F + k + kg))
         M[:P, :self.F] = self.B

@@ -1,14 +1,4 @@
-"""What the simulation gets wrong: measured survey residuals against simulated ones.
-
-:func:`simulate_like` simulates a measured survey under the simulator's assumptions
-(straight rays at one speed, constant TAT, independent Gaussian noise, uniform spurious
-returns) from the fit located from the measured travel times; :func:`simulation_gap`
-re-locates every replicate the same way and compares residual statistics
-(:func:`gap_statistics`) between the two with
-Monte-Carlo p-values; :func:`unabsorbed` finds what a straight-ray fit cannot absorb of
-another travel-time model. The statistics and the findings on measured surveys:
-``docs/simulation-gap.md``.
-"""
+"""Measured survey residuals against simulated ones (docs/simulation-gap.md)."""
 
 from __future__ import annotations
 

@@ -455,7 +455,7 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
     resid, jac = _mapped(*weighted_residuals(t, straight), G, start, 1)
     x0 = np.concatenate([np.zeros(G.shape[1]), [c0]])
     x_scale = np.array([10.0] * G.shape[1] + [1.0])
-    theta = least_squares(resid, x0, jac=jac, args=(gross_screen(resid(x0), index, K),),
+    theta = least_squares(resid, x0, jac=jac, args=(_gross_screen(resid(x0), index, K),),
                           loss="cauchy", f_scale=1e-3, x_scale=x_scale).x
     basis = speed_basis(sub, speed_intervals, time_range)
     design = gradient_design(sub, index, start, basis) if gradients else None
@@ -678,36 +678,8 @@ GROSS_MADS = 20.0
 GROSS_FLOOR = 0.01
 
 
-def gross_screen(r, index, K) -> np.ndarray:
-    """Return 0/1 weights that leave the grossly wrong shots out of the robust start.
-
-    A shot whose residual at the prior positions lies more than :data:`GROSS_MADS`
-    robust sds (1.4826 MAD, and at least :data:`GROSS_FLOOR` s) from its transponder's
-    median residual gets weight 0: one shot logged kilometres off (a bad antenna
-    position) would otherwise pull its transponder away in the Cauchy-loss start, a
-    loss that still grows without bound. The EM that follows sees every shot and
-    classifies such a shot spurious.
-
-    Parameters
-    ----------
-    r : numpy.ndarray
-        Residuals (s) of every shot at the start.
-    index : numpy.ndarray
-        Transponder number of each shot.
-    K : int
-        Number of transponders.
-
-    Returns
-    -------
-    numpy.ndarray
-        ``(shots,)`` weights, 0 or 1.
-
-    Examples
-    --------
-    >>> r = np.r_[np.linspace(-1e-3, 1e-3, 9), 0.6]
-    >>> gross_screen(r, np.zeros(10, int), 1).tolist()[-2:]
-    [1.0, 0.0]
-    """
+def _gross_screen(r, index, K) -> np.ndarray:
+    """Return 0/1 weights that leave the grossly wrong shots out of the robust start."""
     w = np.ones_like(r)
     for k in range(K):
         sel = index == k

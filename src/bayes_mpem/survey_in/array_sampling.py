@@ -30,19 +30,15 @@ from .classes import log_classes, true_probability
 from .posterior import SIGMA_BOUNDS, SPEED_PRIOR_WIDTH, check_location_options
 from .travel_times import speed_basis, speed_penalty
 
-#: the pilot keeps the independence move at or above this bulk ESS per draw: lower than the
-#: beacon's 0.2, as differential evolution on 30-100 correlated parameters is far slower
-#: than an independence move at 0.05 (1,000 ESS in some 600 steps of 32 walkers)
+#: the pilot keeps the independence move at or above this bulk ESS per draw (docs/gnssa.md)
 MIN_ESS_PER_DRAW = 0.05
 #: ... and at or below this R-hat
 MAX_PILOT_RHAT = 1.1
-#: walkers and steps of the pilot (discarded): twice the beacon's steps, as the largest
-#: R-hat of some 17 series of 32 draws exceeded 1.1 by chance (1.102 at 0.63 acceptance)
+#: walkers and steps of the pilot (discarded)
 PILOT_WALKERS, PILOT_STEPS = 32, 64
 #: walkers of the independence move
 N_WALKERS = 32
-#: degrees of freedom of the Student-t proposal (tens of dimensions: a lighter tail than
-#: the beacon's 10 keeps the proposal's radius near the target's)
+#: degrees of freedom of the Student-t proposal
 PROPOSAL_DF = 30.0
 #: rounds and draws of the importance-sampling re-centring of the proposal
 RECENTRE_ROUNDS, RECENTRE_DRAWS = 2, 2000
@@ -142,7 +138,6 @@ class ArrayLogPosterior:
         L_em, dL = self._chords(self.pos_em[self.index][None], derivatives=True)
         self.ratio = T_em / L_em[0]
         self.corr = dT - self.ratio[:, None] * dL[0]
-        # the free directions of the positions (fixed coordinates, a rigid shift)
         # the free directions of the positions: a fixed coordinate has a zero row in the
         # EM's covariance; a rigid shift moves every transponder alike
         free = np.any(np.asarray(fit.cov, float)[:P, :P] != 0.0, axis=1)
@@ -163,8 +158,7 @@ class ArrayLogPosterior:
         self.width = SPEED_PRIOR_WIDTH * np.abs(self.coef_em)
         cov = self._laplace(J, fit)
         # speed and gradient coordinates: offsets from the EM in units of their sds, so the
-        # proposal's scale matrix is well conditioned (a stiff spline's coefficients are
-        # known to 1e-9 while the positions are known to 1e-2)
+        # proposal's scale matrix is well conditioned
         sd = np.sqrt(np.maximum(np.diag(cov), 1e-300))
         self.scale = np.concatenate([np.ones(self.F), sd[self.F:]])
         self.cov_geo = cov / np.outer(self.scale, self.scale)

@@ -30,8 +30,6 @@ from .posterior import (
 )
 
 #: independent ensembles of differential evolution: the stopping rule's R-hat compares them
-#: (over the walkers of one ensemble, which are not independent chains, R-hat < 1.01 asked
-#: for ~3 times the target ESS)
 N_ENSEMBLES = 2
 
 

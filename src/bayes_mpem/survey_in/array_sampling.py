@@ -401,18 +401,8 @@ class ArrayLogPosterior:
             out["gradient"] = (per * speed[:, None]).reshape(*shape, self.kg // self.k)
         return out
 
-    def proposal_cov(self) -> np.ndarray:
-        """Return the Laplace covariance at the EM solution, in the sampler's coordinates.
-
-        Positions, speed and gradients from the EM's model-based covariance
-        ``(J'WJ / sigma^2 + lam H)^-1``, ``log sigma`` with variance ``1 / (2 n_true)``,
-        each share's logit with ``1 / (n_k w_k (1 - w_k))``.
-
-        Returns
-        -------
-        numpy.ndarray
-            ``(ndim, ndim)``.
-        """
+    def _proposal_cov(self) -> np.ndarray:
+        """Return the Laplace covariance at the EM solution, in the sampler's coordinates."""
         d = self.ndim
         C = np.zeros((d, d))
         ng = self.cov_geo.shape[0]
@@ -425,7 +415,7 @@ class ArrayLogPosterior:
         return 0.5 * (C + C.T)
 
     def proposal(self) -> TProposal | None:
-        """Return the Student-t proposal at the EM solution, scaled by :meth:`proposal_cov`.
+        """Return the Student-t proposal at the EM solution, scaled by the Laplace covariance.
 
         Returns
         -------
@@ -433,7 +423,7 @@ class ArrayLogPosterior:
             None when the covariance is not positive definite.
         """
         try:
-            chol = np.linalg.cholesky(self.proposal_cov())
+            chol = np.linalg.cholesky(self._proposal_cov())
         except np.linalg.LinAlgError:
             return None
         return TProposal(centre=self.u_em(), chol=chol, df=PROPOSAL_DF)
@@ -768,7 +758,7 @@ def sample_array(shots: pd.DataFrame, fit: ArrayLocateResult, *, n_walkers: int 
             say(post.label, f"{info['fallback']}; differential evolution instead")
         walkers = int(n_walkers or max(32, 2 * post.ndim + 2))
         q = proposal or TProposal(centre=post.u_em(), chol=np.diag(np.sqrt(np.maximum(
-            np.abs(np.diag(post.proposal_cov())), 1e-30))), df=PROPOSAL_DF)
+            np.abs(np.diag(post._proposal_cov())), 1e-30))), df=PROPOSAL_DF)
         ball = TProposal(centre=q.centre, chol=0.5 * q.chol, df=q.df)
         run = run_ensembles(post, [_proposal_start(post, ball, walkers, gen)],
                             moves=default_moves(), burn_in=True, progress=progress,

@@ -268,15 +268,8 @@ GRADIENT_CHOICES = ("auto", "on", "off")
 def gradient_gate(shots, priors, speed_intervals=None):
     """Return whether the survey can fit the horizontal gradients, and why (not).
 
-    Fitted when the sound speed is the smooth default (an unpenalised spline,
-    ``speed_intervals``, would leave the gradients unpenalised too), three
-    transponders or more reply, the shots span :data:`MIN_GRADIENT_HOURS` or more
-    and the ship's track spreads over at least :data:`MIN_SPREAD` of the water depth
-    in its least-spread direction (a ship circling or crossing the array; a glider
-    holding station cannot tell the shallow gradient from the array's position).
-    The gradients' constant and trend are unpenalised: on a 1-hour star campaign
-    without gradients they moved the centre by 2-4 cm (against 1 cm without them;
-    ``docs/gnssa.md``).
+    The conditions (the smooth speed, three transponders, :data:`MIN_GRADIENT_HOURS`, a
+    track spread of :data:`MIN_SPREAD`) and their reasons: ``docs/gnssa.md``.
 
     Parameters
     ----------

@@ -60,7 +60,7 @@ class LocationLogPosterior:
         and the bounds of the speed prior.
     bending : {"linear", "fixed"}
         Refracted rays only: the ray-bending correction at the EM solution with
-        its gradient (default), or held fixed (OBSrange's); see the module notes above.
+        its gradient (default), or held fixed (OBSrange's); docs/measured-data.md.
 
     Attributes
     ----------

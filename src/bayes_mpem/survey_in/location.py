@@ -94,9 +94,6 @@ class LocateResult:
     def travel_times(self, pings):
         """Return the :class:`TravelTimes` of this fit on ``pings``, and its ``theta``.
 
-        ``pings`` has ``x``, ``y``, ``depth`` (and ``time`` for a lag or a
-        time-varying speed); ``theta`` is ``(east, north, depth, speed coefficients...)``.
-
         Parameters
         ----------
         pings : pandas.DataFrame

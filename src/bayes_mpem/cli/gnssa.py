@@ -1,12 +1,4 @@
-"""``bayes-mpem simulate --gnssa``: write a simulated GNSS-A campaign and its truth.
-
-``bayes-mpem simulate --gnssa --format garpos|gnatss --out DIR`` writes a
-campaign of :func:`~bayes_mpem.survey_in.gnssa_simulate.simulate_gnssa` (a
-sound speed changing over hours, shallow and deep horizontal gradients,
-spurious replies, attitude and the antenna-transducer offset) in GARPOS's or
-GNATSS's files, with ``truth.json`` beside them; ``bayes-mpem locate`` reads
-the survey file it names.
-"""
+"""``bayes-mpem simulate --gnssa``: write a simulated GNSS-A campaign and its truth."""
 
 from __future__ import annotations
 

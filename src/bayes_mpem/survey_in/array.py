@@ -1,25 +1,4 @@
-"""Locating an array of transponders at once (GNSS-acoustic surveys), by EM.
-
-Every shot is a two-way travel time from the ship's transducer at transmit to
-one transponder and back to the transducer at receive. The transponders share
-the sound speed (one value, or a B-spline in time: ``speed_intervals``; with a
-profile, the factor its speeds are scaled by) and the ship's geometry (the
-transducer positions, from the antenna, the antenna-transducer offset and the
-attitude, computed by :meth:`~bayes_mpem.io.raw.RawSurvey.transducer_positions`).
-The model of a true reply is
-
-    ``twtt = (T(transducer at transmit, P_k) + T(P_k, transducer at receive)) / s(t)``
-
-with ``T`` the straight chord at speed 1 (or the eigenray time through the
-profile; :class:`~bayes_mpem.survey_in.travel_times.TravelTimes` for each
-leg) and ``s(t)`` the speed. A shot is either true, ``N(twtt, sigma)`` (one
-``sigma`` for the array), or spurious (uniform over the transponder's window,
-or before the true arrival: the models of
-:func:`~bayes_mpem.survey_in.classes.log_classes`), each transponder with its own
-share of true replies. The EM is that of :func:`~bayes_mpem.survey_in.location.locate`
-(:class:`~bayes_mpem.survey_in.location.TravelTimeEM`), from a Cauchy-loss fit
-from the prior positions.
-"""
+"""Locating an array of transponders at once (GNSS-A) by EM; the model: docs/gnssa.md."""
 
 from __future__ import annotations
 
@@ -476,7 +455,7 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
     resid, jac = _mapped(*weighted_residuals(t, straight), G, start, 1)
     x0 = np.concatenate([np.zeros(G.shape[1]), [c0]])
     x_scale = np.array([10.0] * G.shape[1] + [1.0])
-    theta = least_squares(resid, x0, jac=jac, args=(gross_screen(resid(x0), index, K),),
+    theta = least_squares(resid, x0, jac=jac, args=(_gross_screen(resid(x0), index, K),),
                           loss="cauchy", f_scale=1e-3, x_scale=x_scale).x
     basis = speed_basis(sub, speed_intervals, time_range)
     design = gradient_design(sub, index, start, basis) if gradients else None
@@ -699,36 +678,8 @@ GROSS_MADS = 20.0
 GROSS_FLOOR = 0.01
 
 
-def gross_screen(r, index, K) -> np.ndarray:
-    """Return 0/1 weights that leave the grossly wrong shots out of the robust start.
-
-    A shot whose residual at the prior positions lies more than :data:`GROSS_MADS`
-    robust sds (1.4826 MAD, and at least :data:`GROSS_FLOOR` s) from its transponder's
-    median residual gets weight 0: one shot logged kilometres off (a bad antenna
-    position) would otherwise pull its transponder away in the Cauchy-loss start, a
-    loss that still grows without bound. The EM that follows sees every shot and
-    classifies such a shot spurious.
-
-    Parameters
-    ----------
-    r : numpy.ndarray
-        Residuals (s) of every shot at the start.
-    index : numpy.ndarray
-        Transponder number of each shot.
-    K : int
-        Number of transponders.
-
-    Returns
-    -------
-    numpy.ndarray
-        ``(shots,)`` weights, 0 or 1.
-
-    Examples
-    --------
-    >>> r = np.r_[np.linspace(-1e-3, 1e-3, 9), 0.6]
-    >>> gross_screen(r, np.zeros(10, int), 1).tolist()[-2:]
-    [1.0, 0.0]
-    """
+def _gross_screen(r, index, K) -> np.ndarray:
+    """Return 0/1 weights that leave the grossly wrong shots out of the robust start."""
     w = np.ones_like(r)
     for k in range(K):
         sel = index == k
@@ -896,17 +847,7 @@ def choose_smoothing(J, r, theta, H, sigma, lam=None, H_fixed=None):
 
 
 class _SmoothArrayEM(TravelTimeEM):
-    """:class:`TravelTimeEM` with a roughness penalty on the speed coefficients.
-
-    M-step: the weight of the penalty that maximises the linearised marginal likelihood
-    at the E-step's probabilities (:func:`choose_smoothing`), then the penalised
-    weighted least squares from the current point (``sigma^2 lam H`` added to the
-    normal equations: the residuals are augmented by a root of ``H``), then ``sigma``
-    and the shares in closed form. Converged when ``sigma`` changes by less than
-    ``tol`` and the weight by less than 1 %; with the gradients' weight too, both are
-    held after :data:`FREEZE_AFTER` M-steps (chosen in turn, they may alternate between
-    two values).
-    """
+    """:class:`TravelTimeEM` with a roughness penalty on the speed (docs/gnssa.md)."""
 
     def __init__(self, t, resid, jac, x_scale, windows, index, outliers, H, coef0, Hg=None):
         super().__init__(t, resid, jac, x_scale, windows, index, outliers)
@@ -1049,12 +990,7 @@ def _weight_rank(H):
 
 
 def _grid_average(J, r, theta, H, sigma, lam, H_fixed, meat, n_clusters, grid):
-    """Posterior modes and covariances over weights ``lam 10^x``, and their average.
-
-    Returns the weights (marginal likelihood, flat prior on ``log lam``), the average
-    covariance ``sum w_g C_g``, the spread ``sum w_g (theta_g - mean)(theta_g - mean)'``,
-    the rows ``(x, logml, step, C, A^-1, edf)`` and the log evidences.
-    """
+    """Posterior modes and covariances over weights ``lam 10^x``, and their average."""
     rank = _weight_rank(H)
     rows = []
     JtJ = J.T @ J
@@ -1076,26 +1012,9 @@ def _grid_average(J, r, theta, H, sigma, lam, H_fixed, meat, n_clusters, grid):
 
 
 def _smooth_covariance(J, r, theta, H, sigma, lam, clusters, Hg=None, lam_g=None):
-    """Covariance of a smooth-speed fit, averaged over the smoothing weights near the best.
+    """Covariance of a smooth-speed fit, averaged over the smoothing weights (docs/gnssa.md).
 
-    For each weight ``lam_g = lam 10^x`` (``x`` in :data:`WEIGHT_GRID`): the step to
-    its posterior mode ``theta_g`` and ``C_g = A^-1 (B + lam_g H) A^-1`` with
-    ``A = J'J / sigma^2 + lam_g H`` and ``B`` the cluster-robust meat (the scores'
-    outer products over interrogations, over ``sigma^4``; ``C_g`` is the posterior
-    covariance when the noise is independent). Weights ``w_g`` proportional to the
-    marginal likelihood (a flat prior on ``log lam``); the covariance is
-    ``sum w_g C_g + sum w_g (theta_g - mean)(theta_g - mean)'``. With the gradients
-    (their penalty ``Hg``, weight ``lam_g``), the same over their weight
-    (:data:`GRADIENT_WEIGHT_GRID`, the speed's held at its best) is added, the two
-    weights' effects taken as additive: ``sum w_i C_i + sum v_j C_j - C_best`` plus
-    both spreads.
-
-    Returns
-    -------
-    cov, cov_model : numpy.ndarray
-        The averaged covariance, and the model-based ``A^-1`` at ``lam``.
-    record : dict
-        The ``smoothing`` record of the fit's model.
+    Returns ``cov``, the model-based ``cov_model`` at ``lam`` and the ``smoothing`` record.
     """
     codes = np.unique(np.asarray(clusters), return_inverse=True)[1]
     n_clusters = int(codes.max()) + 1

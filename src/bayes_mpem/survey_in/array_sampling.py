@@ -1,25 +1,4 @@
-"""Posterior of a GNSS-A array (positions, sound speed, gradients, shot classes) with emcee.
-
-:class:`ArrayLogPosterior` is the array's mixture likelihood (that of
-:func:`~bayes_mpem.survey_in.array.locate_array`: each shot a true reply,
-``N(prediction, sigma)``, with its transponder's share ``w_k``, or spurious) with the
-EM's priors: flat positions, the sound speed's B-spline coefficients under the
-roughness penalty ``N(0, (lam H)^+)`` at the EM's smoothing weight (flat within
-+-10 % of the EM's values), the gradient coefficients under their own penalty
-when fitted, ``p(sigma) ~ 1 / sigma`` and a flat prior on each share.
-:func:`sample_array` samples it with :func:`bayes_mpem.mcmc.run_ensembles`, started
-from the EM solution: an independence move from a Student-t proposal built from the
-EM's model-based covariance (the Laplace approximation at the EM's mode), unless a
-discarded pilot finds it fits poorly; then differential evolution. The result,
-:class:`ArrayPosterior`, writes an ArviZ DataTree (``posterior_array.nc``).
-
-Through a sound-speed profile the ray bending is followed to first order about the
-EM solution: a shot's travel time is ``r L(P) + c . (P - P_em)``, ``L`` the
-straight transmit and receive chords to the transponder ``P``, ``r`` the ratio of
-the eigenray time to the chord at the EM solution and ``c`` the difference of their
-gradients there (exact for straight rays in flat layers; centimetres from the EM solution the
-error is below a nanosecond).
-"""
+"""Posterior of a GNSS-A array with emcee (docs/gnssa.md, the array posterior)."""
 
 from __future__ import annotations
 
@@ -51,19 +30,15 @@ from .classes import log_classes, true_probability
 from .posterior import SIGMA_BOUNDS, SPEED_PRIOR_WIDTH, check_location_options
 from .travel_times import speed_basis, speed_penalty
 
-#: the pilot keeps the independence move at or above this bulk ESS per draw: lower than the
-#: beacon's 0.2, as differential evolution on 30-100 correlated parameters is far slower
-#: than an independence move at 0.05 (1,000 ESS in some 600 steps of 32 walkers)
+#: the pilot keeps the independence move at or above this bulk ESS per draw (docs/gnssa.md)
 MIN_ESS_PER_DRAW = 0.05
 #: ... and at or below this R-hat
 MAX_PILOT_RHAT = 1.1
-#: walkers and steps of the pilot (discarded): twice the beacon's steps, as the largest
-#: R-hat of some 17 series of 32 draws exceeded 1.1 by chance (1.102 at 0.63 acceptance)
+#: walkers and steps of the pilot (discarded)
 PILOT_WALKERS, PILOT_STEPS = 32, 64
 #: walkers of the independence move
 N_WALKERS = 32
-#: degrees of freedom of the Student-t proposal (tens of dimensions: a lighter tail than
-#: the beacon's 10 keeps the proposal's radius near the target's)
+#: degrees of freedom of the Student-t proposal
 PROPOSAL_DF = 30.0
 #: rounds and draws of the importance-sampling re-centring of the proposal
 RECENTRE_ROUNDS, RECENTRE_DRAWS = 2, 2000
@@ -163,7 +138,6 @@ class ArrayLogPosterior:
         L_em, dL = self._chords(self.pos_em[self.index][None], derivatives=True)
         self.ratio = T_em / L_em[0]
         self.corr = dT - self.ratio[:, None] * dL[0]
-        # the free directions of the positions (fixed coordinates, a rigid shift)
         # the free directions of the positions: a fixed coordinate has a zero row in the
         # EM's covariance; a rigid shift moves every transponder alike
         free = np.any(np.asarray(fit.cov, float)[:P, :P] != 0.0, axis=1)
@@ -184,8 +158,7 @@ class ArrayLogPosterior:
         self.width = SPEED_PRIOR_WIDTH * np.abs(self.coef_em)
         cov = self._laplace(J, fit)
         # speed and gradient coordinates: offsets from the EM in units of their sds, so the
-        # proposal's scale matrix is well conditioned (a stiff spline's coefficients are
-        # known to 1e-9 while the positions are known to 1e-2)
+        # proposal's scale matrix is well conditioned
         sd = np.sqrt(np.maximum(np.diag(cov), 1e-300))
         self.scale = np.concatenate([np.ones(self.F), sd[self.F:]])
         self.cov_geo = cov / np.outer(self.scale, self.scale)
@@ -194,12 +167,7 @@ class ArrayLogPosterior:
                    np.concatenate([self.H @ g for g in self.gc_em.reshape(-1, self.k)]))
 
     def _laplace(self, J, fit):
-        """Return the Laplace covariance of (free positions, speed, gradients) at the EM.
-
-        The inverse of ``J'WJ / sigma^2 + lam H (+ lam_g H_g)``, Jacobi-scaled and inverted
-        by eigenvalues (the EM's own ``cov_model``, an unscaled inverse, loses its positive
-        definiteness when a stiff spline meets a depth-speed trade-off).
-        """
+        """Return the Laplace covariance of (free positions, speed, gradients) at the EM."""
         P, k, kg = 3 * self.K, self.k, self.kg
         M = np.zeros((P + k + kg, self.F + k + kg))
         M[:P, :self.F] = self.B
@@ -433,18 +401,8 @@ class ArrayLogPosterior:
             out["gradient"] = (per * speed[:, None]).reshape(*shape, self.kg // self.k)
         return out
 
-    def proposal_cov(self) -> np.ndarray:
-        """Return the Laplace covariance at the EM solution, in the sampler's coordinates.
-
-        Positions, speed and gradients from the EM's model-based covariance
-        ``(J'WJ / sigma^2 + lam H)^-1``, ``log sigma`` with variance ``1 / (2 n_true)``,
-        each share's logit with ``1 / (n_k w_k (1 - w_k))``.
-
-        Returns
-        -------
-        numpy.ndarray
-            ``(ndim, ndim)``.
-        """
+    def _proposal_cov(self) -> np.ndarray:
+        """Return the Laplace covariance at the EM solution, in the sampler's coordinates."""
         d = self.ndim
         C = np.zeros((d, d))
         ng = self.cov_geo.shape[0]
@@ -457,7 +415,7 @@ class ArrayLogPosterior:
         return 0.5 * (C + C.T)
 
     def proposal(self) -> TProposal | None:
-        """Return the Student-t proposal at the EM solution, scaled by :meth:`proposal_cov`.
+        """Return the Student-t proposal at the EM solution, scaled by the Laplace covariance.
 
         Returns
         -------
@@ -465,32 +423,15 @@ class ArrayLogPosterior:
             None when the covariance is not positive definite.
         """
         try:
-            chol = np.linalg.cholesky(self.proposal_cov())
+            chol = np.linalg.cholesky(self._proposal_cov())
         except np.linalg.LinAlgError:
             return None
         return TProposal(centre=self.u_em(), chol=chol, df=PROPOSAL_DF)
 
 
-def recentre(post, proposal: TProposal, gen, *, rounds=RECENTRE_ROUNDS,
-             n=RECENTRE_DRAWS) -> TProposal:
-    """Move the proposal's centre to the posterior mean estimated by importance sampling.
-
-    The EM's mode is not the posterior's mean in the sampler's coordinates (the
-    shares' logits, ``log sigma``, the classes' uncertainty); ``rounds`` times, ``n``
-    draws of the proposal weighted by ``p / q`` give the mean, the scale is kept.
-
-    Parameters
-    ----------
-    post : callable
-        Log density of ``(W, ndim)`` points.
-    proposal : TProposal
-    gen : numpy.random.Generator
-    rounds, n : int
-
-    Returns
-    -------
-    TProposal
-    """
+def _recentre(post, proposal: TProposal, gen, *, rounds=RECENTRE_ROUNDS,
+              n=RECENTRE_DRAWS) -> TProposal:
+    """Move the proposal's centre to the posterior mean estimated by importance sampling."""
     for _ in range(rounds):
         x = proposal.draw(n, gen)
         lw = post(x) - proposal.log_density(x)
@@ -783,7 +724,7 @@ def sample_array(shots: pd.DataFrame, fit: ArrayLocateResult, *, n_walkers: int 
     info = {"fallback": None}
     proposal = post.proposal() if sampler != "ensemble" else None
     if proposal is not None:
-        proposal = recentre(post, proposal, gen)
+        proposal = _recentre(post, proposal, gen)
     run = None
     if sampler != "ensemble" and proposal is None:
         info["fallback"] = "the EM's covariance is not positive definite"
@@ -817,7 +758,7 @@ def sample_array(shots: pd.DataFrame, fit: ArrayLocateResult, *, n_walkers: int 
             say(post.label, f"{info['fallback']}; differential evolution instead")
         walkers = int(n_walkers or max(32, 2 * post.ndim + 2))
         q = proposal or TProposal(centre=post.u_em(), chol=np.diag(np.sqrt(np.maximum(
-            np.abs(np.diag(post.proposal_cov())), 1e-30))), df=PROPOSAL_DF)
+            np.abs(np.diag(post._proposal_cov())), 1e-30))), df=PROPOSAL_DF)
         ball = TProposal(centre=q.centre, chol=0.5 * q.chol, df=q.df)
         run = run_ensembles(post, [_proposal_start(post, ball, walkers, gen)],
                             moves=default_moves(), burn_in=True, progress=progress,

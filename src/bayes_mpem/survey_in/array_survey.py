@@ -100,20 +100,8 @@ def _epoch_entry(fmt, shots):
     return out
 
 
-def speed_series(fit, n=121):
-    """Return the fitted sound speed against time: ``time_s``, ``mean_m_s``, ``sd_m_s``.
-
-    Parameters
-    ----------
-    fit : ArrayLocateResult
-    n : int, default 121
-        Points, evenly over the fit's time span.
-
-    Returns
-    -------
-    dict
-        Lists of ``n`` floats (m/s; the sd from the coefficients' covariance).
-    """
+def _speed_series(fit, n=121):
+    """Return the fitted sound speed against time: ``time_s``, ``mean_m_s``, ``sd_m_s``."""
     lo, hi = fit.model["time_range"]
     t = np.linspace(lo, hi, n)
     B = speed_basis(pd.DataFrame({"time": t}), fit.model["speed_intervals"], (lo, hi))
@@ -125,27 +113,8 @@ def speed_series(fit, n=121):
             "sd_m_s": sd.tolist()}
 
 
-def sound_speed_entry(fit, ci, prof) -> dict:
-    """Return the ``sound_speed`` record of an array's ``summary.json``, a unit per field.
-
-    Parameters
-    ----------
-    fit : ArrayLocateResult
-    ci : float
-    prof : SoundSpeedProfile or None
-        The profile of the rays (None: straight rays).
-
-    Returns
-    -------
-    dict
-        ``mean``, ``sd``, ``interval`` and ``unit`` ("m/s"): the survey's mean
-        speed (``quantity`` says which); ``model``, ``speed_intervals``,
-        ``interval_minutes``; ``smoothing`` (None, or the smooth spline's
-        ``weight``, ``knot_minutes``, ``criterion``, ``effective_dof`` and the
-        marginal likelihood over a grid of weights); ``reference_m_s`` (the profile's harmonic mean
-        over the same span, None for straight rays); ``coefficients`` with
-        ``coefficients_unit``; ``series`` (:func:`speed_series`).
-    """
+def _sound_speed_entry(fit, ci, prof) -> dict:
+    """Return the ``sound_speed`` record of an array's ``summary.json``, a unit per field."""
     n_int = int(fit.model["speed_intervals"])
     sm = fit.model.get("smoothing")
     lo, hi = fit.model["time_range"]
@@ -167,17 +136,11 @@ def sound_speed_entry(fit, ci, prof) -> dict:
         "coefficients": [float(v) for v in fit.speed_coef],
         "coefficients_unit": ("scale of the profile (dimensionless: speed = scale x profile)"
                               if refracted else "m/s"),
-        "series": speed_series(fit)}
+        "series": _speed_series(fit)}
 
 
-def residual_entry(cls) -> dict:
-    """Return the residual rms (ms) of the true replies, overall and per transponder.
-
-    Parameters
-    ----------
-    cls : pandas.DataFrame
-        The classified shots (``label``, ``residual`` in s, ``transponder``).
-    """
+def _residual_entry(cls) -> dict:
+    """Return the residual rms (ms) of the true replies, overall and per transponder."""
     pinged = cls[cls["label"].isin(["true", "spurious"])]
     true = pinged[pinged["label"] == "true"]
 
@@ -305,15 +268,8 @@ GRADIENT_CHOICES = ("auto", "on", "off")
 def gradient_gate(shots, priors, speed_intervals=None):
     """Return whether the survey can fit the horizontal gradients, and why (not).
 
-    Fitted when the sound speed is the smooth default (an unpenalised spline,
-    ``speed_intervals``, would leave the gradients unpenalised too), three
-    transponders or more reply, the shots span :data:`MIN_GRADIENT_HOURS` or more
-    and the ship's track spreads over at least :data:`MIN_SPREAD` of the water depth
-    in its least-spread direction (a ship circling or crossing the array; a glider
-    holding station cannot tell the shallow gradient from the array's position).
-    The gradients' constant and trend are unpenalised: on a 1-hour star campaign
-    without gradients they moved the centre by 2-4 cm (against 1 cm without them;
-    ``docs/gnssa.md``).
+    The conditions (the smooth speed, three transponders, :data:`MIN_GRADIENT_HOURS`, a
+    track spread of :data:`MIN_SPREAD`) and their reasons: ``docs/gnssa.md``.
 
     Parameters
     ----------
@@ -471,8 +427,8 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
     rays = "straight rays" if prof is None else f"refracted rays ({prof.source or 'profile'})"
     summary = {
         "transponders": out, "array_centre": _centre_entry(fit, ci, origin),
-        "sound_speed": sound_speed_entry(fit, ci, prof),
-        "residuals": residual_entry(cls),
+        "sound_speed": _sound_speed_entry(fit, ci, prof),
+        "residuals": _residual_entry(cls),
         "track": track_geometry(sub, {t: fit.enu[k] for k, t in enumerate(fit.ids)}),
         "site": h.get("site"), "campaign": h.get("campaign"),
         "epoch": _epoch_entry(raw.format, shots),

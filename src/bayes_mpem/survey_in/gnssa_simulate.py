@@ -50,18 +50,8 @@ _GL_NODES, _GL_WEIGHTS = np.polynomial.legendre.leggauss(16)
 _ZETA, _W_ZETA = 0.5 * (_GL_NODES + 1.0), 0.5 * _GL_WEIGHTS
 
 
-def reference_speed(z):
-    """Return the reference profile of :func:`reference_profile` at depths ``z`` (m/s).
-
-    Parameters
-    ----------
-    z : array_like
-        Depths (m).
-
-    Returns
-    -------
-    numpy.ndarray
-    """
+def _reference_speed(z):
+    """Return the reference profile of :func:`reference_profile` at depths ``z`` (m/s)."""
     z = np.asarray(z, float)
     return 1482.0 + 33.0 * np.exp(-z / 350.0) + 0.017 * z
 
@@ -195,7 +185,7 @@ class SoundSpeedField:
         length = np.sqrt((pe - e[:, 0]) ** 2 + (pn - n[:, 0]) ** 2 + (pu - u[:, 0]) ** 2)
         tt = np.broadcast_to(np.asarray(t, float)[:, None], ze.shape)
         dv = self.delta_v(ze, de, dn, tt)
-        return -length * np.sum(_W_ZETA * dv / reference_speed(ze) ** 2, axis=1)
+        return -length * np.sum(_W_ZETA * dv / _reference_speed(ze) ** 2, axis=1)
 
     def coefficients(self, t):
         """Return GARPOS's ``a0``, ``a1`` (east, north) and ``a2`` (east, north) at times ``t``.
@@ -212,9 +202,9 @@ class SoundSpeedField:
         """
         t = np.atleast_1d(np.asarray(t, float))
         z = self.depth * _ZETA
-        w = _W_ZETA / reference_speed(z)
+        w = _W_ZETA / _reference_speed(z)
         inv = np.sum(w)
-        c = reference_speed(z)
+        c = _reference_speed(z)
         a0 = np.sum(w * (self.bulk(t)[:, None] * np.exp(-z / self.decay)) / c, axis=1) / inv
         gs, gd = self.gradients(t)
         fs = np.exp(-z / self.shallow_decay)
@@ -266,7 +256,7 @@ class SoundSpeedField:
     def v0(self) -> float:
         """Return ``V0``: the profile's harmonic mean from the surface to :attr:`depth`."""
         z = self.depth * _ZETA
-        return float(1.0 / np.sum(_W_ZETA / reference_speed(z)))
+        return float(1.0 / np.sum(_W_ZETA / _reference_speed(z)))
 
 
 @dataclass(frozen=True)

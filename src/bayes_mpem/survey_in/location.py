@@ -1,28 +1,4 @@
-"""Locating a seafloor transponder from a ranging survey, by EM.
-
-The survey-in every LBL deployment starts with, and what OBSrange does: the
-transponder position ``(east, north, depth)`` and the sound speed (and the
-turn-around time ``tat`` where it is not known) are estimated jointly with the
-class of every ping. Each two-way travel time is either a true arrival,
-``N(T(ship, transponder) + tat, sigma)``, or spurious; spurious pings are
-weighted by their probability instead of cut by a threshold. The travel time
-``T`` is :class:`~bayes_mpem.survey_in.travel_times.TravelTimes`: a straight
-chord at one speed, or refracted rays through a scaled sound-speed profile
-(``ssp=``), with a speed that may vary in time (``speed_intervals=``) and a lag
-of the acoustic position along the track (``fit_lag=True``).
-
-The EM (:class:`TravelTimeEM`, shared with the array of
-:mod:`bayes_mpem.survey_in.array`) starts from a Cauchy-loss robust fit from the
-drop point. Standard deviations are from the weighted Gauss-Newton information
-(approximate; :mod:`bayes_mpem.survey_in.location_sampling` samples the
-posterior).
-
-Spurious pings are uniform over the listening window or, with
-``outliers="first_arrival"``, only before the true arrival (a detector that
-reports the first threshold crossing);
-:func:`~bayes_mpem.survey_in.heldout.heldout_logpdf` compares the two by
-cross-validation.
-"""
+"""Locating a seafloor transponder from a ranging survey by EM (docs/measured-data.md)."""
 
 from __future__ import annotations
 
@@ -117,9 +93,6 @@ class LocateResult:
 
     def travel_times(self, pings):
         """Return the :class:`TravelTimes` of this fit on ``pings``, and its ``theta``.
-
-        ``pings`` has ``x``, ``y``, ``depth`` (and ``time`` for a lag or a
-        time-varying speed); ``theta`` is ``(east, north, depth, speed coefficients...)``.
 
         Parameters
         ----------

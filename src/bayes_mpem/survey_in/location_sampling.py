@@ -1,10 +1,4 @@
-"""Posterior of a transponder location jointly with the class of every ping (emcee).
-
-:func:`sample_location` samples :class:`bayes_mpem.survey_in.posterior.LocationLogPosterior`
-with :func:`bayes_mpem.mcmc.run_ensembles` (differential evolution, two independent
-ensembles) into a
-:class:`LocationPosterior`; :func:`locate_survey_bayes` does it for every transponder.
-"""
+"""Posterior of a transponder location jointly with the class of every ping (emcee)."""
 
 from __future__ import annotations
 
@@ -36,8 +30,6 @@ from .posterior import (
 )
 
 #: independent ensembles of differential evolution: the stopping rule's R-hat compares them
-#: (over the walkers of one ensemble, which are not independent chains, R-hat < 1.01 asked
-#: for ~3 times the target ESS)
 N_ENSEMBLES = 2
 
 
@@ -331,11 +323,7 @@ def sample_location(pings: pd.DataFrame, fit: LocateResult, *, n_walkers: int | 
 
 
 def _rhat_across(x) -> float:
-    """ArviZ's R-hat across the :data:`N_ENSEMBLES` ensembles of ``(walker, draw)`` draws.
-
-    An ensemble's walkers are not independent chains: each ensemble's draws, step by step,
-    make one chain.
-    """
+    """ArviZ's R-hat across the :data:`N_ENSEMBLES` ensembles of ``(walker, draw)`` draws."""
     x = np.asarray(x).reshape(N_ENSEMBLES, -1, x.shape[1])  # (ensemble, walker, draw)
     return rhat(x.transpose(0, 2, 1).reshape(N_ENSEMBLES, -1))
 

@@ -1,26 +1,4 @@
-"""The log-posterior of a transponder location and of the class of every ping.
-
-The same model as the location EM (:func:`bayes_mpem.survey_in.location.locate`): each two-way
-travel time is a true arrival, ``N(prediction, sigma)``, with probability
-``weight``, or spurious (uniform over the listening window, or before the true
-arrival); the walkers start from the EM solution. Parameters and priors:
-
-======================  ========================================================
-``east, north, depth``  flat (improper)
-``speed`` (``_0...``)   the sound speed (m/s) or the profile's scale factor, one
-                        per B-spline coefficient when it varies in time; flat
-                        within +-10 % of the EM's value
-``tat``                 only when fitted: flat on ``[0, 1]`` s
-``log_sigma``           flat, i.e. ``p(sigma) ~ 1/sigma`` on ``[1e-6, 1]`` s
-``weight``              flat on ``(0, 1)``: ``Beta(1, 1)``, a ``Dirichlet(1, 1)``
-                        on the true and spurious weights
-======================  ========================================================
-
-Through a sound-speed profile the ray bending is computed once at the EM solution and
-held fixed (``bending="fixed"``, as OBSrange) or followed to first order
-(``bending="linear"``, the default); :meth:`LocationLogPosterior.exact_loglik` solves the
-rays at any draw (``docs/measured-data.md``).
-"""
+"""The log-posterior of a transponder location and of the class of every ping (docs/cli.md)."""
 
 from __future__ import annotations
 
@@ -82,7 +60,7 @@ class LocationLogPosterior:
         and the bounds of the speed prior.
     bending : {"linear", "fixed"}
         Refracted rays only: the ray-bending correction at the EM solution with
-        its gradient (default), or held fixed (OBSrange's); see the module notes above.
+        its gradient (default), or held fixed (OBSrange's); docs/measured-data.md.
 
     Attributes
     ----------
@@ -168,11 +146,7 @@ class LocationLogPosterior:
         return f"transponder {self.beacon}"
 
     def _unit(self, depth):
-        """Speed of a unit coefficient (m/s).
-
-        1 for straight rays, else the profile's harmonic mean from the mean
-        transducer to ``depth`` (as :func:`locate` reports it).
-        """
+        """Speed of a unit coefficient (m/s): 1, or the profile's harmonic mean to ``depth``."""
         if self.profile is None:
             return np.ones_like(np.asarray(depth, float))
         return self.profile.harmonic_mean(self.z_mean - self.surface_depth,

@@ -125,7 +125,7 @@ class SurveyInResult:
         -------
         dict
             Paths written, keyed ``summary`` and ``classified`` (and ``solution``
-            for an array: :func:`solution_text`; ``posterior_<id>`` for each sampled
+            for an array, the solution as plain text; ``posterior_<id>`` for each sampled
             posterior: :func:`~.posterior.write_posterior`).
         """
         from .posterior import posterior_file, write_posterior
@@ -137,7 +137,7 @@ class SurveyInResult:
                     out / posterior_file(name),
                     lambda tmp, post=post: write_posterior(tmp, post.to_inference_data()))
             if "array_centre" in self.summary:
-                text = solution_text(self.summary)
+                text = _solution_text(self.summary)
                 paths["solution"] = write_file(out / "solution.txt",
                                                lambda tmp: tmp.write_text(text))
             paths["summary"] = write_json(out / "summary.json", self.summary)
@@ -207,22 +207,8 @@ def gradients_line(summary: dict) -> str:
     return line
 
 
-def solution_text(summary: dict) -> str:
-    """Return an array's solution as plain text, for a log (``solution.txt``).
-
-    Site, campaign, epoch, the array centre and each transponder (east, north,
-    up and their sds, m to the mm, in the survey's local frame), the
-    sound-speed model, the residual rms and the counts.
-
-    Parameters
-    ----------
-    summary : dict
-        An array's ``summary.json`` (with ``array_centre``).
-
-    Returns
-    -------
-    str
-    """
+def _solution_text(summary: dict) -> str:
+    """Return an array's solution as plain text, for a log (``solution.txt``)."""
     s = summary
     ep = s.get("epoch") or {}
     geo = s.get("geometry", {})

@@ -1,14 +1,4 @@
-"""What the simulation gets wrong: measured survey residuals against simulated ones.
-
-:func:`simulate_like` simulates a measured survey under the simulator's assumptions
-(straight rays at one speed, constant TAT, independent Gaussian noise, uniform spurious
-returns) from the fit located from the measured travel times; :func:`simulation_gap`
-re-locates every replicate the same way and compares residual statistics
-(:func:`gap_statistics`) between the two with
-Monte-Carlo p-values; :func:`unabsorbed` finds what a straight-ray fit cannot absorb of
-another travel-time model. The statistics and the findings on measured surveys:
-``docs/simulation-gap.md``.
-"""
+"""Measured survey residuals against simulated ones (docs/simulation-gap.md)."""
 
 from __future__ import annotations
 
@@ -29,20 +19,8 @@ from .location import LocateResult, locate
 TRACK_COLUMNS = ("beacon", "x", "y", "depth", "time", "line")
 
 
-def check_straight(fit):
-    """Check that ``fit`` is a straight-ray, one-speed, flat-frame :class:`LocateResult`.
-
-    Parameters
-    ----------
-    fit : LocateResult
-
-    Raises
-    ------
-    TypeError
-        Not a LocateResult.
-    ValueError
-        A fit with refracted rays, a time-varying sound speed or a spherical frame.
-    """
+def _check_straight(fit):
+    """Check that ``fit`` is a straight-ray, one-speed, flat-frame :class:`LocateResult`."""
     if not isinstance(fit, LocateResult):
         raise TypeError(f"fit: expected a LocateResult, got {type(fit).__name__}")
     m = getattr(fit, "model", None) or {}
@@ -59,33 +37,15 @@ def _fits(fit):
     if not fits:
         raise ValueError("fit: expected a LocateResult or a non-empty sequence of them")
     for f in fits:
-        check_straight(f)
+        _check_straight(f)
     names = [f.transponder for f in fits]
     if len(set(names)) != len(names):
         raise ValueError(f"fit: transponders repeated ({names})")
     return fits
 
 
-def ping_rows(pings, fit):
-    """Find the fit's pings in ``pings``, checking that the table is the fit's.
-
-    Parameters
-    ----------
-    pings : pandas.DataFrame
-    fit : LocateResult
-
-    Returns
-    -------
-    numpy.ndarray
-        Row positions of the fit's pings.
-
-    Raises
-    ------
-    InputError
-        A missing column, or rows that are not the fit's transponder's.
-    ValueError
-        ``fit.rows`` and ``fit.p_true`` differ in size.
-    """
+def _ping_rows(pings, fit):
+    """Find the fit's pings in ``pings``, checking that the table is the fit's."""
     need = {"beacon", "x", "y", "depth"}
     missing = need - set(pings.columns)
     if missing:
@@ -143,7 +103,7 @@ def simulate_like(pings: pd.DataFrame, beacons: pd.DataFrame, fit, rng=None) -> 
         if f.transponder not in ids:
             raise InputError(f"transponder {f.transponder!r} not in the beacons table "
                              f"{sorted(ids)}")
-    rows = [ping_rows(pings, f) for f in fits]
+    rows = [_ping_rows(pings, f) for f in fits]
     gen = as_generator(rng)
     cols = [c for c in TRACK_COLUMNS if c in pings.columns]
     twtt = np.full(len(pings), np.nan)
@@ -202,8 +162,8 @@ def residual_frame(pings: pd.DataFrame, fit: LocateResult) -> pd.DataFrame:
     >>> fr[["elevation", "slant_range"]].round(0).iloc[:2].values.tolist()
     [[90.0, 4000.0], [53.0, 5000.0]]
     """
-    check_straight(fit)
-    rows = ping_rows(pings, fit)
+    _check_straight(fit)
+    rows = _ping_rows(pings, fit)
     for c in ("twtt", "time"):
         if c not in pings.columns:
             raise InputError(f"pings: missing column(s) [{c!r}]")
@@ -578,8 +538,8 @@ def unabsorbed(pings: pd.DataFrame, fit: LocateResult, twtt) -> tuple:
     >>> round(fit.east + shift["east"], 3), round(fit.depth + shift["depth"], 3)
     (5.0, 4002.0)
     """
-    check_straight(fit)
-    rows = ping_rows(pings, fit)
+    _check_straight(fit)
+    rows = _ping_rows(pings, fit)
     target = np.asarray(twtt, float)
     if target.shape != (rows.size,):
         raise ValueError(f"twtt: expected {rows.size} values (the fit's pings), got shape "
@@ -629,7 +589,7 @@ def refracted_twtt(pings: pd.DataFrame, fit: LocateResult, profile, *,
         between the ends, or a turning depth beyond the profile); the message
         gives how many and the first.
     """
-    rows = ping_rows(pings, fit)
+    rows = _ping_rows(pings, fit)
     sub = pings.iloc[rows]
     x, y, z = (sub[c].to_numpy(float) for c in ("x", "y", "depth"))
     h = np.hypot(x - fit.east, y - fit.north)

@@ -9,7 +9,8 @@ import pytest
 from bayes_mpem.cli import main
 from bayes_mpem.exceptions import InputError
 from bayes_mpem.io.formats import read_survey, sample_file
-from bayes_mpem.survey_in.array_survey import locate_array_survey
+from bayes_mpem.survey_in.array import locate_array
+from bayes_mpem.survey_in.array_survey import array_shots, locate_array_survey
 from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa
 from bayes_mpem.survey_in.survey import is_array, locate_survey
 
@@ -169,8 +170,70 @@ def test_batch_passes_the_array_options(tmp_path):
     sim = simulate_gnssa(n_transponders=3, hours=0.4, rng=22, speed_model="field")
     ini = sim.write(tmp_path / "camp", "garpos")["survey"]
     manifest = tmp_path / "m.csv"
-    manifest.write_text(f"name,survey,format,gradients,knot_minutes\na,{ini},garpos,on,10\n")
+    manifest.write_text("name,survey,format,gradients,knot_minutes,flags\n"
+                        f"a,{ini},garpos,on,10,reclassify\n")
     task, = tasks_from_manifest(manifest, "locate", build_parser().get_default("subparsers"))
     assert task.options["gradients"] == "on" and task.options["knot_minutes"] == 10.0
+    assert task.options["flags"] == "reclassify"
     s = locate_raw(read_survey(ini, "garpos"), task.options).summary
     assert s["gradients"]["fitted"] and s["sound_speed"]["smoothing"]["knot_minutes_asked"] == 10
+    assert s["file_flags"]["flags"] == "reclassify"
+
+
+def _flagged_campaign(tmp_path):
+    """A simulated GARPOS campaign whose obs.csv flags every 7th shot and ruins its time."""
+    paths = simulate_gnssa(rng=5, hours=0.5, shot_interval=30.0).write(tmp_path / "g")
+    obs = next((tmp_path / "g").glob("*obs.csv"))
+    lines = obs.read_text().splitlines()
+    head = next(i for i, ln in enumerate(lines) if ln.startswith(",SET"))
+    cols = lines[head].split(",")
+    tt, flag = cols.index("TT"), cols.index("flag")
+    for i in range(head + 1, len(lines), 7):
+        parts = lines[i].split(",")
+        parts[tt], parts[flag] = f"{float(parts[tt]) + 0.05:.7f}", "True"  # 37 m too long
+        lines[i] = ",".join(parts)
+    obs.write_text("\n".join(lines) + "\n")
+    return paths["survey"]
+
+
+def test_flagged_shots_are_left_out_unless_reclassified(tmp_path, capsys):
+    config = _flagged_campaign(tmp_path)
+    raw = read_survey(config, "garpos")
+    flagged = raw.pings["file_flag"].to_numpy(bool)
+    assert 20 < flagged.sum() < 60
+    honoured = locate_array_survey(raw)
+    cls = honoured.classified.set_index("line").loc[raw.pings["line"]]
+    assert cls["p_true"][flagged].isna().all() and cls["p_true"][~flagged].notna().all()
+    assert cls["reason"][flagged].str.contains("flagged in the file").all()
+    assert honoured.summary["file_flags"] == {"n_flagged": int(flagged.sum()), "flags": "honour",
+                                              "honoured": True, "n_flagged_called_spurious": 0}
+    fit = honoured.fits["array"]
+    assert not np.isin(fit.rows, np.flatnonzero(flagged)).any()
+    # the same as the campaign without those shots: the flags decide, not the EM
+    kept = locate_array(array_shots(raw)[~flagged].reset_index(drop=True),
+                        raw.header["transponders"], **_same_model(fit))
+    np.testing.assert_allclose(fit.enu, kept.enu, rtol=0, atol=1e-6)
+    re = locate_array_survey(raw, flags="reclassify")
+    p = re.classified.set_index("line").loc[raw.pings["line"], "p_true"].to_numpy()
+    assert np.isfinite(p).all() and (p[flagged] < 0.5).all()  # 37 m off: spurious
+    assert re.summary["file_flags"]["n_flagged_called_spurious"] == flagged.sum()
+    with pytest.raises(InputError, match="flags: expected"):
+        locate_array_survey(raw, flags="ignore")
+    assert main(["locate", str(config), "--out", str(tmp_path / "r"),
+                 "--flags", "reclassify"]) == 0
+    s = json.loads((tmp_path / "r" / "summary.json").read_text())
+    assert s["file_flags"]["flags"] == "reclassify" and not s["file_flags"]["honoured"]
+    capsys.readouterr()
+    obs = tmp_path / "o.txt"
+    obs.write_text("1 M01 2.5 0 0 -5\n")
+    assert main(["locate", str(obs), "--format", "obsrange-sio", "--out", str(tmp_path / "x"),
+                 "--flags", "honour"]) == 2
+    assert "--flags: for array surveys only" in capsys.readouterr().err
+
+
+def _same_model(fit):
+    m = fit.model
+    return {"profile": m["profile"], "surface_depth": m["surface_depth"],
+            "earth_radius": m["earth_radius"], "along_sphere": m["along_sphere"],
+            "gradients": bool(m["gradients"]),
+            "time_range": m["time_range"]}

@@ -11,7 +11,8 @@ from ..exceptions import InputError
 #: The commands a batch can run, by name (``bayes-mpem batch --command``): their batch entries.
 COMMANDS = {name: c.batch for name, c in ALL.items() if c.batch is not None}
 #: the options of an array survey's location (GARPOS, GNATSS): no TAT or lag
-ARRAY_OPTIONS = ("ci", "outliers", "ssp", "speed_intervals", "gradients", "knot_minutes")
+ARRAY_OPTIONS = ("ci", "outliers", "ssp", "speed_intervals", "gradients", "knot_minutes",
+                 "flags")
 
 
 def run(command: str, inputs: dict, options: dict):

@@ -169,6 +169,9 @@ def add_locate(sub):
                    help="array surveys: horizontal sound-speed gradients (GARPOS's shallow and "
                         "deep terms); default auto: fitted where the track constrains them, "
                         "the reason recorded and printed")
+    p.add_argument("--flags", choices=["honour", "reclassify"], default=None,
+                   help="GARPOS surveys: shots flagged in obs.csv are left out of the fit "
+                        "(honour, the default) or fitted and classified with the others")
     p.add_argument("--fit-lag", action="store_true",
                    help="fit a time lag of the acoustic position along the track (a position "
                         "fix logged at another moment, or a transducer ahead of the antenna)")

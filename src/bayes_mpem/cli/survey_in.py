@@ -61,8 +61,10 @@ def locate_kwargs(args) -> dict:
         return dict(ci=args.ci, outliers=args.outliers, ssp=args.ssp,
                     speed_intervals=args.speed_intervals, sample=_sample_options(args),
                     gradients=getattr(args, "gradients", None) or "auto",
-                    knot_minutes=getattr(args, "knot_minutes", None))
-    array_only = [o for o in ("gradients", "knot_minutes") if getattr(args, o, None) is not None]
+                    knot_minutes=getattr(args, "knot_minutes", None),
+                    flags=getattr(args, "flags", None) or "honour")
+    array_only = [o for o in ("gradients", "knot_minutes", "flags")
+                  if getattr(args, o, None) is not None]
     if array_only:
         raise OptionError(f"{', '.join('--' + o.replace('_', '-') for o in array_only)}: for "
                           "array surveys only (GARPOS, GNATSS, SeaGap with two transponders "

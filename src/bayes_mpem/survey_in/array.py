@@ -354,7 +354,7 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
                  surface_depth=0.0, speed_intervals=None, knot_minutes=KNOT_MINUTES,
                  sound_speed=None, outliers="uniform", time_range=None, fixed=None,
                  shift=False, gradients=False, max_iter=200, tol=1e-10,
-                 earth_radius=None, along_sphere=False) -> ArrayLocateResult:
+                 earth_radius=None, along_sphere=False, exclude=None) -> ArrayLocateResult:
     """Locate every transponder of an array by EM, classifying each shot true or spurious.
 
     Parameters
@@ -409,6 +409,8 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
         east, north, up); None (default) flat layers.
     along_sphere : bool, default False
         With ``earth_radius``: the frame is already along the sphere (SeaGap's).
+    exclude : array_like of bool, optional
+        Shots left out of the fit (GARPOS's flagged shots); ``rows`` never holds them.
 
     Returns
     -------
@@ -424,7 +426,10 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
     if not smooth:
         check_int("speed_intervals", speed_intervals, minimum=0)
     ids, skipped, index = _check_shots(shots, transponders)
-    rows = np.flatnonzero(index >= 0)
+    keep = index >= 0
+    if exclude is not None:
+        keep &= ~np.asarray(exclude, bool)
+    rows = np.flatnonzero(keep)
     sub, index = shots.iloc[rows].reset_index(drop=True), index[rows]
     K, t = len(ids), sub["twtt"].to_numpy(float)
     if time_range is None:

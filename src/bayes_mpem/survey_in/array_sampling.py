@@ -826,15 +826,15 @@ def _with_posterior(em: dict, enu: dict, origin) -> dict:
 
 def locate_array_survey_bayes(raw, *, ci=0.95, outliers="uniform", ssp=None,
                               speed_intervals=None, gradients="auto", knot_minutes=None,
-                              n_walkers=None, min_ess=1000.0, max_steps=20000, n_draws=4000,
-                              rng: RNGLike = None, progress="auto"):
+                              flags="honour", n_walkers=None, min_ess=1000.0, max_steps=20000,
+                              n_draws=4000, rng: RNGLike = None, progress="auto"):
     """Locate a GNSS-A array by EM, then sample its posterior (``locate --sample``).
 
     Parameters
     ----------
     raw : RawSurvey
         A GARPOS or GNATSS survey (or a SeaGap survey of several transponders).
-    ci, outliers, ssp, speed_intervals, gradients, knot_minutes
+    ci, outliers, ssp, speed_intervals, gradients, knot_minutes, flags
         As for :func:`~bayes_mpem.survey_in.array_survey.locate_array_survey`
         (``knot_minutes=None``: its default).
     n_walkers, min_ess, max_steps, n_draws, progress
@@ -860,7 +860,8 @@ def locate_array_survey_bayes(raw, *, ci=0.95, outliers="uniform", ssp=None,
                            n_draws=n_draws)
     knots = {} if knot_minutes is None else {"knot_minutes": knot_minutes}
     located = locate_array_survey(raw, ci=ci, outliers=outliers, ssp=ssp,
-                                  speed_intervals=speed_intervals, gradients=gradients, **knots)
+                                  speed_intervals=speed_intervals, gradients=gradients,
+                                  flags=flags, **knots)
     fit = located.fits["array"]
     shots = array_shots(raw)
     post = sample_array(shots, fit, n_walkers=n_walkers, ci=ci, min_ess=min_ess,

@@ -322,7 +322,7 @@ def _gradient_choice(gradients):
 def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
                         speed_intervals=None, surface_depth=None,
                         knot_minutes=KNOT_MINUTES, shift=None,
-                        gradients="auto", earth="sphere") -> SurveyInResult:
+                        gradients="auto", earth="sphere", flags="honour") -> SurveyInResult:
     """Locate every transponder of a GNSS-A array survey together.
 
     Parameters
@@ -359,6 +359,10 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
         sphere; GARPOS's and GNATSS's Cartesian east-north-up frames are turned into it
         (:func:`~.array.to_sphere`) and the result back. ``"flat"``: the frame as
         given, flat layers (the model before curvature).
+    flags : {"honour", "reclassify"}, default "honour"
+        GARPOS's ``flag`` column: ``"honour"`` leaves the flagged shots out of the fit
+        (listed in ``classified.csv`` with the reason, as GARPOS does);
+        ``"reclassify"`` fits them with the others and lets the EM classify them.
 
     Returns
     -------
@@ -388,6 +392,11 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
     shift = auto_shift if shift is None else bool(shift)
     if shift and not auto_shift:
         fixed = None
+    if flags not in ("honour", "reclassify"):
+        raise InputError(f"flags: expected 'honour' or 'reclassify', got {flags!r}")
+    flagged = (shots["file_flag"].to_numpy(bool) if "file_flag" in shots.columns
+               else np.zeros(len(shots), bool))
+    honour = flags == "honour" and flagged.any()
     if earth not in ("sphere", "flat"):
         raise InputError(f"earth: expected 'sphere' or 'flat', got {earth!r}")
     radius = None if earth == "flat" else (earth_radius(h["lat"]) if "lat" in h
@@ -397,7 +406,8 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
                        surface_depth=float(surface_depth),
                        speed_intervals=speed_intervals, outliers=outliers,
                        knot_minutes=knot_minutes, fixed=fixed, shift=shift,
-                       gradients=gradients, earth_radius=radius, along_sphere=not cartesian)
+                       gradients=gradients, earth_radius=radius, along_sphere=not cartesian,
+                       exclude=flagged if honour else None)
     origin = (h["lat"], h["lon"], h.get("height", 0.0)) if "lat" in h else None
     counts = np.bincount(fit.index, minlength=len(fit.ids))
     out = {tid: _transponder_entry(fit, k, ci, origin, counts[k])
@@ -414,6 +424,9 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
     tid = shots["transponder"].astype(str).to_numpy()
     for t, skip_why in fit.skipped.items():
         reasons[tid == t] = f"transponder {t} not located: {skip_why}"
+    if honour:
+        reasons[flagged & (reasons == "")] = ("flagged in the file: left out of the fit "
+                                              "(--flags reclassify fits and classifies it)")
     table = pd.DataFrame({"line": shots["line"], "transponder": tid, "twtt": shots["twtt"],
                           "time": shots["time"],
                           "east": 0.5 * (shots["e_tx"] + shots["e_rx"]),
@@ -459,7 +472,7 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
         "position_region": f"a transponder's {100 * ci:g} % region is the ellipsoid of its "
                            f"covariance with squared radius {chi2.ppf(ci, 3):.4f}"}
     if "file_flag" in shots.columns:
-        flagged = shots["file_flag"].to_numpy(bool)
-        summary["file_flags"] = {"n_flagged": int(flagged.sum()),
+        summary["file_flags"] = {"n_flagged": int(flagged.sum()), "flags": flags,
+                                 "honoured": bool(honour),
                                  "n_flagged_called_spurious": int(np.sum(flagged & (probs < 0.5)))}
     return SurveyInResult(summary=summary, classified=cls, fits={"array": fit})

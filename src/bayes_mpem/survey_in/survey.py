@@ -44,7 +44,7 @@ def is_array(raw, *, one_at_a_time=False) -> bool:
 
 def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", ssp=None,
                   speed_intervals=0, fit_lag=False, lag_check=False, one_at_a_time=False,
-                  gradients="auto", knot_minutes=None):
+                  gradients="auto", knot_minutes=None, flags="honour"):
     """Locate every transponder of a :class:`~bayes_mpem.io.raw.RawSurvey`.
 
     Parameters
@@ -79,6 +79,9 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
         An array survey: its horizontal gradients (:func:`locate_array_survey`).
     knot_minutes : float, optional
         An array survey: the smooth speed's knot spacing (default 5 min).
+    flags : {"honour", "reclassify"}, default "honour"
+        An array survey: GARPOS's flagged shots left out or classified
+        (:func:`locate_array_survey`).
 
     Returns
     -------
@@ -119,7 +122,8 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
         if knot_minutes is not None:
             geo["knot_minutes"] = knot_minutes
         return locate_array_survey(raw, ci=ci, outliers=outliers, ssp=ssp,
-                                   speed_intervals=speed_intervals, gradients=gradients, **geo)
+                                   speed_intervals=speed_intervals, gradients=gradients,
+                                   flags=flags, **geo)
     if tat is None:
         tat = raw.header.get("tat", 0.0 if raw.format == "seagap" else DEFAULT_TAT)
     pings, beacons = raw.to_pings()

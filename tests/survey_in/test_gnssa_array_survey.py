@@ -219,6 +219,10 @@ def test_flagged_shots_are_left_out_unless_reclassified(tmp_path, capsys):
     assert re.summary["file_flags"]["n_flagged_called_spurious"] == flagged.sum()
     with pytest.raises(InputError, match="flags: expected"):
         locate_array_survey(raw, flags="ignore")
+    one = raw.pings["transponder"].astype(str) == "M01"  # every shot of M01 flagged
+    raw.pings.loc[one, "file_flag"] = True
+    skipped = locate_array_survey(raw).summary["skipped_transponders"]
+    assert list(skipped) == ["M01"] and "0 shots not flagged" in skipped["M01"]
     assert main(["locate", str(config), "--out", str(tmp_path / "r"),
                  "--flags", "reclassify"]) == 0
     s = json.loads((tmp_path / "r" / "summary.json").read_text())

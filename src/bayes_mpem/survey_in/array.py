@@ -326,7 +326,7 @@ def describe(mean, sd, ci):
             "interval": [round(float(mean) - half, 6), round(float(mean) + half, 6)]}
 
 
-def _check_shots(shots, transponders):
+def _check_shots(shots, transponders, exclude=None):
     missing = [c for c in SHOT_COLUMNS if c not in shots.columns]
     if missing:
         raise InputError(f"shots: missing column(s) {missing} (expected {list(SHOT_COLUMNS)})")
@@ -334,17 +334,20 @@ def _check_shots(shots, transponders):
     if need:
         raise InputError(f"transponders: missing column(s) {sorted(need)}")
     tid = shots["transponder"].astype(str).to_numpy()
+    use = np.ones(tid.size, bool) if exclude is None else ~np.asarray(exclude, bool)
     ids, skipped = [], {}
     for t in map(str, transponders.index):
-        n = int(np.sum(tid == t))
+        n = int(np.sum((tid == t) & use))
         if n < MIN_SHOTS:
-            skipped[t] = f"{n} shots, need at least {MIN_SHOTS}"
+            skipped[t] = (f"{n} shots" + ("" if use.all() else " not flagged")
+                          + f", need at least {MIN_SHOTS}")
         else:
             ids.append(t)
     if not ids:
         raise InputError(f"no transponder has {MIN_SHOTS} shots or more ({skipped})")
     k_of = {t: k for k, t in enumerate(ids)}
     index = np.array([k_of.get(t, -1) for t in tid])
+    index[~use] = -1
     return ids, skipped, index
 
 
@@ -425,11 +428,8 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
     smooth = speed_intervals is None
     if not smooth:
         check_int("speed_intervals", speed_intervals, minimum=0)
-    ids, skipped, index = _check_shots(shots, transponders)
-    keep = index >= 0
-    if exclude is not None:
-        keep &= ~np.asarray(exclude, bool)
-    rows = np.flatnonzero(keep)
+    ids, skipped, index = _check_shots(shots, transponders, exclude)
+    rows = np.flatnonzero(index >= 0)
     sub, index = shots.iloc[rows].reset_index(drop=True), index[rows]
     K, t = len(ids), sub["twtt"].to_numpy(float)
     if time_range is None:

@@ -319,6 +319,22 @@ def _gradient_choice(gradients):
     return gradients
 
 
+def _geometry_entry(origin, surface_depth, radius, cartesian) -> dict:
+    """``summary.json``'s ``geometry``: the frame, its origin and the Earth's shape."""
+    return {"frame": "local east, north, up about the origin (m)",
+            "origin": None if origin is None else dict(
+                zip(("lat", "lon", "height"), map(float, origin), strict=True)),
+            "surface_depth": float(surface_depth),
+            "earth": ("flat: straight or refracted rays in the local frame, no Earth "
+                      "curvature") if radius is None else
+                     (f"sphere of radius {radius:.1f} m (the WGS84 Gaussian radius at "
+                      "the site's latitude): the profile's layers follow it"
+                      + ("; the rays traced in its frame (east, north along it, "
+                         "height above it), the positions Cartesian"
+                         if cartesian else "; the frame is along it (SeaGap's)")),
+            "earth_radius_m": radius}
+
+
 def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
                         speed_intervals=None, surface_depth=None,
                         knot_minutes=KNOT_MINUTES, shift=None,
@@ -456,18 +472,7 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
         "positions": fit.model["positions"],
         "gradients": {"fitted": bool(gradients), "choice": choice, "reason": why,
                       **(fit.model.get("gradients") or {})},
-        "geometry": {"frame": "local east, north, up about the origin (m)",
-                     "origin": None if origin is None else dict(
-                         zip(("lat", "lon", "height"), map(float, origin), strict=True)),
-                     "surface_depth": float(surface_depth),
-                     "earth": ("flat: straight or refracted rays in the local frame, no Earth "
-                               "curvature") if radius is None else
-                              (f"sphere of radius {radius:.1f} m (the WGS84 Gaussian radius at "
-                               "the site's latitude): the profile's layers follow it"
-                               + ("; the rays traced in its frame (east, north along it, "
-                                  "height above it), the positions Cartesian"
-                                  if cartesian else "; the frame is along it (SeaGap's)")),
-                     "earth_radius_m": radius},
+        "geometry": _geometry_entry(origin, surface_depth, radius, cartesian),
         "tat_fitted": False, "tat_given": 0.0,
         "position_region": f"a transponder's {100 * ci:g} % region is the ellipsoid of its "
                            f"covariance with squared radius {chi2.ppf(ci, 3):.4f}"}

@@ -6,6 +6,7 @@ from .proposal import TProposal, laplace_proposal
 from .summaries import (
     bulk_ess,
     draw_moments,
+    draw_summary,
     equal_tailed,
     ess,
     ess_and_rhat,
@@ -17,9 +18,9 @@ from .summaries import (
 
 __all__ = ["DEFAULT_MOVES_LABEL", "EnsembleRun", "INDEPENDENCE_LABEL", "IndependenceMove",
            "LogPosterior", "SamplingProgress", "TProposal", "bulk_ess", "default_moves",
-           "draw_moments", "equal_tailed", "ess", "ess_and_rhat", "hdi", "independence_move",
-           "laplace_proposal", "place_walkers", "progress_mode", "rhat", "run_ensembles",
-           "thin_index", "to_datatree"]
+           "draw_moments", "draw_summary", "equal_tailed", "ess", "ess_and_rhat", "hdi",
+           "independence_move", "laplace_proposal", "place_walkers", "progress_mode", "rhat",
+           "run_ensembles", "thin_index", "to_datatree"]
 
 _MOVES = ("DEFAULT_MOVES_LABEL", "INDEPENDENCE_LABEL", "IndependenceMove", "default_moves",
           "independence_move")

@@ -155,6 +155,30 @@ def equal_tailed(x, ci: float) -> list:
     return [float(lo), float(hi)]
 
 
+def draw_summary(x, ci: float) -> dict:
+    """``mean``, ``sd`` (ddof 1) and equal-tailed ``interval`` of all values of ``x``.
+
+    Parameters
+    ----------
+    x : array_like
+        Draws (all axes pooled).
+    ci : float
+        Probability of the interval, in ``(0, 1)``.
+
+    Returns
+    -------
+    dict
+
+    Examples
+    --------
+    >>> draw_summary([1.0, 2.0, 3.0], 0.5)
+    {'mean': 2.0, 'sd': 1.0, 'interval': [1.5, 2.5]}
+    """
+    x = np.ravel(np.asarray(x, float))
+    return {"mean": float(np.mean(x)), "sd": float(np.std(x, ddof=1)),
+            "interval": equal_tailed(x, ci)}
+
+
 def draw_moments(flat, fn, *, chunk: int = 64):
     """Pointwise values and the mean and sd of per-item probabilities over draws, in chunks.
 

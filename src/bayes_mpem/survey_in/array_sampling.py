@@ -13,7 +13,7 @@ from ..mcmc import (
     TProposal,
     bulk_ess,
     draw_moments,
-    equal_tailed,
+    draw_summary,
     rhat,
     run_ensembles,
     thin_index,
@@ -51,10 +51,6 @@ AXES = ("east", "north", "up")
 UNITS = {"position": "m", "centre": "m", "sound_speed": "m/s", "sigma": "s", "weight": "1",
          "gradient": "(m/s)/km", "twtt": "s", "time": "s", "p_true": "1", "p_true_sd": "1",
          "lp": "1"}
-
-
-def _sd(x):
-    return float(np.std(x, ddof=1))
 
 
 class ArrayLogPosterior:
@@ -531,8 +527,7 @@ class ArrayPosterior:
         -------
         dict
         """
-        ci = self.ci if ci is None else float(ci)
-        return {"mean": float(np.mean(x)), "sd": _sd(x), "interval": equal_tailed(x, ci)}
+        return draw_summary(x, self.ci if ci is None else float(ci))
 
     def position(self, tid: str, ci: float | None = None) -> dict:
         """East, north, up of one transponder, each described (:meth:`describe`).

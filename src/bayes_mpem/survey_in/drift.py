@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.stats import norm
 
-from ..mcmc.summaries import equal_tailed
+from ..mcmc.summaries import draw_summary
 
 
 def _wald(mean, sd, ci):
@@ -84,14 +84,10 @@ def drift_from_draws(east, north, depth, drop_depth=None, *, ci=0.95) -> dict:
                                    np.mean(np.cos(np.radians(az)))))
     az = centre + (az - centre + 180.0) % 360.0 - 180.0
 
-    def summ(x):
-        return {"mean": float(np.mean(x)), "sd": float(np.std(x, ddof=1)),
-                "interval": [float(v) for v in equal_tailed(x, ci)]}
-
-    out = {"drift": summ(r), "azimuth": summ(az)}
+    out = {"drift": draw_summary(r, ci), "azimuth": draw_summary(az, ci)}
     shift = out["azimuth"]["mean"] % 360.0 - out["azimuth"]["mean"]
     out["azimuth"]["mean"] += shift
     out["azimuth"]["interval"] = [v + shift for v in out["azimuth"]["interval"]]
     if drop_depth is not None:
-        out["depth_change"] = summ(d - float(drop_depth))
+        out["depth_change"] = draw_summary(d - float(drop_depth), ci)
     return out

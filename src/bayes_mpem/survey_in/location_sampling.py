@@ -12,6 +12,7 @@ from .._rng import RNGLike, as_generator
 from ..mcmc import (
     bulk_ess,
     draw_moments,
+    draw_summary,
     equal_tailed,
     rhat,
     run_ensembles,
@@ -158,7 +159,7 @@ class LocationPosterior:
         -------
         dict
         """
-        return {"mean": self.mean(name), "sd": self.sd(name), "interval": self.interval(name, ci)}
+        return draw_summary(self.draws[name], self.ci if ci is None else float(ci))
 
     def to_dict(self, ci: float | None = None) -> dict:
         """JSON-ready summary (equal-tailed intervals with probability ``ci``).

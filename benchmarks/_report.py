@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import platform
+import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +24,16 @@ def machine() -> str:
         pass
     return (f"{os.cpu_count()} cores, {cpu}, Python {platform.python_version()}, "
             f"NumPy {np.__version__}")
+
+
+def commit() -> str:
+    """The checkout's short commit, or ``unknown`` outside a git checkout."""
+    try:
+        return subprocess.run(["git", "rev-parse", "--short", "HEAD"],
+                              cwd=Path(__file__).resolve().parent, capture_output=True,
+                              text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
 
 
 def write_section(path, name: str, text: str) -> None:

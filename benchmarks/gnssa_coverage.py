@@ -23,7 +23,6 @@ Writes the section ``gnssa-coverage`` of ``docs/gnssa.md`` and prints it::
 from __future__ import annotations
 
 import os
-import subprocess
 import sys
 import tempfile
 import time
@@ -34,7 +33,7 @@ from scipy.stats import chi2, norm
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _report import machine, write_section  # noqa: E402
+from _report import commit, machine, write_section  # noqa: E402
 
 from bayes_mpem.io.garpos import read_garpos, write_garpos  # noqa: E402
 from bayes_mpem.io.gnatss import read_gnatss, write_gnatss  # noqa: E402
@@ -130,7 +129,7 @@ def main(n_surveys=20):
     text = (f"Written by `python benchmarks/gnssa_coverage.py {n_surveys}` ({machine()}; "
             f"{time.perf_counter() - t0:.0f} s, load average {load[0]:.1f} / {load[1]:.1f} / "
             f"{load[2]:.1f}: the seconds need a re-run on a quiet machine; git "
-            f"{_commit()}).\n\n"
+            f"{commit()}).\n\n"
             f"{n_surveys} surveys x 4 transponders per format; {100 * CI:g} % intervals "
             "(Wald, cluster-robust by interrogation) and regions (the covariance's ellipsoid, "
             f"squared radius {chi2.ppf(CI, 3):.2f}).\n\n"
@@ -142,14 +141,6 @@ def main(n_surveys=20):
              f"{speed.size} fits.\n")
     write_section(ROOT / "docs" / "gnssa.md", "gnssa-coverage", text)
     print(text)
-
-
-def _commit():
-    try:
-        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT,
-                              capture_output=True, text=True, check=True).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
 
 
 if __name__ == "__main__":

@@ -14,7 +14,6 @@ Writes the section ``gnssa-curvature`` of ``docs/gnssa.md`` and prints it::
 from __future__ import annotations
 
 import os
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -26,7 +25,7 @@ import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _report import machine, write_section  # noqa: E402
+from _report import commit, machine, write_section  # noqa: E402
 
 from bayes_mpem.io.formats import read_survey, sample_file  # noqa: E402
 from bayes_mpem.survey_in.array_survey import locate_array_survey  # noqa: E402
@@ -51,8 +50,7 @@ def main():
                  for t in sorted(one)]
         rows.append(f"| array, {earth} | " + " / ".join(f"{v:+.3f}" for v in deeper) + " | "
                     + " / ".join(f"{v:.3f}" for v in horiz) + " |")
-    git = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True,
-                         text=True).stdout.strip()
+    git = commit()
     text = "\n".join([
         f"Written by `python benchmarks/gnssa_curvature.py` ({machine()}; "
         f"{time.perf_counter() - t0:.0f} s; git {git}).",

@@ -21,7 +21,6 @@ Writes the section ``gnssa-posterior`` of ``docs/gnssa.md`` and prints it::
 from __future__ import annotations
 
 import os
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -31,7 +30,7 @@ from scipy.stats import norm
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _report import machine, write_section  # noqa: E402
+from _report import commit, machine, write_section  # noqa: E402
 
 from bayes_mpem.survey_in.array_sampling import sample_array  # noqa: E402
 from bayes_mpem.survey_in.array_survey import array_shots, locate_array_survey  # noqa: E402
@@ -116,7 +115,7 @@ def main(n=20):
     text = (
         f"Written by `python benchmarks/gnssa_posterior.py {n}` ({machine()}; "
         f"{time.perf_counter() - t0:.0f} s, load average {load[0]:.1f} / {load[1]:.1f} / "
-        f"{load[2]:.1f}; git {_commit()}).\n\n"
+        f"{load[2]:.1f}; git {commit()}).\n\n"
         f"{n} campaigns (seeds 0-{n - 1}) of {HOURS:g} h, a shot every {SHOT_INTERVAL:g} s, "
         f"transits across the array (track \"{TRACK}\"), "
         f"4 transponders ({int(np.median(stack['n_shots']))} replies in the median), the "
@@ -143,14 +142,6 @@ def main(n=20):
         f"{np.median(stack['t_post']):.1f} s per campaign (median).\n")
     write_section(ROOT / "docs" / "gnssa.md", "gnssa-posterior", text)
     print(text)
-
-
-def _commit():
-    try:
-        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT,
-                              capture_output=True, text=True, check=True).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
 
 
 if __name__ == "__main__":

@@ -29,7 +29,6 @@ Writes the section ``gnssa-accept-SIM-FIT-SCENARIO`` of ``docs/gnssa.md`` and pr
 from __future__ import annotations
 
 import os
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -41,7 +40,7 @@ import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _report import machine, write_section  # noqa: E402
+from _report import commit, machine, write_section  # noqa: E402
 
 from bayes_mpem.survey_in.array_survey import locate_array_survey  # noqa: E402
 from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa  # noqa: E402
@@ -114,8 +113,7 @@ def report(rows, n_seeds, hours, seconds, sim_grad=False, fit_grad="auto", scena
     ok = np.array([r["moves_ok"] for r in rows])  # (seeds, 2, 3)
     horiz = np.hypot(err[:, 0], err[:, 1])
     cover = np.abs(z) < 1.959964
-    git = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True,
-                         text=True).stdout.strip()
+    git = commit()
     secs = np.array([r["seconds"] for r in rows])
     shots = np.array([r["n_shots"] for r in rows])
     return "\n".join([

@@ -13,9 +13,13 @@ each coordinate contain the truth, the same for the EM's Wald intervals (cluster
 averaged over smoothing weights: what ``locate`` reports) and for the EM's model-based ones,
 the ratio of the posterior sds to the EM's, the sampler used, ESS, acceptance and seconds.
 
+``--long``: the acceptance campaigns of issue 26 instead (6 h, ``star+circle``, the
+sound-speed field with gradients, ``locate``'s defaults: gradients fitted, a speed knot every
+5 min, about 90 parameters), section ``gnssa-posterior-long``.
+
 Writes the section ``gnssa-posterior`` of ``docs/gnssa.md`` and prints it::
 
-    python benchmarks/gnssa_posterior.py [N_CAMPAIGNS]
+    python benchmarks/gnssa_posterior.py [N_CAMPAIGNS] [--long]
 """
 
 from __future__ import annotations
@@ -38,14 +42,17 @@ from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa  # noqa: E402
 
 CI = 0.95
 HOURS, SHOT_INTERVAL, TRACK = 2.0, 30.0, "star"
+#: ``--long``: the acceptance campaigns of issue 26
+LONG = {"hours": 6.0, "shot_interval": 30.0, "track": "star+circle", "speed_model": "field",
+        "gradients": True}
 AXES = ("east", "north", "up")
 #: a bound on a campaign whose proposal fits poorly (differential evolution then)
 MAX_STEPS = 3000
 
 
-def one_campaign(seed):
+def one_campaign(seed, config):
     """Locate and sample one campaign; the standardised errors and intervals' verdicts."""
-    sim = simulate_gnssa(rng=seed, hours=HOURS, shot_interval=SHOT_INTERVAL, track=TRACK)
+    sim = simulate_gnssa(rng=seed, **config)
     raw = sim.raw()
     t0 = time.perf_counter()
     fit = locate_array_survey(raw).fits["array"]
@@ -91,10 +98,12 @@ def _pct(x):
     return f"{100 * np.mean(x):.0f}"
 
 
-def main(n=20):
+def main(n=20, long=False):
+    config = (LONG if long else
+              {"hours": HOURS, "shot_interval": SHOT_INTERVAL, "track": TRACK})
     rows, t0 = [], time.perf_counter()
     for seed in range(n):
-        rows.append(one_campaign(seed))
+        rows.append(one_campaign(seed, config))
         print(f"campaign {seed} done ({time.perf_counter() - t0:.0f} s)", file=sys.stderr)
     load = os.getloadavg()
     stack = {k: np.array([r[k] for r in rows]) for k in rows[0]}
@@ -112,12 +121,14 @@ def main(n=20):
     z = stack["z"]
     err, sd = stack["centre_err_mm"], stack["centre_sd_mm"]
     moves = {m: int(np.sum(stack["moves"] == m)) for m in np.unique(stack["moves"])}
+    field = ", the sound-speed field with horizontal gradients" if long else ""
     text = (
-        f"Written by `python benchmarks/gnssa_posterior.py {n}` ({machine()}; "
+        f"Written by `python benchmarks/gnssa_posterior.py {n}{' --long' if long else ''}` "
+        f"({machine()}; "
         f"{time.perf_counter() - t0:.0f} s, load average {load[0]:.1f} / {load[1]:.1f} / "
         f"{load[2]:.1f}; git {commit()}).\n\n"
-        f"{n} campaigns (seeds 0-{n - 1}) of {HOURS:g} h, a shot every {SHOT_INTERVAL:g} s, "
-        f"transits across the array (track \"{TRACK}\"), "
+        f"{n} campaigns (seeds 0-{n - 1}) of {config['hours']:g} h, a shot every "
+        f"{config['shot_interval']:g} s, track \"{config['track']}\"{field}, "
         f"4 transponders ({int(np.median(stack['n_shots']))} replies in the median), the "
         f"simulator's defaults otherwise; EM with `locate`'s defaults, then `sample_array` "
         f"({100 * CI:g} % intervals).\n\n" + "\n".join(lines) + "\n\n"
@@ -140,9 +151,11 @@ def main(n=20):
         f"{np.median(stack['ess']):,.0f}); acceptance {np.median(stack['acceptance']):.2f} "
         f"(median); EM {np.median(stack['t_em']):.2f} s, sampling "
         f"{np.median(stack['t_post']):.1f} s per campaign (median).\n")
-    write_section(ROOT / "docs" / "gnssa.md", "gnssa-posterior", text)
+    write_section(ROOT / "docs" / "gnssa.md", "gnssa-posterior" + ("-long" if long else ""),
+                  text)
     print(text)
 
 
 if __name__ == "__main__":
-    main(int(sys.argv[1]) if len(sys.argv) > 1 else 20)
+    args = [a for a in sys.argv[1:] if a != "--long"]
+    main(int(args[0]) if args else 20, long="--long" in sys.argv[1:])

@@ -86,15 +86,15 @@ def locate_raw(raw, options: dict):
     InputError
         For TAT or lag options given for an array survey.
     """
-    from ..io.raw import ARRAY_FORMATS
     from ..survey_in.location_sampling import locate_survey_bayes
     from ..survey_in.result import SurveyInResult
-    from ..survey_in.survey import locate_survey
+    from ..survey_in.survey import is_array, locate_survey
 
     options = dict(options)
     sampling = options.pop("sample", None)
     lag_check = options.pop("lag_check", False)
-    if raw.format in ARRAY_FORMATS:
+    if is_array(raw, one_at_a_time=bool(options.get("one_at_a_time"))):
+        options.pop("one_at_a_time", None)
         given = sorted(k for k, v in options.items()
                        if k not in ARRAY_OPTIONS and v not in (None, False))
         if given:

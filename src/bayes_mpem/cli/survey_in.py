@@ -49,15 +49,13 @@ def locate_kwargs(args) -> dict:
                              "located one transponder at a time anyway)"))
     if fmt in ARRAY_FORMATS or (fmt == "seagap" and not one):
         given = [name for name, v in (("--tat", args.tat is not None),
-                                      ("--fit-tat", args.fit_tat), ("--fit-lag", args.fit_lag),
-                                      ("--sample", args.sample and fmt == "seagap")) if v]
+                                      ("--fit-tat", args.fit_tat), ("--fit-lag", args.fit_lag))
+                 if v]
         if given:
             also = ("; add --one-at-a-time to locate each transponder on its own"
                     if fmt == "seagap" else "")
-            sampled = ("; a SeaGap array's posterior is not sampled yet"
-                       if "--sample" in given else "")
             raise OptionError(f"{', '.join(given)}: not for a {fmt} array survey (its "
-                              f"travel times are corrected for the delays{sampled}){also}")
+                              f"travel times are corrected for the delays){also}")
         return dict(ci=args.ci, outliers=args.outliers, ssp=args.ssp,
                     speed_intervals=args.speed_intervals, sample=_sample_options(args),
                     gradients=getattr(args, "gradients", None) or "auto",

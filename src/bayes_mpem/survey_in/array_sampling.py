@@ -21,6 +21,7 @@ from ..mcmc import (
 )
 from .array import (
     GRADIENT_NAMES,
+    WEIGHT_GRID,
     ArrayLocateResult,
     ArrayTravelTimes,
     gradient_design,
@@ -46,6 +47,8 @@ MOVES_LABEL = ("MHMove 1.0 (independence proposal: log sigma, the shares, then t
 #: an independence move that has not met the stopping rule after this many steps hands
 #: over to differential evolution
 INDEPENDENCE_BUDGET = 2000
+#: ``log_smoothing``'s prior: flat over the EM's grid of smoothing weights (natural log)
+SMOOTHING_RANGE = tuple(float(np.log(10.0) * x) for x in (WEIGHT_GRID[0], WEIGHT_GRID[-1]))
 #: differential evolution stops before its chain (kept whole by emcee) exceeds this
 CHAIN_BYTES = 1e9
 #: the three axes of a position
@@ -74,7 +77,8 @@ class ArrayLogPosterior:
         The sampler's coordinates: the free position coordinates (``east_<id>``, ...;
         ``position_<j>`` along the free directions when some are fixed or the array
         moves as a rigid body), ``speed_<i>``, ``gradient_<i>``, ``log_sigma`` and
-        ``logit_weight_<id>``.
+        ``logit_weight_<id>`` and, with the smooth speed, ``log_smoothing`` (the log of
+        the smoothing weights' scale from the EM's choice).
     ndim : int
     label : str
 
@@ -164,6 +168,18 @@ class ArrayLogPosterior:
         self.Hc = None if self.H is None else self.H @ self.coef_em
         self.Hg = (None if self.H is None or not self.kg else
                    np.concatenate([self.H @ g for g in self.gc_em.reshape(-1, self.k)]))
+        #: the smoothing weights are sampled, as one scale ``exp(log_smoothing)`` of the EM's
+        self.smooth = self.H is not None
+        if self.smooth:
+            e = np.linalg.eigvalsh(self.H)
+            blocks = 1 + (self.kg // self.k if self.kg and self.lam_g is not None else 0)
+            self.pen_rank = blocks * int(np.sum(e > 1e-10 * e.max()))
+            dc = self.coef_em - self.coef_em.mean()  # H annihilates a constant
+            q = self.lam * dc @ self.H @ dc
+            if self.kg and self.lam_g is not None:
+                q += self.lam_g * sum(g @ self.H @ g for g in self.gc_em.reshape(-1, self.k))
+            self.pen_em = float(q)
+            self.names += ("log_smoothing",)
 
     def _laplace(self, J, fit):
         """Return the Laplace covariance of (free positions, speed, gradients) at the EM.
@@ -246,7 +262,7 @@ class ArrayLogPosterior:
         """
         w = np.clip(np.asarray(self.fit.weights, float), 1e-6, 1 - 1e-6)
         return np.concatenate([np.zeros(self.F + self.k + self.kg), [np.log(self.fit.sigma)],
-                               np.log(w) - np.log1p(-w)])
+                               np.log(w) - np.log1p(-w), [0.0] * self.smooth])
 
     def split(self, u):
         """Positions ``(W, K, 3)``, speed ``(W, k)``, gradients ``(W, kg)``, sigma, weights.
@@ -266,7 +282,7 @@ class ArrayLogPosterior:
         coef = self.coef_em + u[:, F:F + k] * self.scale[F:F + k]
         gc = self.gc_em + u[:, F + k:F + k + kg] * self.scale[F + k:]
         sigma = np.exp(u[:, F + k + kg])
-        w = 1.0 / (1.0 + np.exp(-u[:, F + k + kg + 1:]))
+        w = 1.0 / (1.0 + np.exp(-u[:, F + k + kg + 1:F + k + kg + 1 + self.K]))
         return pos, coef, gc, sigma, w
 
     def predict(self, u):
@@ -305,19 +321,26 @@ class ArrayLogPosterior:
         # directly, cancels to round-off (c near 1, H c near 0) times a weight of 1e13
         dc = u[:, F:F + k] * self.scale[F:F + k]
         dg = u[:, F + k:F + k + kg] * self.scale[F + k:]
-        ls, lw = u[:, F + k + kg], u[:, F + k + kg + 1:]
+        ls, lw = u[:, F + k + kg], u[:, F + k + kg + 1:F + k + kg + 1 + self.K]
         ok = np.all(np.isfinite(u), axis=1)
         ok &= np.all(np.abs(dc) <= self.width, axis=1)
         ok &= (ls >= np.log(SIGMA_BOUNDS[0])) & (ls <= np.log(SIGMA_BOUNDS[1]))
         lp = np.zeros(u.shape[0])
-        if self.H is not None:
-            lp -= 0.5 * self.lam * (2.0 * dc @ self.Hc + np.einsum("wi,ij,wj->w", dc, self.H,
-                                                                   dc))
+        if self.smooth:
+            # the roughness at the EM's weights, lam c'Hc (+ the gradients'), as its
+            # value at the EM plus the change
+            q = self.lam * (2.0 * dc @ self.Hc + np.einsum("wi,ij,wj->w", dc, self.H, dc))
             if kg and self.lam_g is not None:
-                lp -= self.lam_g * (dg @ self.Hg)
+                q += 2.0 * self.lam_g * (dg @ self.Hg)
                 for j in range(kg // k):
                     g = dg[:, j * k:(j + 1) * k]
-                    lp -= 0.5 * self.lam_g * np.einsum("wi,ij,wj->w", g, self.H, g)
+                    q += self.lam_g * np.einsum("wi,ij,wj->w", g, self.H, g)
+            # the weights times exp(lk), flat in lk over the EM's grid of weights: the
+            # Gaussian prior's normalising term is rank/2 lk
+            lk = u[:, -1]
+            ok &= (lk >= SMOOTHING_RANGE[0]) & (lk <= SMOOTHING_RANGE[1])
+            lp += 0.5 * self.pen_rank * lk - 0.5 * np.exp(np.where(ok, lk, 0.0)) * (
+                self.pen_em + q)
         # a flat prior on each share: the Jacobian of the logit
         lp -= np.sum(np.logaddexp(0.0, lw) + np.logaddexp(0.0, -lw), axis=1)
         return np.where(ok, lp, -np.inf)
@@ -392,7 +415,8 @@ class ArrayLogPosterior:
             ``position`` ``(..., K, 3)`` (m), ``centre`` ``(..., 3)``, ``speed_coef``
             ``(..., k)``, ``sound_speed`` (m/s, the mean over the shots as the EM
             reports it), ``gradient`` ``(..., 4)`` ((m/s)/km, time averages; only when
-            fitted), ``sigma`` (s) and ``weight`` ``(..., K)``.
+            fitted), ``sigma`` (s), ``weight`` ``(..., K)`` and, with the smooth speed,
+            ``smoothing_weight`` (the speed's; the gradients' is scaled alike).
         """
         u = np.asarray(u, float)
         shape = u.shape[:-1]
@@ -405,6 +429,8 @@ class ArrayLogPosterior:
         if self.kg:
             per = gc.reshape(-1, self.kg // self.k, self.k) @ self.g  # (W, 4)
             out["gradient"] = (per * speed[:, None]).reshape(*shape, self.kg // self.k)
+        if self.smooth:
+            out["smoothing_weight"] = self.lam * np.exp(u[..., -1])
         return out
 
     def _proposal_cov(self) -> np.ndarray:
@@ -417,7 +443,9 @@ class ArrayLogPosterior:
         C[ng, ng] = 1.0 / (2.0 * max(p.sum(), 2.0))
         w = np.clip(np.asarray(self.fit.weights, float), 1e-3, 1 - 1e-3)
         counts = np.bincount(self.index, minlength=self.K)
-        C[ng + 1:, ng + 1:] = np.diag(1.0 / (counts * w * (1 - w)))
+        C[ng + 1:ng + 1 + self.K, ng + 1:ng + 1 + self.K] = np.diag(1.0 / (counts * w * (1 - w)))
+        if self.smooth:
+            C[-1, -1] = 2.0 / max(self.pen_rank, 1)
         return 0.5 * (C + C.T)
 
     def proposal(self) -> TProposal | None:
@@ -436,20 +464,20 @@ class ArrayLogPosterior:
 
 
 class ConditionalProposal:
-    """Independence proposal of an array's posterior: sigma, the shares, then the rest given sigma.
+    """Independence proposal of an array's posterior: the hyperparameters, then the rest.
 
-    Given sigma and the classes, the positions, speed and gradient coefficients are
-    Gaussian to within a few thousandths of a nat over the posterior's width (the travel
-    times are nearly linear in them): precision ``rho D + P`` with ``D`` the data's
-    precision at the EM's sigma, ``P`` the smoothing prior's and
-    ``rho = (sigma_EM / sigma)**2``, and a mean moved from the EM solution by one Newton
-    step. That conditional is drawn exactly, through the generalised eigenvectors of
-    ``(D, D + P)``; ``log sigma`` is drawn from a Student-t fitted to its Laplace
-    marginal on a grid, and each share from the Beta of its expected class counts. A
-    joint Student-t (:class:`~bayes_mpem.mcmc.proposal.TProposal`) misses the coupling of
-    sigma with every other coordinate, which in a hundred dimensions or more (a speed
-    knot every 5 minutes of a long campaign) leaves independence sampling no accepted
-    step.
+    Given sigma, the smoothing scale ``kappa`` and the classes, the positions, speed and
+    gradient coefficients are Gaussian to within a few thousandths of a nat over the
+    posterior's width (the travel times are nearly linear in them): precision
+    ``rho D + kappa P`` with ``D`` the data's precision at the EM's sigma, ``P`` the
+    smoothing prior's at the EM's weights and ``rho = (sigma_EM / sigma)**2``, and a mean
+    moved from the EM solution by one Newton step. That conditional is drawn exactly,
+    through the generalised eigenvectors of ``(D, D + P)``; ``(log sigma, log kappa)`` are
+    drawn from a Student-t fitted to their Laplace marginal on a grid, and each share from
+    the Beta of its expected class counts. A joint Student-t
+    (:class:`~bayes_mpem.mcmc.proposal.TProposal`) misses the coupling of sigma with every
+    other coordinate, which in a hundred dimensions or more (a speed knot every 5 minutes
+    of a long campaign) leaves independence sampling no accepted step.
 
     Parameters
     ----------
@@ -461,19 +489,21 @@ class ConditionalProposal:
     numpy.linalg.LinAlgError
         When ``D + P`` is not positive definite.
     ValueError
-        When the marginal of ``log sigma`` cannot be evaluated (the conditional mean
+        When the hyperparameters' marginal cannot be evaluated (the conditional mean
         leaves the prior's support).
     """
 
-    #: degrees of freedom of the proposal of ``log sigma``
+    #: degrees of freedom of the hyperparameters' proposal
     DF = 30.0
+    #: grid points per hyperparameter (its marginal's moments)
+    GRID = 41
 
     def __init__(self, post: ArrayLogPosterior):
         import scipy.linalg
         from scipy import special
 
         self.ng = ng = post.F + post.k + post.kg
-        self.K = post.K
+        self.K, self.smooth = post.K, post.smooth
         self.centre = post.u_em()
         S = post.scale
         data, prior = (m * np.outer(S, S) for m in post._precisions)
@@ -481,59 +511,81 @@ class ConditionalProposal:
         self.g = np.clip(g, 0.0, 1.0)
         self.V = V
         self.W = V.T @ (data + prior)  # V^-1
-        self.logdet = 2.0 * np.sum(np.log(np.diag(np.linalg.cholesky(data + prior))))
         # gradient of the log posterior at the EM solution, split into data and prior
         h = 0.1 * np.sqrt(np.diag(post.cov_geo))
         pts = np.repeat(self.centre[None], 2 * ng, axis=0)
         pts[np.arange(ng), np.arange(ng)] += h
         pts[ng + np.arange(ng), np.arange(ng)] -= h
-        lp = post(pts)
+        lp = _chunked(post, pts)
         total = (lp[:ng] - lp[ng:]) / (2.0 * h)
         pen = np.zeros(ng)
-        if post.H is not None:
+        if post.smooth:
             pen[post.F:post.F + post.k] = -post.lam * post.Hc * S[post.F:post.F + post.k]
             if post.kg and post.lam_g is not None:
                 pen[post.F + post.k:] = -post.lam_g * post.Hg * S[post.F + post.k:]
         self.a_data, self.a_prior = V.T @ (total - pen), V.T @ pen
         # the Newton step, shortened where the posterior is not quadratic along it (a ridge
         # of the geometry against the speed, on a short circling track)
-        step = V @ self._mean(np.ones(1))[0]
+        one = np.ones(1)
+        step = V @ self._mean(one, one)[0]
         frac = np.array([1.0, 0.5, 0.25, 0.125, 0.0625, 0.0])
         pts = np.repeat(self.centre[None], frac.size, axis=0)
         pts[:, :ng] += frac[:, None] * step
         along = post(pts)
         best = float(frac[np.nanargmax(np.where(np.isfinite(along), along, -np.inf))])
-        self.a_data, self.a_prior = best * self.a_data, best * self.a_prior
-        # log sigma: Student-t fitted to its Laplace marginal (positions etc. integrated)
-        ls_em = self.centre[ng]
-        p = np.asarray(post.fit.p_true, float)
-        sd0 = 1.0 / np.sqrt(2.0 * max(p.sum(), 2.0))
-        ls = ls_em + sd0 * np.linspace(-10.0, 10.0, 201)
-        rho = np.exp(2.0 * (ls_em - ls))
-        pts = np.repeat(self.centre[None], ls.size, axis=0)
-        pts[:, :ng] += self._mean(rho) @ V.T
-        pts[:, ng] = ls
-        lm = post(pts) - 0.5 * np.sum(np.log(self._d(rho)), axis=1)
-        if np.sum(np.isfinite(lm)) < 3:
-            raise ValueError("the marginal of sigma has fewer than 3 points inside the support")
-        w = np.exp(lm - np.max(lm[np.isfinite(lm)]))
-        w[~np.isfinite(w)] = 0.0
-        w /= w.sum()
-        self.ls_mean = float(w @ ls)
-        self.ls_sd = float(np.sqrt(w @ (ls - self.ls_mean) ** 2))
+        # shorten the step at the EM's sigma and weights, keep how the mean moves with them
+        self.a_data = best * (self.a_data + self.a_prior) - self.a_prior
+        self.hyper = self._hyper_proposal(post)
         # the shares: Beta of the expected counts (a flat prior on each share)
+        p = np.asarray(post.fit.p_true, float)
         counts = np.bincount(post.index, weights=p, minlength=self.K)
         n = np.bincount(post.index, minlength=self.K).astype(float)
         self.a, self.b = counts + 1.0, n - counts + 1.0
         self.lbeta = special.betaln(self.a, self.b)
 
-    def _d(self, rho):
-        """Eigenvalues of the conditional precision at ``rho`` in the ``V`` basis, ``(n, ng)``."""
-        return rho[:, None] * self.g + (1.0 - self.g)
+    def _hyper_proposal(self, post) -> TProposal:
+        """Student-t of ``log sigma`` (and ``log kappa``) from the moments of their marginal."""
+        ng = self.ng
+        ls_em = self.centre[ng]
+        p = np.asarray(post.fit.p_true, float)
+        axes = [ls_em + np.linspace(-8.0, 8.0, self.GRID) / np.sqrt(2.0 * max(p.sum(), 2.0))]
+        if self.smooth:
+            sd = np.sqrt(2.0 / max(post.pen_rank, 1))
+            axes.append(np.clip(np.linspace(-8.0, 8.0, self.GRID) * sd, *SMOOTHING_RANGE))
+        grid = np.stack([a.ravel() for a in np.meshgrid(*axes, indexing="ij")], axis=1)
+        rho, kappa = self._scales(grid)
+        pts = np.repeat(self.centre[None], grid.shape[0], axis=0)
+        pts[:, :ng] += self._mean(rho, kappa) @ self.V.T
+        pts[:, ng] = grid[:, 0]
+        if self.smooth:
+            pts[:, -1] = grid[:, 1]
+        lm = _chunked(post, pts) - 0.5 * np.sum(np.log(self._d(rho, kappa)), axis=1)
+        if np.sum(np.isfinite(lm)) < 3:
+            raise ValueError("the hyperparameters' marginal has fewer than 3 points inside "
+                             "the support")
+        w = np.exp(lm - np.max(lm[np.isfinite(lm)]))
+        w[~np.isfinite(w)] = 0.0
+        w /= w.sum()
+        mean = w @ grid
+        cov = ((grid - mean).T * w) @ (grid - mean)
+        return TProposal(centre=mean, chol=np.linalg.cholesky(np.atleast_2d(cov)), df=self.DF)
 
-    def _mean(self, rho):
-        """Conditional mean at ``rho`` in the ``V`` basis, ``(n, ng)`` (offsets from the EM)."""
-        return (rho[:, None] * self.a_data + self.a_prior) / self._d(rho)
+    def _scales(self, hyper):
+        """``rho`` and ``kappa`` of ``(n, 1 or 2)`` hyperparameters (log sigma, log kappa)."""
+        rho = np.exp(2.0 * (self.centre[self.ng] - hyper[:, 0]))
+        return rho, (np.exp(hyper[:, 1]) if self.smooth else np.ones_like(rho))
+
+    def _d(self, rho, kappa):
+        """Eigenvalues of the conditional precision in the ``V`` basis, ``(n, ng)``."""
+        return rho[:, None] * self.g + kappa[:, None] * (1.0 - self.g)
+
+    def _mean(self, rho, kappa):
+        """Conditional mean in the ``V`` basis, ``(n, ng)`` (offsets from the EM)."""
+        return ((rho[:, None] * self.a_data + kappa[:, None] * self.a_prior)
+                / self._d(rho, kappa))
+
+    def _hyper_columns(self):
+        return [self.ng] + ([self.centre.size - 1] if self.smooth else [])
 
     def draw(self, n: int, gen) -> np.ndarray:
         """Draw ``n`` points.
@@ -549,15 +601,17 @@ class ConditionalProposal:
             ``(n, ndim)``.
         """
         ng = self.ng
-        ls = self.ls_mean + self.ls_sd * gen.standard_t(self.DF, size=n)
-        rho = np.exp(2.0 * (self.centre[ng] - ls))
-        y = self._mean(rho) + gen.standard_normal((n, ng)) / np.sqrt(self._d(rho))
+        hyper = self.hyper.draw(n, gen)
+        rho, kappa = self._scales(hyper)
+        d = self._d(rho, kappa)
+        y = self._mean(rho, kappa) + gen.standard_normal((n, ng)) / np.sqrt(d)
         out = np.empty((n, self.centre.size))
         out[:, :ng] = self.centre[:ng] + y @ self.V.T
-        out[:, ng] = ls
+        out[:, self._hyper_columns()] = hyper
         # logit of a Beta(a, b) draw: log X - log Y with X ~ Gamma(a), Y ~ Gamma(b)
-        out[:, ng + 1:] = (np.log(gen.standard_gamma(self.a, size=(n, self.K)))
-                           - np.log(gen.standard_gamma(self.b, size=(n, self.K))))
+        out[:, ng + 1:ng + 1 + self.K] = (
+            np.log(gen.standard_gamma(self.a, size=(n, self.K)))
+            - np.log(gen.standard_gamma(self.b, size=(n, self.K))))
         return out
 
     def log_density(self, u) -> np.ndarray:
@@ -575,17 +629,21 @@ class ConditionalProposal:
         """
         u = np.atleast_2d(np.asarray(u, float))
         ng = self.ng
-        ls = u[:, ng]
-        z = (ls - self.ls_mean) / self.ls_sd
-        out = -0.5 * (self.DF + 1.0) * np.log1p(z * z / self.DF)
-        rho = np.exp(2.0 * (self.centre[ng] - ls))
-        d = self._d(rho)
-        y = (u[:, :ng] - self.centre[:ng]) @ self.W.T - self._mean(rho)
+        hyper = u[:, self._hyper_columns()]
+        out = self.hyper.log_density(hyper)
+        rho, kappa = self._scales(hyper)
+        d = self._d(rho, kappa)
+        y = (u[:, :ng] - self.centre[:ng]) @ self.W.T - self._mean(rho, kappa)
         out += 0.5 * np.sum(np.log(d), axis=1) - 0.5 * np.einsum("ij,ij,ij->i", d, y, y)
-        lw = u[:, ng + 1:]
+        lw = u[:, ng + 1:ng + 1 + self.K]
         out += np.sum(-self.a * np.logaddexp(0.0, -lw) - self.b * np.logaddexp(0.0, lw)
                       - self.lbeta, axis=1)
         return out
+
+
+def _chunked(post, u, size=256):
+    """``post(u)`` a block of rows at a time (each row costs the shots' predictions)."""
+    return np.concatenate([post(u[i:i + size]) for i in range(0, u.shape[0], size)])
 
 
 def _proposal_start(post, proposal, n, gen, rounds=1000):
@@ -612,6 +670,8 @@ def _series(post: ArrayLogPosterior, chain) -> dict:
             out[f"centre_{axis}"] = nat["centre"][..., a]
     out["sound_speed"] = nat["sound_speed"]
     out["sigma"] = nat["sigma"]
+    if "smoothing_weight" in nat:
+        out["log_smoothing"] = np.log(nat["smoothing_weight"])
     return out
 
 
@@ -725,7 +785,7 @@ class ArrayPosterior:
 
         d = self.draws
         post = {k: d[k] for k in ("position", "centre", "speed_coef", "sound_speed",
-                                  "gradient", "sigma", "weight") if k in d}
+                                  "gradient", "sigma", "weight", "smoothing_weight") if k in d}
         dims = {"position": ["transponder", "axis"], "centre": ["axis"],
                 "speed_coef": ["knot"], "gradient": ["gradient_term"],
                 "weight": ["transponder"], "twtt": ["shot"]}
@@ -783,6 +843,8 @@ class ArrayPosterior:
         if "gradient" in d:
             out["gradients"] = {name: self.describe(d["gradient"][..., j], ci)
                                 for j, name in enumerate(GRADIENT_NAMES)}
+        if "smoothing_weight" in d:
+            out["log10_smoothing_weight"] = self.describe(np.log10(d["smoothing_weight"]), ci)
         return out
 
 
@@ -937,7 +999,10 @@ def sample_array(shots: pd.DataFrame, fit: ArrayLocateResult, *, n_walkers: int 
         "acceptance": run.acceptance, "seconds": float(seconds), "min_ess": float(min_ess),
         "ndim": post.ndim, **{k: v for k, v in info.items() if v is not None},
         "smoothing_weight": post.lam, "gradient_weight": post.lam_g,
-        "hyperparameters": "the smoothing weights held at the EM's marginal-likelihood choice",
+        "hyperparameters": (
+            "the smoothing weights sampled: one scale of the EM's speed and gradient weights, "
+            "flat in log over the EM's grid (2 decades either way)" if post.smooth else
+            "none (the speed's intervals are fixed)"),
         "speed_coef_unit": ("scale of the profile (dimensionless)" if refracted else "m/s"),
         "travel_times": ("refracted rays: ray bending to first order about the EM solution"
                          if refracted else "straight rays (exact)")}
@@ -1053,10 +1118,11 @@ def locate_array_survey_bayes(raw, *, ci=0.95, outliers="uniform", ssp=None,
                                   for j, name in enumerate(GRADIENT_NAMES)}}
     summary_post = post.to_dict(ci)
     s["posterior"] = {k: summary_post[k] for k in ("sigma_ms", "weight_true", "ess", "rhat",
-                                                    "diagnostics")}
+                                                    "diagnostics", "log10_smoothing_weight")
+                      if k in summary_post}
     s["posterior"]["file"] = "posterior_array.nc"
     s["method"] = (s["method"] + "; emcee posterior from the EM solution (smoothing weights "
-                   "held at the EM's), equal-tailed intervals")
+                   "sampled), equal-tailed intervals")
     s["interval_method"] = "posterior"
     s["ci"] = ci
     s["position_region"] = (f"posterior sds and equal-tailed {100 * ci:g} % intervals; "

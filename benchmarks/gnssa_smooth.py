@@ -162,6 +162,11 @@ def report(rows, n_seeds, hours, seconds, sim_grad=False, fit_grad="auto", scena
         f"({100 * max(r['tp_err'] for r in rows):.2f}) | 3 |",
         f"| campaigns with every transponder within 3 cm (%) | "
         f"{100 * np.mean([r['tp_err'] < 0.03 for r in rows]):.0f} | 100 |"]
+        + [f"| seeds {b}-{b + 19}: centre error, median horizontal / vertical (cm); centre "
+           f"covered (%) | {100 * np.median(horiz[b:b + 20]):.2f} / "
+           f"{100 * np.median(np.abs(err[b:b + 20, 2])):.2f}; "
+           f"{100 * cover[b:b + 20].mean():.0f} (up {100 * cover[b:b + 20, 2].mean():.0f}) "
+           "| 1 / 2; 90-98 |" for b in range(0, len(rows) - 19 if len(rows) > 20 else 0, 20)]
         + ([] if not fitted else [
             f"| time-averaged gradients within 2 sd of the truth, shallow E / N, deep E / N "
             f"(% of {len(fitted)} fitted) | " + " / ".join(

@@ -182,3 +182,35 @@ def test_gradient_terms_are_sampled_from_the_ems_solution():
     for j, name in enumerate(GRADIENT_NAMES):  # the EM's time averages, within their sds
         em = res.summary["gradients"][name]
         assert abs(float(g[..., j].mean()) - em["mean"]) < em["sd"]
+
+
+@pytest.fixture(scope="module")
+def two_hours():
+    """Two hours of shots (the weight well determined: a Laplace sd of 0.2 decades)."""
+    raw = simulate_gnssa(rng=0, hours=2.0, shot_interval=30.0).raw()
+    fit = locate_array_survey(raw).fits["array"]
+    return fit, sample_array(array_shots(raw), fit, min_ess=400, n_draws=2000, rng=1,
+                             progress=False)
+
+
+def test_smoothing_weight_posterior_matches_the_ems_evidence(two_hours):
+    """The sampled smoothing weight against the EM's marginal likelihood over its grid.
+
+    Two computations of one thing: the posterior of ``log kappa`` (its prior's normalising
+    term ``rank / 2 log kappa`` included) and the EM's linearised evidence, whose curvature
+    about its best weight gives a Laplace sd. A wrong rank or a missing term moves the
+    posterior away from the EM's choice or changes its width.
+    """
+    fit, sampled = two_hours
+    sm = fit.model["smoothing"]
+    x, ll = (np.asarray(sm["grid"][k]) for k in ("log10_weight", "log_evidence"))
+    i = int(np.argmax(ll))
+    h = x[1] - x[0]
+    curv = -(ll[i - 1] - 2 * ll[i] + ll[i + 1]) / h**2
+    peak = x[i] + 0.5 * h * (ll[i - 1] - ll[i + 1]) / (ll[i - 1] - 2 * ll[i] + ll[i + 1])
+    lw = np.log10(sampled.draws["smoothing_weight"]).ravel()
+    assert abs(lw.mean() - peak) * np.sqrt(curv) < 0.25
+    assert 0.85 < lw.std() * np.sqrt(curv) < 1.15
+    tree = sampled.to_inference_data()
+    assert tree["posterior"]["smoothing_weight"].shape == tree["sample_stats"]["lp"].shape
+    assert "log_smoothing" in sampled.ess

@@ -688,8 +688,8 @@ class ArrayPosterior:
     draws : dict
         Thinned draws, ``(walker, draw, ...)``: ``position`` (``..., K, 3``, m),
         ``centre`` (``..., 3``), ``speed_coef``, ``sound_speed`` (m/s), ``gradient``
-        (when fitted), ``sigma`` (s), ``weight`` (``..., K``), ``lp``, and ``theta`` in
-        the sampler's coordinates.
+        (when fitted), ``sigma`` (s), ``weight`` (``..., K``), ``smoothing_weight`` (with
+        the smooth speed), ``lp``, and ``theta`` in the sampler's coordinates.
     p_true, p_true_sd : numpy.ndarray
         Per shot used: mean and sd over the draws of the probability of a true reply.
     rows : numpy.ndarray
@@ -698,7 +698,8 @@ class ArrayPosterior:
         ``line``, ``time`` (s), ``transponder``, ``twtt`` (s) of those shots.
     ess, rhat : dict
         ArviZ's bulk ESS and R-hat of the written draws (walkers as chains): keys
-        ``<axis>_<id>``, ``centre_<axis>``, ``sound_speed``, ``sigma``.
+        ``<axis>_<id>``, ``centre_<axis>``, ``sound_speed``, ``sigma`` and, with the
+        smooth speed, ``log_smoothing``.
     em : ArrayLocateResult
     diagnostics : dict
     ci : float
@@ -867,8 +868,8 @@ def sample_array(shots: pd.DataFrame, fit: ArrayLocateResult, *, n_walkers: int 
     ci : float, default 0.95
         Probability of the equal-tailed intervals.
     min_ess : float, default 1000
-        Run until the smallest bulk ESS (positions, centre, mean speed, sigma) reaches
-        this and R-hat < 1.01.
+        Run until the smallest bulk ESS (positions, centre, mean speed, sigma, smoothing
+        weight) reaches this and R-hat < 1.01.
     max_steps : int, default 20000
     n_draws : int, default 4000
         Draws kept at least (a longer chain is thinned evenly).

@@ -496,7 +496,7 @@ class ConditionalProposal:
     #: degrees of freedom of the hyperparameters' proposal
     DF = 30.0
     #: grid points per hyperparameter (its marginal's moments)
-    GRID = 41
+    GRID = 21
 
     def __init__(self, post: ArrayLogPosterior):
         import scipy.linalg

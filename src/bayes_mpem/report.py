@@ -193,15 +193,12 @@ def demo_markdown(simulation, fit, paper, out_dir, figures, *, seed, posterior=N
 
     Parameters
     ----------
-    simulation : Simulation
     fit, paper : SurveyFit
         The mixture EM's and the paper's EM's fits.
     out_dir : str or pathlib.Path
         The demo's output folder; figure links are relative to it.
     figures : sequence of pathlib.Path
         Every figure written, linked in this order.
-    seed : int
-    posterior : SurveyPosterior, optional
     comparison : SurveyComparison, optional
         With ``posterior``: the Bayesian part, when it ran.
     warnings : sequence of str, default ()

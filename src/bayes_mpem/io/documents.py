@@ -54,7 +54,7 @@ def finite_json(document, numpy: bool = False):
 
 
 def split_timings(document):
-    """Move wall-clock timings (keys ``seconds`` or ``*_seconds``) out of a copy of ``document``."""
+    """Split a copy of ``document`` into ``(document, timings)`` (``seconds``, ``*_seconds``)."""
     def is_timing(key):
         return isinstance(key, str) and (key == "seconds" or key.endswith("_seconds"))
 

@@ -50,7 +50,7 @@ def paper_e_step(geom: BeaconGeometry, d0, sigma_mp, sigma_dp, pol, path="triang
 
 
 def paper_m_step(geom: BeaconGeometry, gamma_mp, d0_prev, alpha, path="triangle", *, d0k=None):
-    """M-step of the paper (eqs. 8, 10 and 9).
+    """M-step of the paper (eqs. 8, 10 and 9): the new ``(d0, sigma_mp)``.
 
     Parameters
     ----------

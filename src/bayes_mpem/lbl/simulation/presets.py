@@ -74,7 +74,7 @@ def _random_config(gen):
 
 
 def lawnmower_track(box, spacing, n_points):
-    """Points evenly spaced along a lawnmower pattern covering ``box`` (tracklines along x).
+    """``(x, y)`` evenly spaced along a lawnmower pattern covering ``box`` (tracklines along x).
 
     Parameters
     ----------

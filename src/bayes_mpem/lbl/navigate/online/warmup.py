@@ -28,7 +28,7 @@ _THIRD = math.log(1.0 / 3.0)
 
 
 def provisional_classes(ping, xyz, window, sd):
-    """Class probabilities of a warm-up reply at its dead-reckoned position.
+    """Class probabilities ``(p_dp, p_mp, p_ol)`` of a warm-up reply at its dead-reckoned position.
 
     The plane at the sea surface, both scales ``sd``, equal weights, outliers
     uniform over ``window``; no multipath class where the surface bounce would

@@ -25,8 +25,6 @@ def check_positive(name: str, value: Any, *, allow_none: bool = False,
 
     Parameters
     ----------
-    name : str
-    value : Any
     allow_none : bool, default False
         Accept ``None`` (and return it).
     what : str, optional
@@ -49,11 +47,6 @@ def check_positive(name: str, value: Any, *, allow_none: bool = False,
 def check_finite(name: str, value: Any) -> float:
     """Check a finite number; return it as ``float``.
 
-    Parameters
-    ----------
-    name : str
-    value : Any
-
     Raises
     ------
     ValueError
@@ -66,12 +59,6 @@ def check_finite(name: str, value: Any) -> float:
 
 def check_probability(name: str, value: Any, *, open_interval: bool = True) -> float:
     """Check a probability, in ``(0, 1)`` (default) or in ``[0, 1]``; return it as ``float``.
-
-    Parameters
-    ----------
-    name : str
-    value : Any
-    open_interval : bool, default True
 
     Raises
     ------
@@ -90,15 +77,8 @@ def check_choice(name: str, value: Any, choices: Iterable, *, words: bool = Fals
 
     Parameters
     ----------
-    name : str
-    value : Any
-    choices : iterable
     words : bool, default False
         Spell the choices out (``expected 'a', 'b' or 'c'``) instead of a tuple.
-
-    Returns
-    -------
-    Any
 
     Raises
     ------
@@ -120,12 +100,6 @@ def check_choice(name: str, value: Any, choices: Iterable, *, words: bool = Fals
 def check_int(name: str, value: Any, *, minimum: int) -> int:
     """Check an integer (Python or NumPy, not a bool or a float) ``>= minimum``; return an ``int``.
 
-    Parameters
-    ----------
-    name : str
-    value : Any
-    minimum : int
-
     Raises
     ------
     ValueError
@@ -142,11 +116,8 @@ def check_range(name: str, value: Any, *, low: float | None = None, high: float 
 
     Parameters
     ----------
-    name : str
-    value : Any
     low, high : float, optional
         The bounds; ``None`` for none.
-    include_low, include_high : bool, default False
 
     Raises
     ------
@@ -178,11 +149,8 @@ def check_increasing(name: str, values: Any, *, context: str = "",
 
     Parameters
     ----------
-    name : str
-    values : array_like
     context : str, optional
         Put before the name (``"SoundSpeedProfile: "``).
-    what : str, default "strictly increasing values"
 
     Raises
     ------

@@ -73,14 +73,10 @@ def write_figures(result, out_dir, *, beacon=None, truth=None, general=True,
                     f"{type(result).__name__}")
 
 
+# The figures of each result type (named in commands.COMMANDS): the arguments of
+# write_figures (``out`` a pathlib.Path); each returns the paths it wrote.
 def fit_figures(result, out, *, beacon=None, truth=None, general=True, sensitivity=None) -> list:
-    """Write the paper's figures of a :class:`~bayes_mpem.lbl.survey.fitting.SurveyFit`.
-
-    Parameters
-    ----------
-    result, out, **kwargs
-        As :func:`write_figures` (``out`` a :class:`pathlib.Path`); returns the paths written.
-    """
+    """Write the paper's figures of a :class:`~bayes_mpem.lbl.survey.fitting.SurveyFit`."""
     if not result.results:
         return []
     b = check_choice("beacon", beacon or list(result.results)[-1], sorted(result.results))
@@ -106,13 +102,7 @@ def fit_figures(result, out, *, beacon=None, truth=None, general=True, sensitivi
 
 
 def posterior_figures(result, out, *, truth=None, **_) -> list:
-    """Write the intervals, traces, pairs and class uncertainty of a posterior.
-
-    Parameters
-    ----------
-    result, out, **kwargs
-        As :func:`write_figures` (``out`` a :class:`pathlib.Path`); returns the paths written.
-    """
+    """Write the intervals, traces, pairs and class uncertainty of a posterior."""
     if not result.results:
         return []
     paths = [_save(bayes_plots.plot_intervals(result, truth=truth), out / "intervals.png")]
@@ -125,37 +115,19 @@ def posterior_figures(result, out, *, truth=None, **_) -> list:
 
 
 def comparison_figures(result, out, **_) -> list:
-    """Write ``compare.png``, equal against learned priors.
-
-    Parameters
-    ----------
-    result, out, **kwargs
-        As :func:`write_figures` (``out`` a :class:`pathlib.Path`); returns the paths written.
-    """
+    """Write ``compare.png``, equal against learned priors."""
     if not result.results:
         return []
     return [_save(bayes_plots.plot_prior_comparison(result), out / "compare.png")]
 
 
 def diagnosis_figures(result, out, **_) -> list:
-    """Write the figures of a diagnosis (:func:`bayes_mpem.plots.diagnose.write_figures`).
-
-    Parameters
-    ----------
-    result, out, **kwargs
-        As :func:`write_figures` (``out`` a :class:`pathlib.Path`); returns the paths written.
-    """
+    """Write the figures of a diagnosis (:func:`bayes_mpem.plots.diagnose.write_figures`)."""
     return list(write_diagnosis_figures(result, out).values())
 
 
 def locate_figures(result, out, *, truth=None, **_) -> list:
-    """Write the map and residuals of a located survey; an array's sound speed too.
-
-    Parameters
-    ----------
-    result, out, **kwargs
-        As :func:`write_figures` (``out`` a :class:`pathlib.Path`); returns the paths written.
-    """
+    """Write the map and residuals of a located survey; an array's sound speed too."""
     if not result.summary.get("transponders"):
         return []
     paths = [_save(survey_in_plots.plot_survey_map(result), out / "survey_map.png"),
@@ -174,13 +146,7 @@ def locate_figures(result, out, *, truth=None, **_) -> list:
 
 
 def navigation_figures(result, out, *, truth=None, **_) -> list:
-    """Write ``nav_track.png``, ``nav_ranges.png`` and ``nav_correction.png``.
-
-    Parameters
-    ----------
-    result, out, **kwargs
-        As :func:`write_figures` (``out`` a :class:`pathlib.Path`); returns the paths written.
-    """
+    """Write ``nav_track.png``, ``nav_ranges.png`` and ``nav_correction.png``."""
     return [_save(nav_plots.plot_nav_track(result, truth=truth), out / "nav_track.png"),
             _save(nav_plots.plot_nav_ranges(result), out / "nav_ranges.png"),
             _save(nav_plots.plot_nav_correction(result, truth=truth),
@@ -193,15 +159,12 @@ def demo_markdown(simulation, fit, paper, out_dir, figures, *, seed, posterior=N
 
     Parameters
     ----------
-    simulation : Simulation
     fit, paper : SurveyFit
         The mixture EM's and the paper's EM's fits.
     out_dir : str or pathlib.Path
         The demo's output folder; figure links are relative to it.
     figures : sequence of pathlib.Path
         Every figure written, linked in this order.
-    seed : int
-    posterior : SurveyPosterior, optional
     comparison : SurveyComparison, optional
         With ``posterior``: the Bayesian part, when it ran.
     warnings : sequence of str, default ()

@@ -36,7 +36,6 @@ class Legs:
 
     Parameters
     ----------
-    profile : SoundSpeedProfile
     legs : sequence of (ndarray, ndarray)
         Per leg, the top and bottom depth (m) of every ray, each of shape ``(rays,)``.
 
@@ -85,13 +84,7 @@ class Legs:
             self.R2.append(r2)
 
     def take(self, idx, names=("C", "H", "A", "B", "R2")):
-        """Return the same legs for the rays ``idx`` only (with the arrays ``names``).
-
-        Parameters
-        ----------
-        idx : array_like of int or bool
-        names : tuple of str
-        """
+        """Return the same legs for the rays ``idx`` only (with the arrays ``names``)."""
         new = object.__new__(Legs)
         for name in names:
             setattr(new, name, [a[idx] for a in getattr(self, name)])
@@ -160,12 +153,7 @@ class Legs:
         return x / self.cmax
 
     def times(self, S):
-        """One-way travel time (s) of each ray summed over the layers, for knot cosines ``S``.
-
-        Parameters
-        ----------
-        S : list of ndarray
-        """
+        """One-way travel time (s) of each ray summed over the layers, for knot cosines ``S``."""
         t = np.zeros(S[0].shape[0])
         with np.errstate(divide="ignore", invalid="ignore"):
             for cc, hh, s in zip(self.C, self.H, S, strict=True):

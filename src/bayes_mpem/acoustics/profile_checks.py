@@ -15,7 +15,6 @@ def check_profile(ssp, deepest: float | None = None, *, name: str = "ssp") -> So
 
     Parameters
     ----------
-    ssp : SoundSpeedProfile
     deepest : float, optional
         The deepest beacon or vehicle (m).
     name : str
@@ -38,13 +37,7 @@ def check_profile(ssp, deepest: float | None = None, *, name: str = "ssp") -> So
 
 
 def check_sound_speed(sound_speed, name: str = "sound_speed") -> float:
-    """``sound_speed`` as a float, if it is a plausible speed (m/s); else ValueError.
-
-    Parameters
-    ----------
-    sound_speed : float
-    name : str
-    """
+    """``sound_speed`` as a float, if it is a plausible speed (m/s); else ValueError."""
     return check_positive(name, sound_speed, what="a positive sound speed in m/s")
 
 
@@ -53,7 +46,6 @@ def nominal_sound_speed(ssp: SoundSpeedProfile, depth) -> float:
 
     Parameters
     ----------
-    ssp : SoundSpeedProfile
     depth : float
         m, positive down.
     """

@@ -169,7 +169,6 @@ def direct_times(ssp: SoundSpeedProfile, z_a, z_b, horizontal, *, tol: float = 1
 
     Parameters
     ----------
-    ssp : SoundSpeedProfile
     z_a, z_b : array_like
         Depths of the ends (m).
     horizontal : array_like
@@ -214,10 +213,8 @@ def bounce_times(ssp: SoundSpeedProfile, z_a, z_b, horizontal, plane_depth, *,
 
     Parameters
     ----------
-    ssp : SoundSpeedProfile
     z_a, z_b, horizontal, plane_depth : array_like
         As :func:`~bayes_mpem.acoustics.surface_bounce_ray`.
-    tol : float, default 1e-9
 
     Returns
     -------

@@ -11,16 +11,7 @@ from ..exceptions import InputError
 
 
 def number_parts(parts):
-    """Tell whether every string of ``parts`` parses as a number.
-
-    Parameters
-    ----------
-    parts : sequence of str
-
-    Returns
-    -------
-    bool
-    """
+    """Tell whether every string of ``parts`` parses as a number."""
     try:
         [float(p) for p in parts]
     except ValueError:
@@ -46,10 +37,6 @@ def bundled_woa09():
 
 def load_woa09(directory: str):
     """Load the WOA09 grid from ``directory``.
-
-    Parameters
-    ----------
-    directory : str
 
     Returns
     -------

@@ -32,32 +32,17 @@ def run(command: str, inputs: dict, options: dict):
 
 
 def survey_rows(result):
-    """Per-beacon summaries and the classified table of a fit, a posterior or a navigation.
-
-    Parameters
-    ----------
-    result : SurveyFit, SurveyPosterior or Navigation
-    """
+    """Per-beacon summaries and the classified table of a fit, a posterior or a navigation."""
     return result.summary()["beacons"], result.classified()
 
 
 def locate_rows(result):
-    """Per-transponder summaries and the classified table of a located survey.
-
-    Parameters
-    ----------
-    result : SurveyInResult
-    """
+    """Per-transponder summaries and the classified table of a located survey."""
     return result.summary["transponders"], result.classified
 
 
 def diagnosis_rows(result):
-    """Per-beacon final-model summaries of a diagnosis, with the effects found; no table.
-
-    Parameters
-    ----------
-    result : Diagnosis
-    """
+    """Per-beacon final-model summaries of a diagnosis, with the effects found; no table."""
     d = result.to_dict()
     effects = ",".join(e["name"] for e in d["effects"]) or "none"
     return {b: {**v, "effects": effects} for b, v in d["final_model"]["beacons"].items()}, None

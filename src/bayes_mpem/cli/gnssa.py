@@ -13,12 +13,7 @@ LBL_ONLY = (("preset", "abe58"), ("path", "triangle"), ("n_cycles", None), ("eff
 
 
 def add_simulate_gnssa(p) -> None:
-    """Add the ``--gnssa`` options to the ``simulate`` sub-parser.
-
-    Parameters
-    ----------
-    p : argparse.ArgumentParser
-    """
+    """Add the ``--gnssa`` options to the ``simulate`` sub-parser."""
     import argparse
 
     from . import options as opt
@@ -85,10 +80,6 @@ def _names(options):
 
 def cmd_simulate_gnssa(args) -> int:
     """Run ``bayes-mpem simulate --gnssa``: write the campaign and ``truth.json``.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
 
     Returns
     -------

@@ -38,12 +38,7 @@ class Limit:
     include_low: bool = True
 
     def describe(self) -> str:
-        """Return the interval as text, e.g. ``"(0, 100000] m"``.
-
-        Returns
-        -------
-        str
-        """
+        """Return the interval as text, e.g. ``"(0, 100000] m"``."""
         return (f"{'[' if self.include_low else '('}{self.low:g}, {self.high:g}] "
                 f"{self.unit}")
 
@@ -81,11 +76,6 @@ def out_of_limits(kind: str, values) -> np.ndarray:
     ----------
     kind : str
         A key of :data:`LIMITS`.
-    values : array_like
-
-    Returns
-    -------
-    numpy.ndarray
     """
     lim = LIMITS[kind]
     v = np.asarray(values, dtype=float)
@@ -99,15 +89,6 @@ def limit_problem(kind: str, value) -> str | None:
     """Why one value is unusable (``None`` when it is fine).
 
     E.g. ``"range 1e+300 outside (0, 100000] m"``.
-
-    Parameters
-    ----------
-    kind : str
-    value : float
-
-    Returns
-    -------
-    str or None
     """
     lim = LIMITS[kind]
     v = float(value)
@@ -126,13 +107,8 @@ def open_input(path, what: str = "input file") -> bytes:
 
     Parameters
     ----------
-    path : str or os.PathLike
     what : str, default "input file"
         What the file is, for the messages.
-
-    Returns
-    -------
-    bytes
 
     Raises
     ------
@@ -150,16 +126,7 @@ def open_input(path, what: str = "input file") -> bytes:
 
 
 def split_lines(text: str) -> list[str]:
-    r"""Split text into lines as ``grep -n`` numbers them: only ``\n`` (or ``\r\n``) ends a line.
-
-    Parameters
-    ----------
-    text : str
-
-    Returns
-    -------
-    list of str
-    """
+    r"""Split text into lines as ``grep -n`` numbers them: only ``\n`` (or ``\r\n``) ends a line."""
     lines = text.split("\n")
     if lines and lines[-1] == "":
         lines.pop()
@@ -168,15 +135,6 @@ def split_lines(text: str) -> list[str]:
 
 def read_text_lines(path, what: str = "survey file") -> list[str]:
     """Read a UTF-8 text file as lines numbered as ``grep -n`` numbers them (:func:`split_lines`).
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-    what : str, default "survey file"
-
-    Returns
-    -------
-    list of str
 
     Raises
     ------
@@ -216,16 +174,7 @@ class Shape:
     pattern: str
 
     def match(self, text: str):
-        """Match the stripped ``text``; ``None`` when it has another shape.
-
-        Parameters
-        ----------
-        text : str
-
-        Returns
-        -------
-        re.Match or None
-        """
+        """Match the stripped ``text``; ``None`` when it has another shape."""
         return _compiled(self.pattern).fullmatch(text.strip())
 
 
@@ -249,7 +198,6 @@ def classify(lines, shapes):
 
     Parameters
     ----------
-    lines : sequence of str
     shapes : sequence of Shape
         Tried in order (blank lines are recognised first).
 
@@ -278,7 +226,6 @@ def sniff_delimiter(header: str, first_row: str | None = None) -> str | None:
 
     Parameters
     ----------
-    header : str
     first_row : str, optional
         The first data line, to spot decimal commas.
 

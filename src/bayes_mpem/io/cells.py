@@ -16,31 +16,13 @@ MAX_LISTED = 10
 
 
 def is_missing(v: Any) -> bool:
-    """Whether a cell is missing: None, ``pd.NA``, ``pd.NaT`` or a float NaN.
-
-    Parameters
-    ----------
-    v : object
-
-    Returns
-    -------
-    bool
-    """
+    """Whether a cell is missing: None, ``pd.NA``, ``pd.NaT`` or a float NaN."""
     return v is None or v is pd.NA or v is pd.NaT or (
         isinstance(v, (float, np.floating)) and math.isnan(v))
 
 
 def show(v: Any) -> str:
-    """Describe an offending cell for an error message (its ``repr`` cut at 40 characters).
-
-    Parameters
-    ----------
-    v : object
-
-    Returns
-    -------
-    str
-    """
+    """Describe an offending cell for an error message (its ``repr`` cut at 40 characters)."""
     if isinstance(v, str):
         return repr(v) if v.strip() else "an empty cell"
     if isinstance(v, np.generic):
@@ -52,16 +34,7 @@ def show(v: Any) -> str:
 
 
 def as_beacon_id(v: Any) -> str:
-    """Canonical string form of a beacon id ('' if missing); integral floats print as ints.
-
-    Parameters
-    ----------
-    v : object
-
-    Returns
-    -------
-    str
-    """
+    """Canonical string form of a beacon id ('' if missing); integral floats print as ints."""
     if is_missing(v):
         return ""
     if isinstance(v, str):
@@ -91,24 +64,12 @@ class Problems:
         self.source, self.items, self.count = source, [], 0
 
     def add(self, pos: int, message: str) -> None:
-        """Record ``message`` for the row at position ``pos`` (listed in row order).
-
-        Parameters
-        ----------
-        pos : int
-        message : str
-        """
+        """Record ``message`` for the row at position ``pos`` (listed in row order)."""
         self.items.append((pos, len(self.items), message))
         self.count += 1
 
     def add_mask(self, mask: np.ndarray, word) -> None:
-        """Record the rows flagged by the boolean ``mask``; ``word(pos)`` words the first few.
-
-        Parameters
-        ----------
-        mask : numpy.ndarray
-        word : callable
-        """
+        """Record the rows flagged by the boolean ``mask``; ``word(pos)`` words the first few."""
         flagged = np.flatnonzero(mask)
         for pos in flagged[:MAX_LISTED]:
             self.items.append((int(pos), len(self.items), word(int(pos))))

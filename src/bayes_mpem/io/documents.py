@@ -11,14 +11,6 @@ import numpy as np
 def numpy_to_json(value):
     """Turn a NumPy scalar or array into a JSON-ready value (a ``json`` ``default=``).
 
-    Parameters
-    ----------
-    value : object
-
-    Returns
-    -------
-    int, float, bool or list
-
     Raises
     ------
     TypeError
@@ -35,7 +27,6 @@ def finite_json(document, numpy: bool = False):
 
     Parameters
     ----------
-    document : dict, list or scalar
     numpy : bool, default False
         Also convert NumPy scalars and arrays.
 
@@ -63,16 +54,7 @@ def finite_json(document, numpy: bool = False):
 
 
 def split_timings(document):
-    """Move wall-clock timings (keys ``seconds`` or ``*_seconds``) out of a copy of ``document``.
-
-    Parameters
-    ----------
-    document : dict
-
-    Returns
-    -------
-    document, timings : dict
-    """
+    """Split a copy of ``document`` into ``(document, timings)`` (``seconds``, ``*_seconds``)."""
     def is_timing(key):
         return isinstance(key, str) and (key == "seconds" or key.endswith("_seconds"))
 
@@ -139,18 +121,7 @@ def _with_arrays(document) -> str:
 
 
 def json_text(document, indent, numpy=False) -> str:
-    r"""Return ``document`` as strict JSON text and a newline (see :func:`finite_json`).
-
-    Parameters
-    ----------
-    document : dict or list
-    indent : int or None
-    numpy : bool, default False
-
-    Returns
-    -------
-    str
-    """
+    r"""Return ``document`` as strict JSON text and a newline (see :func:`finite_json`)."""
     try:  # the common case, in C: nothing to replace
         if numpy and indent is None:
             return _with_arrays(document) + "\n"

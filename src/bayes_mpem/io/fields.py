@@ -6,18 +6,7 @@ import math
 
 
 def where(source, line=None, column=None, name=None) -> str:
-    """Name a place in a file: ``"FILE line L, column C (NAME)"`` (1-based).
-
-    Parameters
-    ----------
-    source : str or pathlib.Path
-    line, column : int, optional
-    name : str, optional
-
-    Returns
-    -------
-    str
-    """
+    """Name a place in a file: ``"FILE line L, column C (NAME)"`` (1-based)."""
     out = str(source)
     if line is not None:
         out += f" line {line}"
@@ -37,13 +26,8 @@ def number(text, name, *, lo=None, hi=None, lo_open=False, integer=False) -> flo
         The field as read, and what it is.
     lo, hi : float, optional
         Bounds, inclusive (``lo_open=True`` excludes ``lo``).
-    lo_open : bool, default False
     integer : bool, default False
         Require a whole number.
-
-    Returns
-    -------
-    float
 
     Raises
     ------
@@ -70,14 +54,6 @@ def number(text, name, *, lo=None, hi=None, lo_open=False, integer=False) -> flo
 
 def flag(text, name) -> bool:
     """Parse a true/false field (``True``/``False``, ``1``/``0``, any case).
-
-    Parameters
-    ----------
-    text, name : str
-
-    Returns
-    -------
-    bool
 
     Raises
     ------

@@ -35,10 +35,6 @@ def antenna_to_transducer(east, north, up, heading, pitch, roll, offset):
         Degrees.
     offset : array_like
         The three components of ``tr-ant.inp`` (m).
-
-    Returns
-    -------
-    east, north, up : numpy.ndarray
     """
     from scipy.spatial.transform import Rotation
 
@@ -67,10 +63,6 @@ def atd_offset_enu(forward, rightward, downward, heading, pitch, roll):
         The offset in the vessel frame (m).
     heading, pitch, roll : array_like
         Degrees, one value per epoch.
-
-    Returns
-    -------
-    east, north, up : numpy.ndarray
     """
     from scipy.spatial.transform import Rotation
 
@@ -84,16 +76,7 @@ def atd_offset_enu(forward, rightward, downward, heading, pitch, roll):
 
 
 def earth_radius(lat: float) -> float:
-    """Gaussian mean radius (m) of the WGS84 ellipsoid at latitude ``lat`` (degrees).
-
-    Parameters
-    ----------
-    lat : float
-
-    Returns
-    -------
-    float
-    """
+    """Gaussian mean radius (m) of the WGS84 ellipsoid at latitude ``lat`` (degrees)."""
     a, b = WGS84_A, WGS84_B
     e2 = 1.0 - (b / a) ** 2
     s2 = np.sin(np.radians(lat)) ** 2
@@ -124,11 +107,6 @@ def geodetic_to_enu(lat, lon, height, lat0, lon0, height0=0.0):
     ----------
     lat, lon, height : array_like
         Degrees, degrees, m above the ellipsoid.
-    lat0, lon0, height0 : float
-
-    Returns
-    -------
-    e, n, u : numpy.ndarray
     """
     return ecef_to_enu(*geodetic_to_ecef(lat, lon, height), lat0, lon0, height0)
 
@@ -140,10 +118,6 @@ def geodetic_to_ecef(lat, lon, height):
     ----------
     lat, lon, height : array_like
         Degrees, degrees, m above the ellipsoid.
-
-    Returns
-    -------
-    x, y, z : numpy.ndarray
     """
     lat, lon, height = np.broadcast_arrays(*(np.asarray(v, float) for v in (lat, lon, height)))
     x, y, z = _ecef(lat, lon, height)
@@ -151,17 +125,7 @@ def geodetic_to_ecef(lat, lon, height):
 
 
 def ecef_to_enu(x, y, z, lat0, lon0, height0=0.0):
-    """Local east, north, up (m) of Earth-centred Earth-fixed points relative to an origin.
-
-    Parameters
-    ----------
-    x, y, z : array_like
-    lat0, lon0, height0 : float
-
-    Returns
-    -------
-    e, n, u : numpy.ndarray
-    """
+    """Local east, north, up (m) of Earth-centred Earth-fixed points relative to an origin."""
     x, y, z = np.broadcast_arrays(*(np.asarray(v, float) for v in (x, y, z)))
     d = np.stack([x, y, z]) - _ecef(float(lat0), float(lon0), float(height0)).reshape(
         (3,) + (1,) * x.ndim)
@@ -170,17 +134,7 @@ def ecef_to_enu(x, y, z, lat0, lon0, height0=0.0):
 
 
 def enu_to_ecef(east, north, up, lat0, lon0, height0=0.0):
-    """Earth-centred Earth-fixed coordinates (m) of local east, north, up points.
-
-    Parameters
-    ----------
-    east, north, up : array_like
-    lat0, lon0, height0 : float
-
-    Returns
-    -------
-    x, y, z : numpy.ndarray
-    """
+    """Earth-centred Earth-fixed coordinates (m) of local east, north, up points."""
     e, n, u = np.broadcast_arrays(*(np.asarray(v, float) for v in (east, north, up)))
     xyz = np.tensordot(_enu_rotation(lat0, lon0).T, np.stack([e, n, u]), axes=1)
     x0 = _ecef(float(lat0), float(lon0), float(height0)).reshape((3,) + (1,) * e.ndim)
@@ -189,17 +143,7 @@ def enu_to_ecef(east, north, up, lat0, lon0, height0=0.0):
 
 
 def enu_to_geodetic(east, north, up, lat0, lon0, height0=0.0):
-    """Inverse of :func:`geodetic_to_enu` (WGS84, exact to < 1 mm).
-
-    Parameters
-    ----------
-    east, north, up : float
-    lat0, lon0, height0 : float
-
-    Returns
-    -------
-    lat, lon, height : float
-    """
+    """Inverse of :func:`geodetic_to_enu` (WGS84, exact to < 1 mm)."""
     x, y, z = _ecef(float(lat0), float(lon0), float(height0)) + _enu_rotation(lat0, lon0).T @ \
         np.array([east, north, up], dtype=float)
     lon = np.arctan2(y, x)

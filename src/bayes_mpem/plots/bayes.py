@@ -25,14 +25,8 @@ def plot_trace(result, *, params=None, fig=None):
 
     Parameters
     ----------
-    result : PosteriorResult
     params : list of str, optional
         Subset of ``d0``, ``sigma_mp``, ``sigma_dp``, ``w_dp``, ``w_mp``, ``w_ol``.
-    fig : matplotlib.figure.Figure, optional
-
-    Returns
-    -------
-    matplotlib.figure.Figure
     """
     names, d = _draws(result, params)
     if fig is None:
@@ -67,16 +61,10 @@ def plot_pair(result, *, params=None, fig=None, max_points=3000):
 
     Parameters
     ----------
-    result : PosteriorResult
     params : list of str, optional
         Default: every sampled parameter (d0, sigma_MP, sigma_DP, weights).
-    fig : matplotlib.figure.Figure, optional
     max_points : int, default 3000
         Draws shown in the scatter panels.
-
-    Returns
-    -------
-    matplotlib.figure.Figure
     """
     names, d = _draws(result, params)
     k = len(names)
@@ -139,14 +127,8 @@ def plot_intervals(survey_posterior, *, truth=None, fig=None):
 
     Parameters
     ----------
-    survey_posterior : SurveyPosterior
     truth : dict, optional
         ``Simulation.truth``: marks the true values.
-    fig : matplotlib.figure.Figure, optional
-
-    Returns
-    -------
-    matplotlib.figure.Figure
     """
     if fig is None:
         fig = plt.figure(figsize=(9, 1 + 0.5 * len(survey_posterior.results)),
@@ -173,17 +155,7 @@ def plot_intervals(survey_posterior, *, truth=None, fig=None):
 
 
 def plot_prior_comparison(survey_comparison, *, fig=None):
-    """Equal against learned priors: intervals side by side and the ELPD difference.
-
-    Parameters
-    ----------
-    survey_comparison : SurveyComparison
-    fig : matplotlib.figure.Figure, optional
-
-    Returns
-    -------
-    matplotlib.figure.Figure
-    """
+    """Equal against learned priors: intervals side by side and the ELPD difference."""
     res = survey_comparison.results
     if fig is None:
         fig = plt.figure(figsize=(12, 1.2 + 0.6 * len(res)), layout="constrained")
@@ -216,18 +188,7 @@ def plot_prior_comparison(survey_comparison, *, fig=None):
 
 
 def plot_class_uncertainty(survey_posterior, beacon, *, fig=None):
-    """Range against time coloured by posterior class probability (top), and its sd (bottom).
-
-    Parameters
-    ----------
-    survey_posterior : SurveyPosterior
-    beacon : str
-    fig : matplotlib.figure.Figure, optional
-
-    Returns
-    -------
-    matplotlib.figure.Figure
-    """
+    """Range against time coloured by posterior class probability (top), and its sd (bottom)."""
     r = survey_posterior.results[beacon]
     data = survey_posterior.survey.for_beacon(beacon)
     if fig is None:
@@ -258,11 +219,6 @@ def plot_sbc_ranks(results, *, n_bins=10, fig=None):
         :func:`bayes_mpem.lbl.bayes.sbc.run_sbc` results, labelled (e.g. by move set).
     n_bins : int, default 10
         A divisor of ``n_draws + 1``.
-    fig : matplotlib.figure.Figure, optional
-
-    Returns
-    -------
-    matplotlib.figure.Figure
     """
     from scipy import stats
 

@@ -16,17 +16,7 @@ _COV_LABELS = {"time": "time (s)", "range": "direct-path length (m)",
 
 
 def running_mean(p, window: int):
-    """Centred running mean over ``window`` values, over fewer at the ends (no dip there).
-
-    Parameters
-    ----------
-    p : array_like
-    window : int
-
-    Returns
-    -------
-    numpy.ndarray
-    """
+    """Centred running mean over ``window`` values, over fewer at the ends (no dip there)."""
     p = np.asarray(p, float)
     c = np.concatenate([[0.0], np.cumsum(p)])
     i = np.arange(p.size)
@@ -47,19 +37,7 @@ def _binned(x, r, n_bins=12):
 
 
 def plot_residuals(diagnosis, *, model="baseline", fig=None, max_points=4000):
-    """Direct-path and multipath residuals against time, range, elevation, depth, bearing.
-
-    Parameters
-    ----------
-    diagnosis : Diagnosis
-    model : {"baseline", "final"}
-    fig : matplotlib.figure.Figure, optional
-    max_points : int, default 4000
-
-    Returns
-    -------
-    matplotlib.figure.Figure
-    """
+    """Direct-path and multipath residuals against time, range, elevation, depth, bearing."""
     check_choice("model", model, ("baseline", "final"), words=True)
     fit = diagnosis.baseline if model == "baseline" else diagnosis.final
     d = diagnosis.data
@@ -102,15 +80,8 @@ def plot_classes_vs_time(diagnosis, *, model="final", fig=None, window=101):
 
     Parameters
     ----------
-    diagnosis : Diagnosis
-    model : {"baseline", "final"}
-    fig : matplotlib.figure.Figure, optional
     window : int, default 101
         Replies in the running mean.
-
-    Returns
-    -------
-    matplotlib.figure.Figure
     """
     fit = diagnosis.baseline if model == "baseline" else diagnosis.final
     d = diagnosis.data
@@ -136,17 +107,7 @@ def plot_classes_vs_time(diagnosis, *, model="final", fig=None, window=101):
 
 
 def plot_candidates(diagnosis, *, fig=None):
-    """Held-out gain of every extension tried, round by round, with the selection rule.
-
-    Parameters
-    ----------
-    diagnosis : Diagnosis
-    fig : matplotlib.figure.Figure, optional
-
-    Returns
-    -------
-    matplotlib.figure.Figure
-    """
+    """Held-out gain of every extension tried, round by round, with the selection rule."""
     cands = [c for c in diagnosis.candidates if c["delta_elpd"] is not None]
     # forward rounds in order, then the backward step (its gain: the cost of removing)
     rounds = list(dict.fromkeys(c["round"] for c in cands))
@@ -177,11 +138,6 @@ def plot_candidates(diagnosis, *, fig=None):
 
 def write_figures(diagnosis, out_dir) -> dict:
     """Write the diagnostic figures as PNG files.
-
-    Parameters
-    ----------
-    diagnosis : Diagnosis
-    out_dir : str or pathlib.Path
 
     Returns
     -------

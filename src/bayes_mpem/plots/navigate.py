@@ -27,10 +27,6 @@ def ellipse_axes(cov, *, q=CHI2_95):
         ``(K, 2, 2)``.
     q : float
         Chi-square quantile (default: 95 % with 2 degrees of freedom).
-
-    Returns
-    -------
-    widths, heights, angles : numpy.ndarray
     """
     vals, vecs = np.linalg.eigh(cov)
     w = 2.0 * np.sqrt(np.maximum(vals[:, 1], 0.0) * q)
@@ -53,15 +49,8 @@ def plot_nav_track(nav, *, truth=None, ax=None, n_ellipses=40):
 
     Parameters
     ----------
-    nav : Navigation
     truth : pandas.DataFrame, optional
         ``x``, ``y`` of the true track.
-    ax : matplotlib.axes.Axes, optional
-    n_ellipses : int, default 40
-
-    Returns
-    -------
-    matplotlib.figure.Figure
     """
     fig, ax = _ax(ax, (7, 6))
     d = nav.dive
@@ -91,17 +80,7 @@ def plot_nav_track(nav, *, truth=None, ax=None, n_ellipses=40):
 
 
 def plot_nav_ranges(nav, *, fig=None):
-    """Range against time for every beacon, coloured by class (blue dp, red mp, green ol).
-
-    Parameters
-    ----------
-    nav : Navigation
-    fig : matplotlib.figure.Figure, optional
-
-    Returns
-    -------
-    matplotlib.figure.Figure
-    """
+    """Range against time for every beacon, coloured by class (blue dp, red mp, green ol)."""
     d = nav.dive
     shown = [j for j, b in enumerate(d.beacon_ids) if b not in nav.skipped]
     if fig is None:
@@ -123,14 +102,8 @@ def plot_nav_correction(nav, *, truth=None, fig=None):
 
     Parameters
     ----------
-    nav : Navigation
     truth : pandas.DataFrame, optional
         ``x``, ``y`` of the true track: the dead reckoning's true error is drawn too.
-    fig : matplotlib.figure.Figure, optional
-
-    Returns
-    -------
-    matplotlib.figure.Figure
     """
     if fig is None:
         fig = plt.figure(figsize=(8, 4.5), layout="constrained")

@@ -27,14 +27,6 @@ _current = {"palette": DEFAULT_PALETTE}
 def use_palette(name: str) -> str:
     """Draw the class colours of every later figure with palette ``name``; return the one before.
 
-    Parameters
-    ----------
-    name : {"okabe-ito", "paper"}
-
-    Returns
-    -------
-    str
-
     Raises
     ------
     ValueError
@@ -48,10 +40,6 @@ def use_palette(name: str) -> str:
 @contextlib.contextmanager
 def palette_context(name: str):
     """Use the palette ``name`` inside a ``with`` block, and the previous one after it.
-
-    Parameters
-    ----------
-    name : {"okabe-ito", "paper"}
 
     Yields
     ------
@@ -70,13 +58,8 @@ def class_color(name: str, palette: str | None = None) -> tuple[float, float, fl
 
     Parameters
     ----------
-    name : {"dp", "mp", "mp2", "ol"}
     palette : str, optional
         Default: the one in use.
-
-    Returns
-    -------
-    tuple of float
     """
     return PALETTES[palette or _current["palette"]][name]
 
@@ -107,17 +90,12 @@ def class_key(ax, classes=("dp", "mp", "ol"), *, extra=(), where=None, **kwargs)
     ----------
     ax : matplotlib.axes.Axes or matplotlib.figure.Figure
         A figure gets one legend for all its panels, above them.
-    classes : sequence of str
     extra : sequence of matplotlib.artist.Artist
         Further handles (with labels) after the classes.
     where : str, optional
         The legend's ``loc``.
     **kwargs
         Passed to ``legend``.
-
-    Returns
-    -------
-    matplotlib.legend.Legend
     """
     from matplotlib.lines import Line2D
 

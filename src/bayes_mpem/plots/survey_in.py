@@ -41,17 +41,7 @@ def _anchor(summary, tid):
 
 
 def plot_survey_map(result, *, fig=None):
-    """Track, drop point (or prior positions), solutions with ellipses, and close-ups.
-
-    Parameters
-    ----------
-    result : SurveyInResult
-    fig : matplotlib.figure.Figure, optional
-
-    Returns
-    -------
-    matplotlib.figure.Figure
-    """
+    """Track, drop point (or prior positions), solutions with ellipses, and close-ups."""
     s, cls = result.summary, result.classified
     tids = list(s["transponders"])
     ncol = int(np.ceil(np.sqrt(len(tids))))
@@ -146,17 +136,7 @@ def _scatter_classes(ax, cls, x, lim, *, key=True):
 
 
 def plot_residuals(result, *, fig=None):
-    """Residuals (observed minus predicted two-way travel time) against time and azimuth.
-
-    Parameters
-    ----------
-    result : SurveyInResult
-    fig : matplotlib.figure.Figure, optional
-
-    Returns
-    -------
-    matplotlib.figure.Figure
-    """
+    """Residuals (observed minus predicted two-way travel time) against time and azimuth."""
     cls, lim, _ = _pinged(result)
     if fig is None:
         fig = plt.figure(figsize=(11, 4.2), layout="constrained")
@@ -175,17 +155,7 @@ def plot_residuals(result, *, fig=None):
 
 
 def plot_residual_histogram(result, *, fig=None):
-    """Histogram of the residuals by class, with the fitted Gaussian of the true pings.
-
-    Parameters
-    ----------
-    result : SurveyInResult
-    fig : matplotlib.figure.Figure, optional
-
-    Returns
-    -------
-    matplotlib.figure.Figure
-    """
+    """Histogram of the residuals by class, with the fitted Gaussian of the true pings."""
     cls, lim, sig = _pinged(result)
     if fig is None:
         fig = plt.figure(figsize=(6.5, 4.2), layout="constrained")
@@ -222,13 +192,8 @@ def plot_sound_speed(result, *, ax=None, truth=None):
     ----------
     result : SurveyInResult
         An array's (without a series: the survey's one value and its interval).
-    ax : matplotlib.axes.Axes, optional
     truth : dict, optional
         A simulated campaign's ``truth.json``: its depth-averaged speed is drawn too.
-
-    Returns
-    -------
-    matplotlib.figure.Figure
     """
     from scipy.stats import norm
 
@@ -264,17 +229,7 @@ def plot_sound_speed(result, *, ax=None, truth=None):
 
 
 def plot_residuals_by_transponder(result, *, fig=None):
-    """Residuals against time, one panel per transponder, by class.
-
-    Parameters
-    ----------
-    result : SurveyInResult
-    fig : matplotlib.figure.Figure, optional
-
-    Returns
-    -------
-    matplotlib.figure.Figure
-    """
+    """Residuals against time, one panel per transponder, by class."""
     cls, lim, _ = _pinged(result)
     tids = [t for t in result.summary["transponders"]]
     if fig is None:
@@ -334,13 +289,8 @@ def plot_array_map(result, *, fig=None, truth=None):
     ----------
     result : SurveyInResult
         An array's.
-    fig : matplotlib.figure.Figure, optional
     truth : dict, optional
         A simulated campaign's ``truth.json``: the true positions are marked.
-
-    Returns
-    -------
-    matplotlib.figure.Figure
     """
     s, cls = result.summary, result.classified
     tids = list(s["transponders"])

@@ -32,10 +32,6 @@ class FreeCoordinates:
     """The beacon posterior in unconstrained coordinates: the weights as log-ratios to ``w_ol``.
 
     The density there is the posterior times the Jacobian ``w_dp w_mp w_ol``.
-
-    Parameters
-    ----------
-    post : BeaconPosterior
     """
 
     def __init__(self, post: BeaconPosterior):
@@ -134,16 +130,7 @@ class BeaconChains:
 
 
 def sampled(post: BeaconPosterior) -> list:
-    """List the natural parameters that vary over the draws, in :data:`PARAMS` order.
-
-    Parameters
-    ----------
-    post : BeaconPosterior
-
-    Returns
-    -------
-    list of str
-    """
+    """List the natural parameters that vary over the draws, in :data:`PARAMS` order."""
     return [k for k in PARAMS if k in ("d0", "sigma_mp")
             or (k == "sigma_dp" and post.sigma_dp is None)
             or (k.startswith("w_") and post.priors == "learned")]
@@ -181,8 +168,6 @@ def beacon_chains(post: BeaconPosterior, gen: np.random.Generator, *, sampler="a
 
     Parameters
     ----------
-    post : BeaconPosterior
-    gen : numpy.random.Generator
     sampler : {"auto", "independence", "ensemble"}
         The move (``docs/bayes.md``, Which move); ``n_ensembles > 1`` implies the ensemble.
     n_walkers : int, optional
@@ -192,15 +177,10 @@ def beacon_chains(post: BeaconPosterior, gen: np.random.Generator, *, sampler="a
     n_ensembles : int, optional
         Independent ensembles of differential evolution (R-hat compares them; default
         2); more than one implies differential evolution.
-    progress : bool or {"auto", "bar", "log"}
     where : str
         Names the beacon in progress lines and warnings (default its label).
     stacklevel : int
         Of the :class:`~bayes_mpem.exceptions.SamplingWarning`.
-
-    Returns
-    -------
-    BeaconChains
     """
     from ...mcmc.moves import (
         DEFAULT_MOVES_LABEL,

@@ -53,14 +53,6 @@ def psis_loo(result: PosteriorResult) -> LooResult:
 
     Why the tied tails: ``docs/bayes.md`` (Equal against learned priors).
 
-    Parameters
-    ----------
-    result : PosteriorResult
-
-    Returns
-    -------
-    LooResult
-
     Raises
     ------
     ValueError

@@ -67,12 +67,10 @@ class BeaconPosterior:
 
     Parameters
     ----------
-    data : BeaconData
     priors : {"learned", "equal"}
         Dirichlet-distributed mixing weights, or the paper's equal weights.
     sigma_dp : float, optional
         Fix the direct-path scatter (m) instead of sampling it.
-    path : {"triangle", "double"}
     concentration : float, default 1
         Dirichlet concentration of the learned weights.
     sigma_bounds : tuple of float, default (0.05, 500)
@@ -150,11 +148,6 @@ class BeaconPosterior:
     def draw_prior(self, n, gen):
         """Draw ``n`` parameter sets from the prior, in the sampler's coordinates.
 
-        Parameters
-        ----------
-        n : int
-        gen : numpy.random.Generator
-
         Returns
         -------
         numpy.ndarray
@@ -181,10 +174,6 @@ class BeaconPosterior:
 
     def unpack(self, theta):
         """Natural parameters of a ``(W, ndim)`` array, each of shape ``(W, 1)``.
-
-        Parameters
-        ----------
-        theta : numpy.ndarray
 
         Returns
         -------
@@ -371,11 +360,6 @@ class BeaconPosterior:
 
     def start(self, n_walkers, gen):
         """Walkers around the EM solution, scattered by half :meth:`rough_sd`, inside the prior.
-
-        Parameters
-        ----------
-        n_walkers : int
-        gen : numpy.random.Generator
 
         Returns
         -------

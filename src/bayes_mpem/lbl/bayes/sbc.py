@@ -54,11 +54,6 @@ class SBCResult:
     def tests(self, *, n_bins: int = 10, tails: float = 0.1) -> dict:
         """Test every parameter's ranks for uniformity (:func:`.rank_uniformity`).
 
-        Parameters
-        ----------
-        n_bins : int, default 10
-        tails : float, default 0.1
-
         Returns
         -------
         dict
@@ -78,10 +73,6 @@ def sbc_design(data: BeaconData, *, min_direct: float = 200.0) -> BeaconData:
     min_direct : float, default 200
         Shortest direct path kept (m): ten times the largest scale of the prior,
         so no simulated range falls below the window's start.
-
-    Returns
-    -------
-    BeaconData
     """
     geom = BeaconGeometry.from_data(data)
     keep = geom.direct >= float(min_direct)
@@ -96,15 +87,6 @@ def sbc_posterior(design: BeaconData, *, path: str = "triangle",
 
     ``d0`` within ``plane_halfwidth`` of the sea surface, the scales log-uniform on
     ``sigma_bounds``, the outliers uniform over a window that holds every simulated range.
-
-    Parameters
-    ----------
-    design : BeaconData
-    path : {"triangle", "double"}
-    plane_halfwidth : float, default 30
-    sigma_bounds : tuple of float, default (1, 20)
-    concentration : float, default 1
-    priors : {"learned", "equal"}
 
     Returns
     -------
@@ -130,7 +112,6 @@ def simulate_ranges(post: BeaconPosterior, theta, gen) -> np.ndarray:
         Gives the geometry, the path and the outliers' window.
     theta : numpy.ndarray
         ``(ndim,)`` parameters in the sampler's coordinates.
-    gen : numpy.random.Generator
 
     Returns
     -------
@@ -172,7 +153,6 @@ def run_sbc(design: BeaconData, n_sims: int, *, rng: RNGLike = None, sampler="au
         As for :func:`~bayes_mpem.lbl.bayes.beacon_sampling.sample_beacon`.
     n_draws : int, default 99
         Posterior draws each rank is taken among, thinned evenly from the kept chain.
-    path : {"triangle", "double"}
     n_walkers : int, optional
         Walkers (:func:`~bayes_mpem.lbl.bayes.beacon_chains.beacon_chains`).
     min_ess, max_steps : float, int
@@ -180,10 +160,6 @@ def run_sbc(design: BeaconData, n_sims: int, *, rng: RNGLike = None, sampler="au
     **prior
         ``plane_halfwidth``, ``sigma_bounds``, ``concentration``, ``priors``
         (:func:`sbc_posterior`).
-
-    Returns
-    -------
-    SBCResult
     """
     gen = as_generator(rng)
     base = sbc_posterior(design, path=path, **prior)

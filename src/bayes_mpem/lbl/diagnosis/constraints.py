@@ -11,12 +11,7 @@ SECOND_GAP = 50.0
 
 
 def main_plane(p: Params) -> float:
-    """Depth of the main reflector: the median of the beacons' planes.
-
-    Parameters
-    ----------
-    p : Params
-    """
+    """Depth of the main reflector: the median of the beacons' planes."""
     return float(np.median(p.plane))
 
 
@@ -25,8 +20,6 @@ def is_feasible(d, p, effects):
 
     Parameters
     ----------
-    d : Ranges
-    p : Params
     effects : tuple of str
         The effects switched on.
 
@@ -49,8 +42,6 @@ def repair(d, p, effects) -> Params:
 
     Parameters
     ----------
-    d : Ranges
-    p : Params
     effects : tuple of str
         The effects switched on.
 

@@ -163,16 +163,7 @@ class JointFit:
     history: list = field(default_factory=list)
 
     def magnitudes(self, data: Ranges) -> dict:
-        """Signed magnitude of every effect switched on (see :data:`UNITS`), keyed by term.
-
-        Parameters
-        ----------
-        data : Ranges
-
-        Returns
-        -------
-        dict of str to float
-        """
+        """Signed magnitude of every effect switched on (see :data:`UNITS`), keyed by term."""
         p, out = self.params, {}
         if "range_bias" in self.effects:
             out["range_bias"] = p.bias
@@ -194,16 +185,7 @@ class JointFit:
         return {k: float(v) for k, v in out.items()}
 
     def beacons(self, data: Ranges) -> dict:
-        """Per-beacon parameters: ``n_ranges``, ``d0``, ``plane_depth``, scales and weights.
-
-        Parameters
-        ----------
-        data : Ranges
-
-        Returns
-        -------
-        dict
-        """
+        """Per-beacon parameters: ``n_ranges``, ``d0``, ``plane_depth``, scales and weights."""
         p, out = self.params, {}
         for j, bid in enumerate(data.ids):
             sel = data.bi == j
@@ -261,19 +243,10 @@ def fit_joint(d: Ranges, effects, start: Params | list, *, path="triangle", max_
 
     Parameters
     ----------
-    d : Ranges
-    effects : tuple of str
     start : Params or list of them
         Infeasible starts are moved just inside the constraints.
-    path : {"triangle", "double"}
-    max_iter : int, default 300
     tol : float, default 1e-7
         Stop when the log-likelihood gains less than ``tol`` per reply.
-    sigma_floor : float, default 0.05
-
-    Returns
-    -------
-    JointFit
 
     Raises
     ------
@@ -298,18 +271,10 @@ def heldout(d: Ranges, effects, full: JointFit, folds, path, **kw):
 
     Parameters
     ----------
-    d : Ranges
-    effects : tuple of str
-    full : JointFit
     folds : numpy.ndarray
         Fold number of every range.
-    path : {"triangle", "double"}
     **kw
         ``max_iter``, ``tol`` and ``sigma_floor`` of the ECM.
-
-    Returns
-    -------
-    numpy.ndarray
     """
     out = np.empty(d.n)
     for k in np.unique(folds):

@@ -17,15 +17,8 @@ def effect_evidence(name, fit: JointFit, d: Ranges, delta, se, n_folds):
     ----------
     name : str
         The effect's term.
-    fit : JointFit
-    d : Ranges
     delta, se : float
         Held-out gain (nats) and its standard error.
-    n_folds : int
-
-    Returns
-    -------
-    str
     """
     mag = fit.magnitudes(d)[name]
     gain = f"held-out log predictive density +{delta:.1f} ± {se:.1f} nats ({n_folds}-fold CV)"
@@ -80,7 +73,6 @@ def check_effect_names(names, what):
 
     Parameters
     ----------
-    names : sequence of str
     what : str
         The option's name, for the message.
 
@@ -98,18 +90,7 @@ MIN_SECOND_SHARE = 0.01
 
 
 def not_credible(name, fit: JointFit, d: Ranges):
-    """Say why a fitted extension is not a physical effect (``None`` if it is).
-
-    Parameters
-    ----------
-    name : str
-    fit : JointFit
-    d : Ranges
-
-    Returns
-    -------
-    str or None
-    """
+    """Say why a fitted extension is not a physical effect (``None`` if it is)."""
     if split_term(name)[0] != "second_reflector":
         return None
     share = float(fit.resp[:, 2].mean())
@@ -124,17 +105,7 @@ def not_credible(name, fit: JointFit, d: Ranges):
 
 
 def effect_magnitude_se(name, fit: JointFit):
-    """Approximate standard error of an effect's magnitude (None where the fit gives none).
-
-    Parameters
-    ----------
-    name : str
-    fit : JointFit
-
-    Returns
-    -------
-    float or None
-    """
+    """Approximate standard error of an effect's magnitude (None where the fit gives none)."""
     se = fit.se
     name, bid = split_term(name)
     if name == "beacon_bias":
@@ -160,14 +131,8 @@ def effect_detail(name, fit: JointFit, d: Ranges | None = None):
 
     Parameters
     ----------
-    name : str
-    fit : JointFit
     d : Ranges, optional
         Needed for a ``beacon_position`` term.
-
-    Returns
-    -------
-    dict
     """
     p = fit.params
     name, bid = split_term(name)

@@ -65,12 +65,7 @@ class Ranges:
         return len(self.ids)
 
     def subset(self, mask) -> Ranges:
-        """Restrict the replies to ``mask`` (a boolean mask or indices; windows and beacons kept).
-
-        Parameters
-        ----------
-        mask : numpy.ndarray
-        """
+        """Keep the replies of ``mask`` (boolean or indices); windows and beacons kept."""
         return replace(self, **{k: getattr(self, k)[mask] for k in
                                 ("z", "x", "y", "vdepth", "time", "tau", "bi", "rows")})
 
@@ -82,11 +77,6 @@ def ranges(survey: Survey, fittable) -> Ranges:
     ----------
     survey : Survey
         The whole survey (its first and last ping set ``tau``).
-    fittable : list of BeaconData
-
-    Returns
-    -------
-    Ranges
     """
     t_all = survey.time
     t0, t1 = float(np.min(t_all)), float(np.max(t_all))
@@ -120,10 +110,8 @@ def offsets(d: Ranges, p: Params | None = None, effects=()):
 
     Parameters
     ----------
-    d : Ranges
     p : Params, optional
         Needed with ``nav_drift`` or a ``beacon_position`` term.
-    effects : tuple of str
 
     Returns
     -------
@@ -145,18 +133,7 @@ def offsets(d: Ranges, p: Params | None = None, effects=()):
 
 
 def biases(d: Ranges, p: Params, effects):
-    """Return the range bias of every reply: the shared one plus its beacon's own (m).
-
-    Parameters
-    ----------
-    d : Ranges
-    p : Params
-    effects : tuple of str
-
-    Returns
-    -------
-    numpy.ndarray
-    """
+    """Return the range bias of every reply: the shared one plus its beacon's own (m)."""
     b = np.full(d.n, p.bias if "range_bias" in effects else 0.0)
     on = beacon_mask(effects, "beacon_bias", d.ids)
     if on.any():
@@ -169,10 +146,6 @@ def predict(d: Ranges, p: Params, effects, path, names=None):
 
     Parameters
     ----------
-    d : Ranges
-    p : Params
-    effects : tuple of str
-    path : {"triangle", "double"}
     names : list of tuple, optional
         Mean parameters (:func:`~bayes_mpem.lbl.diagnosis.params.mean_names`).
 
@@ -291,10 +264,6 @@ def e_step(d, p, effects, path, mu=None):
 
     Parameters
     ----------
-    d : Ranges
-    p : Params
-    effects : tuple of str
-    path : {"triangle", "double"}
     mu : dict, optional
         The class means (:func:`predict`), when already computed.
 
@@ -311,20 +280,7 @@ def e_step(d, p, effects, path, mu=None):
 
 
 def weighted_sse(d, p, effects, path, resp):
-    """Weighted squared error of the Gaussian classes, ``sum resp (z - mu)**2 / sigma**2``.
-
-    Parameters
-    ----------
-    d : Ranges
-    p : Params
-    effects : tuple of str
-    path : {"triangle", "double"}
-    resp : numpy.ndarray
-
-    Returns
-    -------
-    float
-    """
+    """Weighted squared error of the Gaussian classes, ``sum resp (z - mu)**2 / sigma**2``."""
     mu = predict(d, p, effects, path)
     sig = p.sigma[d.bi]
     tot = 0.0
@@ -340,15 +296,8 @@ def implied_depths(d, p, effects, path):
 
     Parameters
     ----------
-    d : Ranges
-    p : Params
     effects : tuple of str
         The effects switched on are removed first.
-    path : {"triangle", "double"}
-
-    Returns
-    -------
-    numpy.ndarray
     """
     k = 1.0 + (p.scale if "sound_speed" in effects else 0.0)
     z = (d.z - biases(d, p, effects)) / k

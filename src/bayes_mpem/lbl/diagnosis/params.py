@@ -66,14 +66,7 @@ class Params:
 
 
 def beacons_with(effects, name, ids) -> list:
-    """Return the indices of the beacons the per-beacon effect ``name`` is on for.
-
-    Parameters
-    ----------
-    effects : tuple of str
-    name : str
-    ids : tuple of str
-    """
+    """Return the indices of the beacons the per-beacon effect ``name`` is on for."""
     out = []
     for t in effects:
         eff, bid = split_term(t)
@@ -83,18 +76,7 @@ def beacons_with(effects, name, ids) -> list:
 
 
 def beacon_mask(effects, name, ids):
-    """Return a boolean per beacon: is ``name`` on for it.
-
-    Parameters
-    ----------
-    effects : tuple of str
-    name : str
-    ids : sequence of str
-
-    Returns
-    -------
-    numpy.ndarray
-    """
+    """Return a boolean per beacon: is ``name`` on for it."""
     m = np.zeros(len(ids), bool)
     m[beacons_with(effects, name, ids)] = True
     return m
@@ -102,11 +84,6 @@ def beacon_mask(effects, name, ids):
 
 def mean_names(effects, ids):
     """Names of the mean parameters fitted by Gauss-Newton: planes, shared, then per-beacon.
-
-    Parameters
-    ----------
-    effects : tuple of str
-    ids : tuple of str
 
     Returns
     -------
@@ -128,17 +105,7 @@ _BPOS = {"bpos_x": 0, "bpos_y": 1, "bpos_z": 2}
 
 
 def get_vector(p: Params, names):
-    """Gather the mean parameters ``names`` (:func:`mean_names`) into a vector.
-
-    Parameters
-    ----------
-    p : Params
-    names : list of tuple
-
-    Returns
-    -------
-    numpy.ndarray
-    """
+    """Gather the mean parameters ``names`` (:func:`mean_names`) into a vector."""
     out = []
     for k, j in names:
         if k == "plane":
@@ -157,14 +124,7 @@ def get_vector(p: Params, names):
 
 
 def set_vector(p: Params, names, v) -> Params:
-    """Copy ``p`` with the mean parameters ``names`` set from the vector ``v``.
-
-    Parameters
-    ----------
-    p : Params
-    names : list of tuple
-    v : array_like
-    """
+    """Copy ``p`` with the mean parameters ``names`` set from the vector ``v``."""
     q = p.copy()
     for (k, j), val in zip(names, v, strict=True):
         if k == "plane":
@@ -183,14 +143,7 @@ def set_vector(p: Params, names, v) -> Params:
 
 
 def without(p: Params, term, ids) -> Params:
-    """Copy ``p`` with the parameters of ``term`` reset (the effect switched off).
-
-    Parameters
-    ----------
-    p : Params
-    term : str
-    ids : tuple of str
-    """
+    """Copy ``p`` with the parameters of ``term`` reset (the effect switched off)."""
     q = p.copy()
     name, bid = split_term(term)
     if bid is not None:

@@ -43,9 +43,6 @@ def residual_checks(fit: JointFit, d: Ranges, *, n_bins=10, alpha=1e-4) -> list:
 
     Parameters
     ----------
-    fit : JointFit
-    d : Ranges
-    n_bins : int, default 10
     alpha : float, default 1e-4
         Family-wise level (Bonferroni over the checks).
 

@@ -63,9 +63,6 @@ class Search:
 
     Parameters
     ----------
-    d : Ranges
-    fittable : list of BeaconData
-    path : {"triangle", "double"}
     folds : numpy.ndarray
         Per reply, its cross-validation fold.
     seed : int
@@ -89,9 +86,6 @@ class Search:
 
         Parameters
         ----------
-        base : JointFit
-        effects : tuple of str
-        max_effects : int
         min_gain, min_z : float
             The keep rule.
 
@@ -136,12 +130,8 @@ class Search:
         ----------
         state : dict
             ``fit``, ``ho`` (its held-out densities), ``kept``.
-        effects : tuple of str
         candidates : list of dict
             Every term tried (appended to).
-        stage : {"shared", "own", "all"}
-        max_effects : int
-        min_gain, min_z : float
         """
         while len(state["kept"]) < max_effects:
             current, cur_ho = state["fit"], state["ho"]
@@ -176,18 +166,7 @@ class Search:
                      f"{UNITS[split_term(name)[0]]}")
 
     def terms(self, current, effects, *, stage="all"):
-        """List the terms to try on top of ``current``: shared effects, then suspect beacons' own.
-
-        Parameters
-        ----------
-        current : JointFit
-        effects : tuple of str
-        stage : {"all", "shared", "own"}
-
-        Returns
-        -------
-        list of str
-        """
+        """Terms to try on top of ``current``: shared effects, then suspect beacons' own."""
         shared = ([e for e in effects if e not in PER_BEACON and e not in current.effects]
                   if stage != "own" else [])
         per = [e for e in effects if e in PER_BEACON] if stage != "shared" else []
@@ -200,12 +179,8 @@ class Search:
 
         Parameters
         ----------
-        current : JointFit
         cur_ho : numpy.ndarray
             Its held-out log densities.
-        kept : list of tuple
-        candidates : list of dict
-        min_gain, min_z : float
         once : bool, default False
             Drop at most one effect.
 
@@ -250,17 +225,7 @@ class Search:
         return current, cur_ho, kept
 
     def refit(self, effects, starts):
-        """Fit the model with ``effects`` from ``starts`` and a replant (None if infeasible).
-
-        Parameters
-        ----------
-        effects : tuple of str
-        starts : list of Params
-
-        Returns
-        -------
-        JointFit or None
-        """
+        """Fit the model with ``effects`` from ``starts`` and a replant (None if infeasible)."""
         d, path = self.d, self.path
         try:
             fit_e = fit_joint(d, effects, starts, path=path, **self.kw)
@@ -277,17 +242,7 @@ class Search:
         return fit_e
 
     def fit(self, current, name):
-        """Fit the model of ``current`` plus effect ``name``; return the fit (or None) and a note.
-
-        Parameters
-        ----------
-        current : JointFit
-        name : str
-
-        Returns
-        -------
-        fit, note
-        """
+        """Fit ``current`` plus effect ``name``; return the fit (or None) and a note."""
         eff = tuple(sorted(set(current.effects) | {name}, key=term_order))
         starts = start_for(self.d, current, eff, self.path)
         if not starts:
@@ -302,15 +257,8 @@ class Search:
 
         Parameters
         ----------
-        current : JointFit
-        cur_ho : numpy.ndarray
-        name : str
         rnd : int
             The round of the search.
-
-        Returns
-        -------
-        entry, trial
         """
         d = self.d
         fit_e, note = self.fit(current, name)

@@ -60,13 +60,6 @@ def _second_starts(d, p, effects, path, resp):
 def baseline_start(d: Ranges, fittable, path, rng):
     """Start the joint baseline from per-beacon mixture-EM fits.
 
-    Parameters
-    ----------
-    d : Ranges
-    fittable : list of BeaconData
-    path : {"auto", "triangle", "double"}
-    rng : None, int or numpy.random.Generator
-
     Returns
     -------
     params : Params
@@ -112,17 +105,6 @@ def start_for(d, base: JointFit, effects, path):
 
     ``base``'s parameters; for a new ``second_reflector``, one start per candidate plane;
     for a new per-beacon term, also one from its ranges alone (:func:`direct_path_offset`).
-
-    Parameters
-    ----------
-    d : Ranges
-    base : JointFit
-    effects : tuple of str
-    path : {"triangle", "double"}
-
-    Returns
-    -------
-    list of Params
     """
     p = base.params.copy()
     if "second_reflector" in effects and "second_reflector" not in base.effects:
@@ -138,19 +120,10 @@ def direct_path_offset(d: Ranges, p: Params, effects, path, t, *, scale=10.0, n_
 
     Parameters
     ----------
-    d : Ranges
-    p : Params
-    effects : tuple of str
-    path : {"triangle", "double"}
     t : str
         ``"beacon_bias:<id>"`` or ``"beacon_position:<id>"``.
     scale : float, default 10
         Cauchy scale (m) of the reweighted least squares.
-    n_iter : int, default 30
-
-    Returns
-    -------
-    Params
     """
     name, bid = split_term(t)
     j = d.ids.index(bid)
@@ -176,20 +149,7 @@ def direct_path_offset(d: Ranges, p: Params, effects, path, t, *, scale=10.0, n_
 
 
 def replant(d: Ranges, fit: JointFit, fittable, path, rng) -> Params | None:
-    """Re-find each beacon's plane for ``fit``'s model: a fresh start (None if nothing moves).
-
-    Parameters
-    ----------
-    d : Ranges
-    fit : JointFit
-    fittable : list of BeaconData
-    path : {"triangle", "double"}
-    rng : None, int or numpy.random.Generator
-
-    Returns
-    -------
-    Params or None
-    """
+    """Re-find each beacon's plane for ``fit``'s model: a fresh start (None if nothing moves)."""
     p = fit.params
     k = 1.0 + (p.scale if "sound_speed" in fit.effects else 0.0)
     b = biases(d, p, fit.effects)

@@ -58,21 +58,14 @@ def mixture_m_step(geom, resp, state, path, *, fit_sigma_dp, fit_weights, sigma_
 
     Parameters
     ----------
-    geom : BeaconGeometry
     resp : numpy.ndarray
         ``(n, 3)`` responsibilities.
     state : _State
         Current parameters (``d0`` is the Gauss-Newton start).
-    path : {"triangle", "double"}
     fit_sigma_dp, fit_weights : bool
         Whether sigma_DP and the weights are free.
     sigma_floor : float
         Lower bound on both scales (m).
-    d0_bounds : tuple of float
-
-    Returns
-    -------
-    _State
     """
     r_dp, r_mp = resp[:, 0], resp[:, 1]
     d0, sse = _update_d0(geom, r_mp, state.d0, path, *d0_bounds)
@@ -112,18 +105,12 @@ def histogram_modes(v, k, *, width=5.0, sep=25.0, min_count=-1):
 
     Parameters
     ----------
-    v : numpy.ndarray
-    k : int
     width : float, default 5
         Bin width.
     sep : float, default 25
         Smallest separation of two modes.
     min_count : float, default -1
         A mode's 3-bin smoothed count must exceed this.
-
-    Returns
-    -------
-    list of float
 
     Examples
     --------

@@ -29,11 +29,8 @@ def paper_e_step(geom: BeaconGeometry, d0, sigma_mp, sigma_dp, pol, path="triang
 
     Parameters
     ----------
-    geom : BeaconGeometry
-    d0, sigma_mp, sigma_dp : float
     pol : float
         Outlier threshold in (0, 1).
-    path : {"triangle", "double"}
 
     Returns
     -------
@@ -53,24 +50,18 @@ def paper_e_step(geom: BeaconGeometry, d0, sigma_mp, sigma_dp, pol, path="triang
 
 
 def paper_m_step(geom: BeaconGeometry, gamma_mp, d0_prev, alpha, path="triangle", *, d0k=None):
-    """M-step of the paper (eqs. 8, 10 and 9).
+    """M-step of the paper (eqs. 8, 10 and 9): the new ``(d0, sigma_mp)``.
 
     Parameters
     ----------
-    geom : BeaconGeometry
     gamma_mp : numpy.ndarray
         Multipath probabilities from the E-step.
     d0_prev : float
         Plane height of the previous iteration.
     alpha : float
         Blending factor of eq. 10.
-    path : {"triangle", "double"}
     d0k : numpy.ndarray, optional
         The per-range plane heights, if computed.
-
-    Returns
-    -------
-    d0, sigma_mp : float
     """
     if d0k is None:
         d0k = geometry.invert_plane_height(geom.z, geom.h, geom.dz, path, direct=geom.direct)

@@ -24,8 +24,6 @@ def quality_flags(result, data: BeaconData, *, sigma_floor: float = 0.05) -> tup
 
     Parameters
     ----------
-    result : EMResult
-    data : BeaconData
     sigma_floor : float
         The scale floor the fit used.
 
@@ -53,16 +51,10 @@ def reflector_flags(resp, sigma_mp, plane_depth, *, sigma_floor=0.05, plane_note
     ----------
     resp : numpy.ndarray
         ``(n, k)`` class probabilities, direct path in column 0, multipath in 1.
-    sigma_mp : float
     plane_depth : float
         Depth of the reflecting plane (m, positive down).
-    sigma_floor : float, default 0.05
     plane_note : str, optional
         Appended to the message of a plane above the sea surface.
-
-    Returns
-    -------
-    list of str
     """
     flags = []
     n = resp.shape[0]
@@ -83,18 +75,7 @@ def reflector_flags(resp, sigma_mp, plane_depth, *, sigma_floor=0.05, plane_note
 
 
 def with_flags(result, data, sigma_floor):
-    """Return a copy of ``result`` with its :func:`quality_flags` set (warned as FitQualityWarning).
-
-    Parameters
-    ----------
-    result : EMResult
-    data : BeaconData
-    sigma_floor : float
-
-    Returns
-    -------
-    EMResult
-    """
+    """Copy ``result`` with its :func:`quality_flags` set (warned as FitQualityWarning)."""
     flags = quality_flags(result, data, sigma_floor=sigma_floor)
     if flags:
         fit_name = "the paper's EM" if result.method == "paper" else "the mixture EM"
@@ -208,7 +189,6 @@ def estimate_sigma_dp(geom: BeaconGeometry, *, window: float = 50.0) -> float:
 
     Parameters
     ----------
-    geom : BeaconGeometry
     window : float
         Half-width (m) of the residuals ``z - L_direct`` considered.
 
@@ -232,30 +212,12 @@ def estimate_sigma_dp(geom: BeaconGeometry, *, window: float = 50.0) -> float:
 
 
 def wdot(w, x):
-    """Return ``sum(w * x)`` by a NumPy reduction (a BLAS ``ddot`` spin-waits on busy cores).
-
-    Parameters
-    ----------
-    w, x : numpy.ndarray
-
-    Returns
-    -------
-    float
-    """
+    """Return ``sum(w * x)`` by a NumPy reduction (a BLAS ``ddot`` spin-waits on busy cores)."""
     return float(np.add.reduce(w * x))
 
 
 def check_options(*, path="triangle", weights="learned", pol=0.05, alpha=0.5, sigma_dp=None):
     """Validate the options of both EMs; return ``sigma_dp`` as a float or None.
-
-    Parameters
-    ----------
-    path, weights : str
-    pol, alpha, sigma_dp : float
-
-    Returns
-    -------
-    float or None
 
     Raises
     ------
@@ -270,14 +232,5 @@ def check_options(*, path="triangle", weights="learned", pol=0.05, alpha=0.5, si
 
 
 def mean_resp_history(resp):
-    """Return the ``(3,)`` mean class probabilities of ``resp`` (NaN for no ranges).
-
-    Parameters
-    ----------
-    resp : numpy.ndarray
-
-    Returns
-    -------
-    numpy.ndarray
-    """
+    """Return the ``(3,)`` mean class probabilities of ``resp`` (NaN for no ranges)."""
     return resp.mean(axis=0) if resp.size else np.full(3, np.nan)

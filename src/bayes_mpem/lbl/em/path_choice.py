@@ -22,12 +22,7 @@ RULE = "maximised mixture-EM log-likelihood"
 
 
 def check_path_choice(path: str) -> str:
-    """Return ``path`` if it is ``"auto"``, ``"triangle"`` or ``"double"``, else raise ValueError.
-
-    Parameters
-    ----------
-    path : str
-    """
+    """Return ``path`` if ``"auto"``, ``"triangle"`` or ``"double"``, else raise ValueError."""
     return check_choice("path", path, PATH_CHOICES)
 
 
@@ -73,28 +68,13 @@ class PathChoice:
 
     @classmethod
     def from_dict(cls, beacon: str, d: dict) -> PathChoice:
-        """Rebuild a choice from its :meth:`to_dict` record (without the fits).
-
-        Parameters
-        ----------
-        beacon : str
-        d : dict
-        """
+        """Rebuild a choice from its :meth:`to_dict` record (without the fits)."""
         return cls(beacon=beacon, requested=d["requested"], path=d["path"],
                    loglik={p: _score(v) for p, v in d["loglik"].items()})
 
 
 def choices_from_summary(beacons: dict) -> dict:
-    """Rebuild the :class:`PathChoice` of every beacon of a ``summary.json`` that records one.
-
-    Parameters
-    ----------
-    beacons : dict
-
-    Returns
-    -------
-    dict of str to PathChoice
-    """
+    """Rebuild the :class:`PathChoice` of every beacon of a ``summary.json`` that records one."""
     return {b: PathChoice.from_dict(b, s["path_choice"]) for b, s in beacons.items()
             if "path_choice" in s}
 
@@ -125,21 +105,14 @@ def choose_path(
 
     Parameters
     ----------
-    data : BeaconData
     path : {"auto", "triangle", "double"}
         ``"auto"`` keeps the likelier geometry; a geometry forces it (both are fitted).
-    rng : None, int or numpy.random.Generator
     warn_margin : float, default :data:`CLEAR_MARGIN`
         Warn (PathChoiceWarning) when a forced geometry loses by more than this many nats.
     fit_warnings : bool, default True
         Issue again the warnings of the fit kept.
-    stacklevel : int, default 2
     **kwargs
         Passed to :func:`~bayes_mpem.lbl.em.em_mixture.fit_mixture_em` for both fits.
-
-    Returns
-    -------
-    PathChoice
 
     Examples
     --------

@@ -19,8 +19,6 @@ def pol_sensitivity(data, pols, **kwargs):
 
     Parameters
     ----------
-    data : BeaconData
-    pols : sequence of float
     **kwargs
         Passed to :func:`~.em_paper.fit_paper_em`.
 
@@ -48,16 +46,6 @@ def pol_sensitivity(data, pols, **kwargs):
 
 def survey_pol_sensitivity(survey_fit, beacon, *, pols=POL_GRID):
     """Run :func:`pol_sensitivity` on one fitted beacon of a survey, at its fitted sigma_DP.
-
-    Parameters
-    ----------
-    survey_fit : SurveyFit
-    beacon : str
-    pols : sequence of float, default POL_GRID
-
-    Returns
-    -------
-    dict of numpy.ndarray
 
     Raises
     ------

@@ -40,12 +40,7 @@ class BeaconGeometry:
 
     @classmethod
     def from_data(cls, data: BeaconData) -> BeaconGeometry:
-        """Precompute the geometry of ``data``.
-
-        Parameters
-        ----------
-        data : BeaconData
-        """
+        """Precompute the geometry of ``data``."""
         bx, by, bz = (float(v) for v in data.position)
         h = geometry.horizontal_distance(data.x, data.y, bx, by)
         dz = bz - np.asarray(data.depth, float)
@@ -72,52 +67,18 @@ class BeaconGeometry:
         return float(uniform_logpdf(self.lo, self.hi))
 
     def multipath(self, d0, path: str = "triangle"):
-        """Predicted multipath range (m) of every range for plane height ``d0`` (broadcasts).
-
-        Parameters
-        ----------
-        d0 : float or array_like
-        path : {"triangle", "double"}
-
-        Returns
-        -------
-        ndarray
-        """
+        """Predicted multipath range (m) of every range for plane height ``d0`` (broadcasts)."""
         return geometry.multipath_range(self.h, self.dz, d0, path, direct=self.direct)
 
     def multipath_derivative(self, d0, path: str = "triangle"):
-        """``d z_MP / d d0`` of every range (:func:`.geometry.multipath_derivative`).
-
-        Parameters
-        ----------
-        d0 : float or array_like
-        path : {"triangle", "double"}
-
-        Returns
-        -------
-        ndarray
-        """
+        """``d z_MP / d d0`` of every range (:func:`.geometry.multipath_derivative`)."""
         return geometry.multipath_derivative(self.h, self.dz, d0, path)
 
     def invert_plane_height(self, path: str = "triangle"):
-        """Per-range plane heights (:func:`~bayes_mpem.lbl.model.geometry.invert_plane_height`).
-
-        Parameters
-        ----------
-        path : {"triangle", "double"}
-
-        Returns
-        -------
-        ndarray
-        """
+        """Per-range plane heights (:func:`~bayes_mpem.lbl.model.geometry.invert_plane_height`)."""
         return geometry.invert_plane_height(self.z, self.h, self.dz, path, direct=self.direct)
 
     def take(self, idx) -> BeaconGeometry:
-        """Keep the ranges ``idx``, with the same outlier window and ``d0_min``.
-
-        Parameters
-        ----------
-        idx : array_like of int or bool
-        """
+        """Keep the ranges ``idx``, with the same outlier window and ``d0_min``."""
         return BeaconGeometry(self.z[idx], self.h[idx], self.dz[idx], self.direct[idx],
                               self.lo, self.hi, self.d0_min)

@@ -16,56 +16,22 @@ Path = Literal["triangle", "double"]
 
 
 def check_path(path: str) -> str:
-    """Return ``path`` if it is ``"triangle"`` or ``"double"``, else raise ValueError.
-
-    Parameters
-    ----------
-    path : str
-    """
+    """Return ``path`` if it is ``"triangle"`` or ``"double"``, else raise ValueError."""
     return check_choice("path", path, PATHS)
 
 
 def horizontal_distance(x, y, beacon_x, beacon_y):
-    """Horizontal distance between vehicle ``(x, y)`` and beacon (m).
-
-    Parameters
-    ----------
-    x, y : array_like
-    beacon_x, beacon_y : float or array_like
-
-    Returns
-    -------
-    numpy.ndarray
-    """
+    """Horizontal distance between vehicle ``(x, y)`` and beacon (m)."""
     return np.hypot(np.asarray(x, float) - beacon_x, np.asarray(y, float) - beacon_y)
 
 
 def direct_path(h, dz):
-    """Straight line-of-sight length (m).
-
-    Parameters
-    ----------
-    h, dz : array_like
-
-    Returns
-    -------
-    numpy.ndarray
-    """
+    """Straight line-of-sight length (m)."""
     return np.hypot(h, dz)
 
 
 def reflected_leg(h, dz, d0):
-    """Length ``sqrt(h**2 + (2 d0 - dz)**2)`` of one leg reflected by the plane.
-
-    Parameters
-    ----------
-    h, dz : array_like
-    d0 : float or array_like
-
-    Returns
-    -------
-    numpy.ndarray
-    """
+    """Length ``sqrt(h**2 + (2 d0 - dz)**2)`` of one leg reflected by the plane."""
     return np.hypot(h, 2.0 * np.asarray(d0, float) - dz)
 
 
@@ -74,16 +40,10 @@ def multipath_range(h, dz, d0, path: Path = "triangle", *, direct=None):
 
     Parameters
     ----------
-    h, dz : array_like
-    d0 : float or array_like
     path : {"triangle", "double"} or array_like
         One geometry for all ranges, or one per range (names, or True for the double bounce).
     direct : array_like, optional
         Precomputed :func:`direct_path`.
-
-    Returns
-    -------
-    numpy.ndarray
     """
     refl = reflected_leg(h, dz, d0)
     if not isinstance(path, str):  # one geometry per range
@@ -101,18 +61,7 @@ def multipath_range(h, dz, d0, path: Path = "triangle", *, direct=None):
 
 
 def multipath_derivative(h, dz, d0, path: Path = "triangle"):
-    """Differentiate :func:`multipath_range` with respect to ``d0``.
-
-    Parameters
-    ----------
-    h, dz : array_like
-    d0 : float or array_like
-    path : {"triangle", "double"} or array_like
-
-    Returns
-    -------
-    numpy.ndarray
-    """
+    """Differentiate :func:`multipath_range` with respect to ``d0``."""
     lever = 2.0 * np.asarray(d0, float) - dz
     d = 2.0 * lever / np.hypot(h, lever)
     if not isinstance(path, str):  # one geometry per range
@@ -132,13 +81,6 @@ def _double_mask(paths):
 
 def invert_plane_height(z, h, dz, path: Path = "triangle", *, direct=None):
     """Per-range plane height ``d0(k)`` that makes range ``z`` a multipath (eq. 8 of the paper).
-
-    Parameters
-    ----------
-    z : array_like
-    h, dz : array_like
-    path : {"triangle", "double"}
-    direct : array_like, optional
 
     Returns
     -------
@@ -161,13 +103,6 @@ def invert_plane_height(z, h, dz, path: Path = "triangle", *, direct=None):
 
 def horizontal_slopes(h, dz, d0, path: Path = "triangle", *, direct=None):
     """Horizontal-position derivatives of the direct and multipath ranges, per unit offset.
-
-    Parameters
-    ----------
-    h, dz : array_like
-    d0 : float or array_like
-    path : {"triangle", "double"} or array_like
-    direct : array_like, optional
 
     Returns
     -------

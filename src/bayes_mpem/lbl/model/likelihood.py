@@ -19,13 +19,6 @@ def _component_logpdf(geom: BeaconGeometry, d0, sigma_dp, sigma_mp, path: str = 
 def e_step(geom: BeaconGeometry, d0, sigma_dp, sigma_mp, weights, path: str = "triangle"):
     """Return the log-likelihood and the ``(n, 3)`` class probabilities (dp, mp, ol).
 
-    Parameters
-    ----------
-    geom : BeaconGeometry
-    d0, sigma_dp, sigma_mp : float
-    weights : sequence of 3 floats
-    path : {"triangle", "double"}
-
     Returns
     -------
     loglik : float
@@ -43,19 +36,7 @@ def e_step(geom: BeaconGeometry, d0, sigma_dp, sigma_mp, weights, path: str = "t
 
 
 def loglik_per_range(geom: BeaconGeometry, d0, sigma_dp, sigma_mp, weights, path="triangle"):
-    """Pointwise log-likelihood ``log p(z_k)`` (for LOO and diagnostics).
-
-    Parameters
-    ----------
-    geom : BeaconGeometry
-    d0, sigma_dp, sigma_mp : float or array_like
-    weights : sequence of 3 floats or arrays
-    path : {"triangle", "double"}
-
-    Returns
-    -------
-    numpy.ndarray
-    """
+    """Pointwise log-likelihood ``log p(z_k)`` (for LOO and diagnostics)."""
     ldp, lmp, lol = _component_logpdf(geom, d0, sigma_dp, sigma_mp, path)
     return log_mix(ldp, lmp, lol, [safe_log(w) for w in weights])[1]
 
@@ -65,11 +46,8 @@ def total_loglik(geom: BeaconGeometry, d0, sigma_dp, sigma_mp, weights, path="tr
 
     Parameters
     ----------
-    geom : BeaconGeometry
     d0, sigma_dp, sigma_mp : numpy.ndarray
         Shape ``(W, 1)`` for ``W`` parameter sets.
-    weights : sequence of 3 numpy.ndarray
-    path : {"triangle", "double"}
 
     Returns
     -------

@@ -59,8 +59,6 @@ class LoglikKernel:
 
     Parameters
     ----------
-    geom : BeaconGeometry
-    path : {"triangle", "double"}
     precision : {"auto", "float32", "float64"}
         Of the per-range terms (the sum is float64); ``"auto"``: float32 up to
         :data:`FLOAT32_MAX_RANGES` ranges.
@@ -168,10 +166,6 @@ class LoglikKernel:
         ----------
         d0, sigma_dp, sigma_mp, w_dp, w_mp, w_ol : numpy.ndarray
             ``(W,)`` (or ``(W, 1)``) each.
-
-        Returns
-        -------
-        numpy.ndarray
         """
         d0, sigma_dp, sigma_mp, w_dp, w_mp, w_ol = (
             np.asarray(v, float).ravel() for v in (d0, sigma_dp, sigma_mp, w_dp, w_mp, w_ol))

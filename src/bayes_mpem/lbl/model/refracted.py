@@ -47,19 +47,12 @@ def lbl_ranges(ssp: SoundSpeedProfile, sound_speed: float, horizontal, z_vehicle
 
     Parameters
     ----------
-    ssp : SoundSpeedProfile
     sound_speed : float
         Nominal speed ``c_nom`` (m/s) that turns travel times into ranges.
-    horizontal, z_vehicle, z_beacon : array_like
     plane_depth : float or array_like
         Depth of the reflecting plane (m), above both ends.
-    path : {"triangle", "double"}
     direct : DirectRays, optional
         Precomputed :func:`direct_times` of the same pairs.
-
-    Returns
-    -------
-    RefractedRanges
 
     Raises
     ------
@@ -173,10 +166,8 @@ class RefractedBeaconGeometry(BeaconGeometry):
 
         Parameters
         ----------
-        data : BeaconData
         ssp : SoundSpeedProfile
             Must reach the deepest beacon or vehicle.
-        sound_speed : float
         plane_step : float, default PLANE_STEP
             Grid spacing of the bounce table (m).
 
@@ -203,12 +194,7 @@ class RefractedBeaconGeometry(BeaconGeometry):
                    cols=np.arange(base.z.size))
 
     def take(self, idx) -> RefractedBeaconGeometry:
-        """Select the ranges ``idx`` (same window, ``d0_min`` and bounce table).
-
-        Parameters
-        ----------
-        idx : array_like of int or bool
-        """
+        """Select the ranges ``idx`` (same window, ``d0_min`` and bounce table)."""
         return dataclasses.replace(
             self, z=self.z[idx], h=self.h[idx], dz=self.dz[idx], direct=self.direct[idx],
             direct_valid=self.direct_valid[idx], turning=self.turning[idx],
@@ -218,17 +204,7 @@ class RefractedBeaconGeometry(BeaconGeometry):
         return self.table.evaluate(d0, self.cols)
 
     def multipath(self, d0, path: str = "triangle"):
-        """Predicted multipath ranges at plane height ``d0`` (broadcasts); NO_RAY if none.
-
-        Parameters
-        ----------
-        d0 : float or array_like
-        path : {"triangle", "double"}
-
-        Returns
-        -------
-        numpy.ndarray
-        """
+        """Predicted multipath ranges at plane height ``d0`` (broadcasts); NO_RAY if none."""
         t_sb, _ = self._bounce(d0)
         if path == "triangle":
             t = 0.5 * (self.direct_time + t_sb)
@@ -237,17 +213,7 @@ class RefractedBeaconGeometry(BeaconGeometry):
         return np.where(np.isfinite(t), self.sound_speed * t, NO_RAY)
 
     def multipath_derivative(self, d0, path: str = "triangle"):
-        """``d z_MP / d d0`` from the tabulated ray derivative; 0 where no ray.
-
-        Parameters
-        ----------
-        d0 : float or array_like
-        path : {"triangle", "double"}
-
-        Returns
-        -------
-        numpy.ndarray
-        """
+        """``d z_MP / d d0`` from the tabulated ray derivative; 0 where no ray."""
         t_sb, s = self._bounce(d0)
         d = self.sound_speed * s * (0.5 if geometry.check_path(path) == "triangle" else 1.0)
         if path == "triangle":
@@ -260,14 +226,8 @@ class RefractedBeaconGeometry(BeaconGeometry):
 
         Parameters
         ----------
-        path : {"triangle", "double"}
-        max_iter : int
         atol : float
             Tolerance on the range (m).
-
-        Returns
-        -------
-        numpy.ndarray
         """
         geometry.check_path(path)
         dlow = np.maximum(self.dz, 0.0)
@@ -298,11 +258,6 @@ class RefractedBeaconGeometry(BeaconGeometry):
 
     def ray_counts(self, d0: float, path: str = "triangle") -> dict:
         """How many ranges have no eigenray, at plane height ``d0``.
-
-        Parameters
-        ----------
-        d0 : float
-        path : {"triangle", "double"}
 
         Returns
         -------

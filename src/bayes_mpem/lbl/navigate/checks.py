@@ -59,10 +59,6 @@ def model_checks(nav) -> dict:
 def residual_summary(nav) -> dict:
     """Return the direct-path residuals' spread and how much of it is slow (in time).
 
-    Parameters
-    ----------
-    nav : Navigation
-
     Returns
     -------
     dict

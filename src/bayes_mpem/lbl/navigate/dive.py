@@ -151,10 +151,6 @@ def build_dive(survey: Survey, dead_reckoning=None) -> Dive:
     dead_reckoning : str, os.PathLike or pandas.DataFrame, optional
         A dead-reckoning table; default: the pings' own ``x``, ``y``.
 
-    Returns
-    -------
-    Dive
-
     Raises
     ------
     InputError
@@ -190,7 +186,6 @@ def dive_with_dead_reckoning(survey: Survey, times, dr, source: str = "pings") -
 
     Parameters
     ----------
-    survey : Survey
     times : array_like
         ``(K,)`` epoch times (s): the distinct ping times, increasing.
     dr : array_like
@@ -198,15 +193,10 @@ def dive_with_dead_reckoning(survey: Survey, times, dr, source: str = "pings") -
     source : str, default "pings"
         :attr:`Dive.dr_source`.
 
-    Returns
-    -------
-    Dive
-
     Raises
     ------
     InputError
         When ``times`` are not the pings' distinct times, or ``dr`` is not ``(K, 2)``.
-
     """
     own, inverse = np.unique(np.asarray(survey.time), return_inverse=True)
     times = np.asarray(times, float)

@@ -144,13 +144,10 @@ def multipath_support(dive: Dive, state: State, resp, lse, settings: ecm.Setting
 
     Parameters
     ----------
-    dive : Dive
-    state : State
     resp : numpy.ndarray
         ``(n, 3)`` class probabilities at ``state``.
     lse : numpy.ndarray
         ``(n,)`` per-reply log-likelihood at ``state``.
-    settings : ecm.Settings
 
     Returns
     -------
@@ -256,11 +253,8 @@ def propagate_scales(dive, state, resp, settings, ne, step, cov, gcov, cross):
 
     Parameters
     ----------
-    dive : Dive
-    state : State
     resp : numpy.ndarray
         ``(n, 3)`` class probabilities.
-    settings : ecm.Settings
     ne : Normal
         The information behind ``cov`` (:func:`.objective.normal_equations`,
         less Louis' missing information where that was used).
@@ -369,10 +363,6 @@ def _uncertainty(dive, run, settings):
 
 def surface_separation(dive: Dive) -> np.ndarray:
     """Return the median lag (m) of a surface bounce behind the direct path, per beacon.
-
-    Parameters
-    ----------
-    dive : Dive
 
     Returns
     -------

@@ -117,9 +117,6 @@ def e_step(dive: Dive, state: State, settings: Settings, tau: float = 0.0):
 
     Parameters
     ----------
-    dive : Dive
-    state : State
-    settings : Settings
     tau : float, default 0
         Anneal floor of the scales.
 
@@ -173,11 +170,8 @@ def gauss_newton(dive: Dive, state: State, a, b, settings: Settings) -> State:
 
     Parameters
     ----------
-    dive : Dive
-    state : State
     a, b : numpy.ndarray
         ``(n,)`` weights of the squared direct-path and multipath residuals.
-    settings : Settings
 
     Returns
     -------
@@ -218,11 +212,8 @@ def leverages(dive: Dive, state: State, resp, settings: Settings):
 
     Parameters
     ----------
-    dive : Dive
-    state : State
     resp : numpy.ndarray
         ``(n, 3)`` class probabilities or weights.
-    settings : Settings
 
     Returns
     -------
@@ -283,17 +274,10 @@ def scales_and_weights(dive: Dive, state: State, resp, settings: Settings, *,
 
     Parameters
     ----------
-    dive : Dive
-    state : State
     resp : numpy.ndarray
         ``(n, 3)`` class probabilities or weights.
-    settings : Settings
     expected : bool, default True
         Restore the degrees of freedom the track takes.
-
-    Returns
-    -------
-    State
     """
     pred = predictions(dive, state)
     e_dp, e_mp = dive.z - pred.direct, dive.z - pred.multipath
@@ -400,17 +384,11 @@ def run(dive: Dive, state: State, settings: Settings, *, anneal: bool = True) ->
 
     Parameters
     ----------
-    dive : Dive
     state : State
         The start (the dead reckoning, or an earlier run's state).
-    settings : Settings
     anneal : bool, default True
         Floor the scales at ``settings.anneal_start`` m first, halving the floor
         every iteration until it no longer binds.
-
-    Returns
-    -------
-    Run
     """
     start = _Iterate(state, settings.anneal_start if anneal else 0.0)
     out = run_em(_NavigationECM(dive, settings), start, tol=settings.tol,

@@ -59,10 +59,6 @@ def predict_ranges(x, y, depth, beacon, d0, path="triangle") -> RangePrediction:
         Multipath geometry (one, or one per range: names or a boolean mask
         that is True for the double bounce).
 
-    Returns
-    -------
-    RangePrediction
-
     Examples
     --------
     The derivative matches a finite difference:
@@ -200,10 +196,6 @@ def dr_noise_var(dt, q):
         Time steps (s).
     q : float
         Noise level (m / sqrt(s)).
-
-    Returns
-    -------
-    numpy.ndarray
 
     Examples
     --------

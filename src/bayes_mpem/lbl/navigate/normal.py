@@ -112,14 +112,6 @@ def _mat(B, X):
 def solve(ne: Normal) -> Step:
     """Solve the normal equations, the globals eliminated by the Schur complement.
 
-    Parameters
-    ----------
-    ne : Normal
-
-    Returns
-    -------
-    Step
-
     Raises
     ------
     numpy.linalg.LinAlgError
@@ -144,7 +136,6 @@ def solve_columns(ne: Normal, step: Step, rhs_p, rhs_g):
 
     Parameters
     ----------
-    ne : Normal
     step : Step
         :func:`solve` of ``ne``.
     rhs_p : numpy.ndarray
@@ -244,10 +235,6 @@ def marginal_covariances(ne: Normal, step: Step) -> np.ndarray:
 def global_covariance(step: Step) -> np.ndarray:
     """Covariance of the global unknowns: the inverse of the Schur complement.
 
-    Parameters
-    ----------
-    step : Step
-
     Returns
     -------
     numpy.ndarray
@@ -261,10 +248,6 @@ def cross_covariances(step: Step) -> np.ndarray:
 
     The off-diagonal block of the inverse of ``[[A, B], [B^T, C]]`` is
     ``-A^{-1} B S^{-1}``; its rows of epoch ``k`` are ``Cov(p_k, g)``.
-
-    Parameters
-    ----------
-    step : Step
 
     Returns
     -------

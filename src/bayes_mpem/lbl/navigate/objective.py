@@ -100,10 +100,6 @@ class State:
         ----------
         **changes
             Fields to replace.
-
-        Returns
-        -------
-        State
         """
         return dataclasses.replace(self, **changes)
 
@@ -116,18 +112,12 @@ def predictions(dive: Dive, state: State, track=None, d0=None,
 
     Parameters
     ----------
-    dive : Dive
-    state : State
     track : numpy.ndarray, optional
         ``(K, 2)`` instead of ``state.track``.
     d0 : numpy.ndarray, optional
         ``(B,)`` instead of ``state.d0``.
     range_scale : float, optional
         Instead of ``state.range_scale``.
-
-    Returns
-    -------
-    RangePrediction
     """
     track = state.track if track is None else track
     d0 = state.d0 if d0 is None else d0
@@ -159,15 +149,8 @@ def prior_penalty(dive: Dive, state: State, priors: Priors, track=None, beta=Non
 
     Parameters
     ----------
-    dive : Dive
-    state : State
-    priors : Priors
     track, beta, scale, d0, range_scale : optional
         Values to use instead of the state's.
-
-    Returns
-    -------
-    float
     """
     track = state.track if track is None else track
     beta = state.beta if beta is None else beta
@@ -191,18 +174,11 @@ def objective(dive: Dive, state: State, a, b, priors: Priors, **values) -> float
 
     Parameters
     ----------
-    dive : Dive
-    state : State
     a, b : numpy.ndarray
         ``(n,)`` weights of the direct-path and multipath squared residuals.
-    priors : Priors
     **values
         ``track``, ``beta``, ``scale``, ``d0``, ``range_scale`` to use instead of the
         state's.
-
-    Returns
-    -------
-    float
     """
     pred = predictions(dive, state, values.get("track"), values.get("d0"),
                        values.get("range_scale"))
@@ -253,19 +229,12 @@ def normal_equations(dive: Dive, state: State, a, b, priors: Priors, free_d0,
 
     Parameters
     ----------
-    dive : Dive
-    state : State
     a, b : numpy.ndarray
         ``(n,)`` weights of the direct-path and multipath squared residuals.
-    priors : Priors
     free_d0 : sequence of int
         Beacons whose plane height is estimated.
     free_k : bool, default False
         Estimate the range scale.
-
-    Returns
-    -------
-    Normal
     """
     k = dive.n_epochs
     pred = predictions(dive, state)
@@ -318,8 +287,6 @@ def missing_information(dive: Dive, state: State, resp, free_d0, free_k: bool = 
 
     Parameters
     ----------
-    dive : Dive
-    state : State
     resp : numpy.ndarray
         ``(n, 3)`` class probabilities.
     free_d0 : sequence of int

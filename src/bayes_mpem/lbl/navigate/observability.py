@@ -58,7 +58,6 @@ def assess(dive, cov, resp, nuisances: dict, *, max_sd: float) -> list:
 
     Parameters
     ----------
-    dive : Dive
     cov : numpy.ndarray
         ``(K, 2, 2)`` covariance of every epoch.
     resp : numpy.ndarray
@@ -95,10 +94,6 @@ def describe(flags: list) -> str:
     ----------
     flags : list of dict
         From :func:`assess`.
-
-    Returns
-    -------
-    str
 
     Examples
     --------

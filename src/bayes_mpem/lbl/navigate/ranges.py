@@ -64,7 +64,6 @@ def equivalent_ranges(time, z_vehicle, z_beacon, profile: SoundSpeedProfile, *,
     z_vehicle, z_beacon : array_like
         Depths of the two ends in the profile's frame (m, positive down). All three
         broadcast.
-    profile : SoundSpeedProfile
     max_iter : int, default 30
         Newton steps at most.
 
@@ -123,7 +122,6 @@ class RangeModel:
 
     Parameters
     ----------
-    travel_times : {"one-way", "two-way"}
     profile : SoundSpeedProfile, str, os.PathLike or float
         A profile, a profile file (depth m, speed m/s) or a constant sound speed (m/s).
     turnaround : float, default 0
@@ -190,7 +188,6 @@ def travel_time_pings(pings, beacons, model: RangeModel) -> tuple[pd.DataFrame, 
     pings, beacons : str, os.PathLike or pandas.DataFrame
         The tables of :func:`~bayes_mpem.lbl.navigate.navigate`, the pings' ``range``
         holding travel times (s).
-    model : RangeModel
 
     Returns
     -------
@@ -280,7 +277,6 @@ def prepare(pings, beacons, *, travel_times=None, profile=None, turnaround=0.0,
 
     Parameters
     ----------
-    pings, beacons : str, os.PathLike, pandas.DataFrame or Survey
     travel_times : {"one-way", "two-way"}, optional
         The pings' ``range`` holds travel times (s); default: one-way ranges (m).
     profile, turnaround, surface_depth

@@ -21,14 +21,6 @@ from .objective import State
 def finite(v):
     """``float(v)``, or None where it is not finite (JSON has no NaN or infinity).
 
-    Parameters
-    ----------
-    v : float
-
-    Returns
-    -------
-    float or None
-
     Examples
     --------
     >>> finite(1.5), finite(float("nan"))
@@ -46,17 +38,12 @@ def estimate(value, sd, z, *, lo=-np.inf, bound=None) -> dict:
 
     Parameters
     ----------
-    value, sd : float
     z : float
         Normal quantile of the (two-sided) interval.
     lo : float, default -inf
         Lower end of the parameter's range.
     bound : float, optional
         The lower bound the estimator can reach (a floor); default ``lo``.
-
-    Returns
-    -------
-    dict
 
     Examples
     --------

@@ -94,7 +94,6 @@ def degrade(time, x, y, *, heading_bias, speed_scale, dr_noise, start_error, rng
         Random-walk level ``q`` (m / sqrt(s)).
     start_error : float
         Standard deviation (m, per axis) of the first fix's error.
-    rng : None, int or numpy.random.Generator
 
     Returns
     -------
@@ -294,10 +293,6 @@ def stagger(sim: DiveSimulation) -> DiveSimulation:
     order of the beacons table), so every epoch has at most one range, as a
     GNSS-A ship that interrogates one transponder per shot records them.
 
-    Parameters
-    ----------
-    sim : DiveSimulation
-
     Returns
     -------
     DiveSimulation
@@ -335,19 +330,12 @@ def simulate_ship(*, rng: RNGLike = None, n_cycles: int = 1200, sigma_dp: float 
 
     Parameters
     ----------
-    rng : None, int or numpy.random.Generator
-    n_cycles : int, default 1200
     sigma_dp : float, default 0.2
         Range noise (m).
     transducer_depth : float, default 8
         Depth of the ship's transducer (m).
-    outlier_weight : float, default 0.02
     **kwargs
         Passed to :func:`simulate_dive` (``heading_bias``, ``dr_noise``, ...).
-
-    Returns
-    -------
-    DiveSimulation
 
     Examples
     --------

@@ -24,34 +24,18 @@ EFFECT_OPTIONS = ("second_fraction", "nav_drift_direction", "beacon",
 
 
 def term(name: str, beacon=None) -> str:
-    """Name an effect as the diagnosis does: ``name``, or ``"name:beacon"`` for one beacon's.
-
-    Parameters
-    ----------
-    name : str
-    beacon : str, optional
-    """
+    """Name an effect as the diagnosis does: ``name``, or ``"name:beacon"`` for one beacon's."""
     return name if beacon is None else f"{name}:{beacon}"
 
 
 def split_term(t: str) -> tuple:
-    """Split a term of :func:`term` into ``(effect name, beacon or None)``.
-
-    Parameters
-    ----------
-    t : str
-    """
+    """Split a term of :func:`term` into ``(effect name, beacon or None)``."""
     name, _, beacon = t.partition(":")
     return name, (beacon or None)
 
 
 def term_order(t: str) -> tuple:
-    """Sort key of terms: the order of :data:`EFFECTS`, then the beacon.
-
-    Parameters
-    ----------
-    t : str
-    """
+    """Sort key of terms: the order of :data:`EFFECTS`, then the beacon."""
     name, beacon = split_term(t)
     return EFFECTS.index(name), beacon or ""
 
@@ -63,10 +47,6 @@ def check_effects(effects):
     ----------
     effects : dict or None
         Names of :data:`EFFECTS` or :data:`EFFECT_OPTIONS` (``"beacon"``: a beacon id).
-
-    Returns
-    -------
-    dict
 
     Raises
     ------
@@ -103,12 +83,6 @@ def effect_weights(w, eff, bid):
     ----------
     w : sequence of 3 float
         The beacon's weights of dp, mp and ol without effects.
-    eff : dict
-    bid : str
-
-    Returns
-    -------
-    numpy.ndarray
     """
     w_dp, w_mp, w_ol = (float(v) for v in w)
     w_mp2 = eff.get("second_fraction", 0.15) if "second_reflector" in eff else 0.0
@@ -127,7 +101,6 @@ def per_beacon_target(eff, beacons):
 
     Parameters
     ----------
-    eff : dict
     beacons : dict
         The survey's beacons, by id (the first is the default target).
 

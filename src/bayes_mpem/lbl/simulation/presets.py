@@ -74,18 +74,12 @@ def _random_config(gen):
 
 
 def lawnmower_track(box, spacing, n_points):
-    """Points evenly spaced along a lawnmower pattern covering ``box`` (tracklines along x).
+    """``(x, y)`` evenly spaced along a lawnmower pattern covering ``box`` (tracklines along x).
 
     Parameters
     ----------
     box : tuple of 4 floats
         ``(xmin, xmax, ymin, ymax)`` (m).
-    spacing : float
-    n_points : int
-
-    Returns
-    -------
-    x, y : numpy.ndarray
     """
     xmin, xmax, ymin, ymax = box
     ys = np.arange(ymin, ymax + 1e-9, spacing)
@@ -108,13 +102,6 @@ def _seafloor(x, y, mean, relief):
 def preset_config(preset: str, gen, n_cycles: int | None = None,
                   overrides: dict | None = None) -> dict:
     """Return the settings of a preset survey, with ``overrides`` and ``n_cycles`` applied.
-
-    Parameters
-    ----------
-    preset : {"abe58", "random"}
-    gen : numpy.random.Generator
-    n_cycles : int, optional
-    overrides : dict, optional
 
     Raises
     ------

@@ -89,12 +89,8 @@ def simulate_lbl(
         ``{id: {"x", "y", "depth"}}`` (m, depth positive down).
     track : dict
         Arrays ``time`` (s, one per ping cycle), ``x``, ``y``, ``depth``.
-    sigma_dp : float
     sigma_mp, weights : dict
         Per beacon: the multipath scatter (m) and ``(w_dp, w_mp, w_ol)``.
-    plane_depth : float, default 0
-    path : {"triangle", "double"}
-    p_no_reply : float, default 0.05
     window : tuple of float, default (1, 6000)
         Listening window (m) of the uniform outliers.
     beacon_offset : float, default 1
@@ -102,15 +98,10 @@ def simulate_lbl(
     effects : dict, optional
         ``{name: magnitude}`` of :data:`~bayes_mpem.lbl.simulation.effects.EFFECTS`
         and :data:`~bayes_mpem.lbl.simulation.effects.EFFECT_OPTIONS` (``docs/diagnose.md``).
-    rng : None, int or numpy.random.Generator
     ssp : SoundSpeedProfile, optional
         Refract the rays through this profile; a reply with no eigenray becomes an outlier.
     sound_speed : float, optional
         Nominal speed (m/s) that turns travel times into ranges; only with ``ssp``.
-
-    Returns
-    -------
-    Simulation
 
     Raises
     ------

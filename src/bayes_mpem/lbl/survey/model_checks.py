@@ -41,7 +41,6 @@ def covariates(ex, ey, dz, time, vehicle_depth) -> dict:
     ----------
     ex, ey, dz : numpy.ndarray
         Vehicle minus beacon, east and north, and beacon minus vehicle depth (m).
-    time, vehicle_depth : numpy.ndarray
 
     Returns
     -------
@@ -66,7 +65,6 @@ def binned_trend(r, sigma, v, n_bins=10, *, centred=False):
         Their assumed scatter (m).
     v : numpy.ndarray
         The covariate at each residual.
-    n_bins : int, default 10
     centred : bool, default False
         Test against the residuals' mean (a trend alone) instead of zero.
 
@@ -123,13 +121,6 @@ def direct_path_checks(r_dp, resp_dp, sigma_dp, *, sigma_fixed=False):
     ----------
     r_dp : numpy.ndarray
         Range minus predicted direct path (m).
-    resp_dp : numpy.ndarray
-    sigma_dp : float
-    sigma_fixed : bool, default False
-
-    Returns
-    -------
-    list of dict
     """
     out = []
     off = _offset(r_dp, resp_dp, sigma_dp)
@@ -161,14 +152,8 @@ def trend_checks(residuals, sigmas, resp, cov, *, n_bins=10, alpha=TREND_ALPHA, 
         Per class (``"dp"``, ``"mp"``): residuals, scatter and probabilities.
     cov : dict of str to numpy.ndarray
         :func:`covariates`.
-    n_bins : int, default 10
     alpha : float, default :data:`TREND_ALPHA`
         Family-wise level (Bonferroni).
-    min_per_bin : int, default 5
-
-    Returns
-    -------
-    list of dict
     """
     found = []
     for cls, r in residuals.items():
@@ -197,7 +182,6 @@ def outlier_timing_check(z, direct, resp_ol, lo, hi):
 
     Parameters
     ----------
-    z, direct, resp_ol : numpy.ndarray
     lo, hi : float
         The listening window (m).
 
@@ -228,13 +212,8 @@ def plane_check(plane_depth, interval=None):
 
     Parameters
     ----------
-    plane_depth : float
     interval : tuple of float, optional
         Its credible interval (the end nearer the surface is used).
-
-    Returns
-    -------
-    list of dict
     """
     lo, hi = interval if interval is not None else (plane_depth, plane_depth)
     near = 0.0 if lo <= 0.0 <= hi else (lo if lo > 0 else hi)
@@ -253,21 +232,8 @@ def check_beacon(geom: BeaconGeometry, time, depth, *, d0, sigma_dp, sigma_mp, r
 
     Parameters
     ----------
-    geom : BeaconGeometry
-    time, depth : numpy.ndarray
-    d0, sigma_dp, sigma_mp : float
-    resp : numpy.ndarray
-    path : {"triangle", "double"}
-    plane_depth : float
-    sigma_dp_fixed : bool, default False
-    plane_interval : tuple of float, optional
     ex, ey : numpy.ndarray, optional
         Vehicle minus beacon east and north, for the bearing.
-    method : {"mixture", "paper"}, default "mixture"
-
-    Returns
-    -------
-    list of dict
     """
     paper = method == "paper"
     r_dp = geom.z - geom.direct
@@ -289,9 +255,6 @@ def check_fit(data, result, *, plane_interval=None, params=None, resp=None) -> l
 
     Parameters
     ----------
-    data : BeaconData
-    result : EMResult
-    plane_interval : tuple of float, optional
     params : dict, optional
         ``d0``, ``sigma_dp``, ``sigma_mp`` instead of the result's.
     resp : numpy.ndarray, optional
@@ -309,13 +272,7 @@ def check_fit(data, result, *, plane_interval=None, params=None, resp=None) -> l
 
 
 def check_posterior(data, result) -> list:
-    """Run :func:`check_beacon` at a beacon's posterior means, the plane with its interval.
-
-    Parameters
-    ----------
-    data : BeaconData
-    result : PosteriorResult
-    """
+    """Run :func:`check_beacon` at a beacon's posterior means, the plane with its interval."""
     s = result.summary
     depth = float(data.position[2])
     lo, hi = s["d0"]["interval"]
@@ -325,38 +282,18 @@ def check_posterior(data, result) -> list:
 
 
 def checks_record(checks, method="mixture") -> dict:
-    """Return the record of a beacon's checks in ``summary.json``: ``flags``, then ``checks``.
-
-    Parameters
-    ----------
-    checks : list of dict
-    method : {"mixture", "paper", "posterior"}, default "mixture"
-
-    Returns
-    -------
-    dict
-    """
+    """Return the record of a beacon's checks in ``summary.json``: ``flags``, then ``checks``."""
     msgs = flagged(checks)
     return {"flags": msgs + ([advice(method)] if msgs else []), "checks": list(checks)}
 
 
 def advice(method) -> str:
-    """Return what a flagged check of a fit by ``method`` suggests doing next.
-
-    Parameters
-    ----------
-    method : {"mixture", "paper", "posterior"}
-    """
+    """Return what a flagged check of a fit by ``method`` suggests doing next."""
     return PAPER_ADVICE if method == "paper" else ADVICE
 
 
 def flagged(checks) -> list:
-    """Return the messages of the flagged checks, the trends of one class in one message.
-
-    Parameters
-    ----------
-    checks : list of dict
-    """
+    """Return the messages of the flagged checks, the trends of one class in one message."""
     out, trends = [], {}
     for c in checks:
         if not c["flagged"]:
@@ -374,15 +311,7 @@ def flagged(checks) -> list:
 
 
 def warn_misfit(beacon, checks, *, method="mixture", stacklevel=2):
-    """Warn (ModelCheckWarning) once for a beacon whose checks flag a misfit, naming the fit.
-
-    Parameters
-    ----------
-    beacon : str
-    checks : list of dict
-    method : {"mixture", "paper", "posterior"}, default "mixture"
-    stacklevel : int, default 2
-    """
+    """Warn (ModelCheckWarning) once for a beacon whose checks flag a misfit, naming the fit."""
     msgs = flagged(checks)
     if msgs:
         if method == "paper":  # its own failure is the likelier cause: no claim on the model

@@ -36,16 +36,7 @@ CONTENTS = ("one beacon's posterior: the ArviZ groups posterior, sample_stats an
 
 
 def posterior_file(bid: str) -> str:
-    """Return the file name of beacon ``bid``'s posterior, ``posterior_<id>.nc`` (file-safe).
-
-    Parameters
-    ----------
-    bid : str
-
-    Returns
-    -------
-    str
-    """
+    """Return the file name of beacon ``bid``'s posterior, ``posterior_<id>.nc`` (file-safe)."""
     return "posterior_" + re.sub(r"[^A-Za-z0-9_.-]", "_", str(bid)) + ".nc"
 
 
@@ -54,17 +45,7 @@ GZIP = {"compression": "gzip", "compression_opts": 4, "shuffle": True}
 
 
 def encoding(tree, *, compress: bool = True) -> dict:
-    """NetCDF encoding of every variable of ``tree``: gzip, the per-range log-likelihood float32.
-
-    Parameters
-    ----------
-    tree : xarray.DataTree
-    compress : bool, default True
-
-    Returns
-    -------
-    dict
-    """
+    """NetCDF encoding of every variable of ``tree``: gzip, the per-range log-likelihood float32."""
     enc = {}
     for node in tree.subtree:
         variables = {}

@@ -41,7 +41,6 @@ class SlipError(InputError):
     slip : str
         ``"seconds"``, ``"two_way_seconds"``, ``"km"``, ``"two_way"``, ``"depth_sign"``,
         ``"beacon_ids"`` or ``"swapped"``.
-    message : str
     """
 
     def __init__(self, slip: str, message: str):
@@ -62,10 +61,6 @@ def load_checked(pings, beacons=None) -> Survey:
     ----------
     pings, beacons
         As :func:`~bayes_mpem.io.survey.load_survey`.
-
-    Returns
-    -------
-    Survey
 
     Raises
     ------
@@ -105,10 +100,6 @@ def _numbers(frame: pd.DataFrame, column: str) -> np.ndarray:
 
 def explain_read_error(pings, beacons):
     """Name the slip that makes a survey's tables unreadable, if one does.
-
-    Parameters
-    ----------
-    pings, beacons : str, os.PathLike or pandas.DataFrame
 
     Returns
     -------
@@ -242,16 +233,7 @@ def _best_speed(r, g, factor):
 
 
 def check_geometry(survey: Survey):
-    """Name the slip that makes a survey's ranges fit no direct path, if one does.
-
-    Parameters
-    ----------
-    survey : Survey
-
-    Returns
-    -------
-    tuple of (str, str) or None
-    """
+    """Name the slip that makes a survey's ranges fit no direct path, if one does."""
     rep, pos = _replies(survey)
     if rep.size < 10:
         return None
@@ -313,10 +295,6 @@ def check_geometry(survey: Survey):
 def impossible_rows(survey: Survey) -> dict:
     """Find the replies shorter than the vertical distance to their beacon (no path is).
 
-    Parameters
-    ----------
-    survey : Survey
-
     Returns
     -------
     dict
@@ -341,11 +319,6 @@ def flag_impossible(table: pd.DataFrame, survey: Survey) -> pd.DataFrame:
     ----------
     table : pandas.DataFrame
         One row per row of ``survey.table``, with a ``reason`` column.
-    survey : Survey
-
-    Returns
-    -------
-    pandas.DataFrame
     """
     short = impossible_rows(survey)
     if not short:

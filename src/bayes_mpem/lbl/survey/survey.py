@@ -18,10 +18,6 @@ MIN_PINGS = 3
 def check_min_pings(min_pings) -> int:
     """Check ``min_pings`` before any work: an integer >= :data:`MIN_PINGS`.
 
-    Parameters
-    ----------
-    min_pings : int
-
     Raises
     ------
     ValueError
@@ -39,7 +35,6 @@ def non_finite(document, where: str = "") -> list:
 
     Parameters
     ----------
-    document : dict, list or number
     where : str, optional
         Prefix of the names.
     """
@@ -66,12 +61,7 @@ def _culprit_rows(survey: Survey, data, *, factor: float = 100.0) -> list:
 
 
 def beacons_table(survey: Survey) -> dict:
-    """Beacon positions as ``{id: {"x", "y", "depth"}}`` (written into summaries).
-
-    Parameters
-    ----------
-    survey : Survey
-    """
+    """Beacon positions as ``{id: {"x", "y", "depth"}}`` (written into summaries)."""
     return {b: {k: float(v) for k, v in row.items()}
             for b, row in survey.beacons[["x", "y", "depth"]].iterrows()}
 
@@ -81,7 +71,6 @@ def classified_table(survey: Survey, fitted: dict, skipped: dict, extra: dict | 
 
     Parameters
     ----------
-    survey : Survey
     fitted : dict
         ``{beacon: (rows, probs)}``: rows of the input table and ``(n, 3)`` probabilities.
     skipped : dict
@@ -124,12 +113,6 @@ def classified_table(survey: Survey, fitted: dict, skipped: dict, extra: dict | 
 def fittable_beacons(survey: Survey, min_pings: int, *, stacklevel: int = 3):
     """Split the beacons into those with enough replies and those left unfitted (warned).
 
-    Parameters
-    ----------
-    survey : Survey
-    min_pings : int
-    stacklevel : int, default 3
-
     Returns
     -------
     fittable : list of BeaconData
@@ -150,16 +133,7 @@ def fittable_beacons(survey: Survey, min_pings: int, *, stacklevel: int = 3):
 
 
 def option_subset(kwargs: dict) -> dict:
-    """Pick the options of ``kwargs`` that :func:`~.posterior.check_sample_options` checks.
-
-    Parameters
-    ----------
-    kwargs : dict
-
-    Returns
-    -------
-    dict
-    """
+    """Pick the options of ``kwargs`` that :func:`~.posterior.check_sample_options` checks."""
     keys = ("n_ensembles", "concentration", "sigma_dp", "path", "tau_factor", "min_ess",
             "max_steps", "n_draws", "sampler")
     return {k: kwargs[k] for k in keys if k in kwargs}
@@ -176,8 +150,6 @@ def over_beacons(survey: Survey, min_pings: int, analyse, *, skip_on=(), check=N
 
     Parameters
     ----------
-    survey : Survey
-    min_pings : int
     analyse : callable
         ``analyse(BeaconData) -> result`` for one beacon, in table order.
     skip_on : tuple of exception classes, default ()

@@ -54,7 +54,6 @@ class PositionFilter:
 
         Parameters
         ----------
-        x, y, beta, scale : float
         cov : array_like
             ``(4, 4)`` covariance of ``(x, y, beta, s)`` (a smoother's at its
             last epoch, with the correlations of the position with the nuisances),
@@ -62,11 +61,6 @@ class PositionFilter:
         var_beta, var_scale : float, optional
             With a ``(2, 2)`` ``cov``: variances of the heading bias (rad^2) and
             the speed scale, uncorrelated with the position.
-        beta_walk, scale_walk : float, default 0
-
-        Returns
-        -------
-        PositionFilter
 
         Raises
         ------
@@ -144,51 +138,23 @@ class PositionFilter:
                   pbb - k2 * k2 * i, pbs - k2 * k3 * i, pss - k3 * k3 * i]
 
     def range_variance(self, gx, gy):
-        """``g^T P_pp g``: the variance a range inherits from the position's uncertainty.
-
-        Parameters
-        ----------
-        gx, gy : float
-
-        Returns
-        -------
-        float
-        """
+        """``g^T P_pp g``: the variance a range inherits from the position's uncertainty."""
         p = self.p
         return gx * gx * p[0] + 2.0 * gx * gy * p[1] + gy * gy * p[4]
 
     def position_sd(self):
-        """``(sd_x, sd_y, cov_xy)`` of the position.
-
-        Returns
-        -------
-        tuple of float
-        """
+        """``(sd_x, sd_y, cov_xy)`` of the position."""
         p = self.p
         return math.sqrt(max(p[0], 0.0)), math.sqrt(max(p[4], 0.0)), p[1]
 
     def to_dict(self) -> dict:
-        """Return the state as a JSON-ready mapping (floats round-trip exactly).
-
-        Returns
-        -------
-        dict
-        """
+        """Return the state as a JSON-ready mapping (floats round-trip exactly)."""
         return {"x": self.x, "y": self.y, "beta": self.beta, "scale": self.scale,
                 "cov": dict(zip(COV_NAMES, self.p, strict=True)),
                 "beta_walk": self.beta_walk, "scale_walk": self.scale_walk}
 
     @classmethod
     def from_dict(cls, d: dict) -> PositionFilter:
-        """Rebuild a filter written by :meth:`to_dict`.
-
-        Parameters
-        ----------
-        d : dict
-
-        Returns
-        -------
-        PositionFilter
-        """
+        """Rebuild a filter written by :meth:`to_dict`."""
         return cls(d["x"], d["y"], d["beta"], d["scale"], [d["cov"][k] for k in COV_NAMES],
                    d["beta_walk"], d["scale_walk"])

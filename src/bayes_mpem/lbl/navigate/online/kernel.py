@@ -54,14 +54,6 @@ def ranges(x, y, depth, bx, by, bz, d0, double):
 def gaussian_logpdf(resid, sigma):
     """Return the normal log-density of a residual (as ``mixture.densities.gaussian_logpdf``).
 
-    Parameters
-    ----------
-    resid, sigma : float
-
-    Returns
-    -------
-    float
-
     Examples
     --------
     >>> round(gaussian_logpdf(2.0, 2.0), 6)
@@ -112,14 +104,6 @@ def class_probabilities(z, direct, multipath, sigma_dp, sigma_mp, log_ol, lw_dp,
 
 def log_weight(w):
     """``log(w)``, ``-inf`` for 0 (as :func:`~bayes_mpem.mixture.densities.safe_log`).
-
-    Parameters
-    ----------
-    w : float
-
-    Returns
-    -------
-    float
 
     Examples
     --------

@@ -32,10 +32,6 @@ def step_size(n, alpha):
     alpha : float
         In (1/2, 1].
 
-    Returns
-    -------
-    float
-
     Examples
     --------
     >>> round(step_size(100, 0.6), 6)
@@ -86,21 +82,11 @@ class BeaconModel:
 
         Parameters
         ----------
-        d0, sigma_mp : float
-        weights : sequence of 3 float
         n : int
             Replies behind the statistics (a pseudo-count for a prior).
-        double, mp_on : bool
-        xyz : sequence of 3 float
-        d0_min : float
-        window : sequence of 2 float
         stats : sequence of 6 float, optional
             :data:`BEACON_STATS` (``d0_ref = d0``); default the statistics of
             replies that fit ``d0``, ``sigma_mp`` exactly with ``J = 1``.
-
-        Returns
-        -------
-        BeaconModel
         """
         self = cls()
         self.xyz = tuple(float(v) for v in xyz)
@@ -124,7 +110,6 @@ class BeaconModel:
         ----------
         diff : float
             ``log p(z | alt) - log p(z | this)`` of the reply.
-        alpha : float
         margin : float
             Switch when the ratio exceeds this many nats.
 
@@ -158,25 +143,11 @@ class BeaconModel:
             self.d0_min = low
 
     def log_outlier(self, min_width=1e-9):
-        """Log-density of an outlier (uniform over the window).
-
-        Parameters
-        ----------
-        min_width : float, default 1e-9
-
-        Returns
-        -------
-        float
-        """
+        """Log-density of an outlier (uniform over the window)."""
         return -math.log(max(self.window[1] - self.window[0], min_width))
 
     def d0_variance(self):
-        """Variance of ``d0`` (m^2): ``sigma_MP^2 / (N_eff <g_MP J^2>)``; 0 without a statistic.
-
-        Returns
-        -------
-        float
-        """
+        """Variance of ``d0`` (m^2): ``sigma_MP^2 / (N_eff <g_MP J^2>)``; 0 without a statistic."""
         jj = self.stats[3]
         return self.sigma_mp ** 2 * self.sumsq / jj if jj > 0.0 else 0.0
 
@@ -217,28 +188,14 @@ class BeaconModel:
             self.sigma_mp = max(math.sqrt(max(var, 0.0)), floor)
 
     def to_dict(self) -> dict:
-        """Return the beacon's model as a JSON-ready mapping.
-
-        Returns
-        -------
-        dict
-        """
+        """Return the beacon's model as a JSON-ready mapping."""
         out = {k: getattr(self, k) for k in self.__slots__}
         out["alt"] = None if self.alt is None else self.alt.to_dict()
         return out
 
     @classmethod
     def from_dict(cls, d: dict) -> BeaconModel:
-        """Rebuild a model written by :meth:`to_dict`.
-
-        Parameters
-        ----------
-        d : dict
-
-        Returns
-        -------
-        BeaconModel
-        """
+        """Rebuild a model written by :meth:`to_dict`."""
         self = cls()
         for k in cls.__slots__:
             v = d[k]
@@ -271,8 +228,6 @@ class DirectPathScale:
 
         Parameters
         ----------
-        g_dp, r2 : float
-        alpha : float
         floor : float
             Smallest sigma_DP (m).
         """
@@ -285,24 +240,10 @@ class DirectPathScale:
             self.sigma = max(math.sqrt(s[1] / s[0]), floor)
 
     def to_dict(self) -> dict:
-        """JSON-ready mapping.
-
-        Returns
-        -------
-        dict
-        """
+        """JSON-ready mapping."""
         return {k: getattr(self, k) for k in self.__slots__}
 
     @classmethod
     def from_dict(cls, d: dict) -> DirectPathScale:
-        """Rebuild from :meth:`to_dict`.
-
-        Parameters
-        ----------
-        d : dict
-
-        Returns
-        -------
-        DirectPathScale
-        """
+        """Rebuild from :meth:`to_dict`."""
         return cls(d["sigma"], d["n"], stats=d["stats"], fixed=d["fixed"])

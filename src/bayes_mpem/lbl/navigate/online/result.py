@@ -76,10 +76,6 @@ def label_of(p) -> str:
     p : sequence of 3 float
         Probabilities of dp, mp, ol.
 
-    Returns
-    -------
-    str
-
     Examples
     --------
     >>> label_of((0.2, 0.4, 0.4))

@@ -28,7 +28,7 @@ _THIRD = math.log(1.0 / 3.0)
 
 
 def provisional_classes(ping, xyz, window, sd):
-    """Class probabilities of a warm-up reply at its dead-reckoned position.
+    """Class probabilities ``(p_dp, p_mp, p_ol)`` of a warm-up reply at its dead-reckoned position.
 
     The plane at the sea surface, both scales ``sd``, equal weights, outliers
     uniform over ``window``; no multipath class where the surface bounce would
@@ -36,15 +36,8 @@ def provisional_classes(ping, xyz, window, sd):
 
     Parameters
     ----------
-    ping : Ping
     xyz : sequence of 3 float
         The beacon.
-    window : sequence of 2 float
-    sd : float
-
-    Returns
-    -------
-    p_dp, p_mp, p_ol : float
 
     Examples
     --------
@@ -87,10 +80,6 @@ def expected_squares(stats, sigma_mp):
     sigma_mp : float
         The batch's sigma_MP (m).
 
-    Returns
-    -------
-    tuple of 6 float
-
     Examples
     --------
     >>> expected_squares((0.7, 0.2, 0.1, 0.2, 0.0, 0.2 * 4.0), 3.0)[5]
@@ -119,18 +108,10 @@ def prior_model(xyz, prior, *, mp_on, path, d0_min, window):
 
     Parameters
     ----------
-    xyz : sequence of 3 float
     prior : dict
         ``sigma_mp`` (m) and ``n`` (the replies it counts for).
-    mp_on : bool
     path : {"auto", "triangle", "double"}
         ``"auto"``: triangle, with the double bounce learned alongside.
-    d0_min : float
-    window : sequence of 2 float
-
-    Returns
-    -------
-    BeaconModel
 
     Examples
     --------
@@ -150,10 +131,6 @@ def prior_model(xyz, prior, *, mp_on, path, d0_min, window):
 
 def endpoint_covariance(nav) -> np.ndarray:
     """Return the joint covariance of ``(x, y, beta, s)`` at a navigation's last epoch.
-
-    Parameters
-    ----------
-    nav : Navigation
 
     Returns
     -------

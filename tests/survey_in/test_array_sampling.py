@@ -214,3 +214,4 @@ def test_smoothing_weight_posterior_matches_the_ems_evidence(two_hours):
     tree = sampled.to_inference_data()
     assert tree["posterior"]["smoothing_weight"].shape == tree["sample_stats"]["lp"].shape
     assert "log_smoothing" in sampled.ess
+

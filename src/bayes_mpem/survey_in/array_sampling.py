@@ -906,11 +906,7 @@ def sample_array(shots: pd.DataFrame, fit: ArrayLocateResult, *, n_walkers: int 
     >>> post.draws["position"].shape[-2:], post.converged
     ((4, 3), True)
     """
-    from ..mcmc.moves import (
-        DEFAULT_MOVES_LABEL,
-        default_moves,
-        independence_move,
-    )
+    from ..mcmc.moves import independence_move
     from ..mcmc.progress import progress_mode, say
 
     check_location_options(n_walkers=n_walkers, ci=ci, min_ess=min_ess, max_steps=max_steps,
@@ -965,17 +961,7 @@ def sample_array(shots: pd.DataFrame, fit: ArrayLocateResult, *, n_walkers: int 
         if progress_mode(progress) == "log" and info["fallback"]:
             say(post.label, f"{info['fallback']}; differential evolution instead")
         walkers = int(n_walkers or max(32, 2 * post.ndim + 2))
-        q = post.proposal() or TProposal(centre=post.u_em(), chol=np.diag(np.sqrt(np.maximum(
-            np.abs(np.diag(post._proposal_cov())), 1e-30))), df=PROPOSAL_DF)
-        ball = TProposal(centre=q.centre, chol=0.5 * q.chol, df=q.df)
-        # emcee keeps the whole chain: at most CHAIN_BYTES of it
-        steps = min(int(max_steps), max(1000, int(CHAIN_BYTES / (8 * walkers * post.ndim))))
-        if steps < max_steps:
-            info["max_steps"] = f"{steps} (the chain's memory capped at {CHAIN_BYTES / 1e9:g} GB)"
-        run = run_ensembles(post, [_proposal_start(post, ball, walkers, gen)],
-                            moves=default_moves(), burn_in=True, progress=progress,
-                            max_steps=steps, **opts)
-        info["moves"] = DEFAULT_MOVES_LABEL
+        run = _differential_evolution(post, walkers, int(max_steps), info, progress, opts)
     seconds = time.perf_counter() - t0
     idx, thin = thin_index(run.chain.shape[0], walkers, n_draws)
     theta = np.swapaxes(run.chain[idx], 0, 1)  # (walker, draw, ndim)
@@ -1011,6 +997,26 @@ def sample_array(shots: pd.DataFrame, fit: ArrayLocateResult, *, n_walkers: int 
                           p_true_sd=p_sd[:, 0], rows=np.asarray(fit.rows), shots=table,
                           ess=ess, rhat={k: rhat(v) for k, v in series.items()}, em=fit,
                           diagnostics=diagnostics, ci=float(ci))
+
+
+def _differential_evolution(post, walkers, max_steps, info, progress, opts):
+    """Run emcee's differential evolution from a ball about the EM solution (the fallback).
+
+    emcee keeps the whole chain: the steps are capped so that it stays within
+    :data:`CHAIN_BYTES` (recorded in ``info``, with the moves).
+    """
+    from ..mcmc.moves import DEFAULT_MOVES_LABEL, default_moves
+
+    q = post.proposal() or TProposal(centre=post.u_em(), chol=np.diag(np.sqrt(np.maximum(
+        np.abs(np.diag(post._proposal_cov())), 1e-30))), df=PROPOSAL_DF)
+    ball = TProposal(centre=q.centre, chol=0.5 * q.chol, df=q.df)
+    steps = min(max_steps, max(1000, int(CHAIN_BYTES / (8 * walkers * post.ndim))))
+    if steps < max_steps:
+        info["max_steps"] = f"{steps} (the chain's memory capped at {CHAIN_BYTES / 1e9:g} GB)"
+    info["moves"] = DEFAULT_MOVES_LABEL
+    return run_ensembles(post, [_proposal_start(post, ball, walkers, opts["gen"])],
+                         moves=default_moves(), burn_in=True, progress=progress,
+                         max_steps=steps, **opts)
 
 
 def _covariance(x) -> dict:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import textwrap
+
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.patches import Ellipse
@@ -224,7 +226,7 @@ def plot_sound_speed(result, *, ax=None, truth=None):
     ax.set_ylabel(f"sound speed ({ss.get('unit', 'm/s')})")
     ax.ticklabel_format(axis="y", useOffset=False)
     ax.legend(fontsize="small", loc="best")
-    ax.set_title(f"Sound speed: {ss.get('model', '')}", fontsize="medium")
+    ax.set_title(textwrap.fill(f"Sound speed: {ss.get('model', '')}", 110), fontsize="medium")
     return ax.figure
 
 

@@ -544,14 +544,34 @@ class ConditionalProposal:
         self.lbeta = special.betaln(self.a, self.b)
 
     def _hyper_proposal(self, post) -> TProposal:
-        """Student-t of ``log sigma`` (and ``log kappa``) from the moments of their marginal."""
-        ng = self.ng
-        ls_em = self.centre[ng]
+        """Student-t of ``log sigma`` (and ``log kappa``) from the moments of their marginal.
+
+        The grid spans 8 sds either way (of ``log sigma`` with everything else known, and of
+        ``log kappa`` given the coefficients, ``sqrt(2 / rank)``), twice as wide again
+        while the outer points hold more than 1e-4 of the mass.
+        """
         p = np.asarray(post.fit.p_true, float)
-        axes = [ls_em + np.linspace(-8.0, 8.0, self.GRID) / np.sqrt(2.0 * max(p.sum(), 2.0))]
+        sds = [1.0 / np.sqrt(2.0 * max(p.sum(), 2.0))]
         if self.smooth:
-            sd = np.sqrt(2.0 / max(post.pen_rank, 1))
-            axes.append(np.clip(np.linspace(-8.0, 8.0, self.GRID) * sd, *SMOOTHING_RANGE))
+            sds.append(np.sqrt(2.0 / max(post.pen_rank, 1)))
+        for span in (8.0, 16.0, 32.0):
+            grid, w = self._hyper_marginal(post, span * np.asarray(sds))
+            outer = np.zeros(len(grid), bool)
+            for j in range(grid.shape[1]):
+                outer |= (grid[:, j] <= grid[:, j].min()) | (grid[:, j] >= grid[:, j].max())
+            if w[outer].sum() <= 1e-4:
+                break
+        mean = w @ grid
+        cov = ((grid - mean).T * w) @ (grid - mean)
+        return TProposal(centre=mean, chol=np.linalg.cholesky(np.atleast_2d(cov)), df=self.DF)
+
+    def _hyper_marginal(self, post, half):
+        """Grid of the hyperparameters (half-widths ``half``) and their marginal's weights."""
+        ng = self.ng
+        base = [self.centre[ng], 0.0][:len(half)]
+        axes = [b + np.linspace(-h, h, self.GRID) for b, h in zip(base, half, strict=True)]
+        if self.smooth:
+            axes[1] = np.unique(np.clip(axes[1], *SMOOTHING_RANGE))
         grid = np.stack([a.ravel() for a in np.meshgrid(*axes, indexing="ij")], axis=1)
         rho, kappa = self._scales(grid)
         pts = np.repeat(self.centre[None], grid.shape[0], axis=0)
@@ -565,10 +585,7 @@ class ConditionalProposal:
                              "the support")
         w = np.exp(lm - np.max(lm[np.isfinite(lm)]))
         w[~np.isfinite(w)] = 0.0
-        w /= w.sum()
-        mean = w @ grid
-        cov = ((grid - mean).T * w) @ (grid - mean)
-        return TProposal(centre=mean, chol=np.linalg.cholesky(np.atleast_2d(cov)), df=self.DF)
+        return grid, w / w.sum()
 
     def _scales(self, hyper):
         """``rho`` and ``kappa`` of ``(n, 1 or 2)`` hyperparameters (log sigma, log kappa)."""

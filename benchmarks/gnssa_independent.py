@@ -467,13 +467,18 @@ def table(rows: list[dict]) -> list[str]:
     hor = np.hypot(ce[:, 0], ce[:, 1])
     rms = np.sqrt((z**2).mean(0))
     trms = np.sqrt((tz**2).reshape(-1, 3).mean(0))
-    return [
+    sd = np.array([r["centre_sd"] for r in rows]) * 100
+    cov_t = tc.reshape(-1, 3).mean(0)
+    cells = [
         f"{np.median(hor):.2f} / {np.median(np.abs(ce[:, 2])):.2f}",
         f"{hor.max():.2f} / {np.abs(ce[:, 2]).max():.2f}",
         " / ".join(f"{v:+.2f}" for v in ce.mean(0)),
         f"{np.median(tmax):.2f} ({tmax.max():.2f})",
         f"{100 * cc.mean():.0f} ({' / '.join(f'{100 * v:.0f}' for v in cc.mean(0))})",
-        f"{100 * tc.mean():.0f} ({' / '.join(f'{100 * v:.0f}' for v in tc.reshape(-1, 3).mean(0))})",
+        f"{100 * tc.mean():.0f} ({' / '.join(f'{100 * v:.0f}' for v in cov_t)})",
+    ]
+    cells.insert(3, " / ".join(f"{v:.2f}" for v in np.median(sd, 0)))
+    return cells + [
         " / ".join(f"{v:.2f}" for v in rms),
         " / ".join(f"{v:.2f}" for v in trms),
         f"{np.median([r['seconds'] for r in rows]):.1f}",
@@ -485,6 +490,7 @@ def table(rows: list[dict]) -> list[str]:
 MEASURES = ["centre error, median horizontal / vertical (cm)",
             "centre error, largest horizontal / vertical (cm)",
             "centre error, mean east / north / up (cm)",
+            "centre sd, median east / north / up (cm)",
             "largest transponder error, median (largest) (cm)",
             "centre's 95 % intervals covering (%; east / north / up)",
             "transponders' coordinates' 95 % intervals covering (%; east / north / up)",

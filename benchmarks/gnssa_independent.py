@@ -24,7 +24,8 @@ generator"):
   replies are missing.
 
 Run ``python benchmarks/gnssa_independent.py SEEDS [VARIANT ...]``; variants ``full`` (the
-default), ``static`` (no time-varying sound speed), ``nograd`` (no gradients), ``clean`` (no
+default), ``static`` (no time-varying sound speed), ``meancast`` (svp.csv the campaign's
+time-mean profile instead of the cast at the first shot), ``nograd`` (no gradients), ``clean`` (no
 noise, no outliers), ``nonoise``, ``nooutliers``, ``nothing`` (no field change, no noise: the
 frame check); a variant ending in ``+gradoff`` locates with ``--gradients off`` instead of the
 defaults. Writes the section ``gnssa-independent[-VARIANTS]`` of ``docs/gnssa.md``.
@@ -68,6 +69,7 @@ class Config:
     lat: float = 38.0
     lon: float = 143.5
     earth: str = "sphere"  # or "flat" (a radius of 1e9 m: flat layers, for checks)
+    cast: str = "first"  # svp.csv: the profile at the first shot, or "mean" over the campaign
 
 
 VARIANTS = {
@@ -75,6 +77,7 @@ VARIANTS = {
     "static": {"varying": False},
     "nograd": {"gradients": False},
     "clean": {"noise": False, "outliers": False},
+    "meancast": {"cast": "mean"},
     "nonoise": {"noise": False},
     "nooutliers": {"outliers": False},
     "nothing": {"varying": False, "gradients": False, "noise": False, "outliers": False},
@@ -361,8 +364,9 @@ def campaign(seed: int, cfg: Config) -> dict:
             att = att + rng.normal(0.0, 1.0, att.shape) * np.array([0.05, 0.02, 0.02])
         logs[key] = (ant, att)
     z = np.arange(0.0, Z_MAX + DZ, DZ)
-    # the CTD cast: the profile at the array centre at the first shot
-    svp = ocean.c0(z) + ocean.uniform(z, np.array([t_shot[0]]))[0]
+    # the CTD cast: the profile at the array centre at the first shot (or its time mean)
+    when = np.array([t_shot[0]]) if cfg.cast == "first" else t_shot
+    svp = ocean.c0(z) + ocean.uniform(z, when).mean(0)
     return {"cfg": cfg, "seed": seed, "t_tx": tx_t[keep], "t_rx": rx_t[keep],
             "mt": mt[keep], "tt": tt[keep], "label": label[keep],
             "ant0": logs["0"][0][keep], "att0": logs["0"][1][keep],

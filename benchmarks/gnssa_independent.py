@@ -25,10 +25,11 @@ generator"):
 
 Run ``python benchmarks/gnssa_independent.py SEEDS [VARIANT ...]``; variants ``full`` (the
 default), ``static`` (no time-varying sound speed), ``meancast`` (svp.csv the campaign's
-time-mean profile instead of the cast at the first shot), ``nograd`` (no gradients), ``clean`` (no
-noise, no outliers), ``nonoise``, ``nooutliers``, ``nothing`` (no field change, no noise: the
-frame check); a variant ending in ``+gradoff`` locates with ``--gradients off`` instead of the
-defaults. Writes the section ``gnssa-independent[-VARIANTS]`` of ``docs/gnssa.md``.
+time-mean profile instead of the cast at the first shot), ``whitegnss`` (GNSS noise 2 cm
+white), ``nograd`` (no gradients), ``clean`` (no noise, no outliers), ``nonoise``,
+``nooutliers``, ``nothing`` (no field change, no noise: the frame check); a variant ending
+in ``+gradoff`` locates with ``--gradients off`` instead of the defaults. Writes the section
+``gnssa-independent[-VARIANTS]`` of ``docs/gnssa.md``.
 """
 
 from __future__ import annotations
@@ -69,6 +70,7 @@ class Config:
     lat: float = 38.0
     lon: float = 143.5
     earth: str = "sphere"  # or "flat" (a radius of 1e9 m: flat layers, for checks)
+    gnss_ou: bool = True  # the correlated part of the GNSS noise (else 2 cm white)
     cast: str = "first"  # svp.csv: the profile at the first shot, or "mean" over the campaign
 
 
@@ -78,6 +80,7 @@ VARIANTS = {
     "nograd": {"gradients": False},
     "clean": {"noise": False, "outliers": False},
     "meancast": {"cast": "mean"},
+    "whitegnss": {"gnss_ou": False},
     "nonoise": {"noise": False},
     "nooutliers": {"outliers": False},
     "nothing": {"varying": False, "gradients": False, "noise": False, "outliers": False},
@@ -359,7 +362,8 @@ def campaign(seed: int, cfg: Config) -> dict:
         ant = np.column_stack([e, nn, up])
         att = np.column_stack([h, p, r])
         if cfg.noise:
-            ant = ant + rng.normal(0.0, 0.01, ant.shape) + np.column_stack(
+            white = 0.01 if cfg.gnss_ou else 0.02
+            ant = ant + rng.normal(0.0, white, ant.shape) + cfg.gnss_ou * np.column_stack(
                 [np.interp(tk, ts, g) for g in gnss])
             att = att + rng.normal(0.0, 1.0, att.shape) * np.array([0.05, 0.02, 0.02])
         logs[key] = (ant, att)

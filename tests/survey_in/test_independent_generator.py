@@ -99,5 +99,7 @@ def test_small_campaign_centre_within_the_study_s_tolerance(gen, tmp_path):
     cfg = gen.Config(scenario="B", hours=3.0, varying=False)
     r = gen.run(0, cfg, tmp_path)
     z = r["centre_err"] / r["centre_sd"]
+    # measured on seeds 0-3 of this setting: |z| up to 2.02 (seed 0), horizontal 7.6 cm (seed
+    # 0) with sds near 3 cm, vertical up to 3.3 cm; the 6 h study: horizontal up to 5 cm
     assert np.all(np.abs(z) < 3.5), z
     assert np.hypot(*r["centre_err"][:2]) < 0.10 and abs(r["centre_err"][2]) < 0.10

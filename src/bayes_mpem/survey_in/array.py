@@ -994,6 +994,28 @@ def _weight_rank(H):
     return int(np.sum(e > 1e-10 * e.max()))
 
 
+def _scaled_inverse(A):
+    """Inverse of a symmetric positive (semi-)definite ``A`` after scaling it to a unit diagonal.
+
+    Positions (m), speed coefficients (known to 1e-9) and gradient terms put the condition
+    number of ``A`` itself near 1e17, where ``numpy.linalg.inv`` returned an asymmetric
+    matrix with negative variances; scaled, Cholesky (else eigenvalues floored at 1e-12 of
+    the largest) is accurate.
+    """
+    d = np.diag(A).copy()
+    d[d <= 0] = 1.0
+    s = 1.0 / np.sqrt(d)
+    B = A * s[:, None] * s[None, :]
+    try:
+        inv = cho_solve(cho_factor(B), np.eye(len(d)))
+    except np.linalg.LinAlgError:
+        vals, vecs = np.linalg.eigh(0.5 * (B + B.T))
+        vals = np.maximum(vals, 1e-12 * vals.max())
+        inv = (vecs / vals) @ vecs.T
+    inv = inv * s[:, None] * s[None, :]
+    return 0.5 * (inv + inv.T)
+
+
 def _grid_average(J, r, theta, H, sigma, lam, H_fixed, meat, n_clusters, grid):
     """Posterior modes and covariances over weights ``lam 10^x``, and their average."""
     rank = _weight_rank(H)
@@ -1002,10 +1024,11 @@ def _grid_average(J, r, theta, H, sigma, lam, H_fixed, meat, n_clusters, grid):
     for x in grid:
         lg = lam * 10.0 ** x
         logml, step, A = log_evidence(J, r, theta, H, sigma, lg, rank, H_fixed)
-        Ainv = np.linalg.inv(A)
+        Ainv = _scaled_inverse(A)
         edf = float(np.trace(Ainv @ JtJ) / sigma**2)
         prior = lg * H if H_fixed is None else lg * H + H_fixed
         C = Ainv @ (meat * n_clusters / max(n_clusters - edf, 1.0) + prior) @ Ainv
+        C = 0.5 * (C + C.T)
         rows.append((x, logml, step, C, Ainv, edf))
     ll = np.array([row[1] for row in rows])
     w = np.exp(ll - ll.max())

@@ -171,8 +171,11 @@ def track_geometry(shots, enu) -> dict:
         ``spread_over_depth``: the sd of the transducer's horizontal position
         along its least-spread direction over the mean water depth (GARPOS's
         shallow gradient needs about 0.3 or more; a ship holding station has
-        almost 0); per transponder ``azimuth_coverage_deg`` (360 minus the
-        largest gap between the azimuths of the ship seen from it) and
+        almost 0); ``central_fraction``: the share of shots within
+        :data:`CENTRAL_RADIUS` depths of the array's centre (0 on a circle about
+        it, about a quarter on transits across it); per transponder
+        ``azimuth_coverage_deg`` (360 minus the largest gap between the azimuths
+        of the ship seen from it) and
         ``max_incidence_deg`` (the largest angle of the ray from the vertical).
 
     Examples
@@ -192,7 +195,10 @@ def track_geometry(shots, enu) -> dict:
     tid = shots["transponder"].astype(str).to_numpy()
     depth = float(np.mean([u.mean() - p[2] for p in enu.values()]))
     lam = np.linalg.eigvalsh(np.cov(np.vstack([e, n]))) if e.size > 2 else np.zeros(2)
-    out = {"spread_over_depth": float(np.sqrt(max(lam[0], 0.0)) / depth), "transponders": {}}
+    centre = np.mean([p[:2] for p in enu.values()], axis=0)
+    near = np.hypot(e - centre[0], n - centre[1]) < CENTRAL_RADIUS * depth
+    out = {"spread_over_depth": float(np.sqrt(max(lam[0], 0.0)) / depth),
+           "central_fraction": float(near.mean()) if near.size else 0.0, "transponders": {}}
     for t, p in enu.items():
         sel = tid == str(t)
         if not sel.any():
@@ -259,6 +265,10 @@ def position_constraints(header, ids=None):
 
 #: Least ``spread_over_depth`` of the track (:func:`track_geometry`) for the gradients.
 MIN_SPREAD = 0.3
+#: Horizontal distance from the array's centre, in depths, of a shot "over the array".
+CENTRAL_RADIUS = 0.3
+#: Least share of shots over the array (the track crosses it) for the gradients.
+MIN_CENTRAL = 0.05
 #: Shortest campaign (hours of shots) on which the gradients are fitted by default.
 MIN_GRADIENT_HOURS = 2.0
 #: The choices of ``gradients`` (``locate --gradients``).
@@ -269,7 +279,8 @@ def gradient_gate(shots, priors, speed_intervals=None):
     """Return whether the survey can fit the horizontal gradients, and why (not).
 
     The conditions (the smooth speed, three transponders, :data:`MIN_GRADIENT_HOURS`, a
-    track spread of :data:`MIN_SPREAD`) and their reasons: ``docs/gnssa.md``.
+    track spread of :data:`MIN_SPREAD` that crosses the array, :data:`MIN_CENTRAL`) and
+    their reasons: ``docs/gnssa.md``.
 
     Parameters
     ----------
@@ -302,11 +313,18 @@ def gradient_gate(shots, priors, speed_intervals=None):
                            "gradients' constant and trend would trade against the positions")
     geo = track_geometry(shots, {t: priors.loc[t, ["east", "north", "up"]].to_numpy(float)
                                  for t in ids})
-    spread = geo["spread_over_depth"]
+    spread, central = geo["spread_over_depth"], geo["central_fraction"]
     if spread < MIN_SPREAD:
         return False, (f"the track spreads over {spread:.2f} of the depth (need "
                        f"{MIN_SPREAD}): the shallow gradient is not identifiable")
-    return True, f"the track spreads over {spread:.2f} of the depth, {len(ids)} transponders"
+    if central < MIN_CENTRAL:
+        return False, (f"the track does not cross the array ({100 * central:.0f} % of the "
+                       f"shots within {CENTRAL_RADIUS:g} depths of its centre, need "
+                       f"{100 * MIN_CENTRAL:g} %): around a circle the shallow gradient "
+                       "trades against the horizontal position, which the circle's symmetry "
+                       "already protects from it")
+    return True, (f"the track spreads over {spread:.2f} of the depth and crosses the array "
+                  f"({100 * central:.0f} % of the shots over it), {len(ids)} transponders")
 
 
 def _gradient_choice(gradients):

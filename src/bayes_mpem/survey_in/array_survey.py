@@ -267,8 +267,6 @@ def position_constraints(header, ids=None):
 MIN_SPREAD = 0.3
 #: Horizontal distance from the array's centre, in depths, of a shot "over the array".
 CENTRAL_RADIUS = 0.3
-#: Least share of shots over the array (the track crosses it) for the gradients.
-MIN_CENTRAL = 0.05
 #: Shortest campaign (hours of shots) on which the gradients are fitted by default.
 MIN_GRADIENT_HOURS = 2.0
 #: The choices of ``gradients`` (``locate --gradients``).
@@ -279,8 +277,7 @@ def gradient_gate(shots, priors, speed_intervals=None):
     """Return whether the survey can fit the horizontal gradients, and why (not).
 
     The conditions (the smooth speed, three transponders, :data:`MIN_GRADIENT_HOURS`, a
-    track spread of :data:`MIN_SPREAD` that crosses the array, :data:`MIN_CENTRAL`) and
-    their reasons: ``docs/gnssa.md``.
+    track spread of :data:`MIN_SPREAD`) and their reasons: ``docs/gnssa.md``.
 
     Parameters
     ----------
@@ -313,18 +310,11 @@ def gradient_gate(shots, priors, speed_intervals=None):
                            "gradients' constant and trend would trade against the positions")
     geo = track_geometry(shots, {t: priors.loc[t, ["east", "north", "up"]].to_numpy(float)
                                  for t in ids})
-    spread, central = geo["spread_over_depth"], geo["central_fraction"]
+    spread = geo["spread_over_depth"]
     if spread < MIN_SPREAD:
         return False, (f"the track spreads over {spread:.2f} of the depth (need "
                        f"{MIN_SPREAD}): the shallow gradient is not identifiable")
-    if central < MIN_CENTRAL:
-        return False, (f"the track does not cross the array ({100 * central:.0f} % of the "
-                       f"shots within {CENTRAL_RADIUS:g} depths of its centre, need "
-                       f"{100 * MIN_CENTRAL:g} %): around a circle the shallow gradient "
-                       "trades against the horizontal position, which the circle's symmetry "
-                       "already protects from it")
-    return True, (f"the track spreads over {spread:.2f} of the depth and crosses the array "
-                  f"({100 * central:.0f} % of the shots over it), {len(ids)} transponders")
+    return True, f"the track spreads over {spread:.2f} of the depth, {len(ids)} transponders"
 
 
 def _gradient_choice(gradients):

@@ -253,3 +253,14 @@ def test_a_staggered_schedule_without_outliers():
     z = (m - sim.truth["transponders"].to_numpy().mean(axis=0)) / np.sqrt(np.diag(C))
     assert np.all(np.abs(z) < 3), z
     assert fit.n_spurious(0) + fit.n_spurious(1) + fit.n_spurious(2) + fit.n_spurious(3) == 0
+
+
+def test_a_stiff_spline_s_evidence_is_not_round_off():
+    """Speed coefficients near 1 under a weight near 1e7-1e13: ``c'Hc`` taken directly lost
+    hundreds of nats to round-off (``lam c'Hc`` of -312 on this campaign; the evidence
+    jumped by thousands of nats along its grid and put the weight at its edge, 10^13.4)."""
+    sim = simulate_gnssa(rng=1, hours=1.0, shot_interval=30.0, speed_model="field")
+    fit = locate_array_survey(sim.raw()).fits["array"]
+    ll = np.asarray(fit.model["smoothing"]["grid"]["log_evidence"])
+    assert 0 < int(np.argmax(ll)) < ll.size - 1
+    assert np.abs(np.diff(ll)).max() < 20.0  # measured 2.8

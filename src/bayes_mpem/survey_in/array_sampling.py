@@ -46,6 +46,8 @@ MOVES_LABEL = ("MHMove 1.0 (independence proposal: log sigma, the shares, then t
                "given sigma)")
 #: ``log_smoothing``'s prior: flat over the EM's grid of smoothing weights (natural log)
 SMOOTHING_RANGE = tuple(float(np.log(10.0) * x) for x in (WEIGHT_GRID[0], WEIGHT_GRID[-1]))
+#: rows of parameters whose likelihood one call evaluates together (memory: rows x shots)
+CHUNK = 256
 #: differential evolution stops before its chain (kept whole by emcee) exceeds this
 CHAIN_BYTES = 1e9
 #: the three axes of a position
@@ -386,6 +388,8 @@ class ArrayLogPosterior:
     def __call__(self, u):
         """Log posterior (up to a constant) of a ``(W, ndim)`` array: emcee's target.
 
+        Evaluated :data:`CHUNK` rows at a time (each row costs the shots' predictions).
+
         Parameters
         ----------
         u : numpy.ndarray
@@ -397,9 +401,10 @@ class ArrayLogPosterior:
         """
         u = np.atleast_2d(u)
         lp = self.log_prior(u)
-        ok = np.isfinite(lp)
-        if ok.any():
-            lp[ok] += self.loglik(u[ok])
+        for i in range(0, u.shape[0], CHUNK):
+            ok = np.flatnonzero(np.isfinite(lp[i:i + CHUNK])) + i
+            if ok.size:
+                lp[ok] += self.loglik(u[ok])
         return lp
 
     def natural(self, u) -> dict:
@@ -517,7 +522,7 @@ class ConditionalProposal:
         pts = np.repeat(self.centre[None], 2 * ng, axis=0)
         pts[np.arange(ng), np.arange(ng)] += h
         pts[ng + np.arange(ng), np.arange(ng)] -= h
-        lp = _chunked(post, pts)
+        lp = post(pts)
         total = (lp[:ng] - lp[ng:]) / (2.0 * h)
         pen = np.zeros(ng)
         if post.smooth:
@@ -583,7 +588,7 @@ class ConditionalProposal:
         pts[:, ng] = grid[:, 0]
         if self.smooth:
             pts[:, -1] = grid[:, 1]
-        lm = _chunked(post, pts) - 0.5 * np.sum(np.log(self._d(rho, kappa)), axis=1)
+        lm = post(pts) - 0.5 * np.sum(np.log(self._d(rho, kappa)), axis=1)
         if np.sum(np.isfinite(lm)) < 3:
             raise ValueError("the hyperparameters' marginal has fewer than 3 points inside "
                              "the support")
@@ -660,11 +665,6 @@ class ConditionalProposal:
         out += np.sum(-self.a * np.logaddexp(0.0, -lw) - self.b * np.logaddexp(0.0, lw)
                       - self.lbeta, axis=1)
         return out
-
-
-def _chunked(post, u, size=256):
-    """``post(u)`` a block of rows at a time (each row costs the shots' predictions)."""
-    return np.concatenate([post(u[i:i + size]) for i in range(0, u.shape[0], size)])
 
 
 def _proposal_start(post, proposal, n, gen, rounds=1000):

@@ -24,6 +24,7 @@ from .array import (
     WEIGHT_GRID,
     ArrayLocateResult,
     ArrayTravelTimes,
+    _null_shifted,
     gradient_design,
     penalised_gauss_newton,
 )
@@ -165,20 +166,19 @@ class ArrayLogPosterior:
         sd = np.sqrt(np.maximum(np.diag(cov), 1e-300))
         self.scale = np.concatenate([np.ones(self.F), sd[self.F:]])
         self.cov_geo = cov / np.outer(self.scale, self.scale)
-        # H annihilates a constant: H (c - mean) is H c without the round-off of c near 1
-        self.Hc = (None if self.H is None
-                   else self.H @ (self.coef_em - self.coef_em.mean()))
-        self.Hg = (None if self.H is None or not self.kg else
-                   np.concatenate([self.H @ g for g in self.gc_em.reshape(-1, self.k)]))
         #: the smoothing weights are sampled, as one scale ``exp(log_smoothing)`` of the EM's
         self.smooth = self.H is not None
+        # H c and c'Hc without the round-off of coefficients near 1 (array._null_shifted)
+        c0 = _null_shifted(self.coef_em, self.H) if self.smooth else None
+        self.Hc = None if c0 is None else self.H @ c0
+        self.Hg = (None if self.H is None or not self.kg else
+                   np.concatenate([self.H @ g for g in self.gc_em.reshape(-1, self.k)]))
         if self.smooth:
             # the second-derivative penalty's rank: k - 2 per block (a threshold on its
             # eigenvalues miscounts from about 600 knots)
             blocks = 1 + (self.kg // self.k if self.kg and self.lam_g is not None else 0)
             self.pen_rank = blocks * max(self.k - 2, 0)
-            dc = self.coef_em - self.coef_em.mean()  # H annihilates a constant
-            q = self.lam * dc @ self.H @ dc
+            q = self.lam * c0 @ self.H @ c0
             if self.kg and self.lam_g is not None:
                 q += self.lam_g * sum(g @ self.H @ g for g in self.gc_em.reshape(-1, self.k))
             self.pen_em = float(q)

@@ -774,7 +774,7 @@ def log_evidence(J, r, theta, H, sigma, lam, rank=None, H_fixed=None):
         JtJ, Jtr = J.T @ J / sigma**2, J.T @ r / sigma**2
     Q = lam * H if H_fixed is None else lam * H + H_fixed
     A = JtJ + Q
-    theta = _null_shifted(theta, Q)
+    theta = null_shifted(theta, Q)
     d = np.diag(A).copy()
     d[d <= 0] = 1.0
     s = 1.0 / np.sqrt(d)  # unit diagonal: log|A| = log|S A S| + sum(log d)
@@ -794,13 +794,30 @@ def log_evidence(J, r, theta, H, sigma, lam, rank=None, H_fixed=None):
     return float(logml), step, A
 
 
-def _null_shifted(theta, Q):
-    """``theta`` less the mean of its penalised entries, where ``Q`` annihilates constants.
+def null_shifted(theta, Q):
+    """Return ``theta`` less the mean of its penalised entries, where ``Q`` annihilates constants.
 
     ``Q theta`` and ``theta' Q theta`` are unchanged in exact arithmetic; with speed
     coefficients near 1 and a weight near 1e13, evaluated directly they cancelled to
-    round-off of hundreds of nats (``lam c'Hc`` came out -312 on a 1-hour campaign and the
-    evidence put the weight at its grid's edge).
+    round-off of hundreds of nats (docs/gnssa.md, "Choosing lambda").
+
+    Parameters
+    ----------
+    theta : array_like
+        ``(P,)`` parameters.
+    Q : numpy.ndarray
+        ``(P, P)`` penalty; its nonzero rows are the penalised entries.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``theta`` itself where ``Q`` does not annihilate a constant on those entries.
+
+    Examples
+    --------
+    >>> Q = np.array([[0.0, 0.0, 0.0], [0.0, 1.0, -1.0], [0.0, -1.0, 1.0]])
+    >>> null_shifted(np.array([5.0, 1.0, 3.0]), Q).tolist()
+    [5.0, -1.0, 1.0]
     """
     on = np.any(Q != 0.0, axis=1)
     if not on.any():
@@ -963,8 +980,8 @@ def penalised_gauss_newton(resid, jac, theta, Q, *, max_steps=50, rtol=1e-12):
     >>> np.round(th, 6).tolist()
     [1.0, 0.5]
     """
-    def penalty(t):  # without the round-off of coefficients near 1 (_null_shifted)
-        tc = _null_shifted(t, Q)
+    def penalty(t):  # without the round-off of coefficients near 1 (null_shifted)
+        tc = null_shifted(t, Q)
         return tc @ Q @ tc
 
     th = np.asarray(theta, float).copy()
@@ -974,7 +991,7 @@ def penalised_gauss_newton(resid, jac, theta, Q, *, max_steps=50, rtol=1e-12):
     for _ in range(max_steps):
         J = jac(th)
         A = J.T @ J + Q
-        g = J.T @ r + Q @ _null_shifted(th, Q)
+        g = J.T @ r + Q @ null_shifted(th, Q)
         d = np.diag(A).copy()
         d[d <= 0] = 1.0
         s = 1.0 / np.sqrt(d)

@@ -24,8 +24,8 @@ from .array import (
     WEIGHT_GRID,
     ArrayLocateResult,
     ArrayTravelTimes,
-    _null_shifted,
     gradient_design,
+    null_shifted,
     penalised_gauss_newton,
 )
 from .classes import log_classes, true_probability
@@ -168,8 +168,8 @@ class ArrayLogPosterior:
         self.cov_geo = cov / np.outer(self.scale, self.scale)
         #: the smoothing weights are sampled, as one scale ``exp(log_smoothing)`` of the EM's
         self.smooth = self.H is not None
-        # H c and c'Hc without the round-off of coefficients near 1 (array._null_shifted)
-        c0 = _null_shifted(self.coef_em, self.H) if self.smooth else None
+        # H c and c'Hc without the round-off of coefficients near 1 (array.null_shifted)
+        c0 = null_shifted(self.coef_em, self.H) if self.smooth else None
         self.Hc = None if c0 is None else self.H @ c0
         self.Hg = (None if self.H is None or not self.kg else
                    np.concatenate([self.H @ g for g in self.gc_em.reshape(-1, self.k)]))

@@ -31,6 +31,22 @@ def test_smooth_intervals():
     assert smooth_intervals((0.0, 10.0), 10.0) == 1
 
 
+@pytest.mark.parametrize("n", [24, 800, 2000])
+def test_the_evidence_counts_the_penalty_s_rank_on_long_campaigns(n):
+    # a second-derivative penalty has rank k - 2 per block (k coefficients); a threshold at
+    # 1e-10 of the largest eigenvalue counted one or two fewer from about 600 knots (50 h of
+    # 5-minute knots), and one threshold for two blocks weighted apart counted fewer still
+    from scipy.linalg import block_diag
+
+    H = speed_penalty(n, (0.0, 300.0 * n))
+    k = H.shape[0]
+    for pen, rank in ((H, k - 2), (block_diag(np.zeros((3, 3)), H, 3e5 * H), 2 * (k - 2))):
+        m = pen.shape[0]
+        J, r, theta = np.eye(m), np.linspace(-1.0, 1.0, m), np.zeros(m)
+        assert log_evidence(J, r, theta, pen, 1.0, 10.0)[0] == pytest.approx(
+            log_evidence(J, r, theta, pen, 1.0, 10.0, rank)[0], abs=1e-9)
+
+
 def test_the_evidence_picks_the_smoothing_a_smooth_truth_needs():
     gen = np.random.default_rng(0)
     n, span = 40, (0.0, 4 * 3600.0)

@@ -318,6 +318,25 @@ def swap_cases():
 
 
 swap_cases()
+#: the unbroken campaigns (set by ``main``), for the cases that take another campaign's file
+CAMPAIGNS: dict = {}
+
+
+def cross(campaign, name, other, other_name):
+    """Register: ``name`` replaced by another campaign's ``other_name``."""
+    def fn(f):
+        shutil.copy(CAMPAIGNS[other][0] / other_name, f / name)
+        return {"file": name}
+    CASES.append(Case(f"{campaign}:{name}:is-{other}-{other_name}", campaign, fn, ("refused",)))
+
+
+cross("garpos", GARPOS_OBS, "seagap", "obsdata.inp")
+cross("garpos", GARPOS_SVP, "gnatss", "ctd_sv")
+cross("garpos", GARPOS_INI, "gnatss", "config.yaml")
+cross("gnatss", "pxp_tt", "seagap", "obsdata.inp")
+cross("gnatss", "ctd_sv", "seagap", "ss_prof.inp")
+cross("seagap", "obsdata.inp", "garpos", GARPOS_OBS)
+cross("seagap", "ss_prof.inp", "garpos", GARPOS_SVP)
 
 
 # -- GARPOS obs.csv
@@ -687,7 +706,7 @@ def _(f):
     return {"file": GARPOS_SVP, "line": 7}
 
 
-for _v in ("0", "-1500", "15000", "nan", "abc", "", "1500 m/s"):
+for _v in ("0", "-1500", "15000", "nan", "abc", "", "1500 m/s", "1.5"):
     CASES.append(Case(f"garpos:svp:speed={_v!r}", "garpos",
                       (lambda v: lambda f: on_line(f, GARPOS_SVP, "garpos_svp", 10,
                                                    lambda s: set_field(s, 1, v)))(_v),
@@ -1339,6 +1358,7 @@ def main(argv=None):
         root = Path(tmp)
         root.chmod(0o755)  # the permission cases run as an unprivileged user
         campaigns = make_campaigns(root / "campaigns")
+        CAMPAIGNS.update(campaigns)
         base = baselines(campaigns, root, args.timeout)
         for k, c in enumerate(cases):
             work = root / f"case{k}"

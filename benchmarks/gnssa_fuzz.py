@@ -930,12 +930,17 @@ def pos_line(pick, fn):
     return lambda f: on_line(f, "POS_FREED_TRANS_TWTT", "gnatss_pos", pick, fn)
 
 
+def needs_position(fn):
+    """The position line broken is one a reply needs: when ok, a reply is not fitted."""
+    return lambda f: {**fn(f), "not_fitted": 1}
+
+
 for _k, _v in [(1, "abc"), (1, "nan"), (2, "inf"), (0, "abc"), (4, "-4.0E-04"), (4, "nan"),
                (1, "-4019.0355738")]:
-    CASES.append(Case(f"gnatss:pos:field{_k}={_v!r}", "gnatss",
-                      pos_line(30, (lambda k, v: lambda s: set_field(s, k, v, None))(_k, _v))))
+    CASES.append(Case(f"gnatss:pos:field{_k}={_v!r}", "gnatss", needs_position(
+        pos_line(30, (lambda k, v: lambda s: set_field(s, k, v, None))(_k, _v)))))
 CASES.append(Case("gnatss:pos:missing-column", "gnatss",
-                  pos_line(30, lambda s: drop_field(s, 12, None))))
+                  needs_position(pos_line(30, lambda s: drop_field(s, 12, None)))))
 
 
 @case("gnatss:pos:same-time-two-positions", "gnatss")
@@ -945,7 +950,7 @@ def _(f):
     parts[1] = f"{float(parts[1]) + 500.0:.4f}"
     lines.insert(31, " ".join(parts) + "\n")
     write(f / "POS_FREED_TRANS_TWTT", lines)
-    return {"file": "POS_FREED_TRANS_TWTT", "line": 32}
+    return {"file": "POS_FREED_TRANS_TWTT", "line": 32, "not_fitted": 1}
 
 
 @case("gnatss:pos:in-km", "gnatss", ("refused",))
@@ -1290,6 +1295,8 @@ def judge_ok(c, out, folder, hint, baseline):
         if d > 1e-3:
             return "FAIL", f"the array centre moved {d:.4f} m from the unbroken campaign's"
     n_skip = sum(r["label"] not in ("true", "spurious") for r in rows)
+    if n_skip < hint.get("not_fitted", 0):
+        return "FAIL", f"{n_skip} rows not fitted; a broken line was used all the same"
     return "ok", f"{len(rows)} rows, {n_skip} not fitted"
 
 

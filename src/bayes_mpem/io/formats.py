@@ -70,6 +70,8 @@ def sniff_format(path) -> str:
     FileNotFoundError, InputError
     """
     path = Path(path)
+    if path.is_dir():
+        raise InputError(f"survey file {str(path)!r} is a folder; expected a file")
     if not path.is_file():
         raise FileNotFoundError(f"survey file not found: {str(path)!r}")
     lines = _first_lines(path)
@@ -84,7 +86,7 @@ def sniff_format(path) -> str:
             s.lower().startswith(("drop point", "ranging data taken")) for s in lines):
         return "obsrange-sio"
     data = [s for s in lines if not s.startswith("#")]
-    if data and all(len(s.split()) == 18 for s in data[:5]):
+    if data and 2 * sum(len(s.split()) == 18 for s in data[:5]) > len(data[:5]):  # one bad line
         return "seagap"
     raise InputError(f"{path}: not a survey format bayes-mpem recognises (tried "
                      f"{', '.join(FORMATS)}); give --format")

@@ -32,13 +32,15 @@ OBS_RANGES = {"TT": (0.0, 60.0, True), "ST": (None, None, False), "RT": (None, N
 UNKNOWN_STATION = "M00"
 
 
-def resolve_path(text, base) -> Path:
+def resolve_path(text, base, source=None) -> Path:
     """Find a file a control file names: from the working folder, else from ``base``.
 
     Parameters
     ----------
     text : str
     base : str or pathlib.Path
+    source : str, optional
+        Where the name was read (e.g. ``"site.ini line 8 (datacsv)"``), to begin the messages.
 
     Returns
     -------
@@ -48,13 +50,22 @@ def resolve_path(text, base) -> Path:
     ------
     FileNotFoundError
         Naming every place looked at.
+    InputError
+        An empty name, or a name that is a folder.
     """
-    p = Path(str(text).strip())
+    name = str(text).strip() if text is not None else ""
+    lead = f"{source}: " if source else ""
+    if not name:
+        raise InputError(f"{lead}expected a file name, got {name!r}")
+    p = Path(name)
     tried = [p] if p.is_absolute() else [Path.cwd() / p, Path(base) / p]
     for cand in tried:
         if cand.is_file():
             return cand
-    raise FileNotFoundError(f"{str(text).strip()!r} not found (looked at "
+    folder = next((c for c in tried if c.is_dir()), None)
+    if folder is not None:
+        raise InputError(f"{lead}{name!r} is a folder ({folder}); expected a file")
+    raise FileNotFoundError(f"{lead}{name!r} not found (looked at "
                             + " and ".join(str(c) for c in tried) + ")")
 
 
@@ -106,12 +117,21 @@ def _values(ini, path, section, key, n, names, ranges=None):
 
 
 def _sigmas(ini, path, key):
-    """Return the sigmas (fields 4-6) of a position key; None where absent (0 fixes it)."""
-    parts = _get(ini, path, "Model-parameter", key)[0].split()[3:6]
-    try:
-        return [abs(float(v)) for v in parts] + [None] * (3 - len(parts))
-    except ValueError:
-        return [None] * 3
+    """Return the sigmas (fields 4-6) of a position key; None where absent (0 fixes it).
+
+    A sigma that is not a finite number of 0 or more is an InputError naming the line: read
+    as free or as its absolute value, it would change what the site file asks for.
+    """
+    text, line = _get(ini, path, "Model-parameter", key)
+    parts = text.split()[3:6]
+    out = []
+    for v, nm in zip(parts, ("sigma_E", "sigma_N", "sigma_U"), strict=False):
+        try:
+            out.append(number(v, f"{key} {nm}", lo=0.0))
+        except ValueError as exc:
+            raise InputError(f"{where(path, line, name=key)}: {exc} (0 fixes the "
+                             "coordinate)") from None
+    return out + [None] * (3 - len(out))
 
 
 def profile_frame(depth, speed, source) -> pd.DataFrame:
@@ -144,6 +164,48 @@ def profile_frame(depth, speed, source) -> pd.DataFrame:
     return pd.DataFrame({"depth": d, "sound_speed": c})
 
 
+def profile_reaches(profile, depths, source) -> pd.DataFrame:
+    """Check that a survey's profile reaches its transponders; return the profile.
+
+    Below its last level a profile's speed is held constant, which is harmless over the last
+    few metres and wrong over hundreds (a profile in km, a cast cut short, the wrong file):
+    a profile ending more than 10 % of the deepest transponder's depth above it is refused.
+
+    Parameters
+    ----------
+    profile : pandas.DataFrame
+        ``depth`` (m below the sea surface, increasing), ``sound_speed``.
+    depths : array_like
+        The transponders' prior depths below the sea surface (m); the index names them.
+    source : str
+        The profile's file, for the message.
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``profile``.
+
+    Raises
+    ------
+    InputError
+    """
+    d = pd.Series(depths, dtype=float)
+    if d.empty:
+        return profile
+    deepest, last = float(d.max()), float(profile["depth"].iloc[-1])
+    if last < 0.9 * deepest:
+        raise InputError(f"{source}: the sound-speed profile ends at {last:g} m, above the "
+                         f"deepest transponder ({d.idxmax()} at {deepest:g} m); expected a "
+                         "profile down to the transponders (depths in m, positive down)")
+    return profile
+
+
+def _named_file(ini, path, section, key) -> Path:
+    """Return the file a site file's ``key`` names; errors name the site file's line."""
+    text, line = _get(ini, path, section, key)
+    return resolve_path(text, Path(path).parent, where(path, line, name=key))
+
+
 def _read_svp(path) -> pd.DataFrame:
     """Read GARPOS's ``svp.csv`` into ``depth`` (m), ``sound_speed`` (m/s)."""
     rows, cols = [], None
@@ -168,6 +230,11 @@ def _read_svp(path) -> pd.DataFrame:
                 vals.append(number(parts[j], name, lo=lo, hi=hi))
             except ValueError as exc:
                 raise InputError(f"{where(path, i, j + 1, name)}: {exc}") from None
+        if rows and vals[0] <= rows[-1][0]:
+            j = cols.index("depth")
+            raise InputError(f"{where(path, i, j + 1, 'depth')}: depths must increase "
+                             f"line after line, got {rows[-1][0]:g} then {vals[0]:g} m (a "
+                             "repeated or swapped level)")
         rows.append(vals)
     if cols is None:
         raise InputError(f"{path}: empty sound-speed profile")
@@ -211,8 +278,8 @@ def _parse_shot(parts, cols, stations):
 
 
 def _read_obs(path, stations, *, strict=False):
-    """Read GARPOS's ``obs.csv`` shots."""
-    rows, skipped, cols = [], [], None
+    """Read GARPOS's ``obs.csv`` shots (a repeated transponder and ``ST`` is skipped)."""
+    rows, skipped, cols, first = [], [], None, {}
     for i, text in enumerate(read_lines(path), start=1):
         s = text.strip()
         if not s or s.startswith("#"):
@@ -220,6 +287,11 @@ def _read_obs(path, stations, *, strict=False):
         parts = s.split(",")
         if cols is None:
             names = [p.strip() for p in parts]
+            twice = sorted({n for n in names if n and names.count(n) > 1})
+            if twice:
+                raise InputError(f"{where(path, i)}: the header names column(s) {twice} "
+                                 "more than once (expected GARPOS's obs.csv: "
+                                 f"{list(OBS_COLUMNS)})")
             cols = {n: j for j, n in enumerate(names) if n}
             missing = [n for n in OBS_COLUMNS if n not in cols]
             if missing:
@@ -237,6 +309,13 @@ def _read_obs(path, stations, *, strict=False):
         except ValueError as exc:
             bad(strict, str(path), i, text, str(exc), skipped)
             continue
+        key = (row["transponder"], row["t_tx"])
+        if key in first:
+            bad(strict, str(path), i, text,
+                f"a second shot of {key[0]} transmitted at ST {key[1]:.6f} (the first is line "
+                f"{first[key]}; a transponder replies once per transmission)", skipped)
+            continue
+        first[key] = i
         rows.append({"line": i, **row})
     if cols is None:
         raise InputError(f"{path}: no header line (expected GARPOS's obs.csv)")
@@ -265,7 +344,6 @@ def read_garpos(site_file, *, obs=None, svp=None, strict=False) -> RawSurvey:
     """
     site_file = Path(site_file)
     ini = _read_ini(site_file)
-    here = site_file.parent
     origin = _values(ini, site_file, "Site-parameter", "Latitude0", 1, ["value"],
                      {"value": {"lo": -90.0, "hi": 90.0}})
     origin += _values(ini, site_file, "Site-parameter", "Longitude0", 1, ["value"],
@@ -274,24 +352,38 @@ def read_garpos(site_file, *, obs=None, svp=None, strict=False) -> RawSurvey:
                       {"value": {"lo": -1e4, "hi": 1e4}})
     text, line = _get(ini, site_file, "Site-parameter", "Stations")
     stations = text.split()
-    if not stations or len(set(stations)) != len(stations):
+    if (not stations or len(set(stations)) != len(stations)
+            or any(ch in text for ch in ",;")):
         raise InputError(f"{where(site_file, line, name='Stations')}: expected distinct "
-                         f"transponder names, got {text!r}")
-    cent = (_values(ini, site_file, "Model-parameter", "dCentPos", 3, ["east", "north", "up"])
+                         f"transponder names separated by spaces, got {text!r}")
+    for st in stations:
+        if f"{st}_dPos" not in ini.get("Model-parameter", {}):
+            raise InputError(f"{where(site_file, line, name='Stations')}: station {st!r} has "
+                             f"no '{st}_dPos' in [Model-parameter]")
+    horizontal = {"lo": -1e5, "hi": 1e5}
+    cent = (_values(ini, site_file, "Model-parameter", "dCentPos", 3, ["east", "north", "up"],
+                    {"east": horizontal, "north": horizontal,
+                     "up": {"lo": -12000.0, "hi": 12000.0}})
             if "dCentPos" in ini.get("Model-parameter", {}) else [0.0, 0.0, 0.0])
     pos, sig = {}, {}
     for st in stations:
         e, n, u = _values(ini, site_file, "Model-parameter", f"{st}_dPos", 3,
-                          ["east", "north", "up"], {"up": {"lo": -12000.0, "hi": 0.0}})
+                          ["east", "north", "up"], {"east": horizontal, "north": horizontal,
+                                                    "up": {"lo": -12000.0, "hi": 0.0}})
         pos[st] = (e + cent[0], n + cent[1], u + cent[2])
+        if not -12000.0 <= pos[st][2] <= 0.0:
+            key = f"{st}_dPos"
+            at = where(site_file, ini["Model-parameter"][key][1], name=key)
+            raise InputError(f"{at}: up + dCentPos up = {pos[st][2]:g} m; expected a seafloor "
+                             "transponder, in [-12000, 0] m")
         sig[st] = _sigmas(ini, site_file, f"{st}_dPos")
     atd = _values(ini, site_file, "Model-parameter", "ATDoffset", 3,
                   ["forward", "rightward", "downward"],
                   {k: {"lo": -100.0, "hi": 100.0} for k in ("forward", "rightward", "downward")})
-    obs_path = Path(obs) if obs is not None else resolve_path(
-        _get(ini, site_file, "Data-file", "datacsv")[0], here)
-    svp_path = Path(svp) if svp is not None else resolve_path(
-        _get(ini, site_file, "Obs-parameter", "SoundSpeed")[0], here)
+    obs_path = Path(obs) if obs is not None else _named_file(ini, site_file, "Data-file",
+                                                              "datacsv")
+    svp_path = Path(svp) if svp is not None else _named_file(ini, site_file, "Obs-parameter",
+                                                              "SoundSpeed")
     rows, skipped = _read_obs(obs_path, stations, strict=strict)
     if not rows:
         raise InputError(f"{obs_path}: no shot lines found ({len(skipped)} lines skipped)")
@@ -302,7 +394,9 @@ def read_garpos(site_file, *, obs=None, svp=None, strict=False) -> RawSurvey:
               "campaign": _get(ini, site_file, "Obs-parameter", "Campaign", ("", 0))[0],
               "lat": origin[0], "lon": origin[1], "height": origin[2],
               "transponders": transponders, "atd_offset": np.asarray(atd, float),
-              "ss_prof": _read_svp(svp_path), "ss_prof_source": svp_path.name,
+              "ss_prof": profile_reaches(_read_svp(svp_path), -transponders["up"],
+                                         str(svp_path)),
+              "ss_prof_source": svp_path.name,
               "surface_depth": 0.0,
               "position_sigmas": pd.DataFrame(sig, index=["east", "north", "up"]).T,
               "centre_sigmas": (_sigmas(ini, site_file, "dCentPos")

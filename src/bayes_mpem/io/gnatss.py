@@ -15,7 +15,7 @@ import pandas as pd
 
 from ..exceptions import InputError
 from .fields import number, where
-from .garpos import profile_frame, resolve_path
+from .garpos import profile_frame, profile_reaches, resolve_path
 from .geodesy import atd_offset_enu, ecef_to_enu, enu_to_ecef, enu_to_geodetic, geodetic_to_enu
 from .raw import RawSurvey, bad, read_lines
 from .results import output_folder
@@ -41,6 +41,24 @@ def _yaml_node(root, keys):
     return node
 
 
+def _no_repeated_keys(node, path):
+    """Refuse a key given twice in one mapping (YAML keeps the last one silently)."""
+    import yaml
+
+    if isinstance(node, yaml.MappingNode):
+        seen = {}
+        for k, v in node.value:
+            name = getattr(k, "value", None)
+            if isinstance(name, str) and name in seen:
+                raise InputError(f"{where(path, k.start_mark.line + 1, name=name)}: {name!r} "
+                                 f"given twice in one mapping (first at line {seen[name]})")
+            seen[name] = k.start_mark.line + 1
+            _no_repeated_keys(v, path)
+    elif isinstance(node, yaml.SequenceNode):
+        for v in node.value:
+            _no_repeated_keys(v, path)
+
+
 class _Config:
     """The config's values with the line each came from."""
 
@@ -59,6 +77,7 @@ class _Config:
                              f"({getattr(exc, 'problem', exc)})") from None
         if not isinstance(self.data, dict):
             raise InputError(f"{path}: expected a YAML mapping (GNATSS's config.yaml)")
+        _no_repeated_keys(self.root, path)
 
     def get(self, *keys, default=KeyError):
         node = self.data
@@ -72,6 +91,19 @@ class _Config:
                 return default
         return node
 
+    def where(self, *keys) -> str:
+        """Name the config's line holding ``keys`` (the file alone when not found)."""
+        node = _yaml_node(self.root, keys)
+        line = None if node is None else node.start_mark.line + 1
+        return where(self.path, line, name=".".join(map(str, keys)))
+
+    def flag(self, *keys, default):
+        """Return a true/false value (``true``/``false``, 1/0); else raise, naming the line."""
+        value = self.get(*keys, default=default)
+        if not isinstance(value, bool) and value not in (0, 1):
+            raise InputError(f"{self.where(*keys)}: expected true or false, got {value!r}")
+        return bool(value)
+
     def number(self, *keys, default=KeyError, **limits):
         value = self.get(*keys, default=default)
         try:
@@ -83,16 +115,20 @@ class _Config:
 
 
 def _paths(cfg, key):
-    text = str(cfg.get("solver", "input_files", key, "path"))
+    keys = ("solver", "input_files", key, "path")
+    value = cfg.get(*keys)
+    text = "" if value is None else str(value)
     base = cfg.path.parent
     if any(ch in text for ch in "*?["):
         for root in (Path.cwd(), base):
-            found = sorted(glob.glob(str(root / text) if not Path(text).is_absolute()
-                                     else text, recursive=True))
+            found = sorted(f for f in glob.glob(str(root / text) if not Path(text).is_absolute()
+                                                else text, recursive=True)
+                           if Path(f).is_file())
             if found:
                 return [Path(f) for f in found]
-        raise FileNotFoundError(f"{key}: no file matches {text!r} (from {Path.cwd()} or {base})")
-    return [resolve_path(text, base)]
+        raise FileNotFoundError(f"{cfg.where(*keys)}: no file matches {text!r} (from "
+                                f"{Path.cwd()} or {base})")
+    return [resolve_path(text, base, cfg.where(*keys))]
 
 
 def _transponders(cfg):
@@ -160,8 +196,11 @@ def _data_lines(paths):
 
 
 def _read_positions(paths, std_dev, strict, skipped):
-    """Map times (J2000 s, rounded) to (x, y, z, 3-D sigma) from POS_FREED_TRANS_TWTT files."""
-    out = {}
+    """Map times (J2000 s, rounded) to (x, y, z, 3-D sigma) from POS_FREED_TRANS_TWTT files.
+
+    A time given twice with two different positions maps to the reason it is not used.
+    """
+    out, first = {}, {}
     for path, i, text, parts in _data_lines(paths):
         try:
             if len(parts) != 13:
@@ -178,29 +217,41 @@ def _read_positions(paths, std_dev, strict, skipped):
             if not 6.2e6 < r < 6.5e6:
                 raise ValueError(f"columns 2-4: {r:.0f} m from the Earth's centre, not "
                                  "at the sea surface (6.2e6-6.5e6 m)")
+            neg = [j for j in (4, 8, 12) if v[j] < 0]
+            if neg:
+                raise ValueError(f"column {neg[0] + 1} (covariance): a variance of "
+                                 f"{v[neg[0]]:g}; expected 0 or more")
         except ValueError as exc:
             bad(strict, str(path), i, text, str(exc), skipped)
             skipped[-1] = (*skipped[-1], str(path))
             continue
         diag = np.array([v[4], v[8], v[12]])
-        sig = float(np.sqrt(np.sum(diag**2) if std_dev else np.sum(np.abs(diag))))
-        out[round(v[0], TIME_DECIMALS)] = (v[1], v[2], v[3], sig)
+        sig = float(np.sqrt(np.sum(diag**2) if std_dev else np.sum(diag)))
+        t = round(v[0], TIME_DECIMALS)
+        if t in first and isinstance(out[t], tuple) and out[t][:3] != (v[1], v[2], v[3]):
+            out[t] = (f"two different positions at {v[0]:.6f} (J2000 s): {first[t][0]} line "
+                      f"{first[t][1]} and line {i}")
+            continue
+        if t not in first:
+            first[t] = (str(path), i)
+            out[t] = (v[1], v[2], v[3], sig)
     return out
 
 
 def _interrogation_time(parts, n):
     """J2000 seconds of a pxp_tt line and the index of its first travel time."""
     if _DATE.match(parts[0]):
-        if len(parts) < 2 + n:
+        if len(parts) != 2 + n:
             raise ValueError(f"expected a date, a time and {n} travel times, got "
-                             f"{len(parts)} fields")
+                             f"{len(parts)} fields (one travel time per transponder of the "
+                             "config)")
         try:
             t = datetime.strptime(f"{parts[0].upper()} {parts[1]}", "%d-%b-%y %H:%M:%S.%f")
         except ValueError:
             raise ValueError(f"columns 1-2: expected a time like '26-JUN-23 00:00:07.00', got "
                              f"{parts[0] + ' ' + parts[1]!r}") from None
         return (t - J2000).total_seconds(), 2
-    if len(parts) < 1 + n:
+    if len(parts) != 1 + n:
         raise ValueError(f"expected a J2000 time and {n} travel times, got {len(parts)} fields")
     return number(parts[0], "column 1 (J2000 time)"), 1
 
@@ -210,16 +261,21 @@ def _read_travel_times(paths, tp, cfg, positions, strict, skipped):
              + cfg.number("solver", "travel_times_correction", default=0.0, lo=-10.0, hi=10.0))
     limit = cfg.number("solver", "gps_sigma_limit", default=0.05, lo=0.0, lo_open=True)
     ids, delays, n = list(tp.index), tp["internal_delay"].to_numpy(), len(tp)
-    rows = []
+    rows, first = [], {}
     for path, i, text, parts in _data_lines(paths):
         try:
             t0, j0 = _interrogation_time(parts, n)
+            t_key = round(t0, TIME_DECIMALS)
+            if t_key in first:
+                raise ValueError(f"a second interrogation at the time of {first[t_key]} (a "
+                                 "transponder replies once per interrogation)")
             tts = [number(parts[j0 + k], f"column {j0 + k + 1} (transponder {ids[k]}, "
                           "microseconds)", lo=0.0, hi=6e7) for k in range(n)]
         except ValueError as exc:
             bad(strict, str(path), i, text, str(exc), skipped)
             skipped[-1] = (*skipped[-1], str(path))
             continue
+        first[t_key] = f"{Path(path).name} line {i}"
         replies = [(k, tt * 1e-6) for k, tt in enumerate(tts) if tt > 0]
         if not replies:
             skipped.append((i, text, "no reply from any transponder", str(path)))
@@ -232,6 +288,8 @@ def _read_travel_times(paths, tp, cfg, positions, strict, skipped):
             if tt - delays[k] <= 0:
                 reason = (f"travel time {tt:.6f} s is not longer than the internal delay "
                           f"{delays[k]:g} s")
+            elif isinstance(tx, str) or isinstance(rx, str):
+                reason = tx if isinstance(tx, str) else rx
             elif tx is None or rx is None:
                 reason = (f"no position at the {'transmit' if tx is None else 'receive'} "
                           f"time {st if tx is None else rt:.6f} (J2000 s) in the positions "
@@ -282,7 +340,7 @@ def read_gnatss(config, *, strict=False) -> RawSurvey:
         h0 = cfg.number("solver", "array_center", "alt", default=0.0, lo=-1e4, hi=1e4)
     else:
         lat0, lon0, h0 = float(tp["lat"].mean()), float(tp["lon"].mean()), 0.0
-    std_dev = bool(cfg.get("solver", "std_dev", default=True))
+    std_dev = cfg.flag("solver", "std_dev", default=True)
     skipped = []
     tt_paths, pos_paths, ssp_paths = (_paths(cfg, k) for k in
                                       ("travel_times", "gps_solution", "sound_speed"))
@@ -292,7 +350,8 @@ def read_gnatss(config, *, strict=False) -> RawSurvey:
         raise InputError(f"{', '.join(map(str, tt_paths))}: no reply has a position at both its "
                          f"transmit and receive time in {', '.join(map(str, pos_paths))} "
                          f"({len(skipped)} lines or replies skipped; do the files' timings "
-                         "align? check transducer_delay_time)")
+                         f"align? check transducer_delay_time and travel_times_correction in "
+                         f"{cfg.path})")
     p = pd.DataFrame(rows)
     for end in ("tx", "rx"):
         e, n, u = ecef_to_enu(p.pop(f"x_{end}"), p.pop(f"y_{end}"), p.pop(f"z_{end}"),
@@ -304,7 +363,8 @@ def read_gnatss(config, *, strict=False) -> RawSurvey:
                                  "internal_delay": tp["internal_delay"]}, index=tp.index)
     header = {"site": str(cfg.get("site_id", default="")), "lat": lat0, "lon": lon0,
               "height": h0, "transponders": transponders, "atd_offset": None,
-              "ss_prof": _read_profile(ssp_paths),
+              "ss_prof": profile_reaches(_read_profile(ssp_paths), -tp["height"],
+                                         ", ".join(map(str, ssp_paths))),
               "ss_prof_source": ", ".join(f.name for f in ssp_paths),
               "surface_depth": h0 - geoid,
               "geoid_undulation": geoid,

@@ -14,6 +14,7 @@ import pandas as pd
 
 from ..exceptions import InputError
 from .boundary import COMMENT, classify, limit_problem, read_text_lines
+from .garpos import profile_reaches
 from .raw import RawSurvey, bad
 
 # --------------------------------------------------------------------------- SeaGap
@@ -64,7 +65,7 @@ def _numeric_table(path, names, what, kinds, strict, skipped, check=None):
         vals = (f"expected {len(names)} numbers ({what}), got {len(parts)} fields"
                 if len(parts) != len(names) else _values(parts, names, kinds))
         if check is not None and not isinstance(vals, str):
-            vals = check(vals) or vals
+            vals = check({"line": i, **vals}) or vals
         if isinstance(vals, str):
             if skipped is None:
                 raise InputError(f"{path} line {i}: {vals}")
@@ -83,6 +84,19 @@ _COMPANIONS = (
 )
 
 
+def _check_profile(path, frame):
+    """Two levels or more, depths increasing line after line (errors name the line)."""
+    if len(frame) < 2:
+        raise InputError(f"{path}: a sound-speed profile needs 2 or more levels, got "
+                         f"{len(frame)}")
+    d = frame["depth"].to_numpy(float)
+    k = np.flatnonzero(np.diff(d) <= 0)
+    if k.size:
+        raise InputError(f"{path} line {int(frame['line'].iloc[k[0] + 1])}, column 1 (depth): "
+                         f"depths must increase line after line, got {d[k[0]]:g} then "
+                         f"{d[k[0] + 1]:g} m (a repeated or swapped level)")
+
+
 def _companions(here, paths):
     header = {}
     for key, name, cols, kinds in _COMPANIONS:
@@ -94,6 +108,11 @@ def _companions(here, paths):
         if not vals:
             raise InputError(f"{path}: no data lines (expected {len(cols)} numbers a line)")
         frame = pd.DataFrame(vals)
+        if key == "tr_ant" and len(frame) != 1:
+            raise InputError(f"{path} line {vals[1]['line']}: a second lever arm; expected one "
+                             "line of 3 numbers (dx dy dz)")
+        if key == "ss_prof":
+            _check_profile(path, frame)
         if key == "transponders":
             t = frame[["east", "north", "up"]].reset_index(drop=True)
             t.index = [str(k + 1) for k in range(len(t))]
@@ -134,13 +153,26 @@ def read_seagap(obsdata, *, pxp=None, tr_ant=None, ss_prof=None, strict=False) -
     obsdata = Path(obsdata)
     header = _companions(obsdata.parent, {"transponders": pxp, "tr_ant": tr_ant,
                                           "ss_prof": ss_prof})
+    if "ss_prof" in header and "transponders" in header:
+        profile_reaches(header["ss_prof"], -header["transponders"]["up"],
+                        str(ss_prof if ss_prof is not None else obsdata.parent / "ss_prof.inp"))
     skipped = []
     known = list(header["transponders"].index) if "transponders" in header else None
+
+    first = {}
 
     def check(vals):
         if known is not None and str(vals["transponder"]) not in known:
             return (f"transponder {vals['transponder']} is not in pxp-ini.inp (known: "
                     f"{', '.join(known)})")
+        if not 0.0 < vals["t_rx"] - vals["t_tx"] < 120.0:
+            return (f"t_rx (column 10): expected 0-120 s after t_tx, got "
+                    f"{vals['t_rx'] - vals['t_tx']:g} s")
+        key = (vals["transponder"], vals["t_tx"])
+        if key in first:
+            return (f"a second shot of transponder {key[0]} transmitted at {key[1]:.6f} (the "
+                    f"first is line {first[key]}; a transponder replies once per transmission)")
+        first[key] = vals["line"]
         return None
 
     rows = _numeric_table(obsdata, _SEAGAP_COLS, "obsdata.inp columns", _SEAGAP_KINDS, strict,

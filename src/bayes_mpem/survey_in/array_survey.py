@@ -17,6 +17,12 @@ from .ssp import survey_profile
 from .travel_times import speed_basis
 
 
+def _shots_file(raw) -> str:
+    """Name the file of a survey's shots (GARPOS's obs.csv, GNATSS's travel times)."""
+    files = raw.header.get("files", {})
+    return files.get("obs") or ", ".join(files.get("travel_times", [])) or raw.source
+
+
 def array_shots(raw) -> pd.DataFrame:
     """Return an array survey's shots with the transducer's east, north, up at transmit and receive.
 
@@ -35,11 +41,15 @@ def array_shots(raw) -> pd.DataFrame:
     Raises
     ------
     InputError
-        For another format.
+        For another format, or shots all transmitted from one place.
     """
     if raw.format not in (*ARRAY_FORMATS, "seagap"):
         raise InputError(f"{raw.source}: a {raw.format} survey is not an array survey "
                          f"({', '.join(ARRAY_FORMATS)}, seagap)")
+    if max(np.ptp(raw.pings["e_tx"]), np.ptp(raw.pings["n_tx"])) < 1.0:
+        raise InputError(f"{_shots_file(raw)}: every shot was transmitted within 1 m of one "
+                         "place; an array cannot be located from one point (expected a ship's "
+                         "track over the array)")
     pos = raw.transducer_positions()
     shots = raw.pings.copy()
     for end in ("tx", "rx"):
@@ -426,12 +436,15 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
     radius = None if earth == "flat" else (earth_radius(h["lat"]) if "lat" in h
                                            else MEAN_EARTH_RADIUS_M)
     cartesian = radius is not None and raw.format != "seagap"
-    fit = locate_array(shots, h["transponders"], profile=prof,
-                       surface_depth=float(surface_depth),
-                       speed_intervals=speed_intervals, outliers=outliers,
-                       knot_minutes=knot_minutes, fixed=fixed, shift=shift,
-                       gradients=gradients, earth_radius=radius, along_sphere=not cartesian,
-                       exclude=flagged if honour else None)
+    try:
+        fit = locate_array(shots, h["transponders"], profile=prof,
+                           surface_depth=float(surface_depth),
+                           speed_intervals=speed_intervals, outliers=outliers,
+                           knot_minutes=knot_minutes, fixed=fixed, shift=shift,
+                           gradients=gradients, earth_radius=radius, along_sphere=not cartesian,
+                           exclude=flagged if honour else None)
+    except InputError as exc:  # too few shots: name the shots file
+        raise InputError(f"{_shots_file(raw)}: {exc}") from None
     origin = (h["lat"], h["lon"], h.get("height", 0.0)) if "lat" in h else None
     counts = np.bincount(fit.index, minlength=len(fit.ids))
     out = {tid: _transponder_entry(fit, k, ci, origin, counts[k])

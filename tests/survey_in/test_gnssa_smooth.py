@@ -92,6 +92,34 @@ def test_the_default_is_smooth_and_recorded(campaign):
     assert fixed.summary["sound_speed"]["smoothing"] is None
 
 
+def test_a_gap_in_the_shots_is_one_interval_and_changes_nothing(monkeypatch):
+    # two sessions 2 h apart: the knots inside the gap (24 of 5 min) carry no shot, and
+    # only the penalty would set their coefficients; merged into one interval, the fit has
+    # a third of the coefficients (a 21-hour gap: 62.7 s -> 7.3 s, docs/gnssa.md) and the
+    # same answer
+    import dataclasses
+
+    import bayes_mpem.survey_in.array as array_module
+
+    raw = simulate_gnssa(n_transponders=3, hours=3.0, rng=5, speed_model="field").raw()
+    hours = raw.pings["time"].to_numpy(float) / 3600.0
+    raw = dataclasses.replace(raw, pings=raw.pings[(hours < 0.5) | (hours > 2.5)]
+                              .reset_index(drop=True))
+    merged = locate_array_survey(raw)
+    fit = merged.fits["array"]
+    ss = merged.summary["sound_speed"]
+    assert fit.model["equal_intervals"] == 36 and fit.model["speed_intervals"] < 16
+    assert len(ss["gaps_s"]) == 1 and "1 gap(s)" in ss["model"]
+    a, b = ss["gaps_s"][0]
+    assert 0.5 * 3600 - 300 <= a and b <= 2.5 * 3600 + 300 and b - a > 1.5 * 3600
+    monkeypatch.setattr(array_module, "speed_breaks",
+                        lambda t, r, n: np.linspace(r[0], r[1], n + 1))
+    equal = locate_array_survey(raw).fits["array"]
+    assert equal.model["speed_intervals"] == 36 and equal.model["speed_breaks"] is None
+    (m1, C1), (m0, _) = fit.centre(), equal.centre()
+    assert np.all(np.abs(m1 - m0) < 0.1 * np.sqrt(np.diag(C1)))
+
+
 def test_halving_or_doubling_the_knot_spacing_moves_the_centre_less_than_its_sd(campaign):
     raw = campaign.raw()
     m, C = locate_array_survey(raw).fits["array"].centre()

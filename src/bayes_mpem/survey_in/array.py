@@ -16,7 +16,13 @@ from .._validate import check_choice, check_int
 from ..exceptions import InputError, LocateWarning
 from .classes import OUTLIER_MODELS
 from .location import TravelTimeEM, weighted_residuals
-from .travel_times import TravelTimes, smooth_intervals, speed_basis, speed_penalty
+from .travel_times import (
+    TravelTimes,
+    smooth_intervals,
+    speed_basis,
+    speed_breaks,
+    speed_penalty,
+)
 
 #: Fewest shots a transponder needs to be located.
 MIN_SHOTS = 6
@@ -444,6 +450,12 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
         if not float(knot_minutes) > 0:
             raise InputError(f"knot_minutes: expected a positive number, got {knot_minutes}")
         speed_intervals = smooth_intervals(time_range, knot_minutes)
+    equal = int(speed_intervals)
+    breaks = speed_breaks(sub["time"], time_range, equal) if equal else None
+    if breaks is not None and breaks.size == equal + 1:
+        breaks = None  # no gap: the equal intervals, as recorded
+    if breaks is not None:
+        speed_intervals = breaks.size - 1
     start = transponders.loc[list(ids), ["east", "north", "up"]].to_numpy(float)
     z_ship = float(-0.5 * (sub["u_tx"].mean() + sub["u_rx"].mean()))
     z_tp = float(-start[:, 2].mean())
@@ -462,7 +474,7 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
     x_scale = np.array([10.0] * G.shape[1] + [1.0])
     theta = least_squares(resid, x0, jac=jac, args=(_gross_screen(resid(x0), index, K),),
                           loss="cauchy", f_scale=1e-3, x_scale=x_scale).x
-    basis = speed_basis(sub, speed_intervals, time_range)
+    basis = speed_basis(sub, speed_intervals, time_range, breaks)
     design = gradient_design(sub, index, start, basis) if gradients else None
     model = ArrayTravelTimes(sub, index, K, basis, profile=profile,
                              surface_depth=surface_depth, gradients=design,
@@ -479,7 +491,7 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
     if smooth:
         P = nf + k + kg
         H = np.zeros((P, P))
-        H0 = speed_penalty(speed_intervals, time_range)
+        H0 = speed_penalty(speed_intervals, time_range, breaks=breaks)
         H[nf:nf + k, nf:nf + k] = H0
         if kg:
             Hg = np.zeros((P, P))
@@ -501,7 +513,7 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
         if Hg is not None:
             smoothing.update(gradient_weight=float(run.params.lam_g),
                              log10_gradient_weight=float(np.log10(run.params.lam_g)))
-        smoothing.update(knot_minutes=(time_range[1] - time_range[0]) / 60.0 / speed_intervals,
+        smoothing.update(knot_minutes=(time_range[1] - time_range[0]) / 60.0 / equal,
                          knot_minutes_asked=float(knot_minutes))
     else:
         cov_phi = robust_covariance(J, resid(phi, p), clusters)
@@ -526,6 +538,9 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
         n_iter=run.n_iter, converged=run.converged, outliers=outliers,
         model={"profile": profile, "surface_depth": float(surface_depth),
                "speed_intervals": int(speed_intervals), "time_range": time_range,
+               "speed_breaks": None if breaks is None else breaks.tolist(),
+               "equal_intervals": equal,
+               "gaps": _gaps(breaks, equal),
                "unit": unit, "n_invalid": n_bad, "smoothing": smoothing,
                "earth_radius": None if earth_radius is None else float(earth_radius),
                "along_sphere": bool(along_sphere), "gradients": grad_record,
@@ -1025,6 +1040,15 @@ def _root(H):
 
 #: Decades about the gradients' best weight over which the intervals average (step 0.5).
 GRADIENT_WEIGHT_GRID = np.arange(-2.0, 2.0001, 0.5)
+
+
+def _gaps(breaks, equal):
+    """Return the merged intervals of :func:`~.travel_times.speed_breaks` (``[start_s, end_s]``)."""
+    if breaks is None:
+        return []
+    width = (breaks[-1] - breaks[0]) / equal
+    d = np.diff(breaks)
+    return [[float(breaks[i]), float(breaks[i + 1])] for i in np.flatnonzero(d > 1.5 * width)]
 
 
 def _penalty_rank(H):

@@ -105,7 +105,7 @@ class ArrayLogPosterior:
         self.index = np.asarray(fit.index)
         self.t = sub["twtt"].to_numpy(float)
         self.n = self.t.size
-        basis = speed_basis(sub, m["speed_intervals"], m["time_range"])
+        basis = speed_basis(sub, m["speed_intervals"], m["time_range"], m.get("speed_breaks"))
         self.k = basis.shape[1]
         design = (gradient_design(sub, self.index, fit.start, basis) if m.get("gradients")
                   else None)
@@ -121,8 +121,8 @@ class ArrayLogPosterior:
         sm = m.get("smoothing") or {}
         self.lam = sm.get("weight")
         self.lam_g = sm.get("gradient_weight")
-        self.H = None if self.lam is None else speed_penalty(m["speed_intervals"],
-                                                             m["time_range"])
+        self.H = None if self.lam is None else speed_penalty(
+            m["speed_intervals"], m["time_range"], breaks=m.get("speed_breaks"))
         P = 3 * self.K
         theta = np.concatenate([np.asarray(fit.enu, float).ravel(), fit.speed_coef,
                                 np.zeros(self.kg)])

@@ -114,7 +114,8 @@ def _speed_series(fit, n=121):
     """Return the fitted sound speed against time: ``time_s``, ``mean_m_s``, ``sd_m_s``."""
     lo, hi = fit.model["time_range"]
     t = np.linspace(lo, hi, n)
-    B = speed_basis(pd.DataFrame({"time": t}), fit.model["speed_intervals"], (lo, hi))
+    B = speed_basis(pd.DataFrame({"time": t}), fit.model["speed_intervals"], (lo, hi),
+                    fit.model.get("speed_breaks"))
     k, first = B.shape[1], 3 * len(fit.ids)
     C = fit.cov[first:first + k, first:first + k]
     unit = fit.model["unit"]
@@ -128,6 +129,7 @@ def _sound_speed_entry(fit, ci, prof) -> dict:
     n_int = int(fit.model["speed_intervals"])
     sm = fit.model.get("smoothing")
     lo, hi = fit.model["time_range"]
+    gaps = fit.model.get("gaps") or []
     refracted = prof is not None
     return {
         **describe(fit.sound_speed, fit.sound_speed_sd, ci), "unit": "m/s",
@@ -135,12 +137,16 @@ def _sound_speed_entry(fit, ci, prof) -> dict:
                      "fitted scale) from the ship's to the transponders' mean depth, averaged "
                      "over the survey") if refracted else
                     "straight-ray speed, averaged over the survey",
-        "model": "one value for the survey" if not n_int else
-                 (f"cubic B-spline in time, {n_int} equal intervals" if sm is None else
-                  f"smooth cubic B-spline in time, knots every {sm['knot_minutes']:.3g} min, "
-                  "roughness penalty weighted by maximum marginal likelihood"),
+        "model": ("one value for the survey" if not n_int else
+                  (f"cubic B-spline in time, {n_int} equal intervals" if sm is None else
+                   f"smooth cubic B-spline in time, knots every {sm['knot_minutes']:.3g} min, "
+                   "roughness penalty weighted by maximum marginal likelihood"))
+                 + (f"; {len(gaps)} gap(s) in the shots spanned by one interval each"
+                    if gaps else ""),
         "speed_intervals": n_int,
-        "interval_minutes": (hi - lo) / 60.0 / n_int if n_int else None,
+        "interval_minutes": ((hi - lo) / 60.0 / fit.model.get("equal_intervals", n_int)
+                             if n_int else None),
+        "gaps_s": gaps,
         "smoothing": sm,
         "reference_m_s": float(fit.model["unit"]) if refracted else None,
         "coefficients": [float(v) for v in fit.speed_coef],

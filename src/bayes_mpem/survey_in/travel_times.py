@@ -274,7 +274,7 @@ def ship_velocity(pings: pd.DataFrame) -> tuple:
     return tuple(out)
 
 
-def speed_basis(pings, n_intervals, time_range):
+def speed_basis(pings, n_intervals, time_range, breaks=None):
     """Design matrix of the sound speed in time: ones, or a cubic B-spline basis.
 
     Parameters
@@ -286,6 +286,9 @@ def speed_basis(pings, n_intervals, time_range):
     time_range : tuple of float or None
         The span the intervals divide (default: the pings' own); times outside it take
         the value at the nearer end.
+    breaks : array_like, optional
+        The intervals' ends, when they are not equal (:func:`speed_breaks`); they replace
+        ``n_intervals`` and ``time_range``.
 
     Returns
     -------
@@ -306,13 +309,57 @@ def speed_basis(pings, n_intervals, time_range):
     if "time" not in pings.columns:
         raise InputError("pings: a time-varying sound speed needs a 'time' column (s)")
     t = pings["time"].to_numpy(float)
-    lo, hi = (float(t.min()), float(t.max())) if time_range is None else time_range
+    if breaks is not None:
+        edges = np.asarray(breaks, float)
+        lo, hi = float(edges[0]), float(edges[-1])
+    else:
+        lo, hi = (float(t.min()), float(t.max())) if time_range is None else time_range
+        edges = np.linspace(lo, hi, int(n_intervals) + 1)
     if not hi > lo:
         raise InputError(f"time_range: expected start < end, got ({lo}, {hi})")
     k = 3
-    knots = np.concatenate([[lo] * k, np.linspace(lo, hi, int(n_intervals) + 1), [hi] * k])
+    knots = np.concatenate([[lo] * k, edges, [hi] * k])
     tc = np.clip(t, lo, hi)
     return BSpline.design_matrix(tc, knots, k).toarray()
+
+
+def speed_breaks(times, time_range, n_intervals) -> np.ndarray:
+    """Return the ends of the speed spline's intervals: equal, merged across gaps in the shots.
+
+    A break between two intervals that both hold no shot is dropped, so a gap of several
+    intervals becomes one interval, across which the spline (and its roughness penalty) runs
+    as one cubic piece: no coefficients that only the penalty determines (as the field's
+    reference drops its knots in long gaps). Shots without a gap of two intervals keep the
+    equal intervals exactly.
+
+    Parameters
+    ----------
+    times : array_like
+        The shots' times (s).
+    time_range : tuple of float
+        The span (s).
+    n_intervals : int
+        Equal intervals before merging (at least 1).
+
+    Returns
+    -------
+    numpy.ndarray
+        Increasing ends, from ``time_range[0]`` to ``time_range[1]``.
+
+    Examples
+    --------
+    >>> speed_breaks([0.0, 50.0, 960.0, 1000.0], (0.0, 1000.0), 10).tolist()
+    [0.0, 100.0, 900.0, 1000.0]
+    """
+    lo, hi = map(float, time_range)
+    n = int(n_intervals)
+    edges = np.linspace(lo, hi, n + 1)
+    t = np.clip(np.asarray(times, float), lo, hi)
+    held = np.bincount(np.clip(np.searchsorted(edges, t, side="right") - 1, 0, n - 1),
+                       minlength=n) > 0
+    keep = np.ones(n + 1, bool)
+    keep[1:-1] = held[:-1] | held[1:]
+    return edges[keep]
 
 
 def smooth_intervals(time_range, knot_minutes) -> int:
@@ -339,7 +386,8 @@ def smooth_intervals(time_range, knot_minutes) -> int:
     return max(1, int(np.ceil(span / (60.0 * float(knot_minutes)) - 1e-9)))
 
 
-def speed_penalty(n_intervals, time_range, *, order=2, time_unit=3600.0) -> np.ndarray:
+def speed_penalty(n_intervals, time_range, *, order=2, time_unit=3600.0,
+                  breaks=None) -> np.ndarray:
     """Gram matrix of the roughness ``int (d^q s / du^q)^2 du`` of :func:`speed_basis`'s spline.
 
     ``u = t / time_unit``: the penalty is an integral over time, so its weight means
@@ -355,6 +403,9 @@ def speed_penalty(n_intervals, time_range, *, order=2, time_unit=3600.0) -> np.n
         ``q``: the derivative penalised (2: curvature; constant and linear trends are free).
     time_unit : float, default 3600
         Seconds per unit of ``u`` (hours).
+    breaks : array_like, optional
+        Unequal intervals' ends (:func:`speed_breaks`), in place of ``n_intervals`` and
+        ``time_range``.
 
     Returns
     -------
@@ -369,9 +420,13 @@ def speed_penalty(n_intervals, time_range, *, order=2, time_unit=3600.0) -> np.n
     """
     from scipy.interpolate import BSpline
 
-    lo, hi = map(float, time_range)
-    k, n = 3, int(n_intervals)
-    edges = np.linspace(lo, hi, n + 1)
+    if breaks is None:
+        lo, hi = map(float, time_range)
+        edges = np.linspace(lo, hi, int(n_intervals) + 1)
+    else:
+        edges = np.asarray(breaks, float)
+        lo, hi = float(edges[0]), float(edges[-1])
+    k, n = 3, edges.size - 1
     knots = np.concatenate([[lo] * k, edges, [hi] * k])
     m = n + k
     deriv = BSpline(knots, np.eye(m), k).derivative(order)

@@ -216,3 +216,22 @@ def test_smoothing_weight_posterior_matches_the_ems_evidence(two_hours):
     assert tree["posterior"]["smoothing_weight"].shape == tree["sample_stats"]["lp"].shape
     assert "log_smoothing" in sampled.ess
 
+
+
+def test_a_transponder_with_25_replies_is_sampled_by_the_independence_move():
+    # benchmarks/gnssa_posterior_hard.py: 2-hour stars with one transponder's replies cut to
+    # 25 keep 99 % of the proposal's importance; a fallback to differential evolution here
+    # would take minutes
+    import dataclasses
+
+    raw = simulate_gnssa(hours=2.0, speed_model="field", track="star", gradients=True,
+                         rng=1).raw()
+    p = raw.pings
+    rows = np.flatnonzero(p["transponder"].to_numpy() == sorted(p["transponder"])[0])
+    drop = np.random.default_rng(1).choice(rows, rows.size - 25, replace=False)
+    raw = dataclasses.replace(raw, pings=p.drop(p.index[drop]).reset_index(drop=True))
+    fit = locate_array_survey(raw).fits["array"]
+    assert np.bincount(fit.index).min() <= 25
+    post = sample_array(array_shots(raw), fit, rng=0, progress=False)
+    assert post.converged and "fallback" not in post.diagnostics
+    assert post.diagnostics["moves"].startswith("MHMove")

@@ -95,7 +95,7 @@ def test_the_default_is_smooth_and_recorded(campaign):
 def test_a_gap_in_the_shots_is_one_interval_and_changes_nothing(monkeypatch):
     # two sessions 2 h apart: the knots inside the gap (24 of 5 min) carry no shot, and
     # only the penalty would set their coefficients; merged into one interval, the fit has
-    # a third of the coefficients (a 21-hour gap: 62.7 s -> 7.3 s, docs/gnssa.md) and the
+    # a third of the coefficients (a 21-hour gap: 51 s -> 3.7 s, docs/gnssa.md) and the
     # same answer
     import dataclasses
 

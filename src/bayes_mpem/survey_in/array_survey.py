@@ -138,7 +138,8 @@ def _sound_speed_entry(fit, ci, prof) -> dict:
                      "over the survey") if refracted else
                     "straight-ray speed, averaged over the survey",
         "model": ("one value for the survey" if not n_int else
-                  (f"cubic B-spline in time, {n_int} equal intervals" if sm is None else
+                  (f"cubic B-spline in time, {fit.model.get('equal_intervals', n_int)} equal "
+                   "intervals" if sm is None else
                    f"smooth cubic B-spline in time, knots every {sm['knot_minutes']:.3g} min, "
                    "roughness penalty weighted by maximum marginal likelihood"))
                  + (f"; {len(gaps)} gap(s) in the shots spanned by one interval each"

@@ -59,6 +59,7 @@ GRAD_TRUTH = {"shallow_east": "grad1_east", "shallow_north": "grad1_north",
 
 
 SCENARIOS = {"default": {}, "staggered": {"schedule": "staggered"},
+             "three-deep": {"n_transponders": 3, "depth": 5000.0},
              "clean": {"p_spurious": 0.0}}
 
 

@@ -76,6 +76,11 @@ def make_campaigns(root: Path) -> dict:
     folder.mkdir()
     shutil.copy(sample_file("obsrange/SIO_CC03.txt"), folder / "SIO_CC03.txt")
     out["sio"] = folder / "SIO_CC03.txt"
+    with contextlib.redirect_stdout(io.StringIO()):
+        code = main(["locate", str(out["garpos"]), "--out", str(root / "result")])
+    if code:
+        raise SystemExit(f"locate of the garpos campaign failed ({code})")
+    out["result"] = root / "result" / "summary.json"
     (root / "profile.txt").write_text("0 1530\n500 1490\n1500 1485\n3000 1500\n6000 1550\n")
     return out
 
@@ -373,6 +378,20 @@ def simulate_cases():
          OK, setup=toml("gnssa = true\nformat = 'gnatss'\ntrack = 'circle'\n"))
 
 
+def plot_cases():
+    case("plot beacon on a locate folder", "plot {result_dir} --out {out} --beacon M01",
+         REFUSE, ["--beacon"])
+    case("plot palette", "plot {result_dir} --out {out} --palette paper", OK, timeout=120)
+    case("plot palette bad", "plot {result_dir} --out {out} --palette viridis", REFUSE,
+         ["--palette"])
+    case("plot out a file", "plot {result_dir} --out {work}/file.txt", REFUSE, ["--out"],
+         setup=lambda w: (w / "file.txt").write_text("keep me\n"))
+    case("plot a campaign folder", "plot {garpos_dir} --out {out}", REFUSE, [])
+    case("plot locate's option", "plot {result_dir} --out {out} --knot-minutes 5", REFUSE,
+         ["--knot-minutes"])
+    case("plot twice out", "plot {result_dir} --out {out} --out {work}/b", REFUSE, ["--out"])
+
+
 def batch_manifest(rows):
     """A setup writing ``{work}/m.csv`` (``{garpos}`` etc. filled in by the runner)."""
     def fn(work: Path, paths: dict):
@@ -466,6 +485,9 @@ def judge_ok(c: Case, argv, out: Path, stdout: str, paths, timeout, rows):
         if "truth.json" not in names or not any(n.endswith((".ini", ".yaml")) for n in names):
             return "FAIL", f"exit 0 without the campaign and truth.json: {sorted(names)}"
         return "ok", f"{len(names)} files"
+    if command == "plot":
+        pngs = list(out.glob("*.png")) if out.is_dir() else []
+        return ("ok", f"{len(pngs)} figures") if pngs else ("FAIL", "exit 0 without figures")
     if command == "batch":
         if not (out / "surveys.parquet").is_file():
             return "FAIL", "exit 0 without surveys.parquet"
@@ -567,7 +589,7 @@ def run_case(c: Case, paths: dict, work: Path, timeout: float, rows: dict):
 def baseline_rows(paths: dict, work: Path, timeout: float) -> dict:
     """The rows of ``classified.csv`` with the defaults, per campaign."""
     rows = {}
-    for key in ("garpos", "gnatss", "seagap", "sio"):
+    for key in ("garpos", "gnatss", "seagap", "sio"):  # not "result": a locate output
         out = work / f"base-{key}"
         got = run(["locate", paths[key], "--out", str(out)], timeout)
         if got is None or got[0] != 0:
@@ -585,6 +607,7 @@ def main(argv=None):
     a = ap.parse_args(argv)
     locate_cases()
     simulate_cases()
+    plot_cases()
     batch_cases()
     cases = [c for c in CASES if a.only is None or a.only in c.name]
     if a.list:

@@ -145,3 +145,13 @@ def test_batch_row_with_knot_minutes_and_speed_intervals_refused(campaigns, tmp_
     refused(capsys, ["batch", manifest, "--command", "locate", "--out", tmp_path / "o",
                      "--no-progress"], "m.csv", "--knot-minutes")
     assert not (tmp_path / "o").exists()
+
+
+def test_plot_beacon_on_a_locate_folder_says_it_does_not_apply(campaigns, tmp_path, capsys):
+    # was "expected one of the fitted beacons , got 'M01'": an empty list
+    result = tmp_path / "result"
+    assert main(["locate", str(campaigns["garpos"]), "--out", str(result),
+                 "--speed-intervals", "2"]) == 0
+    refused(capsys, ["plot", result, "--out", tmp_path / "figs", "--beacon", "M01"],
+            "--beacon: for folders of fitted beacons", "SurveyInResult")
+    assert not (tmp_path / "figs").exists()

@@ -276,7 +276,7 @@ def locate_cases():
     case("knot-minutes twice", "locate {garpos} --out {out} --knot-minutes 5 --knot-minutes=10",
          REFUSE, ["--knot-minutes"])
     case("out twice", "locate {garpos} --out {out} --out {work}/other", REFUSE, ["--out"])
-    case("figures twice", "locate {garpos} --out {out} --figures --figures", OK, timeout=120)
+    case("figures twice", "locate {garpos} --out {out} --figures --fig", OK, timeout=120)
     case("two surveys", "locate {garpos} {gnatss} --out {out}", REFUSE, [])
     # --out
     case("out an existing file", "locate {garpos} --out {work}/file.txt", REFUSE, ["--out"],

@@ -155,3 +155,9 @@ def test_plot_beacon_on_a_locate_folder_says_it_does_not_apply(campaigns, tmp_pa
     refused(capsys, ["plot", result, "--out", tmp_path / "figs", "--beacon", "M01"],
             "--beacon: for folders of fitted beacons", "SurveyInResult")
     assert not (tmp_path / "figs").exists()
+
+
+def test_a_flag_and_its_abbreviation_are_one_option(campaigns, tmp_path, capsys):
+    # not "given twice with two values": the refusal is --no-progress's own, without --sample
+    refused(capsys, ["locate", campaigns["garpos"], "--out", tmp_path / "o", "--no-progress",
+                     "--no-prog", "--ci", "0.9", "--ci=0.9"], "--no-progress apply with --sample")

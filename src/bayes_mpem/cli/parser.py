@@ -516,14 +516,15 @@ def _given(sub: argparse.ArgumentParser, tokens) -> list:
         if not word.startswith("--"):
             continue
         name, eq, value = word.partition("=")
-        action = longs.get(name)
-        if action is None:
-            hits = {longs[s] for s in longs if s.startswith(name)}
-            action = hits.pop() if len(hits) == 1 else None
-        if action is None:
+        full = name if name in longs else None
+        if full is None:
+            hits = [s for s in longs if s.startswith(name)]
+            full = hits[0] if len({longs[s] for s in hits}) == 1 else None
+        if full is None:
             continue
+        action = longs[full]
         if action.nargs == 0:
-            out.append((name, action, name))
+            out.append((name, action, full))
         elif eq:
             out.append((name, action, value))
         elif i + 1 < len(tokens):

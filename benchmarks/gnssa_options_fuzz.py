@@ -201,8 +201,8 @@ def locate_cases():
     case("outliers first_arrival", "locate {gnatss} --out {out} --outliers first_arrival", OK,
          changes=["--outliers", "first_arrival"])
     # sampler options
-    for opt_, vals in (("--walkers", ("1", "3", "0", "abc", "-4", "1e3")),
-                       ("--min-ess", ("-1", "nan", "inf", "abc")),
+    for opt_, vals in (("--walkers", ("1", "3", "0", "abc", "-4", "1e3", "100000")),
+                       ("--min-ess", ("-1", "nan", "inf", "abc", "1e12", "640001")),
                        ("--seed", ("-1", "abc", "1.5", "nan"))):
         for v in vals:
             case(f"sample {opt_} {v}",
@@ -219,6 +219,22 @@ def locate_cases():
          timeout=120)
     case("sample min-ess 0", "locate {garpos} --out {out} --sample --min-ess 0 --no-progress",
          ("ok", "refused"), ["--min-ess"], timeout=120)
+    for extra in ("--speed-intervals 0", "--gradients on", "--knot-minutes 10",
+                  "--outliers first_arrival", "--ssp straight"):
+        case(f"sample with {extra}", f"locate {{gnatss}} --out {{out}} --sample --min-ess 50 "
+             f"--no-progress {extra}", OK, timeout=120)
+    case("sample with --flags reclassify", "locate {garpos} --out {out} --sample --min-ess 50 "
+         "--no-progress --flags reclassify", OK, timeout=120)
+    case("sample seagap array", "locate {seagap} --out {out} --sample --min-ess 50 "
+         "--no-progress", OK, timeout=120)
+    case("sample seagap one at a time", "locate {seagap} --out {out} --sample --min-ess 50 "
+         "--no-progress --one-at-a-time", OK, timeout=120)
+    case("ssp survey on a deck-box log", "locate {sio} --out {out} --ssp survey", REFUSE,
+         ["ssp"])
+    case("ssp woa09 on gnatss", "locate {gnatss} --out {out} --ssp woa09", OK,
+         changes=["--ssp", "woa09"])
+    case("straight rays with gradients", "locate {garpos} --out {out} --ssp straight "
+         "--gradients on", ("ok", "refused"), ["--gradients"])
     case("sample ci 0.5", "locate {garpos} --out {out} --sample --min-ess 50 --no-progress "
          "--ci 0.5", OK, timeout=120)
     # one-transponder options on an array

@@ -161,3 +161,14 @@ def test_a_flag_and_its_abbreviation_are_one_option(campaigns, tmp_path, capsys)
     # not "given twice with two values": the refusal is --no-progress's own, without --sample
     refused(capsys, ["locate", campaigns["garpos"], "--out", tmp_path / "o", "--no-progress",
                      "--no-prog", "--ci", "0.9", "--ci=0.9"], "--no-progress apply with --sample")
+
+
+@pytest.mark.parametrize("extra, words", [
+    (["--walkers", "100000"], ["--walkers", "[4, 4096]"]),
+    (["--min-ess", "1e12"], ["--min-ess 1e+12", "640,000 draws"]),
+    (["--walkers", "8", "--min-ess", "160001"], ["--min-ess", "160,000 draws"]),
+])
+def test_a_sampler_that_cannot_finish_refused(campaigns, tmp_path, capsys, extra, words):
+    # both ran for minutes (killed at 90 s): 100000 walkers, an ESS beyond every draw
+    refused(capsys, ["locate", campaigns["garpos"], "--out", tmp_path / "o", "--sample",
+                     "--no-progress", *extra], *words)

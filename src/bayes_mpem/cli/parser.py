@@ -179,8 +179,9 @@ def add_locate(sub):
     p.add_argument("--sample", action="store_true",
                    help="after each EM fit, sample the posterior of the location and the ping "
                         "classes (emcee); intervals and classes from the posterior")
-    p.add_argument("--walkers", type=opt.at_least(4), default=None, metavar="N",
-                   help="--sample: walkers (default max(32, 2 x parameters + 2))")
+    p.add_argument("--walkers", type=opt.at_least(4, 4096), default=None, metavar="N",
+                   help="--sample: walkers, at most 4096 as for 'sample' (default max(32, 2 x "
+                        "parameters + 2))")
     p.add_argument("--min-ess", type=opt.non_negative, default=None, metavar="N",
                    help="--sample: run until the smallest effective sample size reaches N "
                         "(default 1000)")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import inspect
 from pathlib import Path
 
 from ..batch import locate_raw
@@ -34,6 +35,14 @@ def _check_sample_options(args):
     if args.sample:
         check_location_options(n_walkers=args.walkers, ci=args.ci,
                                min_ess=1000.0 if args.min_ess is None else args.min_ess)
+        # the sampler stops at max_steps (its default: locate sets no other): an effective
+        # sample size above every draw it may take is never reached (1e12 ran for minutes)
+        steps = inspect.signature(check_location_options).parameters["max_steps"].default
+        most = (args.walkers or 32) * steps
+        if args.min_ess is not None and args.min_ess > most:
+            raise OptionError(f"--min-ess {args.min_ess:g}: more than the {most:,} draws the "
+                              f"sampler may take ({args.walkers or 32} walkers x {steps:,} "
+                              "steps); give at most that")
 
 
 def _check_array_options(args, fmt):

@@ -103,13 +103,14 @@ def test_a_forced_format_that_does_not_read_is_named(campaigns, tmp_path, capsys
     (["--ci", "0.9", "--ci=0.5"], ["--ci 0.9 and --ci 0.5"]),
     (["--gradients", "on", "--gradients", "off"], ["--gradients on and --gradients off"]),
     (["--knot-minutes", "5", "--knot", "10"], ["--knot-minutes 5 and --knot 10"]),
-    (["--out", "elsewhere"], ["--out"]),
+    (["--out", "{tmp}/elsewhere"], ["--out"]),
 ])
 def test_an_option_twice_with_two_values_refused(campaigns, tmp_path, capsys, extra, words):
     # argparse kept the last value and dropped the first without a word
     out = tmp_path / "o"
+    extra = [e.format(tmp=tmp_path) for e in extra]
     refused(capsys, ["locate", campaigns["garpos"], "--out", out, *extra], *words)
-    assert not out.exists()
+    assert not out.exists() and not (tmp_path / "elsewhere").exists()
 
 
 def test_the_same_value_twice_runs(campaigns, tmp_path, capsys):

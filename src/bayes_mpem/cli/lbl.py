@@ -166,6 +166,10 @@ def cmd_plot(args) -> int:
         return _plot_batch(args)
     result = load_output(args.result_dir)
     beacon = None if args.beacon is None else args.beacon.strip()  # ids are text, as in CSVs
+    if beacon is not None and not hasattr(result, "results"):
+        raise OptionError(f"--beacon: for folders of fitted beacons (fit, sample, compare); "
+                          f"{args.result_dir} holds a {type(result).__name__} with no "
+                          "per-beacon figures")
     if beacon is not None and beacon not in getattr(result, "results", {}):
         raise OptionError(f"--beacon: expected one of the fitted beacons "
                           f"{', '.join(map(repr, getattr(result, 'results', {})))}, "

@@ -161,8 +161,9 @@ def add_locate(sub):
                         "intervals (0: one speed); default: one speed for a single "
                         "transponder, and for an array (GARPOS, GNATSS, SeaGap) a smooth "
                         "spline, knots every 5 min, its smoothness chosen by the data")
-    p.add_argument("--knot-minutes", type=opt.number("a knot spacing in minutes in (0, 1440]",
-                                                     0.0, 1440.0, include_low=False),
+    # below 0.1 min (6 s, under a shot cycle) a knot spacing only costs memory (1e-9: 221 GiB)
+    p.add_argument("--knot-minutes", type=opt.number("a knot spacing in minutes in [0.1, 1440]",
+                                                     0.1, 1440.0),
                    default=None, metavar="M",
                    help="array surveys: the smooth sound speed's knot spacing (default 5)")
     p.add_argument("--gradients", choices=["auto", "on", "off"], default=None,
@@ -178,8 +179,9 @@ def add_locate(sub):
     p.add_argument("--sample", action="store_true",
                    help="after each EM fit, sample the posterior of the location and the ping "
                         "classes (emcee); intervals and classes from the posterior")
-    p.add_argument("--walkers", type=opt.at_least(4), default=None, metavar="N",
-                   help="--sample: walkers (default max(32, 2 x parameters + 2))")
+    p.add_argument("--walkers", type=opt.at_least(4, 4096), default=None, metavar="N",
+                   help="--sample: walkers, at most 4096 as for 'sample' (default max(32, 2 x "
+                        "parameters + 2))")
     p.add_argument("--min-ess", type=opt.non_negative, default=None, metavar="N",
                    help="--sample: run until the smallest effective sample size reaches N "
                         "(default 1000)")
@@ -501,21 +503,97 @@ def _closest(word: str, known):
     return next(iter(difflib.get_close_matches(word, list(known), n=1, cutoff=0.6)), None)
 
 
-def _with_config(parser: argparse.ArgumentParser, argv) -> list:
-    """Put a ``--config`` file's options before the command line's (which override them)."""
+def _given(sub: argparse.ArgumentParser, tokens) -> list:
+    """Return ``(option as typed, action, value)`` for each option of ``tokens``.
+
+    Abbreviations are resolved as argparse resolves them (a unique prefix); a flag's value is
+    the option string itself (``--gradients`` and ``--no-gradients`` differ).
+    """
+    longs = {s: a for a in sub._actions for s in a.option_strings if s.startswith("--")}
+    out = []
+    for i, word in enumerate(tokens):
+        if word == "--":
+            break
+        if not word.startswith("--"):
+            continue
+        name, eq, value = word.partition("=")
+        full = name if name in longs else None
+        if full is None:
+            hits = [s for s in longs if s.startswith(name)]
+            full = hits[0] if len({longs[s] for s in hits}) == 1 else None
+        if full is None:
+            continue
+        action = longs[full]
+        if action.nargs == 0:
+            out.append((name, action, full))
+        elif eq:
+            out.append((name, action, value))
+        elif i + 1 < len(tokens):
+            out.append((name, action, tokens[i + 1]))
+    return out
+
+
+def _check_repeated(sub: argparse.ArgumentParser, tokens) -> None:
+    """Refuse an option given twice with two values on the command line (neither dropped).
+
+    The same value twice is harmless; repeatable options (``--effect``) are not checked; a
+    ``--config`` file's values are overridden by the command line's, as documented.
+    """
+    seen = {}
+    for name, action, value in _given(sub, tokens):
+        if isinstance(action, argparse._AppendAction) or action.nargs not in (None, 0):
+            continue
+        first = seen.setdefault(action.dest, (name, value))
+        if first[1] != value:
+            sub.error(f"{first[0]} {first[1]} and {name} {value}: one option given twice "
+                      "with two values; give it once")
+
+
+def _with_config(parser: argparse.ArgumentParser, argv) -> tuple:
+    """Put a ``--config`` file's options before the command line's (which override them).
+
+    Returns the arguments and ``{option: (file, key)}`` of the options the file set and the
+    command line did not.
+    """
     argv = list(sys.argv[1:] if argv is None else argv)
     commands = parser.get_default("subparsers")
+    command = next((a for a in argv if a in commands), None)
+    if command is not None:
+        _check_repeated(commands[command], argv[argv.index(command) + 1:])
     command, path = _config_path(argv, commands)
     if path is None:
-        return argv
+        return argv, {}
+    sub = commands[command]
     at = argv.index(command) + 1
-    return [*argv[:at], *_config_tokens(commands[command], path), *argv[at:]]
+    tokens = _config_tokens(sub, path)
+    typed = {a.dest for _, a, _ in _given(sub, argv[at:])}
+    origin = {a.option_strings[-1 if a.nargs == 0 else 0]: (path, name[2:].replace("-", "_"))
+              for name, a, _ in _given(sub, tokens) if a.dest not in typed}
+    return [*argv[:at], *tokens, *argv[at:]], origin
+
+
+def config_origin(message: str, origin: dict) -> str:
+    """Add to ``message`` where the options it names were set, when a ``--config`` file did.
+
+    Examples
+    --------
+    >>> config_origin("--seed apply with --sample only", {"--seed": ("run.toml", "seed")})
+    "--seed apply with --sample only (--seed from --config run.toml, key 'seed')"
+    """
+    import re
+
+    named = [o for o in origin if re.search(re.escape(o) + r"(?![\w-])", message)]
+    if not named:
+        return message
+    return message + " (" + "; ".join(f"{o} from --config {origin[o][0]}, key {origin[o][1]!r}"
+                                      for o in named) + ")"
 
 
 def _parse(parser: argparse.ArgumentParser, argv):
     """Parse; an unknown option gets its sub-command's usage and the closest option's name."""
-    argv = _with_config(parser, argv)
+    argv, origin = _with_config(parser, argv)
     args, extra = parser.parse_known_args(argv)
+    args.config_origin = origin
     if not extra:
         return args
     sub = args.subparsers.get(args.command, parser)
@@ -570,7 +648,8 @@ def main(argv=None) -> int:
         try:
             return _run(handler, args)
         except (InputError, ValueError, OSError) as exc:
-            print(f"bayes-mpem {args.command}: error: {_message(exc)}", file=sys.stderr)
+            print(f"bayes-mpem {args.command}: error: "
+                  f"{config_origin(_message(exc), args.config_origin)}", file=sys.stderr)
             return 2
         except KeyboardInterrupt:
             print(f"bayes-mpem {args.command}: interrupted; no result written", file=sys.stderr)

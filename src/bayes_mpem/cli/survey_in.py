@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import inspect
 from pathlib import Path
 
 from ..batch import locate_raw
+from ..exceptions import InputError
 from ..io.boundary import read_text_lines
 from ..io.formats import read_survey, sniff_format
 from ..io.raw import ARRAY_FORMATS
@@ -33,6 +35,33 @@ def _check_sample_options(args):
     if args.sample:
         check_location_options(n_walkers=args.walkers, ci=args.ci,
                                min_ess=1000.0 if args.min_ess is None else args.min_ess)
+        # the sampler stops at max_steps (its default: locate sets no other): an effective
+        # sample size above every draw it may take is never reached (1e12 ran for minutes)
+        steps = inspect.signature(check_location_options).parameters["max_steps"].default
+        most = (args.walkers or 32) * steps
+        if args.min_ess is not None and args.min_ess > most:
+            raise OptionError(f"--min-ess {args.min_ess:g}: more than the {most:,} draws the "
+                              f"sampler may take ({args.walkers or 32} walkers x {steps:,} "
+                              "steps); give at most that")
+
+
+def _check_array_options(args, fmt):
+    """Refuse array options that would change nothing: each said, none silently dropped."""
+    knots, intervals = getattr(args, "knot_minutes", None), args.speed_intervals
+    if knots is not None and intervals is not None:
+        raise OptionError(f"--knot-minutes {knots:g} with --speed-intervals {intervals}: the knot "
+                          "spacing is the smooth sound speed's (the default), which "
+                          "--speed-intervals replaces; give one of the two")
+    if getattr(args, "gradients", None) == "on" and intervals == 0:
+        raise OptionError("--gradients on with --speed-intervals 0: the gradients need a "
+                          "sound speed varying in time (the smooth default or "
+                          "--speed-intervals N > 0)")
+    if getattr(args, "flags", None) is not None and fmt != "garpos":
+        raise OptionError(f"--flags: for GARPOS surveys only (a {fmt} survey has no flag "
+                          "column)")
+    if getattr(args, "no_lag_check", False):
+        raise OptionError(f"--no-lag-check: for surveys located one transponder at a time (a "
+                          f"{fmt} array survey has no lag check)")
 
 
 def locate_kwargs(args) -> dict:
@@ -47,7 +76,10 @@ def locate_kwargs(args) -> dict:
         raise OptionError(f"--one-at-a-time: for SeaGap surveys (a {fmt} survey is "
                           + ("located as an array)" if fmt in ARRAY_FORMATS else
                              "located one transponder at a time anyway)"))
+    if getattr(args, "ssp", None) is not None and not args.ssp.strip():
+        raise OptionError("--ssp: expected a profile file, woa09, survey or straight, got ''")
     if fmt in ARRAY_FORMATS or (fmt == "seagap" and not one):
+        _check_array_options(args, fmt)
         given = [name for name, v in (("--tat", args.tat is not None),
                                       ("--fit-tat", args.fit_tat), ("--fit-lag", args.fit_lag))
                  if v]
@@ -146,11 +178,39 @@ def _print_array_posterior(summary):
           + ("" if d["converged"] else " (NOT converged: max_steps reached)"))
 
 
+def _check_locate_output(args):
+    """Refuse ``--out`` in the survey's own folder and ``--palette`` without figures."""
+    here = Path(args.survey).resolve().parent
+    if Path(args.out).resolve() == here:
+        raise OptionError(f"--out {args.out!r}: the survey's own folder; the result's files "
+                          "(summary.json, classified.csv) would mix with the campaign's: "
+                          "give a folder of its own")
+    if getattr(args, "palette", "okabe-ito") != "okabe-ito" and not args.figures:
+        raise OptionError(f"--palette {args.palette}: colours the figures; add --figures (or "
+                          "draw them later with 'bayes-mpem plot --palette')")
+
+
+def _read_as(args, forced):
+    """Read the survey; a file that does not read as a forced ``--format`` says so."""
+    try:
+        return read_survey(args.survey, args.format)
+    except InputError as exc:
+        if forced == "auto":
+            raise
+        try:
+            looks = f"; the file looks like a {sniff_format(args.survey)} survey"
+        except (InputError, OSError, ValueError):
+            looks = ""
+        raise InputError(f"{exc} (read as --format {forced}{looks})") from None
+
+
 def cmd_locate(args) -> int:
     """Run ``bayes-mpem locate``."""
+    forced = args.format
+    _check_locate_output(args)
     args.format = survey_format(args.survey, args.format)
     options = locate_kwargs(args)  # options checked before the file is read
-    raw = read_survey(args.survey, args.format)
+    raw = _read_as(args, forced)
     result = locate_raw(raw, options)
     out = Path(args.out)
     paths = result.write(out)

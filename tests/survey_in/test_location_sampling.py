@@ -226,7 +226,7 @@ def test_locate_command_with_sample(tmp_path):
 @pytest.mark.parametrize(("extra", "message"), [
     (["--walkers", "16"], "--walkers apply with --sample only"),
     (["--seed", "0", "--no-progress"], "--seed, --no-progress apply with --sample only"),
-    (["--sample", "--walkers", "3"], "walkers: expected an integer >= 4"),
+    (["--sample", "--walkers", "3"], r"walkers: expected an integer in \[4, 4096\], got .3."),
     (["--sample", "--walkers", "10"], r"n_walkers: expected at least 2 x \(6 parameters"),
     (["--sample", "--min-ess", "-1"], "--min-ess: expected a number >= 0"),
     (["--sample", "--ci", "1.5"], "ci: expected a probability"),

@@ -42,36 +42,25 @@ from pathlib import Path
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")  # one thread: the machine is shared
 
-GARPOS_INI = "SIM.0000.sim-initcfg.ini"
-SEAGAP_SHOTS = 200
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from gnssa_fuzz import GARPOS_INI  # noqa: E402
+from gnssa_fuzz import make_campaigns as array_campaigns  # noqa: E402
+
 #: the parts of an array's summary.json that are results (the rest echoes the options)
 RESULT_KEYS = ("transponders", "array_centre", "sound_speed", "residuals", "positions",
                "speed_intervals", "outliers", "ssp")
 
 
 def make_campaigns(root: Path) -> dict:
-    """Write the campaigns under ``root``; return ``{name: survey file}``."""
+    """Write the campaigns under ``root``; return ``{name: survey file}``.
+
+    GARPOS, GNATSS and SeaGap as ``gnssa_fuzz.make_campaigns`` writes them, then the SIO
+    deck-box log, a located GARPOS campaign and a profile.
+    """
     from bayes_mpem.cli import main
     from bayes_mpem.io.formats import sample_file
 
-    out = {}
-    for fmt, survey in (("garpos", GARPOS_INI), ("gnatss", "config.yaml")):
-        folder = root / fmt
-        with contextlib.redirect_stdout(io.StringIO()):
-            code = main(["simulate", "--gnssa", "--format", fmt, "--hours", "0.5",
-                         "--out", str(folder)])
-        if code:
-            raise SystemExit(f"simulate --gnssa --format {fmt} failed ({code})")
-        for extra in ("summary.json", "truth.json"):
-            (folder / extra).unlink()
-        out[fmt] = folder / survey
-    folder = root / "seagap"
-    folder.mkdir()
-    for name in ("pxp-ini.inp", "tr-ant.inp", "ss_prof.inp"):
-        shutil.copy(sample_file(f"seagap/{name}"), folder / name)
-    lines = sample_file("seagap/obsdata.inp").read_text().splitlines(keepends=True)
-    (folder / "obsdata.inp").write_text("".join(lines[:SEAGAP_SHOTS]))
-    out["seagap"] = folder / "obsdata.inp"
+    out = {name: folder / survey for name, (folder, survey) in array_campaigns(root).items()}
     folder = root / "sio"
     folder.mkdir()
     shutil.copy(sample_file("obsrange/SIO_CC03.txt"), folder / "SIO_CC03.txt")

@@ -540,7 +540,6 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
                "speed_intervals": int(speed_intervals), "time_range": time_range,
                "speed_breaks": None if breaks is None else breaks.tolist(),
                "equal_intervals": equal,
-               "gaps": _gaps(breaks, equal),
                "unit": unit, "n_invalid": n_bad, "smoothing": smoothing,
                "earth_radius": None if earth_radius is None else float(earth_radius),
                "along_sphere": bool(along_sphere), "gradients": grad_record,
@@ -1040,15 +1039,6 @@ def _root(H):
 
 #: Decades about the gradients' best weight over which the intervals average (step 0.5).
 GRADIENT_WEIGHT_GRID = np.arange(-2.0, 2.0001, 0.5)
-
-
-def _gaps(breaks, equal):
-    """Return the merged intervals of :func:`~.travel_times.speed_breaks` (``[start_s, end_s]``)."""
-    if breaks is None:
-        return []
-    width = (breaks[-1] - breaks[0]) / equal
-    d = np.diff(breaks)
-    return [[float(breaks[i]), float(breaks[i + 1])] for i in np.flatnonzero(d > 1.5 * width)]
 
 
 def _penalty_rank(H):

@@ -124,12 +124,22 @@ def _speed_series(fit, n=121):
             "sd_m_s": sd.tolist()}
 
 
+def _gaps(model) -> list:
+    """Return the intervals merged across gaps in the shots, ``[start_s, end_s]`` each."""
+    breaks = model.get("speed_breaks")
+    if breaks is None:
+        return []
+    width = (breaks[-1] - breaks[0]) / model["equal_intervals"]
+    return [[float(a), float(b)] for a, b in zip(breaks[:-1], breaks[1:], strict=True)
+            if b - a > 1.5 * width]
+
+
 def _sound_speed_entry(fit, ci, prof) -> dict:
     """Return the ``sound_speed`` record of an array's ``summary.json``, a unit per field."""
     n_int = int(fit.model["speed_intervals"])
     sm = fit.model.get("smoothing")
     lo, hi = fit.model["time_range"]
-    gaps = fit.model.get("gaps") or []
+    gaps = _gaps(fit.model)
     refracted = prof is not None
     return {
         **describe(fit.sound_speed, fit.sound_speed_sd, ci), "unit": "m/s",

@@ -309,18 +309,27 @@ def speed_basis(pings, n_intervals, time_range, breaks=None):
     if "time" not in pings.columns:
         raise InputError("pings: a time-varying sound speed needs a 'time' column (s)")
     t = pings["time"].to_numpy(float)
-    if breaks is not None:
-        edges = np.asarray(breaks, float)
-        lo, hi = float(edges[0]), float(edges[-1])
-    else:
-        lo, hi = (float(t.min()), float(t.max())) if time_range is None else time_range
-        edges = np.linspace(lo, hi, int(n_intervals) + 1)
+    if breaks is None and time_range is None:
+        time_range = (float(t.min()), float(t.max()))
+    edges, knots = _spline_knots(n_intervals, time_range, breaks)
+    lo, hi = float(edges[0]), float(edges[-1])
     if not hi > lo:
         raise InputError(f"time_range: expected start < end, got ({lo}, {hi})")
-    k = 3
-    knots = np.concatenate([[lo] * k, edges, [hi] * k])
-    tc = np.clip(t, lo, hi)
-    return BSpline.design_matrix(tc, knots, k).toarray()
+    return BSpline.design_matrix(np.clip(t, lo, hi), knots, 3).toarray()
+
+
+def _spline_knots(n_intervals, time_range, breaks):
+    """Return the cubic spline's interval ends and its clamped knot vector.
+
+    The ends are ``breaks`` where given, else ``n_intervals`` equal intervals of
+    ``time_range``.
+    """
+    if breaks is None:
+        lo, hi = map(float, time_range)
+        edges = np.linspace(lo, hi, int(n_intervals) + 1)
+    else:
+        edges = np.asarray(breaks, float)
+    return edges, np.concatenate([[edges[0]] * 3, edges, [edges[-1]] * 3])
 
 
 def speed_breaks(times, time_range, n_intervals) -> np.ndarray:
@@ -420,14 +429,8 @@ def speed_penalty(n_intervals, time_range, *, order=2, time_unit=3600.0,
     """
     from scipy.interpolate import BSpline
 
-    if breaks is None:
-        lo, hi = map(float, time_range)
-        edges = np.linspace(lo, hi, int(n_intervals) + 1)
-    else:
-        edges = np.asarray(breaks, float)
-        lo, hi = float(edges[0]), float(edges[-1])
+    edges, knots = _spline_knots(n_intervals, time_range, breaks)
     k, n = 3, edges.size - 1
-    knots = np.concatenate([[lo] * k, edges, [hi] * k])
     m = n + k
     deriv = BSpline(knots, np.eye(m), k).derivative(order)
     x, w = np.polynomial.legendre.leggauss(4)

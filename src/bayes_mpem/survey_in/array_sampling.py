@@ -1063,7 +1063,7 @@ def _with_posterior(em: dict, enu: dict, origin) -> dict:
     return out
 
 
-def _check_forced_gradients(raw, gradients, speed_intervals):
+def _check_forced_gradients(shots, raw, gradients, speed_intervals):
     """Refuse to sample gradient terms forced on where the track does not determine them.
 
     Their constant and trend are unpenalised: where the gate leaves them out, the posterior
@@ -1071,11 +1071,11 @@ def _check_forced_gradients(raw, gradients, speed_intervals):
     10,700 steps, 2.4 GB, stopped at 400 s; docs/gnssa.md). The EM still fits them if asked.
     """
     from ..exceptions import InputError
-    from .array_survey import array_shots, gradient_gate
+    from .array_survey import gradient_gate
 
     if not (gradients is True or gradients == "on"):
         return
-    ok, why = gradient_gate(array_shots(raw), raw.header["transponders"], speed_intervals)
+    ok, why = gradient_gate(shots, raw.header["transponders"], speed_intervals)
     if not ok:
         raise InputError(f"--gradients on with --sample (gradients='on'): the gate would leave "
                          f"the gradients out ({why}); their unpenalised constant and trend "
@@ -1119,12 +1119,12 @@ def locate_array_survey_bayes(raw, *, ci=0.95, outliers="uniform", ssp=None,
 
     check_location_options(n_walkers=n_walkers, ci=ci, min_ess=min_ess, max_steps=max_steps,
                            n_draws=n_draws)
-    _check_forced_gradients(raw, gradients, speed_intervals)
+    shots = array_shots(raw)
+    _check_forced_gradients(shots, raw, gradients, speed_intervals)
     located = locate_survey(raw, ci=ci, outliers=outliers, ssp=ssp,
                             speed_intervals=speed_intervals, gradients=gradients, flags=flags,
                             knot_minutes=knot_minutes)
     fit = located.fits["array"]
-    shots = array_shots(raw)
     post = sample_array(shots, fit, n_walkers=n_walkers, ci=ci, min_ess=min_ess,
                         max_steps=max_steps, n_draws=n_draws, rng=rng, progress=progress)
     s = copy.deepcopy(located.summary)

@@ -134,13 +134,17 @@ def _sigmas(ini, path, key):
     return out + [None] * (3 - len(out))
 
 
-def profile_frame(depth, speed, source) -> pd.DataFrame:
+def profile_frame(depth, speed, source, lines=None, column=None) -> pd.DataFrame:
     """Check a sound-speed profile read from a survey's file; return ``depth``, ``sound_speed``.
 
     Parameters
     ----------
     depth, speed : array_like
     source : str
+    lines : array_like of int, optional
+        Each level's line in ``source``, to name where depths stop increasing.
+    column : int, optional
+        The depth's column (1-based), for the same message.
 
     Returns
     -------
@@ -156,7 +160,11 @@ def profile_frame(depth, speed, source) -> pd.DataFrame:
         raise InputError(f"{source}: a sound-speed profile needs 2 or more levels, got {d.size}")
     if np.any(np.diff(d) <= 0):
         k = int(np.flatnonzero(np.diff(d) <= 0)[0])
-        raise InputError(f"{source}: depths must increase, got {d[k]:g} then {d[k + 1]:g} m")
+        if lines is None:
+            raise InputError(f"{source}: depths must increase, got {d[k]:g} then {d[k + 1]:g} m")
+        raise InputError(f"{where(source, int(lines[k + 1]), column, 'depth')}: depths must "
+                         f"increase line after line, got {d[k]:g} then {d[k + 1]:g} m (a "
+                         "repeated or swapped level)")
     if np.any((c < 1300.0) | (c > 1800.0)):
         k = int(np.flatnonzero((c < 1300.0) | (c > 1800.0))[0])
         raise InputError(f"{source}: sound speed {c[k]:g} m/s at {d[k]:g} m is outside "
@@ -230,16 +238,11 @@ def _read_svp(path) -> pd.DataFrame:
                 vals.append(number(parts[j], name, lo=lo, hi=hi))
             except ValueError as exc:
                 raise InputError(f"{where(path, i, j + 1, name)}: {exc}") from None
-        if rows and vals[0] <= rows[-1][0]:
-            j = cols.index("depth")
-            raise InputError(f"{where(path, i, j + 1, 'depth')}: depths must increase "
-                             f"line after line, got {rows[-1][0]:g} then {vals[0]:g} m (a "
-                             "repeated or swapped level)")
-        rows.append(vals)
+        rows.append([*vals, i])
     if cols is None:
         raise InputError(f"{path}: empty sound-speed profile")
-    d, c = np.array(rows, float).reshape(-1, 2).T
-    return profile_frame(d, c, str(path))
+    d, c, at = np.array(rows, float).reshape(-1, 3).T
+    return profile_frame(d, c, str(path), lines=at, column=cols.index("depth") + 1)
 
 
 def _parse_shot(parts, cols, stations):

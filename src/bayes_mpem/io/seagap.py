@@ -14,7 +14,7 @@ import pandas as pd
 
 from ..exceptions import InputError
 from .boundary import COMMENT, classify, limit_problem, read_text_lines
-from .garpos import profile_reaches
+from .garpos import profile_frame, profile_reaches
 from .raw import RawSurvey, bad
 
 # --------------------------------------------------------------------------- SeaGap
@@ -84,19 +84,6 @@ _COMPANIONS = (
 )
 
 
-def _check_profile(path, frame):
-    """Two levels or more, depths increasing line after line (errors name the line)."""
-    if len(frame) < 2:
-        raise InputError(f"{path}: a sound-speed profile needs 2 or more levels, got "
-                         f"{len(frame)}")
-    d = frame["depth"].to_numpy(float)
-    k = np.flatnonzero(np.diff(d) <= 0)
-    if k.size:
-        raise InputError(f"{path} line {int(frame['line'].iloc[k[0] + 1])}, column 1 (depth): "
-                         f"depths must increase line after line, got {d[k[0]]:g} then "
-                         f"{d[k[0] + 1]:g} m (a repeated or swapped level)")
-
-
 def _companions(here, paths):
     header = {}
     for key, name, cols, kinds in _COMPANIONS:
@@ -112,7 +99,8 @@ def _companions(here, paths):
             raise InputError(f"{path} line {vals[1]['line']}: a second lever arm; expected one "
                              "line of 3 numbers (dx dy dz)")
         if key == "ss_prof":
-            _check_profile(path, frame)
+            profile_frame(frame["depth"], frame["sound_speed"], str(path), lines=frame["line"],
+                          column=1)
         if key == "transponders":
             t = frame[["east", "north", "up"]].reset_index(drop=True)
             t.index = [str(k + 1) for k in range(len(t))]

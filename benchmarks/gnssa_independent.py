@@ -28,8 +28,9 @@ default), ``static`` (no time-varying sound speed), ``meancast`` (svp.csv the ca
 time-mean profile instead of the cast at the first shot), ``whitegnss`` (GNSS noise 2 cm
 white), ``nograd`` (no gradients), ``clean`` (no noise, no outliers), ``nonoise``,
 ``nooutliers``, ``nothing`` (no field change, no noise: the frame check); a variant ending
-in ``+gradoff`` locates with ``--gradients off`` instead of the defaults. Writes the section
-``gnssa-independent[-VARIANTS]`` of ``docs/gnssa.md``.
+in ``+gradoff`` locates with ``--gradients off``, one in ``+corroff`` with ``--correlation
+off``, instead of the defaults. Writes the section ``gnssa-independent[-VARIANTS]`` of
+``docs/gnssa.md``.
 """
 
 from __future__ import annotations
@@ -523,7 +524,8 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         for variant in variants:
             data, _, fit = variant.partition("+")
-            options = ["--gradients", "off"] if fit == "gradoff" else []
+            options = {"gradoff": ["--gradients", "off"],
+                       "corroff": ["--correlation", "off"]}.get(fit, [])
             for scen in ("A", "B"):
                 cfg = replace(Config(scenario=scen), **VARIANTS[data])
                 rows = []

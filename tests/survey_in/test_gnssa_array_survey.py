@@ -269,4 +269,6 @@ def _same_model(fit):
     return {"profile": m["profile"], "surface_depth": m["surface_depth"],
             "earth_radius": m["earth_radius"], "along_sphere": m["along_sphere"],
             "gradients": bool(m["gradients"]),
-            "time_range": m["time_range"]}
+            "time_range": m["time_range"],
+            "correlation": None if not m["noise"] or not m["noise"]["correlation_s"] else
+            (m["noise"]["correlation_s"], m["noise"]["share"], m["noise"]["white"])}

@@ -12,7 +12,7 @@ from ..exceptions import InputError
 COMMANDS = {name: c.batch for name, c in ALL.items() if c.batch is not None}
 #: the options of an array survey's location (GARPOS, GNATSS): no TAT or lag
 ARRAY_OPTIONS = ("ci", "outliers", "ssp", "speed_intervals", "gradients", "knot_minutes",
-                 "flags")
+                 "flags", "correlation")
 
 
 def run(command: str, inputs: dict, options: dict):

@@ -62,6 +62,36 @@ def at_least(minimum: int, maximum: int | None = None):
     return parse
 
 
+#: The longest ``--correlation`` time (s): ``noise.CORRELATION_TIMES``' last (a longer one
+#: widens the banded factor beyond what a few thousand replies afford).
+MAX_CORRELATION_S = 1200.0
+
+
+def correlation(text: str):
+    """``--correlation``: ``auto``, ``off`` or ``MU_T[,MU_MT[,WHITE]]`` (GARPOS's, and white).
+
+    Examples
+    --------
+    >>> correlation("60"), correlation("120,0"), correlation("300,0.5,0.4"), correlation("off")
+    ((60.0, 0.5, 0.0), (120.0, 0.0, 0.0), (300.0, 0.5, 0.4), 'off')
+    """
+    if text in ("auto", "off"):
+        return text
+    what = (f"auto, off or MU_T[,MU_MT[,WHITE]] (MU_T seconds in [0, {MAX_CORRELATION_S:g}], "
+            "MU_MT in [0, 1] (default 0.5), WHITE in [0, 1) (default 0))")
+    parts = text.split(",")
+    try:
+        vals = [float(v) for v in parts]
+    except ValueError:
+        vals = [math.nan]
+    if len(vals) > 3:
+        vals = [math.nan]
+    tau, share, white = (vals + [0.5, 0.0][len(vals) - 1:])[:3]
+    if not (0.0 <= tau <= MAX_CORRELATION_S and 0.0 <= share <= 1.0 and 0.0 <= white < 1.0):
+        raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}")
+    return tau, share, white
+
+
 #: A finite number.
 finite = number("a finite number")
 #: A finite number > 0 (scales, ``--sigma-dp``, ``--concentration``).

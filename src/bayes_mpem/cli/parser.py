@@ -170,6 +170,13 @@ def add_locate(sub):
                    help="array surveys: horizontal sound-speed gradients (GARPOS's shallow and "
                         "deep terms); default auto: fitted where the track constrains them, "
                         "the reason recorded and printed")
+    p.add_argument("--correlation", type=opt.correlation, default=None,
+                   metavar="auto|off|MU_T[,MU_MT[,WHITE]]",
+                   help="array surveys: the replies' noise correlated in time (MU_T, s) and "
+                        "across transponders (MU_MT, default 0.5), GARPOS's data covariance, "
+                        "with a share WHITE of independent noise (default 0); default auto: "
+                        "chosen by likelihood, independent replies among the choices, "
+                        "recorded and printed")
     p.add_argument("--flags", choices=["honour", "reclassify"], default=None,
                    help="GARPOS surveys: shots flagged in obs.csv are left out of the fit "
                         "(honour, the default) or fitted and classified with the others")

@@ -12,7 +12,7 @@ from ..io.formats import read_survey, sniff_format
 from ..io.raw import ARRAY_FORMATS
 from ..report import write_figures
 from ..survey_in.posterior import check_location_options
-from ..survey_in.result import gradients_line
+from ..survey_in.result import gradients_line, noise_line
 from .errors import OptionError
 
 
@@ -56,6 +56,12 @@ def _check_array_options(args, fmt):
         raise OptionError("--gradients on with --speed-intervals 0: the gradients need a "
                           "sound speed varying in time (the smooth default or "
                           "--speed-intervals N > 0)")
+    corr = getattr(args, "correlation", None)
+    if args.sample and isinstance(corr, tuple):
+        raise OptionError(f"--correlation {','.join(f'{v:g}' for v in corr)} with --sample: "
+                          "the posterior "
+                          "treats the replies as independent (auto checks and warns; off "
+                          "does not); locate without --sample fits a given correlation")
     if getattr(args, "flags", None) is not None and fmt != "garpos":
         raise OptionError(f"--flags: for GARPOS surveys only (a {fmt} survey has no flag "
                           "column)")
@@ -92,8 +98,9 @@ def locate_kwargs(args) -> dict:
                     speed_intervals=args.speed_intervals, sample=_sample_options(args),
                     gradients=getattr(args, "gradients", None) or "auto",
                     knot_minutes=getattr(args, "knot_minutes", None),
-                    flags=getattr(args, "flags", None) or "honour")
-    array_only = [o for o in ("gradients", "knot_minutes", "flags")
+                    flags=getattr(args, "flags", None) or "honour",
+                    correlation=getattr(args, "correlation", None) or "auto")
+    array_only = [o for o in ("gradients", "knot_minutes", "flags", "correlation")
                   if getattr(args, o, None) is not None]
     if array_only:
         raise OptionError(f"{', '.join('--' + o.replace('_', '-') for o in array_only)}: for "
@@ -222,6 +229,7 @@ def cmd_locate(args) -> int:
         print(f"array centre: east {_interval(c['east'], '{:.3f}')}, north "
               f"{_interval(c['north'], '{:.3f}')}, up {_interval(c['up'], '{:.3f}')} m")
         print(gradients_line(summary))
+        print(noise_line(summary))
         if "posterior" in summary:
             _print_array_posterior(summary)
     for tid, why in summary.get("skipped_transponders", {}).items():

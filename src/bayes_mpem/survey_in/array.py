@@ -16,6 +16,7 @@ from .._validate import check_choice, check_int
 from ..exceptions import InputError, LocateWarning
 from .classes import OUTLIER_MODELS
 from .location import TravelTimeEM, weighted_residuals
+from .noise import CORRELATION_TIMES, Whitener, choose_correlation
 from .travel_times import (
     TravelTimes,
     smooth_intervals,
@@ -363,7 +364,8 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
                  surface_depth=0.0, speed_intervals=None, knot_minutes=KNOT_MINUTES,
                  sound_speed=None, outliers="uniform", time_range=None, fixed=None,
                  shift=False, gradients=False, max_iter=200, tol=1e-10,
-                 earth_radius=None, along_sphere=False, exclude=None) -> ArrayLocateResult:
+                 earth_radius=None, along_sphere=False, exclude=None,
+                 correlation=None) -> ArrayLocateResult:
     """Locate every transponder of an array by EM, classifying each shot true or spurious.
 
     Parameters
@@ -420,6 +422,14 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
         With ``earth_radius``: the frame is already along the sphere (SeaGap's).
     exclude : array_like of bool, optional
         Shots left out of the fit (GARPOS's flagged shots); ``rows`` never holds them.
+    correlation : None, "auto" or tuple of float, optional
+        The replies' noise: None (default) independent (the intervals cluster-robust by
+        interrogation); ``(mu_t, mu_mt[, white])`` GARPOS's covariance correlated in time
+        and across transponders, plus a white share (:mod:`~bayes_mpem.survey_in.noise`;
+        ``white`` default 0, GARPOS's own), the true replies of the EM refitted by
+        generalised least squares; ``"auto"`` the three chosen by likelihood
+        (:func:`~.noise.choose_correlation`), independent replies among the choices
+        (``model["noise"]`` records the choice).
 
     Returns
     -------
@@ -503,20 +513,25 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
         em = TravelTimeEM(t, resid, jac, x_scale, windows, index, outliers)
     run = em.run(phi, sigma_min=1e-7, tol=tol, max_iter=max_iter)
     (phi, _, sigma, weights), p = run.params[:4], run.resp
+    lam, lam_g = (run.params.lam, run.params.lam_g) if smooth else (None, None)
     clusters = sub["t_tx"].to_numpy() if "t_tx" in sub.columns else np.arange(len(sub))
-    J = jac(phi, p)
+    J, r = jac(phi, p), resid(phi, p)
+    refit, noise = _correlated_refit(correlation, resid, jac, phi, p, sub, index, H, Hg, lam,
+                                     lam_g, sigma)
+    if refit is not None:
+        phi, sigma, lam, lam_g, J, r = refit
+        clusters = np.arange(len(r))  # whitened rows: independent
     smoothing = None
     if smooth:
         cov_phi, cov_model_phi, smoothing = _smooth_covariance(
-            J, resid(phi, p), phi, H, sigma, run.params.lam, clusters, Hg,
-            None if Hg is None else run.params.lam_g)
+            J, r, phi, H, sigma, lam, clusters, Hg, lam_g)
         if Hg is not None:
-            smoothing.update(gradient_weight=float(run.params.lam_g),
-                             log10_gradient_weight=float(np.log10(run.params.lam_g)))
+            smoothing.update(gradient_weight=float(lam_g),
+                             log10_gradient_weight=float(np.log10(lam_g)))
         smoothing.update(knot_minutes=(time_range[1] - time_range[0]) / 60.0 / equal,
                          knot_minutes_asked=float(knot_minutes))
     else:
-        cov_phi = robust_covariance(J, resid(phi, p), clusters)
+        cov_phi = robust_covariance(J, r, clusters)
         cov_model_phi = np.linalg.pinv(J.T @ J) * sigma**2
     Gf = _full_map(G, k + kg)
     theta = _expand(phi, G, start, k + kg)
@@ -543,7 +558,7 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
                "unit": unit, "n_invalid": n_bad, "smoothing": smoothing,
                "earth_radius": None if earth_radius is None else float(earth_radius),
                "along_sphere": bool(along_sphere), "gradients": grad_record,
-               "positions": _positions_record(G, K, shift)})
+               "positions": _positions_record(G, K, shift), "noise": noise})
 
 
 def to_sphere(east, north, up, radius):
@@ -1028,6 +1043,95 @@ def penalised_gauss_newton(resid, jac, theta, Q, *, max_steps=50, rtol=1e-12):
         if gain <= rtol * f:
             break
     return th
+
+
+def _correlated_refit(correlation, resid, jac, phi, p, sub, index, H, Hg, lam, lam_g, sigma):
+    """Refit the EM's true replies under GARPOS's correlated noise (:mod:`.noise`).
+
+    Returns ``(refit, record)``: ``refit`` None for independent noise, else ``(phi, sigma,
+    lam, lam_g, J, r)`` with ``J`` and ``r`` whitened (``L^-1``, ``E = L L'``) and the
+    weights chosen again on them; ``record`` for ``model["noise"]`` (None where not asked).
+    """
+    if correlation is None or correlation == "off":
+        return None, None
+    keep = np.flatnonzero(p > 0.5)
+    time = sub["time"].to_numpy(float)[keep]
+    r0 = resid(phi)[keep]
+    table = None
+    if correlation == "auto":
+        (tau, share, white), table = choose_correlation(
+            time, index[keep], r0,
+            evidence=_noise_evidence(jac(phi)[keep], r0, phi, H, Hg, lam, lam_g))
+    else:
+        vals = [float(v) for v in correlation]  # (mu_t[, mu_mt[, white]])
+        tau, share, white = (vals + [0.5, 0.0][len(vals) - 1:])[:3]
+    if tau <= 0.0:
+        return None, _noise_record(0.0, None, None, table, keep.size)
+    try:
+        w = Whitener(time, index[keep], tau, share, white)
+    except np.linalg.LinAlgError:
+        raise InputError(f"correlation ({tau:g} s, {share:g}, white {white:g}): the replies' "
+                         "covariance is singular (a transponder heard twice at one time); give "
+                         "a white share above 0") from None
+
+    def rw(th):
+        return w.whiten(resid(th)[keep])
+
+    def jw(th):
+        return w.whiten(jac(th)[keep])
+
+    for _ in range(3 if H is not None else 1):
+        J, r = jw(phi), rw(phi)
+        if H is not None:
+            lam = choose_smoothing(J, r, phi, H, sigma, lam, None if Hg is None else lam_g * Hg)
+            Q = lam * H
+            if Hg is not None:
+                lam_g = choose_smoothing(J, r, phi, Hg, sigma, lam_g, Q)
+                Q = Q + lam_g * Hg
+        else:
+            Q = np.zeros((phi.size, phi.size))
+        phi = penalised_gauss_newton(rw, jw, phi, sigma**2 * Q)
+        r = rw(phi)
+        sigma = float(np.sqrt(r @ r / r.size))
+    return (phi, sigma, lam, lam_g, jw(phi), r), _noise_record(tau, share, white, table,
+                                                               keep.size)
+
+
+def _noise_evidence(J0, r0, phi, H, Hg, lam, lam_g):
+    """Return ``evidence(whitener)``: the linearised log marginal likelihood under ``E``.
+
+    The fit's Jacobian ``J0`` and residuals ``r0`` (the true replies) whitened, ``sigma``
+    at its estimate, the speed's weight chosen again (the gradients' held): GARPOS's
+    -ABIC / 2 with ``-n log sigma - log|E| / 2`` kept, as they differ between ``E``.
+    """
+    fixed = None if Hg is None else lam_g * Hg
+    rank = None if H is None else _penalty_rank(H)
+
+    def evidence(w):
+        J, r = w.whiten(J0), w.whiten(r0)
+        sigma = float(np.sqrt(r @ r / r.size))
+        if H is None:  # unpenalised: a flat prior, the same constant for every E
+            ll = log_evidence(J, r, phi, np.zeros((phi.size, phi.size)), sigma, 1.0, 0)[0]
+        else:
+            lg = choose_smoothing(J, r, phi, H, sigma, lam, fixed)
+            ll = log_evidence(J, r, phi, H, sigma, lg, rank, fixed)[0]
+        return ll - r.size * np.log(sigma) - 0.5 * w.logdet
+
+    return evidence
+
+
+def _noise_record(tau, share, white, table, n):
+    """``model["noise"]``: the correlation used and, where chosen, the likelihood table."""
+    return {"model": "independent" if tau <= 0 else
+            "white + (1 - white) GARPOS's exp(-|dt| / mu_t) (mu_mt + (1 - mu_mt) [same "
+            "transponder]), tapered",
+            "correlation_s": float(tau), "share": share, "white": white, "n_replies": int(n),
+            "criterion": None if table is None else
+            "for each correlation time the share and white share of largest residual "
+            "likelihood; between times the largest marginal likelihood of the linearised "
+            "model (GARPOS's ABIC)",
+            "at_grid_edge": bool(table is not None and tau >= CORRELATION_TIMES[-1]),
+            "grid": table}
 
 
 def _root(H):

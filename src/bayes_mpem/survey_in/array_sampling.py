@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 
 from .._rng import RNGLike, as_generator
+from ..exceptions import InputError, SamplingWarning
 from ..mcmc import (
     TProposal,
     bulk_ess,
@@ -1063,6 +1064,35 @@ def _with_posterior(em: dict, enu: dict, origin) -> dict:
     return out
 
 
+def _noise_check(fit, shots, correlation):
+    """``summary.json`` ``noise`` of a sampled array: independent, checked where asked.
+
+    Where :func:`~.noise.choose_correlation` prefers correlated noise to independent
+    replies, warn (:class:`SamplingWarning`): the posterior treats them as independent.
+    """
+    import warnings
+
+    from .noise import choose_correlation
+
+    out = {"model": "independent", "correlation_s": 0.0, "share": None, "grid": None,
+           "choice": "off" if correlation in ("off", None) else "auto"}
+    if out["choice"] == "off":
+        return out
+    keep = fit.p_true > 0.5
+    time = shots.iloc[fit.rows]["time"].to_numpy(float)[keep]
+    (tau, share, white), table = choose_correlation(time, fit.index[keep], fit.residual[keep])
+    out["grid"] = table
+    if tau > 0:
+        gain = -next(row["log_likelihood"] for row in table if row["correlation_s"] == 0.0)
+        out["warning"] = (f"the residuals are correlated (mu_t {tau:g} s, mu_mt {share:g}, "
+                          f"white {white:g}, preferred by {gain:.0f} nats): the posterior "
+                          "treats the replies "
+                          "as independent, so its intervals are likely too narrow; locate "
+                          "without --sample models the correlation")
+        warnings.warn("array posterior: " + out["warning"], SamplingWarning, stacklevel=3)
+    return out
+
+
 def _check_forced_gradients(shots, raw, gradients, speed_intervals):
     """Refuse to sample gradient terms forced on where the track does not determine them.
 
@@ -1070,7 +1100,6 @@ def _check_forced_gradients(shots, raw, gradients, speed_intervals):
     is all but flat along them and no chain converges (a 0.5-hour campaign: R-hat 2.2 after
     10,700 steps, 2.4 GB, stopped at 400 s; docs/gnssa.md). The EM still fits them if asked.
     """
-    from ..exceptions import InputError
     from .array_survey import gradient_gate
 
     if not (gradients is True or gradients == "on"):
@@ -1087,7 +1116,8 @@ def _check_forced_gradients(shots, raw, gradients, speed_intervals):
 def locate_array_survey_bayes(raw, *, ci=0.95, outliers="uniform", ssp=None,
                               speed_intervals=None, gradients="auto", knot_minutes=None,
                               flags="honour", n_walkers=None, min_ess=1000.0, max_steps=20000,
-                              n_draws=4000, rng: RNGLike = None, progress="auto"):
+                              n_draws=4000, rng: RNGLike = None, progress="auto",
+                              correlation="auto"):
     """Locate a GNSS-A array by EM, then sample its posterior (``locate --sample``).
 
     Parameters
@@ -1100,6 +1130,12 @@ def locate_array_survey_bayes(raw, *, ci=0.95, outliers="uniform", ssp=None,
     n_walkers, min_ess, max_steps, n_draws, progress
         As for :func:`sample_array`.
     rng : None, int or numpy.random.Generator
+    correlation : {"auto", "off"}, default "auto"
+        The posterior treats the replies as independent. ``"auto"`` also asks whether
+        their residuals are correlated (:func:`~.noise.choose_correlation`); where they
+        are, ``summary.json`` ``noise`` says so and a :class:`SamplingWarning` warns
+        that the posterior's intervals are likely too narrow (``locate`` without
+        ``--sample`` models the correlation).
 
     Returns
     -------
@@ -1121,13 +1157,19 @@ def locate_array_survey_bayes(raw, *, ci=0.95, outliers="uniform", ssp=None,
                            n_draws=n_draws)
     shots = array_shots(raw)
     _check_forced_gradients(shots, raw, gradients, speed_intervals)
+    if correlation not in ("auto", "off", None):
+        raise InputError(f"correlation={correlation!r} with the posterior: it treats the "
+                         "replies as independent; give 'auto' or 'off' (locate without "
+                         "sampling models a given correlation)")
     located = locate_survey(raw, ci=ci, outliers=outliers, ssp=ssp,
                             speed_intervals=speed_intervals, gradients=gradients, flags=flags,
-                            knot_minutes=knot_minutes)
+                            knot_minutes=knot_minutes, correlation="off")
     fit = located.fits["array"]
+    noise = _noise_check(fit, shots, correlation)
     post = sample_array(shots, fit, n_walkers=n_walkers, ci=ci, min_ess=min_ess,
                         max_steps=max_steps, n_draws=n_draws, rng=rng, progress=progress)
     s = copy.deepcopy(located.summary)
+    s["noise"] = noise
     origin = s["geometry"].get("origin")
     d = post.draws
     for j, tid in enumerate(post.ids):

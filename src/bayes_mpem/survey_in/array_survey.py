@@ -370,10 +370,30 @@ def _geometry_entry(origin, surface_depth, radius, cartesian) -> dict:
             "earth_radius_m": radius}
 
 
+def _noise_entry(fit, correlation) -> dict:
+    """``summary.json`` ``noise``: the replies' noise model, how it was chosen."""
+    return {**(fit.model.get("noise") or {"model": "independent", "correlation_s": 0.0,
+                                          "share": None, "white": None, "grid": None}),
+            "choice": "auto" if correlation == "auto" else
+            "off" if correlation in (None, "off") else "given"}
+
+
+def _method(fit, rays, noise) -> str:
+    """``summary.json`` ``method`` of an array fit."""
+    gls = (noise["correlation_s"] or 0) > 0
+    return (f"array EM, {rays}"
+            + ("; the true replies refitted by generalised least squares under correlated "
+               "noise; intervals approximate (Wald" if gls else
+               "; intervals approximate (Wald, cluster-robust by interrogation")
+            + (", averaged over the sound speed's smoothing weights)"
+               if fit.model.get("smoothing") else ")"))
+
+
 def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
                         speed_intervals=None, surface_depth=None,
                         knot_minutes=KNOT_MINUTES, shift=None,
-                        gradients="auto", earth="sphere", flags="honour") -> SurveyInResult:
+                        gradients="auto", earth="sphere", flags="honour",
+                        correlation="auto") -> SurveyInResult:
     """Locate every transponder of a GNSS-A array survey together.
 
     Parameters
@@ -414,6 +434,11 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
         GARPOS's ``flag`` column: ``"honour"`` leaves the flagged shots out of the fit
         (listed in ``classified.csv`` with the reason, as GARPOS does);
         ``"reclassify"`` fits them with the others and lets the EM classify them.
+    correlation : {"auto", "off"} or tuple of float, default "auto"
+        The replies' noise (:func:`~.array.locate_array`; ``summary.json`` ``noise``):
+        ``"auto"`` GARPOS's correlation in time and across transponders where the
+        likelihood prefers it to independent replies; ``"off"`` (or None) independent
+        (intervals cluster-robust by interrogation); ``(mu_t, mu_mt)`` given.
 
     Returns
     -------
@@ -459,7 +484,7 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
                            speed_intervals=speed_intervals, outliers=outliers,
                            knot_minutes=knot_minutes, fixed=fixed, shift=shift,
                            gradients=gradients, earth_radius=radius, along_sphere=not cartesian,
-                           exclude=flagged if honour else None)
+                           exclude=flagged if honour else None, correlation=correlation)
     except InputError as exc:  # too few shots: name the shots file
         raise InputError(f"{_shots_file(raw)}: {exc}") from None
     origin = (h["lat"], h["lon"], h.get("height", 0.0)) if "lat" in h else None
@@ -492,6 +517,7 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
             table[c] = shots[c].to_numpy()
     cls = classified_table(table, probs, raw.skipped, reasons=reasons, extra=extra)
     rays = "straight rays" if prof is None else f"refracted rays ({prof.source or 'profile'})"
+    noise = _noise_entry(fit, correlation)
     summary = {
         "transponders": out, "array_centre": _centre_entry(fit, ci, origin),
         "sound_speed": _sound_speed_entry(fit, ci, prof),
@@ -502,9 +528,7 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
         "format": raw.format, "source": raw.source, "files": h.get("files", {}),
         "n_pings": int(n), "n_skipped_lines": int(len(raw.skipped)),
         "skipped_transponders": dict(fit.skipped),
-        "method": f"array EM, {rays}; intervals approximate (Wald, cluster-robust by "
-                  "interrogation" + (", averaged over the sound speed's smoothing weights)"
-                                     if fit.model.get("smoothing") else ")"),
+        "method": _method(fit, rays, noise), "noise": noise,
         "outliers": outliers, "ssp": None if prof is None else prof.source,
         "speed_intervals": int(fit.model["speed_intervals"]), "fit_lag": False,
         "positions": fit.model["positions"],

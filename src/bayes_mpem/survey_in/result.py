@@ -207,6 +207,33 @@ def gradients_line(summary: dict) -> str:
     return line
 
 
+def noise_line(summary: dict) -> str:
+    """Return one line: the replies' noise model (``summary.json`` ``noise``).
+
+    Parameters
+    ----------
+    summary : dict
+        An array's ``summary.json``.
+
+    Returns
+    -------
+    str
+    """
+    nz = summary.get("noise") or {}
+    tau = nz.get("correlation_s") or 0.0
+    how = nz.get("choice", "-")
+    if tau <= 0:
+        line = f"noise         independent replies ({how})"
+    else:
+        line = (f"noise         correlated: mu_t {tau:g} s, mu_mt {nz['share']:g} ({how}; "
+                "generalised least squares)")
+    if nz.get("at_grid_edge"):
+        line += "; at the longest time tried"
+    if nz.get("warning"):
+        line += f"; {nz['warning']}"
+    return line
+
+
 def _solution_text(summary: dict) -> str:
     """Return an array's solution as plain text, for a log (``solution.txt``)."""
     s = summary
@@ -245,6 +272,8 @@ def _solution_text(summary: dict) -> str:
                   f"spurious; {s.get('n_skipped_lines', 0)} lines skipped"]
     if "gradients" in s:
         lines.append(gradients_line(s))
+    if "noise" in s:
+        lines.append(noise_line(s))
     lines.append(f"intervals     sd = 1 standard deviation (m); "
                  f"{s.get('position_region', '')}")
     return "\n".join(lines) + "\n"

@@ -44,7 +44,7 @@ def is_array(raw, *, one_at_a_time=False) -> bool:
 
 def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", ssp=None,
                   speed_intervals=0, fit_lag=False, lag_check=False, one_at_a_time=False,
-                  gradients="auto", knot_minutes=None, flags="honour"):
+                  gradients="auto", knot_minutes=None, flags="honour", correlation="auto"):
     """Locate every transponder of a :class:`~bayes_mpem.io.raw.RawSurvey`.
 
     Parameters
@@ -82,6 +82,10 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
     flags : {"honour", "reclassify"}, default "honour"
         An array survey: GARPOS's flagged shots left out or classified
         (:func:`locate_array_survey`).
+    correlation : {"auto", "off"} or tuple of float, default "auto"
+        An array survey: the replies' noise correlated in time and across
+        transponders (:func:`locate_array_survey`); a one-transponder survey takes only
+        the default.
 
     Returns
     -------
@@ -100,7 +104,8 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
     ------
     InputError
         A turn-around time or a lag asked of an array survey (GNSS-A travel times
-        are already corrected for delays), or ``one_at_a_time`` for GARPOS or GNATSS.
+        are already corrected for delays), ``one_at_a_time`` for GARPOS or GNATSS, or a
+        ``correlation`` other than the default for a survey that is not an array.
     """
     if one_at_a_time and raw.format in ARRAY_FORMATS:
         raise InputError(f"one_at_a_time: a {raw.format} survey is located as an array")
@@ -123,7 +128,10 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
             geo["knot_minutes"] = knot_minutes
         return locate_array_survey(raw, ci=ci, outliers=outliers, ssp=ssp,
                                    speed_intervals=speed_intervals, gradients=gradients,
-                                   flags=flags, **geo)
+                                   flags=flags, correlation=correlation, **geo)
+    if correlation != "auto":
+        raise InputError(f"correlation={correlation!r}: for array surveys only (GARPOS, "
+                         "GNATSS, SeaGap with two transponders or more)")
     if tat is None:
         tat = raw.header.get("tat", 0.0 if raw.format == "seagap" else DEFAULT_TAT)
     pings, beacons = raw.to_pings()

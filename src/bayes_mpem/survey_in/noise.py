@@ -1,0 +1,233 @@
+"""Noise correlated in time and across transponders: GARPOS's data covariance.
+
+The replies of a GNSS-A campaign are not independent: the transducer's GNSS error is
+shared by the replies to one interrogation, and the water a ray crosses changes over
+minutes, so a transponder's residuals stay on one side of zero for several shots
+(measured on the SeaGap survey: a correlation of 0.57 between one transponder's
+consecutive replies a minute apart, 0.19 at 5-10 minutes; ``docs/gnssa.md``). GARPOS
+(Watanabe et al. 2020, *Front. Earth Sci.* 8:597532) models the replies' covariance as
+``sigma^2 E`` with
+
+``E_ij = exp(-|t_i - t_j| / mu_t) (mu_mt + (1 - mu_mt) [same transponder])``,
+
+``mu_t`` a correlation time and ``mu_mt`` the share of it common to all transponders,
+and chooses ``mu_t`` by ABIC. Here a share ``white`` of the variance may also be
+independent from reply to reply (timing noise): ``E = white I + (1 - white) E_GARPOS``,
+GARPOS's own at ``white = 0``; without it, replies of one transponder 20 s apart are
+taken as almost fully correlated, and on the acceptance's campaigns with a correlated
+delay added (``benchmarks/gnssa_correlated.py``) the likelihood then preferred
+independent replies, whose intervals covered 67 %. ``E`` is multiplied by a Wendland
+taper that reaches
+zero at :data:`TAPER` ``mu_t`` (Furrer, Genton & Nychka 2006, *J. Comput. Graph.
+Stat.* 15:502): the product of two positive-definite functions stays positive definite,
+and in time order ``E`` is banded, so LAPACK's banded Cholesky factors it in
+``O(n b^2)``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.linalg import cholesky_banded
+from scipy.linalg.lapack import dtbtrs
+
+#: Taper range in correlation times: ``exp(-4)`` = 0.018 is where the taper reaches 0.
+TAPER = 4.0
+#: Correlation times (s) tried by ``correlation="auto"`` (0: independent replies), in
+#: order until two in a row do worse than the best so far.
+CORRELATION_TIMES = (0.0, 30.0, 60.0, 120.0, 180.0, 300.0, 600.0, 1200.0)
+#: Shares common to all transponders tried by ``correlation="auto"`` (GARPOS's 0.5 and 0).
+SHARES = (0.5, 0.0)
+#: Shares of the variance independent from reply to reply tried (0: GARPOS's form).
+WHITES = (0.0, 0.3, 0.5, 0.7)
+
+
+def _wendland(x):
+    """Wendland's C2 taper ``(1 - x)^4 (4 x + 1)`` on ``[0, 1]``, 0 beyond."""
+    y = np.clip(1.0 - x, 0.0, None)
+    return y**4 * (4.0 * x + 1.0)
+
+
+class Whitener:
+    """The Cholesky factor ``L`` of ``E`` (``E = L L'``) and products with ``L^-1``.
+
+    Parameters
+    ----------
+    time : array_like
+        ``(n,)`` transmit time of each reply (s).
+    index : array_like of int
+        ``(n,)`` the transponder of each reply.
+    tau : float
+        Correlation time ``mu_t`` (s); 0 for independent replies (``E = I``).
+    share : float
+        ``mu_mt``, in [0, 1].
+    white : float, default 0
+        The share of the variance independent from reply to reply, in [0, 1).
+
+    Raises
+    ------
+    numpy.linalg.LinAlgError
+        Where ``E`` is not positive definite (not expected: see the module's note).
+
+    Examples
+    --------
+    >>> w = Whitener([0.0, 10.0, 10.0, 600.0], [0, 0, 1, 1], 60.0, 0.5)
+    >>> round(w.logdet, 3)
+    -1.471
+    >>> bool(np.allclose(w.whiten(w.matrix() @ w.whiten(np.eye(4)).T), np.eye(4)))
+    True
+    """
+
+    def __init__(self, time, index, tau, share, white=0.0):
+        time = np.asarray(time, float)
+        self.order = np.argsort(time, kind="stable")
+        self.n = time.size
+        self.tau, self.share, self.white = float(tau), float(share), float(white)
+        if self.tau <= 0.0:
+            self.ab, self.logdet = None, 0.0
+            return
+        t, k = time[self.order], np.asarray(index)[self.order]
+        cut = TAPER * self.tau
+        reach = np.searchsorted(t, t + cut, side="left") - np.arange(t.size)
+        bands = [np.ones(t.size)]
+        for d in range(1, int(reach.max()) if t.size else 0):
+            dt = t[d:] - t[:-d]
+            v = ((1.0 - self.white) * np.exp(-dt / self.tau) * _wendland(dt / cut)
+                 * (self.share + (1.0 - self.share) * (k[d:] == k[:-d])))
+            bands.append(np.concatenate([v, np.zeros(d)]))
+        self.ab = cholesky_banded(np.array(bands), lower=True)
+        self.logdet = float(2.0 * np.sum(np.log(self.ab[0])))
+
+    def whiten(self, X):
+        """Return ``L^-1 X`` (rows of ``X`` in the caller's order; the result in time order)."""
+        X = np.asarray(X, float)
+        if self.ab is None:
+            return X[self.order]
+        two = X.ndim == 2
+        out, info = dtbtrs(self.ab, X[self.order] if two else X[self.order, None],
+                           uplo="L")
+        if info:
+            raise np.linalg.LinAlgError(f"dtbtrs: info {info}")
+        return out if two else out[:, 0]
+
+    def matrix(self) -> np.ndarray:
+        """Return ``E`` densely, in the caller's order (for tests and small surveys)."""
+        if self.ab is None:
+            return np.eye(self.n)
+        b = self.ab.shape[0]
+        L = np.zeros((self.n, self.n))
+        for d in range(b):
+            L[np.arange(d, self.n), np.arange(self.n - d)] = self.ab[d, :self.n - d]
+        E = L @ L.T
+        inv = np.empty(self.n, int)
+        inv[self.order] = np.arange(self.n)
+        return E[np.ix_(inv, inv)]
+
+
+def residual_log_likelihood(whitener, r) -> float:
+    """Profile log likelihood of residuals ``r ~ N(0, sigma^2 E)``, ``sigma`` at its best.
+
+    ``-(n/2) log(r' E^-1 r / n) - log|E| / 2`` (constants dropped): the criterion by
+    which :func:`choose_correlation` compares correlation times at a fixed fit.
+
+    Parameters
+    ----------
+    whitener : Whitener
+    r : numpy.ndarray
+        ``(n,)`` residuals (s), in the caller's order.
+
+    Returns
+    -------
+    float
+    """
+    rw = whitener.whiten(r)
+    n = rw.size
+    return float(-0.5 * n * np.log(rw @ rw / n) - 0.5 * whitener.logdet)
+
+
+def choose_correlation(time, index, r, times=CORRELATION_TIMES, shares=SHARES, whites=WHITES,
+                       evidence=None):
+    """Choose GARPOS's correlation of the replies: ``(tau, share, white)`` and the table.
+
+    For each correlation time, the share and the white share of largest
+    :func:`residual_log_likelihood`; between the times, the largest ``evidence`` of
+    that pair, or the same residual likelihood without one. The residuals' likelihood
+    alone prefers too short a time: the fit's smooth terms have absorbed the slowest
+    part of the correlation (on ``benchmarks/gnssa_correlated.py``'s campaigns, 60-120 s
+    against a true 180 s, and intervals covering 81 %); the marginal likelihood of the
+    whole linearised model (GARPOS's ABIC) does not have that bias.
+
+    Parameters
+    ----------
+    time, index : array_like
+        As for :class:`Whitener`.
+    r : numpy.ndarray
+        Residuals of the direct replies at the independent-noise fit (s).
+    times, shares, whites : sequence of float
+        The grid (``tau = 0`` is tried once: independent replies), ``times``
+        increasing; the search stops after two times in a row that do worse than the
+        best so far (the criterion is taken as unimodal in ``tau``; the longer times
+        cost the most).
+    evidence : callable, optional
+        ``evidence(whitener)``: the log marginal likelihood of the model under that
+        covariance.
+
+    Returns
+    -------
+    best : tuple of float
+        ``(tau, share, white)``; ``(0, 0, 0)`` for independent replies.
+    table : list of dict
+        One row per time: ``correlation_s``, its best ``share`` and ``white``,
+        ``log_likelihood`` (the residuals') and ``log_evidence`` (with ``evidence``),
+        each relative to its best (None where ``E`` is singular: a transponder heard
+        twice at one time, which GARPOS's form without a white share takes as one).
+
+    Examples
+    --------
+    >>> gen = np.random.default_rng(1)
+    >>> t = np.arange(2000) * 20.0
+    >>> ou = np.zeros(2000)
+    >>> for i in range(1, 2000):
+    ...     ou[i] = ou[i - 1] * np.exp(-20 / 120) + gen.normal(0, np.sqrt(1 - np.exp(-40 / 120)))
+    >>> choose_correlation(t, np.zeros(2000, int), ou)[0]
+    (120.0, 0.5, 0.0)
+    """
+    rows, worse = [], 0
+    for tau in times:
+        best = (-np.inf, None)
+        for share in (shares if tau > 0 else shares[:1]):
+            for white in (whites if tau > 0 else whites[:1]):
+                try:
+                    w = Whitener(time, index, tau, share, white)
+                except np.linalg.LinAlgError:  # singular: one transponder twice at one time
+                    continue
+                ll = residual_log_likelihood(w, r)
+                if ll > best[0]:
+                    best = (ll, w)
+        w = best[1]
+        row = {"correlation_s": float(tau), "share": None if w is None or tau <= 0 else w.share,
+               "white": None if w is None or tau <= 0 else w.white,
+               "log_likelihood": best[0]}
+        row["log_evidence"] = None
+        if evidence is not None:
+            row["log_evidence"] = -np.inf if w is None else float(evidence(w))
+        level = row["log_evidence"] if evidence is not None else row["log_likelihood"]
+        worse = worse + 1 if rows and level < max(_level(x) for x in rows) else 0
+        rows.append(row)
+        if worse == 2:
+            break
+    levels = np.array([_level(x) for x in rows])
+    best = rows[int(np.argmax(levels))]
+    for key in ("log_likelihood", "log_evidence"):  # relative to the best; None: singular
+        finite = [x[key] for x in rows if x[key] is not None and np.isfinite(x[key])]
+        for x in rows:
+            ok = x[key] is not None and np.isfinite(x[key])
+            x[key] = float(x[key] - max(finite)) if ok else None
+    if best["correlation_s"] <= 0:
+        return (0.0, 0.0, 0.0), rows
+    return (best["correlation_s"], best["share"], best["white"]), rows
+
+
+def _level(row):
+    """Return a row's criterion: its evidence where there is one, else its likelihood."""
+    v = row["log_evidence"] if row["log_evidence"] is not None else row["log_likelihood"]
+    return -np.inf if v is None else v

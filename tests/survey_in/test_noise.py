@@ -1,0 +1,171 @@
+"""Correlated noise of an array's replies: GARPOS's data covariance (docs/gnssa.md)."""
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+
+from bayes_mpem.cli import main
+from bayes_mpem.io.formats import read_survey, sample_file
+from bayes_mpem.survey_in.array_survey import locate_array_survey
+from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa
+from bayes_mpem.survey_in.noise import TAPER, Whitener, choose_correlation
+
+
+def _dense(time, index, tau, share, white):
+    dt = np.abs(time[:, None] - time[None, :])
+    x = dt / (TAPER * tau)
+    taper = np.clip(1 - x, 0, None) ** 4 * (4 * x + 1)
+    same = index[:, None] == index[None, :]
+    E = (1 - white) * np.exp(-dt / tau) * taper * (share + (1 - share) * same)
+    np.fill_diagonal(E, 1.0)
+    return E
+
+
+@pytest.mark.parametrize("tau,share,white", [(60.0, 0.5, 0.0), (300.0, 0.0, 0.4),
+                                             (30.0, 1.0, 0.7)])
+def test_whitener_is_the_tapered_covariance(tau, share, white):
+    gen = np.random.default_rng(3)
+    time = np.repeat(np.cumsum(gen.uniform(5, 60, 120)), 3)[::-1].copy()  # 3 replies a shot
+    index = np.concatenate([gen.permutation(4)[:3] for _ in range(120)])  # distinct
+    w = Whitener(time, index, tau, share, white)
+    E = _dense(time, index, tau, share, white)
+    assert np.allclose(w.matrix(), E, atol=1e-12)
+    assert w.logdet == pytest.approx(np.linalg.slogdet(E)[1], abs=1e-8)
+    X = gen.normal(size=(time.size, 2))
+    Xw = w.whiten(X)
+    assert np.allclose(Xw.T @ Xw, X.T @ np.linalg.solve(E, X))
+
+
+def test_taper_keeps_garpos_form_positive_definite():
+    """Without a white share (GARPOS's own form) the tapered matrix still factors."""
+    gen = np.random.default_rng(5)
+    for _ in range(20):
+        time = np.cumsum(gen.exponential(10.0, 300))
+        index = gen.integers(0, 4, 300)
+        E = _dense(time, index, gen.uniform(10, 600), gen.uniform(0, 1), 0.0)
+        assert np.linalg.eigvalsh(E).min() > 0
+        Whitener(time, index, 120.0, 0.5)  # banded Cholesky does not fail
+
+
+def test_one_transponder_twice_at_once_is_refused_or_skipped():
+    """GARPOS's form makes two replies of one transponder at one time one reply (singular)."""
+    with pytest.raises(np.linalg.LinAlgError):
+        Whitener([0.0, 0.0, 30.0], [1, 1, 2], 60.0, 0.5)
+    (tau, _, white), table = choose_correlation(
+        np.array([0.0, 0.0, 30.0, 60.0] * 50) + np.repeat(np.arange(50) * 90.0, 4),
+        np.array([1, 1, 2, 3] * 50), np.random.default_rng(0).normal(size=200))
+    assert all(row["white"] != 0.0 for row in table if row["correlation_s"] > 0)  # 0: singular
+
+
+def test_independent_replies_are_the_identity():
+    w = Whitener([3.0, 1.0, 2.0], [0, 1, 0], 0.0, 0.5)
+    assert w.logdet == 0.0
+    assert np.allclose(w.matrix(), np.eye(3))
+    assert w.whiten(np.array([3.0, 1.0, 2.0])).tolist() == [1.0, 2.0, 3.0]  # time order
+
+
+def test_choice_finds_an_ou_process_under_white_noise():
+    gen = np.random.default_rng(2)
+    t = np.arange(3000) * 20.0
+    a = np.exp(-20.0 / 120.0)
+    ou = np.zeros(t.size)
+    for i in range(1, t.size):
+        ou[i] = a * ou[i - 1] + gen.normal(0, np.sqrt(1 - a * a))
+    r = ou + gen.normal(0, np.sqrt(0.6), t.size)  # white share 0.375
+    (tau, _, white), table = choose_correlation(t, np.zeros(t.size, int), r)
+    assert tau in (120.0, 180.0) and white in (0.3, 0.5)  # 120 s, 0.375 (the grid's nearest)
+    (tau0, _, _), _ = choose_correlation(t, np.zeros(t.size, int), gen.normal(size=t.size))
+    assert tau0 == 0.0
+    assert max(row["log_likelihood"] for row in table) == 0.0
+
+
+def test_independent_campaign_is_unchanged():
+    """On the simulator's campaigns (independent in time) auto keeps independent replies."""
+    raw = simulate_gnssa(hours=2, rng=4, speed_model="field").raw()
+    auto = locate_array_survey(raw)
+    off = locate_array_survey(raw, correlation="off")
+    assert auto.summary["noise"]["correlation_s"] == 0.0
+    assert auto.summary["noise"]["choice"] == "auto" and off.summary["noise"]["choice"] == "off"
+    a, b = auto.fits["array"].centre(), off.fits["array"].centre()
+    assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
+
+
+def _with_correlated_delay(raw, seed, sd=40e-6, tau=180.0):
+    gen = np.random.default_rng(seed)
+    p = raw.pings.copy()
+    t = p["time"].to_numpy(float)
+    delay = np.zeros(t.size)
+    for k in p["transponder"].unique():
+        sel = np.flatnonzero(p["transponder"].to_numpy() == k)
+        sel = sel[np.argsort(t[sel])]
+        x = gen.normal(0, sd)
+        for i in sel:
+            delay[i] = x
+            x = x * np.exp(-20.0 / tau) + gen.normal(0, sd * np.sqrt(1 - np.exp(-40.0 / tau)))
+    p["twtt"] = p["twtt"].to_numpy(float) + delay
+    return dataclasses.replace(raw, pings=p)
+
+
+def test_correlated_delay_is_found_and_widens_the_intervals():
+    raw = _with_correlated_delay(simulate_gnssa(hours=2, rng=1, speed_model="field").raw(), 1)
+    auto = locate_array_survey(raw)
+    off = locate_array_survey(raw, correlation="off")
+    nz = auto.summary["noise"]
+    assert 120.0 <= nz["correlation_s"] <= 600.0 and nz["share"] == 0.0  # 180 s, per transponder
+    assert "generalised least squares" in auto.summary["method"]
+    sd_auto = np.sqrt(np.diag(auto.fits["array"].centre()[1]))
+    sd_off = np.sqrt(np.diag(off.fits["array"].centre()[1]))
+    assert np.all(sd_auto[:2] > 1.05 * sd_off[:2])
+
+
+def test_seagap_residuals_are_correlated():
+    """The real SeaGap survey: a correlation of minutes, and intervals about twice as wide."""
+    raw = read_survey(sample_file("seagap/obsdata.inp"))
+    auto = locate_array_survey(raw)
+    off = locate_array_survey(raw, correlation="off")
+    nz = auto.summary["noise"]
+    assert nz["correlation_s"] >= 120.0 and not nz["at_grid_edge"]
+    sd_auto = np.sqrt(np.diag(auto.fits["array"].centre()[1]))
+    sd_off = np.sqrt(np.diag(off.fits["array"].centre()[1]))
+    assert np.all(sd_auto > 1.4 * sd_off)
+    assert np.all(np.abs(auto.fits["array"].centre()[0] - off.fits["array"].centre()[0])
+                  < 2 * sd_auto)
+
+
+@pytest.fixture(scope="module")
+def garpos_campaign(tmp_path_factory):
+    d = tmp_path_factory.mktemp("corr")
+    assert main(["simulate", "--gnssa", "--hours", "1", "--seed", "2", "--out",
+                 str(d / "camp")]) == 0
+    return next((d / "camp").glob("*initcfg.ini"))
+
+
+@pytest.mark.parametrize("value", ["-1", "abc", "60,2", "60,0.5,0.3,1", "60,0.5,1", "5000",
+                                   "nan"])
+def test_cli_refuses_a_bad_correlation(garpos_campaign, tmp_path, capsys, value):
+    with pytest.raises(SystemExit) as exc:  # argparse's exit, status 2
+        main(["locate", str(garpos_campaign), "--correlation", value, "--out",
+              str(tmp_path / "o")])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert "--correlation" in err and repr(value) in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_cli_records_the_noise_and_refuses_misplaced_uses(garpos_campaign, tmp_path, capsys):
+    assert main(["locate", str(garpos_campaign), "--correlation", "60,0.5",
+                 "--out", str(tmp_path / "o")]) == 0
+    out = capsys.readouterr().out
+    assert "noise         correlated: mu_t 60 s, mu_mt 0.5 (given" in out
+    s = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert s["noise"]["correlation_s"] == 60.0 and s["noise"]["choice"] == "given"
+    assert "noise         correlated" in (tmp_path / "o" / "solution.txt").read_text()
+    assert main(["locate", str(garpos_campaign), "--correlation", "60", "--sample",
+                 "--out", str(tmp_path / "p")]) == 2
+    assert "--correlation 60,0.5,0 with --sample" in capsys.readouterr().err
+    deck = sample_file("obsrange/SIO_CC03.txt")
+    assert main(["locate", str(deck), "--correlation", "off", "--out",
+                 str(tmp_path / "q")]) == 2
+    assert "--correlation: for array surveys only" in capsys.readouterr().err

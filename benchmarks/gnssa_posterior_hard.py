@@ -79,7 +79,7 @@ def main(n_seeds: int = 2, sample: bool = False) -> None:
     for name, design in DESIGNS.items():
         for seed in range(1, n_seeds + 1):
             raw = campaign(design, seed)
-            fit = locate_array_survey(raw).fits["array"]
+            fit = locate_array_survey(raw, correlation="off").fits["array"]
             shots = array_shots(raw)
             post = ArrayLogPosterior(shots, fit)
             eff, bad, ng = proposal_fit(post, ConditionalProposal(post))

@@ -19,7 +19,7 @@ def campaign():
     """Half an hour of shots every 30 s to four transponders (refracted rays, smooth speed)."""
     sim = simulate_gnssa(rng=3, hours=0.5, shot_interval=30.0)
     raw = sim.raw()
-    fit = locate_array_survey(raw).fits["array"]
+    fit = locate_array_survey(raw, correlation="off").fits["array"]
     return sim, raw, fit, array_shots(raw)
 
 
@@ -44,7 +44,8 @@ def test_straight_rays_are_exact_and_refracted_rays_within_a_nanosecond(campaign
     post = ArrayLogPosterior(shots, fit)
     u, theta = _perturbed(post, gen)  # 5 cm moves
     assert np.abs(post.predict(u[None])[0] - post.model.predict(theta)).max() < 1e-9
-    straight = locate_array_survey(raw, ssp="straight", earth="flat").fits["array"]
+    straight = locate_array_survey(raw, ssp="straight", earth="flat",
+                                   correlation="off").fits["array"]
     post = ArrayLogPosterior(shots, straight)
     np.testing.assert_allclose(post.ratio, 1.0, rtol=0, atol=1e-12)
     u, theta = _perturbed(post, gen, size=1.0)  # metres: still exact
@@ -167,7 +168,7 @@ def test_gradient_terms_are_sampled_from_the_ems_solution():
     sim = simulate_gnssa(rng=4, hours=1.0, shot_interval=30.0, speed_model="field",
                          gradients=True, track="star+circle")
     raw = sim.raw()
-    res = locate_array_survey(raw, gradients=True)
+    res = locate_array_survey(raw, gradients=True, correlation="off")
     fit, shots = res.fits["array"], array_shots(raw)
     post = ArrayLogPosterior(shots, fit)
     assert post.kg == 4 * post.k
@@ -189,7 +190,7 @@ def test_gradient_terms_are_sampled_from_the_ems_solution():
 def two_hours():
     """Two hours of shots (the weight well determined: a Laplace sd of 0.2 decades)."""
     raw = simulate_gnssa(rng=0, hours=2.0, shot_interval=30.0).raw()
-    fit = locate_array_survey(raw).fits["array"]
+    fit = locate_array_survey(raw, correlation="off").fits["array"]
     return fit, sample_array(array_shots(raw), fit, min_ess=400, n_draws=2000, rng=1,
                              progress=False)
 
@@ -230,7 +231,7 @@ def test_a_transponder_with_25_replies_is_sampled_by_the_independence_move():
     rows = np.flatnonzero(p["transponder"].to_numpy() == sorted(p["transponder"])[0])
     drop = np.random.default_rng(1).choice(rows, rows.size - 25, replace=False)
     raw = dataclasses.replace(raw, pings=p.drop(p.index[drop]).reset_index(drop=True))
-    fit = locate_array_survey(raw).fits["array"]
+    fit = locate_array_survey(raw, correlation="off").fits["array"]
     assert np.bincount(fit.index).min() <= 25
     post = sample_array(array_shots(raw), fit, rng=0, progress=False)
     assert post.converged and "fallback" not in post.diagnostics

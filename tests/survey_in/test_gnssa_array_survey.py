@@ -86,7 +86,7 @@ def test_seagap_array_posterior(seagap_short, seagap_raw, tmp_path, capsys):
     coupling of sigma with every other coordinate, and shares near 1), so the pilot handed
     over to differential evolution.
     """
-    fit = locate_survey(seagap_raw).fits["array"]
+    fit = locate_survey(seagap_raw, correlation="off").fits["array"]
     post = ArrayLogPosterior(array_shots(seagap_raw), fit)
     q = ConditionalProposal(post)
     np.testing.assert_allclose(q.W @ q.V, np.eye(q.ng), atol=1e-8)

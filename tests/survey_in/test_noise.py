@@ -169,3 +169,27 @@ def test_cli_records_the_noise_and_refuses_misplaced_uses(garpos_campaign, tmp_p
     assert main(["locate", str(deck), "--correlation", "off", "--out",
                  str(tmp_path / "q")]) == 2
     assert "--correlation: for array surveys only" in capsys.readouterr().err
+
+
+def test_the_posterior_warns_where_the_replies_are_correlated():
+    """``locate --sample`` treats the replies as independent: it says so where they are not."""
+    from bayes_mpem.exceptions import SamplingWarning
+    from bayes_mpem.survey_in.array_sampling import _noise_check
+    from bayes_mpem.survey_in.array_survey import array_shots
+
+    raw = read_survey(sample_file("seagap/obsdata.inp"))
+    fit = locate_array_survey(raw, correlation="off").fits["array"]
+    with pytest.warns(SamplingWarning, match="its intervals are likely too narrow"):
+        out = _noise_check(fit, array_shots(raw), "auto")
+    assert out["model"] == "independent" and out["grid"] and "mu_t 300 s" in out["warning"]
+    assert _noise_check(fit, array_shots(raw), "off")["grid"] is None
+
+
+def test_a_fit_under_correlated_noise_is_not_sampled():
+    from bayes_mpem.survey_in.array_sampling import ArrayLogPosterior
+    from bayes_mpem.survey_in.array_survey import array_shots
+
+    raw = simulate_gnssa(hours=0.5, rng=2, shot_interval=30.0).raw()
+    fit = locate_array_survey(raw, correlation=(60.0, 0.5, 0.3)).fits["array"]
+    with pytest.raises(ValueError, match="correlation='off' to sample"):
+        ArrayLogPosterior(array_shots(raw), fit)

@@ -89,7 +89,7 @@ class ArrayLogPosterior:
     >>> from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa
     >>> from bayes_mpem.survey_in.array_survey import array_shots, locate_array_survey
     >>> sim = simulate_gnssa(rng=0, hours=0.5, shot_interval=30.0)
-    >>> fit = locate_array_survey(sim.raw()).fits["array"]
+    >>> fit = locate_array_survey(sim.raw(), correlation="off").fits["array"]
     >>> post = ArrayLogPosterior(array_shots(sim.raw()), fit)
     >>> u = post.u_em()
     >>> bool(np.allclose(post.predict(u[None])[0], post.model.predict(post.theta_em),
@@ -101,6 +101,10 @@ class ArrayLogPosterior:
         if not isinstance(fit, ArrayLocateResult):
             raise TypeError(f"fit: expected an ArrayLocateResult, got {type(fit).__name__}")
         m = fit.model
+        if (m.get("noise") or {}).get("correlation_s"):
+            raise ValueError(f"fit: refitted under correlated noise (mu_t "
+                             f"{m['noise']['correlation_s']:g} s); the posterior treats the "
+                             "replies as independent: locate with correlation='off' to sample")
         self.fit, self.ids, self.K = fit, tuple(fit.ids), len(fit.ids)
         sub = shots.iloc[fit.rows].reset_index(drop=True)
         self.index = np.asarray(fit.index)
@@ -923,7 +927,7 @@ def sample_array(shots: pd.DataFrame, fit: ArrayLocateResult, *, n_walkers: int 
     >>> from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa
     >>> from bayes_mpem.survey_in.array_survey import array_shots, locate_array_survey
     >>> sim = simulate_gnssa(rng=0, hours=0.5, shot_interval=30.0)
-    >>> fit = locate_array_survey(sim.raw()).fits["array"]
+    >>> fit = locate_array_survey(sim.raw(), correlation="off").fits["array"]
     >>> post = sample_array(array_shots(sim.raw()), fit, min_ess=200, rng=0, progress=False)
     >>> post.draws["position"].shape[-2:], post.converged
     ((4, 3), True)

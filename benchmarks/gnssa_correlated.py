@@ -35,6 +35,7 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _report import commit, machine, write_section  # noqa: E402
+from gnssa_independent import ou_path  # noqa: E402  (the same process, written once)
 
 from bayes_mpem.survey_in.array_survey import locate_array_survey  # noqa: E402
 from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa  # noqa: E402
@@ -43,17 +44,6 @@ DOC = Path(__file__).resolve().parents[1] / "docs" / "gnssa.md"
 PER_SD, PER_TAU = 40e-6, 180.0
 COMMON_SD, COMMON_TAU = 20e-6, 600.0
 SETTINGS = ("off", "auto")
-
-
-def ou(rng, t, sd, tau):
-    """An Ornstein-Uhlenbeck process of sd ``sd`` and time constant ``tau`` at sorted ``t``."""
-    x = np.empty(t.size)
-    x[0] = rng.normal(0.0, sd)
-    a = np.exp(-np.diff(t) / tau)
-    e = rng.normal(0.0, 1.0, t.size - 1) * sd * np.sqrt(1.0 - a**2)
-    for i in range(1, t.size):
-        x[i] = a[i - 1] * x[i - 1] + e[i - 1]
-    return x
 
 
 def campaign(seed):
@@ -66,11 +56,11 @@ def campaign(seed):
     t = p["time"].to_numpy(float)
     order = np.argsort(t, kind="stable")
     delay = np.zeros(t.size)
-    delay[order] = ou(rng, t[order], COMMON_SD, COMMON_TAU)
+    delay[order] = ou_path(rng, t[order], COMMON_SD, COMMON_TAU)
     for k in p["transponder"].unique():
         sel = np.flatnonzero(p["transponder"].to_numpy() == k)
         sel = sel[np.argsort(t[sel], kind="stable")]
-        delay[sel] += ou(rng, t[sel], PER_SD, PER_TAU)
+        delay[sel] += ou_path(rng, t[sel], PER_SD, PER_TAU)
     p = p.copy()
     p["twtt"] = p["twtt"].to_numpy(float) + delay
     raw = dataclasses.replace(raw, pings=p)

@@ -193,3 +193,13 @@ def test_a_fit_under_correlated_noise_is_not_sampled():
     fit = locate_array_survey(raw, correlation=(60.0, 0.5, 0.3)).fits["array"]
     with pytest.raises(ValueError, match="correlation='off' to sample"):
         ArrayLogPosterior(array_shots(raw), fit)
+
+
+def test_a_band_too_wide_is_not_tried():
+    """A long time on a dense campaign would cost n b^2: the search stops before it."""
+    t = np.arange(3000) * 1.0  # a reply a second
+    with pytest.raises(ValueError, match="more than 500"):
+        Whitener(t, np.zeros(3000, int), 300.0, 0.5)
+    (tau, _, _), table = choose_correlation(t, np.zeros(3000, int),
+                                            np.random.default_rng(0).normal(size=3000))
+    assert [row["correlation_s"] for row in table][-1] <= 120.0  # 4 x 120 s = 480 replies

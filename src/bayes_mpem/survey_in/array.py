@@ -16,7 +16,7 @@ from .._validate import check_choice, check_int
 from ..exceptions import InputError, LocateWarning
 from .classes import OUTLIER_MODELS
 from .location import TravelTimeEM, weighted_residuals
-from .noise import CORRELATION_TIMES, Whitener, choose_correlation
+from .noise import Whitener, choose_correlation
 from .travel_times import (
     TravelTimes,
     smooth_intervals,
@@ -1073,6 +1073,9 @@ def _correlated_refit(correlation, resid, jac, phi, p, sub, index, H, Hg, lam, l
         raise InputError(f"correlation ({tau:g} s, {share:g}, white {white:g}): the replies' "
                          "covariance is singular (a transponder heard twice at one time); give "
                          "a white share above 0") from None
+    except ValueError as exc:
+        raise InputError(f"correlation ({tau:g} s, {share:g}, white {white:g}): {exc}; give "
+                         "a shorter time") from None
 
     def rw(th):
         return w.whiten(resid(th)[keep])
@@ -1130,7 +1133,8 @@ def _noise_record(tau, share, white, table, n):
             "for each correlation time the share and white share of largest residual "
             "likelihood; between times the largest marginal likelihood of the linearised "
             "model (GARPOS's ABIC)",
-            "at_grid_edge": bool(table is not None and tau >= CORRELATION_TIMES[-1]),
+            "at_grid_edge": bool(table is not None and tau > 0
+                                 and tau >= table[-1]["correlation_s"]),
             "grid": table}
 
 

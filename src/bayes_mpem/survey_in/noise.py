@@ -39,6 +39,9 @@ CORRELATION_TIMES = (0.0, 30.0, 60.0, 120.0, 180.0, 300.0, 600.0, 1200.0)
 SHARES = (0.5, 0.0)
 #: Shares of the variance independent from reply to reply tried (0: GARPOS's form).
 WHITES = (0.0, 0.3, 0.5, 0.7)
+#: The most replies within the taper's reach of one reply: the banded factor costs
+#: ``n b^2`` and ``8 n b`` bytes, so a longer time on a dense campaign is not tried.
+MAX_BAND = 500
 
 
 def _wendland(x):
@@ -66,7 +69,10 @@ class Whitener:
     Raises
     ------
     numpy.linalg.LinAlgError
-        Where ``E`` is not positive definite (not expected: see the module's note).
+        Where ``E`` is singular: a transponder heard twice at one time without a white
+        share (GARPOS's form takes the two as one reply).
+    ValueError
+        Where more than :data:`MAX_BAND` replies lie within the taper's reach of one.
 
     Examples
     --------
@@ -88,6 +94,9 @@ class Whitener:
         t, k = time[self.order], np.asarray(index)[self.order]
         cut = TAPER * self.tau
         reach = np.searchsorted(t, t + cut, side="left") - np.arange(t.size)
+        if t.size and reach.max() > MAX_BAND:
+            raise ValueError(f"{int(reach.max())} replies within {cut:g} s of one (the taper's "
+                             f"reach at mu_t {self.tau:g} s): more than {MAX_BAND}")
         bands = [np.ones(t.size)]
         for d in range(1, int(reach.max()) if t.size else 0):
             dt = t[d:] - t[:-d]
@@ -166,7 +175,7 @@ def choose_correlation(time, index, r, times=CORRELATION_TIMES, shares=SHARES, w
         The grid (``tau = 0`` is tried once: independent replies), ``times``
         increasing; the search stops after two times in a row that do worse than the
         best so far (the criterion is taken as unimodal in ``tau``; the longer times
-        cost the most).
+        cost the most), and before a time whose band exceeds :data:`MAX_BAND`.
     evidence : callable, optional
         ``evidence(whitener)``: the log marginal likelihood of the model under that
         covariance.
@@ -194,6 +203,10 @@ def choose_correlation(time, index, r, times=CORRELATION_TIMES, shares=SHARES, w
     rows, worse = [], 0
     for tau in times:
         best = (-np.inf, None)
+        try:
+            Whitener(time, index, tau, 0.0, 0.5)  # the band's size, before any other
+        except ValueError:
+            break
         for share in (shares if tau > 0 else shares[:1]):
             for white in (whites if tau > 0 else whites[:1]):
                 try:

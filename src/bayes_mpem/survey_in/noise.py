@@ -107,7 +107,23 @@ class Whitener:
         self.logdet = float(2.0 * np.sum(np.log(self.ab[0])))
 
     def whiten(self, X):
-        """Return ``L^-1 X`` (rows of ``X`` in the caller's order; the result in time order)."""
+        """Return ``L^-1 X``: the rows made independent, of unit variance under ``E``.
+
+        Parameters
+        ----------
+        X : array_like
+            ``(n,)`` or ``(n, m)``, rows in the caller's order.
+
+        Returns
+        -------
+        numpy.ndarray
+            The same shape, rows in time order.
+
+        Raises
+        ------
+        numpy.linalg.LinAlgError
+            Where LAPACK's triangular solve fails (not expected once ``L`` exists).
+        """
         X = np.asarray(X, float)
         if self.ab is None:
             return X[self.order]
@@ -119,7 +135,13 @@ class Whitener:
         return out if two else out[:, 0]
 
     def matrix(self) -> np.ndarray:
-        """Return ``E`` densely, in the caller's order (for tests and small surveys)."""
+        """Return ``E`` densely, in the caller's order (for tests and small surveys).
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(n, n)``.
+        """
         if self.ab is None:
             return np.eye(self.n)
         b = self.ab.shape[0]

@@ -272,3 +272,26 @@ def _same_model(fit):
             "time_range": m["time_range"],
             "correlation": None if not m["noise"] or not m["noise"]["correlation_s"] else
             (m["noise"]["correlation_s"], m["noise"]["share"], m["noise"]["white"])}
+
+
+def test_a_seagap_survey_of_one_transponder_takes_the_array_defaults(tmp_path, capsys):
+    """SeaGap's format is read as an array: with one transponder its defaults must not break.
+
+    Before: ``locate`` refused ``speed_intervals None`` and ``locate --sample`` raised a
+    TypeError (``gradients`` passed to the one-transponder sampler).
+    """
+    src = sample_file("seagap/obsdata.inp")
+    for name in ("tr-ant.inp", "ss_prof.inp"):
+        shutil.copy(src.parent / name, tmp_path / name)
+    (tmp_path / "pxp-ini.inp").write_text((src.parent / "pxp-ini.inp").read_text()
+                                          .splitlines()[0] + "\n")
+    lines = [ln for ln in src.read_text().splitlines() if ln.split()[0] == "1"][:150]
+    (tmp_path / "obsdata.inp").write_text("\n".join(lines) + "\n")
+    survey = str(tmp_path / "obsdata.inp")
+    assert main(["locate", survey, "--out", str(tmp_path / "a")]) == 0
+    assert main(["locate", survey, "--sample", "--no-progress", "--min-ess", "200",
+                 "--out", str(tmp_path / "b")]) == 0
+    assert (tmp_path / "b" / "posterior_1.nc").is_file()
+    capsys.readouterr()
+    assert main(["locate", survey, "--correlation", "60", "--out", str(tmp_path / "c")]) == 2
+    assert "correlation: for array surveys only" in capsys.readouterr().err

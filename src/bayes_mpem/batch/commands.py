@@ -91,6 +91,19 @@ def locate_raw(raw, options: dict):
         from ..survey_in.array_sampling import locate_array_survey_bayes
 
         return locate_array_survey_bayes(raw, **array, **sampling)
+    # a SeaGap survey read as an array may have one transponder: the array's options at
+    # their defaults are dropped (one speed for the smooth one), any other refused
+    defaults = {"gradients": "auto", "knot_minutes": None, "flags": "honour",
+                "correlation": "auto"}
+    given = []
+    for key, default in defaults.items():
+        if key in options and options.pop(key) != default:
+            given.append(key)
+    if given:
+        raise InputError(f"{', '.join(given)}: for array surveys only (this {raw.format} "
+                         "survey has one transponder)")
+    if "speed_intervals" in options and options["speed_intervals"] is None:
+        options["speed_intervals"] = 0
     if sampling is None:
         return locate_survey(raw, **options,
                              lag_check=bool(lag_check) and raw.format.startswith("obsrange"))

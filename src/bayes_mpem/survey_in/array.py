@@ -16,7 +16,7 @@ from .._validate import check_choice, check_int
 from ..exceptions import InputError, LocateWarning
 from .classes import OUTLIER_MODELS
 from .location import TravelTimeEM, weighted_residuals
-from .noise import Whitener, choose_correlation
+from .noise import WHITES, Whitener, choose_correlation
 from .travel_times import (
     TravelTimes,
     smooth_intervals,
@@ -1052,27 +1052,30 @@ def _correlated_refit(correlation, resid, jac, phi, p, sub, index, H, Hg, lam, l
     lam, lam_g, J, r)`` with ``J`` and ``r`` whitened (``L^-1``, ``E = L L'``) and the
     weights chosen again on them; ``record`` for ``model["noise"]`` (None where not asked).
     """
-    if correlation is None or correlation == "off":
+    spec = correlation_spec(correlation)
+    if spec is None:
         return None, None
     keep = np.flatnonzero(p > 0.5)
     time = sub["time"].to_numpy(float)[keep]
     r0 = resid(phi)[keep]
     table = None
-    if correlation == "auto":
+    if spec == "auto":
+        if not np.all(np.isfinite(r0)):  # not expected: invalid rays get the chord's time
+            return None, _noise_record(0.0, None, None, None, keep.size)
         (tau, share, white), table = choose_correlation(
             time, index[keep], r0,
             evidence=_noise_evidence(jac(phi)[keep], r0, phi, H, Hg, lam, lam_g))
     else:
-        vals = [float(v) for v in correlation]  # (mu_t[, mu_mt[, white]])
-        tau, share, white = (vals + [0.5, 0.0][len(vals) - 1:])[:3]
+        tau, share, white = spec
     if tau <= 0.0:
         return None, _noise_record(0.0, None, None, table, keep.size)
     try:
         w = Whitener(time, index[keep], tau, share, white)
     except np.linalg.LinAlgError:
         raise InputError(f"correlation ({tau:g} s, {share:g}, white {white:g}): the replies' "
-                         "covariance is singular (a transponder heard twice at one time); give "
-                         "a white share above 0") from None
+                         "covariance is singular (two replies at one time fully correlated: "
+                         "one transponder heard twice, or a share of 1); give a white share "
+                         "above 0") from None
     except ValueError as exc:
         raise InputError(f"correlation ({tau:g} s, {share:g}, white {white:g}): {exc}; give "
                          "a shorter time") from None
@@ -1098,6 +1101,45 @@ def _correlated_refit(correlation, resid, jac, phi, p, sub, index, H, Hg, lam, l
         sigma = float(np.sqrt(r @ r / r.size))
     return (phi, sigma, lam, lam_g, jw(phi), r), _noise_record(tau, share, white, table,
                                                                keep.size)
+
+
+def correlation_spec(correlation):
+    """Return ``correlation`` checked: None (independent), ``"auto"`` or ``(tau, share, white)``.
+
+    Parameters
+    ----------
+    correlation : None, str or sequence of float
+        None or ``"off"``; ``"auto"``; ``(mu_t[, mu_mt[, white]])`` with ``mu_t >= 0`` (s),
+        ``mu_mt`` in [0, 1] (default 0.5) and ``white`` in [0, 1) (default 0).
+
+    Returns
+    -------
+    None, str or tuple of float
+
+    Raises
+    ------
+    InputError
+        For anything else, naming what was expected.
+
+    Examples
+    --------
+    >>> correlation_spec((60,)), correlation_spec("off")
+    ((60.0, 0.5, 0.0), None)
+    """
+    if correlation is None or (isinstance(correlation, str) and correlation in ("off", "auto")):
+        return None if correlation in (None, "off") else "auto"
+    what = ("correlation: expected 'auto', 'off', None or (mu_t[, mu_mt[, white]]) with mu_t "
+            f">= 0 s, mu_mt in [0, 1] and white in [0, 1), got {correlation!r}")
+    try:
+        vals = [float(v) for v in correlation] if not isinstance(correlation, str) else []
+    except (TypeError, ValueError):
+        raise InputError(what) from None
+    if not 1 <= len(vals) <= 3:
+        raise InputError(what)
+    tau, share, white = (vals + [0.5, 0.0][len(vals) - 1:])[:3]
+    if not (np.isfinite(tau) and tau >= 0 and 0 <= share <= 1 and 0 <= white < 1):
+        raise InputError(what)
+    return tau, share, white
 
 
 def _noise_evidence(J0, r0, phi, H, Hg, lam, lam_g):
@@ -1134,7 +1176,8 @@ def _noise_record(tau, share, white, table, n):
             "likelihood; between times the largest marginal likelihood of the linearised "
             "model (GARPOS's ABIC)",
             "at_grid_edge": bool(table is not None and tau > 0
-                                 and tau >= table[-1]["correlation_s"]),
+                                 and (tau >= table[-1]["correlation_s"]
+                                      or white >= WHITES[-1])),
             "grid": table}
 
 

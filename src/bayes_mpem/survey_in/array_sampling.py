@@ -1084,6 +1084,8 @@ def _noise_check(fit, shots, correlation):
         return out
     keep = fit.p_true > 0.5
     time = shots.iloc[fit.rows]["time"].to_numpy(float)[keep]
+    if not np.all(np.isfinite(fit.residual[keep])):
+        return out
     (tau, share, white), table = choose_correlation(time, fit.index[keep], fit.residual[keep])
     out["grid"] = table
     if tau > 0:
@@ -1161,7 +1163,8 @@ def locate_array_survey_bayes(raw, *, ci=0.95, outliers="uniform", ssp=None,
                            n_draws=n_draws)
     shots = array_shots(raw)
     _check_forced_gradients(shots, raw, gradients, speed_intervals)
-    if correlation not in ("auto", "off", None):
+    if not (correlation is None or isinstance(correlation, str)
+            and correlation in ("auto", "off")):
         raise InputError(f"correlation={correlation!r} with the posterior: it treats the "
                          "replies as independent; give 'auto' or 'off' (locate without "
                          "sampling models a given correlation)")

@@ -11,17 +11,16 @@ consecutive replies a minute apart, 0.19 at 5-10 minutes; ``docs/gnssa.md``). GA
 ``E_ij = exp(-|t_i - t_j| / mu_t) (mu_mt + (1 - mu_mt) [same transponder])``,
 
 ``mu_t`` a correlation time and ``mu_mt`` the share of it common to all transponders,
-and chooses ``mu_t`` by ABIC. Here a share ``white`` of the variance may also be
-independent from reply to reply (timing noise): ``E = white I + (1 - white) E_GARPOS``,
-GARPOS's own at ``white = 0``; without it, replies of one transponder 20 s apart are
-taken as almost fully correlated, and on the acceptance's campaigns with a correlated
-delay added (``benchmarks/gnssa_correlated.py``) the likelihood then preferred
-independent replies, whose intervals covered 67 %. ``E`` is multiplied by a Wendland
-taper that reaches
-zero at :data:`TAPER` ``mu_t`` (Furrer, Genton & Nychka 2006, *J. Comput. Graph.
-Stat.* 15:502): the product of two positive-definite functions stays positive definite,
-and in time order ``E`` is banded, so LAPACK's banded Cholesky factors it in
-``O(n b^2)``.
+and chooses ``mu_t`` by ABIC (on log travel times weighted by ``1 / TT0``: in time
+units, a constant variance, as here). Here a share ``white`` of the variance may also be
+independent from reply to reply (timing noise): ``E = white I + (1 - white) E_GARPOS``;
+without it, replies of one transponder 20 s apart are taken as almost fully correlated.
+``E`` is multiplied by a Wendland taper that reaches zero at :data:`TAPER` ``mu_t``
+(Furrer, Genton & Nychka 2006, *J. Comput. Graph. Stat.* 15:502): the product of
+positive-definite functions stays positive definite, and in time order ``E`` is banded,
+so LAPACK's banded Cholesky factors it in ``O(n b^2)``. The taper shortens the kernel
+(at a lag of ``mu_t`` the correlation is 0.63 of ``exp(-1)``; its integral is 0.68
+``mu_t``), so a ``mu_t`` here is not GARPOS's number for number.
 """
 
 from __future__ import annotations
@@ -38,10 +37,36 @@ CORRELATION_TIMES = (0.0, 30.0, 60.0, 120.0, 180.0, 300.0, 600.0, 1200.0)
 #: Shares common to all transponders tried by ``correlation="auto"`` (GARPOS's 0.5 and 0).
 SHARES = (0.5, 0.0)
 #: Shares of the variance independent from reply to reply tried (0: GARPOS's form).
-WHITES = (0.0, 0.3, 0.5, 0.7)
+WHITES = (0.0, 0.3, 0.5, 0.7, 0.85, 0.95)
+#: The evidence (nats) by which a correlated ``E`` must beat independent replies to be
+#: chosen: the best of some 50 choices beats the independent one by chance (on white
+#: noise, by up to 2.3 nats in 12 of 40 trials of the review, docs/gnssa.md).
+MARGIN = 4.0
 #: The most replies within the taper's reach of one reply: the banded factor costs
 #: ``n b^2`` and ``8 n b`` bytes, so a longer time on a dense campaign is not tried.
 MAX_BAND = 500
+
+
+def band_width(time, tau) -> int:
+    """Return the most replies within the taper's reach (:data:`TAPER` ``tau``) after one.
+
+    Parameters
+    ----------
+    time : array_like
+        ``(n,)`` times (s), any order.
+    tau : float
+        Correlation time (s).
+
+    Returns
+    -------
+    int
+        0 for ``tau`` of 0 or fewer than two replies.
+    """
+    t = np.sort(np.asarray(time, float))
+    if tau <= 0 or t.size < 2:
+        return 0
+    reach = np.searchsorted(t, t + TAPER * tau, side="left") - np.arange(t.size)
+    return int(reach.max())
 
 
 def _wendland(x):
@@ -69,8 +94,8 @@ class Whitener:
     Raises
     ------
     numpy.linalg.LinAlgError
-        Where ``E`` is singular: a transponder heard twice at one time without a white
-        share (GARPOS's form takes the two as one reply).
+        Where ``E`` is singular: two replies at one time fully correlated without a
+        white share (one transponder heard twice, or ``share`` 1).
     ValueError
         Where more than :data:`MAX_BAND` replies lie within the taper's reach of one.
 
@@ -93,12 +118,12 @@ class Whitener:
             return
         t, k = time[self.order], np.asarray(index)[self.order]
         cut = TAPER * self.tau
-        reach = np.searchsorted(t, t + cut, side="left") - np.arange(t.size)
-        if t.size and reach.max() > MAX_BAND:
-            raise ValueError(f"{int(reach.max())} replies within {cut:g} s of one (the taper's "
-                             f"reach at mu_t {self.tau:g} s): more than {MAX_BAND}")
+        width = band_width(t, self.tau)
+        if width > MAX_BAND:
+            raise ValueError(f"{width} replies within {cut:g} s of one (the taper's reach at "
+                             f"mu_t {self.tau:g} s): more than {MAX_BAND}")
         bands = [np.ones(t.size)]
-        for d in range(1, int(reach.max()) if t.size else 0):
+        for d in range(1, width):
             dt = t[d:] - t[:-d]
             v = ((1.0 - self.white) * np.exp(-dt / self.tau) * _wendland(dt / cut)
                  * (self.share + (1.0 - self.share) * (k[d:] == k[:-d])))
@@ -176,23 +201,23 @@ def residual_log_likelihood(whitener, r) -> float:
 
 
 def choose_correlation(time, index, r, times=CORRELATION_TIMES, shares=SHARES, whites=WHITES,
-                       evidence=None):
+                       evidence=None, margin=MARGIN):
     """Choose GARPOS's correlation of the replies: ``(tau, share, white)`` and the table.
 
-    For each correlation time, the share and the white share of largest
-    :func:`residual_log_likelihood`; between the times, the largest ``evidence`` of
-    that pair, or the same residual likelihood without one. The residuals' likelihood
-    alone prefers too short a time: the fit's smooth terms have absorbed the slowest
-    part of the correlation (on ``benchmarks/gnssa_correlated.py``'s campaigns, 60-120 s
-    against a true 180 s, and intervals covering 81 %); the marginal likelihood of the
-    whole linearised model (GARPOS's ABIC) does not have that bias.
+    For each correlation time, the share (at a white share of 0.5) and then the white
+    share of largest :func:`residual_log_likelihood`; between the times, the largest
+    ``evidence`` of that pair, or the same residual likelihood without one. A correlated
+    ``E`` is chosen only where it beats independent replies by ``margin`` nats. The
+    residuals' likelihood alone prefers too short a time: the fit's smooth terms have
+    absorbed the slowest part of the correlation; the marginal likelihood of the whole
+    linearised model (GARPOS's ABIC) does not have that bias (docs/gnssa.md).
 
     Parameters
     ----------
     time, index : array_like
         As for :class:`Whitener`.
     r : numpy.ndarray
-        Residuals of the direct replies at the independent-noise fit (s).
+        Residuals of the direct replies at the independent-noise fit (s); finite.
     times, shares, whites : sequence of float
         The grid (``tau = 0`` is tried once: independent replies), ``times``
         increasing; the search stops after two times in a row that do worse than the
@@ -201,6 +226,7 @@ def choose_correlation(time, index, r, times=CORRELATION_TIMES, shares=SHARES, w
     evidence : callable, optional
         ``evidence(whitener)``: the log marginal likelihood of the model under that
         covariance.
+    margin : float, default :data:`MARGIN`
 
     Returns
     -------
@@ -209,8 +235,12 @@ def choose_correlation(time, index, r, times=CORRELATION_TIMES, shares=SHARES, w
     table : list of dict
         One row per time: ``correlation_s``, its best ``share`` and ``white``,
         ``log_likelihood`` (the residuals') and ``log_evidence`` (with ``evidence``),
-        each relative to its best (None where ``E`` is singular: a transponder heard
-        twice at one time, which GARPOS's form without a white share takes as one).
+        each relative to its best (None where every ``E`` tried was singular).
+
+    Raises
+    ------
+    ValueError
+        For residuals that are not finite.
 
     Examples
     --------
@@ -222,36 +252,35 @@ def choose_correlation(time, index, r, times=CORRELATION_TIMES, shares=SHARES, w
     >>> choose_correlation(t, np.zeros(2000, int), ou)[0]
     (120.0, 0.5, 0.0)
     """
+    if not np.all(np.isfinite(r)):
+        raise ValueError("residuals: not all finite")
     rows, worse = [], 0
     for tau in times:
-        best = (-np.inf, None)
-        try:
-            Whitener(time, index, tau, 0.0, 0.5)  # the band's size, before any other
-        except ValueError:
+        if band_width(time, tau) > MAX_BAND:
             break
-        for share in (shares if tau > 0 else shares[:1]):
-            for white in (whites if tau > 0 else whites[:1]):
-                try:
-                    w = Whitener(time, index, tau, share, white)
-                except np.linalg.LinAlgError:  # singular: one transponder twice at one time
-                    continue
-                ll = residual_log_likelihood(w, r)
-                if ll > best[0]:
-                    best = (ll, w)
-        w = best[1]
+        if tau > 0:
+            mid = 0.5 if 0.5 in whites else whites[len(whites) // 2]
+            tried = {(m, mid): _try(time, index, r, tau, m, mid) for m in shares}
+            share = max(shares, key=lambda m: tried[(m, mid)][0])
+            for v in whites:
+                if (share, v) not in tried:
+                    tried[(share, v)] = _try(time, index, r, tau, share, v)
+            ll, w = max((tried[(share, v)] for v in whites), key=lambda x: x[0])
+        else:
+            ll, w = _try(time, index, r, 0.0, 0.0, 0.0)
         row = {"correlation_s": float(tau), "share": None if w is None or tau <= 0 else w.share,
-               "white": None if w is None or tau <= 0 else w.white,
-               "log_likelihood": best[0]}
-        row["log_evidence"] = None
+               "white": None if w is None or tau <= 0 else w.white, "log_likelihood": ll,
+               "log_evidence": None}
         if evidence is not None:
             row["log_evidence"] = -np.inf if w is None else float(evidence(w))
-        level = row["log_evidence"] if evidence is not None else row["log_likelihood"]
-        worse = worse + 1 if rows and level < max(_level(x) for x in rows) else 0
+        worse = worse + 1 if rows and _level(row) < max(_level(x) for x in rows) else 0
         rows.append(row)
         if worse == 2:
             break
     levels = np.array([_level(x) for x in rows])
     best = rows[int(np.argmax(levels))]
+    if levels.max() < levels[0] + margin:  # not enough to leave independent replies
+        best = rows[0]
     for key in ("log_likelihood", "log_evidence"):  # relative to the best; None: singular
         finite = [x[key] for x in rows if x[key] is not None and np.isfinite(x[key])]
         for x in rows:
@@ -260,6 +289,15 @@ def choose_correlation(time, index, r, times=CORRELATION_TIMES, shares=SHARES, w
     if best["correlation_s"] <= 0:
         return (0.0, 0.0, 0.0), rows
     return (best["correlation_s"], best["share"], best["white"]), rows
+
+
+def _try(time, index, r, tau, share, white):
+    """Return ``(residual log likelihood, whitener)``; ``(-inf, None)`` where singular."""
+    try:
+        w = Whitener(time, index, tau, share, white)
+    except np.linalg.LinAlgError:  # two replies at one time fully correlated
+        return -np.inf, None
+    return residual_log_likelihood(w, r), w
 
 
 def _level(row):

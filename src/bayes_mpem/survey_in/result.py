@@ -225,10 +225,10 @@ def noise_line(summary: dict) -> str:
     if tau <= 0:
         line = f"noise         independent replies ({how})"
     else:
-        line = (f"noise         correlated: mu_t {tau:g} s, mu_mt {nz['share']:g} ({how}; "
-                "generalised least squares)")
+        line = (f"noise         correlated: mu_t {tau:g} s, mu_mt {nz['share']:g}, white "
+                f"{nz.get('white') or 0:g} ({how}; generalised least squares)")
     if nz.get("at_grid_edge"):
-        line += "; at the longest time tried"
+        line += "; at the edge of the choices tried"
     if nz.get("warning"):
         line += f"; {nz['warning']}"
     return line

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from bayes_mpem.cli import main
+from bayes_mpem.exceptions import InputError
 from bayes_mpem.io.formats import read_survey, sample_file
 from bayes_mpem.survey_in.array_survey import locate_array_survey
 from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa
@@ -158,7 +159,7 @@ def test_cli_records_the_noise_and_refuses_misplaced_uses(garpos_campaign, tmp_p
     assert main(["locate", str(garpos_campaign), "--correlation", "60,0.5",
                  "--out", str(tmp_path / "o")]) == 0
     out = capsys.readouterr().out
-    assert "noise         correlated: mu_t 60 s, mu_mt 0.5 (given" in out
+    assert "noise         correlated: mu_t 60 s, mu_mt 0.5, white 0 (given" in out
     s = json.loads((tmp_path / "o" / "summary.json").read_text())
     assert s["noise"]["correlation_s"] == 60.0 and s["noise"]["choice"] == "given"
     assert "noise         correlated" in (tmp_path / "o" / "solution.txt").read_text()
@@ -203,3 +204,27 @@ def test_a_band_too_wide_is_not_tried():
     (tau, _, _), table = choose_correlation(t, np.zeros(3000, int),
                                             np.random.default_rng(0).normal(size=3000))
     assert [row["correlation_s"] for row in table][-1] <= 120.0  # 4 x 120 s = 480 replies
+
+
+@pytest.mark.parametrize("value", ["60", "Auto", 60, (), (60, 0.5, 0.3, 1), (60, 0.5, 1.0),
+                                   (60, 1.5), (-1,), (float("nan"),)])
+def test_the_library_refuses_a_bad_correlation(value):
+    raw = simulate_gnssa(hours=0.3, rng=1, shot_interval=30.0).raw()
+    with pytest.raises(InputError, match="correlation: expected 'auto', 'off', None"):
+        locate_array_survey(raw, correlation=value)
+
+
+def test_garpos_form_with_a_full_share_is_refused_by_name():
+    """``mu_mt`` 1 and no white share: replies to one interrogation would be one reply."""
+    raw = simulate_gnssa(hours=0.3, rng=1, shot_interval=30.0).raw()
+    with pytest.raises(InputError, match="one transponder heard twice, or a share of 1"):
+        locate_array_survey(raw, correlation=(60.0, 1.0, 0.0))
+
+
+def test_white_noise_keeps_independent_replies():
+    """The best of the grid beats the independent model by chance: the margin keeps it."""
+    gen = np.random.default_rng(7)
+    t = np.sort(np.repeat(np.arange(400) * 20.0, 4))
+    k = np.tile(np.arange(4), 400)
+    picks = [choose_correlation(t, k, gen.normal(size=t.size))[0][0] for _ in range(20)]
+    assert picks == [0.0] * 20

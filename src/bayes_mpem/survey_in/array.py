@@ -1175,9 +1175,9 @@ def _noise_record(tau, share, white, table, n):
             "for each correlation time the share and white share of largest residual "
             "likelihood; between times the largest marginal likelihood of the linearised "
             "model (GARPOS's ABIC)",
-            "at_grid_edge": bool(table is not None and tau > 0
-                                 and (tau >= table[-1]["correlation_s"]
-                                      or white >= WHITES[-1])),
+            "at_grid_edge": bool(table is not None and tau > 0 and (
+                tau >= max(x["correlation_s"] for x in table if x["stage"] == "scan")
+                or white >= WHITES[-1])),
             "grid": table}
 
 

@@ -36,8 +36,12 @@ TAPER = 4.0
 CORRELATION_TIMES = (0.0, 30.0, 60.0, 120.0, 180.0, 300.0, 600.0, 1200.0)
 #: Shares common to all transponders tried by ``correlation="auto"`` (GARPOS's 0.5 and 0).
 SHARES = (0.5, 0.0)
-#: Shares of the variance independent from reply to reply tried (0: GARPOS's form).
+#: Shares of the variance independent from reply to reply tried (0: GARPOS's form): the
+#: first four while scanning the times by the residuals' likelihood, all of them by the
+#: marginal likelihood at the time chosen (the residuals' likelihood alone prefers too
+#: large a share, 0.85 against a true 0.6 on ``benchmarks/gnssa_correlated.py``).
 WHITES = (0.0, 0.3, 0.5, 0.7, 0.85, 0.95)
+SCAN_WHITES = WHITES[:4]
 #: The evidence (nats) by which a correlated ``E`` must beat independent replies to be
 #: chosen: the best of some 50 choices beats the independent one by chance (on white
 #: noise, by up to 2.3 nats in 12 of 40 trials of the review, docs/gnssa.md).
@@ -200,17 +204,19 @@ def residual_log_likelihood(whitener, r) -> float:
     return float(-0.5 * n * np.log(rw @ rw / n) - 0.5 * whitener.logdet)
 
 
-def choose_correlation(time, index, r, times=CORRELATION_TIMES, shares=SHARES, whites=WHITES,
-                       evidence=None, margin=MARGIN):
+def choose_correlation(time, index, r, times=CORRELATION_TIMES, shares=SHARES,
+                       whites=SCAN_WHITES, evidence=None, margin=MARGIN, refine=WHITES):
     """Choose GARPOS's correlation of the replies: ``(tau, share, white)`` and the table.
 
-    For each correlation time, the share (at a white share of 0.5) and then the white
-    share of largest :func:`residual_log_likelihood`; between the times, the largest
-    ``evidence`` of that pair, or the same residual likelihood without one. A correlated
-    ``E`` is chosen only where it beats independent replies by ``margin`` nats. The
-    residuals' likelihood alone prefers too short a time: the fit's smooth terms have
-    absorbed the slowest part of the correlation; the marginal likelihood of the whole
-    linearised model (GARPOS's ABIC) does not have that bias (docs/gnssa.md).
+    The scan: for each correlation time, the share (at a white share of 0.5) and then the
+    white share of largest :func:`residual_log_likelihood`; between the times, the
+    largest ``evidence`` of that pair, or the same residual likelihood without one. With
+    ``evidence``, at the time chosen every share and every white share of ``refine`` is
+    then compared by the evidence. A correlated ``E`` is chosen only where it beats
+    independent replies by ``margin`` nats. The residuals' likelihood alone prefers too
+    short a time and too large a white share: the fit's smooth terms have absorbed the
+    slowest part of the correlation; the marginal likelihood of the whole linearised model
+    (GARPOS's ABIC) does not have that bias (docs/gnssa.md).
 
     Parameters
     ----------
@@ -227,15 +233,18 @@ def choose_correlation(time, index, r, times=CORRELATION_TIMES, shares=SHARES, w
         ``evidence(whitener)``: the log marginal likelihood of the model under that
         covariance.
     margin : float, default :data:`MARGIN`
+    refine : sequence of float, default :data:`WHITES`
+        The white shares compared by ``evidence`` at the time chosen.
 
     Returns
     -------
     best : tuple of float
         ``(tau, share, white)``; ``(0, 0, 0)`` for independent replies.
     table : list of dict
-        One row per time: ``correlation_s``, its best ``share`` and ``white``,
-        ``log_likelihood`` (the residuals') and ``log_evidence`` (with ``evidence``),
-        each relative to its best (None where every ``E`` tried was singular).
+        One row per time scanned (``stage`` "scan"), then one per pair refined
+        (``stage`` "refine"): ``correlation_s``, ``share``, ``white``, ``log_likelihood``
+        (the residuals'; the scan's) and ``log_evidence`` (with ``evidence``), each
+        relative to its best (None where singular or not computed).
 
     Raises
     ------
@@ -268,7 +277,8 @@ def choose_correlation(time, index, r, times=CORRELATION_TIMES, shares=SHARES, w
             ll, w = max((tried[(share, v)] for v in whites), key=lambda x: x[0])
         else:
             ll, w = _try(time, index, r, 0.0, 0.0, 0.0)
-        row = {"correlation_s": float(tau), "share": None if w is None or tau <= 0 else w.share,
+        row = {"stage": "scan", "correlation_s": float(tau),
+               "share": None if w is None or tau <= 0 else w.share,
                "white": None if w is None or tau <= 0 else w.white, "log_likelihood": ll,
                "log_evidence": None}
         if evidence is not None:
@@ -279,6 +289,10 @@ def choose_correlation(time, index, r, times=CORRELATION_TIMES, shares=SHARES, w
             break
     levels = np.array([_level(x) for x in rows])
     best = rows[int(np.argmax(levels))]
+    if evidence is not None and best["correlation_s"] > 0:
+        rows += _refine(time, index, best["correlation_s"], shares, refine, evidence)
+        levels = np.array([_level(x) for x in rows])
+        best = rows[int(np.argmax(levels))]
     if levels.max() < levels[0] + margin:  # not enough to leave independent replies
         best = rows[0]
     for key in ("log_likelihood", "log_evidence"):  # relative to the best; None: singular
@@ -289,6 +303,21 @@ def choose_correlation(time, index, r, times=CORRELATION_TIMES, shares=SHARES, w
     if best["correlation_s"] <= 0:
         return (0.0, 0.0, 0.0), rows
     return (best["correlation_s"], best["share"], best["white"]), rows
+
+
+def _refine(time, index, tau, shares, whites, evidence):
+    """Rows of every share and white share at ``tau``, compared by ``evidence``."""
+    out = []
+    for share in shares:
+        for white in whites:
+            try:
+                w = Whitener(time, index, tau, share, white)
+            except np.linalg.LinAlgError:
+                continue
+            out.append({"stage": "refine", "correlation_s": float(tau), "share": float(share),
+                        "white": float(white), "log_likelihood": None,
+                        "log_evidence": float(evidence(w))})
+    return out
 
 
 def _try(time, index, r, tau, share, white):

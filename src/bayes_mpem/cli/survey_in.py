@@ -59,9 +59,9 @@ def _check_array_options(args, fmt):
     corr = getattr(args, "correlation", None)
     if args.sample and isinstance(corr, tuple):
         raise OptionError(f"--correlation {','.join(f'{v:g}' for v in corr)} with --sample: "
-                          "the posterior "
-                          "treats the replies as independent (auto checks and warns; off "
-                          "does not); locate without --sample fits a given correlation")
+                          "the posterior treats the replies as independent (auto checks and "
+                          "warns; off does not); locate without --sample fits a given "
+                          "correlation")
     if getattr(args, "flags", None) is not None and fmt != "garpos":
         raise OptionError(f"--flags: for GARPOS surveys only (a {fmt} survey has no flag "
                           "column)")

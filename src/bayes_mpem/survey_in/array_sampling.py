@@ -84,6 +84,14 @@ class ArrayLogPosterior:
     ndim : int
     label : str
 
+    Raises
+    ------
+    TypeError
+        When ``fit`` is not an :class:`ArrayLocateResult`.
+    ValueError
+        When ``fit`` was refitted under correlated noise (``fit.model["noise"]``): the
+        posterior treats the replies as independent.
+
     Examples
     --------
     >>> from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa

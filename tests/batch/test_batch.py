@@ -214,3 +214,17 @@ def test_navigate_in_a_batch_gives_the_same_files_as_alone(scheduler, tmp_path):
         assert ((tmp_path / "out" / "surveys" / "d" / name).read_bytes()
                 == (tmp_path / "alone" / name).read_bytes()), name
     assert {"name", "beacon", "d0_estimate"} <= set(result.beacons)
+
+
+def test_a_manifest_column_gives_an_array_its_noise_correlation(tmp_path):
+    """``correlation`` is a column like any option: parsed by ``locate``'s own parser."""
+    survey = tmp_path / "site-initcfg.ini"
+    survey.write_text("")  # the manifest is parsed, not run
+    manifest = tmp_path / "m.csv"
+    manifest.write_text(f'name,survey,format,correlation\na,{survey},garpos,"60,0.5,0.3"\n'
+                        f"b,{survey},garpos,off\nc,{survey},garpos,\n")
+    tasks = _tasks(manifest, "locate")
+    assert [t.options["correlation"] for t in tasks] == [(60.0, 0.5, 0.3), "off", "auto"]
+    manifest.write_text(f"name,survey,format,correlation\na,{survey},garpos,60s\n")
+    with pytest.raises(InputError, match=r"m.csv line 2: argument --correlation: .*'60s'"):
+        _tasks(manifest, "locate")

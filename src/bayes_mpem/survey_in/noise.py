@@ -290,7 +290,7 @@ def choose_correlation(time, index, r, times=CORRELATION_TIMES, shares=SHARES,
     levels = np.array([_level(x) for x in rows])
     best = rows[int(np.argmax(levels))]
     if evidence is not None and best["correlation_s"] > 0:
-        rows += _refine(time, index, best["correlation_s"], shares, refine, evidence)
+        rows += _refine(time, index, best, shares, refine, evidence)
         levels = np.array([_level(x) for x in rows])
         best = rows[int(np.argmax(levels))]
     if levels.max() < levels[0] + margin:  # not enough to leave independent replies
@@ -305,28 +305,33 @@ def choose_correlation(time, index, r, times=CORRELATION_TIMES, shares=SHARES,
     return (best["correlation_s"], best["share"], best["white"]), rows
 
 
-def _refine(time, index, tau, shares, whites, evidence):
-    """Rows of every share and white share at ``tau``, compared by ``evidence``."""
+def _refine(time, index, scanned, shares, whites, evidence):
+    """Rows of every other share and white share at the time of ``scanned`` (its row)."""
     out = []
     for share in shares:
         for white in whites:
-            try:
-                w = Whitener(time, index, tau, share, white)
-            except np.linalg.LinAlgError:
-                continue
-            out.append({"stage": "refine", "correlation_s": float(tau), "share": float(share),
-                        "white": float(white), "log_likelihood": None,
-                        "log_evidence": float(evidence(w))})
+            if (share, white) == (scanned["share"], scanned["white"]):
+                continue  # its evidence is the scan's
+            w = _whitener(time, index, scanned["correlation_s"], share, white)
+            if w is not None:
+                out.append({"stage": "refine", "correlation_s": scanned["correlation_s"],
+                            "share": float(share), "white": float(white),
+                            "log_likelihood": None, "log_evidence": float(evidence(w))})
     return out
+
+
+def _whitener(time, index, tau, share, white):
+    """Return the :class:`Whitener`, or None where ``E`` is singular."""
+    try:
+        return Whitener(time, index, tau, share, white)
+    except np.linalg.LinAlgError:  # two replies at one time fully correlated
+        return None
 
 
 def _try(time, index, r, tau, share, white):
     """Return ``(residual log likelihood, whitener)``; ``(-inf, None)`` where singular."""
-    try:
-        w = Whitener(time, index, tau, share, white)
-    except np.linalg.LinAlgError:  # two replies at one time fully correlated
-        return -np.inf, None
-    return residual_log_likelihood(w, r), w
+    w = _whitener(time, index, tau, share, white)
+    return (-np.inf, None) if w is None else (residual_log_likelihood(w, r), w)
 
 
 def _level(row):

@@ -228,3 +228,16 @@ def test_white_noise_keeps_independent_replies():
     k = np.tile(np.arange(4), 400)
     picks = [choose_correlation(t, k, gen.normal(size=t.size))[0][0] for _ in range(20)]
     assert picks == [0.0] * 20
+
+
+def test_the_command_line_reads_correlation_as_the_library_does():
+    """``cli/options.py`` loads no numpy, so it parses ``--correlation`` itself: a twin."""
+    from bayes_mpem.cli import options
+    from bayes_mpem.survey_in.array import correlation_spec
+    from bayes_mpem.survey_in.noise import CORRELATION_TIMES
+
+    assert options.MAX_CORRELATION_S == CORRELATION_TIMES[-1]
+    for text in ("60", "120,0", "300,0.5,0.4", "0", "1200,1,0.95"):
+        assert options.correlation(text) == correlation_spec(
+            tuple(float(v) for v in text.split(",")))
+    assert options.correlation("off") == "off" and correlation_spec("off") is None

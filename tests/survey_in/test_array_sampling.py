@@ -6,6 +6,7 @@ import pytest
 from bayes_mpem.survey_in.array_sampling import (
     AXES,
     ArrayLogPosterior,
+    ConditionalProposal,
     locate_array_survey_bayes,
     sample_array,
 )
@@ -236,3 +237,28 @@ def test_a_transponder_with_25_replies_is_sampled_by_the_independence_move():
     post = sample_array(array_shots(raw), fit, rng=0, progress=False)
     assert post.converged and "fallback" not in post.diagnostics
     assert post.diagnostics["moves"].startswith("MHMove")
+
+
+def test_the_hyperparameter_grid_widens_each_axis_on_its_own(monkeypatch):
+    """Where only ``log kappa`` needs a wider grid, ``log sigma``'s stays fine.
+
+    Under correlated noise the smoothing scale is less determined than ``sqrt(2 / rank)``
+    (here 3 times); widening both axes together left ``log sigma`` 3 sds between grid
+    points on a 6-hour campaign and the independence move failed its pilot (docs/gnssa.md).
+    """
+    raw = simulate_gnssa(hours=1, speed_model="field", track="star+circle", gradients=True,
+                         rng=1).raw()
+    fit = locate_array_survey(raw, correlation=(120.0, 0.0, 0.7)).fits["array"]
+    post = ArrayLogPosterior(array_shots(raw), fit)
+    calls = []
+    original = ConditionalProposal._hyper_marginal
+
+    def spy(self, post, half):
+        calls.append(np.array(half, float))
+        return original(self, post, half)
+
+    monkeypatch.setattr(ConditionalProposal, "_hyper_marginal", spy)
+    ConditionalProposal(post)
+    half = np.array(calls)
+    assert len(half) >= 2 and half[-1, 1] > 1.9 * half[0, 1]  # kappa widened
+    assert half[-1, 0] == half[0, 0]  # sigma's grid kept

@@ -163,37 +163,63 @@ def test_cli_records_the_noise_and_refuses_misplaced_uses(garpos_campaign, tmp_p
     s = json.loads((tmp_path / "o" / "summary.json").read_text())
     assert s["noise"]["correlation_s"] == 60.0 and s["noise"]["choice"] == "given"
     assert "noise         correlated" in (tmp_path / "o" / "solution.txt").read_text()
-    assert main(["locate", str(garpos_campaign), "--correlation", "60", "--sample",
-                 "--out", str(tmp_path / "p")]) == 2
-    assert "--correlation 60,0.5,0 with --sample" in capsys.readouterr().err
+    assert main(["locate", str(garpos_campaign), "--correlation", "60,0.5,0.3", "--sample",
+                 "--seed", "0", "--no-progress", "--out", str(tmp_path / "p")]) == 0
+    capsys.readouterr()
+    s = json.loads((tmp_path / "p" / "summary.json").read_text())
+    assert s["noise"]["correlation_s"] == 60.0 and s["interval_method"] == "posterior"
+    assert (tmp_path / "p" / "posterior_array.nc").exists()
     deck = sample_file("obsrange/SIO_CC03.txt")
     assert main(["locate", str(deck), "--correlation", "off", "--out",
                  str(tmp_path / "q")]) == 2
     assert "--correlation: for array surveys only" in capsys.readouterr().err
 
 
-def test_the_posterior_warns_where_the_replies_are_correlated():
-    """``locate --sample`` treats the replies as independent: it says so where they are not."""
-    from bayes_mpem.exceptions import SamplingWarning
-    from bayes_mpem.survey_in.array_sampling import _noise_check
-    from bayes_mpem.survey_in.array_survey import array_shots
+def test_the_posterior_under_correlated_noise_is_the_gls_likelihood():
+    """A true reply's density is its residual's given the earlier true replies' (Notes)."""
+    from scipy.stats import multivariate_normal
 
-    raw = read_survey(sample_file("seagap/obsdata.inp"))
-    fit = locate_array_survey(raw, correlation="off").fits["array"]
-    with pytest.warns(SamplingWarning, match="its intervals are likely too narrow"):
-        out = _noise_check(fit, array_shots(raw), "auto")
-    assert out["model"] == "independent" and out["grid"] and "mu_t 300 s" in out["warning"]
-    assert _noise_check(fit, array_shots(raw), "off")["grid"] is None
-
-
-def test_a_fit_under_correlated_noise_is_not_sampled():
     from bayes_mpem.survey_in.array_sampling import ArrayLogPosterior
     from bayes_mpem.survey_in.array_survey import array_shots
 
     raw = simulate_gnssa(hours=0.5, rng=2, shot_interval=30.0).raw()
     fit = locate_array_survey(raw, correlation=(60.0, 0.5, 0.3)).fits["array"]
-    with pytest.raises(ValueError, match="correlation='off' to sample"):
-        ArrayLogPosterior(array_shots(raw), fit)
+    post = ArrayLogPosterior(array_shots(raw), fit)
+    keep = np.flatnonzero(fit.p_true > 0.5)
+    sub = array_shots(raw).iloc[fit.rows]
+    E = _dense(sub["time"].to_numpy(float)[keep], fit.index[keep], 60.0, 0.5, 0.3)
+    gen = np.random.default_rng(0)
+    u = post.u_em() + 0.3 * gen.normal(size=(3, post.ndim)) * (np.arange(post.ndim) < post.F)
+    ld, _ = post.class_log_densities(u)
+    _, _, _, sigma, w = post.split(u)
+    r = post.t[keep] - post.predict(u)[:, keep]
+    for i in range(3):
+        want = multivariate_normal.logpdf(r[i], cov=sigma[i] ** 2 * E)
+        got = np.sum(ld[i, keep] - np.log(w[i, fit.index[keep]]))
+        assert got == pytest.approx(want, rel=1e-9, abs=1e-6)
+    # the data's precision of the proposal is the whitened one: J' E^-1 J
+    data, _ = post._precisions
+    J = post.model.jac(post.theta_em)[keep][:, :3 * post.K]
+    assert np.allclose(data[:post.F, :post.F], J.T @ np.linalg.solve(E, J) / fit.sigma**2,
+                       rtol=1e-8)
+
+
+def test_the_posterior_samples_the_seagap_correlation():
+    """On SeaGap (``mu_t`` 300 s) the posterior's sds are the GLS fit's, not independent ones."""
+    from bayes_mpem.survey_in.array_sampling import locate_array_survey_bayes
+
+    raw = read_survey(sample_file("seagap/obsdata.inp"))
+    res = locate_array_survey_bayes(raw, rng=0, progress=False)
+    s = res.summary
+    assert s["noise"]["correlation_s"] >= 120.0 and s["noise"]["choice"] == "auto"
+    post, em = s["array_centre"]["enu"], s["array_centre"]["em"]["enu"]
+    off = locate_array_survey(raw, correlation="off").fits["array"].centre()[1]
+    for j, a in enumerate(("east", "north", "up")):
+        assert 0.8 < post[a]["sd"] / em[a]["sd"] < 1.15, a  # measured 0.89-0.95
+        assert post[a]["sd"] > 1.3 * np.sqrt(off[j, j]), a  # measured 1.4-2.0
+    assert res.posteriors["array"].converged
+    noise = res.posteriors["array"].to_inference_data().attrs["noise"]
+    assert noise.startswith(f"correlated: mu_t {s['noise']['correlation_s']:g} s")
 
 
 def test_a_band_too_wide_is_not_tried():

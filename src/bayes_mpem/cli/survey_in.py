@@ -56,12 +56,6 @@ def _check_array_options(args, fmt):
         raise OptionError("--gradients on with --speed-intervals 0: the gradients need a "
                           "sound speed varying in time (the smooth default or "
                           "--speed-intervals N > 0)")
-    corr = getattr(args, "correlation", None)
-    if args.sample and isinstance(corr, tuple):
-        raise OptionError(f"--correlation {','.join(f'{v:g}' for v in corr)} with --sample: "
-                          "the posterior treats the replies as independent (auto checks and "
-                          "warns; off does not); locate without --sample fits a given "
-                          "correlation")
     if getattr(args, "flags", None) is not None and fmt != "garpos":
         raise OptionError(f"--flags: for GARPOS surveys only (a {fmt} survey has no flag "
                           "column)")

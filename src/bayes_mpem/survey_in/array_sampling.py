@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 
 from .._rng import RNGLike, as_generator
-from ..exceptions import InputError, SamplingWarning
+from ..exceptions import InputError
 from ..mcmc import (
     TProposal,
     bulk_ess,
@@ -30,6 +30,7 @@ from .array import (
     penalised_gauss_newton,
 )
 from .classes import log_classes, true_probability
+from .noise import Whitener
 from .posterior import SIGMA_BOUNDS, SPEED_PRIOR_WIDTH, check_location_options
 from .travel_times import speed_basis, speed_penalty
 
@@ -88,9 +89,17 @@ class ArrayLogPosterior:
     ------
     TypeError
         When ``fit`` is not an :class:`ArrayLocateResult`.
-    ValueError
-        When ``fit`` was refitted under correlated noise (``fit.model["noise"]``): the
-        posterior treats the replies as independent.
+
+    Notes
+    -----
+    Where ``fit`` was refitted under correlated noise (``fit.model["noise"]``,
+    :mod:`.noise`), a reply the EM called true has as its true-class density the
+    Gaussian of its residual given the residuals of the earlier such replies under
+    ``sigma^2 E``: mean and variance from the banded Cholesky factor of ``E``
+    (``L^-1`` of the residuals times ``L_ii``). Those conditionals multiply to the
+    generalised least squares likelihood the EM's refit maximised; each stays in the
+    mixture with the spurious class, so the classes are still sampled. The conditioning
+    set is the EM's: a reply called spurious is no evidence about its neighbours.
 
     Examples
     --------
@@ -109,15 +118,24 @@ class ArrayLogPosterior:
         if not isinstance(fit, ArrayLocateResult):
             raise TypeError(f"fit: expected an ArrayLocateResult, got {type(fit).__name__}")
         m = fit.model
-        if (m.get("noise") or {}).get("correlation_s"):
-            raise ValueError(f"fit: refitted under correlated noise (mu_t "
-                             f"{m['noise']['correlation_s']:g} s); the posterior treats the "
-                             "replies as independent: locate with correlation='off' to sample")
         self.fit, self.ids, self.K = fit, tuple(fit.ids), len(fit.ids)
         sub = shots.iloc[fit.rows].reset_index(drop=True)
         self.index = np.asarray(fit.index)
         self.t = sub["twtt"].to_numpy(float)
         self.n = self.t.size
+        self.noise = m.get("noise") or {}
+        #: the replies' correlation (:class:`~.noise.Whitener` of the EM's true replies
+        #: ``self.keep``), None for independent replies
+        self.whitener = None
+        if self.noise.get("correlation_s"):
+            keep = np.flatnonzero(np.asarray(fit.p_true, float) > 0.5)
+            self.whitener = Whitener(sub["time"].to_numpy(float)[keep], self.index[keep],
+                                     self.noise["correlation_s"], self.noise["share"],
+                                     self.noise["white"])
+            self.keep = keep
+            #: the true replies in time order (the whitened rows) and ``log L_ii``
+            self.keep_time = keep[self.whitener.order]
+            self.log_lii = np.log(self.whitener.ab[0])
         basis = speed_basis(sub, m["speed_intervals"], m["time_range"], m.get("speed_breaks"))
         self.k = basis.shape[1]
         design = (gradient_design(sub, self.index, fit.start, basis) if m.get("gradients")
@@ -207,7 +225,7 @@ class ArrayLogPosterior:
         M = np.zeros((P + k + kg, self.F + k + kg))
         M[:P, :self.F] = self.B
         M[P:, self.F:] = np.eye(k + kg)
-        Jw = np.sqrt(np.asarray(fit.p_true, float))[:, None] * (J @ M)
+        Jw = self._weighted(J @ M)
         data = Jw.T @ Jw / fit.sigma**2
         prior = np.zeros_like(data)
         if self.H is not None:
@@ -223,6 +241,16 @@ class ArrayLogPosterior:
         vals = np.maximum(vals, 1e-12 * vals.max())
         return (vecs / vals) @ vecs.T / np.outer(d, d)
 
+    def _weighted(self, X):
+        """Rows of ``X`` weighted as the data's precision sees them.
+
+        By ``sqrt(p_true)`` for independent replies; whitened (``L^-1``, the EM's true
+        replies only) for correlated ones.
+        """
+        if self.whitener is not None:
+            return self.whitener.whiten(X[self.keep])
+        return np.sqrt(np.asarray(self.fit.p_true, float)).reshape(-1, *[1] * (X.ndim - 1)) * X
+
     @property
     def ndim(self) -> int:
         """Number of sampled parameters."""
@@ -236,16 +264,15 @@ class ArrayLogPosterior:
     def _gradients_at_em(self, theta, fit):
         """Return the gradient coefficients at the EM's positions and speed (conditional mode)."""
         P, k = 3 * self.K, self.k
-        sw = np.sqrt(np.asarray(fit.p_true, float))
 
         def full(gc):
             return np.concatenate([theta[:P + k], gc])
 
         def resid(gc):
-            return sw * (self.t - self.model.predict(full(gc)))
+            return self._weighted(self.t - self.model.predict(full(gc)))
 
         def jac(gc):
-            return -sw[:, None] * self.model.jac(full(gc))[:, P + k:]
+            return -self._weighted(self.model.jac(full(gc))[:, P + k:])
 
         Q = np.zeros((self.kg, self.kg))
         if self.lam_g is not None:
@@ -382,6 +409,12 @@ class ArrayLogPosterior:
                                self.fit.windows[j], self.fit.outliers)
             ld[:, rows] = a + (np.log(w[:, [j]]) - np.log(0.5))
             lu[:, rows] = b + (np.log1p(-w[:, [j]]) - np.log(0.5))
+        if self.whitener is not None:
+            # each true reply given the earlier ones: z = L^-1 r, sd sigma L_ii
+            rows = self.keep_time
+            z = self.whitener.whiten(self.t[self.keep][:, None] - pred[:, self.keep].T).T
+            ld[:, rows] = (np.log(w[:, self.index[rows]]) - 0.5 * (z / sigma[:, None]) ** 2
+                           - np.log(sigma[:, None] * np.sqrt(2 * np.pi)) - self.log_lii)
         return ld, lu
 
     def loglik(self, u):
@@ -566,23 +599,30 @@ class ConditionalProposal:
         """Student-t of ``log sigma`` (and ``log kappa``) from the moments of their marginal.
 
         The grid spans 8 sds either way (of ``log sigma`` with everything else known, and of
-        ``log kappa`` given the coefficients, ``sqrt(2 / rank)``), twice as wide again
-        while the outer points hold more than 1e-4 of the mass.
+        ``log kappa`` given the coefficients, ``sqrt(2 / rank)``); an axis whose outer points
+        hold more than 1e-4 of the mass is made twice as wide, twice at most. Each axis is
+        widened on its own: widening both when only ``log kappa`` needed it left ``log
+        sigma`` three of its sds between grid points, its moments wrong (mean 0.002 against
+        0.007, sd 0.008 against 0.011) and the pilot's R-hat above its bound
+        (``benchmarks/gnssa_correlated.py --sample``, seed 1).
         """
         p = np.asarray(post.fit.p_true, float)
         sds = [1.0 / np.sqrt(2.0 * max(p.sum(), 2.0))]
         if self.smooth:
             sds.append(np.sqrt(2.0 / max(post.pen_rank, 1)))
-        for span in (8.0, 16.0, 32.0):
+        span = np.full(len(sds), 8.0)
+        for attempt in range(3):
             grid, w = self._hyper_marginal(post, span * np.asarray(sds))
-            outer = np.zeros(len(grid), bool)
+            wide = np.zeros(len(sds), bool)
             for j in range(grid.shape[1]):  # an edge at the prior's bound is no reason
                 bounds = SMOOTHING_RANGE if j == 1 else (-np.inf, np.inf)
                 lo, hi = grid[:, j].min(), grid[:, j].max()
-                outer |= ((grid[:, j] <= lo) & (lo > bounds[0])) | (
+                outer = ((grid[:, j] <= lo) & (lo > bounds[0])) | (
                     (grid[:, j] >= hi) & (hi < bounds[1]))
-            if w[outer].sum() <= 1e-4:
+                wide[j] = w[outer].sum() > 1e-4
+            if attempt == 2 or not wide.any():
                 break
+            span[wide] *= 2.0
         mean = w @ grid
         cov = ((grid - mean).T * w) @ (grid - mean)
         return TProposal(centre=mean, chol=np.linalg.cholesky(np.atleast_2d(cov)), df=self.DF)
@@ -835,6 +875,7 @@ class ArrayPosterior:
                    "sampler": f"emcee {emcee.__version__} ({self.diagnostics.get('moves')})",
                    "frame": "local east, north, up (m) of the survey",
                    "speed_coef_unit": self.diagnostics.get("speed_coef_unit", ""),
+                   "noise": self.diagnostics.get("noise", ""),
                    "ci": self.ci})
         tree["class_probabilities"] = xr.DataTree(xr.Dataset(
             {"p_true": ("shot", self.p_true), "p_true_sd": ("shot", self.p_true_sd)},
@@ -1022,12 +1063,23 @@ def sample_array(shots: pd.DataFrame, fit: ArrayLocateResult, *, n_walkers: int 
             "flat in log over the EM's grid (2 decades either way)" if post.smooth else
             "none (the speed's intervals are fixed)"),
         "speed_coef_unit": ("scale of the profile (dimensionless)" if refracted else "m/s"),
+        "noise": _noise_label(post),
         "travel_times": ("refracted rays: ray bending to first order about the EM solution"
                          if refracted else "straight rays (exact)")}
     return ArrayPosterior(ids=post.ids, names=post.names, draws=draws, p_true=p[:, 0],
                           p_true_sd=p_sd[:, 0], rows=np.asarray(fit.rows), shots=table,
                           ess=ess, rhat={k: rhat(v) for k, v in series.items()}, em=fit,
                           diagnostics=diagnostics, ci=float(ci))
+
+
+def _noise_label(post: ArrayLogPosterior) -> str:
+    """Return the replies' noise the posterior assumed, in words (diagnostics, the file)."""
+    if post.whitener is None:
+        return "independent replies"
+    n = post.noise
+    return (f"correlated: mu_t {n['correlation_s']:g} s, mu_mt {n['share']:g}, white "
+            f"{n['white']:g} (GARPOS's covariance, tapered); each reply the EM called true "
+            "given the earlier ones")
 
 
 def _differential_evolution(post, walkers, max_steps, info, progress, opts):
@@ -1076,37 +1128,6 @@ def _with_posterior(em: dict, enu: dict, origin) -> dict:
     return out
 
 
-def _noise_check(fit, shots, correlation):
-    """``summary.json`` ``noise`` of a sampled array: independent, checked where asked.
-
-    Where :func:`~.noise.choose_correlation` prefers correlated noise to independent
-    replies, warn (:class:`SamplingWarning`): the posterior treats them as independent.
-    """
-    import warnings
-
-    from .noise import choose_correlation
-
-    out = {"model": "independent", "correlation_s": 0.0, "share": None, "grid": None,
-           "choice": "off" if correlation in ("off", None) else "auto"}
-    if out["choice"] == "off":
-        return out
-    keep = fit.p_true > 0.5
-    time = shots.iloc[fit.rows]["time"].to_numpy(float)[keep]
-    if not np.all(np.isfinite(fit.residual[keep])):
-        return out
-    (tau, share, white), table = choose_correlation(time, fit.index[keep], fit.residual[keep])
-    out["grid"] = table
-    if tau > 0:
-        gain = -next(row["log_likelihood"] for row in table if row["correlation_s"] == 0.0)
-        out["warning"] = (f"the residuals are correlated (mu_t {tau:g} s, mu_mt {share:g}, "
-                          f"white {white:g}, preferred by {gain:.0f} nats): the posterior "
-                          "treats the replies "
-                          "as independent, so its intervals are likely too narrow; locate "
-                          "without --sample models the correlation")
-        warnings.warn("array posterior: " + out["warning"], SamplingWarning, stacklevel=3)
-    return out
-
-
 def _check_forced_gradients(shots, raw, gradients, speed_intervals):
     """Refuse to sample gradient terms forced on where the track does not determine them.
 
@@ -1144,12 +1165,9 @@ def locate_array_survey_bayes(raw, *, ci=0.95, outliers="uniform", ssp=None,
     n_walkers, min_ess, max_steps, n_draws, progress
         As for :func:`sample_array`.
     rng : None, int or numpy.random.Generator
-    correlation : {"auto", "off"}, default "auto"
-        The posterior treats the replies as independent. ``"auto"`` also asks whether
-        their residuals are correlated (:func:`~.noise.choose_correlation`); where they
-        are, ``summary.json`` ``noise`` says so and a :class:`SamplingWarning` warns
-        that the posterior's intervals are likely too narrow (``locate`` without
-        ``--sample`` models the correlation).
+    correlation : {"auto", "off"} or tuple, default "auto"
+        The replies' noise, as for ``locate_array_survey``: where the EM's fit models it
+        correlated, so does the posterior (:class:`ArrayLogPosterior`, Notes).
 
     Returns
     -------
@@ -1171,20 +1189,13 @@ def locate_array_survey_bayes(raw, *, ci=0.95, outliers="uniform", ssp=None,
                            n_draws=n_draws)
     shots = array_shots(raw)
     _check_forced_gradients(shots, raw, gradients, speed_intervals)
-    if not (correlation is None or isinstance(correlation, str)
-            and correlation in ("auto", "off")):
-        raise InputError(f"correlation={correlation!r} with the posterior: it treats the "
-                         "replies as independent; give 'auto' or 'off' (locate without "
-                         "sampling models a given correlation)")
     located = locate_survey(raw, ci=ci, outliers=outliers, ssp=ssp,
                             speed_intervals=speed_intervals, gradients=gradients, flags=flags,
-                            knot_minutes=knot_minutes, correlation="off")
+                            knot_minutes=knot_minutes, correlation=correlation)
     fit = located.fits["array"]
-    noise = _noise_check(fit, shots, correlation)
     post = sample_array(shots, fit, n_walkers=n_walkers, ci=ci, min_ess=min_ess,
                         max_steps=max_steps, n_draws=n_draws, rng=rng, progress=progress)
     s = copy.deepcopy(located.summary)
-    s["noise"] = noise
     origin = s["geometry"].get("origin")
     d = post.draws
     for j, tid in enumerate(post.ids):

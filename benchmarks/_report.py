@@ -27,13 +27,19 @@ def machine() -> str:
 
 
 def commit() -> str:
-    """The checkout's short commit, or ``unknown`` outside a git checkout."""
+    """The checkout's short commit (``+ changes`` where ``src/`` or ``benchmarks/`` differ).
+
+    ``unknown`` outside a git checkout.
+    """
+    here = Path(__file__).resolve().parent
     try:
-        return subprocess.run(["git", "rev-parse", "--short", "HEAD"],
-                              cwd=Path(__file__).resolve().parent, capture_output=True,
-                              text=True, check=True).stdout.strip()
+        rev = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=here,
+                             capture_output=True, text=True, check=True).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--", "../src", "."], cwd=here,
+                               capture_output=True, text=True, check=True).stdout.strip()
     except (OSError, subprocess.CalledProcessError):
         return "unknown"
+    return f"{rev} + changes" if dirty else rev
 
 
 def write_section(path, name: str, text: str) -> None:

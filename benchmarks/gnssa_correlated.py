@@ -18,6 +18,10 @@ Reported per setting: the centre's and the transponders' errors, the coverage of
 Writes the section ``gnssa-correlated`` of ``docs/gnssa.md`` and prints it::
 
     python benchmarks/gnssa_correlated.py [N_SEEDS]
+
+``--sample``: the posterior instead (``sample_array`` of the ``off`` and the ``auto`` fits,
+seed = the campaign's; the EM's columns beside them), section
+``gnssa-correlated-posterior``.
 """
 
 from __future__ import annotations
@@ -38,9 +42,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _report import commit, machine, write_section  # noqa: E402
 from gnssa_independent import ou_path  # noqa: E402  (the same process, written once)
 
-from bayes_mpem.survey_in.array_survey import locate_array_survey  # noqa: E402
+from bayes_mpem.survey_in.array_sampling import sample_array  # noqa: E402
+from bayes_mpem.survey_in.array_survey import array_shots, locate_array_survey  # noqa: E402
 from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa  # noqa: E402
 
+AXES = ("east", "north", "up")
 DOC = Path(__file__).resolve().parents[1] / "docs" / "gnssa.md"
 PER_SD, PER_TAU = 40e-6, 180.0
 COMMON_SD, COMMON_TAU = 20e-6, 600.0
@@ -72,26 +78,48 @@ def campaign(seed):
     return raw, truth
 
 
-def run(n_seeds):
-    """Return ``{setting: [per-seed record]}``."""
-    rows = {s: [] for s in SETTINGS}
+def _record(m, sd, enu, tsd, truth, noise, seconds):
+    return {"err": m - truth.mean(0), "sd": sd, "tp_err": enu - truth, "tp_sd": tsd,
+            "tau": noise["correlation_s"], "share": noise.get("share"),
+            "white": noise.get("white"), "seconds": seconds}
+
+
+def run(n_seeds, sample=False):
+    """Return ``{setting: [per-seed record]}`` (``"<setting>, posterior"`` with ``sample``)."""
+    settings = ("off", "auto") if sample else tuple(SETTINGS)
+    rows = {}
     for seed in range(n_seeds):
         raw, truth = campaign(seed)
-        for s in SETTINGS:
+        for s in settings:
             t0 = time.perf_counter()
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
                 fit = locate_array_survey(raw, correlation=SETTINGS[s]).fits["array"]
             m, C = fit.centre()
-            sd = np.sqrt(np.diag(C))
             tsd = np.sqrt(np.diag(fit.cov)[:3 * len(fit.ids)]).reshape(-1, 3)
             noise = fit.model["noise"] or {"correlation_s": 0.0}
-            rows[s].append({"err": m - truth.mean(0), "sd": sd, "tp_err": fit.enu - truth,
-                            "tp_sd": tsd, "tau": noise["correlation_s"],
-                            "share": noise.get("share"), "white": noise.get("white"),
-                            "seconds": time.perf_counter() - t0})
-            print(seed, s, np.round(100 * (m - truth.mean(0)), 2),
-                  np.round((m - truth.mean(0)) / sd, 2), noise["correlation_s"], flush=True)
+            rec = _record(m, np.sqrt(np.diag(C)), fit.enu, tsd, truth, noise,
+                          time.perf_counter() - t0)
+            rows.setdefault(s, []).append(rec)
+            print(seed, s, np.round(100 * rec["err"], 2), np.round(rec["err"] / rec["sd"], 2),
+                  noise["correlation_s"], flush=True)
+            if not sample:
+                continue
+            t0 = time.perf_counter()
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                post = sample_array(array_shots(raw), fit, rng=seed, progress=False)
+            c = post.centre()
+            pos = [post.position(tid) for tid in post.ids]
+            rec = _record(np.array([c[a]["mean"] for a in AXES]),
+                          np.array([c[a]["sd"] for a in AXES]),
+                          np.array([[q[a]["mean"] for a in AXES] for q in pos]),
+                          np.array([[q[a]["sd"] for a in AXES] for q in pos]), truth, noise,
+                          time.perf_counter() - t0)
+            rec["converged"] = post.converged
+            rows.setdefault(f"{s}, posterior", []).append(rec)
+            print(seed, s, "posterior", np.round(100 * rec["err"], 2),
+                  np.round(rec["err"] / rec["sd"], 2), post.converged, flush=True)
     return rows
 
 
@@ -127,16 +155,31 @@ def report(rows, n_seeds, seconds):
              "transponders' 95 % intervals covering (%; east / north / up)",
              "rms standardised error of the transponders, east / north / up",
              "mu_t / mu_mt / white used (campaigns)", "seconds per fit (median)"]
-    cols = {s: col(rows[s]) for s in SETTINGS}
-    lines = [f"Written by `python benchmarks/gnssa_correlated.py {n_seeds}` ({machine()}; "
-             f"{seconds:.0f} s; git {commit()}).", "",
+    sample = any(", posterior" in s for s in rows)
+    if sample:
+        names[-1] = "seconds per fit or per sampling (median)"
+        names.append("posteriors converged")
+    cols = {s: col(rows[s]) + ([f"{sum(r['converged'] for r in rows[s])} of {len(rows[s])}"]
+                               if sample and "converged" in rows[s][0] else
+                               ["-"] * sample) for s in rows}
+    heads = {"off": "off", "auto": "auto (default)", "given": "given",
+             "off, posterior": "off, posterior", "auto, posterior": "auto, posterior (default)"}
+    order = [s for s in heads if s in rows]
+    what = ("located with `correlation=\"off\"` and with the default `\"auto\"`, each then "
+            "sampled (`sample_array`, its defaults; coverage from the posterior mean and sd)"
+            if sample else
+            "located with `correlation=\"off\"`, with the default `\"auto\"`, and with the "
+            "covariance given near the truth (`(180, 0, 0.6)`)")
+    lines = [f"Written by `python benchmarks/gnssa_correlated.py {n_seeds}"
+             f"{' --sample' if sample else ''}` ({machine()}; {seconds:.0f} s; git {commit()}).",
+             "",
              f"{n_seeds} campaigns of 6 h (`star+circle`, the sound-speed field, gradients), "
              f"plus per transponder an Ornstein-Uhlenbeck delay of {1e6 * PER_SD:g} us and "
              f"{PER_TAU:g} s and a common one of {1e6 * COMMON_SD:g} us and "
-             f"{COMMON_TAU:g} s; located with `correlation=\"off\"`, with the default "
-             "`\"auto\"`, and with the covariance given near the truth (`(180, 0, 0.6)`).",
-             "", "| measure | off | auto (default) | given |", "|---|---|---|---|"]
-    lines += [f"| {n} | {cols['off'][i]} | {cols['auto'][i]} | {cols['given'][i]} |"
+             f"{COMMON_TAU:g} s; {what}.",
+             "", "| measure | " + " | ".join(heads[s] for s in order) + " |",
+             "|---|" + "---|" * len(order)]
+    lines += [f"| {n} | " + " | ".join(cols[s][i] for s in order) + " |"
               for i, n in enumerate(names)]
     return "\n".join(lines)
 
@@ -144,12 +187,14 @@ def report(rows, n_seeds, seconds):
 def main(argv=None) -> int:
     """Run the study and write its section of ``docs/gnssa.md``."""
     argv = sys.argv[1:] if argv is None else argv
+    sample = "--sample" in argv
+    argv = [a for a in argv if a != "--sample"]
     n_seeds = int(argv[0]) if argv else 20
     t0 = time.perf_counter()
-    rows = run(n_seeds)
+    rows = run(n_seeds, sample)
     text = report(rows, n_seeds, time.perf_counter() - t0)
     print(text)
-    write_section(DOC, "gnssa-correlated", text)
+    write_section(DOC, "gnssa-correlated-posterior" if sample else "gnssa-correlated", text)
     return 0
 
 

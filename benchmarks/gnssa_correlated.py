@@ -117,6 +117,8 @@ def run(n_seeds, sample=False):
                           np.array([[q[a]["sd"] for a in AXES] for q in pos]), truth, noise,
                           time.perf_counter() - t0)
             rec["converged"] = post.converged
+            rec["move"] = ("independence move" if post.diagnostics.get("moves", "").startswith(
+                "MHMove") else "differential evolution")
             rows.setdefault(f"{s}, posterior", []).append(rec)
             print(seed, s, "posterior", np.round(100 * rec["err"], 2),
                   np.round(rec["err"] / rec["sd"], 2), post.converged, flush=True)
@@ -158,8 +160,11 @@ def report(rows, n_seeds, seconds):
     sample = any(", posterior" in s for s in rows)
     if sample:
         names[-1] = "seconds per fit or per sampling (median)"
-        names.append("posteriors converged")
-    cols = {s: col(rows[s]) + ([f"{sum(r['converged'] for r in rows[s])} of {len(rows[s])}"]
+        names.append("posteriors converged; the move that sampled them")
+    cols = {s: col(rows[s]) + ([f"{sum(r['converged'] for r in rows[s])} of {len(rows[s])}; "
+                                + ", ".join(f"{m} {n}" for m, n in zip(*np.unique(
+                                    [r["move"] for r in rows[s]], return_counts=True),
+                                    strict=True))]
                                if sample and "converged" in rows[s][0] else
                                ["-"] * sample) for s in rows}
     heads = {"off": "off", "auto": "auto (default)", "given": "given",

@@ -242,9 +242,10 @@ def test_a_transponder_with_25_replies_is_sampled_by_the_independence_move():
 def test_the_hyperparameter_grid_widens_each_axis_on_its_own(monkeypatch):
     """Where only ``log kappa`` needs a wider grid, ``log sigma``'s stays fine.
 
-    Under correlated noise the smoothing scale is less determined than ``sqrt(2 / rank)``
-    (here 3 times); widening both axes together left ``log sigma`` 3 sds between grid
-    points on a 6-hour campaign and the independence move failed its pilot (docs/gnssa.md).
+    The smoothing scale is often less determined than ``sqrt(2 / rank)`` (here 3 times; on
+    6-hour campaigns about 4 times, with or without correlated noise); widening both axes
+    together left ``log sigma`` 3 sds between grid points on a 6-hour campaign and the
+    independence move failed its pilot (docs/gnssa.md).
     """
     raw = simulate_gnssa(hours=1, speed_model="field", track="star+circle", gradients=True,
                          rng=1).raw()

@@ -168,7 +168,10 @@ def test_cli_records_the_noise_and_refuses_misplaced_uses(garpos_campaign, tmp_p
     capsys.readouterr()
     s = json.loads((tmp_path / "p" / "summary.json").read_text())
     assert s["noise"]["correlation_s"] == 60.0 and s["interval_method"] == "posterior"
-    assert (tmp_path / "p" / "posterior_array.nc").exists()
+    import xarray as xr
+
+    tree = xr.open_datatree(tmp_path / "p" / "posterior_array.nc")
+    assert tree.attrs["noise"].startswith("correlated: mu_t 60 s, mu_mt 0.5, white 0.3")
     deck = sample_file("obsrange/SIO_CC03.txt")
     assert main(["locate", str(deck), "--correlation", "off", "--out",
                  str(tmp_path / "q")]) == 2
@@ -183,20 +186,28 @@ def test_the_posterior_under_correlated_noise_is_the_gls_likelihood():
     from bayes_mpem.survey_in.array_survey import array_shots
 
     raw = simulate_gnssa(hours=0.5, rng=2, shot_interval=30.0).raw()
+    pings = raw.pings.sample(frac=1.0, random_state=0).reset_index(drop=True)  # not in time order
+    raw = dataclasses.replace(raw, pings=pings)
     fit = locate_array_survey(raw, correlation=(60.0, 0.5, 0.3)).fits["array"]
     post = ArrayLogPosterior(array_shots(raw), fit)
     keep = np.flatnonzero(fit.p_true > 0.5)
-    sub = array_shots(raw).iloc[fit.rows]
-    E = _dense(sub["time"].to_numpy(float)[keep], fit.index[keep], 60.0, 0.5, 0.3)
+    time = array_shots(raw).iloc[fit.rows]["time"].to_numpy(float)[keep]
+    E = _dense(time, fit.index[keep], 60.0, 0.5, 0.3)
     gen = np.random.default_rng(0)
     u = post.u_em() + 0.3 * gen.normal(size=(3, post.ndim)) * (np.arange(post.ndim) < post.F)
     ld, _ = post.class_log_densities(u)
     _, _, _, sigma, w = post.split(u)
     r = post.t[keep] - post.predict(u)[:, keep]
+    order = np.argsort(time, kind="stable")  # each reply given the earlier ones, densely
+    L = np.linalg.cholesky(E[np.ix_(order, order)])
     for i in range(3):
         want = multivariate_normal.logpdf(r[i], cov=sigma[i] ** 2 * E)
-        got = np.sum(ld[i, keep] - np.log(w[i, fit.index[keep]]))
-        assert got == pytest.approx(want, rel=1e-9, abs=1e-6)
+        got = ld[i, keep] - np.log(w[i, fit.index[keep]])
+        assert np.sum(got) == pytest.approx(want, rel=1e-9, abs=1e-6)
+        z = np.linalg.solve(L, r[i, order])  # reply by reply: the conditional densities
+        each = (-0.5 * (z / sigma[i]) ** 2 - np.log(sigma[i] * np.sqrt(2 * np.pi))
+                - np.log(np.diag(L)))
+        assert np.allclose(got[order], each, rtol=1e-9, atol=1e-8)
     # the data's precision of the proposal is the whitened one: J' E^-1 J
     data, _ = post._precisions
     J = post.model.jac(post.theta_em)[keep][:, :3 * post.K]

@@ -99,7 +99,8 @@ class ArrayLogPosterior:
     (``L^-1`` of the residuals times ``L_ii``). Those conditionals multiply to the
     generalised least squares likelihood the EM's refit maximised; each stays in the
     mixture with the spurious class, so the classes are still sampled. The conditioning
-    set is the EM's: a reply called spurious is no evidence about its neighbours.
+    set is the EM's: a reply called spurious is no evidence about its neighbours, and for
+    an ambiguous reply the EM's class and the posterior's may disagree (docs/gnssa.md).
 
     Examples
     --------
@@ -600,11 +601,9 @@ class ConditionalProposal:
 
         The grid spans 8 sds either way (of ``log sigma`` with everything else known, and of
         ``log kappa`` given the coefficients, ``sqrt(2 / rank)``); an axis whose outer points
-        hold more than 1e-4 of the mass is made twice as wide, twice at most. Each axis is
-        widened on its own: widening both when only ``log kappa`` needed it left ``log
-        sigma`` three of its sds between grid points, its moments wrong (mean 0.002 against
-        0.007, sd 0.008 against 0.011) and the pilot's R-hat above its bound
-        (``benchmarks/gnssa_correlated.py --sample``, seed 1).
+        hold more than 1e-4 of the mass is made twice as wide, twice at most, each axis on
+        its own (``log kappa`` is often several times less determined than assumed; widening
+        ``log sigma`` with it spaces its grid too coarsely for its moments: docs/gnssa.md).
         """
         p = np.asarray(post.fit.p_true, float)
         sds = [1.0 / np.sqrt(2.0 * max(p.sum(), 2.0))]

@@ -42,11 +42,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _report import commit, machine, write_section  # noqa: E402
 from gnssa_independent import ou_path  # noqa: E402  (the same process, written once)
 
-from bayes_mpem.survey_in.array_sampling import sample_array  # noqa: E402
+from bayes_mpem.survey_in.array_sampling import AXES, sample_array  # noqa: E402
 from bayes_mpem.survey_in.array_survey import array_shots, locate_array_survey  # noqa: E402
 from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa  # noqa: E402
 
-AXES = ("east", "north", "up")
 DOC = Path(__file__).resolve().parents[1] / "docs" / "gnssa.md"
 PER_SD, PER_TAU = 40e-6, 180.0
 COMMON_SD, COMMON_TAU = 20e-6, 600.0

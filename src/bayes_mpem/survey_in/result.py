@@ -229,8 +229,6 @@ def noise_line(summary: dict) -> str:
                 f"{nz.get('white') or 0:g} ({how}; generalised least squares)")
     if nz.get("at_grid_edge"):
         line += "; at the edge of the choices tried"
-    if nz.get("warning"):
-        line += f"; {nz['warning']}"
     return line
 
 

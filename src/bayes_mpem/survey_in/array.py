@@ -823,11 +823,15 @@ def log_evidence(J, r, theta, H, sigma, lam, rank=None, H_fixed=None):
 
 
 def null_shifted(theta, Q):
-    """Return ``theta`` less the mean of its penalised entries, where ``Q`` annihilates constants.
+    """Return ``theta`` less, on each block of ``Q``, the mean of that block's entries.
 
-    ``Q theta`` and ``theta' Q theta`` are unchanged in exact arithmetic; with speed
-    coefficients near 1 and a weight near 1e13, evaluated directly they cancelled to
-    round-off of hundreds of nats (docs/gnssa.md, "Choosing lambda").
+    A block is a set of entries ``Q`` couples (a connected component of its nonzero
+    pattern: the speed's coefficients, each gradient component's). Where ``Q`` annihilates
+    the constant on a block, ``Q theta`` and ``theta' Q theta`` are unchanged in exact
+    arithmetic; evaluated directly they cancel to round-off, of hundreds of nats with speed
+    coefficients near 1 and a weight near 1e13 (docs/gnssa.md, "Choosing lambda"). One
+    mean over all the blocks would shift coefficients near 0 by the others' mean, where a
+    weight of 1e15 turns the same round-off into thousands of nats.
 
     Parameters
     ----------
@@ -839,22 +843,31 @@ def null_shifted(theta, Q):
     Returns
     -------
     numpy.ndarray
-        ``theta`` itself where ``Q`` does not annihilate a constant on those entries.
+        A block is left as it is where ``Q`` does not annihilate a constant on it.
 
     Examples
     --------
     >>> Q = np.array([[0.0, 0.0, 0.0], [0.0, 1.0, -1.0], [0.0, -1.0, 1.0]])
     >>> null_shifted(np.array([5.0, 1.0, 3.0]), Q).tolist()
     [5.0, -1.0, 1.0]
+    >>> Q2 = np.kron(np.eye(2), Q[1:, 1:])
+    >>> null_shifted(np.array([1.0, 3.0, 0.0, 0.0]), Q2).tolist()
+    [-1.0, 1.0, 0.0, 0.0]
     """
-    on = np.any(Q != 0.0, axis=1)
+    from scipy.sparse.csgraph import connected_components
+
+    nz = Q != 0.0
+    on = np.any(nz, axis=1)
     if not on.any():
         return theta
-    ones = on.astype(float)
-    if np.abs(Q @ ones).max() > 1e-9 * np.abs(Q).max() * np.sqrt(on.sum()):
-        return theta
     out = np.array(theta, float)
-    out[on] -= out[on].mean()
+    idx = np.flatnonzero(on)
+    label = connected_components(nz[np.ix_(idx, idx)], directed=False)[1]
+    for j in range(label.max() + 1):
+        block = idx[label == j]
+        scale = np.abs(Q[np.ix_(block, block)]).max()
+        if np.abs(Q[:, block].sum(axis=1)).max() <= 1e-9 * scale * np.sqrt(block.size):
+            out[block] -= out[block].mean()
     return out
 
 

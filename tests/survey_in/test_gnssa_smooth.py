@@ -10,6 +10,7 @@ from bayes_mpem.io.garpos import read_garpos, write_garpos
 from bayes_mpem.survey_in.array import choose_smoothing, locate_array, log_evidence, null_shifted
 from bayes_mpem.survey_in.array_survey import array_shots, locate_array_survey, position_constraints
 from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa
+from bayes_mpem.survey_in.result import gradients_line
 from bayes_mpem.survey_in.travel_times import smooth_intervals, speed_penalty
 
 
@@ -280,7 +281,12 @@ def test_auto_gradients_on_a_campaign_without_them_are_compatible_with_zero():
     m, C = fit.centre()
     z = (m - sim.truth["transponders"].to_numpy().mean(axis=0)) / np.sqrt(np.diag(C))
     assert np.all(np.abs(z) < 3), z
-    assert "gradient_grid" in res.summary["sound_speed"]["smoothing"]
+    grid = res.summary["sound_speed"]["smoothing"]["gradient_grid"]
+    # no gradients to fit: their weight at its stiff limit, and the record and the log say so
+    assert grid["at_bound"] == "stiff" and int(np.argmax(grid["log_evidence"])) == len(
+        grid["log_evidence"]) - 1
+    assert "smoothing weight at its upper limit" in gradients_line(res.summary)
+    assert res.summary["sound_speed"]["smoothing"]["grid"]["at_bound"] is None
 
 
 def test_a_staggered_schedule_without_outliers():

@@ -1294,7 +1294,8 @@ def _smooth_covariance(J, r, theta, H, sigma, lam, clusters, Hg=None, lam_g=None
         cov = cov + cov_g - rows[mid][3] + spread_g
         grad_grid = {"log10_weight": [float(np.log10(lam_g) + x) for x in GRADIENT_WEIGHT_GRID],
                      "log_evidence": [float(x - ll_g.max()) for x in ll_g],
-                     "posterior_weight": [float(x) for x in v]}
+                     "posterior_weight": [float(x) for x in v],
+                     "at_bound": _at_bound(ll_g)}
     record = {
         "penalty": "integral over time (hours) of the squared second derivative of the speed "
                    "coefficient (profile scale, or m/s for straight rays)",
@@ -1309,10 +1310,23 @@ def _smooth_covariance(J, r, theta, H, sigma, lam, clusters, Hg=None, lam_g=None
                         "weights' effects taken as additive" if Hg is not None else ""),
         "grid": {"log10_weight": [float(np.log10(lam) + x) for x in WEIGHT_GRID],
                  "log_evidence": [float(v - ll.max()) for v in ll],
-                 "posterior_weight": [float(v) for v in w]}}
+                 "posterior_weight": [float(v) for v in w],
+                 "at_bound": _at_bound(ll)}}
     if grad_grid is not None:
         record["gradient_grid"] = grad_grid
     return cov, rows[mid][4], record
+
+
+def _at_bound(ll):
+    """Where the evidence over a weight's grid is largest at an end: ``"stiff"``, ``"rough"``.
+
+    ``"stiff"``: the evidence still rises two decades above the weight chosen, which is the
+    search's upper limit (:func:`choose_smoothing`): the data ask for no roughness, and the
+    curve is as smooth as the penalty allows (linear in time). ``"rough"``: the reverse.
+    None where the evidence peaks inside the grid.
+    """
+    i = int(np.argmax(ll))
+    return "stiff" if i == len(ll) - 1 else "rough" if i == 0 else None
 
 
 def robust_covariance(J, r, clusters) -> np.ndarray:

@@ -204,6 +204,12 @@ def gradients_line(summary: dict) -> str:
         line += "; time averages (m/s)/km: " + ", ".join(
             f"{k.replace('_', ' ')} {g[k]['mean']:+.4f} +- {g[k]['sd']:.4f}"
             for k in ("shallow_east", "shallow_north", "deep_east", "deep_north"))
+    grid = ((summary.get("sound_speed") or {}).get("smoothing") or {}).get("gradient_grid") or {}
+    if grid.get("at_bound") == "stiff":
+        line += ("; their smoothing weight at its upper limit (the evidence rises with it): "
+                 "as smooth as the penalty allows, linear in time")
+    elif grid.get("at_bound") == "rough":
+        line += "; their smoothing weight at its lower limit (the evidence rises as it falls)"
     return line
 
 

@@ -15,11 +15,13 @@ the ratio of the posterior sds to the EM's, the sampler used, ESS, acceptance an
 
 ``--long``: the acceptance campaigns of issue 26 instead (6 h, ``star+circle``, the
 sound-speed field with gradients, ``locate``'s defaults: gradients fitted, a speed knot every
-5 min, about 90 parameters), section ``gnssa-posterior-long``.
+5 min, about 90 parameters), section ``gnssa-posterior-long``. ``--deep``: the same with
+three transponders at 5,000 m and no gradients in the water (``auto`` still fits them),
+section ``gnssa-posterior-deep``.
 
 Writes the section ``gnssa-posterior`` of ``docs/gnssa.md`` and prints it::
 
-    python benchmarks/gnssa_posterior.py [N_CAMPAIGNS] [--long]
+    python benchmarks/gnssa_posterior.py [N_CAMPAIGNS] [--long | --deep]
 """
 
 from __future__ import annotations
@@ -45,6 +47,8 @@ HOURS, SHOT_INTERVAL, TRACK = 2.0, 30.0, "star"
 #: ``--long``: the acceptance campaigns of issue 26
 LONG = {"hours": 6.0, "shot_interval": 30.0, "track": "star+circle", "speed_model": "field",
         "gradients": True}
+#: ``--deep``: three transponders at 5,000 m, no gradients simulated
+DEEP = {**LONG, "gradients": False, "n_transponders": 3, "depth": 5000.0}
 AXES = ("east", "north", "up")
 #: a bound on a campaign whose proposal fits poorly (differential evolution then)
 MAX_STEPS = 3000
@@ -98,9 +102,9 @@ def _pct(x):
     return f"{100 * np.mean(x):.0f}"
 
 
-def main(n=20, long=False):
-    config = (LONG if long else
-              {"hours": HOURS, "shot_interval": SHOT_INTERVAL, "track": TRACK})
+def main(n=20, design=""):
+    config = {"--long": LONG, "--deep": DEEP}.get(
+        design, {"hours": HOURS, "shot_interval": SHOT_INTERVAL, "track": TRACK})
     rows, t0 = [], time.perf_counter()
     for seed in range(n):
         rows.append(one_campaign(seed, config))
@@ -121,15 +125,19 @@ def main(n=20, long=False):
     z = stack["z"]
     err, sd = stack["centre_err_mm"], stack["centre_sd_mm"]
     moves = {m: int(np.sum(stack["moves"] == m)) for m in np.unique(stack["moves"])}
-    field = ", the sound-speed field with horizontal gradients" if long else ""
+    field = {"--long": ", the sound-speed field with horizontal gradients",
+             "--deep": ", the sound-speed field without horizontal gradients (fitted by "
+                       "`auto`)"}.get(design, "")
+    where = (f"{config.get('n_transponders', 4)} transponders at about "
+             f"{config.get('depth', 1500.0):,.0f} m")
     text = (
-        f"Written by `python benchmarks/gnssa_posterior.py {n}{' --long' if long else ''}` "
+        f"Written by `python benchmarks/gnssa_posterior.py {n}{' ' * bool(design)}{design}` "
         f"({machine()}; "
         f"{time.perf_counter() - t0:.0f} s, load average {load[0]:.1f} / {load[1]:.1f} / "
         f"{load[2]:.1f}; git {commit()}).\n\n"
         f"{n} campaigns (seeds 0-{n - 1}) of {config['hours']:g} h, a shot every "
         f"{config['shot_interval']:g} s, track \"{config['track']}\"{field}, "
-        f"4 transponders ({int(np.median(stack['n_shots']))} replies in the median), the "
+        f"{where} ({int(np.median(stack['n_shots']))} replies in the median), the "
         f"simulator's defaults otherwise; EM with `locate`'s defaults, then `sample_array` "
         f"({100 * CI:g} % intervals).\n\n" + "\n".join(lines) + "\n\n"
         "| | east | north | up |\n|---|---:|---:|---:|\n"
@@ -151,11 +159,13 @@ def main(n=20, long=False):
         f"{np.median(stack['ess']):,.0f}); acceptance {np.median(stack['acceptance']):.2f} "
         f"(median); EM {np.median(stack['t_em']):.2f} s, sampling "
         f"{np.median(stack['t_post']):.1f} s per campaign (median).\n")
-    write_section(ROOT / "docs" / "gnssa.md", "gnssa-posterior" + ("-long" if long else ""),
-                  text)
+    write_section(ROOT / "docs" / "gnssa.md", "gnssa-posterior" + design[1:], text)
     print(text)
 
 
 if __name__ == "__main__":
-    args = [a for a in sys.argv[1:] if a != "--long"]
-    main(int(args[0]) if args else 20, long="--long" in sys.argv[1:])
+    flags = [a for a in sys.argv[1:] if a.startswith("--")]
+    if any(f not in ("--long", "--deep") for f in flags) or len(flags) > 1:
+        sys.exit(f"usage: gnssa_posterior.py [N_CAMPAIGNS] [--long | --deep]; got {flags}")
+    args = [a for a in sys.argv[1:] if not a.startswith("--")]
+    main(int(args[0]) if args else 20, design=flags[0] if flags else "")

@@ -38,13 +38,17 @@ from __future__ import annotations
 import contextlib
 import io
 import json
+import os
 import sys
 import tempfile
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-import numpy as np
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")  # one thread: the machine is shared
+
+import numpy as np  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 DOC = HERE.parent / "docs" / "gnssa.md"

@@ -31,6 +31,8 @@ MIN_SHOTS = 6
 KNOT_MINUTES = 5.0
 #: Decades about the best smoothing weight over which the intervals average (step 0.25).
 WEIGHT_GRID = np.arange(-2.0, 2.0001, 0.25)
+#: Decades about the data's information over the penalty within which a weight is searched.
+WEIGHT_BOUNDS = (-10.0, 7.0)
 #: M-steps after which the smoothing weights are held (:class:`_SmoothArrayEM`).
 FREEZE_AFTER = 12
 #: Columns :func:`locate_array` needs.
@@ -752,7 +754,7 @@ class _SmoothFit(NamedTuple):
     lam_g: float = None  # the gradients' weight
 
 
-def log_evidence(J, r, theta, H, sigma, lam, rank=None, H_fixed=None):
+def log_evidence(J, r, theta, H, sigma, lam, rank=None, H_fixed=None, blocks=None):
     """Linearised log marginal likelihood of a penalised weighted least-squares fit.
 
     The model ``r(theta + d) = r + J d`` (weighted residuals), Gaussian noise of sd
@@ -775,6 +777,8 @@ def log_evidence(J, r, theta, H, sigma, lam, rank=None, H_fixed=None):
         Of ``H`` (default computed).
     H_fixed : numpy.ndarray, optional
         A further prior precision, weight included (its determinant is left out).
+    blocks : list of numpy.ndarray, optional
+        ``null_blocks(H, H_fixed)``, for a caller that evaluates many weights.
 
     Returns
     -------
@@ -802,7 +806,7 @@ def log_evidence(J, r, theta, H, sigma, lam, rank=None, H_fixed=None):
         JtJ, Jtr = J.T @ J / sigma**2, J.T @ r / sigma**2
     Q = lam * H if H_fixed is None else lam * H + H_fixed
     A = JtJ + Q
-    theta = null_shifted(theta, Q)
+    theta = null_shifted(theta, Q, blocks)
     d = np.diag(A).copy()
     d[d <= 0] = 1.0
     s = 1.0 / np.sqrt(d)  # unit diagonal: log|A| = log|S A S| + sum(log d)
@@ -822,28 +826,74 @@ def log_evidence(J, r, theta, H, sigma, lam, rank=None, H_fixed=None):
     return float(logml), step, A
 
 
-def null_shifted(theta, Q):
+def null_blocks(*Qs):
+    """Return the blocks on which :func:`null_shifted` may shift: index arrays.
+
+    A block is a connected component of the nonzero pattern of the symmetric matrices ``Qs``
+    together (the speed's coefficients, each gradient component's); it is kept where every
+    one of them annihilates the constant on it, so that it does so for any positive weights
+    of them (``lam H + H_fixed``).
+
+    Parameters
+    ----------
+    *Qs : numpy.ndarray
+        ``(P, P)`` symmetric penalties.
+
+    Returns
+    -------
+    list of numpy.ndarray
+
+    Examples
+    --------
+    >>> D = np.array([[1.0, -1.0], [-1.0, 1.0]])
+    >>> Q = np.zeros((5, 5)); Q[1:3, 1:3] = D; Q[3:, 3:] = np.eye(2)
+    >>> [b.tolist() for b in null_blocks(Q)]
+    [[1, 2]]
+    """
+    from scipy.sparse.csgraph import connected_components
+
+    nz = np.zeros(Qs[0].shape, bool)
+    for Q in Qs:
+        nz |= Q != 0.0
+    idx = np.flatnonzero(nz.any(axis=1))
+    if not idx.size:
+        return []
+    label = connected_components(nz[np.ix_(idx, idx)], directed=False)[1]
+    blocks = []
+    for j in range(label.max() + 1):
+        block = idx[label == j]
+        ones = np.zeros(nz.shape[0])
+        ones[block] = 1.0
+        if all(np.abs(Q @ ones).max() <= 1e-9 * np.abs(Q[block]).max() * np.sqrt(block.size)
+               for Q in Qs if np.any(Q[block])):
+            blocks.append(block)
+    return blocks
+
+
+def null_shifted(theta, Q, blocks=None):
     """Return ``theta`` less, on each block of ``Q``, the mean of that block's entries.
 
-    A block is a set of entries ``Q`` couples (a connected component of its nonzero
-    pattern: the speed's coefficients, each gradient component's). Where ``Q`` annihilates
-    the constant on a block, ``Q theta`` and ``theta' Q theta`` are unchanged in exact
-    arithmetic; evaluated directly they cancel to round-off, of hundreds of nats with speed
-    coefficients near 1 and a weight near 1e13 (docs/gnssa.md, "Choosing lambda"). One
-    mean over all the blocks would shift coefficients near 0 by the others' mean, where a
-    weight of 1e15 turns the same round-off into thousands of nats.
+    Where ``Q`` annihilates the constant on a block (:func:`null_blocks`), ``Q theta`` and
+    ``theta' Q theta`` are unchanged in exact arithmetic; evaluated directly they cancel to
+    round-off, of hundreds of nats with speed coefficients near 1 and a weight near 1e13
+    (docs/gnssa.md, "Choosing lambda"). One mean over all the blocks would shift coefficients
+    near 0 by the others' mean, where a weight of 1e15 turns the same round-off into an error
+    of order 1 in ``Q theta``.
 
     Parameters
     ----------
     theta : array_like
         ``(P,)`` parameters.
     Q : numpy.ndarray
-        ``(P, P)`` penalty; its nonzero rows are the penalised entries.
+        ``(P, P)`` symmetric penalty.
+    blocks : list of numpy.ndarray, optional
+        ``null_blocks(Q)`` (or of matrices whose weighted sum ``Q`` is), computed once by a
+        caller that evaluates many ``theta`` or weights.
 
     Returns
     -------
     numpy.ndarray
-        A block is left as it is where ``Q`` does not annihilate a constant on it.
+        Float; a block on which ``Q`` does not annihilate a constant is left as it is.
 
     Examples
     --------
@@ -854,20 +904,11 @@ def null_shifted(theta, Q):
     >>> null_shifted(np.array([1.0, 3.0, 0.0, 0.0]), Q2).tolist()
     [-1.0, 1.0, 0.0, 0.0]
     """
-    from scipy.sparse.csgraph import connected_components
-
-    nz = Q != 0.0
-    on = np.any(nz, axis=1)
-    if not on.any():
-        return theta
+    if blocks is None:
+        blocks = null_blocks(Q)
     out = np.array(theta, float)
-    idx = np.flatnonzero(on)
-    label = connected_components(nz[np.ix_(idx, idx)], directed=False)[1]
-    for j in range(label.max() + 1):
-        block = idx[label == j]
-        scale = np.abs(Q[np.ix_(block, block)]).max()
-        if np.abs(Q[:, block].sum(axis=1)).max() <= 1e-9 * scale * np.sqrt(block.size):
-            out[block] -= out[block].mean()
+    for block in blocks:
+        out[block] -= out[block].mean()
     return out
 
 
@@ -876,7 +917,7 @@ def choose_smoothing(J, r, theta, H, sigma, lam=None, H_fixed=None):
 
     A grid of half-decades about ``lam`` (or, without one, of decades over the whole
     range), re-centred while the best is at an edge, then a parabola through the best
-    three points. The weight stays within ``10^-8`` and ``10^5`` times the ratio of the
+    three points. The weight stays within ``10^-10`` and ``10^7`` times the ratio of the
     data's information on the coefficients to the penalty's (a bound is returned
     where the evidence keeps rising towards it: the data want no more, or no less,
     smoothing).
@@ -896,22 +937,24 @@ def choose_smoothing(J, r, theta, H, sigma, lam=None, H_fixed=None):
     """
     rank = _penalty_rank(H)
     pre = (J.T @ J, J.T @ r, float(r @ r))
+    blocks = null_blocks(H) if H_fixed is None else null_blocks(H, H_fixed)
 
     def f(x):
-        return log_evidence(pre, r, theta, H, sigma, 10.0 ** x, rank, H_fixed)[0]
+        return log_evidence(pre, r, theta, H, sigma, 10.0 ** x, rank, H_fixed, blocks)[0]
 
     pen = np.diag(H) > 0
     ratio = np.trace(pre[0][np.ix_(pen, pen)]) / sigma**2 / np.trace(H)
-    lo, hi = np.log10(ratio) - 8.0, np.log10(ratio) + 5.0  # data-relative bounds
-    x = (np.arange(lo, hi + 0.01, 1.0) if lam is None else
-         np.clip(np.log10(lam), lo, hi) + np.arange(-2.0, 2.01, 0.5))
+    lo, hi = np.log10(ratio) + np.array(WEIGHT_BOUNDS)  # data-relative bounds
+    x = (np.linspace(lo, hi, 18) if lam is None else  # decades; else half-decades about lam
+         np.clip(np.log10(lam), lo + 2.0, hi - 2.0) + np.arange(-2.0, 2.01, 0.5))
     for _ in range(40):
         y = np.array([f(v) for v in x])
         i = int(np.argmax(y))
-        if 0 < i < x.size - 1 or x[i] <= lo or x[i] >= hi:
+        if 0 < i < x.size - 1 or x[i] <= lo + 1e-9 or x[i] >= hi - 1e-9:
             break
-        x = np.clip(x[i] + (x[1] - x[0]) * np.arange(-4, 5), lo, hi)
-    if x[i] <= lo or x[i] >= hi:  # the evidence is flat or monotone: at a bound
+        step = x[1] - x[0]  # re-centred on the best, the grid kept within the bounds
+        x = np.clip(x[i], lo + 4 * step, hi - 4 * step) + step * np.arange(-4, 5)
+    if x[i] <= lo + 1e-9 or x[i] >= hi - 1e-9:  # the evidence is flat or monotone: a bound
         return float(10.0 ** x[i])
     i = int(np.clip(i, 1, x.size - 2))
     step = x[1] - x[0]
@@ -1019,8 +1062,10 @@ def penalised_gauss_newton(resid, jac, theta, Q, *, max_steps=50, rtol=1e-12):
     >>> np.round(th, 6).tolist()
     [1.0, 0.5]
     """
+    blocks = null_blocks(Q)
+
     def penalty(t):  # without the round-off of coefficients near 1 (null_shifted)
-        tc = null_shifted(t, Q)
+        tc = null_shifted(t, Q, blocks)
         return tc @ Q @ tc
 
     th = np.asarray(theta, float).copy()
@@ -1030,7 +1075,7 @@ def penalised_gauss_newton(resid, jac, theta, Q, *, max_steps=50, rtol=1e-12):
     for _ in range(max_steps):
         J = jac(th)
         A = J.T @ J + Q
-        g = J.T @ r + Q @ null_shifted(th, Q)
+        g = J.T @ r + Q @ null_shifted(th, Q, blocks)
         d = np.diag(A).copy()
         d[d <= 0] = 1.0
         s = 1.0 / np.sqrt(d)
@@ -1251,11 +1296,12 @@ def _scaled_inverse(A):
 def _grid_average(J, r, theta, H, sigma, lam, H_fixed, meat, n_clusters, grid):
     """Posterior modes and covariances over weights ``lam 10^x``, and their average."""
     rank = _penalty_rank(H)
+    blocks = null_blocks(H) if H_fixed is None else null_blocks(H, H_fixed)
     rows = []
     JtJ = J.T @ J
     for x in grid:
         lg = lam * 10.0 ** x
-        logml, step, A = log_evidence(J, r, theta, H, sigma, lg, rank, H_fixed)
+        logml, step, A = log_evidence(J, r, theta, H, sigma, lg, rank, H_fixed, blocks)
         Ainv = _scaled_inverse(A)
         edf = float(np.trace(Ainv @ JtJ) / sigma**2)
         prior = lg * H if H_fixed is None else lg * H + H_fixed
@@ -1295,7 +1341,7 @@ def _smooth_covariance(J, r, theta, H, sigma, lam, clusters, Hg=None, lam_g=None
         grad_grid = {"log10_weight": [float(np.log10(lam_g) + x) for x in GRADIENT_WEIGHT_GRID],
                      "log_evidence": [float(x - ll_g.max()) for x in ll_g],
                      "posterior_weight": [float(x) for x in v],
-                     "at_bound": _at_bound(ll_g)}
+                     "edge": _grid_edge(ll_g)}
     record = {
         "penalty": "integral over time (hours) of the squared second derivative of the speed "
                    "coefficient (profile scale, or m/s for straight rays)",
@@ -1311,22 +1357,33 @@ def _smooth_covariance(J, r, theta, H, sigma, lam, clusters, Hg=None, lam_g=None
         "grid": {"log10_weight": [float(np.log10(lam) + x) for x in WEIGHT_GRID],
                  "log_evidence": [float(v - ll.max()) for v in ll],
                  "posterior_weight": [float(v) for v in w],
-                 "at_bound": _at_bound(ll)}}
+                 "edge": _grid_edge(ll)}}
     if grad_grid is not None:
         record["gradient_grid"] = grad_grid
     return cov, rows[mid][4], record
 
 
-def _at_bound(ll):
-    """Where the evidence over a weight's grid is largest at an end: ``"stiff"``, ``"rough"``.
+def _grid_edge(ll, tol=0.1, flat=1.0):
+    """Where a weight's evidence grid is largest: ``"stiff"``, ``"rough"``, ``"flat"`` or None.
 
-    ``"stiff"``: the evidence still rises two decades above the weight chosen, which is the
-    search's upper limit (:func:`choose_smoothing`): the data ask for no roughness, and the
-    curve is as smooth as the penalty allows (linear in time). ``"rough"``: the reverse.
-    None where the evidence peaks inside the grid.
+    ``"flat"``: the finite values span less than ``flat`` nats (the data do not determine
+    the weight over the grid; the intervals average over it). ``"stiff"``: the value at the
+    grid's top (two decades above the weight) is within ``tol`` nats of the largest, so the
+    data ask for no more roughness and the weight is at or near the search's upper limit
+    (:func:`choose_smoothing`); ``"rough"``: the same at the bottom. None: a peak inside.
     """
-    i = int(np.argmax(ll))
-    return "stiff" if i == len(ll) - 1 else "rough" if i == 0 else None
+    ll = np.asarray(ll, float)
+    ok = np.isfinite(ll)
+    if not ok.any():
+        return None
+    top = ll[ok].max()
+    if top - ll[ok].min() < flat:
+        return "flat"
+    if ok[-1] and ll[-1] >= top - tol:
+        return "stiff"
+    if ok[0] and ll[0] >= top - tol:
+        return "rough"
+    return None
 
 
 def robust_covariance(J, r, clusters) -> np.ndarray:

@@ -189,6 +189,9 @@ def _row(name, enu, width=14):
 def gradients_line(summary: dict) -> str:
     """Return one line: the array's horizontal gradients, fitted or not and why.
 
+    Where fitted, their time averages, and what the evidence over their smoothing weight
+    says when it is largest at an end of its grid or flat (``gradient_grid["edge"]``).
+
     Parameters
     ----------
     summary : dict
@@ -205,11 +208,12 @@ def gradients_line(summary: dict) -> str:
             f"{k.replace('_', ' ')} {g[k]['mean']:+.4f} +- {g[k]['sd']:.4f}"
             for k in ("shallow_east", "shallow_north", "deep_east", "deep_north"))
     grid = ((summary.get("sound_speed") or {}).get("smoothing") or {}).get("gradient_grid") or {}
-    if grid.get("at_bound") == "stiff":
-        line += ("; their smoothing weight at its upper limit (the evidence rises with it): "
-                 "as smooth as the penalty allows, linear in time")
-    elif grid.get("at_bound") == "rough":
-        line += "; their smoothing weight at its lower limit (the evidence rises as it falls)"
+    line += {"stiff": "; the evidence is largest at the stiffest smoothing tried: the data ask "
+                      "for no change of the gradients beyond a linear trend",
+             "rough": "; the evidence is largest at the roughest smoothing tried",
+             "flat": "; their smoothing weight is not determined by the data (the evidence "
+                     "within 1 nat over 4 decades; the intervals average over it)"
+             }.get(grid.get("edge"), "")
     return line
 
 

@@ -31,8 +31,11 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-from scipy.stats import norm
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")  # one thread: the machine is shared
+
+import numpy as np  # noqa: E402
+from scipy.stats import norm  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(Path(__file__).resolve().parent))

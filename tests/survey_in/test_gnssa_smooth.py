@@ -393,7 +393,9 @@ def test_a_deep_three_transponder_campaign_keeps_its_gradients_smooth():
     """Sentinel of the deep three-transponder study (docs/gnssa.md; 5,000 m, no gradients in
     the water): with the gradients' penalty lost to round-off this campaign's EM settled at a
     gradient weight of 10^9 and put the centre 32 / 22 cm off with sds of 7 cm (squared
-    Mahalanobis distance 36). The round-off itself is guarded by the two tests above."""
+    Mahalanobis distance 36). The round-off itself is guarded by
+    ``test_each_penalised_block_is_shifted_by_its_own_mean`` and the grid check of
+    ``test_auto_gradients_on_a_campaign_without_them_are_compatible_with_zero``."""
     sim = simulate_gnssa(hours=6, rng=111, speed_model="field", track="star+circle",
                          gradients=False, n_transponders=3, depth=5000.0)
     res = locate_array_survey(sim.raw())

@@ -826,6 +826,20 @@ def log_evidence(J, r, theta, H, sigma, lam, rank=None, H_fixed=None, blocks=Non
     return float(logml), step, A
 
 
+def _blocks(nz):
+    """Index arrays of the connected components of a symmetric nonzero pattern ``nz``.
+
+    Rows without a nonzero belong to no block.
+    """
+    from scipy.sparse.csgraph import connected_components
+
+    idx = np.flatnonzero(nz.any(axis=1))
+    if not idx.size:
+        return []
+    label = connected_components(nz[np.ix_(idx, idx)], directed=False)[1]
+    return [idx[label == j] for j in range(label.max() + 1)]
+
+
 def null_blocks(*Qs):
     """Return the blocks on which :func:`null_shifted` may shift: index arrays.
 
@@ -836,8 +850,8 @@ def null_blocks(*Qs):
 
     Parameters
     ----------
-    *Qs : numpy.ndarray
-        ``(P, P)`` symmetric penalties.
+    *Qs : numpy.ndarray or None
+        ``(P, P)`` symmetric penalties (None: left out).
 
     Returns
     -------
@@ -850,18 +864,12 @@ def null_blocks(*Qs):
     >>> [b.tolist() for b in null_blocks(Q)]
     [[1, 2]]
     """
-    from scipy.sparse.csgraph import connected_components
-
+    Qs = [Q for Q in Qs if Q is not None]
     nz = np.zeros(Qs[0].shape, bool)
     for Q in Qs:
         nz |= Q != 0.0
-    idx = np.flatnonzero(nz.any(axis=1))
-    if not idx.size:
-        return []
-    label = connected_components(nz[np.ix_(idx, idx)], directed=False)[1]
     blocks = []
-    for j in range(label.max() + 1):
-        block = idx[label == j]
+    for block in _blocks(nz):
         ones = np.zeros(nz.shape[0])
         ones[block] = 1.0
         if all(np.abs(Q @ ones).max() <= 1e-9 * np.abs(Q[block]).max() * np.sqrt(block.size)
@@ -937,7 +945,7 @@ def choose_smoothing(J, r, theta, H, sigma, lam=None, H_fixed=None):
     """
     rank = _penalty_rank(H)
     pre = (J.T @ J, J.T @ r, float(r @ r))
-    blocks = null_blocks(H) if H_fixed is None else null_blocks(H, H_fixed)
+    blocks = null_blocks(H, H_fixed)
 
     def f(x):
         return log_evidence(pre, r, theta, H, sigma, 10.0 ** x, rank, H_fixed, blocks)[0]
@@ -1259,16 +1267,8 @@ def _penalty_rank(H):
     (speed and gradients); each block's singular values above ``N eps`` of its largest count
     ``k - 2`` per block to at least 2,000 knots (``tests/survey_in/test_gnssa_smooth.py``).
     """
-    from scipy.sparse.csgraph import connected_components
-
-    n, label = connected_components(np.asarray(H) != 0, directed=False)
-    rank = 0
-    for j in range(n):
-        block = np.flatnonzero(label == j)
-        sub = H[np.ix_(block, block)]
-        if np.any(sub):
-            rank += int(np.linalg.matrix_rank(sub, hermitian=True))
-    return rank
+    return sum(int(np.linalg.matrix_rank(H[np.ix_(block, block)], hermitian=True))
+               for block in _blocks(np.asarray(H) != 0))
 
 
 def _scaled_inverse(A):
@@ -1296,7 +1296,7 @@ def _scaled_inverse(A):
 def _grid_average(J, r, theta, H, sigma, lam, H_fixed, meat, n_clusters, grid):
     """Posterior modes and covariances over weights ``lam 10^x``, and their average."""
     rank = _penalty_rank(H)
-    blocks = null_blocks(H) if H_fixed is None else null_blocks(H, H_fixed)
+    blocks = null_blocks(H, H_fixed)
     rows = []
     JtJ = J.T @ J
     for x in grid:

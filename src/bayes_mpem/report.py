@@ -127,7 +127,7 @@ def diagnosis_figures(result, out, **_) -> list:
 
 
 def locate_figures(result, out, *, truth=None, **_) -> list:
-    """Write the map and residuals of a located survey; an array's sound speed too."""
+    """Write the map and residuals of a located survey; an array's speed and gradients too."""
     if not result.summary.get("transponders"):
         return []
     paths = [_save(survey_in_plots.plot_survey_map(result), out / "survey_map.png"),
@@ -142,6 +142,9 @@ def locate_figures(result, out, *, truth=None, **_) -> list:
                         out / "sound_speed.png"),
                   _save(survey_in_plots.plot_residuals_by_transponder(result),
                         out / "residuals_by_transponder.png")]
+        if (result.summary.get("gradients") or {}).get("series"):
+            paths.append(_save(survey_in_plots.plot_gradients(result, truth=truth),
+                               out / "gradients.png"))
     return paths
 
 

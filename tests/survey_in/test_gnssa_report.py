@@ -8,12 +8,16 @@ from scipy.stats import chi2
 
 from bayes_mpem.plots.survey_in import (
     plot_array_map,
+    plot_gradients,
     plot_residuals_by_transponder,
     plot_sound_speed,
 )
 from bayes_mpem.report import load_output, write_figures
-from bayes_mpem.survey_in.array_survey import locate_array_survey
-from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa
+from bayes_mpem.survey_in.array_survey import array_shots, locate_array_survey
+from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa, true_speed_change
+
+GRADIENT_TRUTH = {"shallow_east": "grad1_east", "shallow_north": "grad1_north",
+                  "deep_east": "grad2_east", "deep_north": "grad2_north"}
 
 
 @pytest.fixture(scope="module")
@@ -85,4 +89,88 @@ def test_truth_is_marked_where_given(tmp_path):
     assert np.abs(line.get_ydata() - fitted).max() < 0.1  # m/s: the fit follows the truth
     names = {p.name for p in write_figures(res, tmp_path, truth=truth)}
     assert "array_map.png" in names
+    plt.close("all")
+
+
+@pytest.fixture(scope="module")
+def gradient_campaign():
+    """An acceptance campaign of issue 26 (6 h, gradients in the water), located by default."""
+    sim = simulate_gnssa(hours=6.0, rng=2, speed_model="field", track="star+circle",
+                         gradients=True)
+    return sim, locate_array_survey(sim.raw())
+
+
+def test_the_gradients_series_follows_their_averages_and_says_where_it_is_about(
+        gradient_campaign):
+    sim, res = gradient_campaign
+    g = res.summary["gradients"]
+    ser = g["series"]
+    assert ser["time_s"] == res.summary["sound_speed"]["series"]["time_s"]
+    for name in GRADIENT_TRUTH:
+        m, sd = np.asarray(ser[name]["mean"]), np.asarray(ser[name]["sd"])
+        assert m.size == sd.size == len(ser["time_s"]) and np.all(sd > 0)
+        # the time average over the shots against the average over the series' even times
+        assert abs(m.mean() - g[name]["mean"]) < 0.2 * g[name]["sd"], name
+    fit = res.fits["array"]
+    shots = array_shots(sim.raw()).iloc[fit.rows]
+    p = [np.mean(0.5 * (shots[f"{c}_tx"] + shots[f"{c}_rx"])) for c in "en"]
+    assert g["origins_m"]["shallow"] == pytest.approx(p)
+    assert g["origins_m"]["deep"] == pytest.approx(fit.start[:, :2].mean(axis=0))
+
+
+def test_the_series_bands_cover_the_truth(gradient_campaign):
+    """The 95 % bands hold the true series at most times (benchmarks/gnssa_smooth.py: 60
+    campaigns). The speed is the speed about the gradients' origins: about the array centre
+    instead, its band holds the truth at 59 % of the times on this campaign."""
+    sim, res = gradient_campaign
+    truth = sim.truth_record()
+    ss = res.summary["sound_speed"]
+    t = np.asarray(ss["series"]["time_s"])
+    origins = res.summary["gradients"]["origins_m"]
+
+    def covered(mean, sd, true):
+        return np.mean(np.abs(np.asarray(mean) - true) < 1.96 * np.asarray(sd))
+
+    true_v = ss["reference_m_s"] + true_speed_change(truth, t, origins)
+    assert covered(ss["series"]["mean_m_s"], ss["series"]["sd_m_s"], true_v) > 0.9
+    about_centre = ss["reference_m_s"] + true_speed_change(truth, t)
+    assert covered(ss["series"]["mean_m_s"], ss["series"]["sd_m_s"], about_centre) < 0.8
+    tg = truth["gradients"]
+    for name, key in GRADIENT_TRUTH.items():
+        s = res.summary["gradients"]["series"][name]
+        assert covered(s["mean"], s["sd"], np.interp(t, tg["time_s"], tg[key])) > 0.9, name
+
+
+def test_true_speed_change_about_other_points():
+    truth = {"sound_speed": {"series": {"time_s": [0.0, 10.0], "dV0_m_s": [0.0, 1.0]}},
+             "array_centre": {"east": 100.0, "north": -50.0, "up": -1500.0},
+             "gradients": {"time_s": [0.0, 10.0], "grad1_east": [0.1, 0.1],
+                           "grad1_north": [0.0, 0.2], "grad2_east": [0.05, 0.05],
+                           "grad2_north": [0.0, 0.0]}}
+    assert true_speed_change(truth, [5.0]) == pytest.approx([0.5])
+    at_centre = {"shallow": [100.0, -50.0], "deep": [100.0, -50.0]}
+    assert true_speed_change(truth, [5.0], at_centre) == pytest.approx([0.5])
+    # 1 km east and north of the centre for the shallow term, 2 km west for the deep one
+    away = {"shallow": [1100.0, 950.0], "deep": [-1900.0, -50.0]}
+    assert true_speed_change(truth, [5.0], away) == pytest.approx([0.5 + 0.1 + 0.1 - 0.1])
+    assert true_speed_change({**truth, "gradients": None}, [5.0], away) == pytest.approx([0.5])
+
+
+def test_the_gradients_figure(gradient_campaign, array, tmp_path):
+    sim, res = gradient_campaign
+    fig = plot_gradients(res, truth=sim.truth_record())
+    assert len(fig.axes) == 2  # shallow, deep
+    for ax, term in zip(fig.axes, ("shallow", "deep"), strict=True):
+        assert ax.get_title().startswith(term)
+        assert len(ax.collections) == 2  # an east and a north band
+        labels = [t.get_text() for t in ax.get_legend().get_texts()]
+        assert labels[0].startswith("east") and "truth" in labels[1]
+        east = res.summary["gradients"]["series"][f"{term}_east"]["mean"]
+        assert ax.lines[0].get_ydata() == pytest.approx(east)
+    plt.close(fig)
+    assert "gradients.png" in {p.name for p in write_figures(res, tmp_path)}
+    with pytest.raises(ValueError, match="gradients: not fitted"):
+        plot_gradients(array)
+    assert array.summary["gradients"]["series"] is None
+    assert "gradients.png" not in {p.name for p in write_figures(array, tmp_path / "none")}
     plt.close("all")

@@ -195,7 +195,9 @@ def plot_sound_speed(result, *, ax=None, truth=None):
     result : SurveyInResult
         An array's (without a series: the survey's one value and its interval).
     truth : dict, optional
-        A simulated campaign's ``truth.json``: its depth-averaged speed is drawn too.
+        A simulated campaign's ``truth.json``: its change of the depth-averaged speed is
+        drawn too (:func:`~bayes_mpem.survey_in.gnssa_simulate.true_speed_change`), about
+        the fit's reference (the profile's mean speed) where there is one.
     """
     from scipy.stats import norm
 
@@ -218,16 +220,87 @@ def plot_sound_speed(result, *, ax=None, truth=None):
         ax.axhline(ss["reference_m_s"], color="0.4", lw=0.8, ls="--",
                    label="the survey's profile")
     if truth is not None:
+        # the true change of the depth-averaged speed, about the profile the fit used (the
+        # two references average the profile over slightly different depths) and the points
+        # its gradient terms are about
+        from ..survey_in.gnssa_simulate import true_speed_change
+
         ts = truth["sound_speed"]
-        ax.plot(np.asarray(ts["series"]["time_s"], float) / 3600.0,
-                ts["reference_m_s"] + np.asarray(ts["series"]["dV0_m_s"], float),
-                color="k", lw=1.0, ls=":", label="truth (depth-averaged)")
+        ref = ss.get("reference_m_s")
+        tt = np.asarray(ts["series"]["time_s"], float)
+        origins = (result.summary.get("gradients") or {}).get("origins_m")
+        ax.plot(tt / 3600.0, (ts["reference_m_s"] if ref is None else ref)
+                + true_speed_change(truth, tt, origins),
+                color="k", lw=1.0, ls=":", label="truth (the depth-averaged change)")
     ax.set_xlabel("time since the first shot (h)" if ser else "(one value for the survey)")
     ax.set_ylabel(f"sound speed ({ss.get('unit', 'm/s')})")
     ax.ticklabel_format(axis="y", useOffset=False)
     ax.legend(fontsize="small", loc="best")
-    ax.set_title(textwrap.fill(f"Sound speed: {ss.get('model', '')}", 110), fontsize="medium")
+    ax.set_title(textwrap.fill(f"Sound speed: {ss.get('model', '')}", 90), fontsize="medium")
     return ax.figure
+
+
+#: the gradient terms drawn by :func:`plot_gradients`: (title, summary name, truth key) per
+#: panel, east then north
+_GRADIENT_PANELS = (
+    ("shallow (felt along the ray near the surface: the ship's offset)",
+     (("east", "shallow_east", "grad1_east"), ("north", "shallow_north", "grad1_north"))),
+    ("deep (across the array: the transponder's offset)",
+     (("east", "deep_east", "grad2_east"), ("north", "deep_north", "grad2_north"))))
+
+
+def plot_gradients(result, *, fig=None, truth=None):
+    """Plot the array's horizontal sound-speed gradients against time, with ``ci`` bands.
+
+    GARPOS's shallow and deep terms (``a V0``, (m/s)/km), east and north, from
+    ``summary.json``'s ``gradients["series"]`` (the EM's, also after ``--sample``).
+
+    Parameters
+    ----------
+    result : SurveyInResult
+        An array's, with the gradients fitted.
+    truth : dict, optional
+        A simulated campaign's ``truth.json``: its gradient series are drawn too.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Raises
+    ------
+    ValueError
+        Where the summary has no gradient series (not fitted).
+    """
+    from scipy.stats import norm
+
+    g = result.summary.get("gradients") or {}
+    ser = g.get("series")
+    if not ser:
+        raise ValueError(f"gradients: not fitted ({g.get('reason', 'no gradients entry')}); "
+                         "nothing to plot")
+    if fig is None:
+        fig = plt.figure(figsize=(10.5, 5.6), layout="constrained")
+    ci = _ci(result.summary)
+    z = float(norm.ppf(0.5 + ci / 2))
+    t = np.asarray(ser["time_s"], float) / 3600.0
+    tg = (truth or {}).get("gradients")
+    axes = fig.subplots(2, 1, sharex=True)
+    for ax, (title, terms) in zip(axes, _GRADIENT_PANELS, strict=True):
+        for (axis, name, key), color in zip(terms, ("C0", "C3"), strict=True):
+            m, sd = np.asarray(ser[name]["mean"], float), np.asarray(ser[name]["sd"], float)
+            ax.fill_between(t, m - z * sd, m + z * sd, color=color, alpha=0.2, lw=0)
+            ax.plot(t, m, color=color, lw=1.5,
+                    label=f"{axis} (average {g[name]['mean']:+.3f} +- {g[name]['sd']:.3f})")
+            if tg is not None:
+                ax.plot(np.asarray(tg["time_s"], float) / 3600.0, tg[key], color=color,
+                        lw=1.0, ls=":", label=f"{axis}, truth")
+        ax.axhline(0.0, color="0.4", lw=0.6)
+        ax.set_ylabel(f"{g.get('unit', '(m/s)/km')}")
+        ax.set_title(title, fontsize="medium")
+        ax.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    axes[-1].set_xlabel("time since the first shot (h)")
+    fig.suptitle(f"Horizontal sound-speed gradients (GARPOS's gradV), {100 * ci:g} % bands")
+    return fig
 
 
 def plot_residuals_by_transponder(result, *, fig=None):

@@ -224,6 +224,9 @@ class ArrayLocateResult:
         profile's harmonic mean from the mean transducer to the mean transponder
         depth), and its standard deviation.
     speed_coef : numpy.ndarray
+    gradient_coef : numpy.ndarray or None
+        The gradient terms' spline coefficients (``a``, dimensionless), ``k`` per term in
+        the order of :data:`GRADIENT_NAMES`; None where the gradients are not fitted.
     sigma : float
         Scatter of the true replies (s), shared.
     weights : numpy.ndarray
@@ -257,6 +260,7 @@ class ArrayLocateResult:
     sound_speed: float = 0.0
     sound_speed_sd: float = 0.0
     speed_coef: np.ndarray = field(default=None, repr=False)
+    gradient_coef: np.ndarray = field(default=None, repr=False)
     sigma: float = 0.0
     weights: np.ndarray = field(default=None, repr=False)
     p_true: np.ndarray = field(default=None, repr=False)
@@ -542,7 +546,7 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
     kk = slice(3 * K, 3 * K + k)
     grad_record = None if not kg else _gradient_record(
         theta, cov, 3 * K + k, g, unit * float(g @ theta[kk]) if profile is not None
-        else float(g @ theta[kk]))
+        else float(g @ theta[kk]), gradient_origins(sub, start))
     n_bad = model.n_invalid(theta)
     _warn(n_bad, 2 * t.size, run.converged, run.n_iter)
     return ArrayLocateResult(
@@ -550,7 +554,8 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
         cov_model=cov_model,
         sound_speed=float(g @ theta[kk]) * unit,
         sound_speed_sd=float(np.sqrt(max(g @ cov[kk, kk] @ g, 0.0))) * unit,
-        speed_coef=theta[kk].copy(), sigma=sigma, weights=weights, p_true=p,
+        speed_coef=theta[kk].copy(), gradient_coef=theta[kk.stop:].copy() if kg else None,
+        sigma=sigma, weights=weights, p_true=p,
         residual=resid(phi), rows=rows, index=index, windows=windows, skipped=skipped,
         n_iter=run.n_iter, converged=run.converged, outliers=outliers,
         model={"profile": profile, "surface_depth": float(surface_depth),
@@ -657,16 +662,43 @@ def gradient_design(shots, index, start, basis) -> np.ndarray:
     """
     pe = 0.5 * (shots["e_tx"].to_numpy(float) + shots["e_rx"].to_numpy(float))
     pn = 0.5 * (shots["n_tx"].to_numpy(float) + shots["n_rx"].to_numpy(float))
-    dx = start[index, :2] - start[:, :2].mean(axis=0)
-    regs = (pe - pe.mean(), pn - pn.mean(), dx[:, 0], dx[:, 1])
+    origins = gradient_origins(shots, start)
+    dx = start[index, :2] - origins["deep"]
+    regs = (pe - origins["shallow"][0], pn - origins["shallow"][1], dx[:, 0], dx[:, 1])
     return np.hstack([basis * (r / GRADIENT_LENGTH)[:, None] for r in regs])
 
 
-def _gradient_record(theta, cov, first, g, v0):
+def gradient_origins(shots, start) -> dict:
+    """Return the points the gradient terms are about (east, north in the frame, m).
+
+    ``shallow``: the transducer's mean position over the shots (``p_mean`` of
+    :func:`gradient_design`); ``deep``: the prior positions' mean (``x_mean``). The speed's
+    series (``a0``) is the speed there: a gradient moves it by ``gradV`` times the distance
+    from another point.
+
+    Parameters
+    ----------
+    shots : pandas.DataFrame
+        ``e/n_tx``, ``e/n_rx`` of the shots located.
+    start : numpy.ndarray
+        ``(K, 3)`` prior positions.
+
+    Returns
+    -------
+    dict
+        ``{"shallow": [east, north], "deep": [east, north]}``.
+    """
+    p = [float(np.mean(0.5 * (shots[f"{c}_tx"].to_numpy(float)
+                              + shots[f"{c}_rx"].to_numpy(float)))) for c in "en"]
+    return {"shallow": p, "deep": [float(v) for v in np.asarray(start)[:, :2].mean(axis=0)]}
+
+
+def _gradient_record(theta, cov, first, g, v0, origins):
     """Return the time-averaged gradients (m/s)/km with their sds (``summary.json``)."""
     k = g.size
     out = {"unit": "(m/s)/km", "quantity": "time average over the survey of GARPOS's gradV "
-           "(a V0): shallow a1 (ship's offset), deep a2 (transponder's offset)"}
+           "(a V0): shallow a1 (ship's offset), deep a2 (transponder's offset)",
+           "origins_m": origins}
     for j, name in enumerate(GRADIENT_NAMES):
         sl = slice(first + j * k, first + (j + 1) * k)
         out[name] = {"mean": float(g @ theta[sl]) * v0,

@@ -11,7 +11,7 @@ from scipy.stats import chi2
 from ..exceptions import InputError
 from ..io.geodesy import MEAN_EARTH_RADIUS_M, earth_radius, enu_to_geodetic
 from ..io.raw import ARRAY_FORMATS
-from .array import KNOT_MINUTES, describe, locate_array
+from .array import GRADIENT_NAMES, KNOT_MINUTES, describe, locate_array
 from .result import SurveyInResult, classified_table
 from .ssp import survey_profile
 from .travel_times import speed_basis
@@ -110,18 +110,47 @@ def _epoch_entry(fmt, shots):
     return out
 
 
-def _speed_series(fit, n=121):
-    """Return the fitted sound speed against time: ``time_s``, ``mean_m_s``, ``sd_m_s``."""
+def _series_basis(fit, n=121):
+    """Return ``n`` times over the fit's time range and its speed basis at them."""
     lo, hi = fit.model["time_range"]
     t = np.linspace(lo, hi, n)
-    B = speed_basis(pd.DataFrame({"time": t}), fit.model["speed_intervals"], (lo, hi),
-                    fit.model.get("speed_breaks"))
+    return t, speed_basis(pd.DataFrame({"time": t}), fit.model["speed_intervals"], (lo, hi),
+                          fit.model.get("speed_breaks"))
+
+
+def _band(B, coef, cov, scale):
+    """Return the curve ``B coef`` and its pointwise sd, both times ``scale``, as lists."""
+    sd = np.sqrt(np.clip(np.einsum("ij,jk,ik->i", B, cov, B), 0.0, None))
+    return (B @ coef * scale).tolist(), (sd * scale).tolist()
+
+
+def _speed_series(fit, n=121):
+    """Return the fitted sound speed against time: ``time_s``, ``mean_m_s``, ``sd_m_s``."""
+    t, B = _series_basis(fit, n)
     k, first = B.shape[1], 3 * len(fit.ids)
-    C = fit.cov[first:first + k, first:first + k]
-    unit = fit.model["unit"]
-    sd = np.sqrt(np.clip(np.einsum("ij,jk,ik->i", B, C, B), 0.0, None)) * unit
-    return {"time_s": t.tolist(), "mean_m_s": (B @ fit.speed_coef * unit).tolist(),
-            "sd_m_s": sd.tolist()}
+    mean, sd = _band(B, fit.speed_coef, fit.cov[first:first + k, first:first + k],
+                     fit.model["unit"])
+    return {"time_s": t.tolist(), "mean_m_s": mean, "sd_m_s": sd}
+
+
+def _gradient_series(fit, n=121):
+    """Return the fitted gradients against time, (m/s)/km: ``time_s``, each term's ``mean``, ``sd``.
+
+    GARPOS's ``gradV`` (``a V0``, ``V0`` the survey's mean speed), as the time averages of
+    ``summary.json``'s ``gradients``; None where they are not fitted.
+    """
+    if fit.gradient_coef is None:
+        return None
+    t, B = _series_basis(fit, n)
+    k = B.shape[1]
+    first = 3 * len(fit.ids) + k
+    out = {"time_s": t.tolist()}
+    for j, name in enumerate(GRADIENT_NAMES):
+        sl = slice(first + j * k, first + (j + 1) * k)
+        mean, sd = _band(B, fit.gradient_coef[j * k:(j + 1) * k], fit.cov[sl, sl],
+                         fit.sound_speed)
+        out[name] = {"mean": mean, "sd": sd}
+    return out
 
 
 def _gaps(model) -> list:
@@ -533,7 +562,7 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
         "speed_intervals": int(fit.model["speed_intervals"]), "fit_lag": False,
         "positions": fit.model["positions"],
         "gradients": {"fitted": bool(gradients), "choice": choice, "reason": why,
-                      **(fit.model.get("gradients") or {})},
+                      **(fit.model.get("gradients") or {}), "series": _gradient_series(fit)},
         "geometry": _geometry_entry(origin, surface_depth, radius, cartesian),
         "tat_fitted": False, "tat_given": 0.0,
         "position_region": f"a transponder's {100 * ci:g} % region is the ellipsoid of its "

@@ -385,6 +385,41 @@ class GnssaSimulation:
         return {"survey": survey, "truth": truth}
 
 
+def true_speed_change(truth: dict, time_s, origins=None) -> np.ndarray:
+    """Return a simulated campaign's change of the depth-averaged speed (m/s) at ``time_s``.
+
+    GARPOS's ``dV0``. ``truth.json`` gives it about the true array centre; a fit with the
+    gradient terms reports its speed about its own points (``summary.json``'s
+    ``gradients["origins_m"]``: the mean ship position for the shallow term, the priors'
+    mean for the deep one), where the gradients add ``gradV`` times the offset.
+
+    Parameters
+    ----------
+    truth : dict
+        :meth:`GnssaSimulation.truth_record` (``truth.json``).
+    time_s : array_like
+        Times (s, the shots' scale).
+    origins : dict, optional
+        ``{"shallow": [east, north], "deep": [east, north]}`` (m); None: the array centre.
+
+    Returns
+    -------
+    numpy.ndarray
+    """
+    t = np.asarray(time_s, float)
+    ser = truth["sound_speed"]["series"]
+    dv = np.interp(t, ser["time_s"], ser["dV0_m_s"])
+    grads = truth.get("gradients")
+    if origins is None or not grads:
+        return dv
+    centre = truth["array_centre"]
+    for term, level in (("shallow", "grad1"), ("deep", "grad2")):
+        for axis, c in zip(("east", "north"), origins[term], strict=True):
+            dv = dv + np.interp(t, grads["time_s"], grads[f"{level}_{axis}"]) * (
+                (c - centre[axis]) / 1000.0)
+    return dv
+
+
 def _star(radius, rot):
     """Waypoints of a star of transits: four diameters joined by chords of the circle."""
     angles = np.radians([180.0, 0.0, 90.0, 270.0, 135.0, 315.0, 45.0, 225.0])

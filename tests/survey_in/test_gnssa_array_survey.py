@@ -141,6 +141,14 @@ def test_solution_txt_holds_the_summary_to_the_mm(simulated, tmp_path):
         assert any(ln.startswith(tid) for ln in text.splitlines())
     assert f"{s['residuals']['rms_true']:.4f} ms" in text
     assert "SIM" in text and "cubic B-spline in time, 4 equal intervals" in text
+    assert f"{s['sound_speed']['interval_minutes']:.1f} min each" in text
+
+
+def test_solution_txt_names_the_smooth_spline_s_knots_once(tmp_path):
+    sim = simulate_gnssa(n_transponders=3, hours=0.5, rng=4)
+    text = locate_array_survey(sim.raw()).write(tmp_path)["solution"].read_text()
+    line = next(ln for ln in text.splitlines() if ln.startswith("speed model"))
+    assert "knots every" in line and "min each" not in line
 
 
 def test_track_geometry_tells_a_circle_from_holding_station():

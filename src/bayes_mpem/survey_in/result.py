@@ -269,8 +269,10 @@ def _solution_text(summary: dict) -> str:
     lines += ["", f"sound speed   {ss['mean']:.3f} +- {ss['sd']:.3f} {ss['unit']} "
                   f"({ss.get('quantity', '')})",
               f"speed model   {ss.get('model', '-')}"
-              + (f", {ss['interval_minutes']:.1f} min each" if ss.get("interval_minutes")
-                 else "") + f"; {s.get('method', '')}"]
+              # the smooth spline's model names its knot spacing already
+              + (f", {ss['interval_minutes']:.1f} min each"
+                 if ss.get("interval_minutes") and not ss.get("smoothing") else "")
+              + f"; {s.get('method', '')}"]
     r = s.get("residuals")
     if r:
         per = ", ".join(f"{k} {v['rms_true']:.4f}" for k, v in r["per_transponder"].items()

@@ -105,6 +105,37 @@ def test_out_file_is_replaced_or_appended(dive, tmp_path):
     assert both == once + once
 
 
+def test_out_is_never_one_of_the_inputs(dive, tmp_path, capsys, monkeypatch):
+    """An --out FILE that is an input would be emptied before it is read (found by a fuzz)."""
+    folder, lines = dive
+    beacons = tmp_path / "beacons.csv"
+    beacons.write_text((folder / "beacons.csv").read_text())
+    pings = tmp_path / "pings.csv"
+    pings.write_text("\n".join(lines[:21]) + "\n")
+    state = tmp_path / "state.json"
+    state.write_text("{}")
+    before = {p: p.read_text() for p in (beacons, pings, state)}
+    runs = {"--beacons": ["--replay", str(pings), "--speed", "max", "--out", str(beacons)],
+            "--replay": ["--replay", str(pings), "--speed", "max", "--out", str(pings)],
+            "--state": ["--replay", str(pings), "--speed", "max", "--state", str(state),
+                        "--out", str(state)]}
+    for option, extra in runs.items():
+        assert main(["stream", "--beacons", str(beacons), *extra]) == 2, option
+        err = capsys.readouterr().err
+        assert f"the same file as {option}" in err and "Traceback" not in err
+    with open(pings) as stdin:  # ... < pings.csv --out pings.csv
+        monkeypatch.setattr("sys.stdin", stdin)
+        assert main(["stream", "--beacons", str(beacons), "--out", str(pings)]) == 2
+    assert "the file standard input reads" in capsys.readouterr().err
+    assert {p: p.read_text() for p in before} == before  # nothing lost
+    # a link to an input is the same file
+    link = tmp_path / "link.csv"
+    link.symlink_to(pings)
+    assert main(["stream", "--beacons", str(beacons), "--replay", str(pings), "--speed", "max",
+                 "--out", str(link)]) == 2
+    assert pings.read_text() == before[pings]
+
+
 def test_a_bad_state_is_refused_naming_the_file_and_the_option(dive, tmp_path, capsys):
     folder, lines = dive
     beacons = folder / "beacons.csv"

@@ -163,12 +163,45 @@ def _save(nav, path) -> None:
         print(f"bayes-mpem stream: error: --state {path}: {err}", file=sys.stderr, flush=True)
 
 
+def _same_file(a: os.stat_result, path) -> bool:
+    """Whether ``path`` exists and is the file whose status is ``a``."""
+    try:
+        b = os.stat(path)
+    except OSError:
+        return False
+    return (a.st_dev, a.st_ino) == (b.st_dev, b.st_ino)
+
+
+def _check_out_is_not_an_input(args) -> None:
+    """Refuse an ``--out FILE`` that is one of the inputs: replacing it would empty it first."""
+    if args.out == "-" or args.out.startswith("udp://"):
+        return
+    try:
+        out = os.stat(args.out)
+    except OSError:
+        return  # not there yet: nothing to lose
+    inputs = [("--beacons", args.beacons), ("--replay", args.replay), ("--state", args.state)]
+    for option, path in inputs:
+        if path is not None and _same_file(out, path):
+            raise OptionError(f"--out {args.out}: the same file as {option} {path}; the answers "
+                              "would replace it: give another file")
+    if args.replay is None and args.source == "-":
+        try:
+            stdin = os.fstat(sys.stdin.fileno())
+        except (OSError, ValueError):
+            return
+        if (stdin.st_dev, stdin.st_ino) == (out.st_dev, out.st_ino):
+            raise OptionError(f"--out {args.out}: the file standard input reads; the answers "
+                              "would replace it: give another file")
+
+
 def cmd_stream(args) -> int:
     """Run ``bayes-mpem stream`` until the end of the input, SIGTERM or SIGINT (status 0)."""
     if args.save_every < 0:
         raise OptionError(f"--save-every: expected a count >= 0, got {args.save_every}")
     if args.append and (args.out == "-" or args.out.startswith("udp://")):
         raise OptionError(f"--append applies to --out FILE only, got --out {args.out}")
+    _check_out_is_not_an_input(args)
     from ..io.lines import LineParser
     from ..io.stream import LineSink
 

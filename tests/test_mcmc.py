@@ -12,6 +12,7 @@ from bayes_mpem import mcmc
 from bayes_mpem.exceptions import SamplingWarning
 from bayes_mpem.lbl.bayes.posterior import BeaconPosterior
 from bayes_mpem.lbl.em.em_mixture import fit_mixture_em
+from bayes_mpem.mcmc.moves import default_moves
 
 
 class Gauss:
@@ -248,3 +249,26 @@ def test_to_datatree_is_arviz_from_dict():
     for g in ref.children:
         xr.testing.assert_identical(ref[g].dataset.drop_attrs(), ours[g].dataset.drop_attrs())
     assert ours.attrs["a"] == 1
+
+
+def test_a_ctrl_c_inside_the_target_is_raised_after_the_block_without_emcee_s_dump(capsys):
+    """emcee prints the parameters and a traceback for an exception in its target; an
+    independent fuzz saw that on Ctrl-C during `locate --sample`. The driver holds it."""
+    calls = {"n": 0, "after": 0}
+
+    def target(x):
+        calls["n"] += 1
+        if calls["n"] == 5:
+            raise KeyboardInterrupt
+        if calls["n"] > 5:
+            calls["after"] += 1
+        return -0.5 * (x ** 2).sum(axis=1)
+
+    gen = np.random.default_rng(0)
+    with pytest.raises(KeyboardInterrupt):
+        mcmc.run_ensembles(target, [gen.standard_normal((16, 2))],
+                           moves=default_moves(), gen=gen, min_ess=400,
+                           progress=False)
+    out, err = capsys.readouterr()
+    assert "emcee" not in out + err and "Traceback" not in err
+    assert calls["after"] == 0  # the target is not called again once interrupted

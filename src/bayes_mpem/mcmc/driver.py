@@ -157,6 +157,28 @@ def _sampler_class():
     return EnsembleSampler
 
 
+class _HeldInterrupt:
+    """emcee's target: a Ctrl-C inside the log density is held to the end of the block.
+
+    emcee prints the parameters and a traceback for any exception its target raises,
+    KeyboardInterrupt included. Here the interrupt is recorded, every later call returns
+    ``-inf`` at once (the block's remaining steps reject every proposal and cost nothing),
+    and :func:`run_ensembles` raises it again once ``run_mcmc`` returns, with the chain of
+    that block discarded.
+    """
+
+    def __init__(self, target):
+        self.target, self.interrupted = target, False
+
+    def __call__(self, x):
+        if not self.interrupted:
+            try:
+                return self.target(x)
+            except KeyboardInterrupt:
+                self.interrupted = True
+        return np.full(np.shape(x)[0], -np.inf)
+
+
 def _plan(moves, steps):
     """Tell the moves that can use it (:meth:`IndependenceMove.plan`) the steps ahead."""
     for m in moves:
@@ -245,8 +267,9 @@ def run_ensembles(target, starts, *, moves, gen: np.random.Generator, min_ess=10
     total_walkers = n_ens * n_walkers
     sampler_class = _sampler_class()
     samplers, states = [], []
+    held = _HeldInterrupt(target)
     for i, start in enumerate(starts):
-        sampler = sampler_class(n_walkers, ndim, target, vectorize=True, moves=moves)
+        sampler = sampler_class(n_walkers, ndim, held, vectorize=True, moves=moves)
         sampler.random_state = np.random.RandomState(int(gen.integers(2**32))).get_state()
         samplers.append(sampler)
         lp = target(start) if start_log_prob is None else np.asarray(start_log_prob[i], float)
@@ -261,6 +284,8 @@ def run_ensembles(target, starts, *, moves, gen: np.random.Generator, min_ess=10
             for i, sampler in enumerate(samplers):
                 _plan(moves, block)
                 states[i] = sampler.run_mcmc(states[i], block, skip_initial_state_check=True)
+                if held.interrupted:
+                    raise KeyboardInterrupt
             steps = samplers[0].iteration
             burn = min(_burn(samplers), steps - 4) if burn_in else 0
             kept = steps - burn

@@ -96,19 +96,58 @@ def test_the_formats_are_recognised(garpos, gnatss):
         sniff_format(sample_file("obsrange/CC03_obsrange_solution.txt"))
 
 
-def test_garpos_paths_from_the_working_folder_first(garpos, tmp_path, monkeypatch):
-    """A relative path is taken from the working folder if it is there, else beside the site."""
-    monkeypatch.chdir(tmp_path)
+def test_garpos_paths_from_the_working_folder_or_beside_the_site(garpos, tmp_path,
+                                                                 monkeypatch):
+    """A relative path is taken from the working folder or beside the site file; two
+    different files of that name are refused (an independent fuzz fitted one campaign's site
+    file to another's data from the working folder)."""
+    work = tmp_path / "work"
+    work.mkdir()
+    monkeypatch.chdir(work)
     raw = read_garpos(garpos)  # found beside the site file
     assert Path(raw.header["files"]["obs"]).parent == garpos.parent
     obs = garpos.with_name(garpos.name.replace("initcfg.ini", "obs.csv"))
     text = obs.read_text().splitlines()
-    (tmp_path / obs.name).write_text("\n".join(text[:12]) + "\n")  # a shorter copy here
-    raw = read_garpos(garpos)
-    assert Path(raw.header["files"]["obs"]) == tmp_path / obs.name and len(raw.pings) == 10
+    (work / obs.name).symlink_to(obs)  # the same file in both places: fine
+    assert len(read_garpos(garpos).pings) == len(raw.pings)
+    (work / obs.name).unlink()
+    (work / obs.name).write_text("\n".join(text[:12]) + "\n")  # another campaign's file
+    with pytest.raises(InputError, match="names two different files") as err:
+        read_garpos(garpos)
+    assert str(work / obs.name) in str(err.value) and str(obs) in str(err.value)
+    assert "datacsv" in str(err.value)  # the site file's line and key
+    os.replace(work / obs.name, obs)  # only in the site's folder: read there
+    assert len(read_garpos(garpos).pings) == 10
+    os.replace(obs, work / obs.name)  # only in the working folder (GARPOS's own way): read
+    assert Path(read_garpos(garpos).header["files"]["obs"]) == work / obs.name
     os.remove(garpos.with_name(garpos.name.replace("initcfg.ini", "svp.csv")))
     with pytest.raises(FileNotFoundError, match="svp.csv' not found"):
         read_garpos(garpos)
+
+
+def test_gnatss_paths_from_another_campaign_s_folder_are_refused(gnatss, tmp_path,
+                                                                  monkeypatch):
+    other = tmp_path / "other"
+    write_gnatss(other, *_other_campaign())
+    monkeypatch.chdir(other)  # its files have the same names as this campaign's
+    with pytest.raises(InputError, match="different files") as err:
+        read_gnatss(gnatss)
+    assert "config.yaml" in str(err.value)
+    text = gnatss.read_text()
+    gnatss.write_text(text.replace("path: pxp_tt", "path: pxp_t*"))  # a pattern
+    with pytest.raises(InputError, match="'pxp_t\\*' matches different files"):
+        read_gnatss(gnatss)
+    monkeypatch.chdir(tmp_path)
+    raw = read_gnatss(gnatss)
+    assert all(Path(f).parent == gnatss.parent for f in raw.header["files"]["travel_times"])
+    gnatss.write_text(text)
+    monkeypatch.chdir(gnatss.parent)  # the same files from both places
+    assert len(read_gnatss(gnatss).pings) == len(raw.pings)
+
+
+def _other_campaign():
+    o = simulate_gnssa(n_transponders=3, hours=0.3, rng=99)
+    return o.pings, o.header
 
 
 def _edit_obs(garpos, line, field, value):
@@ -264,3 +303,25 @@ def test_ecef_round_trip():
     assert (float(e), float(n), float(u)) == pytest.approx((0.0, 0.0, -1525.0), abs=1e-6)
     back = enu_to_ecef(e, n, u, 38.0, 143.0, 25.0)
     np.testing.assert_allclose(np.array(back, float), [x, y, z], atol=1e-6)
+
+
+def test_a_campaign_with_every_line_skipped_says_why(garpos, gnatss):
+    """The refusal names the commonest reasons and their first lines (an independent fuzz
+    found 'no shot lines found (353 lines skipped)' and a timing hint for wrong columns)."""
+    site = garpos.read_text()
+    garpos.write_text(site.replace("M01", "m01").replace("M02", "m02").replace("M03", "m03"))
+    with pytest.raises(InputError, match=r"no shot lines found \(\d+ lines skipped: \d+ lines: "
+                       r"column 4 \(MT\): transponder 'M01' is not one of the site's Stations"
+                       r".*\(first line 3\)"):
+        read_garpos(garpos)
+    cfg = gnatss.read_text()
+    gnatss.write_text(cfg.replace("gps_sigma_limit: 0.05", "gps_sigma_limit: 1.0e-6"))
+    with pytest.raises(InputError, match=r"no reply can be used .*above gps_sigma_limit 1e-06 m "
+                       r"\(first pxp_tt line \d+\)\)$"):
+        read_gnatss(gnatss)
+    gnatss.write_text(cfg)
+    tt = gnatss.with_name("pxp_tt")
+    tt.write_text("\n".join(" ".join(ln.split()[:-1]) for ln in tt.read_text().splitlines()))
+    with pytest.raises(InputError, match=r"travel times, got \d fields .*\(first pxp_tt line 1\)"
+                       r"\)$"):  # a column short on every line: no hint about timings
+        read_gnatss(gnatss)

@@ -13,7 +13,7 @@ import pandas as pd
 
 from ..exceptions import InputError
 from .fields import flag, number, where
-from .raw import RawSurvey, bad, read_lines
+from .raw import RawSurvey, bad, read_lines, skip_reasons
 from .results import output_folder
 
 #: obs.csv column -> RawSurvey.pings column (the antenna and attitude at transmit and receive)
@@ -33,7 +33,10 @@ UNKNOWN_STATION = "M00"
 
 
 def resolve_path(text, base, source=None) -> Path:
-    """Find a file a control file names: from the working folder, else from ``base``.
+    """Find a file a control file names: from the working folder, or from ``base``.
+
+    A relative name is looked for in both; where both hold a file of that name, they must be
+    the same file (else which campaign's data is meant is not known).
 
     Parameters
     ----------
@@ -51,7 +54,7 @@ def resolve_path(text, base, source=None) -> Path:
     FileNotFoundError
         Naming every place looked at.
     InputError
-        An empty name, or a name that is a folder.
+        An empty name, a name that is a folder, or a relative name of two different files.
     """
     name = str(text).strip() if text is not None else ""
     lead = f"{source}: " if source else ""
@@ -59,9 +62,15 @@ def resolve_path(text, base, source=None) -> Path:
         raise InputError(f"{lead}expected a file name, got {name!r}")
     p = Path(name)
     tried = [p] if p.is_absolute() else [Path.cwd() / p, Path(base) / p]
-    for cand in tried:
-        if cand.is_file():
-            return cand
+    found = [c for c in tried if c.is_file()]
+    if len(found) == 2 and not found[0].samefile(found[1]):
+        # two different files of this name: taking either silently could fit one campaign's
+        # control file to another's data
+        raise InputError(f"{lead}{name!r} names two different files: {found[0]} (from the "
+                         f"working folder) and {found[1]} (beside the control file); give an "
+                         "absolute path, or run from another folder")
+    if found:
+        return found[0]
     folder = next((c for c in tried if c.is_dir()), None)
     if folder is not None:
         raise InputError(f"{lead}{name!r} is a folder ({folder}); expected a file")
@@ -389,7 +398,8 @@ def read_garpos(site_file, *, obs=None, svp=None, strict=False) -> RawSurvey:
                                                               "SoundSpeed")
     rows, skipped = _read_obs(obs_path, stations, strict=strict)
     if not rows:
-        raise InputError(f"{obs_path}: no shot lines found ({len(skipped)} lines skipped)")
+        raise InputError(f"{obs_path}: no shot lines found ({len(skipped)} lines skipped"
+                         + (f": {skip_reasons(skipped)})" if skipped else ")"))
     pings = pd.DataFrame(rows)
     pings.insert(2, "time", pings["t_tx"] - pings["t_tx"].min())
     transponders = pd.DataFrame(pos, index=["east", "north", "up"]).T

@@ -17,7 +17,7 @@ from ..exceptions import InputError
 from .fields import number, where
 from .garpos import profile_frame, profile_reaches, resolve_path
 from .geodesy import atd_offset_enu, ecef_to_enu, enu_to_ecef, enu_to_geodetic, geodetic_to_enu
-from .raw import RawSurvey, bad, read_lines
+from .raw import RawSurvey, bad, read_lines, skip_reasons
 from .results import output_folder
 
 #: The J2000 epoch GNATSS counts its times from (2000-01-01 12:00:00, no leap seconds).
@@ -120,12 +120,18 @@ def _paths(cfg, key):
     text = "" if value is None else str(value)
     base = cfg.path.parent
     if any(ch in text for ch in "*?["):
-        for root in (Path.cwd(), base):
-            found = sorted(f for f in glob.glob(str(root / text) if not Path(text).is_absolute()
-                                                else text, recursive=True)
-                           if Path(f).is_file())
-            if found:
-                return [Path(f) for f in found]
+        roots = (Path.cwd(), base) if not Path(text).is_absolute() else (Path("/"),)
+        matches = [sorted(Path(f).resolve() for f in glob.glob(
+            str(root / text) if not Path(text).is_absolute() else text, recursive=True)
+            if Path(f).is_file()) for root in roots]
+        found = [m for m in matches if m]
+        if len(found) == 2 and found[0] != found[1]:
+            raise InputError(f"{cfg.where(*keys)}: {text!r} matches different files from the "
+                             f"working folder ({Path.cwd()}: {len(found[0])}) and beside the "
+                             f"config ({base}: {len(found[1])}); give an absolute path, or run "
+                             "from another folder")
+        if found:
+            return found[0]
         raise FileNotFoundError(f"{cfg.where(*keys)}: no file matches {text!r} (from "
                                 f"{Path.cwd()} or {base})")
     return [resolve_path(text, base, cfg.where(*keys))]
@@ -347,11 +353,12 @@ def read_gnatss(config, *, strict=False) -> RawSurvey:
     positions = _read_positions(pos_paths, std_dev, strict, skipped)
     rows = _read_travel_times(tt_paths, tp, cfg, positions, strict, skipped)
     if not rows:
-        raise InputError(f"{', '.join(map(str, tt_paths))}: no reply has a position at both its "
-                         f"transmit and receive time in {', '.join(map(str, pos_paths))} "
-                         f"({len(skipped)} lines or replies skipped; do the files' timings "
-                         f"align? check transducer_delay_time and travel_times_correction in "
-                         f"{cfg.path})")
+        timing = all("no position at the" in r[2] for r in skipped)
+        raise InputError(f"{', '.join(map(str, tt_paths))}: no reply can be used ("
+                         f"{len(skipped)} lines or replies skipped: {skip_reasons(skipped)})"
+                         + (f"; do the files' timings align? check transducer_delay_time and "
+                            f"travel_times_correction in {cfg.path}" if timing and skipped
+                            else ""))
     p = pd.DataFrame(rows)
     for end in ("tx", "rx"):
         e, n, u = ecef_to_enu(p.pop(f"x_{end}"), p.pop(f"y_{end}"), p.pop(f"z_{end}"),

@@ -5,7 +5,9 @@ Details: ``docs/measured-data.md``.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -193,12 +195,53 @@ def finish(fmt, source, rows, header, skipped, transponder):
     pings = pd.DataFrame(rows)
     if pings.empty:
         raise InputError(f"{source}: no ping lines found (expected the {fmt} format; "
-                         f"{len(skipped)} lines skipped)")
+                         f"{len(skipped)} lines skipped"
+                         + (f": {skip_reasons(skipped)})" if skipped else ")"))
     pings.insert(1, "transponder", transponder)
     epoch = pings.pop("_epoch")
     pings.insert(2, "time", epoch - epoch.iloc[0])
     skipped = pd.DataFrame(skipped, columns=["line", "text", "reason"])
     return RawSurvey(fmt, source, pings, header, skipped)
+
+
+def skip_reasons(skipped, limit: int = 3) -> str:
+    """Say why lines were skipped: the commonest reasons, each with its count and first line.
+
+    For a refusal that leaves nothing to fit: it names why, not only how many. Reasons that
+    differ only in their numbers count as one.
+
+    Parameters
+    ----------
+    skipped : list of tuple
+        ``(line, text, reason)`` or ``(line, text, reason, file)`` (:func:`bad`).
+    limit : int, default 3
+        Reasons shown; the others are counted.
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> skip_reasons([(2, "a", "column 2: got 'x'"), (3, "b", "column 2: got 'y'"),
+    ...               (4, "c", "time 12.5 not found"), (5, "d", "time 13.5 not found")])
+    "2 lines: time 12.5 not found (first line 4); 1 line: column 2: got 'x' (line 2); 1 line: \
+column 2: got 'y' (line 3)"
+    """
+    groups = {}
+    for line, _, reason, *rest in skipped:
+        key = re.sub(r"[-+]?\d[\d.eE+-]*", "#", str(reason))
+        g = groups.setdefault(key, {"n": 0, "line": line, "reason": str(reason),
+                                    "file": rest[0] if rest else None})
+        g["n"] += 1
+    top = sorted(groups.values(), key=lambda g: -g["n"])
+    parts = [f"{g['n']} line{'s' if g['n'] > 1 else ''}: {g['reason']} ("
+             + ("first " if g["n"] > 1 else "")
+             + (f"{Path(g['file']).name} " if g["file"] else "") + f"line {g['line']})"
+             for g in top[:limit]]
+    rest = len(top) - limit
+    return "; ".join(parts) + (f"; and {rest} other reason{'s' if rest > 1 else ''}"
+                               if rest > 0 else "")
 
 
 def bad(strict, source, line, text, reason, skipped):

@@ -1,5 +1,6 @@
 """Every multi-transponder survey is an array; the array's sound_speed record and solution.txt."""
 
+import dataclasses
 import json
 import shutil
 
@@ -173,6 +174,9 @@ def test_locate_gradients_and_knot_options(tmp_path, capsys):
     g = s["gradients"]
     assert g["fitted"] and g["choice"] == "on" and "gradients=on asked for" in g["reason"]
     assert s["sound_speed"]["smoothing"]["knot_minutes_asked"] == 10.0
+    # the files read, beside the files written
+    assert s["input_files"]["site"] == str(ini) and s["input_files"]["obs"].endswith("obs.csv")
+    assert "summary.json" in s["files"] and "classified.csv" in s["files"]
     assert "gradients     fitted" in printed and "shallow east" in printed
     assert "gradients     fitted" in (tmp_path / "r" / "solution.txt").read_text()
     assert main(["locate", str(ini), "--out", str(tmp_path / "a")]) == 0
@@ -303,3 +307,24 @@ def test_a_seagap_survey_of_one_transponder_takes_the_array_defaults(tmp_path, c
     capsys.readouterr()
     assert main(["locate", survey, "--correlation", "60", "--out", str(tmp_path / "c")]) == 2
     assert "correlation: for array surveys only" in capsys.readouterr().err
+
+
+def test_shots_spanning_years_are_refused_naming_the_jump():
+    """Two time scales mixed in one file (an independent fuzz: half the GARPOS times in J2000
+    seconds) gave a campaign 210,372 hours long with exit 0."""
+    raw = simulate_gnssa(n_transponders=3, hours=0.5, rng=4).raw()
+    p = raw.pings.copy()
+    p["line"] = np.arange(2, len(p) + 2)
+    half = p["t_tx"] > p["t_tx"].median()
+    for days, ok in ((20.0, True), (8766.0, False)):
+        q = p.copy()
+        for c in ("t_tx", "t_rx", "time"):
+            q.loc[half, c] = q.loc[half, c] + days * 86400.0
+        shifted = dataclasses.replace(raw, pings=q)
+        if ok:
+            assert len(array_shots(shifted)) == len(q)  # two sessions 20 days apart
+            continue
+        with pytest.raises(InputError, match="the shots span 8,76[67] days") as err:
+            array_shots(shifted)
+        last = int(q.loc[~half, "line"].iloc[-1])
+        assert f"between line {last} " in str(err.value) and "time scales mixed" in str(err.value)

@@ -10,7 +10,7 @@ from scipy.stats import chi2
 
 from ..exceptions import InputError
 from ..io.geodesy import MEAN_EARTH_RADIUS_M, earth_radius, enu_to_geodetic
-from ..io.raw import ARRAY_FORMATS
+from ..io.raw import ARRAY_FORMATS, skip_reasons
 from .array import GRADIENT_NAMES, KNOT_MINUTES, describe, locate_array
 from .result import SurveyInResult, classified_table
 from .ssp import survey_profile
@@ -21,6 +21,32 @@ def _shots_file(raw) -> str:
     """Name the file of a survey's shots (GARPOS's obs.csv, GNATSS's travel times)."""
     files = raw.header.get("files", {})
     return files.get("obs") or ", ".join(files.get("travel_times", [])) or raw.source
+
+
+#: The longest a campaign's shots may span (days): more is two time scales mixed, or
+#: several campaigns in one file (each is located on its own).
+MAX_CAMPAIGN_DAYS = 30.0
+
+
+def _check_span(raw) -> None:
+    """Refuse shots spanning more than :data:`MAX_CAMPAIGN_DAYS`, naming the largest jump."""
+    p = raw.pings
+    t = p["t_tx"].to_numpy(float) if "t_tx" in p.columns else p["time"].to_numpy(float)
+    if t.size < 2 or np.ptp(t) <= MAX_CAMPAIGN_DAYS * 86400.0:
+        return
+    order = np.argsort(t, kind="stable")
+    j = int(np.argmax(np.diff(t[order])))
+    a, b = p.iloc[order[j]], p.iloc[order[j + 1]]
+
+    def at(row):
+        where = f"line {int(row['line'])}" if "line" in p.columns else f"shot {row.name}"
+        return f"{row['file']} {where}" if "file" in p.columns else where
+
+    raise InputError(f"{_shots_file(raw)}: the shots span {np.ptp(t) / 86400.0:,.0f} days; "
+                     f"expected one campaign, its shots within {MAX_CAMPAIGN_DAYS:g} days. The "
+                     f"largest jump in time, {t[order[j + 1]] - t[order[j]]:.6g} s, is between "
+                     f"{at(a)} ({t[order[j]]:.6g} s) and {at(b)} ({t[order[j + 1]]:.6g} s): two "
+                     "time scales mixed? (several campaigns: give each its own file)")
 
 
 def array_shots(raw) -> pd.DataFrame:
@@ -41,15 +67,21 @@ def array_shots(raw) -> pd.DataFrame:
     Raises
     ------
     InputError
-        For another format, or shots all transmitted from one place.
+        For another format, shots all transmitted from one place, or shots spanning more than
+        :data:`MAX_CAMPAIGN_DAYS`.
     """
     if raw.format not in (*ARRAY_FORMATS, "seagap"):
         raise InputError(f"{raw.source}: a {raw.format} survey is not an array survey "
                          f"({', '.join(ARRAY_FORMATS)}, seagap)")
     if max(np.ptp(raw.pings["e_tx"]), np.ptp(raw.pings["n_tx"])) < 1.0:
+        n_skip = len(raw.skipped)
         raise InputError(f"{_shots_file(raw)}: every shot was transmitted within 1 m of one "
                          "place; an array cannot be located from one point (expected a ship's "
-                         "track over the array)")
+                         "track over the array)"
+                         + (f"; {len(raw.pings)} shots read, {n_skip} lines or replies skipped: "
+                            + skip_reasons(list(raw.skipped.itertuples(index=False)))
+                            if n_skip else ""))
+    _check_span(raw)
     pos = raw.transducer_positions()
     shots = raw.pings.copy()
     for end in ("tx", "rx"):
@@ -554,7 +586,7 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
         "track": track_geometry(sub, {t: fit.enu[k] for k, t in enumerate(fit.ids)}),
         "site": h.get("site"), "campaign": h.get("campaign"),
         "epoch": _epoch_entry(raw.format, shots),
-        "format": raw.format, "source": raw.source, "files": h.get("files", {}),
+        "format": raw.format, "source": raw.source, "input_files": h.get("files", {}),
         "n_pings": int(n), "n_skipped_lines": int(len(raw.skipped)),
         "skipped_transponders": dict(fit.skipped),
         "method": _method(fit, rays, noise), "noise": noise,

@@ -328,3 +328,15 @@ def test_shots_spanning_years_are_refused_naming_the_jump():
             array_shots(shifted)
         last = int(q.loc[~half, "line"].iloc[-1])
         assert f"between line {last} " in str(err.value) and "time scales mixed" in str(err.value)
+
+
+def test_a_seagap_survey_hearing_one_transponder_locates_it_and_lists_the_others():
+    """pxp-ini.inp lists four; replies from one were refused ('transponder 2: 0 pings')."""
+    raw = read_survey(sample_file("seagap/obsdata.inp"))
+    first = raw.pings.iloc[:200]
+    one = dataclasses.replace(raw, pings=first[first["transponder"].astype(str) == "1"])
+    for kw in ({}, {"one_at_a_time": True}):
+        res = locate_survey(one, **kw)
+        assert list(res.summary["transponders"]) == ["1"]
+        assert res.summary["skipped_transponders"] == dict.fromkeys(
+            ("2", "3", "4"), "no replies in the survey")

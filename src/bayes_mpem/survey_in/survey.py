@@ -146,7 +146,12 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
     probs, resid, azim = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
     model = dict(tat=tat, fit_tat=fit_tat, outliers=outliers, ssp=prof,
                  speed_intervals=speed_intervals, **geo)
+    skipped_tps = {}
+    heard = set(pings["beacon"].astype(str))
     for tid in beacons["beacon"].astype(str):
+        if tid not in heard:  # listed (SeaGap's pxp-ini.inp) but never heard: nothing to fit
+            skipped_tps[tid] = "no replies in the survey"
+            continue
         try:
             fits[tid] = r = locate(pings, beacons, tid, fit_lag=fit_lag, **model)
         except InputError as exc:
@@ -171,7 +176,7 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
                "method": f"EM, {rays}; intervals approximate (Wald)",
                "outliers": outliers, "ssp": None if prof is None else prof.source,
                "speed_intervals": int(speed_intervals), "fit_lag": bool(fit_lag),
-               "geometry": geo,
+               "geometry": geo, "skipped_transponders": skipped_tps,
                "tat_fitted": bool(fit_tat), "tat_given": None if fit_tat else float(tat)}
     if "lat" in raw.header and raw.format != "seagap":
         summary["drop_point"] = {k: raw.header.get(k) for k in ("lat", "lon", "depth")}

@@ -53,3 +53,17 @@ def test_a_header_without_the_columns_is_refused():
     # a float NaN (pandas' missing value) is an empty cell: no reply
     assert make_ping({"time": 1, "beacon": "1", "range": float("nan"), "x": 0, "y": 0,
                       "depth": 1}, "row 1").kind == "no_reply"
+
+
+def test_a_byte_order_mark_opening_the_stream_is_not_data():
+    """A BOM is read in every file reader; the stream answered every line with an error."""
+    p = LineParser(["1"])
+    assert p.parse("\ufefftime,beacon,range,x,y,depth", 1) == ("header", None)
+    kind, ping = p.parse("10,1,500,0,0,5", 2)
+    assert kind == "ping" and ping.range == 500.0
+    j = LineParser(["1"])
+    kind, ping = j.parse('\ufeff{"time": 10, "beacon": "1", "range": 500, "x": 0, "y": 0, '
+                         '"depth": 5}', 1)
+    assert kind == "ping"
+    with pytest.raises(InputError, match="line 3"):  # not the first line: not a BOM to drop
+        p.parse("\ufeff10,1,500,0,0,5", 3)

@@ -208,6 +208,8 @@ class LineParser:
         InputError
             A malformed line (the parser's state is unchanged).
         """
+        if line_no == 1:  # a byte-order mark opens some files saved on Windows: not data
+            text = text.removeprefix("\ufeff")
         s = text.strip()
         where = f"line {line_no}"
         if len(s) > MAX_LINE:

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
+from bayes_mpem.exceptions import InputError
 from bayes_mpem.plots.survey_in import (
     plot_array_map,
     plot_gradients,
@@ -70,6 +71,17 @@ def test_write_figures_for_an_array_folder(array, tmp_path):
     assert all((tmp_path / n).stat().st_size > 10_000 for n in names)
     assert (tmp_path / "solution.txt").is_file()
     plt.close("all")
+
+
+def test_a_classified_table_cut_short_is_refused(array, tmp_path):
+    """An independent fuzz drew the figures of 176 of 353 shots from a truncated file."""
+    array.write(tmp_path)
+    path = tmp_path / "classified.csv"
+    lines = path.read_text().splitlines(keepends=True)
+    path.write_text("".join(lines[:len(lines) // 2]) + lines[len(lines) // 2][:7])
+    with pytest.raises(InputError, match=r"classified.csv: \d+ rows; expected \d+, the \d+ "
+                       r"pings and 0 skipped lines of .*summary.json: the file is cut short"):
+        load_output(tmp_path)
 
 
 def test_truth_is_marked_where_given(tmp_path):

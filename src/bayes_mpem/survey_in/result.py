@@ -147,8 +147,8 @@ class SurveyInResult:
     def read(cls, folder) -> SurveyInResult:
         """Read a located survey back from the folder :meth:`write` wrote (no fits or posteriors).
 
-        A missing ``classified.csv`` is a ``FileNotFoundError``, one of an older version an
-        ``InputError``.
+        A missing ``classified.csv`` is a ``FileNotFoundError``; one of an older version, or
+        whose rows are not the summary's pings and skipped lines, an ``InputError``.
 
         Parameters
         ----------
@@ -176,6 +176,14 @@ class SurveyInResult:
         if missing:
             raise InputError(f"{path}: no column(s) {missing}; it was written by an older "
                              "bayes_mpem: run 'bayes-mpem locate' again")
+        if "n_pings" in summary:  # one row per ping and per skipped line
+            expected = int(summary["n_pings"]) + int(summary.get("n_skipped_lines", 0))
+            if len(cls_) != expected:
+                raise InputError(f"{path}: {len(cls_)} rows; expected {expected}, the "
+                                 f"{summary['n_pings']} pings and "
+                                 f"{summary.get('n_skipped_lines', 0)} skipped lines of "
+                                 f"{Path(folder) / MARKER}: the file is cut short or from "
+                                 "another run; run 'bayes-mpem locate' again")
         return cls(summary=summary, classified=cls_)
 
 

@@ -342,7 +342,10 @@ def test_duplicated_header_in_a_plain_csv(tmp_path, beacons_csv):
     """The fast CSV path must not let pandas rename a duplicated column (x -> x.1)."""
     p = tmp_path / "dup.csv"
     p.write_text("time,beacon,range,x,y,depth,x\n0,1,100,0,0,10,5\n")
-    with pytest.raises(InputError, match="duplicated column name"):
+    with pytest.raises(InputError, match=r"duplicated column name\(s\) 'x' \(columns 4, 7\)"):
+        load_survey(p, beacons_csv)
+    p.write_text("time,beacon,range,x,y,depth,,\n0,1,100,0,0,10,,\n")  # a header ending in ",,"
+    with pytest.raises(InputError, match=r"duplicated column name\(s\) '' \(columns 7, 8\)"):
         load_survey(p, beacons_csv)
 
 

@@ -83,7 +83,12 @@ def load_table(source: Any, name: str | None, kind: str) -> _Table:
     cols = list(table.frame.columns)
     dupes = sorted({str(c) for c in cols if cols.count(c) > 1})
     if dupes:
-        raise InputError(f"{table.source}: duplicated column name(s) {', '.join(dupes)}")
+        # an empty name (a header ending in commas) is shown as such, with its columns
+        named = [f"{d!r} (columns "
+                 + ", ".join(str(j + 1) for j, c in enumerate(cols) if str(c) == d) + ")"
+                 for d in dupes]
+        raise InputError(f"{table.source}: duplicated column name(s) {'; '.join(named)} in "
+                         "the header; expected each column named once")
     return table
 
 

@@ -137,7 +137,10 @@ def test_batch_command_with_a_local_cluster_and_locate(tmp_path, capsys):
     assert status == 1  # one survey failed
     captured = capsys.readouterr()
     assert "1 done, 0 already complete, 1 failed" in captured.out
-    assert "gone: FileNotFoundError" in captured.err
+    # the manifest's line and column of the file not found (an independent fuzz saw only
+    # "FileNotFoundError: [Errno 2] ...")
+    assert f"gone: InputError: {manifest} line 3, column 'survey': " in captured.err
+    assert "nope.txt not found" in captured.err
     table = pd.read_parquet(tmp_path / "o" / "beacons.parquet")
     assert table["name"].tolist() == ["cc03"] and "depth_mean" in table
     assert json.loads((tmp_path / "o" / "surveys" / "cc03" / "summary.json").read_text())

@@ -55,6 +55,7 @@ def run_task(task: BatchTask, out_dir: str, key: str | None = None) -> dict:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
+            _check_inputs(task)
             key = key or task.key()
             result = run(task.command, task.inputs, task.options)
             result.write(folder)
@@ -75,6 +76,14 @@ def run_task(task: BatchTask, out_dir: str, key: str | None = None) -> dict:
     tmp = write_json(folder / "batch.json.tmp", record)
     tmp.replace(done)  # last, atomically: its presence means the survey is complete
     return record
+
+
+def _check_inputs(task) -> None:
+    """Raise InputError naming the manifest's line and column of an input file not found."""
+    for col in COMMANDS[task.command].files:
+        if not Path(task.inputs[col]).exists():
+            raise InputError(f"{task.where}, column {col!r}: {task.inputs[col]} not found (a "
+                             "relative path is taken from the manifest's folder)")
 
 
 def _classified_file(out_dir, name: str) -> Path:

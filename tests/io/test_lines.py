@@ -67,3 +67,11 @@ def test_a_byte_order_mark_opening_the_stream_is_not_data():
     assert kind == "ping"
     with pytest.raises(InputError, match="line 3"):  # not the first line: not a BOM to drop
         p.parse("\ufeff10,1,500,0,0,5", 3)
+
+
+def test_a_json_key_given_twice_is_refused():
+    """Not the last value kept silently (found by an independent fuzz)."""
+    p = LineParser(["1"])
+    with pytest.raises(InputError, match=r"line 4: .*the key 'range' given twice"):
+        p.parse('{"time": 10, "beacon": "1", "range": 500, "range": 600, "x": 0, "y": 0, '
+                '"depth": 5}', 4)

@@ -157,6 +157,16 @@ def _no_constant(name):
     raise ValueError(f"{name} is not a JSON number")
 
 
+def _unique_keys(pairs):
+    """``object_pairs_hook``: a key given twice is an error, not the last one kept."""
+    obj = {}
+    for k, v in pairs:
+        if k in obj:
+            raise ValueError(f"the key {k!r} given twice")
+        obj[k] = v
+    return obj
+
+
 def _csv_cells(text: str, where: str) -> list[str]:
     """Split one CSV line into its cells; a malformed line is an :class:`InputError`."""
     for bad, name in (("\r", "a carriage return (\\r)"), ("\x00", "a NUL character")):
@@ -226,7 +236,7 @@ class LineParser:
             return "comment", None
         if s.startswith("{"):
             try:
-                obj = json.loads(s, parse_constant=_no_constant)
+                obj = json.loads(s, parse_constant=_no_constant, object_pairs_hook=_unique_keys)
             except ValueError as err:
                 at = f" at column {err.colno}" if hasattr(err, "colno") else ""
                 raise InputError(f"{where}: expected a JSON object, got invalid JSON "

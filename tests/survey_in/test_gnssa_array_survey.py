@@ -1,5 +1,6 @@
 """Every multi-transponder survey is an array; the array's sound_speed record and solution.txt."""
 
+import copy
 import dataclasses
 import json
 import shutil
@@ -18,6 +19,7 @@ from bayes_mpem.survey_in.array_sampling import (
 )
 from bayes_mpem.survey_in.array_survey import array_shots, locate_array_survey
 from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa
+from bayes_mpem.survey_in.result import _solution_text
 from bayes_mpem.survey_in.survey import is_array, locate_survey
 
 
@@ -150,6 +152,17 @@ def test_solution_txt_names_the_smooth_spline_s_knots_once(tmp_path):
     text = locate_array_survey(sim.raw()).write(tmp_path)["solution"].read_text()
     line = next(ln for ln in text.splitlines() if ln.startswith("speed model"))
     assert "knots every" in line and "min each" not in line
+
+
+@pytest.mark.parametrize(("edge", "says"), [
+    (None, None), ("stiff", "stiffest smoothing tried"), ("rough", "try a shorter --knot-minutes"),
+    ("flat", "not determined by the data")])
+def test_solution_txt_says_where_the_speed_s_evidence_peaks(simulated, edge, says):
+    summary = copy.deepcopy(simulated[1].summary)
+    summary["sound_speed"]["smoothing"] = {"grid": {"edge": edge}}
+    line = next(ln for ln in _solution_text(summary).splitlines()
+                if ln.startswith("speed model"))
+    assert (says is None and "evidence" not in line) or (says is not None and says in line)
 
 
 def test_track_geometry_tells_a_circle_from_holding_station():

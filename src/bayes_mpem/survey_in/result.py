@@ -225,6 +225,18 @@ def gradients_line(summary: dict) -> str:
     return line
 
 
+def _speed_grid_note(sound_speed: dict) -> str:
+    """Say what the evidence over the speed's smoothing weight says at its grid's end, or ''."""
+    grid = (sound_speed.get("smoothing") or {}).get("grid") or {}
+    return {"stiff": " (the evidence is largest at the stiffest smoothing tried: the data ask "
+                     "for no change of the speed beyond a linear trend)",
+            "rough": " (the evidence is largest at the roughest smoothing tried: the speed may "
+                     "change faster than these knots follow; try a shorter --knot-minutes)",
+            "flat": " (its smoothing weight is not determined by the data: the evidence within "
+                    "1 nat over 4 decades; the intervals average over it)"
+            }.get(grid.get("edge"), "")
+
+
 def noise_line(summary: dict) -> str:
     """Return one line: the replies' noise model (``summary.json`` ``noise``).
 
@@ -280,7 +292,7 @@ def _solution_text(summary: dict) -> str:
               # the smooth spline's model names its knot spacing already
               + (f", {ss['interval_minutes']:.1f} min each"
                  if ss.get("interval_minutes") and not ss.get("smoothing") else "")
-              + f"; {s.get('method', '')}"]
+              + _speed_grid_note(ss) + f"; {s.get('method', '')}"]
     r = s.get("residuals")
     if r:
         per = ", ".join(f"{k} {v['rms_true']:.4f}" for k, v in r["per_transponder"].items()

@@ -27,6 +27,9 @@ def dive(tmp_path_factory):
     (b"name,pings,beacons\x00\n", "a NUL byte"),
     (b"name,pings,beacons\n\n# note\nA,a.csv,b.csv\nA,c.csv,d.csv\n",
      r"line 5, column 'name': 'A' already on line 4"),
+    (b"name,pings,beacons\nDive1,a.csv,b.csv\ndive1,c.csv,d.csv\n",  # one folder on macOS
+     r"line 3, column 'name': 'dive1' already on line 2 as 'Dive1' \(names differing only in "
+     r"case"),
 ])
 def test_manifest_errors_name_the_manifest(tmp_path, content, message):
     path = tmp_path / "manifest.csv"

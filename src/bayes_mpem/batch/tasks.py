@@ -120,9 +120,12 @@ def read_manifest(path, command: str = "fit") -> tuple[list, pd.DataFrame]:
         if not name or name in (".", "..") or any(c in name for c in "/\\:"):
             raise InputError(f"{where}, column 'name': expected a plain folder name, "
                              f"got {row['name']!r}")
-        if name in seen:
-            raise InputError(f"{where}, column 'name': {name!r} already on line {seen[name]}")
-        seen[name] = lines[i]
+        if name.casefold() in seen:  # one folder on macOS's and Windows's file systems
+            first, line = seen[name.casefold()]
+            also = "" if first == name else f" as {first!r} (names differing only in case " \
+                "would share one output folder on macOS and Windows)"
+            raise InputError(f"{where}, column 'name': {name!r} already on line {line}{also}")
+        seen[name.casefold()] = (name, lines[i])
         inputs = {}
         for col in spec.inputs:
             value = row[col].strip()

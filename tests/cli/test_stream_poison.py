@@ -8,6 +8,7 @@ or appended to.
 """
 
 import json
+import os
 
 import pytest
 
@@ -106,7 +107,7 @@ def test_out_file_is_replaced_or_appended(dive, tmp_path):
 
 
 def test_out_is_never_one_of_the_inputs(dive, tmp_path, capsys, monkeypatch):
-    """An --out FILE that is an input would be emptied before it is read (found by a fuzz)."""
+    """An --out FILE that is an input would be emptied before it is read."""
     folder, lines = dive
     beacons = tmp_path / "beacons.csv"
     beacons.write_text((folder / "beacons.csv").read_text())
@@ -134,6 +135,10 @@ def test_out_is_never_one_of_the_inputs(dive, tmp_path, capsys, monkeypatch):
     assert main(["stream", "--beacons", str(beacons), "--replay", str(pings), "--speed", "max",
                  "--out", str(link)]) == 2
     assert pings.read_text() == before[pings]
+    # a device read and written is not a file to lose: ... --out /dev/null < /dev/null
+    with open(os.devnull) as stdin:
+        monkeypatch.setattr("sys.stdin", stdin)
+        assert main(["stream", "--beacons", str(beacons), "--out", os.devnull]) == 0
 
 
 def test_a_bad_state_is_refused_naming_the_file_and_the_option(dive, tmp_path, capsys):

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import os
 import signal
+import stat
 import sys
 import threading
 import time
@@ -173,13 +174,18 @@ def _same_file(a: os.stat_result, path) -> bool:
 
 
 def _check_out_is_not_an_input(args) -> None:
-    """Refuse an ``--out FILE`` that is one of the inputs: replacing it would empty it first."""
+    """Refuse an ``--out FILE`` that is one of the inputs: replacing it would empty it first.
+
+    Only a regular file: a terminal or ``/dev/null`` may be both read and written.
+    """
     if args.out == "-" or args.out.startswith("udp://"):
         return
     try:
         out = os.stat(args.out)
     except OSError:
         return  # not there yet: nothing to lose
+    if not stat.S_ISREG(out.st_mode):
+        return  # a terminal, a pipe or /dev/null: writing to it empties nothing
     inputs = [("--beacons", args.beacons), ("--replay", args.replay), ("--state", args.state)]
     for option, path in inputs:
         if path is not None and _same_file(out, path):

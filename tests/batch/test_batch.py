@@ -137,8 +137,7 @@ def test_batch_command_with_a_local_cluster_and_locate(tmp_path, capsys):
     assert status == 1  # one survey failed
     captured = capsys.readouterr()
     assert "1 done, 0 already complete, 1 failed" in captured.out
-    # the manifest's line and column of the file not found (an independent fuzz saw only
-    # "FileNotFoundError: [Errno 2] ...")
+    # the manifest's line and column of the file not found
     assert f"gone: InputError: {manifest} line 3, column 'survey': " in captured.err
     assert "nope.txt not found" in captured.err
     table = pd.read_parquet(tmp_path / "o" / "beacons.parquet")
@@ -231,3 +230,10 @@ def test_a_manifest_column_gives_an_array_its_noise_correlation(tmp_path):
     manifest.write_text(f"name,survey,format,correlation\na,{survey},garpos,60s\n")
     with pytest.raises(InputError, match=r"m.csv line 2: argument --correlation: .*'60s'"):
         _tasks(manifest, "locate")
+
+
+def test_a_task_made_in_python_names_its_missing_input(scheduler, tmp_path):
+    task = BatchTask("t", "locate", {"survey": str(tmp_path / "nope.txt"), "format": "obsrange"})
+    result = run_batch([task], tmp_path / "out", scheduler=scheduler, progress=False)
+    assert result.failures["reason"].tolist() == [
+        f"InputError: t: input 'survey': {tmp_path / 'nope.txt'} not found"]

@@ -82,8 +82,10 @@ def _check_inputs(task) -> None:
     """Raise InputError naming the manifest's line and column of an input file not found."""
     for col in COMMANDS[task.command].files:
         if not Path(task.inputs[col]).exists():
-            raise InputError(f"{task.where}, column {col!r}: {task.inputs[col]} not found (a "
-                             "relative path is taken from the manifest's folder)")
+            if task.where:  # a manifest's row
+                raise InputError(f"{task.where}, column {col!r}: {task.inputs[col]} not found "
+                                 "(a relative path is taken from the manifest's folder)")
+            raise InputError(f"{task.name}: input {col!r}: {task.inputs[col]} not found")
 
 
 def _classified_file(out_dir, name: str) -> Path:

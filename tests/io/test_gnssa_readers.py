@@ -99,8 +99,8 @@ def test_the_formats_are_recognised(garpos, gnatss):
 def test_garpos_paths_from_the_working_folder_or_beside_the_site(garpos, tmp_path,
                                                                  monkeypatch):
     """A relative path is taken from the working folder or beside the site file; two
-    different files of that name are refused (an independent fuzz fitted one campaign's site
-    file to another's data from the working folder)."""
+    different files of that name are refused (else one campaign's site file could be fitted
+    to another's data)."""
     work = tmp_path / "work"
     work.mkdir()
     monkeypatch.chdir(work)
@@ -306,8 +306,8 @@ def test_ecef_round_trip():
 
 
 def test_a_campaign_with_every_line_skipped_says_why(garpos, gnatss):
-    """The refusal names the commonest reasons and their first lines (an independent fuzz
-    found 'no shot lines found (353 lines skipped)' and a timing hint for wrong columns)."""
+    """The refusal names the commonest reasons and their first lines, and hints at the
+    files' timings only where every reply lacked a position."""
     site = garpos.read_text()
     garpos.write_text(site.replace("M01", "m01").replace("M02", "m02").replace("M03", "m03"))
     with pytest.raises(InputError, match=r"no shot lines found \(\d+ lines skipped: \d+ lines: "

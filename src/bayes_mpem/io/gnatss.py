@@ -121,11 +121,12 @@ def _paths(cfg, key):
     base = cfg.path.parent
     if any(ch in text for ch in "*?["):
         roots = (Path.cwd(), base) if not Path(text).is_absolute() else (Path("/"),)
-        matches = [sorted(Path(f).resolve() for f in glob.glob(
+        matches = [sorted(Path(f) for f in glob.glob(
             str(root / text) if not Path(text).is_absolute() else text, recursive=True)
             if Path(f).is_file()) for root in roots]
         found = [m for m in matches if m]
-        if len(found) == 2 and found[0] != found[1]:
+        if len(found) == 2 and sorted(f.resolve() for f in found[0]) != sorted(
+                f.resolve() for f in found[1]):
             raise InputError(f"{cfg.where(*keys)}: {text!r} matches different files from the "
                              f"working folder ({Path.cwd()}: {len(found[0])}) and beside the "
                              f"config ({base}: {len(found[1])}); give an absolute path, or run "

@@ -157,12 +157,16 @@ def _no_constant(name):
     raise ValueError(f"{name} is not a JSON number")
 
 
+class _RepeatedKey(ValueError):
+    """A JSON object naming one key twice (valid JSON, but which value is meant?)."""
+
+
 def _unique_keys(pairs):
     """``object_pairs_hook``: a key given twice is an error, not the last one kept."""
     obj = {}
     for k, v in pairs:
         if k in obj:
-            raise ValueError(f"the key {k!r} given twice")
+            raise _RepeatedKey(f"expected each key once, got {k!r} twice")
         obj[k] = v
     return obj
 
@@ -237,6 +241,8 @@ class LineParser:
         if s.startswith("{"):
             try:
                 obj = json.loads(s, parse_constant=_no_constant, object_pairs_hook=_unique_keys)
+            except _RepeatedKey as err:
+                raise InputError(f"{where}: {err}") from None
             except ValueError as err:
                 at = f" at column {err.colno}" if hasattr(err, "colno") else ""
                 raise InputError(f"{where}: expected a JSON object, got invalid JSON "

@@ -252,8 +252,8 @@ def test_to_datatree_is_arviz_from_dict():
 
 
 def test_a_ctrl_c_inside_the_target_is_raised_after_the_block_without_emcee_s_dump(capsys):
-    """emcee prints the parameters and a traceback for an exception in its target; an
-    independent fuzz saw that on Ctrl-C during `locate --sample`. The driver holds it."""
+    """emcee prints the parameters and a traceback for an exception in its target; the
+    driver holds a Ctrl-C to the end of the block and raises it there."""
     calls = {"n": 0, "after": 0}
 
     def target(x):

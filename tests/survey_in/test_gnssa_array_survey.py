@@ -6,6 +6,7 @@ import json
 import shutil
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from bayes_mpem.cli import main
@@ -323,8 +324,8 @@ def test_a_seagap_survey_of_one_transponder_takes_the_array_defaults(tmp_path, c
 
 
 def test_shots_spanning_years_are_refused_naming_the_jump():
-    """Two time scales mixed in one file (an independent fuzz: half the GARPOS times in J2000
-    seconds) gave a campaign 210,372 hours long with exit 0."""
+    """Two time scales mixed in one file (half the times in J2000 seconds) are refused, the
+    jump and its lines named; two sessions 20 days apart are one campaign."""
     raw = simulate_gnssa(n_transponders=3, hours=0.5, rng=4).raw()
     p = raw.pings.copy()
     p["line"] = np.arange(2, len(p) + 2)
@@ -344,7 +345,7 @@ def test_shots_spanning_years_are_refused_naming_the_jump():
 
 
 def test_a_seagap_survey_hearing_one_transponder_locates_it_and_lists_the_others():
-    """pxp-ini.inp lists four; replies from one were refused ('transponder 2: 0 pings')."""
+    """pxp-ini.inp lists four; the one heard is located, the others listed as not located."""
     raw = read_survey(sample_file("seagap/obsdata.inp"))
     first = raw.pings.iloc[:200]
     one = dataclasses.replace(raw, pings=first[first["transponder"].astype(str) == "1"])
@@ -353,3 +354,21 @@ def test_a_seagap_survey_hearing_one_transponder_locates_it_and_lists_the_others
         assert list(res.summary["transponders"]) == ["1"]
         assert res.summary["skipped_transponders"] == dict.fromkeys(
             ("2", "3", "4"), "no replies in the survey")
+
+
+def test_shots_from_one_place_say_how_many_replies_were_skipped_and_why():
+    """Most replies skipped can leave shots from one place: the refusal says so."""
+    raw = simulate_gnssa(n_transponders=3, hours=0.5, rng=4).raw()
+    p = raw.pings.iloc[:5].copy()
+    for c in ("e_tx", "n_tx", "e_rx", "n_rx"):
+        p[c] = p[c].iloc[0]
+    skipped = pd.DataFrame([(10, "a", "no position at the transmit time 1.5"),
+                            (11, "b", "no position at the transmit time 2.5"),
+                            (12, "c", "column 3: got 'x'")], columns=["line", "text", "reason"])
+    one = dataclasses.replace(raw, pings=p, skipped=skipped)
+    with pytest.raises(InputError, match=r"within 1 m of one place.*; 5 shots read, 3 lines or "
+                       r"replies skipped: 2 lines: no position at the transmit time 1.5 \(first "
+                       r"line 10\); 1 line: column 3: got 'x' \(line 12\)$"):
+        array_shots(one)
+    with pytest.raises(InputError, match=r"track over the array\)$"):  # nothing skipped
+        array_shots(dataclasses.replace(one, skipped=skipped.iloc[:0]))

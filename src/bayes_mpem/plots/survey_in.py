@@ -259,6 +259,8 @@ def plot_gradients(result, *, fig=None, truth=None):
     ----------
     result : SurveyInResult
         An array's, with the gradients fitted.
+    fig : matplotlib.figure.Figure, optional
+        Drawn into (two axes are added); default a new figure.
     truth : dict, optional
         A simulated campaign's ``truth.json``: its gradient series are drawn too.
 
@@ -289,8 +291,9 @@ def plot_gradients(result, *, fig=None, truth=None):
         for (axis, name, key), color in zip(terms, ("C0", "C3"), strict=True):
             m, sd = np.asarray(ser[name]["mean"], float), np.asarray(ser[name]["sd"], float)
             ax.fill_between(t, m - z * sd, m + z * sd, color=color, alpha=0.2, lw=0)
+            avg = g[name].get("em") or g[name]  # the EM's, as the series (after --sample too)
             ax.plot(t, m, color=color, lw=1.5,
-                    label=f"{axis} (average {g[name]['mean']:+.3f} +- {g[name]['sd']:.3f})")
+                    label=f"{axis} (average {avg['mean']:+.3f} +- {avg['sd']:.3f})")
             if tg is not None:
                 ax.plot(np.asarray(tg["time_s"], float) / 3600.0, tg[key], color=color,
                         lw=1.0, ls=":", label=f"{axis}, truth")

@@ -325,3 +325,10 @@ def test_a_campaign_with_every_line_skipped_says_why(garpos, gnatss):
     with pytest.raises(InputError, match=r"travel times, got \d fields .*\(first pxp_tt line 1\)"
                        r"\)$"):  # a column short on every line: no hint about timings
         read_gnatss(gnatss)
+
+
+def test_the_site_file_has_the_keys_garpos_itself_reads(garpos):
+    """GARPOS's own output step reads Date(jday) and Ref.Frame, with no default."""
+    text = garpos.read_text()
+    assert " Date(UTC)   = 2024-01-01\n Date(jday)  = 2024-001\n Ref.Frame   = " in text
+    assert len(read_garpos(garpos).pings) > 0

@@ -419,6 +419,14 @@ def read_garpos(site_file, *, obs=None, svp=None, strict=False) -> RawSurvey:
                      pd.DataFrame(skipped, columns=["line", "text", "reason"]))
 
 
+def _jday(date: str) -> str:
+    """Return ``YYYY-DDD`` (GARPOS's ``Date(jday)``) of a ``YYYY-MM-DD`` date."""
+    from datetime import date as _date
+
+    d = _date.fromisoformat(str(date))
+    return f"{d.year}-{d.timetuple().tm_yday:03d}"
+
+
 def write_garpos(out_dir, pings, header, *, site="SIM", campaign="0000.sim",
                  date="2024-01-01") -> Path:
     """Write a survey as GARPOS's site, shots and profile files; return the site file.
@@ -442,7 +450,9 @@ def write_garpos(out_dir, pings, header, *, site="SIM", campaign="0000.sim",
                                                                     "svp.csv"))
     tp = header["transponders"]
     lines = ["[Obs-parameter]", f" Site_name   = {site}", f" Campaign    = {campaign}",
-             f" Date(UTC)   = {date}", f" SoundSpeed  = {svp_file.name}", "",
+             f" Date(UTC)   = {date}", f" Date(jday)  = {_jday(date)}",
+             # GARPOS copies the frame's name into its results and needs the key
+             " Ref.Frame   = ITRF2014", f" SoundSpeed  = {svp_file.name}", "",
              "[Data-file]", f" datacsv     = {obs_file.name}", f" N_shot      = {len(pings)}",
              "", "[Site-parameter]", f" Latitude0   = {header['lat']:.8f}",
              f" Longitude0  = {header['lon']:.8f}", f" Height0     = {header['height']:.2f}",

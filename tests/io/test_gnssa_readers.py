@@ -195,7 +195,7 @@ def test_garpos_wrong_width_and_missing_column(garpos):
 
 
 @pytest.mark.parametrize(("old", "new", "message"), [
-    (" Latitude0   = 38.00000000", " Latitude0   = 95", r"line 12 \(Latitude0\): Latitude0: "
+    (" Latitude0   = 38.00000000", " Latitude0   = 95", r"line 14 \(Latitude0\): Latitude0: "
                                                         r"expected a number in \[-90, 90\]"),
     (" Stations    = M01 M02 M03", " Stations    = M01 M01", "expected distinct transponder"),
     (" ATDoffset   =      1.5000", " ATDoffset   =      1.5x00", r"ATDoffset forward"),

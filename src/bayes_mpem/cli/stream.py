@@ -164,15 +164,6 @@ def _save(nav, path) -> None:
         print(f"bayes-mpem stream: error: --state {path}: {err}", file=sys.stderr, flush=True)
 
 
-def _same_file(a: os.stat_result, path) -> bool:
-    """Whether ``path`` exists and is the file whose status is ``a``."""
-    try:
-        b = os.stat(path)
-    except OSError:
-        return False
-    return (a.st_dev, a.st_ino) == (b.st_dev, b.st_ino)
-
-
 def _check_out_is_not_an_input(args) -> None:
     """Refuse an ``--out FILE`` that is one of the inputs: replacing it would empty it first.
 
@@ -188,7 +179,7 @@ def _check_out_is_not_an_input(args) -> None:
         return  # a terminal, a pipe or /dev/null: writing to it empties nothing
     inputs = [("--beacons", args.beacons), ("--replay", args.replay), ("--state", args.state)]
     for option, path in inputs:
-        if path is not None and _same_file(out, path):
+        if path is not None and os.path.exists(path) and os.path.samefile(args.out, path):
             raise OptionError(f"--out {args.out}: the same file as {option} {path}; the answers "
                               "would replace it: give another file")
     if args.replay is None and args.source == "-":
@@ -196,7 +187,7 @@ def _check_out_is_not_an_input(args) -> None:
             stdin = os.fstat(sys.stdin.fileno())
         except (OSError, ValueError):
             return
-        if (stdin.st_dev, stdin.st_ino) == (out.st_dev, out.st_ino):
+        if os.path.samestat(stdin, out):
             raise OptionError(f"--out {args.out}: the file standard input reads; the answers "
                               "would replace it: give another file")
 

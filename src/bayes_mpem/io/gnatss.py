@@ -120,11 +120,10 @@ def _paths(cfg, key):
     text = "" if value is None else str(value)
     base = cfg.path.parent
     if any(ch in text for ch in "*?["):
-        roots = (Path.cwd(), base) if not Path(text).is_absolute() else (Path("/"),)
-        matches = [sorted(Path(f) for f in glob.glob(
-            str(root / text) if not Path(text).is_absolute() else text, recursive=True)
-            if Path(f).is_file()) for root in roots]
-        found = [m for m in matches if m]
+        patterns = ([text] if Path(text).is_absolute()
+                    else [str(root / text) for root in (Path.cwd(), base)])
+        found = [m for m in (sorted(Path(f) for f in glob.glob(pat, recursive=True)
+                                    if Path(f).is_file()) for pat in patterns) if m]
         if len(found) == 2 and sorted(f.resolve() for f in found[0]) != sorted(
                 f.resolve() for f in found[1]):
             raise InputError(f"{cfg.where(*keys)}: {text!r} matches different files from the "

@@ -216,25 +216,26 @@ def gradients_line(summary: dict) -> str:
             f"{k.replace('_', ' ')} {g[k]['mean']:+.4f} +- {g[k]['sd']:.4f}"
             for k in ("shallow_east", "shallow_north", "deep_east", "deep_north"))
     grid = ((summary.get("sound_speed") or {}).get("smoothing") or {}).get("gradient_grid") or {}
-    line += {"stiff": "; the evidence is largest at the stiffest smoothing tried: the data ask "
-                      "for no change of the gradients beyond a linear trend",
-             "rough": "; the evidence is largest at the roughest smoothing tried",
-             "flat": "; their smoothing weight is not determined by the data (the evidence "
-                     "within 1 nat over 4 decades; the intervals average over it)"
-             }.get(grid.get("edge"), "")
-    return line
+    note = _edge_note(grid.get("edge"), "the gradients", "their")
+    return line + (f"; {note}" if note else "")
+
+
+def _edge_note(edge, what: str, whose: str, rough_hint: str = "") -> str:
+    """Say what a smoothing grid's ``edge`` (``summary.json``) means for ``what``, or ''."""
+    return {"stiff": "the evidence is largest at the stiffest smoothing tried: the data ask for "
+                     f"no change of {what} beyond a linear trend",
+            "rough": "the evidence is largest at the roughest smoothing tried" + rough_hint,
+            "flat": f"{whose} smoothing weight is not determined by the data: the evidence "
+                    "within 1 nat over 4 decades, and the intervals average over it"
+            }.get(edge, "")
 
 
 def _speed_grid_note(sound_speed: dict) -> str:
     """Say what the evidence over the speed's smoothing weight says at its grid's end, or ''."""
     grid = (sound_speed.get("smoothing") or {}).get("grid") or {}
-    return {"stiff": " (the evidence is largest at the stiffest smoothing tried: the data ask "
-                     "for no change of the speed beyond a linear trend)",
-            "rough": " (the evidence is largest at the roughest smoothing tried: the speed may "
-                     "change faster than these knots follow; try a shorter --knot-minutes)",
-            "flat": " (its smoothing weight is not determined by the data: the evidence within "
-                    "1 nat over 4 decades; the intervals average over it)"
-            }.get(grid.get("edge"), "")
+    note = _edge_note(grid.get("edge"), "the speed", "its", ": the speed may change faster "
+                      "than these knots follow; try a shorter --knot-minutes")
+    return f" ({note})" if note else ""
 
 
 def noise_line(summary: dict) -> str:

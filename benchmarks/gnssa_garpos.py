@@ -1,0 +1,255 @@
+"""`bayes-mpem locate` beside GARPOS on the same GNSS-A campaign files (issue 26).
+
+GARPOS (Watanabe et al. 2020, doi:10.3389/feart.2020.597532; ``s-watanabe-jhod/garpos``,
+GPL-3.0) is the field's reference implementation. It is not part of this project and is not
+installed with it: this script runs a copy the user has built (its ``solveSingleEpoch.py``
+and compiled ray tracer) as a separate program, on campaign files this project writes, and
+compares the two array centres with each other and with the truth.
+
+Run ``python benchmarks/gnssa_garpos.py GARPOS_BIN SOURCE SEEDS [--python PY]
+[--lambda0 "0 1 2"] [--grad "-4 -3 -2"]``:
+
+* ``GARPOS_BIN``: the folder holding GARPOS's ``solveSingleEpoch.py`` and its
+  ``garpos_v120/f90lib/lib_raytrace.so``;
+* ``SOURCE``: ``sim`` (``bayes-mpem simulate --gnssa --format garpos --hours 6 --seed S``) or
+  ``indA`` / ``indB`` followed by ``-VARIANT`` parts (``indB``, ``indB-clean``,
+  ``indB-clean-nograd``: the independently written generator of
+  ``benchmarks/gnssa_independent.py``, its scenario and variants);
+* ``SEEDS``: how many campaigns (seeds 0 to SEEDS - 1);
+* ``--python``: the interpreter GARPOS runs under (numpy, scipy, pandas), this one by default;
+* ``--lambda0`` / ``--grad``: GARPOS's grids of ``Log_Lambda0`` and ``Log_gradLambda`` (its
+  ABIC chooses among them); its other settings are those of its sample ``Settings-prep.ini``
+  (knots every 5 min, ``mu_t`` 0, ``mu_mt`` 0.5, 5-sigma rejection, 50 iterations).
+
+``bayes-mpem locate SITE --out DIR`` runs with its defaults, and once more through
+``locate_array_survey(raw, earth="flat")``: flat layers in the local frame, GARPOS's geometry.
+Writes the section ``gnssa-garpos-SOURCE`` of ``docs/gnssa.md``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import io
+import json
+import os
+import re
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import replace
+from pathlib import Path
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")  # one thread: the machine is shared
+
+import numpy as np  # noqa: E402
+
+HERE = Path(__file__).resolve().parent
+DOC = HERE.parent / "docs" / "gnssa.md"
+AXES = ("east", "north", "up")
+Z95 = 1.959963984540054
+
+SETTINGS = """[HyperParameters]
+ConstraintType0 = 2
+ConstraintTypeGrad = 2
+Log_Lambda0 = {lambda0}
+Log_gradLambda = {grad}
+mu_t = 0.0
+mu_mt = 0.5
+
+[Inv-parameter]
+lib_directory = {lib}/
+lib_raytrace = lib_raytrace.so
+knotint0 = 5
+knotint1 = 5
+knotint2 = 5
+RejectCriteria = 5.0
+traveltimescale = 1.e-4
+maxloop = 50
+ConvCriteria = 5.e-3
+deltap = 1.0e-6
+deltab = 1.0e-6
+"""
+
+
+def write_source(source: str, seed: int, folder: Path) -> tuple[Path, np.ndarray]:
+    """Write one campaign of ``source``; return its site file and the true array centre."""
+    if source == "sim":
+        from bayes_mpem.cli import main
+
+        with contextlib.redirect_stdout(io.StringIO()):
+            status = main(["simulate", "--gnssa", "--format", "garpos", "--hours", "6",
+                           "--seed", str(seed), "--out", str(folder)])
+        if status != 0:
+            raise RuntimeError(f"bayes-mpem simulate --seed {seed}: exit status {status}")
+        truth = json.loads((folder / "truth.json").read_text())["array_centre"]
+        return next(folder.glob("*-initcfg.ini")), np.array([truth[a] for a in AXES])
+    sys.path.insert(0, str(HERE))
+    import gnssa_independent as ind
+
+    scenario, *variants = source.removeprefix("ind").split("-")
+    kw = {}
+    for v in variants:
+        kw.update(ind.VARIANTS[v])
+    camp = ind.campaign(seed, replace(ind.Config(scenario=scenario), **kw))
+    return ind.write_campaign(camp, folder), camp["truth"].mean(0)
+
+
+def garpos(bin_dir: Path, python: str, settings: Path, site: Path, out: Path) -> dict:
+    """Run GARPOS's ``solveSingleEpoch.py`` on ``site`` from its folder; read its solution."""
+    t0 = time.perf_counter()
+    run = subprocess.run([python, str(bin_dir / "solveSingleEpoch.py"), "-i", str(settings),
+                          "-f", site.name, "-d", str(out), "--maxcore", "1"],
+                         cwd=site.parent, capture_output=True, text=True)
+    seconds = time.perf_counter() - t0
+    res = sorted(out.glob("*-res.dat"))
+    if run.returncode != 0 or not res:
+        raise RuntimeError(f"GARPOS on {site}: exit status {run.returncode}\n"
+                           f"{run.stdout[-2000:]}{run.stderr[-2000:]}")
+    loops = [int(m) for m in re.findall(r"Inversion loop (\d+)", run.stdout)]
+    sol = read_result(res[0])
+    sol["seconds"], sol["last_loop"] = seconds, max(loops) if loops else 0
+    m = re.search(r"_L([-+]\d+\.\d)_g([-+]\d+\.\d)-res\.dat$", res[0].name)
+    sol["chosen"] = (float(m.group(1)), float(m.group(2))) if m else None
+    return sol
+
+
+def read_result(res: Path) -> dict:
+    """The array centre of a GARPOS ``-res.dat`` and its covariance from ``-var.dat``."""
+    text = res.read_text()
+
+    def numbers(key):
+        return [float(x) for x in re.search(rf"\n\s*{re.escape(key)}\s*=\s*(.*)", text)
+                .group(1).split()]
+
+    stations = re.search(r"\n\s*Stations\s*=\s*(.*)", text).group(1).split()
+    pos = np.array([numbers(f"{s}_dPos")[:3] for s in stations])
+    cent = np.array(numbers("dCentPos")[:6])
+    if np.any(cent[3:] != 0):
+        raise RuntimeError(f"{res}: dCentPos was solved; this comparison fixes it (sigma 0)")
+    cov = np.loadtxt(res.with_name(res.name.replace("-res.dat", "-var.dat")), delimiter=",")
+    n = len(stations)
+    avg = np.kron(np.ones((1, n)) / n, np.eye(3))
+    return {"centre": pos.mean(0) + cent[:3],
+            "sd": np.sqrt(np.diag(avg @ cov[:3 * n, :3 * n] @ avg.T))}
+
+
+def ours(site: Path, out: Path) -> dict:
+    """``bayes-mpem locate SITE --out OUT`` (defaults), and again with flat layers."""
+    sys.path.insert(0, str(HERE))
+    from gnssa_independent import locate
+
+    from bayes_mpem.io.garpos import read_garpos
+    from bayes_mpem.survey_in.array_survey import locate_array_survey
+
+    def centre(summary):
+        enu = summary["array_centre"]["enu"]
+        return np.array([enu[a]["mean"] for a in AXES]), np.array([enu[a]["sd"] for a in AXES])
+
+    summary, seconds = locate(site, out)
+    c, sd = centre(summary)
+    flat, _ = centre(locate_array_survey(read_garpos(site), earth="flat").to_dict())
+    return {"centre": c, "sd": sd, "flat": flat, "seconds": seconds}
+
+
+def table(rows: list[dict], grid: tuple[list[float], list[float]]) -> list[tuple[str, str]]:
+    """The comparison's measures over the campaigns, as (measure, value) pairs."""
+    g = np.array([r["garpos"]["centre"] - r["truth"] for r in rows]) * 100
+    o = np.array([r["ours"]["centre"] - r["truth"] for r in rows]) * 100
+    f = np.array([r["ours"]["flat"] - r["truth"] for r in rows]) * 100
+    sg = np.array([r["garpos"]["sd"] for r in rows]) * 100
+    so = np.array([r["ours"]["sd"] for r in rows]) * 100
+
+    def hv(e, how=np.median):
+        return f"{how(np.hypot(e[:, 0], e[:, 1])):.2f} / {how(np.abs(e[:, 2])):.2f}"
+
+    def three(v, fmt="{:.2f}"):
+        return " / ".join(fmt.format(x) for x in v)
+
+    chosen = [r["garpos"]["chosen"] for r in rows]
+    edge = sum(c is not None and (c[0] in (min(grid[0]), max(grid[0])) and len(grid[0]) > 1
+                                  or c[1] in (min(grid[1]), max(grid[1])) and len(grid[1]) > 1)
+               for c in chosen)
+    names = sorted({f"{c[0]:g}, {c[1]:g}" for c in chosen if c is not None})
+    return [
+        ("centre error, median horizontal / vertical (cm): GARPOS", hv(g)),
+        ("the same: `locate` (defaults)", hv(o)),
+        ("the same: `locate` with flat layers (`earth=\"flat\"`)", hv(f)),
+        ("GARPOS minus `locate`, median (largest) horizontal / vertical (cm)",
+         f"{hv(g - o)} ({hv(g - o, np.max)})"),
+        ("GARPOS minus `locate` with flat layers, median horizontal / vertical (cm)",
+         hv(g - f)),
+        ("mean up, GARPOS / `locate` / flat layers (cm)",
+         three([g[:, 2].mean(), o[:, 2].mean(), f[:, 2].mean()], "{:+.2f}")),
+        ("centre sd, median east / north / up (cm): GARPOS", three(np.median(sg, 0))),
+        ("the same: `locate`", three(np.median(so, 0))),
+        ("rms standardised error east / north / up: GARPOS",
+         three(np.sqrt(np.mean((g / sg) ** 2, 0)))),
+        ("the same: `locate`", three(np.sqrt(np.mean((o / so) ** 2, 0)))),
+        ("centre's 95 % intervals covering (%): GARPOS / `locate`",
+         f"{100 * np.mean(np.abs(g / sg) <= Z95):.0f} / "
+         f"{100 * np.mean(np.abs(o / so) <= Z95):.0f}"),
+        ("GARPOS's choice of log10 Lambda0, log10 gradLambda",
+         f"{'; '.join(names)} ({edge} of {len(rows)} at an edge of the grid)"),
+        ("GARPOS's final model at its 50-iteration limit",
+         f"{sum(r['garpos']['last_loop'] >= 50 for r in rows)} of {len(rows)}"),
+        ("seconds per campaign, median: GARPOS (all models of its grid) / `locate`",
+         f"{np.median([r['garpos']['seconds'] for r in rows]):.0f} / "
+         f"{np.median([r['ours']['seconds'] for r in rows]):.1f}"),
+    ]
+
+
+def main(argv=None) -> int:
+    """Run the comparison and write its section of ``docs/gnssa.md``."""
+    sys.path.insert(0, str(HERE))
+    from _report import commit, machine, write_section
+
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("garpos_bin", type=Path)
+    p.add_argument("source")
+    p.add_argument("seeds", type=int)
+    p.add_argument("--python", default=sys.executable)
+    p.add_argument("--lambda0", default="0 1 2")
+    p.add_argument("--grad", default="-4 -3 -2")
+    args = p.parse_args(sys.argv[1:] if argv is None else argv)
+    bin_dir = args.garpos_bin.resolve()
+    lib = bin_dir / "garpos_v120" / "f90lib"
+    if not (bin_dir / "solveSingleEpoch.py").is_file() or not (lib / "lib_raytrace.so").is_file():
+        p.error(f"{bin_dir}: expected GARPOS's solveSingleEpoch.py and "
+                "garpos_v120/f90lib/lib_raytrace.so there")
+    grid = ([float(x) for x in args.lambda0.split()], [float(x) for x in args.grad.split()])
+    t_all = time.perf_counter()
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        settings = tmp / "settings.ini"
+        settings.write_text(SETTINGS.format(lambda0=args.lambda0, grad=args.grad, lib=lib))
+        for seed in range(args.seeds):
+            site, truth = write_source(args.source, seed, tmp / f"c{seed}")
+            row = {"truth": truth,
+                   "garpos": garpos(bin_dir, args.python, settings, site, tmp / f"g{seed}"),
+                   "ours": ours(site, tmp / f"o{seed}")}
+            if row["garpos"]["chosen"] is None and len(grid[0]) == len(grid[1]) == 1:
+                row["garpos"]["chosen"] = (grid[0][0], grid[1][0])  # one model: no suffix
+            rows.append(row)
+            cm = {k: np.round((row[k]["centre"] - truth) * 100, 2) for k in ("garpos", "ours")}
+            print(seed, "GARPOS", cm["garpos"], row["garpos"]["chosen"], "ours", cm["ours"],
+                  "flat", np.round((row["ours"]["flat"] - truth) * 100, 2), flush=True)
+    cmd = (f"python benchmarks/gnssa_garpos.py GARPOS_BIN {args.source} {args.seeds} "
+           f"--lambda0 \"{args.lambda0}\" --grad \"{args.grad}\"")
+    lines = [f"Written by `{cmd}` ({machine()}; {time.perf_counter() - t_all:.0f} s; "
+             f"git {commit()}).", "",
+             f"{args.seeds} campaigns (seeds 0-{args.seeds - 1}) of `{args.source}`; the centre "
+             "minus the truth; GARPOS v1.2.0 as built by the user, ABIC over its grid.", "",
+             "| measure | value |", "|---|---|"]
+    lines += [f"| {m} | {v} |" for m, v in table(rows, grid)]
+    text = "\n".join(lines)
+    print(text)
+    write_section(DOC, f"gnssa-garpos-{args.source}", text)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

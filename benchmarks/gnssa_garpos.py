@@ -7,7 +7,7 @@ and compiled ray tracer) as a separate program, on campaign files this project w
 compares the two array centres with each other and with the truth.
 
 Run ``python benchmarks/gnssa_garpos.py GARPOS_BIN SOURCE SEEDS [--python PY]
-[--lambda0 "0 1 2"] [--grad "-4 -3 -2"]``:
+[--lambda0 "0 1 2"] [--grad "-4 -3 -2"] [--jobs J]``:
 
 * ``GARPOS_BIN``: the folder holding GARPOS's ``solveSingleEpoch.py`` and its
   ``garpos_v120/f90lib/lib_raytrace.so``;
@@ -19,7 +19,9 @@ Run ``python benchmarks/gnssa_garpos.py GARPOS_BIN SOURCE SEEDS [--python PY]
 * ``--python``: the interpreter GARPOS runs under (numpy, scipy, pandas), this one by default;
 * ``--lambda0`` / ``--grad``: GARPOS's grids of ``Log_Lambda0`` and ``Log_gradLambda`` (its
   ABIC chooses among them); its other settings are those of its sample ``Settings-prep.ini``
-  (knots every 5 min, ``mu_t`` 0, ``mu_mt`` 0.5, 5-sigma rejection, 50 iterations).
+  (knots every 5 min, ``mu_t`` 0, ``mu_mt`` 0.5, 5-sigma rejection, 50 iterations);
+* ``--jobs``: how many GARPOS runs at once (``locate`` runs beside them, so its seconds are
+  then not a speed measure).
 
 ``bayes-mpem locate SITE --out DIR`` runs with its defaults, and once more through
 ``locate_array_survey(raw, earth="flat")``: flat layers in the local frame, GARPOS's geometry.
@@ -38,6 +40,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
 from pathlib import Path
 
@@ -213,6 +216,7 @@ def main(argv=None) -> int:
     p.add_argument("--python", default=sys.executable)
     p.add_argument("--lambda0", default="0 1 2")
     p.add_argument("--grad", default="-4 -3 -2")
+    p.add_argument("--jobs", type=int, default=1, help="GARPOS runs at once")
     args = p.parse_args(sys.argv[1:] if argv is None else argv)
     bin_dir = args.garpos_bin.resolve()
     lib = bin_dir / "garpos_v120" / "f90lib"
@@ -226,19 +230,21 @@ def main(argv=None) -> int:
         tmp = Path(tmp)
         settings = tmp / "settings.ini"
         settings.write_text(SETTINGS.format(lambda0=args.lambda0, grad=args.grad, lib=lib))
-        for seed in range(args.seeds):
-            site, truth = write_source(args.source, seed, tmp / f"c{seed}")
-            row = {"truth": truth,
-                   "garpos": garpos(bin_dir, args.python, settings, site, tmp / f"g{seed}"),
-                   "ours": ours(site, tmp / f"o{seed}")}
-            if row["garpos"]["chosen"] is None and len(grid[0]) == len(grid[1]) == 1:
-                row["garpos"]["chosen"] = (grid[0][0], grid[1][0])  # one model: no suffix
-            rows.append(row)
-            cm = {k: np.round((row[k]["centre"] - truth) * 100, 2) for k in ("garpos", "ours")}
-            print(seed, "GARPOS", cm["garpos"], row["garpos"]["chosen"], "ours", cm["ours"],
-                  "flat", np.round((row["ours"]["flat"] - truth) * 100, 2), flush=True)
+        camps = [write_source(args.source, seed, tmp / f"c{seed}") for seed in range(args.seeds)]
+        with ThreadPoolExecutor(args.jobs) as pool:  # each GARPOS is its own process
+            runs = [pool.submit(garpos, bin_dir, args.python, settings, site, tmp / f"g{seed}")
+                    for seed, (site, _) in enumerate(camps)]
+            for seed, ((site, truth), run) in enumerate(zip(camps, runs, strict=True)):
+                row = {"truth": truth, "ours": ours(site, tmp / f"o{seed}"),
+                       "garpos": run.result()}
+                if row["garpos"]["chosen"] is None and len(grid[0]) == len(grid[1]) == 1:
+                    row["garpos"]["chosen"] = (grid[0][0], grid[1][0])  # one model: no suffix
+                rows.append(row)
+                cm = {k: np.round((row[k]["centre"] - truth) * 100, 2) for k in ("garpos", "ours")}
+                print(seed, "GARPOS", cm["garpos"], row["garpos"]["chosen"], "ours", cm["ours"],
+                      "flat", np.round((row["ours"]["flat"] - truth) * 100, 2), flush=True)
     cmd = (f"python benchmarks/gnssa_garpos.py GARPOS_BIN {args.source} {args.seeds} "
-           f"--lambda0 \"{args.lambda0}\" --grad \"{args.grad}\"")
+           f"--lambda0 \"{args.lambda0}\" --grad \"{args.grad}\" --jobs {args.jobs}")
     lines = [f"Written by `{cmd}` ({machine()}; {time.perf_counter() - t_all:.0f} s; "
              f"git {commit()}).", "",
              f"{args.seeds} campaigns (seeds 0-{args.seeds - 1}) of `{args.source}`; the centre "

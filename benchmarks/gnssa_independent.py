@@ -392,6 +392,7 @@ def write_campaign(camp: dict, out) -> Path:
     site, obs, svp = (out / f"{stem}-{k}" for k in ("initcfg.ini", "obs.csv", "svp.csv"))
     lines = ["[Obs-parameter]", f" Site_name   = IND{cfg.scenario}",
              f" Campaign    = {camp['seed']:04d}", " Date(UTC)   = 2026-11-27",
+             " Date(jday)  = 2026-331", " Ref.Frame   = ITRF2014",
              f" SoundSpeed  = {svp.name}", "", "[Data-file]", f" datacsv     = {obs.name}",
              f" N_shot      = {len(camp['tt'])}", "", "[Site-parameter]",
              f" Latitude0   = {cfg.lat:.8f}", f" Longitude0  = {cfg.lon:.8f}",

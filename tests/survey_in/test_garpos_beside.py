@@ -1,0 +1,50 @@
+"""The reading of GARPOS's results in ``benchmarks/gnssa_garpos.py`` (GARPOS itself is not run)."""
+
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+PATH = Path(__file__).resolve().parents[2] / "benchmarks" / "gnssa_garpos.py"
+
+
+@pytest.fixture(scope="module")
+def bench():
+    spec = importlib.util.spec_from_file_location("gnssa_garpos", PATH)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def _result(folder, cent_sigma=0.0):
+    """A result in GARPOS's layout: the site file's keys with solved values, and -var.dat."""
+    pos = np.array([[-500.0, 400.0, -1500.0], [600.0, 300.0, -1510.0], [50.0, -700.0, -1490.0]])
+    lines = ["[Obs-parameter]", " Site_name   = SIM", "[Site-parameter]",
+             " Stations    = M01 M02 M03", "[Model-parameter]"]
+    lines += [f" M0{i + 1}_dPos    = {p[0]:.4f} {p[1]:.4f} {p[2]:.4f} 0.01 0.01 0.01 0 0 0"
+              for i, p in enumerate(pos)]
+    lines.append(f" dCentPos    = 0.1000 -0.2000 0.0500 {cent_sigma} {cent_sigma} {cent_sigma}"
+                 " 0 0 0")
+    res = Path(folder) / "SIM.0000_L+00.0_g-03.0-res.dat"
+    res.write_text("\n".join(lines) + "\n")
+    gen = np.random.default_rng(0)
+    a = gen.normal(size=(12, 12))  # 9 positions and 3 more parameters, correlated
+    cov = 1e-4 * (a @ a.T)
+    np.savetxt(str(res).replace("-res.dat", "-var.dat"), cov, delimiter=",")
+    return res, pos, cov
+
+
+def test_the_centre_is_the_mean_of_the_stations_with_their_covariance(bench, tmp_path):
+    res, pos, cov = _result(tmp_path)
+    out = bench.read_result(res)
+    np.testing.assert_allclose(out["centre"], pos.mean(0) + [0.1, -0.2, 0.05])
+    # the centre's variance: the 3 x 3 blocks of the 9 positions averaged, cross terms included
+    want = [cov[np.ix_(range(c, 9, 3), range(c, 9, 3))].sum() / 9 for c in range(3)]
+    np.testing.assert_allclose(out["sd"], np.sqrt(want))
+
+
+def test_a_solved_array_shift_is_refused(bench, tmp_path):
+    res, _, _ = _result(tmp_path, cent_sigma=1.0)
+    with pytest.raises(RuntimeError, match="dCentPos was solved"):
+        bench.read_result(res)

@@ -7,25 +7,34 @@ and compiled ray tracer) as a separate program, on campaign files this project w
 compares the two array centres with each other and with the truth.
 
 Run ``python benchmarks/gnssa_garpos.py GARPOS_BIN SOURCE SEEDS [--python PY]
-[--lambda0 "0 1 2"] [--grad "-4 -3 -2"] [--jobs J]``:
+[--lambda0 "0 1 2"] [--grad "-4 -3 -2"] [--mu-t "0"] [--locate OPTIONS] [--no-gradients]
+[--jobs J]``:
 
 * ``GARPOS_BIN``: the folder holding GARPOS's ``solveSingleEpoch.py`` and its
   ``garpos_v120/f90lib/lib_raytrace.so``;
-* ``SOURCE``: ``sim`` (``bayes-mpem simulate --gnssa --format garpos --hours 6 --seed S``) or
+* ``SOURCE``: ``sim`` (``bayes-mpem simulate --gnssa --format garpos --hours 6 --seed S``),
   ``indA`` / ``indB`` followed by ``-VARIANT`` parts (``indB``, ``indB-clean``,
   ``indB-clean-nograd``: the independently written generator of
-  ``benchmarks/gnssa_independent.py``, its scenario and variants);
+  ``benchmarks/gnssa_independent.py``, its scenario and variants), or ``seagap`` (the shipped
+  measured SeaGap survey rewritten as a GARPOS campaign, ``seagap_as_garpos``; SEEDS 1);
 * ``SEEDS``: how many campaigns (seeds 0 to SEEDS - 1);
 * ``--python``: the interpreter GARPOS runs under (numpy, scipy, pandas), this one by default;
 * ``--lambda0`` / ``--grad``: GARPOS's grids of ``Log_Lambda0`` and ``Log_gradLambda`` (its
   ABIC chooses among them); its other settings are those of its sample ``Settings-prep.ini``
   (knots every 5 min, ``mu_t`` 0, ``mu_mt`` 0.5, 5-sigma rejection, 50 iterations);
+* ``--mu-t``: GARPOS's grid of ``mu_t`` (minutes; with any above 0 its rejection is off,
+  ``RejectCriteria`` 0, as GARPOS uses the correlation only then);
+* ``--locate``: options for ``locate`` (``--gradients`` and ``--correlation`` only, e.g.
+  ``"--correlation off"``);
+* ``--no-gradients``: neither fits the gradient terms (GARPOS's ``knotint1`` and ``knotint2``
+  0, ``locate --gradients off``);
 * ``--jobs``: how many GARPOS runs at once (``locate`` runs beside them, so its seconds are
   then not a speed measure).
 
 ``bayes-mpem locate SITE --out DIR`` runs with its defaults, and once more through
 ``locate_array_survey(raw, earth="flat")``: flat layers in the local frame, GARPOS's geometry.
-Writes the section ``gnssa-garpos-SOURCE`` of ``docs/gnssa.md``.
+Writes the section ``gnssa-garpos-SOURCE[-no-gradients][-mu-t][-LOCATE OPTIONS]`` of
+``docs/gnssa.md``.
 """
 
 from __future__ import annotations
@@ -59,16 +68,16 @@ ConstraintType0 = 2
 ConstraintTypeGrad = 2
 Log_Lambda0 = {lambda0}
 Log_gradLambda = {grad}
-mu_t = 0.0
+mu_t = {mu_t}
 mu_mt = 0.5
 
 [Inv-parameter]
 lib_directory = {lib}/
 lib_raytrace = lib_raytrace.so
 knotint0 = 5
-knotint1 = 5
-knotint2 = 5
-RejectCriteria = 5.0
+knotint1 = {knots_grad}
+knotint2 = {knots_grad}
+RejectCriteria = {reject}
 traveltimescale = 1.e-4
 maxloop = 50
 ConvCriteria = 5.e-3
@@ -89,6 +98,8 @@ def write_source(source: str, seed: int, folder: Path) -> tuple[Path, np.ndarray
             raise RuntimeError(f"bayes-mpem simulate --seed {seed}: exit status {status}")
         truth = json.loads((folder / "truth.json").read_text())["array_centre"]
         return next(folder.glob("*-initcfg.ini")), np.array([truth[a] for a in AXES])
+    if source == "seagap":
+        return seagap_as_garpos(folder), None
     sys.path.insert(0, str(HERE))
     import gnssa_independent as ind
 
@@ -98,6 +109,51 @@ def write_source(source: str, seed: int, folder: Path) -> tuple[Path, np.ndarray
         kw.update(ind.VARIANTS[v])
     camp = ind.campaign(seed, replace(ind.Config(scenario=scenario), **kw))
     return ind.write_campaign(camp, folder), camp["truth"].mean(0)
+
+
+def seagap_as_garpos(folder: Path) -> Path:
+    """Write the shipped SeaGap survey (site G20) as a GARPOS campaign; return its site file.
+
+    The shots are the transducer's positions that ``locate`` computes from SeaGap's antenna,
+    attitude and lever arm, with no attitude and no lever arm left; SeaGap's frame, along the
+    sphere, is turned into GARPOS's Cartesian one (``array.from_sphere``) about the profile's
+    sea surface as ``locate`` takes it (3 m above the transducer's mean height), so that the
+    frame's ``up = 0`` is the surface of ``svp.csv``. Times start at the first whole second.
+    """
+    import pandas as pd
+
+    from bayes_mpem.io.formats import sample_file
+    from bayes_mpem.io.garpos import write_garpos
+    from bayes_mpem.io.geodesy import MEAN_EARTH_RADIUS_M
+    from bayes_mpem.io.seagap import read_seagap
+    from bayes_mpem.survey_in.array import from_sphere
+    from bayes_mpem.survey_in.survey import SEAGAP_TRANSDUCER_DEPTH
+
+    raw = read_seagap(sample_file("seagap/obsdata.inp"))
+    site = next(line.split() for line in sample_file("seagap/site_info.txt").read_text()
+                .splitlines() if line.startswith("G20"))
+    pos, p = raw.transducer_positions(), raw.pings
+    surface = 0.5 * (np.mean(pos["tx"][2]) + np.mean(pos["rx"][2])) + SEAGAP_TRANSDUCER_DEPTH
+    t0 = np.floor(p["t_tx"].min())
+    names = {k: f"M{int(k):02d}" for k in raw.header["transponders"].index}
+    shots = pd.DataFrame({"transponder": p["transponder"].map(names), "twtt": p["twtt"],
+                          "t_tx": p["t_tx"] - t0, "t_rx": p["t_rx"] - t0})
+    for end in ("tx", "rx"):
+        e, n, u = from_sphere(pos[end][0], pos[end][1], pos[end][2] - surface,
+                              MEAN_EARTH_RADIUS_M)
+        shots[f"e_{end}"], shots[f"n_{end}"], shots[f"u_{end}"] = e, n, u
+        for a in ("head", "pitch", "roll"):
+            shots[f"{a}_{end}"] = 0.0
+    tp = raw.header["transponders"]
+    e, n, u = from_sphere(tp["east"], tp["north"], tp["up"] - surface, MEAN_EARTH_RADIUS_M)
+    prof = raw.header["ss_prof"]
+    header = {"lat": float(site[2]), "lon": float(site[1]), "height": 0.0,
+              "transponders": pd.DataFrame({"east": e, "north": n, "up": u},
+                                           index=[names[k] for k in tp.index]),
+              "atd_offset": [0.0, 0.0, 0.0],
+              "ss_prof": {"depth": prof["depth"].to_numpy(),
+                          "sound_speed": prof["sound_speed"].to_numpy()}}
+    return write_garpos(folder, shots, header, site="G20", campaign="0000")
 
 
 def garpos(bin_dir: Path, python: str, settings: Path, site: Path, out: Path) -> dict:
@@ -139,8 +195,8 @@ def read_result(res: Path) -> dict:
             "sd": np.sqrt(np.diag(avg @ cov[:3 * n, :3 * n] @ avg.T))}
 
 
-def ours(site: Path, out: Path) -> dict:
-    """``bayes-mpem locate SITE --out OUT`` (defaults), and again with flat layers."""
+def ours(site: Path, out: Path, options=()) -> dict:
+    """``bayes-mpem locate SITE --out OUT [OPTIONS]``, and again with flat layers."""
     sys.path.insert(0, str(HERE))
     from gnssa_independent import locate
 
@@ -151,17 +207,34 @@ def ours(site: Path, out: Path) -> dict:
         enu = summary["array_centre"]["enu"]
         return np.array([enu[a]["mean"] for a in AXES]), np.array([enu[a]["sd"] for a in AXES])
 
-    summary, seconds = locate(site, out)
+    summary, seconds = locate(site, out, options)
     c, sd = centre(summary)
-    flat, _ = centre(locate_array_survey(read_garpos(site), earth="flat").to_dict())
+    flat, _ = centre(locate_array_survey(read_garpos(site), earth="flat",
+                                         **_keywords(options)).to_dict())
     return {"centre": c, "sd": sd, "flat": flat, "seconds": seconds}
 
 
+def _keywords(options) -> dict:
+    """``locate_array_survey``'s keywords for ``--gradients`` and ``--correlation`` options."""
+    it = iter(options)
+    kw = {o.removeprefix("--"): v for o, v in zip(it, it, strict=True)}
+    if set(kw) - {"gradients", "correlation"}:
+        raise SystemExit(f"--locate: only --gradients and --correlation, got {options}")
+    if kw.get("correlation", "auto") not in ("auto", "off"):
+        raise SystemExit("--locate: --correlation auto or off")
+    return kw
+
+
 def table(rows: list[dict], grid: tuple[list[float], list[float]]) -> list[tuple[str, str]]:
-    """The comparison's measures over the campaigns, as (measure, value) pairs."""
-    g = np.array([r["garpos"]["centre"] - r["truth"] for r in rows]) * 100
-    o = np.array([r["ours"]["centre"] - r["truth"] for r in rows]) * 100
-    f = np.array([r["ours"]["flat"] - r["truth"] for r in rows]) * 100
+    """The comparison's measures over the campaigns, as (measure, value) pairs.
+
+    Without a truth (a measured survey) only the two solutions' differences and sds.
+    """
+    truth = all(r["truth"] is not None for r in rows)
+    ref = [r["truth"] if truth else np.zeros(3) for r in rows]
+    g = np.array([r["garpos"]["centre"] - t for r, t in zip(rows, ref, strict=True)]) * 100
+    o = np.array([r["ours"]["centre"] - t for r, t in zip(rows, ref, strict=True)]) * 100
+    f = np.array([r["ours"]["flat"] - t for r, t in zip(rows, ref, strict=True)]) * 100
     sg = np.array([r["garpos"]["sd"] for r in rows]) * 100
     so = np.array([r["ours"]["sd"] for r in rows]) * 100
 
@@ -176,24 +249,29 @@ def table(rows: list[dict], grid: tuple[list[float], list[float]]) -> list[tuple
                                   or c[1] in (min(grid[1]), max(grid[1])) and len(grid[1]) > 1)
                for c in chosen)
     names = sorted({f"{c[0]:g}, {c[1]:g}" for c in chosen if c is not None})
-    return [
+    errors = [
         ("centre error, median horizontal / vertical (cm): GARPOS", hv(g)),
         ("the same: `locate` (defaults)", hv(o)),
         ("the same: `locate` with flat layers (`earth=\"flat\"`)", hv(f)),
-        ("GARPOS minus `locate`, median (largest) horizontal / vertical (cm)",
-         f"{hv(g - o)} ({hv(g - o, np.max)})"),
-        ("GARPOS minus `locate` with flat layers, median horizontal / vertical (cm)",
-         hv(g - f)),
-        ("mean up, GARPOS / `locate` / flat layers (cm)",
-         three([g[:, 2].mean(), o[:, 2].mean(), f[:, 2].mean()], "{:+.2f}")),
-        ("centre sd, median east / north / up (cm): GARPOS", three(np.median(sg, 0))),
-        ("the same: `locate`", three(np.median(so, 0))),
+    ]
+    scores = [
         ("rms standardised error east / north / up: GARPOS",
          three(np.sqrt(np.mean((g / sg) ** 2, 0)))),
         ("the same: `locate`", three(np.sqrt(np.mean((o / so) ** 2, 0)))),
         ("centre's 95 % intervals covering (%): GARPOS / `locate`",
          f"{100 * np.mean(np.abs(g / sg) <= Z95):.0f} / "
          f"{100 * np.mean(np.abs(o / so) <= Z95):.0f}"),
+    ]
+    return [
+        *(errors if truth else []),
+        ("GARPOS minus `locate`, median (largest) horizontal / vertical (cm)",
+         f"{hv(g - o)} ({hv(g - o, np.max)})"),
+        ("GARPOS minus `locate` with flat layers, median horizontal / vertical (cm)",
+         hv(g - f)),
+        ("GARPOS minus `locate`, mean east / north / up (cm)", three((g - o).mean(0), "{:+.2f}")),
+        ("centre sd, median east / north / up (cm): GARPOS", three(np.median(sg, 0))),
+        ("the same: `locate`", three(np.median(so, 0))),
+        *(scores if truth else []),
         ("GARPOS's choice of log10 Lambda0, log10 gradLambda",
          f"{'; '.join(names)} ({edge} of {len(rows)} at an edge of the grid)"),
         ("GARPOS's final model at its 50-iteration limit",
@@ -217,6 +295,10 @@ def main(argv=None) -> int:
     p.add_argument("--lambda0", default="0 1 2")
     p.add_argument("--grad", default="-4 -3 -2")
     p.add_argument("--jobs", type=int, default=1, help="GARPOS runs at once")
+    p.add_argument("--mu-t", default="0", help="GARPOS's mu_t grid (minutes)")
+    p.add_argument("--locate", default="", help="options for locate, in one string")
+    p.add_argument("--no-gradients", action="store_true",
+                   help="neither fits the gradients (GARPOS's knotint1 and knotint2 0)")
     args = p.parse_args(sys.argv[1:] if argv is None else argv)
     bin_dir = args.garpos_bin.resolve()
     lib = bin_dir / "garpos_v120" / "f90lib"
@@ -229,31 +311,44 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         settings = tmp / "settings.ini"
-        settings.write_text(SETTINGS.format(lambda0=args.lambda0, grad=args.grad, lib=lib))
+        correlated = any(float(m) > 0 for m in args.mu_t.split())
+        settings.write_text(SETTINGS.format(lambda0=args.lambda0, grad=args.grad, lib=lib,
+                                            knots_grad=0 if args.no_gradients else 5,
+                                            mu_t=args.mu_t, reject=0 if correlated else 5.0))
+        options = (["--gradients", "off"] if args.no_gradients else []) + args.locate.split()
         camps = [write_source(args.source, seed, tmp / f"c{seed}") for seed in range(args.seeds)]
         with ThreadPoolExecutor(args.jobs) as pool:  # each GARPOS is its own process
             runs = [pool.submit(garpos, bin_dir, args.python, settings, site, tmp / f"g{seed}")
                     for seed, (site, _) in enumerate(camps)]
             for seed, ((site, truth), run) in enumerate(zip(camps, runs, strict=True)):
-                row = {"truth": truth, "ours": ours(site, tmp / f"o{seed}"),
+                row = {"truth": truth, "ours": ours(site, tmp / f"o{seed}", options),
                        "garpos": run.result()}
                 if row["garpos"]["chosen"] is None and len(grid[0]) == len(grid[1]) == 1:
                     row["garpos"]["chosen"] = (grid[0][0], grid[1][0])  # one model: no suffix
                 rows.append(row)
-                cm = {k: np.round((row[k]["centre"] - truth) * 100, 2) for k in ("garpos", "ours")}
+                ref = np.zeros(3) if truth is None else truth  # a measured survey: as solved
+                cm = {k: np.round((row[k]["centre"] - ref) * 100, 2) for k in ("garpos", "ours")}
                 print(seed, "GARPOS", cm["garpos"], row["garpos"]["chosen"], "ours", cm["ours"],
-                      "flat", np.round((row["ours"]["flat"] - truth) * 100, 2), flush=True)
+                      "flat", np.round((row["ours"]["flat"] - ref) * 100, 2), flush=True)
     cmd = (f"python benchmarks/gnssa_garpos.py GARPOS_BIN {args.source} {args.seeds} "
-           f"--lambda0 \"{args.lambda0}\" --grad \"{args.grad}\" --jobs {args.jobs}")
+           f"--lambda0 \"{args.lambda0}\" --grad \"{args.grad}\" --jobs {args.jobs}"
+           + (" --no-gradients" if args.no_gradients else "")
+           + (f" --mu-t \"{args.mu_t}\"" if args.mu_t != "0" else "")
+           + (f" --locate \"{args.locate}\"" if args.locate else ""))
     lines = [f"Written by `{cmd}` ({machine()}; {time.perf_counter() - t_all:.0f} s; "
              f"git {commit()}).", "",
-             f"{args.seeds} campaigns (seeds 0-{args.seeds - 1}) of `{args.source}`; the centre "
-             "minus the truth; GARPOS v1.2.0 as built by the user, ABIC over its grid.", "",
+             (f"{args.seeds} campaigns (seeds 0-{args.seeds - 1}) of `{args.source}`; the "
+              "centre minus the truth" if args.source != "seagap" else
+              "The shipped SeaGap survey (site G20, measured; no truth) as a GARPOS campaign")
+             + "; GARPOS v1.2.0 as built by the user, ABIC over its grid"
+             + ("; neither fits the gradients." if args.no_gradients else "."), "",
              "| measure | value |", "|---|---|"]
     lines += [f"| {m} | {v} |" for m, v in table(rows, grid)]
     text = "\n".join(lines)
     print(text)
-    write_section(DOC, f"gnssa-garpos-{args.source}", text)
+    tags = [args.source, "no-gradients" * args.no_gradients, "mu-t" * correlated,
+            "-".join(o.strip("-") for o in args.locate.split())]
+    write_section(DOC, "gnssa-garpos-" + "-".join(t for t in tags if t), text)
     return 0
 
 

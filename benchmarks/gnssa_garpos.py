@@ -157,7 +157,11 @@ def seagap_as_garpos(folder: Path) -> Path:
 
 
 def garpos(bin_dir: Path, python: str, settings: Path, site: Path, out: Path) -> dict:
-    """Run GARPOS's ``solveSingleEpoch.py`` on ``site`` from its folder; read its solution."""
+    """Run GARPOS's ``solveSingleEpoch.py`` on ``site`` from its folder; read its solution.
+
+    The solution is the model GARPOS chose (its ``-res.dat`` beside ``lambda/``), with
+    ``grid``: every model of its grid (``lambda/``), each as :func:`read_result` gives it.
+    """
     t0 = time.perf_counter()
     run = subprocess.run([python, str(bin_dir / "solveSingleEpoch.py"), "-i", str(settings),
                           "-f", site.name, "-d", str(out), "--maxcore", "1"],
@@ -167,21 +171,28 @@ def garpos(bin_dir: Path, python: str, settings: Path, site: Path, out: Path) ->
     if run.returncode != 0 or not res:
         raise RuntimeError(f"GARPOS on {site}: exit status {run.returncode}\n"
                            f"{run.stdout[-2000:]}{run.stderr[-2000:]}")
-    loops = [int(m) for m in re.findall(r"Inversion loop (\d+)", run.stdout)]
     sol = read_result(res[0])
-    sol["seconds"], sol["last_loop"] = seconds, max(loops) if loops else 0
-    m = re.search(r"_L([-+]\d+\.\d)_g([-+]\d+\.\d)-res\.dat$", res[0].name)
-    sol["chosen"] = (float(m.group(1)), float(m.group(2))) if m else None
+    sol["seconds"] = seconds
+    sol["grid"] = [read_result(f) for f in sorted((out / "lambda").glob("*-res.dat"))]
     return sol
 
 
 def read_result(res: Path) -> dict:
-    """The array centre of a GARPOS ``-res.dat`` and its covariance from ``-var.dat``."""
+    """The array centre of a GARPOS ``-res.dat``, its covariance from ``-var.dat``, the model.
+
+    Returns ``centre``, ``sd`` (m) and, where GARPOS's comment lines give them, ``abic``,
+    ``model`` (log10 ``Lambda0``, log10 ``gradLambda``, ``mu_t`` in minutes) and ``loops``
+    (the iterations it took).
+    """
     text = res.read_text()
 
     def numbers(key):
         return [float(x) for x in re.search(rf"\n\s*{re.escape(key)}\s*=\s*(.*)", text)
                 .group(1).split()]
+
+    def comment(key):
+        m = re.search(rf"#\s*{re.escape(key)}\s*=\s*([-+0-9.eE]+)", text)
+        return float(m.group(1)) if m else None
 
     stations = re.search(r"\n\s*Stations\s*=\s*(.*)", text).group(1).split()
     pos = np.array([numbers(f"{s}_dPos")[:3] for s in stations])
@@ -191,8 +202,13 @@ def read_result(res: Path) -> dict:
     cov = np.loadtxt(res.with_name(res.name.replace("-res.dat", "-var.dat")), delimiter=",")
     n = len(stations)
     avg = np.kron(np.ones((1, n)) / n, np.eye(3))
+    lam0, lamg, mu_t = comment("lambda_0^2"), comment("lambda_g^2"), comment("mu_t")
+    model = None if None in (lam0, lamg, mu_t) else (
+        round(float(np.log10(lam0)), 2), round(float(np.log10(lamg / lam0)), 2), mu_t / 60.0)
+    loops = [int(m) for m in re.findall(r"#Inversion loop (\d+)", text)]
     return {"centre": pos.mean(0) + cent[:3],
-            "sd": np.sqrt(np.diag(avg @ cov[:3 * n, :3 * n] @ avg.T))}
+            "sd": np.sqrt(np.diag(avg @ cov[:3 * n, :3 * n] @ avg.T)),
+            "abic": comment("ABIC"), "model": model, "loops": max(loops, default=None)}
 
 
 def ours(site: Path, out: Path, options=()) -> dict:
@@ -225,7 +241,7 @@ def _keywords(options) -> dict:
     return kw
 
 
-def table(rows: list[dict], grid: tuple[list[float], list[float]]) -> list[tuple[str, str]]:
+def table(rows: list[dict], grid: tuple[list[float], ...]) -> list[tuple[str, str]]:
     """The comparison's measures over the campaigns, as (measure, value) pairs.
 
     Without a truth (a measured survey) only the two solutions' differences and sds.
@@ -244,11 +260,12 @@ def table(rows: list[dict], grid: tuple[list[float], list[float]]) -> list[tuple
     def three(v, fmt="{:.2f}"):
         return " / ".join(fmt.format(x) for x in v)
 
-    chosen = [r["garpos"]["chosen"] for r in rows]
-    edge = sum(c is not None and (c[0] in (min(grid[0]), max(grid[0])) and len(grid[0]) > 1
-                                  or c[1] in (min(grid[1]), max(grid[1])) and len(grid[1]) > 1)
-               for c in chosen)
-    names = sorted({f"{c[0]:g}, {c[1]:g}" for c in chosen if c is not None})
+    chosen = [r["garpos"]["model"] for r in rows]
+    edge = sum(c is not None and any(len(v) > 1 and c[i] in (min(v), max(v))
+                                     for i, v in enumerate(grid)) for c in chosen)
+    names = sorted({f"{c[0]:g}, {c[1]:g}, {c[2]:g}" for c in chosen if c is not None})
+    spread = [max((np.hypot(*(m["centre"] - r["garpos"]["centre"])[:2]) for m in
+                   r["garpos"]["grid"]), default=0.0) * 100 for r in rows]
     errors = [
         ("centre error, median horizontal / vertical (cm): GARPOS", hv(g)),
         ("the same: `locate` (defaults)", hv(o)),
@@ -272,10 +289,12 @@ def table(rows: list[dict], grid: tuple[list[float], list[float]]) -> list[tuple
         ("centre sd, median east / north / up (cm): GARPOS", three(np.median(sg, 0))),
         ("the same: `locate`", three(np.median(so, 0))),
         *(scores if truth else []),
-        ("GARPOS's choice of log10 Lambda0, log10 gradLambda",
+        ("GARPOS's choice of log10 Lambda0, log10 gradLambda, mu_t (min)",
          f"{'; '.join(names)} ({edge} of {len(rows)} at an edge of the grid)"),
-        ("GARPOS's final model at its 50-iteration limit",
-         f"{sum(r['garpos']['last_loop'] >= 50 for r in rows)} of {len(rows)}"),
+        ("GARPOS's centre over its grid: the farthest model from the chosen, horizontally "
+         "(cm; median, largest)", f"{np.median(spread):.2f}, {max(spread):.2f}"),
+        ("GARPOS's chosen model at its 50-iteration limit",
+         f"{sum((r['garpos']['loops'] or 0) >= 50 for r in rows)} of {len(rows)}"),
         ("seconds per campaign, median: GARPOS (all models of its grid) / `locate`",
          f"{np.median([r['garpos']['seconds'] for r in rows]):.0f} / "
          f"{np.median([r['ours']['seconds'] for r in rows]):.1f}"),
@@ -305,7 +324,7 @@ def main(argv=None) -> int:
     if not (bin_dir / "solveSingleEpoch.py").is_file() or not (lib / "lib_raytrace.so").is_file():
         p.error(f"{bin_dir}: expected GARPOS's solveSingleEpoch.py and "
                 "garpos_v120/f90lib/lib_raytrace.so there")
-    grid = ([float(x) for x in args.lambda0.split()], [float(x) for x in args.grad.split()])
+    grid = tuple([float(x) for x in v.split()] for v in (args.lambda0, args.grad, args.mu_t))
     t_all = time.perf_counter()
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -323,12 +342,10 @@ def main(argv=None) -> int:
             for seed, ((site, truth), run) in enumerate(zip(camps, runs, strict=True)):
                 row = {"truth": truth, "ours": ours(site, tmp / f"o{seed}", options),
                        "garpos": run.result()}
-                if row["garpos"]["chosen"] is None and len(grid[0]) == len(grid[1]) == 1:
-                    row["garpos"]["chosen"] = (grid[0][0], grid[1][0])  # one model: no suffix
                 rows.append(row)
                 ref = np.zeros(3) if truth is None else truth  # a measured survey: as solved
                 cm = {k: np.round((row[k]["centre"] - ref) * 100, 2) for k in ("garpos", "ours")}
-                print(seed, "GARPOS", cm["garpos"], row["garpos"]["chosen"], "ours", cm["ours"],
+                print(seed, "GARPOS", cm["garpos"], row["garpos"]["model"], "ours", cm["ours"],
                       "flat", np.round((row["ours"]["flat"] - ref) * 100, 2), flush=True)
     cmd = (f"python benchmarks/gnssa_garpos.py GARPOS_BIN {args.source} {args.seeds} "
            f"--lambda0 \"{args.lambda0}\" --grad \"{args.grad}\" --jobs {args.jobs}"

@@ -27,7 +27,7 @@ Run ``python benchmarks/gnssa_garpos.py GARPOS_BIN SOURCE SEEDS [--python PY]
 * ``--locate``: options for ``locate`` (``--gradients`` and ``--correlation`` only, e.g.
   ``"--correlation off"``);
 * ``--no-gradients``: neither fits the gradient terms (GARPOS's ``knotint1`` and ``knotint2``
-  0, ``locate --gradients off``);
+  0, ``locate --gradients off``; ``--grad`` is then ignored);
 * ``--jobs``: how many GARPOS runs at once (``locate`` runs beside them, so its seconds are
   then not a speed measure).
 
@@ -324,6 +324,8 @@ def main(argv=None) -> int:
     if not (bin_dir / "solveSingleEpoch.py").is_file() or not (lib / "lib_raytrace.so").is_file():
         p.error(f"{bin_dir}: expected GARPOS's solveSingleEpoch.py and "
                 "garpos_v120/f90lib/lib_raytrace.so there")
+    if args.no_gradients:  # GARPOS's gradLambda then weighs nothing: one model per value
+        args.grad = "0"
     grid = tuple([float(x) for x in v.split()] for v in (args.lambda0, args.grad, args.mu_t))
     t_all = time.perf_counter()
     rows = []
@@ -348,7 +350,8 @@ def main(argv=None) -> int:
                 print(seed, "GARPOS", cm["garpos"], row["garpos"]["model"], "ours", cm["ours"],
                       "flat", np.round((row["ours"]["flat"] - ref) * 100, 2), flush=True)
     cmd = (f"python benchmarks/gnssa_garpos.py GARPOS_BIN {args.source} {args.seeds} "
-           f"--lambda0 \"{args.lambda0}\" --grad \"{args.grad}\" --jobs {args.jobs}"
+           f"--lambda0 \"{args.lambda0}\""
+           + ("" if args.no_gradients else f" --grad \"{args.grad}\"") + f" --jobs {args.jobs}"
            + (" --no-gradients" if args.no_gradients else "")
            + (f" --mu-t \"{args.mu_t}\"" if args.mu_t != "0" else "")
            + (f" --locate \"{args.locate}\"" if args.locate else ""))

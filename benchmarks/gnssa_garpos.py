@@ -28,8 +28,8 @@ Run ``python benchmarks/gnssa_garpos.py GARPOS_BIN SOURCE SEEDS [--python PY]
   ``"--correlation off"``);
 * ``--no-gradients``: neither fits the gradient terms (GARPOS's ``knotint1`` and ``knotint2``
   0, ``locate --gradients off``; ``--grad`` is then ignored);
-* ``--jobs``: how many GARPOS runs at once (``locate`` runs beside them, so its seconds are
-  then not a speed measure).
+* ``--jobs``: how many GARPOS runs at once. ``locate`` runs beside them, so neither program's
+  seconds are a speed measure.
 
 ``bayes-mpem locate SITE --out DIR`` runs with its defaults, and once more through
 ``locate_array_survey(raw, earth="flat")``: flat layers in the local frame, GARPOS's geometry.
@@ -116,9 +116,10 @@ def seagap_as_garpos(folder: Path) -> Path:
 
     The shots are the transducer's positions that ``locate`` computes from SeaGap's antenna,
     attitude and lever arm, with no attitude and no lever arm left; SeaGap's frame, along the
-    sphere, is turned into GARPOS's Cartesian one (``array.from_sphere``) about the profile's
-    sea surface as ``locate`` takes it (3 m above the transducer's mean height), so that the
-    frame's ``up = 0`` is the surface of ``svp.csv``. Times start at the first whole second.
+    sphere, is turned into GARPOS's Cartesian one about its own origin (``array.from_sphere``),
+    then lowered by the height of the profile's sea surface as ``locate`` takes it (3 m above the
+    transducer's mean height), so that the frame's ``up = 0`` is the surface of ``svp.csv``.
+    Times start at the first whole second.
     """
     import pandas as pd
 
@@ -139,13 +140,13 @@ def seagap_as_garpos(folder: Path) -> Path:
     shots = pd.DataFrame({"transponder": p["transponder"].map(names), "twtt": p["twtt"],
                           "t_tx": p["t_tx"] - t0, "t_rx": p["t_rx"] - t0})
     for end in ("tx", "rx"):
-        e, n, u = from_sphere(pos[end][0], pos[end][1], pos[end][2] - surface,
-                              MEAN_EARTH_RADIUS_M)
-        shots[f"e_{end}"], shots[f"n_{end}"], shots[f"u_{end}"] = e, n, u
+        e, n, u = from_sphere(*pos[end], MEAN_EARTH_RADIUS_M)
+        shots[f"e_{end}"], shots[f"n_{end}"], shots[f"u_{end}"] = e, n, u - surface
         for a in ("head", "pitch", "roll"):
             shots[f"{a}_{end}"] = 0.0
     tp = raw.header["transponders"]
-    e, n, u = from_sphere(tp["east"], tp["north"], tp["up"] - surface, MEAN_EARTH_RADIUS_M)
+    e, n, u = from_sphere(tp["east"], tp["north"], tp["up"], MEAN_EARTH_RADIUS_M)
+    u = u - surface
     prof = raw.header["ss_prof"]
     header = {"lat": float(site[2]), "lon": float(site[1]), "height": 0.0,
               "transponders": pd.DataFrame({"east": e, "north": n, "up": u},
@@ -156,7 +157,8 @@ def seagap_as_garpos(folder: Path) -> Path:
     return write_garpos(folder, shots, header, site="G20", campaign="0000")
 
 
-def garpos(bin_dir: Path, python: str, settings: Path, site: Path, out: Path) -> dict:
+def garpos(bin_dir: Path, python: str, settings: Path, site: Path, out: Path,
+           grid: tuple[list[float], ...]) -> dict:
     """Run GARPOS's ``solveSingleEpoch.py`` on ``site`` from its folder; read its solution.
 
     The solution is the model GARPOS chose (its ``-res.dat`` beside ``lambda/``), with
@@ -171,18 +173,19 @@ def garpos(bin_dir: Path, python: str, settings: Path, site: Path, out: Path) ->
     if run.returncode != 0 or not res:
         raise RuntimeError(f"GARPOS on {site}: exit status {run.returncode}\n"
                            f"{run.stdout[-2000:]}{run.stderr[-2000:]}")
-    sol = read_result(res[0])
+    sol = read_result(res[0], grid)
     sol["seconds"] = seconds
-    sol["grid"] = [read_result(f) for f in sorted((out / "lambda").glob("*-res.dat"))]
+    sol["grid"] = [read_result(f, grid) for f in sorted((out / "lambda").glob("*-res.dat"))]
     return sol
 
 
-def read_result(res: Path) -> dict:
+def read_result(res: Path, grid: tuple[list[float], ...] = ([], [], [])) -> dict:
     """The array centre of a GARPOS ``-res.dat``, its covariance from ``-var.dat``, the model.
 
-    Returns ``centre``, ``sd`` (m) and, where GARPOS's comment lines give them, ``abic``,
-    ``model`` (log10 ``Lambda0``, log10 ``gradLambda``, ``mu_t`` in minutes) and ``loops``
-    (the iterations it took).
+    Returns ``centre``, ``sd`` (m), ``model`` (log10 ``Lambda0``, log10 ``gradLambda``, ``mu_t``
+    in minutes: from the file's name, ``_L+01.0_g-03.0_T5.0``, for what GARPOS searched, else the
+    one value of ``grid``; None where neither gives it) and, where GARPOS's comment lines give
+    them, ``abic`` and ``loops`` (the iterations it took).
     """
     text = res.read_text()
 
@@ -202,13 +205,24 @@ def read_result(res: Path) -> dict:
     cov = np.loadtxt(res.with_name(res.name.replace("-res.dat", "-var.dat")), delimiter=",")
     n = len(stations)
     avg = np.kron(np.ones((1, n)) / n, np.eye(3))
-    lam0, lamg, mu_t = comment("lambda_0^2"), comment("lambda_g^2"), comment("mu_t")
-    model = None if None in (lam0, lamg, mu_t) else (
-        round(float(np.log10(lam0)), 2), round(float(np.log10(lamg / lam0)), 2), mu_t / 60.0)
+    model = []
+    for key, values in zip(("L", "g", "T"), grid, strict=True):
+        m = re.search(rf"_{key}([-+]?\d+(?:\.\d+)?)(?=[_-])", res.name)
+        model.append(float(m.group(1)) if m else values[0] if len(values) == 1 else None)
+    if np.any(pos_sigma(text, stations) == 0):
+        raise RuntimeError(f"{res}: a station coordinate was held (sigma 0); the covariance "
+                           "read here assumes every station coordinate solved")
     loops = [int(m) for m in re.findall(r"#Inversion loop (\d+)", text)]
     return {"centre": pos.mean(0) + cent[:3],
             "sd": np.sqrt(np.diag(avg @ cov[:3 * n, :3 * n] @ avg.T)),
-            "abic": comment("ABIC"), "model": model, "loops": max(loops, default=None)}
+            "abic": comment("ABIC"), "model": None if None in model else tuple(model),
+            "loops": max(loops, default=None)}
+
+
+def pos_sigma(text: str, stations) -> np.ndarray:
+    """The sigmas of each station's ``_dPos`` line of a GARPOS site or result file (m)."""
+    return np.array([[float(x) for x in re.search(rf"\n\s*{re.escape(s)}_dPos\s*=\s*(.*)", text)
+                      .group(1).split()[3:6]] for s in stations])
 
 
 def ours(site: Path, out: Path, options=()) -> dict:
@@ -261,7 +275,7 @@ def table(rows: list[dict], grid: tuple[list[float], ...]) -> list[tuple[str, st
         return " / ".join(fmt.format(x) for x in v)
 
     chosen = [r["garpos"]["model"] for r in rows]
-    edge = sum(c is not None and any(len(v) > 1 and c[i] in (min(v), max(v))
+    edge = sum(c is not None and any(len(v) > 1 and np.isclose([min(v), max(v)], c[i]).any()
                                      for i, v in enumerate(grid)) for c in chosen)
     names = sorted({f"{c[0]:g}, {c[1]:g}, {c[2]:g}" for c in chosen if c is not None})
     spread = [max((np.hypot(*(m["centre"] - r["garpos"]["centre"])[:2]) for m in
@@ -324,6 +338,8 @@ def main(argv=None) -> int:
     if not (bin_dir / "solveSingleEpoch.py").is_file() or not (lib / "lib_raytrace.so").is_file():
         p.error(f"{bin_dir}: expected GARPOS's solveSingleEpoch.py and "
                 "garpos_v120/f90lib/lib_raytrace.so there")
+    if args.source == "seagap" and args.seeds != 1:
+        p.error("seagap: one survey, SEEDS 1")
     if args.no_gradients:  # GARPOS's gradLambda then weighs nothing: one model per value
         args.grad = "0"
     grid = tuple([float(x) for x in v.split()] for v in (args.lambda0, args.grad, args.mu_t))
@@ -338,9 +354,10 @@ def main(argv=None) -> int:
                                             mu_t=args.mu_t, reject=0 if correlated else 5.0))
         options = (["--gradients", "off"] if args.no_gradients else []) + args.locate.split()
         camps = [write_source(args.source, seed, tmp / f"c{seed}") for seed in range(args.seeds)]
-        with ThreadPoolExecutor(args.jobs) as pool:  # each GARPOS is its own process
-            runs = [pool.submit(garpos, bin_dir, args.python, settings, site, tmp / f"g{seed}")
-                    for seed, (site, _) in enumerate(camps)]
+        pool = ThreadPoolExecutor(args.jobs)  # each GARPOS is its own process
+        runs = [pool.submit(garpos, bin_dir, args.python, settings, site, tmp / f"g{seed}", grid)
+                for seed, (site, _) in enumerate(camps)]
+        try:
             for seed, ((site, truth), run) in enumerate(zip(camps, runs, strict=True)):
                 row = {"truth": truth, "ours": ours(site, tmp / f"o{seed}", options),
                        "garpos": run.result()}
@@ -349,6 +366,8 @@ def main(argv=None) -> int:
                 cm = {k: np.round((row[k]["centre"] - ref) * 100, 2) for k in ("garpos", "ours")}
                 print(seed, "GARPOS", cm["garpos"], row["garpos"]["model"], "ours", cm["ours"],
                       "flat", np.round((row["ours"]["flat"] - ref) * 100, 2), flush=True)
+        finally:  # a failure stops the runs still queued
+            pool.shutdown(cancel_futures=True)
     cmd = (f"python benchmarks/gnssa_garpos.py GARPOS_BIN {args.source} {args.seeds} "
            f"--lambda0 \"{args.lambda0}\""
            + ("" if args.no_gradients else f" --grad \"{args.grad}\"") + f" --jobs {args.jobs}"

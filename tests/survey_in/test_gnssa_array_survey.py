@@ -372,3 +372,12 @@ def test_shots_from_one_place_say_how_many_replies_were_skipped_and_why():
         array_shots(one)
     with pytest.raises(InputError, match=r"track over the array\)$"):  # nothing skipped
         array_shots(dataclasses.replace(one, skipped=skipped.iloc[:0]))
+
+
+def test_locate_survey_gives_an_array_the_smooth_speed_by_default(seagap_raw):
+    """In Python as on the command line: an array's sound speed is the smooth spline unless
+    ``speed_intervals`` is given."""
+    smooth = locate_survey(seagap_raw, correlation="off").fits["array"]
+    one = locate_survey(seagap_raw, correlation="off", speed_intervals=0).fits["array"]
+    assert smooth.model["smoothing"] is not None and one.model["smoothing"] is None
+    assert smooth.model["speed_intervals"] > 0 and one.model["speed_intervals"] == 0

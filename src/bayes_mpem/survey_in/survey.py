@@ -43,7 +43,7 @@ def is_array(raw, *, one_at_a_time=False) -> bool:
 
 
 def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", ssp=None,
-                  speed_intervals=0, fit_lag=False, lag_check=False, one_at_a_time=False,
+                  speed_intervals=None, fit_lag=False, lag_check=False, one_at_a_time=False,
                   gradients="auto", knot_minutes=None, flags="honour", correlation="auto"):
     """Locate every transponder of a :class:`~bayes_mpem.io.raw.RawSurvey`.
 
@@ -63,8 +63,10 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
         point) or ``"survey"`` (the profile that came with the survey, SeaGap's
         ``ss_prof.inp``); ``"straight"`` or None for straight rays (None is the
         survey's own profile for an array survey).
-    speed_intervals : int, default 0
-        A sound speed varying in time (:func:`locate`).
+    speed_intervals : int, optional
+        A sound speed varying in time (:func:`locate`). None (the default): the smooth
+        spline for an array survey (:func:`~bayes_mpem.survey_in.array_survey.locate_array_survey`,
+        as ``bayes-mpem locate``), one speed (0) for one transponder at a time.
     fit_lag : bool, default False
         Fit a lag of the acoustic position along the track (:func:`locate`).
     lag_check : bool, default False
@@ -132,6 +134,8 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
     if correlation != "auto":
         raise InputError(f"correlation={correlation!r}: for array surveys only (GARPOS, "
                          "GNATSS, SeaGap with two transponders or more)")
+    if speed_intervals is None:
+        speed_intervals = 0
     if tat is None:
         tat = raw.header.get("tat", 0.0 if raw.format == "seagap" else DEFAULT_TAT)
     pings, beacons = raw.to_pings()

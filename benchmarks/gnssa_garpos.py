@@ -43,7 +43,6 @@ import argparse
 import contextlib
 import io
 import json
-import os
 import re
 import subprocess
 import sys
@@ -53,14 +52,12 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
 from pathlib import Path
 
-for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_var, "1")  # one thread: the machine is shared
-
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+# the generator's module first: it holds BLAS to one thread before NumPy loads
+import gnssa_independent as ind  # noqa: E402
 import numpy as np  # noqa: E402
+from gnssa_independent import AXES, DOC, locate  # noqa: E402
 
-HERE = Path(__file__).resolve().parent
-DOC = HERE.parent / "docs" / "gnssa.md"
-AXES = ("east", "north", "up")
 Z95 = 1.959963984540054
 
 SETTINGS = """[HyperParameters]
@@ -100,9 +97,6 @@ def write_source(source: str, seed: int, folder: Path) -> tuple[Path, np.ndarray
         return next(folder.glob("*-initcfg.ini")), np.array([truth[a] for a in AXES])
     if source == "seagap":
         return seagap_as_garpos(folder), None
-    sys.path.insert(0, str(HERE))
-    import gnssa_independent as ind
-
     scenario, *variants = source.removeprefix("ind").split("-")
     kw = {}
     for v in variants:
@@ -128,13 +122,13 @@ def seagap_as_garpos(folder: Path) -> Path:
     from bayes_mpem.io.geodesy import MEAN_EARTH_RADIUS_M
     from bayes_mpem.io.seagap import read_seagap
     from bayes_mpem.survey_in.array import from_sphere
-    from bayes_mpem.survey_in.survey import SEAGAP_TRANSDUCER_DEPTH
+    from bayes_mpem.survey_in.survey import seagap_surface_depth
 
     raw = read_seagap(sample_file("seagap/obsdata.inp"))
     site = next(line.split() for line in sample_file("seagap/site_info.txt").read_text()
                 .splitlines() if line.startswith("G20"))
     pos, p = raw.transducer_positions(), raw.pings
-    surface = 0.5 * (np.mean(pos["tx"][2]) + np.mean(pos["rx"][2])) + SEAGAP_TRANSDUCER_DEPTH
+    surface = -seagap_surface_depth(raw)  # its height, as locate takes it
     t0 = np.floor(p["t_tx"].min())
     names = {k: f"M{int(k):02d}" for k in raw.header["transponders"].index}
     shots = pd.DataFrame({"transponder": p["transponder"].map(names), "twtt": p["twtt"],
@@ -198,7 +192,8 @@ def read_result(res: Path, grid: tuple[list[float], ...] = ([], [], [])) -> dict
         return float(m.group(1)) if m else None
 
     stations = re.search(r"\n\s*Stations\s*=\s*(.*)", text).group(1).split()
-    pos = np.array([numbers(f"{s}_dPos")[:3] for s in stations])
+    rows = np.array([numbers(f"{s}_dPos")[:6] for s in stations])  # position, sigmas
+    pos = rows[:, :3]
     cent = np.array(numbers("dCentPos")[:6])
     if np.any(cent[3:] != 0):
         raise RuntimeError(f"{res}: dCentPos was solved; this comparison fixes it (sigma 0)")
@@ -209,7 +204,7 @@ def read_result(res: Path, grid: tuple[list[float], ...] = ([], [], [])) -> dict
     for key, values in zip(("L", "g", "T"), grid, strict=True):
         m = re.search(rf"_{key}([-+]?\d+(?:\.\d+)?)(?=[_-])", res.name)
         model.append(float(m.group(1)) if m else values[0] if len(values) == 1 else None)
-    if np.any(pos_sigma(text, stations) == 0):
+    if np.any(rows[:, 3:] == 0):
         raise RuntimeError(f"{res}: a station coordinate was held (sigma 0); the covariance "
                            "read here assumes every station coordinate solved")
     loops = [int(m) for m in re.findall(r"#Inversion loop (\d+)", text)]
@@ -219,17 +214,8 @@ def read_result(res: Path, grid: tuple[list[float], ...] = ([], [], [])) -> dict
             "loops": max(loops, default=None)}
 
 
-def pos_sigma(text: str, stations) -> np.ndarray:
-    """The sigmas of each station's ``_dPos`` line of a GARPOS site or result file (m)."""
-    return np.array([[float(x) for x in re.search(rf"\n\s*{re.escape(s)}_dPos\s*=\s*(.*)", text)
-                      .group(1).split()[3:6]] for s in stations])
-
-
 def ours(site: Path, out: Path, options=()) -> dict:
     """``bayes-mpem locate SITE --out OUT [OPTIONS]``, and again with flat layers."""
-    sys.path.insert(0, str(HERE))
-    from gnssa_independent import locate
-
     from bayes_mpem.io.garpos import read_garpos
     from bayes_mpem.survey_in.array_survey import locate_array_survey
 
@@ -317,7 +303,6 @@ def table(rows: list[dict], grid: tuple[list[float], ...]) -> list[tuple[str, st
 
 def main(argv=None) -> int:
     """Run the comparison and write its section of ``docs/gnssa.md``."""
-    sys.path.insert(0, str(HERE))
     from _report import commit, machine, write_section
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])

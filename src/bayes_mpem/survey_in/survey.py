@@ -42,6 +42,27 @@ def is_array(raw, *, one_at_a_time=False) -> bool:
             and raw.pings["transponder"].astype(str).nunique() >= 2)
 
 
+def seagap_surface_depth(raw) -> float:
+    """Return the depth of a SeaGap array's sea surface in its frame (m below ``up = 0``).
+
+    SeaGap's heights are not about the sea surface; the profile's surface is taken
+    ``SEAGAP_TRANSDUCER_DEPTH`` (3 m) above the transducer's mean height (transmit and
+    receive), as for one transponder at a time.
+
+    Parameters
+    ----------
+    raw : RawSurvey
+        A SeaGap survey.
+
+    Returns
+    -------
+    float
+        Negative where the surface is above the frame's origin.
+    """
+    up = raw.transducer_positions()
+    return -0.5 * float(np.mean(up["tx"][2]) + np.mean(up["rx"][2])) - SEAGAP_TRANSDUCER_DEPTH
+
+
 def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", ssp=None,
                   speed_intervals=None, fit_lag=False, lag_check=False, one_at_a_time=False,
                   gradients="auto", knot_minutes=None, flags="honour", correlation="auto"):
@@ -121,9 +142,7 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
                                  f"modelled){also}")
         geo = {}
         if raw.format == "seagap":  # the profile's sea surface, as one at a time
-            up = raw.transducer_positions()
-            geo["surface_depth"] = (-0.5 * float(np.mean(up["tx"][2]) + np.mean(up["rx"][2]))
-                                    - SEAGAP_TRANSDUCER_DEPTH)
+            geo["surface_depth"] = seagap_surface_depth(raw)
             if ssp is None:  # the survey's own profile when it came with one
                 ssp = "survey" if "ss_prof" in raw.header else "straight"
         if knot_minutes is not None:

@@ -57,8 +57,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import gnssa_independent as ind  # noqa: E402
 import numpy as np  # noqa: E402
 from gnssa_independent import AXES, DOC, locate  # noqa: E402
+from scipy.stats import norm  # noqa: E402
 
-Z95 = 1.959963984540054
+Z95 = float(norm.ppf(0.975))
 
 SETTINGS = """[HyperParameters]
 ConstraintType0 = 2
@@ -323,6 +324,12 @@ def main(argv=None) -> int:
     if not (bin_dir / "solveSingleEpoch.py").is_file() or not (lib / "lib_raytrace.so").is_file():
         p.error(f"{bin_dir}: expected GARPOS's solveSingleEpoch.py and "
                 "garpos_v120/f90lib/lib_raytrace.so there")
+    scenario, *variants = args.source.removeprefix("ind").split("-")
+    if args.source not in ("sim", "seagap") and not (
+            args.source.startswith("ind") and scenario in ("A", "B")
+            and set(variants) <= set(ind.VARIANTS)):
+        p.error(f"SOURCE: expected sim, seagap, or indA / indB with -VARIANT parts of "
+                f"{', '.join(ind.VARIANTS)}; got {args.source!r}")
     if args.source == "seagap" and args.seeds != 1:
         p.error("seagap: one survey, SEEDS 1")
     if args.no_gradients:  # GARPOS's gradLambda then weighs nothing: one model per value

@@ -266,7 +266,7 @@ def test_the_gradient_gate_says_why():
     assert geo["central_fraction"] == 0.0
     held = simulate_gnssa(hours=2.2, rng=17, track="station", shot_interval=60.0)
     fit, why = gradient_gate(array_shots(held.raw()), held.header["transponders"])
-    assert not fit and "not identifiable" in why
+    assert not fit and "not identifiable" in why and "intervals assume" in why
     res = locate_array_survey(station.raw())
     g = res.summary["gradients"]
     assert g["fitted"] is False and g["choice"] == "auto" and g["reason"].startswith("auto:")
@@ -274,6 +274,28 @@ def test_the_gradient_gate_says_why():
     assert "gradients=off asked for" in res.summary["gradients"]["reason"]
     with pytest.raises(InputError, match="auto, on, off"):
         locate_array_survey(station.raw(), gradients="maybe")
+
+
+def test_auto_fits_the_gradients_on_a_narrow_track_where_leaving_them_out_misleads():
+    """Sentinel of ``benchmarks/gnssa_gate.py``: a track spreading over 0.15 of the depth.
+
+    With the water's gradients (0.5 and 0.1 (m/s)/km) the fit without them is off by many
+    of its sds; ``auto`` fits them there and its interval holds (docs/gnssa.md).
+    """
+    sim = simulate_gnssa(hours=3.0, rng=0, speed_model="field", track="star+circle",
+                         track_radius=0.3 * 1500.0, gradients=True, shot_interval=30.0)
+    raw = sim.raw()
+    truth = sim.truth["transponders"][["east", "north", "up"]].to_numpy().mean(axis=0)
+    z = {}
+    for choice in ("auto", "off"):
+        res = locate_array_survey(raw, gradients=choice)
+        m, C = res.fits["array"].centre()
+        z[choice] = (m - truth) / np.sqrt(np.diag(C))
+        if choice == "auto":
+            g = res.summary["gradients"]
+            assert g["fitted"] and "spreads over 0.1" in g["reason"], g["reason"]
+    assert np.all(np.abs(z["auto"]) < 2.0), z  # measured 0.5 / 0.2 / 1.4
+    assert np.abs(z["off"][:2]).max() > 4.0, z  # measured 9.3 / 5.3
 
 
 def test_auto_gradients_on_a_campaign_without_them_are_compatible_with_zero():

@@ -257,11 +257,11 @@ def track_geometry(shots, enu) -> dict:
     -------
     dict
         ``spread_over_depth``: the sd of the transducer's horizontal position
-        along its least-spread direction over the mean water depth (GARPOS's
-        shallow gradient needs about 0.3 or more; a ship holding station has
-        almost 0); ``central_fraction``: the share of shots within
-        :data:`CENTRAL_RADIUS` depths of the array's centre (0 on a circle about
-        it, about a quarter on transits across it); per transponder
+        along its least-spread direction over the mean water depth (the gradients
+        are fitted from :data:`MIN_SPREAD`; a ship holding station has almost 0);
+        ``central_fraction``: the share of shots within :data:`CENTRAL_RADIUS` depths
+        of the array's centre (0 on a circle about it, about a quarter on transits
+        across it); per transponder
         ``azimuth_coverage_deg`` (360 minus the largest gap between the azimuths
         of the ship seen from it) and
         ``max_incidence_deg`` (the largest angle of the ray from the vertical).
@@ -352,7 +352,7 @@ def position_constraints(header, ids=None):
 
 
 #: Least ``spread_over_depth`` of the track (:func:`track_geometry`) for the gradients.
-MIN_SPREAD = 0.3
+MIN_SPREAD = 0.1
 #: Horizontal distance from the array's centre, in depths, of a shot "over the array".
 CENTRAL_RADIUS = 0.3
 #: Shortest campaign (hours of shots) on which the gradients are fitted by default.
@@ -401,7 +401,8 @@ def gradient_gate(shots, priors, speed_intervals=None):
     spread = geo["spread_over_depth"]
     if spread < MIN_SPREAD:
         return False, (f"the track spreads over {spread:.2f} of the depth (need "
-                       f"{MIN_SPREAD}): the shallow gradient is not identifiable")
+                       f"{MIN_SPREAD}): the shallow gradient is not identifiable, and the "
+                       "intervals assume water without horizontal gradients")
     return True, f"the track spreads over {spread:.2f} of the depth, {len(ids)} transponders"
 
 

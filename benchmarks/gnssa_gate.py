@@ -1,0 +1,121 @@
+"""Where to fit the horizontal gradients: a track's spread against the intervals' honesty.
+
+``locate --gradients auto`` fits GARPOS's gradient terms when the track spreads over at least
+:data:`bayes_mpem.survey_in.array_survey.MIN_SPREAD` of the depth
+(``array_survey.gradient_gate``). This study shows what the threshold decides. Each campaign
+(:func:`bayes_mpem.survey_in.gnssa_simulate.simulate_gnssa`, seeds 0 to N-1): four transponders
+at about 1 500 m, 6 hours of shots every 20 s on the ``star+circle`` track of radius ``R``
+depths (the spread is about 0.5 R), the sound-speed field, and the water's horizontal
+gradients ``none``, ``weak`` (0.1 and 0.02 (m/s)/km at the surface and through the column)
+or ``strong`` (the simulator's 0.5 and 0.1). Each is located with the defaults but
+``gradients="off"`` and ``gradients="on"``.
+
+Reported per radius and water: the spread, the centre's median horizontal error and sd, and
+how often the 95 % intervals of the centre's east and north cover the truth.
+
+Writes the section ``gnssa-gate`` of ``docs/gnssa.md`` and prints it::
+
+    python benchmarks/gnssa_gate.py [N_SEEDS] [--radii "0.1 0.15 ..."] [--jobs J]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")  # one thread: the machine is shared
+
+import numpy as np  # noqa: E402
+from scipy.stats import norm  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _report import commit, machine, write_section  # noqa: E402
+
+from bayes_mpem.survey_in.array_survey import (  # noqa: E402
+    MIN_SPREAD, array_shots, locate_array_survey, track_geometry)
+from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa  # noqa: E402
+
+DEPTH = 1500.0
+#: the water's gradients: (shallow, deep) in (m/s)/km, None for none
+WATERS = {"none": None, "weak": (0.1, 0.02), "strong": (0.5, 0.1)}
+Z95 = float(norm.ppf(0.975))
+
+
+def one(radius, water, seed):
+    """Return ``(spread, {"off": (err, sd), "on": (err, sd)})`` of one campaign."""
+    g = WATERS[water]
+    sim = simulate_gnssa(hours=6.0, rng=seed, depth=DEPTH, speed_model="field",
+                         track="star+circle", track_radius=radius * DEPTH,
+                         gradients=g is not None,
+                         **({} if g is None else {"shallow_gradient": g[0],
+                                                  "deep_gradient": g[1]}))
+    raw = sim.raw()
+    tp = sim.truth["transponders"][["east", "north", "up"]]
+    truth = tp.to_numpy().mean(axis=0)
+    geo = track_geometry(array_shots(raw), {t: r.to_numpy(float) for t, r in tp.iterrows()})
+    out = {}
+    for fit in ("off", "on"):
+        m, C = locate_array_survey(raw, gradients=fit).fits["array"].centre()
+        out[fit] = (m - truth, np.sqrt(np.diag(C)))
+    return geo["spread_over_depth"], out
+
+
+def report(rows, n_seeds, radii, seconds, jobs):
+    """Return the Markdown section."""
+    lines = [
+        f"Written by `python benchmarks/gnssa_gate.py {n_seeds} --radii \"{' '.join(map(str, radii))}\" "
+        f"--jobs {jobs}` ({machine()}; {seconds:.0f} s; git {commit()}).",
+        "",
+        f"{n_seeds} campaigns per row (seeds 0-{n_seeds - 1}; 6 h, `star+circle` of radius R "
+        "depths, the sound-speed field, the water's gradients as named), each located with "
+        "`gradients=\"off\"` and `\"on\"`; `auto` fits them from a spread of "
+        f"{MIN_SPREAD:g}. Horizontal error and sd of the centre (cm, median); the 95 % "
+        "intervals of its east and north covering the truth (% of "
+        f"{2 * n_seeds}).",
+        "",
+        "| R | spread | water | `auto` | off: error / sd | off: covered | on: error / sd "
+        "| on: covered |",
+        "|---|---|---|---|---|---|---|---|"]
+    for (radius, water), recs in rows.items():
+        spread = float(np.median([s for s, _ in recs]))
+        cells = []
+        for fit in ("off", "on"):
+            err = np.array([o[fit][0] for _, o in recs])
+            sd = np.array([o[fit][1] for _, o in recs])
+            cover = np.abs(err[:, :2] / sd[:, :2]) < Z95
+            cells += [f"{100 * np.median(np.hypot(err[:, 0], err[:, 1])):.1f} / "
+                      f"{100 * np.median(np.hypot(sd[:, 0], sd[:, 1]) / np.sqrt(2)):.1f}",
+                      f"{100 * cover.mean():.0f}"]
+        lines.append(f"| {radius:g} | {spread:.2f} | {water} | "
+                     f"{'on' if spread >= MIN_SPREAD else 'off'} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def main(argv=None):
+    """Run the study and write its section."""
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("seeds", nargs="?", type=int, default=8)
+    p.add_argument("--radii", default="0.1 0.15 0.2 0.3 0.4",
+                   help="track radii in depths (default %(default)s)")
+    p.add_argument("--jobs", type=int, default=1)
+    args = p.parse_args(argv)
+    radii = [float(v) for v in args.radii.split()]
+    keys = [(r, w) for r in radii for w in WATERS]
+    t0 = time.perf_counter()
+    tasks = [(r, w, s) for r, w in keys for s in range(args.seeds)]
+    with ProcessPoolExecutor(args.jobs) as pool:
+        done = list(pool.map(one, *zip(*tasks)))
+    rows = {k: done[i * args.seeds:(i + 1) * args.seeds] for i, k in enumerate(keys)}
+    text = report(rows, args.seeds, radii, time.perf_counter() - t0, args.jobs)
+    print(text)
+    write_section(ROOT / "docs" / "gnssa.md", "gnssa-gate", text)
+
+
+if __name__ == "__main__":
+    main()

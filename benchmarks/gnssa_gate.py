@@ -38,7 +38,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _report import commit, machine, write_section  # noqa: E402
 
 from bayes_mpem.survey_in.array_survey import (  # noqa: E402
-    MIN_SPREAD, array_shots, locate_array_survey, track_geometry)
+    MIN_SPREAD,
+    array_shots,
+    locate_array_survey,
+    track_geometry,
+)
 from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa  # noqa: E402
 
 DEPTH = 1500.0
@@ -68,9 +72,10 @@ def one(radius, water, seed):
 
 def report(rows, n_seeds, radii, seconds, jobs):
     """Return the Markdown section."""
+    radii = " ".join(map(str, radii))
     lines = [
-        f"Written by `python benchmarks/gnssa_gate.py {n_seeds} --radii \"{' '.join(map(str, radii))}\" "
-        f"--jobs {jobs}` ({machine()}; {seconds:.0f} s; git {commit()}).",
+        f"Written by `python benchmarks/gnssa_gate.py {n_seeds} --radii \"{radii}\" --jobs "
+        f"{jobs}` ({machine()}; {seconds:.0f} s; git {commit()}).",
         "",
         f"{n_seeds} campaigns per row (seeds 0-{n_seeds - 1}; 6 h, `star+circle` of radius R "
         "depths, the sound-speed field, the water's gradients as named), each located with "
@@ -110,7 +115,7 @@ def main(argv=None):
     t0 = time.perf_counter()
     tasks = [(r, w, s) for r, w in keys for s in range(args.seeds)]
     with ProcessPoolExecutor(args.jobs) as pool:
-        done = list(pool.map(one, *zip(*tasks)))
+        done = list(pool.map(one, *zip(*tasks, strict=True)))
     rows = {k: done[i * args.seeds:(i + 1) * args.seeds] for i, k in enumerate(keys)}
     text = report(rows, args.seeds, radii, time.perf_counter() - t0, args.jobs)
     print(text)

@@ -27,7 +27,9 @@ Run ``python benchmarks/gnssa_independent.py SEEDS [VARIANT ...]``; variants ``f
 default), ``static`` (no time-varying sound speed), ``meancast`` (svp.csv the campaign's
 time-mean profile instead of the cast at the first shot), ``whitegnss`` (GNSS noise 2 cm
 white), ``nograd`` (no gradients), ``clean`` (no noise, no outliers), ``nonoise``,
-``nooutliers``, ``nothing`` (no field change, no noise: the frame check); a variant ending
+``nooutliers``, ``nothing`` (no field change, no noise: the frame check), ``narrow`` (the
+circle's radius and the star's half-length a quarter of the depth: a track spreading over
+about 0.15 of it, where ``auto``'s gate is tested); a variant ending
 in ``+gradoff`` locates with ``--gradients off``, one in ``+corroff`` with ``--correlation
 off``, instead of the defaults. Writes the section ``gnssa-independent[-VARIANTS]`` of
 ``docs/gnssa.md``.
@@ -77,6 +79,7 @@ class Config:
     earth: str = "sphere"  # or "flat" (a radius of 1e9 m: flat layers, for checks)
     gnss_ou: bool = True  # the correlated part of the GNSS noise (else 2 cm white)
     cast: str = "first"  # svp.csv: the profile at the first shot, or "mean" over the campaign
+    radius: float = 1.0  # the circle's radius and the star's half-length, in depths
 
 
 VARIANTS = {
@@ -89,6 +92,7 @@ VARIANTS = {
     "nonoise": {"noise": False},
     "nooutliers": {"outliers": False},
     "nothing": {"varying": False, "gradients": False, "noise": False, "outliers": False},
+    "narrow": {"radius": 0.25},
 }
 
 
@@ -247,7 +251,7 @@ class Ship:
 
     def __init__(self, cfg: Config, rng, centre):
         self.cfg, self.centre, self.speed = cfg, np.asarray(centre[:2], float), 2.0
-        self.rad = cfg.depth  # circle radius / star half-length ~ the depth
+        self.rad = cfg.radius * cfg.depth  # circle radius / star half-length
         self.start = rng.uniform(0, 2 * np.pi)
         self.sense = rng.choice([-1.0, 1.0])
         self.waves = rng.uniform(0, 2 * np.pi, 8)
@@ -547,7 +551,9 @@ def main(argv=None) -> int:
              f"({machine()}; {time.perf_counter() - t_all:.0f} s; git {commit()}).", "",
              f"{n_seeds} seeds per column; A: circle of radius 3 km at 2 m/s, all four "
              "transponders every 40 s; B: star of four 6 km diameters, one transponder every "
-             "20 s in turn; 6 h; `bayes-mpem locate SITE --out DIR` with its defaults.", "",
+             "20 s in turn; 6 h; `bayes-mpem locate SITE --out DIR` with its defaults"
+             + ("; `narrow`: radius and half-length 750 m" if any(
+                 v.startswith("narrow") for v in variants) else "") + ".", "",
              head, "|---|" + "---|" * len(cols)]
     for i, m in enumerate(MEASURES):
         lines.append(f"| {m} | " + " | ".join(results[c][i] for c in cols) + " |")

@@ -4,8 +4,8 @@
 :data:`bayes_mpem.survey_in.array_survey.MIN_SPREAD` of the depth
 (``array_survey.gradient_gate``). This study shows what the threshold decides. Each campaign
 (:func:`bayes_mpem.survey_in.gnssa_simulate.simulate_gnssa`, seeds 0 to N-1): four transponders
-at about 1 500 m, 6 hours of shots every 20 s on the ``star+circle`` track of radius ``R``
-depths (the spread is about 0.5 R), the sound-speed field, and the water's horizontal
+at about 1 500 m, 6 hours (``--hours``) of shots every 20 s on the ``star+circle`` track of
+radius ``R`` depths (the spread is about 0.5 R), the sound-speed field, and the water's horizontal
 gradients ``none``, ``weak`` (0.1 and 0.02 (m/s)/km at the surface and through the column)
 or ``strong`` (the simulator's 0.5 and 0.1). Each is located with the defaults but
 ``gradients="off"`` and ``gradients="on"``.
@@ -13,9 +13,10 @@ or ``strong`` (the simulator's 0.5 and 0.1). Each is located with the defaults b
 Reported per radius and water: the spread, the centre's median horizontal error and sd, and
 how often the 95 % intervals of the centre's east and north cover the truth.
 
-Writes the section ``gnssa-gate`` of ``docs/gnssa.md`` and prints it::
+Writes the section ``gnssa-gate`` (``gnssa-gate-HOURSh`` for other hours) of ``docs/gnssa.md``
+and prints it::
 
-    python benchmarks/gnssa_gate.py [N_SEEDS] [--radii "0.1 0.15 ..."] [--jobs J]
+    python benchmarks/gnssa_gate.py [N_SEEDS] [--radii "0.1 0.15 ..."] [--hours H] [--jobs J]
 """
 
 from __future__ import annotations
@@ -52,13 +53,13 @@ WATERS = {"none": None, "weak": (0.1, 0.02), "strong": (0.5, 0.1)}
 Z95 = float(norm.ppf(0.975))
 
 
-def one(radius, water, seed):
+def one(radius, water, seed, hours=6.0):
     """Return ``(spread, auto, {"off": (err, sd), "on": (err, sd)})`` of one campaign.
 
     ``auto``: whether ``gradients="auto"`` fits them there (``gradient_gate``).
     """
     g = WATERS[water]
-    sim = simulate_gnssa(hours=6.0, rng=seed, depth=DEPTH, speed_model="field",
+    sim = simulate_gnssa(hours=hours, rng=seed, depth=DEPTH, speed_model="field",
                          track="star+circle", track_radius=radius * DEPTH,
                          gradients=g is not None,
                          **({} if g is None else {"shallow_gradient": g[0],
@@ -76,16 +77,17 @@ def one(radius, water, seed):
     return geo["spread_over_depth"], auto, out
 
 
-def report(rows, n_seeds, radii, seconds, jobs):
+def report(rows, n_seeds, radii, seconds, jobs, hours=6.0):
     """Return the Markdown section."""
     radii = " ".join(map(str, radii))
     lines = [
-        f"Written by `python benchmarks/gnssa_gate.py {n_seeds} --radii \"{radii}\" --jobs "
-        f"{jobs}` ({machine()}; {seconds:.0f} s; git {commit()}).",
+        f"Written by `python benchmarks/gnssa_gate.py {n_seeds} --radii \"{radii}\" "
+        + ("" if hours == 6.0 else f"--hours {hours:g} ")
+        + f"--jobs {jobs}` ({machine()}; {seconds:.0f} s; git {commit()}).",
         "",
-        f"{n_seeds} campaigns per row (seeds 0-{n_seeds - 1}; 6 h, `star+circle` of radius R "
-        "depths, the sound-speed field, the water's gradients as named), each located with "
-        "`gradients=\"off\"` and `\"on\"`; `auto` fits them from a spread of "
+        f"{n_seeds} campaigns per row (seeds 0-{n_seeds - 1}; {hours:g} h, `star+circle` of "
+        "radius R depths, the sound-speed field, the water's gradients as named), each located "
+        "with `gradients=\"off\"` and `\"on\"`; `auto` fits them from a spread of "
         f"{MIN_SPREAD:g} (the spread column is the median). Horizontal error and sd of the "
         "centre (cm, median; the sd is the rms of east's and north's); the 95 % "
         "intervals of its east and north covering the truth (% of "
@@ -115,6 +117,7 @@ def main(argv=None):
     p.add_argument("seeds", nargs="?", type=int, default=8)
     p.add_argument("--radii", default="0.1 0.15 0.2 0.3 0.4",
                    help="track radii in depths (default %(default)s)")
+    p.add_argument("--hours", type=float, default=6.0, help="campaign length (default 6)")
     p.add_argument("--jobs", type=int, default=1)
     args = p.parse_args(argv)
     radii = [float(v) for v in args.radii.split()]
@@ -122,11 +125,12 @@ def main(argv=None):
     t0 = time.perf_counter()
     tasks = [(r, w, s) for r, w in keys for s in range(args.seeds)]
     with ProcessPoolExecutor(args.jobs) as pool:
-        done = list(pool.map(one, *zip(*tasks, strict=True)))
+        done = list(pool.map(one, *zip(*tasks, strict=True), [args.hours] * len(tasks)))
     rows = {k: done[i * args.seeds:(i + 1) * args.seeds] for i, k in enumerate(keys)}
-    text = report(rows, args.seeds, radii, time.perf_counter() - t0, args.jobs)
+    text = report(rows, args.seeds, radii, time.perf_counter() - t0, args.jobs, args.hours)
     print(text)
-    write_section(ROOT / "docs" / "gnssa.md", "gnssa-gate", text)
+    name = "gnssa-gate" + ("" if args.hours == 6.0 else f"-{args.hours:g}h")
+    write_section(ROOT / "docs" / "gnssa.md", name, text)
 
 
 if __name__ == "__main__":

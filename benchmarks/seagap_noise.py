@@ -3,7 +3,7 @@
 The shipped SeaGap survey (site G20, four transponders at 2.7 km, 3,347 replies over 14.6 h) is
 located with independent replies (``correlation="off"``) and with the default
 (``"auto"``: GARPOS's data covariance where the marginal likelihood prefers it), the gradient
-terms as ``GRADIENTS`` asks (``locate --gradients``; default ``off``, as docs/gnssa.md's numbers
+terms as the argument asks (``locate --gradients``; default ``off``, as docs/gnssa.md's numbers
 were measured; ``auto`` fits them on this track). Printed:
 
 * the correlation of the independent fit's residuals (true replies) between pairs of replies
@@ -16,13 +16,13 @@ were measured; ``auto`` fits them on this track). Printed:
 
 Run (about a minute; several with the gradients)::
 
-    OPENBLAS_NUM_THREADS=1 python benchmarks/seagap_noise.py [GRADIENTS]
+    OPENBLAS_NUM_THREADS=1 python benchmarks/seagap_noise.py [auto|on|off]
 """
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
-import sys
 import warnings
 
 import numpy as np
@@ -30,8 +30,6 @@ import numpy as np
 from bayes_mpem.io.formats import read_survey, sample_file
 from bayes_mpem.survey_in.array_survey import locate_array_survey
 
-#: ``locate --gradients`` (the first argument)
-GRADIENTS = sys.argv[1] if len(sys.argv) > 1 else "off"
 LAGS = ((0, 0), (0, 60), (60, 120), (120, 300), (300, 600), (600, 1200), (1200, 3600))
 
 
@@ -51,8 +49,12 @@ def residual_correlation(fit, time):
     return out
 
 
-def blocks(raw, n, correlation):
-    """``chi2 / dof`` per axis of ``n`` blocks' centres about their weighted mean, and the sds."""
+def blocks(raw, n, correlation, gradients):
+    """``chi2 / dof`` per axis of ``n`` blocks' centres about their weighted mean, and the sds.
+
+    With ``gradients="auto"`` each block is gated on its own track, so the blocks' models may
+    differ.
+    """
     t = raw.pings["time"].to_numpy(float)
     edges = np.quantile(t, np.linspace(0, 1, n + 1))
     edges[-1] += 1.0
@@ -61,7 +63,7 @@ def blocks(raw, n, correlation):
         sel = (t >= edges[b]) & (t < edges[b + 1])
         part = dataclasses.replace(raw, pings=raw.pings[sel].reset_index(drop=True))
         m, C = locate_array_survey(part, correlation=correlation,
-                                   gradients=GRADIENTS).fits["array"].centre()
+                                   gradients=gradients).fits["array"].centre()
         ms.append(m)
         sds.append(np.sqrt(np.diag(C)))
     ms, sds = np.array(ms), np.array(sds)
@@ -70,10 +72,15 @@ def blocks(raw, n, correlation):
 
 
 def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("gradients", nargs="?", default="off", choices=("auto", "on", "off"),
+                   help="locate --gradients (default off, as docs/gnssa.md's first numbers)")
+    gradients = p.parse_args().gradients
     warnings.simplefilter("ignore")
+    print(f"gradients={gradients!r}")
     raw = read_survey(sample_file("seagap/obsdata.inp"))
     time = raw.pings["time"].to_numpy(float)
-    fits = {c: locate_array_survey(raw, correlation=c, gradients=GRADIENTS)
+    fits = {c: locate_array_survey(raw, correlation=c, gradients=gradients)
             for c in ("off", "auto")}
     fit = fits["off"].fits["array"]
     print("residual correlation of the independent fit (true replies) by time apart:")
@@ -87,7 +94,7 @@ def main() -> None:
               f" noise mu_t {nz['correlation_s']:g} s, mu_mt {nz['share']}, white {nz['white']}")
     for n in (2, 4):
         for c in ("off", "auto"):
-            chi, sds = blocks(raw, n, c)
+            chi, sds = blocks(raw, n, c, gradients)
             print(f"{n} blocks, {c}: chi2/dof east/north/up {np.round(chi, 2)}; block sds (mm) "
                   f"{np.round(1e3 * sds, 0).tolist()}")
 

@@ -83,7 +83,8 @@ def test_the_seagap_survey_rewritten_for_garpos_is_located_where_seagap_s_own_is
     rewritten = locate_array_survey(read_garpos(site), correlation="off",
                                     gradients="off").fits["array"]
     own = locate_survey(read_seagap(sample_file("seagap/obsdata.inp")), speed_intervals=None,
-                        correlation="off", gradients="off").fits["array"]  # as the rewrite's
+                        correlation="off", gradients="off").fits["array"]
+    # the smooth speed and no gradients, as the rewrite's fit above
     surface = -own.model["surface_depth"]  # the sea surface's height in SeaGap's frame
     e, n, u = from_sphere(*own.enu.T, own.model["earth_radius"])
     np.testing.assert_allclose(rewritten.enu, np.column_stack([e, n, u - surface]), atol=1e-4)

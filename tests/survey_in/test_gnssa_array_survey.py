@@ -381,3 +381,12 @@ def test_locate_survey_gives_an_array_the_smooth_speed_by_default(seagap_raw):
     one = locate_survey(seagap_raw, correlation="off", speed_intervals=0).fits["array"]
     assert smooth.model["smoothing"] is not None and one.model["smoothing"] is None
     assert smooth.model["speed_intervals"] > 0 and one.model["speed_intervals"] == 0
+
+
+def test_the_defaults_fit_the_gradients_on_the_whole_seagap_survey():
+    """The shipped survey's track spreads over 0.16 of the depth, above the gate (0.1)."""
+    from bayes_mpem.survey_in.array_survey import gradient_gate
+
+    raw = read_survey(sample_file("seagap/obsdata.inp"))
+    fit, why = gradient_gate(array_shots(raw), raw.header["transponders"])
+    assert fit and "spreads over 0.16 of the depth" in why, why

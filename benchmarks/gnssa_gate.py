@@ -13,8 +13,8 @@ or ``strong`` (the simulator's 0.5 and 0.1). Each is located with the defaults b
 Reported per radius and water: the spread, the centre's median horizontal error and sd, and
 how often the 95 % intervals of the centre's east and north cover the truth.
 
-Writes the section ``gnssa-gate`` (``gnssa-gate-HOURSh`` for other hours) of ``docs/gnssa.md``
-and prints it::
+Writes the section ``gnssa-gate`` of ``docs/gnssa.md`` (``gnssa-gate-HOURSh`` for other hours,
+``...-R0.2-0.3`` for other radii) and prints it::
 
     python benchmarks/gnssa_gate.py [N_SEEDS] [--radii "0.1 0.15 ..."] [--hours H] [--jobs J]
 """
@@ -88,7 +88,8 @@ def report(rows, n_seeds, radii, seconds, jobs, hours=6.0):
         f"{n_seeds} campaigns per row (seeds 0-{n_seeds - 1}; {hours:g} h, `star+circle` of "
         "radius R depths, the sound-speed field, the water's gradients as named), each located "
         "with `gradients=\"off\"` and `\"on\"`; `auto` fits them from a spread of "
-        f"{MIN_SPREAD:g} (the spread column is the median). Horizontal error and sd of the "
+        f"{MIN_SPREAD:g} (the spread column is the median, from the true positions; `auto` "
+        "uses the header's priors). Horizontal error and sd of the "
         "centre (cm, median; the sd is the rms of east's and north's); the 95 % "
         "intervals of its east and north covering the truth (% of "
         f"{2 * n_seeds}).",
@@ -130,6 +131,8 @@ def main(argv=None):
     text = report(rows, args.seeds, radii, time.perf_counter() - t0, args.jobs, args.hours)
     print(text)
     name = "gnssa-gate" + ("" if args.hours == 6.0 else f"-{args.hours:g}h")
+    if args.radii != p.get_default("radii"):
+        name += "-R" + "-".join(f"{r:g}" for r in radii)
     write_section(ROOT / "docs" / "gnssa.md", name, text)
 
 

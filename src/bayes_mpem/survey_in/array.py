@@ -14,6 +14,7 @@ from scipy.stats import norm
 
 from .._validate import check_choice, check_int
 from ..exceptions import InputError, LocateWarning
+from .arrowhead import arrowhead, gram
 from .classes import OUTLIER_MODELS
 from .location import TravelTimeEM, weighted_residuals
 from .noise import WHITES, Whitener, choose_correlation
@@ -952,7 +953,47 @@ def null_shifted(theta, Q, blocks=None):
     return out
 
 
-def choose_smoothing(J, r, theta, H, sigma, lam=None, H_fixed=None):
+def evidence_curve(pre, theta, H, sigma, rank, H_fixed=None, blocks=None):
+    """Return ``f(lam)``, :func:`log_evidence`'s ``logml`` at the smoothing weight ``lam``.
+
+    The weights of one search share ``J'J``, ``H`` and ``H_fixed``: where they form an
+    arrowhead (:mod:`.arrowhead`: a band of spline coefficients bordered by the positions)
+    each evaluation factors the band, not the dense matrix; elsewhere it is
+    :func:`log_evidence` itself. The two agree to round-off (``tests/survey_in/test_arrowhead.py``).
+
+    Parameters
+    ----------
+    pre : tuple
+        ``(J'J, J'r, r'r)`` of the weighted residuals.
+    theta, H, sigma, rank, H_fixed, blocks
+        As for :func:`log_evidence` (``rank`` and ``blocks`` required here).
+
+    Returns
+    -------
+    callable
+    """
+    structure = arrowhead([pre[0], H, H_fixed])
+    if structure is None:
+        return lambda lam: log_evidence(pre, None, theta, H, sigma, lam, rank, H_fixed,
+                                        blocks)[0]
+    th0 = null_shifted(theta, H if H_fixed is None else H + H_fixed, blocks)
+    g_data = pre[1] / sigma**2 + (0.0 if H_fixed is None else structure.matvec(2, th0))
+    g_pen = structure.matvec(1, th0)
+
+    def f(lam):
+        out = structure.solve([1.0 / sigma**2, lam, 1.0], -(g_data + lam * g_pen))
+        if out is None:
+            return -np.inf
+        logdet, step = out
+        th = th0 + step
+        rr2 = pre[2] + 2 * step @ pre[1] + structure.quad(0, step)
+        pen = lam * structure.quad(1, th) + (0.0 if H_fixed is None else structure.quad(2, th))
+        return float(-0.5 * (rr2 / sigma**2 + pen) + 0.5 * rank * np.log(lam) - 0.5 * logdet)
+
+    return f
+
+
+def choose_smoothing(J, r, theta, H, sigma, lam=None, H_fixed=None, *, with_evidence=False):
     """Return the smoothing weight of largest :func:`log_evidence` (a 1-D search).
 
     A grid of half-decades about ``lam`` (or, without one, of decades over the whole
@@ -970,17 +1011,26 @@ def choose_smoothing(J, r, theta, H, sigma, lam=None, H_fixed=None):
         The previous weight.
     H_fixed : numpy.ndarray, optional
         A further prior precision held fixed (:func:`log_evidence`).
+    with_evidence : bool, default False
+        Also return the log evidence at the weight returned.
 
     Returns
     -------
-    float
+    float, or (float, float) with ``with_evidence``
     """
+    lam, curve = _choose_weight(J, r, theta, H, sigma, lam, H_fixed)
+    return (lam, curve(lam)) if with_evidence else lam
+
+
+def _choose_weight(J, r, theta, H, sigma, lam, H_fixed):
+    """:func:`choose_smoothing`'s search: the weight and the search's :func:`evidence_curve`."""
     rank = _penalty_rank(H)
-    pre = (J.T @ J, J.T @ r, float(r @ r))
+    pre = (gram(J), J.T @ r, float(r @ r))
     blocks = null_blocks(H, H_fixed)
+    curve = evidence_curve(pre, theta, H, sigma, rank, H_fixed, blocks)
 
     def f(x):
-        return log_evidence(pre, r, theta, H, sigma, 10.0 ** x, rank, H_fixed, blocks)[0]
+        return curve(10.0 ** x)
 
     pen = np.diag(H) > 0
     ratio = np.trace(pre[0][np.ix_(pen, pen)]) / sigma**2 / np.trace(H)
@@ -995,7 +1045,7 @@ def choose_smoothing(J, r, theta, H, sigma, lam=None, H_fixed=None):
         step = x[1] - x[0]  # re-centred on the best, the grid kept within the bounds
         x = np.clip(x[i], lo + 4 * step, hi - 4 * step) + step * np.arange(-4, 5)
     if x[i] <= lo + 1e-9 or x[i] >= hi - 1e-9:  # the evidence is flat or monotone: a bound
-        return float(10.0 ** x[i])
+        return float(10.0 ** x[i]), curve
     i = int(np.clip(i, 1, x.size - 2))
     step = x[1] - x[0]
     if step > 0.3:  # refine
@@ -1007,7 +1057,7 @@ def choose_smoothing(J, r, theta, H, sigma, lam=None, H_fixed=None):
     den = y0 - 2 * y1 + y2
     ok = np.isfinite([y0, y1, y2]).all() and den < 0
     best = x[i] + (0.5 * h * (y0 - y2) / den if ok else 0.0)
-    return float(10.0 ** np.clip(best, x[i] - h, x[i] + h))
+    return float(10.0 ** np.clip(best, x[i] - h, x[i] + h)), curve
 
 
 class _SmoothArrayEM(TravelTimeEM):
@@ -1114,7 +1164,7 @@ def penalised_gauss_newton(resid, jac, theta, Q, *, max_steps=50, rtol=1e-12):
     mu = 0.0
     for _ in range(max_steps):
         J = jac(th)
-        A = J.T @ J + Q
+        A = gram(J) + Q
         g = J.T @ r + Q @ null_shifted(th, Q, blocks)
         d = np.diag(A).copy()
         d[d <= 0] = 1.0
@@ -1248,7 +1298,6 @@ def _noise_evidence(J0, r0, phi, H, Hg, lam, lam_g):
     -ABIC / 2 with ``-n log sigma - log|E| / 2`` kept, as they differ between ``E``.
     """
     fixed = None if Hg is None else lam_g * Hg
-    rank = None if H is None else _penalty_rank(H)
 
     def evidence(w):
         J, r = w.whiten(J0), w.whiten(r0)
@@ -1256,8 +1305,7 @@ def _noise_evidence(J0, r0, phi, H, Hg, lam, lam_g):
         if H is None:  # unpenalised: a flat prior, the same constant for every E
             ll = log_evidence(J, r, phi, np.zeros((phi.size, phi.size)), sigma, 1.0, 0)[0]
         else:
-            lg = choose_smoothing(J, r, phi, H, sigma, lam, fixed)
-            ll = log_evidence(J, r, phi, H, sigma, lg, rank, fixed)[0]
+            ll = choose_smoothing(J, r, phi, H, sigma, lam, fixed, with_evidence=True)[1]
         return ll - r.size * np.log(sigma) - 0.5 * w.logdet
 
     return evidence
@@ -1288,6 +1336,8 @@ def _root(H):
 
 #: Decades about the gradients' best weight over which the intervals average (step 0.5).
 GRADIENT_WEIGHT_GRID = np.arange(-2.0, 2.0001, 0.5)
+#: Share of the intervals' average below which a grid weight's covariance is not computed.
+GRID_SHARE = 1e-12
 
 
 def _penalty_rank(H):
@@ -1326,27 +1376,40 @@ def _scaled_inverse(A):
 
 
 def _grid_average(J, r, theta, H, sigma, lam, H_fixed, meat, n_clusters, grid):
-    """Posterior modes and covariances over weights ``lam 10^x``, and their average."""
+    """Posterior modes and covariances over weights ``lam 10^x``, and their average.
+
+    The evidence is evaluated at every weight of the grid; the modes and covariances only
+    where a weight's share of the average is above :data:`GRID_SHARE` (and at ``x = 0``,
+    whose row the caller reads): a sharp evidence leaves most of the grid with shares of
+    1e-30 and less, whose dense inverses changed nothing.
+    """
     rank = _penalty_rank(H)
     blocks = null_blocks(H, H_fixed)
+    JtJ = gram(J)
+    pre = (JtJ, J.T @ r, float(r @ r))
+    curve = evidence_curve(pre, theta, H, sigma, rank, H_fixed, blocks)
+    ll = np.array([curve(lam * 10.0 ** x) for x in grid])
+    w = np.exp(ll - ll.max())
+    w /= w.sum()
     rows = []
-    JtJ = J.T @ J
-    for x in grid:
+    for x, share in zip(grid, w, strict=True):
+        if share < GRID_SHARE and x != 0.0:
+            rows.append(None)
+            continue
         lg = lam * 10.0 ** x
-        logml, step, A = log_evidence(J, r, theta, H, sigma, lg, rank, H_fixed, blocks)
+        _, step, A = log_evidence(pre, r, theta, H, sigma, lg, rank, H_fixed, blocks)
         Ainv = _scaled_inverse(A)
-        edf = float(np.trace(Ainv @ JtJ) / sigma**2)
+        edf = float(np.sum(Ainv * JtJ) / sigma**2)  # trace(Ainv JtJ), both symmetric
         prior = lg * H if H_fixed is None else lg * H + H_fixed
         C = Ainv @ (meat * n_clusters / max(n_clusters - edf, 1.0) + prior) @ Ainv
         C = 0.5 * (C + C.T)
-        rows.append((x, logml, step, C, Ainv, edf))
-    ll = np.array([row[1] for row in rows])
-    w = np.exp(ll - ll.max())
-    w /= w.sum()
-    steps = np.array([row[2] for row in rows])
-    dev = steps - w @ steps
-    mean_cov = sum(wi * row[3] for wi, row in zip(w, rows, strict=True))
-    return w, mean_cov, (dev.T * w) @ dev, rows, ll
+        rows.append((x, None, step, C, Ainv, edf))
+    used = [k for k, row in enumerate(rows) if row is not None and w[k] >= GRID_SHARE]
+    wu = w[used] / w[used].sum()
+    steps = np.array([rows[k][2] for k in used])
+    dev = steps - wu @ steps
+    mean_cov = sum(wi * rows[k][3] for wi, k in zip(wu, used, strict=True))
+    return w, mean_cov, (dev.T * wu) @ dev, rows, ll
 
 
 def _smooth_covariance(J, r, theta, H, sigma, lam, clusters, Hg=None, lam_g=None):

@@ -1,0 +1,197 @@
+"""Normal equations of a smooth-speed fit as a band with a few dense rows (an arrowhead).
+
+The array's parameters are a few positions, coupled to everything, and the B-spline
+coefficients of the sound speed and its gradients in time, each coupled only to the
+coefficients of nearby knots: through the shots that share a knot interval, and through
+correlated noise over a few correlation times. Ordered so that nearby coefficients are
+adjacent (reverse Cuthill-McKee), the normal matrix of the coefficients is a band, and the
+positions are its dense border. Factoring the band and the border's Schur complement costs
+``O(P w^2)`` instead of the ``O(P^3)`` of a dense Cholesky (``w`` the band's half-width):
+on a 14.6-hour survey with the gradients (902 parameters) a choice of the smoothing weight
+evaluates the evidence some twenty times per M-step. Measurements: docs/gnssa.md, "Speed".
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.linalg import cho_factor, cho_solve, cho_solve_banded, cholesky_banded
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import reverse_cuthill_mckee
+
+#: Entries below this fraction of the geometric mean of their diagonal are left out of the
+#: band: under correlated noise the coupling of two knots falls exponentially with their
+#: distance in time, and entries of 1e-20 perturb the factor far below its round-off.
+DROP = 1e-20
+#: Most dense (border) columns for which the arrowhead is used.
+MAX_BORDER = 64
+#: Fewest parameters for which the arrowhead is used (a dense Cholesky is cheaper below).
+MIN_SIZE = 300
+
+
+class Arrowhead:
+    """Weighted sums ``A = sum_k c_k M_k`` of symmetric matrices sharing a banded pattern.
+
+    Parameters
+    ----------
+    mats : sequence of numpy.ndarray
+        ``(P, P)`` symmetric matrices (None entries are left out; their weight is ignored).
+
+    Attributes
+    ----------
+    border : numpy.ndarray
+        Indices of the dense columns (positions).
+    order : numpy.ndarray
+        The remaining indices, in band order.
+    width : int
+        The band's half-width in that order.
+
+    Raises
+    ------
+    ValueError
+        Where the matrices have no useful arrowhead structure (use a dense factor):
+        :func:`arrowhead` returns None instead.
+
+    References
+    ----------
+    Golub, G. H. and Van Loan, C. F. (2013), Matrix Computations, 4th ed., sections 4.3
+    (band Cholesky) and 3.2.11 (block elimination).
+    """
+
+    def __init__(self, mats):
+        self.keep = [k for k, M in enumerate(mats) if M is not None]
+        mats = [np.asarray(mats[k], float) for k in self.keep]
+        P = mats[0].shape[0]
+        if P < MIN_SIZE:
+            raise ValueError(f"{P} parameters: a dense factor is cheaper")
+        nz = np.zeros((P, P), bool)
+        for M in mats:
+            d = np.sqrt(np.abs(np.diag(M)))
+            nz |= np.abs(M) > DROP * np.outer(d, d)
+            nz |= (M != 0) & (np.outer(d, d) == 0)
+        pattern = csr_matrix(nz)
+        count = np.diff(pattern.indptr)
+        border = np.flatnonzero(count > max(4 * np.median(count), 40))
+        if border.size > MAX_BORDER:
+            raise ValueError(f"{border.size} dense columns")
+        rest = np.setdiff1d(np.arange(P), border)
+        order = rest[reverse_cuthill_mckee(pattern[rest][:, rest], symmetric_mode=True)]
+        where = np.full(P, -1)
+        where[order] = np.arange(order.size)
+        coo = pattern.tocoo()
+        inner = (where[coo.row] >= 0) & (where[coo.col] >= 0)
+        width = int(np.abs(where[coo.row] - where[coo.col])[inner].max()) if inner.any() else 0
+        if (width + 1) * 4 > order.size:
+            raise ValueError(f"a band of half-width {width} in {order.size}")
+        self.border, self.order, self.width, self.size = border, order, width, P
+        n = order.size
+        rows = np.arange(width + 1)[:, None]  # lower band storage: ab[r, c] = A[c + r, c]
+        cols = np.arange(n)[None, :]
+        self._valid = (cols + rows) < n
+        self._r, self._c = np.broadcast_arrays(np.minimum(cols + rows, n - 1), cols)
+        oi, oj = order[self._r], order[self._c]
+        self._bands, self._bb, self._ba, self._diag, self._sparse = [], [], [], [], []
+        for M in mats:
+            self._bands.append(np.where(self._valid, M[oi, oj], 0.0))
+            self._bb.append(M[np.ix_(border, border)])
+            self._ba.append(M[np.ix_(order, border)])
+            self._diag.append(np.diag(M).copy())
+            self._sparse.append(csr_matrix((M[coo.row, coo.col], (coo.row, coo.col)),
+                                           shape=(P, P)))
+
+    def quad(self, k, x):
+        """Return ``x' M_k x`` (``k`` an index into the matrices given)."""
+        return float(x @ (self._sparse[self.keep.index(k)] @ x))
+
+    def matvec(self, k, x):
+        """Return ``M_k x``."""
+        return self._sparse[self.keep.index(k)] @ x
+
+    def solve(self, weights, g):
+        """Return ``(log|A|, A^-1 g)`` of ``A = sum_k weights[k] M_k``, or None if not positive.
+
+        ``A`` is scaled to a unit diagonal before it is factored, as a dense factor would be.
+        """
+        c = [weights[k] for k in self.keep]
+        d = sum(ck * dk for ck, dk in zip(c, self._diag, strict=True))
+        d = np.where(d <= 0, 1.0, d)
+        s = 1.0 / np.sqrt(d)
+        so, sb = s[self.order], s[self.border]
+        band = sum(ck * b for ck, b in zip(c, self._bands, strict=True))
+        band = band * so[self._r] * so[self._c]
+        band[~self._valid] = 0.0
+        try:
+            lower = cholesky_banded(band, lower=True, check_finite=False)
+        except np.linalg.LinAlgError:
+            return None
+        gs = s * np.asarray(g, float)
+        x = np.empty(self.size)
+        logdet = 2.0 * np.sum(np.log(lower[0])) + np.sum(np.log(d))
+        xo = cho_solve_banded((lower, True), gs[self.order], check_finite=False)
+        if self.border.size:
+            Aba = sum(ck * m for ck, m in zip(c, self._ba, strict=True)) * so[:, None] * sb
+            Abb = sum(ck * m for ck, m in zip(c, self._bb, strict=True)) * sb[:, None] * sb
+            Z = cho_solve_banded((lower, True), Aba, check_finite=False)
+            try:
+                schur = cho_factor(Abb - Aba.T @ Z)
+            except np.linalg.LinAlgError:
+                return None
+            xb = cho_solve(schur, gs[self.border] - Aba.T @ xo)
+            xo = xo - Z @ xb
+            logdet += 2.0 * np.sum(np.log(np.diag(schur[0])))
+            x[self.border] = xb
+        x[self.order] = xo
+        return float(logdet), s * x
+
+
+def gram(J):
+    """Return ``J'J``, through a sparse product where ``J`` is mostly zeros.
+
+    A shot's row of the Jacobian touches its transponder's position and the four B-spline
+    coefficients of each series about its time: about 3 % of a long survey's columns
+    (whitened rows under correlated noise are dense, and take the dense product).
+
+    Parameters
+    ----------
+    J : numpy.ndarray
+        ``(n, P)``.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(P, P)``.
+    """
+    J = np.asarray(J, float)
+    if J.shape[1] < MIN_SIZE or np.count_nonzero(J) > 0.1 * J.size:
+        return J.T @ J
+    S = csr_matrix(J)
+    return (S.T @ S).toarray()
+
+
+def arrowhead(mats):
+    """Return an :class:`Arrowhead` of ``mats``, or None where a dense factor is the better.
+
+    Parameters
+    ----------
+    mats : sequence of numpy.ndarray or None
+
+    Returns
+    -------
+    Arrowhead or None
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> P = 400
+    >>> M = 4 * np.eye(P) - np.eye(P, k=1) - np.eye(P, k=-1)
+    >>> M[0, :] = M[:, 0] = 0.1; M[0, 0] = P
+    >>> a = arrowhead([M])
+    >>> a.border.tolist(), a.width
+    ([0], 1)
+    >>> logdet, x = a.solve([1.0], np.ones(P))
+    >>> bool(np.allclose(M @ x, 1.0)), bool(np.isclose(logdet, np.linalg.slogdet(M)[1]))
+    (True, True)
+    """
+    try:
+        return Arrowhead(mats)
+    except ValueError:
+        return None

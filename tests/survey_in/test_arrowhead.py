@@ -1,0 +1,114 @@
+"""The arrowhead factor of the smooth-speed normal equations agrees with the dense one."""
+
+import numpy as np
+import pandas as pd
+import pytest
+from scipy.linalg import block_diag, cholesky, solve_triangular
+
+from bayes_mpem.survey_in import array as arr
+from bayes_mpem.survey_in.arrowhead import arrowhead, gram
+from bayes_mpem.survey_in.travel_times import speed_basis, speed_penalty
+
+
+def _problem(n=1500, intervals=70, tau=0.0, seed=0):
+    """A GNSS-A-like Jacobian: 4 transponders' positions, then 5 spline series in time.
+
+    ``tau`` > 0 whitens the rows under an exponential correlation of that many knot
+    spacings, as correlated noise does (dense rows, a band that decays instead of ending).
+    """
+    rng = np.random.default_rng(seed)
+    t = np.sort(rng.uniform(0.0, 36000.0, n))
+    B = speed_basis(pd.DataFrame({"time": t}), intervals, (0.0, 36000.0))
+    k = rng.integers(0, 4, n)
+    pos = np.zeros((n, 12))
+    pos[np.arange(n)[:, None], 3 * k[:, None] + np.arange(3)] = rng.normal(0, 1, (n, 3))
+    series = [B * (1e3 if s == 0 else rng.normal(0, 3e2, (n, 1))) for s in range(5)]
+    J = np.hstack([pos, *series])
+    r = rng.normal(0, 1e-4, n)
+    if tau > 0:
+        dt = np.abs(t[:, None] - t[None, :]) / (tau * 36000.0 / intervals)
+        L = cholesky(0.3 * np.eye(n) + 0.7 * np.exp(-dt), lower=True)
+        J, r = solve_triangular(L, J, lower=True), solve_triangular(L, r, lower=True)
+    S = speed_penalty(intervals, (0.0, 36000.0))
+    m = S.shape[0]
+    H = block_diag(np.zeros((12, 12)), S, np.zeros((4 * m, 4 * m)))
+    Hg = block_diag(np.zeros((12 + m, 12 + m)), *[S] * 4)
+    theta = np.concatenate([rng.normal(0, 1, 12), 1 + rng.normal(0, 1e-6, m),
+                            rng.normal(0, 1e-7, 4 * m)])
+    return J, r, theta, H, Hg
+
+
+@pytest.mark.parametrize("tau", [0.0, 0.6])
+def test_evidence_curve_is_the_dense_log_evidence(tau):
+    J, r, theta, H, Hg = _problem(tau=tau)
+    sigma = 1e-4
+    for Hf in (None, 1e9 * Hg):
+        pre = (gram(J), J.T @ r, float(r @ r))
+        blocks = arr.null_blocks(H, Hf)
+        rank = arr._penalty_rank(H)
+        structure = arrowhead([pre[0], H, Hf])
+        assert structure is not None and structure.border.size == 12
+        assert structure.width < (60 if tau else 25), structure.width
+        curve = arr.evidence_curve(pre, theta, H, sigma, rank, Hf, blocks)
+        for lam in 10.0 ** np.arange(0.0, 14.0, 1.5):
+            dense = arr.log_evidence(pre, r, theta, H, sigma, lam, rank, Hf, blocks)[0]
+            assert np.isfinite(dense)
+            assert curve(lam) == pytest.approx(dense, abs=1e-6, rel=1e-12), lam
+
+
+def test_the_arrowhead_solves_and_refuses_what_the_dense_factor_does():
+    J, r, theta, H, Hg = _problem(tau=0.6, seed=1)
+    JtJ = J.T @ J
+    a = arrowhead([JtJ, H, Hg])
+    g = np.random.default_rng(2).normal(size=JtJ.shape[0])
+    for w in ([1e8, 1e3, 1e5], [1.0, 1e12, 1e-3]):
+        A = w[0] * JtJ + w[1] * H + w[2] * Hg
+        logdet, x = a.solve(w, g)
+        s = 1 / np.sqrt(np.diag(A))
+        want = s * np.linalg.solve(A * s[:, None] * s, s * g)
+        np.testing.assert_allclose(x, want, rtol=1e-7, atol=1e-9 * np.abs(want).max())
+        assert logdet == pytest.approx(np.linalg.slogdet(A)[1] , abs=1e-6)
+    # without the penalties the spline's coefficients are not all determined: not positive
+    B = JtJ.copy()
+    B[20, :] = B[:, 20] = 0.0
+    B[20, 20] = -1.0
+    assert arrowhead([B, H]).solve([1.0, 0.0], g) is None
+
+
+def test_no_arrowhead_where_a_dense_factor_is_better():
+    J, r, theta, H, Hg = _problem(n=400, intervals=10)  # 77 parameters
+    assert arrowhead([J.T @ J, H]) is None
+    M = np.random.default_rng(0).normal(size=(400, 400))
+    assert arrowhead([M @ M.T]) is None  # no band
+
+
+def test_gram_is_j_transpose_j():
+    J, r, theta, H, Hg = _problem(n=800, intervals=70)
+    np.testing.assert_allclose(gram(J), J.T @ J, rtol=1e-12, atol=1e-12 * np.abs(J).max() ** 2)
+    Jw = _problem(n=800, intervals=70, tau=0.6)[0]  # dense rows: the dense product
+    np.testing.assert_allclose(gram(Jw), Jw.T @ Jw, rtol=1e-12)
+
+
+def test_choose_smoothing_reports_the_evidence_at_its_weight():
+    J, r, theta, H, Hg = _problem(tau=0.6)
+    lam, ll = arr.choose_smoothing(J, r, theta, H, 1e-4, None, 1e9 * Hg, with_evidence=True)
+    assert lam == arr.choose_smoothing(J, r, theta, H, 1e-4, None, 1e9 * Hg)
+    dense = arr.log_evidence(J, r, theta, H, 1e-4, lam, None, 1e9 * Hg)[0]
+    assert ll == pytest.approx(dense, abs=1e-6)
+
+
+def test_the_grid_leaves_out_only_weights_without_a_share(monkeypatch):
+    J, r, theta, H, Hg = _problem(tau=0.6)
+    lam = arr.choose_smoothing(J, r, theta, H, 1e-4, None, 1e9 * Hg)
+    meat = gram(J) / 1e-8
+    args = (J, r, theta, H, 1e-4, lam, 1e9 * Hg, meat, 500, arr.WEIGHT_GRID)
+    w, cov, spread, rows, ll = arr._grid_average(*args)
+    assert any(row is None for row in rows)  # a sharp evidence: some left out
+    assert rows[int(np.argmin(np.abs(arr.WEIGHT_GRID)))] is not None
+    monkeypatch.setattr(arr, "GRID_SHARE", 0.0)
+    w0, cov0, spread0, rows0, ll0 = arr._grid_average(*args)
+    assert all(row is not None for row in rows0)
+    np.testing.assert_allclose(w, w0)
+    d = np.sqrt(np.diag(cov0))
+    assert np.abs((cov - cov0) / np.outer(d, d)).max() < 1e-9
+    assert np.abs((spread - spread0) / np.outer(d, d)).max() < 1e-9

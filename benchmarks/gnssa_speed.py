@@ -86,9 +86,9 @@ def main():
         f"{time.perf_counter() - t_all:.0f} s; git {commit()}).",
         "",
         "`locate_array_survey` with its defaults (BLAS on one thread), the shorter of two runs "
-        "each way, alternating; `dense`: the arrowhead switched off in the same run (it also "
-        "evaluates the intervals' grid twice, a few tenths of a second more than the code "
-        "before it). The two paths' centres and sds compared.",
+        "each way, alternating; `dense`: the arrowhead switched off in the same run (dense "
+        "factors and `J'J`, every weight of the intervals' grid computed). The two paths' "
+        "centres and sds compared.",
         "",
         "| campaign | replies | parameters | seconds | dense: seconds | ratio "
         "| centres differ by (m) | sds differ by (relative) |",

@@ -99,17 +99,53 @@ class Arrowhead:
                                            shape=(P, P)))
 
     def quad(self, k, x):
-        """Return ``x' M_k x`` (``k`` an index into the matrices given)."""
+        """Return ``x' M_k x``.
+
+        Parameters
+        ----------
+        k : int
+            Index of the matrix in those given (entries below :data:`DROP` left out).
+        x : numpy.ndarray
+            ``(P,)``.
+
+        Returns
+        -------
+        float
+        """
         return float(x @ (self._sparse[self.keep.index(k)] @ x))
 
     def matvec(self, k, x):
-        """Return ``M_k x``."""
+        """Return ``M_k x``.
+
+        Parameters
+        ----------
+        k : int
+            Index of the matrix in those given (entries below :data:`DROP` left out).
+        x : numpy.ndarray
+            ``(P,)``.
+
+        Returns
+        -------
+        numpy.ndarray
+        """
         return self._sparse[self.keep.index(k)] @ x
 
     def solve(self, weights, g):
         """Return ``(log|A|, A^-1 g)`` of ``A = sum_k weights[k] M_k``, or None if not positive.
 
         ``A`` is scaled to a unit diagonal before it is factored, as a dense factor would be.
+
+        Parameters
+        ----------
+        weights : sequence of float
+            One per matrix given (that of a None matrix is ignored), non-negative.
+        g : numpy.ndarray
+            ``(P,)`` right-hand side.
+
+        Returns
+        -------
+        tuple of (float, numpy.ndarray) or None
+            None where the band or the border's Schur complement is not positive definite.
         """
         c = [weights[k] for k in self.keep]
         d = sum(ck * dk for ck, dk in zip(c, self._diag, strict=True))

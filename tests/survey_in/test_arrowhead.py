@@ -68,10 +68,12 @@ def test_the_arrowhead_solves_and_refuses_what_the_dense_factor_does():
         want = s * np.linalg.solve(A * s[:, None] * s, s * g)
         np.testing.assert_allclose(x, want, rtol=1e-7, atol=1e-9 * np.abs(want).max())
         assert logdet == pytest.approx(np.linalg.slogdet(A)[1] , abs=1e-6)
-    # without the penalties the spline's coefficients are not all determined: not positive
+    # a matrix that is not positive definite is refused, as the dense factor refuses it
     B = JtJ.copy()
     B[20, :] = B[:, 20] = 0.0
     B[20, 20] = -1.0
+    with pytest.raises(np.linalg.LinAlgError):
+        np.linalg.cholesky(B)
     assert arrowhead([B, H]).solve([1.0, 0.0], g) is None
 
 
@@ -112,3 +114,22 @@ def test_the_grid_leaves_out_only_weights_without_a_share(monkeypatch):
     d = np.sqrt(np.diag(cov0))
     assert np.abs((cov - cov0) / np.outer(d, d)).max() < 1e-9
     assert np.abs((spread - spread0) / np.outer(d, d)).max() < 1e-9
+
+
+def test_the_grid_computes_its_middle_row_even_without_a_share():
+    J, r, theta, H, Hg = _problem(tau=0.6)
+    lam = arr.choose_smoothing(J, r, theta, H, 1e-4, None, 1e9 * Hg)
+    args = (J, r, theta, H, 1e-4, 10 * lam, 1e9 * Hg, gram(J) / 1e-8, 500, arr.WEIGHT_GRID)
+    w, cov, spread, rows, ll = arr._grid_average(*args)
+    mid = int(np.argmin(np.abs(arr.WEIGHT_GRID)))
+    assert w[mid] < 1e-12 and rows[mid] is not None  # the caller reads it
+
+
+def test_a_grid_without_a_finite_evidence_gives_nan_not_zero():
+    J, r, theta, H, Hg = _problem(tau=0.0)
+    J[:, 0] = 0.0  # a position the data do not touch: every weight's matrix is singular
+    args = (J, r, theta, H, 1e-4, 1e6, 1e9 * Hg, gram(J) / 1e-8, 500, arr.WEIGHT_GRID)
+    w, cov, spread, rows, ll = arr._grid_average(*args)
+    assert np.all(np.isinf(ll))
+    assert cov.shape == spread.shape == (theta.size, theta.size)
+    assert np.isnan(cov).all() and np.isnan(spread).all()

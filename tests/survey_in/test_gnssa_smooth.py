@@ -431,3 +431,24 @@ def test_a_deep_three_transponder_campaign_keeps_its_gradients_smooth():
     g = sm["gradient_grid"]
     peak = int(np.argmax(g["log_evidence"]))
     assert peak == len(g["log_evidence"]) // 2 or g["edge"] in ("stiff", "flat"), g
+
+
+def test_every_weight_search_holds_the_other_penalty_when_the_gradients_are_fitted(monkeypatch):
+    """Free, the gradients' coefficients make the normal matrix singular to round-off on
+    long tracks (SeaGap's first search was -inf at every weight); the first speed weight is
+    chosen with them held stiff."""
+    from bayes_mpem.survey_in import array
+
+    calls = []
+    choose = array.choose_smoothing
+
+    def spy(J, r, theta, H, sigma, lam=None, H_fixed=None, **kw):
+        calls.append(H_fixed is not None)
+        return choose(J, r, theta, H, sigma, lam, H_fixed, **kw)
+
+    monkeypatch.setattr(array, "choose_smoothing", spy)
+    raw = simulate_gnssa(hours=2.2, rng=0, speed_model="field", track="star+circle",
+                         gradients=True).raw()
+    res = locate_array_survey(raw, correlation="off")
+    assert res.summary["gradients"]["fitted"]
+    assert calls and all(calls), calls

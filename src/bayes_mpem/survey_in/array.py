@@ -1022,6 +1022,15 @@ def choose_smoothing(J, r, theta, H, sigma, lam=None, H_fixed=None, *, with_evid
     return (lam, curve(lam)) if with_evidence else lam
 
 
+def _weight_scale(JtJ, H, sigma):
+    """Return the data's information on the penalised coefficients over the penalty's (traces).
+
+    The search's bounds are :data:`WEIGHT_BOUNDS` decades about it.
+    """
+    pen = np.diag(H) > 0
+    return float(np.trace(JtJ[np.ix_(pen, pen)]) / sigma**2 / np.trace(H))
+
+
 def _choose_weight(J, r, theta, H, sigma, lam, H_fixed):
     """:func:`choose_smoothing`'s search: the weight and the search's :func:`evidence_curve`."""
     rank = _penalty_rank(H)
@@ -1032,9 +1041,7 @@ def _choose_weight(J, r, theta, H, sigma, lam, H_fixed):
     def f(x):
         return curve(10.0 ** x)
 
-    pen = np.diag(H) > 0
-    ratio = np.trace(pre[0][np.ix_(pen, pen)]) / sigma**2 / np.trace(H)
-    lo, hi = np.log10(ratio) + np.array(WEIGHT_BOUNDS)  # data-relative bounds
+    lo, hi = np.log10(_weight_scale(pre[0], H, sigma)) + np.array(WEIGHT_BOUNDS)
     x = (np.linspace(lo, hi, 18) if lam is None else  # decades; else half-decades about lam
          np.clip(np.log10(lam), lo + 2.0, hi - 2.0) + np.arange(-2.0, 2.01, 0.5))
     for _ in range(40):
@@ -1093,7 +1100,13 @@ class _SmoothArrayEM(TravelTimeEM):
             root = np.sqrt(lam) * fit.sigma * self.root
         else:
             if lam_g is None:  # start the gradients stiff: they enter as they are supported
-                lam_g = 1e6 * (fit.lam or choose_smoothing(J, r0, fit.theta, self.H, fit.sigma))
+                lam = fit.lam
+                if lam is None:  # the speed's first weight with the gradients held stiff (free,
+                    # they make the normal matrix singular to round-off on long tracks)
+                    stiff = 10.0 ** WEIGHT_BOUNDS[1] * _weight_scale(gram(J), self.Hg, fit.sigma)
+                    lam = choose_smoothing(J, r0, fit.theta, self.H, fit.sigma, None,
+                                           stiff * self.Hg)
+                lam_g = 1e6 * lam
             lam = choose_smoothing(J, r0, fit.theta, self.H, fit.sigma, fit.lam, lam_g * self.Hg)
             lam_g = choose_smoothing(J, r0, fit.theta, self.Hg, fit.sigma, lam_g, lam * self.H)
             root = fit.sigma * np.vstack([np.sqrt(lam) * self.root, np.sqrt(lam_g) * self.root_g])
@@ -1379,9 +1392,15 @@ def _grid_average(J, r, theta, H, sigma, lam, H_fixed, meat, n_clusters, grid):
     """Posterior modes and covariances over weights ``lam 10^x``, and their average.
 
     The evidence is evaluated at every weight of the grid; the modes and covariances only
-    where a weight's share of the average is above :data:`GRID_SHARE` (and at ``x = 0``,
-    whose row the caller reads): a sharp evidence leaves most of the grid with shares of
-    1e-30 and less, whose dense inverses changed nothing.
+    where a weight's share of the average is at least :data:`GRID_SHARE`, and at the grid's
+    middle (``x`` nearest 0), whose row the caller reads: a sharp evidence leaves about half
+    of the grid with shares of 1e-30 and less, whose dense inverses changed nothing.
+
+    Returns
+    -------
+    w, mean_cov, spread, rows, ll
+        ``rows[k]`` is ``(x, None, step, C, Ainv, edf)``, or None where not computed;
+        ``mean_cov`` and ``spread`` are NaN where no weight has a finite evidence.
     """
     rank = _penalty_rank(H)
     blocks = null_blocks(H, H_fixed)
@@ -1389,11 +1408,13 @@ def _grid_average(J, r, theta, H, sigma, lam, H_fixed, meat, n_clusters, grid):
     pre = (JtJ, J.T @ r, float(r @ r))
     curve = evidence_curve(pre, theta, H, sigma, rank, H_fixed, blocks)
     ll = np.array([curve(lam * 10.0 ** x) for x in grid])
-    w = np.exp(ll - ll.max())
+    finite = np.isfinite(ll)
+    w = np.exp(ll - ll[finite].max()) if finite.any() else np.full(ll.size, np.nan)
     w /= w.sum()
+    mid = int(np.argmin(np.abs(grid)))
     rows = []
-    for x, share in zip(grid, w, strict=True):
-        if share < GRID_SHARE and x != 0.0:
+    for k, x in enumerate(grid):
+        if not w[k] >= GRID_SHARE and k != mid:
             rows.append(None)
             continue
         lg = lam * 10.0 ** x
@@ -1405,6 +1426,9 @@ def _grid_average(J, r, theta, H, sigma, lam, H_fixed, meat, n_clusters, grid):
         C = 0.5 * (C + C.T)
         rows.append((x, None, step, C, Ainv, edf))
     used = [k for k, row in enumerate(rows) if row is not None and w[k] >= GRID_SHARE]
+    if not used:
+        nan = np.full((theta.size, theta.size), np.nan)
+        return w, nan, nan.copy(), rows, ll
     wu = w[used] / w[used].sum()
     steps = np.array([rows[k][2] for k in used])
     dev = steps - wu @ steps

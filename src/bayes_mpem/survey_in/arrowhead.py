@@ -44,6 +44,10 @@ class Arrowhead:
         The remaining indices, in band order.
     width : int
         The band's half-width in that order.
+    size : int
+        ``P``.
+    keep : list of int
+        The positions in ``mats`` of the matrices kept (not None).
 
     Raises
     ------
@@ -209,10 +213,14 @@ def arrowhead(mats):
     Parameters
     ----------
     mats : sequence of numpy.ndarray or None
+        ``(P, P)`` symmetric positive semi-definite matrices whose non-negative weighted sums
+        will be factored (the data's ``J'J``, the penalties); None entries are left out.
 
     Returns
     -------
     Arrowhead or None
+        None below :data:`MIN_SIZE` parameters, with more than :data:`MAX_BORDER` dense
+        columns, or with a band wider than a quarter of the coefficients.
 
     Examples
     --------

@@ -131,7 +131,7 @@ def main(argv=None):
     text = report(rows, args.seeds, radii, time.perf_counter() - t0, args.jobs, args.hours)
     print(text)
     name = "gnssa-gate" + ("" if args.hours == 6.0 else f"-{args.hours:g}h")
-    if args.radii != p.get_default("radii"):
+    if radii != [float(v) for v in p.get_default("radii").split()]:
         name += "-R" + "-".join(f"{r:g}" for r in radii)
     write_section(ROOT / "docs" / "gnssa.md", name, text)
 

@@ -28,8 +28,8 @@ default), ``static`` (no time-varying sound speed), ``meancast`` (svp.csv the ca
 time-mean profile instead of the cast at the first shot), ``whitegnss`` (GNSS noise 2 cm
 white), ``nograd`` (no gradients), ``clean`` (no noise, no outliers), ``nonoise``,
 ``nooutliers``, ``nothing`` (no field change, no noise: the frame check), ``narrow`` (the
-circle's radius and the star's half-length a quarter of the depth: tracks just above
-``auto``'s gate, where it is tested); a variant ending
+circle's radius and the star's half-length a quarter of the depth: narrow tracks, the
+star's just above ``auto``'s gate, where it is tested); a variant ending
 in ``+gradoff`` locates with ``--gradients off``, one in ``+corroff`` with ``--correlation
 off``, instead of the defaults. Writes the section ``gnssa-independent[-VARIANTS]`` of
 ``docs/gnssa.md``.

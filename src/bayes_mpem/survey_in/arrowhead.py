@@ -107,16 +107,14 @@ class Arrowhead:
 
         Parameters
         ----------
-        k : int
-            Index of the matrix in those given (entries below :data:`DROP` left out).
-        x : numpy.ndarray
-            ``(P,)``.
+        k, x
+            As for :meth:`matvec`.
 
         Returns
         -------
         float
         """
-        return float(x @ (self._sparse[self.keep.index(k)] @ x))
+        return float(x @ self.matvec(k, x))
 
     def matvec(self, k, x):
         """Return ``M_k x``.

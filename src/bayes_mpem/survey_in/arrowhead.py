@@ -8,7 +8,8 @@ adjacent (reverse Cuthill-McKee), the normal matrix of the coefficients is a ban
 positions are its dense border. Factoring the band and the border's Schur complement costs
 ``O(P w^2)`` instead of the ``O(P^3)`` of a dense Cholesky (``w`` the band's half-width):
 on a 14.6-hour survey with the gradients (902 parameters) a choice of the smoothing weight
-evaluates the evidence some twenty times per M-step. Measurements: docs/gnssa.md, "Speed".
+evaluates the evidence some twenty times per M-step. Measurements: docs/gnssa.md, "Long
+campaigns: the arrowhead".
 """
 
 from __future__ import annotations

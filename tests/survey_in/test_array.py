@@ -43,6 +43,28 @@ def test_array_jacobian_matches_finite_differences(refracted):
         np.testing.assert_allclose(J[:, j], num, rtol=1e-4, atol=1e-9 * scale / h)
 
 
+def test_the_rays_kept_per_transponder_are_those_a_fresh_model_traces():
+    sim = simulate_gnssa(n_transponders=3, hours=0.3, rng=2)
+    shots = array_shots(sim.raw())
+    index = pd.Categorical(shots["transponder"], categories=["M01", "M02", "M03"]).codes
+    basis = speed_basis(shots, 2, None)
+
+    def model():
+        return ArrayTravelTimes(shots, index, 3, basis, profile=_profile(sim))
+
+    kept = model()
+    theta = np.concatenate([sim.truth["transponders"].to_numpy().ravel(), np.ones(5)])
+    moved = theta.copy()
+    moved[3:6] += [2.0, -1.0, 0.5]  # the second transponder only
+    first = kept.predict(theta)
+    again = kept.predict(moved)
+    np.testing.assert_array_equal(again, model().predict(moved))
+    np.testing.assert_array_equal(kept.jac(moved), model().jac(moved))
+    changed = np.flatnonzero(again != first)
+    assert changed.size and set(index[changed]) == {1}
+    np.testing.assert_array_equal(kept.predict(theta), first)
+
+
 def test_a_constant_profile_gives_the_straight_ray_fit():
     sim = simulate_gnssa(n_transponders=3, hours=0.5, rng=3)
     shots = array_shots(sim.raw())

@@ -43,7 +43,7 @@ def test_array_jacobian_matches_finite_differences(refracted):
         np.testing.assert_allclose(J[:, j], num, rtol=1e-4, atol=1e-9 * scale / h)
 
 
-def test_the_rays_kept_per_transponder_are_those_a_fresh_model_traces():
+def test_a_reused_model_gives_what_a_fresh_one_traces():  # the legs keep their last rays
     sim = simulate_gnssa(n_transponders=3, hours=0.3, rng=2)
     shots = array_shots(sim.raw())
     index = pd.Categorical(shots["transponder"], categories=["M01", "M02", "M03"]).codes

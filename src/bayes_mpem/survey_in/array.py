@@ -75,7 +75,6 @@ class ArrayTravelTimes:
                  gradients=None, earth_radius=None, along_sphere=False):
         self.index, self.K, self.basis = np.asarray(index), int(n_transponders), basis
         self.grad = gradients
-        self._last_rays = [None] * self.K  # (position, rays) last traced, per transponder
         self.k = basis.shape[1]
         self.rows = [np.flatnonzero(self.index == k) for k in range(self.K)]
         # a Cartesian frame with a radius: the shots along the sphere, the transponders
@@ -99,35 +98,20 @@ class ArrayTravelTimes:
         return 3 * self.K + self.k + (0 if self.grad is None else self.grad.shape[1])
 
     def _paths(self, theta):
-        """Per shot: summed leg times (or lengths), their position derivatives, invalid count.
-
-        A transponder's rays depend on its position only: the last ones traced for each are
-        kept, so that a residual and a Jacobian at one point (or a step that moves only the
-        speed) trace them once.
-        """
+        """Per shot: summed leg times (or lengths), their position derivatives, invalid count."""
         n = self.index.size
         T, dE, dN, dU, bad = np.empty(n), np.empty(n), np.empty(n), np.empty(n), 0
-        if len(self._last_rays) != self.K:
-            self._last_rays = [None] * self.K
         for k, (rows, legs) in enumerate(zip(self.rows, self.legs, strict=True)):
-            enu = np.array(theta[3 * k:3 * k + 3], float)
-            last = self._last_rays[k]
-            if last is not None and np.array_equal(last[0], enu):
-                Tk, d, b = last[1]
-            else:
-                point, M = self._sphere_point(enu)
-                th = np.array([point[0], point[1], -point[2]])
-                parts = [leg.rays(th) for leg in legs]
-                Tk = parts[0][0] + parts[1][0]
-                d = np.vstack([parts[0][1] + parts[1][1], parts[0][2] + parts[1][2],
-                               -(parts[0][3] + parts[1][3])])
-                if M is not None:  # chain rule: d(sphere point) / d(Cartesian point)
-                    d = M.T @ d
-                b = parts[0][4] + parts[1][4]
-                self._last_rays[k] = (enu, (Tk, d, b))
-            T[rows] = Tk
+            point, M = self._sphere_point(theta[3 * k:3 * k + 3])
+            th = np.array([point[0], point[1], -point[2]])
+            parts = [leg.rays(th) for leg in legs]
+            T[rows] = parts[0][0] + parts[1][0]
+            d = np.vstack([parts[0][1] + parts[1][1], parts[0][2] + parts[1][2],
+                           -(parts[0][3] + parts[1][3])])
+            if M is not None:  # chain rule: d(sphere point) / d(Cartesian point)
+                d = M.T @ d
             dE[rows], dN[rows], dU[rows] = d
-            bad += b
+            bad += parts[0][4] + parts[1][4]
         return T, dE, dN, dU, bad
 
     def _sphere_point(self, enu):

@@ -443,7 +443,8 @@ def test_every_weight_search_holds_the_other_penalty_when_the_gradients_are_fitt
     choose = array.choose_smoothing
 
     def spy(J, r, theta, H, sigma, lam=None, H_fixed=None, **kw):
-        calls.append(H_fixed is not None)
+        calls.append(H_fixed is not None and bool(np.all(np.isfinite(H_fixed)))
+                     and H_fixed.max() > 0)
         return choose(J, r, theta, H, sigma, lam, H_fixed, **kw)
 
     monkeypatch.setattr(array, "choose_smoothing", spy)

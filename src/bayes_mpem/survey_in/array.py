@@ -1103,7 +1103,11 @@ class _SmoothArrayEM(TravelTimeEM):
                 lam = fit.lam
                 if lam is None:  # the speed's first weight with the gradients held stiff (free,
                     # they make the normal matrix singular to round-off on long tracks)
-                    stiff = 10.0 ** WEIGHT_BOUNDS[1] * _weight_scale(gram(J), self.Hg, fit.sigma)
+                    JtJ = gram(J)
+                    scale = _weight_scale(JtJ, self.Hg, fit.sigma)
+                    if not 0.0 < scale < np.inf:  # no data on the gradients: the speed's
+                        scale = _weight_scale(JtJ, self.H, fit.sigma)
+                    stiff = 10.0 ** WEIGHT_BOUNDS[1] * scale
                     lam = choose_smoothing(J, r0, fit.theta, self.H, fit.sigma, None,
                                            stiff * self.Hg)
                 lam_g = 1e6 * lam
@@ -1408,6 +1412,7 @@ def _grid_average(J, r, theta, H, sigma, lam, H_fixed, meat, n_clusters, grid):
     pre = (JtJ, J.T @ r, float(r @ r))
     curve = evidence_curve(pre, theta, H, sigma, rank, H_fixed, blocks)
     ll = np.array([curve(lam * 10.0 ** x) for x in grid])
+    ll[np.isnan(ll)] = -np.inf  # a failed evaluation counts as no support, not as all unknown
     finite = np.isfinite(ll)
     w = np.exp(ll - ll[finite].max()) if finite.any() else np.full(ll.size, np.nan)
     w /= w.sum()

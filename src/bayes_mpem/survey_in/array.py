@@ -1006,7 +1006,7 @@ def choose_smoothing(J, r, theta, H, sigma, lam=None, H_fixed=None, *, with_evid
     Parameters
     ----------
     J, r, theta, H, sigma
-        As for :func:`log_evidence`.
+        As for :func:`log_evidence` (``J`` may be :func:`normal_equations`' tuple).
     lam : float, optional
         The previous weight.
     H_fixed : numpy.ndarray, optional
@@ -1031,10 +1031,29 @@ def _weight_scale(JtJ, H, sigma):
     return float(np.trace(JtJ[np.ix_(pen, pen)]) / sigma**2 / np.trace(H))
 
 
+def normal_equations(J, r):
+    """Return ``(J'J, J'r, r'r)``: what :func:`log_evidence` and :func:`choose_smoothing` take.
+
+    Computed once where several weights are chosen on one Jacobian.
+
+    Parameters
+    ----------
+    J : numpy.ndarray
+        ``(n, P)`` Jacobian of the weighted residuals.
+    r : numpy.ndarray
+        ``(n,)`` weighted residuals.
+
+    Returns
+    -------
+    tuple
+    """
+    return gram(J), J.T @ r, float(r @ r)
+
+
 def _choose_weight(J, r, theta, H, sigma, lam, H_fixed):
     """:func:`choose_smoothing`'s search: the weight and the search's :func:`evidence_curve`."""
     rank = _penalty_rank(H)
-    pre = (gram(J), J.T @ r, float(r @ r))
+    pre = J if isinstance(J, tuple) else normal_equations(J, r)
     blocks = null_blocks(H, H_fixed)
     curve = evidence_curve(pre, theta, H, sigma, rank, H_fixed, blocks)
 
@@ -1099,20 +1118,20 @@ class _SmoothArrayEM(TravelTimeEM):
             lam = choose_smoothing(J, r0, fit.theta, self.H, fit.sigma, fit.lam)
             root = np.sqrt(lam) * fit.sigma * self.root
         else:
+            pre = normal_equations(J, r0)  # both weights are chosen on it
             if lam_g is None:  # start the gradients stiff: they enter as they are supported
                 lam = fit.lam
                 if lam is None:  # the speed's first weight with the gradients held stiff (free,
                     # they make the normal matrix singular to round-off on long tracks)
-                    JtJ = gram(J)
-                    scale = _weight_scale(JtJ, self.Hg, fit.sigma)
+                    scale = _weight_scale(pre[0], self.Hg, fit.sigma)
                     if not 0.0 < scale < np.inf:  # no data on the gradients: the speed's
-                        scale = _weight_scale(JtJ, self.H, fit.sigma)
+                        scale = _weight_scale(pre[0], self.H, fit.sigma)
                     stiff = 10.0 ** WEIGHT_BOUNDS[1] * scale
-                    lam = choose_smoothing(J, r0, fit.theta, self.H, fit.sigma, None,
+                    lam = choose_smoothing(pre, r0, fit.theta, self.H, fit.sigma, None,
                                            stiff * self.Hg)
                 lam_g = 1e6 * lam
-            lam = choose_smoothing(J, r0, fit.theta, self.H, fit.sigma, fit.lam, lam_g * self.Hg)
-            lam_g = choose_smoothing(J, r0, fit.theta, self.Hg, fit.sigma, lam_g, lam * self.H)
+            lam = choose_smoothing(pre, r0, fit.theta, self.H, fit.sigma, fit.lam, lam_g * self.Hg)
+            lam_g = choose_smoothing(pre, r0, fit.theta, self.Hg, fit.sigma, lam_g, lam * self.H)
             root = fit.sigma * np.vstack([np.sqrt(lam) * self.root, np.sqrt(lam_g) * self.root_g])
 
         theta = penalised_gauss_newton(lambda th: self.resid(th, p),
@@ -1254,10 +1273,11 @@ def _correlated_refit(correlation, resid, jac, phi, p, sub, index, H, Hg, lam, l
     for _ in range(3 if H is not None else 1):
         J, r = jw(phi), rw(phi)
         if H is not None:
-            lam = choose_smoothing(J, r, phi, H, sigma, lam, None if Hg is None else lam_g * Hg)
+            pre = normal_equations(J, r)  # both weights are chosen on it
+            lam = choose_smoothing(pre, r, phi, H, sigma, lam, None if Hg is None else lam_g * Hg)
             Q = lam * H
             if Hg is not None:
-                lam_g = choose_smoothing(J, r, phi, Hg, sigma, lam_g, Q)
+                lam_g = choose_smoothing(pre, r, phi, Hg, sigma, lam_g, Q)
                 Q = Q + lam_g * Hg
         else:
             Q = np.zeros((phi.size, phi.size))
@@ -1408,8 +1428,8 @@ def _grid_average(J, r, theta, H, sigma, lam, H_fixed, meat, n_clusters, grid):
     """
     rank = _penalty_rank(H)
     blocks = null_blocks(H, H_fixed)
-    JtJ = gram(J)
-    pre = (JtJ, J.T @ r, float(r @ r))
+    pre = normal_equations(J, r)
+    JtJ = pre[0]
     curve = evidence_curve(pre, theta, H, sigma, rank, H_fixed, blocks)
     ll = np.array([curve(lam * 10.0 ** x) for x in grid])
     ll[np.isnan(ll)] = -np.inf  # a failed evaluation counts as no support, not as all unknown

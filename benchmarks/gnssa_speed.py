@@ -41,10 +41,13 @@ CASES = [(f"simulated {h:g} h, seed {s}", h, s) for h, s in
 CASES += [("SeaGap (shipped)", None, "auto"), ("SeaGap, `--gradients off`", None, "off")]
 
 
+DEFAULTS = (arrowhead.MIN_SIZE, array.GRID_SHARE)
+
+
 def dense(on):
-    """Switch the arrowhead off (``on=True``) or back on."""
-    arrowhead.MIN_SIZE = 10**9 if on else 300
-    array.GRID_SHARE = 0.0 if on else 1e-12
+    """Switch the arrowhead off (``on=True``) or back to the package's defaults."""
+    arrowhead.MIN_SIZE = 10**9 if on else DEFAULTS[0]
+    array.GRID_SHARE = 0.0 if on else DEFAULTS[1]
 
 
 def timed(raw, gradients):

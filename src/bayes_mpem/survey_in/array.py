@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import warnings
 from dataclasses import dataclass, field
 from typing import NamedTuple
@@ -9,7 +10,9 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 from scipy.linalg import cho_factor, cho_solve
+from scipy.linalg.lapack import dpotri
 from scipy.optimize import least_squares
+from scipy.sparse import csr_matrix
 from scipy.stats import norm
 
 from .._validate import check_choice, check_int
@@ -522,12 +525,13 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
     (phi, _, sigma, weights), p = run.params[:4], run.resp
     lam, lam_g = (run.params.lam, run.params.lam_g) if smooth else (None, None)
     clusters = sub["t_tx"].to_numpy() if "t_tx" in sub.columns else np.arange(len(sub))
-    J, r = jac(phi, p), resid(phi, p)
     refit, noise = _correlated_refit(correlation, resid, jac, phi, p, sub, index, H, Hg, lam,
                                      lam_g, sigma)
     if refit is not None:
         phi, sigma, lam, lam_g, J, r = refit
         clusters = np.arange(len(r))  # whitened rows: independent
+    else:
+        J, r = jac(phi, p), resid(phi, p)
     smoothing = None
     if smooth:
         cov_phi, cov_model_phi, smoothing = _smooth_covariance(
@@ -862,15 +866,29 @@ def log_evidence(J, r, theta, H, sigma, lam, rank=None, H_fixed=None, blocks=Non
 def _blocks(nz):
     """Index arrays of the connected components of a symmetric nonzero pattern ``nz``.
 
-    Rows without a nonzero belong to no block.
+    Rows without a nonzero belong to no block. A fit asks for the blocks of the same few
+    patterns (the speed's penalty, the gradients') at every weight it tries: the last
+    patterns' blocks are kept (:func:`_pattern_blocks`), read-only.
     """
+    nz = np.asarray(nz, bool)
+    return _pattern_blocks(nz.shape, np.packbits(nz).tobytes())
+
+
+@functools.lru_cache(maxsize=16)
+def _pattern_blocks(shape, packed):
+    """:func:`_blocks` of the pattern ``np.packbits(nz)`` of ``shape``."""
     from scipy.sparse.csgraph import connected_components
 
+    size = int(np.prod(shape))
+    nz = np.unpackbits(np.frombuffer(packed, np.uint8), count=size).astype(bool).reshape(shape)
     idx = np.flatnonzero(nz.any(axis=1))
     if not idx.size:
-        return []
-    label = connected_components(nz[np.ix_(idx, idx)], directed=False)[1]
-    return [idx[label == j] for j in range(label.max() + 1)]
+        return ()
+    label = connected_components(csr_matrix(nz[np.ix_(idx, idx)]), directed=False)[1]
+    out = tuple(idx[label == j] for j in range(label.max() + 1))
+    for block in out:
+        block.setflags(write=False)
+    return out
 
 
 def null_blocks(*Qs):
@@ -1108,6 +1126,7 @@ class _SmoothArrayEM(TravelTimeEM):
     def m_step(self, fit, p):
         """Return the new parameters given the probabilities ``p`` of true shots."""
         J, r0 = self.jac(fit.theta, p), self.resid(fit.theta, p)
+        pre = normal_equations(J, r0)  # the weights are chosen on it; the first step uses it
         lam_g = fit.lam_g
         self.n_steps += 1
         if self.Hg is not None and self.n_steps > FREEZE_AFTER:  # two weights: held, so
@@ -1115,10 +1134,9 @@ class _SmoothArrayEM(TravelTimeEM):
             root = fit.sigma * np.vstack([np.sqrt(lam) * self.root,
                                           np.sqrt(lam_g) * self.root_g])
         elif self.Hg is None:
-            lam = choose_smoothing(J, r0, fit.theta, self.H, fit.sigma, fit.lam)
+            lam = choose_smoothing(pre, r0, fit.theta, self.H, fit.sigma, fit.lam)
             root = np.sqrt(lam) * fit.sigma * self.root
         else:
-            pre = normal_equations(J, r0)  # both weights are chosen on it
             if lam_g is None:  # start the gradients stiff: they enter as they are supported
                 lam = fit.lam
                 if lam is None:  # the speed's first weight with the gradients held stiff (free,
@@ -1135,7 +1153,8 @@ class _SmoothArrayEM(TravelTimeEM):
             root = fit.sigma * np.vstack([np.sqrt(lam) * self.root, np.sqrt(lam_g) * self.root_g])
 
         theta = penalised_gauss_newton(lambda th: self.resid(th, p),
-                                       lambda th: self.jac(th, p), fit.theta, root.T @ root)
+                                       lambda th: self.jac(th, p), fit.theta, root.T @ root,
+                                       start=(r0, J, pre))
         r = self.resid(theta)
         sigma = float(np.sqrt(np.sum(p * r * r) / p.sum()))
         k = len(self.rows)
@@ -1156,7 +1175,7 @@ class _SmoothArrayEM(TravelTimeEM):
         return abs(new.sigma - old.sigma)
 
 
-def penalised_gauss_newton(resid, jac, theta, Q, *, max_steps=50, rtol=1e-12):
+def penalised_gauss_newton(resid, jac, theta, Q, *, max_steps=50, rtol=1e-12, start=None):
     """Minimise ``||resid(theta)||^2 + theta' Q theta`` by damped Gauss-Newton steps.
 
     Each step solves ``(J'J + Q + mu D) d = -(J'r + Q theta)`` (``D`` the diagonal of
@@ -1175,6 +1194,9 @@ def penalised_gauss_newton(resid, jac, theta, Q, *, max_steps=50, rtol=1e-12):
     max_steps : int, default 50
     rtol : float, default 1e-12
         Stop when a step lowers the objective by less than this fraction.
+    start : tuple, optional
+        ``(r, J, (J'J, J'r, r'r))`` at ``theta`` (:func:`normal_equations`), where the
+        caller has them already: the first step then neither evaluates nor multiplies them.
 
     Returns
     -------
@@ -1195,13 +1217,16 @@ def penalised_gauss_newton(resid, jac, theta, Q, *, max_steps=50, rtol=1e-12):
         return tc @ Q @ tc
 
     th = np.asarray(theta, float).copy()
-    r = resid(th)
+    r, J, pre = (resid(th), None, None) if start is None else start
     f = r @ r + penalty(th)
     mu = 0.0
     for _ in range(max_steps):
-        J = jac(th)
-        A = gram(J) + Q
-        g = J.T @ r + Q @ null_shifted(th, Q, blocks)
+        if pre is None:
+            J = jac(th)
+            pre = normal_equations(J, r)
+        A = pre[0] + Q
+        g = pre[1] + Q @ null_shifted(th, Q, blocks)
+        pre = None
         d = np.diag(A).copy()
         d[d <= 0] = 1.0
         s = 1.0 / np.sqrt(d)
@@ -1270,10 +1295,11 @@ def _correlated_refit(correlation, resid, jac, phi, p, sub, index, H, Hg, lam, l
     def jw(th):
         return w.whiten(jac(th)[keep])
 
+    r = rw(phi)
     for _ in range(3 if H is not None else 1):
-        J, r = jw(phi), rw(phi)
+        J = jw(phi)
+        pre = normal_equations(J, r)  # the weights are chosen on it; the first step uses it
         if H is not None:
-            pre = normal_equations(J, r)  # both weights are chosen on it
             lam = choose_smoothing(pre, r, phi, H, sigma, lam, None if Hg is None else lam_g * Hg)
             Q = lam * H
             if Hg is not None:
@@ -1281,7 +1307,7 @@ def _correlated_refit(correlation, resid, jac, phi, p, sub, index, H, Hg, lam, l
                 Q = Q + lam_g * Hg
         else:
             Q = np.zeros((phi.size, phi.size))
-        phi = penalised_gauss_newton(rw, jw, phi, sigma**2 * Q)
+        phi = penalised_gauss_newton(rw, jw, phi, sigma**2 * Q, start=(r, J, pre))
         r = rw(phi)
         sigma = float(np.sqrt(r @ r / r.size))
     return (phi, sigma, lam, lam_g, jw(phi), r), _noise_record(tau, share, white, table,
@@ -1403,7 +1429,11 @@ def _scaled_inverse(A):
     s = 1.0 / np.sqrt(d)
     B = A * s[:, None] * s[None, :]
     try:
-        inv = cho_solve(cho_factor(B), np.eye(len(d)))
+        c, lower = cho_factor(B)
+        inv, info = dpotri(c, lower=lower)  # from the factor: a third of cho_solve's work
+        if info:
+            raise np.linalg.LinAlgError(f"dpotri: info {info}")
+        inv = np.tril(inv) + np.tril(inv, -1).T if lower else np.triu(inv) + np.triu(inv, 1).T
     except np.linalg.LinAlgError:
         vals, vecs = np.linalg.eigh(0.5 * (B + B.T))
         vals = np.maximum(vals, 1e-12 * vals.max())
@@ -1428,7 +1458,7 @@ def _grid_average(J, r, theta, H, sigma, lam, H_fixed, meat, n_clusters, grid):
     """
     rank = _penalty_rank(H)
     blocks = null_blocks(H, H_fixed)
-    pre = normal_equations(J, r)
+    pre = J if isinstance(J, tuple) else normal_equations(J, r)
     JtJ = pre[0]
     curve = evidence_curve(pre, theta, H, sigma, rank, H_fixed, blocks)
     ll = np.array([curve(lam * 10.0 ** x) for x in grid])
@@ -1472,13 +1502,14 @@ def _smooth_covariance(J, r, theta, H, sigma, lam, clusters, Hg=None, lam_g=None
     np.add.at(S, codes, J * r[:, None])
     meat = S.T @ S / sigma**4
     H_fixed = None if Hg is None else lam_g * Hg
-    w, cov, spread, rows, ll = _grid_average(J, r, theta, H, sigma, lam, H_fixed, meat,
+    pre = normal_equations(J, r)  # both grids' (and the positions') normal equations
+    w, cov, spread, rows, ll = _grid_average(pre, r, theta, H, sigma, lam, H_fixed, meat,
                                              n_clusters, WEIGHT_GRID)
     mid = int(np.argmin(np.abs(WEIGHT_GRID)))
     cov = cov + spread
     grad_grid = None
     if Hg is not None:
-        v, cov_g, spread_g, rows_g, ll_g = _grid_average(J, r, theta, Hg, sigma, lam_g,
+        v, cov_g, spread_g, rows_g, ll_g = _grid_average(pre, r, theta, Hg, sigma, lam_g,
                                                          lam * H, meat, n_clusters,
                                                          GRADIENT_WEIGHT_GRID)
         cov = cov + cov_g - rows[mid][3] + spread_g

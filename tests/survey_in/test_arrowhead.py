@@ -87,8 +87,20 @@ def test_no_arrowhead_where_a_dense_factor_is_better():
 def test_gram_is_j_transpose_j():
     J, r, theta, H, Hg = _problem(n=800, intervals=70)
     np.testing.assert_allclose(gram(J), J.T @ J, rtol=1e-12, atol=1e-12 * np.abs(J).max() ** 2)
-    Jw = _problem(n=800, intervals=70, tau=0.6)[0]  # dense rows: the dense product
-    np.testing.assert_allclose(gram(Jw), Jw.T @ Jw, rtol=1e-12)
+
+
+@pytest.mark.parametrize("tau", [0.1, 0.6, 3.0])
+def test_gram_of_whitened_rows_is_j_transpose_j_to_round_off(tau, monkeypatch):
+    """Dense rows whose columns decay: blocks of rows over their live columns."""
+    from bayes_mpem.survey_in import arrowhead as ah
+
+    Jw = _problem(n=800, intervals=70, tau=tau)[0]
+    dense = Jw.T @ Jw
+    d = np.sqrt(np.diag(dense))
+    assert ah._banded_gram(Jw) is not None  # the banded product is the one tested
+    assert np.abs((gram(Jw) - dense) / np.outer(d, d)).max() < 1e-13
+    monkeypatch.setattr(ah, "TAIL", 1e-3)  # the test can fail: a tail that matters
+    assert np.abs((gram(Jw) - dense) / np.outer(d, d)).max() > 1e-6
 
 
 def test_choose_smoothing_reports_the_evidence_at_its_weight():

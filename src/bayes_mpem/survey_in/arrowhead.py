@@ -27,6 +27,14 @@ DROP = 1e-20
 MAX_BORDER = 64
 #: Fewest parameters for which the arrowhead is used (a dense Cholesky is cheaper below).
 MIN_SIZE = 300
+#: :func:`gram` of dense rows: an entry below this fraction of its column's norm, before the
+#: column's first or after its last larger one, counts as zero. Whitened by a banded
+#: factor, a coefficient's column is exactly zero before its knots and decays after them;
+#: leaving out its tail changes ``J'J`` by about this fraction of ``|J_i| |J_j|``, below the
+#: round-off of the dense product (``n eps``).
+TAIL = 1e-17
+#: Rows per block of :func:`gram`'s banded product.
+CHUNK = 128
 
 
 class Arrowhead:
@@ -183,11 +191,15 @@ class Arrowhead:
 
 
 def gram(J):
-    """Return ``J'J``, through a sparse product where ``J`` is mostly zeros.
+    """Return ``J'J``, through a sparse or a banded product where ``J`` allows.
 
     A shot's row of the Jacobian touches its transponder's position and the four B-spline
-    coefficients of each series about its time: about 3 % of a long survey's columns
-    (whitened rows under correlated noise are dense, and take the dense product).
+    coefficients of each series about its time: about 3 % of a long survey's columns, a
+    sparse product. Whitened under correlated noise (rows in time order) the rows are
+    dense, but each coefficient's column is zero before its knots and falls below
+    :data:`TAIL` of its norm some correlation times after them: the product is then
+    summed over blocks of :data:`CHUNK` rows, each over the columns alive in it. Dense
+    otherwise.
 
     Parameters
     ----------
@@ -197,13 +209,38 @@ def gram(J):
     Returns
     -------
     numpy.ndarray
-        ``(P, P)``.
+        ``(P, P)``, symmetric.
     """
     J = np.asarray(J, float)
-    if J.shape[1] < MIN_SIZE or np.count_nonzero(J) > 0.1 * J.size:
+    if J.shape[1] < MIN_SIZE:
         return J.T @ J
-    S = csr_matrix(J)
-    return (S.T @ S).toarray()
+    if np.count_nonzero(J) <= 0.1 * J.size:
+        S = csr_matrix(J)
+        return (S.T @ S).toarray()
+    out = _banded_gram(J)
+    return J.T @ J if out is None else out
+
+
+def _banded_gram(J):
+    """:func:`gram` by blocks of rows over their live columns; None where not cheaper."""
+    n, P = J.shape
+    live = np.abs(J) > TAIL * np.sqrt(np.einsum("ij,ij->j", J, J))
+    some = live.any(axis=0)
+    first = np.where(some, live.argmax(axis=0), n)
+    last = np.where(some, n - 1 - live[::-1].argmax(axis=0), -1)
+    plan, cost = [], 0
+    for a in range(0, n, CHUNK):
+        b = min(a + CHUNK, n)
+        cols = np.flatnonzero((first < b) & (last >= a))
+        plan.append((a, b, cols))
+        cost += (b - a) * cols.size**2
+    if cost > 0.25 * n * P * P:
+        return None
+    G = np.zeros((P, P))
+    for a, b, cols in plan:
+        B = J[a:b, cols]
+        G[np.ix_(cols, cols)] += B.T @ B
+    return G
 
 
 def arrowhead(mats):

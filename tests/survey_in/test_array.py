@@ -1,6 +1,7 @@
 """The array location (GNSS-A): simulated truth through GARPOS and GNATSS files, recovered."""
 
 import json
+import os
 
 import numpy as np
 import pandas as pd
@@ -234,3 +235,39 @@ def test_covariance_of_badly_scaled_parameters_stays_a_covariance():
     assert np.all(np.diag(cov)[:12] > 0)
     for t in res.summary["transponders"].values():
         assert all(t["enu"][a]["sd"] > 0 for a in ("east", "north", "up"))
+
+
+def _blas_threads_during_the_fit(monkeypatch):
+    """The BLAS's thread count seen inside ``locate_array`` (from two before the call)."""
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    from bayes_mpem.survey_in import array
+
+    seen = []
+    inner = array._gross_screen
+
+    def spy(*args):
+        seen.append(max(p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"))
+        return inner(*args)
+
+    monkeypatch.setattr(array, "_gross_screen", spy)
+    sim = simulate_gnssa(hours=0.5, rng=3)
+    raw = sim.raw()
+    with threadpool_limits(limits=2, user_api="blas"):
+        locate_array_survey(raw, speed_intervals=1, gradients="off", correlation="off")
+    return seen
+
+
+def test_the_array_fit_runs_its_blas_on_one_thread(monkeypatch):
+    """Threads cost more than they save on its small factorizations (docs/gnssa.md)."""
+    from bayes_mpem._threads import THREAD_VARIABLES
+
+    for name in THREAD_VARIABLES:
+        monkeypatch.delenv(name, raising=False)
+    assert set(_blas_threads_during_the_fit(monkeypatch)) == {1}
+
+
+def test_a_thread_count_the_user_set_is_left_alone(monkeypatch):
+    monkeypatch.setenv("OPENBLAS_NUM_THREADS", "2")
+    seen = _blas_threads_during_the_fit(monkeypatch)
+    assert seen and all(n == seen[0] for n in seen) and (seen[0] > 1 or os.cpu_count() == 1)

@@ -15,6 +15,7 @@ from scipy.optimize import least_squares
 from scipy.sparse import csr_matrix
 from scipy.stats import norm
 
+from .._threads import with_one_blas_thread
 from .._validate import check_choice, check_int
 from ..exceptions import InputError, LocateWarning
 from .arrowhead import arrowhead, gram
@@ -370,6 +371,7 @@ def _check_shots(shots, transponders, exclude=None):
 
 # The steps of the array's fit (checks, robust start, model, EM, covariance, result) read
 # long function: each step is a few lines and they read best in sequence
+@with_one_blas_thread
 def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=None,
                  surface_depth=0.0, speed_intervals=None, knot_minutes=KNOT_MINUTES,
                  sound_speed=None, outliers="uniform", time_range=None, fixed=None,

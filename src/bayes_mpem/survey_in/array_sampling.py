@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 
 from .._rng import RNGLike, as_generator
+from .._threads import with_one_blas_thread
 from ..exceptions import InputError
 from ..mcmc import (
     TProposal,
@@ -923,6 +924,7 @@ class ArrayPosterior:
         return out
 
 
+@with_one_blas_thread
 def sample_array(shots: pd.DataFrame, fit: ArrayLocateResult, *, n_walkers: int | None = None,
                  ci: float = 0.95, min_ess: float = 1000.0, max_steps: int = 20000,
                  n_draws: int = 4000, sampler: str = "auto", rng: RNGLike = None,

@@ -315,3 +315,17 @@ def test_the_refinement_climbs_to_the_best_white_share_without_trying_every_one(
     assert len(set(refined)) == len(refined)  # none twice
     assert len(refined) < 11 or peak == 0.95  # a peak at the far end: the whole climb
     assert all(row["correlation_s"] == tau for row in table if row["stage"] == "refine")
+
+
+def test_the_correlated_refit_runs_until_its_weights_settle(monkeypatch):
+    """Rounds of weights and steps until no weight moves by 1 %; a warning where cut short."""
+    from bayes_mpem.exceptions import LocateWarning
+    from bayes_mpem.survey_in import array
+
+    raw = _with_correlated_delay(simulate_gnssa(hours=2, rng=1, speed_model="field").raw(), 1)
+    nz = locate_array_survey(raw).summary["noise"]
+    assert nz["refit_converged"] and 2 <= nz["refit_rounds"] < array.REFIT_ROUNDS
+    monkeypatch.setattr(array, "REFIT_ROUNDS", 1)  # the weights move on the first round
+    with pytest.warns(LocateWarning, match="still moved by more than 1 % after 1 round$"):
+        nz = locate_array_survey(raw).summary["noise"]
+    assert not nz["refit_converged"] and nz["refit_rounds"] == 1

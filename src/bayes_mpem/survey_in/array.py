@@ -40,6 +40,9 @@ WEIGHT_GRID = np.arange(-2.0, 2.0001, 0.25)
 WEIGHT_BOUNDS = (-10.0, 7.0)
 #: M-steps after which the smoothing weights are held (:class:`_SmoothArrayEM`).
 FREEZE_AFTER = 12
+#: Most rounds of the refit under correlated noise (the weights chosen, then the penalised
+#: step): it stops once no weight moves by more than 1 %, as the EM does.
+REFIT_ROUNDS = 12
 #: Columns :func:`locate_array` needs.
 SHOT_COLUMNS = ("transponder", "twtt", "time", "e_tx", "n_tx", "u_tx", "e_rx", "n_rx", "u_rx")
 
@@ -1298,22 +1301,34 @@ def _correlated_refit(correlation, resid, jac, phi, p, sub, index, H, Hg, lam, l
         return w.whiten(jac(th)[keep])
 
     r = rw(phi)
-    for _ in range(3 if H is not None else 1):
+    rounds, settled = 0, H is None
+    while not settled and rounds < REFIT_ROUNDS or rounds == 0:
+        rounds += 1
         J = jw(phi)
         pre = normal_equations(J, r)  # the weights are chosen on it; the first step uses it
         if H is not None:
+            before = (lam, lam_g)
             lam = choose_smoothing(pre, r, phi, H, sigma, lam, None if Hg is None else lam_g * Hg)
             Q = lam * H
             if Hg is not None:
                 lam_g = choose_smoothing(pre, r, phi, Hg, sigma, lam_g, Q)
                 Q = Q + lam_g * Hg
+            settled = rounds > 1 and all(  # the EM's weights come from independent replies
+                a is None or abs(np.log(b / a)) <= 0.01 for a, b in zip(before, (lam, lam_g),
+                                                                       strict=True))
         else:
             Q = np.zeros((phi.size, phi.size))
         phi = penalised_gauss_newton(rw, jw, phi, sigma**2 * Q, start=(r, J, pre))
         r = rw(phi)
         sigma = float(np.sqrt(r @ r / r.size))
-    return (phi, sigma, lam, lam_g, jw(phi), r), _noise_record(tau, share, white, table,
-                                                               keep.size)
+    record = _noise_record(tau, share, white, table, keep.size)
+    record.update(refit_rounds=rounds, refit_converged=bool(settled))
+    if not settled:
+        warnings.warn(f"array: the smoothing weights of the refit under correlated noise still "
+                      f"moved by more than 1 % after {rounds} round{'s' * (rounds != 1)}",
+                      LocateWarning,
+                      stacklevel=3)
+    return (phi, sigma, lam, lam_g, jw(phi), r), record
 
 
 def correlation_spec(correlation):

@@ -17,7 +17,7 @@ import bayes_mpem
 PKG = Path(bayes_mpem.__file__).resolve().parent
 
 #: layer of each top-level part; a module may import only from its own part or lower layers
-LAYER = {"_rng": 0, "exceptions": 0, "_validate": 0, "commands": 0,
+LAYER = {"_rng": 0, "exceptions": 0, "_validate": 0, "_threads": 0, "commands": 0,
          "io": 1,
          "acoustics": 2, "mixture": 2, "mcmc": 2,
          "lbl": 3, "survey_in": 3,

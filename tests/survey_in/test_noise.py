@@ -67,13 +67,19 @@ def test_independent_replies_are_the_identity():
     assert w.whiten(np.array([3.0, 1.0, 2.0])).tolist() == [1.0, 2.0, 3.0]  # time order
 
 
+def _ou_every_20_s(gen, n, tau=120.0):
+    """``(t, x)``: ``n`` times 20 s apart and a unit Ornstein-Uhlenbeck process of ``tau`` s."""
+    t = np.arange(n) * 20.0
+    a = np.exp(-20.0 / tau)
+    ou = np.zeros(n)
+    for i in range(1, n):
+        ou[i] = a * ou[i - 1] + gen.normal(0, np.sqrt(1 - a * a))
+    return t, ou
+
+
 def test_choice_finds_an_ou_process_under_white_noise():
     gen = np.random.default_rng(2)
-    t = np.arange(3000) * 20.0
-    a = np.exp(-20.0 / 120.0)
-    ou = np.zeros(t.size)
-    for i in range(1, t.size):
-        ou[i] = a * ou[i - 1] + gen.normal(0, np.sqrt(1 - a * a))
+    t, ou = _ou_every_20_s(gen, 3000)
     r = ou + gen.normal(0, np.sqrt(0.6), t.size)  # white share 0.375
     (tau, _, white), table = choose_correlation(t, np.zeros(t.size, int), r)
     assert tau in (120.0, 180.0) and white in (0.3, 0.5)  # 120 s, 0.375 (the grid's nearest)
@@ -295,16 +301,9 @@ def test_the_refinement_climbs_to_the_best_white_share_without_trying_every_one(
     the share 0 than for the scan's 0.5: the pair chosen is the best of all twelve, in fewer
     evaluations than the eleven others.
     """
-    gen = np.random.default_rng(3)
-    t = np.arange(600) * 20.0
-    a = np.exp(-20.0 / 120.0)
-    ou = np.zeros(t.size)
-    for i in range(1, t.size):
-        ou[i] = a * ou[i - 1] + gen.normal(0, np.sqrt(1 - a * a))
-    calls = []
+    t, ou = _ou_every_20_s(np.random.default_rng(3), 600)
 
     def evidence(w):
-        calls.append((w.share, w.white))
         return (50.0 * (w.tau > 0) - 50.0 * (w.white - peak) ** 2 - 5.0 * w.share
                 - 0.01 * abs(w.tau - 120.0))
 

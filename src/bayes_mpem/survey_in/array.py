@@ -372,9 +372,9 @@ def _check_shots(shots, transponders, exclude=None):
     return ids, skipped, index
 
 
+@with_one_blas_thread
 # The steps of the array's fit (checks, robust start, model, EM, covariance, result) read
 # long function: each step is a few lines and they read best in sequence
-@with_one_blas_thread
 def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=None,
                  surface_depth=0.0, speed_intervals=None, knot_minutes=KNOT_MINUTES,
                  sound_speed=None, outliers="uniform", time_range=None, fixed=None,

@@ -2,8 +2,8 @@
 
 A long array fit factors hundreds of small dense and banded matrices; OpenBLAS's threads
 cost more to start and join than they save on them. On a 2-core machine the SeaGap survey
-took 14.4 s with OpenBLAS's two threads and 9.8 s with one (docs/gnssa.md, "Long campaigns:
-the arrowhead"). A thread count the user sets in the environment is left alone.
+took 13.5-14.4 s with OpenBLAS's two threads and 10.0-10.5 s with one (docs/gnssa.md,
+"Threads"). A thread count the user sets in the environment is left alone.
 """
 
 from __future__ import annotations

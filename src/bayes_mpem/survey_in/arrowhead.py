@@ -224,7 +224,10 @@ def gram(J):
 def _banded_gram(J):
     """:func:`gram` by blocks of rows over their live columns; None where not cheaper."""
     n, P = J.shape
-    live = ~(np.abs(J) <= TAIL * np.sqrt(np.einsum("ij,ij->j", J, J)))  # NaN: live, kept
+    norm = np.sqrt(np.einsum("ij,ij->j", J, J))
+    if not np.isfinite(norm).all():  # NaN, inf or overflow: the dense product propagates it
+        return None
+    live = np.abs(J) > TAIL * norm
     some = live.any(axis=0)
     first = np.where(some, live.argmax(axis=0), n)
     last = np.where(some, n - 1 - live[::-1].argmax(axis=0), -1)

@@ -1327,7 +1327,7 @@ def _correlated_refit(correlation, resid, jac, phi, p, sub, index, H, Hg, lam, l
         warnings.warn(f"array: the smoothing weights of the refit under correlated noise still "
                       f"moved by more than 1 % after {rounds} round{'s' * (rounds != 1)}",
                       LocateWarning,
-                      stacklevel=3)
+                      stacklevel=4)  # past the thread-limiting decorator
     return (phi, sigma, lam, lam_g, jw(phi), r), record
 
 
@@ -1622,7 +1622,7 @@ def _warn(n_bad, n_legs, converged, it):
     if n_bad:
         warnings.warn(f"array: {n_bad} of {n_legs} legs have no direct eigenray through the "
                       "profile; their travel times are the straight chord at the profile's "
-                      "mean speed", LocateWarning, stacklevel=3)
+                      "mean speed", LocateWarning, stacklevel=4)
     if not converged:
         warnings.warn(f"array: location EM did not converge in {it} iterations", LocateWarning,
-                      stacklevel=3)
+                      stacklevel=4)

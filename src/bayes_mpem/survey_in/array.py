@@ -1302,7 +1302,7 @@ def _correlated_refit(correlation, resid, jac, phi, p, sub, index, H, Hg, lam, l
 
     r = rw(phi)
     rounds, settled = 0, H is None
-    while not settled and rounds < REFIT_ROUNDS or rounds == 0:
+    while rounds == 0 or (not settled and rounds < REFIT_ROUNDS):
         rounds += 1
         J = jw(phi)
         pre = normal_equations(J, r)  # the weights are chosen on it; the first step uses it

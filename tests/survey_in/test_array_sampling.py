@@ -263,3 +263,15 @@ def test_the_hyperparameter_grid_widens_each_axis_on_its_own(monkeypatch):
     half = np.array(calls)
     assert len(half) >= 2 and half[-1, 1] > 1.9 * half[0, 1]  # kappa widened
     assert half[-1, 0] == half[0, 0]  # sigma's grid kept
+
+
+@pytest.mark.parametrize("sampler", ["independence", "ensemble"])
+def test_a_chain_cut_short_warns_at_the_callers_line(campaign, sampler):
+    """The warning names the line that called ``sample_array``, past its decorator."""
+    from bayes_mpem.exceptions import SamplingWarning
+
+    _, _, fit, shots = campaign
+    with pytest.warns(SamplingWarning, match="max_steps=20") as rec:
+        sample_array(shots, fit, min_ess=1e6, max_steps=20, n_draws=20, sampler=sampler,
+                     rng=0, progress=False)
+    assert {w.filename for w in rec if w.category is SamplingWarning} == {__file__}

@@ -139,8 +139,14 @@ class EnsembleRun:
 
 
 def _burn(samplers) -> int:
-    """Burn-in: twice the largest autocorrelation time (emcee's estimate) over the ensembles."""
-    tau = max(float(np.max(s.get_autocorr_time(tol=0, quiet=True))) for s in samplers)
+    """Burn-in: twice the largest autocorrelation time (emcee's estimate) over the ensembles.
+
+    A coordinate that has not moved (a short chain whose walkers all rejected) has no
+    autocorrelation (0/0 in emcee): its time is NaN, without NumPy's warning, and the burn
+    falls back to half the chain.
+    """
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tau = max(float(np.max(s.get_autocorr_time(tol=0, quiet=True))) for s in samplers)
     return int(math.ceil(2.0 * tau)) if math.isfinite(tau) else samplers[0].iteration // 2
 
 

@@ -998,7 +998,7 @@ def sample_array(shots: pd.DataFrame, fit: ArrayLocateResult, *, n_walkers: int 
         return _series(post, chain)
 
     opts = {"gen": gen, "min_ess": float(min_ess), "n_draws": int(n_draws), "natural": natural,
-            "label": post.label, "stacklevel": 2}
+            "label": post.label, "stacklevel": 3}  # past the thread-limiting decorator
     info = {"fallback": None}
     proposal = None
     if sampler != "ensemble":
@@ -1100,7 +1100,7 @@ def _differential_evolution(post, walkers, max_steps, info, progress, opts):
     info["moves"] = DEFAULT_MOVES_LABEL
     return run_ensembles(post, [_proposal_start(post, ball, walkers, opts["gen"])],
                          moves=default_moves(), burn_in=True, progress=progress,
-                         max_steps=steps, **opts)
+                         max_steps=steps, **{**opts, "stacklevel": opts["stacklevel"] + 1})
 
 
 def _covariance(x) -> dict:

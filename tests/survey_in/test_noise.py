@@ -314,6 +314,9 @@ def test_the_refinement_climbs_to_the_best_white_share_without_trying_every_one(
     assert len(set(refined)) == len(refined)  # none twice
     assert len(refined) < 11 or peak == 0.95  # a peak at the far end: the whole climb
     assert all(row["correlation_s"] == tau for row in table if row["stage"] == "refine")
+    (tau0, share0, white0), table = choose_correlation(t, np.zeros(t.size, int), ou,
+                                                       evidence=evidence, refine=())
+    assert tau0 > 0 and not any(row["stage"] == "refine" for row in table)  # the scan's stands
 
 
 def test_the_correlated_refit_runs_until_its_weights_settle(monkeypatch):
@@ -329,3 +332,41 @@ def test_the_correlated_refit_runs_until_its_weights_settle(monkeypatch):
         nz = locate_array_survey(raw).summary["noise"]
     assert all("_threads" not in w.filename for w in rec)  # the caller's line, not the decorator's
     assert not nz["refit_converged"] and nz["refit_rounds"] == 1
+
+
+@pytest.mark.parametrize(("lam_g_moves", "rounds"), [((0.03, 0.03, 0.009), 3),
+                                                     ((0.03, 0.02, 0.011, 0.0), 4),
+                                                     ((0.03,) * 20, None)])
+def test_the_refit_stops_on_the_1_percent_rule_of_either_weight(monkeypatch, lam_g_moves,
+                                                                 rounds):
+    """A set sequence of weights (the speed's fixed, the gradients' moving by the relative
+    steps given, round after round): the refit stops at the first round after the first in
+    which both weights moved by 1 % or less, and warns where ``REFIT_ROUNDS`` cuts it."""
+    import pandas as pd
+
+    from bayes_mpem.exceptions import LocateWarning
+    from bayes_mpem.survey_in import array
+
+    gen = np.random.default_rng(0)
+    n = 60
+    A = gen.standard_normal((n, 3))
+    y = A @ [1.0, 2.0, 3.0] + 0.1 * gen.standard_normal(n)
+    H, Hg = np.diag([0.0, 1.0, 1.0]), np.diag([1.0, 0.0, 0.0])
+    steps = [1.0, *(1.0 + np.array(lam_g_moves)), 1.0]
+    speed, gradients = iter([1.0] * 30), iter(10.0 * np.cumprod(steps))
+    next(gradients)  # the EM's weight, given below
+
+    def stub(pre, r, phi, Hp, sigma, lam, fixed):
+        return next(gradients if Hp is Hg else speed)
+
+    monkeypatch.setattr(array, "choose_smoothing", stub)
+    sub = pd.DataFrame({"time": 10.0 * np.arange(n)})
+    args = ((30.0, 0.5, 0.5), lambda th: A @ th - y, lambda th: A, np.zeros(3), np.ones(n),
+            sub, np.zeros(n, int), H, Hg, 1.0, 10.0, 1.0)
+    if rounds is None:
+        with pytest.warns(LocateWarning, match=f"after {array.REFIT_ROUNDS} rounds"):
+            _, record = array._correlated_refit(*args)
+        assert record["refit_rounds"] == array.REFIT_ROUNDS and not record["refit_converged"]
+    else:
+        _, record = array._correlated_refit(*args)
+        assert record["refit_rounds"] == rounds and record["refit_converged"]

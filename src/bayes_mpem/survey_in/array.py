@@ -454,6 +454,19 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
     ------
     InputError
         A missing column, or no transponder with enough shots.
+
+    Warns
+    -----
+    LocateWarning
+        Where the refit under correlated noise stops at :data:`REFIT_ROUNDS` with a
+        smoothing weight still moving by more than 1 % (``model["noise"]`` records
+        ``refit_rounds`` and ``refit_converged``); where legs have no direct eigenray
+        through the profile (their times the chord's); where the EM does not converge.
+
+    Notes
+    -----
+    The BLAS runs on one thread during the fit unless the environment sets a thread count
+    (:mod:`bayes_mpem._threads`: its many small and banded factors are slower threaded).
     """
     check_choice("outliers", outliers, OUTLIER_MODELS)
     smooth = speed_intervals is None
@@ -1264,7 +1277,10 @@ def _correlated_refit(correlation, resid, jac, phi, p, sub, index, H, Hg, lam, l
 
     Returns ``(refit, record)``: ``refit`` None for independent noise, else ``(phi, sigma,
     lam, lam_g, J, r)`` with ``J`` and ``r`` whitened (``L^-1``, ``E = L L'``) and the
-    weights chosen again on them; ``record`` for ``model["noise"]`` (None where not asked).
+    weights chosen again on them; ``record`` for ``model["noise"]`` (None where not asked),
+    with ``refit_rounds`` and ``refit_converged``. The rounds (weights chosen, then one
+    penalised Gauss-Newton solve) go on until neither weight moves by more than 1 %, at
+    most :data:`REFIT_ROUNDS`; a :class:`LocateWarning` where they stop short.
     """
     spec = correlation_spec(correlation)
     if spec is None:
@@ -1461,6 +1477,9 @@ def _scaled_inverse(A):
 
 def _grid_average(J, r, theta, H, sigma, lam, H_fixed, meat, n_clusters, grid):
     """Posterior modes and covariances over weights ``lam 10^x``, and their average.
+
+    ``J`` is the Jacobian of the weighted residuals ``r``, or :func:`normal_equations`'
+    ``(J'J, J'r, r'r)`` of them, formed once by a caller that averages over two grids.
 
     The evidence is evaluated at every weight of the grid; the modes and covariances only
     where a weight's share of the average is at least :data:`GRID_SHARE`, and at the grid's

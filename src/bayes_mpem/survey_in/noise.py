@@ -235,7 +235,8 @@ def choose_correlation(time, index, r, times=CORRELATION_TIMES, shares=SHARES,
         covariance.
     margin : float, default :data:`MARGIN`
     refine : sequence of float, default :data:`WHITES`
-        The white shares compared by ``evidence`` at the time chosen.
+        The white shares compared by ``evidence`` at the time chosen (empty: none; the
+        scan's choice stands).
 
     Returns
     -------
@@ -328,6 +329,8 @@ def _refine(time, index, scanned, shares, whites, evidence):
                             "log_evidence": known[(share, white)]})
         return known[(share, white)]
 
+    if len(whites) == 0:  # nothing to refine over: the scan's row stands
+        return out
     start = int(np.argmin(np.abs(np.asarray(whites, float) - scanned["white"])))
     for share in shares:
         i, best = start, level(share, whites[start])

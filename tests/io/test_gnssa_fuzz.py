@@ -198,6 +198,18 @@ def test_gnatss_negative_variance_skips_the_position(gnatss):
     assert 1 not in set(raw.pings["line"])
 
 
+@pytest.mark.parametrize(("text", "why"), [("", "no data line"), ("\n \n\n", "no data line"),
+                                           ("1 2 3\nx\n", "2 lines skipped: ")])
+def test_gnatss_positions_file_with_no_usable_position_is_named(gnatss, text, why):
+    # was: every travel time skipped for "no position ... in the positions file", the
+    # refusal naming pxp_tt
+    p = gnatss.with_name("POS_FREED_TRANS_TWTT")
+    p.write_text(text)
+    with pytest.raises(InputError, match="no position can be used") as err:
+        read_gnatss(gnatss)
+    assert str(err.value).startswith(f"{p}: ") and why in str(err.value)
+
+
 def _config(gnatss, fn):
     data = yaml.safe_load(gnatss.read_text())
     fn(data)

@@ -262,7 +262,7 @@ def _interrogation_time(parts, n):
     return number(parts[0], "column 1 (J2000 time)"), 1
 
 
-def _read_travel_times(paths, tp, cfg, positions, strict, skipped):
+def _read_travel_times(paths, tp, cfg, positions, strict, skipped, pos_names="the positions"):
     shift = (cfg.number("solver", "transducer_delay_time", default=0.0, lo=0.0, hi=10.0)
              + cfg.number("solver", "travel_times_correction", default=0.0, lo=-10.0, hi=10.0))
     limit = cfg.number("solver", "gps_sigma_limit", default=0.05, lo=0.0, lo_open=True)
@@ -298,8 +298,7 @@ def _read_travel_times(paths, tp, cfg, positions, strict, skipped):
                 reason = tx if isinstance(tx, str) else rx
             elif tx is None or rx is None:
                 reason = (f"no position at the {'transmit' if tx is None else 'receive'} "
-                          f"time {st if tx is None else rt:.6f} (J2000 s) in the positions "
-                          "file")
+                          f"time {st if tx is None else rt:.6f} (J2000 s) in {pos_names}")
             elif max(tx[3], rx[3]) > limit:
                 reason = (f"position sigma {max(tx[3], rx[3]):.3f} m above "
                           f"gps_sigma_limit {limit:g} m")
@@ -351,7 +350,15 @@ def read_gnatss(config, *, strict=False) -> RawSurvey:
     tt_paths, pos_paths, ssp_paths = (_paths(cfg, k) for k in
                                       ("travel_times", "gps_solution", "sound_speed"))
     positions = _read_positions(pos_paths, std_dev, strict, skipped)
-    rows = _read_travel_times(tt_paths, tp, cfg, positions, strict, skipped)
+    if not any(isinstance(v, tuple) for v in positions.values()):
+        bad_lines = [r for r in skipped if r[3] in map(str, pos_paths)]
+        raise InputError(f"{', '.join(map(str, pos_paths))}: no position can be used ("
+                         + (f"{len(bad_lines)} lines skipped: {skip_reasons(bad_lines)}"
+                            if bad_lines else "no data line")
+                         + "); expected lines of a J2000 time, X Y Z (m, ECEF) and 9 "
+                         "covariances (GNATSS's POS_FREED_TRANS_TWTT)")
+    rows = _read_travel_times(tt_paths, tp, cfg, positions, strict, skipped,
+                              ", ".join(f.name for f in pos_paths))
     if not rows:
         timing = all("no position at the" in r[2] for r in skipped)
         raise InputError(f"{', '.join(map(str, tt_paths))}: no reply can be used ("

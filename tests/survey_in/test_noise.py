@@ -370,3 +370,26 @@ def test_the_refit_stops_on_the_1_percent_rule_of_either_weight(monkeypatch, lam
     else:
         _, record = array._correlated_refit(*args)
         assert record["refit_rounds"] == rounds and record["refit_converged"]
+
+
+def test_a_matrix_is_whitened_from_each_columns_first_row_to_the_same_numbers():
+    """Columns zero before their knots (a spline's), of zeros, with a NaN, in any row order:
+    the same numbers as LAPACK's whole banded solve."""
+    from scipy.linalg.lapack import dtbtrs
+
+    gen = np.random.default_rng(5)
+    n = 400
+    t = gen.uniform(0.0, 4000.0, n)
+    w = Whitener(t, gen.integers(0, 4, n), 120.0, 0.5, 0.2)
+    X = np.zeros((n, 40))
+    X[:, :3] = gen.standard_normal((n, 3))
+    order = np.argsort(t)
+    for j in range(3, 38):  # non-zero over a window of time, as a B-spline's column
+        rows = order[(j - 3) * 11:(j - 3) * 11 + 30]
+        X[rows, j] = gen.standard_normal(rows.size)
+    X[order[300], 38] = np.nan  # column 39 all zeros
+    full, info = dtbtrs(w.ab, X[w.order], uplo="L")
+    assert info == 0
+    np.testing.assert_array_equal(w.whiten(X), full)
+    assert np.isnan(full[300:, 38]).all() and not full[:, 39].any()
+    np.testing.assert_array_equal(w.whiten(X[:, 5:6]), full[:, 5:6])

@@ -1128,8 +1128,6 @@ class _SmoothArrayEM(TravelTimeEM):
     def __init__(self, t, resid, jac, x_scale, windows, index, outliers, H, coef0, Hg=None):
         super().__init__(t, resid, jac, x_scale, windows, index, outliers)
         self.H, self.Hg = H, Hg
-        self.root = _root(H)
-        self.root_g = None if Hg is None else _root(Hg)
         self.n_steps = 0
 
     def run(self, theta, *, sigma_min, **kw):
@@ -1149,11 +1147,10 @@ class _SmoothArrayEM(TravelTimeEM):
         self.n_steps += 1
         if self.Hg is not None and self.n_steps > FREEZE_AFTER:  # two weights: held, so
             lam = fit.lam  # that choosing them in turn cannot alternate for ever
-            root = fit.sigma * np.vstack([np.sqrt(lam) * self.root,
-                                          np.sqrt(lam_g) * self.root_g])
+            Q = lam * self.H + lam_g * self.Hg
         elif self.Hg is None:
             lam = choose_smoothing(pre, r0, fit.theta, self.H, fit.sigma, fit.lam)
-            root = np.sqrt(lam) * fit.sigma * self.root
+            Q = lam * self.H
         else:
             if lam_g is None:  # start the gradients stiff: they enter as they are supported
                 lam = fit.lam
@@ -1168,11 +1165,11 @@ class _SmoothArrayEM(TravelTimeEM):
                 lam_g = 1e6 * lam
             lam = choose_smoothing(pre, r0, fit.theta, self.H, fit.sigma, fit.lam, lam_g * self.Hg)
             lam_g = choose_smoothing(pre, r0, fit.theta, self.Hg, fit.sigma, lam_g, lam * self.H)
-            root = fit.sigma * np.vstack([np.sqrt(lam) * self.root, np.sqrt(lam_g) * self.root_g])
+            Q = lam * self.H + lam_g * self.Hg
 
         theta = penalised_gauss_newton(lambda th: self.resid(th, p),
-                                       lambda th: self.jac(th, p), fit.theta, root.T @ root,
-                                       start=(r0, J, pre))
+                                       lambda th: self.jac(th, p), fit.theta,
+                                       fit.sigma**2 * Q, start=(r0, J, pre))
         r = self.resid(theta)
         sigma = float(np.sqrt(np.sum(p * r * r) / p.sum()))
         k = len(self.rows)
@@ -1421,13 +1418,6 @@ def _noise_record(tau, share, white, table, n):
                 tau >= max(x["correlation_s"] for x in table if x["stage"] == "scan")
                 or white >= WHITES[-1])),
             "grid": table}
-
-
-def _root(H):
-    """Return ``R`` with ``R'R = H`` (rows for the positive eigenvalues)."""
-    e, U = np.linalg.eigh(H)
-    keep = e > 1e-10 * e.max()
-    return np.sqrt(e[keep])[:, None] * U[:, keep].T
 
 
 #: Decades about the gradients' best weight over which the intervals average (step 0.5).

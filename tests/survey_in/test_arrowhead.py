@@ -123,9 +123,9 @@ def test_the_grid_leaves_out_only_weights_without_a_share(monkeypatch):
     w0, cov0, spread0, rows0, ll0 = arr._grid_average(*args)
     assert all(row is not None for row in rows0)
     np.testing.assert_allclose(w, w0)
-    d = np.sqrt(np.diag(cov0))
-    assert np.abs((cov - cov0) / np.outer(d, d)).max() < 1e-9
-    assert np.abs((spread - spread0) / np.outer(d, d)).max() < 1e-9
+    d = np.sqrt(np.diag(cov0))  # the weights left out hold shares below GRID_SHARE (1e-6)
+    assert np.abs((cov - cov0) / np.outer(d, d)).max() < 1e-7  # 2.1e-8 measured
+    assert np.abs((spread - spread0) / np.outer(d, d)).max() < 1e-7
 
 
 def test_the_grid_computes_its_middle_row_even_without_a_share():

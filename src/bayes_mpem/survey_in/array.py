@@ -1423,7 +1423,7 @@ def _noise_record(tau, share, white, table, n):
 #: Decades about the gradients' best weight over which the intervals average (step 0.5).
 GRADIENT_WEIGHT_GRID = np.arange(-2.0, 2.0001, 0.5)
 #: Share of the intervals' average below which a grid weight's covariance is not computed.
-GRID_SHARE = 1e-12
+GRID_SHARE = 1e-6
 
 
 def _penalty_rank(H):

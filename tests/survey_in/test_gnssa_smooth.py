@@ -453,3 +453,23 @@ def test_every_weight_search_holds_the_other_penalty_when_the_gradients_are_fitt
     res = locate_array_survey(raw, correlation="off")
     assert res.summary["gradients"]["fitted"]
     assert calls and all(calls), calls
+
+
+@pytest.mark.parametrize(("peak", "most"), [(0.1, 4), (-0.7, 4), (1.3, 6), (2.5, 9), (-9.0, 9)])
+def test_the_weight_walk_finds_the_grids_best_with_fewer_evaluations(peak, most):
+    """A unimodal evidence: the walk from the middle finds the whole grid's best point in
+    3-6 evaluations; at an end of the grid it evaluates every point, as the grid did."""
+    from bayes_mpem.survey_in.array import _walk
+
+    x = 1.7 + np.arange(-2.0, 2.01, 0.5)
+    calls = []
+
+    def f(v):
+        calls.append(v)
+        return -(v - 1.7 - peak) ** 2
+
+    y = _walk(f, x)
+    full = np.array([-(v - 1.7 - peak) ** 2 for v in x])
+    assert int(np.argmax(y)) == int(np.argmax(full))
+    assert len(calls) == len(set(calls)) <= most
+    assert np.all((y == full) | (y == -np.inf))

@@ -210,6 +210,20 @@ def test_gnatss_positions_file_with_no_usable_position_is_named(gnatss, text, wh
     assert str(err.value).startswith(f"{p}: ") and why in str(err.value)
 
 
+def test_gnatss_positions_all_given_twice_differently_say_so(gnatss):
+    p = gnatss.with_name("POS_FREED_TRANS_TWTT")
+    lines = [ln for ln in p.read_text().splitlines() if ln.strip()]
+    moved = []
+    for ln in lines:
+        parts = ln.split()
+        parts[1] = repr(float(parts[1]) + 1.0)
+        moved.append(" ".join(parts))
+    p.write_text("\n".join(lines + moved) + "\n")
+    with pytest.raises(InputError, match=f"{len(lines)} times given twice with different "
+                                         "positions, the first two different positions at"):
+        read_gnatss(gnatss)
+
+
 def _config(gnatss, fn):
     data = yaml.safe_load(gnatss.read_text())
     fn(data)

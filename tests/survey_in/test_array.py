@@ -298,6 +298,12 @@ def test_overlapping_fits_share_one_limit_and_the_last_to_leave_restores_it(monk
         def restore_original_limits(self):
             blas["threads"] = self.saved
 
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            self.restore_original_limits()
+
     monkeypatch.setattr(threadpoolctl, "threadpool_limits", Limits)
     first, second = _threads.one_blas_thread(), _threads.one_blas_thread()
     seen = []

@@ -473,3 +473,63 @@ def test_the_weight_walk_finds_the_grids_best_with_fewer_evaluations(peak, most)
     assert int(np.argmax(y)) == int(np.argmax(full))
     assert len(calls) == len(set(calls)) <= most
     assert np.all((y == full) | (y == -np.inf))
+    if int(np.argmax(full)) in (0, x.size - 1):
+        np.testing.assert_array_equal(y, full)
+
+
+def _full_grid_search(f, lam, lo, hi):
+    """The weight search as it was before the walk: every grid point, re-centred at an edge,
+    refined at quarter steps (all nine evaluated), a parabola through the best three."""
+    x = np.clip(np.log10(lam), lo + 2.0, hi - 2.0) + np.arange(-2.0, 2.01, 0.5)
+    for _ in range(40):
+        y = np.array([f(v) for v in x])
+        i = int(np.argmax(y))
+        if 0 < i < x.size - 1 or x[i] <= lo + 1e-9 or x[i] >= hi - 1e-9:
+            break
+        step = x[1] - x[0]
+        x = np.clip(x[i], lo + 4 * step, hi - 4 * step) + step * np.arange(-4, 5)
+    if x[i] <= lo + 1e-9 or x[i] >= hi - 1e-9:
+        return float(10.0 ** x[i])
+    i = int(np.clip(i, 1, x.size - 2))
+    step = x[1] - x[0]
+    x = x[i] + np.arange(-1.0, 1.01, 0.25) * step
+    y = np.array([f(v) for v in x])
+    i = int(np.clip(np.argmax(y), 1, x.size - 2))
+    y0, y1, y2 = y[i - 1], y[i], y[i + 1]
+    h = x[1] - x[0]
+    den = y0 - 2 * y1 + y2
+    ok = np.isfinite([y0, y1, y2]).all() and den < 0
+    best = x[i] + (0.5 * h * (y0 - y2) / den if ok else 0.0)
+    return float(10.0 ** np.clip(best, x[i] - h, x[i] + h))
+
+
+@pytest.mark.parametrize("shape", ["smooth", "plateau", "stairs", "floor", "skewed"])
+@pytest.mark.parametrize("peak", [0.02, 0.37, 0.49, 0.51, 0.88, 1.26, 1.74, -1.12, 2.4, -3.3])
+def test_the_weight_search_chooses_what_the_full_grid_chose(monkeypatch, shape, peak):
+    """The walk and the refinement's reuse of the best three points change nothing: the
+    search from a previous weight returns the full grid's weight, on evidence curves with a
+    peak anywhere about it (between grid points, near the refined grid's ends, beyond the
+    grid), flat runs of equal values, and -inf below some weight."""
+    from bayes_mpem.survey_in import array
+
+    lam0 = 10.0 ** 3.0
+    centre = np.log10(lam0) + peak
+
+    def g(v):
+        if shape == "plateau":  # exactly equal values over flat runs
+            return -np.floor(2.0 * abs(v - centre))
+        if shape == "stairs":  # a rise after a tie, then flat
+            return min(np.floor(1.5 * (v - centre)), 0.0)
+        if shape == "floor" and v < centre - 0.6:
+            return -np.inf
+        if shape == "skewed":
+            return -np.expm1(v - centre) + (v - centre)
+        return -((v - centre) ** 2)
+
+    H = np.diag([0.0, 1.0, 2.0, 1.0])
+    pre = (np.eye(4), np.zeros(4), 0.0)
+    monkeypatch.setattr(array, "evidence_curve", lambda *a, **k: lambda lam: g(np.log10(lam)))
+    lo, hi = np.log10(array._weight_scale(pre[0], H, 1.0)) + np.array(array.WEIGHT_BOUNDS)
+    got = array.choose_smoothing(pre, None, np.zeros(4), H, 1.0, lam0)
+    want = _full_grid_search(g, lam0, lo, hi)
+    assert np.log10(got) == pytest.approx(np.log10(want), rel=0, abs=1e-12)

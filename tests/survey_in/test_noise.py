@@ -317,6 +317,9 @@ def test_the_refinement_climbs_to_the_best_white_share_without_trying_every_one(
     (tau0, share0, white0), table = choose_correlation(t, np.zeros(t.size, int), ou,
                                                        evidence=evidence, refine=())
     assert tau0 > 0 and not any(row["stage"] == "refine" for row in table)  # the scan's stands
+    (tau1, share1, white1), _ = choose_correlation(t, np.zeros(t.size, int), ou,
+                                                   evidence=evidence, refine=(0.3,))
+    assert tau1 > 0 and white1 in (0.3, white0)  # one white share: nothing to climb
 
 
 def test_the_correlated_refit_runs_until_its_weights_settle(monkeypatch):
@@ -393,3 +396,6 @@ def test_a_matrix_is_whitened_from_each_columns_first_row_to_the_same_numbers():
     np.testing.assert_array_equal(w.whiten(X), full)
     assert np.isnan(full[300:, 38]).all() and not full[:, 39].any()
     np.testing.assert_array_equal(w.whiten(X[:, 5:6]), full[:, 5:6])
+    dense = np.random.default_rng(6).standard_normal((n, 7))  # every column from row 0
+    np.testing.assert_array_equal(w.whiten(dense), dtbtrs(w.ab, dense[w.order], uplo="L")[0])
+    assert w.whiten(np.zeros((n, 0))).shape == (n, 0)  # LAPACK's solve is not called on it

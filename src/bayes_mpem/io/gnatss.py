@@ -351,10 +351,14 @@ def read_gnatss(config, *, strict=False) -> RawSurvey:
                                       ("travel_times", "gps_solution", "sound_speed"))
     positions = _read_positions(pos_paths, std_dev, strict, skipped)
     if not any(isinstance(v, tuple) for v in positions.values()):
-        bad_lines = [r for r in skipped if r[3] in map(str, pos_paths)]
-        raise InputError(f"{', '.join(map(str, pos_paths))}: no position can be used ("
-                         + (f"{len(bad_lines)} lines skipped: {skip_reasons(bad_lines)}"
-                            if bad_lines else "no data line")
+        names = [str(f) for f in pos_paths]
+        bad_lines = [r for r in skipped if r[3] in names]
+        twice = [v for v in positions.values() if isinstance(v, str)]
+        why = ([f"{len(bad_lines)} lines skipped: {skip_reasons(bad_lines)}"] if bad_lines
+               else []) + ([f"{len(twice)} times given twice with different positions, the "
+                            f"first {twice[0]}"] if twice else [])
+        raise InputError(f"{', '.join(names)}: no position can be used ("
+                         + ("; ".join(why) or "no data line")
                          + "); expected lines of a J2000 time, X Y Z (m, ECEF) and 9 "
                          "covariances (GNATSS's POS_FREED_TRANS_TWTT)")
     rows = _read_travel_times(tt_paths, tp, cfg, positions, strict, skipped,

@@ -156,7 +156,7 @@ class Whitener:
             Where LAPACK's triangular solve fails (not expected once ``L`` exists).
         """
         X = np.asarray(X, float)
-        if self.ab is None:
+        if self.ab is None or (X.ndim == 2 and X.shape[1] == 0):  # LAPACK: no empty matrix
             return X[self.order]
         if X.ndim == 2 and X.shape[1] > 1:
             return self._whiten_columns(X[self.order])
@@ -177,6 +177,11 @@ class Whitener:
         n, m = Y.shape
         live = Y != 0  # NaN counts as non-zero
         first = np.where(live.any(axis=0), live.argmax(axis=0), n)
+        if not first.any():  # every column from the first row (the sampler's walkers): one call
+            out, info = dtbtrs(self.ab, Y, uplo="L")
+            if info:
+                raise np.linalg.LinAlgError(f"dtbtrs: info {info}")
+            return out
         order = np.argsort(first, kind="stable")
         out = np.zeros((n, m))
         for cols in np.array_split(order, min(GROUPS, m)):
@@ -363,6 +368,8 @@ def _refine(time, index, scanned, shares, whites, evidence):
         i, best = start, level(share, whites[start])
         while True:
             near = [j for j in (i - 1, i + 1) if 0 <= j < len(whites)]
+            if not near:  # one white share: nothing to climb to
+                break
             j = max(near, key=lambda j: level(share, whites[j]))
             if not level(share, whites[j]) > best:
                 break

@@ -318,3 +318,24 @@ def test_a_thread_count_the_user_set_is_left_alone(monkeypatch):
     monkeypatch.setenv("OPENBLAS_NUM_THREADS", "2")
     seen = _blas_threads_during_the_fit(monkeypatch)
     assert seen and all(n == seen[0] for n in seen) and (seen[0] > 1 or os.cpu_count() == 1)
+
+
+def test_the_full_covariance_maps_only_the_positions_rows_and_columns():
+    """``diag(G, I) C diag(G, I)'`` block by block: exact where G selects free coordinates,
+    to round-off where it sums them (a rigid shift)."""
+    from bayes_mpem.survey_in.array import _free_map, _full_cov
+
+    gen = np.random.default_rng(2)
+    mask = np.zeros((3, 3), bool)
+    mask[1, 2] = mask[2, 0] = True  # two coordinates fixed
+    for G, exact in ((_free_map(3, mask, False), True), (_free_map(3, mask, True), False)):
+        nf, k = G.shape[1], 7
+        X = gen.standard_normal((nf + k, nf + k))
+        C = X @ X.T
+        Gf = np.zeros((G.shape[0] + k, nf + k))
+        Gf[:G.shape[0], :nf], Gf[G.shape[0]:, nf:] = G, np.eye(k)
+        want = Gf @ C @ Gf.T
+        if exact:
+            np.testing.assert_array_equal(_full_cov(G, C), want)
+        else:
+            np.testing.assert_allclose(_full_cov(G, C), want, rtol=1e-13, atol=1e-12)

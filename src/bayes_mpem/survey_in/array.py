@@ -562,9 +562,8 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
     else:
         cov_phi = robust_covariance(J, r, clusters)
         cov_model_phi = np.linalg.pinv(J.T @ J) * sigma**2
-    Gf = _full_map(G, k + kg)
     theta = _expand(phi, G, start, k + kg)
-    cov, cov_model = Gf @ cov_phi @ Gf.T, Gf @ cov_model_phi @ Gf.T
+    cov, cov_model = _full_cov(G, cov_phi), _full_cov(G, cov_model_phi)
     g = basis.mean(axis=0)
     kk = slice(3 * K, 3 * K + k)
     grad_record = None if not kg else _gradient_record(
@@ -749,11 +748,21 @@ def _free_map(K, mask, shift):
     return np.eye(3 * K)[:, ~mask.ravel()]
 
 
-def _full_map(G, k):
-    """``G`` with the ``k`` speed coefficients appended (identity)."""
-    out = np.zeros((G.shape[0] + k, G.shape[1] + k))
-    out[:G.shape[0], :G.shape[1]] = G
-    out[G.shape[0]:, G.shape[1]:] = np.eye(k)
+def _full_cov(G, C):
+    """Covariance of (positions, coefficients) from that of (free parameters, coefficients).
+
+    ``Gf C Gf'`` with ``Gf`` the block-diagonal ``diag(G, I)``, formed block by block: the
+    coefficients' block is ``C``'s own, and only the positions' rows and columns are mapped
+    (two dense products of the whole matrix cost ``4 P^3``; the same numbers where ``G``
+    selects coordinates, round-off where it sums them, as for a rigid shift).
+    """
+    nf, n3 = G.shape[1], G.shape[0]
+    k = C.shape[0] - nf
+    out = np.empty((n3 + k, n3 + k))
+    out[:n3, :n3] = G @ C[:nf, :nf] @ G.T
+    out[:n3, n3:] = G @ C[:nf, nf:]
+    out[n3:, :n3] = C[nf:, :nf] @ G.T
+    out[n3:, n3:] = C[nf:, nf:]
     return out
 
 

@@ -339,3 +339,17 @@ def test_the_full_covariance_maps_only_the_positions_rows_and_columns():
             np.testing.assert_array_equal(_full_cov(G, C), want)
         else:
             np.testing.assert_allclose(_full_cov(G, C), want, rtol=1e-13, atol=1e-12)
+
+
+@pytest.mark.parametrize(("n", "groups"), [(500, 500), (600, 150), (40, 3), (1, 1)])
+def test_cluster_sums_add_each_clusters_rows_as_add_at_does(n, groups):
+    """The same numbers as ``np.add.at`` (a cluster's rows added in their order)."""
+    from bayes_mpem.survey_in.array import _cluster_sums
+
+    gen = np.random.default_rng(n)
+    labels = gen.permutation(n) if groups == n else 7.5 * gen.integers(0, groups, n)
+    X = gen.standard_normal((n, 9)) * 10.0 ** gen.integers(-8, 8, (n, 1))
+    codes = np.unique(labels, return_inverse=True)[1]
+    want = np.zeros((codes.max() + 1, 9))
+    np.add.at(want, codes, X)
+    np.testing.assert_array_equal(_cluster_sums(labels, X), want)

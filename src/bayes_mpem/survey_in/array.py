@@ -1566,10 +1566,8 @@ def _smooth_covariance(J, r, theta, H, sigma, lam, clusters, Hg=None, lam_g=None
 
     Returns ``cov``, the model-based ``cov_model`` at ``lam`` and the ``smoothing`` record.
     """
-    codes = np.unique(np.asarray(clusters), return_inverse=True)[1]
-    n_clusters = int(codes.max()) + 1
-    S = np.zeros((n_clusters, J.shape[1]))
-    np.add.at(S, codes, J * r[:, None])
+    S = _cluster_sums(clusters, J * r[:, None])
+    n_clusters = S.shape[0]
     meat = S.T @ S / sigma**4
     H_fixed = None if Hg is None else lam_g * Hg
     pre = normal_equations(J, r)  # both grids' (and the positions') normal equations
@@ -1631,6 +1629,44 @@ def _grid_edge(ll, tol=0.1, flat=1.0):
     return None
 
 
+def _cluster_sums(clusters, X):
+    """Rows of ``X`` summed within each cluster, clusters in sorted order of their labels.
+
+    The rows of a cluster are added one after the other in their order, as ``np.add.at``
+    adds them (the same numbers), a pass per row of the largest cluster over all clusters at
+    once: ``np.add.at`` took 0.12 s for SeaGap's whitened Jacobian (3,347 x 902, one cluster
+    a row), where this is a copy. (``np.add.reduceat`` sums in another order: round-off.)
+
+    Parameters
+    ----------
+    clusters : array_like
+        ``(n,)`` labels.
+    X : numpy.ndarray
+        ``(n, P)``.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(G, P)``, ``G`` the number of distinct labels.
+
+    Examples
+    --------
+    >>> _cluster_sums([3, 1, 3], np.array([[1.0], [2.0], [4.0]])).ravel().tolist()
+    [2.0, 5.0]
+    """
+    codes = np.unique(np.asarray(clusters), return_inverse=True)[1].ravel()
+    order = np.argsort(codes, kind="stable")
+    sorted_codes = codes[order]
+    starts = np.flatnonzero(np.r_[True, sorted_codes[1:] != sorted_codes[:-1]])
+    counts = np.diff(np.r_[starts, codes.size])
+    rows = np.asarray(X, float)[order]
+    out = rows[starts]  # a copy: each cluster's first row
+    for j in range(1, int(counts.max())):
+        more = counts > j
+        out[more] += rows[starts[more] + j]
+    return out
+
+
 def robust_covariance(J, r, clusters) -> np.ndarray:
     """Cluster-robust (sandwich) covariance of a weighted least-squares fit.
 
@@ -1662,10 +1698,8 @@ def robust_covariance(J, r, clusters) -> np.ndarray:
     >>> round(float(robust_covariance(J, r, np.arange(4000))[0, 0] * 4000), 1)
     4.0
     """
-    codes = np.unique(np.asarray(clusters), return_inverse=True)[1]
-    G, P = int(codes.max()) + 1, J.shape[1]
-    S = np.zeros((G, P))
-    np.add.at(S, codes, J * r[:, None])
+    S = _cluster_sums(clusters, J * r[:, None])
+    G, P = S.shape
     Ainv = np.linalg.pinv(J.T @ J)
     return Ainv @ (S.T @ S) @ Ainv * (G / max(G - P, 1))
 

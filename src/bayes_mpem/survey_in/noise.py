@@ -160,10 +160,7 @@ class Whitener:
             return X[self.order]
         if X.ndim == 2 and X.shape[1] > 1:
             return self._whiten_columns(X[self.order])
-        out, info = dtbtrs(self.ab, X[self.order, None] if X.ndim == 1 else X[self.order],
-                           uplo="L")
-        if info:
-            raise np.linalg.LinAlgError(f"dtbtrs: info {info}")
+        out = _band_solve(self.ab, X[self.order, None] if X.ndim == 1 else X[self.order])
         return out if X.ndim == 2 else out[:, 0]
 
     def _whiten_columns(self, Y):
@@ -178,21 +175,15 @@ class Whitener:
         live = Y != 0  # NaN counts as non-zero
         first = np.where(live.any(axis=0), live.argmax(axis=0), n)
         if not first.any():  # every column from the first row (the sampler's walkers): one call
-            out, info = dtbtrs(self.ab, Y, uplo="L")
-            if info:
-                raise np.linalg.LinAlgError(f"dtbtrs: info {info}")
-            return out
+            return _band_solve(self.ab, Y)
         order = np.argsort(first, kind="stable")
         out = np.zeros((n, m))
         for cols in np.array_split(order, min(GROUPS, m)):
             start = int(first[cols[0]])
             if start >= n:  # columns of zeros stay zero (and so do the later groups')
                 break
-            sol, info = dtbtrs(self.ab[:, start:], np.asfortranarray(Y[start:][:, cols]),
-                               uplo="L")
-            if info:
-                raise np.linalg.LinAlgError(f"dtbtrs: info {info}")
-            out[start:, cols] = sol
+            out[start:, cols] = _band_solve(self.ab[:, start:],
+                                            np.asfortranarray(Y[start:][:, cols]))
         return out
 
     def matrix(self) -> np.ndarray:
@@ -213,6 +204,14 @@ class Whitener:
         inv = np.empty(self.n, int)
         inv[self.order] = np.arange(self.n)
         return E[np.ix_(inv, inv)]
+
+
+def _band_solve(ab, B):
+    """``L^-1 B`` by LAPACK's banded triangular solve, ``L`` lower in band storage ``ab``."""
+    out, info = dtbtrs(ab, B, uplo="L")
+    if info:
+        raise np.linalg.LinAlgError(f"dtbtrs: info {info}")
+    return out
 
 
 def residual_log_likelihood(whitener, r) -> float:

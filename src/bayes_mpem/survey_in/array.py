@@ -1191,10 +1191,8 @@ class _SmoothArrayEM(TravelTimeEM):
         self.n_steps += 1
         if self.Hg is not None and self.n_steps > FREEZE_AFTER:  # two weights: held, so
             lam = fit.lam  # that choosing them in turn cannot alternate for ever
-            Q = lam * self.H + lam_g * self.Hg
         elif self.Hg is None:
             lam = choose_smoothing(pre, r0, fit.theta, self.H, fit.sigma, fit.lam)
-            Q = lam * self.H
         else:
             if lam_g is None:  # start the gradients stiff: they enter as they are supported
                 lam = fit.lam
@@ -1209,8 +1207,7 @@ class _SmoothArrayEM(TravelTimeEM):
                 lam_g = 1e6 * lam
             lam = choose_smoothing(pre, r0, fit.theta, self.H, fit.sigma, fit.lam, lam_g * self.Hg)
             lam_g = choose_smoothing(pre, r0, fit.theta, self.Hg, fit.sigma, lam_g, lam * self.H)
-            Q = lam * self.H + lam_g * self.Hg
-
+        Q = lam * self.H if self.Hg is None else lam * self.H + lam_g * self.Hg
         theta = penalised_gauss_newton(lambda th: self.resid(th, p),
                                        lambda th: self.jac(th, p), fit.theta,
                                        fit.sigma**2 * Q, start=(r0, J, pre))

@@ -262,7 +262,7 @@ def _interrogation_time(parts, n):
     return number(parts[0], "column 1 (J2000 time)"), 1
 
 
-def _read_travel_times(paths, tp, cfg, positions, strict, skipped, pos_names="the positions"):
+def _read_travel_times(paths, tp, cfg, positions, strict, skipped, pos_names):
     shift = (cfg.number("solver", "transducer_delay_time", default=0.0, lo=0.0, hi=10.0)
              + cfg.number("solver", "travel_times_correction", default=0.0, lo=-10.0, hi=10.0))
     limit = cfg.number("solver", "gps_sigma_limit", default=0.05, lo=0.0, lo_open=True)

@@ -370,6 +370,68 @@ def test_many_rays_at_once_match_the_references_and_single_rays():
     assert grid.time.shape == (2, 3) and grid.valid.all()
 
 
+def _ship_to_transponder(rng, n, depth, reach):
+    """GNSS-A legs: a heaving transducer near the surface, one transponder, offsets to reach."""
+    top = rng.normal(3.0, 1.0, n)  # some above the profile's first knot
+    bot = np.full(n, depth)
+    h = rng.uniform(0.0, reach, n)
+    h[:3] = 0.0, 1e-3, reach
+    return top, bot, h
+
+
+def _sampled(z, c):
+    return SoundSpeedProfile(z, c, source="test")
+
+
+_Z = np.arange(0.0, 3001.0, 10.0)
+_ETA = 2.0 * (_Z - 1300.0) / 1300.0
+SHARED_CASES = {  # profiles with many knots (where a shared table pays), fastest point varied
+    "seagap": None,  # the shipped SeaGap cast (the fixture)
+    "munk": _sampled(_Z, 1500.0 * (1.0 + 0.00737 * (_ETA - 1.0 + np.exp(-_ETA)))),
+    "duct": _sampled(_Z, np.where(_Z < 80.0, 1510.0 + 0.02 * _Z,
+                                  1511.6 - 0.03 * (_Z - 80.0) + 1.2e-5 * (_Z - 80.0) ** 2)),
+    "polar": _sampled(_Z, 1440.0 + 0.017 * _Z + 2e-6 * _Z**2),  # fastest at the bottom
+    "short": _sampled(_Z[:200], 1500.0 * (1.0 + 0.00737 * (_ETA - 1.0 + np.exp(-_ETA))[:200])),
+}
+
+
+@pytest.mark.parametrize("name", list(SHARED_CASES))
+def test_rays_sharing_their_layers_match_the_exact_solver(ssp, name):
+    from bayes_mpem.acoustics import eigenray
+    prof = SHARED_CASES[name] or ssp
+    rng = np.random.default_rng(11)
+    top, bot, h = _ship_to_transponder(rng, 400, 2900.0, 1.6 * 2900.0)
+    v = bot - top
+    p, t = np.full(h.size, np.nan), np.full(h.size, np.nan)
+    solved = eigenray._trace_shared(prof, top, bot, h, v, 1e-9, 100, p, t)
+    assert solved.mean() > 0.9  # the table holds the array's rays
+    p_ref, t_ref = eigenray._trace_blocks(prof, [(top, bot)], h, v, 1e-9, 100)
+    assert np.isfinite(t_ref[solved]).all()
+    assert t[solved] == pytest.approx(t_ref[solved], rel=1e-13, abs=0)
+    assert p[solved] == pytest.approx(p_ref[solved], rel=1e-12, abs=1e-17)
+    # through the public solver, with rays the table cannot hold (near grazing, or turning)
+    far = np.concatenate([h, [5e4, 2e5]])
+    top2, bot2 = np.concatenate([top, [3.0, 3.0]]), np.concatenate([bot, [2900.0, 2900.0]])
+    ray = direct_ray(prof, top2, bot2, far)
+    p_ref, t_ref = eigenray._trace_blocks(prof, [(top2, bot2)], far, bot2 - top2, 1e-9, 100)
+    assert np.array_equal(np.isnan(ray.time), np.isnan(t_ref))
+    ok = ~np.isnan(t_ref)
+    assert ray.time[ok] == pytest.approx(t_ref[ok], rel=1e-13, abs=0)
+
+
+def test_rays_without_shared_layers_are_left_to_the_exact_solver():
+    from bayes_mpem.acoustics import eigenray
+    rng = np.random.default_rng(5)
+    n = 200  # a vehicle at any depth: the ends hold more layers than the rays share
+    top, bot, h = rng.uniform(0.0, 2500.0, n), np.full(n, 2900.0), rng.uniform(0, 3000.0, n)
+    p, t = np.full(n, np.nan), np.full(n, np.nan)
+    assert not eigenray._trace_shared(LAYERED, top, bot, h, bot - top, 1e-9, 100, p, t).any()
+    assert np.isnan(t).all()
+    ray = direct_ray(LAYERED, top, bot, h)
+    p_ref, t_ref = eigenray._trace_blocks(LAYERED, [(top, bot)], h, bot - top, 1e-9, 100)
+    assert np.array_equal(ray.time, t_ref, equal_nan=True)
+
+
 def test_vertical_ray_time_is_the_vertical_slowness_integral(ssp):
     z_a, z_b = np.array([0.0, 2700.0, 3.0, 7000.0]), np.array([2700.0, 0.0, 4.5, -10.0])
     ray = direct_ray(ssp, z_a, z_b, 0.0)

@@ -8,11 +8,17 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.polynomial import chebyshev
 
 from .._validate import check_int, check_positive
 from .profile import SoundSpeedProfile
 
 _CHUNK = 1 << 15  # array elements per block of rays (keeps the temporaries in cache)
+_SHARED_MIN = 64          # rays of one leg worth a shared table (:func:`_trace_shared`)
+_SHARED_RATIO = 4         # ... when the shared layers outnumber the ends' this many times
+_SHARED_DEGREES = (32, 64)  # Chebyshev degrees tried for the shared layers
+_SHARED_TAIL = 1e-14      # the series' last coefficients, relative to its largest
+_SHARED_GRAZE = 0.999     # the table stops at p = 0.999 / c_max (rays beyond: block solver)
 
 
 # --------------------------------------------------------------------------- layers
@@ -284,8 +290,114 @@ def _as_rays(z_a, z_b, horizontal, extra=(),
     return arrays[0].shape, flat
 
 
+def _trace_shared(profile, top, bot, H, V, tol, max_iter, p, time):
+    """Solve the rays of one leg through the layers they all cross, tabulated once.
+
+    Every ray crosses ``[z1, z2] = [max(top), min(bot)]``. There the horizontal run is
+    ``p g(p^2)`` and the time ``T(p^2)``, both analytic in ``u = p^2`` below ``1/c_max^2``:
+    each is interpolated by a Chebyshev series in ``u`` (NumPy's
+    :mod:`numpy.polynomial.chebyshev`) on the range of ray parameters the rays can have, and
+    only the short per-ray ends ``[top, z1]`` and ``[z2, bot]`` are summed ray by ray. Newton's
+    method on ``p`` (kept in its bracket) stops on the same tolerance as :func:`_solve_block`
+    and keeps its last step. The series must have converged to round-off
+    (:data:`_SHARED_TAIL`); otherwise, where the ends hold many layers, or where a ray's
+    parameter falls outside the table, the ray is left to the exact block solver.
+
+    Parameters
+    ----------
+    profile : SoundSpeedProfile
+    top, bot, H, V : numpy.ndarray
+        Per ray: the leg's top and bottom depth, the horizontal run and ``bot - top`` (m).
+    tol, max_iter
+        As :func:`direct_ray`.
+    p, time : numpy.ndarray
+        Filled where solved.
+
+    Returns
+    -------
+    numpy.ndarray of bool
+        The rays solved here.
+    """
+    n = H.size
+    solved = np.zeros(n, bool)
+    z1, z2 = top.max(), bot.min()
+    zk, ck = profile.ray_knots
+    shared = np.count_nonzero((zk > z1) & (zk < z2))
+    ends = np.count_nonzero((zk > top.min()) & (zk < z1)) + np.count_nonzero(
+        (zk > z2) & (zk < bot.max()))
+    if not z2 > z1 or shared < _SHARED_RATIO * (ends + 2):  # z2 > z1: every V > 0
+        return solved
+    inside = (zk > top.min()) & (zk < bot.max())
+    c_all = np.concatenate([ck[inside], profile.speed(np.array([top.min(), z1, z2, bot.max()]))])
+    cmin, cmax = c_all.min(), c_all.max()
+    # the eigenray is parallel to its chord somewhere, so p <= sin(chord) / c_min
+    sin_chord = H / np.hypot(H, V)
+    p_hi = min(float(sin_chord.max()) * (1 + 1e-6) / cmin, _SHARED_GRAZE / cmax)
+    u_hi = p_hi * p_hi
+    if u_hi == 0.0:
+        return solved
+    coef = None
+    for deg in _SHARED_DEGREES:
+        x = np.cos(np.pi * (np.arange(deg + 1) + 0.5) / (deg + 1))  # Chebyshev points
+        common = Legs(profile, [(np.full(x.size, z1), np.full(x.size, z2))])
+        S = common.cosines_from_p(np.sqrt(0.5 * u_hi * (x + 1.0)))
+        g, _ = common.sums(S, deriv=False)
+        fits = [chebyshev.chebfit(x, y, deg) for y in (g, common.times(S))]
+        if all(np.abs(c[-3:]).max() <= _SHARED_TAIL * np.abs(c).max() for c in fits):
+            coef = fits
+            break
+    if coef is None:
+        return solved
+    cg, ct = coef
+    cgd = chebyshev.chebder(cg)
+    scale = 2.0 / u_hi
+    legs = [(top, np.full(n, z1))] + ([(np.full(n, z2), bot)] if bot.max() > z2 else [])
+    parts = Legs(profile, legs)
+    # first guess: the chord in the harmonic-mean speed (as the block solver)
+    pp = np.clip(sin_chord * profile.vertical_time(top, bot) / V, 0.0, p_hi)
+    lo, hi = np.zeros(n), np.full(n, p_hi)
+    atol = tol * np.maximum(H, V)
+    out = np.full(n, np.nan)
+    idx = np.arange(n)
+    for _ in range(max_iter):
+        x = pp * pp * scale - 1.0
+        g = chebyshev.chebval(x, cg)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            sx, sd = parts.sums(parts.cosines_from_p(pp))
+            f = pp * (g + sx) - H[idx]
+            step = pp - f / (g + 2.0 * pp * pp * scale * chebyshev.chebval(x, cgd) + sd)
+        lo_i = np.where(f < 0, pp, lo[idx])
+        hi_i = np.where(f < 0, hi[idx], pp)
+        done = (np.abs(f) <= atol[idx]) | ((hi_i - lo_i) <= 4 * np.finfo(float).eps * hi_i)
+        inside = (step > lo_i) & (step < hi_i)
+        out[idx[done]] = np.where(inside, step, pp)[done]
+        lo[idx], hi[idx] = lo_i, hi_i
+        keep = ~done
+        if not keep.any():
+            break
+        pp = np.where(inside, step, 0.5 * (lo_i + hi_i))[keep]
+        idx = idx[keep]
+        if not keep.all():  # the ends are a few layers: cheap to cut down
+            parts = parts.take(keep, ("C", "A"))
+    # a ray whose run at p_hi is still short of H needs a larger p than the table holds
+    ok = np.isfinite(out) & (out < p_hi)
+    if not ok.any():
+        return solved
+    rays = Legs(profile, [(t[ok], b[ok]) for t, b in legs])
+    S = rays.cosines_from_p(out[ok])
+    x = out[ok] ** 2 * scale - 1.0
+    time[ok] = chebyshev.chebval(x, ct) + rays.times(S)
+    p[ok] = out[ok]
+    solved[ok] = True
+    return solved
+
+
 def _trace(profile, legs, H, V, tol, max_iter):
-    """Solve every ray in blocks; return ``p``, ``time`` (NaN where impossible)."""
+    """Solve every ray; return ``p``, ``time`` (NaN where impossible).
+
+    Rays of one leg that share most of their layers go through :func:`_trace_shared`
+    first; the rest (and any it leaves) are solved exactly in blocks.
+    """
     check_positive("tol", tol)
     check_int("max_iter", max_iter, minimum=1)
     n = H.size
@@ -293,6 +405,25 @@ def _trace(profile, legs, H, V, tol, max_iter):
     time = np.full(n, np.nan)
     if n == 0:
         return p, time
+    rest = None
+    if len(legs) == 1 and n >= _SHARED_MIN:
+        solved = _trace_shared(profile, *legs[0], H, V, tol, max_iter, p, time)
+        if solved.all():
+            return p, time
+        if solved.any():
+            rest = np.flatnonzero(~solved)
+    if rest is None:
+        return _trace_blocks(profile, legs, H, V, tol, max_iter)
+    p[rest], time[rest] = _trace_blocks(profile, [(t[rest], b[rest]) for t, b in legs],
+                                        H[rest], V[rest], tol, max_iter)
+    return p, time
+
+
+def _trace_blocks(profile, legs, H, V, tol, max_iter):
+    """Solve every ray exactly, in blocks of rays; return ``p``, ``time``."""
+    n = H.size
+    p = np.full(n, np.nan)
+    time = np.full(n, np.nan)
     deepest = np.max([b for _, b in legs], axis=0)
     shallowest = np.min([t for t, _ in legs], axis=0)
     order = np.lexsort((deepest, shallowest))
@@ -317,6 +448,7 @@ def _trace(profile, legs, H, V, tol, max_iter):
         time[sel[ok]] = good.times(good.cosines(sphi * sphi))
         p[sel[ok]] = np.where(H[sel][ok] == 0, 0.0, np.cos(phi[ok]) / good.cmax)
     return p, time
+
 
 
 def _angles(profile, p, z, down):

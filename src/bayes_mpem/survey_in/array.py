@@ -862,6 +862,15 @@ def log_evidence(J, r, theta, H, sigma, lam, rank=None, H_fixed=None, blocks=Non
     >>> bool(a > b)
     True
     """
+    return _log_evidence(J, r, theta, H, sigma, lam, rank, H_fixed, blocks)[:3]
+
+
+def _log_evidence(J, r, theta, H, sigma, lam, rank=None, H_fixed=None, blocks=None):
+    """:func:`log_evidence`, and the unit-diagonal Cholesky factor ``(c, s)`` of ``A`` used.
+
+    ``c`` is :func:`scipy.linalg.cho_factor`'s of ``A s s'`` (None where it failed); the
+    caller that also inverts ``A`` (:func:`_scaled_inverse`) factors it once.
+    """
     if rank is None:
         rank = _penalty_rank(H)
     if isinstance(J, tuple):  # (J'J, J'r) precomputed
@@ -877,7 +886,7 @@ def log_evidence(J, r, theta, H, sigma, lam, rank=None, H_fixed=None, blocks=Non
     try:
         c = cho_factor(A * s[:, None] * s[None, :])
     except np.linalg.LinAlgError:
-        return -np.inf, np.zeros_like(theta), A
+        return -np.inf, np.zeros_like(theta), A, None
     step = s * cho_solve(c, -s * (Jtr + Q @ theta))
     th = theta + step
     if isinstance(J, tuple):  # ||r + J d||^2 = r'r + 2 d'J'r + d'J'J d
@@ -887,7 +896,7 @@ def log_evidence(J, r, theta, H, sigma, lam, rank=None, H_fixed=None, blocks=Non
         rr2 = rr @ rr
     logml = (-0.5 * (rr2 / sigma**2 + th @ Q @ th) + 0.5 * rank * np.log(lam)
              - np.sum(np.log(np.diag(c[0]))) - 0.5 * np.sum(np.log(d)))
-    return float(logml), step, A
+    return float(logml), step, A, c
 
 
 def _blocks(nz):
@@ -1480,25 +1489,28 @@ def _penalty_rank(H):
                for block in _blocks(np.asarray(H) != 0))
 
 
-def _scaled_inverse(A):
+def _scaled_inverse(A, factor=None):
     """Inverse of a symmetric positive (semi-)definite ``A`` after scaling it to a unit diagonal.
 
     Positions (m), speed coefficients (known to 1e-9) and gradient terms put the condition
     number of ``A`` itself near 1e17, where ``numpy.linalg.inv`` returned an asymmetric
     matrix with negative variances; scaled, Cholesky (else eigenvalues floored at 1e-12 of
-    the largest) is accurate.
+    the largest) is accurate. ``factor``: :func:`scipy.linalg.cho_factor`'s of the scaled
+    ``A``, where the caller has it (:func:`_log_evidence`).
     """
     d = np.diag(A).copy()
     d[d <= 0] = 1.0
     s = 1.0 / np.sqrt(d)
-    B = A * s[:, None] * s[None, :]
     try:
-        c, lower = cho_factor(B)
+        if factor is None:
+            factor = cho_factor(A * s[:, None] * s[None, :])
+        c, lower = factor
         inv, info = dpotri(c, lower=lower)  # from the factor: a third of cho_solve's work
         if info:
             raise np.linalg.LinAlgError(f"dpotri: info {info}")
         inv = np.tril(inv) + np.tril(inv, -1).T if lower else np.triu(inv) + np.triu(inv, 1).T
     except np.linalg.LinAlgError:
+        B = A * s[:, None] * s[None, :]
         vals, vecs = np.linalg.eigh(0.5 * (B + B.T))
         vals = np.maximum(vals, 1e-12 * vals.max())
         inv = (vecs / vals) @ vecs.T
@@ -1540,8 +1552,8 @@ def _grid_average(J, r, theta, H, sigma, lam, H_fixed, meat, n_clusters, grid):
             rows.append(None)
             continue
         lg = lam * 10.0 ** x
-        _, step, A = log_evidence(pre, r, theta, H, sigma, lg, rank, H_fixed, blocks)
-        Ainv = _scaled_inverse(A)
+        _, step, A, factor = _log_evidence(pre, r, theta, H, sigma, lg, rank, H_fixed, blocks)
+        Ainv = _scaled_inverse(A, factor)
         edf = float(np.sum(Ainv * JtJ) / sigma**2)  # trace(Ainv JtJ), both symmetric
         prior = lg * H if H_fixed is None else lg * H + H_fixed
         C = Ainv @ (meat * n_clusters / max(n_clusters - edf, 1.0) + prior) @ Ainv

@@ -14,6 +14,8 @@ campaigns: the arrowhead".
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve, cho_solve_banded, cholesky_banded
 from scipy.sparse import csr_matrix
@@ -78,23 +80,11 @@ class Arrowhead:
             raise ValueError(f"{P} parameters: a dense factor is cheaper")
         nz = np.zeros((P, P), bool)
         for M in mats:
-            d = np.sqrt(np.abs(np.diag(M)))
-            nz |= np.abs(M) > DROP * np.outer(d, d)
-            nz |= (M != 0) & (np.outer(d, d) == 0)
-        pattern = csr_matrix(nz)
-        count = np.diff(pattern.indptr)
-        border = np.flatnonzero(count > max(4 * np.median(count), 40))
-        if border.size > MAX_BORDER:
-            raise ValueError(f"{border.size} dense columns")
-        rest = np.setdiff1d(np.arange(P), border)
-        order = rest[reverse_cuthill_mckee(pattern[rest][:, rest], symmetric_mode=True)]
-        where = np.full(P, -1)
-        where[order] = np.arange(order.size)
-        coo = pattern.tocoo()
-        inner = (where[coo.row] >= 0) & (where[coo.col] >= 0)
-        width = int(np.abs(where[coo.row] - where[coo.col])[inner].max()) if inner.any() else 0
-        if (width + 1) * 4 > order.size:
-            raise ValueError(f"a band of half-width {width} in {order.size}")
+            _add_pattern(nz, M)
+        structure = _structure(P, np.packbits(nz).tobytes())
+        if isinstance(structure, str):
+            raise ValueError(structure)
+        border, order, width, coo = structure
         self.border, self.order, self.width, self.size = border, order, width, P
         n = order.size
         rows = np.arange(width + 1)[:, None]  # lower band storage: ab[r, c] = A[c + r, c]
@@ -188,6 +178,56 @@ class Arrowhead:
             x[self.border] = xb
         x[self.order] = xo
         return float(logdet), s * x
+
+
+def _add_pattern(nz, M):
+    """Set ``nz`` where ``|M| > DROP sqrt(|M_ii M_jj|)`` (any non-zero where a diagonal is 0).
+
+    A penalty has a few non-zero entries: they alone are tested. ``J'J`` under correlated
+    noise is dense: tested in place, the build's largest passes.
+    """
+    d = np.sqrt(np.abs(np.diag(M)))
+    if np.count_nonzero(M) <= 0.05 * M.size:
+        flat = np.flatnonzero(M)
+        i, j = np.divmod(flat, M.shape[1])
+        dd = d[i] * d[j]
+        keep = (np.abs(M.ravel()[flat]) > DROP * dd) | (dd == 0)
+        nz[i[keep], j[keep]] = True
+        return
+    thr = np.multiply.outer(d, d)
+    thr *= DROP
+    nz |= np.abs(M) > thr
+    zero = np.flatnonzero(d == 0)
+    if zero.size:  # NaN entries of a row without a diagonal (finite ones are counted above)
+        nz[zero] |= M[zero] != 0
+        nz[:, zero] |= M[:, zero] != 0
+
+
+@functools.lru_cache(maxsize=8)
+def _structure(P, packed):
+    """Border, band order, half-width and the pattern (COO) of the packed pattern, or why not.
+
+    A fit builds arrowheads of the same few patterns again and again (the speed's and the
+    gradients' weights are chosen in turn on one ``J'J``): the ordering is kept.
+    """
+    nz = np.unpackbits(np.frombuffer(packed, np.uint8), count=P * P).astype(bool)
+    pattern = csr_matrix(nz.reshape(P, P))
+    count = np.diff(pattern.indptr)
+    border = np.flatnonzero(count > max(4 * np.median(count), 40))
+    if border.size > MAX_BORDER:
+        return f"{border.size} dense columns"
+    rest = np.setdiff1d(np.arange(P), border)
+    order = rest[reverse_cuthill_mckee(pattern[rest][:, rest], symmetric_mode=True)]
+    where = np.full(P, -1)
+    where[order] = np.arange(order.size)
+    coo = pattern.tocoo()
+    inner = (where[coo.row] >= 0) & (where[coo.col] >= 0)
+    width = int(np.abs(where[coo.row] - where[coo.col])[inner].max()) if inner.any() else 0
+    if (width + 1) * 4 > order.size:
+        return f"a band of half-width {width} in {order.size}"
+    for a in (border, order, coo.row, coo.col):
+        a.setflags(write=False)
+    return border, order, width, coo
 
 
 def gram(J):

@@ -83,6 +83,9 @@ class ArrayTravelTimes:
         self.index, self.K, self.basis = np.asarray(index), int(n_transponders), basis
         self.grad = gradients
         self.k = basis.shape[1]
+        # B-splines: a few non-zeros per row; products and the Jacobian's columns from them
+        self._basis, self._grad = _SparseDesign(basis), (None if gradients is None else
+                                                         _SparseDesign(gradients))
         self.rows = [np.flatnonzero(self.index == k) for k in range(self.K)]
         # a Cartesian frame with a radius: the shots along the sphere, the transponders
         # turned into it at every evaluation (_sphere_point)
@@ -147,13 +150,13 @@ class ArrayTravelTimes:
         -------
         numpy.ndarray
         """
-        return self.basis @ theta[3 * self.K:3 * self.K + self.k]
+        return self._basis.matrix @ theta[3 * self.K:3 * self.K + self.k]
 
     def _gain(self, theta):
         """``exp(-gamma)`` of the gradient terms at each shot (1 without them)."""
         if self.grad is None:
             return 1.0
-        return np.exp(-self.grad @ theta[3 * self.K + self.k:])
+        return np.exp(-(self._grad.matrix @ theta[3 * self.K + self.k:]))
 
     def predict(self, theta):
         """Return the two-way travel time (s) of a true reply to each shot, given ``theta``.
@@ -187,11 +190,11 @@ class ArrayTravelTimes:
         rows = np.arange(T.size)
         for c, d in enumerate((dE, dN, dU)):
             J[rows, 3 * self.index + c] = d / s
-        J[:, 3 * self.K:3 * self.K + self.k] = (-T / s**2)[:, None] * self.basis
+        self._basis.scatter(J, 3 * self.K, -T / s**2)
         if self.grad is not None:
             gain = self._gain(theta)
             J[:, :3 * self.K + self.k] *= gain[:, None]
-            J[:, 3 * self.K + self.k:] = (-T / s * gain)[:, None] * self.grad
+            self._grad.scatter(J, 3 * self.K + self.k, -T / s * gain)
         return J
 
     def n_invalid(self, theta) -> int:
@@ -654,6 +657,35 @@ def from_sphere(x, y, height, radius):
 GRADIENT_LENGTH = 1000.0
 #: Names of the gradient series, in ``theta``'s order.
 GRADIENT_NAMES = ("shallow_east", "shallow_north", "deep_east", "deep_north")
+
+
+class _SparseDesign:
+    """A design matrix of B-splines (a few non-zeros per row), kept sparse.
+
+    Parameters
+    ----------
+    X : numpy.ndarray
+        ``(n, m)``.
+    """
+
+    def __init__(self, X):
+        self.matrix = csr_matrix(X)
+        self.rows = np.repeat(np.arange(X.shape[0]), np.diff(self.matrix.indptr))
+
+    def scatter(self, J, first, factor):
+        """Set ``J[:, first:first + m]`` to ``factor[:, None] * X`` (``J``'s block all zero).
+
+        Parameters
+        ----------
+        J : numpy.ndarray
+            ``(n, P)``, zero in the block.
+        first : int
+            The block's first column.
+        factor : numpy.ndarray
+            ``(n,)``.
+        """
+        M = self.matrix
+        J[self.rows, first + M.indices] = factor[self.rows] * M.data
 
 
 def gradient_design(shots, index, start, basis) -> np.ndarray:
@@ -1518,11 +1550,13 @@ def _scaled_inverse(A, factor=None):
     return 0.5 * (inv + inv.T)
 
 
-def _grid_average(J, r, theta, H, sigma, lam, H_fixed, meat, n_clusters, grid):
+def _grid_average(J, r, theta, H, sigma, lam, H_fixed, meat, n_clusters, grid, mid_row=None):
     """Posterior modes and covariances over weights ``lam 10^x``, and their average.
 
     ``J`` is the Jacobian of the weighted residuals ``r``, or :func:`normal_equations`'
     ``(J'J, J'r, r'r)`` of them, formed once by a caller that averages over two grids.
+    ``mid_row``: the row at ``x = 0`` where the caller has it (the other grid's middle:
+    the same weights, ``lam H + H_fixed`` summed in the other order, the same numbers).
 
     The evidence is evaluated at every weight of the grid; the modes and covariances only
     where a weight's share of the average is at least :data:`GRID_SHARE`, and at the grid's
@@ -1550,6 +1584,9 @@ def _grid_average(J, r, theta, H, sigma, lam, H_fixed, meat, n_clusters, grid):
     for k, x in enumerate(grid):
         if not w[k] >= GRID_SHARE and k != mid:
             rows.append(None)
+            continue
+        if k == mid and mid_row is not None and x == 0.0 == mid_row[0]:
+            rows.append((x, *mid_row[1:]))
             continue
         lg = lam * 10.0 ** x
         _, step, A, factor = _log_evidence(pre, r, theta, H, sigma, lg, rank, H_fixed, blocks)
@@ -1588,7 +1625,7 @@ def _smooth_covariance(J, r, theta, H, sigma, lam, clusters, Hg=None, lam_g=None
     if Hg is not None:
         v, cov_g, spread_g, rows_g, ll_g = _grid_average(pre, r, theta, Hg, sigma, lam_g,
                                                          lam * H, meat, n_clusters,
-                                                         GRADIENT_WEIGHT_GRID)
+                                                         GRADIENT_WEIGHT_GRID, rows[mid])
         cov = cov + cov_g - rows[mid][3] + spread_g
         grad_grid = {"log10_weight": [float(np.log10(lam_g) + x) for x in GRADIENT_WEIGHT_GRID],
                      "log_evidence": [float(x - ll_g.max()) for x in ll_g],

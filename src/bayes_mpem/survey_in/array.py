@@ -988,11 +988,10 @@ def null_blocks(*Qs):
     for Q in Qs:
         nz |= Q != 0.0
     blocks = []
-    for block in _blocks(nz):
-        ones = np.zeros(nz.shape[0])
-        ones[block] = 1.0
-        if all(np.abs(Q @ ones).max() <= 1e-9 * np.abs(Q[block]).max() * np.sqrt(block.size)
-               for Q in Qs if np.any(Q[block])):
+    for block in _blocks(nz):  # a component: Q is zero between it and the other rows
+        subs = [Q[np.ix_(block, block)] for Q in Qs]
+        if all(np.abs(S.sum(axis=1)).max() <= 1e-9 * np.abs(S).max() * np.sqrt(block.size)
+               for S in subs if np.any(S)):
             blocks.append(block)
     return blocks
 
@@ -1114,7 +1113,7 @@ def _weight_scale(JtJ, H, sigma):
     The search's bounds are :data:`WEIGHT_BOUNDS` decades about it.
     """
     pen = np.diag(H) > 0
-    return float(np.trace(JtJ[np.ix_(pen, pen)]) / sigma**2 / np.trace(H))
+    return float(np.diag(JtJ)[pen].sum() / sigma**2 / np.trace(H))
 
 
 def normal_equations(J, r):
@@ -1392,8 +1391,13 @@ def _correlated_refit(correlation, resid, jac, phi, p, sub, index, H, Hg, lam, l
     def rw(th):
         return w.whiten(resid(th)[keep])
 
-    def jw(th):
-        return w.whiten(jac(th)[keep])
+    last = {}
+
+    def jw(th):  # the last point's: Gauss-Newton ends where the next round starts
+        key = np.asarray(th, float).tobytes()
+        if last.get("key") != key:
+            last.update(key=key, J=w.whiten(jac(th)[keep]))
+        return last["J"]
 
     r = rw(phi)
     rounds, settled = 0, H is None
@@ -1517,8 +1521,18 @@ def _penalty_rank(H):
     (speed and gradients); each block's singular values above ``N eps`` of its largest count
     ``k - 2`` per block to at least 2,000 knots (``tests/survey_in/test_gnssa_smooth.py``).
     """
-    return sum(int(np.linalg.matrix_rank(H[np.ix_(block, block)], hermitian=True))
+    return sum(_block_rank(np.ascontiguousarray(H[np.ix_(block, block)]).tobytes(), block.size)
                for block in _blocks(np.asarray(H) != 0))
+
+
+@functools.lru_cache(maxsize=32)
+def _block_rank(values, size):
+    """Return numpy's numerical rank of the symmetric ``(size, size)`` block of ``values``.
+
+    Cached: a fit asks for the same few penalties' blocks at every weight it tries.
+    """
+    block = np.frombuffer(values, float).reshape(size, size)
+    return int(np.linalg.matrix_rank(block, hermitian=True))
 
 
 def _scaled_inverse(A, factor=None):

@@ -84,7 +84,7 @@ class Arrowhead:
         structure = _structure(P, np.packbits(nz).tobytes())
         if isinstance(structure, str):
             raise ValueError(structure)
-        border, order, width, coo = structure
+        border, order, width, coo, indptr = structure
         self.border, self.order, self.width, self.size = border, order, width, P
         n = order.size
         rows = np.arange(width + 1)[:, None]  # lower band storage: ab[r, c] = A[c + r, c]
@@ -98,7 +98,7 @@ class Arrowhead:
             self._bb.append(M[np.ix_(border, border)])
             self._ba.append(M[np.ix_(order, border)])
             self._diag.append(np.diag(M).copy())
-            self._sparse.append(csr_matrix((M[coo.row, coo.col], (coo.row, coo.col)),
+            self._sparse.append(csr_matrix((M[coo.row, coo.col], coo.col, indptr),
                                            shape=(P, P)))
 
     def quad(self, k, x):
@@ -205,7 +205,7 @@ def _add_pattern(nz, M):
 
 @functools.lru_cache(maxsize=8)
 def _structure(P, packed):
-    """Border, band order, half-width and the pattern (COO) of the packed pattern, or why not.
+    """Border, band order, half-width, the pattern (COO) and its CSR row pointers, or why not.
 
     A fit builds arrowheads of the same few patterns again and again (the speed's and the
     gradients' weights are chosen in turn on one ``J'J``): the ordering is kept.
@@ -225,9 +225,9 @@ def _structure(P, packed):
     width = int(np.abs(where[coo.row] - where[coo.col])[inner].max()) if inner.any() else 0
     if (width + 1) * 4 > order.size:
         return f"a band of half-width {width} in {order.size}"
-    for a in (border, order, coo.row, coo.col):
+    for a in (border, order, coo.row, coo.col, pattern.indptr):
         a.setflags(write=False)
-    return border, order, width, coo
+    return border, order, width, coo, pattern.indptr  # coo: in the CSR's (row, column) order
 
 
 def gram(J):

@@ -1508,8 +1508,9 @@ def _noise_record(tau, share, white, table, n):
 
 #: Decades about the gradients' best weight over which the intervals average (step 0.5).
 GRADIENT_WEIGHT_GRID = np.arange(-2.0, 2.0001, 0.5)
-#: Share of the intervals' average below which a grid weight's covariance is not computed.
-GRID_SHARE = 1e-6
+#: Most total share of the intervals' average that the grid weights left out may hold: the
+#: smallest shares are left out (their covariances not computed) while their sum stays below.
+GRID_SHARE = 1e-4
 
 
 def _penalty_rank(H):
@@ -1573,9 +1574,10 @@ def _grid_average(J, r, theta, H, sigma, lam, H_fixed, meat, n_clusters, grid, m
     the same weights, ``lam H + H_fixed`` summed in the other order, the same numbers).
 
     The evidence is evaluated at every weight of the grid; the modes and covariances only
-    where a weight's share of the average is at least :data:`GRID_SHARE`, and at the grid's
-    middle (``x`` nearest 0), whose row the caller reads: a sharp evidence leaves about half
-    of the grid with shares of 1e-30 and less, whose dense inverses changed nothing.
+    at the weights of the average (:func:`_grid_used`: the smallest shares, together below
+    :data:`GRID_SHARE`, are left out) and at the grid's middle (``x`` nearest 0), whose row
+    the caller reads: a sharp evidence leaves most of the grid with shares of 1e-6 and
+    less, whose dense inverses changed the intervals by less than the shares.
 
     Returns
     -------
@@ -1594,9 +1596,10 @@ def _grid_average(J, r, theta, H, sigma, lam, H_fixed, meat, n_clusters, grid, m
     w = np.exp(ll - ll[finite].max()) if finite.any() else np.full(ll.size, np.nan)
     w /= w.sum()
     mid = int(np.argmin(np.abs(grid)))
+    used = _grid_used(w)
     rows = []
     for k, x in enumerate(grid):
-        if not w[k] >= GRID_SHARE and k != mid:
+        if not used[k] and k != mid:
             rows.append(None)
             continue
         if k == mid and mid_row is not None and x == 0.0 == mid_row[0]:
@@ -1610,8 +1613,8 @@ def _grid_average(J, r, theta, H, sigma, lam, H_fixed, meat, n_clusters, grid, m
         C = Ainv @ (meat * n_clusters / max(n_clusters - edf, 1.0) + prior) @ Ainv
         C = 0.5 * (C + C.T)
         rows.append((x, None, step, C, Ainv, edf))
-    used = [k for k, row in enumerate(rows) if row is not None and w[k] >= GRID_SHARE]
-    if not used:
+    used = np.flatnonzero(used)
+    if not used.size:
         nan = np.full((theta.size, theta.size), np.nan)
         return w, nan, nan.copy(), rows, ll
     wu = w[used] / w[used].sum()
@@ -1619,6 +1622,28 @@ def _grid_average(J, r, theta, H, sigma, lam, H_fixed, meat, n_clusters, grid, m
     dev = steps - wu @ steps
     mean_cov = sum(wi * rows[k][3] for wi, k in zip(wu, used, strict=True))
     return w, mean_cov, (dev.T * wu) @ dev, rows, ll
+
+
+def _grid_used(w):
+    """Return which grid weights the intervals' average uses.
+
+    Not the smallest shares ``w`` whose sum stays below :data:`GRID_SHARE`, nor a NaN one.
+
+    Parameters
+    ----------
+    w : numpy.ndarray
+        The weights' shares of the average (summing to 1, or all NaN).
+
+    Returns
+    -------
+    numpy.ndarray of bool
+    """
+    ok = np.isfinite(w)
+    order = np.argsort(np.where(ok, w, np.inf), kind="stable")
+    below = np.cumsum(np.where(ok, w, 0.0)[order]) < GRID_SHARE
+    used = ok.copy()
+    used[order[below]] = False
+    return used
 
 
 def _smooth_covariance(J, r, theta, H, sigma, lam, clusters, Hg=None, lam_g=None):

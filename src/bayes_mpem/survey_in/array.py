@@ -1271,7 +1271,8 @@ class _SmoothArrayEM(TravelTimeEM):
         return abs(new.sigma - old.sigma)
 
 
-def penalised_gauss_newton(resid, jac, theta, Q, *, max_steps=50, rtol=1e-12, start=None):
+def penalised_gauss_newton(resid, jac, theta, Q, *, max_steps=50, rtol=1e-12, start=None,
+                           normal=None):
     """Minimise ``||resid(theta)||^2 + theta' Q theta`` by damped Gauss-Newton steps.
 
     Each step solves ``(J'J + Q + mu D) d = -(J'r + Q theta)`` (``D`` the diagonal of
@@ -1293,6 +1294,8 @@ def penalised_gauss_newton(resid, jac, theta, Q, *, max_steps=50, rtol=1e-12, st
     start : tuple, optional
         ``(r, J, (J'J, J'r, r'r))`` at ``theta`` (:func:`normal_equations`), where the
         caller has them already: the first step then neither evaluates nor multiplies them.
+    normal : callable, optional
+        ``normal(J, r)``, default :func:`normal_equations` (a caller's may keep the last).
 
     Returns
     -------
@@ -1319,7 +1322,7 @@ def penalised_gauss_newton(resid, jac, theta, Q, *, max_steps=50, rtol=1e-12, st
     for _ in range(max_steps):
         if pre is None:
             J = jac(th)
-            pre = normal_equations(J, r)
+            pre = (normal or normal_equations)(J, r)
         A = pre[0] + Q
         g = pre[1] + Q @ null_shifted(th, Q, blocks)
         pre = None
@@ -1399,12 +1402,17 @@ def _correlated_refit(correlation, resid, jac, phi, p, sub, index, H, Hg, lam, l
             last.update(key=key, J=w.whiten(jac(th)[keep]))
         return last["J"]
 
+    def normal(J, r):  # the last: the next round starts where Gauss-Newton ended
+        if not (last.get("J_n") is J and np.array_equal(last.get("r_n"), r)):
+            last.update(J_n=J, r_n=r, pre=normal_equations(J, r))
+        return last["pre"]
+
     r = rw(phi)
     rounds, settled = 0, H is None
     while rounds == 0 or (not settled and rounds < REFIT_ROUNDS):
         rounds += 1
         J = jw(phi)
-        pre = normal_equations(J, r)  # the weights are chosen on it; the first step uses it
+        pre = normal(J, r)  # the weights are chosen on it; the first step uses it
         if H is not None:
             before = (lam, lam_g)
             lam = choose_smoothing(pre, r, phi, H, sigma, lam, None if Hg is None else lam_g * Hg)
@@ -1417,7 +1425,8 @@ def _correlated_refit(correlation, resid, jac, phi, p, sub, index, H, Hg, lam, l
                                                                        strict=True))
         else:
             Q = np.zeros((phi.size, phi.size))
-        phi = penalised_gauss_newton(rw, jw, phi, sigma**2 * Q, start=(r, J, pre))
+        phi = penalised_gauss_newton(rw, jw, phi, sigma**2 * Q, start=(r, J, pre),
+                                     normal=normal)
         r = rw(phi)
         sigma = float(np.sqrt(r @ r / r.size))
     record = _noise_record(tau, share, white, table, keep.size)

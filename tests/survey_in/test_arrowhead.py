@@ -158,3 +158,47 @@ def test_a_grid_without_a_finite_evidence_gives_nan_not_zero():
     assert np.all(np.isinf(ll))
     assert cov.shape == spread.shape == (theta.size, theta.size)
     assert np.isnan(cov).all() and np.isnan(spread).all()
+
+
+def test_read_only_matrices_lend_their_parts_and_writeable_ones_never():
+    from bayes_mpem.survey_in import arrowhead as ah
+
+    J, r, theta, H, Hg = _problem(tau=0.6)
+    JtJ = gram(J)
+    fresh = arrowhead([JtJ, H, 1e9 * Hg])
+    g = np.linspace(-1.0, 1.0, JtJ.shape[0])
+    ah._SEEN.clear()
+    assert arrowhead([JtJ, H, 1e9 * Hg]) is not None and not ah._SEEN  # writeable: not kept
+    JtJ.flags.writeable = H.flags.writeable = False
+    first = arrowhead([JtJ, H, 1e9 * Hg])
+    assert {id(JtJ), id(H)} <= set(ah._SEEN)
+    again = arrowhead([JtJ, Hg, 1e7 * H])  # the other weight's search on the same J'J
+    assert np.array_equal(first.solve([1e8, 1e3, 1.0], g)[1], fresh.solve([1e8, 1e3, 1.0], g)[1])
+    assert np.array_equal(again.solve([1e8, 1e9, 1.0], g)[1],
+                          arrowhead([JtJ.copy(), Hg.copy(), 1e7 * H]).solve([1e8, 1e9, 1.0],
+                                                                            g)[1])
+    assert len(ah._SEEN) <= ah.SEEN
+    ah._SEEN.clear()
+
+
+def test_a_fit_forgets_the_matrices_it_lent():
+    from bayes_mpem.survey_in import arrowhead as ah
+    from bayes_mpem.survey_in.array_survey import locate_array_survey
+    from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa
+
+    raw = simulate_gnssa(hours=6, rng=0, speed_model="field", track="star+circle",
+                         gradients=True).raw()  # 377 parameters: arrowheads
+    seen = []
+    real = ah._remembered
+
+    def spy(M, what, make):
+        seen.append(M.flags.writeable)
+        return real(M, what, make)
+
+    try:
+        ah._remembered = spy
+        locate_array_survey(raw)
+    finally:
+        ah._remembered = real
+    assert not all(seen)  # the fit's J'J and penalties were read-only, and kept ...
+    assert not ah._SEEN  # ... until it returned

@@ -18,7 +18,7 @@ from scipy.stats import norm
 from .._threads import with_one_blas_thread
 from .._validate import check_choice, check_int
 from ..exceptions import InputError, LocateWarning
-from .arrowhead import arrowhead, gram
+from .arrowhead import arrowhead, forgetting, gram
 from .classes import OUTLIER_MODELS
 from .location import TravelTimeEM, weighted_residuals
 from .noise import WHITES, Whitener, choose_correlation
@@ -376,6 +376,7 @@ def _check_shots(shots, transponders, exclude=None):
 
 
 @with_one_blas_thread
+@forgetting
 # The steps of the array's fit (checks, robust start, model, EM, covariance, result) read
 # long function: each step is a few lines and they read best in sequence
 def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=None,
@@ -539,6 +540,8 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
             for j in range(4):
                 a = nf + k + j * k
                 Hg[a:a + k, a:a + k] = H0
+            Hg.flags.writeable = False
+        H.flags.writeable = False  # (the arrowhead keeps the parts of read-only matrices)
         em = _SmoothArrayEM(t, resid, jac, x_scale, windows, index, outliers, H, coef0, Hg)
     else:
         em = TravelTimeEM(t, resid, jac, x_scale, windows, index, outliers)
@@ -1132,7 +1135,9 @@ def normal_equations(J, r):
     -------
     tuple
     """
-    return gram(J), J.T @ r, float(r @ r)
+    G = gram(J)
+    G.flags.writeable = False  # searches over weights reuse its arrowhead parts (by identity)
+    return G, J.T @ r, float(r @ r)
 
 
 def _choose_weight(J, r, theta, H, sigma, lam, H_fixed):
@@ -1435,7 +1440,7 @@ def _correlated_refit(correlation, resid, jac, phi, p, sub, index, H, Hg, lam, l
         warnings.warn(f"array: the smoothing weights of the refit under correlated noise still "
                       f"moved by more than 1 % after {rounds} round{'s' * (rounds != 1)}",
                       LocateWarning,
-                      stacklevel=4)  # past the thread-limiting decorator
+                      stacklevel=5)  # past locate_array's two decorators
     return (phi, sigma, lam, lam_g, jw(phi), r), record
 
 
@@ -1803,7 +1808,7 @@ def _warn(n_bad, n_legs, converged, it):
     if n_bad:
         warnings.warn(f"array: {n_bad} of {n_legs} legs have no direct eigenray through the "
                       "profile; their travel times are the straight chord at the profile's "
-                      "mean speed", LocateWarning, stacklevel=4)
+                      "mean speed", LocateWarning, stacklevel=5)  # past two decorators
     if not converged:
         warnings.warn(f"array: location EM did not converge in {it} iterations", LocateWarning,
-                      stacklevel=4)
+                      stacklevel=5)

@@ -80,8 +80,9 @@ class Arrowhead:
             raise ValueError(f"{P} parameters: a dense factor is cheaper")
         nz = np.zeros((P, P), bool)
         for M in mats:
-            _add_pattern(nz, M)
-        structure = _structure(P, np.packbits(nz).tobytes())
+            nz |= _remembered(M, "pattern", _pattern)
+        key = np.packbits(nz).tobytes()
+        structure = _structure(P, key)
         if isinstance(structure, str):
             raise ValueError(structure)
         border, order, width, coo, indptr = structure
@@ -92,14 +93,14 @@ class Arrowhead:
         self._valid = (cols + rows) < n
         self._r, self._c = np.broadcast_arrays(np.minimum(cols + rows, n - 1), cols)
         oi, oj = order[self._r], order[self._c]
-        self._bands, self._bb, self._ba, self._diag, self._sparse = [], [], [], [], []
-        for M in mats:
-            self._bands.append(np.where(self._valid, M[oi, oj], 0.0))
-            self._bb.append(M[np.ix_(border, border)])
-            self._ba.append(M[np.ix_(order, border)])
-            self._diag.append(np.diag(M).copy())
-            self._sparse.append(csr_matrix((M[coo.row, coo.col], coo.col, indptr),
-                                           shape=(P, P)))
+
+        def parts(M):
+            return (np.where(self._valid, M[oi, oj], 0.0), M[np.ix_(border, border)],
+                    M[np.ix_(order, border)], np.diag(M).copy(),
+                    csr_matrix((M[coo.row, coo.col], coo.col, indptr), shape=(P, P)))
+
+        self._bands, self._bb, self._ba, self._diag, self._sparse = map(list, zip(*[
+            _remembered(M, key, parts) for M in mats], strict=True))
 
     def quad(self, k, x):
         """Return ``x' M_k x``.
@@ -180,12 +181,52 @@ class Arrowhead:
         return float(logdet), s * x
 
 
-def _add_pattern(nz, M):
-    """Set ``nz`` where ``|M| > DROP sqrt(|M_ii M_jj|)`` (any non-zero where a diagonal is 0).
+#: Read-only matrices seen lately, by identity: ``id -> (matrix, {what: value})`` (at most
+#: :data:`SEEN`; a fit decorated by :func:`forgetting` drops them when it returns).
+_SEEN: dict = {}
+#: How many read-only matrices :data:`_SEEN` keeps.
+SEEN = 4
+
+
+def _remembered(M, what, make):
+    """Return ``make(M)``, kept for a read-only ``M`` (the same object: the same value).
+
+    A fit chooses the speed's and the gradients' weights in turn on one read-only ``J'J``
+    (:func:`~.array.normal_equations`) and its read-only penalties: each search's arrowhead
+    reuses their patterns and band parts. A writeable matrix is never kept.
+    """
+    if M.flags.writeable:
+        return make(M)
+    entry = _SEEN.get(id(M))
+    if entry is None or entry[0] is not M:
+        entry = _SEEN[id(M)] = (M, {})
+        while len(_SEEN) > SEEN:
+            del _SEEN[next(iter(_SEEN))]
+    if what not in entry[1]:
+        entry[1][what] = make(M)
+    return entry[1][what]
+
+
+def forgetting(func):
+    """Decorate a fit: the matrices :func:`_remembered` kept are dropped when it returns."""
+
+    @functools.wraps(func)
+    def wrapper(*args, **kwargs):
+        try:
+            return func(*args, **kwargs)
+        finally:
+            _SEEN.clear()
+
+    return wrapper
+
+
+def _pattern(M):
+    """Return where ``|M| > DROP sqrt(|M_ii M_jj|)`` (any non-zero where a diagonal is 0).
 
     A penalty has a few non-zero entries: they alone are tested. ``J'J`` under correlated
     noise is dense: tested in place, the build's largest passes.
     """
+    nz = np.zeros(M.shape, bool)
     d = np.sqrt(np.abs(np.diag(M)))
     if np.count_nonzero(M) <= 0.05 * M.size:
         flat = np.flatnonzero(M)
@@ -193,14 +234,15 @@ def _add_pattern(nz, M):
         dd = d[i] * d[j]
         keep = (np.abs(M.ravel()[flat]) > DROP * dd) | (dd == 0)
         nz[i[keep], j[keep]] = True
-        return
+        return nz
     thr = np.multiply.outer(d, d)
     thr *= DROP
-    nz |= np.abs(M) > thr
+    np.greater(np.abs(M), thr, out=nz)
     zero = np.flatnonzero(d == 0)
     if zero.size:  # NaN entries of a row without a diagonal (finite ones are counted above)
         nz[zero] |= M[zero] != 0
         nz[:, zero] |= M[:, zero] != 0
+    return nz
 
 
 @functools.lru_cache(maxsize=8)

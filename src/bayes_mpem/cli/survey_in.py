@@ -10,7 +10,6 @@ from ..exceptions import InputError
 from ..io.boundary import read_text_lines
 from ..io.formats import read_survey, sniff_format
 from ..io.raw import ARRAY_FORMATS
-from ..report import write_figures
 from ..survey_in.posterior import check_location_options
 from ..survey_in.result import gradients_line, noise_line
 from .errors import OptionError
@@ -234,6 +233,8 @@ def cmd_locate(args) -> int:
     if "solution" in paths:  # an array: the plain-text solution
         written.append(paths["solution"])
     if args.figures:
+        from ..report import write_figures  # matplotlib: only for figures
+
         written += write_figures(result, out)
     print("\n".join(f"wrote {p}" for p in written))
     return 0

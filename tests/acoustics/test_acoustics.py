@@ -419,6 +419,20 @@ def test_rays_sharing_their_layers_match_the_exact_solver(ssp, name):
     assert ray.time[ok] == pytest.approx(t_ref[ok], rel=1e-13, abs=0)
 
 
+def test_rays_near_grazing_leave_the_others_their_table(ssp):
+    from bayes_mpem.acoustics import eigenray
+    h = np.linspace(0.0, 8000.0, 2000)  # out to 3 depths: the farthest rays near grazing
+    top, bot = np.full(h.size, 0.0), np.full(h.size, 2700.0)
+    p, t = np.full(h.size, np.nan), np.full(h.size, np.nan)
+    solved = eigenray._trace_shared(ssp, top, bot, h, bot - top, 1e-9, 100, p, t)
+    assert 0.9 < solved.mean() < 1.0 and solved[: int(0.9 * h.size)].all()
+    p_ref, t_ref = eigenray._trace_blocks(ssp, [(top, bot)], h, bot - top, 1e-9, 100)
+    assert t[solved] == pytest.approx(t_ref[solved], rel=1e-13, abs=0)
+    ray = direct_ray(ssp, top, bot, h)  # the rest by the block solver
+    assert np.array_equal(np.isnan(ray.time), np.isnan(t_ref))
+    assert ray.time[~solved] == pytest.approx(t_ref[~solved], rel=1e-15, nan_ok=True)
+
+
 def test_rays_without_shared_layers_are_left_to_the_exact_solver():
     from bayes_mpem.acoustics import eigenray
     rng = np.random.default_rng(5)

@@ -19,6 +19,7 @@ _SHARED_RATIO = 4         # ... when the shared layers outnumber the ends' this 
 _SHARED_DEGREES = (32, 64)  # Chebyshev degrees tried for the shared layers
 _SHARED_TAIL = 1e-14      # the series' last coefficients, relative to its largest
 _SHARED_GRAZE = 0.999     # the table stops at p = 0.999 / c_max (rays beyond: block solver)
+_SHARED_QUANTILE = 0.9    # where the whole range does not converge: a table for 90 % of rays
 
 
 # --------------------------------------------------------------------------- layers
@@ -290,14 +291,34 @@ def _as_rays(z_a, z_b, horizontal, extra=(),
     return arrays[0].shape, flat
 
 
+def _shared_table(profile, z1, z2, u_hi):
+    """Chebyshev series in ``u = p^2`` on ``[0, u_hi]`` of ``X / p`` and ``T`` over ``[z1, z2]``.
+
+    Returns ``(cg, ct)``, or None where neither degree of :data:`_SHARED_DEGREES` brings the
+    last three coefficients below :data:`_SHARED_TAIL` of the largest (``u_hi`` too near
+    ``1 / c_max^2``, where the layers' square roots have their branch points).
+    """
+    for deg in _SHARED_DEGREES:
+        x = np.cos(np.pi * (np.arange(deg + 1) + 0.5) / (deg + 1))  # Chebyshev points
+        common = Legs(profile, [(np.full(x.size, z1), np.full(x.size, z2))])
+        S = common.cosines_from_p(np.sqrt(0.5 * u_hi * (x + 1.0)))
+        g, _ = common.sums(S, deriv=False)
+        fits = [chebyshev.chebfit(x, y, deg) for y in (g, common.times(S))]
+        if all(np.abs(c[-3:]).max() <= _SHARED_TAIL * np.abs(c).max() for c in fits):
+            return fits
+    return None
+
+
 def _trace_shared(profile, top, bot, H, V, tol, max_iter, p, time):
     """Solve the rays of one leg through the layers they all cross, tabulated once.
 
     Every ray crosses ``[z1, z2] = [max(top), min(bot)]``. There the horizontal run is
     ``p g(p^2)`` and the time ``T(p^2)``, both analytic in ``u = p^2`` below ``1/c_max^2``:
     each is interpolated by a Chebyshev series in ``u`` (NumPy's
-    :mod:`numpy.polynomial.chebyshev`) on the range of ray parameters the rays can have, and
-    only the short per-ray ends ``[top, z1]`` and ``[z2, bot]`` are summed ray by ray. Newton's
+    :mod:`numpy.polynomial.chebyshev`) on the range of ray parameters the rays can have (or,
+    where the rays nearest grazing keep the series from converging, on that of
+    :data:`_SHARED_QUANTILE` of them), and only the short per-ray ends ``[top, z1]`` and
+    ``[z2, bot]`` are summed ray by ray. Newton's
     method on ``p`` (kept in its bracket) stops on the same tolerance as :func:`_solve_block`
     and keeps its last step. The series must have converged to round-off
     (:data:`_SHARED_TAIL`); otherwise, where the ends hold many layers, or where a ray's
@@ -330,21 +351,15 @@ def _trace_shared(profile, top, bot, H, V, tol, max_iter, p, time):
     inside = (zk > top.min()) & (zk < bot.max())
     c_all = np.concatenate([ck[inside], profile.speed(np.array([top.min(), z1, z2, bot.max()]))])
     cmin, cmax = c_all.min(), c_all.max()
-    # the eigenray is parallel to its chord somewhere, so p <= sin(chord) / c_min
+    # the eigenray is parallel to its chord somewhere, so p <= sin(chord) / c_min; where
+    # the rays nearest grazing keep the series from converging, a table for the rest
     sin_chord = H / np.hypot(H, V)
-    p_hi = min(float(sin_chord.max()) * (1 + 1e-6) / cmin, _SHARED_GRAZE / cmax)
-    u_hi = p_hi * p_hi
-    if u_hi == 0.0:
-        return solved
-    coef = None
-    for deg in _SHARED_DEGREES:
-        x = np.cos(np.pi * (np.arange(deg + 1) + 0.5) / (deg + 1))  # Chebyshev points
-        common = Legs(profile, [(np.full(x.size, z1), np.full(x.size, z2))])
-        S = common.cosines_from_p(np.sqrt(0.5 * u_hi * (x + 1.0)))
-        g, _ = common.sums(S, deriv=False)
-        fits = [chebyshev.chebfit(x, y, deg) for y in (g, common.times(S))]
-        if all(np.abs(c[-3:]).max() <= _SHARED_TAIL * np.abs(c).max() for c in fits):
-            coef = fits
+    bound = sin_chord * ((1 + 1e-6) / cmin)
+    for cap in (bound.max(), np.quantile(bound, _SHARED_QUANTILE)):
+        p_hi = min(float(cap), _SHARED_GRAZE / cmax)
+        u_hi = p_hi * p_hi
+        coef = _shared_table(profile, z1, z2, u_hi) if u_hi > 0.0 else None
+        if coef is not None:
             break
     if coef is None:
         return solved
@@ -353,12 +368,17 @@ def _trace_shared(profile, top, bot, H, V, tol, max_iter, p, time):
     scale = 2.0 / u_hi
     legs = [(top, np.full(n, z1))] + ([(np.full(n, z2), bot)] if bot.max() > z2 else [])
     parts = Legs(profile, legs)
+    # rays that reach H within the table (X(p_hi) >= H); the others are the block solver's
+    with np.errstate(divide="ignore", invalid="ignore"):
+        sx, _ = parts.sums(parts.cosines_from_p(np.full(n, p_hi)), deriv=False)
+    idx = np.flatnonzero(p_hi * (chebyshev.chebval(1.0, cg) + sx) >= H)
+    if idx.size < n:
+        parts = parts.take(idx, ("C", "A"))
     # first guess: the chord in the harmonic-mean speed (as the block solver)
-    pp = np.clip(sin_chord * profile.vertical_time(top, bot) / V, 0.0, p_hi)
+    pp = np.clip(sin_chord * profile.vertical_time(top, bot) / V, 0.0, p_hi)[idx]
     lo, hi = np.zeros(n), np.full(n, p_hi)
     atol = tol * np.maximum(H, V)
     out = np.full(n, np.nan)
-    idx = np.arange(n)
     for _ in range(max_iter):
         x = pp * pp * scale - 1.0
         g = chebyshev.chebval(x, cg)

@@ -1,4 +1,7 @@
 import json
+import os
+import subprocess
+import sys
 
 import pandas as pd
 import pytest
@@ -123,3 +126,28 @@ def test_plot_with_nothing_fitted(survey_files, tmp_path, capsys):
     res.write(tmp_path)
     assert main(["plot", str(tmp_path)]) == 2
     assert "nothing to draw" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("given", [None, "module://my_backend"])
+def test_the_command_line_draws_on_agg_and_gives_the_backend_back(tmp_path, given):
+    """Figures are written with Agg; the caller's MPLBACKEND (or its absence) comes back.
+
+    In a fresh interpreter: matplotlib is not imported until a command draws.
+    """
+    code = (
+        "import os, sys\n"
+        "import bayes_mpem.cli.survey_in as m\n"
+        "from bayes_mpem.cli import main\n"
+        "seen = []\n"
+        "m.cmd_locate = lambda args: seen.append(os.environ.get('MPLBACKEND')) or 0\n"
+        f"assert main(['locate', {str(tmp_path / 'none.csv')!r}, '--out', "
+        f"{str(tmp_path / 'o')!r}]) == 0\n"
+        "assert 'matplotlib' not in sys.modules and seen == ['Agg'], (seen, sys.modules.keys())\n"
+        "print(os.environ.get('MPLBACKEND'))\n")
+    env = {k: v for k, v in os.environ.items() if k != "MPLBACKEND"}
+    if given is not None:
+        env["MPLBACKEND"] = given
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                         check=False)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == str(given)

@@ -202,3 +202,24 @@ def test_a_fit_forgets_the_matrices_it_lent():
         ah._remembered = real
     assert not all(seen)  # the fit's J'J and penalties were read-only, and kept ...
     assert not ah._SEEN  # ... until it returned
+
+
+def test_a_view_of_a_writeable_matrix_is_never_kept():
+    from bayes_mpem.survey_in import arrowhead as ah
+
+    P = 400
+    base = 4 * np.eye(P) - np.eye(P, k=1) - np.eye(P, k=-1)
+    base[0, :] = base[:, 0] = 0.1
+    base[0, 0] = P
+    M = base.view()
+    M.flags.writeable = False
+    ah._SEEN.clear()
+    arrowhead([M])
+    base *= 2  # its owner changes it
+    x = arrowhead([M]).solve([1.0], np.ones(P))[1]
+    assert np.allclose(M @ x, 1.0) and not ah._SEEN
+
+
+def test_the_penalty_rank_reads_any_number_type():
+    H = np.array([[0, 0, 0], [0, 2, -2], [0, -2, 2]])
+    assert arr._penalty_rank(H) == arr._penalty_rank(H.astype(np.float32)) == 1

@@ -632,7 +632,8 @@ def main(argv=None) -> int:
     """
     args = _parse(build_parser(), argv)  # an invalid option exits here, with status 2
     # the command line only writes files; never opens a window (matplotlib itself is
-    # imported only by the commands that draw: 0.1 s)
+    # imported only by the commands that draw: 0.1 s); the caller's MPLBACKEND comes back
+    backend = os.environ.get("MPLBACKEND")
     if "matplotlib" in sys.modules:
         sys.modules["matplotlib"].use("Agg")
     else:
@@ -674,6 +675,10 @@ def main(argv=None) -> int:
         finally:
             if previous is not None:
                 signal.signal(signal.SIGTERM, previous)
+            if backend is None:
+                os.environ.pop("MPLBACKEND", None)
+            else:
+                os.environ["MPLBACKEND"] = backend
 
 
 if __name__ == "__main__":  # pragma: no cover

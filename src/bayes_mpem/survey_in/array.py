@@ -1536,11 +1536,12 @@ def _penalty_rank(H):
     (speed and gradients); each block's singular values above ``N eps`` of its largest count
     ``k - 2`` per block to at least 2,000 knots (``tests/survey_in/test_gnssa_smooth.py``).
     """
+    H = np.asarray(H, float)
     return sum(_block_rank(np.ascontiguousarray(H[np.ix_(block, block)]).tobytes(), block.size)
-               for block in _blocks(np.asarray(H) != 0))
+               for block in _blocks(H != 0))
 
 
-@functools.lru_cache(maxsize=32)
+@functools.lru_cache(maxsize=8)
 def _block_rank(values, size):
     """Return numpy's numerical rank of the symmetric ``(size, size)`` block of ``values``.
 

@@ -15,6 +15,7 @@ campaigns: the arrowhead".
 from __future__ import annotations
 
 import functools
+import threading
 
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve, cho_solve_banded, cholesky_banded
@@ -186,25 +187,32 @@ class Arrowhead:
 _SEEN: dict = {}
 #: How many read-only matrices :data:`_SEEN` keeps.
 SEEN = 4
+_SEEN_LOCK = threading.Lock()
 
 
 def _remembered(M, what, make):
-    """Return ``make(M)``, kept for a read-only ``M`` (the same object: the same value).
+    """Return ``make(M)``, kept for a read-only ``M`` that owns its data.
 
-    A fit chooses the speed's and the gradients' weights in turn on one read-only ``J'J``
-    (:func:`~.array.normal_equations`) and its read-only penalties: each search's arrowhead
-    reuses their patterns and band parts. A writeable matrix is never kept.
+    The same object holds the same values unless its flag is turned back, which the package
+    never does. A fit chooses the speed's and the gradients' weights in turn on one read-only
+    ``J'J`` (:func:`~.array.normal_equations`) and its read-only penalties: each search's
+    arrowhead reuses their patterns and band parts. A writeable matrix, or a view (whose base may be
+    written), is never kept. Fits in several threads share :data:`_SEEN` under a lock.
     """
-    if M.flags.writeable:
+    if M.flags.writeable or M.base is not None:
         return make(M)
-    entry = _SEEN.get(id(M))
-    if entry is None or entry[0] is not M:
-        entry = _SEEN[id(M)] = (M, {})
-        while len(_SEEN) > SEEN:
-            del _SEEN[next(iter(_SEEN))]
-    if what not in entry[1]:
-        entry[1][what] = make(M)
-    return entry[1][what]
+    with _SEEN_LOCK:
+        entry = _SEEN.get(id(M))
+        if entry is None or entry[0] is not M:
+            entry = _SEEN[id(M)] = (M, {})
+            while len(_SEEN) > SEEN:
+                _SEEN.pop(next(iter(_SEEN)))
+        value = entry[1].get(what)
+    if value is None:
+        value = make(M)
+        with _SEEN_LOCK:
+            entry[1][what] = value
+    return value
 
 
 def forgetting(func):
@@ -215,7 +223,8 @@ def forgetting(func):
         try:
             return func(*args, **kwargs)
         finally:
-            _SEEN.clear()
+            with _SEEN_LOCK:
+                _SEEN.clear()
 
     return wrapper
 

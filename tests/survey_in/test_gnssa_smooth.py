@@ -455,31 +455,9 @@ def test_every_weight_search_holds_the_other_penalty_when_the_gradients_are_fitt
     assert calls and all(calls), calls
 
 
-@pytest.mark.parametrize(("peak", "most"), [(0.1, 4), (-0.7, 4), (1.3, 6), (2.5, 9), (-9.0, 9)])
-def test_the_weight_walk_finds_the_grids_best_with_fewer_evaluations(peak, most):
-    """A unimodal evidence: the walk from the middle finds the whole grid's best point in
-    3-6 evaluations; at an end of the grid it evaluates every point, as the grid did."""
-    from bayes_mpem.survey_in.array import _walk
-
-    x = 1.7 + np.arange(-2.0, 2.01, 0.5)
-    calls = []
-
-    def f(v):
-        calls.append(v)
-        return -(v - 1.7 - peak) ** 2
-
-    y = _walk(f, x)
-    full = np.array([-(v - 1.7 - peak) ** 2 for v in x])
-    assert int(np.argmax(y)) == int(np.argmax(full))
-    assert len(calls) == len(set(calls)) <= most
-    assert np.all((y == full) | (y == -np.inf))
-    if int(np.argmax(full)) in (0, x.size - 1):
-        np.testing.assert_array_equal(y, full)
-
-
 def _full_grid_search(f, lam, lo, hi):
-    """The weight search as it was before the walk: every grid point, re-centred at an edge,
-    refined at quarter steps (all nine evaluated), a parabola through the best three."""
+    """The weight search written out: every grid point, re-centred at an edge, refined at
+    quarter steps (all nine evaluated), a parabola through the best three."""
     x = np.clip(np.log10(lam), lo + 2.0, hi - 2.0) + np.arange(-2.0, 2.01, 0.5)
     for _ in range(40):
         y = np.array([f(v) for v in x])
@@ -503,13 +481,16 @@ def _full_grid_search(f, lam, lo, hi):
     return float(10.0 ** np.clip(best, x[i] - h, x[i] + h))
 
 
-@pytest.mark.parametrize("shape", ["smooth", "plateau", "stairs", "floor", "skewed"])
+@pytest.mark.parametrize("shape", ["smooth", "plateau", "stairs", "floor", "skewed",
+                                   "two peaks"])
 @pytest.mark.parametrize("peak", [0.02, 0.37, 0.49, 0.51, 0.88, 1.26, 1.74, -1.12, 2.4, -3.3])
 def test_the_weight_search_chooses_what_the_full_grid_chose(monkeypatch, shape, peak):
-    """The walk and the refinement's reuse of the best three points change nothing: the
-    search from a previous weight returns the full grid's weight, on evidence curves with a
-    peak anywhere about it (between grid points, near the refined grid's ends, beyond the
-    grid), flat runs of equal values, and -inf below some weight."""
+    """The refinement's reuse of the best three points changes nothing: the search from a
+    previous weight returns the full grid's weight, on evidence curves with a peak anywhere
+    about it (between grid points, near the refined grid's ends, beyond the grid), flat runs
+    of equal values, -inf below some weight, and a lower second peak near the previous weight
+    (a walk from the middle stopped there: a 6-hour campaign's gradients' weight 165 times
+    too stiff, its centre 1.3 cm off, docs/gnssa.md)."""
     from bayes_mpem.survey_in import array
 
     lam0 = 10.0 ** 3.0
@@ -524,6 +505,8 @@ def test_the_weight_search_chooses_what_the_full_grid_chose(monkeypatch, shape, 
             return -np.inf
         if shape == "skewed":
             return -np.expm1(v - centre) + (v - centre)
+        if shape == "two peaks":  # a lower bump at the previous weight
+            return max(-((v - centre) ** 2), -0.7 - 4.0 * (v - np.log10(lam0)) ** 2)
         return -((v - centre) ** 2)
 
     H = np.diag([0.0, 1.0, 2.0, 1.0])

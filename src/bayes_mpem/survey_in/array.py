@@ -831,8 +831,12 @@ def _mapped(resid, jac, G, start, k):
     def r(phi, w=None):
         return resid(_expand(phi, G, start, k), w)
 
+    free = G.shape[0] == G.shape[1] and np.array_equal(G, np.eye(G.shape[0]))
+
     def j(phi, w=None):
         J = jac(_expand(phi, G, start, k), w)
+        if free:  # every coordinate free: J @ I is J itself (no copy of the whole Jacobian)
+            return J
         return np.column_stack([J[:, :G.shape[0]] @ G, J[:, G.shape[0]:]])
 
     return r, j
@@ -1153,7 +1157,7 @@ def _choose_weight(J, r, theta, H, sigma, lam, H_fixed):
     lo, hi = np.log10(_weight_scale(pre[0], H, sigma)) + np.array(WEIGHT_BOUNDS)
     x = (np.linspace(lo, hi, 18) if lam is None else  # decades; else half-decades about lam
          np.clip(np.log10(lam), lo + 2.0, hi - 2.0) + np.arange(-2.0, 2.01, 0.5))
-    y = None if lam is None else _walk(f, x)
+    y = None  # every point of the grid: the evidence over a weight can have two peaks
     for _ in range(40):
         if y is None:
             y = np.array([f(v) for v in x])
@@ -1178,37 +1182,6 @@ def _choose_weight(J, r, theta, H, sigma, lam, H_fixed):
     ok = np.isfinite([y0, y1, y2]).all() and den < 0
     best = x[i] + (0.5 * h * (y0 - y2) / den if ok else 0.0)
     return float(10.0 ** np.clip(best, x[i] - h, x[i] + h)), curve
-
-
-def _walk(f, x):
-    """``f`` on the grid ``x`` where needed to find its best point, else everywhere.
-
-    From the middle three points, one neighbour at a time while an end of those evaluated
-    is as high as their best (a tie may hide a rise beyond it): where the evidence is
-    unimodal over the grid (an EM's weight moves little from step to step) the best point,
-    the first of equals, is the whole grid's, found with 3-6 evaluations instead of 9. The
-    points not evaluated are ``-inf``. Where the best is at an end of the grid, the whole
-    grid is evaluated (the caller re-centres it, as when every point was evaluated).
-    """
-    y = np.full(x.size, -np.inf)
-    m = x.size // 2
-    a, b = m - 1, m + 1
-    for j in range(a, b + 1):
-        y[j] = f(x[j])
-    while True:
-        best = y[a:b + 1].max()
-        if a > 0 and y[a] >= best:
-            a -= 1
-            y[a] = f(x[a])
-        elif b < x.size - 1 and y[b] >= best:
-            b += 1
-            y[b] = f(x[b])
-        else:
-            break
-    i = a + int(np.argmax(y[a:b + 1]))
-    if 0 < i < x.size - 1:
-        return y
-    return np.array([y[j] if a <= j <= b else f(v) for j, v in enumerate(x)])
 
 
 class _SmoothArrayEM(TravelTimeEM):

@@ -905,10 +905,11 @@ def log_evidence(J, r, theta, H, sigma, lam, rank=None, H_fixed=None, blocks=Non
 
 
 def _log_evidence(J, r, theta, H, sigma, lam, rank=None, H_fixed=None, blocks=None):
-    """:func:`log_evidence`, and the unit-diagonal Cholesky factor ``(c, s)`` of ``A`` used.
+    """Return :func:`log_evidence`'s three values and the factor of ``A`` it used.
 
-    ``c`` is :func:`scipy.linalg.cho_factor`'s of ``A s s'`` (None where it failed); the
-    caller that also inverts ``A`` (:func:`_scaled_inverse`) factors it once.
+    The factor is :func:`scipy.linalg.cho_factor`'s of ``A`` scaled to a unit diagonal
+    (None where it failed): a caller that also inverts ``A`` (:func:`_scaled_inverse`)
+    factors it once.
     """
     if rank is None:
         rank = _penalty_rank(H)

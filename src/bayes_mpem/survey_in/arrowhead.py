@@ -216,7 +216,18 @@ def _remembered(M, what, make):
 
 
 def forgetting(func):
-    """Decorate a fit: the matrices :func:`_remembered` kept are dropped when it returns."""
+    """Decorate a fit: the matrices :func:`_remembered` kept are dropped when it returns.
+
+    Parameters
+    ----------
+    func : callable
+        The fit (:func:`~bayes_mpem.survey_in.array.locate_array`).
+
+    Returns
+    -------
+    callable
+        ``func``, clearing the kept matrices on return or on an exception.
+    """
 
     @functools.wraps(func)
     def wrapper(*args, **kwargs):

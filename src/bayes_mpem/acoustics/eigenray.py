@@ -367,7 +367,7 @@ def _trace_shared(profile, top, bot, H, V, tol, max_iter, p, time):
     cgd = chebyshev.chebder(cg)
     scale = 2.0 / u_hi
     legs = [(top, np.full(n, z1))] + ([(np.full(n, z2), bot)] if bot.max() > z2 else [])
-    parts = Legs(profile, legs)
+    ends = parts = Legs(profile, legs)
     # rays that reach H within the table (X(p_hi) >= H); the others are the block solver's
     with np.errstate(divide="ignore", invalid="ignore"):
         sx, _ = parts.sums(parts.cosines_from_p(np.full(n, p_hi)), deriv=False)
@@ -403,7 +403,7 @@ def _trace_shared(profile, top, bot, H, V, tol, max_iter, p, time):
     ok = np.isfinite(out) & (out < p_hi)
     if not ok.any():
         return solved
-    rays = Legs(profile, [(t[ok], b[ok]) for t, b in legs])
+    rays = ends.take(ok, ("C", "H"))
     S = rays.cosines_from_p(out[ok])
     x = out[ok] ** 2 * scale - 1.0
     time[ok] = chebyshev.chebval(x, ct) + rays.times(S)
@@ -468,7 +468,6 @@ def _trace_blocks(profile, legs, H, V, tol, max_iter):
         time[sel[ok]] = good.times(good.cosines(sphi * sphi))
         p[sel[ok]] = np.where(H[sel][ok] == 0, 0.0, np.cos(phi[ok]) / good.cmax)
     return p, time
-
 
 
 def _angles(profile, p, z, down):

@@ -16,6 +16,7 @@ from bayes_mpem.io.gnatss import read_gnatss, write_gnatss
 from bayes_mpem.survey_in.array import ArrayTravelTimes, locate_array
 from bayes_mpem.survey_in.array_survey import array_shots, locate_array_survey
 from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa
+from bayes_mpem.survey_in.result import centre_note
 from bayes_mpem.survey_in.travel_times import speed_basis
 
 
@@ -163,6 +164,11 @@ def test_a_transponder_with_too_few_shots_is_left_out_with_the_reason(tmp_path):
     res = locate_array_survey(raw)
     assert list(res.summary["transponders"]) == ["M01", "M02"]
     assert "need at least 6" in res.summary["skipped_transponders"]["M03"]
+    assert res.summary["array_centre"]["transponders"] == ["M01", "M02"]  # not M03's prior
+    assert centre_note(res.summary).startswith("the mean of M01, M02 only (M03 not located)")
+    res.write(tmp_path / "out")
+    assert "only (M03 not located)" in (tmp_path / "out" / "solution.txt").read_text()
+    assert centre_note(locate_array_survey(sim.raw()).summary) is None
     left = res.classified[res.classified["transponder"] == "M03"]
     assert (left["label"] == "skipped").all() and left["reason"].str.contains("not located").all()
     with pytest.raises(InputError, match="no transponder has 6 shots"):

@@ -18,7 +18,7 @@ from bayes_mpem.survey_in.array import (
 )
 from bayes_mpem.survey_in.array_survey import array_shots, locate_array_survey, position_constraints
 from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa
-from bayes_mpem.survey_in.result import gradients_line
+from bayes_mpem.survey_in.result import gradients_line, positions_line
 from bayes_mpem.survey_in.travel_times import smooth_intervals, speed_penalty
 
 
@@ -168,6 +168,10 @@ def test_a_rigid_shift_of_the_given_geometry_is_recovered(tmp_path):
     moved = fit.enu - fit.start
     np.testing.assert_allclose(moved, np.tile(moved[0], (4, 1)), atol=1e-9)  # rigid
     np.testing.assert_allclose(moved[0], shift, atol=0.01)
+    rec = res.summary["positions"]["shift"]  # GARPOS's dCentPos, with its sd
+    np.testing.assert_allclose([rec[c]["mean"] for c in ("east", "north", "up")], moved[0])
+    np.testing.assert_allclose([rec[c]["sd"] for c in ("east", "north", "up")], fit.sd[0])
+    assert f"north {moved[0][1]:+.3f} +- " in positions_line(res.summary)
     # the shift's sd is that of a common move: no larger than a free transponder's
     free = locate_array_survey(sim.raw()).fits["array"]
     assert fit.centre()[1][0, 0] <= 1.05 * free.centre()[1][0, 0]
@@ -180,7 +184,10 @@ def test_a_sigma_of_zero_fixes_that_coordinate(tmp_path):
     raw = read_garpos(site)
     fixed, mode = position_constraints(raw.header)
     assert not mode and fixed.tolist() == [[False] * 3, [False, False, True], [False] * 3]
-    fit = locate_array_survey(raw, speed_intervals=0).fits["array"]
+    res = locate_array_survey(raw, speed_intervals=0)
+    fit = res.fits["array"]
+    assert "shift" not in res.summary["positions"]
+    assert positions_line(res.summary).startswith("1 of 9 coordinates fixed")
     assert fit.enu[1, 2] == fit.start[1, 2]  # held
     assert fit.sd[1, 2] == 0.0
     assert abs(fit.enu[0, 2] - fit.start[0, 2]) > 1e-3  # the others solved

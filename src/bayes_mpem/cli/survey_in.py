@@ -11,7 +11,7 @@ from ..io.boundary import read_text_lines
 from ..io.formats import read_survey, sniff_format
 from ..io.raw import ARRAY_FORMATS
 from ..survey_in.posterior import check_location_options
-from ..survey_in.result import gradients_line, noise_line
+from ..survey_in.result import centre_note, gradients_line, noise_line, positions_line
 from .errors import OptionError
 
 
@@ -221,6 +221,9 @@ def cmd_locate(args) -> int:
         c = summary["array_centre"]["enu"]
         print(f"array centre: east {_interval(c['east'], '{:.3f}')}, north "
               f"{_interval(c['north'], '{:.3f}')}, up {_interval(c['up'], '{:.3f}')} m")
+        for line in (centre_note(summary), positions_line(summary)):
+            if line:
+                print(f"  {line}")
         print(gradients_line(summary))
         print(noise_line(summary))
         if "posterior" in summary:

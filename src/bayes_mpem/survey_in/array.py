@@ -1677,7 +1677,9 @@ def _smooth_covariance(J, r, theta, H, sigma, lam, clusters, Hg=None, lam_g=None
                  "edge": _grid_edge(ll)}}
     if grad_grid is not None:
         record["gradient_grid"] = grad_grid
-    return cov, rows[mid][4], record
+    # the spreads' products (dev' W dev) are symmetric only to round-off, which depends on
+    # the BLAS kernel of the machine's CPU: a covariance is symmetric to the bit
+    return 0.5 * (cov + cov.T), rows[mid][4], record
 
 
 def _grid_edge(ll, tol=0.1, flat=1.0):

@@ -118,8 +118,23 @@ def _centre_entry(fit, ci, origin):
     return {"enu": {c: describe(v, s, ci) for c, v, s in zip(("east", "north", "up"), m, sd,
                                                               strict=True)},
             "lat": lat, "lon": lon, "height": h,
+            "transponders": [str(t) for t in fit.ids],
             "covariance": {"names": ["east", "north", "up"],
                            "matrix": [[float(v) for v in row] for row in C]}}
+
+
+def _positions_entry(fit, ci, shift):
+    """Return what was solved for the positions; with the rigid shift, the shift itself.
+
+    The shift is GARPOS's ``dCentPos`` of a fixed-geometry solution: every located
+    transponder minus its site-file position (the same for all), with their sd.
+    """
+    out = dict(fit.model["positions"])
+    if shift:
+        d, sd = fit.enu[0] - fit.start[0], fit.sd[0]
+        out["shift"] = {c: describe(v, s, ci) for c, v, s in
+                        zip(("east", "north", "up"), d, sd, strict=True)}
+    return out
 
 
 #: What ``t_tx`` counts in each format (``summary.json`` ``epoch``).
@@ -593,7 +608,7 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
         "method": _method(fit, rays, noise), "noise": noise,
         "outliers": outliers, "ssp": None if prof is None else prof.source,
         "speed_intervals": int(fit.model["speed_intervals"]), "fit_lag": False,
-        "positions": fit.model["positions"],
+        "positions": _positions_entry(fit, ci, shift),
         "gradients": {"fitted": bool(gradients), "choice": choice, "reason": why,
                       **(fit.model.get("gradients") or {}), "series": _gradient_series(fit)},
         "geometry": _geometry_entry(origin, surface_depth, radius, cartesian),

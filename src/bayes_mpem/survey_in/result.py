@@ -194,6 +194,60 @@ def _row(name, enu, width=14):
             + "".join(f"{v:9.3f}" for v in sds))
 
 
+def centre_note(summary: dict) -> str | None:
+    """Return what the array centre averages when a transponder was not located, else None.
+
+    The centre is the mean of the located transponders: with one left out it is another
+    point of the seafloor, and a campaign's centre is then not comparable with that of a
+    campaign that located them all.
+
+    Parameters
+    ----------
+    summary : dict
+        An array's ``summary.json`` (``array_centre``, ``skipped_transponders``).
+
+    Returns
+    -------
+    str or None
+        ``"the mean of M01, M02, M03 only (M04 not located): ..."``; None where every
+        transponder was located.
+    """
+    skipped = list(summary.get("skipped_transponders", {}))
+    if not skipped:
+        return None
+    used = summary["array_centre"].get("transponders") or list(summary["transponders"])
+    return (f"the mean of {', '.join(map(str, used))} only ({', '.join(map(str, skipped))} "
+            f"not located): not comparable with a centre of all "
+            f"{len(used) + len(skipped)} transponders")
+
+
+def positions_line(summary: dict) -> str | None:
+    """Return how the positions were constrained by the site file's sigmas, else None.
+
+    Parameters
+    ----------
+    summary : dict
+        An array's ``summary.json`` (``positions``).
+
+    Returns
+    -------
+    str or None
+        The rigid shift of the site file's geometry with its sds (GARPOS's ``dCentPos`` of a
+        fixed-geometry solution), or how many coordinates a sigma of 0 fixed; None where
+        every coordinate was solved.
+    """
+    pos = summary.get("positions") or {}
+    if "shift" in pos:
+        d = pos["shift"]
+        return ("rigid shift of the site file's geometry (fixed geometry): "
+                + ", ".join(f"{c} {d[c]['mean']:+.3f} +- {d[c]['sd']:.3f}"
+                            for c in ("east", "north", "up")) + " m")
+    if pos.get("n_fixed"):
+        return (f"{pos['n_fixed']} of {pos['n_fixed'] + pos['n_free']} coordinates fixed at "
+                "the site file's (sigma 0)")
+    return None
+
+
 def gradients_line(summary: dict) -> str:
     """Return one line: the array's horizontal gradients, fitted or not and why.
 
@@ -286,6 +340,12 @@ def _solution_text(summary: dict) -> str:
         lines.append(_row(str(tid), t["enu"]))
     for tid, why in s.get("skipped_transponders", {}).items():
         lines.append(f"{tid:<14}not located: {why}")
+    note = centre_note(s)
+    if note:
+        lines.append(f"{'':<14}array centre: {note}")
+    pos = positions_line(s)
+    if pos:
+        lines.append(f"positions     {pos}")
     ss = s["sound_speed"]
     lines += ["", f"sound speed   {ss['mean']:.3f} +- {ss['sd']:.3f} {ss['unit']} "
                   f"({ss.get('quantity', '')})",

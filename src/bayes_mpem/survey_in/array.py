@@ -1250,6 +1250,11 @@ class _SmoothArrayEM(TravelTimeEM):
         return abs(new.sigma - old.sigma)
 
 
+#: Gauss-Newton steps before the geodesic acceleration is added (a well-posed M-step is done
+#: in one or two; a curved valley takes hundreds without it)
+ACCELERATE_AFTER = 4
+
+
 def penalised_gauss_newton(resid, jac, theta, Q, *, max_steps=50, rtol=1e-12, start=None,
                            normal=None):
     """Minimise ``||resid(theta)||^2 + theta' Q theta`` by damped Gauss-Newton steps.
@@ -1257,7 +1262,13 @@ def penalised_gauss_newton(resid, jac, theta, Q, *, max_steps=50, rtol=1e-12, st
     Each step solves ``(J'J + Q + mu D) d = -(J'r + Q theta)`` (``D`` the diagonal of
     ``J'J + Q``) by Cholesky, ``mu`` raised tenfold until the objective decreases and
     lowered after a success: the normal equations of a few hundred parameters, not a
-    factorisation of the tall Jacobian.
+    factorisation of the tall Jacobian. After :data:`ACCELERATE_AFTER` steps, each step adds
+    the **geodesic acceleration** (Transtrum & Sethna 2012): the residuals' second
+    directional derivative along ``d`` from one more evaluation, ``a`` solving the same
+    system with ``J' r_dd``, the step ``d + a / 2`` where ``|a| <= 0.75 |d|`` (scaled by
+    ``D``). Positions barely determined by a short track lie on a curved valley (ranges from
+    a nearly straight track leave a rotation about it): there plain damped steps crept along
+    it (a 0.3-h, three-transponder campaign took 16 s, 50 steps in each of 33 M-steps).
 
     Parameters
     ----------
@@ -1280,6 +1291,11 @@ def penalised_gauss_newton(resid, jac, theta, Q, *, max_steps=50, rtol=1e-12, st
     -------
     numpy.ndarray
 
+    References
+    ----------
+    Transtrum, M. K. & Sethna, J. P. (2012). Improvements to the Levenberg-Marquardt
+    algorithm for nonlinear least-squares minimization. arXiv:1201.5885.
+
     Examples
     --------
     >>> import numpy as np
@@ -1298,7 +1314,7 @@ def penalised_gauss_newton(resid, jac, theta, Q, *, max_steps=50, rtol=1e-12, st
     r, J, pre = (resid(th), None, None) if start is None else start
     f = r @ r + penalty(th)
     mu = 0.0
-    for _ in range(max_steps):
+    for n_step in range(max_steps):
         if pre is None:
             J = jac(th)
             pre = (normal or normal_equations)(J, r)
@@ -1317,6 +1333,11 @@ def penalised_gauss_newton(resid, jac, theta, Q, *, max_steps=50, rtol=1e-12, st
             step = -s * cho_solve(c, s * g)
             if -(g @ step) <= rtol * f:  # the expected decrease is round-off: converged
                 return th
+            if n_step >= ACCELERATE_AFTER:
+                step = _accelerated(step, th, r, J, resid, c, s)
+                if step is None:  # the acceleration is too large: not a step to trust
+                    mu = max(10.0 * mu, 1e-6)
+                    continue
             new = th + step
             r_new = resid(new)
             f_new = r_new @ r_new + penalty(new)
@@ -1330,6 +1351,25 @@ def penalised_gauss_newton(resid, jac, theta, Q, *, max_steps=50, rtol=1e-12, st
         if gain <= rtol * f:
             break
     return th
+
+
+def _accelerated(v, th, r, J, resid, c, s, h=0.1, alpha=0.75):
+    """Return the step ``v + a / 2`` with the geodesic acceleration ``a``, or None.
+
+    ``r_vv`` by a finite difference along ``v`` (one more evaluation of the residuals);
+    ``a`` solves the damped normal equations (factor ``c`` of the ``s``-scaled matrix) with
+    ``J' r_vv`` (the penalty is quadratic: no second derivative). None where
+    ``2 |a| / |v| > alpha`` in the scaled coordinates, the acceleration too large for the
+    step to be trusted (Transtrum & Sethna 2012, section 4).
+    """
+    r_h = resid(th + h * v)
+    rvv = (2.0 / h) * ((r_h - r) / h - J @ v)
+    if not np.all(np.isfinite(rvv)):
+        return None
+    a = -s * cho_solve(c, s * (J.T @ rvv))
+    if 2.0 * np.linalg.norm(a / s) > alpha * np.linalg.norm(v / s):
+        return None
+    return v + 0.5 * a
 
 
 def _correlated_refit(correlation, resid, jac, phi, p, sub, index, H, Hg, lam, lam_g, sigma):

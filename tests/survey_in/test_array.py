@@ -153,6 +153,9 @@ def test_a_time_varying_speed_needs_its_intervals():
     one = locate_array_survey(raw, speed_intervals=0, **off).fits["array"]  # correlation)
     timed = locate_array_survey(raw, speed_intervals=4, **off).fits["array"]
     assert one.sigma > 2 * timed.sigma  # the unmodelled change is most of the misfit
+    for f in (one, timed):  # the sandwich's products are symmetric only to round-off
+        np.testing.assert_array_equal(f.cov, f.cov.T)
+        np.testing.assert_array_equal(f.cov_model, f.cov_model.T)
     smooth = locate_array_survey(raw, **off).fits["array"]  # the data choose the smoothness
     assert smooth.sigma < 1.1 * timed.sigma
 
@@ -364,8 +367,8 @@ def test_cluster_sums_add_each_clusters_rows_as_add_at_does(n, groups):
 def test_gauss_newton_follows_a_curved_valley():
     """Ranges from a nearly straight track leave a rotation about it: a curved valley.
 
-    Plain damped steps (the acceleration switched off) end 50 steps later far from the
-    minimum (37 against 0.007); with the geodesic acceleration the same 50 steps reach it.
+    From 30 degrees around it, plain damped steps (the acceleration switched off) take 236
+    steps to the minimum and are far from it after 50; with the geodesic acceleration, 20.
     """
     x = np.linspace(-400.0, 400.0, 81)
     track = np.column_stack([x, 3.0 * np.cos(x / 200.0), np.zeros_like(x)])
@@ -375,23 +378,30 @@ def test_gauss_newton_follows_a_curved_valley():
     def resid(t):
         return np.linalg.norm(track - t, axis=1) - obs
 
+    n_jac = []
+
     def jac(t):
+        n_jac.append(1)
         return (t - track) / np.linalg.norm(track - t, axis=1)[:, None]
 
-    a = np.radians(60.0)
+    a = np.radians(30.0)
     start = np.array([[1, 0, 0], [0, np.cos(a), -np.sin(a)], [0, np.sin(a), np.cos(a)]]) @ P
     th = penalised_gauss_newton(resid, jac, start, np.zeros((3, 3)))
     np.testing.assert_allclose(th, [49.989, 599.251, -1500.301], atol=2e-3)
-    assert np.sum(resid(th) ** 2) < 0.0073
+    assert np.sum(resid(th) ** 2) < 0.0073 and len(n_jac) <= 30
 
 
-def test_a_short_campaign_on_a_curved_valley_converges_in_a_few_em_iterations():
-    """18 minutes, three transponders: positions known to 15-25 m, on a curved valley.
+def test_short_campaigns_on_a_valley_converge_in_a_few_em_iterations():
+    """18 minutes to three transponders: positions known to metres, on a valley.
 
-    Before the acceleration each M-step stopped at its 50 damped steps and the EM took 33
-    iterations (16 s); now it converges in a few.
+    Along the star (seed 6) each M-step stopped at its 50 damped steps and the EM took 33
+    iterations (16 s). Holding station (seed 8), the damping snapped from 1e-6 to 0 after
+    each success: a rejected 72 m step, then an accepted 5 mm one, 50 times per M-step, and
+    the EM stopped at sigma 5.06e-5 s, about one sd from the minimum (sigma 4.77e-5 s).
     """
-    raw = simulate_gnssa(n_transponders=3, hours=0.3, rng=6).raw()
-    fit = locate_array_survey(raw).fits["array"]
-    assert fit.converged and fit.n_iter <= 8
-    assert (fit.sd > 5.0).all()  # the valley: barely determined
+    for track, seed, sigma in (("star+circle", 6, 5.4672e-5), ("station", 8, 4.7748e-5)):
+        raw = simulate_gnssa(n_transponders=3, hours=0.3, track=track, rng=seed).raw()
+        fit = locate_array_survey(raw).fits["array"]
+        assert fit.converged and fit.n_iter <= 15, (track, fit.n_iter)
+        assert fit.sigma < sigma, (track, fit.sigma)
+        assert (fit.sd > 1.0).all()  # the valley: barely determined

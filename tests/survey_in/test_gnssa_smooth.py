@@ -18,7 +18,7 @@ from bayes_mpem.survey_in.array import (
 )
 from bayes_mpem.survey_in.array_survey import array_shots, locate_array_survey, position_constraints
 from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa
-from bayes_mpem.survey_in.result import gradients_line, positions_line
+from bayes_mpem.survey_in.result import centre_note, gradients_line, positions_line
 from bayes_mpem.survey_in.travel_times import smooth_intervals, speed_penalty
 
 
@@ -177,6 +177,27 @@ def test_a_rigid_shift_of_the_given_geometry_is_recovered(tmp_path):
     assert fit.centre()[1][0, 0] <= 1.05 * free.centre()[1][0, 0]
 
 
+def test_the_rigid_shift_places_a_transponder_not_heard(tmp_path):
+    """Fixed geometry, M04 silent, the shift's up held: the centre of all four is given."""
+    sim = simulate_gnssa(n_transponders=4, hours=1.0, rng=12)
+    true = sim.truth["transponders"]
+    header = dict(sim.header, transponders=true - np.array([0.8, -0.5, 0.0]))
+    site = write_garpos(tmp_path, sim.pings[sim.pings["transponder"] != "M04"], header)
+    _with_sigmas(site, {t: [0.0] * 3 for t in true.index}, [3.0, 3.0, 0.0])
+    res = locate_array_survey(read_garpos(site))
+    s = res.summary
+    assert list(s["skipped_transponders"]) == ["M04"]
+    assert s["positions"]["shift"]["up"]["sd"] == 0.0
+    assert "up held (sigma 0)" in positions_line(s)
+    whole = s["positions"]["centre_of_all"]
+    got = np.array([whole[c]["mean"] for c in ("east", "north", "up")])
+    np.testing.assert_allclose(got, true[["east", "north", "up"]].to_numpy().mean(axis=0),
+                               atol=0.02)  # the true centre of all four, M04 unheard
+    three = np.array([s["array_centre"]["enu"][c]["mean"] for c in ("east", "north", "up")])
+    assert np.linalg.norm(three[:2] - got[:2]) > 100.0  # the three's mean is elsewhere
+    assert "the prior geometry moved by the shift puts that centre" in centre_note(s)
+
+
 def test_a_sigma_of_zero_fixes_that_coordinate(tmp_path):
     sim = simulate_gnssa(n_transponders=3, hours=0.5, rng=13)
     site = write_garpos(tmp_path, sim.pings, sim.header)
@@ -187,7 +208,7 @@ def test_a_sigma_of_zero_fixes_that_coordinate(tmp_path):
     res = locate_array_survey(raw, speed_intervals=0)
     fit = res.fits["array"]
     assert "shift" not in res.summary["positions"]
-    assert positions_line(res.summary).startswith("1 of 9 coordinates fixed")
+    assert positions_line(res.summary).startswith("1 of 9 coordinates held")
     assert fit.enu[1, 2] == fit.start[1, 2]  # held
     assert fit.sd[1, 2] == 0.0
     assert abs(fit.enu[0, 2] - fit.start[0, 2]) > 1e-3  # the others solved

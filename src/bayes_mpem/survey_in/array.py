@@ -798,7 +798,9 @@ def _full_cov(G, C):
     out[:n3, n3:] = G @ C[:nf, nf:]
     out[n3:, :n3] = C[nf:, :nf] @ G.T
     out[n3:, n3:] = C[nf:, nf:]
-    return out
+    # products such as the grid's spread (dev' W dev) or the sandwich are symmetric only to
+    # round-off, which depends on the BLAS kernel of the machine's CPU: made exact here
+    return 0.5 * (out + out.T)
 
 
 def _expand(phi, G, start, k):
@@ -1253,6 +1255,9 @@ class _SmoothArrayEM(TravelTimeEM):
 #: Gauss-Newton steps before the geodesic acceleration is added (a well-posed M-step is done
 #: in one or two; a curved valley takes hundreds without it)
 ACCELERATE_AFTER = 4
+#: the damping falls tenfold after each success down to this (relative to the scaled unit
+#: diagonal), then to 0; a failure raises it to at least 1e-6
+MU_FLOOR = 1e-12
 
 
 def penalised_gauss_newton(resid, jac, theta, Q, *, max_steps=50, rtol=1e-12, start=None,
@@ -1262,13 +1267,18 @@ def penalised_gauss_newton(resid, jac, theta, Q, *, max_steps=50, rtol=1e-12, st
     Each step solves ``(J'J + Q + mu D) d = -(J'r + Q theta)`` (``D`` the diagonal of
     ``J'J + Q``) by Cholesky, ``mu`` raised tenfold until the objective decreases and
     lowered after a success: the normal equations of a few hundred parameters, not a
-    factorisation of the tall Jacobian. After :data:`ACCELERATE_AFTER` steps, each step adds
-    the **geodesic acceleration** (Transtrum & Sethna 2012): the residuals' second
+    factorisation of the tall Jacobian. ``mu`` falls tenfold after each success down to
+    :data:`MU_FLOOR`, then to 0, so that it settles between the steps too long and too short
+    for a valley whose scaled normal matrix has a condition number near 1e14 (snapped to 0
+    from 1e-6, it alternated between a rejected 72 m step and an accepted 5 mm one on a
+    ship holding station for 18 minutes). After :data:`ACCELERATE_AFTER` steps, each step
+    adds the **geodesic acceleration** (Transtrum & Sethna 2012): the residuals' second
     directional derivative along ``d`` from one more evaluation, ``a`` solving the same
-    system with ``J' r_dd``, the step ``d + a / 2`` where ``|a| <= 0.75 |d|`` (scaled by
-    ``D``). Positions barely determined by a short track lie on a curved valley (ranges from
-    a nearly straight track leave a rotation about it): there plain damped steps crept along
-    it (a 0.3-h, three-transponder campaign took 16 s, 50 steps in each of 33 M-steps).
+    system with ``J' r_dd``, the step ``d + a / 2`` where ``2 |a| <= 0.75 |d|`` (norms
+    scaled by ``D``). Positions barely determined by a short track lie on a curved valley
+    (ranges from a nearly straight track leave a rotation about it): there plain damped
+    steps crept along it (a 0.3-h, three-transponder campaign took 16 s, 50 steps in each
+    of 33 M-steps).
 
     Parameters
     ----------
@@ -1347,7 +1357,7 @@ def penalised_gauss_newton(resid, jac, theta, Q, *, max_steps=50, rtol=1e-12, st
         else:
             return th
         gain = f - f_new
-        th, r, f, mu = new, r_new, f_new, mu / 10.0 if mu > 1e-6 else 0.0
+        th, r, f, mu = new, r_new, f_new, mu / 10.0 if mu > MU_FLOOR else 0.0
         if gain <= rtol * f:
             break
     return th
@@ -1717,9 +1727,7 @@ def _smooth_covariance(J, r, theta, H, sigma, lam, clusters, Hg=None, lam_g=None
                  "edge": _grid_edge(ll)}}
     if grad_grid is not None:
         record["gradient_grid"] = grad_grid
-    # the spreads' products (dev' W dev) are symmetric only to round-off, which depends on
-    # the BLAS kernel of the machine's CPU: a covariance is symmetric to the bit
-    return 0.5 * (cov + cov.T), rows[mid][4], record
+    return cov, rows[mid][4], record
 
 
 def _grid_edge(ll, tol=0.1, flat=1.0):

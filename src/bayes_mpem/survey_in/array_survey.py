@@ -123,17 +123,26 @@ def _centre_entry(fit, ci, origin):
                            "matrix": [[float(v) for v in row] for row in C]}}
 
 
-def _positions_entry(fit, ci, shift):
+def _positions_entry(fit, ci, shift, priors):
     """Return what was solved for the positions; with the rigid shift, the shift itself.
 
     The shift is GARPOS's ``dCentPos`` of a fixed-geometry solution: every located
-    transponder minus its site-file position (the same for all), with their sd.
+    transponder minus its prior position (the same for all), with their sd (0 for a
+    coordinate the site file holds). Where a transponder was not located, the geometry
+    still places it: ``centre_of_all`` is the mean of every prior position plus the shift,
+    comparable with a campaign that located them all.
     """
     out = dict(fit.model["positions"])
     if shift:
         d, sd = fit.enu[0] - fit.start[0], fit.sd[0]
         out["shift"] = {c: describe(v, s, ci) for c, v, s in
                         zip(("east", "north", "up"), d, sd, strict=True)}
+        if fit.skipped:
+            mean = priors[["east", "north", "up"]].to_numpy(float).mean(axis=0) + d
+            out["centre_of_all"] = {
+                "transponders": [str(t) for t in priors.index],
+                **{c: describe(v, s, ci) for c, v, s in
+                   zip(("east", "north", "up"), mean, sd, strict=True)}}
     return out
 
 
@@ -608,7 +617,7 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
         "method": _method(fit, rays, noise), "noise": noise,
         "outliers": outliers, "ssp": None if prof is None else prof.source,
         "speed_intervals": int(fit.model["speed_intervals"]), "fit_lag": False,
-        "positions": _positions_entry(fit, ci, shift),
+        "positions": _positions_entry(fit, ci, shift, h["transponders"]),
         "gradients": {"fitted": bool(gradients), "choice": choice, "reason": why,
                       **(fit.model.get("gradients") or {}), "series": _gradient_series(fit)},
         "geometry": _geometry_entry(origin, surface_depth, radius, cartesian),

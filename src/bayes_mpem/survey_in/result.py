@@ -216,9 +216,15 @@ def centre_note(summary: dict) -> str | None:
     if not skipped:
         return None
     used = summary["array_centre"].get("transponders") or list(summary["transponders"])
-    return (f"the mean of {', '.join(map(str, used))} only ({', '.join(map(str, skipped))} "
+    note = (f"the mean of {', '.join(map(str, used))} only ({', '.join(map(str, skipped))} "
             f"not located): not comparable with a centre of all "
             f"{len(used) + len(skipped)} transponders")
+    whole = (summary.get("positions") or {}).get("centre_of_all")
+    if whole:
+        note += ("; the prior geometry moved by the shift puts that centre at east "
+                 + ", north ".join(f"{whole[c]['mean']:.3f}" for c in ("east", "north"))
+                 + f", up {whole['up']['mean']:.3f} m (sds those of the shift)")
+    return note
 
 
 def positions_line(summary: dict) -> str | None:
@@ -239,12 +245,13 @@ def positions_line(summary: dict) -> str | None:
     pos = summary.get("positions") or {}
     if "shift" in pos:
         d = pos["shift"]
-        return ("rigid shift of the site file's geometry (fixed geometry): "
-                + ", ".join(f"{c} {d[c]['mean']:+.3f} +- {d[c]['sd']:.3f}"
-                            for c in ("east", "north", "up")) + " m")
+        return ("rigid shift of the prior geometry (fixed geometry): "
+                + ", ".join(f"{c} {d[c]['mean']:+.3f} +- {d[c]['sd']:.3f}" if d[c]["sd"] > 0
+                            else f"{c} held (sigma 0)" for c in ("east", "north", "up"))
+                + " m")
     if pos.get("n_fixed"):
-        return (f"{pos['n_fixed']} of {pos['n_fixed'] + pos['n_free']} coordinates fixed at "
-                "the site file's (sigma 0)")
+        return (f"{pos['n_fixed']} of {pos['n_fixed'] + pos['n_free']} coordinates held at "
+                "their prior positions (sigma 0)")
     return None
 
 

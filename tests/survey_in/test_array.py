@@ -10,7 +10,7 @@ from scipy.stats import chi2
 
 from bayes_mpem.acoustics.profile import SoundSpeedProfile
 from bayes_mpem.cli import main
-from bayes_mpem.exceptions import InputError
+from bayes_mpem.exceptions import InputError, LocateWarning
 from bayes_mpem.io.garpos import read_garpos, write_garpos
 from bayes_mpem.io.gnatss import read_gnatss, write_gnatss
 from bayes_mpem.survey_in.array import ArrayTravelTimes, locate_array, penalised_gauss_newton
@@ -405,3 +405,14 @@ def test_short_campaigns_on_a_valley_converge_in_a_few_em_iterations():
         assert fit.converged and fit.n_iter <= 15, (track, fit.n_iter)
         assert fit.sigma < sigma, (track, fit.sigma)
         assert (fit.sd > 1.0).all()  # the valley: barely determined
+
+
+def test_a_last_m_step_stopped_short_is_not_called_converged(monkeypatch):
+    """The EM's convergence looks at sigma; its last M-step must have converged too."""
+    import bayes_mpem.survey_in.array as array_module
+
+    raw = simulate_gnssa(n_transponders=3, hours=0.3, rng=6).raw()
+    monkeypatch.setitem(array_module.penalised_gauss_newton.__kwdefaults__, "max_steps", 2)
+    with pytest.warns(LocateWarning, match="ran out of steps"):
+        fit = locate_array_survey(raw, correlation="off").fits["array"]
+    assert not fit.converged

@@ -576,7 +576,8 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
         theta, cov, 3 * K + k, g, unit * float(g @ theta[kk]) if profile is not None
         else float(g @ theta[kk]), gradient_origins(sub, start))
     n_bad = model.n_invalid(theta)
-    _warn(n_bad, 2 * t.size, run.converged, run.n_iter)
+    gn_ok = em.gn.get("converged", True) if smooth else True  # the last M-step's own steps
+    _warn(n_bad, 2 * t.size, run.converged, run.n_iter, gn_ok)
     return ArrayLocateResult(
         ids=tuple(ids), enu=theta[:3 * K].reshape(K, 3).copy(), cov=cov, start=start,
         cov_model=cov_model,
@@ -585,7 +586,7 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
         speed_coef=theta[kk].copy(), gradient_coef=theta[kk.stop:].copy() if kg else None,
         sigma=sigma, weights=weights, p_true=p,
         residual=resid(phi), rows=rows, index=index, windows=windows, skipped=skipped,
-        n_iter=run.n_iter, converged=run.converged, outliers=outliers,
+        n_iter=run.n_iter, converged=run.converged and gn_ok, outliers=outliers,
         model={"profile": profile, "surface_depth": float(surface_depth),
                "speed_intervals": int(speed_intervals), "time_range": time_range,
                "speed_breaks": None if breaks is None else breaks.tolist(),
@@ -1194,6 +1195,7 @@ class _SmoothArrayEM(TravelTimeEM):
         super().__init__(t, resid, jac, x_scale, windows, index, outliers)
         self.H, self.Hg = H, Hg
         self.n_steps = 0
+        self.gn = {}  # the last M-step's Gauss-Newton: steps, converged
 
     def run(self, theta, *, sigma_min, **kw):
         """Return the EM's run from ``theta`` (as :meth:`TravelTimeEM.run`)."""
@@ -1231,7 +1233,7 @@ class _SmoothArrayEM(TravelTimeEM):
         Q = lam * self.H if self.Hg is None else lam * self.H + lam_g * self.Hg
         theta = penalised_gauss_newton(lambda th: self.resid(th, p),
                                        lambda th: self.jac(th, p), fit.theta,
-                                       fit.sigma**2 * Q, start=(r0, J, pre))
+                                       fit.sigma**2 * Q, start=(r0, J, pre), report=self.gn)
         r = self.resid(theta)
         sigma = float(np.sqrt(np.sum(p * r * r) / p.sum()))
         k = len(self.rows)
@@ -1261,7 +1263,7 @@ MU_FLOOR = 1e-12
 
 
 def penalised_gauss_newton(resid, jac, theta, Q, *, max_steps=50, rtol=1e-12, start=None,
-                           normal=None):
+                           normal=None, report=None):
     """Minimise ``||resid(theta)||^2 + theta' Q theta`` by damped Gauss-Newton steps.
 
     Each step solves ``(J'J + Q + mu D) d = -(J'r + Q theta)`` (``D`` the diagonal of
@@ -1296,6 +1298,9 @@ def penalised_gauss_newton(resid, jac, theta, Q, *, max_steps=50, rtol=1e-12, st
         caller has them already: the first step then neither evaluates nor multiplies them.
     normal : callable, optional
         ``normal(J, r)``, default :func:`normal_equations` (a caller's may keep the last).
+    report : dict, optional
+        Filled with ``steps`` and ``converged`` (False where ``max_steps`` ran out while
+        steps still lowered the objective by more than ``rtol``).
 
     Returns
     -------
@@ -1324,7 +1329,10 @@ def penalised_gauss_newton(resid, jac, theta, Q, *, max_steps=50, rtol=1e-12, st
     r, J, pre = (resid(th), None, None) if start is None else start
     f = r @ r + penalty(th)
     mu = 0.0
+    report = {} if report is None else report
+    report.update(steps=0, converged=True)
     for n_step in range(max_steps):
+        report["steps"] = n_step + 1
         if pre is None:
             J = jac(th)
             pre = (normal or normal_equations)(J, r)
@@ -1360,6 +1368,8 @@ def penalised_gauss_newton(resid, jac, theta, Q, *, max_steps=50, rtol=1e-12, st
         th, r, f, mu = new, r_new, f_new, mu / 10.0 if mu > MU_FLOOR else 0.0
         if gain <= rtol * f:
             break
+    else:
+        report["converged"] = False
     return th
 
 
@@ -1828,7 +1838,7 @@ def robust_covariance(J, r, clusters) -> np.ndarray:
     return Ainv @ (S.T @ S) @ Ainv * (G / max(G - P, 1))
 
 
-def _warn(n_bad, n_legs, converged, it):
+def _warn(n_bad, n_legs, converged, it, gn_ok=True):
     """Emit the :class:`LocateWarning` of an array fit (invalid rays, no convergence)."""
     if n_bad:
         warnings.warn(f"array: {n_bad} of {n_legs} legs have no direct eigenray through the "
@@ -1836,4 +1846,8 @@ def _warn(n_bad, n_legs, converged, it):
                       "mean speed", LocateWarning, stacklevel=5)  # past two decorators
     if not converged:
         warnings.warn(f"array: location EM did not converge in {it} iterations", LocateWarning,
+                      stacklevel=5)
+    elif not gn_ok:
+        warnings.warn("array: the EM's last Gauss-Newton step ran out of steps still lowering "
+                      "the misfit: the positions may not be at the optimum", LocateWarning,
                       stacklevel=5)

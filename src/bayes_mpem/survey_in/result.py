@@ -238,9 +238,9 @@ def positions_line(summary: dict) -> str | None:
     Returns
     -------
     str or None
-        The rigid shift of the site file's geometry with its sds (GARPOS's ``dCentPos`` of a
-        fixed-geometry solution), or how many coordinates a sigma of 0 fixed; None where
-        every coordinate was solved.
+        The rigid shift of the prior geometry with its sds (GARPOS's ``dCentPos`` of a
+        fixed-geometry solution; a coordinate held by a sigma of 0 said so), or how many
+        coordinates a sigma of 0 held; None where every coordinate was solved.
     """
     pos = summary.get("positions") or {}
     if "shift" in pos:

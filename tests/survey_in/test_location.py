@@ -321,3 +321,9 @@ def test_travel_times_no_ray_is_counted():
     theta = np.array([0.0, 0.0, 1900.0, 1.0])
     assert tt.n_invalid(theta) == 1
     assert np.all(np.isfinite(tt.predict(theta)))
+    J = tt.jac(theta)  # the flagged ping's chord at the mean speed: its own derivatives
+    for i in range(3):
+        step = np.zeros(4)
+        step[i] = 0.05
+        num = (tt.predict(theta + step) - tt.predict(theta - step)) / 0.1
+        np.testing.assert_allclose(J[0, i], num[0], rtol=1e-6, atol=1e-10)

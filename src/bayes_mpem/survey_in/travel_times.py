@@ -195,6 +195,12 @@ class TravelTimes:
             q = np.where(h > 1e-9, p / h, 0.0)  # dT/dh / h
         # dT/dd = dT/dzb + dT/dh * dh/dd, with h^2 = L^2 - dz^2 (dh/dd = 0 on a plane)
         Td = eta + q * (L * Ld - dz)
+        if bad.any():  # the chord at the harmonic mean speed: its own derivative, not a ray's
+            # d(hm)/dzb = hm / dz (1 - hm / c(zb)): the mean's end moves with the transponder
+            dzb, cbb = dz[bad], cb[bad]
+            with np.errstate(invalid="ignore", divide="ignore"):
+                dhm = np.where(np.abs(dzb) > 1e-9, hm / dzb * (1.0 - hm / cbb), 0.0)
+            Td[bad] = Ld[bad] / hm - L[bad] / hm**2 * dhm
         return T, q * L * Le, q * L * Ln, Td, int(bad.sum())
 
     def n_invalid(self, theta):

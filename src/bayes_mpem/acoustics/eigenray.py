@@ -344,9 +344,9 @@ def _trace_shared(profile, top, bot, H, V, tol, max_iter, p, time):
     z1, z2 = top.max(), bot.min()
     zk, ck = profile.ray_knots
     shared = np.count_nonzero((zk > z1) & (zk < z2))
-    ends = np.count_nonzero((zk > top.min()) & (zk < z1)) + np.count_nonzero(
+    n_end = np.count_nonzero((zk > top.min()) & (zk < z1)) + np.count_nonzero(
         (zk > z2) & (zk < bot.max()))
-    if not z2 > z1 or shared < _SHARED_RATIO * (ends + 2):  # z2 > z1: every V > 0
+    if not z2 > z1 or shared < _SHARED_RATIO * (n_end + 2):  # z2 > z1: every V > 0
         return solved
     inside = (zk > top.min()) & (zk < bot.max())
     c_all = np.concatenate([ck[inside], profile.speed(np.array([top.min(), z1, z2, bot.max()]))])
@@ -421,21 +421,18 @@ def _trace(profile, legs, H, V, tol, max_iter):
     check_positive("tol", tol)
     check_int("max_iter", max_iter, minimum=1)
     n = H.size
-    p = np.full(n, np.nan)
-    time = np.full(n, np.nan)
     if n == 0:
-        return p, time
-    rest = None
-    if len(legs) == 1 and n >= _SHARED_MIN:
-        solved = _trace_shared(profile, *legs[0], H, V, tol, max_iter, p, time)
-        if solved.all():
-            return p, time
-        if solved.any():
-            rest = np.flatnonzero(~solved)
-    if rest is None:
+        return np.full(0, np.nan), np.full(0, np.nan)
+    if len(legs) != 1 or n < _SHARED_MIN:
         return _trace_blocks(profile, legs, H, V, tol, max_iter)
-    p[rest], time[rest] = _trace_blocks(profile, [(t[rest], b[rest]) for t, b in legs],
-                                        H[rest], V[rest], tol, max_iter)
+    p, time = np.full(n, np.nan), np.full(n, np.nan)
+    solved = _trace_shared(profile, *legs[0], H, V, tol, max_iter, p, time)
+    if not solved.any():
+        return _trace_blocks(profile, legs, H, V, tol, max_iter)
+    if not solved.all():
+        rest = np.flatnonzero(~solved)
+        p[rest], time[rest] = _trace_blocks(profile, [(t[rest], b[rest]) for t, b in legs],
+                                            H[rest], V[rest], tol, max_iter)
     return p, time
 
 

@@ -1195,7 +1195,7 @@ class _SmoothArrayEM(TravelTimeEM):
         super().__init__(t, resid, jac, x_scale, windows, index, outliers)
         self.H, self.Hg = H, Hg
         self.n_steps = 0
-        self.gn = {}  # the last M-step's Gauss-Newton: steps, converged
+        self.gn = {}  # the last M-step's Gauss-Newton: converged
 
     def run(self, theta, *, sigma_min, **kw):
         """Return the EM's run from ``theta`` (as :meth:`TravelTimeEM.run`)."""
@@ -1299,8 +1299,8 @@ def penalised_gauss_newton(resid, jac, theta, Q, *, max_steps=50, rtol=1e-12, st
     normal : callable, optional
         ``normal(J, r)``, default :func:`normal_equations` (a caller's may keep the last).
     report : dict, optional
-        Filled with ``steps`` and ``converged`` (False where ``max_steps`` ran out while
-        steps still lowered the objective by more than ``rtol``).
+        Its ``converged`` set: False where ``max_steps`` ran out while steps still lowered
+        the objective by more than ``rtol``.
 
     Returns
     -------
@@ -1330,9 +1330,8 @@ def penalised_gauss_newton(resid, jac, theta, Q, *, max_steps=50, rtol=1e-12, st
     f = r @ r + penalty(th)
     mu = 0.0
     report = {} if report is None else report
-    report.update(steps=0, converged=True)
+    report["converged"] = True
     for n_step in range(max_steps):
-        report["steps"] = n_step + 1
         if pre is None:
             J = jac(th)
             pre = (normal or normal_equations)(J, r)
@@ -1351,16 +1350,14 @@ def penalised_gauss_newton(resid, jac, theta, Q, *, max_steps=50, rtol=1e-12, st
             step = -s * cho_solve(c, s * g)
             if -(g @ step) <= rtol * f:  # the expected decrease is round-off: converged
                 return th
-            if n_step >= ACCELERATE_AFTER:
+            if n_step >= ACCELERATE_AFTER:  # None: the acceleration too large to trust
                 step = _accelerated(step, th, r, J, resid, c, s)
-                if step is None:  # the acceleration is too large: not a step to trust
-                    mu = max(10.0 * mu, 1e-6)
-                    continue
-            new = th + step
-            r_new = resid(new)
-            f_new = r_new @ r_new + penalty(new)
-            if f_new <= f:
-                break
+            if step is not None:
+                new = th + step
+                r_new = resid(new)
+                f_new = r_new @ r_new + penalty(new)
+                if f_new <= f:
+                    break
             mu = max(10.0 * mu, 1e-6)
         else:
             return th

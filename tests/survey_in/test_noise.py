@@ -338,6 +338,27 @@ def test_the_correlated_refit_runs_until_its_weights_settle(monkeypatch):
     assert not nz["refit_converged"] and nz["refit_rounds"] == 1
 
 
+def test_a_refit_whose_last_solve_stopped_short_is_not_called_converged(monkeypatch):
+    """The refit's Gauss-Newton cut to one step (the EM's left alone): a warning, the record
+    and ``converged`` say so; with its steps it converges."""
+    from bayes_mpem.exceptions import LocateWarning
+    from bayes_mpem.survey_in import array
+
+    raw = _with_correlated_delay(simulate_gnssa(hours=2, rng=1, speed_model="field").raw(), 1)
+    res = locate_array_survey(raw, correlation=(180.0, 0.0, 0.6))
+    assert res.summary["noise"]["refit_gauss_newton_converged"] and res.fits["array"].converged
+    solve = array.penalised_gauss_newton
+
+    def cut(*args, normal=None, **kw):  # only the refit passes ``normal``
+        return solve(*args, normal=normal, **kw, **({} if normal is None else {"max_steps": 1}))
+
+    monkeypatch.setattr(array, "penalised_gauss_newton", cut)
+    with pytest.warns(LocateWarning, match="refit under correlated noise ran out of steps"):
+        res = locate_array_survey(raw, correlation=(180.0, 0.0, 0.6))
+    assert not res.summary["noise"]["refit_gauss_newton_converged"]
+    assert not res.fits["array"].converged
+
+
 @pytest.mark.parametrize(("lam_g_moves", "rounds"), [((0.03, 0.03, 0.009), 3),
                                                      ((0.03, 0.02, 0.011, 0.0), 4),
                                                      ((0.03,) * 20, None)])

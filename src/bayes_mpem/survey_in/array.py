@@ -464,8 +464,10 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
     LocateWarning
         Where the refit under correlated noise stops at :data:`REFIT_ROUNDS` with a
         smoothing weight still moving by more than 1 % (``model["noise"]`` records
-        ``refit_rounds`` and ``refit_converged``); where legs have no direct eigenray
-        through the profile (their times the chord's); where the EM does not converge.
+        ``refit_rounds`` and ``refit_converged``), or with its last Gauss-Newton solve out of
+        steps (``refit_gauss_newton_converged``; ``converged`` False); where legs have no
+        direct eigenray through the profile (their times the chord's); where the EM does not
+        converge, or its last M-step's Gauss-Newton ran out of steps.
 
     Notes
     -----
@@ -577,6 +579,7 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
         else float(g @ theta[kk]), gradient_origins(sub, start))
     n_bad = model.n_invalid(theta)
     gn_ok = em.gn.get("converged", True) if smooth else True  # the last M-step's own steps
+    refit_ok = noise is None or noise.get("refit_gauss_newton_converged", True)
     _warn(n_bad, 2 * t.size, run.converged, run.n_iter, gn_ok)
     return ArrayLocateResult(
         ids=tuple(ids), enu=theta[:3 * K].reshape(K, 3).copy(), cov=cov, start=start,
@@ -586,7 +589,7 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
         speed_coef=theta[kk].copy(), gradient_coef=theta[kk.stop:].copy() if kg else None,
         sigma=sigma, weights=weights, p_true=p,
         residual=resid(phi), rows=rows, index=index, windows=windows, skipped=skipped,
-        n_iter=run.n_iter, converged=run.converged and gn_ok, outliers=outliers,
+        n_iter=run.n_iter, converged=run.converged and gn_ok and refit_ok, outliers=outliers,
         model={"profile": profile, "surface_depth": float(surface_depth),
                "speed_intervals": int(speed_intervals), "time_range": time_range,
                "speed_breaks": None if breaks is None else breaks.tolist(),
@@ -1395,9 +1398,10 @@ def _correlated_refit(correlation, resid, jac, phi, p, sub, index, H, Hg, lam, l
     Returns ``(refit, record)``: ``refit`` None for independent noise, else ``(phi, sigma,
     lam, lam_g, J, r)`` with ``J`` and ``r`` whitened (``L^-1``, ``E = L L'``) and the
     weights chosen again on them; ``record`` for ``model["noise"]`` (None where not asked),
-    with ``refit_rounds`` and ``refit_converged``. The rounds (weights chosen, then one
-    penalised Gauss-Newton solve) go on until neither weight moves by more than 1 %, at
-    most :data:`REFIT_ROUNDS`; a :class:`LocateWarning` where they stop short.
+    with ``refit_rounds``, ``refit_converged`` and ``refit_gauss_newton_converged``. The
+    rounds (weights chosen, then one penalised Gauss-Newton solve) go on until neither weight
+    moves by more than 1 %, at most :data:`REFIT_ROUNDS`; a :class:`LocateWarning` where they
+    stop short, and where the last round's Gauss-Newton ran out of steps.
     """
     spec = correlation_spec(correlation)
     if spec is None:
@@ -1444,7 +1448,7 @@ def _correlated_refit(correlation, resid, jac, phi, p, sub, index, H, Hg, lam, l
         return last["pre"]
 
     r = rw(phi)
-    rounds, settled = 0, H is None
+    rounds, settled, gn = 0, H is None, {}
     while rounds == 0 or (not settled and rounds < REFIT_ROUNDS):
         rounds += 1
         J = jw(phi)
@@ -1462,16 +1466,21 @@ def _correlated_refit(correlation, resid, jac, phi, p, sub, index, H, Hg, lam, l
         else:
             Q = np.zeros((phi.size, phi.size))
         phi = penalised_gauss_newton(rw, jw, phi, sigma**2 * Q, start=(r, J, pre),
-                                     normal=normal)
+                                     normal=normal, report=gn)
         r = rw(phi)
         sigma = float(np.sqrt(r @ r / r.size))
     record = _noise_record(tau, share, white, table, keep.size)
-    record.update(refit_rounds=rounds, refit_converged=bool(settled))
+    record.update(refit_rounds=rounds, refit_converged=bool(settled),
+                  refit_gauss_newton_converged=bool(gn["converged"]))
     if not settled:
         warnings.warn(f"array: the smoothing weights of the refit under correlated noise still "
                       f"moved by more than 1 % after {rounds} round{'s' * (rounds != 1)}",
                       LocateWarning,
                       stacklevel=5)  # past locate_array's two decorators
+    if not gn["converged"]:
+        warnings.warn("array: the last Gauss-Newton solve of the refit under correlated noise "
+                      "ran out of steps still lowering the misfit: the positions may not be at "
+                      "the optimum", LocateWarning, stacklevel=5)
     return (phi, sigma, lam, lam_g, jw(phi), r), record
 
 

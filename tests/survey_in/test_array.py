@@ -246,6 +246,35 @@ def test_covariance_of_badly_scaled_parameters_stays_a_covariance():
         assert all(t["enu"][a]["sd"] > 0 for a in ("east", "north", "up"))
 
 
+def test_grid_rows_of_round_off_are_left_out_of_the_intervals():
+    """A 30-minute campaign of a ship holding station: the evidence is flat over the speed's
+    weights, and at the stiffest the covariance was round-off (the array centre's east
+    variance -1.1 m^2 in one row, -0.15 m^2 in the average on the machine that found it).
+    Rows whose positions' covariance is not PSD are left out and listed."""
+    from bayes_mpem.survey_in.array import _accurate
+
+    raw = simulate_gnssa(n_transponders=4, hours=0.5, track="station", rng=108).raw()
+    res = locate_array_survey(raw)
+    fit = res.fits["array"]
+    pos = fit.cov[:12, :12]
+    assert np.linalg.eigvalsh(pos)[0] > 0
+    m, C = fit.centre()
+    assert np.all(np.diag(C) > 0)
+    grid = res.summary["sound_speed"]["smoothing"]["grid"]
+    dropped = [i for i, x in enumerate(grid["log10_weight"]) if x in grid["inaccurate"]]
+    assert all(grid["posterior_weight"][i] == 0.0 for i in dropped)
+    assert sum(grid["posterior_weight"]) == pytest.approx(1.0)
+    # the check itself: a negative variance, a non-PSD free block, a NaN
+    free = np.array([True, True, False])
+    good = np.diag([1.0, 2.0, 3.0])
+    assert _accurate(good, free)
+    assert not _accurate(np.diag([1.0, 2.0, -1e-30]), free)
+    bad = good.copy()
+    bad[0, 1] = bad[1, 0] = 1.5  # the free block's smaller eigenvalue: (3 - sqrt(10)) / 2 < 0
+    assert not _accurate(bad, free) and _accurate(bad, ~free)
+    assert not _accurate(np.diag([1.0, np.nan, 1.0]), free)
+
+
 def _blas_threads():
     """The BLAS's thread counts now (skips where threadpoolctl finds no BLAS to limit)."""
     from threadpoolctl import threadpool_info

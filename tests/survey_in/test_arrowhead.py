@@ -116,11 +116,11 @@ def test_the_grid_leaves_out_only_weights_without_a_share(monkeypatch):
     lam = arr.choose_smoothing(J, r, theta, H, 1e-4, None, 1e9 * Hg)
     meat = gram(J) / 1e-8
     args = (J, r, theta, H, 1e-4, lam, 1e9 * Hg, meat, 500, arr.WEIGHT_GRID)
-    w, cov, spread, rows, ll = arr._grid_average(*args)
+    w, cov, spread, rows, ll, _ = arr._grid_average(*args)
     assert any(row is None for row in rows)  # a sharp evidence: some left out
     assert rows[int(np.argmin(np.abs(arr.WEIGHT_GRID)))] is not None
     monkeypatch.setattr(arr, "GRID_SHARE", 0.0)
-    w0, cov0, spread0, rows0, ll0 = arr._grid_average(*args)
+    w0, cov0, spread0, rows0, ll0, _ = arr._grid_average(*args)
     assert all(row is not None for row in rows0)
     np.testing.assert_allclose(w, w0)
     d = np.sqrt(np.diag(cov0))  # the weights left out hold 7.6e-8 of the average here
@@ -145,7 +145,7 @@ def test_the_grid_computes_its_middle_row_even_without_a_share():
     J, r, theta, H, Hg = _problem(tau=0.6)
     lam = arr.choose_smoothing(J, r, theta, H, 1e-4, None, 1e9 * Hg)
     args = (J, r, theta, H, 1e-4, 10 * lam, 1e9 * Hg, gram(J) / 1e-8, 500, arr.WEIGHT_GRID)
-    w, cov, spread, rows, ll = arr._grid_average(*args)
+    w, cov, spread, rows, ll, _ = arr._grid_average(*args)
     mid = int(np.argmin(np.abs(arr.WEIGHT_GRID)))
     assert w[mid] < 1e-12 and rows[mid] is not None  # the caller reads it
 
@@ -154,7 +154,7 @@ def test_a_grid_without_a_finite_evidence_gives_nan_not_zero():
     J, r, theta, H, Hg = _problem(tau=0.0)
     J[:, 0] = 0.0  # a position the data do not touch: every weight's matrix is singular
     args = (J, r, theta, H, 1e-4, 1e6, 1e9 * Hg, gram(J) / 1e-8, 500, arr.WEIGHT_GRID)
-    w, cov, spread, rows, ll = arr._grid_average(*args)
+    w, cov, spread, rows, ll, _ = arr._grid_average(*args)
     assert np.all(np.isinf(ll))
     assert cov.shape == spread.shape == (theta.size, theta.size)
     assert np.isnan(cov).all() and np.isnan(spread).all()

@@ -1634,11 +1634,20 @@ def _grid_average(J, r, theta, H, sigma, lam, H_fixed, meat, n_clusters, grid, m
     the caller reads: a sharp evidence leaves most of the grid with shares of 1e-6 and
     less, whose dense inverses changed the intervals by less than the shares.
 
+    A row whose covariance of the unpenalised parameters (the positions) is not positive
+    semi-definite to :data:`GRID_ACCURACY` of its largest eigenvalue, or that has a
+    variance not above 0, is left out of the average (its share set to 0) and listed in
+    ``dropped``: at weights far stiffer than the data ask for, the penalty's null space is
+    near-singular after scaling and the row's numbers are round-off (on a 30-minute
+    campaign of a ship holding station, where the evidence was flat, the stiffest row gave
+    the array centre a negative variance).
+
     Returns
     -------
-    w, mean_cov, spread, rows, ll
+    w, mean_cov, spread, rows, ll, dropped
         ``rows[k]`` is ``(x, None, step, C, Ainv, edf)``, or None where not computed;
-        ``mean_cov`` and ``spread`` are NaN where no weight has a finite evidence.
+        ``mean_cov`` and ``spread`` are NaN where no weight has a finite evidence (or none
+        is accurate); ``dropped`` the indices of the rows left out as inaccurate.
     """
     rank = _penalty_rank(H)
     blocks = null_blocks(H, H_fixed)
@@ -1652,31 +1661,60 @@ def _grid_average(J, r, theta, H, sigma, lam, H_fixed, meat, n_clusters, grid, m
     w /= w.sum()
     mid = int(np.argmin(np.abs(grid)))
     used = _grid_used(w)
-    rows = []
+    free = np.diag(H) == 0 if H_fixed is None else (np.diag(H) == 0) & (np.diag(H_fixed) == 0)
+    rows, dropped = [], []
     for k, x in enumerate(grid):
         if not used[k] and k != mid:
             rows.append(None)
             continue
         if k == mid and mid_row is not None and x == 0.0 == mid_row[0]:
             rows.append((x, *mid_row[1:]))
-            continue
-        lg = lam * 10.0 ** x
-        _, step, A, factor = _log_evidence(pre, r, theta, H, sigma, lg, rank, H_fixed, blocks)
-        Ainv = _scaled_inverse(A, factor)
-        edf = float(np.sum(Ainv * JtJ) / sigma**2)  # trace(Ainv JtJ), both symmetric
-        prior = lg * H if H_fixed is None else lg * H + H_fixed
-        C = Ainv @ (meat * n_clusters / max(n_clusters - edf, 1.0) + prior) @ Ainv
-        C = 0.5 * (C + C.T)
-        rows.append((x, None, step, C, Ainv, edf))
+        else:
+            lg = lam * 10.0 ** x
+            _, step, A, factor = _log_evidence(pre, r, theta, H, sigma, lg, rank, H_fixed,
+                                               blocks)
+            Ainv = _scaled_inverse(A, factor)
+            edf = float(np.sum(Ainv * JtJ) / sigma**2)  # trace(Ainv JtJ), both symmetric
+            prior = lg * H if H_fixed is None else lg * H + H_fixed
+            C = Ainv @ (meat * n_clusters / max(n_clusters - edf, 1.0) + prior) @ Ainv
+            C = 0.5 * (C + C.T)
+            rows.append((x, None, step, C, Ainv, edf))
+        if used[k] and not _accurate(rows[k][3], free):
+            used[k] = False
+            dropped.append(k)
+    if dropped:
+        w[dropped] = 0.0
+        w /= w.sum() if w.sum() > 0 else 1.0
     used = np.flatnonzero(used)
     if not used.size:
         nan = np.full((theta.size, theta.size), np.nan)
-        return w, nan, nan.copy(), rows, ll
+        return w, nan, nan.copy(), rows, ll, dropped
     wu = w[used] / w[used].sum()
     steps = np.array([rows[k][2] for k in used])
     dev = steps - wu @ steps
     mean_cov = sum(wi * rows[k][3] for wi, k in zip(wu, used, strict=True))
-    return w, mean_cov, (dev.T * wu) @ dev, rows, ll
+    return w, mean_cov, (dev.T * wu) @ dev, rows, ll, dropped
+
+
+#: Relative accuracy a grid row's covariance of the positions must have (its most negative
+#: eigenvalue against its largest) to enter the intervals' average (:func:`_grid_average`).
+GRID_ACCURACY = 1e-8
+
+
+def _accurate(C, free):
+    """Whether a covariance is usable: finite variances above 0, the ``free`` block PSD.
+
+    The ``free`` block (the unpenalised parameters) to :data:`GRID_ACCURACY` of its largest
+    eigenvalue; the penalised coefficients are checked by their variances only (an
+    eigendecomposition of the whole matrix would cost as much as the row itself).
+    """
+    d = np.diag(C)
+    if not (np.all(np.isfinite(d)) and np.all(d > 0)):
+        return False
+    if not free.any():
+        return True
+    vals = np.linalg.eigvalsh(C[np.ix_(free, free)])
+    return bool(vals[0] >= -GRID_ACCURACY * vals[-1])
 
 
 def _grid_used(w):
@@ -1711,20 +1749,22 @@ def _smooth_covariance(J, r, theta, H, sigma, lam, clusters, Hg=None, lam_g=None
     meat = S.T @ S / sigma**4
     H_fixed = None if Hg is None else lam_g * Hg
     pre = normal_equations(J, r)  # both grids' (and the positions') normal equations
-    w, cov, spread, rows, ll = _grid_average(pre, r, theta, H, sigma, lam, H_fixed, meat,
-                                             n_clusters, WEIGHT_GRID)
+    w, cov, spread, rows, ll, dropped = _grid_average(pre, r, theta, H, sigma, lam, H_fixed,
+                                                      meat, n_clusters, WEIGHT_GRID)
     mid = int(np.argmin(np.abs(WEIGHT_GRID)))
     cov = cov + spread
     grad_grid = None
     if Hg is not None:
-        v, cov_g, spread_g, rows_g, ll_g = _grid_average(pre, r, theta, Hg, sigma, lam_g,
-                                                         lam * H, meat, n_clusters,
-                                                         GRADIENT_WEIGHT_GRID, rows[mid])
+        v, cov_g, spread_g, rows_g, ll_g, dropped_g = _grid_average(
+            pre, r, theta, Hg, sigma, lam_g, lam * H, meat, n_clusters, GRADIENT_WEIGHT_GRID,
+            rows[mid])
         cov = cov + cov_g - rows[mid][3] + spread_g
         grad_grid = {"log10_weight": [float(np.log10(lam_g) + x) for x in GRADIENT_WEIGHT_GRID],
                      "log_evidence": [float(x - ll_g.max()) for x in ll_g],
                      "posterior_weight": [float(x) for x in v],
-                     "edge": _grid_edge(ll_g)}
+                     "edge": _grid_edge(ll_g),
+                     "inaccurate": [float(np.log10(lam_g) + GRADIENT_WEIGHT_GRID[k])
+                                    for k in dropped_g]}
     record = {
         "penalty": "integral over time (hours) of the squared second derivative of the speed "
                    "coefficient (profile scale, or m/s for straight rays)",
@@ -1740,7 +1780,8 @@ def _smooth_covariance(J, r, theta, H, sigma, lam, clusters, Hg=None, lam_g=None
         "grid": {"log10_weight": [float(np.log10(lam) + x) for x in WEIGHT_GRID],
                  "log_evidence": [float(v - ll.max()) for v in ll],
                  "posterior_weight": [float(v) for v in w],
-                 "edge": _grid_edge(ll)}}
+                 "edge": _grid_edge(ll),
+                 "inaccurate": [float(np.log10(lam) + WEIGHT_GRID[k]) for k in dropped]}}
     if grad_grid is not None:
         record["gradient_grid"] = grad_grid
     return cov, rows[mid][4], record

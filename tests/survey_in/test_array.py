@@ -16,7 +16,7 @@ from bayes_mpem.io.gnatss import read_gnatss, write_gnatss
 from bayes_mpem.survey_in.array import ArrayTravelTimes, locate_array, penalised_gauss_newton
 from bayes_mpem.survey_in.array_survey import array_shots, locate_array_survey
 from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa
-from bayes_mpem.survey_in.result import centre_note
+from bayes_mpem.survey_in.result import centre_note, short_note
 from bayes_mpem.survey_in.travel_times import speed_basis
 
 
@@ -170,7 +170,9 @@ def test_a_transponder_with_too_few_shots_is_left_out_with_the_reason(tmp_path):
     assert res.summary["array_centre"]["transponders"] == ["M01", "M02"]  # not M03's prior
     assert centre_note(res.summary).startswith("the mean of M01, M02 only (M03 not located)")
     res.write(tmp_path / "out")
-    assert "only (M03 not located)" in (tmp_path / "out" / "solution.txt").read_text()
+    text = (tmp_path / "out" / "solution.txt").read_text()
+    assert "only (M03 not located)" in text
+    assert "the shots span 0.29 h" in text and "read them as too narrow" in text  # 18 min
     assert centre_note(locate_array_survey(sim.raw()).summary) is None
     left = res.classified[res.classified["transponder"] == "M03"]
     assert (left["label"] == "skipped").all() and left["reason"].str.contains("not located").all()
@@ -244,6 +246,14 @@ def test_covariance_of_badly_scaled_parameters_stays_a_covariance():
     assert np.all(np.diag(cov)[:12] > 0)
     for t in res.summary["transponders"].values():
         assert all(t["enu"][a]["sd"] > 0 for a in ("east", "north", "up"))
+
+
+def test_a_campaign_under_an_hour_is_told_its_intervals_are_too_narrow():
+    """benchmarks/gnssa_short.py: 80-87 % of the centre's horizontal 95 % intervals covered
+    on 30-minute campaigns, 87-100 % from an hour (stars, stations)."""
+    assert short_note({"epoch": {"hours": 0.49}}).startswith("the shots span 0.49 h")
+    assert short_note({"epoch": {"hours": 1.0}}) is None
+    assert short_note({}) is None  # no epoch: nothing said
 
 
 def test_grid_rows_of_round_off_are_left_out_of_the_intervals():

@@ -390,3 +390,14 @@ def test_the_defaults_fit_the_gradients_on_the_whole_seagap_survey():
     raw = read_survey(sample_file("seagap/obsdata.inp"))
     fit, why = gradient_gate(array_shots(raw), raw.header["transponders"])
     assert fit and "spreads over 0.16 of the depth" in why, why
+
+
+def test_a_fit_above_the_transducer_is_refused_as_the_mirror_image():
+    """Prior positions given in km: the ranges' mirror image in the transducer's level fits
+    them as well, 1,500 m above the sea, with sds of cm (found by a review)."""
+    raw = simulate_gnssa(hours=1, rng=3).raw()
+    header = copy.deepcopy(raw.header)
+    header["transponders"][["east", "north", "up"]] /= 1000.0
+    with pytest.raises(InputError, match=r"transponder M0\d was located [\d,]+ m above the "
+                                         r"transducer .* mirror image .* prior up -1\.\d+ m"):
+        locate_array_survey(dataclasses.replace(raw, header=header))

@@ -475,6 +475,25 @@ def _method(fit, rays, noise) -> str:
                if fit.model.get("smoothing") else ")"))
 
 
+def _check_below_transducer(raw, fit, shots) -> None:
+    """Refuse a fit that puts a transponder above the transducer: the ranges' mirror image.
+
+    Ranges alone are symmetric about the transducer's level; a prior position far too
+    shallow (given in km, say) lets the fit converge to the mirror image, with small sds.
+    """
+    level = float(np.mean(shots[["u_tx", "u_rx"]].to_numpy()))
+    for k, tid in enumerate(fit.ids):
+        up = float(fit.enu[k, 2])
+        if up > level:
+            priors = raw.header["transponders"]
+            prior = float(priors["up"].to_numpy()[[str(t) for t in priors.index].index(tid)])
+            raise InputError(
+                f"{raw.source}: transponder {tid} was located {up - level:,.0f} m above the "
+                f"transducer (up {up:+.2f} m), the mirror image of its ranges: its prior up "
+                f"{prior:+.3f} m is far from the depth its ranges give; check the site "
+                "file's positions (metres, up negative below the sea surface)")
+
+
 def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
                         speed_intervals=None, surface_depth=None,
                         knot_minutes=KNOT_MINUTES, shift=None,
@@ -573,6 +592,7 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
                            exclude=flagged if honour else None, correlation=correlation)
     except InputError as exc:  # too few shots: name the shots file
         raise InputError(f"{_shots_file(raw)}: {exc}") from None
+    _check_below_transducer(raw, fit, shots)
     origin = (h["lat"], h["lon"], h.get("height", 0.0)) if "lat" in h else None
     counts = np.bincount(fit.index, minlength=len(fit.ids))
     out = {tid: _transponder_entry(fit, k, ci, origin, counts[k])

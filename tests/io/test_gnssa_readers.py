@@ -201,6 +201,10 @@ def test_garpos_wrong_width_and_missing_column(garpos):
     (" ATDoffset   =      1.5000", " ATDoffset   =      1.5x00", r"ATDoffset forward"),
     (" M02_dPos    =", " M02_dPos    = 1 2 3 4\n X", "expected '\\[section\\]' or 'key = value'"),
     ("[Site-parameter]", "[Site-parameters]", "no 'Latitude0' in \\[Site-parameter\\]"),
+    # degrees, minutes, seconds: the first number was read as the latitude (a review)
+    (" Latitude0   = 38.00000000", " Latitude0   = 38 30 00.0",
+     r"line 14 \(Latitude0\): expected one number, got 3: '38 30 00.0' \(degrees, minutes"),
+    (" Height0     = 25.00", " Height0     = 25.00 m", r"\(Height0\): expected one number, got 2"),
 ])
 def test_garpos_site_file_errors_name_the_line(garpos, old, new, message):
     text = garpos.read_text()

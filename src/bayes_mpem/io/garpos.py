@@ -115,9 +115,12 @@ def _values(ini, path, section, key, n, names, ranges=None):
     """``n`` numbers of one key, checked; a ``ValueError`` becomes an InputError with the line."""
     text, line = _get(ini, path, section, key)
     parts = text.split()
-    if len(parts) < n:
-        raise InputError(f"{where(path, line, name=key)}: expected {n} numbers, got "
-                         f"{len(parts)}: {text!r}")
+    if len(parts) < n or (n == 1 and len(parts) > 1):  # one number: more is not ignored
+        what = "one number" if n == 1 else f"{n} numbers"
+        hint = (" (degrees, minutes and seconds? give decimal degrees)"
+                if n == 1 and key in ("Latitude0", "Longitude0") else "")
+        raise InputError(f"{where(path, line, name=key)}: expected {what}, got "
+                         f"{len(parts)}: {text!r}{hint}")
     try:
         return [number(v, key if n == 1 else f"{key} {nm}", **(ranges or {}).get(nm, {}))
                 for v, nm in zip(parts[:n], names, strict=True)]

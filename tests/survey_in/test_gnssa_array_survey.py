@@ -3,6 +3,7 @@
 import copy
 import dataclasses
 import json
+import re
 import shutil
 
 import numpy as np
@@ -73,8 +74,14 @@ def test_seagap_array_refuses_what_only_one_at_a_time_has(seagap_raw):
 def test_locate_command_on_seagap(seagap_short, tmp_path, capsys):
     assert main(["locate", str(seagap_short), "--out", str(tmp_path / "a"),
                  "--speed-intervals", "4"]) == 0
-    assert "array centre" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "array centre" in out
     assert (tmp_path / "a" / "solution.txt").is_file()
+    per = json.loads((tmp_path / "a" / "summary.json").read_text())["residuals"]["per_transponder"]
+    printed = dict(re.findall(r"transponder (\w+): .* rms ([\d.]+) ms", out))
+    # each transponder's own rms, not the array's shared sigma (a review found the sigma)
+    assert printed == {k: f"{v['rms_true']:.3g}" for k, v in per.items()}
+    assert len(set(printed.values())) > 1
     assert main(["locate", str(seagap_short), "--out", str(tmp_path / "b"),
                  "--one-at-a-time"]) == 0
     assert not (tmp_path / "b" / "solution.txt").exists()

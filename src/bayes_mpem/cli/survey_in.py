@@ -133,10 +133,12 @@ def _interval(d, fmt="{:.2f}", scale=1.0):
     return f"{f(scale * d['mean'])} [{f(scale * lo)}, {f(scale * hi)}]"
 
 
-def _print_transponder(tid, t, *, ci, sampled):
+def _print_transponder(tid, t, *, ci, sampled, rms=None):
+    """Print one transponder's lines; ``rms``: its true replies' (an array's), else its sigma."""
     where = f"lat {t['lat']:.6f} lon {t['lon']:.6f}" if t["lat"] is not None else \
         f"east {t['east']['mean']:.2f} north {t['north']['mean']:.2f} m"
-    sig = t["sigma_ms"]["mean"] if isinstance(t["sigma_ms"], dict) else t["sigma_ms"]
+    sig = rms if rms is not None else (
+        t["sigma_ms"]["mean"] if isinstance(t["sigma_ms"], dict) else t["sigma_ms"])
     print(f"transponder {tid}: {where}, depth {_interval(t['depth'])} m, "
           f"{t['n_spurious']} spurious of {t['n']} pings, rms {sig:.3g} ms")
     tat = t["tat"]
@@ -221,8 +223,10 @@ def cmd_locate(args) -> int:
     out = Path(args.out)
     paths = result.write(out)
     summary = result.summary
-    for tid, t in summary["transponders"].items():
-        _print_transponder(tid, t, ci=args.ci, sampled=args.sample)
+    per = (summary.get("residuals") or {}).get("per_transponder", {})
+    for tid, t in summary["transponders"].items():  # an array's sigma is shared: its own rms
+        _print_transponder(tid, t, ci=args.ci, sampled=args.sample,
+                           rms=(per.get(tid) or {}).get("rms_true"))
     if "array_centre" in summary:
         c = summary["array_centre"]["enu"]
         print(f"array centre: east {_interval(c['east'], '{:.3f}')}, north "

@@ -173,6 +173,7 @@ def test_a_transponder_with_too_few_shots_is_left_out_with_the_reason(tmp_path):
     text = (tmp_path / "out" / "solution.txt").read_text()
     assert "only (M03 not located)" in text
     assert "the shots span 0.29 h" in text and "read them as too narrow" in text  # 18 min
+    assert "4 shots not fitted: 4 of a transponder not located" in text
     assert centre_note(locate_array_survey(sim.raw()).summary) is None
     left = res.classified[res.classified["transponder"] == "M03"]
     assert (left["label"] == "skipped").all() and left["reason"].str.contains("not located").all()

@@ -21,7 +21,7 @@ from bayes_mpem.survey_in.array_sampling import (
 )
 from bayes_mpem.survey_in.array_survey import array_shots, locate_array_survey
 from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa
-from bayes_mpem.survey_in.result import _solution_text
+from bayes_mpem.survey_in.result import _solution_text, not_fitted_note
 from bayes_mpem.survey_in.survey import is_array, locate_survey
 
 
@@ -269,6 +269,10 @@ def test_flagged_shots_are_left_out_unless_reclassified(tmp_path, capsys):
     assert cls["reason"][flagged].str.contains("flagged in the file").all()
     assert honoured.summary["file_flags"] == {"n_flagged": int(flagged.sum()), "flags": "honour",
                                               "honoured": True, "n_flagged_called_spurious": 0}
+    k = int(flagged.sum())  # read, not fitted: counted where the true and spurious are
+    assert not_fitted_note(honoured.summary) == (f"{k} shots not fitted: {k} flagged in the "
+                                                 "file (reasons in classified.csv)")
+    assert f"              {k} shots not fitted" in _solution_text(honoured.summary)
     fit = honoured.fits["array"]
     assert not np.isin(fit.rows, np.flatnonzero(flagged)).any()
     # the same as the campaign without those shots: the flags decide, not the EM
@@ -276,6 +280,7 @@ def test_flagged_shots_are_left_out_unless_reclassified(tmp_path, capsys):
                         raw.header["transponders"], **_same_model(fit))
     np.testing.assert_allclose(fit.enu, kept.enu, rtol=0, atol=1e-6)
     re = locate_array_survey(raw, flags="reclassify")
+    assert not_fitted_note(re.summary) is None
     p = re.classified.set_index("line").loc[raw.pings["line"], "p_true"].to_numpy()
     assert np.isfinite(p).all() and (p[flagged] < 0.5).all()  # 37 m off: spurious
     assert re.summary["file_flags"]["n_flagged_called_spurious"] == flagged.sum()

@@ -15,6 +15,7 @@ from ..survey_in.result import (
     centre_note,
     gradients_line,
     noise_line,
+    not_fitted_note,
     positions_line,
     short_note,
 )
@@ -240,6 +241,9 @@ def cmd_locate(args) -> int:
             _print_array_posterior(summary)
     for tid, why in summary.get("skipped_transponders", {}).items():
         print(f"transponder {tid} not located: {why}")
+    left = not_fitted_note(summary)
+    if left:
+        print(left)
     print(f"{summary['n_skipped_lines']} lines skipped (reasons in classified.csv)")
     written = [paths["summary"], paths["classified"]]
     written += [p for k, p in paths.items() if k.startswith("posterior_")]

@@ -299,6 +299,39 @@ def _speed_grid_note(sound_speed: dict) -> str:
     return f" ({note})" if note else ""
 
 
+def not_fitted_note(summary: dict) -> str | None:
+    """Return how many shots read were not fitted and why, else None.
+
+    A shot flagged in the file (honoured) or of a transponder not located is read but not
+    fitted: it is in ``n_pings`` and in ``classified.csv`` (label ``skipped``, with the
+    reason), neither true nor spurious.
+
+    Parameters
+    ----------
+    summary : dict
+        An array's ``summary.json`` (``n_pings``, ``residuals``, ``file_flags``).
+
+    Returns
+    -------
+    str or None
+        ``"14 shots not fitted: 10 flagged in the file, 4 of a transponder not located
+        (reasons in classified.csv)"``; None where every shot read was fitted.
+    """
+    r = summary.get("residuals") or {}
+    if "n_true" not in r:
+        return None
+    n = int(summary["n_pings"]) - r["n_true"] - r["n_spurious"]
+    if n <= 0:
+        return None
+    ff = summary.get("file_flags") or {}
+    flagged = ff["n_flagged"] if ff.get("honoured") else 0
+    parts = [f"{flagged} flagged in the file"] if flagged else []
+    if n - flagged:
+        parts.append(f"{n - flagged} of a transponder not located")
+    return (f"{n} shot{'s' * (n != 1)} not fitted: {', '.join(parts)} (reasons in "
+            "classified.csv)")
+
+
 #: Campaigns shorter than this (hours) get :func:`short_note`.
 SHORT_HOURS = 1.0
 
@@ -396,6 +429,9 @@ def _solution_text(summary: dict) -> str:
         lines += [f"residual rms  {r['rms_true']:.4f} ms (true replies; {per})",
                   f"shots         {s['n_pings']}: {r['n_true']} true, {r['n_spurious']} "
                   f"spurious; {s.get('n_skipped_lines', 0)} lines skipped"]
+        left = not_fitted_note(s)
+        if left:
+            lines.append(f"{'':<14}{left}")
     if "gradients" in s:
         lines.append(gradients_line(s))
     if "noise" in s:

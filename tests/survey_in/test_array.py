@@ -16,7 +16,7 @@ from bayes_mpem.io.gnatss import read_gnatss, write_gnatss
 from bayes_mpem.survey_in.array import ArrayTravelTimes, locate_array, penalised_gauss_newton
 from bayes_mpem.survey_in.array_survey import array_shots, locate_array_survey
 from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa
-from bayes_mpem.survey_in.result import centre_note, short_note
+from bayes_mpem.survey_in.result import centre_note, circle_note, short_note
 from bayes_mpem.survey_in.travel_times import speed_basis
 
 
@@ -255,6 +255,18 @@ def test_a_campaign_under_an_hour_is_told_its_intervals_are_too_narrow():
     assert short_note({"epoch": {"hours": 0.49}}).startswith("the shots span 0.49 h")
     assert short_note({"epoch": {"hours": 1.0}}) is None
     assert short_note({}) is None  # no epoch: nothing said
+
+
+def test_gradients_fitted_on_a_circle_alone_are_said_to_trade_with_the_centre():
+    """The simulator's 6-h circles: centre sds of 1.1 m with the gradients, 1.1-1.5 cm
+    without (a review found it); the note says so where no shot passed over the array."""
+    enu = {a: {"mean": 0.0, "sd": 1.15} for a in ("east", "north", "up")}
+    s = {"gradients": {"fitted": True}, "track": {"central_fraction": 0.0},
+         "array_centre": {"enu": enu}}
+    assert circle_note(s).startswith("no shot passed over the array")
+    assert "sds east 1.150, north 1.150 m" in circle_note(s)
+    assert circle_note({**s, "track": {"central_fraction": 0.18}}) is None  # star+circle
+    assert circle_note({**s, "gradients": {"fitted": False}}) is None
 
 
 def test_grid_rows_of_round_off_are_left_out_of_the_intervals():

@@ -332,6 +332,33 @@ def not_fitted_note(summary: dict) -> str | None:
             "classified.csv)")
 
 
+def circle_note(summary: dict) -> str | None:
+    """Return a caution where the gradients were fitted on a track never over the array.
+
+    On a circle about the array (no shot within ``CENTRAL_RADIUS`` depths of its centre:
+    ``track.central_fraction`` 0) the deep gradient trades with the centre's horizontal
+    position: on the simulator's 6-hour circles the centre's horizontal sds were 1.1 m
+    with the gradients and 1.1-1.5 cm without (docs/gnssa.md, "When `auto` fits them").
+
+    Parameters
+    ----------
+    summary : dict
+        An array's ``summary.json`` (``gradients``, ``track``, ``array_centre``).
+
+    Returns
+    -------
+    str or None
+    """
+    g, track = summary.get("gradients") or {}, summary.get("track") or {}
+    if not g.get("fitted") or track.get("central_fraction", 1.0) > 0.0:
+        return None
+    c = summary["array_centre"]["enu"]
+    return (f"no shot passed over the array: the deep gradient trades with the centre's "
+            f"horizontal position (sds east {c['east']['sd']:.3f}, north {c['north']['sd']:.3f} "
+            "m); where the water is known to be horizontally uniform, --gradients off "
+            "determines it to cm")
+
+
 #: Campaigns shorter than this (hours) get :func:`short_note`.
 SHORT_HOURS = 1.0
 
@@ -408,7 +435,7 @@ def _solution_text(summary: dict) -> str:
         lines.append(_row(str(tid), t["enu"]))
     for tid, why in s.get("skipped_transponders", {}).items():
         lines.append(f"{tid:<14}not located: {why}")
-    for note in (centre_note(s), short_note(s)):
+    for note in (centre_note(s), short_note(s), circle_note(s)):
         if note:
             lines.append(f"{'':<14}array centre: {note}")
     pos = positions_line(s)

@@ -77,3 +77,28 @@ def test_sample_options_without_sample_are_refused_for_arrays(located, capsys):
     assert main(["locate", str(located / "sim" / "config.yaml"), "--out",
                  str(located / "c"), "--seed", "3"]) == 2
     assert "--seed" in capsys.readouterr().err
+
+
+def test_array_sample_with_every_coordinate_held(tmp_path, capsys):
+    """Every sigma 0 (positions and centre held): nothing to sample for the positions; the
+    run finishes and says so (it ended with "min() arg is an empty sequence", exit 2)."""
+    from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa
+
+    sim = simulate_gnssa(hours=0.5, rng=2)  # held where they are: at the prior, not 3 m off
+    sim.header["transponders"] = sim.truth["transponders"].copy()
+    site = sim.write(tmp_path / "sim")["survey"]
+    lines = []
+    for ln in site.read_text().splitlines():
+        key = ln.split("=")[0].strip()
+        if key.endswith("_dPos") or key == "dCentPos":
+            parts = ln.split("=")[1].split()
+            ln = f" {key} = " + " ".join(parts[:3] + ["0.0"] * 3 + parts[6:])
+        lines.append(ln)
+    site.write_text("\n".join(lines) + "\n")
+    capsys.readouterr()
+    assert main(["locate", str(site), "--out", str(tmp_path / "out"), "--sample", "--seed", "1",
+                 "--min-ess", "100", "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    assert out.count("coordinates held, not sampled") == 4
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert all(t["posterior"]["ess"] == {} for t in summary["transponders"].values())

@@ -168,9 +168,10 @@ def _print_transponder(tid, t, *, ci, sampled, rms=None):
         lo, hi = t["depth"]["interval"]
         elo, ehi = t["em"]["depth"]["interval"]
         d = t["posterior"]["diagnostics"]
-        ess = min(t["posterior"]["ess"].values())
+        ess = t["posterior"]["ess"]  # empty where every coordinate is held (sigma 0)
+        ess = f"min ESS {min(ess.values()):.0f}" if ess else "coordinates held, not sampled"
         print(f"  depth {100 * ci:g} % interval: posterior [{lo:.2f}, {hi:.2f}] m, "
-              f"EM (Wald) [{elo:.2f}, {ehi:.2f}] m; min ESS {ess:.0f}, "
+              f"EM (Wald) [{elo:.2f}, {ehi:.2f}] m; {ess}, "
               f"{d['n_steps']} steps x {d['n_walkers']} walkers, {d['seconds']:.1f} s"
               + ("" if d["converged"] else " (NOT converged: max_steps reached)"))
 

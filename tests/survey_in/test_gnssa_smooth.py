@@ -119,6 +119,11 @@ def test_a_gap_in_the_shots_is_one_interval_and_changes_nothing(monkeypatch):
     ss = merged.summary["sound_speed"]
     assert fit.model["equal_intervals"] == 36 and fit.model["speed_intervals"] < 16
     assert len(ss["gaps_s"]) == 1 and "1 gap(s)" in ss["model"]
+    # N intervals asked over the span, fewer fitted: the model says how many (a review)
+    asked = locate_array_survey(raw, speed_intervals=12).summary
+    n = asked["speed_intervals"]
+    assert n < 12 and f"12 equal intervals; 1 gap(s) in the shots spanned by one interval " \
+        f"each, so {n} intervals in all" in asked["sound_speed"]["model"]
     a, b = ss["gaps_s"][0]
     assert 0.5 * 3600 - 300 <= a and b <= 2.5 * 3600 + 300 and b - a > 1.5 * 3600
     monkeypatch.setattr(array_module, "speed_breaks",

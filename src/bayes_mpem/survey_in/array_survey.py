@@ -238,6 +238,9 @@ def _sound_speed_entry(fit, ci, prof) -> dict:
                    f"smooth cubic B-spline in time, knots every {sm['knot_minutes']:.3g} min, "
                    "roughness penalty weighted by maximum marginal likelihood"))
                  + (f"; {len(gaps)} gap(s) in the shots spanned by one interval each"
+                    + (f", so {n_int} intervals in all"
+                       if sm is None and n_int != fit.model.get("equal_intervals", n_int)
+                       else "")
                     if gaps else ""),
         "speed_intervals": n_int,
         "interval_minutes": ((hi - lo) / 60.0 / fit.model.get("equal_intervals", n_int)

@@ -128,3 +128,21 @@ def test_killed_runs_leave_the_previous_results_or_nothing_complete(survey, tmp_
                (signal.SIGTERM, "writing")]
     states = _kill_runs(argv, out, moments, full)
     assert set(states) <= {"previous", "new", "incomplete"}
+
+
+def test_a_reader_that_leaves_does_not_discard_the_results(tmp_path):
+    """``bayes-mpem locate ... | true``: the printing failed with a broken pipe after the fit
+    and the all-or-nothing folder was discarded (exit 2; found by a review). Now the output
+    is dropped and the files are written; no error, no traceback at exit."""
+    from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa
+
+    site = simulate_gnssa(hours=0.3, rng=2).write(tmp_path / "sim")["survey"]
+    run = subprocess.Popen([*BIN, "locate", str(site), "--out", str(tmp_path / "out")],
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    run.stdout.close()  # the reader leaves before the first line
+    with run.stderr:
+        err = run.stderr.read().decode()
+    assert run.wait(timeout=120) == 0, err
+    assert "Broken pipe" not in err and "Traceback" not in err and "Exception" not in err
+    assert {p.name for p in (tmp_path / "out").iterdir()} >= {"summary.json", "classified.csv",
+                                                              "solution.txt"}

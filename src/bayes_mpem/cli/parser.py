@@ -403,6 +403,46 @@ def _on_sigterm(signum, frame):
     os._exit(128 + signum)
 
 
+class _ReaderGone:
+    """``sys.stdout`` for a run whose reader may leave (``| head``, ``| true``).
+
+    Once a write fails with :class:`BrokenPipeError` the rest of the output is dropped and
+    the run goes on to write its files: before, the error ended the run after the work and
+    its all-or-nothing output folder was discarded. The stream's descriptor is pointed at
+    the null device so that the interpreter's last flush succeeds.
+    """
+
+    def __init__(self, stream):
+        self._stream, self.gone = stream, False
+
+    def write(self, text):
+        """Write ``text``, or drop it once the reader has gone."""
+        if not self.gone:
+            try:
+                return self._stream.write(text)
+            except BrokenPipeError:
+                self._lost()
+        return len(text)
+
+    def flush(self):
+        """Flush, unless the reader has gone."""
+        if not self.gone:
+            try:
+                self._stream.flush()
+            except BrokenPipeError:
+                self._lost()
+
+    def _lost(self):
+        self.gone = True
+        with contextlib.suppress(OSError, ValueError, AttributeError):
+            null = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(null, self._stream.fileno())
+            os.close(null)
+
+    def __getattr__(self, name):
+        return getattr(self._stream, name)
+
+
 def _run(handler, args) -> int:
     """Run ``handler`` with its output folder checked first and written all or nothing."""
     out = _output_folder(args)
@@ -656,6 +696,7 @@ def main(argv=None) -> int:
         # one line per warning, no source excerpt: messages for the user, not tracebacks
         warnings.showwarning = lambda msg, cat, *args, **kwargs: print(
             f"{cat.__name__}: {msg}", file=sys.stderr)
+        stdout, sys.stdout = sys.stdout, _ReaderGone(sys.stdout)
         try:
             return _run(handler, args)
         except (InputError, ValueError, OSError) as exc:
@@ -673,6 +714,7 @@ def main(argv=None) -> int:
                   "where)", file=sys.stderr)
             return 1
         finally:
+            sys.stdout = stdout
             if previous is not None:
                 signal.signal(signal.SIGTERM, previous)
             if backend is None:

@@ -413,3 +413,23 @@ def test_a_fit_above_the_transducer_is_refused_as_the_mirror_image():
     with pytest.raises(InputError, match=r"transponder M0\d was located [\d,]+ m above the "
                                          r"transducer .* mirror image .* prior up -1\.\d+ m"):
         locate_array_survey(dataclasses.replace(raw, header=header))
+
+
+def test_garpos_times_restarted_at_midnight_are_warned_of():
+    """A campaign across midnight whose ST restarts at 0 reads as spanning 24 h (a review)."""
+    import warnings
+
+    from bayes_mpem.exceptions import LocateWarning
+    from bayes_mpem.survey_in.array_survey import _check_midnight
+
+    raw = simulate_gnssa(hours=1, rng=3).raw()
+    late = dataclasses.replace(raw, pings=raw.pings.assign(time=raw.pings["time"] + 84600.0))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        _check_midnight(raw)  # 0-1 h of the day: nothing said
+        _check_midnight(late)  # 23:30-24:00 and on past 86,400 s: GARPOS's own way
+    wrapped = dataclasses.replace(raw, pings=raw.pings.assign(
+        time=(raw.pings["time"] + 84600.0) % 86400.0))
+    with pytest.warns(LocateWarning, match=r"jump by 23\.0 h, from 1780\.0 s \(line \d+\) to "
+                                           r"84600\.0 s .* restart at 0 after midnight"):
+        _check_midnight(wrapped)

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import warnings
 from datetime import timedelta
 
 import numpy as np
 import pandas as pd
 from scipy.stats import chi2
 
-from ..exceptions import InputError
+from ..exceptions import InputError, LocateWarning
 from ..io.geodesy import MEAN_EARTH_RADIUS_M, earth_radius, enu_to_geodetic
 from ..io.raw import ARRAY_FORMATS, skip_reasons
 from .array import GRADIENT_NAMES, KNOT_MINUTES, describe, locate_array
@@ -49,6 +50,32 @@ def _check_span(raw) -> None:
                      "time scales mixed? (several campaigns: give each its own file)")
 
 
+def _check_midnight(raw) -> None:
+    """Warn where GARPOS's shot times look restarted at 0 after midnight.
+
+    ``ST`` counts seconds from the start of the site file's day and goes on past 86,400 s;
+    times restarted at midnight put the campaign's two halves at both ends of one day, with
+    a gap of most of it between them. Read as given, such a campaign spans nearly 24 h.
+    """
+    if raw.format != "garpos" or "time" not in raw.pings.columns or len(raw.pings) < 2:
+        return
+    p = raw.pings
+    t = p["time"].to_numpy(float)
+    if not (t.min() >= 0.0 and t.min() < 3600.0 and 82800.0 < t.max() < 86400.0):
+        return
+    order = np.argsort(t, kind="stable")
+    j = int(np.argmax(np.diff(t[order])))
+    gap = t[order[j + 1]] - t[order[j]]
+    if gap < 12 * 3600.0:
+        return
+    line = p["line"].to_numpy() if "line" in p.columns else np.arange(len(p))
+    warnings.warn(f"{_shots_file(raw)}: the shots' times jump by {gap / 3600.0:.1f} h, from "
+                  f"{t[order[j]]:.1f} s (line {line[order[j]]}) to {t[order[j + 1]]:.1f} s "
+                  f"(line {line[order[j + 1]]}), and reach both ends of the day: times that "
+                  "restart at 0 after midnight? GARPOS's ST counts on past 86,400 s; as read, "
+                  f"the campaign spans {np.ptp(t) / 3600.0:.2f} h", LocateWarning, stacklevel=3)
+
+
 def array_shots(raw) -> pd.DataFrame:
     """Return an array survey's shots with the transducer's east, north, up at transmit and receive.
 
@@ -82,6 +109,7 @@ def array_shots(raw) -> pd.DataFrame:
                             + skip_reasons(list(raw.skipped.itertuples(index=False)))
                             if n_skip else ""))
     _check_span(raw)
+    _check_midnight(raw)
     pos = raw.transducer_positions()
     shots = raw.pings.copy()
     for end in ("tx", "rx"):

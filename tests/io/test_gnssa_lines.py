@@ -74,8 +74,11 @@ def test_gnatss_a_stray_break_is_refused_with_its_column(gnatss, char):
 
 
 @pytest.mark.parametrize(("swap", "message"), [
-    (lambda ls: [ls[0], ls[2], ls[1], *ls[3:]], "expected depths going down"),
+    (lambda ls: [ls[0], ls[2], ls[1], *ls[3:]], "expected heights going down"),
     (lambda ls: [ls[0], ls[1], ls[1], *ls[2:]], "a repeated or swapped level"),
+    # depths written positive: the second level is above the first (a review)
+    (lambda ls: [ln.replace("-", "", 1) if ln.lstrip().startswith("-") else ln for ln in ls],
+     r"negative below the sea surface.*or depths given positive\?"),
 ])
 def test_gnatss_profile_swapped_or_repeated_depths(gnatss, swap, message):
     sv = gnatss.with_name("ctd_sv")

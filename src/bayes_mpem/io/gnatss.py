@@ -175,9 +175,11 @@ def _read_profile(paths):
                 raise InputError(f"{where(path, i, 1 if 'depth' in str(exc) else 2)}: "
                                  f"{exc}") from None
             if len(rows) > 1 and rows[-1][0] <= rows[-2][0]:
-                raise InputError(f"{where(path, i, 1, 'depth')}: expected depths going down "
-                                 f"level after level, got {-rows[-2][0]:g} then "
-                                 f"{-rows[-1][0]:g} m (a repeated or swapped level)")
+                raise InputError(f"{where(path, i, 1, 'depth')}: expected heights going "
+                                 f"down level after level (GNATSS's first column is negative "
+                                 f"below the sea surface), got {-rows[-2][0]:g} then "
+                                 f"{-rows[-1][0]:g} m (a repeated or swapped level, or depths "
+                                 "given positive?)")
         frames.append(pd.DataFrame(rows, columns=["depth", "sound_speed"]))
     prof = pd.concat(frames).drop_duplicates("depth").sort_values("depth")
     return profile_frame(prof["depth"], prof["sound_speed"], ", ".join(map(str, paths)))

@@ -525,6 +525,40 @@ def _check_below_transducer(raw, fit, shots) -> None:
                 "file's positions (metres, up negative below the sea surface)")
 
 
+def _classified(raw, shots, fit, flagged, honour):
+    """Return ``classified.csv``'s table, each shot's probability of being true, the fitted.
+
+    The fitted shots are the rows of ``fit`` (``fit.rows``); a shot not fitted has a NaN
+    probability and the reason (a transponder not located, flagged in the file).
+    """
+    n = len(shots)
+    probs, resid, azim = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
+    probs[fit.rows], resid[fit.rows] = fit.p_true, 1e3 * fit.residual
+    sub = shots.iloc[fit.rows]
+    e_mid = 0.5 * (sub["e_tx"].to_numpy() + sub["e_rx"].to_numpy())
+    n_mid = 0.5 * (sub["n_tx"].to_numpy() + sub["n_rx"].to_numpy())
+    azim[fit.rows] = np.degrees(np.arctan2(e_mid - fit.enu[fit.index, 0],
+                                           n_mid - fit.enu[fit.index, 1])) % 360.0
+    reasons = np.full(n, "", dtype=object)
+    tid = shots["transponder"].astype(str).to_numpy()
+    for t, skip_why in fit.skipped.items():
+        reasons[tid == t] = f"transponder {t} not located: {skip_why}"
+    if honour:
+        reasons[flagged & (reasons == "")] = ("flagged in the file: left out of the fit "
+                                              "(--flags reclassify fits and classifies it)")
+    table = pd.DataFrame({"line": shots["line"], "transponder": tid, "twtt": shots["twtt"],
+                          "time": shots["time"],
+                          "east": 0.5 * (shots["e_tx"] + shots["e_rx"]),
+                          "north": 0.5 * (shots["n_tx"] + shots["n_rx"]),
+                          "residual_ms": resid, "azimuth_deg": azim})
+    extra = [c for c in ("file_flag",) if c in shots.columns]
+    for c in (*extra, "file"):
+        if c in shots.columns:
+            table[c] = shots[c].to_numpy()
+    cls = classified_table(table, probs, raw.skipped, reasons=reasons, extra=extra)
+    return cls, probs, sub
+
+
 def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
                         speed_intervals=None, surface_depth=None,
                         knot_minutes=KNOT_MINUTES, shift=None,
@@ -628,31 +662,7 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
     counts = np.bincount(fit.index, minlength=len(fit.ids))
     out = {tid: _transponder_entry(fit, k, ci, origin, counts[k])
            for k, tid in enumerate(fit.ids)}
-    n = len(shots)
-    probs, resid, azim = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
-    probs[fit.rows], resid[fit.rows] = fit.p_true, 1e3 * fit.residual
-    sub = shots.iloc[fit.rows]
-    e_mid = 0.5 * (sub["e_tx"].to_numpy() + sub["e_rx"].to_numpy())
-    n_mid = 0.5 * (sub["n_tx"].to_numpy() + sub["n_rx"].to_numpy())
-    azim[fit.rows] = np.degrees(np.arctan2(e_mid - fit.enu[fit.index, 0],
-                                           n_mid - fit.enu[fit.index, 1])) % 360.0
-    reasons = np.full(n, "", dtype=object)
-    tid = shots["transponder"].astype(str).to_numpy()
-    for t, skip_why in fit.skipped.items():
-        reasons[tid == t] = f"transponder {t} not located: {skip_why}"
-    if honour:
-        reasons[flagged & (reasons == "")] = ("flagged in the file: left out of the fit "
-                                              "(--flags reclassify fits and classifies it)")
-    table = pd.DataFrame({"line": shots["line"], "transponder": tid, "twtt": shots["twtt"],
-                          "time": shots["time"],
-                          "east": 0.5 * (shots["e_tx"] + shots["e_rx"]),
-                          "north": 0.5 * (shots["n_tx"] + shots["n_rx"]),
-                          "residual_ms": resid, "azimuth_deg": azim})
-    extra = [c for c in ("file_flag",) if c in shots.columns]
-    for c in (*extra, "file"):
-        if c in shots.columns:
-            table[c] = shots[c].to_numpy()
-    cls = classified_table(table, probs, raw.skipped, reasons=reasons, extra=extra)
+    cls, probs, sub = _classified(raw, shots, fit, flagged, honour)
     rays = "straight rays" if prof is None else f"refracted rays ({prof.source or 'profile'})"
     noise = _noise_entry(fit, correlation)
     summary = {
@@ -663,7 +673,7 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
         "site": h.get("site"), "campaign": h.get("campaign"),
         "epoch": _epoch_entry(raw.format, shots),
         "format": raw.format, "source": raw.source, "input_files": h.get("files", {}),
-        "n_pings": int(n), "n_skipped_lines": int(len(raw.skipped)),
+        "n_pings": int(len(shots)), "n_skipped_lines": int(len(raw.skipped)),
         "skipped_transponders": dict(fit.skipped),
         "method": _method(fit, rays, noise), "noise": noise,
         "outliers": outliers, "ssp": None if prof is None else prof.source,

@@ -203,7 +203,7 @@ def test_locate_gradients_and_knot_options(tmp_path, capsys):
     assert main(["locate", str(ini), "--out", str(tmp_path / "a")]) == 0
     s = json.loads((tmp_path / "a" / "summary.json").read_text())
     assert s["gradients"]["choice"] == "auto" and not s["gradients"]["fitted"]
-    assert "need 2" in capsys.readouterr().out  # the reason, printed
+    assert "need 1" in capsys.readouterr().out  # the reason, printed
     deck = sample_file("obsrange/SIO_CC03.txt")
     assert main(["locate", str(deck), "--out", str(tmp_path / "d"), "--gradients", "off"]) == 2
     assert "--gradients: for array surveys only" in capsys.readouterr().err

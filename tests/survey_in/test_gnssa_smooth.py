@@ -275,7 +275,7 @@ def test_the_gradient_gate_says_why():
 
     station = simulate_gnssa(hours=0.5, rng=17, track="station")
     fit, why = gradient_gate(array_shots(station.raw()), station.header["transponders"])
-    assert not fit and "0.49 h (need 2)" in why
+    assert not fit and "0.49 h (need 1)" in why
     two = simulate_gnssa(n_transponders=2, hours=0.5, rng=17, track="circle")
     fit, why = gradient_gate(array_shots(two.raw()), two.header["transponders"])
     assert not fit and "3 or more" in why

@@ -411,7 +411,7 @@ MIN_SPREAD = 0.1
 #: Horizontal distance from the array's centre, in depths, of a shot "over the array".
 CENTRAL_RADIUS = 0.3
 #: Shortest campaign (hours of shots) on which the gradients are fitted by default.
-MIN_GRADIENT_HOURS = 2.0
+MIN_GRADIENT_HOURS = 1.0
 #: The choices of ``gradients`` (``locate --gradients``).
 GRADIENT_CHOICES = ("auto", "on", "off")
 

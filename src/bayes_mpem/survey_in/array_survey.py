@@ -447,10 +447,13 @@ def gradient_gate(shots, priors, speed_intervals=None):
     if len(ids) < 3:
         return False, f"{len(ids)} transponders located; the deep gradient needs 3 or more"
     if "time" in shots.columns and len(shots):
-        hours = float(shots["time"].max() - shots["time"].min()) / 3600.0
+        t = np.unique(shots["time"].to_numpy(float))
+        step = float(np.median(np.diff(t))) if t.size > 1 else 0.0
+        hours = (t[-1] - t[0] + step) / 3600.0  # an hour of shots every 20 s is an hour
         if hours < MIN_GRADIENT_HOURS:
-            return False, (f"the shots span {hours:.2f} h (need {MIN_GRADIENT_HOURS:g}): the "
-                           "gradients' constant and trend would trade against the positions")
+            return False, (f"the shots span {hours:.2f} h with the interval between them "
+                           f"(need {MIN_GRADIENT_HOURS:g}): the gradients' constant and trend "
+                           "would trade against the positions")
     geo = track_geometry(shots, {t: priors.loc[t, ["east", "north", "up"]].to_numpy(float)
                                  for t in ids})
     spread = geo["spread_over_depth"]

@@ -1640,7 +1640,9 @@ def _grid_average(J, r, theta, H, sigma, lam, H_fixed, meat, n_clusters, grid, m
     ``dropped``: at weights far stiffer than the data ask for, the penalty's null space is
     near-singular after scaling and the row's numbers are round-off (on a 30-minute
     campaign of a ship holding station, where the evidence was flat, the stiffest row gave
-    the array centre a negative variance).
+    the array centre a negative variance). Where every row is so, all are kept (the
+    gradients on a 2-hour circle, where the deep gradient trades with the positions: the
+    intervals are then wide, and finite).
 
     Returns
     -------
@@ -1680,11 +1682,13 @@ def _grid_average(J, r, theta, H, sigma, lam, H_fixed, meat, n_clusters, grid, m
             C = 0.5 * (C + C.T)
             rows.append((x, None, step, C, Ainv, edf))
         if used[k] and not _accurate(rows[k][3], free):
-            used[k] = False
             dropped.append(k)
-    if dropped:
+    if dropped and len(dropped) < used.sum():  # every row inaccurate: all kept, as before
+        used[dropped] = False
         w[dropped] = 0.0
-        w /= w.sum() if w.sum() > 0 else 1.0
+        w /= w.sum()
+    else:
+        dropped = []
     used = np.flatnonzero(used)
     if not used.size:
         nan = np.full((theta.size, theta.size), np.nan)
@@ -1698,7 +1702,7 @@ def _grid_average(J, r, theta, H, sigma, lam, H_fixed, meat, n_clusters, grid, m
 
 #: Relative accuracy a grid row's covariance of the positions must have (its most negative
 #: eigenvalue against its largest) to enter the intervals' average (:func:`_grid_average`).
-GRID_ACCURACY = 1e-8
+GRID_ACCURACY = 1e-6
 
 
 def _accurate(C, free):

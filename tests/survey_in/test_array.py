@@ -251,7 +251,7 @@ def test_covariance_of_badly_scaled_parameters_stays_a_covariance():
 
 def test_a_campaign_under_an_hour_is_told_its_intervals_are_too_narrow():
     """benchmarks/gnssa_short.py: 80-87 % of the centre's horizontal 95 % intervals covered
-    on 30-minute campaigns, 87-100 % from an hour (stars, stations)."""
+    on 30-minute campaigns, 90-100 % from an hour."""
     assert short_note({"epoch": {"hours": 0.49}}).startswith("the shots span 0.49 h")
     assert short_note({"epoch": {"hours": 1.0}}) is None
     assert short_note({}) is None  # no epoch: nothing said

@@ -368,7 +368,7 @@ def short_note(summary: dict) -> str | None:
 
     On simulated campaigns of 30 minutes (circles, stars, a ship holding station;
     ``benchmarks/gnssa_short.py``) the centre's horizontal 95 % intervals covered 80-87 % of
-    the truths; from 1 hour on stars and stations, and from 2 hours on circles, 87-100 %.
+    the truths; from an hour, 90-100 % on every track.
 
     Parameters
     ----------

@@ -4,6 +4,7 @@ Every test is bounded in lines and time (timeouts on every wait); malformed
 lines are mixed into the input, and every line must be answered once, in order.
 """
 
+import contextlib
 import json
 import signal
 import socket
@@ -110,6 +111,33 @@ def test_sigterm_mid_stream_answers_what_was_read_and_saves(dive, tmp_path):
     assert counts["stream"] == "stopped by a signal"
     assert counts["read"] == len(sent) and counts["answered"] == len(sent) - 1
     assert json.loads(state.read_text())["phase"] == "online"
+
+
+def test_a_reader_that_goes_away_ends_the_stream(dive):
+    """The answers' reader closes its end: the stream stops there and says why (the locate
+    commands' guard against a broken pipe swallowed it once: 361 lines read to nowhere)."""
+    folder, lines = dive
+    proc = subprocess.Popen([*CMD, "--beacons", str(folder / "beacons.csv"), "--warmup", "100"],
+                            stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    watchdog = threading.Timer(90, proc.kill)
+    watchdog.start()
+    proc.stdout.close()
+    try:
+        for line in lines:
+            proc.stdin.write(line + "\n")
+            proc.stdin.flush()
+    except BrokenPipeError:
+        pass  # the stream stopped reading: what is asked
+    with contextlib.suppress(BrokenPipeError):
+        proc.stdin.close()
+    err = proc.stderr.read()
+    proc.stderr.close()
+    assert proc.wait(timeout=60) == 0
+    watchdog.cancel()
+    counts = json.loads(err.strip().splitlines()[-1])
+    assert counts["stream"] == "the reader of the answers went away"
+    assert counts["read"] < len(lines)
 
 
 def test_udp_in_udp_out(dive, tmp_path):

@@ -12,6 +12,7 @@ complete-looking top level.
 from __future__ import annotations
 
 import json
+import os
 import signal
 import subprocess
 import sys
@@ -137,8 +138,9 @@ def test_a_reader_that_leaves_does_not_discard_the_results(tmp_path):
     from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa
 
     site = simulate_gnssa(hours=0.3, rng=2).write(tmp_path / "sim")["survey"]
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONUNBUFFERED"}  # a pipe's buffer
     run = subprocess.Popen([*BIN, "locate", str(site), "--out", str(tmp_path / "out")],
-                           stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
     run.stdout.close()  # the reader leaves before the first line
     with run.stderr:
         err = run.stderr.read().decode()

@@ -406,10 +406,12 @@ def _on_sigterm(signum, frame):
 class _ReaderGone:
     """``sys.stdout`` for a run whose reader may leave (``| head``, ``| true``).
 
-    Once a write fails with :class:`BrokenPipeError` the rest of the output is dropped and
-    the run goes on to write its files: before, the error ended the run after the work and
-    its all-or-nothing output folder was discarded. The stream's descriptor is pointed at
-    the null device so that the interpreter's last flush succeeds.
+    Once a write or flush fails with :class:`BrokenPipeError` the rest of the output is
+    dropped and the run goes on to write its files: before, the error ended the run after
+    the work and its all-or-nothing output folder was discarded. The stream's descriptor is
+    pointed at the null device so that the interpreter's last flush succeeds; ``main``
+    flushes through it before putting the stream back (a pipe is block-buffered: most
+    output reaches it only then). Not for ``stream``, which stops when its reader goes.
     """
 
     def __init__(self, stream):
@@ -696,7 +698,9 @@ def main(argv=None) -> int:
         # one line per warning, no source excerpt: messages for the user, not tracebacks
         warnings.showwarning = lambda msg, cat, *args, **kwargs: print(
             f"{cat.__name__}: {msg}", file=sys.stderr)
-        stdout, sys.stdout = sys.stdout, _ReaderGone(sys.stdout)
+        stdout = sys.stdout  # stream's answers are its output: a reader gone ends it there
+        if args.command != "stream":
+            sys.stdout = _ReaderGone(stdout)
         try:
             return _run(handler, args)
         except (InputError, ValueError, OSError) as exc:
@@ -714,6 +718,8 @@ def main(argv=None) -> int:
                   "where)", file=sys.stderr)
             return 1
         finally:
+            if isinstance(sys.stdout, _ReaderGone):
+                sys.stdout.flush()  # a pipe's block buffer fails here, not at exit
             sys.stdout = stdout
             if previous is not None:
                 signal.signal(signal.SIGTERM, previous)

@@ -254,6 +254,7 @@ def test_a_campaign_under_an_hour_is_told_its_intervals_are_too_narrow():
     on 30-minute campaigns, 90-100 % from an hour."""
     assert short_note({"epoch": {"hours": 0.49}}).startswith("the shots span 0.49 h")
     assert short_note({"epoch": {"hours": 1.0}}) is None
+    assert short_note({"epoch": {"hours": 0.994}}) is None  # an hour of shots every 20 s
     assert short_note({}) is None  # no epoch: nothing said
 
 
@@ -279,10 +280,9 @@ def test_grid_rows_of_round_off_are_left_out_of_the_intervals():
     raw = simulate_gnssa(n_transponders=4, hours=0.5, track="station", rng=108).raw()
     res = locate_array_survey(raw)
     fit = res.fits["array"]
-    pos = fit.cov[:12, :12]
-    assert np.linalg.eigvalsh(pos)[0] > 0
+    assert np.all(np.isfinite(fit.sd)) and np.all(fit.sd > 0)
     m, C = fit.centre()
-    assert np.all(np.diag(C) > 0)
+    assert np.all(np.isfinite(C)) and np.all(np.diag(C) > 0)  # was -0.15 m^2 east
     grid = res.summary["sound_speed"]["smoothing"]["grid"]
     dropped = [i for i, x in enumerate(grid["log10_weight"]) if x in grid["inaccurate"]]
     assert all(grid["posterior_weight"][i] == 0.0 for i in dropped)

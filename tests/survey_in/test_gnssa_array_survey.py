@@ -288,8 +288,13 @@ def test_flagged_shots_are_left_out_unless_reclassified(tmp_path, capsys):
         locate_array_survey(raw, flags="ignore")
     one = raw.pings["transponder"].astype(str) == "M01"  # every shot of M01 flagged
     raw.pings.loc[one, "file_flag"] = True
-    skipped = locate_array_survey(raw).summary["skipped_transponders"]
+    whole = locate_array_survey(raw).summary
+    skipped = whole["skipped_transponders"]
     assert list(skipped) == ["M01"] and "0 shots not flagged" in skipped["M01"]
+    # counted as classified.csv gives the reason: not located first (a review)
+    n1 = int(one.sum())
+    assert whole["not_fitted"]["transponder_not_located"] == n1
+    assert f", {n1} of a transponder not located" in not_fitted_note(whole)
     assert main(["locate", str(config), "--out", str(tmp_path / "r"),
                  "--flags", "reclassify"]) == 0
     s = json.loads((tmp_path / "r" / "summary.json").read_text())

@@ -688,6 +688,9 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
         "tat_fitted": False, "tat_given": 0.0,
         "position_region": f"a transponder's {100 * ci:g} % region is the ellipsoid of its "
                            f"covariance with squared radius {chi2.ppf(ci, 3):.4f}"}
+    unlocated = np.isin(shots["transponder"].astype(str).to_numpy(), list(fit.skipped))
+    summary["not_fitted"] = {"transponder_not_located": int(unlocated.sum()),
+                             "flagged": int(np.sum(flagged & ~unlocated)) if honour else 0}
     if "file_flag" in shots.columns:
         summary["file_flags"] = {"n_flagged": int(flagged.sum()), "flags": flags,
                                  "honoured": bool(honour),

@@ -309,7 +309,8 @@ def not_fitted_note(summary: dict) -> str | None:
     Parameters
     ----------
     summary : dict
-        An array's ``summary.json`` (``n_pings``, ``residuals``, ``file_flags``).
+        An array's ``summary.json`` (``n_pings``, ``residuals``, ``not_fitted``: a shot of
+        a transponder not located counts there even when flagged, as in ``classified.csv``).
 
     Returns
     -------
@@ -323,8 +324,12 @@ def not_fitted_note(summary: dict) -> str | None:
     n = int(summary["n_pings"]) - r["n_true"] - r["n_spurious"]
     if n <= 0:
         return None
-    ff = summary.get("file_flags") or {}
-    flagged = ff["n_flagged"] if ff.get("honoured") else 0
+    split = summary.get("not_fitted")  # as classified.csv gives the reasons
+    if split:
+        flagged = split["flagged"]
+    else:
+        ff = summary.get("file_flags") or {}
+        flagged = ff["n_flagged"] if ff.get("honoured") else 0
     parts = [f"{flagged} flagged in the file"] if flagged else []
     if n - flagged:
         parts.append(f"{n - flagged} of a transponder not located")
@@ -379,8 +384,8 @@ def short_note(summary: dict) -> str | None:
     -------
     str or None
     """
-    hours = (summary.get("epoch") or {}).get("hours")
-    if hours is None or hours >= SHORT_HOURS:
+    hours = (summary.get("epoch") or {}).get("hours")  # first to last shot: an hour of
+    if hours is None or hours >= 0.95 * SHORT_HOURS:  # shots spans a little less
         return None
     return (f"the shots span {hours:.2f} h: on simulated 30-minute campaigns the centre's "
             "horizontal 95 % intervals covered only 80-87 % of the truths (docs/gnssa.md, "

@@ -296,6 +296,9 @@ def test_grid_rows_of_round_off_are_left_out_of_the_intervals():
     bad[0, 1] = bad[1, 0] = 1.5  # the free block's smaller eigenvalue: (3 - sqrt(10)) / 2 < 0
     assert not _accurate(bad, free) and _accurate(bad, ~free)
     assert not _accurate(np.diag([1.0, np.nan, 1.0]), free)
+    off = good.copy()
+    off[0, 1] = off[1, 0] = np.inf  # finite variances, a covariance that is not
+    assert not _accurate(off, free)
 
 
 def _blas_threads():

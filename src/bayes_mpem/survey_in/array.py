@@ -1648,8 +1648,8 @@ def _grid_average(J, r, theta, H, sigma, lam, H_fixed, meat, n_clusters, grid, m
     -------
     w, mean_cov, spread, rows, ll, dropped
         ``rows[k]`` is ``(x, None, step, C, Ainv, edf)``, or None where not computed;
-        ``mean_cov`` and ``spread`` are NaN where no weight has a finite evidence (or none
-        is accurate); ``dropped`` the indices of the rows left out as inaccurate.
+        ``mean_cov`` and ``spread`` are NaN where no weight has a finite evidence;
+        ``dropped`` the indices of the rows left out as inaccurate.
     """
     rank = _penalty_rank(H)
     blocks = null_blocks(H, H_fixed)
@@ -1717,7 +1717,10 @@ def _accurate(C, free):
         return False
     if not free.any():
         return True
-    vals = np.linalg.eigvalsh(C[np.ix_(free, free)])
+    block = C[np.ix_(free, free)]
+    if not np.all(np.isfinite(block)):
+        return False
+    vals = np.linalg.eigvalsh(block)
     return bool(vals[0] >= -GRID_ACCURACY * vals[-1])
 
 

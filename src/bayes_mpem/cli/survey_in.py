@@ -12,13 +12,11 @@ from ..io.formats import read_survey, sniff_format
 from ..io.raw import ARRAY_FORMATS
 from ..survey_in.posterior import check_location_options
 from ..survey_in.result import (
-    centre_note,
-    circle_note,
+    centre_notes,
     gradients_line,
     noise_line,
     not_fitted_note,
     positions_line,
-    short_note,
 )
 from .errors import OptionError
 
@@ -234,8 +232,7 @@ def cmd_locate(args) -> int:
         c = summary["array_centre"]["enu"]
         print(f"array centre: east {_interval(c['east'], '{:.3f}')}, north "
               f"{_interval(c['north'], '{:.3f}')}, up {_interval(c['up'], '{:.3f}')} m")
-        for line in (centre_note(summary), short_note(summary), circle_note(summary),
-                     positions_line(summary)):
+        for line in [*centre_notes(summary), positions_line(summary)]:
             if line:
                 print(f"  {line}")
         print(gradients_line(summary))

@@ -29,24 +29,34 @@ def _shots_file(raw) -> str:
 MAX_CAMPAIGN_DAYS = 30.0
 
 
+def _largest_jump(pings, t):
+    """Return the largest jump of the times ``t`` (s): ``(before, after)``, each ``(where, t)``.
+
+    ``where`` names the shot: ``line N`` (with its file where the survey has several), else
+    ``shot N``.
+    """
+    order = np.argsort(t, kind="stable")
+    j = int(np.argmax(np.diff(t[order])))
+
+    def at(k):
+        row = pings.iloc[k]
+        where = f"line {int(row['line'])}" if "line" in pings.columns else f"shot {row.name}"
+        return f"{row['file']} {where}" if "file" in pings.columns else where
+
+    return tuple((at(order[i]), float(t[order[i]])) for i in (j, j + 1))
+
+
 def _check_span(raw) -> None:
     """Refuse shots spanning more than :data:`MAX_CAMPAIGN_DAYS`, naming the largest jump."""
     p = raw.pings
     t = p["t_tx"].to_numpy(float) if "t_tx" in p.columns else p["time"].to_numpy(float)
     if t.size < 2 or np.ptp(t) <= MAX_CAMPAIGN_DAYS * 86400.0:
         return
-    order = np.argsort(t, kind="stable")
-    j = int(np.argmax(np.diff(t[order])))
-    a, b = p.iloc[order[j]], p.iloc[order[j + 1]]
-
-    def at(row):
-        where = f"line {int(row['line'])}" if "line" in p.columns else f"shot {row.name}"
-        return f"{row['file']} {where}" if "file" in p.columns else where
-
+    (a, ta), (b, tb) = _largest_jump(p, t)
     raise InputError(f"{_shots_file(raw)}: the shots span {np.ptp(t) / 86400.0:,.0f} days; "
                      f"expected one campaign, its shots within {MAX_CAMPAIGN_DAYS:g} days. The "
-                     f"largest jump in time, {t[order[j + 1]] - t[order[j]]:.6g} s, is between "
-                     f"{at(a)} ({t[order[j]]:.6g} s) and {at(b)} ({t[order[j + 1]]:.6g} s): two "
+                     f"largest jump in time, {tb - ta:.6g} s, is between "
+                     f"{a} ({ta:.6g} s) and {b} ({tb:.6g} s): two "
                      "time scales mixed? (several campaigns: give each its own file)")
 
 
@@ -63,15 +73,12 @@ def _check_midnight(raw) -> None:
     t = p["time"].to_numpy(float)
     if not (t.min() >= 0.0 and t.min() < 3600.0 and 82800.0 < t.max() < 86400.0):
         return
-    order = np.argsort(t, kind="stable")
-    j = int(np.argmax(np.diff(t[order])))
-    gap = t[order[j + 1]] - t[order[j]]
-    if gap < 12 * 3600.0:
+    (a, ta), (b, tb) = _largest_jump(p, t)
+    if tb - ta < 12 * 3600.0:
         return
-    line = p["line"].to_numpy() if "line" in p.columns else np.arange(len(p))
-    warnings.warn(f"{_shots_file(raw)}: the shots' times jump by {gap / 3600.0:.1f} h, from "
-                  f"{t[order[j]]:.1f} s (line {line[order[j]]}) to {t[order[j + 1]]:.1f} s "
-                  f"(line {line[order[j + 1]]}), and reach both ends of the day: times that "
+    warnings.warn(f"{_shots_file(raw)}: the shots' times jump by {(tb - ta) / 3600.0:.1f} h, "
+                  f"from {ta:.1f} s ({a}) to {tb:.1f} s ({b}), and reach both ends of the "
+                  "day: times that "
                   "restart at 0 after midnight? GARPOS's ST counts on past 86,400 s; as read, "
                   f"the campaign spans {np.ptp(t) / 3600.0:.2f} h", LocateWarning, stacklevel=3)
 

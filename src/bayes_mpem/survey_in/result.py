@@ -324,12 +324,7 @@ def not_fitted_note(summary: dict) -> str | None:
     n = int(summary["n_pings"]) - r["n_true"] - r["n_spurious"]
     if n <= 0:
         return None
-    split = summary.get("not_fitted")  # as classified.csv gives the reasons
-    if split:
-        flagged = split["flagged"]
-    else:
-        ff = summary.get("file_flags") or {}
-        flagged = ff["n_flagged"] if ff.get("honoured") else 0
+    flagged = (summary.get("not_fitted") or {}).get("flagged", 0)  # as classified.csv has it
     parts = [f"{flagged} flagged in the file"] if flagged else []
     if n - flagged:
         parts.append(f"{n - flagged} of a transponder not located")
@@ -362,6 +357,24 @@ def circle_note(summary: dict) -> str | None:
             f"horizontal position (sds east {c['east']['sd']:.3f}, north {c['north']['sd']:.3f} "
             "m); where the water is known to be horizontally uniform, --gradients off "
             "determines it to cm")
+
+
+def centre_notes(summary: dict) -> list[str]:
+    """Return the lines said under an array's centre: what it averages, and its cautions.
+
+    :func:`centre_note`, :func:`short_note` and :func:`circle_note`, those that apply, in
+    that order (the terminal and ``solution.txt`` print the same).
+
+    Parameters
+    ----------
+    summary : dict
+        An array's ``summary.json``.
+
+    Returns
+    -------
+    list of str
+    """
+    return [n for n in (centre_note(summary), short_note(summary), circle_note(summary)) if n]
 
 
 #: Campaigns shorter than this (hours) get :func:`short_note`.
@@ -440,9 +453,7 @@ def _solution_text(summary: dict) -> str:
         lines.append(_row(str(tid), t["enu"]))
     for tid, why in s.get("skipped_transponders", {}).items():
         lines.append(f"{tid:<14}not located: {why}")
-    for note in (centre_note(s), short_note(s), circle_note(s)):
-        if note:
-            lines.append(f"{'':<14}array centre: {note}")
+    lines += [f"{'':<14}array centre: {note}" for note in centre_notes(s)]
     pos = positions_line(s)
     if pos:
         lines.append(f"positions     {pos}")

@@ -13,7 +13,12 @@ from bayes_mpem.cli import main
 from bayes_mpem.exceptions import InputError, LocateWarning
 from bayes_mpem.io.garpos import read_garpos, write_garpos
 from bayes_mpem.io.gnatss import read_gnatss, write_gnatss
-from bayes_mpem.survey_in.array import ArrayTravelTimes, locate_array, penalised_gauss_newton
+from bayes_mpem.survey_in.array import (
+    GRADIENT_NAMES,
+    ArrayTravelTimes,
+    locate_array,
+    penalised_gauss_newton,
+)
 from bayes_mpem.survey_in.array_survey import array_shots, locate_array_survey
 from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa
 from bayes_mpem.survey_in.result import centre_note, circle_note, short_note
@@ -258,16 +263,39 @@ def test_a_campaign_under_an_hour_is_told_its_intervals_are_too_narrow():
     assert short_note({}) is None  # no epoch: nothing said
 
 
-def test_gradients_fitted_on_a_circle_alone_are_said_to_trade_with_the_centre():
-    """The simulator's 6-h circles: centre sds of 1.1 m with the gradients, 1.1-1.5 cm
-    without (a review found it); the note says so where no shot passed over the array."""
+def test_the_deep_gradient_forced_on_a_circle_alone_is_said_to_trade_with_the_centre():
+    """The simulator's 6-h circles: centre sds of 1.1 m with both gradient terms, 0.6-1.6 cm
+    with the shallow one only (benchmarks/gnssa_circles.py); the note says so where the deep
+    term was fitted and no shot passed over the array."""
     enu = {a: {"mean": 0.0, "sd": 1.15} for a in ("east", "north", "up")}
-    s = {"gradients": {"fitted": True}, "track": {"central_fraction": 0.0},
-         "array_centre": {"enu": enu}}
+    both = {"fitted": True, **{k: {"mean": 0.0, "sd": 0.1} for k in GRADIENT_NAMES}}
+    s = {"gradients": both, "track": {"central_fraction": 0.0}, "array_centre": {"enu": enu}}
     assert circle_note(s).startswith("no shot passed over the array")
     assert "sds east 1.150, north 1.150 m" in circle_note(s)
     assert circle_note({**s, "track": {"central_fraction": 0.18}}) is None  # star+circle
     assert circle_note({**s, "gradients": {"fitted": False}}) is None
+    shallow = {k: v for k, v in both.items() if not k.startswith("deep")}
+    assert circle_note({**s, "gradients": shallow}) is None  # auto's choice on a circle
+
+
+def test_auto_fits_the_shallow_gradient_only_where_no_shot_passes_over_the_array():
+    """On a circle the deep term trades with the centre's horizontal position (sds of metres);
+    auto leaves it out and says why, and keeps both terms where the track crosses the array."""
+    circle = simulate_gnssa(rng=3, hours=1.0, track="circle", speed_model="field",
+                            gradients=True).raw()
+    res = locate_array_survey(circle)
+    g = res.summary["gradients"]
+    assert g["fitted"] and g["terms"] == ["shallow_east", "shallow_north"]
+    assert "deep_east" not in g and "deep_east" not in g["series"]
+    assert "no shot within 0.3 depths" in g["reason"]
+    assert res.fits["array"].gradient_coef.size == 2 * res.fits["array"].speed_coef.size
+    cen = res.summary["array_centre"]["enu"]
+    assert max(cen["east"]["sd"], cen["north"]["sd"]) < 0.05  # 1.5 cm; 2.7 m with both
+    assert circle_note(res.summary) is None
+    star = simulate_gnssa(rng=3, hours=1.0, track="star", speed_model="field",
+                          gradients=True).raw()
+    g = locate_array_survey(star).summary["gradients"]
+    assert g["terms"] == list(GRADIENT_NAMES) and "of the shots over the array" in g["reason"]
 
 
 def test_grid_rows_of_round_off_are_left_out_of_the_intervals():

@@ -315,7 +315,7 @@ def test_the_gradient_gate_says_why():
     assert g["fitted"] is False and g["choice"] == "auto" and g["reason"].startswith("auto:")
     res = locate_array_survey(station.raw(), gradients="off")
     assert "gradients=off asked for" in res.summary["gradients"]["reason"]
-    with pytest.raises(InputError, match="auto, on, off"):
+    with pytest.raises(InputError, match="auto, on, shallow, off"):
         locate_array_survey(station.raw(), gradients="maybe")
 
 

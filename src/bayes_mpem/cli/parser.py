@@ -166,10 +166,11 @@ def add_locate(sub):
                                                      0.1, 1440.0),
                    default=None, metavar="M",
                    help="array surveys: the smooth sound speed's knot spacing (default 5)")
-    p.add_argument("--gradients", choices=["auto", "on", "off"], default=None,
+    p.add_argument("--gradients", choices=["auto", "on", "shallow", "off"], default=None,
                    help="array surveys: horizontal sound-speed gradients (GARPOS's shallow and "
-                        "deep terms); default auto: fitted where the track constrains them, "
-                        "the reason recorded and printed")
+                        "deep terms; on: both, shallow: the shallow one only); default auto: "
+                        "fitted where the track constrains them, the deep one only where "
+                        "shots pass over the array, the reason recorded and printed")
     p.add_argument("--correlation", type=opt.correlation, default=None,
                    metavar="auto|off|MU_T[,MU_MT[,WHITE]]",
                    help="array surveys: the replies' noise correlated in time (MU_T, s) and "

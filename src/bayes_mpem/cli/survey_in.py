@@ -57,8 +57,9 @@ def _check_array_options(args, fmt):
         raise OptionError(f"--knot-minutes {knots:g} with --speed-intervals {intervals}: the knot "
                           "spacing is the smooth sound speed's (the default), which "
                           "--speed-intervals replaces; give one of the two")
-    if getattr(args, "gradients", None) == "on" and intervals == 0:
-        raise OptionError("--gradients on with --speed-intervals 0: the gradients need a "
+    if getattr(args, "gradients", None) in ("on", "shallow") and intervals == 0:
+        raise OptionError(f"--gradients {args.gradients} with --speed-intervals 0: the "
+                          "gradients need a "
                           "sound speed varying in time (the smooth default or "
                           "--speed-intervals N > 0)")
     if getattr(args, "flags", None) is not None and fmt != "garpos":

@@ -253,14 +253,15 @@ def plot_gradients(result, *, fig=None, truth=None):
     """Plot the array's horizontal sound-speed gradients against time, with ``ci`` bands.
 
     GARPOS's shallow and deep terms (``a V0``, (m/s)/km), east and north, from
-    ``summary.json``'s ``gradients["series"]`` (the EM's, also after ``--sample``).
+    ``summary.json``'s ``gradients["series"]`` (the EM's, also after ``--sample``); one
+    panel per term fitted (the shallow one only on a circle about the array).
 
     Parameters
     ----------
     result : SurveyInResult
         An array's, with the gradients fitted.
     fig : matplotlib.figure.Figure, optional
-        Drawn into (two axes are added); default a new figure.
+        Drawn into (an axis per term is added); default a new figure.
     truth : dict, optional
         A simulated campaign's ``truth.json``: its gradient series are drawn too.
 
@@ -280,14 +281,15 @@ def plot_gradients(result, *, fig=None, truth=None):
     if not ser:
         raise ValueError(f"gradients: not fitted ({g.get('reason', 'no gradients entry')}); "
                          "nothing to plot")
+    panels = [p for p in _GRADIENT_PANELS if p[1][0][1] in ser]
     if fig is None:
-        fig = plt.figure(figsize=(10.5, 5.6), layout="constrained")
+        fig = plt.figure(figsize=(10.5, 0.8 + 2.4 * len(panels)), layout="constrained")
     ci = _ci(result.summary)
     z = float(norm.ppf(0.5 + ci / 2))
     t = np.asarray(ser["time_s"], float) / 3600.0
     tg = (truth or {}).get("gradients")
-    axes = fig.subplots(2, 1, sharex=True)
-    for ax, (title, terms) in zip(axes, _GRADIENT_PANELS, strict=True):
+    axes = np.atleast_1d(fig.subplots(len(panels), 1, sharex=True))
+    for ax, (title, terms) in zip(axes, panels, strict=True):
         for (axis, name, key), color in zip(terms, ("C0", "C3"), strict=True):
             m, sd = np.asarray(ser[name]["mean"], float), np.asarray(ser[name]["sd"], float)
             ax.fill_between(t, m - z * sd, m + z * sd, color=color, alpha=0.2, lw=0)

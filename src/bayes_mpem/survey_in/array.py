@@ -235,9 +235,12 @@ class ArrayLocateResult:
         profile's harmonic mean from the mean transducer to the mean transponder
         depth), and its standard deviation.
     speed_coef : numpy.ndarray
+    gradient_terms : tuple of str
+        The gradient series fitted (:data:`GRADIENT_NAMES`, or its shallow two), empty
+        where none are.
     gradient_coef : numpy.ndarray or None
         The gradient terms' spline coefficients (``a``, dimensionless), ``k`` per term in
-        the order of :data:`GRADIENT_NAMES`; None where the gradients are not fitted.
+        the order of :attr:`gradient_terms`; None where the gradients are not fitted.
     sigma : float
         Scatter of the true replies (s), shared.
     weights : numpy.ndarray
@@ -272,6 +275,7 @@ class ArrayLocateResult:
     sound_speed_sd: float = 0.0
     speed_coef: np.ndarray = field(default=None, repr=False)
     gradient_coef: np.ndarray = field(default=None, repr=False)
+    gradient_terms: tuple = ()
     sigma: float = 0.0
     weights: np.ndarray = field(default=None, repr=False)
     p_true: np.ndarray = field(default=None, repr=False)
@@ -423,12 +427,14 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
         Fixed geometry: the transponders keep their prior positions relative to
         each other and the array moves as a rigid body (3 parameters); ``fixed``
         then applies to the shift's east, north, up (its first row).
-    gradients : bool, default False
+    gradients : bool or {"shallow"}, default False
         Also fit GARPOS's horizontal gradient terms (:func:`gradient_design`): the
         shallow ``a1`` (east, north; felt as the ship moves) and the deep ``a2`` (across
         the array), each a spline on the speed's knots; with the smooth speed their
         roughness penalty has its own weight, chosen the same way. Needs a track
-        that surrounds the array (``track_geometry``).
+        that surrounds the array (``track_geometry``); the deep term also needs shots over
+        the array (on a circle about it, it trades with the horizontal position).
+        ``"shallow"``: the shallow terms only.
     max_iter : int, default 200
     tol : float, default 1e-10
         Stop when sigma (s) changes by less than this (and the smoothing weight by
@@ -519,7 +525,8 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
     theta = least_squares(resid, x0, jac=jac, args=(_gross_screen(resid(x0), index, K),),
                           loss="cauchy", f_scale=1e-3, x_scale=x_scale).x
     basis = speed_basis(sub, speed_intervals, time_range, breaks)
-    design = gradient_design(sub, index, start, basis) if gradients else None
+    terms = gradient_terms(gradients)
+    design = gradient_design(sub, index, start, basis, terms) if terms else None
     model = ArrayTravelTimes(sub, index, K, basis, profile=profile,
                              surface_depth=surface_depth, gradients=design,
                              earth_radius=earth_radius, along_sphere=along_sphere)
@@ -539,7 +546,7 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
         H[nf:nf + k, nf:nf + k] = H0
         if kg:
             Hg = np.zeros((P, P))
-            for j in range(4):
+            for j in range(kg // k):
                 a = nf + k + j * k
                 Hg[a:a + k, a:a + k] = H0
             Hg.flags.writeable = False
@@ -576,7 +583,7 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
     kk = slice(3 * K, 3 * K + k)
     grad_record = None if not kg else _gradient_record(
         theta, cov, 3 * K + k, g, unit * float(g @ theta[kk]) if profile is not None
-        else float(g @ theta[kk]), gradient_origins(sub, start))
+        else float(g @ theta[kk]), gradient_origins(sub, start), terms)
     n_bad = model.n_invalid(theta)
     gn_ok = em.gn.get("converged", True) if smooth else True  # the last M-step's own steps
     refit_ok = noise is None or noise.get("refit_gauss_newton_converged", True)
@@ -587,6 +594,7 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
         sound_speed=float(g @ theta[kk]) * unit,
         sound_speed_sd=float(np.sqrt(max(g @ cov[kk, kk] @ g, 0.0))) * unit,
         speed_coef=theta[kk].copy(), gradient_coef=theta[kk.stop:].copy() if kg else None,
+        gradient_terms=terms,
         sigma=sigma, weights=weights, p_true=p,
         residual=resid(phi), rows=rows, index=index, windows=windows, skipped=skipped,
         n_iter=run.n_iter, converged=run.converged and gn_ok and refit_ok, outliers=outliers,
@@ -666,6 +674,31 @@ GRADIENT_LENGTH = 1000.0
 GRADIENT_NAMES = ("shallow_east", "shallow_north", "deep_east", "deep_north")
 
 
+def gradient_terms(gradients) -> tuple:
+    """Return the gradient series a ``gradients`` argument fits, in ``theta``'s order.
+
+    Parameters
+    ----------
+    gradients : bool or {"shallow"}
+        False (or None): none; True: all of :data:`GRADIENT_NAMES`; ``"shallow"``: the
+        shallow east and north.
+
+    Returns
+    -------
+    tuple of str
+
+    Raises
+    ------
+    InputError
+        For any other value.
+    """
+    if gradients is None or isinstance(gradients, bool | np.bool_):
+        return GRADIENT_NAMES if gradients else ()
+    if isinstance(gradients, str) and gradients == "shallow":
+        return GRADIENT_NAMES[:2]
+    raise InputError(f"gradients: expected True, False or 'shallow', got {gradients!r}")
+
+
 class _SparseDesign:
     """A design matrix of B-splines (a few non-zeros per row), kept sparse.
 
@@ -695,7 +728,7 @@ class _SparseDesign:
         J[self.rows, first + M.indices] = factor[self.rows] * M.data
 
 
-def gradient_design(shots, index, start, basis) -> np.ndarray:
+def gradient_design(shots, index, start, basis, terms=GRADIENT_NAMES) -> np.ndarray:
     """Return the design of GARPOS's gradient terms (``gamma`` linear in their coefficients).
 
     ``gamma = a1 . dp / L + a2 . dx / L``.
@@ -715,18 +748,22 @@ def gradient_design(shots, index, start, basis) -> np.ndarray:
         ``(K, 3)`` prior positions.
     basis : numpy.ndarray
         ``(n, k)`` the speed's basis.
+    terms : tuple of str, default :data:`GRADIENT_NAMES`
+        The series wanted (:func:`gradient_terms`), in this order.
 
     Returns
     -------
     numpy.ndarray
-        ``(n, 4 k)``: the columns of ``a1`` east, north, then ``a2`` east, north.
+        ``(n, k len(terms))``: the columns of each term (all four: ``a1`` east, north,
+        then ``a2`` east, north).
     """
     pe = 0.5 * (shots["e_tx"].to_numpy(float) + shots["e_rx"].to_numpy(float))
     pn = 0.5 * (shots["n_tx"].to_numpy(float) + shots["n_rx"].to_numpy(float))
     origins = gradient_origins(shots, start)
     dx = start[index, :2] - origins["deep"]
-    regs = (pe - origins["shallow"][0], pn - origins["shallow"][1], dx[:, 0], dx[:, 1])
-    return np.hstack([basis * (r / GRADIENT_LENGTH)[:, None] for r in regs])
+    regs = dict(zip(GRADIENT_NAMES, (pe - origins["shallow"][0], pn - origins["shallow"][1],
+                                     dx[:, 0], dx[:, 1]), strict=True))
+    return np.hstack([basis * (regs[name] / GRADIENT_LENGTH)[:, None] for name in terms])
 
 
 def gradient_origins(shots, start) -> dict:
@@ -754,13 +791,13 @@ def gradient_origins(shots, start) -> dict:
     return {"shallow": p, "deep": [float(v) for v in np.asarray(start)[:, :2].mean(axis=0)]}
 
 
-def _gradient_record(theta, cov, first, g, v0, origins):
+def _gradient_record(theta, cov, first, g, v0, origins, terms):
     """Return the time-averaged gradients (m/s)/km with their sds (``summary.json``)."""
     k = g.size
     out = {"unit": "(m/s)/km", "quantity": "time average over the survey of GARPOS's gradV "
            "(a V0): shallow a1 (ship's offset), deep a2 (transponder's offset)",
            "origins_m": origins}
-    for j, name in enumerate(GRADIENT_NAMES):
+    for j, name in enumerate(terms):
         sl = slice(first + j * k, first + (j + 1) * k)
         out[name] = {"mean": float(g @ theta[sl]) * v0,
                      "sd": float(np.sqrt(max(g @ cov[sl, sl] @ g, 0.0))) * v0}

@@ -22,7 +22,6 @@ from ..mcmc import (
     to_datatree,
 )
 from .array import (
-    GRADIENT_NAMES,
     WEIGHT_GRID,
     ArrayLocateResult,
     ArrayTravelTimes,
@@ -140,8 +139,9 @@ class ArrayLogPosterior:
             self.log_lii = np.log(self.whitener.ab[0])
         basis = speed_basis(sub, m["speed_intervals"], m["time_range"], m.get("speed_breaks"))
         self.k = basis.shape[1]
-        design = (gradient_design(sub, self.index, fit.start, basis) if m.get("gradients")
-                  else None)
+        terms = tuple(fit.gradient_terms)
+        design = (gradient_design(sub, self.index, fit.start, basis, terms)
+                  if terms else None)
         self.kg = 0 if design is None else design.shape[1]
         self.model = ArrayTravelTimes(sub, self.index, self.K, basis, profile=m["profile"],
                                       surface_depth=m["surface_depth"], gradients=design,
@@ -468,7 +468,7 @@ class ArrayLogPosterior:
         dict
             ``position`` ``(..., K, 3)`` (m), ``centre`` ``(..., 3)``, ``speed_coef``
             ``(..., k)``, ``sound_speed`` (m/s, the mean over the shots as the EM
-            reports it), ``gradient`` ``(..., 4)`` ((m/s)/km, time averages; only when
+            reports it), ``gradient`` ``(..., terms)`` ((m/s)/km, time averages; only when
             fitted), ``sigma`` (s), ``weight`` ``(..., K)`` and, with the smooth speed,
             ``smoothing_weight`` (the speed's; the gradients' is scaled alike).
         """
@@ -481,7 +481,7 @@ class ArrayLogPosterior:
                "speed_coef": coef.reshape(*shape, self.k), "sound_speed": speed.reshape(shape),
                "sigma": sigma.reshape(shape), "weight": w.reshape(*shape, self.K)}
         if self.kg:
-            per = gc.reshape(-1, self.kg // self.k, self.k) @ self.g  # (W, 4)
+            per = gc.reshape(-1, self.kg // self.k, self.k) @ self.g  # (W, terms)
             out["gradient"] = (per * speed[:, None]).reshape(*shape, self.kg // self.k)
         if self.smooth:
             out["smoothing_weight"] = self.lam * np.exp(u[..., -1])
@@ -866,7 +866,7 @@ class ArrayPosterior:
                 "weight": ["transponder"], "twtt": ["shot"]}
         coords = {"transponder": list(self.ids), "axis": list(AXES),
                   "knot": np.arange(d["speed_coef"].shape[-1]),
-                  "gradient_term": list(GRADIENT_NAMES), "shot": np.asarray(self.rows)}
+                  "gradient_term": list(self.em.gradient_terms), "shot": np.asarray(self.rows)}
         tree = to_datatree(
             {"posterior": post, "sample_stats": {"lp": d["lp"]},
              "observed_data": {"twtt": self.shots["twtt"].to_numpy(float)}},
@@ -918,7 +918,7 @@ class ArrayPosterior:
                "diagnostics": dict(self.diagnostics), "ci": ci}
         if "gradient" in d:
             out["gradients"] = {name: self.describe(d["gradient"][..., j], ci)
-                                for j, name in enumerate(GRADIENT_NAMES)}
+                                for j, name in enumerate(self.em.gradient_terms)}
         if "smoothing_weight" in d:
             out["log10_smoothing_weight"] = self.describe(np.log10(d["smoothing_weight"]), ci)
         return out
@@ -1138,12 +1138,14 @@ def _check_forced_gradients(shots, raw, gradients, speed_intervals):
     """
     from .array_survey import gradient_gate
 
-    if not (gradients is True or gradients == "on"):
+    if not (gradients is True or gradients in ("on", "shallow")):
         return
     ok, why = gradient_gate(shots, raw.header["transponders"], speed_intervals)
     if not ok:
-        raise InputError(f"--gradients on with --sample (gradients='on'): the gate would leave "
-                         f"the gradients out ({why}); their unpenalised constant and trend "
+        asked = "on" if gradients is True else gradients
+        raise InputError(f"--gradients {asked} with --sample (gradients={asked!r}): the gate "
+                         f"would leave the gradients out ({why}); their unpenalised constant "
+                         "and trend "
                          "are then all but undetermined and the posterior cannot be sampled. "
                          "Sample with --gradients auto or off, or fit them by EM without "
                          "--sample")
@@ -1231,7 +1233,7 @@ def locate_array_survey_bayes(raw, *, ci=0.95, outliers="uniform", ssp=None,
         g = s["gradients"]
         s["gradients"] = {**g, **{name: {**post.describe(d["gradient"][..., j], ci),
                                          "em": g.get(name)}
-                                  for j, name in enumerate(GRADIENT_NAMES)}}
+                                  for j, name in enumerate(fit.gradient_terms)}}
     summary_post = post.to_dict(ci)
     s["posterior"] = {k: summary_post[k] for k in ("sigma_ms", "weight_true", "ess", "rhat",
                                                     "diagnostics", "log10_smoothing_weight")

@@ -12,7 +12,7 @@ from scipy.stats import chi2
 from ..exceptions import InputError, LocateWarning
 from ..io.geodesy import MEAN_EARTH_RADIUS_M, earth_radius, enu_to_geodetic
 from ..io.raw import ARRAY_FORMATS, skip_reasons
-from .array import GRADIENT_NAMES, KNOT_MINUTES, describe, locate_array
+from .array import KNOT_MINUTES, describe, locate_array
 from .result import SurveyInResult, classified_table
 from .ssp import survey_profile
 from .travel_times import speed_basis
@@ -236,7 +236,7 @@ def _gradient_series(fit, n=121):
     k = B.shape[1]
     first = 3 * len(fit.ids) + k
     out = {"time_s": t.tolist()}
-    for j, name in enumerate(GRADIENT_NAMES):
+    for j, name in enumerate(fit.gradient_terms):
         sl = slice(first + j * k, first + (j + 1) * k)
         mean, sd = _band(B, fit.gradient_coef[j * k:(j + 1) * k], fit.cov[sl, sl],
                          fit.sound_speed)
@@ -419,8 +419,9 @@ MIN_SPREAD = 0.1
 CENTRAL_RADIUS = 0.3
 #: Shortest campaign (hours of shots) on which the gradients are fitted by default.
 MIN_GRADIENT_HOURS = 1.0
-#: The choices of ``gradients`` (``locate --gradients``).
-GRADIENT_CHOICES = ("auto", "on", "off")
+#: The choices of ``gradients`` (``locate --gradients``): ``on`` both terms, ``shallow`` the
+#: shallow one only.
+GRADIENT_CHOICES = ("auto", "on", "shallow", "off")
 
 
 def gradient_gate(shots, priors, speed_intervals=None):
@@ -471,8 +472,37 @@ def gradient_gate(shots, priors, speed_intervals=None):
     return True, f"the track spreads over {spread:.2f} of the depth, {len(ids)} transponders"
 
 
+def deep_gradient_gate(shots, priors):
+    """Return whether the track determines the deep gradient beside the shallow one, and why.
+
+    The deep term (the transponder's offset across the array) needs shots over the array:
+    on a track that never comes within :data:`CENTRAL_RADIUS` depths of the array's centre
+    (a circle about it) it trades with the centre's horizontal position (sds of metres on
+    the simulator's circles, against a centimetre with the shallow term only;
+    ``docs/gnssa.md``, "Circles: the shallow gradient only").
+
+    Parameters
+    ----------
+    shots : pandas.DataFrame
+        As for :func:`gradient_gate`.
+    priors : pandas.DataFrame
+        ``east``, ``north``, ``up`` by transponder id.
+
+    Returns
+    -------
+    fit : bool
+    reason : str
+    """
+    enu = {str(t): priors.loc[t, ["east", "north", "up"]].to_numpy(float) for t in priors.index}
+    share = track_geometry(shots, enu)["central_fraction"]
+    if share > 0.0:
+        return True, f"{100 * share:.0f} % of the shots over the array"
+    return False, (f"no shot within {CENTRAL_RADIUS:g} depths of the array's centre: the deep "
+                   "gradient would trade with its horizontal position, so the shallow one only")
+
+
 def _gradient_choice(gradients):
-    """Return ``"auto"``, ``"on"`` or ``"off"`` from the ``gradients`` argument."""
+    """Return ``"auto"``, ``"on"``, ``"shallow"`` or ``"off"`` from ``gradients``."""
     if gradients is None or gradients is True or gradients is False:
         return {None: "auto", True: "on", False: "off"}[gradients]
     if gradients not in GRADIENT_CHOICES:
@@ -598,12 +628,13 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
         Solve a rigid shift of the prior geometry; default from the site file's
         sigmas (:func:`position_constraints`), which also fix the coordinates
         whose sigma is 0.
-    gradients : {"auto", "on", "off"}, default "auto"
+    gradients : {"auto", "on", "shallow", "off"}, default "auto"
         GARPOS's shallow and deep horizontal gradients (``summary.json``
         ``gradients``: their time averages in (m/s)/km): ``"auto"`` fits them where
-        :func:`gradient_gate` says the track constrains them, and records its reason
-        either way; ``"on"`` (or True) and ``"off"`` (or False) force the choice
-        (None is ``"auto"``).
+        :func:`gradient_gate` says the track constrains them, the deep one only where
+        :func:`deep_gradient_gate` says so too, and records its reasons; ``"on"`` (or
+        True: both), ``"shallow"`` and ``"off"`` (or False) force the choice (None is
+        ``"auto"``).
     earth : {"sphere", "flat"}, default "sphere"
         ``"sphere"``: the profile's layers follow the Earth (a sphere of the WGS84
         Gaussian radius at the site's latitude): SeaGap's frame is already along the
@@ -641,8 +672,12 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
     if choice == "auto":
         gradients = gate
         why = "auto: " + why
+        if gate:
+            deep, why_deep = deep_gradient_gate(shots, h["transponders"])
+            gradients = True if deep else "shallow"
+            why += "; " + why_deep
     else:
-        gradients = choice == "on"
+        gradients = {"on": True, "shallow": "shallow", "off": False}[choice]
         why = f"gradients={choice} asked for (the gate: {why})"
     fixed, auto_shift = position_constraints(h)
     shift = auto_shift if shift is None else bool(shift)
@@ -690,6 +725,7 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
         "speed_intervals": int(fit.model["speed_intervals"]), "fit_lag": False,
         "positions": _positions_entry(fit, ci, shift, h["transponders"]),
         "gradients": {"fitted": bool(gradients), "choice": choice, "reason": why,
+                      "terms": list(fit.gradient_terms),
                       **(fit.model.get("gradients") or {}), "series": _gradient_series(fit)},
         "geometry": _geometry_entry(origin, surface_depth, radius, cartesian),
         "tat_fitted": False, "tat_given": 0.0,

@@ -275,7 +275,7 @@ def gradients_line(summary: dict) -> str:
     if g.get("fitted") and "shallow_east" in g:
         line += "; time averages (m/s)/km: " + ", ".join(
             f"{k.replace('_', ' ')} {g[k]['mean']:+.4f} +- {g[k]['sd']:.4f}"
-            for k in ("shallow_east", "shallow_north", "deep_east", "deep_north"))
+            for k in ("shallow_east", "shallow_north", "deep_east", "deep_north") if k in g)
     grid = ((summary.get("sound_speed") or {}).get("smoothing") or {}).get("gradient_grid") or {}
     note = _edge_note(grid.get("edge"), "the gradients", "their")
     return line + (f"; {note}" if note else "")
@@ -333,12 +333,14 @@ def not_fitted_note(summary: dict) -> str | None:
 
 
 def circle_note(summary: dict) -> str | None:
-    """Return a caution where the gradients were fitted on a track never over the array.
+    """Return a caution where the deep gradient was fitted on a track never over the array.
 
     On a circle about the array (no shot within ``CENTRAL_RADIUS`` depths of its centre:
     ``track.central_fraction`` 0) the deep gradient trades with the centre's horizontal
     position: on the simulator's 6-hour circles the centre's horizontal sds were 1.1 m
-    with the gradients and 1.1-1.5 cm without (docs/gnssa.md, "When `auto` fits them").
+    with both terms and 0.6-1.6 cm with the shallow one only (docs/gnssa.md, "Circles: the
+    shallow gradient only"). ``auto`` fits the shallow one only there; this is said where
+    ``--gradients on`` forced both.
 
     Parameters
     ----------
@@ -350,13 +352,12 @@ def circle_note(summary: dict) -> str | None:
     str or None
     """
     g, track = summary.get("gradients") or {}, summary.get("track") or {}
-    if not g.get("fitted") or track.get("central_fraction", 1.0) > 0.0:
+    if "deep_east" not in g or track.get("central_fraction", 1.0) > 0.0:
         return None
     c = summary["array_centre"]["enu"]
     return (f"no shot passed over the array: the deep gradient trades with the centre's "
             f"horizontal position (sds east {c['east']['sd']:.3f}, north {c['north']['sd']:.3f} "
-            "m); where the water is known to be horizontally uniform, --gradients off "
-            "determines it to cm")
+            "m); --gradients shallow (auto's choice here) determines it to cm")
 
 
 def centre_notes(summary: dict) -> list[str]:

@@ -29,7 +29,8 @@ time-mean profile instead of the cast at the first shot), ``whitegnss`` (GNSS no
 white), ``nograd`` (no gradients), ``clean`` (no noise, no outliers), ``nonoise``,
 ``nooutliers``, ``nothing`` (no field change, no noise: the frame check), ``narrow`` (the
 circle's radius and the star's half-length a quarter of the depth: narrow tracks, the
-star's just above ``auto``'s gate, where it is tested); a variant ending
+star's just above ``auto``'s gate, where it is tested), ``hour`` and ``halfhour`` (campaigns
+of 1 and 0.5 h: the gate's hour and the short campaigns' note); a variant ending
 in ``+gradoff`` locates with ``--gradients off``, one in ``+corroff`` with ``--correlation
 off``, instead of the defaults. Writes the section ``gnssa-independent[-VARIANTS]`` of
 ``docs/gnssa.md``.
@@ -93,6 +94,8 @@ VARIANTS = {
     "nooutliers": {"outliers": False},
     "nothing": {"varying": False, "gradients": False, "noise": False, "outliers": False},
     "narrow": {"radius": 0.25},
+    "hour": {"hours": 1.0},
+    "halfhour": {"hours": 0.5},
 }
 
 
@@ -551,7 +554,8 @@ def main(argv=None) -> int:
              f"({machine()}; {time.perf_counter() - t_all:.0f} s; git {commit()}).", "",
              f"{n_seeds} seeds per column; A: circle of radius 3 km at 2 m/s, all four "
              "transponders every 40 s; B: star of four 6 km diameters, one transponder every "
-             "20 s in turn; 6 h; `bayes-mpem locate SITE --out DIR` with its defaults"
+             "20 s in turn; 6 h (`hour` 1 h, `halfhour` 0.5 h); `bayes-mpem locate SITE --out "
+             "DIR` with its defaults"
              + ("; `narrow`: radius and half-length 750 m" if any(
                  v.startswith("narrow") for v in variants) else "") + ".", "",
              head, "|---|" + "---|" * len(cols)]

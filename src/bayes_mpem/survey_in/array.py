@@ -513,7 +513,8 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
     if profile is not None:
         unit = float(profile.harmonic_mean(z_ship - surface_depth, z_tp - surface_depth))
     c0 = float(sound_speed or (unit if profile is not None else 1500.0))
-    if gradients and not (smooth or speed_intervals):
+    terms = gradient_terms(gradients)
+    if terms and not (smooth or speed_intervals):
         raise InputError("gradients: need a time-varying sound speed (the smooth default or "
                          "speed_intervals > 0)")
     G = _free_map(K, _fixed_mask(fixed, transponders, ids, K), shift)
@@ -525,7 +526,6 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
     theta = least_squares(resid, x0, jac=jac, args=(_gross_screen(resid(x0), index, K),),
                           loss="cauchy", f_scale=1e-3, x_scale=x_scale).x
     basis = speed_basis(sub, speed_intervals, time_range, breaks)
-    terms = gradient_terms(gradients)
     design = gradient_design(sub, index, start, basis, terms) if terms else None
     model = ArrayTravelTimes(sub, index, K, basis, profile=profile,
                              surface_depth=surface_depth, gradients=design,
@@ -794,9 +794,11 @@ def gradient_origins(shots, start) -> dict:
 def _gradient_record(theta, cov, first, g, v0, origins, terms):
     """Return the time-averaged gradients (m/s)/km with their sds (``summary.json``)."""
     k = g.size
+    deep = "deep_east" in terms
     out = {"unit": "(m/s)/km", "quantity": "time average over the survey of GARPOS's gradV "
-           "(a V0): shallow a1 (ship's offset), deep a2 (transponder's offset)",
-           "origins_m": origins}
+           "(a V0): shallow a1 (ship's offset)" + (", deep a2 (transponder's offset)" if deep
+                                                   else "; the deep a2 not fitted"),
+           "origins_m": origins if deep else {"shallow": origins["shallow"]}}
     for j, name in enumerate(terms):
         sl = slice(first + j * k, first + (j + 1) * k)
         out[name] = {"mean": float(g @ theta[sl]) * v0,

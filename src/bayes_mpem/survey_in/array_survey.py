@@ -417,6 +417,9 @@ def position_constraints(header, ids=None):
 MIN_SPREAD = 0.1
 #: Horizontal distance from the array's centre, in depths, of a shot "over the array".
 CENTRAL_RADIUS = 0.3
+#: Least share of the shots within :data:`CENTRAL_RADIUS` depths of the array's centre for
+#: the deep gradient (:func:`deep_gradient_gate`).
+MIN_CENTRAL_FRACTION = 0.05
 #: Shortest campaign (hours of shots) on which the gradients are fitted by default.
 MIN_GRADIENT_HOURS = 1.0
 #: The choices of ``gradients`` (``locate --gradients``): ``on`` both terms, ``shallow`` the
@@ -450,8 +453,7 @@ def gradient_gate(shots, priors, speed_intervals=None):
         return False, (f"an unpenalised speed spline ({speed_intervals} intervals asked for): "
                        "the gradients would be unpenalised too and trade against the "
                        "positions by decimetres")
-    ids = [t for t in map(str, priors.index)
-           if int(np.sum(shots["transponder"].astype(str) == t)) >= 6]
+    ids = _heard(shots, priors)
     if len(ids) < 3:
         return False, f"{len(ids)} transponders located; the deep gradient needs 3 or more"
     if "time" in shots.columns and len(shots):
@@ -462,9 +464,7 @@ def gradient_gate(shots, priors, speed_intervals=None):
             return False, (f"the shots span {hours:.2f} h with the interval between them "
                            f"(need {MIN_GRADIENT_HOURS:g}): the gradients' constant and trend "
                            "would trade against the positions")
-    geo = track_geometry(shots, {t: priors.loc[t, ["east", "north", "up"]].to_numpy(float)
-                                 for t in ids})
-    spread = geo["spread_over_depth"]
+    spread = track_geometry(shots, _prior_enu(priors, ids))["spread_over_depth"]
     if spread < MIN_SPREAD:
         return False, (f"the track spreads over {spread:.2f} of the depth (need "
                        f"{MIN_SPREAD}): the shallow gradient is not identifiable, and the "
@@ -472,14 +472,28 @@ def gradient_gate(shots, priors, speed_intervals=None):
     return True, f"the track spreads over {spread:.2f} of the depth, {len(ids)} transponders"
 
 
-def deep_gradient_gate(shots, priors):
+def _heard(shots, priors) -> list:
+    """Return the ids of the transponders with 6 shots or more (those the gates count)."""
+    tid = shots["transponder"].astype(str)
+    return [t for t in map(str, priors.index) if int(np.sum(tid == t)) >= 6]
+
+
+def _prior_enu(priors, ids) -> dict:
+    """Return ``{id: (east, north, up)}`` of the prior positions of ``ids``."""
+    return {t: priors.loc[t, ["east", "north", "up"]].to_numpy(float) for t in ids}
+
+
+def deep_gradient_gate(shots, priors, shift=False):
     """Return whether the track determines the deep gradient beside the shallow one, and why.
 
-    The deep term (the transponder's offset across the array) needs shots over the array:
-    on a track that never comes within :data:`CENTRAL_RADIUS` depths of the array's centre
-    (a circle about it) it trades with the centre's horizontal position (sds of metres on
-    the simulator's circles, against a centimetre with the shallow term only;
-    ``docs/gnssa.md``, "Circles: the shallow gradient only").
+    The deep term (the transponder's prior offset across the array) needs shots over the
+    array where the transponders are free: on a track with fewer than
+    :data:`MIN_CENTRAL_FRACTION` of its shots within :data:`CENTRAL_RADIUS` depths of the
+    array's centre (a circle about it) it trades with the centre's horizontal position (sds
+    of metres on the simulator's circles, against a centimetre with the shallow term only;
+    one shot over the array was not enough, four of 663 were). Under a rigid shift of a held
+    geometry it does not trade, and leaving it out there biased the centre by 7-15 cm on
+    circles (``docs/gnssa.md``, "Circles: the shallow gradient only").
 
     Parameters
     ----------
@@ -487,25 +501,32 @@ def deep_gradient_gate(shots, priors):
         As for :func:`gradient_gate`.
     priors : pandas.DataFrame
         ``east``, ``north``, ``up`` by transponder id.
+    shift : bool, default False
+        The array moves as a rigid body from the priors (:func:`locate_array_survey`).
 
     Returns
     -------
     fit : bool
     reason : str
     """
-    enu = {str(t): priors.loc[t, ["east", "north", "up"]].to_numpy(float) for t in priors.index}
-    share = track_geometry(shots, enu)["central_fraction"]
-    if share > 0.0:
-        return True, f"{100 * share:.0f} % of the shots over the array"
-    return False, (f"no shot within {CENTRAL_RADIUS:g} depths of the array's centre: the deep "
-                   "gradient would trade with its horizontal position, so the shallow one only")
+    if shift:
+        return True, "the geometry is held (a rigid shift), so the deep gradient too"
+    ids = _heard(shots, priors)
+    share = track_geometry(shots, _prior_enu(priors, ids))["central_fraction"] if ids else 0.0
+    over = f"{100 * share:.1f} % of the shots within {CENTRAL_RADIUS:g} depths of the centre"
+    if share >= MIN_CENTRAL_FRACTION:
+        return True, over
+    return False, (f"{over} (need {100 * MIN_CENTRAL_FRACTION:g} %): the deep gradient would "
+                   "trade with its horizontal position, so the shallow one only")
 
 
 def _gradient_choice(gradients):
     """Return ``"auto"``, ``"on"``, ``"shallow"`` or ``"off"`` from ``gradients``."""
-    if gradients is None or gradients is True or gradients is False:
-        return {None: "auto", True: "on", False: "off"}[gradients]
-    if gradients not in GRADIENT_CHOICES:
+    if gradients is None:
+        return "auto"
+    if isinstance(gradients, bool | np.bool_):
+        return "on" if gradients else "off"
+    if not isinstance(gradients, str) or gradients not in GRADIENT_CHOICES:
         raise InputError(f"gradients: expected one of {', '.join(GRADIENT_CHOICES)} (or "
                          f"True, False, None), got {gradients!r}")
     return gradients
@@ -667,22 +688,19 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
     h = raw.header
     if surface_depth is None:
         surface_depth = float(h.get("surface_depth", 0.0))
-    choice = _gradient_choice(gradients)
-    gate, why = gradient_gate(shots, h["transponders"], speed_intervals)
-    if choice == "auto":
-        gradients = gate
-        why = "auto: " + why
-        if gate:
-            deep, why_deep = deep_gradient_gate(shots, h["transponders"])
-            gradients = True if deep else "shallow"
-            why += "; " + why_deep
-    else:
-        gradients = {"on": True, "shallow": "shallow", "off": False}[choice]
-        why = f"gradients={choice} asked for (the gate: {why})"
     fixed, auto_shift = position_constraints(h)
     shift = auto_shift if shift is None else bool(shift)
     if shift and not auto_shift:
         fixed = None
+    choice = _gradient_choice(gradients)
+    gate, why = gradient_gate(shots, h["transponders"], speed_intervals)
+    deep, why_deep = deep_gradient_gate(shots, h["transponders"], shift)
+    if choice == "auto":
+        gradients = (True if deep else "shallow") if gate else False
+        why = "auto: " + why + (f"; {why_deep}" if gate else "")
+    else:
+        gradients = {"on": True, "shallow": "shallow", "off": False}[choice]
+        why = f"gradients={choice} asked for (the gate: {why})"
     if flags not in ("honour", "reclassify"):
         raise InputError(f"flags: expected 'honour' or 'reclassify', got {flags!r}")
     flagged = (shots["file_flag"].to_numpy(bool) if "file_flag" in shots.columns
@@ -726,6 +744,7 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
         "positions": _positions_entry(fit, ci, shift, h["transponders"]),
         "gradients": {"fitted": bool(gradients), "choice": choice, "reason": why,
                       "terms": list(fit.gradient_terms),
+                      "deep_gate": {"fit": bool(deep), "reason": why_deep},
                       **(fit.model.get("gradients") or {}), "series": _gradient_series(fit)},
         "geometry": _geometry_entry(origin, surface_depth, radius, cartesian),
         "tat_fitted": False, "tat_given": 0.0,

@@ -333,14 +333,15 @@ def not_fitted_note(summary: dict) -> str | None:
 
 
 def circle_note(summary: dict) -> str | None:
-    """Return a caution where the deep gradient was fitted on a track never over the array.
+    """Return a caution where the deep gradient was fitted on a track hardly over the array.
 
-    On a circle about the array (no shot within ``CENTRAL_RADIUS`` depths of its centre:
-    ``track.central_fraction`` 0) the deep gradient trades with the centre's horizontal
-    position: on the simulator's 6-hour circles the centre's horizontal sds were 1.1 m
-    with both terms and 0.6-1.6 cm with the shallow one only (docs/gnssa.md, "Circles: the
-    shallow gradient only"). ``auto`` fits the shallow one only there; this is said where
-    ``--gradients on`` forced both.
+    On a circle about the array (``gradients.deep_gate``: too few shots within
+    ``CENTRAL_RADIUS`` depths of its centre) the deep gradient trades with the centre's
+    horizontal position: on the simulator's 6-hour circles the centre's horizontal sds were
+    1.1 m with both terms and 0.6-1.6 cm with the shallow one only (docs/gnssa.md, "Circles:
+    the shallow gradient only"). ``auto`` fits the shallow one only there; this is said where
+    ``--gradients on`` forced both. Summaries without ``deep_gate`` (before 2026-11-29) are
+    judged by ``track.central_fraction`` 0.
 
     Parameters
     ----------
@@ -352,12 +353,15 @@ def circle_note(summary: dict) -> str | None:
     str or None
     """
     g, track = summary.get("gradients") or {}, summary.get("track") or {}
-    if "deep_east" not in g or track.get("central_fraction", 1.0) > 0.0:
+    gate = g.get("deep_gate")
+    hardly = (not gate["fit"]) if gate else track.get("central_fraction", 1.0) == 0.0
+    if "deep_east" not in g or not hardly:
         return None
     c = summary["array_centre"]["enu"]
-    return (f"no shot passed over the array: the deep gradient trades with the centre's "
-            f"horizontal position (sds east {c['east']['sd']:.3f}, north {c['north']['sd']:.3f} "
-            "m); --gradients shallow (auto's choice here) determines it to cm")
+    return (f"the deep gradient was fitted on a track hardly over the array: it trades with "
+            f"the centre's horizontal position (sds east {c['east']['sd']:.3f}, north "
+            f"{c['north']['sd']:.3f} m); --gradients shallow (auto's choice for this track) "
+            "determines it to cm")
 
 
 def centre_notes(summary: dict) -> list[str]:

@@ -98,7 +98,7 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
         A SeaGap survey: locate each transponder on its own, with its own sound
         speed (on SeaGap's sphere), instead of the array together
         (:func:`is_array`); refused for GARPOS and GNATSS.
-    gradients : {"auto", "on", "off"}, default "auto"
+    gradients : {"auto", "on", "shallow", "off"}, default "auto"
         An array survey: its horizontal gradients (:func:`locate_array_survey`).
     knot_minutes : float, optional
         An array survey: the smooth speed's knot spacing (default 5 min).

@@ -149,6 +149,11 @@ def locate_cases():
              ["--gradients"])
     case("gradients on", "locate {garpos} --out {out} --gradients on", OK,
          changes=["--gradients", "on"])
+    case("gradients shallow", "locate {garpos} --out {out} --gradients shallow", OK,
+         changes=["--gradients", "shallow"])
+    case("gradients shallow, constant speed",
+         "locate {garpos} --out {out} --gradients shallow --speed-intervals 0", REFUSE,
+         ["--gradients", "--speed-intervals"])
     case("gradients off", "locate {garpos} --out {out} --gradients off --knot-minutes 10",
          ("ok",))
     case("gradients on, constant speed",
@@ -217,6 +222,9 @@ def locate_cases():
     case("sample with --gradients on (0.5 h)", "locate {gnatss} --out {out} --sample "
          "--min-ess 50 --no-progress --gradients on", REFUSE, ["--gradients", "--sample"],
          timeout=120)
+    case("sample with --gradients shallow (0.5 h)", "locate {gnatss} --out {out} --sample "
+         "--min-ess 50 --no-progress --gradients shallow", REFUSE, ["--gradients", "--sample"],
+         timeout=120)
     case("sample with --flags reclassify", "locate {garpos} --out {out} --sample --min-ess 50 "
          "--no-progress --flags reclassify", OK, timeout=120)
     case("sample seagap array", "locate {seagap} --out {out} --sample --min-ess 50 "
@@ -247,11 +255,14 @@ def locate_cases():
          ["--knot-minutes"])
     case("seagap one at a time with gradients",
          "locate {seagap} --out {out} --one-at-a-time --gradients on", REFUSE, ["--gradients"])
+    case("seagap one at a time with the shallow gradient",
+         "locate {seagap} --out {out} --one-at-a-time --gradients shallow", REFUSE,
+         ["--gradients"])
     case("seagap array", "locate {seagap} --out {out} --knot-minutes 10", OK,
          changes=["--knot-minutes", "10"])
     # array options on a one-transponder deck-box log
     for extra in ("--gradients on", "--knot-minutes 5", "--flags honour",
-                  "--gradients auto"):
+                  "--gradients auto", "--gradients shallow"):
         case(f"{extra} on a deck-box log", f"locate {{sio}} --out {{out}} {extra}", REFUSE,
              [extra.split()[0]])
     case("--one-at-a-time on a deck-box log", "locate {sio} --out {out} --one-at-a-time",

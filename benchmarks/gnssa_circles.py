@@ -14,9 +14,15 @@ column) or ``deep`` (0.1 through the column only). Each is located with the defa
 Reported per length and water: the centre's median horizontal error and sd, how often the
 95 % intervals of the centre's east and north cover the truth, and what ``auto`` chose.
 
-Writes the section ``gnssa-circles`` of ``docs/gnssa.md`` and prints it::
+With ``--shift`` the array is located as a rigid body (``shift=True``, GARPOS's
+fixed-geometry solution) from priors that are the true geometry moved by (1, -2, 0.5) m, in
+the simulator's gradients only: there the deep term cannot trade with the transponders one
+by one, and ``auto`` keeps it.
 
-    python benchmarks/gnssa_circles.py [N_SEEDS] [--hours "6 2 1"] [--jobs J]
+Writes the section ``gnssa-circles`` (``gnssa-circles-shift``) of ``docs/gnssa.md`` and prints
+it::
+
+    python benchmarks/gnssa_circles.py [N_SEEDS] [--hours "6 2 1"] [--shift] [--jobs J]
 """
 
 from __future__ import annotations
@@ -52,7 +58,11 @@ FITS = ("off", "on", "shallow")
 Z95 = float(norm.ppf(0.975))
 
 
-def one(hours, water, seed):
+#: ``--shift``: the priors are the true geometry moved by this (east, north, up; m)
+SHIFT = (1.0, -2.0, 0.5)
+
+
+def one(hours, water, seed, shift=False):
     """Return ``(auto, {fit: (err, sd)})`` of one campaign; ``auto`` is what auto fits."""
     g = WATERS[water]
     sim = simulate_gnssa(hours=hours, rng=seed, speed_model="field", track="circle",
@@ -60,27 +70,34 @@ def one(hours, water, seed):
                          **({} if g is None else {"shallow_gradient": g[0],
                                                   "deep_gradient": g[1]}))
     raw = sim.raw()
-    truth = sim.truth["transponders"][["east", "north", "up"]].to_numpy().mean(axis=0)
-    shots, priors = array_shots(raw), sim.header["transponders"]
+    true = sim.truth["transponders"][["east", "north", "up"]].to_numpy()
+    if shift:
+        raw.header["transponders"].loc[:, ["east", "north", "up"]] = true + np.array(SHIFT)
+    truth = true.mean(axis=0)
+    shots, priors = array_shots(raw), raw.header["transponders"]
     auto = ("off" if not gradient_gate(shots, priors)[0]
-            else "on" if deep_gradient_gate(shots, priors)[0] else "shallow")
+            else "on" if deep_gradient_gate(shots, priors, shift)[0] else "shallow")
     out = {}
     for fit in FITS:
-        m, C = locate_array_survey(raw, gradients=fit).fits["array"].centre()
+        res = locate_array_survey(raw, gradients=fit, shift=True if shift else None)
+        m, C = res.fits["array"].centre()
         out[fit] = (m - truth, np.sqrt(np.diag(C)))
     return auto, out
 
 
-def report(rows, n_seeds, hours_list, seconds, jobs):
+def report(rows, n_seeds, hours_list, seconds, jobs, shift=False):
     """Return the Markdown section."""
     lines = [
         f"Written by `python benchmarks/gnssa_circles.py {n_seeds} --hours "
-        f"\"{' '.join(f'{h:g}' for h in hours_list)}\" --jobs {jobs}` ({machine()}; "
-        f"{seconds:.0f} s; git {commit()}).",
+        f"\"{' '.join(f'{h:g}' for h in hours_list)}\"{' --shift' if shift else ''} --jobs "
+        f"{jobs}` ({machine()}; {seconds:.0f} s; git {commit()}).",
         "",
         f"{n_seeds} campaigns per row (seeds 0-{n_seeds - 1}; a circle of radius 0.9 depths "
         "about the array, shots every 20 s, the sound-speed field, the water's gradients as "
-        "named), each located with `gradients=\"off\"`, `\"on\"` (both terms) and "
+        "named"
+        + (f"; located as a rigid body, `shift=True`, from the true geometry moved by "
+           f"{SHIFT} m" if shift else "")
+        + "), each located with `gradients=\"off\"`, `\"on\"` (both terms) and "
         "`\"shallow\"`. Horizontal error and sd of the centre (cm, median; the sd is the rms of "
         "east's and north's); the 95 % intervals of its east and north covering the truth "
         f"(% of {2 * n_seeds}).",
@@ -107,18 +124,23 @@ def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("seeds", nargs="?", type=int, default=20)
     p.add_argument("--hours", default="6 2 1", help="campaign lengths (default %(default)s)")
+    p.add_argument("--shift", action="store_true",
+                   help="a rigid shift from the true geometry moved (the simulator's gradients)")
     p.add_argument("--jobs", type=int, default=1)
     args = p.parse_args(argv)
     hours_list = [float(v) for v in args.hours.split()]
-    keys = [(h, w) for h in hours_list for w in WATERS]
+    waters = ["strong"] if args.shift else list(WATERS)
+    keys = [(h, w) for h in hours_list for w in waters]
     t0 = time.perf_counter()
-    tasks = [(h, w, s) for h, w in keys for s in range(args.seeds)]
+    tasks = [(h, w, s, args.shift) for h, w in keys for s in range(args.seeds)]
     with ProcessPoolExecutor(args.jobs) as pool:
         done = list(pool.map(one, *zip(*tasks, strict=True)))
     rows = {k: done[i * args.seeds:(i + 1) * args.seeds] for i, k in enumerate(keys)}
-    text = report(rows, args.seeds, hours_list, time.perf_counter() - t0, args.jobs)
+    text = report(rows, args.seeds, hours_list, time.perf_counter() - t0, args.jobs,
+                  args.shift)
     print(text)
-    write_section(ROOT / "docs" / "gnssa.md", "gnssa-circles", text)
+    write_section(ROOT / "docs" / "gnssa.md",
+                  "gnssa-circles" + ("-shift" if args.shift else ""), text)
 
 
 if __name__ == "__main__":

@@ -59,9 +59,8 @@ def _check_array_options(args, fmt):
                           "--speed-intervals replaces; give one of the two")
     if getattr(args, "gradients", None) in ("on", "shallow") and intervals == 0:
         raise OptionError(f"--gradients {args.gradients} with --speed-intervals 0: the "
-                          "gradients need a "
-                          "sound speed varying in time (the smooth default or "
-                          "--speed-intervals N > 0)")
+                          "gradients need a sound speed varying in time (the smooth default "
+                          "or --speed-intervals N > 0)")
     if getattr(args, "flags", None) is not None and fmt != "garpos":
         raise OptionError(f"--flags: for GARPOS surveys only (a {fmt} survey has no flag "
                           "column)")

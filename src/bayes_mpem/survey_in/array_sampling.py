@@ -1136,17 +1136,17 @@ def _check_forced_gradients(shots, raw, gradients, speed_intervals):
     is all but flat along them and no chain converges (a 0.5-hour campaign: R-hat 2.2 after
     10,700 steps, 2.4 GB, stopped at 400 s; docs/gnssa.md). The EM still fits them if asked.
     """
-    from .array_survey import gradient_gate
+    from .array_survey import _gradient_choice, gradient_gate
 
-    if not (gradients is True or gradients in ("on", "shallow")):
+    asked = _gradient_choice(gradients)
+    if asked not in ("on", "shallow"):
         return
     ok, why = gradient_gate(shots, raw.header["transponders"], speed_intervals)
     if not ok:
-        asked = "on" if gradients is True else gradients
         raise InputError(f"--gradients {asked} with --sample (gradients={asked!r}): the gate "
                          f"would leave the gradients out ({why}); their unpenalised constant "
-                         "and trend "
-                         "are then all but undetermined and the posterior cannot be sampled. "
+                         "and trend are then all but undetermined and the posterior cannot be "
+                         "sampled. "
                          "Sample with --gradients auto or off, or fit them by EM without "
                          "--sample")
 

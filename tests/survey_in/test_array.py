@@ -545,7 +545,7 @@ def test_a_last_m_step_stopped_short_is_not_called_converged(monkeypatch):
 
 def test_sampling_refuses_forced_gradients_however_they_are_asked_for():
     """``--sample`` refuses gradients the gate leaves out, whether asked as "on", "shallow",
-    True or a NumPy bool (the last slipped past the check before it used ``_gradient_choice``)."""
+    True or a NumPy bool (the last slipped past the check before it used ``gradient_choice``)."""
     from bayes_mpem.survey_in.array_sampling import locate_array_survey_bayes
 
     raw = simulate_gnssa(rng=0, hours=0.5, shot_interval=30.0).raw()

@@ -1136,9 +1136,9 @@ def _check_forced_gradients(shots, raw, gradients, speed_intervals):
     is all but flat along them and no chain converges (a 0.5-hour campaign: R-hat 2.2 after
     10,700 steps, 2.4 GB, stopped at 400 s; docs/gnssa.md). The EM still fits them if asked.
     """
-    from .array_survey import _gradient_choice, gradient_gate
+    from .array_survey import gradient_choice, gradient_gate
 
-    asked = _gradient_choice(gradients)
+    asked = gradient_choice(gradients)
     if asked not in ("on", "shallow"):
         return
     ok, why = gradient_gate(shots, raw.header["transponders"], speed_intervals)

@@ -520,8 +520,24 @@ def deep_gradient_gate(shots, priors, shift=False):
                    "trade with its horizontal position, so the shallow one only")
 
 
-def _gradient_choice(gradients):
-    """Return ``"auto"``, ``"on"``, ``"shallow"`` or ``"off"`` from ``gradients``."""
+def gradient_choice(gradients) -> str:
+    """Return the ``gradients`` argument as one of :data:`GRADIENT_CHOICES`.
+
+    Parameters
+    ----------
+    gradients : None, bool or str
+        None is ``"auto"``; True (or a NumPy True) ``"on"``, False ``"off"``; a string of
+        :data:`GRADIENT_CHOICES` as it is.
+
+    Returns
+    -------
+    str
+
+    Raises
+    ------
+    InputError
+        For any other value.
+    """
     if gradients is None:
         return "auto"
     if isinstance(gradients, bool | np.bool_):
@@ -692,7 +708,7 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
     shift = auto_shift if shift is None else bool(shift)
     if shift and not auto_shift:
         fixed = None
-    choice = _gradient_choice(gradients)
+    choice = gradient_choice(gradients)
     gate, why = gradient_gate(shots, h["transponders"], speed_intervals)
     deep, why_deep = deep_gradient_gate(shots, h["transponders"], shift)
     if choice == "auto":

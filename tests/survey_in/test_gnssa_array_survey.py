@@ -19,7 +19,7 @@ from bayes_mpem.survey_in.array_sampling import (
     ArrayLogPosterior,
     ConditionalProposal,
 )
-from bayes_mpem.survey_in.array_survey import array_shots, locate_array_survey
+from bayes_mpem.survey_in.array_survey import array_shots, locate_array_survey, site_priors
 from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa
 from bayes_mpem.survey_in.result import _solution_text, not_fitted_note
 from bayes_mpem.survey_in.survey import is_array, locate_survey
@@ -277,7 +277,9 @@ def test_flagged_shots_are_left_out_unless_reclassified(tmp_path, capsys):
     assert not np.isin(fit.rows, np.flatnonzero(flagged)).any()
     # the same as the campaign without those shots: the flags decide, not the EM
     kept = locate_array(array_shots(raw)[~flagged].reset_index(drop=True),
-                        raw.header["transponders"], **_same_model(fit))
+                        raw.header["transponders"], **_same_model(fit),
+                        **dict(zip(("prior_sd", "centre_sd"), site_priors(raw.header),
+                                   strict=True)))
     np.testing.assert_allclose(fit.enu, kept.enu, rtol=0, atol=1e-6)
     re = locate_array_survey(raw, flags="reclassify")
     assert not_fitted_note(re.summary) is None

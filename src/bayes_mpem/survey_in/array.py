@@ -388,7 +388,7 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
                  sound_speed=None, outliers="uniform", time_range=None, fixed=None,
                  shift=False, gradients=False, max_iter=200, tol=1e-10,
                  earth_radius=None, along_sphere=False, exclude=None,
-                 correlation=None) -> ArrayLocateResult:
+                 correlation=None, prior_sd=None, centre_sd=None) -> ArrayLocateResult:
     """Locate every transponder of an array by EM, classifying each shot true or spurious.
 
     Parameters
@@ -455,6 +455,18 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
         generalised least squares; ``"auto"`` the three chosen by likelihood
         (:func:`~.noise.choose_correlation`), independent replies among the choices
         (``model["noise"]`` records the choice).
+    prior_sd : array_like, optional
+        ``(K, 3)`` (rows in ``transponders``' order): sds (m) of a Gaussian prior on each
+        transponder's east, north, up about its prior position (GARPOS's ``_dPos``
+        sigmas); inf or NaN: none (default, every coordinate free). Not used with
+        ``shift``.
+    centre_sd : array_like, optional
+        ``(3,)`` sds (m) of the array's common shift (GARPOS's ``dCentPos`` sigmas): with
+        ``shift`` the shift's prior; else felt alike by every transponder, which adds
+        ``centre_sd^2`` to the prior covariance of the coordinates that have a prior, and
+        between them. The priors enter the EM's M-step, the choice of the smoothing
+        weights and the intervals (``model["positions"]["prior"]``; docs/gnssa.md,
+        "Priors on the positions").
 
     Returns
     -------
@@ -517,7 +529,9 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
     if terms and not (smooth or speed_intervals):
         raise InputError("gradients: need a time-varying sound speed (the smooth default or "
                          "speed_intervals > 0)")
-    G = _free_map(K, _fixed_mask(fixed, transponders, ids, K), shift)
+    mask = _fixed_mask(fixed, transponders, ids, K)
+    G = _free_map(K, mask, shift)
+    prior = _prior_precision(prior_sd, centre_sd, transponders, ids, mask, shift)
     # the robust start: straight rays, one speed
     straight = ArrayTravelTimes(sub, index, K, np.ones((len(sub), 1)))
     resid, jac = _mapped(*weighted_residuals(t, straight), G, start, 1)
@@ -538,7 +552,11 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
     x_scale = np.array([1.0] * nf + [abs(coef0) / 1500.0] * k + [1e-4] * kg)
     resid, jac = _mapped(*weighted_residuals(t, model), G, start, k + kg)
     windows = np.array([[t[index == j].min(), t[index == j].max()] for j in range(K)])
-    H = Hg = None
+    H = Hg = Pr = None
+    if prior is not None:  # the positions' prior precision among all the parameters
+        Pr = np.zeros((nf + k + kg,) * 2)
+        Pr[:nf, :nf] = prior
+        Pr.flags.writeable = False
     if smooth:
         P = nf + k + kg
         H = np.zeros((P, P))
@@ -551,7 +569,10 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
                 Hg[a:a + k, a:a + k] = H0
             Hg.flags.writeable = False
         H.flags.writeable = False  # (the arrowhead keeps the parts of read-only matrices)
-        em = _SmoothArrayEM(t, resid, jac, x_scale, windows, index, outliers, H, coef0, Hg)
+        em = _SmoothArrayEM(t, resid, jac, x_scale, windows, index, outliers, H, coef0, Hg,
+                            Pr)
+    elif Pr is not None:
+        em = _PriorTravelTimeEM(t, resid, jac, x_scale, windows, index, outliers, prior)
     else:
         em = TravelTimeEM(t, resid, jac, x_scale, windows, index, outliers)
     run = em.run(phi, sigma_min=1e-7, tol=tol, max_iter=max_iter)
@@ -559,7 +580,7 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
     lam, lam_g = (run.params.lam, run.params.lam_g) if smooth else (None, None)
     clusters = sub["t_tx"].to_numpy() if "t_tx" in sub.columns else np.arange(len(sub))
     refit, noise = _correlated_refit(correlation, resid, jac, phi, p, sub, index, H, Hg, lam,
-                                     lam_g, sigma)
+                                     lam_g, sigma, Pr)
     if refit is not None:
         phi, sigma, lam, lam_g, J, r = refit
         clusters = np.arange(len(r))  # whitened rows: independent
@@ -568,12 +589,14 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
     smoothing = None
     if smooth:
         cov_phi, cov_model_phi, smoothing = _smooth_covariance(
-            J, r, phi, H, sigma, lam, clusters, Hg, lam_g)
+            J, r, phi, H, sigma, lam, clusters, Hg, lam_g, Pr, nf)
         if Hg is not None:
             smoothing.update(gradient_weight=float(lam_g),
                              log10_gradient_weight=float(np.log10(lam_g)))
         smoothing.update(knot_minutes=(time_range[1] - time_range[0]) / 60.0 / equal,
                          knot_minutes_asked=float(knot_minutes))
+    elif Pr is not None:
+        cov_phi, cov_model_phi = _prior_covariance(J, r, clusters, sigma, Pr)
     else:
         cov_phi = robust_covariance(J, r, clusters)
         cov_model_phi = np.linalg.pinv(J.T @ J) * sigma**2
@@ -605,7 +628,9 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
                "unit": unit, "n_invalid": n_bad, "smoothing": smoothing,
                "earth_radius": None if earth_radius is None else float(earth_radius),
                "along_sphere": bool(along_sphere), "gradients": grad_record,
-               "positions": _positions_record(G, K, shift), "noise": noise})
+               "positions": _positions_record(G, K, shift, prior, prior_sd, centre_sd, mask,
+                                              transponders, ids),
+               "position_prior": prior, "noise": noise})
 
 
 def to_sphere(east, north, up, radius):
@@ -810,12 +835,59 @@ def _fixed_mask(fixed, transponders, ids, K):
     """Return the ``(K, 3)`` mask of fixed coordinates, in the order of those located."""
     if fixed is None:
         return np.zeros((K, 3), bool)
-    mask = np.asarray(fixed, bool)
-    if mask.shape != (len(transponders), 3):
-        raise InputError(f"fixed: expected a ({len(transponders)}, 3) mask (east, north, up of "
-                         f"each transponder), got shape {mask.shape}")
+    return _per_transponder(fixed, transponders, ids, "fixed", bool)
+
+
+def _prior_precision(prior_sd, centre_sd, transponders, ids, mask, shift):
+    """Return the prior precision (m^-2) of the free position parameters, or None.
+
+    GARPOS's a priori covariance of the positions (``setup_model.init_position``, read to
+    learn the model): each transponder's offset ``dPos`` with the sds ``prior_sd`` and
+    the array's common shift ``dCentPos`` with ``centre_sd``, so a transponder's prior is
+    ``N(0, sd^2 + c^2)`` with the common part ``c^2`` shared by all. A coordinate without
+    a prior (an sd of inf or NaN) tells nothing of the others and is left out; a fixed one
+    is not a parameter. With ``shift`` the parameters are the shift's, and its prior is
+    ``centre_sd``.
+    """
+    if prior_sd is None and centre_sd is None:
+        return None
+    K = len(ids)
+    c = np.zeros(3) if centre_sd is None else np.asarray(centre_sd, float)
+    if c.shape != (3,) or np.any(np.isnan(c)) or np.any(c < 0):
+        raise InputError(f"centre_sd: expected three sds of 0 or more (m; inf: none), got "
+                         f"{centre_sd!r}")
+    if shift:
+        sd, free = c, ~mask[0]
+    else:
+        sd = (np.full((K, 3), np.inf) if prior_sd is None
+              else _per_transponder(prior_sd, transponders, ids, "prior_sd", float))
+        bad = ~(np.isnan(sd) | (sd > 0))
+        if np.any(bad & ~mask):
+            raise InputError("prior_sd: expected sds above 0 (m; inf or NaN: no prior; a "
+                             "coordinate held at its prior is given by fixed), got "
+                             f"{sd[bad & ~mask].tolist()}")
+        sd, free = np.where(np.isnan(sd), np.inf, sd).ravel(), ~mask.ravel()
+    sd = sd[free]
+    has = np.isfinite(sd) & (sd > 0)  # a shift's sd of 0: no prior (GARPOS: not solved)
+    if not has.any():
+        return None
+    cov = np.diag(sd[has] ** 2)
+    if not shift:  # the common shift, felt alike by every transponder's coordinate
+        axis = np.tile(np.arange(3), K)[free][has]
+        cov = cov + np.where(axis[:, None] == axis[None, :], c[axis][:, None] ** 2, 0.0)
+    out = np.zeros((free.sum(), free.sum()))
+    out[np.ix_(has, has)] = np.linalg.inv(cov)
+    return 0.5 * (out + out.T)
+
+
+def _per_transponder(values, transponders, ids, name, dtype):
+    """Return ``(K, 3)`` rows of ``values`` (in ``transponders``' order) for the ``ids`` located."""
+    arr = np.asarray(values, dtype)
+    if arr.shape != (len(transponders), 3):
+        raise InputError(f"{name}: expected a ({len(transponders)}, 3) array (east, north, up "
+                         f"of each transponder), got shape {arr.shape}")
     order = {str(t): i for i, t in enumerate(transponders.index)}
-    return mask[[order[t] for t in ids]]
+    return arr[[order[t] for t in ids]]
 
 
 def _free_map(K, mask, shift):
@@ -887,10 +959,32 @@ def _mapped(resid, jac, G, start, k):
     return r, j
 
 
-def _positions_record(G, K, shift):
-    """Return what was solved for the positions (``summary.json``)."""
-    return {"mode": "rigid shift of the prior geometry" if shift else "each transponder",
-            "n_free": int(G.shape[1]), "n_fixed": int((3 if shift else 3 * K) - G.shape[1])}
+def _positions_record(G, K, shift, prior, prior_sd, centre_sd, mask, transponders, ids):
+    """Return what was solved for the positions (``summary.json``), with their prior."""
+    out = {"mode": "rigid shift of the prior geometry" if shift else "each transponder",
+           "n_free": int(G.shape[1]), "n_fixed": int((3 if shift else 3 * K) - G.shape[1])}
+    if prior is None:
+        out["prior"] = None
+        return out
+
+    def sds(v, fixed):
+        return [None if f or not np.isfinite(x) else float(x) for x, f in
+                zip(v, fixed, strict=True)]
+
+    c = np.zeros(3) if centre_sd is None else np.asarray(centre_sd, float)
+    rec = {"n_with_prior": int(np.count_nonzero(np.diag(prior) > 0)),
+           "kind": "Gaussian about the prior positions, sds in m (GARPOS's a priori covariance "
+                   "of the site file's sigmas)"}
+    if shift:
+        rec["shift_sd"] = sds(c, mask[0])
+    else:
+        sd = (np.full((K, 3), np.inf) if prior_sd is None
+              else _per_transponder(prior_sd, transponders, ids, "prior_sd", float))
+        rec["transponder_sd"] = {t: sds(np.where(np.isnan(sd[j]), np.inf, sd[j]), mask[j])
+                                 for j, t in enumerate(ids)}
+        rec["centre_sd"] = [float(x) for x in c]
+    out["prior"] = rec
+    return out
 
 
 class _SmoothFit(NamedTuple):
@@ -1230,12 +1324,52 @@ def _choose_weight(J, r, theta, H, sigma, lam, H_fixed):
     return float(10.0 ** np.clip(best, x[i] - h, x[i] + h)), curve
 
 
+def _plus(*Ms):
+    """Sum of the matrices given (None left out); None where every one is None."""
+    Ms = [M for M in Ms if M is not None]
+    if not Ms:
+        return None
+    out = Ms[0]
+    for M in Ms[1:]:
+        out = out + M
+    return out
+
+
+class _PriorTravelTimeEM(TravelTimeEM):
+    """:class:`TravelTimeEM` with a Gaussian prior on the free positions (``speed_intervals``).
+
+    The M-step holds ``sigma`` at its current value and minimises ``||r||^2 / sigma^2 +
+    phi' P phi`` (``P`` the prior precision of the first ``phi``): the prior enters
+    ``least_squares`` as rows ``sigma R phi`` (``P = R'R``), and ``sigma`` is then the
+    true replies' scatter alone.
+    """
+
+    def __init__(self, t, resid, jac, x_scale, windows, index, outliers, prior):
+        super().__init__(t, resid, jac, x_scale, windows, index, outliers)
+        vals, vecs = np.linalg.eigh(prior)
+        self.root = (vecs * np.sqrt(np.clip(vals, 0.0, None))).T  # R'R = P
+
+    def solve(self, fit, p):
+        """Return the parameters of least ``||r||^2 / sigma^2 + phi' P phi`` from ``fit``'s."""
+        R, nf = fit.sigma * self.root, self.root.shape[0]
+
+        def resid(th):
+            return np.concatenate([self.resid(th, p), R @ th[:nf]])
+
+        def jac(th):
+            J = self.jac(th, p)
+            return np.vstack([J, np.hstack([R, np.zeros((nf, J.shape[1] - nf))])])
+
+        return least_squares(resid, fit.theta, jac=jac, x_scale=self.x_scale).x
+
+
 class _SmoothArrayEM(TravelTimeEM):
     """:class:`TravelTimeEM` with a roughness penalty on the speed (docs/gnssa.md)."""
 
-    def __init__(self, t, resid, jac, x_scale, windows, index, outliers, H, coef0, Hg=None):
+    def __init__(self, t, resid, jac, x_scale, windows, index, outliers, H, coef0, Hg=None,
+                 prior=None):
         super().__init__(t, resid, jac, x_scale, windows, index, outliers)
-        self.H, self.Hg = H, Hg
+        self.H, self.Hg, self.prior = H, Hg, prior
         self.n_steps = 0
         self.gn = {}  # the last M-step's Gauss-Newton: converged
 
@@ -1257,7 +1391,7 @@ class _SmoothArrayEM(TravelTimeEM):
         if self.Hg is not None and self.n_steps > FREEZE_AFTER:  # two weights: held, so
             lam = fit.lam  # that choosing them in turn cannot alternate for ever
         elif self.Hg is None:
-            lam = choose_smoothing(pre, r0, fit.theta, self.H, fit.sigma, fit.lam)
+            lam = choose_smoothing(pre, r0, fit.theta, self.H, fit.sigma, fit.lam, self.prior)
         else:
             if lam_g is None:  # start the gradients stiff: they enter as they are supported
                 lam = fit.lam
@@ -1268,11 +1402,14 @@ class _SmoothArrayEM(TravelTimeEM):
                         scale = _weight_scale(pre[0], self.H, fit.sigma)
                     stiff = 10.0 ** WEIGHT_BOUNDS[1] * scale
                     lam = choose_smoothing(pre, r0, fit.theta, self.H, fit.sigma, None,
-                                           stiff * self.Hg)
+                                           _plus(stiff * self.Hg, self.prior))
                 lam_g = 1e6 * lam
-            lam = choose_smoothing(pre, r0, fit.theta, self.H, fit.sigma, fit.lam, lam_g * self.Hg)
-            lam_g = choose_smoothing(pre, r0, fit.theta, self.Hg, fit.sigma, lam_g, lam * self.H)
-        Q = lam * self.H if self.Hg is None else lam * self.H + lam_g * self.Hg
+            lam = choose_smoothing(pre, r0, fit.theta, self.H, fit.sigma, fit.lam,
+                                   _plus(lam_g * self.Hg, self.prior))
+            lam_g = choose_smoothing(pre, r0, fit.theta, self.Hg, fit.sigma, lam_g,
+                                     _plus(lam * self.H, self.prior))
+        Q = _plus(lam * self.H if self.Hg is None else lam * self.H + lam_g * self.Hg,
+                  self.prior)
         theta = penalised_gauss_newton(lambda th: self.resid(th, p),
                                        lambda th: self.jac(th, p), fit.theta,
                                        fit.sigma**2 * Q, start=(r0, J, pre), report=self.gn)
@@ -1431,7 +1568,8 @@ def _accelerated(v, th, r, J, resid, c, s, h=0.1, alpha=0.75):
     return v + 0.5 * a
 
 
-def _correlated_refit(correlation, resid, jac, phi, p, sub, index, H, Hg, lam, lam_g, sigma):
+def _correlated_refit(correlation, resid, jac, phi, p, sub, index, H, Hg, lam, lam_g, sigma,
+                      prior=None):
     """Refit the EM's true replies under GARPOS's correlated noise (:mod:`.noise`).
 
     Returns ``(refit, record)``: ``refit`` None for independent noise, else ``(phi, sigma,
@@ -1440,7 +1578,8 @@ def _correlated_refit(correlation, resid, jac, phi, p, sub, index, H, Hg, lam, l
     with ``refit_rounds``, ``refit_converged`` and ``refit_gauss_newton_converged``. The
     rounds (weights chosen, then one penalised Gauss-Newton solve) go on until neither weight
     moves by more than 1 %, at most :data:`REFIT_ROUNDS`; a :class:`LocateWarning` where they
-    stop short, and where the last round's Gauss-Newton ran out of steps.
+    stop short, and where the last round's Gauss-Newton ran out of steps. ``prior``: the
+    positions' prior precision among all the parameters (None: none).
     """
     spec = correlation_spec(correlation)
     if spec is None:
@@ -1454,7 +1593,7 @@ def _correlated_refit(correlation, resid, jac, phi, p, sub, index, H, Hg, lam, l
             return None, _noise_record(0.0, None, None, None, keep.size)
         (tau, share, white), table = choose_correlation(
             time, index[keep], r0,
-            evidence=_noise_evidence(jac(phi)[keep], r0, phi, H, Hg, lam, lam_g))
+            evidence=_noise_evidence(jac(phi)[keep], r0, phi, H, Hg, lam, lam_g, prior))
     else:
         tau, share, white = spec
     if tau <= 0.0:
@@ -1494,16 +1633,18 @@ def _correlated_refit(correlation, resid, jac, phi, p, sub, index, H, Hg, lam, l
         pre = normal(J, r)  # the weights are chosen on it; the first step uses it
         if H is not None:
             before = (lam, lam_g)
-            lam = choose_smoothing(pre, r, phi, H, sigma, lam, None if Hg is None else lam_g * Hg)
+            lam = choose_smoothing(pre, r, phi, H, sigma, lam,
+                                   _plus(None if Hg is None else lam_g * Hg, prior))
             Q = lam * H
             if Hg is not None:
-                lam_g = choose_smoothing(pre, r, phi, Hg, sigma, lam_g, Q)
+                lam_g = choose_smoothing(pre, r, phi, Hg, sigma, lam_g, _plus(Q, prior))
                 Q = Q + lam_g * Hg
+            Q = _plus(Q, prior)
             settled = rounds > 1 and all(  # the EM's weights come from independent replies
                 a is None or abs(np.log(b / a)) <= 0.01 for a, b in zip(before, (lam, lam_g),
                                                                        strict=True))
         else:
-            Q = np.zeros((phi.size, phi.size))
+            Q = np.zeros((phi.size, phi.size)) if prior is None else prior
         phi = penalised_gauss_newton(rw, jw, phi, sigma**2 * Q, start=(r, J, pre),
                                      normal=normal, report=gn)
         r = rw(phi)
@@ -1562,20 +1703,22 @@ def correlation_spec(correlation):
     return tau, share, white
 
 
-def _noise_evidence(J0, r0, phi, H, Hg, lam, lam_g):
+def _noise_evidence(J0, r0, phi, H, Hg, lam, lam_g, prior=None):
     """Return ``evidence(whitener)``: the linearised log marginal likelihood under ``E``.
 
     The fit's Jacobian ``J0`` and residuals ``r0`` (the true replies) whitened, ``sigma``
     at its estimate, the speed's weight chosen again (the gradients' held): GARPOS's
-    -ABIC / 2 with ``-n log sigma - log|E| / 2`` kept, as they differ between ``E``.
+    -ABIC / 2 with ``-n log sigma - log|E| / 2`` kept, as they differ between ``E``. The
+    positions' ``prior`` (None: flat) enters as a fixed precision.
     """
-    fixed = None if Hg is None else lam_g * Hg
+    fixed = _plus(None if Hg is None else lam_g * Hg, prior)
 
     def evidence(w):
         J, r = w.whiten(J0), w.whiten(r0)
         sigma = float(np.sqrt(r @ r / r.size))
         if H is None:  # unpenalised: a flat prior, the same constant for every E
-            ll = log_evidence(J, r, phi, np.zeros((phi.size, phi.size)), sigma, 1.0, 0)[0]
+            ll = log_evidence(J, r, phi, np.zeros((phi.size, phi.size)), sigma, 1.0, 0,
+                              prior)[0]
         else:
             ll = choose_smoothing(J, r, phi, H, sigma, lam, fixed, with_evidence=True)[1]
         return ll - r.size * np.log(sigma) - 0.5 * w.logdet
@@ -1659,7 +1802,8 @@ def _scaled_inverse(A, factor=None):
     return 0.5 * (inv + inv.T)
 
 
-def _grid_average(J, r, theta, H, sigma, lam, H_fixed, meat, n_clusters, grid, mid_row=None):
+def _grid_average(J, r, theta, H, sigma, lam, H_fixed, meat, n_clusters, grid, mid_row=None,
+                  free=None):
     """Posterior modes and covariances over weights ``lam 10^x``, and their average.
 
     ``J`` is the Jacobian of the weighted residuals ``r``, or :func:`normal_equations`'
@@ -1681,7 +1825,9 @@ def _grid_average(J, r, theta, H, sigma, lam, H_fixed, meat, n_clusters, grid, m
     campaign of a ship holding station, where the evidence was flat, the stiffest row gave
     the array centre a negative variance). Where every row is so, all are kept (the
     gradients on a 2-hour circle, where the deep gradient trades with the positions: the
-    intervals are then wide, and finite).
+    intervals are then wide, and finite). ``free``: the mask of the positions, where the
+    caller has it (default: the parameters neither penalty touches; a prior on the positions
+    is in ``H_fixed``).
 
     Returns
     -------
@@ -1702,7 +1848,9 @@ def _grid_average(J, r, theta, H, sigma, lam, H_fixed, meat, n_clusters, grid, m
     w /= w.sum()
     mid = int(np.argmin(np.abs(grid)))
     used = _grid_used(w)
-    free = np.diag(H) == 0 if H_fixed is None else (np.diag(H) == 0) & (np.diag(H_fixed) == 0)
+    if free is None:
+        free = (np.diag(H) == 0 if H_fixed is None else
+                (np.diag(H) == 0) & (np.diag(H_fixed) == 0))
     rows, dropped = [], []
     for k, x in enumerate(grid):
         if not used[k] and k != mid:
@@ -1785,25 +1933,29 @@ def _grid_used(w):
     return used
 
 
-def _smooth_covariance(J, r, theta, H, sigma, lam, clusters, Hg=None, lam_g=None):
+def _smooth_covariance(J, r, theta, H, sigma, lam, clusters, Hg=None, lam_g=None, prior=None,
+                       n_pos=None):
     """Covariance of a smooth-speed fit, averaged over the smoothing weights (docs/gnssa.md).
 
     Returns ``cov``, the model-based ``cov_model`` at ``lam`` and the ``smoothing`` record.
+    ``prior``: the positions' prior precision (the first ``n_pos`` parameters), a fixed
+    part of every row's prior.
     """
     S = _cluster_sums(clusters, J * r[:, None])
     n_clusters = S.shape[0]
     meat = S.T @ S / sigma**4
-    H_fixed = None if Hg is None else lam_g * Hg
+    H_fixed = _plus(None if Hg is None else lam_g * Hg, prior)
+    free = None if prior is None else np.arange(theta.size) < n_pos
     pre = normal_equations(J, r)  # both grids' (and the positions') normal equations
     w, cov, spread, rows, ll, dropped = _grid_average(pre, r, theta, H, sigma, lam, H_fixed,
-                                                      meat, n_clusters, WEIGHT_GRID)
+                                                      meat, n_clusters, WEIGHT_GRID, free=free)
     mid = int(np.argmin(np.abs(WEIGHT_GRID)))
     cov = cov + spread
     grad_grid = None
     if Hg is not None:
         v, cov_g, spread_g, rows_g, ll_g, dropped_g = _grid_average(
-            pre, r, theta, Hg, sigma, lam_g, lam * H, meat, n_clusters, GRADIENT_WEIGHT_GRID,
-            rows[mid])
+            pre, r, theta, Hg, sigma, lam_g, _plus(lam * H, prior), meat, n_clusters,
+            GRADIENT_WEIGHT_GRID, rows[mid], free)
         cov = cov + cov_g - rows[mid][3] + spread_g
         grad_grid = {"log10_weight": [float(np.log10(lam_g) + x) for x in GRADIENT_WEIGHT_GRID],
                      "log_evidence": [float(x - ll_g.max()) for x in ll_g],
@@ -1892,6 +2044,24 @@ def _cluster_sums(clusters, X):
         more = counts > j
         out[more] += rows[starts[more] + j]
     return out
+
+
+def _prior_covariance(J, r, clusters, sigma, prior):
+    """Covariances of an unpenalised fit whose positions have a prior (``speed_intervals``).
+
+    Returns ``(cov, cov_model)``: with ``A = J'J / sigma^2 + P`` (``P`` the prior precision),
+    the cluster-robust ``A^-1 (B G / (G - edf) + P) A^-1`` (``B`` the clusters' scores'
+    outer products over ``sigma^4``, ``edf = tr(A^-1 J'J) / sigma^2``), as each row of
+    :func:`_grid_average`, and the model-based ``A^-1``. Without a prior the first is
+    :func:`robust_covariance`.
+    """
+    S = _cluster_sums(clusters, J * r[:, None])
+    JtJ = J.T @ J
+    Ainv = _scaled_inverse(JtJ / sigma**2 + prior)
+    edf = float(np.sum(Ainv * JtJ) / sigma**2)
+    n = S.shape[0]
+    C = Ainv @ (S.T @ S / sigma**4 * n / max(n - edf, 1.0) + prior) @ Ainv
+    return 0.5 * (C + C.T), Ainv
 
 
 def robust_covariance(J, r, clusters) -> np.ndarray:

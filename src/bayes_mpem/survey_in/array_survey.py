@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 from scipy.stats import chi2
 
+from .._validate import check_choice
 from ..exceptions import InputError, LocateWarning
 from ..io.geodesy import MEAN_EARTH_RADIUS_M, earth_radius, enu_to_geodetic
 from ..io.raw import ARRAY_FORMATS, skip_reasons
@@ -375,7 +376,8 @@ def position_constraints(header, ids=None):
     GARPOS's convention: a sigma of 0 in ``<station>_dPos`` fixes that coordinate
     of that transponder; when every ``_dPos`` sigma is 0 and ``dCentPos`` has a
     sigma above 0, the array moves as a rigid body (the shift's coordinates with a
-    sigma of 0 fixed). Sigmas above 0 leave the coordinate free (no prior is added).
+    sigma of 0 fixed). Sigmas above 0 leave the coordinate free, with the prior of
+    :func:`site_priors`.
 
     Parameters
     ----------
@@ -413,6 +415,57 @@ def position_constraints(header, ids=None):
     return (zero if zero.any() else None), False
 
 
+def site_priors(header, ids=None, shift=False):
+    """Return the site file's sigmas as the priors of :func:`~.array.locate_array`.
+
+    GARPOS's a priori covariance of the positions: each ``<station>_dPos`` sigma above 0
+    is the sd (m) of a Gaussian prior on that coordinate about the prior position, and
+    ``dCentPos``'s sigmas are the sds of the array's common shift, felt by every
+    transponder (with ``shift``, the shift's own prior). A sigma of 0 fixes the coordinate
+    (:func:`position_constraints`); an absent one is no prior.
+
+    Parameters
+    ----------
+    header : dict
+        A survey's header (``position_sigmas``, ``centre_sigmas``).
+    ids : list of str, optional
+        The transponders, in the order of ``header["transponders"]`` (default its index).
+    shift : bool, default False
+        The fixed-geometry solution: only the shift's prior is returned.
+
+    Returns
+    -------
+    prior_sd : numpy.ndarray or None
+        ``(K, 3)``, inf where a coordinate has no prior (or is fixed); None where no
+        coordinate has one, or with ``shift``.
+    centre_sd : numpy.ndarray or None
+        ``(3,)``, 0 where the shift has no spread; None where the file gives none above 0.
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> sig = pd.DataFrame({"east": [3.0, 0.0], "north": [3.0, 0.0], "up": [1.0, 0.0]},
+    ...                    index=["A", "B"])
+    >>> sd, c = site_priors({"position_sigmas": sig, "centre_sigmas": [0.0] * 3},
+    ...                     ["A", "B"])
+    >>> sd.tolist(), c
+    ([[3.0, 3.0, 1.0], [inf, inf, inf]], None)
+    """
+    sig = header.get("position_sigmas")
+    cen = header.get("centre_sigmas")
+    cen = np.array([np.nan if v is None else v for v in (cen or [None] * 3)], float)
+    cen = np.where(np.isfinite(cen) & (cen > 0), cen, 0.0)
+    centre = cen if (cen > 0).any() else None
+    if shift or sig is None:
+        return None, centre
+    ids = list(header["transponders"].index) if ids is None else ids
+    s = sig.reindex([str(i) for i in ids])[["east", "north", "up"]].to_numpy(float)
+    s = np.where(np.isfinite(s) & (s > 0), s, np.inf)
+    return (s if np.isfinite(s).any() else None), centre
+
+
+#: The choices of ``position_prior`` (``locate --position-prior``).
+POSITION_PRIORS = ("site", "off")
 #: Least ``spread_over_depth`` of the track (:func:`track_geometry`) for the gradients.
 MIN_SPREAD = 0.1
 #: Horizontal distance from the array's centre, in depths, of a shot "over the array".
@@ -640,7 +693,7 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
                         speed_intervals=None, surface_depth=None,
                         knot_minutes=KNOT_MINUTES, shift=None,
                         gradients="auto", earth="sphere", flags="honour",
-                        correlation="auto") -> SurveyInResult:
+                        correlation="auto", position_prior="site") -> SurveyInResult:
     """Locate every transponder of a GNSS-A array survey together.
 
     Parameters
@@ -687,6 +740,11 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
         ``"auto"`` GARPOS's correlation in time and across transponders where the
         likelihood prefers it to independent replies; ``"off"`` (or None) independent
         (intervals cluster-robust by interrogation); ``(mu_t, mu_mt)`` given.
+    position_prior : {"site", "off"}, default "site"
+        ``"site"``: the site file's sigmas above 0 are Gaussian priors on the positions
+        (and on the array's shift), as GARPOS uses them (:func:`site_priors`);
+        ``"off"``: every coordinate not fixed is free. Only GARPOS's site files give
+        sigmas (``summary.json`` ``positions.prior``).
 
     Returns
     -------
@@ -708,6 +766,9 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
     shift = auto_shift if shift is None else bool(shift)
     if shift and not auto_shift:
         fixed = None
+    check_choice("position_prior", position_prior, POSITION_PRIORS)
+    prior_sd, centre_sd = (site_priors(h, shift=shift) if position_prior == "site"
+                           else (None, None))
     choice = gradient_choice(gradients)
     gate, why = gradient_gate(shots, h["transponders"], speed_intervals)
     deep, why_deep = deep_gradient_gate(shots, h["transponders"], shift)
@@ -733,7 +794,8 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
                            speed_intervals=speed_intervals, outliers=outliers,
                            knot_minutes=knot_minutes, fixed=fixed, shift=shift,
                            gradients=gradients, earth_radius=radius, along_sphere=not cartesian,
-                           exclude=flagged if honour else None, correlation=correlation)
+                           exclude=flagged if honour else None, correlation=correlation,
+                           prior_sd=prior_sd, centre_sd=centre_sd)
     except InputError as exc:  # too few shots: name the shots file
         raise InputError(f"{_shots_file(raw)}: {exc}") from None
     _check_below_transducer(raw, fit, shots)

@@ -471,8 +471,7 @@ class TravelTimeEM(EMModel):
         -------
         object
         """
-        theta = least_squares(self.resid, fit.theta, jac=self.jac, args=(p,),
-                              x_scale=self.x_scale).x
+        theta = self.solve(fit, p)
         r = self.resid(theta)
         sigma = float(np.sqrt(np.sum(p * r * r) / p.sum()))
         if self.index is None:
@@ -482,6 +481,23 @@ class TravelTimeEM(EMModel):
             shares = np.clip(np.bincount(self.index, p, k) / np.bincount(self.index, minlength=k),
                              1e-6, 1 - 1e-6)
         return _Fit(theta, r, sigma, shares)
+
+    def solve(self, fit, p):
+        """Return the weighted least-squares parameters from ``fit``'s (the M-step's solve).
+
+        Parameters
+        ----------
+        fit : object
+            The current parameters (the start).
+        p : numpy.ndarray
+            Probability that each ping is true (the weights).
+
+        Returns
+        -------
+        numpy.ndarray
+        """
+        return least_squares(self.resid, fit.theta, jac=self.jac, args=(p,),
+                             x_scale=self.x_scale).x
 
     def change(self, old, new, gain):
         """Return the change of ``sigma`` (s).

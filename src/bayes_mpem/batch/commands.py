@@ -12,7 +12,7 @@ from ..exceptions import InputError
 COMMANDS = {name: c.batch for name, c in ALL.items() if c.batch is not None}
 #: the options of an array survey's location (GARPOS, GNATSS): no TAT or lag
 ARRAY_OPTIONS = ("ci", "outliers", "ssp", "speed_intervals", "gradients", "knot_minutes",
-                 "flags", "correlation")
+                 "flags", "correlation", "position_prior")
 
 
 def run(command: str, inputs: dict, options: dict):
@@ -94,7 +94,7 @@ def locate_raw(raw, options: dict):
     # a SeaGap survey read as an array may have one transponder: the array's options at
     # their defaults are dropped (one speed for the smooth one), any other refused
     defaults = {"gradients": "auto", "knot_minutes": None, "flags": "honour",
-                "correlation": "auto"}
+                "correlation": "auto", "position_prior": "site"}
     given = []
     for key, default in defaults.items():
         if key in options and options.pop(key) != default:

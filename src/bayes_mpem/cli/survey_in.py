@@ -64,6 +64,9 @@ def _check_array_options(args, fmt):
     if getattr(args, "flags", None) is not None and fmt != "garpos":
         raise OptionError(f"--flags: for GARPOS surveys only (a {fmt} survey has no flag "
                           "column)")
+    if getattr(args, "position_prior", None) is not None and fmt != "garpos":
+        raise OptionError(f"--position-prior: for GARPOS surveys only (a {fmt} survey gives "
+                          "no sigmas of the prior positions)")
     if getattr(args, "no_lag_check", False):
         raise OptionError(f"--no-lag-check: for surveys located one transponder at a time (a "
                           f"{fmt} array survey has no lag check)")
@@ -98,8 +101,10 @@ def locate_kwargs(args) -> dict:
                     gradients=getattr(args, "gradients", None) or "auto",
                     knot_minutes=getattr(args, "knot_minutes", None),
                     flags=getattr(args, "flags", None) or "honour",
-                    correlation=getattr(args, "correlation", None) or "auto")
-    array_only = [o for o in ("gradients", "knot_minutes", "flags", "correlation")
+                    correlation=getattr(args, "correlation", None) or "auto",
+                    position_prior=getattr(args, "position_prior", None) or "site")
+    array_only = [o for o in ("gradients", "knot_minutes", "flags", "correlation",
+                              "position_prior")
                   if getattr(args, o, None) is not None]
     if array_only:
         raise OptionError(f"{', '.join('--' + o.replace('_', '-') for o in array_only)}: for "

@@ -431,7 +431,7 @@ def _jday(date: str) -> str:
 
 
 def write_garpos(out_dir, pings, header, *, site="SIM", campaign="0000.sim",
-                 date="2024-01-01") -> Path:
+                 date="2024-01-01", sigmas=(3.0, 3.0, 3.0)) -> Path:
     """Write a survey as GARPOS's site, shots and profile files; return the site file.
 
     Parameters
@@ -442,6 +442,9 @@ def write_garpos(out_dir, pings, header, *, site="SIM", campaign="0000.sim",
     header : dict
         ``lat``, ``lon``, ``height``, ``transponders``, ``atd_offset`` and ``ss_prof``.
     site, campaign, date : str
+    sigmas : tuple of float, default (3, 3, 3)
+        Every ``<station>_dPos``'s sigmas (east, north, up; m): the prior positions' sds,
+        which ``locate`` reads as Gaussian priors (0 holds the coordinate).
 
     Returns
     -------
@@ -461,9 +464,10 @@ def write_garpos(out_dir, pings, header, *, site="SIM", campaign="0000.sim",
              f" Longitude0  = {header['lon']:.8f}", f" Height0     = {header['height']:.2f}",
              f" Stations    = {' '.join(map(str, tp.index))}", "", "[Model-parameter]",
              "# MT_Pos     :   east  north  up  sigma_E  sigma_N  sigma_U  cov_NU  cov_UE  cov_EN"]
+    se, sn, su = (float(v) for v in sigmas)
     for st, r in tp.iterrows():
         lines.append(f" {st}_dPos    = {r['east']:11.4f} {r['north']:11.4f} {r['up']:11.4f}"
-                     "      3.0000      3.0000      3.0000   0.000e+00   0.000e+00   0.000e+00")
+                     f" {se:11.4f} {sn:11.4f} {su:11.4f}   0.000e+00   0.000e+00   0.000e+00")
     f, r_, d = np.asarray(header["atd_offset"], float)
     lines += [" dCentPos    =      0.0000      0.0000      0.0000      0.0000      0.0000"
               "      0.0000   0.000e+00   0.000e+00   0.000e+00",

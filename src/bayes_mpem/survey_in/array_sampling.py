@@ -102,6 +102,10 @@ class ArrayLogPosterior:
     set is the EM's: a reply called spurious is no evidence about its neighbours, and for
     an ambiguous reply the EM's class and the posterior's may disagree (docs/gnssa.md).
 
+    The positions' prior is the EM's: flat, or where the site file gave sigmas above 0 the
+    Gaussian of ``fit.model["position_prior"]`` about the prior positions
+    (:func:`~bayes_mpem.survey_in.array.locate_array`'s ``prior_sd`` and ``centre_sd``).
+
     Examples
     --------
     >>> from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa
@@ -179,10 +183,18 @@ class ArrayLogPosterior:
         # EM's covariance; a rigid shift moves every transponder alike
         free = np.any(np.asarray(fit.cov, float)[:P, :P] != 0.0, axis=1)
         if (m.get("positions") or {}).get("mode", "").startswith("rigid"):
-            self.B = np.tile(np.eye(3), (self.K, 1))[:, free[:3]] / np.sqrt(self.K)
+            G = np.tile(np.eye(3), (self.K, 1))[:, free[:3]]  # the EM's free parameters
+            self.B = G / np.sqrt(self.K)
         else:
-            self.B = np.eye(P)[:, free]
+            G = self.B = np.eye(P)[:, free]
         self.F = self.B.shape[1]
+        #: the positions' prior (the EM's ``position_prior``, a precision of its free
+        #: parameters ``phi = phi_em + prior_map u``), None where flat
+        self.prior = m.get("position_prior")
+        if self.prior is not None:
+            Gp = np.linalg.pinv(G)
+            self.prior_map = Gp @ self.B
+            self.phi_em = Gp @ (self.pos_em - np.asarray(fit.start, float)).ravel()
         #: ``(K, 3)``: which coordinates are sampled (the others stay at the prior)
         self.free = np.any(self.B != 0.0, axis=1).reshape(self.K, 3)
         pos_names = ([f"{a}_{t}" for t in self.ids for a in AXES] if self.F == P
@@ -236,6 +248,8 @@ class ArrayLogPosterior:
                 for j in range(kg // k):
                     a = self.F + k + j * k
                     prior[a:a + k, a:a + k] = self.lam_g * self.H
+        if self.prior is not None:
+            prior[:self.F, :self.F] = self.prior_map.T @ self.prior @ self.prior_map
         self._precisions = data, prior
         A = data + prior
         d = np.sqrt(np.maximum(np.diag(A), 1e-300))
@@ -386,6 +400,9 @@ class ArrayLogPosterior:
             ok &= (lk >= SMOOTHING_RANGE[0]) & (lk <= SMOOTHING_RANGE[1])
             lp += 0.5 * self.pen_rank * lk - 0.5 * np.exp(np.where(ok, lk, 0.0)) * (
                 self.pen_em + q)
+        if self.prior is not None:  # the positions' Gaussian prior about the prior positions
+            phi = self.phi_em + u[:, :F] @ self.prior_map.T
+            lp -= 0.5 * np.einsum("wi,ij,wj->w", phi, self.prior, phi)
         # a flat prior on each share: the Jacobian of the logit
         lp -= np.sum(np.logaddexp(0.0, lw) + np.logaddexp(0.0, -lw), axis=1)
         return np.where(ok, lp, -np.inf)
@@ -1155,14 +1172,14 @@ def locate_array_survey_bayes(raw, *, ci=0.95, outliers="uniform", ssp=None,
                               speed_intervals=None, gradients="auto", knot_minutes=None,
                               flags="honour", n_walkers=None, min_ess=1000.0, max_steps=20000,
                               n_draws=4000, rng: RNGLike = None, progress="auto",
-                              correlation="auto"):
+                              correlation="auto", position_prior="site"):
     """Locate a GNSS-A array by EM, then sample its posterior (``locate --sample``).
 
     Parameters
     ----------
     raw : RawSurvey
         A GARPOS or GNATSS survey (or a SeaGap survey of several transponders).
-    ci, outliers, ssp, speed_intervals, gradients, knot_minutes, flags
+    ci, outliers, ssp, speed_intervals, gradients, knot_minutes, flags, position_prior
         As for :func:`~bayes_mpem.survey_in.array_survey.locate_array_survey`
         (``knot_minutes=None``: its default).
     n_walkers, min_ess, max_steps, n_draws, progress
@@ -1194,7 +1211,8 @@ def locate_array_survey_bayes(raw, *, ci=0.95, outliers="uniform", ssp=None,
     _check_forced_gradients(shots, raw, gradients, speed_intervals)
     located = locate_survey(raw, ci=ci, outliers=outliers, ssp=ssp,
                             speed_intervals=speed_intervals, gradients=gradients, flags=flags,
-                            knot_minutes=knot_minutes, correlation=correlation)
+                            knot_minutes=knot_minutes, correlation=correlation,
+                            position_prior=position_prior)
     fit = located.fits["array"]
     post = sample_array(shots, fit, n_walkers=n_walkers, ci=ci, min_ess=min_ess,
                         max_steps=max_steps, n_draws=n_draws, rng=rng, progress=progress)

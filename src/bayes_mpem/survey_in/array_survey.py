@@ -9,7 +9,6 @@ import numpy as np
 import pandas as pd
 from scipy.stats import chi2
 
-from .._validate import check_choice
 from ..exceptions import InputError, LocateWarning
 from ..io.geodesy import MEAN_EARTH_RADIUS_M, earth_radius, enu_to_geodetic
 from ..io.raw import ARRAY_FORMATS, skip_reasons
@@ -166,9 +165,13 @@ def _positions_entry(fit, ci, shift, priors):
     transponder minus its prior position (the same for all), with their sd (0 for a
     coordinate the site file holds). Where a transponder was not located, the geometry
     still places it: ``centre_of_all`` is the mean of every prior position plus the shift,
-    comparable with a campaign that located them all.
+    comparable with a campaign that located them all. With a prior, ``prior["mostly_prior"]``
+    names the coordinates whose posterior sd is above :data:`PRIOR_DOMINANT` of their prior's
+    (the prior, not the shots, gives them over half of their precision).
     """
     out = dict(fit.model["positions"])
+    if out.get("prior"):
+        out["prior"] = dict(out["prior"], mostly_prior=_mostly_prior(fit, out["prior"]))
     if shift:
         d, sd = fit.enu[0] - fit.start[0], fit.sd[0]
         out["shift"] = {c: describe(v, s, ci) for c, v, s in
@@ -179,6 +182,27 @@ def _positions_entry(fit, ci, shift, priors):
                 "transponders": [str(t) for t in priors.index],
                 **{c: describe(v, s, ci) for c, v, s in
                    zip(("east", "north", "up"), mean, sd, strict=True)}}
+    return out
+
+
+#: A coordinate whose posterior sd is above this fraction of its prior sd is "mostly prior"
+#: (:func:`_positions_entry`): the prior gives it more than half of its precision.
+PRIOR_DOMINANT = float(np.sqrt(0.5))
+
+
+def _mostly_prior(fit, rec):
+    """Names (``"M11 east"``, ``"shift up"``) of the coordinates the prior mostly determines."""
+    axes = ("east", "north", "up")
+    if "shift_sd" in rec:
+        return [f"shift {a}" for a, p, s in zip(axes, rec["shift_sd"], fit.sd[0], strict=True)
+                if p and s > PRIOR_DOMINANT * p]
+    c = np.asarray(rec["centre_sd"], float)
+    out = []
+    for k, t in enumerate(fit.ids):
+        for j, a in enumerate(axes):
+            p = rec["transponder_sd"][t][j]
+            if p and fit.sd[k, j] > PRIOR_DOMINANT * np.hypot(p, c[j]):
+                out.append(f"{t} {a}")
     return out
 
 
@@ -766,7 +790,8 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
     shift = auto_shift if shift is None else bool(shift)
     if shift and not auto_shift:
         fixed = None
-    check_choice("position_prior", position_prior, POSITION_PRIORS)
+    if position_prior not in POSITION_PRIORS:
+        raise InputError(f"position_prior: expected 'site' or 'off', got {position_prior!r}")
     prior_sd, centre_sd = (site_priors(h, shift=shift) if position_prior == "site"
                            else (None, None))
     choice = gradient_choice(gradients)

@@ -375,7 +375,9 @@ class GnssaSimulation:
         if fmt == "garpos":
             from ..io.garpos import write_garpos
 
-            survey = write_garpos(out_dir, self.pings, self.header)
+            # the sigmas the priors were drawn with (a prior sd of 0 would hold it)
+            survey = write_garpos(out_dir, self.pings, self.header,
+                                  sigmas=self.settings.get("prior_sd", (3.0, 3.0, 3.0)))
         else:
             from ..io.gnatss import write_gnatss
 
@@ -771,7 +773,8 @@ def simulate_gnssa(*, n_transponders: int = 4, depth: float = 1500.0, hours: flo
             "shot_interval": shot_interval, "ship_speed": ship_speed, "sigma": sigma,
             "p_spurious": p_spurious, "p_missing": p_missing,
             "speed_amplitude": speed_amplitude, "atd_offset": list(map(float, atd_offset)),
-            "earth": earth, "schedule": schedule}
+            "earth": earth, "schedule": schedule,
+            "prior_sd": [float(v) for v in np.broadcast_to(prior_sd, 3)]}
     if track != "star" or track_radius is not None:
         sets.update(track=track, track_radius=radius)
     if field is not None:

@@ -240,19 +240,37 @@ def positions_line(summary: dict) -> str | None:
     str or None
         The rigid shift of the prior geometry with its sds (GARPOS's ``dCentPos`` of a
         fixed-geometry solution; a coordinate held by a sigma of 0 said so), or how many
-        coordinates a sigma of 0 held; None where every coordinate was solved.
+        coordinates a sigma of 0 held; then the priors of the sigmas above 0, naming the
+        coordinates the prior mostly determines. None where every coordinate was solved
+        freely.
     """
     pos = summary.get("positions") or {}
+    parts = []
     if "shift" in pos:
         d = pos["shift"]
-        return ("rigid shift of the prior geometry (fixed geometry): "
-                + ", ".join(f"{c} {d[c]['mean']:+.3f} +- {d[c]['sd']:.3f}" if d[c]["sd"] > 0
-                            else f"{c} held (sigma 0)" for c in ("east", "north", "up"))
-                + " m")
-    if pos.get("n_fixed"):
-        return (f"{pos['n_fixed']} of {pos['n_fixed'] + pos['n_free']} coordinates held at "
-                "their prior positions (sigma 0)")
-    return None
+        parts.append("rigid shift of the prior geometry (fixed geometry): "
+                     + ", ".join(f"{c} {d[c]['mean']:+.3f} +- {d[c]['sd']:.3f}" if d[c]["sd"] > 0
+                                 else f"{c} held (sigma 0)" for c in ("east", "north", "up"))
+                     + " m")
+    elif pos.get("n_fixed"):
+        parts.append(f"{pos['n_fixed']} of {pos['n_fixed'] + pos['n_free']} coordinates held "
+                     "at their prior positions (sigma 0)")
+    prior = pos.get("prior")
+    if prior:
+        if "shift_sd" in prior:
+            sds = [v for v in prior["shift_sd"] if v]
+        else:
+            sds = [v for row in prior["transponder_sd"].values() for v in row if v]
+            sds += [v for v in prior["centre_sd"] if v]
+        lo, hi = min(sds), max(sds)
+        span = f"{lo:g} m" if lo == hi else f"{lo:g}-{hi:g} m"
+        text = (f"Gaussian priors from the site file's sigmas on {prior['n_with_prior']} "
+                f"parameters (sd {span})")
+        most = prior.get("mostly_prior") or []
+        text += ("; the prior, not the shots, gives most of the precision of "
+                 + ", ".join(most) if most else "; the shots dominate every one")
+        parts.append(text)
+    return "; ".join(parts) if parts else None
 
 
 def gradients_line(summary: dict) -> str:

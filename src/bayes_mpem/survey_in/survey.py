@@ -65,7 +65,8 @@ def seagap_surface_depth(raw) -> float:
 
 def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", ssp=None,
                   speed_intervals=None, fit_lag=False, lag_check=False, one_at_a_time=False,
-                  gradients="auto", knot_minutes=None, flags="honour", correlation="auto"):
+                  gradients="auto", knot_minutes=None, flags="honour", correlation="auto",
+                  position_prior="site"):
     """Locate every transponder of a :class:`~bayes_mpem.io.raw.RawSurvey`.
 
     Parameters
@@ -109,6 +110,9 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
         An array survey: the replies' noise correlated in time and across
         transponders (:func:`locate_array_survey`); a one-transponder survey takes only
         the default.
+    position_prior : {"site", "off"}, default "site"
+        An array survey: the site file's sigmas as priors on the positions, or none
+        (:func:`locate_array_survey`).
 
     Returns
     -------
@@ -149,7 +153,8 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
             geo["knot_minutes"] = knot_minutes
         return locate_array_survey(raw, ci=ci, outliers=outliers, ssp=ssp,
                                    speed_intervals=speed_intervals, gradients=gradients,
-                                   flags=flags, correlation=correlation, **geo)
+                                   flags=flags, correlation=correlation,
+                                   position_prior=position_prior, **geo)
     if correlation != "auto":
         raise InputError(f"correlation={correlation!r}: for array surveys only (GARPOS, "
                          "GNATSS, SeaGap with two transponders or more)")

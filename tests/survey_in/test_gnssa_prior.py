@@ -1,0 +1,184 @@
+"""The site file's sigmas above 0 as Gaussian priors on the positions (GARPOS's a priori)."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from bayes_mpem.cli import main
+from bayes_mpem.exceptions import InputError
+from bayes_mpem.io.garpos import read_garpos, write_garpos
+from bayes_mpem.survey_in.array import _prior_precision, locate_array
+from bayes_mpem.survey_in.array_sampling import ArrayLogPosterior
+from bayes_mpem.survey_in.array_survey import array_shots, locate_array_survey, site_priors
+from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa
+from bayes_mpem.survey_in.result import positions_line
+
+IDS = ["A", "B", "C"]
+
+
+def _tp():
+    return pd.DataFrame(np.zeros((3, 3)), index=IDS, columns=["east", "north", "up"])
+
+
+def test_the_prior_covariance_is_garpos_s_dpos_plus_a_common_dcentpos():
+    sd = np.array([[1.0, 2.0, np.inf], [1.0, 2.0, 3.0], [np.nan, 2.0, 3.0]])
+    c = np.array([0.5, 0.0, 1.0])
+    mask = np.zeros((3, 3), bool)
+    mask[1, 0] = True  # B's east held: not a parameter
+    P = _prior_precision(sd, c, _tp(), IDS, mask, False)
+    assert P.shape == (8, 8)
+    # the parameters: A e n u, B n u, C e n u; A's up and C's east have no prior
+    has = np.array([1, 1, 0, 1, 1, 0, 1, 1], bool)
+    assert np.all(P[~has] == 0.0) and np.all(P[:, ~has] == 0.0)
+    sds = np.array([1.0, 2.0, 2.0, 3.0, 2.0, 3.0])
+    axis = np.array([0, 1, 1, 2, 1, 2])
+    cov = np.diag(sds**2) + np.where(axis[:, None] == axis[None, :], c[axis][:, None] ** 2, 0)
+    np.testing.assert_allclose(np.linalg.inv(P[np.ix_(has, has)]), cov, atol=1e-12)
+    # the shift's prior under a fixed geometry is dCentPos's own; a held axis is not a parameter
+    Ps = _prior_precision(None, [3.0, 3.0, 2.0], _tp(), IDS, np.tile([0, 0, 1], (3, 1)) > 0,
+                          True)
+    np.testing.assert_allclose(Ps, np.diag([1 / 9, 1 / 9]))
+    assert _prior_precision(np.full((3, 3), np.inf), None, _tp(), IDS, mask, False) is None
+
+
+@pytest.mark.parametrize("sd, centre, match", [
+    (np.zeros((3, 3)), None, "prior_sd: expected sds above 0"),
+    (-np.ones((3, 3)), None, "prior_sd: expected sds above 0"),
+    (np.ones((2, 3)), None, r"prior_sd: expected a \(3, 3\) array"),
+    (None, [1.0, np.nan, 1.0], "centre_sd: expected three sds"),
+    (None, [1.0, 1.0], "centre_sd: expected three sds"),
+])
+def test_bad_priors_are_named(sd, centre, match):
+    with pytest.raises(InputError, match=match):
+        _prior_precision(sd, centre, _tp(), IDS, np.zeros((3, 3), bool), False)
+
+
+@pytest.fixture(scope="module")
+def short_star():
+    """Half an hour of a star: one transponder's coordinates barely constrained."""
+    sim = simulate_gnssa(n_transponders=3, hours=0.5, rng=31)
+    return sim, array_shots(sim.raw())
+
+
+def test_a_prior_adds_its_precision_to_the_data_s(short_star):
+    """Unpenalised speed, independent replies: the model-based precisions add.
+
+    The prior positions 3 cm from the truth, within the prior's 5 cm (the simulator's are
+    metres off: a 5 cm prior about them is wrong, and the fit's sigma says so).
+    """
+    sim, shots = short_star
+    true = sim.truth["transponders"][["east", "north", "up"]]
+    tp = true + np.random.default_rng(0).normal(0.0, 0.03, (3, 3))
+    free = locate_array(shots, tp, speed_intervals=0)
+    sd = np.full((3, 3), 0.05)
+    with_prior = locate_array(shots, tp, speed_intervals=0, prior_sd=sd)
+    data_prec = np.linalg.inv(free.cov_model[:9, :9])
+    expect = np.linalg.inv(data_prec + np.eye(9) / 0.05**2)
+    got = with_prior.cov_model[:9, :9]
+    np.testing.assert_allclose(np.sqrt(np.diag(got)), np.sqrt(np.diag(expect)), rtol=0.05)
+    assert np.all(with_prior.sd < free.sd) and np.all(with_prior.sd < 0.05)
+    # the estimate moves towards the prior position, as a precision-weighted mean would
+    moved_free = np.abs(free.enu - free.start)
+    moved = np.abs(with_prior.enu - with_prior.start)
+    assert np.sum(moved) < np.sum(moved_free)
+    rec = with_prior.model["positions"]["prior"]
+    assert rec["n_with_prior"] == 9 and rec["transponder_sd"]["M01"] == [0.05] * 3
+
+
+@pytest.mark.parametrize("intervals", [None, 0])
+def test_a_vague_prior_changes_nothing_and_a_sharp_one_holds(short_star, intervals):
+    sim, shots = short_star
+    tp = sim.header["transponders"]
+    kw = dict(speed_intervals=intervals, correlation=None, gradients=False)
+    free = locate_array(shots, tp, **kw)
+    vague = locate_array(shots, tp, prior_sd=np.full((3, 3), 1e5), **kw)
+    np.testing.assert_allclose(vague.enu, free.enu, atol=1e-5)
+    np.testing.assert_allclose(vague.sd, free.sd, rtol=1e-3)
+    sharp = locate_array(shots, tp, prior_sd=np.full((3, 3), 1e-4), **kw)
+    np.testing.assert_allclose(sharp.enu, sharp.start, atol=5e-4)
+    assert np.all(sharp.sd <= 1.01e-4)
+
+
+def test_a_campaign_written_for_garpos_carries_its_prior_sds(tmp_path):
+    sim = simulate_gnssa(n_transponders=3, hours=0.4, rng=32, prior_sd=(2.0, 2.0, 4.0))
+    site = sim.write(tmp_path / "g", "garpos")["survey"]
+    raw = read_garpos(site)
+    sd, centre = site_priors(raw.header)
+    np.testing.assert_array_equal(sd, np.tile([2.0, 2.0, 4.0], (3, 1)))
+    assert centre is None
+    res = locate_array_survey(raw)
+    prior = res.summary["positions"]["prior"]
+    assert prior["transponder_sd"]["M02"] == [2.0, 2.0, 4.0] and prior["centre_sd"] == [0.0] * 3
+    assert "Gaussian priors from the site file's sigmas on 9 parameters (sd 2-4 m)" in \
+        positions_line(res.summary)
+    off = locate_array_survey(raw, position_prior="off")
+    assert off.summary["positions"]["prior"] is None and positions_line(off.summary) is None
+    assert not np.array_equal(off.fits["array"].enu, res.fits["array"].enu)
+    with pytest.raises(InputError, match="position_prior"):
+        locate_array_survey(raw, position_prior="on")
+
+
+def test_one_straight_pass_is_held_near_the_prior_positions(tmp_path):
+    """The single pass that failed by tens of metres (docs/gnssa.md, "Short campaigns").
+
+    Eight minutes of a star over three transponders (74 replies): without the priors the
+    sds are 10-60 m (the EM's answer tens of metres off, and honest about it); with them
+    every coordinate is within 3 sd of the truth with sds under the prior's, and the line
+    names the coordinates the prior, not the shots, determines.
+    """
+    sim = simulate_gnssa(n_transponders=3, hours=0.14, rng=5, depth=1500.0)
+    site = sim.write(tmp_path / "g", "garpos")["survey"]
+    raw = read_garpos(site)
+    true = sim.truth["transponders"][["east", "north", "up"]].to_numpy()
+    free = locate_array_survey(raw, position_prior="off").fits["array"]
+    assert np.all(free.sd > 9.0)
+    res = locate_array_survey(raw)
+    fit = res.fits["array"]
+    z = (fit.enu - true) / fit.sd
+    assert np.all(np.abs(z) < 3.0), z
+    assert np.all(fit.sd < np.array([3.0, 3.0, 5.0]))
+    assert "the prior, not the shots, gives most of the precision of M01 north" in \
+        positions_line(res.summary)
+
+
+def test_the_sampler_s_prior_is_the_em_s(short_star):
+    sim, shots = short_star
+    tp = sim.header["transponders"]
+    fit = locate_array(shots, tp, speed_intervals=0, prior_sd=np.full((3, 3), 0.2))
+    post = ArrayLogPosterior(shots, fit)
+    assert post.prior is not None
+    u0 = post.u_em()
+    du = np.zeros_like(u0)
+    du[:9] = 0.1
+    lp0, lp1 = post.log_prior(np.array([u0, u0 + du]))
+    phi0 = (fit.enu - fit.start).ravel()
+    phi1 = phi0 + 0.1
+    expect = -0.5 * (phi1 @ phi1 - phi0 @ phi0) / 0.2**2
+    assert lp1 - lp0 == pytest.approx(expect, rel=1e-9)
+    free = ArrayLogPosterior(shots, locate_array(shots, tp, speed_intervals=0))
+    assert free.prior is None
+    # the Laplace covariance the proposal starts from includes the prior's precision
+    assert np.all(np.diag(post.cov_geo)[:9] < 0.2**2)
+
+
+def test_the_option_is_for_garpos_surveys_only(tmp_path, capsys):
+    sim = simulate_gnssa(n_transponders=3, hours=0.3, rng=33)
+    paths = sim.write(tmp_path / "n", "gnatss")
+    assert main(["locate", str(paths["survey"]), "--out", str(tmp_path / "o"),
+                 "--position-prior", "off"]) == 2
+    err = capsys.readouterr().err
+    assert "--position-prior: for GARPOS surveys only" in err and "Traceback" not in err
+    garpos = sim.write(tmp_path / "g", "garpos")["survey"]
+    assert main(["locate", str(garpos), "--out", str(tmp_path / "o2"),
+                 "--position-prior", "off"]) == 0
+    assert "Gaussian priors" not in capsys.readouterr().out
+    assert main(["locate", str(garpos), "--out", str(tmp_path / "o3")]) == 0
+    assert "Gaussian priors from the site file's sigmas" in capsys.readouterr().out
+
+
+def test_write_garpos_writes_the_sigmas_given(tmp_path):
+    sim = simulate_gnssa(n_transponders=3, hours=0.2, rng=34)
+    site = write_garpos(tmp_path, sim.pings, sim.header, sigmas=(1.0, 0.0, 2.5))
+    raw = read_garpos(site)
+    np.testing.assert_array_equal(raw.header["position_sigmas"].to_numpy(),
+                                  np.tile([1.0, 0.0, 2.5], (3, 1)))

@@ -32,7 +32,8 @@ circle's radius and the star's half-length a quarter of the depth: narrow tracks
 star's just above ``auto``'s gate, where it is tested), ``hour`` and ``halfhour`` (campaigns
 of 1 and 0.5 h: the gate's hour and the short campaigns' note); a variant ending
 in ``+gradoff`` locates with ``--gradients off``, one in ``+corroff`` with ``--correlation
-off``, instead of the defaults. Writes the section ``gnssa-independent[-VARIANTS]`` of
+off``, one in ``+prioroff`` with ``--position-prior off`` (the site file's 3 m sigmas not
+used as priors), instead of the defaults. Writes the section ``gnssa-independent[-VARIANTS]`` of
 ``docs/gnssa.md``.
 """
 
@@ -537,7 +538,8 @@ def main(argv=None) -> int:
         for variant in variants:
             data, _, fit = variant.partition("+")
             options = {"gradoff": ["--gradients", "off"],
-                       "corroff": ["--correlation", "off"]}.get(fit, [])
+                       "corroff": ["--correlation", "off"],
+                       "prioroff": ["--position-prior", "off"]}.get(fit, [])
             for scen in ("A", "B"):
                 cfg = replace(Config(scenario=scen), **VARIANTS[data])
                 rows = []

@@ -169,6 +169,18 @@ def locate_cases():
          ["--flags"])
     case("flags on a seagap survey", "locate {seagap} --out {out} --flags honour", REFUSE,
          ["--flags"])
+    # --position-prior (GARPOS's site-file sigmas as priors)
+    for v in ("on", "Site", "none", ""):
+        case(f"position-prior {v!r}", f"locate {{garpos}} --out {{out}} --position-prior={v}",
+             REFUSE, ["--position-prior"])
+    case("position-prior off, garpos", "locate {garpos} --out {out} --position-prior off", OK,
+         changes=["--position-prior", "off"])
+    case("position-prior on a gnatss survey", "locate {gnatss} --out {out} --position-prior "
+         "site", REFUSE, ["--position-prior"])
+    case("position-prior on a seagap survey", "locate {seagap} --out {out} --position-prior "
+         "off", REFUSE, ["--position-prior"])
+    case("sample with --position-prior off", "locate {garpos} --out {out} --sample --min-ess 50 "
+         "--no-progress --position-prior off", OK, timeout=120)
     # --ssp
     case("ssp missing file", "locate {garpos} --out {out} --ssp {work}/nope.txt", REFUSE,
          ["nope.txt"])
@@ -262,7 +274,7 @@ def locate_cases():
          changes=["--knot-minutes", "10"])
     # array options on a one-transponder deck-box log
     for extra in ("--gradients on", "--knot-minutes 5", "--flags honour",
-                  "--gradients auto", "--gradients shallow"):
+                  "--gradients auto", "--gradients shallow", "--position-prior site"):
         case(f"{extra} on a deck-box log", f"locate {{sio}} --out {{out}} {extra}", REFUSE,
              [extra.split()[0]])
     case("--one-at-a-time on a deck-box log", "locate {sio} --out {out} --one-at-a-time",
@@ -430,7 +442,8 @@ def batch_cases():
     argv = "batch {work}/m.csv --command locate --out {out} --no-progress"
     for col, v in (("knot_minutes", "0"), ("knot_minutes", "nan"), ("gradients", "maybe"),
                    ("speed_intervals", "1.5"), ("ci", "95"), ("tat", "0.1"),
-                   ("flags", "maybe"), ("sample", "perhaps"), ("walkers", "2"),
+                   ("flags", "maybe"), ("position_prior", "on"), ("sample", "perhaps"),
+                   ("walkers", "2"),
                    ("seed", "4"), ("one_at_a_time", "true"), ("sigma_dp", "3")):
         case(f"batch {col}={v}", argv, REFUSE, ["m.csv", col],
              setup=batch_manifest([{col: v}]))

@@ -182,3 +182,35 @@ def test_write_garpos_writes_the_sigmas_given(tmp_path):
     raw = read_garpos(site)
     np.testing.assert_array_equal(raw.header["position_sigmas"].to_numpy(),
                                   np.tile([1.0, 0.0, 2.5], (3, 1)))
+
+
+def test_a_common_shift_of_any_size_and_extreme_sds():
+    """Woodbury per axis: c of inf leaves only the differences; sds past 1e100 m are none."""
+    sd = np.full((3, 3), 2.0)
+    P = _prior_precision(sd, [np.inf, 1.0, 0.0], _tp(), IDS, np.zeros((3, 3), bool), False)
+    east = P[np.ix_([0, 3, 6], [0, 3, 6])]
+    np.testing.assert_allclose(east @ np.ones(3), 0.0, atol=1e-15)  # a common move is free
+    np.testing.assert_allclose(np.linalg.eigvalsh(east)[1:], [0.25, 0.25])
+    north = P[np.ix_([1, 4, 7], [1, 4, 7])]
+    np.testing.assert_allclose(np.linalg.inv(north), 4.0 * np.eye(3) + 1.0, atol=1e-12)
+    assert _prior_precision(np.full((3, 3), 1e300), None, _tp(), IDS, np.zeros((3, 3), bool),
+                            False) is None
+    with pytest.raises(InputError, match=r"prior_sd: \[1e-09\] m, below 1e-06 m"):
+        _prior_precision(np.full((3, 3), 1e-9), None, _tp(), IDS, np.zeros((3, 3), bool), False)
+
+
+def test_a_site_file_sigma_too_sharp_to_fit_is_named(tmp_path, capsys):
+    sim = simulate_gnssa(n_transponders=3, hours=0.3, rng=35)
+    site = sim.write(tmp_path / "g", "garpos")["survey"]
+    text = site.read_text().splitlines()
+    row = next(i for i, ln in enumerate(text) if ln.lstrip().startswith("M02_dPos"))
+    parts = text[row].split()
+    parts[5] = "1e-9"  # sigma_E (key, '=', east, north, up, sigma_E, ...)
+    text[row] = " " + " ".join(parts)
+    site.write_text("\n".join(text) + "\n")
+    assert main(["locate", str(site), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert f"{site}: M02_dPos sigma_E 1e-09: a prior sd above 0 and below 1e-06 m" in err
+    assert "Traceback" not in err and not (tmp_path / "o").exists()
+    assert main(["locate", str(site), "--out", str(tmp_path / "o"), "--position-prior",
+                 "off"]) == 0

@@ -838,16 +838,26 @@ def _fixed_mask(fixed, transponders, ids, K):
     return _per_transponder(fixed, transponders, ids, "fixed", bool)
 
 
+#: Smallest prior sd of a position (m): below it the prior's precision swamps the data's by
+#: more than round-off allows (hold the coordinate with ``fixed`` instead); an sd above
+#: :data:`MAX_PRIOR_SD` is no prior (its square overflows, its precision is 0 to round-off).
+MIN_PRIOR_SD = 1e-6
+MAX_PRIOR_SD = 1e100
+
+
 def _prior_precision(prior_sd, centre_sd, transponders, ids, mask, shift):
     """Return the prior precision (m^-2) of the free position parameters, or None.
 
     GARPOS's a priori covariance of the positions (``setup_model.init_position``, read to
     learn the model): each transponder's offset ``dPos`` with the sds ``prior_sd`` and
     the array's common shift ``dCentPos`` with ``centre_sd``, so a transponder's prior is
-    ``N(0, sd^2 + c^2)`` with the common part ``c^2`` shared by all. A coordinate without
-    a prior (an sd of inf or NaN) tells nothing of the others and is left out; a fixed one
-    is not a parameter. With ``shift`` the parameters are the shift's, and its prior is
-    ``centre_sd``.
+    ``N(0, sd^2 + c^2)`` with the common part ``c^2`` shared by all. Per axis the precision is
+    ``D^-1 - D^-1 1 1' D^-1 / (c^-2 + 1' D^-1 1)`` (Woodbury; ``D`` the ``sd^2`` of the
+    coordinates with a prior), which holds for ``c`` of 0 (independent priors) and of inf
+    (only the differences between transponders constrained). A coordinate without a prior
+    (an sd of inf or NaN, or above :data:`MAX_PRIOR_SD`) tells nothing of the others and is
+    left out; a fixed one is not a parameter. With ``shift`` the parameters are the shift's,
+    and its prior is ``centre_sd``.
     """
     if prior_sd is None and centre_sd is None:
         return None
@@ -856,8 +866,11 @@ def _prior_precision(prior_sd, centre_sd, transponders, ids, mask, shift):
     if c.shape != (3,) or np.any(np.isnan(c)) or np.any(c < 0):
         raise InputError(f"centre_sd: expected three sds of 0 or more (m; inf: none), got "
                          f"{centre_sd!r}")
+    if np.any((c > 0) & (c < MIN_PRIOR_SD)):
+        raise InputError(f"centre_sd: {c[(c > 0) & (c < MIN_PRIOR_SD)].tolist()} m, below "
+                         f"{MIN_PRIOR_SD:g} m: give 0 (no common shift) instead")
     if shift:
-        sd, free = c, ~mask[0]
+        sd, free, axis = c, ~mask[0], np.arange(3)
     else:
         sd = (np.full((K, 3), np.inf) if prior_sd is None
               else _per_transponder(prior_sd, transponders, ids, "prior_sd", float))
@@ -866,18 +879,28 @@ def _prior_precision(prior_sd, centre_sd, transponders, ids, mask, shift):
             raise InputError("prior_sd: expected sds above 0 (m; inf or NaN: no prior; a "
                              "coordinate held at its prior is given by fixed), got "
                              f"{sd[bad & ~mask].tolist()}")
-        sd, free = np.where(np.isnan(sd), np.inf, sd).ravel(), ~mask.ravel()
-    sd = sd[free]
-    has = np.isfinite(sd) & (sd > 0)  # a shift's sd of 0: no prior (GARPOS: not solved)
+        tiny = (sd > 0) & (sd < MIN_PRIOR_SD) & ~mask
+        if np.any(tiny):
+            raise InputError(f"prior_sd: {sorted(set(sd[tiny].tolist()))} m, below "
+                             f"{MIN_PRIOR_SD:g} m, "
+                             "would hold the coordinates to below round-off: hold them with "
+                             "fixed instead")
+        sd, free, axis = sd.ravel(), ~mask.ravel(), np.tile(np.arange(3), K)
+    sd, axis = sd[free], axis[free]
+    has = (sd > 0) & (sd <= MAX_PRIOR_SD)  # NaN and inf fail: no prior
     if not has.any():
         return None
-    cov = np.diag(sd[has] ** 2)
-    if not shift:  # the common shift, felt alike by every transponder's coordinate
-        axis = np.tile(np.arange(3), K)[free][has]
-        cov = cov + np.where(axis[:, None] == axis[None, :], c[axis][:, None] ** 2, 0.0)
-    out = np.zeros((free.sum(), free.sum()))
-    out[np.ix_(has, has)] = np.linalg.inv(cov)
-    return 0.5 * (out + out.T)
+    out = np.zeros((sd.size, sd.size))
+    for j in range(3):
+        idx = np.flatnonzero(has & (axis == j))
+        if not idx.size:
+            continue
+        d = sd[idx] ** -2.0
+        block = np.diag(d)
+        if not shift and c[j] > 0:  # the common shift (c of inf: 1/c^2 = 0)
+            block -= np.outer(d, d) / (min(c[j], MAX_PRIOR_SD) ** -2.0 + d.sum())
+        out[np.ix_(idx, idx)] = block
+    return out
 
 
 def _per_transponder(values, transponders, ids, name, dtype):

@@ -12,7 +12,7 @@ from scipy.stats import chi2
 from ..exceptions import InputError, LocateWarning
 from ..io.geodesy import MEAN_EARTH_RADIUS_M, earth_radius, enu_to_geodetic
 from ..io.raw import ARRAY_FORMATS, skip_reasons
-from .array import KNOT_MINUTES, describe, locate_array
+from .array import KNOT_MINUTES, MIN_PRIOR_SD, describe, locate_array
 from .result import SurveyInResult, classified_table
 from .ssp import survey_profile
 from .travel_times import speed_basis
@@ -478,14 +478,27 @@ def site_priors(header, ids=None, shift=False):
     sig = header.get("position_sigmas")
     cen = header.get("centre_sigmas")
     cen = np.array([np.nan if v is None else v for v in (cen or [None] * 3)], float)
+    _check_sharp(header, "dCentPos", cen)
     cen = np.where(np.isfinite(cen) & (cen > 0), cen, 0.0)
     centre = cen if (cen > 0).any() else None
     if shift or sig is None:
         return None, centre
     ids = list(header["transponders"].index) if ids is None else ids
     s = sig.reindex([str(i) for i in ids])[["east", "north", "up"]].to_numpy(float)
+    for i, row in zip(ids, s, strict=True):
+        _check_sharp(header, f"{i}_dPos", row)
     s = np.where(np.isfinite(s) & (s > 0), s, np.inf)
     return (s if np.isfinite(s).any() else None), centre
+
+
+def _check_sharp(header, key, sigmas):
+    """Refuse a sigma above 0 and below :data:`~.array.MIN_PRIOR_SD`, naming the site file's key."""
+    for name, v in zip(("sigma_E", "sigma_N", "sigma_U"), sigmas, strict=True):
+        if 0.0 < v < MIN_PRIOR_SD:
+            site = (header.get("files") or {}).get("site", "the site file")
+            raise InputError(f"{site}: {key} {name} {v:g}: a prior sd above 0 and below "
+                             f"{MIN_PRIOR_SD:g} m holds the coordinate to below round-off; "
+                             "give 0 to fix it")
 
 
 #: The choices of ``position_prior`` (``locate --position-prior``).

@@ -7,7 +7,7 @@ import pytest
 from bayes_mpem.cli import main
 from bayes_mpem.exceptions import InputError
 from bayes_mpem.io.garpos import read_garpos, write_garpos
-from bayes_mpem.survey_in.array import _prior_precision, locate_array
+from bayes_mpem.survey_in.array import _position_parameters, locate_array
 from bayes_mpem.survey_in.array_sampling import ArrayLogPosterior
 from bayes_mpem.survey_in.array_survey import array_shots, locate_array_survey, site_priors
 from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa
@@ -20,25 +20,33 @@ def _tp():
     return pd.DataFrame(np.zeros((3, 3)), index=IDS, columns=["east", "north", "up"])
 
 
-def test_the_prior_covariance_is_garpos_s_dpos_plus_a_common_dcentpos():
+def test_the_parameters_are_garpos_s_dpos_and_a_common_dcentpos():
     sd = np.array([[1.0, 2.0, np.inf], [1.0, 2.0, 3.0], [np.nan, 2.0, 3.0]])
     c = np.array([0.5, 0.0, 1.0])
     mask = np.zeros((3, 3), bool)
-    mask[1, 0] = True  # B's east held: not a parameter
-    P = _prior_precision(sd, c, _tp(), IDS, mask, False)
-    assert P.shape == (8, 8)
-    # the parameters: A e n u, B n u, C e n u; A's up and C's east have no prior
-    has = np.array([1, 1, 0, 1, 1, 0, 1, 1], bool)
-    assert np.all(P[~has] == 0.0) and np.all(P[:, ~has] == 0.0)
-    sds = np.array([1.0, 2.0, 2.0, 3.0, 2.0, 3.0])
-    axis = np.array([0, 1, 1, 2, 1, 2])
-    cov = np.diag(sds**2) + np.where(axis[:, None] == axis[None, :], c[axis][:, None] ** 2, 0)
-    np.testing.assert_allclose(np.linalg.inv(P[np.ix_(has, has)]), cov, atol=1e-12)
+    mask[1, 0] = True  # B's own east held, but it moves with the common east shift
+    G, P = _position_parameters(sd, c, _tp(), IDS, mask, False)
+    assert G.shape == (9, 10)  # 8 offsets, then the east and up shifts
+    np.testing.assert_array_equal(G[:, 8], np.tile([1.0, 0.0, 0.0], 3))
+    np.testing.assert_array_equal(G[:, 9], np.tile([0.0, 0.0, 1.0], 3))
+    assert np.count_nonzero(G[3]) == 1 and G[3, 8] == 1.0  # B east: the shift only
+    # diagonal: the offsets' sds (none for A up and C east), then the shifts'
+    np.testing.assert_allclose(np.diag(P), [1.0, 0.25, 0.0, 0.25, 1 / 9, 0.0, 0.25, 1 / 9,
+                                            4.0, 1.0])
+    assert np.count_nonzero(P - np.diag(np.diag(P))) == 0
+    # where every coordinate has a prior, the positions' is diag(sd^2) plus the shift's
+    G, P = _position_parameters(np.full((3, 3), 2.0), c, _tp(), IDS, np.zeros((3, 3), bool),
+                                False)
+    axis = np.tile(np.arange(3), 3)
+    cov = 4.0 * np.eye(9) + np.where(axis[:, None] == axis[None, :], c[axis][:, None] ** 2, 0)
+    np.testing.assert_allclose(G @ np.diag(1 / np.diag(P)) @ G.T, cov, atol=1e-12)
     # the shift's prior under a fixed geometry is dCentPos's own; a held axis is not a parameter
-    Ps = _prior_precision(None, [3.0, 3.0, 2.0], _tp(), IDS, np.tile([0, 0, 1], (3, 1)) > 0,
-                          True)
-    np.testing.assert_allclose(Ps, np.diag([1 / 9, 1 / 9]))
-    assert _prior_precision(np.full((3, 3), np.inf), None, _tp(), IDS, mask, False) is None
+    G, P = _position_parameters(None, [3.0, 3.0, 2.0], _tp(), IDS,
+                                np.tile([0, 0, 1], (3, 1)) > 0, True)
+    assert G.shape == (9, 2)
+    np.testing.assert_allclose(P, np.diag([1 / 9, 1 / 9]))
+    G, P = _position_parameters(np.full((3, 3), np.inf), None, _tp(), IDS, mask, False)
+    assert P is None and G.shape == (9, 8)
 
 
 @pytest.mark.parametrize("sd, centre, match", [
@@ -50,7 +58,7 @@ def test_the_prior_covariance_is_garpos_s_dpos_plus_a_common_dcentpos():
 ])
 def test_bad_priors_are_named(sd, centre, match):
     with pytest.raises(InputError, match=match):
-        _prior_precision(sd, centre, _tp(), IDS, np.zeros((3, 3), bool), False)
+        _position_parameters(sd, centre, _tp(), IDS, np.zeros((3, 3), bool), False)
 
 
 @pytest.fixture(scope="module")
@@ -184,19 +192,44 @@ def test_write_garpos_writes_the_sigmas_given(tmp_path):
                                   np.tile([1.0, 0.0, 2.5], (3, 1)))
 
 
-def test_a_common_shift_of_any_size_and_extreme_sds():
-    """Woodbury per axis: c of inf leaves only the differences; sds past 1e100 m are none."""
-    sd = np.full((3, 3), 2.0)
-    P = _prior_precision(sd, [np.inf, 1.0, 0.0], _tp(), IDS, np.zeros((3, 3), bool), False)
-    east = P[np.ix_([0, 3, 6], [0, 3, 6])]
-    np.testing.assert_allclose(east @ np.ones(3), 0.0, atol=1e-15)  # a common move is free
-    np.testing.assert_allclose(np.linalg.eigvalsh(east)[1:], [0.25, 0.25])
-    north = P[np.ix_([1, 4, 7], [1, 4, 7])]
-    np.testing.assert_allclose(np.linalg.inv(north), 4.0 * np.eye(3) + 1.0, atol=1e-12)
-    assert _prior_precision(np.full((3, 3), 1e300), None, _tp(), IDS, np.zeros((3, 3), bool),
-                            False) is None
+def test_a_shift_without_a_prior_and_extreme_sds():
+    """A dCentPos of inf: a shift with no prior; sds past 1e100 m none, below 1e-6 m refused."""
+    free = np.zeros((3, 3), bool)
+    G, P = _position_parameters(np.full((3, 3), 2.0), [np.inf, 0.0, 0.0], _tp(), IDS, free,
+                                False)
+    assert G.shape == (9, 10) and P[9, 9] == 0.0 and P[0, 0] == 0.25
+    assert _position_parameters(np.full((3, 3), 1e300), None, _tp(), IDS, free, False)[1] is None
     with pytest.raises(InputError, match=r"prior_sd: \[1e-09\] m, below 1e-06 m"):
-        _prior_precision(np.full((3, 3), 1e-9), None, _tp(), IDS, np.zeros((3, 3), bool), False)
+        _position_parameters(np.full((3, 3), 1e-9), None, _tp(), IDS, free, False)
+
+
+def test_garpos_s_array_take_over_moves_a_held_transponder_with_the_shift(tmp_path):
+    """M01's dPos sigmas 0, the others' 3 m, dCentPos 1 m: M01 moves with the shift (GARPOS)."""
+    sim = simulate_gnssa(n_transponders=3, hours=1.0, rng=36)
+    true = sim.truth["transponders"][["east", "north", "up"]]
+    shift = np.array([0.6, -0.4, 0.3])
+    header = dict(sim.header, transponders=true - shift)  # the geometry moved
+    site = write_garpos(tmp_path, sim.pings, header)
+    text = site.read_text().splitlines()
+    for i, ln in enumerate(text):
+        key = ln.split("=")[0].strip()
+        if key in ("M01_dPos", "dCentPos"):
+            parts = ln.split("=")[1].split()
+            sig = ["0.0"] * 3 if key == "M01_dPos" else ["1.0"] * 3
+            text[i] = f" {key} = " + " ".join(parts[:3] + sig + parts[6:])
+    site.write_text("\n".join(text) + "\n")
+    res = locate_array_survey(read_garpos(site), gradients="off")
+    fit = res.fits["array"]
+    pos = res.summary["positions"]
+    assert pos["mode"].startswith("each transponder and a common shift")
+    assert pos["n_free"] == 9 and pos["n_fixed"] == 0
+    moved = fit.enu - fit.start
+    np.testing.assert_allclose(moved[0], shift, atol=0.05)  # M01 held relative to the shift
+    assert np.all(fit.sd[0] > 0.001)
+    assert np.all(np.abs(fit.enu - true.to_numpy()) < 4 * fit.sd + 0.01)
+    # the sampler's parameters are the EM's (8 of them here would miss the shift)
+    post = ArrayLogPosterior(array_shots(read_garpos(site)), fit)
+    assert post.F == 9 and post.prior is not None
 
 
 def test_a_site_file_sigma_too_sharp_to_fit_is_named(tmp_path, capsys):
@@ -214,3 +247,20 @@ def test_a_site_file_sigma_too_sharp_to_fit_is_named(tmp_path, capsys):
     assert "Traceback" not in err and not (tmp_path / "o").exists()
     assert main(["locate", str(site), "--out", str(tmp_path / "o"), "--position-prior",
                  "off"]) == 0
+
+
+def test_the_correlated_refit_weighs_the_prior_at_the_sigma_it_reports(short_star):
+    """An unpenalised speed under correlated noise: the prior weighed at the EM's sigma (of
+    independent replies) moved the positions 77 mm (2 sd) past the mode the reported sds
+    describe; the refit now repeats its solve until sigma settles."""
+    sim, shots = short_star
+    true = sim.truth["transponders"][["east", "north", "up"]]
+    tp = true + np.random.default_rng(0).normal(0.0, 0.03, (3, 3))
+    kw = dict(correlation=(60.0, 0.5, 0.1), speed_intervals=0, gradients=False)
+    free = locate_array(shots, tp, **kw)
+    fit = locate_array(shots, tp, prior_sd=np.full((3, 3), 0.05), **kw)
+    C = free.cov_model[:9, :9] * (fit.sigma / free.sigma) ** 2  # the data's, at fit's sigma
+    A = np.linalg.inv(C) + np.eye(9) / 0.05**2
+    mode = np.linalg.solve(A, np.linalg.solve(C, (free.enu - free.start).ravel()))
+    np.testing.assert_allclose((fit.enu - fit.start).ravel(), mode, atol=0.002)
+    assert fit.model["noise"]["refit_converged"]

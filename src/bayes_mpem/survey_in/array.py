@@ -461,12 +461,13 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
         sigmas); inf or NaN: none (default, every coordinate free). Not used with
         ``shift``.
     centre_sd : array_like, optional
-        ``(3,)`` sds (m) of the array's common shift (GARPOS's ``dCentPos`` sigmas): with
-        ``shift`` the shift's prior; else felt alike by every transponder, which adds
-        ``centre_sd^2`` to the prior covariance of the coordinates that have a prior, and
-        between them. The priors enter the EM's M-step, the choice of the smoothing
-        weights and the intervals (``model["positions"]["prior"]``; docs/gnssa.md,
-        "Priors on the positions").
+        ``(3,)`` sds (m) of the array's common shift (GARPOS's ``dCentPos`` sigmas; inf: a
+        shift without a prior): with ``shift`` the shift's prior; else, on each axis with
+        an sd above 0, a shift of every transponder alike is solved too, with that prior,
+        and it moves the coordinates ``fixed`` holds as well (GARPOS's array take-over:
+        :func:`_position_parameters`). The priors enter the EM's M-step, the choice of the
+        smoothing weights and the intervals (``model["positions"]["prior"]``;
+        docs/gnssa.md, "Priors on the positions").
 
     Returns
     -------
@@ -530,8 +531,7 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
         raise InputError("gradients: need a time-varying sound speed (the smooth default or "
                          "speed_intervals > 0)")
     mask = _fixed_mask(fixed, transponders, ids, K)
-    G = _free_map(K, mask, shift)
-    prior = _prior_precision(prior_sd, centre_sd, transponders, ids, mask, shift)
+    G, prior = _position_parameters(prior_sd, centre_sd, transponders, ids, mask, shift)
     # the robust start: straight rays, one speed
     straight = ArrayTravelTimes(sub, index, K, np.ones((len(sub), 1)))
     resid, jac = _mapped(*weighted_residuals(t, straight), G, start, 1)
@@ -630,7 +630,8 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
                "along_sphere": bool(along_sphere), "gradients": grad_record,
                "positions": _positions_record(G, K, shift, prior, prior_sd, centre_sd, mask,
                                               transponders, ids),
-               "position_prior": prior, "noise": noise})
+               "position_prior": prior, "position_map": G,
+               "position_params": phi[:G.shape[1]].copy(), "noise": noise})
 
 
 def to_sphere(east, north, up, radius):
@@ -845,32 +846,33 @@ MIN_PRIOR_SD = 1e-6
 MAX_PRIOR_SD = 1e100
 
 
-def _prior_precision(prior_sd, centre_sd, transponders, ids, mask, shift):
-    """Return the prior precision (m^-2) of the free position parameters, or None.
+def _position_parameters(prior_sd, centre_sd, transponders, ids, mask, shift):
+    """Return ``(G, prior)``: the map from the position parameters and their prior precision.
 
-    GARPOS's a priori covariance of the positions (``setup_model.init_position``, read to
-    learn the model): each transponder's offset ``dPos`` with the sds ``prior_sd`` and
-    the array's common shift ``dCentPos`` with ``centre_sd``, so a transponder's prior is
-    ``N(0, sd^2 + c^2)`` with the common part ``c^2`` shared by all. Per axis the precision is
-    ``D^-1 - D^-1 1 1' D^-1 / (c^-2 + 1' D^-1 1)`` (Woodbury; ``D`` the ``sd^2`` of the
-    coordinates with a prior), which holds for ``c`` of 0 (independent priors) and of inf
-    (only the differences between transponders constrained). A coordinate without a prior
-    (an sd of inf or NaN, or above :data:`MAX_PRIOR_SD`) tells nothing of the others and is
-    left out; a fixed one is not a parameter. With ``shift`` the parameters are the shift's,
-    and its prior is ``centre_sd``.
+    GARPOS's model of the positions (``setup_model.init_position``, read to learn it): each
+    transponder's offset ``dPos`` from its prior position, plus the array's common shift
+    ``dCentPos``, each coordinate solved where its sigma is above 0, with the a priori
+    covariance ``diag(sigma^2)``. So the parameters are the free offsets (``mask`` False: the
+    position is ``start + G phi``) and, where ``centre_sd`` is above 0 on an axis (not with
+    ``shift``, whose three parameters are the shift itself), a common shift on that axis,
+    which also moves a coordinate whose own sigma is 0 (GARPOS's "array take-over"). The
+    prior precision is diagonal: ``prior_sd^-2`` on the offsets (none where inf, NaN or
+    above :data:`MAX_PRIOR_SD`) and ``centre_sd^-2`` on the shift (on the shift's own
+    parameters with ``shift``); None where no parameter has one.
     """
-    if prior_sd is None and centre_sd is None:
-        return None
     K = len(ids)
+    G = _free_map(K, mask, shift)
+    if prior_sd is None and centre_sd is None:
+        return G, None
     c = np.zeros(3) if centre_sd is None else np.asarray(centre_sd, float)
     if c.shape != (3,) or np.any(np.isnan(c)) or np.any(c < 0):
         raise InputError(f"centre_sd: expected three sds of 0 or more (m; inf: none), got "
                          f"{centre_sd!r}")
     if np.any((c > 0) & (c < MIN_PRIOR_SD)):
-        raise InputError(f"centre_sd: {c[(c > 0) & (c < MIN_PRIOR_SD)].tolist()} m, below "
-                         f"{MIN_PRIOR_SD:g} m: give 0 (no common shift) instead")
+        raise InputError(f"centre_sd: {sorted(set(c[(c > 0) & (c < MIN_PRIOR_SD)].tolist()))} "
+                         f"m, below {MIN_PRIOR_SD:g} m: give 0 (no common shift) instead")
     if shift:
-        sd, free, axis = c, ~mask[0], np.arange(3)
+        sd = c[~mask[0]]
     else:
         sd = (np.full((K, 3), np.inf) if prior_sd is None
               else _per_transponder(prior_sd, transponders, ids, "prior_sd", float))
@@ -878,29 +880,19 @@ def _prior_precision(prior_sd, centre_sd, transponders, ids, mask, shift):
         if np.any(bad & ~mask):
             raise InputError("prior_sd: expected sds above 0 (m; inf or NaN: no prior; a "
                              "coordinate held at its prior is given by fixed), got "
-                             f"{sd[bad & ~mask].tolist()}")
+                             f"{sorted(set(sd[bad & ~mask].tolist()))}")
         tiny = (sd > 0) & (sd < MIN_PRIOR_SD) & ~mask
         if np.any(tiny):
             raise InputError(f"prior_sd: {sorted(set(sd[tiny].tolist()))} m, below "
-                             f"{MIN_PRIOR_SD:g} m, "
-                             "would hold the coordinates to below round-off: hold them with "
-                             "fixed instead")
-        sd, free, axis = sd.ravel(), ~mask.ravel(), np.tile(np.arange(3), K)
-    sd, axis = sd[free], axis[free]
+                             f"{MIN_PRIOR_SD:g} m, would hold the coordinates to below "
+                             "round-off: hold them with fixed instead")
+        common = c > 0
+        G = np.column_stack([G, np.tile(np.eye(3), (K, 1))[:, common]])
+        sd = np.concatenate([sd.ravel()[~mask.ravel()], c[common]])
     has = (sd > 0) & (sd <= MAX_PRIOR_SD)  # NaN and inf fail: no prior
     if not has.any():
-        return None
-    out = np.zeros((sd.size, sd.size))
-    for j in range(3):
-        idx = np.flatnonzero(has & (axis == j))
-        if not idx.size:
-            continue
-        d = sd[idx] ** -2.0
-        block = np.diag(d)
-        if not shift and c[j] > 0:  # the common shift (c of inf: 1/c^2 = 0)
-            block -= np.outer(d, d) / (min(c[j], MAX_PRIOR_SD) ** -2.0 + d.sum())
-        out[np.ix_(idx, idx)] = block
-    return out
+        return G, None
+    return G, np.diag(np.where(has, 1.0 / np.where(has, sd, 1.0) ** 2, 0.0))
 
 
 def _per_transponder(values, transponders, ids, name, dtype):
@@ -984,14 +976,18 @@ def _mapped(resid, jac, G, start, k):
 
 def _positions_record(G, K, shift, prior, prior_sd, centre_sd, mask, transponders, ids):
     """Return what was solved for the positions (``summary.json``), with their prior."""
-    out = {"mode": "rigid shift of the prior geometry" if shift else "each transponder",
-           "n_free": int(G.shape[1]), "n_fixed": int((3 if shift else 3 * K) - G.shape[1])}
+    held = int(np.sum(~np.any(G != 0.0, axis=1)))  # coordinates no parameter moves
+    common = not shift and G.shape[1] > int(np.sum(~mask))
+    out = {"mode": ("rigid shift of the prior geometry" if shift else
+                    "each transponder and a common shift (GARPOS's array take-over)" if common
+                    else "each transponder"),
+           "n_free": int(G.shape[1]), "n_fixed": (3 - G.shape[1]) if shift else held}
     if prior is None:
         out["prior"] = None
         return out
 
-    def sds(v, fixed):
-        return [None if f or not np.isfinite(x) else float(x) for x, f in
+    def sds(v, fixed):  # None: held, or no prior
+        return [None if f or not (np.isfinite(x) and x > 0) else float(x) for x, f in
                 zip(v, fixed, strict=True)]
 
     c = np.zeros(3) if centre_sd is None else np.asarray(centre_sd, float)
@@ -1005,7 +1001,7 @@ def _positions_record(G, K, shift, prior, prior_sd, centre_sd, mask, transponder
               else _per_transponder(prior_sd, transponders, ids, "prior_sd", float))
         rec["transponder_sd"] = {t: sds(np.where(np.isnan(sd[j]), np.inf, sd[j]), mask[j])
                                  for j, t in enumerate(ids)}
-        rec["centre_sd"] = [float(x) for x in c]
+        rec["centre_sd"] = [float(x) if np.isfinite(x) else None for x in c]  # None: no prior
     out["prior"] = rec
     return out
 
@@ -1591,6 +1587,12 @@ def _accelerated(v, th, r, J, resid, c, s, h=0.1, alpha=0.75):
     return v + 0.5 * a
 
 
+#: The refit under correlated noise of an unpenalised speed with a prior on the positions
+#: repeats its solve until ``sigma``, at which the prior is weighed, moves by less than this
+#: fraction (:func:`_correlated_refit`).
+SIGMA_SETTLED = 1e-3
+
+
 def _correlated_refit(correlation, resid, jac, phi, p, sub, index, H, Hg, lam, lam_g, sigma,
                       prior=None):
     """Refit the EM's true replies under GARPOS's correlated noise (:mod:`.noise`).
@@ -1600,7 +1602,8 @@ def _correlated_refit(correlation, resid, jac, phi, p, sub, index, H, Hg, lam, l
     weights chosen again on them; ``record`` for ``model["noise"]`` (None where not asked),
     with ``refit_rounds``, ``refit_converged`` and ``refit_gauss_newton_converged``. The
     rounds (weights chosen, then one penalised Gauss-Newton solve) go on until neither weight
-    moves by more than 1 %, at most :data:`REFIT_ROUNDS`; a :class:`LocateWarning` where they
+    moves by more than 1 %, at most :data:`REFIT_ROUNDS` (unpenalised, until ``sigma`` settles
+    to :data:`SIGMA_SETTLED` where there is a ``prior``); a :class:`LocateWarning` where they
     stop short, and where the last round's Gauss-Newton ran out of steps. ``prior``: the
     positions' prior precision among all the parameters (None: none).
     """
@@ -1649,7 +1652,8 @@ def _correlated_refit(correlation, resid, jac, phi, p, sub, index, H, Hg, lam, l
         return last["pre"]
 
     r = rw(phi)
-    rounds, settled, gn = 0, H is None, {}
+    # unpenalised and flat, one solve; a prior weighs in at sigma^2, so again until it settles
+    rounds, settled, gn = 0, H is None and prior is None, {}
     while rounds == 0 or (not settled and rounds < REFIT_ROUNDS):
         rounds += 1
         J = jw(phi)
@@ -1671,14 +1675,17 @@ def _correlated_refit(correlation, resid, jac, phi, p, sub, index, H, Hg, lam, l
         phi = penalised_gauss_newton(rw, jw, phi, sigma**2 * Q, start=(r, J, pre),
                                      normal=normal, report=gn)
         r = rw(phi)
-        sigma = float(np.sqrt(r @ r / r.size))
+        sigma, before = float(np.sqrt(r @ r / r.size)), sigma
+        if H is None and prior is not None:
+            settled = abs(np.log(sigma / before)) <= SIGMA_SETTLED
     record = _noise_record(tau, share, white, table, keep.size)
     record.update(refit_rounds=rounds, refit_converged=bool(settled),
                   refit_gauss_newton_converged=bool(gn["converged"]))
     if not settled:
-        warnings.warn(f"array: the smoothing weights of the refit under correlated noise still "
-                      f"moved by more than 1 % after {rounds} round{'s' * (rounds != 1)}",
-                      LocateWarning,
+        what = ("the smoothing weights of the refit under correlated noise still moved by "
+                "more than 1 %" if H is not None else "the refit under correlated noise's "
+                f"sigma (the positions' prior's weight) still moved by more than {SIGMA_SETTLED:g}")
+        warnings.warn(f"array: {what} after {rounds} round{'s' * (rounds != 1)}", LocateWarning,
                       stacklevel=5)  # past locate_array's two decorators
     if not gn["converged"]:
         warnings.warn("array: the last Gauss-Newton solve of the refit under correlated noise "

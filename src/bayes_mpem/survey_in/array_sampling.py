@@ -181,20 +181,23 @@ class ArrayLogPosterior:
         self.corr = dT - self.ratio[:, None] * dL[0]
         # the free directions of the positions: a fixed coordinate has a zero row in the
         # EM's covariance; a rigid shift moves every transponder alike
-        free = np.any(np.asarray(fit.cov, float)[:P, :P] != 0.0, axis=1)
-        if (m.get("positions") or {}).get("mode", "").startswith("rigid"):
-            G = np.tile(np.eye(3), (self.K, 1))[:, free[:3]]  # the EM's free parameters
-            self.B = G / np.sqrt(self.K)
-        else:
-            G = self.B = np.eye(P)[:, free]
+        # the EM's position parameters (``model["position_map"]``: the positions are the
+        # priors plus ``G phi``); a rigid shift scaled to the sd of one transponder's move
+        G = m.get("position_map")
+        if G is None:  # a fit made before the map was recorded
+            free = np.any(np.asarray(fit.cov, float)[:P, :P] != 0.0, axis=1)
+            rigid = (m.get("positions") or {}).get("mode", "").startswith("rigid")
+            G = np.tile(np.eye(3), (self.K, 1))[:, free[:3]] if rigid else np.eye(P)[:, free]
+        rigid = (m.get("positions") or {}).get("mode", "").startswith("rigid")
+        step = 1.0 / np.sqrt(self.K) if rigid else 1.0
+        self.B = np.asarray(G, float) * step
         self.F = self.B.shape[1]
-        #: the positions' prior (the EM's ``position_prior``, a precision of its free
-        #: parameters ``phi = phi_em + prior_map u``), None where flat
+        #: the positions' prior (the EM's ``position_prior``, a precision of its parameters
+        #: ``phi = phi_em + prior_map u``), None where flat
         self.prior = m.get("position_prior")
         if self.prior is not None:
-            Gp = np.linalg.pinv(G)
-            self.prior_map = Gp @ self.B
-            self.phi_em = Gp @ (self.pos_em - np.asarray(fit.start, float)).ravel()
+            self.prior_map = step * np.eye(self.F)
+            self.phi_em = np.asarray(m["position_params"], float)
         #: ``(K, 3)``: which coordinates are sampled (the others stay at the prior)
         self.free = np.any(self.B != 0.0, axis=1).reshape(self.K, 3)
         pos_names = ([f"{a}_{t}" for t in self.ids for a in AXES] if self.F == P

@@ -623,7 +623,10 @@ def simulate_gnssa(*, n_transponders: int = 4, depth: float = 1500.0, hours: flo
     origin : tuple of float, default (38.0, 143.0, 0.0)
         Latitude, longitude, height of the frame's origin (the sea surface).
     prior_sd : tuple of float, default (3, 3, 5)
-        Standard deviations (m) of the prior positions' errors (east, north, up).
+        Standard deviations (m) of the prior positions' errors (east, north, up). Written
+        by :meth:`GnssaSimulation.write` as the GARPOS site file's sigmas, which ``locate``
+        reads as Gaussian priors; an sd of 0 is written as a sigma of 0, which holds that
+        coordinate at its (then exact) prior position.
     track : {"star", "circle", "star+circle", "station"}, default "star"
         The ship's track about the array centre: crossing transits, a circle, both, or
         holding station within 50 m of the centre (a wave glider).

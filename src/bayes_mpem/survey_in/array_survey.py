@@ -398,10 +398,11 @@ def position_constraints(header, ids=None):
     """Return the fixed coordinates and the fixed-geometry mode from a site file's sigmas.
 
     GARPOS's convention: a sigma of 0 in ``<station>_dPos`` fixes that coordinate
-    of that transponder; when every ``_dPos`` sigma is 0 and ``dCentPos`` has a
-    sigma above 0, the array moves as a rigid body (the shift's coordinates with a
-    sigma of 0 fixed). Sigmas above 0 leave the coordinate free, with the prior of
-    :func:`site_priors`.
+    of that transponder (its own offset: with a ``dCentPos`` sigma above 0 on that axis
+    it still moves with the common shift, :func:`site_priors`); when every ``_dPos`` sigma
+    is 0 and ``dCentPos`` has a sigma above 0, the array moves as a rigid body (the shift's
+    coordinates with a sigma of 0 fixed). Sigmas above 0 leave the coordinate free, with
+    the prior of :func:`site_priors`.
 
     Parameters
     ----------

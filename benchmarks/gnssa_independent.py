@@ -30,7 +30,9 @@ white), ``nograd`` (no gradients), ``clean`` (no noise, no outliers), ``nonoise`
 ``nooutliers``, ``nothing`` (no field change, no noise: the frame check), ``narrow`` (the
 circle's radius and the star's half-length a quarter of the depth: narrow tracks, the
 star's just above ``auto``'s gate, where it is tested), ``hour`` and ``halfhour`` (campaigns
-of 1 and 0.5 h: the gate's hour and the short campaigns' note); a variant ending
+of 1 and 0.5 h: the gate's hour and the short campaigns' note), ``hourbad`` and
+``halfhourbad`` (the same with the site file's positions 6 m from the truth, sd per
+coordinate, while its sigmas say 3 m: priors that understate their error); a variant ending
 in ``+gradoff`` locates with ``--gradients off``, one in ``+corroff`` with ``--correlation
 off``, one in ``+prioroff`` with ``--position-prior off`` (the site file's 3 m sigmas not
 used as priors), instead of the defaults. Writes the section ``gnssa-independent[-VARIANTS]`` of
@@ -82,6 +84,7 @@ class Config:
     gnss_ou: bool = True  # the correlated part of the GNSS noise (else 2 cm white)
     cast: str = "first"  # svp.csv: the profile at the first shot, or "mean" over the campaign
     radius: float = 1.0  # the circle's radius and the star's half-length, in depths
+    prior_error: float = 2.0  # sd of the site file's positions about the truth (m; it says 3)
 
 
 VARIANTS = {
@@ -97,6 +100,8 @@ VARIANTS = {
     "narrow": {"radius": 0.25},
     "hour": {"hours": 1.0},
     "halfhour": {"hours": 0.5},
+    "hourbad": {"hours": 1.0, "prior_error": 6.0},
+    "halfhourbad": {"hours": 0.5, "prior_error": 6.0},
 }
 
 
@@ -326,7 +331,7 @@ def campaign(seed: int, cfg: Config) -> dict:
     truth = np.column_stack([centre[0] + corners[:, 0] + rng.normal(0, 20, 4),
                              centre[1] + corners[:, 1] + rng.normal(0, 20, 4),
                              -(cfg.depth + rng.uniform(-20, 30, 4))])
-    prior = truth + rng.normal(0, 2.0, truth.shape)
+    prior = truth + rng.normal(0, cfg.prior_error, truth.shape)
     ocean, ship = Ocean(cfg, rng, truth.mean(0)), Ship(cfg, rng, truth.mean(0))
     radius = gaussian_radius(cfg.lat) if cfg.earth == "sphere" else 1e9
     atd = np.array([1.2, -0.8, 18.0])
@@ -466,6 +471,8 @@ def compare(summary: dict, truth: np.ndarray) -> dict:
                     for i, a in enumerate(AXES)])
     res["tp_err"], res["tp_sd"], res["tp_cov"] = np.array(errs), np.array(sds), np.array(cov)
     res["gradients"] = bool(summary["gradients"]["fitted"])
+    check = ((summary.get("positions") or {}).get("prior") or {}).get("check")
+    res["prior_p"] = None if not check else check["p_value"]
     return res
 
 
@@ -507,7 +514,14 @@ def table(rows: list[dict]) -> list[str]:
         f"{np.median([r['seconds'] for r in rows]):.1f}",
         f"{int(np.median([r['n'] for r in rows]))}",
         f"{sum(r['gradients'] for r in rows)} of {len(rows)}",
+        _conflicts(rows),
     ]
+
+
+def _conflicts(rows):
+    """How many campaigns' prior check says the site file's sigmas are too small (p < 0.01)."""
+    ps = [r["prior_p"] for r in rows if r.get("prior_p") is not None]
+    return f"{sum(p < 0.01 for p in ps)} of {len(ps)}" if ps else "no prior"
 
 
 MEASURES = ["centre error, median horizontal / vertical (cm)",
@@ -521,7 +535,8 @@ MEASURES = ["centre error, median horizontal / vertical (cm)",
             "rms standardised error of the transponders, east / north / up",
             "seconds per `locate` (median)",
             "replies per campaign (median)",
-            "gradients fitted (auto)"]
+            "gradients fitted (auto)",
+            "prior check: the sigmas too small (p < 0.01)"]
 
 
 def main(argv=None) -> int:
@@ -559,7 +574,9 @@ def main(argv=None) -> int:
              "20 s in turn; 6 h (`hour` 1 h, `halfhour` 0.5 h); `bayes-mpem locate SITE --out "
              "DIR` with its defaults"
              + ("; `narrow`: radius and half-length 750 m" if any(
-                 v.startswith("narrow") for v in variants) else "") + ".", "",
+                 v.startswith("narrow") for v in variants) else "")
+             + ("; `...bad`: the site file's positions 6 m (sd) from the truth, its sigmas 3 m"
+                if any(v.split("+")[0].endswith("bad") for v in variants) else "") + ".", "",
              head, "|---|" + "---|" * len(cols)]
     for i, m in enumerate(MEASURES):
         lines.append(f"| {m} | " + " | ".join(results[c][i] for c in cols) + " |")

@@ -264,3 +264,26 @@ def test_the_correlated_refit_weighs_the_prior_at_the_sigma_it_reports(short_sta
     mode = np.linalg.solve(A, np.linalg.solve(C, (free.enu - free.start).ravel()))
     np.testing.assert_allclose((fit.enu - fit.start).ravel(), mode, atol=0.002)
     assert fit.model["noise"]["refit_converged"]
+
+
+def test_the_prior_check_flags_sigmas_that_understate_the_error(tmp_path):
+    """Site positions drawn 6 m from the truth with sigmas of 2 m: the check says so."""
+    from bayes_mpem.survey_in.array import _prior_check
+
+    prior = np.diag(np.full(6, 1 / 4.0))  # sds of 2 m
+    cov = np.diag(np.full(6, 0.01))
+    assert _prior_check(np.full(6, 1.0), cov, prior)["p_value"] > 0.5
+    bad = _prior_check(np.full(6, 6.0), cov, prior)
+    assert bad["dof"] == 6 and bad["p_value"] < 1e-6
+    assert _prior_check(np.ones(6), cov, None) is None
+    sim = simulate_gnssa(n_transponders=3, hours=1.0, rng=37, prior_sd=(6.0, 6.0, 6.0))
+    site = write_garpos(tmp_path / "bad", sim.pings, sim.header, sigmas=(2.0, 2.0, 2.0))
+    res = locate_array_survey(read_garpos(site))
+    check = res.summary["positions"]["prior"]["check"]
+    assert check["p_value"] < 0.01 and check["dof"] == 9
+    assert "CAUTION: the fit moved the positions farther from the site file's" in \
+        positions_line(res.summary)
+    good = write_garpos(tmp_path / "good", sim.pings, sim.header, sigmas=(6.0, 6.0, 6.0))
+    res = locate_array_survey(read_garpos(good))
+    assert res.summary["positions"]["prior"]["check"]["p_value"] > 0.01
+    assert "CAUTION" not in positions_line(res.summary)

@@ -13,7 +13,7 @@ from scipy.linalg import cho_factor, cho_solve
 from scipy.linalg.lapack import dpotri
 from scipy.optimize import least_squares
 from scipy.sparse import csr_matrix
-from scipy.stats import norm
+from scipy.stats import chi2, norm
 
 from .._threads import with_one_blas_thread
 from .._validate import check_choice, check_int
@@ -629,7 +629,8 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
                "earth_radius": None if earth_radius is None else float(earth_radius),
                "along_sphere": bool(along_sphere), "gradients": grad_record,
                "positions": _positions_record(G, K, shift, prior, prior_sd, centre_sd, mask,
-                                              transponders, ids),
+                                              transponders, ids,
+                                              _prior_check(phi[:nf], cov_phi[:nf, :nf], prior)),
                "position_prior": prior, "position_map": G,
                "position_params": phi[:G.shape[1]].copy(), "noise": noise})
 
@@ -974,7 +975,33 @@ def _mapped(resid, jac, G, start, k):
     return r, j
 
 
-def _positions_record(G, K, shift, prior, prior_sd, centre_sd, mask, transponders, ids):
+def _prior_check(phi, cov, prior):
+    """Return how far the fit moved the parameters from their priors, against the priors' sds.
+
+    A prior-data conflict check (Box 1980; Evans & Moshonov 2006): where the prior is right,
+    the posterior mean of the parameters that have one is ``N(0, V)`` with ``V`` the prior's
+    covariance less the posterior's (linear-Gaussian), so ``phi' V^+ phi`` is chi-squared on
+    ``rank(V)`` degrees of freedom. A small p-value says the site file's positions are farther
+    off than its sigmas say, and the intervals lean on those sigmas. None without a prior.
+    """
+    if prior is None:
+        return None
+    idx = np.flatnonzero(np.diag(prior) > 0)
+    V = np.diag(1.0 / np.diag(prior)[idx]) - cov[np.ix_(idx, idx)]
+    vals, vecs = np.linalg.eigh(0.5 * (V + V.T))
+    keep = vals > 1e-9 * max(vals.max(), 0.0)
+    if not keep.any():
+        return None
+    z = vecs[:, keep].T @ phi[idx]
+    stat = float(np.sum(z**2 / vals[keep]))
+    dof = int(keep.sum())
+    return {"chi2": stat, "dof": dof, "p_value": float(chi2.sf(stat, dof)),
+            "test": "the fitted moves from the prior positions against the prior's covariance "
+                    "less the posterior's (a prior-data conflict check)"}
+
+
+def _positions_record(G, K, shift, prior, prior_sd, centre_sd, mask, transponders, ids,
+                      check=None):
     """Return what was solved for the positions (``summary.json``), with their prior."""
     held = int(np.sum(~np.any(G != 0.0, axis=1)))  # coordinates no parameter moves
     common = not shift and G.shape[1] > int(np.sum(~mask))
@@ -991,7 +1018,7 @@ def _positions_record(G, K, shift, prior, prior_sd, centre_sd, mask, transponder
                 zip(v, fixed, strict=True)]
 
     c = np.zeros(3) if centre_sd is None else np.asarray(centre_sd, float)
-    rec = {"n_with_prior": int(np.count_nonzero(np.diag(prior) > 0)),
+    rec = {"n_with_prior": int(np.count_nonzero(np.diag(prior) > 0)), "check": check,
            "kind": "Gaussian about the prior positions, sds in m (GARPOS's a priori covariance "
                    "of the site file's sigmas)"}
     if shift:

@@ -227,6 +227,11 @@ def centre_note(summary: dict) -> str | None:
     return note
 
 
+#: The prior check's p-value below which :func:`positions_line` says the site file's sigmas
+#: look too small (``positions.prior.check``).
+PRIOR_CONFLICT_P = 0.01
+
+
 def positions_line(summary: dict) -> str | None:
     """Return how the positions were constrained by the site file's sigmas, else None.
 
@@ -269,6 +274,12 @@ def positions_line(summary: dict) -> str | None:
         most = prior.get("mostly_prior") or []
         text += ("; the prior, not the shots, gives most of the precision of "
                  + ", ".join(most) if most else "; the shots dominate every one")
+        check = prior.get("check")
+        if check and check["p_value"] < PRIOR_CONFLICT_P:
+            text += (f"; CAUTION: the fit moved the positions farther from the site file's than "
+                     f"its sigmas allow (chi-squared {check['chi2']:.1f} on {check['dof']}, p "
+                     f"{check['p_value']:.1g}): the sigmas look too small, and the intervals "
+                     "lean on them (--position-prior off, or larger sigmas)")
         parts.append(text)
     return "; ".join(parts) if parts else None
 

@@ -203,33 +203,90 @@ def test_a_shift_without_a_prior_and_extreme_sds():
         _position_parameters(np.full((3, 3), 1e-9), None, _tp(), IDS, free, False)
 
 
-def test_garpos_s_array_take_over_moves_a_held_transponder_with_the_shift(tmp_path):
-    """M01's dPos sigmas 0, the others' 3 m, dCentPos 1 m: M01 moves with the shift (GARPOS)."""
-    sim = simulate_gnssa(n_transponders=3, hours=1.0, rng=36)
+def _site(folder, dpos, centre, shift=(0.6, -0.4, 0.3), **sim_kw):
+    """A simulated GARPOS campaign, its geometry moved by ``shift``, with the sigmas given.
+
+    ``dpos``: station -> three sigmas (others as written, 3/3/5 m); ``centre``: dCentPos's.
+    """
+    sim = simulate_gnssa(**sim_kw)
     true = sim.truth["transponders"][["east", "north", "up"]]
-    shift = np.array([0.6, -0.4, 0.3])
-    header = dict(sim.header, transponders=true - shift)  # the geometry moved
-    site = write_garpos(tmp_path, sim.pings, header)
+    site = write_garpos(folder, sim.pings, dict(sim.header, transponders=true - np.asarray(shift)),
+                        sigmas=sim.settings["prior_sd"])
     text = site.read_text().splitlines()
     for i, ln in enumerate(text):
         key = ln.split("=")[0].strip()
-        if key in ("M01_dPos", "dCentPos"):
+        sig = centre if key == "dCentPos" else dpos.get(key[:-5]) if key.endswith("_dPos") else None
+        if sig is not None:
             parts = ln.split("=")[1].split()
-            sig = ["0.0"] * 3 if key == "M01_dPos" else ["1.0"] * 3
-            text[i] = f" {key} = " + " ".join(parts[:3] + sig + parts[6:])
+            text[i] = f" {key} = " + " ".join(parts[:3] + [f"{v:g}" for v in sig] + parts[6:])
     site.write_text("\n".join(text) + "\n")
-    res = locate_array_survey(read_garpos(site), gradients="off")
+    return read_garpos(site), true
+
+
+def test_garpos_s_array_take_over_moves_a_held_transponder_with_the_shift(tmp_path):
+    """M01's dPos sigmas 0, the others' 3 m, dCentPos 1 m: M01 moves with the shift (GARPOS)."""
+    shift = np.array([0.6, -0.4, 0.3])
+    raw, true = _site(tmp_path, {"M01": (0, 0, 0)}, (1, 1, 1), shift, n_transponders=3,
+                      hours=1.0, rng=36)
+    res = locate_array_survey(raw, gradients="off")
     fit = res.fits["array"]
     pos = res.summary["positions"]
-    assert pos["mode"].startswith("each transponder and a common shift")
-    assert pos["n_free"] == 9 and pos["n_fixed"] == 0
+    assert pos["mode"] == "each transponder and a common shift"
+    assert pos["n_free"] == 9 and pos["n_fixed"] == 0 and pos["n_moved_by_shift_only"] == 3
+    assert pos["prior"]["transponder_sd"]["M01"] == [0.0] * 3  # held: GARPOS's sigma of 0
+    assert "3 coordinates whose sigma is 0 moved by the shift only (GARPOS's array " \
+           "take-over)" in positions_line(res.summary)
     moved = fit.enu - fit.start
     np.testing.assert_allclose(moved[0], shift, atol=0.05)  # M01 held relative to the shift
     assert np.all(fit.sd[0] > 0.001)
     assert np.all(np.abs(fit.enu - true.to_numpy()) < 4 * fit.sd + 0.01)
-    # the sampler's parameters are the EM's (8 of them here would miss the shift)
-    post = ArrayLogPosterior(array_shots(read_garpos(site)), fit)
+    # the sampler's parameters are the EM's (8 of them here would miss the shift); nine of
+    # them, but not the coordinates: not named as such
+    post = ArrayLogPosterior(array_shots(raw), fit)
     assert post.F == 9 and post.prior is not None
+    assert post.names[:2] == ("position_0", "position_1")
+
+
+def test_a_held_east_offset_and_an_up_shift_count_right(tmp_path):
+    raw, _ = _site(tmp_path, {"M01": (0, 3, 3)}, (0, 0, 1), n_transponders=3, hours=0.5,
+                   rng=36)
+    res = locate_array_survey(raw, gradients="off")
+    pos = res.summary["positions"]
+    assert pos["n_fixed"] == 1 and pos["n_coordinates"] == 9 and pos["n_free"] == 9
+    assert "; 1 held at its prior position" in positions_line(res.summary)
+
+
+def test_held_coordinates_a_sharp_shift_moves_are_mostly_prior(tmp_path):
+    """Every up held, dCentPos up 5 mm: the ups' sds are the shift's prior's, and said so."""
+    raw, _ = _site(tmp_path, {f"M0{i}": (3, 3, 0) for i in (1, 2, 3)}, (0, 0, 0.005),
+                   (0.6, -0.4, 0.0), n_transponders=3, hours=0.5, rng=36)
+    res = locate_array_survey(raw, gradients="off", correlation="off")
+    assert res.summary["positions"]["prior"]["mostly_prior"] == ["M01 up", "M02 up", "M03 up"]
+
+
+def test_the_proposal_scales_the_positions_prior_with_the_data_not_the_smoothing(tmp_path):
+    """Sharp priors on every offset and on the shift, the smooth speed: the proposal had scaled
+    the positions' prior with the smoothing scale, the pilot's ESS was 0.07 per draw and the
+    sampler fell back to differential evolution; now 0.8."""
+    from bayes_mpem.survey_in.array_sampling import sample_array
+
+    raw, _ = _site(tmp_path, {f"M0{i}": (0.05,) * 3 for i in (1, 2, 3)}, (0.08, 0.08, 0.1),
+                   (0.06, -0.04, 0.03), n_transponders=3, hours=1.0, rng=36)
+    fit = locate_array_survey(raw, gradients="off", correlation="off").fits["array"]
+    assert fit.model["smoothing"] is not None and fit.model["position_map"].shape == (9, 12)
+    sp = sample_array(array_shots(raw), fit, min_ess=50, rng=1, progress=False, max_steps=300)
+    d = sp.diagnostics
+    assert d.get("fallback") is None and d["pilot"]["ess_per_draw"] > 0.3 and sp.converged
+
+
+def test_a_take_over_holding_the_horizontal_geometry_keeps_the_deep_gradient(tmp_path):
+    """East and north offsets held, dCentPos horizontal: a circle cannot trade the deep term
+    with the held geometry, as under a rigid shift."""
+    raw, _ = _site(tmp_path, {f"M0{i}": (0, 0, 3) for i in (1, 2, 3, 4)}, (3, 3, 0),
+                   (0.6, -0.4, 0.0), n_transponders=4, hours=1.2, rng=4, track="circle")
+    res = locate_array_survey(raw, correlation="off")
+    gate = res.summary["gradients"]["deep_gate"]
+    assert gate["fit"] and gate["reason"].startswith("the horizontal geometry is held")
 
 
 def test_a_site_file_sigma_too_sharp_to_fit_is_named(tmp_path, capsys):

@@ -1006,15 +1006,17 @@ def _positions_record(G, K, shift, prior, prior_sd, centre_sd, mask, transponder
     held = int(np.sum(~np.any(G != 0.0, axis=1)))  # coordinates no parameter moves
     common = not shift and G.shape[1] > int(np.sum(~mask))
     out = {"mode": ("rigid shift of the prior geometry" if shift else
-                    "each transponder and a common shift (GARPOS's array take-over)" if common
-                    else "each transponder"),
-           "n_free": int(G.shape[1]), "n_fixed": (3 - G.shape[1]) if shift else held}
+                    "each transponder and a common shift" if common else "each transponder"),
+           "n_free": int(G.shape[1]), "n_fixed": (3 - G.shape[1]) if shift else held,
+           "n_coordinates": 3 * K}
+    if common:  # GARPOS's array take-over: held offsets that the common shift still moves
+        out["n_moved_by_shift_only"] = int(np.sum(mask.ravel() & np.any(G != 0.0, axis=1)))
     if prior is None:
         out["prior"] = None
         return out
 
-    def sds(v, fixed):  # None: held, or no prior
-        return [None if f or not (np.isfinite(x) and x > 0) else float(x) for x, f in
+    def sds(v, fixed):  # 0: held (GARPOS's sigma of 0); None: no prior
+        return [0.0 if f else float(x) if np.isfinite(x) and x > 0 else None for x, f in
                 zip(v, fixed, strict=True)]
 
     c = np.zeros(3) if centre_sd is None else np.asarray(centre_sd, float)

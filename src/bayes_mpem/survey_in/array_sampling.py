@@ -200,7 +200,8 @@ class ArrayLogPosterior:
             self.phi_em = np.asarray(m["position_params"], float)
         #: ``(K, 3)``: which coordinates are sampled (the others stay at the prior)
         self.free = np.any(self.B != 0.0, axis=1).reshape(self.K, 3)
-        pos_names = ([f"{a}_{t}" for t in self.ids for a in AXES] if self.F == P
+        coordinates = self.F == P and np.array_equal(self.B, np.eye(P))  # u the positions
+        pos_names = ([f"{a}_{t}" for t in self.ids for a in AXES] if coordinates
                      else [f"position_{j}" for j in range(self.F)])
         speed = ["speed"] if self.k == 1 else [f"speed_{i}" for i in range(self.k)]
         self.names = tuple(pos_names + speed + [f"gradient_{i}" for i in range(self.kg)]
@@ -236,7 +237,10 @@ class ArrayLogPosterior:
         """Return the Laplace covariance of (free positions, speed, gradients) at the EM.
 
         Also keeps its two precisions, of the data (at the EM's sigma and class
-        probabilities) and of the smoothing prior, as ``self._precisions``.
+        probabilities) and of the smoothing prior, as ``self._precisions``: the positions'
+        prior goes with the data's, which :class:`ConditionalProposal` scales by
+        ``(sigma_EM / sigma)^2`` (near 1), not with the smoothing prior's scale ``kappa``
+        (decades), of which it does not depend.
         """
         P, k, kg = 3 * self.K, self.k, self.kg
         M = np.zeros((P + k + kg, self.F + k + kg))
@@ -252,7 +256,7 @@ class ArrayLogPosterior:
                     a = self.F + k + j * k
                     prior[a:a + k, a:a + k] = self.lam_g * self.H
         if self.prior is not None:
-            prior[:self.F, :self.F] = self.prior_map.T @ self.prior @ self.prior_map
+            data[:self.F, :self.F] += self.prior_map.T @ self.prior @ self.prior_map
         self._precisions = data, prior
         A = data + prior
         d = np.sqrt(np.maximum(np.diag(A), 1e-300))

@@ -196,12 +196,14 @@ def _mostly_prior(fit, rec):
     if "shift_sd" in rec:
         return [f"shift {a}" for a, p, s in zip(axes, rec["shift_sd"], fit.sd[0], strict=True)
                 if p and s > PRIOR_DOMINANT * p]
-    c = np.asarray(rec["centre_sd"], float)
+    c = np.array([np.inf if v is None else v for v in rec["centre_sd"]], float)
     out = []
     for k, t in enumerate(fit.ids):
         for j, a in enumerate(axes):
-            p = rec["transponder_sd"][t][j]
-            if p and fit.sd[k, j] > PRIOR_DOMINANT * np.hypot(p, c[j]):
+            p = rec["transponder_sd"][t][j]  # 0: held, moved only by the common shift
+            if p is None or (p == 0 and not 0 < c[j] < np.inf):
+                continue  # no prior of its own and none through the shift, or held still
+            if fit.sd[k, j] > PRIOR_DOMINANT * np.hypot(p, c[j]):
                 out.append(f"{t} {a}")
     return out
 
@@ -593,7 +595,8 @@ def deep_gradient_gate(shots, priors, shift=False):
     priors : pandas.DataFrame
         ``east``, ``north``, ``up`` by transponder id.
     shift : bool, default False
-        The array moves as a rigid body from the priors (:func:`locate_array_survey`).
+        The horizontal geometry is held: the array moves as a rigid body from the priors,
+        or every transponder's east and north offsets are held (:func:`locate_array_survey`).
 
     Returns
     -------
@@ -601,7 +604,8 @@ def deep_gradient_gate(shots, priors, shift=False):
     reason : str
     """
     if shift:
-        return True, "the geometry is held (a rigid shift), so the deep gradient too"
+        return True, ("the horizontal geometry is held (a rigid shift, or every east and north "
+                      "offset held), so the deep gradient too")
     ids = _heard(shots, priors)
     share = track_geometry(shots, _prior_enu(priors, ids))["central_fraction"] if ids else 0.0
     over = f"{100 * share:.1f} % of the shots within {CENTRAL_RADIUS:g} depths of the centre"
@@ -810,7 +814,10 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
                            else (None, None))
     choice = gradient_choice(gradients)
     gate, why = gradient_gate(shots, h["transponders"], speed_intervals)
-    deep, why_deep = deep_gradient_gate(shots, h["transponders"], shift)
+    # the horizontal geometry held (a rigid shift, or every east and north offset held, as
+    # GARPOS's take-over may): the deep gradient cannot trade with it
+    held_h = shift or (fixed is not None and bool(fixed[:, :2].all()))
+    deep, why_deep = deep_gradient_gate(shots, h["transponders"], held_h)
     if choice == "auto":
         gradients = (True if deep else "shallow") if gate else False
         why = "auto: " + why + (f"; {why_deep}" if gate else "")

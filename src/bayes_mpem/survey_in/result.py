@@ -257,9 +257,19 @@ def positions_line(summary: dict) -> str | None:
                      + ", ".join(f"{c} {d[c]['mean']:+.3f} +- {d[c]['sd']:.3f}" if d[c]["sd"] > 0
                                  else f"{c} held (sigma 0)" for c in ("east", "north", "up"))
                      + " m")
+    elif pos.get("n_moved_by_shift_only") is not None:
+        moved = pos["n_moved_by_shift_only"]
+        parts.append("each transponder's offset and a common shift of the array solved "
+                     "(GARPOS's dPos and dCentPos)"
+                     + (f": {moved} coordinate{'s' * (moved != 1)} whose sigma is 0 moved by "
+                        "the shift only (GARPOS's array take-over)" if moved else "")
+                     + (f"; {pos['n_fixed']} held at "
+                        + ("its prior position" if pos["n_fixed"] == 1 else
+                           "their prior positions") if pos.get("n_fixed") else ""))
     elif pos.get("n_fixed"):
-        parts.append(f"{pos['n_fixed']} of {pos['n_fixed'] + pos['n_free']} coordinates held "
-                     "at their prior positions (sigma 0)")
+        total = pos.get("n_coordinates", pos["n_fixed"] + pos["n_free"])
+        parts.append(f"{pos['n_fixed']} of {total} coordinates held at their prior positions "
+                     "(sigma 0)")
     prior = pos.get("prior")
     if prior:
         if "shift_sd" in prior:

@@ -277,6 +277,10 @@ def test_the_proposal_scales_the_positions_prior_with_the_data_not_the_smoothing
     sp = sample_array(array_shots(raw), fit, min_ess=50, rng=1, progress=False, max_steps=300)
     d = sp.diagnostics
     assert d.get("fallback") is None and d["pilot"]["ess_per_draw"] > 0.3 and sp.converged
+    # the file a user keeps says which prior the posterior assumed
+    label = "Gaussian about the site file's positions on 12 of 12 position parameters (sds"
+    assert d["position_prior"].startswith(label)
+    assert sp.to_inference_data().attrs["position_prior"] == d["position_prior"]
 
 
 def test_a_take_over_holding_the_horizontal_geometry_keeps_the_deep_gradient(tmp_path):

@@ -900,6 +900,7 @@ class ArrayPosterior:
                    "frame": "local east, north, up (m) of the survey",
                    "speed_coef_unit": self.diagnostics.get("speed_coef_unit", ""),
                    "noise": self.diagnostics.get("noise", ""),
+                   "position_prior": self.diagnostics.get("position_prior", ""),
                    "ci": self.ci})
         tree["class_probabilities"] = xr.DataTree(xr.Dataset(
             {"p_true": ("shot", self.p_true), "p_true_sd": ("shot", self.p_true_sd)},
@@ -1089,12 +1090,23 @@ def sample_array(shots: pd.DataFrame, fit: ArrayLocateResult, *, n_walkers: int 
             "none (the speed's intervals are fixed)"),
         "speed_coef_unit": ("scale of the profile (dimensionless)" if refracted else "m/s"),
         "noise": _noise_label(post),
+        "position_prior": _prior_label(post),
         "travel_times": ("refracted rays: ray bending to first order about the EM solution"
                          if refracted else "straight rays (exact)")}
     return ArrayPosterior(ids=post.ids, names=post.names, draws=draws, p_true=p[:, 0],
                           p_true_sd=p_sd[:, 0], rows=np.asarray(fit.rows), shots=table,
                           ess=ess, rhat={k: rhat(v) for k, v in series.items()}, em=fit,
                           diagnostics=diagnostics, ci=float(ci))
+
+
+def _prior_label(post: ArrayLogPosterior) -> str:
+    """Return the positions' prior the posterior assumed, in words (diagnostics, the file)."""
+    if post.prior is None:
+        return "flat (no sigmas above 0)"
+    sds = 1.0 / np.sqrt(np.diag(post.prior)[np.diag(post.prior) > 0])
+    span = f"{sds.min():g} m" if sds.min() == sds.max() else f"{sds.min():g}-{sds.max():g} m"
+    return (f"Gaussian about the site file's positions on {sds.size} of {post.F} position "
+            f"parameters (sds {span}: its sigmas, GARPOS's a priori covariance)")
 
 
 def _noise_label(post: ArrayLogPosterior) -> str:

@@ -238,6 +238,11 @@ def test_garpos_s_array_take_over_moves_a_held_transponder_with_the_shift(tmp_pa
            "take-over)" in positions_line(res.summary)
     moved = fit.enu - fit.start
     np.testing.assert_allclose(moved[0], shift, atol=0.05)  # M01 held relative to the shift
+    common = pos["common_shift"]  # GARPOS's dCentPos, reported beside the positions
+    np.testing.assert_allclose([common[a]["mean"] for a in ("east", "north", "up")], moved[0],
+                               atol=1e-9)  # M01 has no offset of its own: its move is the shift
+    assert f"the common shift (dCentPos): east {common['east']['mean']:+.3f} +- " in \
+        positions_line(res.summary)
     assert np.all(fit.sd[0] > 0.001)
     assert np.all(np.abs(fit.enu - true.to_numpy()) < 4 * fit.sd + 0.01)
     # the sampler's parameters are the EM's (8 of them here would miss the shift); nine of
@@ -254,6 +259,9 @@ def test_a_held_east_offset_and_an_up_shift_count_right(tmp_path):
     pos = res.summary["positions"]
     assert pos["n_fixed"] == 1 and pos["n_coordinates"] == 9 and pos["n_free"] == 9
     assert "; 1 held at its prior position" in positions_line(res.summary)
+    # every up has its own 5 m prior: the shift's up (1 m) is its prior's, and said so
+    assert list(pos["common_shift"]) == ["up"] and pos["prior"]["mostly_prior"] == ["shift up"]
+    res.write(tmp_path / "out")  # summary.json as JSON (no inf or NaN)
 
 
 def test_held_coordinates_a_sharp_shift_moves_are_mostly_prior(tmp_path):
@@ -261,7 +269,8 @@ def test_held_coordinates_a_sharp_shift_moves_are_mostly_prior(tmp_path):
     raw, _ = _site(tmp_path, {f"M0{i}": (3, 3, 0) for i in (1, 2, 3)}, (0, 0, 0.005),
                    (0.6, -0.4, 0.0), n_transponders=3, hours=0.5, rng=36)
     res = locate_array_survey(raw, gradients="off", correlation="off")
-    assert res.summary["positions"]["prior"]["mostly_prior"] == ["M01 up", "M02 up", "M03 up"]
+    assert res.summary["positions"]["prior"]["mostly_prior"] == ["M01 up", "M02 up", "M03 up",
+                                                                 "shift up"]
 
 
 def test_the_proposal_scales_the_positions_prior_with_the_data_not_the_smoothing(tmp_path):

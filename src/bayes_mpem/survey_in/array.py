@@ -632,7 +632,8 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
                                               transponders, ids,
                                               _prior_check(phi[:nf], cov_phi[:nf, :nf], prior)),
                "position_prior": prior, "position_map": G,
-               "position_params": phi[:G.shape[1]].copy(), "noise": noise})
+               "position_params": phi[:nf].copy(), "position_params_cov": cov_phi[:nf, :nf],
+               "noise": noise})
 
 
 def to_sphere(east, north, up, radius):
@@ -1011,6 +1012,10 @@ def _positions_record(G, K, shift, prior, prior_sd, centre_sd, mask, transponder
            "n_coordinates": 3 * K}
     if common:  # GARPOS's array take-over: held offsets that the common shift still moves
         out["n_moved_by_shift_only"] = int(np.sum(mask.ravel() & np.any(G != 0.0, axis=1)))
+        # the shift's parameters are G's last columns, one per axis where it is solved
+        n_common = G.shape[1] - int(np.sum(~mask))
+        out["common_axes"] = [("east", "north", "up")[int(np.argmax(G[:3, j]))]
+                              for j in range(G.shape[1] - n_common, G.shape[1])]
     if prior is None:
         out["prior"] = None
         return out

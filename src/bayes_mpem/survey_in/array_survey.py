@@ -165,13 +165,25 @@ def _positions_entry(fit, ci, shift, priors):
     transponder minus its prior position (the same for all), with their sd (0 for a
     coordinate the site file holds). Where a transponder was not located, the geometry
     still places it: ``centre_of_all`` is the mean of every prior position plus the shift,
-    comparable with a campaign that located them all. With a prior, ``prior["mostly_prior"]``
+    comparable with a campaign that located them all. With GARPOS's take-over (a common
+    shift beside each transponder's offset), ``common_shift`` gives the shift (its
+    ``dCentPos``) on each axis solved. With a prior, ``prior["mostly_prior"]``
     names the coordinates whose posterior sd is above :data:`PRIOR_DOMINANT` of their prior's
     (the prior, not the shots, gives them over half of their precision).
     """
     out = dict(fit.model["positions"])
     if out.get("prior"):
         out["prior"] = dict(out["prior"], mostly_prior=_mostly_prior(fit, out["prior"]))
+    if out.get("common_axes"):  # GARPOS's dCentPos beside each transponder's dPos
+        axes = out.pop("common_axes")
+        phi, C = fit.model["position_params"], fit.model["position_params_cov"]
+        out["common_shift"] = {a: describe(phi[j], np.sqrt(max(C[j, j], 0.0)), ci) for a, j in
+                               zip(axes, range(phi.size - len(axes), phi.size), strict=True)}
+        prior = out.get("prior")
+        if prior:  # a shift its prior mostly determines, as a coordinate
+            c = dict(zip(("east", "north", "up"), prior["centre_sd"], strict=True))
+            prior["mostly_prior"] += [f"shift {a}" for a, v in out["common_shift"].items()
+                                      if c[a] and v["sd"] > PRIOR_DOMINANT * c[a]]
     if shift:
         d, sd = fit.enu[0] - fit.start[0], fit.sd[0]
         out["shift"] = {c: describe(v, s, ci) for c, v, s in

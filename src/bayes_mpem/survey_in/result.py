@@ -266,6 +266,10 @@ def positions_line(summary: dict) -> str | None:
                      + (f"; {pos['n_fixed']} held at "
                         + ("its prior position" if pos["n_fixed"] == 1 else
                            "their prior positions") if pos.get("n_fixed") else ""))
+        d = pos.get("common_shift") or {}
+        if d:
+            parts.append("the common shift (dCentPos): " + ", ".join(
+                f"{c} {v['mean']:+.3f} +- {v['sd']:.3f}" for c, v in d.items()) + " m")
     elif pos.get("n_fixed"):
         total = pos.get("n_coordinates", pos["n_fixed"] + pos["n_free"])
         parts.append(f"{pos['n_fixed']} of {total} coordinates held at their prior positions "

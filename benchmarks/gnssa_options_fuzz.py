@@ -175,6 +175,7 @@ def locate_cases():
              REFUSE, ["--position-prior"])
     case("position-prior off, garpos", "locate {garpos} --out {out} --position-prior off", OK,
          changes=["--position-prior", "off"])
+    case("position-prior site, garpos", "locate {garpos} --out {out} --position-prior site", OK)
     case("position-prior on a gnatss survey", "locate {gnatss} --out {out} --position-prior "
          "site", REFUSE, ["--position-prior"])
     case("position-prior on a seagap survey", "locate {seagap} --out {out} --position-prior "

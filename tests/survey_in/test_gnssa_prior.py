@@ -357,3 +357,37 @@ def test_the_prior_check_flags_sigmas_that_understate_the_error(tmp_path):
     res = locate_array_survey(read_garpos(good))
     assert res.summary["positions"]["prior"]["check"]["p_value"] > 0.01
     assert "CAUTION" not in positions_line(res.summary)
+
+
+def test_auto_scales_up_sigmas_that_understate_the_moves_where_the_prior_matters(tmp_path):
+    """Eight minutes of a star, positions drawn 6 m off, sigmas of 2 m.
+
+    ``site`` keeps the sigmas and cautions; ``auto`` (the default) fits again with them
+    scaled by the check's chi-squared over its degrees of freedom, and says so.
+    """
+    from bayes_mpem.survey_in.array_survey import prior_scale
+
+    sim = simulate_gnssa(n_transponders=3, hours=0.14, rng=5, depth=1500.0,
+                         prior_sd=(6.0, 6.0, 6.0))
+    site = write_garpos(tmp_path, sim.pings, sim.header, sigmas=(2.0, 2.0, 2.0))
+    raw = read_garpos(site)
+    true = sim.truth["transponders"][["east", "north", "up"]].to_numpy()
+    as_given = locate_array_survey(raw, position_prior="site")
+    k = prior_scale(as_given.fits["array"])
+    assert k > 2.0
+    assert "CAUTION" in positions_line(as_given.summary)
+    auto = locate_array_survey(raw)
+    rec = auto.summary["positions"]["prior"]
+    assert rec["choice"] == "auto" and rec["scaled"]["sd_factor"] == pytest.approx(np.sqrt(k))
+    assert rec["transponder_sd"]["M01"] == pytest.approx([2.0 * np.sqrt(k)] * 3)
+    line = positions_line(auto.summary)
+    assert f"sigmas scaled up {np.sqrt(k):.2f} times on 9 parameters" in line
+    fit, fit0 = auto.fits["array"], as_given.fits["array"]
+    assert np.all(fit.sd >= fit0.sd)
+    assert np.max(np.abs((fit.enu - true) / fit.sd)) < np.max(np.abs((fit0.enu - true) / fit0.sd))
+    # where the shots determine every parameter, nothing is scaled: the 1-hour campaign
+    sim = simulate_gnssa(n_transponders=3, hours=1.0, rng=37, prior_sd=(6.0, 6.0, 6.0))
+    site = write_garpos(tmp_path / "hour", sim.pings, sim.header, sigmas=(2.0, 2.0, 2.0))
+    res = locate_array_survey(read_garpos(site))
+    assert res.summary["positions"]["prior"]["scaled"] is None
+    assert prior_scale(res.fits["array"]) == 1.0

@@ -94,7 +94,7 @@ def locate_raw(raw, options: dict):
     # a SeaGap survey read as an array may have one transponder: the array's options at
     # their defaults are dropped (one speed for the smooth one), any other refused
     defaults = {"gradients": "auto", "knot_minutes": None, "flags": "honour",
-                "correlation": "auto", "position_prior": "site"}
+                "correlation": "auto", "position_prior": "auto"}
     given = []
     for key, default in defaults.items():
         if key in options and options.pop(key) != default:

@@ -181,10 +181,12 @@ def add_locate(sub):
     p.add_argument("--flags", choices=["honour", "reclassify"], default=None,
                    help="GARPOS surveys: shots flagged in obs.csv are left out of the fit "
                         "(honour, the default) or fitted and classified with the others")
-    p.add_argument("--position-prior", choices=["site", "off"], default=None,
+    p.add_argument("--position-prior", choices=["auto", "site", "off"], default=None,
                    help="GARPOS surveys: the site file's sigmas above 0 as Gaussian priors on "
-                        "the positions and the array's shift, as GARPOS uses them (site, the "
-                        "default), or every coordinate not held free (off)")
+                        "the positions and the array's shift, as GARPOS uses them (site), the "
+                        "same but scaled up where the fit moved the positions farther than "
+                        "they allow (auto, the default), or every coordinate not held free "
+                        "(off)")
     p.add_argument("--fit-lag", action="store_true",
                    help="fit a time lag of the acoustic position along the track (a position "
                         "fix logged at another moment, or a transducer ahead of the antenna)")

@@ -102,7 +102,7 @@ def locate_kwargs(args) -> dict:
                     knot_minutes=getattr(args, "knot_minutes", None),
                     flags=getattr(args, "flags", None) or "honour",
                     correlation=getattr(args, "correlation", None) or "auto",
-                    position_prior=getattr(args, "position_prior", None) or "site")
+                    position_prior=getattr(args, "position_prior", None) or "auto")
     array_only = [o for o in ("gradients", "knot_minutes", "flags", "correlation",
                               "position_prior")
                   if getattr(args, o, None) is not None]

@@ -1191,7 +1191,7 @@ def locate_array_survey_bayes(raw, *, ci=0.95, outliers="uniform", ssp=None,
                               speed_intervals=None, gradients="auto", knot_minutes=None,
                               flags="honour", n_walkers=None, min_ess=1000.0, max_steps=20000,
                               n_draws=4000, rng: RNGLike = None, progress="auto",
-                              correlation="auto", position_prior="site"):
+                              correlation="auto", position_prior="auto"):
     """Locate a GNSS-A array by EM, then sample its posterior (``locate --sample``).
 
     Parameters

@@ -158,7 +158,7 @@ def _centre_entry(fit, ci, origin):
                            "matrix": [[float(v) for v in row] for row in C]}}
 
 
-def _positions_entry(fit, ci, shift, priors):
+def _positions_entry(fit, ci, shift, priors, position_prior="site", scaling=None):
     """Return what was solved for the positions; with the rigid shift, the shift itself.
 
     The shift is GARPOS's ``dCentPos`` of a fixed-geometry solution: every located
@@ -173,7 +173,8 @@ def _positions_entry(fit, ci, shift, priors):
     """
     out = dict(fit.model["positions"])
     if out.get("prior"):
-        out["prior"] = dict(out["prior"], mostly_prior=_mostly_prior(fit, out["prior"]))
+        out["prior"] = dict(out["prior"], mostly_prior=_mostly_prior(fit, out["prior"]),
+                            choice=position_prior, scaled=scaling)
     if out.get("common_axes"):  # GARPOS's dCentPos beside each transponder's dPos
         axes = out.pop("common_axes")
         phi, C = fit.model["position_params"], fit.model["position_params_cov"]
@@ -517,7 +518,39 @@ def _check_sharp(header, key, sigmas):
 
 
 #: The choices of ``position_prior`` (``locate --position-prior``).
-POSITION_PRIORS = ("site", "off")
+POSITION_PRIORS = ("auto", "site", "off")
+#: :func:`prior_scale` scales the priors only where one gives a parameter at least this
+#: share of its precision (below it the refit would change the answer by less).
+MIN_PRIOR_INFLUENCE = 0.01
+
+
+def prior_scale(fit) -> float:
+    """Return the variance factor by which a fit's position priors understate its moves (>= 1).
+
+    The prior-data conflict check's chi-squared over its degrees of freedom
+    (``model["positions"]["prior"]["check"]``): the maximum-likelihood scale of the prior's
+    covariance given how far the fit moved the parameters from the site file's positions,
+    to first order. 1 where it is below 1 (the site file's sigmas are kept as a floor),
+    where the fit has no prior, and where no parameter has :data:`MIN_PRIOR_INFLUENCE` of
+    its precision from the prior (the shots determine them all: scaling would not matter).
+
+    Parameters
+    ----------
+    fit : ArrayLocateResult
+
+    Returns
+    -------
+    float
+    """
+    m = fit.model
+    P, C = m.get("position_prior"), m.get("position_params_cov")
+    check = ((m.get("positions") or {}).get("prior") or {}).get("check")
+    if P is None or C is None or not check:
+        return 1.0
+    influence = np.diag(C) * np.diag(P)  # the prior's share of each parameter's precision
+    if influence.max() < MIN_PRIOR_INFLUENCE:
+        return 1.0
+    return max(1.0, check["chi2"] / check["dof"])
 #: Least ``spread_over_depth`` of the track (:func:`track_geometry`) for the gradients.
 MIN_SPREAD = 0.1
 #: Horizontal distance from the array's centre, in depths, of a shot "over the array".
@@ -747,7 +780,7 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
                         speed_intervals=None, surface_depth=None,
                         knot_minutes=KNOT_MINUTES, shift=None,
                         gradients="auto", earth="sphere", flags="honour",
-                        correlation="auto", position_prior="site") -> SurveyInResult:
+                        correlation="auto", position_prior="auto") -> SurveyInResult:
     """Locate every transponder of a GNSS-A array survey together.
 
     Parameters
@@ -794,11 +827,14 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
         ``"auto"`` GARPOS's correlation in time and across transponders where the
         likelihood prefers it to independent replies; ``"off"`` (or None) independent
         (intervals cluster-robust by interrogation); ``(mu_t, mu_mt)`` given.
-    position_prior : {"site", "off"}, default "site"
+    position_prior : {"auto", "site", "off"}, default "auto"
         ``"site"``: the site file's sigmas above 0 are Gaussian priors on the positions
         (and on the array's shift), as GARPOS uses them (:func:`site_priors`);
-        ``"off"``: every coordinate not fixed is free. Only GARPOS's site files give
-        sigmas (``summary.json`` ``positions.prior``).
+        ``"auto"``: the same, then, where the fit moved the positions farther from the site
+        file's than those sigmas allow and the priors matter (:func:`prior_scale`), fitted
+        again with every sigma scaled up by that factor's square root (the sigmas are a
+        floor; ``positions.prior.scaled``); ``"off"``: every coordinate not fixed is free.
+        Only GARPOS's site files give sigmas (``summary.json`` ``positions.prior``).
 
     Returns
     -------
@@ -821,8 +857,9 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
     if shift and not auto_shift:
         fixed = None
     if position_prior not in POSITION_PRIORS:
-        raise InputError(f"position_prior: expected 'site' or 'off', got {position_prior!r}")
-    prior_sd, centre_sd = (site_priors(h, shift=shift) if position_prior == "site"
+        raise InputError(f"position_prior: expected 'auto', 'site' or 'off', got "
+                         f"{position_prior!r}")
+    prior_sd, centre_sd = (site_priors(h, shift=shift) if position_prior != "off"
                            else (None, None))
     choice = gradient_choice(gradients)
     gate, why = gradient_gate(shots, h["transponders"], speed_intervals)
@@ -846,16 +883,27 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
     radius = None if earth == "flat" else (earth_radius(h["lat"]) if "lat" in h
                                            else MEAN_EARTH_RADIUS_M)
     cartesian = radius is not None and raw.format != "seagap"
-    try:
-        fit = locate_array(shots, h["transponders"], profile=prof,
-                           surface_depth=float(surface_depth),
-                           speed_intervals=speed_intervals, outliers=outliers,
-                           knot_minutes=knot_minutes, fixed=fixed, shift=shift,
-                           gradients=gradients, earth_radius=radius, along_sphere=not cartesian,
-                           exclude=flagged if honour else None, correlation=correlation,
-                           prior_sd=prior_sd, centre_sd=centre_sd)
-    except InputError as exc:  # too few shots: name the shots file
-        raise InputError(f"{_shots_file(raw)}: {exc}") from None
+    def fit_with(scale):
+        try:
+            return locate_array(
+                shots, h["transponders"], profile=prof, surface_depth=float(surface_depth),
+                speed_intervals=speed_intervals, outliers=outliers, knot_minutes=knot_minutes,
+                fixed=fixed, shift=shift, gradients=gradients, earth_radius=radius,
+                along_sphere=not cartesian, exclude=flagged if honour else None,
+                correlation=correlation,
+                prior_sd=None if prior_sd is None else prior_sd * scale,
+                centre_sd=None if centre_sd is None else centre_sd * scale)
+        except InputError as exc:  # too few shots: name the shots file
+            raise InputError(f"{_shots_file(raw)}: {exc}") from None
+
+    fit = fit_with(1.0)
+    scaling = None
+    if position_prior == "auto":
+        k = prior_scale(fit)
+        if k > 1.0:  # the site file's sigmas understate how far its positions are off
+            first = fit.model["positions"]["prior"]["check"]
+            fit = fit_with(float(np.sqrt(k)))
+            scaling = {"sd_factor": float(np.sqrt(k)), "check_as_given": first}
     _check_below_transducer(raw, fit, shots)
     origin = (h["lat"], h["lon"], h.get("height", 0.0)) if "lat" in h else None
     counts = np.bincount(fit.index, minlength=len(fit.ids))
@@ -877,7 +925,8 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
         "method": _method(fit, rays, noise), "noise": noise,
         "outliers": outliers, "ssp": None if prof is None else prof.source,
         "speed_intervals": int(fit.model["speed_intervals"]), "fit_lag": False,
-        "positions": _positions_entry(fit, ci, shift, h["transponders"]),
+        "positions": _positions_entry(fit, ci, shift, h["transponders"], position_prior,
+                                      scaling),
         "gradients": {"fitted": bool(gradients), "choice": choice, "reason": why,
                       "terms": list(fit.gradient_terms),
                       "deep_gate": {"fit": bool(deep), "reason": why_deep},

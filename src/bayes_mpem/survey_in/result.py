@@ -283,8 +283,14 @@ def positions_line(summary: dict) -> str | None:
             sds += [v for v in prior["centre_sd"] if v]
         lo, hi = min(sds), max(sds)
         span = f"{lo:g} m" if lo == hi else f"{lo:g}-{hi:g} m"
+        scaled = prior.get("scaled")
         text = (f"Gaussian priors from the site file's sigmas on {prior['n_with_prior']} "
-                f"parameters (sd {span})")
+                f"parameters (sd {span})" if not scaled else
+                f"Gaussian priors from the site file's sigmas scaled up "
+                f"{scaled['sd_factor']:.2f} times on {prior['n_with_prior']} parameters (sd "
+                f"{span}): the fit moved the positions farther from the site file's than its "
+                f"sigmas allow (chi-squared {scaled['check_as_given']['chi2']:.1f} on "
+                f"{scaled['check_as_given']['dof']}; --position-prior site keeps them)")
         most = prior.get("mostly_prior") or []
         text += ("; the prior, not the shots, gives most of the precision of "
                  + ", ".join(most) if most else "; the shots dominate every one")

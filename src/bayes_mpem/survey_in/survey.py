@@ -66,7 +66,7 @@ def seagap_surface_depth(raw) -> float:
 def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", ssp=None,
                   speed_intervals=None, fit_lag=False, lag_check=False, one_at_a_time=False,
                   gradients="auto", knot_minutes=None, flags="honour", correlation="auto",
-                  position_prior="site"):
+                  position_prior="auto"):
     """Locate every transponder of a :class:`~bayes_mpem.io.raw.RawSurvey`.
 
     Parameters
@@ -110,9 +110,9 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
         An array survey: the replies' noise correlated in time and across
         transponders (:func:`locate_array_survey`); a one-transponder survey takes only
         the default.
-    position_prior : {"site", "off"}, default "site"
-        An array survey: the site file's sigmas as priors on the positions, or none
-        (:func:`locate_array_survey`).
+    position_prior : {"auto", "site", "off"}, default "auto"
+        An array survey: the site file's sigmas as priors on the positions (scaled up where
+        they understate the fit's moves, or as given), or none (:func:`locate_array_survey`).
 
     Returns
     -------

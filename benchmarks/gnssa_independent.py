@@ -471,8 +471,11 @@ def compare(summary: dict, truth: np.ndarray) -> dict:
                     for i, a in enumerate(AXES)])
     res["tp_err"], res["tp_sd"], res["tp_cov"] = np.array(errs), np.array(sds), np.array(cov)
     res["gradients"] = bool(summary["gradients"]["fitted"])
-    check = ((summary.get("positions") or {}).get("prior") or {}).get("check")
+    prior = (summary.get("positions") or {}).get("prior") or {}
+    check = prior.get("scaled", {}).get("check_as_given") if prior.get("scaled") else \
+        prior.get("check")  # the check of the sigmas as given
     res["prior_p"] = None if not check else check["p_value"]
+    res["prior_scaled"] = None if not prior else bool(prior.get("scaled"))
     return res
 
 
@@ -515,7 +518,14 @@ def table(rows: list[dict]) -> list[str]:
         f"{int(np.median([r['n'] for r in rows]))}",
         f"{sum(r['gradients'] for r in rows)} of {len(rows)}",
         _conflicts(rows),
+        _scaled(rows),
     ]
+
+
+def _scaled(rows):
+    """How many campaigns' priors ``--position-prior auto`` scaled up."""
+    sc = [r["prior_scaled"] for r in rows if r.get("prior_scaled") is not None]
+    return f"{sum(sc)} of {len(sc)}" if sc else "no prior"
 
 
 def _conflicts(rows):
@@ -536,7 +546,8 @@ MEASURES = ["centre error, median horizontal / vertical (cm)",
             "seconds per `locate` (median)",
             "replies per campaign (median)",
             "gradients fitted (auto)",
-            "prior check: the sigmas too small (p < 0.01)"]
+            "prior check of the sigmas as given: too small (p < 0.01)",
+            "priors scaled up (`--position-prior auto`)"]
 
 
 def main(argv=None) -> int:

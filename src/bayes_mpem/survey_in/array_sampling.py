@@ -1106,7 +1106,9 @@ def _prior_label(post: ArrayLogPosterior) -> str:
     sds = 1.0 / np.sqrt(np.diag(post.prior)[np.diag(post.prior) > 0])
     span = f"{sds.min():g} m" if sds.min() == sds.max() else f"{sds.min():g}-{sds.max():g} m"
     return (f"Gaussian about the site file's positions on {sds.size} of {post.F} position "
-            f"parameters (sds {span}: its sigmas, GARPOS's a priori covariance)")
+            f"parameters (sds {span}: its sigmas, GARPOS's a priori covariance, or those "
+            "scaled up by the fit where they understated its moves: summary.json "
+            "positions.prior)")
 
 
 def _noise_label(post: ArrayLogPosterior) -> str:

@@ -282,7 +282,7 @@ def positions_line(summary: dict) -> str | None:
             sds = [v for row in prior["transponder_sd"].values() for v in row if v]
             sds += [v for v in prior["centre_sd"] if v]
         lo, hi = min(sds), max(sds)
-        span = f"{lo:g} m" if lo == hi else f"{lo:g}-{hi:g} m"
+        span = f"{lo:.3g} m" if lo == hi else f"{lo:.3g}-{hi:.3g} m"
         scaled = prior.get("scaled")
         text = (f"Gaussian priors from the site file's sigmas on {prior['n_with_prior']} "
                 f"parameters (sd {span})" if not scaled else

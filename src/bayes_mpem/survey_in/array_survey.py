@@ -524,6 +524,21 @@ POSITION_PRIORS = ("auto", "site", "off")
 MIN_PRIOR_INFLUENCE = 0.01
 
 
+def _fit_scaled(fit_with, position_prior):
+    """Return ``(fit, scaled)``: the fit with the site file's sigmas, or scaled by the data.
+
+    With ``"auto"``, where :func:`prior_scale` says the sigmas understate the fit's moves, it is
+    fitted again with them scaled (``scaled`` the record, else None). ``fit_with(factor)`` fits
+    with every prior sd times ``factor``.
+    """
+    fit = fit_with(1.0)
+    k = prior_scale(fit) if position_prior == "auto" else 1.0
+    if k <= 1.0:
+        return fit, None
+    first = fit.model["positions"]["prior"]["check"]
+    return fit_with(float(np.sqrt(k))), {"sd_factor": float(np.sqrt(k)), "check_as_given": first}
+
+
 def prior_scale(fit) -> float:
     """Return the variance factor by which a fit's position priors understate its moves (>= 1).
 
@@ -896,14 +911,7 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
         except InputError as exc:  # too few shots: name the shots file
             raise InputError(f"{_shots_file(raw)}: {exc}") from None
 
-    fit = fit_with(1.0)
-    scaling = None
-    if position_prior == "auto":
-        k = prior_scale(fit)
-        if k > 1.0:  # the site file's sigmas understate how far its positions are off
-            first = fit.model["positions"]["prior"]["check"]
-            fit = fit_with(float(np.sqrt(k)))
-            scaling = {"sd_factor": float(np.sqrt(k)), "check_as_given": first}
+    fit, scaling = _fit_scaled(fit_with, position_prior)
     _check_below_transducer(raw, fit, shots)
     origin = (h["lat"], h["lon"], h.get("height", 0.0)) if "lat" in h else None
     counts = np.bincount(fit.index, minlength=len(fit.ids))

@@ -365,7 +365,7 @@ def test_auto_scales_up_sigmas_that_understate_the_moves_where_the_prior_matters
     ``site`` keeps the sigmas and cautions; ``auto`` (the default) fits again with them
     scaled by the check's chi-squared over its degrees of freedom, and says so.
     """
-    from bayes_mpem.survey_in.array_survey import prior_scale
+    from bayes_mpem.survey_in.array import prior_scale
 
     sim = simulate_gnssa(n_transponders=3, hours=0.14, rng=5, depth=1500.0,
                          prior_sd=(6.0, 6.0, 6.0))
@@ -382,6 +382,11 @@ def test_auto_scales_up_sigmas_that_understate_the_moves_where_the_prior_matters
     assert rec["transponder_sd"]["M01"] == pytest.approx([2.0 * np.sqrt(k)] * 3)
     line = positions_line(auto.summary)
     assert f"sigmas scaled up {np.sqrt(k):.2f} times on 9 parameters" in line
+    assert "(the sds here are the scaled ones)" in rec["kind"]
+    from bayes_mpem.survey_in.array_sampling import _prior_label
+
+    label = _prior_label(ArrayLogPosterior(array_shots(raw), auto.fits["array"]))
+    assert f"its sigmas scaled up {np.sqrt(k):.4g} times" in label
     fit, fit0 = auto.fits["array"], as_given.fits["array"]
     assert np.all(fit.sd >= fit0.sd)
     assert np.max(np.abs((fit.enu - true) / fit.sd)) < np.max(np.abs((fit0.enu - true) / fit0.sd))

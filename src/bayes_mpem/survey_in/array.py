@@ -630,9 +630,11 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
                "along_sphere": bool(along_sphere), "gradients": grad_record,
                "positions": _positions_record(G, K, shift, prior, prior_sd, centre_sd, mask,
                                               transponders, ids,
-                                              _prior_check(phi[:nf], cov_phi[:nf, :nf], prior)),
+                                              _prior_check(phi[:nf], cov_model_phi[:nf, :nf],
+                                                           prior)),
                "position_prior": prior, "position_map": G,
                "position_params": phi[:nf].copy(), "position_params_cov": cov_phi[:nf, :nf],
+               "position_params_cov_model": cov_model_phi[:nf, :nf],
                "noise": noise})
 
 
@@ -982,8 +984,12 @@ def _prior_check(phi, cov, prior):
     A prior-data conflict check (Box 1980; Evans & Moshonov 2006): where the prior is right,
     the posterior mean of the parameters that have one is ``N(0, V)`` with ``V`` the prior's
     covariance less the posterior's (linear-Gaussian), so ``phi' V^+ phi`` is chi-squared on
-    ``rank(V)`` degrees of freedom. A small p-value says the site file's positions are farther
-    off than its sigmas say, and the intervals lean on those sigmas. None without a prior.
+    ``rank(V)`` degrees of freedom. ``cov`` is the model-based posterior covariance
+    ``(J'J / sigma^2 + Q)^-1``: ``V`` is a difference of nearly equal matrices where the prior
+    dominates, and the cluster-robust, grid-averaged one (whose ``V`` is not this difference)
+    made the statistic several-fold too large there. A small p-value says the site file's
+    positions are farther off than its sigmas say, and the intervals lean on those sigmas.
+    None without a prior.
     """
     if prior is None:
         return None
@@ -999,6 +1005,64 @@ def _prior_check(phi, cov, prior):
     return {"chi2": stat, "dof": dof, "p_value": float(chi2.sf(stat, dof)),
             "test": "the fitted moves from the prior positions against the prior's covariance "
                     "less the posterior's (a prior-data conflict check)"}
+
+
+#: :func:`prior_scale` scales the priors only where one gives a parameter at least this share
+#: of its precision (below it the refit would change the answer by less) ...
+MIN_PRIOR_INFLUENCE = 0.01
+#: ... and where the check of the sigmas as given has a p-value below this.
+PRIOR_SCALE_P = 0.05
+#: The largest variance factor :func:`prior_scale` returns (sds times 100).
+MAX_PRIOR_SCALE = 1e4
+
+
+def prior_scale(fit) -> float:
+    """Return the variance factor by which a fit's position priors understate its moves (>= 1).
+
+    The factor ``kappa`` of the prior's covariance at which the prior-data check
+    (:func:`_prior_check`) of the fit, moved to that prior, has its chi-squared equal to its
+    degrees of freedom: the moment estimate of the prior's scale. The move is linear
+    (``phi_kappa = C_kappa (C^-1) phi`` with ``C_kappa = (C^-1 - P + P / kappa)^-1``, ``C`` the
+    model-based covariance), so no refit is needed to find it; the check's chi-squared over its
+    degrees of freedom at the sigmas as given tends to 1 where the prior carries the
+    parameters, and under-states ``kappa`` there. 1 where the fit has no prior, where the check
+    of the sigmas as given has a p-value of :data:`PRIOR_SCALE_P` or more, and where no
+    parameter has :data:`MIN_PRIOR_INFLUENCE` of its precision from the prior; at most
+    :data:`MAX_PRIOR_SCALE`. The site file's sigmas are a floor: never below 1.
+
+    Parameters
+    ----------
+    fit : ArrayLocateResult
+
+    Returns
+    -------
+    float
+    """
+    from scipy.optimize import brentq
+
+    m = fit.model
+    P, C, phi = (m.get(k) for k in ("position_prior", "position_params_cov_model",
+                                    "position_params"))
+    check = ((m.get("positions") or {}).get("prior") or {}).get("check")
+    if P is None or C is None or not check or check["p_value"] >= PRIOR_SCALE_P:
+        return 1.0
+    if (np.diag(C) * np.diag(P)).max() < MIN_PRIOR_INFLUENCE:  # the prior's share of each
+        return 1.0
+    A = _scaled_inverse(C)  # the posterior precision, M + P
+    b = A @ phi
+
+    def excess(log_kappa):
+        Pk = P / np.exp(log_kappa)
+        Ck = _scaled_inverse(A - P + Pk)
+        out = _prior_check(Ck @ b, Ck, Pk)
+        return np.inf if out is None else out["chi2"] / out["dof"] - 1.0
+
+    top = np.log(MAX_PRIOR_SCALE)
+    if not excess(0.0) > 0:
+        return 1.0
+    if excess(top) > 0:
+        return MAX_PRIOR_SCALE
+    return float(np.exp(brentq(excess, 0.0, top, xtol=1e-3)))
 
 
 def _positions_record(G, K, shift, prior, prior_sd, centre_sd, mask, transponders, ids,

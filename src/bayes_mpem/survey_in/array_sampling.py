@@ -1105,10 +1105,13 @@ def _prior_label(post: ArrayLogPosterior) -> str:
         return "flat (no sigmas above 0)"
     sds = 1.0 / np.sqrt(np.diag(post.prior)[np.diag(post.prior) > 0])
     span = f"{sds.min():g} m" if sds.min() == sds.max() else f"{sds.min():g}-{sds.max():g} m"
+    scaled = (((post.fit.model.get("positions") or {}).get("prior") or {}).get("sd_factor")
+              or 1.0)
+    what = ("its sigmas, GARPOS's a priori covariance" if scaled == 1.0 else
+            f"its sigmas scaled up {scaled:.4g} times, where the fit moved the positions farther "
+            "than they allow")
     return (f"Gaussian about the site file's positions on {sds.size} of {post.F} position "
-            f"parameters (sds {span}: its sigmas, GARPOS's a priori covariance, or those "
-            "scaled up by the fit where they understated its moves: summary.json "
-            "positions.prior)")
+            f"parameters (sds {span}: {what})")
 
 
 def _noise_label(post: ArrayLogPosterior) -> str:

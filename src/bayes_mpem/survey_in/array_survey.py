@@ -12,7 +12,7 @@ from scipy.stats import chi2
 from ..exceptions import InputError, LocateWarning
 from ..io.geodesy import MEAN_EARTH_RADIUS_M, earth_radius, enu_to_geodetic
 from ..io.raw import ARRAY_FORMATS, skip_reasons
-from .array import KNOT_MINUTES, MIN_PRIOR_SD, describe, locate_array
+from .array import KNOT_MINUTES, MIN_PRIOR_SD, describe, locate_array, prior_scale
 from .result import SurveyInResult, classified_table
 from .ssp import survey_profile
 from .travel_times import speed_basis
@@ -175,6 +175,10 @@ def _positions_entry(fit, ci, shift, priors, position_prior="site", scaling=None
     if out.get("prior"):
         out["prior"] = dict(out["prior"], mostly_prior=_mostly_prior(fit, out["prior"]),
                             choice=position_prior, scaled=scaling)
+        if scaling:
+            out["prior"]["kind"] += (f", scaled up {scaling['sd_factor']:.4g} times where the fit "
+                                     "moved the positions farther than they allow (the sds "
+                                     "here are the scaled ones)")
     if out.get("common_axes"):  # GARPOS's dCentPos beside each transponder's dPos
         axes = out.pop("common_axes")
         phi, C = fit.model["position_params"], fit.model["position_params_cov"]
@@ -519,11 +523,6 @@ def _check_sharp(header, key, sigmas):
 
 #: The choices of ``position_prior`` (``locate --position-prior``).
 POSITION_PRIORS = ("auto", "site", "off")
-#: :func:`prior_scale` scales the priors only where one gives a parameter at least this
-#: share of its precision (below it the refit would change the answer by less).
-MIN_PRIOR_INFLUENCE = 0.01
-
-
 def _fit_scaled(fit_with, position_prior):
     """Return ``(fit, scaled)``: the fit with the site file's sigmas, or scaled by the data.
 
@@ -536,36 +535,11 @@ def _fit_scaled(fit_with, position_prior):
     if k <= 1.0:
         return fit, None
     first = fit.model["positions"]["prior"]["check"]
-    return fit_with(float(np.sqrt(k))), {"sd_factor": float(np.sqrt(k)), "check_as_given": first}
+    fit = fit_with(float(np.sqrt(k)))
+    fit.model["positions"]["prior"]["sd_factor"] = float(np.sqrt(k))  # the sampler's label
+    return fit, {"sd_factor": float(np.sqrt(k)), "check_as_given": first}
 
 
-def prior_scale(fit) -> float:
-    """Return the variance factor by which a fit's position priors understate its moves (>= 1).
-
-    The prior-data conflict check's chi-squared over its degrees of freedom
-    (``model["positions"]["prior"]["check"]``): the maximum-likelihood scale of the prior's
-    covariance given how far the fit moved the parameters from the site file's positions,
-    to first order. 1 where it is below 1 (the site file's sigmas are kept as a floor),
-    where the fit has no prior, and where no parameter has :data:`MIN_PRIOR_INFLUENCE` of
-    its precision from the prior (the shots determine them all: scaling would not matter).
-
-    Parameters
-    ----------
-    fit : ArrayLocateResult
-
-    Returns
-    -------
-    float
-    """
-    m = fit.model
-    P, C = m.get("position_prior"), m.get("position_params_cov")
-    check = ((m.get("positions") or {}).get("prior") or {}).get("check")
-    if P is None or C is None or not check:
-        return 1.0
-    influence = np.diag(C) * np.diag(P)  # the prior's share of each parameter's precision
-    if influence.max() < MIN_PRIOR_INFLUENCE:
-        return 1.0
-    return max(1.0, check["chi2"] / check["dof"])
 #: Least ``spread_over_depth`` of the track (:func:`track_geometry`) for the gradients.
 MIN_SPREAD = 0.1
 #: Horizontal distance from the array's centre, in depths, of a shot "over the array".

@@ -284,13 +284,15 @@ def positions_line(summary: dict) -> str | None:
         lo, hi = min(sds), max(sds)
         span = f"{lo:.3g} m" if lo == hi else f"{lo:.3g}-{hi:.3g} m"
         scaled = prior.get("scaled")
-        text = (f"Gaussian priors from the site file's sigmas on {prior['n_with_prior']} "
-                f"parameters (sd {span})" if not scaled else
-                f"Gaussian priors from the site file's sigmas scaled up "
-                f"{scaled['sd_factor']:.2f} times on {prior['n_with_prior']} parameters (sd "
-                f"{span}): the fit moved the positions farther from the site file's than its "
-                f"sigmas allow (chi-squared {scaled['check_as_given']['chi2']:.1f} on "
-                f"{scaled['check_as_given']['dof']}; --position-prior site keeps them)")
+        n = prior["n_with_prior"]
+        on = f"on {n} parameter{'s' * (n != 1)}"
+        first = (scaled or {}).get("check_as_given") or {}
+        text = (f"Gaussian priors from the site file's sigmas {on} (sd {span})" if not scaled
+                else f"Gaussian priors from the site file's sigmas scaled up "
+                f"{scaled['sd_factor']:.2f} times {on} (sd {span}): the fit moved the positions "
+                f"farther from the site file's than its sigmas allow (chi-squared "
+                f"{first['chi2']:.1f} on {first['dof']}, p {first['p_value']:.2g}; "
+                "--position-prior site keeps them)")
         most = prior.get("mostly_prior") or []
         text += ("; the prior, not the shots, gives most of the precision of "
                  + ", ".join(most) if most else "; the shots dominate every one")

@@ -396,3 +396,13 @@ def test_auto_scales_up_sigmas_that_understate_the_moves_where_the_prior_matters
     res = locate_array_survey(read_garpos(site))
     assert res.summary["positions"]["prior"]["scaled"] is None
     assert prior_scale(res.fits["array"]) == 1.0
+
+
+def test_the_option_on_a_survey_located_one_at_a_time_says_garpos(tmp_path, capsys):
+    from bayes_mpem.io.formats import sample_file
+
+    src = sample_file("seagap/obsdata.inp")
+    assert main(["locate", str(src), "--out", str(tmp_path / "o"), "--one-at-a-time",
+                 "--position-prior", "off"]) == 2
+    err = capsys.readouterr().err
+    assert "--position-prior: for GARPOS surveys only" in err and "Traceback" not in err

@@ -103,8 +103,11 @@ def locate_kwargs(args) -> dict:
                     flags=getattr(args, "flags", None) or "honour",
                     correlation=getattr(args, "correlation", None) or "auto",
                     position_prior=getattr(args, "position_prior", None) or "auto")
-    array_only = [o for o in ("gradients", "knot_minutes", "flags", "correlation",
-                              "position_prior")
+    if getattr(args, "position_prior", None) is not None:
+        raise OptionError(f"--position-prior: for GARPOS surveys only (this {fmt} survey is "
+                          "located one transponder at a time and gives no sigmas of the prior "
+                          "positions)")
+    array_only = [o for o in ("gradients", "knot_minutes", "flags", "correlation")
                   if getattr(args, o, None) is not None]
     if array_only:
         raise OptionError(f"{', '.join('--' + o.replace('_', '-') for o in array_only)}: for "

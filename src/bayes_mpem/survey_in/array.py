@@ -1055,12 +1055,13 @@ def prior_scale(fit) -> float:
         Pk = P / np.exp(log_kappa)
         Ck = _scaled_inverse(A - P + Pk)
         out = _prior_check(Ck @ b, Ck, Pk)
-        return np.inf if out is None else out["chi2"] / out["dof"] - 1.0
+        return np.nan if out is None else out["chi2"] / out["dof"] - 1.0
 
     top = np.log(MAX_PRIOR_SCALE)
-    if not excess(0.0) > 0:
+    lo, hi = excess(0.0), excess(top)
+    if not lo > 0 or not np.isfinite(hi):  # no conflict, or no scale can be bracketed
         return 1.0
-    if excess(top) > 0:
+    if hi > 0:
         return MAX_PRIOR_SCALE
     return float(np.exp(brentq(excess, 0.0, top, xtol=1e-3)))
 

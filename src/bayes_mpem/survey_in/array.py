@@ -263,7 +263,11 @@ class ArrayLocateResult:
     model : dict
         ``profile``, ``surface_depth``, ``speed_intervals``, ``time_range``, ``unit``
         (m/s per unit of speed coefficient), ``n_invalid``, ``earth_radius`` (None: flat
-        layers), ``along_sphere``, ``smoothing``, ``gradients``, ``positions``.
+        layers), ``along_sphere``, ``smoothing``, ``gradients``, ``positions`` (with its
+        ``prior`` record and check), and the position parameters: ``position_map`` ``G``
+        (positions = priors + ``G phi``), ``position_params`` ``phi``, their covariances
+        ``position_params_cov`` (as :attr:`cov`) and ``position_params_cov_model``, and
+        ``position_prior``, their prior precision (None: flat).
     """
 
     ids: tuple

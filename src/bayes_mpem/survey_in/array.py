@@ -1996,10 +1996,8 @@ def _grid_average(J, r, theta, H, sigma, lam, H_fixed, meat, n_clusters, grid, m
             _, step, A, factor = _log_evidence(pre, r, theta, H, sigma, lg, rank, H_fixed,
                                                blocks)
             Ainv = _scaled_inverse(A, factor)
-            edf = float(np.sum(Ainv * JtJ) / sigma**2)  # trace(Ainv JtJ), both symmetric
             prior = lg * H if H_fixed is None else lg * H + H_fixed
-            C = Ainv @ (meat * n_clusters / max(n_clusters - edf, 1.0) + prior) @ Ainv
-            C = 0.5 * (C + C.T)
+            C, edf = _sandwich(Ainv, JtJ, meat, n_clusters, sigma, prior)
             rows.append((x, None, step, C, Ainv, edf))
         if used[k] and not _accurate(rows[k][3], free):
             dropped.append(k)
@@ -2191,10 +2189,20 @@ def _prior_covariance(J, r, clusters, sigma, prior):
     S = _cluster_sums(clusters, J * r[:, None])
     JtJ = J.T @ J
     Ainv = _scaled_inverse(JtJ / sigma**2 + prior)
-    edf = float(np.sum(Ainv * JtJ) / sigma**2)
-    n = S.shape[0]
-    C = Ainv @ (S.T @ S / sigma**4 * n / max(n - edf, 1.0) + prior) @ Ainv
-    return 0.5 * (C + C.T), Ainv
+    return _sandwich(Ainv, JtJ, S.T @ S / sigma**4, S.shape[0], sigma, prior)[0], Ainv
+
+
+def _sandwich(Ainv, JtJ, meat, n_clusters, sigma, prior):
+    """Return ``(C, edf)``: the cluster-robust covariance of a penalised fit, and its dof.
+
+    ``C = A^-1 (meat G / (G - edf) + prior) A^-1`` (``A^-1`` the inverse posterior precision,
+    ``meat`` the clusters' scores' outer products over ``sigma^4``, ``G`` the clusters), made
+    exactly symmetric; ``edf = tr(A^-1 J'J) / sigma^2``. A row of :func:`_grid_average`, and
+    :func:`_prior_covariance`.
+    """
+    edf = float(np.sum(Ainv * JtJ) / sigma**2)  # trace(Ainv JtJ), both symmetric
+    C = Ainv @ (meat * n_clusters / max(n_clusters - edf, 1.0) + prior) @ Ainv
+    return 0.5 * (C + C.T), edf
 
 
 def robust_covariance(J, r, clusters) -> np.ndarray:

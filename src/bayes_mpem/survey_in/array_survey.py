@@ -446,16 +446,12 @@ def position_constraints(header, ids=None):
     >>> shift, fixed[0].tolist()
     (True, [False, False, True])
     """
-    sig = header.get("position_sigmas")
-    if sig is None:
+    s, cen = _header_sigmas(header, ids)
+    if s is None:
         return None, False
-    ids = list(header["transponders"].index) if ids is None else ids
-    s = sig.reindex([str(i) for i in ids])[["east", "north", "up"]].to_numpy(float)
     zero = s == 0.0  # NaN (absent) is free
-    cen = header.get("centre_sigmas")
-    cen = np.array([np.nan if v is None else v for v in (cen or [None] * 3)], float)
     if zero.all() and (cen > 0).any():
-        return np.tile(cen == 0.0, (len(ids), 1)), True
+        return np.tile(cen == 0.0, (len(s), 1)), True
     return (zero if zero.any() else None), False
 
 
@@ -495,20 +491,32 @@ def site_priors(header, ids=None, shift=False):
     >>> sd.tolist(), c
     ([[3.0, 3.0, 1.0], [inf, inf, inf]], None)
     """
-    sig = header.get("position_sigmas")
-    cen = header.get("centre_sigmas")
-    cen = np.array([np.nan if v is None else v for v in (cen or [None] * 3)], float)
+    s, cen = _header_sigmas(header, ids)
     _check_sharp(header, "dCentPos", cen)
     cen = np.where(np.isfinite(cen) & (cen > 0), cen, 0.0)
     centre = cen if (cen > 0).any() else None
-    if shift or sig is None:
+    if shift or s is None:
         return None, centre
     ids = list(header["transponders"].index) if ids is None else ids
-    s = sig.reindex([str(i) for i in ids])[["east", "north", "up"]].to_numpy(float)
     for i, row in zip(ids, s, strict=True):
         _check_sharp(header, f"{i}_dPos", row)
     s = np.where(np.isfinite(s) & (s > 0), s, np.inf)
     return (s if np.isfinite(s).any() else None), centre
+
+
+def _header_sigmas(header, ids=None):
+    """Return ``(dpos, centre)``: the site file's sigmas as the GARPOS reader keeps them.
+
+    ``dpos`` the ``(K, 3)`` ``_dPos`` sigmas in ``ids``' order (None without them), ``centre``
+    ``dCentPos``'s three (NaN where absent).
+    """
+    cen = header.get("centre_sigmas")
+    cen = np.array([np.nan if v is None else v for v in (cen or [None] * 3)], float)
+    sig = header.get("position_sigmas")
+    if sig is None:
+        return None, cen
+    ids = list(header["transponders"].index) if ids is None else ids
+    return sig.reindex([str(i) for i in ids])[["east", "north", "up"]].to_numpy(float), cen
 
 
 def _check_sharp(header, key, sigmas):

@@ -454,6 +454,59 @@ def test_a_thread_count_the_user_set_is_left_alone(monkeypatch):
     assert seen and all(n == seen[0] for n in seen) and (seen[0] > 1 or os.cpu_count() == 1)
 
 
+def test_thread_map_is_the_loop_in_order_and_raises_as_the_loop_does():
+    from bayes_mpem import _threads
+
+    assert _threads.thread_map(lambda x: x * x, range(7)) == [x * x for x in range(7)]
+
+    def fails_at(x):
+        if x in (2, 4):
+            raise ValueError(f"item {x}")
+        return x
+
+    with pytest.raises(ValueError, match="item 2"):
+        _threads.thread_map(fails_at, range(6))
+
+
+def test_thread_map_runs_in_order_inside_a_piece_and_beside_another_fit(monkeypatch):
+    """A piece that maps again must not wait on the pool it runs in (a deadlock where
+    every worker waits); while two fits run, neither spreads its pieces."""
+    import threading
+
+    from bayes_mpem import _threads
+
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1}, raising=False)
+    names = []
+
+    def inner(x):
+        names.append(threading.current_thread().name)
+        return x
+
+    out = _threads.thread_map(lambda k: _threads.thread_map(inner, range(k)), range(1, 5))
+    assert out == [list(range(k)) for k in range(1, 5)]
+    assert all(n.startswith(_threads._PREFIX) for n in names)  # each piece's own thread
+    assert _threads.workers() == 2
+    monkeypatch.setitem(_threads._FITS, "count", 2)
+    assert _threads.workers() == 1
+    main_thread = threading.current_thread().name
+    names.clear()
+    _threads.thread_map(inner, range(3))
+    assert names == [main_thread] * 3
+
+
+def test_the_grid_rows_on_several_threads_are_the_serial_rows_to_the_bit(monkeypatch):
+    """The intervals' grid rows are spread over the cores (``_threads.thread_map``): the
+    covariance is the one a single thread computes."""
+    from bayes_mpem import _threads
+
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1}, raising=False)
+    raw = simulate_gnssa(hours=1.0, rng=4).raw()
+    spread = locate_array_survey(raw, correlation="off").fits["array"]
+    monkeypatch.setattr(_threads, "MAX_WORKERS", 1)
+    serial = locate_array_survey(raw, correlation="off").fits["array"]
+    assert np.array_equal(spread.cov, serial.cov) and np.array_equal(spread.enu, serial.enu)
+
+
 def test_the_full_covariance_maps_only_the_positions_rows_and_columns():
     """``diag(G, I) C diag(G, I)'`` block by block: exact where G selects free coordinates,
     to round-off where it sums them (a rigid shift)."""

@@ -15,7 +15,7 @@ from scipy.optimize import least_squares
 from scipy.sparse import csr_matrix
 from scipy.stats import chi2, norm
 
-from .._threads import with_one_blas_thread
+from .._threads import thread_map, with_one_blas_thread
 from .._validate import check_choice, check_int
 from ..exceptions import InputError, LocateWarning
 from .arrowhead import arrowhead, forgetting, gram
@@ -1984,23 +1984,22 @@ def _grid_average(J, r, theta, H, sigma, lam, H_fixed, meat, n_clusters, grid, m
     if free is None:
         free = (np.diag(H) == 0 if H_fixed is None else
                 (np.diag(H) == 0) & (np.diag(H_fixed) == 0))
-    rows, dropped = [], []
-    for k, x in enumerate(grid):
-        if not used[k] and k != mid:
-            rows.append(None)
-            continue
-        if k == mid and mid_row is not None and x == 0.0 == mid_row[0]:
-            rows.append((x, *mid_row[1:]))
-        else:
-            lg = lam * 10.0 ** x
-            _, step, A, factor = _log_evidence(pre, r, theta, H, sigma, lg, rank, H_fixed,
-                                               blocks)
-            Ainv = _scaled_inverse(A, factor)
-            prior = lg * H if H_fixed is None else lg * H + H_fixed
-            C, edf = _sandwich(Ainv, JtJ, meat, n_clusters, sigma, prior)
-            rows.append((x, None, step, C, Ainv, edf))
-        if used[k] and not _accurate(rows[k][3], free):
-            dropped.append(k)
+
+    def row(x):
+        lg = lam * 10.0 ** x
+        _, step, A, factor = _log_evidence(pre, r, theta, H, sigma, lg, rank, H_fixed, blocks)
+        Ainv = _scaled_inverse(A, factor)
+        prior = lg * H if H_fixed is None else lg * H + H_fixed
+        C, edf = _sandwich(Ainv, JtJ, meat, n_clusters, sigma, prior)
+        return (x, None, step, C, Ainv, edf)
+
+    rows = [None] * len(grid)
+    if mid_row is not None and grid[mid] == 0.0 == mid_row[0]:
+        rows[mid] = (grid[mid], *mid_row[1:])
+    todo = [k for k in range(len(grid)) if (used[k] or k == mid) and rows[k] is None]
+    for k, out in zip(todo, thread_map(row, [grid[k] for k in todo]), strict=True):
+        rows[k] = out  # each a dense factor, inverse and products: the rows on the cores
+    dropped = [k for k in range(len(grid)) if used[k] and not _accurate(rows[k][3], free)]
     if dropped and len(dropped) < used.sum():  # every row inaccurate: all kept, as before
         used[dropped] = False
         w[dropped] = 0.0

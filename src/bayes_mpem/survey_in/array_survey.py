@@ -739,7 +739,108 @@ def _check_below_transducer(raw, fit, shots) -> None:
                 "file's positions (metres, up negative below the sea surface)")
 
 
-def _classified(raw, shots, fit, flagged, honour):
+#: Shots more than this (s) from every shot outside their group, in a group of fewer than
+#: :data:`ISOLATED_SHOTS`, are left out of an array's fit (:func:`isolated_shots`).
+ISOLATED_GAP_S = 3600.0
+#: See :data:`ISOLATED_GAP_S`.
+ISOLATED_SHOTS = 10
+
+
+def isolated_shots(shots):
+    """Return which shots lie isolated in time, and why: a mask and a reason per shot.
+
+    A group of fewer than :data:`ISOLATED_SHOTS` shots (replies) separated from every other
+    shot by more than :data:`ISOLATED_GAP_S` cannot tell its own sound speed (the smooth speed
+    is free across a gap), so the fit explains it whatever its time and calls it true; and it
+    stretches the campaign's span, on which ``--gradients auto`` decides. One mistyped ``ST``
+    ten hours off moved a simulated centre by 4-7 cm. Such shots are left out, each named.
+
+    Parameters
+    ----------
+    shots : pandas.DataFrame
+        With ``time`` (s).
+
+    Returns
+    -------
+    mask : numpy.ndarray of bool
+    reasons : numpy.ndarray of object
+        The reason of each shot left out ("" elsewhere).
+
+    Examples
+    --------
+    >>> shots = pd.DataFrame({"time": [0.0, 20.0, 40.0, 60.0, 80.0, 100.0, 120.0, 140.0,
+    ...                                160.0, 180.0, 200.0, 36200.0]})
+    >>> isolated_shots(shots)[0].nonzero()[0].tolist()
+    [11]
+    """
+    t = shots["time"].to_numpy(float)
+    mask, reasons = np.zeros(t.size, bool), np.full(t.size, "", dtype=object)
+    order = np.argsort(t, kind="stable")
+    groups = np.split(order, np.flatnonzero(np.diff(t[order]) > ISOLATED_GAP_S) + 1)
+    if len(groups) < 2:
+        return mask, reasons
+    for g in groups:
+        if g.size >= ISOLATED_SHOTS or 2 * g.size >= t.size:
+            continue
+        others = np.setdiff1d(order, g)
+        gap = float(np.min(np.abs(t[others][:, None] - t[g][None, :])))
+        mask[g] = True
+        reasons[g] = (f"isolated in time: {g.size} shot{'s' * (g.size != 1)} {gap / 3600.0:.1f} "
+                      f"h from every other (more than {ISOLATED_GAP_S / 3600.0:g} h, fewer than "
+                      f"{ISOLATED_SHOTS}): left out of the fit (a time mistyped?)")
+    return mask, reasons
+
+
+def _isolated(raw, shots):
+    """:func:`isolated_shots` of ``shots``, warned of with their lines where there are any."""
+    mask, reasons = isolated_shots(shots)
+    if mask.any():
+        lines = shots["line"].to_numpy()[mask] if "line" in shots.columns else []
+        warnings.warn(f"{_shots_file(raw)} line{'s' * (len(lines) != 1)} "
+                      f"{', '.join(map(str, lines[:10]))}{', ...' if len(lines) > 10 else ''}: "
+                      f"{reasons[mask][0]}", LocateWarning, stacklevel=3)
+    return mask, reasons
+
+
+#: A transponder of at least :data:`MIN_REPLIES_CHECKED` replies of which the fit calls fewer
+#: than this share true is refused (:func:`_check_replies_explained`).
+MIN_TRUE_SHARE = 0.1
+#: Replies a transponder needs before :func:`_check_replies_explained` judges it.
+MIN_REPLIES_CHECKED = 10
+
+
+def _positions_file(raw) -> str:
+    """Name where a survey's prior positions come from (site file, config, pxp-ini)."""
+    files = raw.header.get("files", {})
+    return files.get("site") or files.get("config") or files.get("positions") or raw.source
+
+
+def _check_replies_explained(raw, fit) -> None:
+    """Refuse a fit that calls nearly all of one transponder's replies spurious.
+
+    Its position is then the prior's alone and the array's centre carries it: a slip in the
+    prior position (a sign, a digit) or another transponder's replies. Where the prior is
+    hundreds of metres off, the robust start cannot reach the replies and the EM calls them
+    all spurious, at exit 0 with a centre hundreds of metres off.
+    """
+    for k, tid in enumerate(fit.ids):
+        sel = fit.index == k
+        n = int(sel.sum())
+        true = int(np.sum(fit.p_true[sel] > 0.5))
+        if n < MIN_REPLIES_CHECKED or true >= MIN_TRUE_SHARE * n:
+            continue
+        med = float(np.median(fit.residual[sel]))
+        e, nn, u = fit.start[k]
+        raise InputError(
+            f"{_positions_file(raw)}: transponder {tid}: {n - true} of its {n} replies called "
+            f"spurious (fewer than {100 * MIN_TRUE_SHARE:g} % true): their travel times are "
+            f"{1e3 * med:+,.1f} ms (median; about {abs(med) * 750.0:,.0f} m of range) from "
+            f"what its prior position (east {e:.3f}, north {nn:.3f}, up {u:.3f} m) predicts. "
+            "Check that position (a sign or a digit slipped?) and that these replies are "
+            f"{tid}'s")
+
+
+def _classified(raw, shots, fit, flagged, honour, isolated=None):
     """Return ``classified.csv``'s table, each shot's probability of being true, the fitted.
 
     The fitted shots are the rows of ``fit`` (``fit.rows``); a shot not fitted has a NaN
@@ -757,6 +858,9 @@ def _classified(raw, shots, fit, flagged, honour):
     tid = shots["transponder"].astype(str).to_numpy()
     for t, skip_why in fit.skipped.items():
         reasons[tid == t] = f"transponder {t} not located: {skip_why}"
+    if isolated is not None:
+        reasons[(isolated[1] != "") & (reasons == "")] = isolated[1][(isolated[1] != "")
+                                                                      & (reasons == "")]
     if honour:
         reasons[flagged & (reasons == "")] = ("flagged in the file: left out of the fit "
                                               "(--flags reclassify fits and classifies it)")
@@ -845,6 +949,8 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
         raise InputError(f"{raw.source}: no prior transponder positions were read (SeaGap's "
                          "pxp-ini.inp beside it); the array's fit starts from them")
     shots = array_shots(raw)
+    isolated = _isolated(raw, shots)
+    timed = shots[~isolated[0]]  # the gates judge the shots fitted
     prof = survey_profile(raw, "survey" if ssp is None else ssp)
     h = raw.header
     if surface_depth is None:
@@ -859,11 +965,11 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
     prior_sd, centre_sd = (site_priors(h, shift=shift) if position_prior != "off"
                            else (None, None))
     choice = gradient_choice(gradients)
-    gate, why = gradient_gate(shots, h["transponders"], speed_intervals)
+    gate, why = gradient_gate(timed, h["transponders"], speed_intervals)
     # the horizontal geometry held (a rigid shift, or every east and north offset held, as
     # GARPOS's take-over may): the deep gradient cannot trade with it
     held_h = shift or (fixed is not None and bool(fixed[:, :2].all()))
-    deep, why_deep = deep_gradient_gate(shots, h["transponders"], held_h)
+    deep, why_deep = deep_gradient_gate(timed, h["transponders"], held_h)
     if choice == "auto":
         gradients = (True if deep else "shallow") if gate else False
         why = "auto: " + why + (f"; {why_deep}" if gate else "")
@@ -875,6 +981,7 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
     flagged = (shots["file_flag"].to_numpy(bool) if "file_flag" in shots.columns
                else np.zeros(len(shots), bool))
     honour = flags == "honour" and flagged.any()
+    left_out = (flagged if honour else False) | isolated[0]
     if earth not in ("sphere", "flat"):
         raise InputError(f"earth: expected 'sphere' or 'flat', got {earth!r}")
     radius = None if earth == "flat" else (earth_radius(h["lat"]) if "lat" in h
@@ -886,7 +993,7 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
                 shots, h["transponders"], profile=prof, surface_depth=float(surface_depth),
                 speed_intervals=speed_intervals, outliers=outliers, knot_minutes=knot_minutes,
                 fixed=fixed, shift=shift, gradients=gradients, earth_radius=radius,
-                along_sphere=not cartesian, exclude=flagged if honour else None,
+                along_sphere=not cartesian, exclude=left_out if left_out.any() else None,
                 correlation=correlation,
                 prior_sd=None if prior_sd is None else prior_sd * scale,
                 centre_sd=None if centre_sd is None else centre_sd * scale)
@@ -895,11 +1002,12 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
 
     fit, scaling = _fit_scaled(fit_with, position_prior)
     _check_below_transducer(raw, fit, shots)
+    _check_replies_explained(raw, fit)
     origin = (h["lat"], h["lon"], h.get("height", 0.0)) if "lat" in h else None
     counts = np.bincount(fit.index, minlength=len(fit.ids))
     out = {tid: _transponder_entry(fit, k, ci, origin, counts[k])
            for k, tid in enumerate(fit.ids)}
-    cls, probs, sub = _classified(raw, shots, fit, flagged, honour)
+    cls, probs, sub = _classified(raw, shots, fit, flagged, honour, isolated)
     rays = "straight rays" if prof is None else f"refracted rays ({prof.source or 'profile'})"
     noise = _noise_entry(fit, correlation)
     summary = {
@@ -927,7 +1035,9 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
                            f"covariance with squared radius {chi2.ppf(ci, 3):.4f}"}
     unlocated = np.isin(shots["transponder"].astype(str).to_numpy(), list(fit.skipped))
     summary["not_fitted"] = {"transponder_not_located": int(unlocated.sum()),
-                             "flagged": int(np.sum(flagged & ~unlocated)) if honour else 0}
+                             "flagged": int(np.sum(flagged & ~unlocated & ~isolated[0]))
+                             if honour else 0,
+                             "isolated_in_time": int(np.sum(isolated[0] & ~unlocated))}
     if "file_flag" in shots.columns:
         summary["file_flags"] = {"n_flagged": int(flagged.sum()), "flags": flags,
                                  "honoured": bool(honour),

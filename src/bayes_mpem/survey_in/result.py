@@ -353,7 +353,8 @@ def _speed_grid_note(sound_speed: dict) -> str:
 def not_fitted_note(summary: dict) -> str | None:
     """Return how many shots read were not fitted and why, else None.
 
-    A shot flagged in the file (honoured) or of a transponder not located is read but not
+    A shot flagged in the file (honoured), isolated in time
+    (:func:`~.array_survey.isolated_shots`) or of a transponder not located is read but not
     fitted: it is in ``n_pings`` and in ``classified.csv`` (label ``skipped``, with the
     reason), neither true nor spurious.
 
@@ -375,10 +376,14 @@ def not_fitted_note(summary: dict) -> str | None:
     n = int(summary["n_pings"]) - r["n_true"] - r["n_spurious"]
     if n <= 0:
         return None
-    flagged = (summary.get("not_fitted") or {}).get("flagged", 0)  # as classified.csv has it
+    left = summary.get("not_fitted") or {}
+    flagged = left.get("flagged", 0)  # as classified.csv has it
+    isolated = left.get("isolated_in_time", 0)
     parts = [f"{flagged} flagged in the file"] if flagged else []
-    if n - flagged:
-        parts.append(f"{n - flagged} of a transponder not located")
+    if isolated:
+        parts.append(f"{isolated} isolated in time")
+    if n - flagged - isolated:
+        parts.append(f"{n - flagged - isolated} of a transponder not located")
     return (f"{n} shot{'s' * (n != 1)} not fitted: {', '.join(parts)} (reasons in "
             "classified.csv)")
 

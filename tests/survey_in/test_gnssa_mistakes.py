@@ -1,0 +1,84 @@
+"""Mistakes real GNSS-A campaign files carry: each refused with where, or left out and named.
+
+Found by an independent hunt for malformed inputs (session 46): each was a wrong answer at
+exit 0 before.
+"""
+
+import warnings
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from bayes_mpem.cli import main
+from bayes_mpem.exceptions import InputError, LocateWarning
+from bayes_mpem.io.garpos import read_garpos, write_garpos
+from bayes_mpem.survey_in.array_survey import isolated_shots, locate_array_survey
+from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa
+
+
+@pytest.fixture(scope="module")
+def campaign(tmp_path_factory):
+    """A half-hour GARPOS campaign as files, and its clean centre."""
+    folder = tmp_path_factory.mktemp("garpos")
+    sim = simulate_gnssa(hours=0.5, rng=11)
+    site = write_garpos(folder, sim.pings, sim.header)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LocateWarning)
+        centre = locate_array_survey(read_garpos(site)).fits["array"].centre()[0]
+    return site, centre
+
+
+def _copy(site, tmp_path):
+    for f in site.parent.iterdir():
+        (tmp_path / f.name).write_bytes(f.read_bytes())
+    return tmp_path / site.name
+
+
+def test_a_slipped_sign_in_a_prior_position_is_refused_naming_the_transponder(campaign,
+                                                                                tmp_path,
+                                                                                capsys):
+    """M01's east given with the wrong sign (about 1 km off): the robust start cannot reach its
+    replies, the EM called all of them spurious and the centre was hundreds of metres off."""
+    site = _copy(campaign[0], tmp_path)
+    lines = site.read_text().splitlines(keepends=True)
+    i = next(k for k, line in enumerate(lines) if line.lstrip().startswith("M01_dPos"))
+    key, values = lines[i].split("=")
+    east, rest = values.split(maxsplit=1)
+    lines[i] = f"{key}= {-float(east):.4f} {rest}"
+    site.write_text("".join(lines))
+    with pytest.raises(InputError, match=r"transponder M01: \d+ of its \d+ replies called "
+                                         r"spurious.*prior position"):
+        locate_array_survey(read_garpos(site))
+    out = tmp_path / "out"
+    assert main(["locate", str(site), "--out", str(out)]) == 2
+    assert "M01" in capsys.readouterr().err and not (out / "summary.json").exists()
+
+
+def test_a_shot_whose_time_slipped_hours_is_left_out_and_named(campaign, tmp_path):
+    """One ``ST`` (and ``RT``) ten hours early: it was called true (its own sound speed fits
+    it), the campaign's span grew to 10.5 h and the centre moved 4-7 cm."""
+    site = _copy(campaign[0], tmp_path)
+    obs = next(tmp_path.glob("*-obs.csv"))
+    head, table = obs.read_text().split("\n", 1)
+    rows = pd.read_csv(pd.io.common.StringIO(table), index_col=0)
+    rows.loc[rows.index[100], ["ST", "RT"]] -= 36000.0
+    obs.write_text(head + "\n" + rows.to_csv())
+    with pytest.warns(LocateWarning, match="isolated in time"):
+        res = locate_array_survey(read_garpos(site))
+    centre = res.fits["array"].centre()[0]
+    assert np.abs(centre - campaign[1]).max() < 0.005  # as without the shot (1 mm here)
+    cls = res.classified
+    left = cls[cls["reason"].astype(str).str.startswith("isolated in time")]
+    assert len(left) == 1 and res.summary["not_fitted"]["isolated_in_time"] == 1
+    assert res.summary["gradients"]["choice"] == "auto" and not res.summary["gradients"][
+        "fitted"]  # judged on the half hour, not on a 10.5-h span
+
+
+def test_two_sessions_apart_are_not_isolated_and_a_stray_group_is():
+    t = np.r_[np.arange(0.0, 3600.0, 20.0), 30000.0 + np.arange(0.0, 1800.0, 20.0)]
+    assert not isolated_shots(pd.DataFrame({"time": t}))[0].any()
+    t2 = np.r_[t, 80000.0, 80010.0]
+    mask, why = isolated_shots(pd.DataFrame({"time": t2}))
+    assert mask.nonzero()[0].tolist() == [t.size, t.size + 1]
+    assert why[-1].startswith("isolated in time: 2 shots 13.4 h from every other")

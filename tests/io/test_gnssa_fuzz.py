@@ -121,6 +121,17 @@ def test_garpos_profile_must_reach_the_transponders(garpos):
         read_garpos(garpos)
 
 
+def test_garpos_profile_must_start_near_the_surface(garpos):
+    # was (session 46's hunt): a cast whose top 1,400 m were cut, its first speed held up to
+    # the surface without a word; the centre moved about 1 cm
+    lines = _svp(garpos).read_text().splitlines()
+    deep = [lines[0]] + [s for s in lines[1:] if float(s.split(",")[0]) >= 1400.0]
+    _svp(garpos).write_text("\n".join(deep) + "\n")
+    with pytest.raises(InputError, match=r"svp.csv: the sound-speed profile starts at 14\d\d m, "
+                                         r"below a tenth of the deepest transponder's depth"):
+        read_garpos(garpos)
+
+
 def test_garpos_header_naming_a_column_twice_is_refused(garpos):
     # was: the second TT (a residual column renamed) silently used as the travel time
     lines = _obs(garpos).read_text().splitlines()
@@ -246,6 +257,16 @@ def test_gnatss_key_given_twice_is_refused(gnatss):
     gnatss.write_text("\n".join(lines) + "\n")
     with pytest.raises(InputError, match=rf"line {k + 2} \(geoid_undulation\): 'geoid_undulation' "
                                          rf"given twice in one mapping \(first at line {k + 1}\)"):
+        read_gnatss(gnatss)
+
+
+def test_gnatss_sound_speed_pattern_matching_two_casts_is_refused(gnatss):
+    # was (session 46's hunt): both read, the first's speed kept at every shared depth
+    (gnatss.parent / "ctd_sv").rename(gnatss.parent / "ctd_sv_day1")
+    (gnatss.parent / "ctd_sv_day2").write_text((gnatss.parent / "ctd_sv_day1").read_text())
+    _config(gnatss, lambda d: d["solver"]["input_files"]["sound_speed"].update(path="ctd_sv_*"))
+    with pytest.raises(InputError, match=r"\(solver.input_files.sound_speed.path\): matches 2 "
+                                         r"files \(ctd_sv_day1, ctd_sv_day2\); expected one"):
         read_gnatss(gnatss)
 
 

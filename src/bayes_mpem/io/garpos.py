@@ -189,7 +189,9 @@ def profile_reaches(profile, depths, source) -> pd.DataFrame:
 
     Below its last level a profile's speed is held constant, which is harmless over the last
     few metres and wrong over hundreds (a profile in km, a cast cut short, the wrong file):
-    a profile ending more than 10 % of the deepest transponder's depth above it is refused.
+    a profile ending more than 10 % of the deepest transponder's depth above it is refused,
+    and so is one starting more than 10 % of that depth below the sea surface (above its
+    first level the speed is held too: a cast whose top was cut, or the wrong file).
 
     Parameters
     ----------
@@ -213,6 +215,13 @@ def profile_reaches(profile, depths, source) -> pd.DataFrame:
     if d.empty:
         return profile
     deepest, last = float(d.max()), float(profile["depth"].iloc[-1])
+    first = float(profile["depth"].iloc[0])
+    if first > 0.1 * deepest:
+        raise InputError(f"{source}: the sound-speed profile starts at {first:g} m, below a "
+                         f"tenth of the deepest transponder's depth ({d.idxmax()} at "
+                         f"{deepest:g} m): its first speed would be held up to the sea "
+                         "surface; expected a profile from near the surface (depths in m, "
+                         "positive down)")
     if last < 0.9 * deepest:
         raise InputError(f"{source}: the sound-speed profile ends at {last:g} m, above the "
                          f"deepest transponder ({d.idxmax()} at {deepest:g} m); expected a "

@@ -351,6 +351,11 @@ def read_gnatss(config, *, strict=False) -> RawSurvey:
     skipped = []
     tt_paths, pos_paths, ssp_paths = (_paths(cfg, k) for k in
                                       ("travel_times", "gps_solution", "sound_speed"))
+    if len(ssp_paths) > 1:  # merged, the first file's speed won at every shared depth
+        raise InputError(f"{cfg.where('solver', 'input_files', 'sound_speed', 'path')}: "
+                         f"matches {len(ssp_paths)} files ({', '.join(f.name for f in ssp_paths)})"
+                         "; expected one sound-speed profile for the campaign (GNATSS reads "
+                         "one): give the cast to use")
     positions = _read_positions(pos_paths, std_dev, strict, skipped)
     if not any(isinstance(v, tuple) for v in positions.values()):
         names = [str(f) for f in pos_paths]

@@ -82,3 +82,36 @@ def test_two_sessions_apart_are_not_isolated_and_a_stray_group_is():
     mask, why = isolated_shots(pd.DataFrame({"time": t2}))
     assert mask.nonzero()[0].tolist() == [t.size, t.size + 1]
     assert why[-1].startswith("isolated in time: 2 shots 13.4 h from every other")
+
+
+def test_atd_offset_sigmas_above_zero_are_said_to_be_held(campaign, tmp_path):
+    """GARPOS estimates the antenna-transducer offset where its sigmas are above 0; locate
+    holds it as given, which it now says (the sigmas were read and dropped in silence)."""
+    site = _copy(campaign[0], tmp_path)
+    lines = site.read_text().splitlines(keepends=True)
+    i = next(k for k, line in enumerate(lines) if line.lstrip().startswith("ATDoffset"))
+    key, values = lines[i].split("=")
+    parts = values.split()
+    lines[i] = f"{key}= {' '.join(parts[:3] + ['0.5', '0.5', '0.5'] + parts[6:])}\n"
+    site.write_text("".join(lines))
+    with pytest.warns(LocateWarning, match=r"ATDoffset sigmas 0.5, 0.5, 0.5: GARPOS estimates "
+                                           r"the offset .* locate holds it"):
+        res = locate_array_survey(read_garpos(site))
+    np.testing.assert_allclose(res.fits["array"].centre()[0], campaign[1], atol=1e-9)
+
+
+def test_intervals_that_cannot_be_computed_are_refused_not_printed_as_nan():
+    """Every weight of the grid not positive definite: the record's evidences are None (a
+    bare numpy warning reached the user) and the fit is refused (intervals printed NaN)."""
+    from types import SimpleNamespace
+
+    from bayes_mpem.survey_in.array import _relative
+    from bayes_mpem.survey_in.array_survey import _check_intervals
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert _relative(np.array([-np.inf, -np.inf])) == [None, None]
+    assert _relative(np.array([-1.0, 2.0])) == [-3.0, 0.0]
+    fit = SimpleNamespace(ids=("A", "B"), sd=np.array([[0.1, 0.1, 0.2], [np.nan, 0.1, 0.2]]))
+    with pytest.raises(InputError, match=r"x.ini: the intervals of B could not be computed"):
+        _check_intervals(SimpleNamespace(source="x.ini"), fit)

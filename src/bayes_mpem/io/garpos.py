@@ -424,6 +424,7 @@ def read_garpos(site_file, *, obs=None, svp=None, strict=False) -> RawSurvey:
               "ss_prof_source": svp_path.name,
               "surface_depth": 0.0,
               "position_sigmas": pd.DataFrame(sig, index=["east", "north", "up"]).T,
+              "atd_sigmas": _sigmas(ini, site_file, "ATDoffset"),
               "centre_sigmas": (_sigmas(ini, site_file, "dCentPos")
                                 if "dCentPos" in ini.get("Model-parameter", {}) else None),
               "files": {"site": str(site_file), "obs": str(obs_path), "svp": str(svp_path)}}

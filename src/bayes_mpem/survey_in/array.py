@@ -2088,7 +2088,7 @@ def _smooth_covariance(J, r, theta, H, sigma, lam, clusters, Hg=None, lam_g=None
             GRADIENT_WEIGHT_GRID, rows[mid], free)
         cov = cov + cov_g - rows[mid][3] + spread_g
         grad_grid = {"log10_weight": [float(np.log10(lam_g) + x) for x in GRADIENT_WEIGHT_GRID],
-                     "log_evidence": [float(x - ll_g.max()) for x in ll_g],
+                     "log_evidence": _relative(ll_g),
                      "posterior_weight": [float(x) for x in v],
                      "edge": _grid_edge(ll_g),
                      "inaccurate": [float(np.log10(lam_g) + GRADIENT_WEIGHT_GRID[k])
@@ -2106,13 +2106,19 @@ def _smooth_covariance(J, r, theta, H, sigma, lam, clusters, Hg=None, lam_g=None
                      + ("; the same over the gradients' weight (gradient_grid), the two "
                         "weights' effects taken as additive" if Hg is not None else ""),
         "grid": {"log10_weight": [float(np.log10(lam) + x) for x in WEIGHT_GRID],
-                 "log_evidence": [float(v - ll.max()) for v in ll],
+                 "log_evidence": _relative(ll),
                  "posterior_weight": [float(v) for v in w],
                  "edge": _grid_edge(ll),
                  "inaccurate": [float(np.log10(lam) + WEIGHT_GRID[k]) for k in dropped]}}
     if grad_grid is not None:
         record["gradient_grid"] = grad_grid
     return cov, rows[mid][4], record
+
+
+def _relative(ll):
+    """Log evidences relative to their largest; all None where none is finite."""
+    top = np.max(ll) if len(ll) else -np.inf
+    return [float(v - top) for v in ll] if np.isfinite(top) else [None] * len(ll)
 
 
 def _grid_edge(ll, tol=0.1, flat=1.0):

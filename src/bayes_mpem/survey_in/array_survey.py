@@ -791,15 +791,35 @@ def isolated_shots(shots):
     return mask, reasons
 
 
-def _isolated(raw, shots):
-    """:func:`isolated_shots` of ``shots``, warned of with their lines where there are any."""
+def _warn_held(raw) -> None:
+    """Warn where the site file asks for what the fit holds.
+
+    GARPOS's ``ATDoffset`` sigmas above 0 ask for the antenna-transducer offset to be
+    estimated; it is held as given.
+    """
+    atd = [v for v in (raw.header.get("atd_sigmas") or []) if v is not None]
+    if any(v > 0 for v in atd):
+        site = (raw.header.get("files") or {}).get("site", raw.source)
+        off = ", ".join(f"{v:g}" for v in raw.header["atd_offset"])
+        warnings.warn(f"{site}: ATDoffset sigmas {', '.join(f'{v:g}' for v in atd)}: GARPOS "
+                      f"estimates the offset where they are above 0; locate holds it at ({off})"
+                      " m as given", LocateWarning, stacklevel=3)
+
+
+def _isolated(raw):
+    """Return :func:`array_shots` and their :func:`isolated_shots`, warned of with their lines.
+
+    Also :func:`_warn_held`.
+    """
+    shots = array_shots(raw)
+    _warn_held(raw)
     mask, reasons = isolated_shots(shots)
     if mask.any():
         lines = shots["line"].to_numpy()[mask] if "line" in shots.columns else []
         warnings.warn(f"{_shots_file(raw)} line{'s' * (len(lines) != 1)} "
                       f"{', '.join(map(str, lines[:10]))}{', ...' if len(lines) > 10 else ''}: "
                       f"{reasons[mask][0]}", LocateWarning, stacklevel=3)
-    return mask, reasons
+    return shots, (mask, reasons)
 
 
 #: A transponder of at least :data:`MIN_REPLIES_CHECKED` replies of which the fit calls fewer
@@ -838,6 +858,16 @@ def _check_replies_explained(raw, fit) -> None:
             f"what its prior position (east {e:.3f}, north {nn:.3f}, up {u:.3f} m) predicts. "
             "Check that position (a sign or a digit slipped?) and that these replies are "
             f"{tid}'s")
+
+
+def _check_intervals(raw, fit) -> None:
+    """Refuse a fit whose positions' sds could not be computed (NaN intervals at exit 0)."""
+    bad = [tid for k, tid in enumerate(fit.ids) if not np.all(np.isfinite(fit.sd[k]))]
+    if bad:
+        raise InputError(f"{raw.source}: the intervals of {', '.join(bad)} could not be "
+                         "computed (the normal matrix is not positive definite at any "
+                         "smoothing weight): the shots do not determine the positions as given; "
+                         "check the prior positions and the shots")
 
 
 def _classified(raw, shots, fit, flagged, honour, isolated=None):
@@ -948,8 +978,7 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
     if "transponders" not in raw.header:
         raise InputError(f"{raw.source}: no prior transponder positions were read (SeaGap's "
                          "pxp-ini.inp beside it); the array's fit starts from them")
-    shots = array_shots(raw)
-    isolated = _isolated(raw, shots)
+    shots, isolated = _isolated(raw)
     timed = shots[~isolated[0]]  # the gates judge the shots fitted
     prof = survey_profile(raw, "survey" if ssp is None else ssp)
     h = raw.header
@@ -1003,6 +1032,7 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
     fit, scaling = _fit_scaled(fit_with, position_prior)
     _check_below_transducer(raw, fit, shots)
     _check_replies_explained(raw, fit)
+    _check_intervals(raw, fit)
     origin = (h["lat"], h["lon"], h.get("height", 0.0)) if "lat" in h else None
     counts = np.bincount(fit.index, minlength=len(fit.ids))
     out = {tid: _transponder_entry(fit, k, ci, origin, counts[k])

@@ -148,3 +148,21 @@ def test_a_reader_that_leaves_does_not_discard_the_results(tmp_path):
     assert "Broken pipe" not in err and "Traceback" not in err and "Exception" not in err
     assert {p.name for p in (tmp_path / "out").iterdir()} >= {"summary.json", "classified.csv",
                                                               "solution.txt"}
+
+
+def test_ctrl_c_while_the_command_loads_says_interrupted_without_a_traceback(monkeypatch,
+                                                                               capsys):
+    """Ctrl-C in the first second (the command's modules loading) printed a traceback."""
+    from bayes_mpem.cli import main, parser
+
+    real = parser.load
+
+    def loading(name):
+        if name.endswith(":cmd_locate"):  # the command's modules, not the options'
+            raise KeyboardInterrupt
+        return real(name)
+
+    monkeypatch.setattr(parser, "load", loading)
+    assert main(["locate", "nowhere.ini", "--out", "nowhere"]) == 130
+    err = capsys.readouterr().err
+    assert "interrupted; no result written" in err and "Traceback" not in err

@@ -687,7 +687,11 @@ def main(argv=None) -> int:
         sys.modules["matplotlib"].use("Agg")
     else:
         os.environ["MPLBACKEND"] = "Agg"
-    handler = load(f"{COMMANDS[args.command].module}:cmd_{args.command}")
+    try:  # the command's modules (NumPy, SciPy, pandas) load here: a second or so
+        handler = load(f"{COMMANDS[args.command].module}:cmd_{args.command}")
+    except KeyboardInterrupt:
+        print(f"bayes-mpem {args.command}: interrupted; no result written", file=sys.stderr)
+        return 130
     if args.command in UNIT_COMMANDS and not (args.command == "navigate" and args.travel_time):
         handler = _units_handler(args, handler)  # navigate traces travel times itself
     colours = contextlib.nullcontext()

@@ -66,6 +66,30 @@ def test_a_failed_run_leaves_the_previous_results(tmp_path):
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
 
 
+def test_a_full_disk_names_the_file_and_leaves_nothing_that_looks_done(tmp_path,
+                                                                       monkeypatch):
+    """Found by session 46's hunt: "[Errno 28] No space left on device" named no file, and
+    the run's other files stood complete beside a stray partial summary."""
+    import errno
+    import pathlib
+
+    out = tmp_path / "run"
+    real = pathlib.Path.write_text
+
+    def full(self, text, *args, **kwargs):
+        if self.name.startswith(".summary.partial-"):
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real(self, text, *args, **kwargs)
+
+    monkeypatch.setattr(pathlib.Path, "write_text", full)
+    with pytest.raises(OSError, match=r"No space left on device: '.*summary.json'"), \
+            writing(out) as d:
+        write_csv(d / "t.csv", pd.DataFrame({"a": [1]}))
+        write_file(d / "solution.txt", lambda tmp: real(tmp, "the solution"))
+        write_json(d / "summary.json", {"run": 1})
+    assert sorted(p.name for p in out.iterdir()) == []
+
+
 def test_earlier_files_stay_unlisted_and_dead_partials_are_cleaned(tmp_path):
     """A run into a folder with inputs (fit into simulate's folder) never deletes them."""
     out = tmp_path / "run"

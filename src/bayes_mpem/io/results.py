@@ -90,6 +90,17 @@ class _Run:
         marker.unlink(missing_ok=True)  # first: from here on the folder is not complete
         for final, tmp in self.staged.items():
             os.replace(tmp, final)
+        try:
+            self._mark(marker, old)
+        except BaseException:  # no summary.json: this run's files are not left to look done
+            for final in [*self.staged, *self.markers]:
+                with contextlib.suppress(OSError):
+                    final.unlink()
+            raise
+        self._clean_dead_partials()
+
+    def _mark(self, marker: Path, old: dict | None) -> None:
+        """Write the run's ``summary.json`` files (nested first), each listing its files."""
         new = {self._rel(p) for p in [*self.staged, *self.markers]} | {MARKER}
         doc = self.markers.pop(marker, None)
         old_files = set((old or {}).get("files", []))
@@ -104,7 +115,6 @@ class _Run:
                            if p.parent.resolve().is_relative_to(sub.resolve()))
             _atomic_text(path, json_text({**self.markers[path], "files": files}, 2))
         _atomic_text(marker, json_text({**(doc or {}), "files": sorted(new)}, 2))
-        self._clean_dead_partials()
 
     def abort(self) -> None:
         for tmp in self.staged.values():
@@ -214,8 +224,23 @@ def _temp_name(path: Path) -> Path:
 
 def _atomic_text(path: Path, text: str) -> None:
     tmp = _temp_name(path)
-    tmp.write_text(text)
+    try:
+        tmp.write_text(text)
+    except BaseException as exc:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise _named(exc, path) from None
     os.replace(tmp, path)
+
+
+def _named(exc: BaseException, path: Path) -> BaseException:
+    """Return ``exc``, or where it is an ``OSError`` naming no file, one naming ``path``.
+
+    A full disk's "[Errno 28] No space left on device" named no file.
+    """
+    if isinstance(exc, OSError) and not exc.filename and exc.errno is not None:
+        return OSError(exc.errno, exc.strerror or str(exc), str(path))
+    return exc
 
 
 def write_file(path, write) -> Path:
@@ -236,10 +261,13 @@ def write_file(path, write) -> Path:
     tmp = _temp_name(path)
     try:
         write(tmp)
-    except BaseException:
+    except BaseException as exc:
         with contextlib.suppress(OSError):
             tmp.unlink()
-        raise
+        named = _named(exc, path)
+        if named is exc:
+            raise
+        raise named from None
     run = _current_run(path)
     if run is None:
         os.replace(tmp, path)

@@ -735,8 +735,9 @@ def _check_below_transducer(raw, fit, shots) -> None:
             raise InputError(
                 f"{raw.source}: transponder {tid} was located {up - level:,.0f} m above the "
                 f"transducer (up {up:+.2f} m), the mirror image of its ranges: its prior up "
-                f"{prior:+.3f} m is far from the depth its ranges give; check the site "
-                "file's positions (metres, up negative below the sea surface)")
+                f"{prior:+.3f} m is far from the depth its ranges give; check the prior "
+                f"positions in {_positions_file(raw)} (metres, up negative below the sea "
+                "surface)")
 
 
 #: Shots more than this (s) from every shot outside their group, in a group of fewer than

@@ -52,6 +52,7 @@ from _report import commit, machine, write_section  # noqa: E402
 
 from bayes_mpem.survey_in.array_survey import (  # noqa: E402
     array_shots,
+    auto_gradients,
     deep_gradient_gate,
     gradient_gate,
     locate_array_survey,
@@ -81,8 +82,8 @@ def one(hours, water, seed, shift=False):
         raw.header["transponders"].loc[:, ["east", "north", "up"]] = true + np.array(SHIFT)
     truth = true.mean(axis=0)
     shots, priors = array_shots(raw), raw.header["transponders"]
-    auto = ("off" if not gradient_gate(shots, priors)[0]
-            else "on" if deep_gradient_gate(shots, priors, shift)[0] else "shallow")
+    auto = {True: "on", "shallow": "shallow", False: "off"}[auto_gradients(
+        gradient_gate(shots, priors), deep_gradient_gate(shots, priors, shift), shots)[0]]
     out = {}
     for fit in FITS:
         res = locate_array_survey(raw, gradients=fit, shift=True if shift else None)

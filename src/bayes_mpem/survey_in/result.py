@@ -447,7 +447,7 @@ def short_note(summary: dict) -> str | None:
 
     On simulated campaigns of 30 minutes (circles, stars, a ship holding station;
     ``benchmarks/gnssa_short.py``) the centre's horizontal 95 % intervals covered 80-87 % of
-    the truths; from an hour, 90-100 % on every track. On an independently written
+    the truths; from an hour, 87-100 % on every track. On an independently written
     generator's half-hour star (one straight pass) they covered 60 % without the site file's
     priors on the positions and 97 % with them (:func:`positions_line`).
 

@@ -115,3 +115,27 @@ def test_intervals_that_cannot_be_computed_are_refused_not_printed_as_nan():
     fit = SimpleNamespace(ids=("A", "B"), sd=np.array([[0.1, 0.1, 0.2], [np.nan, 0.1, 0.2]]))
     with pytest.raises(InputError, match=r"x.ini: the intervals of B could not be computed"):
         _check_intervals(SimpleNamespace(source="x.ini"), fit)
+
+
+@pytest.fixture()
+def seagap(tmp_path):
+    """The shipped SeaGap survey's first 600 lines with its companion files."""
+    import shutil
+
+    from bayes_mpem.io.formats import sample_file
+
+    folder = tmp_path / "seagap"
+    folder.mkdir()
+    for name in ("pxp-ini.inp", "tr-ant.inp", "ss_prof.inp"):
+        shutil.copy(sample_file(f"seagap/{name}"), folder / name)
+    lines = sample_file("seagap/obsdata.inp").read_text().splitlines(keepends=True)
+    (folder / "obsdata.inp").write_text("".join(lines[:600]))
+    return folder / "obsdata.inp"
+
+
+def test_one_at_a_time_with_a_fitted_tat_prints_its_interval(seagap, tmp_path, capsys):
+    """``--one-at-a-time --fit-tat`` ended in "internal error: KeyError: 'interval'"."""
+    assert main(["locate", str(seagap), "--one-at-a-time", "--fit-tat", "--out",
+                 str(tmp_path / "o")]) == 0
+    out = capsys.readouterr().out
+    assert "TAT" in out and "(fixed)" not in out.split("TAT", 1)[1].splitlines()[0]

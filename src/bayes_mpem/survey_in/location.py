@@ -181,7 +181,8 @@ class LocateResult:
         out = {k: {"mean": getattr(self, k), "sd": self.sd.get(k, 0.0),
                    "interval": self.interval(k, ci)}
                for k in ("east", "north", "depth", "sound_speed")}
-        out["tat"] = {"mean": self.tat, "sd": self.sd.get("tat", 0.0), "fitted": self.fit_tat}
+        out["tat"] = {"mean": self.tat, "sd": self.sd.get("tat", 0.0), "fitted": self.fit_tat,
+                      **({"interval": self.interval("tat", ci)} if self.fit_tat else {})}
         if self.model.get("fit_lag"):
             out["lag"] = {"mean": self.model["lag"], "sd": self.sd.get("lag", 0.0)}
         out.update(sigma_ms=1e3 * self.sigma, weight_true=self.weight,

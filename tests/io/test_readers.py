@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import bayes_mpem as bm
-from bayes_mpem.exceptions import InputError
+from bayes_mpem.exceptions import InputError, LocateWarning
 from bayes_mpem.io.formats import read_survey
 from bayes_mpem.io.geodesy import geodetic_to_enu
 
@@ -124,8 +124,18 @@ def test_seagap_malformed_rows_and_companions(tmp_path):
     (tmp_path / "obsdata.inp").write_text("\n".join([src[0], " ".join(src[1].split()[:17]),
                                                      src[2]]) + "\n")
     (tmp_path / "pxp-ini.inp").write_text((DATA / "seagap/pxp-ini.inp").read_text())
-    raw = read_survey(tmp_path / "obsdata.inp", "seagap")
+    # no lever arm: the 18 columns are the antenna's (was: located from it without a word)
+    with pytest.raises(InputError, match=r"tr-ant.inp: not found beside obsdata.inp; expected "
+                                         "SeaGap's lever arm"):
+        read_survey(tmp_path / "obsdata.inp", "seagap")
+    (tmp_path / "tr-ant.inp").write_text((DATA / "seagap/tr-ant.inp").read_text())
+    with pytest.warns(LocateWarning, match="no sound-speed profile beside it"):
+        raw = read_survey(tmp_path / "obsdata.inp", "seagap")
     assert len(raw.pings) == 2 and "expected 18 numbers" in raw.skipped["reason"].iloc[0]
+    assert raw.header["files"]["ss_prof"] is None
+    (tmp_path / "ss_prof.zv").write_text((DATA / "seagap/ss_prof.inp").read_text())
+    raw = read_survey(tmp_path / "obsdata.inp", "seagap")  # SeaGap's own default name
+    assert raw.header["files"]["ss_prof"].endswith("ss_prof.zv") and "ss_prof" in raw.header
     (tmp_path / "tr-ant.inp").write_text("0.37 17.7\n")
     with pytest.raises(InputError, match=r"tr-ant.inp line 1: expected 3 numbers"):
         read_survey(tmp_path / "obsdata.inp", "seagap")

@@ -7,12 +7,13 @@ from __future__ import annotations
 
 import math
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from ..exceptions import InputError
+from ..exceptions import InputError, LocateWarning
 from .boundary import COMMENT, classify, limit_problem, read_text_lines
 from .garpos import profile_frame, profile_reaches
 from .raw import RawSurvey, bad
@@ -76,21 +77,25 @@ def _numeric_table(path, names, what, kinds, strict, skipped, check=None):
 
 
 _COMPANIONS = (
-    ("transponders", "pxp-ini.inp", ("east", "north", "up", "c4", "c5", "c6"),
+    ("transponders", ("pxp-ini.inp",), ("east", "north", "up", "c4", "c5", "c6"),
      {"east": "east", "north": "north", "up": "up"}),
-    ("tr_ant", "tr-ant.inp", ("dx", "dy", "dz"), {}),
-    ("ss_prof", "ss_prof.inp", ("depth", "sound_speed"),
+    ("tr_ant", ("tr-ant.inp",), ("dx", "dy", "dz"), {}),
+    ("ss_prof", ("ss_prof.inp", "ss_prof.zv"), ("depth", "sound_speed"),
      {"depth": "depth", "sound_speed": "sound_speed"}),
 )
 
 
 def _companions(here, paths):
-    header = {}
-    for key, name, cols, kinds in _COMPANIONS:
+    """Read the companion files: given, else the first of their default names beside."""
+    header, files = {}, {}
+    for key, names, cols, kinds in _COMPANIONS:
         arg = paths[key]
-        path = Path(arg) if arg is not None else here / name
-        if arg is None and not path.exists():
+        found = [here / n for n in names if (here / n).exists()]
+        path = Path(arg) if arg is not None else (found[0] if found else here / names[0])
+        if arg is None and not found:
             continue
+        files[key] = str(path)
+        name = path.name
         vals = _numeric_table(path, cols, name, kinds, strict=True, skipped=None)
         if not vals:
             raise InputError(f"{path}: no data lines (expected {len(cols)} numbers a line)")
@@ -113,6 +118,8 @@ def _companions(here, paths):
             header[key] = np.asarray(lever, float)
         else:
             header[key] = frame[["depth", "sound_speed"]].reset_index(drop=True)
+    header["files"] = {"positions": files.get("transponders"), "tr_ant": files.get("tr_ant"),
+                       "ss_prof": files.get("ss_prof")}
     return header
 
 
@@ -126,7 +133,9 @@ def read_seagap(obsdata, *, pxp=None, tr_ant=None, ss_prof=None, strict=False) -
     ----------
     obsdata : str or pathlib.Path
     pxp, tr_ant, ss_prof : str or pathlib.Path, optional
-        ``pxp-ini.inp``, ``tr-ant.inp``, ``ss_prof.inp``; default beside ``obsdata``, if there.
+        ``pxp-ini.inp``, ``tr-ant.inp``, ``ss_prof.inp`` (or SeaGap's ``ss_prof.zv``); default
+        beside ``obsdata``. Without ``tr-ant.inp`` the survey is refused (the shots are the
+        antenna's); without a profile, a warning: straight rays.
     strict : bool, default False
 
     Returns
@@ -141,9 +150,18 @@ def read_seagap(obsdata, *, pxp=None, tr_ant=None, ss_prof=None, strict=False) -
     obsdata = Path(obsdata)
     header = _companions(obsdata.parent, {"transponders": pxp, "tr_ant": tr_ant,
                                           "ss_prof": ss_prof})
-    if "ss_prof" in header and "transponders" in header:
+    header["files"]["obsdata"] = str(obsdata)
+    if "tr_ant" not in header:  # the 18 columns are the antenna's: its offset is needed
+        raise InputError(f"{obsdata.parent / 'tr-ant.inp'}: not found beside {obsdata.name}; "
+                         "expected SeaGap's lever arm from the GNSS antenna to the transducer "
+                         "(one line: dx dy dz, m): without it every shot would be located "
+                         "from the antenna (write '0 0 0' where the antenna is the transducer)")
+    if "ss_prof" not in header:
+        warnings.warn(f"{obsdata}: no sound-speed profile beside it (ss_prof.inp or ss_prof.zv): "
+                      "straight rays at a fitted speed", LocateWarning, stacklevel=2)
+    elif "transponders" in header:
         profile_reaches(header["ss_prof"], -header["transponders"]["up"],
-                        str(ss_prof if ss_prof is not None else obsdata.parent / "ss_prof.inp"))
+                        header["files"]["ss_prof"])
     skipped = []
     known = list(header["transponders"].index) if "transponders" in header else None
 

@@ -396,8 +396,8 @@ def circle_note(summary: dict) -> str | None:
     horizontal position: on the simulator's 6-hour circles the centre's horizontal sds were
     1.1 m with both terms and 0.6-1.6 cm with the shallow one only (docs/gnssa.md, "Circles:
     the shallow gradient only"). ``auto`` fits the shallow one only there (none on a circle
-    shorter than 3 h); this is said where ``--gradients on`` forced both. Summaries without ``deep_gate`` (before 2026-11-29) are
-    judged by ``track.central_fraction`` 0.
+    shorter than 3 h); this is said where ``--gradients on`` forced both. Summaries without
+    ``deep_gate`` (before 2026-11-29) are judged by ``track.central_fraction`` 0.
 
     Parameters
     ----------

@@ -12,6 +12,7 @@ import pytest
 
 from bayes_mpem.cli import main
 from bayes_mpem.exceptions import InputError, LocateWarning
+from bayes_mpem.io.formats import read_survey
 from bayes_mpem.io.garpos import read_garpos, write_garpos
 from bayes_mpem.survey_in.array_survey import isolated_shots, locate_array_survey
 from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa
@@ -139,3 +140,17 @@ def test_one_at_a_time_with_a_fitted_tat_prints_its_interval(seagap, tmp_path, c
                  str(tmp_path / "o")]) == 0
     out = capsys.readouterr().out
     assert "TAT" in out and "(fixed)" not in out.split("TAT", 1)[1].splitlines()[0]
+
+
+def test_swapped_prior_positions_are_refused(seagap, tmp_path):
+    """SeaGap's pxp-ini.inp with its first two lines swapped: the two transponders moved
+    1,956 m and, through the gradients' deep term (on the priors), the centre by up to 11 cm
+    with the same shots, at exit 0."""
+    pxp = seagap.with_name("pxp-ini.inp")
+    lines = pxp.read_text().splitlines(keepends=True)
+    lines[0], lines[1] = lines[1], lines[0]
+    pxp.write_text("".join(lines))
+    with pytest.raises(InputError, match=r"pxp-ini.inp: transponder \d was located [\d,]+ m "
+                                         r"from its prior position .* more than 0.2 of its "
+                                         r"depth"):
+        locate_array_survey(read_survey(seagap))

@@ -908,6 +908,30 @@ def _check_replies_explained(raw, fit) -> None:
             f"{tid}'s")
 
 
+#: The farthest (in depths) a transponder may be located from its prior position.
+MAX_MOVE_DEPTHS = 0.2
+
+
+def _check_moved(raw, fit) -> None:
+    """Refuse a transponder located farther than :data:`MAX_MOVE_DEPTHS` depths from its prior.
+
+    The gradients' deep term and the robust start use the prior positions: SeaGap's
+    ``pxp-ini.inp`` with two lines swapped moved two transponders by 1,956 m and the centre
+    by up to 11 cm with the same shots, at exit 0.
+    """
+    for k, tid in enumerate(fit.ids):
+        moved = float(np.linalg.norm(fit.enu[k] - fit.start[k]))
+        depth = abs(float(fit.start[k][2]))
+        if moved > MAX_MOVE_DEPTHS * depth:
+            e, n, u = fit.start[k]
+            raise InputError(
+                f"{_positions_file(raw)}: transponder {tid} was located {moved:,.0f} m from its "
+                f"prior position (east {e:.3f}, north {n:.3f}, up {u:.3f} m), more than "
+                f"{MAX_MOVE_DEPTHS:g} of its depth: the fit uses the priors (the gradients' "
+                "deep term, the start); check that each position is its transponder's (lines "
+                "swapped or a transponder missing?)")
+
+
 def _check_intervals(raw, fit) -> None:
     """Refuse a fit whose positions' sds could not be computed (NaN intervals at exit 0)."""
     bad = [tid for k, tid in enumerate(fit.ids) if not np.all(np.isfinite(fit.sd[k]))]
@@ -1079,6 +1103,7 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
     fit, scaling = _fit_scaled(fit_with, position_prior)
     _check_below_transducer(raw, fit, shots)
     _check_replies_explained(raw, fit)
+    _check_moved(raw, fit)
     _check_intervals(raw, fit)
     origin = (h["lat"], h["lon"], h.get("height", 0.0)) if "lat" in h else None
     counts = np.bincount(fit.index, minlength=len(fit.ids))

@@ -154,3 +154,24 @@ def test_swapped_prior_positions_are_refused(seagap, tmp_path):
                                          r"from its prior position .* more than 0.2 of its "
                                          r"depth"):
         locate_array_survey(read_survey(seagap))
+
+
+def test_more_coefficients_than_the_replies_carry_are_refused_at_once(campaign, tmp_path):
+    """A half-hour campaign with 50 unpenalised intervals and the gradients ran past 7 min;
+    SeaGap with knots every 0.1 min past 5 min. Refused before the fit, with a size that
+    runs."""
+    import time
+
+    from bayes_mpem.survey_in.array import _check_size
+
+    raw = read_garpos(campaign[0])
+    t0 = time.perf_counter()
+    with pytest.raises(InputError, match=r"speed_intervals \(--speed-intervals\) 50: 277 "
+                                         r"parameters for \d+ replies, unpenalised; .* give [23]\d "
+                                         r"intervals or fewer, or leave the gradients out"):
+        locate_array_survey(raw, speed_intervals=50, gradients="on")
+    assert time.perf_counter() - t0 < 20.0
+    with pytest.raises(InputError, match=r"knot_minutes \(--knot-minutes\) 0.1: 4,412 parameters "
+                                         r"for 3,347 replies; .* give knots every 1.3 min"):
+        _check_size(3347, 12, 4400, True, 877, 0.1, (0.0, 52560.0))
+    _check_size(3347, 12, 890, True, 175, 5.0, (0.0, 52560.0))  # SeaGap's defaults: fine

@@ -544,6 +544,8 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
     theta = least_squares(resid, x0, jac=jac, args=(_gross_screen(resid(x0), index, K),),
                           loss="cauchy", f_scale=1e-3, x_scale=x_scale).x
     basis = speed_basis(sub, speed_intervals, time_range, breaks)
+    _check_size(t.size, G.shape[1], basis.shape[1] * (1 + len(terms)), smooth,
+                speed_intervals, knot_minutes, time_range)
     design = gradient_design(sub, index, start, basis, terms) if terms else None
     model = ArrayTravelTimes(sub, index, K, basis, profile=profile,
                              surface_depth=surface_depth, gradients=design,
@@ -951,6 +953,37 @@ def _expand(phi, G, start, k):
 #: GROSS_FLOOR s) from its transponder's median is left out of the robust start
 GROSS_MADS = 20.0
 GROSS_FLOOR = 0.01
+
+
+#: The most parameters a fit takes per reply: unpenalised, and under a roughness penalty.
+MAX_PARAMS_PER_REPLY = {"unpenalised": 0.5, "smooth": 1.0}
+
+
+def _check_size(n, n_pos, n_coef, smooth, speed_intervals, knot_minutes, time_range):
+    """Refuse a speed (and gradient) spline with more coefficients than the replies carry.
+
+    Unpenalised, more than one parameter per two replies is not determined (a half-hour
+    campaign with 50 intervals and the gradients ran past 7 minutes); smooth, knots closer
+    than the replies make the dense factors of thousands of coefficients take minutes to
+    hours (SeaGap's 14.6 h with knots every 0.1 min: 44,000 parameters for 3,347 replies).
+    """
+    P = n_pos + n_coef
+    kind = "smooth" if smooth else "unpenalised"
+    if P <= MAX_PARAMS_PER_REPLY[kind] * n:
+        return
+    per = n_coef / max(int(speed_intervals) + 3, 1)  # series: the speed and the gradients
+    if smooth:
+        span = (time_range[1] - time_range[0]) / 60.0
+        need = span * per / max(MAX_PARAMS_PER_REPLY[kind] * n - n_pos - 3 * per, 1.0)
+        raise InputError(f"knot_minutes (--knot-minutes) {float(knot_minutes):g}: {P:,} "
+                         f"parameters for {n:,} replies; expected at most one per reply (the "
+                         f"fit would take minutes to hours): give knots every {need:.2g} min "
+                         "or more")
+    most = int(MAX_PARAMS_PER_REPLY[kind] * n - n_pos) // max(int(round(per)), 1) - 3
+    raise InputError(f"speed_intervals (--speed-intervals) {int(speed_intervals)}: {P:,} "
+                     f"parameters for {n:,} replies, unpenalised; expected at most one per two "
+                     f"replies: give {max(most, 0)} intervals or fewer"
+                     + (", or leave the gradients out" if per > 1 else ""))
 
 
 def _gross_screen(r, index, K) -> np.ndarray:

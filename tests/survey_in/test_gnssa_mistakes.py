@@ -175,3 +175,13 @@ def test_more_coefficients_than_the_replies_carry_are_refused_at_once(campaign, 
                                          r"for 3,347 replies; .* give knots every 1.3 min"):
         _check_size(3347, 12, 4400, True, 877, 0.1, (0.0, 52560.0))
     _check_size(3347, 12, 890, True, 175, 5.0, (0.0, 52560.0))  # SeaGap's defaults: fine
+
+
+def test_a_turn_around_time_longer_than_the_travel_times_is_refused(seagap, tmp_path,
+                                                                     capsys):
+    """``--tat 10`` (seconds for milliseconds): every ping spurious, a depth of -15 m with an
+    interval of 1e8 m, at exit 0."""
+    assert main(["locate", str(seagap), "--one-at-a-time", "--tat", "10", "--out",
+                 str(tmp_path / "o")]) == 2
+    assert "tat (--tat) 10 s: not shorter than the median two-way travel time" in (
+        capsys.readouterr().err)

@@ -185,3 +185,18 @@ def test_a_turn_around_time_longer_than_the_travel_times_is_refused(seagap, tmp_
                  str(tmp_path / "o")]) == 2
     assert "tat (--tat) 10 s: not shorter than the median two-way travel time" in (
         capsys.readouterr().err)
+
+
+def test_a_correlation_time_below_a_second_is_refused_naming_the_option():
+    """``--correlation 5e-324`` passed the parser and failed in the whitener with NumPy's
+    "array must not contain infs or NaNs; give a shorter time" (backwards advice)."""
+    import argparse
+
+    from bayes_mpem.cli.options import correlation
+    from bayes_mpem.survey_in.array import correlation_spec
+
+    with pytest.raises(argparse.ArgumentTypeError, match=r"MU_T seconds, 0 or in \[1, 1200\]"):
+        correlation("5e-324")
+    with pytest.raises(InputError, match="mu_t 0 or at least 1 s"):
+        correlation_spec((1e-300,))
+    assert correlation("0") == (0.0, 0.5, 0.0) and correlation_spec((1.0,))[0] == 1.0

@@ -77,8 +77,8 @@ def correlation(text: str):
     """
     if text in ("auto", "off"):
         return text
-    what = (f"auto, off or MU_T[,MU_MT[,WHITE]] (MU_T seconds in [0, {MAX_CORRELATION_S:g}], "
-            "MU_MT in [0, 1] (default 0.5), WHITE in [0, 1) (default 0))")
+    what = (f"auto, off or MU_T[,MU_MT[,WHITE]] (MU_T seconds, 0 or in [1, "
+            f"{MAX_CORRELATION_S:g}], MU_MT in [0, 1] (default 0.5), WHITE in [0, 1) (default 0))")
     parts = text.split(",")
     try:
         vals = [float(v) for v in parts]
@@ -87,7 +87,9 @@ def correlation(text: str):
     if len(vals) > 3:
         vals = [math.nan]
     tau, share, white = (vals + [0.5, 0.0][len(vals) - 1:])[:3]
-    if not (0.0 <= tau <= MAX_CORRELATION_S and 0.0 <= share <= 1.0 and 0.0 <= white < 1.0):
+    # 1 s: array.MIN_CORRELATION_S (not imported: the parser stays light)
+    if not ((tau == 0.0 or 1.0 <= tau <= MAX_CORRELATION_S) and 0.0 <= share <= 1.0
+            and 0.0 <= white < 1.0):
         raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}")
     return tau, share, white
 

@@ -1830,6 +1830,11 @@ def _correlated_refit(correlation, resid, jac, phi, p, sub, index, H, Hg, lam, l
     return (phi, sigma, lam, lam_g, jw(phi), r), record
 
 
+#: The shortest correlation time (s) taken (0 is independent replies): 5e-324 s gave NumPy's
+#: "array must not contain infs or NaNs" from the whitener.
+MIN_CORRELATION_S = 1.0
+
+
 def correlation_spec(correlation):
     """Return ``correlation`` checked: None (independent), ``"auto"`` or ``(tau, share, white)``.
 
@@ -1856,7 +1861,8 @@ def correlation_spec(correlation):
     if correlation is None or (isinstance(correlation, str) and correlation in ("off", "auto")):
         return None if correlation in (None, "off") else "auto"
     what = ("correlation: expected 'auto', 'off', None or (mu_t[, mu_mt[, white]]) with mu_t "
-            f">= 0 s, mu_mt in [0, 1] and white in [0, 1), got {correlation!r}")
+            f"0 or at least {MIN_CORRELATION_S:g} s, mu_mt in [0, 1] and white in [0, 1), got "
+            f"{correlation!r}")
     try:
         vals = [float(v) for v in correlation] if not isinstance(correlation, str) else []
     except (TypeError, ValueError):
@@ -1864,7 +1870,8 @@ def correlation_spec(correlation):
     if not 1 <= len(vals) <= 3:
         raise InputError(what)
     tau, share, white = (vals + [0.5, 0.0][len(vals) - 1:])[:3]
-    if not (np.isfinite(tau) and tau >= 0 and 0 <= share <= 1 and 0 <= white < 1):
+    if not (np.isfinite(tau) and (tau == 0 or tau >= MIN_CORRELATION_S) and 0 <= share <= 1
+            and 0 <= white < 1):
         raise InputError(what)
     return tau, share, white
 

@@ -200,3 +200,13 @@ def test_a_correlation_time_below_a_second_is_refused_naming_the_option():
     with pytest.raises(InputError, match="mu_t 0 or at least 1 s"):
         correlation_spec((1e-300,))
     assert correlation("0") == (0.0, 0.5, 0.0) and correlation_spec((1.0,))[0] == 1.0
+
+
+def test_a_companion_that_is_a_folder_is_named_as_that_companion(seagap):
+    """A folder named ss_prof.inp was reported as "survey file ... is a folder"."""
+    prof = seagap.with_name("ss_prof.inp")
+    prof.unlink()
+    prof.mkdir()
+    with pytest.raises(InputError, match=r"ss_prof.inp: is a folder; expected SeaGap's "
+                                         r"ss_prof.inp file"):
+        read_survey(seagap)

@@ -96,6 +96,9 @@ def _companions(here, paths):
             continue
         files[key] = str(path)
         name = path.name
+        if path.is_dir():
+            raise InputError(f"{path}: is a folder; expected SeaGap's {names[0]} file beside "
+                             "obsdata.inp")
         vals = _numeric_table(path, cols, name, kinds, strict=True, skipped=None)
         if not vals:
             raise InputError(f"{path}: no data lines (expected {len(cols)} numbers a line)")

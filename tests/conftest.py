@@ -29,3 +29,23 @@ def pytest_collection_modifyitems(config, items):
     for item in items:
         if "docs_build" in item.keywords:
             item.add_marker(skip)
+
+
+@pytest.fixture()
+def seagap_copy(tmp_path):
+    """Return ``make(n_lines)``: the shipped SeaGap survey's first lines and its companions,
+    copied into a folder of ``tmp_path`` (its ``obsdata.inp`` returned), to break."""
+    import shutil
+
+    from bayes_mpem.io.formats import sample_file
+
+    def make(n_lines):
+        folder = tmp_path / "seagap"
+        folder.mkdir()
+        for name in ("pxp-ini.inp", "tr-ant.inp", "ss_prof.inp"):
+            shutil.copy(sample_file(f"seagap/{name}"), folder / name)
+        lines = sample_file("seagap/obsdata.inp").read_text().splitlines(keepends=True)
+        (folder / "obsdata.inp").write_text("".join(lines[:n_lines]))
+        return folder / "obsdata.inp"
+
+    return make

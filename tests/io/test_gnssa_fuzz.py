@@ -7,14 +7,13 @@ key, or the line skipped with its reason; never a value read silently otherwise.
 
 import contextlib
 import io
-import shutil
 
 import pytest
 import yaml
 
 from bayes_mpem.cli import main
 from bayes_mpem.exceptions import InputError
-from bayes_mpem.io.formats import sample_file, sniff_format
+from bayes_mpem.io.formats import sniff_format
 from bayes_mpem.io.garpos import read_garpos, write_garpos
 from bayes_mpem.io.gnatss import read_gnatss, write_gnatss
 from bayes_mpem.io.seagap import read_seagap
@@ -38,14 +37,8 @@ def gnatss(sim, tmp_path):
 
 
 @pytest.fixture()
-def seagap(tmp_path):
-    folder = tmp_path / "seagap"
-    folder.mkdir()
-    for name in ("pxp-ini.inp", "tr-ant.inp", "ss_prof.inp"):
-        shutil.copy(sample_file(f"seagap/{name}"), folder / name)
-    lines = sample_file("seagap/obsdata.inp").read_text().splitlines(keepends=True)
-    (folder / "obsdata.inp").write_text("".join(lines[:120]))
-    return folder / "obsdata.inp"
+def seagap(seagap_copy):
+    return seagap_copy(120)
 
 
 def _site(garpos, key, value):

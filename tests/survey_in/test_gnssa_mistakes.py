@@ -119,19 +119,9 @@ def test_intervals_that_cannot_be_computed_are_refused_not_printed_as_nan():
 
 
 @pytest.fixture()
-def seagap(tmp_path):
+def seagap(seagap_copy):
     """The shipped SeaGap survey's first 600 lines with its companion files."""
-    import shutil
-
-    from bayes_mpem.io.formats import sample_file
-
-    folder = tmp_path / "seagap"
-    folder.mkdir()
-    for name in ("pxp-ini.inp", "tr-ant.inp", "ss_prof.inp"):
-        shutil.copy(sample_file(f"seagap/{name}"), folder / name)
-    lines = sample_file("seagap/obsdata.inp").read_text().splitlines(keepends=True)
-    (folder / "obsdata.inp").write_text("".join(lines[:600]))
-    return folder / "obsdata.inp"
+    return seagap_copy(600)
 
 
 def test_one_at_a_time_with_a_fitted_tat_prints_its_interval(seagap, tmp_path, capsys):

@@ -165,6 +165,9 @@ def test_more_coefficients_than_the_replies_carry_are_refused_at_once(campaign, 
                                          r"for 3,347 replies; .* give knots every 1.3 min"):
         _check_size(3347, 12, 4400, True, 877, 0.1, (0.0, 52560.0))
     _check_size(3347, 12, 890, True, 175, 5.0, (0.0, 52560.0))  # SeaGap's defaults: fine
+    _check_size(353, 12, 182, False, 179, 5.0, (0.0, 1800.0))  # no gradients: one a reply
+    with pytest.raises(InputError, match="expected at most one a reply: give 338 intervals"):
+        _check_size(353, 12, 400, False, 397, 5.0, (0.0, 1800.0))
 
 
 def test_a_turn_around_time_longer_than_the_travel_times_is_refused(seagap, tmp_path,

@@ -955,23 +955,26 @@ GROSS_MADS = 20.0
 GROSS_FLOOR = 0.01
 
 
-#: The most parameters a fit takes per reply: unpenalised, and under a roughness penalty.
-MAX_PARAMS_PER_REPLY = {"unpenalised": 0.5, "smooth": 1.0}
+#: The most parameters a fit takes per reply: under a roughness penalty, unpenalised, and
+#: unpenalised with the gradients' series.
+MAX_PARAMS_PER_REPLY = {"smooth": 1.0, "unpenalised": 1.0, "unpenalised_gradients": 0.5}
 
 
 def _check_size(n, n_pos, n_coef, smooth, speed_intervals, knot_minutes, time_range):
     """Refuse a speed (and gradient) spline with more coefficients than the replies carry.
 
-    Unpenalised, more than one parameter per two replies is not determined (a half-hour
-    campaign with 50 intervals and the gradients ran past 7 minutes); smooth, knots closer
-    than the replies make the dense factors of thousands of coefficients take minutes to
-    hours (SeaGap's 14.6 h with knots every 0.1 min: 44,000 parameters for 3,347 replies).
+    Unpenalised, more parameters than replies are not determined, and with the gradients
+    more than one per two replies crawled (a half-hour campaign with 50 intervals and the
+    gradients ran past 7 minutes; 30 took 25 s); smooth, knots closer than the replies make
+    the dense factors of thousands of coefficients take minutes to hours (SeaGap's 14.6 h
+    with knots every 0.1 min: 8,612 parameters for 3,347 replies).
     """
     P = n_pos + n_coef
-    kind = "smooth" if smooth else "unpenalised"
+    per = n_coef / max(int(speed_intervals) + 3, 1)  # series: the speed and the gradients
+    kind = ("smooth" if smooth else "unpenalised_gradients" if per > 1.5
+            else "unpenalised")
     if P <= MAX_PARAMS_PER_REPLY[kind] * n:
         return
-    per = n_coef / max(int(speed_intervals) + 3, 1)  # series: the speed and the gradients
     if smooth:
         span = (time_range[1] - time_range[0]) / 60.0
         need = span * per / max(MAX_PARAMS_PER_REPLY[kind] * n - n_pos - 3 * per, 1.0)
@@ -981,8 +984,9 @@ def _check_size(n, n_pos, n_coef, smooth, speed_intervals, knot_minutes, time_ra
                          "or more")
     most = int(MAX_PARAMS_PER_REPLY[kind] * n - n_pos) // max(int(round(per)), 1) - 3
     raise InputError(f"speed_intervals (--speed-intervals) {int(speed_intervals)}: {P:,} "
-                     f"parameters for {n:,} replies, unpenalised; expected at most one per two "
-                     f"replies: give {max(most, 0)} intervals or fewer"
+                     f"parameters for {n:,} replies, unpenalised; expected at most "
+                     f"{'one per two replies with the gradients' if per > 1.5 else 'one a reply'}"
+                     f": give {max(most, 0)} intervals or fewer"
                      + (", or leave the gradients out" if per > 1 else ""))
 
 

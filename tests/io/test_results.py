@@ -88,6 +88,20 @@ def test_a_full_disk_names_the_file_and_leaves_nothing_that_looks_done(tmp_path,
         write_file(d / "solution.txt", lambda tmp: real(tmp, "the solution"))
         write_json(d / "summary.json", {"run": 1})
     assert sorted(p.name for p in out.iterdir()) == []
+    # a full disk on a rerun leaves the earlier run as it was (was: its summary.json deleted,
+    # its files replaced by the new ones and then removed)
+    monkeypatch.setattr(pathlib.Path, "write_text", real)
+    with writing(out) as d:
+        write_csv(d / "t.csv", pd.DataFrame({"a": [1]}))
+        write_json(d / "summary.json", {"run": 1})
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    monkeypatch.setattr(pathlib.Path, "write_text", full)
+    for second in ("t.csv", "figure.png"):  # a rerun, and a run adding a file (as plot does)
+        with pytest.raises(OSError, match="No space left"), writing(out) as d:
+            write_csv(d / second, pd.DataFrame({"a": [2]}))
+            if second == "t.csv":
+                write_json(d / "summary.json", {"run": 2})
+        assert {p.name: p.read_bytes() for p in out.iterdir()} == before
 
 
 def test_earlier_files_stay_unlisted_and_dead_partials_are_cleaned(tmp_path):

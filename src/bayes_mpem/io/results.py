@@ -85,22 +85,29 @@ class _Run:
                 write_json(path.with_name(TIMINGS), timings)
         marker = self.root / MARKER
         old = read_marker(self.root, check=False) if marker.exists() else None
-        for path in sorted(self.markers, key=lambda p: -len(p.parts)):
-            path.unlink(missing_ok=True)
-        marker.unlink(missing_ok=True)  # first: from here on the folder is not complete
+        temps = {}
+        try:  # every summary's text first: a full disk then leaves the earlier run as it was
+            for path, text in self._marker_texts(marker, old).items():
+                temps[path] = _temp_name(path)
+                temps[path].write_text(text)
+        except BaseException as exc:
+            for tmp in temps.values():
+                with contextlib.suppress(OSError):
+                    tmp.unlink()
+            named = _named(exc, path)
+            if named is exc:
+                raise
+            raise named from None
+        for path in temps:
+            path.unlink(missing_ok=True)  # the top one last: from here on not complete
         for final, tmp in self.staged.items():
             os.replace(tmp, final)
-        try:
-            self._mark(marker, old)
-        except BaseException:  # no summary.json: this run's files are not left to look done
-            for final in [*self.staged, *self.markers]:
-                with contextlib.suppress(OSError):
-                    final.unlink()
-            raise
+        for path, tmp in temps.items():  # nested first, the top summary.json last
+            os.replace(tmp, path)
         self._clean_dead_partials()
 
-    def _mark(self, marker: Path, old: dict | None) -> None:
-        """Write the run's ``summary.json`` files (nested first), each listing its files."""
+    def _marker_texts(self, marker: Path, old: dict | None) -> dict:
+        """Return the run's ``summary.json`` texts (nested first), each listing its files."""
         new = {self._rel(p) for p in [*self.staged, *self.markers]} | {MARKER}
         doc = self.markers.pop(marker, None)
         old_files = set((old or {}).get("files", []))
@@ -109,12 +116,14 @@ class _Run:
             new |= {f for f in old_files if (self.root / f).exists()}
         # files of an earlier run that this one did not write stay (they may be the user's
         # inputs: `fit` into the folder `simulate` wrote), unlisted: not part of this result
+        texts = {}
         for path in sorted(self.markers, key=lambda p: -len(p.parts)):  # nested, deepest first
             sub = path.parent
             files = sorted(self._rel(p, sub) for p in [*self.staged, *self.markers]
                            if p.parent.resolve().is_relative_to(sub.resolve()))
-            _atomic_text(path, json_text({**self.markers[path], "files": files}, 2))
-        _atomic_text(marker, json_text({**(doc or {}), "files": sorted(new)}, 2))
+            texts[path] = json_text({**self.markers[path], "files": files}, 2)
+        texts[marker] = json_text({**(doc or {}), "files": sorted(new)}, 2)
+        return texts
 
     def abort(self) -> None:
         for tmp in self.staged.values():
@@ -220,17 +229,6 @@ def _current_run(path: Path):
 
 def _temp_name(path: Path) -> Path:
     return path.with_name(f".{path.stem}.partial-{os.getpid()}{path.suffix}")
-
-
-def _atomic_text(path: Path, text: str) -> None:
-    tmp = _temp_name(path)
-    try:
-        tmp.write_text(text)
-    except BaseException as exc:
-        with contextlib.suppress(OSError):
-            tmp.unlink()
-        raise _named(exc, path) from None
-    os.replace(tmp, path)
 
 
 def _named(exc: BaseException, path: Path) -> BaseException:

@@ -536,6 +536,9 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
                          "speed_intervals > 0)")
     mask = _fixed_mask(fixed, transponders, ids, K)
     G, prior = _position_parameters(prior_sd, centre_sd, transponders, ids, mask, shift)
+    basis = speed_basis(sub, speed_intervals, time_range, breaks)
+    _check_size(t.size, G.shape[1], basis.shape[1] * (1 + len(terms)), smooth,
+                speed_intervals, knot_minutes, time_range)  # before any work
     # the robust start: straight rays, one speed
     straight = ArrayTravelTimes(sub, index, K, np.ones((len(sub), 1)))
     resid, jac = _mapped(*weighted_residuals(t, straight), G, start, 1)
@@ -543,9 +546,6 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
     x_scale = np.array([10.0] * G.shape[1] + [1.0])
     theta = least_squares(resid, x0, jac=jac, args=(_gross_screen(resid(x0), index, K),),
                           loss="cauchy", f_scale=1e-3, x_scale=x_scale).x
-    basis = speed_basis(sub, speed_intervals, time_range, breaks)
-    _check_size(t.size, G.shape[1], basis.shape[1] * (1 + len(terms)), smooth,
-                speed_intervals, knot_minutes, time_range)
     design = gradient_design(sub, index, start, basis, terms) if terms else None
     model = ArrayTravelTimes(sub, index, K, basis, profile=profile,
                              surface_depth=surface_depth, gradients=design,
@@ -958,6 +958,9 @@ GROSS_FLOOR = 0.01
 #: The most parameters a fit takes per reply: under a roughness penalty, unpenalised, and
 #: unpenalised with the gradients' series.
 MAX_PARAMS_PER_REPLY = {"smooth": 1.0, "unpenalised": 1.0, "unpenalised_gradients": 0.5}
+#: A smooth fit is refused only above this many parameters too (it is well posed; the limit
+#: is its time: SeaGap's 902 took 7 s, 2,200 took 53 s and 4,300 took 188 s).
+MAX_SMOOTH_PARAMS = 3000
 
 
 def _check_size(n, n_pos, n_coef, smooth, speed_intervals, knot_minutes, time_range):
@@ -965,29 +968,36 @@ def _check_size(n, n_pos, n_coef, smooth, speed_intervals, knot_minutes, time_ra
 
     Unpenalised, more parameters than replies are not determined, and with the gradients
     more than one per two replies crawled (a half-hour campaign with 50 intervals and the
-    gradients ran past 7 minutes; 30 took 25 s); smooth, knots closer than the replies make
-    the dense factors of thousands of coefficients take minutes to hours (SeaGap's 14.6 h
-    with knots every 0.1 min: 8,612 parameters for 3,347 replies).
+    gradients ran past 7 minutes; 30 took 25 s). Smooth, the fit is well posed but its dense
+    factors grow as the cube: above :data:`MAX_SMOOTH_PARAMS` parameters and one a reply it
+    is refused (SeaGap's 14.6 h with knots every 0.1 min: 8,612 parameters for 3,347
+    replies, past 5 minutes). The spacing suggested is checked to pass.
     """
     P = n_pos + n_coef
-    per = n_coef / max(int(speed_intervals) + 3, 1)  # series: the speed and the gradients
+    n_int = max(int(speed_intervals), 1)
+    per = n_coef / (n_int + 3)  # series: the speed and the gradients'
     kind = ("smooth" if smooth else "unpenalised_gradients" if per > 1.5
             else "unpenalised")
-    if P <= MAX_PARAMS_PER_REPLY[kind] * n:
+    limit = MAX_PARAMS_PER_REPLY[kind] * n
+    if smooth:
+        limit = max(limit, MAX_SMOOTH_PARAMS)
+    if P <= limit:
         return
+    most = int((limit - n_pos) // max(per, 1.0)) - 3  # intervals that pass (before merging)
     if smooth:
         span = (time_range[1] - time_range[0]) / 60.0
-        need = span * per / max(MAX_PARAMS_PER_REPLY[kind] * n - n_pos - 3 * per, 1.0)
+        need = span / max(most, 1)
+        e = 10.0 ** (np.floor(np.log10(need)) - 1)
+        need = float(np.ceil(need / e - 1e-9) * e)  # up, at two significant figures
         raise InputError(f"knot_minutes (--knot-minutes) {float(knot_minutes):g}: {P:,} "
-                         f"parameters for {n:,} replies; expected at most one per reply (the "
-                         f"fit would take minutes to hours): give knots every {need:.2g} min "
-                         "or more")
-    most = int(MAX_PARAMS_PER_REPLY[kind] * n - n_pos) // max(int(round(per)), 1) - 3
+                         f"parameters for {n:,} replies; expected at most "
+                         f"{int(limit):,} (the fit would take many minutes): give knots every "
+                         f"{need:g} min or more")
     raise InputError(f"speed_intervals (--speed-intervals) {int(speed_intervals)}: {P:,} "
                      f"parameters for {n:,} replies, unpenalised; expected at most "
                      f"{'one per two replies with the gradients' if per > 1.5 else 'one a reply'}"
                      f": give {max(most, 0)} intervals or fewer"
-                     + (", or leave the gradients out" if per > 1 else ""))
+                     + (", or leave the gradients out" if per > 1.5 else ""))
 
 
 def _gross_screen(r, index, K) -> np.ndarray:

@@ -14,7 +14,8 @@ each a Cholesky factor, an inverse and two products of the full normal matrix) r
 machine's cores through :func:`thread_map`, each on one BLAS thread: NumPy's products and
 SciPy's dense Cholesky release the GIL. Each piece computes what it would in the loop, so
 the numbers are the loop's to the bit. Where several fits run at once in this process
-(threads of a caller), or inside a piece, the pieces run in order.
+(threads of a caller), or inside a piece, the pieces run in order; where the environment sets
+a thread count (``OMP_NUM_THREADS=1`` under Dask, joblib or MPI), at most that many run.
 """
 
 from __future__ import annotations
@@ -99,7 +100,9 @@ def with_one_blas_thread(func):
 def workers() -> int:
     """Return how many threads :func:`thread_map` would use now.
 
-    The cores this process may run on (at most :data:`MAX_WORKERS`) where at most one fit
+    The cores this process may run on (at most :data:`MAX_WORKERS`, and at most the least
+    count of :data:`THREAD_VARIABLES` where the environment sets one: a user who sets
+    ``OMP_NUM_THREADS=1`` under Dask, joblib or MPI asks for one thread) where at most one fit
     decorated by :func:`with_one_blas_thread` runs, else 1.
 
     Returns
@@ -110,6 +113,10 @@ def workers() -> int:
         cores = len(os.sched_getaffinity(0))
     except AttributeError:  # not on Linux
         cores = os.cpu_count() or 1
+    for name in THREAD_VARIABLES:
+        value = os.environ.get(name, "").strip()
+        if value.isdigit() and int(value) > 0:
+            cores = min(cores, int(value))
     with _LOCK:
         alone = _FITS["count"] <= 1
     return max(1, min(cores, MAX_WORKERS)) if alone else 1

@@ -490,6 +490,8 @@ def test_thread_map_runs_in_order_inside_a_piece_and_beside_another_fit(monkeypa
     from bayes_mpem import _threads
 
     monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1}, raising=False)
+    for name in _threads.THREAD_VARIABLES:
+        monkeypatch.delenv(name, raising=False)
     names = []
 
     def inner(x):
@@ -500,6 +502,9 @@ def test_thread_map_runs_in_order_inside_a_piece_and_beside_another_fit(monkeypa
     assert out == [list(range(k)) for k in range(1, 5)]
     assert all(n.startswith(_threads._PREFIX) for n in names)  # each piece's own thread
     assert _threads.workers() == 2
+    monkeypatch.setenv("OMP_NUM_THREADS", "1")  # the user's thread count is a cap
+    assert _threads.workers() == 1
+    monkeypatch.delenv("OMP_NUM_THREADS")
     monkeypatch.setitem(_threads._FITS, "count", 2)
     assert _threads.workers() == 1
     main_thread = threading.current_thread().name
@@ -511,13 +516,28 @@ def test_thread_map_runs_in_order_inside_a_piece_and_beside_another_fit(monkeypa
 def test_the_grid_rows_on_several_threads_are_the_serial_rows_to_the_bit(monkeypatch):
     """The intervals' grid rows are spread over the cores (``_threads.thread_map``): the
     covariance is the one a single thread computes."""
+    import threading
+
     from bayes_mpem import _threads
+    from bayes_mpem.survey_in import array
 
     monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1}, raising=False)
+    for name in _threads.THREAD_VARIABLES:
+        monkeypatch.delenv(name, raising=False)
+    names, sandwich = [], array._sandwich
+
+    def spy(*args):
+        names.append(threading.current_thread().name)
+        return sandwich(*args)
+
+    monkeypatch.setattr(array, "_sandwich", spy)
     raw = simulate_gnssa(hours=1.0, rng=4).raw()
     spread = locate_array_survey(raw, correlation="off").fits["array"]
+    assert any(n.startswith(_threads._PREFIX) for n in names)  # the rows did go on the pool
     monkeypatch.setattr(_threads, "MAX_WORKERS", 1)
+    names.clear()
     serial = locate_array_survey(raw, correlation="off").fits["array"]
+    assert names and not any(n.startswith(_threads._PREFIX) for n in names)
     assert np.array_equal(spread.cov, serial.cov) and np.array_equal(spread.enu, serial.enu)
 
 

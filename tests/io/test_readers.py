@@ -136,6 +136,7 @@ def test_seagap_malformed_rows_and_companions(tmp_path):
     (tmp_path / "ss_prof.zv").write_text((DATA / "seagap/ss_prof.inp").read_text())
     raw = read_survey(tmp_path / "obsdata.inp", "seagap")  # SeaGap's own default name
     assert raw.header["files"]["ss_prof"].endswith("ss_prof.zv") and "ss_prof" in raw.header
+    assert raw.header["ss_prof_source"] == "ss_prof.zv"  # named as read (was ss_prof.inp)
     (tmp_path / "tr-ant.inp").write_text("0.37 17.7\n")
     with pytest.raises(InputError, match=r"tr-ant.inp line 1: expected 3 numbers"):
         read_survey(tmp_path / "obsdata.inp", "seagap")

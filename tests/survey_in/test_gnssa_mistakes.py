@@ -83,6 +83,9 @@ def test_two_sessions_apart_are_not_isolated_and_a_stray_group_is():
     mask, why = isolated_shots(pd.DataFrame({"time": t2}))
     assert mask.nonzero()[0].tolist() == [t.size, t.size + 1]
     assert why[-1].startswith("isolated in time: 2 shots 13.4 h from every other")
+    t3 = np.r_[t, 80000.0, 80010.0, -20000.0]  # two groups: each its own reason
+    mask, why = isolated_shots(pd.DataFrame({"time": t3}))
+    assert mask.sum() == 3 and len(set(why[mask])) == 2
 
 
 def test_atd_offset_sigmas_above_zero_are_said_to_be_held(campaign, tmp_path):

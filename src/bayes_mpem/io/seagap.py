@@ -121,6 +121,7 @@ def _companions(here, paths):
             header[key] = np.asarray(lever, float)
         else:
             header[key] = frame[["depth", "sound_speed"]].reset_index(drop=True)
+            header["ss_prof_source"] = path.name
     header["files"] = {"positions": files.get("transponders"), "tr_ant": files.get("tr_ant"),
                        "ss_prof": files.get("ss_prof")}
     return header
@@ -138,7 +139,7 @@ def read_seagap(obsdata, *, pxp=None, tr_ant=None, ss_prof=None, strict=False) -
     pxp, tr_ant, ss_prof : str or pathlib.Path, optional
         ``pxp-ini.inp``, ``tr-ant.inp``, ``ss_prof.inp`` (or SeaGap's ``ss_prof.zv``); default
         beside ``obsdata``. Without ``tr-ant.inp`` the survey is refused (the shots are the
-        antenna's); without a profile, a warning: straight rays.
+        antenna's); without a profile, a warning (the rays are straight unless one is given).
     strict : bool, default False
 
     Returns
@@ -161,7 +162,8 @@ def read_seagap(obsdata, *, pxp=None, tr_ant=None, ss_prof=None, strict=False) -
                          "from the antenna (write '0 0 0' where the antenna is the transducer)")
     if "ss_prof" not in header:
         warnings.warn(f"{obsdata}: no sound-speed profile beside it (ss_prof.inp or ss_prof.zv): "
-                      "straight rays at a fitted speed", LocateWarning, stacklevel=2)
+                      "the rays are straight unless a profile is given (--ssp)", LocateWarning,
+                      stacklevel=2)
     elif "transponders" in header:
         profile_reaches(header["ss_prof"], -header["transponders"]["up"],
                         header["files"]["ss_prof"])

@@ -864,9 +864,10 @@ def _isolated(raw):
     mask, reasons = isolated_shots(shots)
     if mask.any():
         lines = shots["line"].to_numpy()[mask] if "line" in shots.columns else []
+        why = "; ".join(dict.fromkeys(reasons[mask]))  # one reason per group, in order
         warnings.warn(f"{_shots_file(raw)} line{'s' * (len(lines) != 1)} "
                       f"{', '.join(map(str, lines[:10]))}{', ...' if len(lines) > 10 else ''}: "
-                      f"{reasons[mask][0]}", LocateWarning, stacklevel=3)
+                      f"{why}", LocateWarning, stacklevel=3)
     return shots, (mask, reasons)
 
 
@@ -924,9 +925,11 @@ def _check_moved(raw, fit) -> None:
         depth = abs(float(fit.start[k][2]))
         if moved > MAX_MOVE_DEPTHS * depth:
             e, n, u = fit.start[k]
+            le, ln, lu = fit.enu[k]
             raise InputError(
                 f"{_positions_file(raw)}: transponder {tid} was located {moved:,.0f} m from its "
-                f"prior position (east {e:.3f}, north {n:.3f}, up {u:.3f} m), more than "
+                f"prior position (east {e:.3f}, north {n:.3f}, up {u:.3f} m; located at "
+                f"{le:.3f}, {ln:.3f}, {lu:.3f} m), more than "
                 f"{MAX_MOVE_DEPTHS:g} of its depth: the fit uses the priors (the gradients' "
                 "deep term, the start); check that each position is its transponder's (lines "
                 "swapped or a transponder missing?)")

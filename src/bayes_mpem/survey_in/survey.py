@@ -163,6 +163,7 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
     if tat is None:
         tat = raw.header.get("tat", 0.0 if raw.format == "seagap" else DEFAULT_TAT)
     twtt = raw.pings["twtt"].to_numpy(float) if "twtt" in raw.pings.columns else np.array([])
+    twtt = twtt[np.isfinite(twtt)]
     if twtt.size and not fit_tat and tat >= np.median(twtt):  # every range 0 or negative
         raise InputError(f"tat (--tat) {tat:g} s: not shorter than the median two-way travel "
                          f"time ({np.median(twtt):.4g} s); expected the transponder's "

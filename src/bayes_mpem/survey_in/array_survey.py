@@ -906,7 +906,8 @@ def _check_replies_explained(raw, fit) -> None:
             f"{1e3 * med:+,.1f} ms (median; about {abs(med) * 750.0:,.0f} m of range) from "
             f"what its prior position (east {e:.3f}, north {nn:.3f}, up {u:.3f} m) predicts. "
             "Check that position (a sign or a digit slipped?) and that these replies are "
-            f"{tid}'s")
+            f"{tid}'s; to locate the array without it, leave it out of the prior positions "
+            "(GARPOS's Stations, GNATSS's transponders)")
 
 
 #: The farthest (in depths) a transponder may be located from its prior position.

@@ -941,8 +941,8 @@ def _check_intervals(raw, fit) -> None:
     bad = [tid for k, tid in enumerate(fit.ids) if not np.all(np.isfinite(fit.sd[k]))]
     if bad:
         raise InputError(f"{raw.source}: the intervals of {', '.join(bad)} could not be "
-                         "computed (the normal matrix is not positive definite at any "
-                         "smoothing weight): the shots do not determine the positions as given; "
+                         "computed (the normal matrix is not positive definite): the shots do "
+                         "not determine the positions as given; "
                          "check the prior positions and the shots")
 
 

@@ -625,8 +625,8 @@ def auto_gradients(gate, deep, shots):
     term alone on a circle (the deep gate failed) of :data:`MIN_CIRCLE_HOURS` or more; none
     otherwise. On the simulator's circles of 1 and 2 hours the shallow term put the part of
     the water's gradient that GARPOS's model gives the deep term into the centre, along the
-    gradient: the centre erred more (median 2.2-2.5 against 1.5-2.1 cm where the water has
-    gradients) and its intervals covered 82-92 % against 92-98 % without the gradients; at 3
+    gradient: the centre erred as much or more (median 2.2-2.6 against 1.5-2.6 cm where the
+    water has gradients) and its intervals covered 82-92 % against 92-98 % without them; at 3
     hours the two agree, and from 4 hours the shallow term covers where leaving it out does
     not (docs/gnssa.md, "Circles: the shallow gradient only").
 

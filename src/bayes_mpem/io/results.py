@@ -85,19 +85,13 @@ class _Run:
                 write_json(path.with_name(TIMINGS), timings)
         marker = self.root / MARKER
         old = read_marker(self.root, check=False) if marker.exists() else None
-        temps = {}
+        texts, temps, path = self._marker_texts(marker, old), {}, marker
         try:  # every summary's text first: a full disk then leaves the earlier run as it was
-            for path, text in self._marker_texts(marker, old).items():
+            for path, text in texts.items():
                 temps[path] = _temp_name(path)
                 temps[path].write_text(text)
         except BaseException as exc:
-            for tmp in temps.values():
-                with contextlib.suppress(OSError):
-                    tmp.unlink()
-            named = _named(exc, path)
-            if named is exc:
-                raise
-            raise named from None
+            _discard(temps.values(), exc, path)
         for path in temps:
             path.unlink(missing_ok=True)  # the top one last: from here on not complete
         for final, tmp in self.staged.items():
@@ -231,6 +225,17 @@ def _temp_name(path: Path) -> Path:
     return path.with_name(f".{path.stem}.partial-{os.getpid()}{path.suffix}")
 
 
+def _discard(temps, exc: BaseException, path: Path) -> None:
+    """Remove the temporary files ``temps`` and raise ``exc`` (:func:`_named` for ``path``)."""
+    for tmp in temps:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+    named = _named(exc, path)
+    if named is exc:
+        raise exc
+    raise named from None
+
+
 def _named(exc: BaseException, path: Path) -> BaseException:
     """Return ``exc``, or where it is an ``OSError`` naming no file, one naming ``path``.
 
@@ -260,12 +265,7 @@ def write_file(path, write) -> Path:
     try:
         write(tmp)
     except BaseException as exc:
-        with contextlib.suppress(OSError):
-            tmp.unlink()
-        named = _named(exc, path)
-        if named is exc:
-            raise
-        raise named from None
+        _discard([tmp], exc, path)
     run = _current_run(path)
     if run is None:
         os.replace(tmp, path)

@@ -166,12 +166,12 @@ def test_more_coefficients_than_the_replies_carry_are_refused_at_once(campaign, 
     assert time.perf_counter() - t0 < 20.0
     with pytest.raises(InputError, match=r"knot_minutes \(--knot-minutes\) 0.1: 4,412 parameters "
                                          r"for 3,347 replies; .* give knots every 1.4 min"):
-        _check_size(3347, 12, 4400, True, 877, 0.1, (0.0, 52560.0))  # 1.3 min was refused
-    _check_size(3347, 12, 2900, True, 577, 1.5, (0.0, 52560.0))  # over one a reply, under 3,000
-    _check_size(3347, 12, 890, True, 175, 5.0, (0.0, 52560.0))  # SeaGap's defaults: fine
-    _check_size(353, 12, 182, False, 179, 5.0, (0.0, 1800.0))  # no gradients: one a reply
+        _check_size(3347, 12, 880, 5, True, 877, 0.1, (0.0, 52560.0))  # 1.3 min was refused
+    _check_size(3347, 12, 580, 5, True, 577, 1.5, (0.0, 52560.0))  # over one a reply, under 3,000
+    _check_size(3347, 12, 178, 5, True, 175, 5.0, (0.0, 52560.0))  # SeaGap's defaults: fine
+    _check_size(353, 12, 182, 1, False, 179, 5.0, (0.0, 1800.0))  # no gradients: one a reply
     with pytest.raises(InputError, match="expected at most one a reply: give 338 intervals"):
-        _check_size(353, 12, 400, False, 397, 5.0, (0.0, 1800.0))
+        _check_size(353, 12, 400, 1, False, 397, 5.0, (0.0, 1800.0))
 
 
 def test_a_turn_around_time_longer_than_the_travel_times_is_refused(seagap, tmp_path,

@@ -537,7 +537,7 @@ def locate_array(shots: pd.DataFrame, transponders: pd.DataFrame, *, profile=Non
     mask = _fixed_mask(fixed, transponders, ids, K)
     G, prior = _position_parameters(prior_sd, centre_sd, transponders, ids, mask, shift)
     basis = speed_basis(sub, speed_intervals, time_range, breaks)
-    _check_size(t.size, G.shape[1], basis.shape[1] * (1 + len(terms)), smooth,
+    _check_size(t.size, G.shape[1], basis.shape[1], 1 + len(terms), smooth,
                 speed_intervals, knot_minutes, time_range)  # before any work
     # the robust start: straight rays, one speed
     straight = ArrayTravelTimes(sub, index, K, np.ones((len(sub), 1)))
@@ -963,7 +963,7 @@ MAX_PARAMS_PER_REPLY = {"smooth": 1.0, "unpenalised": 1.0, "unpenalised_gradient
 MAX_SMOOTH_PARAMS = 3000
 
 
-def _check_size(n, n_pos, n_coef, smooth, speed_intervals, knot_minutes, time_range):
+def _check_size(n, n_pos, k, n_series, smooth, speed_intervals, knot_minutes, time_range):
     """Refuse a speed (and gradient) spline with more coefficients than the replies carry.
 
     Unpenalised, more parameters than replies are not determined, and with the gradients
@@ -971,19 +971,17 @@ def _check_size(n, n_pos, n_coef, smooth, speed_intervals, knot_minutes, time_ra
     gradients ran past 7 minutes; 30 took 25 s). Smooth, the fit is well posed but its dense
     factors grow as the cube: above :data:`MAX_SMOOTH_PARAMS` parameters and one a reply it
     is refused (SeaGap's 14.6 h with knots every 0.1 min: 8,612 parameters for 3,347
-    replies, past 5 minutes). The spacing suggested is checked to pass.
+    replies, past 5 minutes). The spacing suggested is checked to pass. ``k`` coefficients
+    per series, ``n_series`` series (the speed and the gradients').
     """
-    P = n_pos + n_coef
-    n_int = max(int(speed_intervals), 1)
-    per = n_coef / (n_int + 3)  # series: the speed and the gradients'
-    kind = ("smooth" if smooth else "unpenalised_gradients" if per > 1.5
-            else "unpenalised")
+    P = n_pos + k * n_series
+    kind = "smooth" if smooth else "unpenalised_gradients" if n_series > 1 else "unpenalised"
     limit = MAX_PARAMS_PER_REPLY[kind] * n
     if smooth:
         limit = max(limit, MAX_SMOOTH_PARAMS)
     if P <= limit:
         return
-    most = int((limit - n_pos) // max(per, 1.0)) - 3  # intervals that pass (before merging)
+    most = int((limit - n_pos) // n_series) - 3  # intervals that pass (before merging)
     if smooth:
         span = (time_range[1] - time_range[0]) / 60.0
         need = span / max(most, 1)
@@ -993,11 +991,11 @@ def _check_size(n, n_pos, n_coef, smooth, speed_intervals, knot_minutes, time_ra
                          f"parameters for {n:,} replies; expected at most "
                          f"{int(limit):,} (the fit would take many minutes): give knots every "
                          f"{need:g} min or more")
+    most_is = "one per two replies with the gradients" if n_series > 1 else "one a reply"
     raise InputError(f"speed_intervals (--speed-intervals) {int(speed_intervals)}: {P:,} "
-                     f"parameters for {n:,} replies, unpenalised; expected at most "
-                     f"{'one per two replies with the gradients' if per > 1.5 else 'one a reply'}"
-                     f": give {max(most, 0)} intervals or fewer"
-                     + (", or leave the gradients out" if per > 1.5 else ""))
+                     f"parameters for {n:,} replies, unpenalised; expected at most {most_is}: "
+                     f"give {max(most, 0)} intervals or fewer"
+                     + (", or leave the gradients out" if n_series > 1 else ""))
 
 
 def _gross_screen(r, index, K) -> np.ndarray:

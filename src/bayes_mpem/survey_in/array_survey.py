@@ -895,7 +895,7 @@ def _check_replies_explained(raw, fit) -> None:
     for k, tid in enumerate(fit.ids):
         sel = fit.index == k
         n = int(sel.sum())
-        true = int(np.sum(fit.p_true[sel] > 0.5))
+        true = n - fit.n_spurious(k)  # as the transponder's line counts them
         if n < MIN_REPLIES_CHECKED or true >= MIN_TRUE_SHARE * n:
             continue
         med = float(np.median(fit.residual[sel]))
@@ -965,8 +965,8 @@ def _classified(raw, shots, fit, flagged, honour, isolated=None):
     for t, skip_why in fit.skipped.items():
         reasons[tid == t] = f"transponder {t} not located: {skip_why}"
     if isolated is not None:
-        reasons[(isolated[1] != "") & (reasons == "")] = isolated[1][(isolated[1] != "")
-                                                                      & (reasons == "")]
+        why = (isolated[1] != "") & (reasons == "")
+        reasons[why] = isolated[1][why]
     if honour:
         reasons[flagged & (reasons == "")] = ("flagged in the file: left out of the fit "
                                               "(--flags reclassify fits and classifies it)")

@@ -316,8 +316,11 @@ def gram(J):
     J = np.asarray(J, float)
     if J.shape[1] < MIN_SIZE:
         return J.T @ J
-    if np.count_nonzero(J) <= 0.1 * J.size:
-        S = csr_matrix(J)
+    flat = np.flatnonzero(J)  # row by row: already a CSR's order (one pass, no sort)
+    if flat.size <= 0.1 * J.size:
+        rows, cols = np.divmod(flat, J.shape[1])
+        indptr = np.concatenate([[0], np.cumsum(np.bincount(rows, minlength=J.shape[0]))])
+        S = csr_matrix((J.ravel()[flat], cols, indptr), shape=J.shape)
         return (S.T @ S).toarray()
     out = _banded_gram(J)
     return J.T @ J if out is None else out

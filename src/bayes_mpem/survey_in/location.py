@@ -372,8 +372,8 @@ def weighted_residuals(t, model):
         return r if w is None else np.sqrt(w) * r
 
     def jac(th, w=None):
-        J = -model.jac(th)
-        return J if w is None else np.sqrt(w)[:, None] * J
+        J = model.jac(th)  # one pass over the (large) Jacobian: the sign goes with the weight
+        return -J if w is None else J * -np.sqrt(w)[:, None]
 
     return resid, jac
 

@@ -77,6 +77,40 @@ def test_the_arrowhead_solves_and_refuses_what_the_dense_factor_does():
     assert arrowhead([B, H]).solve([1.0, 0.0], g) is None
 
 
+def test_a_damped_factor_solves_the_levenberg_marquardt_system():
+    J, r, theta, H, Hg = _problem(tau=0.6, seed=3)
+    JtJ = J.T @ J
+    Q = 1e3 * H + 1e5 * Hg
+    a = arrowhead([JtJ, Q])
+    A = JtJ + Q
+    d = np.diag(A)
+    s = 1 / np.sqrt(d)
+    g = np.random.default_rng(4).normal(size=d.size)
+    for mu in (0.0, 1e-6, 1e-2, 10.0):
+        solve = arr._damped_solver(A, d, s, mu, a)
+        want = arr._damped_solver(A, d, s, mu)(g)  # the dense factor
+        np.testing.assert_allclose(solve(g), want, rtol=1e-7, atol=1e-9 * np.abs(want).max())
+        M = (A + mu * np.diag(d)) * s[:, None] * s
+        assert a.factor([1.0, 1.0], mu).logdet == pytest.approx(
+            np.linalg.slogdet(M)[1] + np.sum(np.log(d)), abs=1e-6)
+    assert np.linalg.norm(arr._damped_solver(A, d, s, 10.0, a)(g) * np.sqrt(d)) < (
+        np.linalg.norm(arr._damped_solver(A, d, s, 0.0, a)(g) * np.sqrt(d)))  # damped: shorter
+
+
+def test_gauss_newton_steps_on_the_arrowhead(monkeypatch):
+    J, r, theta, H, Hg = _problem(seed=5)
+    Q = 1e-2 * H + 1.0 * Hg  # the residuals' scale is 1e-4
+    heads = []
+    solver = arr._damped_solver
+    monkeypatch.setattr(arr, "_damped_solver",
+                        lambda *a: heads.append(a[-1] is not None) or solver(*a))
+    th = arr.penalised_gauss_newton(lambda t: r + J @ (t - theta), lambda t: J, theta, Q)
+    assert heads and all(heads)
+    A = J.T @ J + Q  # a linear problem: one step to the normal equations' solution
+    want = theta - np.linalg.solve(A, J.T @ r + Q @ arr.null_shifted(theta, Q))
+    np.testing.assert_allclose(th, want, rtol=1e-6, atol=1e-6 * np.abs(want - theta).max())
+
+
 def test_no_arrowhead_where_a_dense_factor_is_better():
     J, r, theta, H, Hg = _problem(n=400, intervals=10)  # 77 parameters
     assert arrowhead([J.T @ J, H]) is None

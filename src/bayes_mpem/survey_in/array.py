@@ -1672,6 +1672,8 @@ def penalised_gauss_newton(resid, jac, theta, Q, *, max_steps=50, rtol=1e-12, st
         return tc @ Q @ tc
 
     th = np.asarray(theta, float).copy()
+    Q = np.array(Q, float)  # owned and read-only: each step's arrowhead reuses its parts
+    Q.flags.writeable = False
     r, J, pre = (resid(th), None, None) if start is None else start
     f = r @ r + penalty(th)
     mu = 0.0
@@ -1681,6 +1683,7 @@ def penalised_gauss_newton(resid, jac, theta, Q, *, max_steps=50, rtol=1e-12, st
         if pre is None:
             J = jac(th)
             pre = (normal or normal_equations)(J, r)
+        head = arrowhead([pre[0], Q])  # None: a dense factor
         A = pre[0] + Q
         g = pre[1] + Q @ null_shifted(th, Q, blocks)
         pre = None
@@ -1688,16 +1691,15 @@ def penalised_gauss_newton(resid, jac, theta, Q, *, max_steps=50, rtol=1e-12, st
         d[d <= 0] = 1.0
         s = 1.0 / np.sqrt(d)
         for _ in range(12):
-            try:
-                c = cho_factor((A + mu * np.diag(d)) * s[:, None] * s[None, :])
-            except np.linalg.LinAlgError:
+            solve = _damped_solver(A, d, s, mu, head)
+            if solve is None:
                 mu = max(10.0 * mu, 1e-8)
                 continue
-            step = -s * cho_solve(c, s * g)
+            step = -solve(g)
             if -(g @ step) <= rtol * f:  # the expected decrease is round-off: converged
                 return th
             if n_step >= ACCELERATE_AFTER:  # None: the acceleration too large to trust
-                step = _accelerated(step, th, r, J, resid, c, s)
+                step = _accelerated(step, th, r, J, resid, solve, s)
             if step is not None:
                 new = th + step
                 r_new = resid(new)
@@ -1716,20 +1718,36 @@ def penalised_gauss_newton(resid, jac, theta, Q, *, max_steps=50, rtol=1e-12, st
     return th
 
 
-def _accelerated(v, th, r, J, resid, c, s, h=0.1, alpha=0.75):
+def _damped_solver(A, d, s, mu, head=None):
+    """Return ``g -> (A + mu D)^-1 g`` (``D = diag(d)``, ``s = d^-1/2``), or None if not positive.
+
+    Factored scaled to a unit diagonal: by the arrowhead ``head`` of ``A``'s parts where
+    there is one (:meth:`.arrowhead.Arrowhead.factor`), densely otherwise.
+    """
+    if head is not None:
+        factor = head.factor([1.0, 1.0], damping=mu)
+        return None if factor is None else factor.solve
+    try:
+        c = cho_factor((A + mu * np.diag(d)) * s[:, None] * s[None, :])
+    except np.linalg.LinAlgError:
+        return None
+    return lambda g: s * cho_solve(c, s * g)
+
+
+def _accelerated(v, th, r, J, resid, solve, s, h=0.1, alpha=0.75):
     """Return the step ``v + a / 2`` with the geodesic acceleration ``a``, or None.
 
     ``r_vv`` by a finite difference along ``v`` (one more evaluation of the residuals);
-    ``a`` solves the damped normal equations (factor ``c`` of the ``s``-scaled matrix) with
+    ``a`` solves the damped normal equations (``solve``, :func:`_damped_solver`) with
     ``J' r_vv`` (the penalty is quadratic: no second derivative). None where
-    ``2 |a| / |v| > alpha`` in the scaled coordinates, the acceleration too large for the
-    step to be trusted (Transtrum & Sethna 2012, section 4).
+    ``2 |a| / |v| > alpha`` in the scaled coordinates (``s``), the acceleration too large for
+    the step to be trusted (Transtrum & Sethna 2012, section 4).
     """
     r_h = resid(th + h * v)
     rvv = (2.0 / h) * ((r_h - r) / h - J @ v)
     if not np.all(np.isfinite(rvv)):
         return None
-    a = -s * cho_solve(c, s * (J.T @ rvv))
+    a = -solve(J.T @ rvv)
     if 2.0 * np.linalg.norm(a / s) > alpha * np.linalg.norm(v / s):
         return None
     return v + 0.5 * a

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import functools
 import threading
+from typing import NamedTuple
 
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve, cho_solve_banded, cholesky_banded
@@ -150,36 +151,107 @@ class Arrowhead:
         tuple of (float, numpy.ndarray) or None
             None where the band or the border's Schur complement is not positive definite.
         """
+        factor = self.factor(weights)
+        return None if factor is None else (factor.logdet, factor.solve(g))
+
+    def factor(self, weights, damping=0.0):
+        """Return a factor of ``A + damping D`` (``D`` the diagonal of ``A``), or None.
+
+        ``A = sum_k weights[k] M_k``, scaled by ``D^-1/2`` on both sides before it is
+        factored; ``damping`` is Levenberg-Marquardt's (the penalised Gauss-Newton's steps
+        solve several right-hand sides with one factor).
+
+        Parameters
+        ----------
+        weights : sequence of float
+            As for :meth:`solve`.
+        damping : float, default 0
+            Non-negative.
+
+        Returns
+        -------
+        ArrowheadFactor or None
+            None where the band or the border's Schur complement is not positive definite.
+        """
         c = [weights[k] for k in self.keep]
         d = sum(ck * dk for ck, dk in zip(c, self._diag, strict=True))
         d = np.where(d <= 0, 1.0, d)
         s = 1.0 / np.sqrt(d)
         so, sb = s[self.order], s[self.border]
         band = sum(ck * b for ck, b in zip(c, self._bands, strict=True))
+        if damping:
+            band[0] = band[0] + damping * d[self.order]
         band = band * so[self._r] * so[self._c]
         band[~self._valid] = 0.0
         try:
             lower = cholesky_banded(band, lower=True, check_finite=False)
         except np.linalg.LinAlgError:
             return None
-        gs = s * np.asarray(g, float)
-        x = np.empty(self.size)
         logdet = 2.0 * np.sum(np.log(lower[0])) + np.sum(np.log(d))
-        xo = cho_solve_banded((lower, True), gs[self.order], check_finite=False)
+        Aba = Z = schur = None
         if self.border.size:
             Aba = sum(ck * m for ck, m in zip(c, self._ba, strict=True)) * so[:, None] * sb
-            Abb = sum(ck * m for ck, m in zip(c, self._bb, strict=True)) * sb[:, None] * sb
+            Abb = sum(ck * m for ck, m in zip(c, self._bb, strict=True))
+            if damping:
+                Abb = Abb + np.diag(damping * d[self.border])
+            Abb = Abb * sb[:, None] * sb
             Z = cho_solve_banded((lower, True), Aba, check_finite=False)
             try:
                 schur = cho_factor(Abb - Aba.T @ Z)
             except np.linalg.LinAlgError:
                 return None
-            xb = cho_solve(schur, gs[self.border] - Aba.T @ xo)
-            xo = xo - Z @ xb
             logdet += 2.0 * np.sum(np.log(np.diag(schur[0])))
-            x[self.border] = xb
-        x[self.order] = xo
-        return float(logdet), s * x
+        return ArrowheadFactor(self, s, lower, Aba, Z, schur, float(logdet))
+
+
+class ArrowheadFactor(NamedTuple):
+    """A factor of an :class:`Arrowhead`'s sum (:meth:`Arrowhead.factor`).
+
+    Attributes
+    ----------
+    head : Arrowhead
+    s : numpy.ndarray
+        The scaling, ``D^-1/2``.
+    lower : numpy.ndarray
+        The scaled band's Cholesky factor (lower band storage).
+    Aba, Z : numpy.ndarray or None
+        The scaled border columns and the band's solve of them (None without a border).
+    schur : tuple or None
+        :func:`scipy.linalg.cho_factor`'s of the border's Schur complement.
+    logdet : float
+        ``log|A|`` (the damped ``A`` where damped).
+    """
+
+    head: Arrowhead
+    s: np.ndarray
+    lower: np.ndarray
+    Aba: np.ndarray | None
+    Z: np.ndarray | None
+    schur: tuple | None
+    logdet: float
+
+    def solve(self, g):
+        """Return ``A^-1 g``.
+
+        Parameters
+        ----------
+        g : numpy.ndarray
+            ``(P,)``.
+
+        Returns
+        -------
+        numpy.ndarray
+        """
+        head, s = self.head, self.s
+        gs = s * np.asarray(g, float)
+        x = np.empty(head.size)
+        xo = cho_solve_banded((self.lower, True), gs[head.order], check_finite=False)
+        if head.border.size:
+            xb = cho_solve(self.schur, gs[head.border] - self.Aba.T @ xo)
+            xo = xo - self.Z @ xb
+            x[head.border] = xb
+        x[head.order] = xo
+        return s * x
 
 
 #: Read-only matrices seen lately, by identity: ``id -> (matrix, {what: value})`` (at most

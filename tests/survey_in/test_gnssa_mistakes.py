@@ -56,6 +56,24 @@ def test_a_slipped_sign_in_a_prior_position_is_refused_naming_the_transponder(ca
     assert "M01" in capsys.readouterr().err and not (out / "summary.json").exists()
 
 
+def test_a_few_replies_all_spurious_are_refused_too(tmp_path):
+    """Six replies of M01, its prior east's sign slipped: all six were called spurious, under
+    the share check's ten replies, and the centre was 259 m off at exit 0."""
+    sim = simulate_gnssa(hours=0.5, rng=11)
+    m01 = np.flatnonzero(sim.pings["transponder"].to_numpy() == "M01")
+    pings = sim.pings.drop(index=sim.pings.index[m01[6:]]).reset_index(drop=True)
+    header = dict(sim.header, transponders=sim.header["transponders"].copy())
+    header["transponders"].loc["M01", "east"] *= -1
+    site = write_garpos(tmp_path, pings, header)
+    with pytest.raises(InputError, match=r"transponder M01: 6 of its 6 replies called spurious"):
+        locate_array_survey(read_garpos(site))
+    header["transponders"].loc["M01", "east"] *= -1  # the right prior: its six replies fit
+    (tmp_path / "right").mkdir()
+    site = write_garpos(tmp_path / "right", pings, header)
+    fit = locate_array_survey(read_garpos(site)).fits["array"]
+    assert fit.n_spurious(0) < 6 and np.all(np.abs(fit.centre()[0][:2]) < 1.0)
+
+
 def test_a_shot_whose_time_slipped_hours_is_left_out_and_named(campaign, tmp_path):
     """One ``ST`` (and ``RT``) ten hours early: it was called true (its own sound speed fits
     it), the campaign's span grew to 10.5 h and the centre moved 4-7 cm."""

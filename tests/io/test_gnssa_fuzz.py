@@ -7,6 +7,7 @@ key, or the line skipped with its reason; never a value read silently otherwise.
 
 import contextlib
 import io
+import os
 
 import pytest
 import yaml
@@ -92,6 +93,28 @@ def test_garpos_named_file_errors_name_the_site_file_line(garpos, value, why):
     line = _site(garpos, "datacsv", value)
     with pytest.raises((InputError, FileNotFoundError),
                        match=rf"initcfg.ini line {line} \(datacsv\): {why}"):
+        read_garpos(garpos)
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no named pipes here")
+def test_garpos_named_pipe_is_not_reported_as_not_found(garpos):
+    fifo = garpos.parent / "pipe.csv"
+    os.mkfifo(fifo)
+    line = _site(garpos, "datacsv", "pipe.csv")
+    with pytest.raises(InputError, match=rf"line {line} \(datacsv\): 'pipe.csv' is not a "
+                                         r"regular file \(.*a pipe, device or socket\)"):
+        read_garpos(garpos)
+
+
+@pytest.mark.parametrize("spelt", ["Latitude0\u200b", "latitude0"])
+def test_garpos_a_key_spelt_nearly_names_its_line(garpos, spelt):
+    # was: "no 'Latitude0' in [Site-parameter]" with no line (a zero-width space is invisible)
+    text = garpos.read_text()
+    line = next(i for i, t in enumerate(text.splitlines(), start=1)
+                if t.strip().startswith("Latitude0"))
+    garpos.write_text(text.replace("Latitude0", spelt, 1))
+    with pytest.raises(InputError, match=rf"no 'Latitude0' in \[Site-parameter\]; line {line} "
+                                         r"gives '[Ll]atitude0.*invisible characters"):
         read_garpos(garpos)
 
 

@@ -6,6 +6,7 @@ Details: ``docs/gnssa.md``.
 from __future__ import annotations
 
 import re
+import unicodedata
 from pathlib import Path
 
 import numpy as np
@@ -74,6 +75,10 @@ def resolve_path(text, base, source=None) -> Path:
     folder = next((c for c in tried if c.is_dir()), None)
     if folder is not None:
         raise InputError(f"{lead}{name!r} is a folder ({folder}); expected a file")
+    other = next((c for c in tried if c.exists()), None)
+    if other is not None:  # a pipe, a device or a socket: it cannot be read twice
+        raise InputError(f"{lead}{name!r} is not a regular file ({other}: a pipe, device or "
+                         "socket); expected a file")
     raise FileNotFoundError(f"{lead}{name!r} not found (looked at "
                             + " and ".join(str(c) for c in tried) + ")")
 
@@ -108,7 +113,22 @@ def _get(ini, path, section, key, default=None):
     except KeyError:
         if default is not None:
             return default
-        raise InputError(f"{path}: no {key!r} in [{section}]") from None
+        raise InputError(f"{path}: no {key!r} in [{section}]{_near_key(ini, key)}") from None
+
+
+def _plain(text):
+    """``text`` without invisible characters (format, control, spaces), case folded."""
+    return "".join(c for c in text if unicodedata.category(c)[0] not in "CZ").casefold()
+
+
+def _near_key(ini, key):
+    """Where a key that differs from ``key`` only in case or invisible characters is given."""
+    for section, entries in ini.items():
+        for k, (_, line) in entries.items():
+            if _plain(k) == _plain(key):
+                return (f"; line {line} gives {k!r} in [{section}] (check its spelling, case "
+                        "and any invisible characters)")
+    return ""
 
 
 def _values(ini, path, section, key, n, names, ranges=None):

@@ -1,5 +1,6 @@
 """Transponder location by EM: simulated truth, OBSrange's CC03 solution, spurious pings."""
 
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -327,3 +328,22 @@ def test_travel_times_no_ray_is_counted():
         step[i] = 0.05
         num = (tt.predict(theta + step) - tt.predict(theta - step)) / 0.1
         np.testing.assert_allclose(J[0, i], num[0], rtol=1e-6, atol=1e-10)
+
+
+@pytest.mark.parametrize(("old", "new", "why"), [
+    ("-4.88241", "-4.98241", r"located at depth -4,7\d\d\.\d m, above the transducers"),
+    ("-132.68907", "132.68907", r"fitted sound speed [\d,.]+ m/s, outside 1300-1800 m/s"),
+])
+def test_a_drop_position_kilometres_off_is_refused_not_mirrored(tmp_path, old, new, why):
+    """A latitude 0.1 degree off put CC03 4.7 km above the sea (exit 0, a tight interval); a
+    longitude's sign slipped gave 742,025 m/s with every ping spurious."""
+    from bayes_mpem.survey_in.survey import locate_survey
+
+    path = tmp_path / "cc03.txt"
+    path.write_text((DATA / "SIO_CC03.txt").read_text().replace(old, new, 1))
+    raw = read_survey(path, "obsrange-sio")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LocateWarning)  # the depth poorly constrained
+        with pytest.raises(InputError, match=rf"transponder CC03: {why}.*drop position in "
+                                             r".*cc03.txt \(lat "):
+            locate_survey(raw)

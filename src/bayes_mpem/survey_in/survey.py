@@ -6,6 +6,7 @@ import numpy as np
 import pandas as pd
 
 from ..exceptions import InputError
+from ..io.boundary import LIMITS
 from ..io.geodesy import MEAN_EARTH_RADIUS_M, earth_radius, enu_to_geodetic
 from ..io.raw import ARRAY_FORMATS
 from .array_survey import locate_array_survey
@@ -192,6 +193,7 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
             hint = (f" (speed_intervals={speed_intervals} needs {speed_intervals} more)"
                     if speed_intervals and "need at least" in str(exc) else "")
             raise InputError(f"{raw.source}: {exc}{hint}") from None
+        _check_located(raw, pings, tid, r)
         sub = pings.iloc[r.rows]
         probs[r.rows] = r.p_true
         resid[r.rows] = 1e3 * (sub["twtt"].to_numpy() - r.predict(sub))
@@ -215,6 +217,32 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
     if "lat" in raw.header and raw.format != "seagap":
         summary["drop_point"] = {k: raw.header.get(k) for k in ("lat", "lon", "depth")}
     return SurveyInResult(summary=summary, classified=cls, fits=fits)
+
+
+def _check_located(raw, pings, tid, r) -> None:
+    """Refuse a transponder located above the transducers, or with a speed no water has.
+
+    Ranges cannot tell a point below the transducers from its mirror above them; from a
+    drop position some kilometres off (a slipped digit or sign) the fit went to the mirror,
+    4.7 km above the sea at exit 0 with a tight interval, or called every ping spurious with
+    a sound speed of 742,025 m/s.
+    """
+    drop = (f"the drop position in {raw.source} (lat {raw.header['lat']}, lon "
+            f"{raw.header['lon']})" if "lat" in raw.header else f"the start in {raw.source}")
+    shallowest = float(np.nanmax(pings["depth"].to_numpy(float)))
+    if not r.depth > shallowest:
+        raise InputError(
+            f"transponder {tid}: located at depth {r.depth:,.1f} m, above the transducers "
+            f"({shallowest:,.1f} m): the mirror of a position below them. Its ranges do not fit "
+            f"a transponder near {drop}, {np.hypot(r.east, r.north) / 1e3:,.1f} km from where "
+            "the fit went; check that position (a digit or a sign slipped?)")
+    low, high = LIMITS["sound_speed"].low, LIMITS["sound_speed"].high
+    if not low <= r.sound_speed <= high:
+        raise InputError(
+            f"transponder {tid}: fitted sound speed {r.sound_speed:,.1f} m/s, outside "
+            f"{low:g}-{high:g} m/s ({r.n_spurious} of its {r.p_true.size} pings called "
+            f"spurious): its ranges do not fit a transponder near {drop}; check that position "
+            "(a digit or a sign slipped?) and the turn-around time")
 
 
 def _entry(raw, r, ci):

@@ -347,3 +347,22 @@ def test_a_drop_position_kilometres_off_is_refused_not_mirrored(tmp_path, old, n
         with pytest.raises(InputError, match=rf"transponder CC03: {why}.*drop position in "
                                              r".*cc03.txt \(lat "):
             locate_survey(raw)
+
+
+def test_the_lag_check_is_skipped_with_its_reason_on_a_few_pings(tmp_path):
+    """Six pings locate CC03, but the lag check's folds cannot fit: the whole command failed
+    ("4 pings, need at least 6", no file named) where only the check should be left out."""
+    from bayes_mpem.survey_in.survey import locate_survey
+
+    lines = (DATA / "SIO_CC03.txt").read_text().split("\n")
+    end = next(i for i, line in enumerate(lines) if line.startswith("====="))
+    pings = [line for line in lines if "msec" in line]
+    path = tmp_path / "six.txt"
+    path.write_text("\n".join(lines[:end + 1] + pings[::len(pings) // 6][:6]) + "\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LocateWarning)
+        entry = locate_survey(read_survey(path, "obsrange-sio"), lag_check=True
+                              ).summary["transponders"]["CC03"]
+    assert set(entry["lag_check"]) == {"skipped"}
+    assert "too few pings for a 5-fold held-out check" in entry["lag_check"]["skipped"]
+    assert 4700 < entry["depth"]["mean"] < 4800

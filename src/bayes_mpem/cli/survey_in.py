@@ -162,8 +162,10 @@ def _print_transponder(tid, t, *, ci, sampled, rms=None):
                   else "")
         print(f"  drift {_interval(t['drift'])} m at azimuth {_interval(t['azimuth'], '{:.1f}')}"
               f" deg from the drop point{change}")
-    if "lag_check" in t:
-        lc = t["lag_check"]
+    lc = t.get("lag_check")
+    if lc and "skipped" in lc:
+        print(f"  lag check: not made, {lc['skipped']}")
+    elif lc:
         verdict = ("re-run with --fit-lag" if lc["recommended"] else "no lag needed")
         print(f"  lag check: a lag of {lc['lag']:.2f} +- {lc['lag_sd']:.2f} s along the track: "
               f"held-out gain {lc['gain']:+.1f} +- {lc['gain_se']:.1f} nats, rms "

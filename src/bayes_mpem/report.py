@@ -227,7 +227,11 @@ def load_output(result_dir):
                          "('bayes-mpem stream' writes JSON lines, which have no figures)")
     if (d / MARKER).exists():  # valid JSON, and every data file of the run there (figures
         marker = read_marker(d, check=False)  # are drawn again from the data: not needed)
-        missing = [f for f in marker.get("files", []) if not f.endswith(".png")
+        files = marker.get("files", [])
+        if not isinstance(files, list) or not all(isinstance(f, str) for f in files):
+            raise InputError(f"{d / MARKER}: files: expected a list of file names, got "
+                             f"{str(files)[:60]!r}; was it edited? Run the command again")
+        missing = [f for f in files if not f.endswith(".png")
                    and not (d / f).exists()]
         if missing:
             raise InputError(f"{d / MARKER}: lists {', '.join(missing[:5])}, missing: the folder "

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 
 import numpy as np
 import pandas as pd
@@ -110,6 +111,37 @@ def test_plot_refuses_a_damaged_folder_before_drawing(small, tmp_path, capsys):
     s.write_text(s.read_text()[:200])
     assert main(["plot", str(tmp_path / "fit")]) == 2
     assert f"{s}: not valid JSON" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(("edit", "said"), [
+    (lambda s: s["beacons"][next(iter(s["beacons"]))].update(sigma_mp=None),
+     r"summary.json: beacons\.\w+\.sigma_mp: expected a finite number, got null"),
+    (lambda s: s["beacons"][next(iter(s["beacons"]))].update(d0="abc"),
+     r"summary.json: beacons\.\w+\.d0: expected a finite number, got \"abc\""),
+    (lambda s: s.update(beacons=list(s["beacons"])),
+     r"summary.json: the output files do not fit together \(AttributeError"),
+    (lambda s: s.update(beacons_table=list(s["beacons_table"])),
+     r"summary.json: beacons_table: expected an object of beacons"),
+    (lambda s: s["beacons_table"].pop(next(iter(s["beacons_table"]))),
+     r"classified.csv and .*summary.json's beacons_table do not fit together .*classified.csv "
+     r"line \d+, column 'beacon': beacon '\w+' is not in beacons_table"),
+    (lambda s: s.update(files="classified.csv"),
+     r"summary.json: files: expected a list of file names, got 'classified.csv'"),
+])
+def test_plot_names_the_key_of_a_hand_edited_summary(small, tmp_path, capsys, edit, said):
+    """A null (strict JSON's non-finite) or a list where an object was: an internal error;
+    a beacon taken out of beacons_table blamed a 'pings DataFrame' row; a string for files
+    listed its letters as missing files."""
+    assert _fit(small, tmp_path / "fit") == 0
+    path = tmp_path / "fit" / "summary.json"
+    doc = json.loads(path.read_text())
+    edit(doc)
+    path.write_text(json.dumps(doc))
+    capsys.readouterr()
+    assert main(["plot", str(tmp_path / "fit"), "--out", str(tmp_path / "figs")]) == 2
+    err = capsys.readouterr().err
+    assert re.search(said, err, re.S), err
+    assert "internal error" not in err and "DataFrame" not in err
 
 
 def test_a_failing_figure_leaves_no_complete_looking_diagnosis(small, tmp_path, monkeypatch,

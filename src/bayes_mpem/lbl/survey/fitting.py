@@ -191,7 +191,7 @@ class SurveyFit:
         from ...io.results import MARKER, read_document
         from ..em.em_result import EMResult
         from ..em.path_choice import choices_from_summary
-        from .folder import survey_and_classes, together
+        from .folder import numbers, survey_and_classes, together
 
         d = Path(folder)
         summary = read_document(d / MARKER)
@@ -201,6 +201,7 @@ class SurveyFit:
         def rebuild():
             results = {}
             for b, s in summary["beacons"].items():
+                numbers(d, s, ("d0", "sigma_mp", "sigma_dp"), f"beacons.{b}")
                 rows = survey.for_beacon(b).rows
                 h = hist.get(b, {})
                 history = {k: np.asarray(v) for k, v in h.get("history", {}).items()} or {

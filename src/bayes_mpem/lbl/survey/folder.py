@@ -49,7 +49,8 @@ def survey_and_classes(folder: Path, summary: dict):
     name = next((f for f in ("classified.parquet", "classified.csv")
                  if f in summary.get("files", [])), "classified.csv")
     path = folder / name
-    frame = read_table_file(path, str(path), "classified table").frame
+    text = read_table_file(path, str(path), "classified table")
+    frame = text.frame
     if summary.get("n_rows") is not None and len(frame) != summary["n_rows"]:
         raise InputError(f"{path}: {len(frame)} rows, but {folder / MARKER} says n_rows = "
                          f"{summary['n_rows']}: the table is truncated or from another run")
@@ -59,8 +60,19 @@ def survey_and_classes(folder: Path, summary: dict):
                          "classified table of 'bayes-mpem fit', 'sample' or 'navigate'")
     classified = frame_as_text(frame) if name.endswith(".parquet") else frame
     table = classified[[c for c in classified.columns if c not in _ADDED]]
-    beacons = pd.DataFrame([{"beacon": b, **v} for b, v in summary["beacons_table"].items()])
-    survey = load_survey(table, beacons)
+    if text.lines is not None:  # messages name the file's lines, not a DataFrame's rows
+        table.attrs.update(source=str(path), lines=np.asarray(text.lines))
+    entries = summary.get("beacons_table")
+    if not isinstance(entries, dict) or not all(isinstance(v, dict) for v in entries.values()):
+        raise InputError(f"{folder / MARKER}: beacons_table: expected an object of beacons, "
+                         f"each an object of x, y, depth; got {json_text(entries)}")
+    beacons = pd.DataFrame([{"beacon": b, **v} for b, v in entries.items()])
+    try:
+        survey = load_survey(table, beacons)
+    except InputError as exc:
+        said = str(exc).replace("beacons DataFrame", "beacons_table")
+        raise InputError(f"{path} and {folder / MARKER}'s beacons_table do not fit together "
+                         f"(was one edited?): {said}") from None
     num = {}
     for c in sorted(_ADDED - {"label", "reason"}):
         if c in classified.columns:
@@ -94,6 +106,50 @@ def together(folder, load, *args):
     """
     try:
         return load(*args)
-    except (KeyError, TypeError, IndexError) as exc:
+    except InputError:  # a ValueError that names its file already
+        raise
+    except (KeyError, TypeError, IndexError, AttributeError, ValueError) as exc:
         raise InputError(f"{Path(folder) / MARKER}: the output files do not fit together "
-                         f"({type(exc).__name__}: {exc})") from None
+                         f"({type(exc).__name__}: {exc}); was it edited? Run the command "
+                         "again") from None
+
+
+def numbers(folder, entry, keys, where) -> None:
+    """Refuse an entry of ``summary.json`` whose ``keys`` are not finite numbers.
+
+    ``null`` (how strict JSON writes a non-finite value) or text in a hand-edited summary
+    ended as an internal error in the figures.
+
+    Parameters
+    ----------
+    folder : str or pathlib.Path
+        The output folder (its ``summary.json`` named in the error).
+    entry : dict
+        The entry.
+    keys : sequence of str
+    where : str
+        The entry's path in the document (``beacons.4``).
+
+    Raises
+    ------
+    InputError
+    """
+    if not isinstance(entry, dict):
+        raise InputError(f"{Path(folder) / MARKER}: {where}: expected an object of "
+                         f"{', '.join(keys)}, got {type(entry).__name__}")
+    for key in keys:
+        v = entry.get(key)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
+            raise InputError(f"{Path(folder) / MARKER}: {where}.{key}: expected a finite "
+                             f"number, got {json_text(v)}; was it edited? Run the command "
+                             "again")
+
+
+def json_text(v) -> str:
+    """``v`` as JSON writes it (``null``, quoted text), for messages."""
+    import json
+
+    try:
+        return json.dumps(v)[:60]
+    except (TypeError, ValueError):
+        return repr(v)[:60]

@@ -33,7 +33,7 @@ def test_epochs_are_the_distinct_ping_times():
 
 
 def test_pings_of_one_time_must_agree_on_the_dead_reckoning():
-    with pytest.raises(InputError, match=r"time 10.0 s \(data rows 3, 4,.*'x', 'y'"):
+    with pytest.raises(InputError, match=r"time 10.0 s \(row 2, row 3\) .*'x', 'y'"):
         build_dive(load_survey(_pings(x=[0.0, 0.0, 5.0, 7.0, 10.0]), BEACONS))
 
 
@@ -52,8 +52,40 @@ def test_a_velocity_table_is_integrated_from_the_first_ping_position():
 
 def test_pings_outside_the_dead_reckoning_table_are_refused():
     dr = pd.DataFrame({"time": [0.0, 15.0], "x": [0.0, 1.0], "y": [0.0, 0.0]})
-    with pytest.raises(InputError, match=r"data row 5 .*column 'time': 20.0 s is outside"):
+    with pytest.raises(InputError, match=r"row 4, column 'time': 20.0 s is outside"):
         build_dive(load_survey(_pings(), BEACONS), dr)
+
+
+def _commented_csv(path, frame):
+    """``frame`` as CSV under two comment lines and a blank one (the header on line 4)."""
+    path.write_text("# exported by the nav box\n# units: m\n\n" + frame.to_csv(index=False))
+    return str(path)
+
+
+def _grep_n(path, prefix):
+    """The line number ``grep -n`` gives the first line of ``path`` starting with ``prefix``."""
+    with open(path) as fh:
+        return next(i for i, line in enumerate(fh, 1) if line.startswith(prefix))
+
+
+def test_dead_reckoning_span_error_names_the_file_line_and_ends(tmp_path):
+    pings = _commented_csv(tmp_path / "p.csv", _pings())
+    dr = pd.DataFrame({"time": [0.0, 15.0], "x": [0.0, 1.0], "y": [0.0, 0.0]})
+    with pytest.raises(InputError) as err:
+        build_dive(load_survey(pings, BEACONS), dr)
+    line = _grep_n(pings, "20.0,")
+    assert line == 9
+    msg = str(err.value)
+    assert f"p.csv line {line}, column 'time': 20.0 s is outside" in msg
+    assert msg.endswith("1 ping(s) are outside it (times 20.0 to 20.0 s); expected a "
+                        "dead-reckoning table that spans every ping")
+
+
+def test_pings_of_one_time_that_disagree_are_named_by_file_line(tmp_path):
+    pings = _commented_csv(tmp_path / "p.csv", _pings(x=[0.0, 0.0, 5.0, 7.0, 10.0]))
+    with pytest.raises(InputError, match=r"time 10.0 s \(line 7, line 8\) give dead-reckoned"):
+        build_dive(load_survey(pings, BEACONS))
+    assert _grep_n(pings, "10.0,A") == 7 and _grep_n(pings, "10.0,B") == 8
 
 
 def test_a_dive_without_any_reply_is_refused():

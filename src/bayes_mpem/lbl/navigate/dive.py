@@ -107,11 +107,12 @@ def _epoch_dr(survey: Survey, inverse: np.ndarray, k: int) -> np.ndarray:
     bad = np.flatnonzero(off > SAME_EPOCH_TOLERANCE)
     if bad.size:
         e = inverse[bad[0]]
-        rows = np.flatnonzero(inverse == e)[:6] + 1
+        rows = np.flatnonzero(inverse == e)
+        where = ", ".join(survey.row_name(int(r)) for r in rows[:6])
+        more = f" and {rows.size - 6} more" if rows.size > 6 else ""
         raise InputError(
-            f"{survey.pings_source}: the pings at time {float(survey.time[bad[0]])!r} s (data "
-            f"rows {', '.join(map(str, rows))}, counted from 1 after the header) give "
-            f"dead-reckoned positions up to "
+            f"{survey.pings_source}: the pings at time {float(survey.time[bad[0]])!r} s "
+            f"({where}{more}) give dead-reckoned positions up to "
             f"{2 * off[inverse == e].max():.3g} m apart; expected one position per ping time "
             "(columns 'x', 'y')")
     return mean
@@ -125,10 +126,13 @@ def _table_dr(survey: Survey, times: np.ndarray, first_xy, source) -> tuple[np.n
     out = np.flatnonzero((survey.time < t[0]) | (survey.time > t[-1]))
     if out.size:
         i = out[0]
+        outside = survey.time[out]
         raise InputError(
-            f"{survey.pings_source} data row {i + 1} (counted from 1 after the header), column "
-            f"'time': {float(survey.time[i])!r} s is outside the dead-reckoning table's span "
-            f"[{float(t[0])!r}, {float(t[-1])!r}] s ({label}); {out.size} ping(s) are")
+            f"{survey.pings_source} {survey.row_name(int(i))}, column 'time': "
+            f"{float(survey.time[i])!r} s is outside the dead-reckoning table's span "
+            f"[{float(t[0])!r}, {float(t[-1])!r}] s ({label}); {out.size} ping(s) are outside "
+            f"it (times {float(outside.min())!r} to {float(outside.max())!r} s); expected a "
+            "dead-reckoning table that spans every ping")
     if form == "position":
         pos = table[["x", "y"]].to_numpy()
     else:

@@ -46,6 +46,8 @@ def read_dead_reckoning(source: Any, *, name: str | None = None) -> tuple[pd.Dat
     problems = Problems(table.source)
     out = pd.DataFrame({c: numeric_column(table, c, problems) for c in need})
     problems.raise_if_any()
+    if table.lines is not None:  # file lines, for messages about its rows (as io.travel_time)
+        out.attrs.update(source=table.source, lines=tuple(map(int, table.lines)))
     if len(out) < 2:
         raise InputError(f"{table.source}: the dead-reckoning table needs at least two rows, "
                          f"got {len(out)}")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -16,6 +17,9 @@ SAME_EPOCH_TOLERANCE = 0.01
 #: A beacon with fewer replies takes the outlier window of all replies (its own few ranges
 #: would make a window too narrow, and every reply an outlier).
 MIN_WINDOW_REPLIES = 10
+#: An interval of a dead-reckoning table longer than this many times the table's median
+#: interval is a gap (a row or more missing): the motion across it is taken as unknown.
+GAP_FACTOR = 2.5
 
 
 @dataclass(frozen=True, eq=False)
@@ -48,6 +52,11 @@ class Dive:
         ``(B,)`` lowest physical plane height (above every vehicle position).
     dr_source : str
         ``"pings"`` or the dead-reckoning table's label and form.
+    dr_gap_var : numpy.ndarray or None
+        ``(K - 1,)`` variance (m^2 per axis) added to each step's random walk where the
+        dead-reckoning table has a gap (:func:`dead_reckoning_gaps`); None without gaps.
+    dr_gaps : tuple of dict
+        The table's gaps the epochs meet, as :func:`dead_reckoning_gaps` describes them.
     """
 
     survey: Survey = field(repr=False)
@@ -65,6 +74,8 @@ class Dive:
     window: np.ndarray = field(repr=False)
     d0_min: np.ndarray = field(repr=False)
     dr_source: str = "pings"
+    dr_gap_var: np.ndarray | None = field(default=None, repr=False)
+    dr_gaps: tuple = ()
 
     @property
     def n_epochs(self) -> int:
@@ -118,8 +129,91 @@ def _epoch_dr(survey: Survey, inverse: np.ndarray, k: int) -> np.ndarray:
     return mean
 
 
-def _table_dr(survey: Survey, times: np.ndarray, first_xy, source) -> tuple[np.ndarray, str]:
-    """Dead-reckoned position at ``times`` from a table (positions or velocities)."""
+def _dr_row_name(table, source, pos: int) -> str:
+    """Where row ``pos`` of a dead-reckoning table is: its file line, or its DataFrame row."""
+    lines = table.attrs.get("lines")
+    if lines is not None:
+        return f"line {int(lines[pos])}"
+    if hasattr(source, "index"):
+        return f"row {source.index[pos]!r}" if isinstance(source.index[pos], str) \
+            else f"row {source.index[pos]}"
+    return f"row {pos}"
+
+
+def dead_reckoning_gaps(t, pos, times, form: str):
+    """Find the gaps of a dead-reckoning table and the random walk they add to the steps.
+
+    An interval of the table longer than :data:`GAP_FACTOR` times its median interval is a
+    gap. Across a gap the table says nothing of the path: interpolating positions draws a
+    chord (wrong by up to half the gap times the speed where the vehicle turned), and
+    integrating velocities assumes the speed changed linearly (wrong by up to the gap times
+    the speed, for good; :func:`build_dive` refuses such gaps). So each step between
+    epochs that meets a gap gets the variance ``v^2 u G`` per axis (``u`` the seconds of
+    the step inside the gap of length ``G``, ``v`` the table's fastest speed outside its
+    gaps): ``(v G)^2`` summed over the gap, the vehicle anywhere it could have reached.
+    For positions, a step whose two epochs are outside the gap keeps its exact
+    displacement and gets nothing.
+
+    Parameters
+    ----------
+    t : numpy.ndarray
+        ``(M,)`` the table's times (s), strictly increasing.
+    pos : numpy.ndarray
+        ``(M, 2)`` its positions (m), or its velocities (m/s) for ``form="velocity"``.
+    times : numpy.ndarray
+        ``(K,)`` the epochs (s), within ``[t[0], t[-1]]``.
+    form : {"position", "velocity"}
+
+    Returns
+    -------
+    var : numpy.ndarray or None
+        ``(K - 1,)`` added variance of each step (m^2), or None when no gap meets a step.
+    gaps : list of dict
+        Per gap met: ``index`` (the table row before it), ``start``, ``end`` (s),
+        ``interval`` (the median interval, s), ``speed`` (m/s), ``n_epochs`` (epochs
+        inside it).
+
+    Examples
+    --------
+    >>> t = np.array([0.0, 10.0, 20.0, 60.0, 70.0])
+    >>> pos = np.column_stack([t, np.zeros(5)])       # 1 m/s east
+    >>> var, gaps = dead_reckoning_gaps(t, pos, np.array([0.0, 15.0, 30.0, 45.0, 70.0]),
+    ...                                 "position")
+    >>> var.tolist(), [(g["start"], g["end"], g["n_epochs"]) for g in gaps]
+    ([0.0, 400.0, 600.0, 600.0], [(20.0, 60.0, 2)])
+    """
+    dt = np.diff(t)
+    long = dt > GAP_FACTOR * np.median(dt)
+    if not long.any() or times.size < 2:
+        return None, []
+    if form == "position":
+        speed = np.hypot(*np.diff(pos, axis=0).T)[~long] / dt[~long]
+    else:
+        speed = np.hypot(pos[:, 0], pos[:, 1])
+    v = float(speed.max())
+    var, gaps = np.zeros(times.size - 1), []
+    for j in np.flatnonzero(long):
+        a, b = t[j], t[j + 1]
+        u = np.clip(np.minimum(times[1:], b) - np.maximum(times[:-1], a), 0.0, None)
+        inside = (times > a) & (times < b)
+        if form == "position":  # a step between epochs outside the gap is exact
+            u = np.where(inside[1:] | inside[:-1], u, 0.0)
+        if not u.any():
+            continue
+        var += v * v * u * (b - a)
+        gaps.append({"index": int(j), "start": float(a), "end": float(b),
+                     "interval": float(np.median(dt)), "speed": v,
+                     "n_epochs": int(inside.sum())})
+    return (var if gaps else None), gaps
+
+
+def _table_dr(survey: Survey, times: np.ndarray, first_xy, source):
+    """Dead-reckoned position at ``times`` from a table (positions or velocities).
+
+    Returns the positions, the source's description, and the gaps' added variance and
+    descriptions (:func:`dead_reckoning_gaps`, each with the table's ``file`` and the
+    ``lines`` either side).
+    """
     table, form = read_dead_reckoning(source)
     label = source if isinstance(source, str) else "dead-reckoning DataFrame"
     t = table["time"].to_numpy()
@@ -135,14 +229,29 @@ def _table_dr(survey: Survey, times: np.ndarray, first_xy, source) -> tuple[np.n
             "dead-reckoning table that spans every ping")
     if form == "position":
         pos = table[["x", "y"]].to_numpy()
+        var, gaps = dead_reckoning_gaps(t, pos, times, form)
     else:
         v = table[["ve", "vn"]].to_numpy()
+        var, gaps = dead_reckoning_gaps(t, v, times, form)
         steps = 0.5 * (v[1:] + v[:-1]) * np.diff(t)[:, None]
         pos = np.vstack([np.zeros((1, 2)), np.cumsum(steps, axis=0)])
     dr = np.column_stack([np.interp(times, t, pos[:, 0]), np.interp(times, t, pos[:, 1])])
     if form == "velocity":  # integrated from the pings' first dead-reckoned position
         dr += np.asarray(first_xy, float) - dr[0]
-    return dr, f"{label} ({form}s)"
+    for g in gaps:
+        g.update(file=label, lines=[_dr_row_name(table, source, g["index"]),
+                                    _dr_row_name(table, source, g["index"] + 1)], form=form)
+    if form == "velocity" and gaps:
+        g = gaps[0]
+        raise InputError(
+            f"{label} {g['lines'][0]} to {g['lines'][1]}, column 'time': a gap of "
+            f"{g['end'] - g['start']:g} s (t = {g['start']:g} to {g['end']:g} s) where the "
+            f"rows are {g['interval']:g} s apart ({len(gaps)} such gap(s) among the pings); "
+            "expected velocities without gaps: integrated across one, every later position "
+            f"is off by up to {g['speed'] * (g['end'] - g['start']):.3g} m, which the ranges "
+            "cannot be relied on to find; fill the gap, or navigate the parts before and "
+            "after it separately")
+    return dr, f"{label} ({form}s)", var, tuple(gaps)
 
 
 def build_dive(survey: Survey, dead_reckoning=None) -> Dive:
@@ -159,7 +268,8 @@ def build_dive(survey: Survey, dead_reckoning=None) -> Dive:
     ------
     InputError
         Pings of one time with different dead-reckoned positions; a ping outside
-        the dead-reckoning table's span; a bad dead-reckoning table; no reply at all.
+        the dead-reckoning table's span; a bad dead-reckoning table; a gap among the
+        pings in a table of velocities (:func:`dead_reckoning_gaps`); no reply at all.
 
     Examples
     --------
@@ -177,12 +287,14 @@ def build_dive(survey: Survey, dead_reckoning=None) -> Dive:
     times, inverse = np.unique(np.asarray(survey.time), return_inverse=True)
     k = times.size
     if dead_reckoning is None:
-        dr, source = _epoch_dr(survey, inverse, k), "pings"
-    else:
-        first = np.flatnonzero(inverse == 0)[0]
-        dr, source = _table_dr(survey, times, (survey.x[first], survey.y[first]),
-                               dead_reckoning)
-    return _assemble(survey, times, inverse, dr, source)
+        return _assemble(survey, times, inverse, _epoch_dr(survey, inverse, k), "pings")
+    first = np.flatnonzero(inverse == 0)[0]
+    dr, source, var, gaps = _table_dr(survey, times, (survey.x[first], survey.y[first]),
+                                      dead_reckoning)
+    dive = _assemble(survey, times, inverse, dr, source)
+    if not gaps:
+        return dive
+    return dataclasses.replace(dive, dr_gap_var=var, dr_gaps=gaps)
 
 
 def dive_with_dead_reckoning(survey: Survey, times, dr, source: str = "pings") -> Dive:

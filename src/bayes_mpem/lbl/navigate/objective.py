@@ -139,8 +139,15 @@ def _motion_residuals(dive: Dive, track, beta, scale):
 
 
 def _motion_weights(dive: Dive, priors: Priors) -> np.ndarray:
-    """``lambda_k = 1 / (q^2 dt_k)`` of every step (``dt`` floored at ``priors.min_dt``)."""
-    return 1.0 / (priors.q ** 2 * np.maximum(dive.dt, priors.min_dt))
+    """``lambda_k = 1 / (q^2 dt_k)`` of every step (``dt`` floored at ``priors.min_dt``).
+
+    Where the dead-reckoning table has a gap, the step's variance grows by
+    ``dive.dr_gap_var`` (the motion across the gap is unknown).
+    """
+    var = priors.q ** 2 * np.maximum(dive.dt, priors.min_dt)
+    if dive.dr_gap_var is not None:
+        var = var + dive.dr_gap_var
+    return 1.0 / var
 
 
 def prior_penalty(dive: Dive, state: State, priors: Priors, track=None, beta=None, scale=None,

@@ -53,6 +53,41 @@ def _reason(dive, resp, i0, i1) -> str:
             "unresolved")
 
 
+def _ambiguous_in_gaps(dive, resp) -> np.ndarray:
+    """``(K,)`` epochs inside a dead-reckoning gap with useful replies from < 3 beacons.
+
+    There the motion model no longer holds the position, and two range circles cross
+    twice: the estimator may sit on either crossing with a small sd.
+    """
+    out = np.zeros(dive.n_epochs, bool)
+    gaps = getattr(dive, "dr_gaps", ())
+    if not gaps:
+        return out
+    useful = resp[:, 0] + resp[:, 1] >= 0.5
+    pairs = np.unique(np.column_stack([dive.epoch[useful], dive.beacon[useful]]), axis=0)
+    n_beacons = np.bincount(pairs[:, 0], minlength=dive.n_epochs)
+    for g in gaps:
+        out |= (dive.times > g["start"]) & (dive.times < g["end"]) & (n_beacons < 3)
+    return out
+
+
+def _gap_flag(dive, sd, gap: dict) -> dict:
+    """Return the flag of a gap in the dead-reckoning table (``dive.dead_reckoning_gaps``)."""
+    near = (dive.times >= gap["start"]) & (dive.times <= gap["end"])
+    worst = float(sd[near].max()) if near.any() else None
+    told = ("the ranges position the vehicle there" if worst is None
+            else f"the ranges position the vehicle there (position sd up to {worst:.3g} m)")
+    return {"kind": "dead_reckoning_gap", "file": gap["file"], "lines": list(gap["lines"]),
+            "start": gap["start"], "end": gap["end"], "n_epochs": gap["n_epochs"],
+            "max_sd": worst, "reason": (
+                f"dead reckoning {gap['file']} has no row between t = {gap['start']:g} and "
+                f"{gap['end']:g} s ({gap['lines'][0]} and {gap['lines'][1]}: a gap of "
+                f"{gap['end'] - gap['start']:g} s where its rows are {gap['interval']:g} s "
+                f"apart, {gap['n_epochs']} epoch(s) inside): not interpolated across; the "
+                f"motion there is taken as unknown (up to {gap['speed']:.3g} m/s, the "
+                f"table's fastest) and {told}")}
+
+
 def assess(dive, cov, resp, nuisances: dict, *, max_sd: float) -> list:
     """Flag where the ranges did not correct the navigation.
 
@@ -70,15 +105,25 @@ def assess(dive, cov, resp, nuisances: dict, *, max_sd: float) -> list:
     Returns
     -------
     list of dict
-        ``kind`` (``"track"`` or the nuisance's name), ``reason`` and, for the
-        track, ``start``, ``end`` (s), ``n_epochs`` and ``max_sd`` (m).
+        ``kind`` (``"track"``, ``"dead_reckoning_gap"`` or the nuisance's name),
+        ``reason`` and, for the track, ``start``, ``end`` (s), ``n_epochs`` and
+        ``max_sd`` (m); for a gap of the dead-reckoning table, its ``file``, the
+        ``lines`` either side, ``start``, ``end``, ``n_epochs`` and ``max_sd``
+        (the track's largest sd from one side of the gap to the other).
     """
     sd = major_sd(cov)
     flags = []
-    for i0, i1 in _stretches(sd > max_sd):
+    ambiguous = _ambiguous_in_gaps(dive, resp)
+    for i0, i1 in _stretches((sd > max_sd) | ambiguous):
+        why = _reason(dive, resp, i0, i1)
+        if ambiguous[i0:i1].any():
+            why = ("inside a gap of the dead reckoning, where an epoch with replies from "
+                   "fewer than three beacons fits two positions; " + why)
         flags.append({"kind": "track", "start": float(dive.times[i0]),
                       "end": float(dive.times[i1 - 1]), "n_epochs": int(i1 - i0),
-                      "max_sd": float(sd[i0:i1].max()), "reason": _reason(dive, resp, i0, i1)})
+                      "max_sd": float(sd[i0:i1].max()), "reason": why})
+    for g in getattr(dive, "dr_gaps", ()):
+        flags.append(_gap_flag(dive, sd, g))
     for name, (post, prior, unit) in nuisances.items():
         if post > PRIOR_FRACTION * prior:
             flags.append({"kind": name, "reason": (
@@ -109,5 +154,8 @@ def describe(flags: list) -> str:
              for f in track[:3]]
     if len(track) > 3:
         parts.append(f"and {len(track) - 3} more stretches")
-    parts += [f["reason"] for f in flags if f["kind"] != "track"]
+    gaps = [f["reason"] for f in flags if f["kind"] == "dead_reckoning_gap"]
+    parts += gaps[:3] + ([f"and {len(gaps) - 3} more gaps of the dead reckoning"]
+                         if len(gaps) > 3 else [])
+    parts += [f["reason"] for f in flags if f["kind"] not in ("track", "dead_reckoning_gap")]
     return "; ".join(parts)

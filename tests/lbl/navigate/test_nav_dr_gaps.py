@@ -1,0 +1,110 @@
+"""A gap in the dead-reckoning table: the motion across it is unknown, not a straight line."""
+
+import warnings
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from bayes_mpem.exceptions import InputError, NavigationWarning
+from bayes_mpem.io.survey import load_survey
+from bayes_mpem.lbl.navigate import navigate, simulate_dive
+from bayes_mpem.lbl.navigate.dive import build_dive, dead_reckoning_gaps
+from bayes_mpem.lbl.navigate.observability import major_sd
+
+CHI2_95 = 5.991
+
+
+@pytest.fixture(scope="module")
+def sim():
+    # the reproducer's dive: a U-turn at t = 1200-1320 s
+    return simulate_dive("abe58", rng=1, n_cycles=200)
+
+
+def _dr_csv(sim, path, missing=slice(100, 110)):
+    """The dive's own dead reckoning every 12 s, rows ``missing`` left out, under a comment."""
+    tt = sim.true_track
+    keep = np.ones(len(tt), bool)
+    keep[missing] = False
+    frame = pd.DataFrame({"time": tt["time"], "x": tt["dr_x"], "y": tt["dr_y"]})[keep]
+    path.write_text("# dead reckoning\n" + frame.to_csv(index=False))
+    return str(path)
+
+
+def _navigate(sim, dr):
+    table = sim.survey.table.drop(columns="true_class")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        nav = navigate(table, sim.survey.beacons.reset_index(), dead_reckoning=dr, rng=0)
+    return nav, [str(w.message) for w in caught if issubclass(w.category, NavigationWarning)]
+
+
+def test_gaps_of_a_table_and_the_variance_they_add():
+    t = np.array([0.0, 10.0, 20.0, 60.0, 70.0])
+    pos = np.column_stack([2.0 * t, np.zeros(5)])  # 2 m/s east
+    times = np.array([0.0, 15.0, 30.0, 45.0, 70.0])
+    var, gaps = dead_reckoning_gaps(t, pos, times, "position")
+    np.testing.assert_allclose(var, [0.0, 4 * 10 * 40, 4 * 15 * 40, 4 * 15 * 40])
+    assert np.isclose(var.sum(), (2.0 * 40) ** 2)  # (v G)^2 over the whole gap
+    assert [(g["start"], g["end"], g["n_epochs"], g["speed"]) for g in gaps] == [
+        (20.0, 60.0, 2, 2.0)]
+    # epochs at both ends of the gap: the interpolated displacement is exact
+    var, gaps = dead_reckoning_gaps(t, pos, np.array([0.0, 20.0, 60.0, 70.0]), "position")
+    assert var is None and gaps == []
+    # a regular table, or one row missing (twice the interval), has no gap
+    t = np.delete(np.arange(0.0, 100.0, 10.0), 5)
+    pos = np.column_stack([t, t])
+    assert dead_reckoning_gaps(t, pos, np.arange(0.0, 90.0, 3.0), "position")[0] is None
+    assert dead_reckoning_gaps(t[:5], pos[:5], np.arange(0.0, 40.0, 3.0), "position")[0] is None
+
+
+def test_a_gap_in_the_dead_reckoning_is_not_trusted_and_is_flagged(sim, tmp_path):
+    dr = _dr_csv(sim, tmp_path / "dr_gap.csv")
+    nav, said = _navigate(sim, dr)
+    truth = sim.true_track[["x", "y"]].to_numpy()
+    err = nav.track - truth
+    m2 = np.einsum("ki,kij,kj->k", err, np.linalg.inv(nav.cov), err)
+    flagged = np.zeros(nav.dive.n_epochs, bool)
+    for f in nav.flags:
+        if f["kind"] == "track":
+            flagged |= (nav.dive.times >= f["start"]) & (nav.dive.times <= f["end"])
+    # interpolated across the U-turn, the track was 396 m off at a 1 m sd (exit 0, no flag)
+    assert np.hypot(*err.T).max() < 20.0
+    assert np.sqrt(m2[~flagged]).max() < 3.5
+    assert np.hypot(*err.T)[~flagged].max() < 4.0 * major_sd(nav.cov)[~flagged].max()
+    gap = [f for f in nav.flags if f["kind"] == "dead_reckoning_gap"]
+    assert len(gap) == 1
+    g = gap[0]
+    # the lines grep -n shows: the comment, the header, then rows 0..99 on lines 3..102
+    assert (g["start"], g["end"], g["lines"], g["n_epochs"]) == (
+        1188.0, 1320.0, ["line 102", "line 103"], 10)
+    assert "dr_gap.csv has no row between t = 1188 and 1320 s (line 102 and line 103: a gap " \
+           "of 132 s where its rows are 12 s apart, 10 epoch(s) inside)" in g["reason"]
+    assert any("dr_gap.csv has no row between" in s for s in said)
+    summary = nav.summary()
+    assert summary["observability"] == nav.flags
+    assert any(f["kind"] == "dead_reckoning_gap" for f in summary["observability"])
+
+
+def test_a_table_without_gaps_is_used_as_before(sim):
+    tt = sim.true_track
+    dr = pd.DataFrame({"time": tt["time"], "x": tt["dr_x"], "y": tt["dr_y"]})
+    dive = build_dive(load_survey(sim.survey.table.drop(columns="true_class"),
+                                  sim.survey.beacons.reset_index()), dr)
+    assert dive.dr_gap_var is None and dive.dr_gaps == ()
+
+
+def test_a_gap_in_a_velocity_table_is_refused_naming_the_lines(sim, tmp_path):
+    t = np.arange(0.0, 2400.0, 1.0)
+    keep = (t <= 1190) | (t >= 1310)
+    path = tmp_path / "vel.csv"
+    path.write_text("# velocities\n\n" + pd.DataFrame(
+        {"time": t[keep], "ve": 1.0, "vn": 0.5}).to_csv(index=False))
+    table = sim.survey.table.drop(columns="true_class")
+    with pytest.raises(InputError) as err:
+        build_dive(load_survey(table, sim.survey.beacons.reset_index()), str(path))
+    msg = str(err.value)
+    # header on line 3, t = 0 on line 4, t = 1190 on line 1194
+    assert (f"{path} line 1194 to line 1195, column 'time': a gap of 120 s "
+                          "(t = 1190 to 1310 s) where the rows are 1 s apart" in msg)
+    assert "fill the gap, or navigate the parts before and after it separately" in msg

@@ -72,6 +72,27 @@ def check_probability(name: str, value: Any, *, open_interval: bool = True) -> f
     return v
 
 
+#: Least probability of an interval from draws (``sample``, ``locate --sample``): below it the
+#: highest-density interval holds a few draws and sits on those the sampler repeated (a 1 %
+#: interval of zero width half an sd from the mean; 0.01 % at the smallest draw).
+MIN_SAMPLED_CI = 0.5
+
+
+def check_sampled_ci(value: Any) -> float:
+    """Check the probability of intervals from draws, in ``[MIN_SAMPLED_CI, 1)``.
+
+    Raises
+    ------
+    ValueError
+    """
+    v = check_probability("ci", value)
+    if v < MIN_SAMPLED_CI:
+        raise ValueError(f"ci: expected a probability in [{MIN_SAMPLED_CI:g}, 1) for intervals "
+                         f"from draws, got {value!r} (below {MIN_SAMPLED_CI:g} a highest-density "
+                         "interval holds a few draws and sits on those the sampler repeated)")
+    return v
+
+
 def check_choice(name: str, value: Any, choices: Iterable, *, words: bool = False) -> Any:
     """Check that ``value`` is one of ``choices``; return it unchanged.
 

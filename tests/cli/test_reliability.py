@@ -44,6 +44,7 @@ def _fit(small, out, *extra):
     (["fit", "P", "--beacons", "B", "--min-pings", "2"], "--min-pings"),
     (["fit", "P", "--beacons", "B", "--sigma-dp", "inf"], "--sigma-dp"),
     (["sample", "P", "--beacons", "B", "--ci", "nan"], "--ci"),
+    (["sample", "P", "--beacons", "B", "--ci", "0.01"], "--ci"),  # zero-width intervals
     (["sample", "P", "--beacons", "B", "--concentration", "0"], "--concentration"),
 ])
 def test_every_option_is_checked_before_any_work_and_named(small, tmp_path, capsys, argv,
@@ -88,6 +89,19 @@ def test_a_folder_given_for_a_file_is_an_error_not_a_traceback(small, tmp_path, 
     assert main(["locate", str(tmp_path), "--format", "obsrange", "--out",
                  str(tmp_path / "o")]) == 2
     assert "is a folder; expected a file" in capsys.readouterr().err
+
+
+def test_intervals_from_draws_need_a_probability_of_a_half_or_more(small):
+    """A 1 % highest-density interval of 3,008 draws had zero width, half an sd from the
+    mean, on a draw the independence sampler repeated; 0.01 % was the smallest draw."""
+    from bayes_mpem.lbl.bayes.posterior import check_sample_options
+    from bayes_mpem.survey_in.posterior import check_location_options
+
+    for check in (check_sample_options, check_location_options):
+        with pytest.raises(ValueError, match=r"ci: expected a probability in \[0.5, 1\) for "
+                                             r"intervals from draws, got 0.01"):
+            check(ci=0.01)
+        check(ci=0.5)
 
 
 def test_a_log_without_drop_point_depth_is_located(tmp_path, capsys):

@@ -103,6 +103,8 @@ non_negative = number("a number >= 0", 0.0)
 #: A probability strictly between 0 and 1 (an interval's coverage, ``--pol``).
 probability = number("a probability in (0, 1)", 0.0, 1.0, include_low=False,
                      include_high=False)
+#: The probability of intervals from draws (``sample --ci``; ``_validate.MIN_SAMPLED_CI``).
+sampled_probability = number("a probability in [0.5, 1)", 0.5, 1.0, include_high=False)
 #: A number in (0, 1] (the paper's ``--alpha``).
 fraction = number("a number in (0, 1]", 0.0, 1.0, include_low=False)
 #: A turn-around time in s (the limits of :data:`bayes_mpem.io.boundary.LIMITS`).

@@ -224,8 +224,9 @@ def _add_posterior(sub, name, helptext):
     if name == "sample":
         p.add_argument("--priors", choices=["learned", "equal"], default="learned",
                        help="Dirichlet-learned mixing weights (default) or equal 1/3")
-        p.add_argument("--ci", type=opt.probability, default=0.95,
-                       help="probability of the highest-density intervals (default 0.95)")
+        p.add_argument("--ci", type=opt.sampled_probability, default=0.95,
+                       help="probability of the highest-density intervals, in [0.5, 1) "
+                            "(default 0.95)")
         p.add_argument("--ensembles", type=opt.at_least(1, 64), default=None, metavar="K",
                        help="independent emcee ensembles of differential evolution "
                             "(default 2; K > 1 implies --sampler ensemble); R-hat "

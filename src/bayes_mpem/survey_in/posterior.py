@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from .._validate import check_choice, check_int, check_probability, check_range
+from .._validate import check_choice, check_int, check_range, check_sampled_ci
 from ..mcmc.driver import place_walkers
 from .classes import log_classes
 from .location import LocateResult
@@ -38,7 +38,7 @@ def check_location_options(*, n_walkers=None, ci=0.95, min_ess=1000.0, max_steps
     ------
     ValueError
     """
-    check_probability("ci", ci)
+    check_sampled_ci(ci)
     check_range("min_ess", min_ess, low=0, include_low=True)
     ints = [("max_steps", max_steps, 1), ("n_draws", n_draws, 1)]
     if n_walkers is not None:

@@ -7,7 +7,7 @@ from math import lgamma
 
 import numpy as np
 
-from ..._validate import check_choice, check_int, check_positive, check_probability, check_range
+from ..._validate import check_choice, check_int, check_positive, check_range, check_sampled_ci
 from ...io.survey import BeaconData
 from ...mcmc.driver import place_walkers
 from ...mixture.densities import CLASSES
@@ -50,7 +50,7 @@ sampler, n_walkers
     check_path(path)
     check_choice("priors", priors, PRIORS)
     check_choice("sampler", sampler, SAMPLERS)
-    check_probability("ci", ci)
+    check_sampled_ci(ci)
     check_positive("concentration", concentration)
     check_range("min_ess", min_ess, low=0, include_low=True)
     check_positive("sigma_dp", sigma_dp, allow_none=True, what="a positive number")

@@ -237,3 +237,82 @@ def test_a_task_made_in_python_names_its_missing_input(scheduler, tmp_path):
     result = run_batch([task], tmp_path / "out", scheduler=scheduler, progress=False)
     assert result.failures["reason"].tolist() == [
         f"InputError: t: input 'survey': {tmp_path / 'nope.txt'} not found"]
+
+
+def _files(folder):
+    return {p.relative_to(folder).as_posix(): p.read_bytes() for p in sorted(folder.rglob("*"))
+            if p.is_file()}
+
+
+def test_an_interrupted_rerun_keeps_the_unfinished_surveys_and_no_stale_tables(
+        dives, scheduler, tmp_path):
+    """Ctrl-C while a changed batch runs: the survey collected before it is this run's, every
+    other keeps its earlier folder (tasks still running on the cluster do not replace it, nor
+    record it failed), and the earlier top-level tables, which no longer match, are gone."""
+    out = tmp_path / "out"
+    tasks = _tasks(dives / "manifest.csv")
+    first = run_batch(tasks, out, scheduler=scheduler, progress=False)
+    assert list(first.surveys["status"]) == ["done"] * N_DIVES
+    before = {t.name: _files(out / "surveys" / t.name) for t in tasks}
+    parts = {t.name: (out / "classified" / f"survey-{t.name}.parquet").read_bytes()
+             for t in tasks}
+    changed = [BatchTask(t.name, "fit", t.inputs, {**t.options, "sigma_dp": 2.5}) for t in tasks]
+    collected = []
+
+    def interrupt(record, done, total):
+        collected.append(record["name"])
+        raise KeyboardInterrupt  # Ctrl-C after the first survey is complete
+
+    with pytest.raises(KeyboardInterrupt):
+        run_batch(changed, out, scheduler=scheduler, report=interrupt)
+    _wait_idle(scheduler)  # the tasks already running on the shared cluster finish
+    [new] = collected
+    for t in tasks:
+        folder = out / "surveys" / t.name
+        assert not (folder / "failed.json").exists(), t.name
+        part = (out / "classified" / f"survey-{t.name}.parquet").read_bytes()
+        if t.name == new:
+            record = json.loads((folder / "batch.json").read_text())
+            assert record["hash"] == changed[[c.name for c in changed].index(new)].key()
+            assert (folder / "summary.json").read_bytes() != before[t.name]["summary.json"]
+            assert part != parts[t.name]
+        else:  # as the earlier run left it, byte for byte
+            assert _files(folder) == before[t.name], t.name
+            assert part == parts[t.name], t.name
+    # the earlier tables listed the earlier results of the survey now redone
+    for name in ("summary.json", "surveys.parquet", "beacons.parquet", "failures.parquet"):
+        assert not (out / name).exists(), name
+    assert not (out / ".batch-partial").exists()
+    again = run_batch(changed, out, scheduler=scheduler, progress=False)  # resumes
+    status = dict(zip(again.surveys["name"], again.surveys["status"], strict=True))
+    assert status == {t.name: "complete" if t.name == new else "done" for t in tasks}
+    table = pd.read_parquet(out / "surveys.parquet")
+    assert table["hash"].tolist() == [c.key() for c in changed]
+
+
+def test_a_task_cancelled_by_the_scheduler_is_not_a_failure(dives, scheduler, tmp_path):
+    """A scheduler that cancels the tasks (restarted, closed) stops the batch with a message;
+    the surveys not collected keep their earlier folders and none is recorded failed."""
+    from distributed import Future, default_client
+
+    out = tmp_path / "out"
+    tasks = _tasks(dives / "manifest.csv")
+    run_batch(tasks, out, scheduler=scheduler, progress=False)
+    before = {t.name: _files(out / "surveys" / t.name) for t in tasks}
+    changed = [BatchTask(t.name, "fit", t.inputs, {**t.options, "sigma_dp": 2.5}) for t in tasks]
+    collected = []
+
+    def cancel_the_rest(record, done, total):
+        collected.append(record["name"])
+        if len(collected) == 1:
+            client = default_client()
+            client.cancel([Future(k, client) for k in list(client.futures)])
+
+    with pytest.raises(InputError, match=r"survey 'dive\d': its task was cancelled by the "
+                                         r"Dask scheduler \(tcp://.*run the batch again"):
+        run_batch(changed, out, scheduler=scheduler, report=cancel_the_rest)
+    _wait_idle(scheduler)
+    assert len(collected) == 1
+    for t in tasks:
+        if t.name not in collected:
+            assert _files(out / "surveys" / t.name) == before[t.name], t.name

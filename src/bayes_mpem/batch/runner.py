@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import sys
 import time
+import uuid
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -19,11 +21,19 @@ from ..io.results import output_folder, write_json, write_parquet
 from .commands import COMMANDS, flatten, run
 from .tasks import BatchTask
 
+#: where workers stage each survey's run, inside the batch's folder, until it is put in place
+STAGING = ".batch-partial"
+#: a batch's top-level files, its completion marker first (removed before a survey changes)
+TOP_FILES = ("summary.json", "timings.json", "surveys.parquet", "beacons.parquet",
+             "failures.parquet")
+
 
 def run_task(task: BatchTask, out_dir: str, key: str | None = None) -> dict:
-    """Run one survey (on a Dask worker): write its outputs, its partition and ``batch.json``.
+    """Run one survey and put its outputs in place: its folder, its partition, ``batch.json``.
 
-    Never raises for a failure of the survey itself: it is returned, with its reason.
+    Never raises for a failure of the survey itself: it is returned, with its reason, and
+    the survey's folder then holds only ``failed.json``. The survey is run into a staging
+    folder of ``out_dir`` first: its earlier folder is replaced only once it has finished.
 
     Parameters
     ----------
@@ -39,19 +49,27 @@ def run_task(task: BatchTask, out_dir: str, key: str | None = None) -> dict:
         ``name``, ``status`` (``done`` or ``failed``), ``seconds``, ``warnings``,
         and ``reason`` (failed) or ``rows`` (done: one flattened dict per beacon).
     """
+    record, staged = _stage(task, out_dir, key)
+    _put_in_place(task.name, record, staged, out_dir)
+    return record
+
+
+def _stage(task: BatchTask, out_dir: str, key: str | None = None) -> tuple:
+    """Run one survey (on a Dask worker) into ``DIR/.batch-partial/<name>-<token>/``.
+
+    Nothing else of ``out_dir`` is touched: a task cancelled or cut short by the cluster
+    shutting down (Ctrl-C) leaves the survey's earlier folder as it was.
+
+    Returns
+    -------
+    tuple
+        The record (as :func:`run_task`'s) and the staging folder (``None`` when failed):
+        ``survey/`` (the survey's folder, ``batch.json`` last) and ``classified.parquet``.
+    """
     t0 = time.perf_counter()
     rows_of = load(COMMANDS[task.command].rows)
-    out = Path(out_dir)
-    folder = out / "surveys" / task.name
-    done = folder / "batch.json"
-    done.unlink(missing_ok=True)
-    part = _classified_file(out, task.name)
-    part.unlink(missing_ok=True)  # no stale rows if this run fails
-    old = out / "classified" / f"name={task.name}"  # the layout of earlier versions
-    if old.is_dir():
-        shutil.rmtree(old)
-    if folder.is_dir():  # a previous run's results would look complete if this one fails
-        shutil.rmtree(folder)
+    staging = Path(out_dir) / STAGING / f"{task.name}-{uuid.uuid4().hex[:12]}"
+    folder = staging / "survey"
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
@@ -63,19 +81,55 @@ def run_task(task: BatchTask, out_dir: str, key: str | None = None) -> dict:
             rows = [{"name": task.name, "beacon": str(b), **flatten(v)}
                     for b, v in beacons.items()]
             if classified is not None:
-                output_folder(part.parent)
-                write_parquet(part, _named(classified, task.name))
+                write_parquet(staging / "classified.parquet", _named(classified, task.name))
         except Exception as exc:  # noqa: BLE001 - a failed survey is a result of the batch
-            record = _failure(task.name, exc, seconds=time.perf_counter() - t0,
-                              warnings=[f"{w.category.__name__}: {w.message}" for w in caught])
-            _failed_folder(folder, record)
-            return record
+            shutil.rmtree(staging, ignore_errors=True)
+            return _failure(task.name, exc, seconds=time.perf_counter() - t0,
+                            warnings=[f"{w.category.__name__}: {w.message}"
+                                      for w in caught]), None
+        except BaseException:  # interrupted: nothing of this run is kept
+            shutil.rmtree(staging, ignore_errors=True)
+            raise
     record = {"name": task.name, "status": "done", "hash": key, "command": task.command,
               "seconds": time.perf_counter() - t0, "rows": rows,
               "warnings": [f"{w.category.__name__}: {w.message}" for w in caught]}
-    tmp = write_json(folder / "batch.json.tmp", record)
-    tmp.replace(done)  # last, atomically: its presence means the survey is complete
-    return record
+    write_json(folder / "batch.json", record)  # last: its presence means the survey is complete
+    return record, str(staging)
+
+
+def _put_in_place(name: str, record: dict, staged: str | None, out_dir) -> None:
+    """Replace a survey's folder and partition by a staged run's (a failed one's ``failed.json``).
+
+    The partition goes first: a new partition beside the earlier folder (an interrupt
+    between the two renames) is redone by the next run, the folder's hash differing.
+    """
+    out = Path(out_dir)
+    folder = out / "surveys" / name
+    part = _classified_file(out, name)
+    legacy = out / "classified" / f"name={name}"  # the layout of earlier versions
+    if legacy.is_dir():
+        shutil.rmtree(legacy)
+    if staged is None:
+        part.unlink(missing_ok=True)  # no stale rows for a failed survey
+        _failed_folder(folder, record)
+        return
+    staged = Path(staged)
+    if (staged / "classified.parquet").is_file():
+        output_folder(part.parent)
+        os.replace(staged / "classified.parquet", part)
+    else:
+        part.unlink(missing_ok=True)
+    if folder.exists():
+        folder.rename(staged / "earlier")
+    output_folder(folder.parent)
+    (staged / "survey").rename(folder)
+    shutil.rmtree(staged, ignore_errors=True)
+
+
+def _retire_top(out: Path) -> None:
+    """Remove a batch's top-level files, ``summary.json`` first: they describe an earlier run."""
+    for name in TOP_FILES:
+        (out / name).unlink(missing_ok=True)
 
 
 def _check_inputs(task) -> None:
@@ -278,22 +332,38 @@ def run_batch(tasks: list, out_dir, *, scheduler: str | None = None, n_workers: 
 
 
 def _submit(todo, out, scheduler, n_workers, report, n_done, total) -> dict:
-    """Submit the tasks, collect their records as they complete."""
+    """Submit the tasks, put each survey in place as it completes, collect their records.
+
+    Only this process changes ``surveys/`` and ``classified/``: the workers stage their
+    runs (:func:`_stage`), so that after Ctrl-C (the tasks cancelled, the cluster shutting
+    down) every survey not yet collected keeps its earlier folder. The batch's earlier
+    top-level files are removed before the first survey is put in place.
+    """
     from distributed import as_completed
 
     client, cluster = _client(scheduler, n_workers)
-    records = {}
+    records, first = {}, True
     try:
-        futures = {client.submit(run_task, task, str(out), key, key=f"survey-{task.name}-"
+        futures = {client.submit(_stage, task, str(out), key, key=f"survey-{task.name}-"
                                  f"{key or 'unreadable'}", pure=False): task
                    for task, key in todo}
         for fut in as_completed(futures):
             task = futures[fut]
+            if fut.status == "cancelled":  # not a failure of the survey: the batch stops
+                raise InputError(
+                    f"survey {task.name!r}: its task was cancelled by the Dask scheduler "
+                    f"({scheduler or 'the local cluster'}, restarted or closed) before it "
+                    "finished; expected it to run to its end. Its earlier folder is kept; "
+                    "run the batch again to resume")
             if fut.status == "error":  # the worker itself died (memory, a crash)
-                record = _failure(task.name, fut.exception(), warnings=[])
+                record, staged = _failure(task.name, fut.exception(), warnings=[]), None
             else:
-                record = fut.result()
+                record, staged = fut.result()
             fut.release()
+            if first:  # from here on the earlier top-level files would not match the surveys
+                _retire_top(out)
+                first = False
+            _put_in_place(task.name, record, staged, out)
             records[task.name] = record
             n_done += 1
             if report:
@@ -302,4 +372,5 @@ def _submit(todo, out, scheduler, n_workers, report, n_done, total) -> dict:
         client.close()
         if cluster is not None:
             cluster.close()
+        shutil.rmtree(out / STAGING, ignore_errors=True)  # runs cut short, never put in place
     return records

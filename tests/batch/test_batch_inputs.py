@@ -30,6 +30,10 @@ def dive(tmp_path_factory):
     (b"name,pings,beacons\nDive1,a.csv,b.csv\ndive1,c.csv,d.csv\n",  # one folder on macOS
      r"line 3, column 'name': 'dive1' already on line 2 as 'Dive1' \(names differing only in "
      r"case"),
+    (b"name,pings,beacons,sigma_dp,sigma_dp\nd1,a.csv,b.csv,1,20\n",  # 1 was dropped
+     r"line 1: column 'sigma_dp' appears twice in the header \(columns 4 and 5\)"),
+    (b"# a note\nname, pings,beacons,pings\nd1,a.csv,b.csv,c.csv\n",
+     r"line 2: column 'pings' appears twice in the header \(columns 2 and 4\)"),
 ])
 def test_manifest_errors_name_the_manifest(tmp_path, content, message):
     path = tmp_path / "manifest.csv"

@@ -63,6 +63,7 @@ def _manifest_table(path: Path):
             continue
         if header is None:
             header = [c.strip() for c in cells]
+            _check_header(path, i, header)
             continue
         if len(cells) != len(header):
             raise InputError(f"{path} line {i}: expected {len(header)} comma-separated cells "
@@ -75,6 +76,16 @@ def _manifest_table(path: Path):
     if not rows:
         raise InputError(f"{path}: the manifest lists no survey (a header and no row)")
     return pd.DataFrame(rows, columns=header, dtype=object), numbers
+
+
+def _check_header(path: Path, line: int, header: list) -> None:
+    """Refuse a column named twice in a manifest's header (a row's cells would be dropped)."""
+    first = {}
+    for pos, name in enumerate(header, start=1):
+        if name in first:
+            raise InputError(f"{path} line {line}: column {name!r} appears twice in the header "
+                             f"(columns {first[name]} and {pos}); expected each column once")
+        first[name] = pos
 
 
 def read_manifest(path, command: str = "fit") -> tuple[list, pd.DataFrame]:

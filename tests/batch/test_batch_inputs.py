@@ -34,6 +34,14 @@ def dive(tmp_path_factory):
      r"line 1: column 'sigma_dp' appears twice in the header \(columns 4 and 5\)"),
     (b"# a note\nname, pings,beacons,pings\nd1,a.csv,b.csv,c.csv\n",
      r"line 2: column 'pings' appears twice in the header \(columns 2 and 4\)"),
+    # Excel's CSV where the list separator is ';' (a byte-order mark, CRLF): was "missing:
+    # name, pings, beacons"
+    (b"\xef\xbb\xbfname;pings;beacons\r\nd1;d1/pings.csv;d1/beacons.csv\r\n",
+     r"line 1: the header 'name;pings;beacons' is one column; the manifest looks "
+     r"semicolon-separated; expected comma-separated values"),
+    (b"# exported\nname;pings;beacons;sigma_dp\n\nd1;p.csv;b.csv;3,5\n",  # decimal commas
+     r"line 2: .* looks semicolon-separated, with decimal commas"),
+    (b"name\tpings\tbeacons\nd1\tp.csv\tb.csv\n", r"line 1: .* looks tab-separated"),
 ])
 def test_manifest_errors_name_the_manifest(tmp_path, content, message):
     path = tmp_path / "manifest.csv"

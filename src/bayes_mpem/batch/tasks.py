@@ -63,7 +63,7 @@ def _manifest_table(path: Path):
             continue
         if header is None:
             header = [c.strip() for c in cells]
-            _check_header(path, i, header)
+            _check_header(path, i, header, text_lines)
             continue
         if len(cells) != len(header):
             raise InputError(f"{path} line {i}: expected {len(header)} comma-separated cells "
@@ -78,8 +78,36 @@ def _manifest_table(path: Path):
     return pd.DataFrame(rows, columns=header, dtype=object), numbers
 
 
-def _check_header(path: Path, line: int, header: list) -> None:
-    """Refuse a column named twice in a manifest's header (a row's cells would be dropped)."""
+def _check_header(path: Path, line: int, header: list, lines: list) -> None:
+    """Refuse a manifest's header that would read wrongly, naming the manifest and the line.
+
+    A header of one column that looks semicolon- or tab-separated (Excel's CSV where the
+    list separator is ``;``: each row would be one cell), and a column named twice (a row's
+    first cell of the two would be dropped).
+
+    Parameters
+    ----------
+    path : pathlib.Path
+    line : int
+        The header's line number (1-based).
+    header : list of str
+        Its cells.
+    lines : list of str
+        The manifest's lines.
+
+    Raises
+    ------
+    InputError
+    """
+    from ..io.boundary import sniff_delimiter
+
+    text = lines[line - 1]
+    row = next((t for t in lines[line:] if t.strip() and not t.lstrip().startswith("#")), None)
+    looks = sniff_delimiter(text, row) if len(header) == 1 else None
+    if looks:
+        raise InputError(f"{path} line {line}: the header {text.strip()[:60]!r} is one column; "
+                         f"the manifest looks {looks}; expected comma-separated values "
+                         "(e.g. name,pings,beacons)")
     first = {}
     for pos, name in enumerate(header, start=1):
         if name in first:

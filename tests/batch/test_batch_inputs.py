@@ -89,3 +89,22 @@ def test_numeric_names_stay_text_and_a_failed_rerun_leaves_no_old_results(dive, 
     assert json.loads((out / "surveys" / "001" / "failed.json").read_text())["status"] == "failed"
     assert not (out / "classified" / "survey-001.parquet").exists()
     assert set(pd.read_parquet(out / "classified")["name"]) == {"010"}
+
+
+@pytest.mark.parametrize("column", ["pings", "beacons"])
+def test_an_input_cell_that_is_a_folder_names_the_line_and_column(dive, tmp_path, column):
+    """Was a raw "IsADirectoryError: [Errno 21] Is a directory", without line or column."""
+    cells = {"pings": "d/pings.csv", "beacons": "d/beacons.csv", column: "d"}
+    (tmp_path / "d").symlink_to(dive)
+    manifest = tmp_path / "m.csv"
+    manifest.write_text(f"name,pings,beacons\n\n# a folder\nx,{cells['pings']},"
+                        f"{cells['beacons']}\n")
+    [task], _ = read_manifest(manifest)
+    record = run_task(task, str(tmp_path / "out"))
+    assert record["reason"] == (
+        f"InputError: {manifest} line 4, column {column!r}: {(tmp_path / 'd').resolve()} is a "
+        "folder; expected a file (a relative path is taken from the manifest's folder)")
+    python = BatchTask("y", "fit", {**task.inputs})  # made in Python: no manifest line
+    assert run_task(python, str(tmp_path / "out"))["reason"] == (
+        f"InputError: y: input {column!r}: {(tmp_path / 'd').resolve()} is a folder; "
+        "expected a file")

@@ -133,13 +133,22 @@ def _retire_top(out: Path) -> None:
 
 
 def _check_inputs(task) -> None:
-    """Raise InputError naming the manifest's line and column of an input file not found."""
+    """Raise InputError naming the manifest's line and column of an input file not usable.
+
+    Not found, a folder, or not a regular file (a pipe, a device: hashing it would wait).
+    """
     for col in COMMANDS[task.command].files:
-        if not Path(task.inputs[col]).exists():
-            if task.where:  # a manifest's row
-                raise InputError(f"{task.where}, column {col!r}: {task.inputs[col]} not found "
-                                 "(a relative path is taken from the manifest's folder)")
-            raise InputError(f"{task.name}: input {col!r}: {task.inputs[col]} not found")
+        path = Path(task.inputs[col])
+        problem = ("not found" if not path.exists() else
+                   "is a folder; expected a file" if path.is_dir() else
+                   "is not a regular file (a pipe or a device); expected a file"
+                   if not path.is_file() else None)
+        if problem is None:
+            continue
+        if task.where:  # a manifest's row
+            raise InputError(f"{task.where}, column {col!r}: {path} {problem} (a relative "
+                             "path is taken from the manifest's folder)")
+        raise InputError(f"{task.name}: input {col!r}: {path} {problem}")
 
 
 def _classified_file(out_dir, name: str) -> Path:
@@ -183,9 +192,11 @@ def _completed(task: BatchTask, out_dir, key: str | None) -> dict | None:
 
 
 def _key_or_none(task: BatchTask):
+    if not all(Path(task.inputs[c]).is_file() for c in COMMANDS[task.command].files):
+        return None  # not found, a folder, a pipe: the task runs, and fails naming it
     try:
         return task.key()
-    except OSError:  # a missing input: the task runs, and fails with the reader's message
+    except OSError:  # unreadable: the task runs, and fails with the reader's message
         return None
 
 

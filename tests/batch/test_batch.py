@@ -282,8 +282,10 @@ def test_an_interrupted_rerun_keeps_the_unfinished_surveys_and_no_stale_tables(
     # the earlier tables listed the earlier results of the survey now redone
     for name in ("summary.json", "surveys.parquet", "beacons.parquet", "failures.parquet"):
         assert not (out / name).exists(), name
-    assert not (out / ".batch-partial").exists()
+    # a task still running on the shared cluster may stage its run after the batch stopped
+    # (never put in place); the next run clears what is left
     again = run_batch(changed, out, scheduler=scheduler, progress=False)  # resumes
+    assert not (out / ".batch-partial").exists()
     status = dict(zip(again.surveys["name"], again.surveys["status"], strict=True))
     assert status == {t.name: "complete" if t.name == new else "done" for t in tasks}
     table = pd.read_parquet(out / "surveys.parquet")

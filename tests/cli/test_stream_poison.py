@@ -201,3 +201,86 @@ def test_a_real_pause_is_adopted_after_a_few_lines_a_glitch_is_not(dive):
     out = nav.update(later[GAP_CONFIRM])  # then the pause is adopted
     assert out.time == float(later[GAP_CONFIRM]["time"])
     assert all(nav.update(r).time == float(r["time"]) for r in later[GAP_CONFIRM + 1:])
+
+
+def _spoiled(good, path, value):
+    d = json.loads(json.dumps(good))
+    *head, last = path
+    part = d
+    for k in head:
+        part = part[k]
+    if value is _DELETE:
+        del part[last]
+    else:
+        part[last] = value
+    return d
+
+
+_DELETE = object()
+
+
+def test_a_hand_edited_state_is_refused_naming_the_key_and_what_was_expected(dive, tmp_path,
+                                                                              capsys):
+    """Each of these edits passed the load check once, then every line was answered with an
+    internal error, or answers came out impossible (p_dp = p_mp = p_ol = 0, label "dp"), and
+    the broken state was saved back."""
+    folder, lines = dive
+    beacons = folder / "beacons.csv"
+    states = {}
+    for phase, n in (("online", 100), ("warmup", 30)):
+        states[phase] = tmp_path / f"{phase}.json"
+        _run(tmp_path, phase, lines[:n], beacons, "--state", str(states[phase]))
+    good = {k: json.loads(p.read_text()) for k, p in states.items()}
+    assert good["online"]["phase"] == "online" and good["warmup"]["phase"] == "warmup"
+    assert good["warmup"]["buffer"] and good["warmup"]["windows"]
+    bid = sorted(good["online"]["models"])[-1]
+    wid = sorted(good["warmup"]["windows"])[0]
+    edits = [  # (phase, key path, value, the key path and the expectation the message names)
+        ("online", ["dp", "stats"], [0.5], "dp.stats has 1 numbers, expected 2"),
+        ("online", ["last"], ["5000", 1.0, 2.0], "last[0] is '5000', expected time (s) in"),
+        ("online", ["filter", "cov", "xx"], -100.0, "filter.cov.xx is -100.0, expected a "
+                                                    "variance in (0,"),
+        ("online", ["filter", "cov", "xy"], 100.0, "filter.cov is not positive definite"),
+        ("online", ["filter", "x"], 1e300, "filter.x is 1e+300, expected x (m) in [-1e+07"),
+        ("online", ["filter", "scale"], -1.0, "filter.scale is -1.0, expected a speed scale"),
+        ("online", ["filter", "scale"], 0.0, "filter.scale is 0.0, expected a speed scale"),
+        ("online", ["models", bid, "weights"], [-1.0, 1.5, 0.5],
+         f"models.{bid}.weights[0] is -1.0, expected a weight in [0, 1]"),
+        ("online", ["models", bid, "stats"], [0.1], f"models.{bid}.stats has 1 numbers, "
+                                                    "expected 6"),
+        ("online", ["models", bid], _DELETE, f"models.{bid} is missing, expected a model for "
+                                             "every beacon"),
+        ("online", ["windows"], {"1": "x"}, "windows is {'1': 'x'}, expected {} after the "
+                                           "warm-up"),
+        ("online", ["seed"], -1, "seed is -1, expected an integer >= 0"),
+        ("online", ["first_time"], 1e9, "first_time is 1000000000.0, expected a time (s) no "
+                                        "later than last[0]"),
+        ("online", ["options", "bogus"], 1, "options.bogus is not one of its fields"),
+        ("online", ["options", "alpha"], _DELETE, "options.alpha is missing"),
+        ("online", ["options", "start_sd"], 1e300, "options.start_sd: expected a number in"),
+        ("warmup", ["windows", wid], "x", f"windows.{wid} is 'x', expected [smallest, largest]"),
+        ("warmup", ["windows", wid], [5.0, 6.0], f"windows.{wid} is [5.0, 6.0], expected"),
+        ("warmup", ["buffer", 0, 2], -3.0, "buffer[0][2] is -3.0, expected range (m) in (0,"),
+        ("warmup", ["first_time"], 1e9, "first_time is 1000000000.0, expected a time (s)"),
+    ]
+    src = tmp_path / "more.csv"
+    src.write_text("\n".join([lines[0], *lines[100:110]]) + "\n")
+    out = tmp_path / "o.jsonl"
+    capsys.readouterr()
+    for phase, path, value, expected in edits:
+        d = _spoiled(good[phase], path, value)
+        states[phase].write_text(json.dumps(d))
+        code = main(["stream", "--beacons", str(beacons), "--replay", str(src), "--speed", "max",
+                     "--state", str(states[phase]), "--out", str(out)])
+        err = capsys.readouterr().err
+        assert code == 2, (path, value, err)
+        assert f"--state: {states[phase]}: not a valid navigator state: " in err, err
+        assert expected in err, (expected, err)
+        assert "Traceback" not in err and len(err) < 600, err
+        assert json.loads(states[phase].read_text()) == d  # left as it was
+    # the states as written load and resume
+    for phase, p in states.items():
+        p.write_text(json.dumps(good[phase]))
+        assert main(["stream", "--beacons", str(beacons), "--replay", str(src), "--speed", "max",
+                     "--state", str(p), "--out", str(out)]) == 0
+        assert all("error" not in json.loads(s) for s in out.read_text().splitlines())

@@ -11,7 +11,7 @@ from operator import attrgetter
 import pandas as pd
 
 from ...._rng import RNGLike, as_generator
-from ...._validate import check_choice, check_int, check_positive, check_range
+from ...._validate import check_choice, check_int, check_range
 from ....exceptions import InputError, NavigationWarning
 from ....io.boundary import LIMITS, limit_problem
 from ....io.lines import Ping, make_ping
@@ -53,6 +53,21 @@ _REPLY_REASON = {"no_reply": "empty range: the ping got no reply",
                  "dead_reckoning": "dead-reckoning line: no beacon"}
 
 
+#: Bounds of the options beyond "positive": ``navigate``'s own (``cli/options.py``: beyond
+#: them its arithmetic overflows), and for the others the limits of a coordinate or range
+#: (:data:`~bayes_mpem.io.boundary.LIMITS`). A saved state is held to them too.
+_OPTION_BOUNDS = {"start_sd": (0.01, 1e6), "heading_sd": (1e-6, 180.0), "scale_sd": (1e-6, 1.0),
+                  "plane_sd": (0.01, 1e6), "provisional_sd": (0.01, 1e6),
+                  "prior_sigma_mp": (1e-3, 1e4), "sigma_floor": (1e-6, 1e4),
+                  "sigma_dp": (1e-3, 1e4), "beta_walk": (0.0, 1.0), "scale_walk": (0.0, 1.0),
+                  "max_gap": (1e-6, 1e10)}
+
+
+def _bounded(name: str, value):
+    low, high = _OPTION_BOUNDS[name]
+    return check_range(name, value, low=low, high=high, include_low=True, include_high=True)
+
+
 def _options(o: dict) -> dict:
     check_int("warmup", o["warmup"], minimum=2)
     check_range("alpha", o["alpha"], low=0.5, high=1.0, include_low=False, include_high=True)
@@ -61,14 +76,13 @@ def _options(o: dict) -> dict:
     o["dr_noise"] = check_range("dr_noise", o["dr_noise"], low=1e-4, high=100.0,
                                 include_low=True, include_high=True)
     for k in ("start_sd", "heading_sd", "scale_sd", "plane_sd", "provisional_sd",
-              "prior_sigma_mp", "sigma_floor"):
-        o[k] = check_positive(k, o[k])
-    check_positive("sigma_dp", o["sigma_dp"], allow_none=True)
-    for k in ("beta_walk", "scale_walk"):
-        o[k] = check_range(k, o[k], low=0.0, include_low=True)
+              "prior_sigma_mp", "sigma_floor", "beta_walk", "scale_walk"):
+        o[k] = _bounded(k, o[k])
+    if o["sigma_dp"] is not None:
+        _bounded("sigma_dp", o["sigma_dp"])
     check_int("min_pings", o["min_pings"], minimum=1)
     check_int("prior_pings", o["prior_pings"], minimum=1)
-    o["max_gap"] = check_positive("max_gap", o.get("max_gap", MAX_GAP))
+    o["max_gap"] = _bounded("max_gap", o.get("max_gap", MAX_GAP))
     return o
 
 
@@ -563,10 +577,67 @@ _STATE_SCHEMA = {"options": (dict,), "beacons": (dict,), "seed": (int,),
                  "phase": (str,), "last": (list, None), "first_time": (int, float, None),
                  "buffer": (list,), "windows": (dict,), "filter": (dict, None),
                  "models": (dict,), "dp": (dict, None), "warmup_record": (dict, None)}
+#: The options a state holds (:class:`Navigator`'s keywords but ``rng``).
+_OPTION_NAMES = ("warmup", "alpha", "multipath", "path", "dr_noise", "start_sd", "heading_sd",
+                 "scale_sd", "plane_sd", "sigma_dp", "min_pings", "provisional_sd",
+                 "prior_sigma_mp", "prior_pings", "beta_walk", "scale_walk", "sigma_floor",
+                 "max_gap")
+#: The filter's heading bias (rad) and speed scale a state may hold: a heading bias beyond a
+#: full turn or a speed scale beyond 10 is a slip, not a dive.
+_BETA_MAX, _SCALE_MAX = 2.0 * math.pi, 10.0
+#: The largest variance of the filter's position (m^2): an sd of the coordinates' limit.
+_POSITION_VAR_MAX = LIMITS["x"].high ** 2
+#: Slack on a mean probability (rounding of the running means).
+_PROB_SLACK = 1e-9
+
+
+def _is_number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _interval(where: str, v, low: float, high: float, what: str, *,
+              include_low: bool = True) -> str | None:
+    """Return what is wrong with a number that must lie in ``[low, high]`` (or None)."""
+    if _is_number(v) and (v >= low if include_low else v > low) and v <= high:
+        return None
+    return (f"{where} is {v!r:.40}, expected {what} in {'[' if include_low else '('}{low:g}, "
+            f"{high:g}]")
+
+
+def _limited(where: str, v, kind: str) -> str | None:
+    """Return :func:`_interval`'s verdict with the limits of ``LIMITS[kind]``."""
+    lim = LIMITS[kind]
+    return _interval(where, v, lim.low, lim.high, f"{lim.what} ({lim.unit})",
+                     include_low=lim.include_low)
+
+
+def _keys(m, where: str, names, optional=()) -> str | None:
+    """Return what is wrong with a part's keys (a missing one, an unknown one), or None."""
+    if not isinstance(m, dict):
+        return f"{where} is {type(m).__name__}, expected an object"
+    missing = [k for k in names if k not in m and k not in optional]
+    if missing:
+        return f"{where}.{missing[0]} is missing"
+    unknown = sorted(map(str, set(m) - set(names)))
+    if unknown:
+        return f"{where}.{unknown[0]} is not one of its fields ({', '.join(names)})"
+    return None
+
+
+def _first(problems) -> str | None:
+    """Return the first problem ``problems`` yields, or None.
+
+    It stops there: a check may assume that the ones before it passed.
+    """
+    return next((p for p in problems if p), None)
 
 
 def _check_state(d: dict) -> dict:
-    """Return ``d`` (:meth:`Navigator.to_dict`), its parts and types checked (else InputError)."""
+    """Return ``d`` (:meth:`Navigator.to_dict`) checked part by part (else InputError).
+
+    Every part present with its type, every number finite and within its limits, the
+    phase consistent with the rest: a state that passes gives answers, not errors.
+    """
     for key, types in _STATE_SCHEMA.items():
         if key not in d:
             raise InputError(f"not a valid navigator state: the part {key!r} is missing")
@@ -578,6 +649,10 @@ def _check_state(d: dict) -> dict:
             raise InputError(f"not a valid navigator state: {key!r} is "
                              f"{type(v).__name__}, expected "
                              f"{' or '.join('null' if t is None else t.__name__ for t in types)}")
+    unknown = sorted(set(d) - {"format", "version", *_STATE_SCHEMA})
+    if unknown:
+        raise InputError(f"not a valid navigator state: the part {unknown[0]!r} is not one of "
+                         f"a state's ({', '.join(_STATE_SCHEMA)})")
     if d["phase"] not in ("warmup", "online"):
         raise InputError(f"not a valid navigator state: phase {d['phase']!r}, expected "
                          "'warmup' or 'online'")
@@ -585,40 +660,183 @@ def _check_state(d: dict) -> dict:
         f = "null" if d["filter"] is None else "set"
         raise InputError("not a valid navigator state: the phase and the filter disagree "
                          f"(phase {d['phase']!r}, filter {f})")
-    if d["last"] is not None and len(d["last"]) != 3:
-        raise InputError("not a valid navigator state: 'last' is not [time, x, y]")
-    problem = _non_finite({k: d[k] for k in ("last", "first_time", "buffer", "windows",
-                                             "filter", "models", "dp")})
-    if not problem:
-        for bid, m in d["models"].items():
-            problem = _check_model(m, f"models.{bid}")
-            if problem:
-                break
-    if not problem and d["dp"] is not None:
-        problem = _check_fields(d["dp"], "dp", {"sigma": "positive", "n": "int",
-                                                "fixed": "bool", "stats": "numbers"})
-    known = set(map(str, d["beacons"].get("beacon", ()) or ()))
-    for i, row in enumerate(d["buffer"]):
-        if problem:
-            break
-        if not (isinstance(row, list) and len(row) == 6 and row[1] in known
-                and all(isinstance(v, (int, float)) and not isinstance(v, bool)
-                        for j, v in enumerate(row) if j != 1)):
-            problem = (f"buffer[{i}] is {row!r:.60}, expected [time, a known beacon, range, x, "
-                       "y, depth]")
-    strangers = sorted({str(k) for k in (*d["models"], *d["windows"])} - known)
-    if strangers:
-        problem = f"beacon {strangers[0]!r} of its models is not among its beacons"
+    problem = _first(_state_problems(d))
     if problem:
         raise InputError(f"not a valid navigator state: {problem}")
     return d
 
 
+def _state_problems(d: dict):
+    """Yield the problems of a state whose parts have their types, in order."""
+    yield _non_finite({k: d[k] for k in ("last", "first_time", "buffer", "windows", "filter",
+                                         "models", "dp")})
+    yield _keys(d["options"], "options", _OPTION_NAMES, optional=_OPTION_DEFAULTS)
+    try:
+        _options({**_OPTION_DEFAULTS, **d["options"]})
+    except (ValueError, TypeError) as err:
+        yield f"options.{err}"
+    yield from _beacons_problems(d["beacons"])
+    yield from _progress_problems(d)
+    yield from (_warmup_problems if d["phase"] == "warmup" else _online_problems)(d)
+
+
+def _beacons_problems(b: dict):
+    cols = ("beacon", "x", "y", "depth")
+    yield _keys(b, "beacons", cols)
+    n = len(b["beacon"]) if isinstance(b["beacon"], list) else -1
+    for k in cols:
+        if not isinstance(b[k], list) or len(b[k]) != n or n < 1:
+            yield (f"beacons.{k} is {b[k]!r:.40}, expected a list of one value per beacon "
+                   f"({max(n, 1)} or more)")
+    for i, bid in enumerate(b["beacon"]):
+        if not isinstance(bid, str) or not bid:
+            yield f"beacons.beacon[{i}] is {bid!r:.40}, expected a beacon's name (text)"
+        for k in ("x", "y", "depth"):
+            yield _limited(f"beacons.{k}[{i}]", b[k][i], k)
+    if len(set(b["beacon"])) != n:
+        yield "beacons.beacon names a beacon twice, expected each once"
+
+
+def _progress_problems(d: dict):
+    """Yield the problems of the seed, ``last`` and ``first_time``."""
+    if d["seed"] < 0:
+        yield f"seed is {d['seed']}, expected an integer >= 0"
+    last, first = d["last"], d["first_time"]
+    if (last is None) != (first is None):
+        yield (f"last is {last!r:.40} and first_time {first!r:.40}, expected both null (no "
+               "line yet) or both set")
+    if last is None:
+        return
+    if len(last) != 3:
+        yield f"last is {last!r:.60}, expected [time, x, y] (3 numbers)"
+    for i, k in enumerate(("time", "x", "y")):
+        yield _limited(f"last[{i}]", last[i], k)
+    yield _interval("first_time", first, LIMITS["time"].low, last[0],
+                    "a time (s) no later than last[0]")
+
+
+def _warmup_problems(d: dict):
+    """Yield the problems of the warm-up's kept replies and ranges (and of online leftovers)."""
+    for key, empty in (("models", {}), ("warmup_record", None)):
+        if d[key] != empty:
+            yield f"{key} is {d[key]!r:.40}, expected {json.dumps(empty)} during the warm-up"
+    buffer, known, warmup = d["buffer"], set(d["beacons"]["beacon"]), d["options"]["warmup"]
+    if len(buffer) >= warmup:
+        yield (f"buffer holds {len(buffer)} replies, expected fewer than the warm-up's "
+               f"{warmup}")
+    if buffer and d["last"] is None:
+        yield "last is null with replies in buffer, expected [time, x, y] of the last line"
+    spans = {}
+    for i, row in enumerate(buffer):
+        if not (isinstance(row, list) and len(row) == 6 and row[1] in known):
+            yield (f"buffer[{i}] is {row!r:.60}, expected [time, a known beacon, range, x, y, "
+                   "depth]")
+        yield _interval(f"buffer[{i}][0]", row[0],
+                        d["first_time"] if i == 0 else buffer[i - 1][0], d["last"][0],
+                        "a time (s) between the reply before's (or first_time) and last[0]")
+        for j, k in ((2, "range"), (3, "x"), (4, "y"), (5, "depth")):
+            yield _limited(f"buffer[{i}][{j}]", row[j], k)
+        lo, hi = spans.get(row[1], (row[2], row[2]))
+        spans[row[1]] = (min(lo, row[2]), max(hi, row[2]))
+    if set(d["windows"]) != set(spans):
+        yield (f"windows has beacons {sorted(map(str, d['windows']))}, expected those of "
+               f"buffer {sorted(spans)}")
+    for bid, (lo, hi) in spans.items():
+        w = d["windows"][bid]
+        if not (isinstance(w, list) and len(w) == 2 and all(map(_is_number, w))
+                and w[0] <= lo and hi <= w[1]):
+            yield (f"windows.{bid} is {w!r:.60}, expected [smallest, largest] range of beacon "
+                   f"{bid!r} in buffer ([{lo!r}, {hi!r}] or wider)")
+
+
+def _online_problems(d: dict):
+    """Yield the problems of the filter, the scales and every beacon's model."""
+    for key, empty in (("buffer", []), ("windows", {})):
+        if d[key] != empty:
+            yield f"{key} is {d[key]!r:.40}, expected {json.dumps(empty)} after the warm-up"
+    if d["last"] is None:
+        yield "last is null, expected [time, x, y] of the last line after the warm-up"
+    b = d["beacons"]
+    xyz = {bid: [b["x"][i], b["y"][i], b["depth"][i]] for i, bid in enumerate(b["beacon"])}
+    strangers = sorted(map(str, set(d["models"]) - set(xyz)))
+    if strangers:
+        yield f"beacon {strangers[0]!r} of its models is not among its beacons"
+    record = d["warmup_record"]
+    if not isinstance(record, dict) or not isinstance(record.get("beacons"), dict):
+        yield (f"warmup_record is {record!r:.40}, expected the warm-up's record (an object "
+               "with 'beacons')")
+    lost = sorted(map(str, set(record["beacons"]) - set(d["models"])))
+    if lost:
+        yield (f"models.{lost[0]} is missing, expected a model for every beacon the warm-up "
+               f"fitted ({', '.join(map(str, record['beacons']))})")
+    yield from _filter_problems(d["filter"])
+    yield from _dp_problems(d["dp"])
+    for bid, m in d["models"].items():
+        yield from _model_problems(m, f"models.{bid}", xyz[bid])
+
+
+def _filter_problems(f: dict):
+    from .ekf import COV_NAMES
+
+    yield _keys(f, "filter", ("x", "y", "beta", "scale", "cov", "beta_walk", "scale_walk"))
+    yield _limited("filter.x", f["x"], "x")
+    yield _limited("filter.y", f["y"], "y")
+    yield _interval("filter.beta", f["beta"], -_BETA_MAX, _BETA_MAX, "a heading bias (rad)")
+    yield _interval("filter.scale", f["scale"], 0.0, _SCALE_MAX, "a speed scale",
+                    include_low=False)
+    for k in ("beta_walk", "scale_walk"):
+        yield _interval(f"filter.{k}", f[k], *_OPTION_BOUNDS[k], "a random walk")
+    c = f["cov"]
+    yield _keys(c, "filter.cov", COV_NAMES)
+    for k in COV_NAMES:
+        if not _is_number(c[k]):
+            yield f"filter.cov.{k} is {c[k]!r:.40}, expected a finite number"
+    for k, top in (("xx", _POSITION_VAR_MAX), ("yy", _POSITION_VAR_MAX),
+                   ("bb", _BETA_MAX ** 2), ("ss", _SCALE_MAX ** 2)):
+        yield _interval(f"filter.cov.{k}", c[k], 0.0, top, "a variance", include_low=False)
+    if not _positive_definite([c[k] for k in COV_NAMES]):
+        yield ("filter.cov is not positive definite, expected the covariance of (x, y, beta, "
+               f"s) (xx, xy, xb, xs, yy, ... = {', '.join(f'{c[k]:.3g}' for k in COV_NAMES)})")
+
+
+def _positive_definite(p) -> bool:
+    """Whether the 4 x 4 covariance of the upper triangle ``p`` (:data:`.ekf.COV_NAMES`) is.
+
+    Cholesky of the correlation matrix (the diagonal checked > 0 before): scale-free, so a
+    variance of 1e-7 rad^2 beside one of 1 m^2 is judged on the correlations alone.
+    """
+    rows = ((0, 1, 2, 3), (1, 4, 5, 6), (2, 5, 7, 8), (3, 6, 8, 9))
+    sd = [math.sqrt(p[rows[i][i]]) for i in range(4)]
+    r = [[p[rows[i][j]] / sd[i] / sd[j] for j in range(4)] for i in range(4)]
+    low = [[0.0] * 4 for _ in range(4)]
+    for j in range(4):
+        pivot = r[j][j] - sum(low[j][k] ** 2 for k in range(j))
+        if not pivot > 1e-12:
+            return False
+        low[j][j] = math.sqrt(pivot)
+        for i in range(j + 1, 4):
+            low[i][j] = (r[i][j] - sum(low[i][k] * low[j][k] for k in range(j))) / low[j][j]
+    return True
+
+
+def _dp_problems(dp: dict):
+    yield _keys(dp, "dp", ("fixed", "n", "sigma", "stats"))
+    yield _check_fields(dp, "dp", {"sigma": "positive", "n": "count", "fixed": "bool",
+                                   "stats": "numbers"})
+    yield _interval("dp.sigma", dp["sigma"], 0.0, LIMITS["range"].high, "a scale (m)",
+                    include_low=False)
+    s = dp["stats"]
+    if len(s) != 2:
+        yield f"dp.stats has {len(s)} numbers, expected 2 (<g_DP>, <g_DP r^2>)"
+    yield _interval("dp.stats[0]", s[0], 0.0, 1.0 + _PROB_SLACK, "a mean probability")
+    yield _interval("dp.stats[1]", s[1], 0.0, math.inf, "a mean square (m^2)")
+
+
 #: The fields of a beacon's model in a saved state, and what each must be.
 _MODEL_FIELDS = {"d0": "number", "d0_min": "number", "d0_ref": "number", "evidence": "number",
-                 "sigma_mp": "positive", "sumsq": "number", "n": "int", "double": "bool",
+                 "sigma_mp": "positive", "sumsq": "number", "n": "count", "double": "bool",
                  "mp_on": "bool", "stats": "numbers", "weights": "numbers", "window": "numbers",
-                 "xyz": "numbers"}
+                 "xyz": "numbers", "alt": "any"}
 
 
 def _check_fields(m, where: str, fields: dict) -> str | None:
@@ -629,36 +847,65 @@ def _check_fields(m, where: str, fields: dict) -> str | None:
         if k not in m:
             return f"{where}.{k} is missing"
         v = m[k]
+        if kind == "any":
+            continue
         if kind == "bool":
             ok = isinstance(v, bool)
-        elif kind == "int":
-            ok = isinstance(v, int) and not isinstance(v, bool) and v >= 0
+        elif kind == "count":
+            ok = isinstance(v, int) and not isinstance(v, bool) and v >= 1
         elif kind == "numbers":
-            ok = isinstance(v, list) and all(
-                isinstance(u, (int, float)) and not isinstance(u, bool) and math.isfinite(u)
-                for u in v)
+            ok = isinstance(v, list) and all(map(_is_number, v))
         else:
-            ok = (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-                  and (kind != "positive" or v > 0))
+            ok = _is_number(v) and (kind != "positive" or v > 0)
         if not ok:
             return f"{where}.{k} is {v!r:.40}, expected {_KIND_WORDS[kind]}"
     return None
 
 
-_KIND_WORDS = {"bool": "true or false", "int": "a count", "numbers": "a list of finite numbers",
-               "number": "a finite number", "positive": "a positive number"}
+_KIND_WORDS = {"bool": "true or false", "count": "a count >= 1",
+               "numbers": "a list of finite numbers", "number": "a finite number",
+               "positive": "a positive number"}
 
 
-def _check_model(m, where: str) -> str | None:
-    problem = _check_fields(m, where, _MODEL_FIELDS)
-    if problem:
-        return problem
-    for k, n in (("weights", 3), ("window", 2), ("xyz", 3)):
+def _model_problems(m, where: str, xyz: list, *, alt: bool = False):
+    """Yield the problems of a beacon's model (``xyz``: the beacon's position)."""
+    from .reflector import BEACON_STATS
+
+    yield _keys(m, where, tuple(_MODEL_FIELDS))
+    yield _check_fields(m, where, _MODEL_FIELDS)
+    for k, n in (("weights", 3), ("window", 2), ("xyz", 3), ("stats", len(BEACON_STATS))):
         if len(m[k]) != n:
-            return f"{where}.{k} has {len(m[k])} numbers, expected {n}"
-    if "alt" in m and m["alt"] is not None:
-        return _check_model(m["alt"], f"{where}.alt")
-    return None
+            yield f"{where}.{k} has {len(m[k])} numbers, expected {n}"
+    top, s, w = LIMITS["range"].high, m["stats"], m["weights"]
+    for k in ("d0", "d0_min", "d0_ref"):
+        yield _interval(f"{where}.{k}", m[k], 0.0, top, "a plane height (m)")
+    yield _interval(f"{where}.sigma_mp", m["sigma_mp"], 0.0, top, "a scale (m)",
+                    include_low=False)
+    yield _interval(f"{where}.sumsq", m["sumsq"], 0.0, 1.0, "a sum of squared weights",
+                    include_low=False)
+    for i in range(3):
+        yield _interval(f"{where}.weights[{i}]", w[i], 0.0, 1.0, "a weight")
+    if abs(sum(w) - 1.0) > 1e-6:
+        yield f"{where}.weights sum to {sum(w)!r}, expected 1"
+    for i in range(3):
+        yield _interval(f"{where}.stats[{i}]", s[i], 0.0, 1.0 + _PROB_SLACK,
+                        f"a mean probability (<{BEACON_STATS[i]}>)")
+    for i in (3, 5):
+        yield _interval(f"{where}.stats[{i}]", s[i], 0.0, math.inf,
+                        f"a mean square (<{BEACON_STATS[i]}>)")
+    yield _limited(f"{where}.window[0]", m["window"][0], "range")
+    yield _interval(f"{where}.window[1]", m["window"][1], m["window"][0], top,
+                    "a range (m) no shorter than window[0]")
+    if list(m["xyz"]) != list(xyz):
+        yield f"{where}.xyz is {m['xyz']!r:.60}, expected the beacon's x, y, depth {xyz!r:.60}"
+    if m["alt"] is None:
+        return
+    if alt:
+        yield f"{where}.alt is {m['alt']!r:.40}, expected null (an alternative has none)"
+    yield from _model_problems(m["alt"], f"{where}.alt", xyz, alt=True)
+    if m["alt"]["double"] == m["double"]:
+        yield (f"{where}.alt.double is {m['double']}, expected the other geometry than "
+               f"{where}.double")
 
 
 #: Parts of a state in which every value is a number (no null).

@@ -190,3 +190,17 @@ def test_replay_and_option_errors(dive, tmp_path, capsys):
                        (["--replay", "x.csv", "--speed", "-2"], "expected realtime, max")):
         assert main(["stream", "--beacons", beacons, *extra]) == 2
         assert msg in capsys.readouterr().err
+
+
+def test_speed_outside_its_range_is_refused_naming_the_option(dive, tmp_path, capsys):
+    """``--speed 1e-10`` crashed after a few lines (OverflowError: timestamp out of range)."""
+    folder, lines = dive
+    (tmp_path / "short.csv").write_text("\n".join(lines[:9]) + "\n")
+    for factor in ("1e-10", "0.0001", "1e7", "0", "nan", "inf", "x"):
+        assert main(["stream", "--beacons", str(folder / "beacons.csv"), "--replay",
+                     str(tmp_path / "short.csv"), "--speed", factor,
+                     "--out", str(tmp_path / "o.jsonl")]) == 2, factor
+        err = capsys.readouterr().err
+        assert (f"--speed: expected realtime, max or a factor in [0.001, 1e+06] (times faster "
+                f"than real time), got {factor!r}") in err, err
+        assert "Traceback" not in err and not (tmp_path / "o.jsonl").exists()

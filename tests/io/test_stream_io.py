@@ -121,3 +121,18 @@ def test_a_line_that_is_not_utf8_is_refused_with_its_column():
     with pytest.raises(InputError, match=r"line 2, column 6: expected UTF-8 text, got the byte "
                                          r"0xe9"):
         parser.parse(lines[1][1], 2)
+
+
+def test_a_slow_replay_waits_any_length_and_still_stops(tmp_path):
+    """A wait of 1.2e11 s (a 12-s step at 1e-10 of real time) raised OverflowError in
+    ``Event.wait``; it is now made of slices, and a stop still ends it."""
+    path = tmp_path / "pings.csv"
+    path.write_text("time,beacon,range,x,y,depth\n0,1,10,0,0,1\n12,1,10,0,0,1\n")
+    stop = threading.Event()
+    timer = threading.Timer(0.3, stop.set)
+    timer.start()
+    t0 = time.monotonic()
+    lines = list(ReplayLines(stop, path, speed=1e-10))
+    timer.cancel()
+    assert [n for n, _ in lines] == [1, 2]  # the line at 12 s is 1.2e11 s away: not released
+    assert time.monotonic() - t0 < 5.0

@@ -50,7 +50,7 @@ def add_stream(sub) -> None:
                    help="feed a recorded file (CSV or JSON lines) at its own time stamps")
     p.add_argument("--speed", default="realtime", metavar="realtime|max|FACTOR",
                    help="--replay: real time (default), as fast as possible, or FACTOR times "
-                        "faster")
+                        "faster (FACTOR in [0.001, 1e6])")
     p.add_argument("--warmup", type=opt.at_least(3), default=200, metavar="N",
                    help="replies fitted in batch before the online estimator starts "
                         "(default 200)")
@@ -70,6 +70,11 @@ def add_stream(sub) -> None:
     p.add_argument("--seed", type=opt.seed, default=0, help="seed of the warm-up fit (default 0)")
 
 
+#: The ``--speed`` factors accepted: slower than a thousandth of real time, one 12-s cycle
+#: would take hours; faster than a million times, ``max`` is meant.
+SPEED_RANGE = (1e-3, 1e6)
+
+
 def _speed(text: str):
     if text == "realtime":
         return 1.0
@@ -79,8 +84,10 @@ def _speed(text: str):
         v = float(text)
     except ValueError:
         v = float("nan")
-    if not v > 0 or v == float("inf"):
-        raise OptionError(f"--speed: expected realtime, max or a positive factor, got {text!r}")
+    low, high = SPEED_RANGE
+    if not low <= v <= high:
+        raise OptionError(f"--speed: expected realtime, max or a factor in [{low:g}, {high:g}] "
+                          f"(times faster than real time), got {text!r}")
     return v
 
 

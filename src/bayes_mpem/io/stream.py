@@ -21,6 +21,9 @@ MAX_PARTIAL = 1 << 20
 #: Largest datagram read (bytes).
 MAX_DATAGRAM = 65535
 
+#: The longest single wait of a replay (s); a longer one is made of several.
+MAX_WAIT = 3600.0
+
 
 def parse_address(spec: str, *, option: str = "--in"):
     """Split ``-``, ``udp://HOST:PORT`` or a file path into ``(kind, where)``.
@@ -193,6 +196,17 @@ class ReplayLines:
     def __init__(self, stop, path, speed, max_gap=math.inf):
         self.stop, self.path, self.speed, self.max_gap = stop, path, speed, max_gap
 
+    def _wait_until(self, when: float) -> bool:
+        """Wait until ``time.monotonic()`` reaches ``when``; True if stopped meanwhile.
+
+        The wait goes by slices of at most :data:`MAX_WAIT` seconds: a slow ``speed``
+        times a long gap may exceed what :meth:`threading.Event.wait` takes.
+        """
+        while (wait := when - time.monotonic()) > 0:
+            if self.stop.wait(min(wait, MAX_WAIT)):
+                return True
+        return False
+
     def __iter__(self):
         """Yield ``(line_number, text)``, each line at its time, until the end or a stop."""
         header, t0, w0, last = None, None, None, None
@@ -215,8 +229,7 @@ class ReplayLines:
                     if self.speed is not None and t is not None:
                         if t0 is None:
                             t0, w0 = t, time.monotonic()
-                        wait = w0 + (t - t0) / self.speed - time.monotonic()
-                        if wait > 0 and self.stop.wait(wait):
+                        if self._wait_until(w0 + (t - t0) / self.speed):
                             return
                     if t is not None:
                         last = t

@@ -204,3 +204,26 @@ def test_speed_outside_its_range_is_refused_naming_the_option(dive, tmp_path, ca
         assert (f"--speed: expected realtime, max or a factor in [0.001, 1e+06] (times faster "
                 f"than real time), got {factor!r}") in err, err
         assert "Traceback" not in err and not (tmp_path / "o.jsonl").exists()
+
+
+def test_udp_addresses_are_checked_before_anything_is_read(dive, tmp_path):
+    """An --out host that did not resolve failed on the first answer: the line read, the state
+    advanced and saved, the answer lost, the message '[Errno -2] Name or service not known'
+    naming no option; --in left an unclosed socket (ResourceWarning)."""
+    folder, lines = dive
+    state = tmp_path / "s.json"
+    dev = [sys.executable, "-X", "dev", *CMD[1:], "--beacons", str(folder / "beacons.csv")]
+    cases = {("--out", "udp://nohost.invalid:5"): "expected a host that resolves",
+             ("--in", "udp://nohost.invalid:5"): "expected a host that resolves",
+             ("--in", "udp://192.0.2.1:5"): "expected an address of this machine",
+             ("--out", "udp://127.0.0.1:0"): "expected udp://HOST:PORT (port 1-65535)"}
+    for (option, spec), expected in cases.items():
+        proc = subprocess.run([*dev, option, spec, "--state", str(state)],
+                              input="\n".join(lines[:20]) + "\n", capture_output=True,
+                              text=True, timeout=60)
+        assert proc.returncode == 2, (option, spec, proc.stderr)
+        assert f"error: {option}" in proc.stderr and spec in proc.stderr, proc.stderr
+        assert expected in proc.stderr, proc.stderr
+        assert '"stream":' not in proc.stderr  # no line read, no counts
+        assert "ResourceWarning" not in proc.stderr and "Traceback" not in proc.stderr
+        assert not state.exists()  # nothing advanced, nothing saved

@@ -7,7 +7,14 @@ import time
 import pytest
 
 from bayes_mpem.exceptions import InputError
-from bayes_mpem.io.stream import FdLines, LineSink, ReplayLines, UdpLines, parse_address
+from bayes_mpem.io.stream import (
+    FdLines,
+    LineSink,
+    ReplayLines,
+    UdpLines,
+    parse_address,
+    resolve_udp,
+)
 
 
 def test_addresses():
@@ -16,6 +23,15 @@ def test_addresses():
     for bad in ("udp://host", "udp://:9", "udp://h:99999", "udp://h:x"):
         with pytest.raises(InputError, match="--in: expected udp://HOST:PORT"):
             parse_address(bad)
+    assert parse_address("udp://h:0") == ("udp", ("h", 0))  # listen on any free port
+    with pytest.raises(InputError, match=r"--out: expected udp://HOST:PORT \(port 1-65535\)"):
+        parse_address("udp://h:0", option="--out")  # but not send there
+    assert resolve_udp("127.0.0.1", 5) == ("127.0.0.1", 5)
+    with pytest.raises(InputError, match="--out udp://nohost.invalid:5: expected a host that "
+                                         "resolves"):
+        resolve_udp("nohost.invalid", 5, option="--out")
+    with pytest.raises(InputError, match="--out udp://"):
+        resolve_udp("a" * 300, 5, option="--out")  # a label over 63 characters
 
 
 def test_pipe_lines_split_across_reads_and_stop():

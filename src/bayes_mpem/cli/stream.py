@@ -199,6 +199,16 @@ def _check_out_is_not_an_input(args) -> None:
                               "would replace it: give another file")
 
 
+def _check_addresses(args) -> None:
+    """Resolve ``--in`` and ``--out`` ``udp://HOST:PORT`` before anything is read or loaded."""
+    from ..io.stream import parse_address, resolve_udp
+
+    for option, spec in (("--in", args.source), ("--out", args.out)):
+        kind, where = parse_address(spec, option=option)
+        if kind == "udp":
+            resolve_udp(*where, option=option)
+
+
 def cmd_stream(args) -> int:
     """Run ``bayes-mpem stream`` until the end of the input, SIGTERM or SIGINT (status 0)."""
     if args.save_every < 0:
@@ -206,6 +216,7 @@ def cmd_stream(args) -> int:
     if args.append and (args.out == "-" or args.out.startswith("udp://")):
         raise OptionError(f"--append applies to --out FILE only, got --out {args.out}")
     _check_out_is_not_an_input(args)
+    _check_addresses(args)
     from ..io.lines import LineParser
     from ..io.stream import LineSink
 
@@ -213,7 +224,12 @@ def cmd_stream(args) -> int:
     parser = LineParser(nav.beacons.index)
     stop = threading.Event()
     source = _source(args, stop, nav.options["max_gap"])
-    sink = LineSink(args.out, append=args.append)
+    try:
+        sink = LineSink(args.out, append=args.append)
+    except InputError:
+        if hasattr(source, "close"):  # a UDP socket already bound
+            source.close()
+        raise
     counts = dict.fromkeys(COUNTS, 0)
     previous = {s: signal.signal(s, lambda *_: stop.set()) for s in (signal.SIGTERM,
                                                                       signal.SIGINT)}

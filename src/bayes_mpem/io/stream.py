@@ -47,10 +47,40 @@ def parse_address(spec: str, *, option: str = "--in"):
         return "stdio", None
     if spec.startswith("udp://"):
         host, sep, port = spec[len("udp://"):].rpartition(":")
-        if not sep or not host or not port.isdigit() or int(port) > 65535:
-            raise InputError(f"{option}: expected udp://HOST:PORT (port 0-65535), got {spec!r}")
+        low = 1 if option == "--out" else 0  # answers cannot be sent to port 0
+        if not sep or not host or not port.isdigit() or not low <= int(port) <= 65535:
+            raise InputError(f"{option}: expected udp://HOST:PORT (port {low}-65535), got "
+                             f"{spec!r}")
         return "udp", (host, int(port))
     return "file", spec
+
+
+def resolve_udp(host: str, port: int, *, option: str = "--in"):
+    """Return the IPv4 socket address of ``host:port``, resolved before any line is read.
+
+    Parameters
+    ----------
+    host : str
+    port : int
+    option : str
+        The option's name, for messages.
+
+    Returns
+    -------
+    tuple of (str, int)
+
+    Raises
+    ------
+    InputError
+        The host does not resolve (an IPv4 address or a name that does).
+    """
+    try:
+        infos = socket.getaddrinfo(host, port, socket.AF_INET, socket.SOCK_DGRAM)
+    except (OSError, UnicodeError) as err:
+        why = getattr(err, "strerror", None) or str(err)
+        raise InputError(f"{option} udp://{host}:{port}: expected a host that resolves to an "
+                         f"IPv4 address, got {host!r} ({why})") from None
+    return infos[0][4]
 
 
 class _Splitter:
@@ -131,10 +161,20 @@ class UdpLines:
 
     def __init__(self, stop, host, port, poll=0.2):
         self.stop, self.poll = stop, poll
+        where = resolve_udp(host, port, option="--in")
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self.sock.bind((host, port))
+        try:
+            self.sock.bind(where)
+        except OSError as err:
+            self.sock.close()
+            raise InputError(f"--in udp://{host}:{port}: expected an address of this machine "
+                             f"and a free port to listen on ({err.strerror or err})") from None
         self.sock.settimeout(poll)
         self._split = _Splitter()
+
+    def close(self) -> None:
+        """Close the socket (when the stream ends before reading from it)."""
+        self.sock.close()
 
     @property
     def address(self):
@@ -255,8 +295,8 @@ class LineSink:
         kind, where = parse_address(spec, option="--out")
         self.kind, self._sock, self._fh = kind, None, None
         if kind == "udp":
+            self._dest = resolve_udp(*where, option="--out")
             self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-            self._dest = where
         elif kind == "file":
             try:
                 self._fh = open(where, "a" if append else "w",  # noqa: SIM115 - close()

@@ -152,3 +152,25 @@ def test_a_slow_replay_waits_any_length_and_still_stops(tmp_path):
     timer.cancel()
     assert [n for n, _ in lines] == [1, 2]  # the line at 12 s is 1.2e11 s away: not released
     assert time.monotonic() - t0 < 5.0
+
+
+def test_a_line_cut_for_its_length_is_refused_with_what_is_known():
+    """A line of 3 or 10 MB was refused with 'got 1111758 characters': how much had been read
+    when it was cut, which varied with the reads' sizes; its length is not known."""
+    from bayes_mpem.io.lines import LineParser
+    from bayes_mpem.io.stream import _Splitter
+
+    messages = set()
+    for size in (3_000_000, 10_000_000):
+        data = b"time,beacon,range,x,y,depth\n0,1," + b"1" * size + b",0,0,2400\n0,1,9,0,0,1\n"
+        for chunk in (65536, 100_000, 1 << 20):
+            s = _Splitter()
+            got = [item for i in range(0, len(data), chunk) for item in s.feed(data[i:i + chunk])]
+            assert [n for n, _ in got] == [1, 2, 3] and got[2][1] == "0,1,9,0,0,1"
+            parser = LineParser()
+            parser.parse(got[0][1], 1)
+            with pytest.raises(InputError) as err:
+                parser.parse(got[1][1], 2)
+            messages.add(str(err.value))
+    assert messages == {"line 2: expected a line of at most 65536 characters, got one longer "
+                        "than 1,048,576 bytes (read that far; the rest of it is skipped)"}

@@ -24,6 +24,32 @@ MAX_LINE = 65536
 KINDS = ("ping", "header", "blank", "comment")
 
 
+class CutLine(str):
+    """The start of a line its reader cut, longer than it keeps (to be refused on its line).
+
+    Its length is not known: only that it is longer than ``limit`` bytes.
+
+    Parameters
+    ----------
+    text : str
+        The start of the line.
+    limit : int
+        The reader's limit (bytes).
+
+    Examples
+    --------
+    >>> cut = CutLine("1,2,3", 1 << 20)
+    >>> cut.limit, isinstance(cut, str)
+    (1048576, True)
+    """
+
+    def __new__(cls, text: str, limit: int):
+        """Return the cut ``text``, with its reader's ``limit``."""
+        self = super().__new__(cls, text)
+        self.limit = limit
+        return self
+
+
 class Ping(NamedTuple):
     """One validated input line.
 
@@ -222,10 +248,14 @@ class LineParser:
         InputError
             A malformed line (the parser's state is unchanged).
         """
+        where = f"line {line_no}"
+        if isinstance(text, CutLine):  # its length is not known, only that it is too long
+            raise InputError(f"{where}: expected a line of at most {MAX_LINE} characters, got "
+                             f"one longer than {text.limit:,} bytes (read that far; the rest "
+                             "of it is skipped)")
         if line_no == 1:  # a byte-order mark opens some files saved on Windows: not data
             text = text.removeprefix("\ufeff")
         s = text.strip()
-        where = f"line {line_no}"
         if len(s) > MAX_LINE:
             raise InputError(f"{where}: expected a line of at most {MAX_LINE} characters, got "
                              f"{len(s)}")

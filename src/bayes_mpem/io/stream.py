@@ -13,6 +13,7 @@ import time
 
 from ..exceptions import InputError
 from .boundary import out_of_limits
+from .lines import MAX_LINE, CutLine
 
 #: The longest unfinished line kept (bytes); a longer one is passed on, cut, to be refused
 #: on its line, and the rest of it up to the next newline dropped.
@@ -95,8 +96,9 @@ class _Splitter:
         if self._skip and lines:  # the rest of an overlong line already answered
             lines.pop(0)
             self._skip = False
+        cut = None
         if len(self.partial) > MAX_PARTIAL and not self._skip:
-            lines.append(self.partial)  # answered (refused for its length) at once
+            cut = self.partial[:MAX_LINE + 1]  # answered (refused for its length) at once
             self.partial, self._skip = b"", True
         elif self._skip:
             self.partial = b""
@@ -108,6 +110,9 @@ class _Splitter:
             # bytes that are not UTF-8 stay visible (as surrogates) for the parser to refuse
             text = raw.decode("utf-8", errors="surrogateescape")
             yield self.n, text[:-1] if text.endswith("\r") else text
+        if cut is not None:
+            self.n += 1
+            yield self.n, CutLine(cut.decode("utf-8", errors="surrogateescape"), MAX_PARTIAL)
 
 
 class FdLines:

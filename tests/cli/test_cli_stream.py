@@ -227,3 +227,14 @@ def test_udp_addresses_are_checked_before_anything_is_read(dive, tmp_path):
         assert '"stream":' not in proc.stderr  # no line read, no counts
         assert "ResourceWarning" not in proc.stderr and "Traceback" not in proc.stderr
         assert not state.exists()  # nothing advanced, nothing saved
+
+
+def test_the_pings_given_as_beacons_are_named_as_such(dive, capsys):
+    """The pings file as --beacons printed a 57-kB list of duplicated ids' lines."""
+    folder, _ = dive
+    pings = str(folder / "pings.csv")
+    assert main(["stream", "--beacons", pings, "--replay", pings]) == 2
+    err = capsys.readouterr().err
+    assert f"--beacons {pings}: looks like a pings table: it has the columns time and range" in err
+    assert "expected one row per beacon with the columns beacon, x, y, depth" in err
+    assert len(err) < 400 and "duplicated" not in err

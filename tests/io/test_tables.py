@@ -260,6 +260,16 @@ def test_duplicated_beacon_id_names_both_lines(tmp_path):
         read_beacons(path)
 
 
+def test_a_beacon_id_repeated_many_times_lists_a_few_lines():
+    """A pings table given as the beacons listed every line of every id (57 kB)."""
+    frame = pd.DataFrame({"beacon": ["1", "2"] * 1000, "x": 0.0, "y": 0.0, "depth": 50.0})
+    with pytest.raises(InputError) as err:
+        read_beacons(frame)
+    assert "beacon id '1' is duplicated (row 0, row 2, row 4, row 6, row 8 and 995 more)" in str(
+        err.value)
+    assert len(str(err.value)) < 400
+
+
 @pytest.mark.parametrize("text", ["beacon,x,y,depth\n1,0,abc,50\n", "beacon,x,y,depth\n1,0,,50\n"])
 def test_bad_beacon_coordinate(tmp_path, text):
     with pytest.raises(InputError, match=r"beacons\.csv line 2, column 'y'"):

@@ -91,10 +91,30 @@ def _speed(text: str):
     return v
 
 
+def _check_beacons(path) -> None:
+    """Read ``--beacons``; a pings table given there is named as such (as ``fit`` does)."""
+    from ..io.tables import load_table, read_beacons
+
+    try:
+        read_beacons(path)
+    except InputError as err:
+        try:
+            frame = load_table(path, None, "beacons").frame
+        except (InputError, OSError, ValueError):
+            raise err from None
+        if not {"time", "range"} <= set(map(str, frame.columns)):
+            raise
+        raise InputError(f"--beacons {path}: looks like a pings table: it has the columns time "
+                         f"and range, and {len(frame)} rows; expected one row per beacon with "
+                         "the columns beacon, x, y, depth (the pings go to standard input, "
+                         "--in or --replay)") from None
+
+
 def _navigator(args):
     from ..io.tables import read_beacons
     from ..lbl.navigate.online import Navigator
 
+    _check_beacons(args.beacons)
     if args.state and os.path.exists(args.state):
         try:
             nav = Navigator.load(args.state)

@@ -303,6 +303,11 @@ def read_pings(source: Any, *, name: str | None = None
     return table.frame, arrays
 
 
+#: The rows a duplicated beacon id's message lists (a pings table given as the beacons
+#: repeats each id thousands of times).
+MAX_DUPLICATE_ROWS = 5
+
+
 def beacons_frame(source: Any, name: str | None) -> tuple[pd.DataFrame, str]:
     """Read and check a beacons table (the work of :func:`read_beacons`).
 
@@ -331,7 +336,9 @@ def beacons_frame(source: Any, name: str | None) -> tuple[pd.DataFrame, str]:
             seen.setdefault(b, []).append(pos)
     for b, where in seen.items():
         if len(where) > 1:
-            rows = ", ".join(table.row_name(p) for p in where)
+            rows = ", ".join(table.row_name(p) for p in where[:MAX_DUPLICATE_ROWS])
+            if len(where) > MAX_DUPLICATE_ROWS:
+                rows += f" and {len(where) - MAX_DUPLICATE_ROWS} more"
             problems.add(where[1], f"{table.source}, column 'beacon': beacon id {b!r} is "
                                    f"duplicated ({rows})")
     problems.raise_if_any()

@@ -1,5 +1,7 @@
 """EM tests: invariants, closed-form M-step, and recovery of a known truth."""
 
+import warnings
+
 import numpy as np
 import pytest
 from scipy import optimize, special, stats
@@ -259,3 +261,18 @@ def test_paper_bad_options(kw, msg):
     sim = bm.simulate_survey("abe58", rng=0)
     with pytest.raises(ValueError, match=msg):
         fit_paper_em(sim.survey.for_beacon("1"), **kw)
+
+
+def test_a_tiny_alpha_is_not_called_converged_at_its_start():
+    """alpha 1e-7 shrank every step of d0 below tol: 'converged' after 9-16 iterations at the
+    start value, without a warning. alpha 0.1-1 (the regimes study's) is never flagged."""
+    data = bm.simulate_survey("abe58", rng=1).survey.for_beacon("4")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FitQualityWarning)  # the start's plane is not a fit
+        with pytest.warns(ConvergenceWarning, match=r"alpha=1e-07 shrinks each step of d0"):
+            res = fit_paper_em(data, sigma_dp=3.97, alpha=1e-7)
+    assert not res.converged
+    for alpha in (0.1, 0.5, 1.0):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", ConvergenceWarning)
+            assert fit_paper_em(data, sigma_dp=3.97, alpha=alpha).converged

@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 from scipy import special
 
 from ..._validate import check_finite, check_int, check_positive
+from ...exceptions import ConvergenceWarning
 from ...io.survey import BeaconData
 from ...mixture.densities import CLASSES
 from ...mixture.em import EMModel, run_em
@@ -73,6 +76,27 @@ def paper_m_step(geom: BeaconGeometry, gamma_mp, d0_prev, alpha, path="triangle"
     g = gamma_mp.sum()
     var = float(wdot(gamma_mp, res2) / g) if g > 0 else float("nan")
     return d0, float(np.sqrt(var))
+
+
+#: A run "converged" while eq. 10's last undamped move (``d0_avg - d0``, the step over
+#: ``alpha``) is more than this many ``tol`` is not converged: a tiny ``alpha`` shrinks every
+#: step below ``tol`` from the start. At ``alpha >= 0.1`` the move is at most ``10 tol``.
+STALL_FACTOR = 10.0
+
+
+def _stalled(run, alpha, tol, beacon) -> bool:
+    """Warn and return True where a tiny ``alpha`` stopped the run far from its fixed point."""
+    d0 = run.history.get("d0", [])
+    if len(d0) < 2:
+        return False
+    gap = abs(d0[-1] - d0[-2]) / alpha
+    if gap <= STALL_FACTOR * tol:
+        return False
+    warnings.warn(f"beacon {beacon}: the paper's EM stopped after {run.n_iter} iterations "
+                  f"because alpha={alpha:g} shrinks each step of d0 below tol={tol:g} m, while "
+                  f"eq. 10's target d0 is still {gap:.3g} m away: not converged (d0={d0[-1]:.2f} "
+                  "m); use a larger --alpha", ConvergenceWarning, stacklevel=3)
+    return True
 
 
 class _PaperEM(EMModel):
@@ -170,6 +194,7 @@ def fit_paper_em(
                  (float(d0_init), float(np.sqrt(sigma_mp2_init))), tol=tol, max_iter=max_iter,
                  warn=message)
     (d0, s_mp), resp = run.params, run.resp
+    converged = run.converged and not _stalled(run, alpha, tol, data.beacon)
     mean = mean_resp_history(resp)
     return with_flags(EMResult(
         beacon=data.beacon,
@@ -182,7 +207,7 @@ def fit_paper_em(
         resp=resp,
         rows=np.asarray(data.rows),
         n_iter=run.n_iter,
-        converged=run.converged,
+        converged=converged,
         loglik=None,
         history={k: np.asarray(v) for k, v in run.history.items()},
         first_resp=run.first_resp,

@@ -42,6 +42,10 @@ def test_every_command_takes_a_config():
     ("sigma_dp = [1, 2]", "expected one value, got a list"),
     ("sigma_dp = {a = 1}", "expected a value, got a table"),
     ("x = ", "not valid TOML"),
+    ("sigma_dp = 4.0\nsigma-dp = 5.0",  # the first was dropped, silently
+     "keys 'sigma_dp' and 'sigma-dp': one option (--sigma-dp) given twice"),
+    ('config = "other.toml"', "key 'config': not an option a file can give"),
+    ("help = true", "key 'help': not an option a file can give"),  # was 'did you mean help?'
 ])
 def test_config_errors_name_the_file_and_key(survey, tmp_path, capsys, text, message):
     cfg = tmp_path / "bad.toml"
@@ -52,6 +56,16 @@ def test_config_errors_name_the_file_and_key(survey, tmp_path, capsys, text, mes
     err = capsys.readouterr().err
     assert stop.value.code == 2 and f"--config {cfg}" in err and message in err
     assert "usage: bayes-mpem fit" in err
+
+
+def test_a_config_saved_with_a_byte_order_mark_is_read(survey, tmp_path):
+    """Notepad's UTF-8 mark was 'not valid TOML (Invalid statement (at line 1, column 1))'."""
+    cfg = tmp_path / "bom.toml"
+    cfg.write_bytes(b"\xef\xbb\xbfmin_pings = 40\n")
+    out = tmp_path / "o"
+    assert main(["fit", str(survey / "pings.csv"), "--beacons", str(survey / "beacons.csv"),
+                 "--out", str(out), "--config", str(cfg)]) == 0
+    assert json.loads((out / "summary.json").read_text())["options"]["min_pings"] == 40
 
 
 @pytest.mark.parametrize("bad", ["nope.toml", "."])

@@ -499,7 +499,10 @@ def _config_tokens(sub: argparse.ArgumentParser, path: str) -> list:
 
     try:
         with open(path, "rb") as fh:
-            doc = tomllib.load(fh)
+            raw = fh.read()
+        # a byte-order mark (a file saved by Notepad or Excel) is not TOML: read past it, as
+        # the CSV readers do
+        doc = tomllib.loads(raw.removeprefix(b"\xef\xbb\xbf").decode("utf-8"))
     except FileNotFoundError:
         refuse("no such file")
     except IsADirectoryError:
@@ -509,11 +512,18 @@ def _config_tokens(sub: argparse.ArgumentParser, path: str) -> list:
     except OSError as exc:
         refuse(f"cannot be read ({exc.strerror or exc})")
     options = {s: a for a in sub._actions for s in a.option_strings if s.startswith("--")}
-    tokens = []
+    tokens, spelt = [], {}
     for key, value in doc.items():
         name = "--" + str(key).replace("_", "-")
+        if name in ("--config", "--help"):
+            refuse(f"key {key!r}: not an option a file can give (--{name[2:]} goes on the "
+                   "command line)")
+        if name in spelt:  # dr_noise and dr-noise: one option twice, one value dropped
+            refuse(f"keys {spelt[name]!r} and {key!r}: one option ({name}) given twice; "
+                   "give it once")
+        spelt[name] = key
         action = options.get(name)
-        if action is None or name in ("--config", "--help"):
+        if action is None:
             close = _closest(name, options)
             hint = f"; did you mean {close[2:].replace('-', '_')}?" if close else ""
             positional = [a.metavar or a.dest for a in sub._actions if not a.option_strings]

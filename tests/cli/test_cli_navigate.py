@@ -109,7 +109,9 @@ def test_plot_draws_a_navigate_folder_and_refuses_unknown_ones(dive_files, tmp_p
             ("gone", lambda d: (d / "track.csv").unlink(), "track.csv, missing"),
             ("text", lambda d: (d / "track.csv").write_text(
                 (d / "track.csv").read_text().replace("\n", "\nabc", 1)),
-             "column 'time': expected a number, got 'abc")):
+             "track.csv line 2, column 'time': expected a finite number, got 'abc"),
+            ("nan", _first_time_nan,  # blamed the pings ("200 distinct ping times, but ...")
+             "track.csv line 2, column 'time': expected a finite number, got 'nan")):
         bad = shutil.copytree(nav, tmp_path / name)
         damage(bad)
         assert main(["plot", str(bad), "--out", str(tmp_path / f"{name}_figs")]) == 2
@@ -154,3 +156,9 @@ def test_navigate_convergence_advice_names_its_options(ship_files, tmp_path, cap
     cap = capsys.readouterr()
     assert "ConvergenceWarning" in cap.err and "(--max-iter)" in cap.err and "(--tol)" in cap.err
     assert "did NOT converge: raise --max-iter or loosen --tol" in cap.out
+
+
+def _first_time_nan(folder):
+    lines = (folder / "track.csv").read_text().split("\n")
+    lines[1] = "nan," + lines[1].split(",", 1)[1]
+    (folder / "track.csv").write_text("\n".join(lines))

@@ -419,9 +419,10 @@ class Navigation:
         path = d / "track.csv"
         if not path.exists():
             raise FileNotFoundError(f"{path}: not found; 'bayes-mpem navigate' writes it")
-        track = read_table_file(path, str(path), "track file").frame
+        text = read_table_file(path, str(path), "track file")
         survey, probs, _ = survey_and_classes(d, summary)
-        return together(d, _from_tables, cls, summary, survey, track, probs)
+        return together(d, _from_tables, cls, summary, survey, text.frame, probs, path,
+                        text.lines)
 
 
 def _value(entry) -> float:
@@ -430,24 +431,39 @@ def _value(entry) -> float:
     return np.nan if v is None else float(v)
 
 
-def _from_tables(cls, summary: dict, survey, track: pd.DataFrame, probs: np.ndarray):
-    """Rebuild a :class:`Navigation` from its files' content (:meth:`Navigation.read`)."""
+def _from_tables(cls, summary: dict, survey, track: pd.DataFrame, probs: np.ndarray,
+                 path="track.csv", lines=None):
+    """Rebuild a :class:`Navigation` from its files' content (:meth:`Navigation.read`).
+
+    ``lines``: the file line of each row of ``track`` (named in errors), else its row.
+    """
     missing = [c for c in ("time", "x", "y", "sd_x", "sd_y", "cov_xy", "dr_x", "dr_y")
                if c not in track.columns]
     if missing:
-        raise InputError(f"track.csv: no column(s) {missing}; expected the track of "
+        raise InputError(f"{path}: no column(s) {missing}; expected the track of "
                          "'bayes-mpem navigate'")
+
+    def where(i):
+        return f"{path} " + (f"line {int(lines[i])}" if lines is not None else f"row {i + 1}")
+
     col = {}
     for c in ("time", "x", "y", "sd_x", "sd_y", "cov_xy", "dr_x", "dr_y"):
         text = track[c].astype(str).str.strip()
         col[c] = pd.to_numeric(text.replace({"": "nan"}), errors="coerce").to_numpy(float)
-        bad = np.flatnonzero(np.isnan(col[c]) & ~text.str.lower().isin(["", "nan"]).to_numpy())
+        empty = ~np.isfinite(col[c]) if c == "time" else np.zeros(len(text), bool)
+        bad = np.flatnonzero(np.isnan(col[c]) & ~text.str.lower().isin(["", "nan"]).to_numpy()
+                             | empty)
         if bad.size:
-            raise InputError(f"track.csv row {int(bad[0]) + 1}, column {c!r}: expected a "
-                             f"number, got {track[c].iloc[bad[0]]!r}")
-    dive = dive_with_dead_reckoning(
-        survey, col["time"], np.column_stack([col["dr_x"], col["dr_y"]]),
-        str((summary.get("dead_reckoning") or {}).get("source") or "pings"))
+            raise InputError(f"{where(int(bad[0]))}, column {c!r}: expected a "
+                             f"{'finite ' if c == 'time' else ''}number, got "
+                             f"{track[c].iloc[bad[0]]!r}")
+    try:
+        dive = dive_with_dead_reckoning(
+            survey, col["time"], np.column_stack([col["dr_x"], col["dr_y"]]),
+            str((summary.get("dead_reckoning") or {}).get("source") or "pings"))
+    except InputError as exc:
+        raise InputError(f"{path}: its times are not those of the classified table's pings "
+                         f"(was one edited?): {exc}") from None
     cov = np.empty((dive.n_epochs, 2, 2))
     cov[:, 0, 0], cov[:, 1, 1] = col["sd_x"] ** 2, col["sd_y"] ** 2
     cov[:, 0, 1] = cov[:, 1, 0] = col["cov_xy"]

@@ -1115,6 +1115,79 @@ def prior_scale(fit) -> float:
     return float(np.exp(brentq(excess, 0.0, top, xtol=1e-3)))
 
 
+#: Points of the grid of ``log kappa`` over ``[0, log MAX_PRIOR_SCALE]`` on which
+#: :func:`prior_scale_spread` averages the positions.
+SCALE_GRID = 241
+
+
+def prior_scale_spread(fit, kappa):
+    """Return what the uncertainty of a prior scale adds to the position parameters' covariance.
+
+    Where ``--position-prior auto`` scaled the site file's prior covariance by ``kappa``
+    (:func:`prior_scale`, a moment estimate from the fit's moves of a dozen coordinates), the
+    positions the prior carries (a circle's depths) lean on an estimate of a variance from a
+    dozen numbers: fixed at it, their intervals covered 60 % (docs/gnssa.md). Here the scale
+    ``k`` has its linear-Gaussian log marginal likelihood, up to a constant,
+    ``b'(M + P/k)^-1 b / 2 - log|M + P/k| / 2 - r log(k) / 2`` (``M`` the data's
+    information on the parameters, ``b = M phi_data``, ``P`` the site file's prior precision
+    of rank ``r``), and a flat prior on ``log k`` over ``[0, log MAX_PRIOR_SCALE]`` (the
+    site file's sigmas a floor); the positions' posterior averaged over it has the mean
+    ``phi_bar`` and the covariance ``C_mix``. Returned: ``C_mix + (phi_bar - phi)(...)' - C``
+    (``phi``, ``C`` the fit's, at ``kappa``), its negative part dropped (never narrowed).
+
+    Parameters
+    ----------
+    fit : ArrayLocateResult
+        Fitted with the prior covariance scaled by ``kappa``.
+    kappa : float
+        The scale it was fitted with (> 1).
+
+    Returns
+    -------
+    extra : numpy.ndarray
+        ``(n, n)`` to add to the position parameters' covariance.
+    record : dict
+        ``kappa_mean`` and ``kappa_interval`` (95 %) of the scale's posterior.
+
+    References
+    ----------
+    Gelman, A. et al. (2013), Bayesian Data Analysis, 3rd ed., section 5.3 (hierarchical
+    normal models: the scale's posterior and the estimates averaged over it).
+    """
+    m = fit.model
+    P = np.asarray(m["position_prior"], float) * kappa  # the site file's own precision
+    C, phi = m["position_params_cov_model"], m["position_params"]
+    A = _scaled_inverse(C)
+    b, M = A @ phi, A - np.asarray(m["position_prior"], float)
+    r = int(np.sum(np.diag(P) > 0))
+    grid = np.linspace(0.0, np.log(MAX_PRIOR_SCALE), SCALE_GRID)
+    ll, means, covs = np.full(grid.size, -np.inf), [], []
+    for i, lk in enumerate(grid):
+        Ak = M + P * np.exp(-lk)
+        sign, logdet = np.linalg.slogdet(0.5 * (Ak + Ak.T))
+        Ck = _scaled_inverse(Ak)
+        means.append(Ck @ b)
+        covs.append(Ck)
+        if sign > 0:
+            ll[i] = 0.5 * b @ means[-1] - 0.5 * logdet - 0.5 * r * lk
+    w = np.exp(ll - ll.max())
+    w /= w.sum()
+    mean = sum(wi * mi for wi, mi in zip(w, means, strict=True))
+    cmix = sum(wi * (ci + np.outer(mi - mean, mi - mean))
+               for wi, ci, mi in zip(w, covs, means, strict=True))
+    extra = cmix + np.outer(mean - phi, mean - phi) - C
+    vals, vecs = np.linalg.eigh(0.5 * (extra + extra.T))
+    extra = (vecs * np.clip(vals, 0.0, None)) @ vecs.T
+    k = np.exp(grid)
+    cdf = np.cumsum(w)
+    record = {"kappa_mean": float(w @ k),
+              "kappa_interval": [float(np.interp(0.025, cdf, k)), float(np.interp(0.975, cdf, k))],
+              "method": "the positions averaged over the prior scale's posterior (its "
+                        "linear-Gaussian likelihood, a flat prior on log kappa from 1 to "
+                        f"{MAX_PRIOR_SCALE:g})"}
+    return extra, record
+
+
 def _positions_record(G, K, shift, prior, prior_sd, centre_sd, mask, transponders, ids,
                       check=None):
     """Return what was solved for the positions (``summary.json``), with their prior."""

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 from datetime import timedelta
 
@@ -12,7 +13,14 @@ from scipy.stats import chi2
 from ..exceptions import InputError, LocateWarning
 from ..io.geodesy import MEAN_EARTH_RADIUS_M, earth_radius, enu_to_geodetic
 from ..io.raw import ARRAY_FORMATS, skip_reasons
-from .array import KNOT_MINUTES, MIN_PRIOR_SD, describe, locate_array, prior_scale
+from .array import (
+    KNOT_MINUTES,
+    MIN_PRIOR_SD,
+    describe,
+    locate_array,
+    prior_scale,
+    prior_scale_spread,
+)
 from .result import SurveyInResult, classified_table
 from .ssp import survey_profile
 from .travel_times import speed_basis
@@ -545,7 +553,19 @@ def _fit_scaled(fit_with, position_prior):
     first = fit.model["positions"]["prior"]["check"]
     fit = fit_with(float(np.sqrt(k)))
     fit.model["positions"]["prior"]["sd_factor"] = float(np.sqrt(k))  # the sampler's label
-    return fit, {"sd_factor": float(np.sqrt(k)), "check_as_given": first}
+    extra, spread = prior_scale_spread(fit, k)
+    return _widened(fit, extra), {"sd_factor": float(np.sqrt(k)), "check_as_given": first,
+                                  "scale_uncertainty": spread}
+
+
+def _widened(fit, extra):
+    """Return ``fit`` with ``extra`` added to its position parameters' covariance."""
+    m = fit.model
+    G = m["position_map"]
+    cov = fit.cov.copy()
+    cov[:G.shape[0], :G.shape[0]] += G @ extra @ G.T
+    m["position_params_cov"] = m["position_params_cov"] + extra
+    return dataclasses.replace(fit, cov=0.5 * (cov + cov.T))
 
 
 #: Least ``spread_over_depth`` of the track (:func:`track_geometry`) for the gradients.

@@ -293,6 +293,11 @@ def positions_line(summary: dict) -> str | None:
                 f"farther from the site file's than its sigmas allow (chi-squared "
                 f"{first['chi2']:.1f} on {first['dof']}, p {first['p_value']:.2g}; "
                 "--position-prior site keeps them)")
+        spread = (scaled or {}).get("scale_uncertainty")
+        if spread:
+            lo_k, hi_k = spread["kappa_interval"]
+            text += (f"; the intervals carry the scale's uncertainty (variance factor "
+                     f"{lo_k:.3g}-{hi_k:.3g}, 95 %)")
         most = prior.get("mostly_prior") or []
         text += ("; the prior, not the shots, gives most of the precision of "
                  + ", ".join(most) if most else "; the shots dominate every one")

@@ -388,8 +388,8 @@ def gram(J):
     J = np.asarray(J, float)
     if J.shape[1] < MIN_SIZE:
         return J.T @ J
-    flat = np.flatnonzero(J)  # row by row: already a CSR's order (one pass, no sort)
-    if flat.size <= 0.1 * J.size:
+    if np.count_nonzero(J) <= 0.1 * J.size:  # (a count is cheap; the indices of a dense J not)
+        flat = np.flatnonzero(J)  # row by row: already a CSR's order (no sort)
         rows, cols = np.divmod(flat, J.shape[1])
         indptr = np.concatenate([[0], np.cumsum(np.bincount(rows, minlength=J.shape[0]))])
         S = csr_matrix((J.ravel()[flat], cols, indptr), shape=J.shape)

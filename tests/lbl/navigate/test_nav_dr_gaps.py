@@ -108,3 +108,19 @@ def test_a_gap_in_a_velocity_table_is_refused_naming_the_lines(sim, tmp_path):
     assert (f"{path} line 1194 to line 1195, column 'time': a gap of 120 s "
                           "(t = 1190 to 1310 s) where the rows are 1 s apart" in msg)
     assert "fill the gap, or navigate the parts before and after it separately" in msg
+
+
+def test_a_change_of_logging_rate_is_no_gap_and_a_short_velocity_gap_is_modelled(sim, tmp_path):
+    """A review: gaps were judged against the table's median interval, so a log every 4 s,
+    then every 12 s had 524 'gaps' (the track 23.6 m off, sds of 12 m), and a 1 Hz velocity
+    log with one 3-s dropout was refused."""
+    t = np.r_[np.arange(0.0, 1200.0, 4.0), np.arange(1200.0, 2412.0, 12.0)]
+    pos = np.column_stack([1.5 * t, np.zeros(t.size)])
+    assert dead_reckoning_gaps(t, pos, np.arange(0.0, 2400.0, 12.0), "position") == (None, [])
+    t = np.delete(np.arange(0.0, 2400.0, 1.0), [1000, 1001])  # 1 Hz, a 3-s dropout
+    path = tmp_path / "vel.csv"
+    path.write_text(pd.DataFrame({"time": t, "ve": 1.0, "vn": 0.5}).to_csv(index=False))
+    table = sim.survey.table.drop(columns="true_class")
+    dive = build_dive(load_survey(table, sim.survey.beacons.reset_index()), str(path))
+    [gap] = dive.dr_gaps
+    assert (gap["start"], gap["end"], gap["interval"]) == (999.0, 1002.0, 1.0)

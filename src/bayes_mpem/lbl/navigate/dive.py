@@ -17,9 +17,20 @@ SAME_EPOCH_TOLERANCE = 0.01
 #: A beacon with fewer replies takes the outlier window of all replies (its own few ranges
 #: would make a window too narrow, and every reply an outlier).
 MIN_WINDOW_REPLIES = 10
-#: An interval of a dead-reckoning table longer than this many times the table's median
-#: interval is a gap (a row or more missing): the motion across it is taken as unknown.
+#: An interval of a dead-reckoning table longer than this many times the table's local
+#: spacing (the median of :data:`LOCAL_INTERVALS` intervals either side) is a gap (a row or
+#: more missing): the motion across it is taken as unknown. Local, so that a logger that
+#: changes its rate (every 4 s, then every 12 s) has no gap.
 GAP_FACTOR = 2.5
+#: Intervals either side of one that give the local spacing :data:`GAP_FACTOR` is against.
+LOCAL_INTERVALS = 5
+#: A gap across which the vehicle cannot stray this far (m) from the straight line (half its
+#: fastest speed times the gap) is left as it is: a 1 Hz log's dropout of a few seconds.
+MIN_GAP_M = 1.0
+#: A gap in a table of velocities whose worst offset (the fastest speed times the gap) is
+#: larger than this (m) is refused: every later position carries the offset, and from a
+#: start that far off the track's fit was not found again (3.3 km off after a 300-s gap).
+MAX_VELOCITY_GAP_M = 50.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -143,11 +154,14 @@ def _dr_row_name(table, source, pos: int) -> str:
 def dead_reckoning_gaps(t, pos, times, form: str):
     """Find the gaps of a dead-reckoning table and the random walk they add to the steps.
 
-    An interval of the table longer than :data:`GAP_FACTOR` times its median interval is a
-    gap. Across a gap the table says nothing of the path: interpolating positions draws a
-    chord (wrong by up to half the gap times the speed where the vehicle turned), and
-    integrating velocities assumes the speed changed linearly (wrong by up to the gap times
-    the speed, for good; :func:`build_dive` refuses such gaps). So each step between
+    An interval of the table longer than :data:`GAP_FACTOR` times its local spacing
+    (:func:`local_spacing`) is a gap, unless the vehicle cannot stray :data:`MIN_GAP_M` from
+    the chord across it. Across a gap the table says nothing of the path: interpolating
+    positions draws a chord (wrong by up to half the gap times the speed where the vehicle
+    turned), and integrating velocities assumes the speed changed linearly (wrong by up to
+    the gap times the speed, for good; :func:`build_dive` refuses such a gap beyond
+    :data:`MAX_VELOCITY_GAP_M`, and the offset of a shorter one is a random-walk step like
+    the others). So each step between
     epochs that meets a gap gets the variance ``v^2 u G`` per axis (``u`` the seconds of
     the step inside the gap of length ``G``, ``v`` the table's fastest speed outside its
     gaps): ``(v G)^2`` summed over the gap, the vehicle anywhere it could have reached.
@@ -170,7 +184,7 @@ def dead_reckoning_gaps(t, pos, times, form: str):
         ``(K - 1,)`` added variance of each step (m^2), or None when no gap meets a step.
     gaps : list of dict
         Per gap met: ``index`` (the table row before it), ``start``, ``end`` (s),
-        ``interval`` (the median interval, s), ``speed`` (m/s), ``n_epochs`` (epochs
+        ``interval`` (the local spacing, s), ``speed`` (m/s), ``n_epochs`` (epochs
         inside it).
 
     Examples
@@ -183,7 +197,8 @@ def dead_reckoning_gaps(t, pos, times, form: str):
     ([0.0, 400.0, 600.0, 600.0], [(20.0, 60.0, 2)])
     """
     dt = np.diff(t)
-    long = dt > GAP_FACTOR * np.median(dt)
+    spacing = local_spacing(dt)
+    long = dt > GAP_FACTOR * spacing
     if not long.any() or times.size < 2:
         return None, []
     if form == "position":
@@ -192,7 +207,7 @@ def dead_reckoning_gaps(t, pos, times, form: str):
         speed = np.hypot(pos[:, 0], pos[:, 1])
     v = float(speed.max())
     var, gaps = np.zeros(times.size - 1), []
-    for j in np.flatnonzero(long):
+    for j in np.flatnonzero(long & (0.5 * v * dt > MIN_GAP_M)):
         a, b = t[j], t[j + 1]
         u = np.clip(np.minimum(times[1:], b) - np.maximum(times[:-1], a), 0.0, None)
         inside = (times > a) & (times < b)
@@ -202,9 +217,38 @@ def dead_reckoning_gaps(t, pos, times, form: str):
             continue
         var += v * v * u * (b - a)
         gaps.append({"index": int(j), "start": float(a), "end": float(b),
-                     "interval": float(np.median(dt)), "speed": v,
+                     "interval": float(spacing[j]), "speed": v,
                      "n_epochs": int(inside.sum())})
     return (var if gaps else None), gaps
+
+
+def local_spacing(dt):
+    """Return each interval's local spacing: the median of its neighbours' (not its own).
+
+    :data:`LOCAL_INTERVALS` intervals either side (fewer at the ends; the interval itself
+    where it has no neighbour).
+
+    Parameters
+    ----------
+    dt : numpy.ndarray
+        ``(M - 1,)`` a table's intervals (s).
+
+    Returns
+    -------
+    numpy.ndarray
+
+    Examples
+    --------
+    >>> dt = np.r_[[4.0] * 6, [12.0] * 3, 36.0, [12.0] * 3]  # a rate change, then a gap
+    >>> local_spacing(dt).tolist()
+    [4.0, 4.0, 4.0, 4.0, 4.0, 8.0, 8.0, 12.0, 12.0, 12.0, 12.0, 12.0, 12.0]
+    """
+    dt = np.asarray(dt, float)
+    out = np.empty(dt.size)
+    for j in range(dt.size):
+        near = np.r_[dt[max(j - LOCAL_INTERVALS, 0):j], dt[j + 1:j + 1 + LOCAL_INTERVALS]]
+        out[j] = np.median(near) if near.size else dt[j]
+    return out
 
 
 def _table_dr(survey: Survey, times: np.ndarray, first_xy, source):
@@ -241,16 +285,18 @@ def _table_dr(survey: Survey, times: np.ndarray, first_xy, source):
     for g in gaps:
         g.update(file=label, lines=[_dr_row_name(table, source, g["index"]),
                                     _dr_row_name(table, source, g["index"] + 1)], form=form)
-    if form == "velocity" and gaps:
-        g = gaps[0]
+    far = [g for g in gaps if g["speed"] * (g["end"] - g["start"]) > MAX_VELOCITY_GAP_M]
+    if form == "velocity" and far:
+        g = far[0]
         raise InputError(
             f"{label} {g['lines'][0]} to {g['lines'][1]}, column 'time': a gap of "
             f"{g['end'] - g['start']:g} s (t = {g['start']:g} to {g['end']:g} s) where the "
-            f"rows are {g['interval']:g} s apart ({len(gaps)} such gap(s) among the pings); "
-            "expected velocities without gaps: integrated across one, every later position "
-            f"is off by up to {g['speed'] * (g['end'] - g['start']):.3g} m, which the ranges "
-            "cannot be relied on to find; fill the gap, or navigate the parts before and "
-            "after it separately")
+            f"rows are {g['interval']:g} s apart ({len(far)} such gap(s) among the pings); "
+            "expected velocities without a gap across which the vehicle could go more than "
+            f"{MAX_VELOCITY_GAP_M:g} m: integrated across this one, every later position is off "
+            f"by up to {g['speed'] * (g['end'] - g['start']):.3g} m, which the ranges cannot be "
+            "relied on to find; fill the gap, or navigate the parts before and after it "
+            "separately")
     return dr, f"{label} ({form}s)", var, tuple(gaps)
 
 

@@ -286,6 +286,9 @@ def test_an_interrupted_rerun_keeps_the_unfinished_surveys_and_no_stale_tables(
     # (never put in place); the next run clears what is left
     again = run_batch(changed, out, scheduler=scheduler, progress=False)  # resumes
     assert not (out / ".batch-partial").exists()
+    (out / ".batch-partial" / "stray").mkdir(parents=True)  # and one with nothing to run
+    run_batch(changed, out, scheduler=scheduler, progress=False)
+    assert not (out / ".batch-partial").exists()
     status = dict(zip(again.surveys["name"], again.surveys["status"], strict=True))
     assert status == {t.name: "complete" if t.name == new else "done" for t in tasks}
     table = pd.read_parquet(out / "surveys.parquet")

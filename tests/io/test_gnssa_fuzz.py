@@ -118,6 +118,18 @@ def test_garpos_a_key_spelt_nearly_names_its_line(garpos, spelt):
         read_garpos(garpos)
 
 
+def test_garpos_a_key_in_another_section_says_so(garpos):
+    lines = garpos.read_text().splitlines()
+    i = next(k for k, t in enumerate(lines) if t.strip().startswith("Latitude0"))
+    moved = lines.pop(i)
+    lines.append(moved)  # the last section is not [Site-parameter]
+    garpos.write_text("\n".join(lines) + "\n")
+    with pytest.raises(InputError, match=rf"no 'Latitude0' in \[Site-parameter\]; line "
+                                         rf"{len(lines)} gives it in \[[\w-]+\] \(the wrong "
+                                         r"section\?\)"):
+        read_garpos(garpos)
+
+
 def test_garpos_profile_order_names_the_line(garpos):
     lines = _svp(garpos).read_text().splitlines()
     lines[5], lines[6] = lines[6], lines[5]

@@ -336,6 +336,7 @@ def run_batch(tasks: list, out_dir, *, scheduler: str | None = None, n_workers: 
             report(r, i + 1, total)
     if todo:
         records.update(_submit(todo, out, scheduler, n_workers, report, len(records), total))
+    shutil.rmtree(out / STAGING, ignore_errors=True)  # an interrupted run's, never put in place
     result = _gather([records[n] for n in names], tasks[0].command if tasks else "",
                      time.perf_counter() - t0)
     result.write(out)

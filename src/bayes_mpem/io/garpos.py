@@ -122,9 +122,11 @@ def _plain(text):
 
 
 def _near_key(ini, key):
-    """Where a key that differs from ``key`` only in case or invisible characters is given."""
+    """Where ``key`` is given in another section, or with another case or invisible characters."""
     for section, entries in ini.items():
         for k, (_, line) in entries.items():
+            if k == key:
+                return f"; line {line} gives it in [{section}] (the wrong section?)"
             if _plain(k) == _plain(key):
                 return (f"; line {line} gives {k!r} in [{section}] (check its spelling, case "
                         "and any invisible characters)")

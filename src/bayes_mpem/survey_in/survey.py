@@ -229,11 +229,12 @@ def _check_located(raw, pings, tid, r) -> None:
     """
     drop = (f"the drop position in {raw.source} (lat {raw.header['lat']}, lon "
             f"{raw.header['lon']})" if "lat" in raw.header else f"the start in {raw.source}")
-    shallowest = float(np.nanmax(pings["depth"].to_numpy(float)))
+    shallowest = float(np.nanmin(pings["depth"].to_numpy(float)))  # depths positive down
     if not r.depth > shallowest:
         raise InputError(
             f"transponder {tid}: located at depth {r.depth:,.1f} m, above the transducers "
-            f"({shallowest:,.1f} m): the mirror of a position below them. Its ranges do not fit "
+            f"(the shallowest at {shallowest:,.1f} m): the mirror of a position below them. "
+            "Its ranges do not fit "
             f"a transponder near {drop}, {np.hypot(r.east, r.north) / 1e3:,.1f} km from where "
             "the fit went; check that position (a digit or a sign slipped?)")
     low, high = LIMITS["sound_speed"].low, LIMITS["sound_speed"].high

@@ -41,6 +41,20 @@ def test_generated_classes_follow_the_model():
     np.testing.assert_array_equal(sim.labels == "no_reply", sim.survey.no_reply)
 
 
+def test_a_bias_beyond_the_range_labels_its_replies_outliers():
+    """range_bias -1000 m: a direct path plus bias below 0 was redrawn as an outlier range
+    but kept its 'dp' label (168 rows of the truth file wrong)."""
+    sim = bm.simulate_survey("abe58", rng=1, n_cycles=300, effects={"range_bias": -1000.0})
+    for bid in sim.truth:
+        data = sim.survey.for_beacon(bid)
+        lab = sim.survey.table["true_class"].to_numpy()[data.rows]
+        h = geometry.horizontal_distance(data.x, data.y, *data.position[:2])
+        model = geometry.direct_path(h, data.position[2] - data.depth) - 1000.0
+        dp = lab == "dp"
+        assert np.all(np.abs(data.range[dp] - model[dp]) < 50.0)
+        assert np.all(model[dp] > 0)
+
+
 def test_write_and_read_back(tmp_path):
     sim = bm.simulate_survey("abe58", rng=1)
     paths = sim.write(tmp_path)

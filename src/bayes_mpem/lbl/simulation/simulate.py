@@ -209,11 +209,12 @@ def _draw_ranges(gen, w4, model, sigma_mp, opts):
         rng_ol = gen.uniform(window[0], window[1], n)
     r = np.choose(cls, [rng_dp, rng_mp, rng_mp2, rng_ol])
     no_ray = np.isnan(r)  # (only with a profile: a class whose eigenray does not exist)
-    r = np.where(r > 0, r, rng_ol)  # a non-positive draw becomes an outlier
+    below = ~no_ray & ~(r > 0)  # a range_bias beyond the range: no such direct path
+    r = np.where(r > 0, r, rng_ol)  # a non-positive draw becomes an outlier, and is one
     lab = np.asarray(["dp", "mp", "mp2", "ol"], dtype=object)[cls]
     silent = gen.random(n) < opts["p_no_reply"]
     no_ray_counts = {c: int(np.sum(no_ray & ~silent & (lab == c))) for c in ("dp", "mp", "mp2")}
-    lab[no_ray] = "ol"
+    lab[no_ray | below] = "ol"
     r = np.where(silent, np.nan, r)
     lab[silent] = "no_reply"
     return r, lab, no_ray_counts

@@ -41,6 +41,9 @@ def test_one_file_per_beacon_and_no_other(written):
         assert obs["z"].attrs["units"] == "m" and obs["time"].attrs["units"] == "s"
         np.testing.assert_array_equal(obs["range"], r.rows)
         assert tree["log_likelihood"]["z"].dtype == np.float32
+        # the ping times stay float64 (as float32, epoch times were a minute off)
+        np.testing.assert_array_equal(tree["log_likelihood"]["time"], obs["time"])
+        assert tree["log_likelihood"]["time"].dtype == np.float64
 
 
 def test_file_names_stay_plain_whatever_the_id():

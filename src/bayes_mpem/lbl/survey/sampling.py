@@ -53,8 +53,8 @@ def encoding(tree, *, compress: bool = True) -> dict:
             if var.ndim == 0 or name in node.dataset.dims:
                 continue
             e = dict(GZIP) if compress else {}
-            if node.name == "log_likelihood":
-                e["dtype"] = "float32"
+            if node.name == "log_likelihood" and name in node.dataset.data_vars:
+                e["dtype"] = "float32"  # the values; their coordinates (ping times) stay
             if e:
                 variables[name] = e
         if variables:

@@ -230,6 +230,9 @@ def cmd_simulate(args) -> int:
         name, sep, value = item.partition("=")
         if not sep:
             raise OptionError(f"--effect: expected NAME=NUMBER, got {item!r}")
+        if name.strip() in effects:  # the first value would be dropped
+            raise OptionError(f"--effect: {name.strip()} given twice ({name.strip()}="
+                              f"{effects[name.strip()]!r} and {item!r}); give it once")
         if name.strip() == "beacon":  # the beacon of the per-beacon effects: an id
             effects["beacon"] = value.strip()
             continue

@@ -81,3 +81,24 @@ def test_bad_options():
         bm.simulate_survey("abe58", colour="red")
     with pytest.raises(ValueError, match=r"weights\['1'\]: expected 3 non-negative numbers"):
         bm.simulate_survey("abe58", weights={b: (0.5, 0.5, 0.5) for b in "1234"})
+
+
+@pytest.mark.parametrize(("effects", "said"), [
+    ({"beacon": "9"}, "effects\\['beacon'\\]: shapes beacon_bias or beacon_position"),
+    ({"nav_drift_direction": 90.0}, "effects\\['nav_drift_direction'\\]: shapes nav_drift"),
+    ({"second_fraction": 0.3}, "effects\\['second_fraction'\\]: shapes second_reflector"),
+])
+def test_an_option_without_its_effect_is_refused(effects, said):
+    """Each was ignored without a word (exit 0)."""
+    with pytest.raises(ValueError, match=said):
+        bm.simulate_survey("abe58", rng=0, n_cycles=10, effects=effects)
+
+
+def test_an_effect_given_twice_on_the_command_line_is_refused(tmp_path, capsys):
+    from bayes_mpem.cli import main
+
+    argv = ["simulate", "--preset", "abe58", "--out", str(tmp_path / "o"), "--effect",
+            "range_bias=6", "--effect", "range_bias=-3"]
+    assert main(argv) == 2
+    assert "range_bias given twice" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()

@@ -73,6 +73,14 @@ def check_effects(effects):
     if not 0.0 <= eff.get("second_fraction", 0.15) < 1.0:
         raise ValueError("effects['second_fraction']: expected a fraction in [0, 1), "
                          f"got {eff['second_fraction']}")
+    # an option without the effect it shapes would be ignored without a word
+    needs = {"second_fraction": ("second_reflector",), "nav_drift_direction": ("nav_drift",),
+             "beacon": PER_BEACON, "beacon_position_direction": PER_BEACON,
+             "beacon_position_dip": PER_BEACON}
+    for option, effects_of in needs.items():
+        if option in eff and not any(k in eff for k in effects_of):
+            raise ValueError(f"effects[{option!r}]: shapes {' or '.join(effects_of)}, which is "
+                             "not given; expected it with that effect")
     return eff
 
 

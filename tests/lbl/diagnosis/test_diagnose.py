@@ -409,3 +409,19 @@ def test_a_plane_kilometres_off_is_reported():
     assert off <= flagged, (off, flagged)
     assert all(f"beacon {b}: fit not credible" in result.summary() for b in off)
     # a clean survey raises no flag: test_clean_survey_gives_no_effect
+
+
+def test_an_offset_longer_than_every_range_is_not_an_effect():
+    """One beacon's ranges logged two-way were 'explained' by a beacon bias of -2,737 km and
+    a beacon moved 2,739 km, both kept as found (exit 0)."""
+    from types import SimpleNamespace
+
+    from bayes_mpem.lbl.diagnosis.evidence import not_credible
+
+    d = SimpleNamespace(z=np.array([1200.0, 5400.0]))
+    for name, size in (("beacon_bias:3", -2.737e6), ("beacon_position:3", 2.739e6),
+                       ("range_bias", 6000.0)):
+        fit = SimpleNamespace(magnitudes=lambda d, n=name, s=size: {n: s})
+        assert "longer than every range of the survey (5,400 m)" in not_credible(name, fit, d)
+    fit = SimpleNamespace(magnitudes=lambda d: {"beacon_bias:3": 4.0})
+    assert not_credible("beacon_bias:3", fit, d) is None

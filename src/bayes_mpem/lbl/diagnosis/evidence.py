@@ -90,8 +90,20 @@ MIN_SECOND_SHARE = 0.01
 
 
 def not_credible(name, fit: JointFit, d: Ranges):
-    """Say why a fitted extension is not a physical effect (``None`` if it is)."""
-    if split_term(name)[0] != "second_reflector":
+    """Say why a fitted extension is not a physical effect (``None`` if it is).
+
+    A range bias, or a beacon's bias or position error, longer than every range of the
+    survey is not an offset of a transponder: one beacon's ranges logged two-way were
+    "explained" by a bias of -2,737 km and a beacon moved 2,739 km, both kept.
+    """
+    kind = split_term(name)[0]
+    if kind in ("range_bias", "beacon_bias", "beacon_position"):
+        size, longest = abs(fit.magnitudes(d)[name]), float(np.nanmax(d.z))
+        if size > longest:
+            return (f"{size:,.4g} m, longer than every range of the survey ({longest:,.0f} m): "
+                    "not a physical offset (ranges in other units, or two-way?)")
+        return None
+    if kind != "second_reflector":
         return None
     share = float(fit.resp[:, 2].mean())
     if share < MIN_SECOND_SHARE or share * d.n < 20:

@@ -46,3 +46,28 @@ def test_options_that_do_not_go_with_gnssa_are_refused(tmp_path, capsys, extra, 
     assert main(["simulate", "--out", str(tmp_path / "o"), *extra]) == 2
     assert message in capsys.readouterr().err
     assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("fmt", ["garpos", "gnatss"])
+def test_an_interrupted_simulate_gnssa_leaves_the_earlier_campaign_whole(tmp_path, monkeypatch,
+                                                                        fmt):
+    """The campaign files were written in place, outside the run: a failure before truth.json
+    left the new obs.csv beside the earlier truth.json and summary.json (a mix that looks
+    complete). Now every file is staged with the run and listed in summary.json."""
+    import bayes_mpem.io.results as results
+
+    out = tmp_path / "c"
+    argv = ["simulate", "--gnssa", "--hours", "0.1", "--format", fmt, "--out", str(out)]
+    assert main([*argv, "--seed", "1"]) == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    assert set(json.loads(before["summary.json"])["files"]) == set(before)
+    real = results.write_json
+
+    def fail(path, *args, **kwargs):
+        if str(path).endswith("truth.json"):
+            raise KeyboardInterrupt
+        return real(path, *args, **kwargs)
+
+    monkeypatch.setattr(results, "write_json", fail)
+    assert main([*argv, "--seed", "2"]) == 130
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before

@@ -15,7 +15,7 @@ import pandas as pd
 from ..exceptions import InputError
 from .fields import flag, number, where
 from .raw import RawSurvey, bad, read_lines, skip_reasons
-from .results import output_folder
+from .results import output_folder, write_file
 
 #: obs.csv column -> RawSurvey.pings column (the antenna and attitude at transmit and receive)
 OBS_COLUMNS = {"MT": "transponder", "TT": "twtt", "ST": "t_tx",
@@ -507,10 +507,11 @@ def write_garpos(out_dir, pings, header, *, site="SIM", campaign="0000.sim",
               "cov_RD  cov_DF  cov_FR",
               f" ATDoffset   = {f:11.4f} {r_:11.4f} {d:11.4f}      0.0000      0.0000      0.0000"
               "   0.000e+00   0.000e+00   0.000e+00", ""]
-    site_file.write_text("\n".join(lines) + "\n")
+    # each file through write_file: staged with the command's run (all or nothing)
+    write_file(site_file, lambda tmp: tmp.write_text("\n".join(lines) + "\n"))
     prof = header["ss_prof"]
-    svp_file.write_text("depth,speed\n" + "".join(
-        f"{z:.3f},{c:.4f}\n" for z, c in zip(prof["depth"], prof["sound_speed"], strict=True)))
+    write_file(svp_file, lambda tmp: tmp.write_text("depth,speed\n" + "".join(
+        f"{z:.3f},{c:.4f}\n" for z, c in zip(prof["depth"], prof["sound_speed"], strict=True))))
     table = pd.DataFrame({
         "SET": pings.get("set", "S01"), "LN": pings.get("survey_line", "L01"),
         "MT": pings["transponder"].astype(str), "TT": pings["twtt"].map("{:.7f}".format),
@@ -523,7 +524,10 @@ def write_garpos(out_dir, pings, header, *, site="SIM", campaign="0000.sim",
                                          if name.startswith("ant") else "{:.3f}".format)
     table = table[["SET", "LN", "MT", "TT", "ResiTT", "TakeOff", "gamma", "flag", "ST",
                    *[n for n in OBS_COLUMNS if n not in ("MT", "TT", "ST")]]]
-    with open(obs_file, "w", newline="") as fh:
-        fh.write(f"# cfgfile = {site_file.name}\n")
-        table.to_csv(fh, index=True)
+    def obs(tmp):
+        with open(tmp, "w", newline="") as fh:
+            fh.write(f"# cfgfile = {site_file.name}\n")
+            table.to_csv(fh, index=True)
+
+    write_file(obs_file, obs)
     return site_file

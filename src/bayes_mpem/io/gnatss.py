@@ -18,7 +18,7 @@ from .fields import number, where
 from .garpos import profile_frame, profile_reaches, resolve_path
 from .geodesy import atd_offset_enu, ecef_to_enu, enu_to_ecef, enu_to_geodetic, geodetic_to_enu
 from .raw import RawSurvey, bad, read_lines, skip_reasons
-from .results import output_folder
+from .results import output_folder, write_file
 
 #: The J2000 epoch GNATSS counts its times from (2000-01-01 12:00:00, no leap seconds).
 J2000 = datetime(2000, 1, 1, 12, 0, 0)
@@ -464,14 +464,15 @@ def write_gnatss(out_dir, pings, header, *, site="SIM", internal_delays=None,
         pos.setdefault(round(t, TIME_DECIMALS), xyz["tx"][idx[0]])
         for i in idx:
             pos.setdefault(round(t + tt_us[i] * 1e-6, TIME_DECIMALS), xyz["rx"][i])
-    (out / "pxp_tt").write_text("\n".join(lines) + "\n")
+    # each file through write_file: staged with the command's run (all or nothing)
+    write_file(out / "pxp_tt", lambda tmp: tmp.write_text("\n".join(lines) + "\n"))
     var = position_sd**2
     cov = f"{var:.10E} 0.0 0.0 0.0 {var:.10E} 0.0 0.0 0.0 {var:.10E}"
-    (out / "POS_FREED_TRANS_TWTT").write_text("".join(
-        f"{t:.7f} {x:.4f} {y:.4f} {z:.4f} {cov}\n" for t, (x, y, z) in sorted(pos.items())))
+    write_file(out / "POS_FREED_TRANS_TWTT", lambda tmp: tmp.write_text("".join(
+        f"{t:.7f} {x:.4f} {y:.4f} {z:.4f} {cov}\n" for t, (x, y, z) in sorted(pos.items()))))
     prof = header["ss_prof"]
-    (out / "ctd_sv").write_text("".join(f"{-z:.3f} {c:.4f}\n" for z, c in
-                                        zip(prof["depth"], prof["sound_speed"], strict=True)))
+    write_file(out / "ctd_sv", lambda tmp: tmp.write_text("".join(
+        f"{-z:.3f} {c:.4f}\n" for z, c in zip(prof["depth"], prof["sound_speed"], strict=True))))
     lat, lon, h = zip(*(enu_to_geodetic(r["east"], r["north"], r["up"], header["lat"],
                                         header["lon"], header["height"])
                         for _, r in tp.iterrows()), strict=True)
@@ -490,5 +491,5 @@ def write_gnatss(out_dir, pings, header, *, site="SIM", internal_delays=None,
                         "gps_solution": {"path": "POS_FREED_TRANS_TWTT"}}},
         "output": {"path": "./output/"}}
     path = out / "config.yaml"
-    path.write_text(yaml.safe_dump(config, sort_keys=False))
+    write_file(path, lambda tmp: tmp.write_text(yaml.safe_dump(config, sort_keys=False)))
     return path

@@ -26,6 +26,34 @@ _UNITS = {"time": "s", "range": "m", "x": "m", "y": "m", "depth": "m"}
 _NUMBER = r"^[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?$"  # no nan/inf/hex/"_"
 
 
+def row_name(pos: int, lines=None, labels=None) -> str:
+    """Name row ``pos`` (0-based) of a table in messages: its file line, else its label.
+
+    Parameters
+    ----------
+    pos : int
+    lines : array_like, optional
+        The file line of each row (a CSV's, as ``grep -n`` counts them).
+    labels : pandas.Index, optional
+        A DataFrame's index (a label that is text is quoted).
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> row_name(2, lines=[4, 5, 7]), row_name(1, labels=pd.Index(["a", "b"])), row_name(3)
+    ('line 7', "row 'b'", 'row 3')
+    """
+    if lines is not None:
+        return f"line {int(lines[pos])}"
+    if labels is not None:
+        lab = labels[pos]
+        return f"row {lab!r}" if isinstance(lab, str) else f"row {lab}"
+    return f"row {pos}"
+
+
 @dataclass
 class _Table:
     frame: pd.DataFrame  # RangeIndex, stripped column names
@@ -35,12 +63,7 @@ class _Table:
     comments: int = 0
 
     def row_name(self, pos: int) -> str:
-        if self.lines is not None:
-            return f"line {int(self.lines[pos])}"
-        if self.labels is not None:
-            lab = self.labels[pos]
-            return f"row {lab!r}" if isinstance(lab, str) else f"row {lab}"
-        return f"row {pos}"
+        return row_name(pos, self.lines, self.labels)
 
     def where(self, pos: int, column: str) -> str:
         return f"{self.source} {self.row_name(pos)}, column {column!r}"

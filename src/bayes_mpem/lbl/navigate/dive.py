@@ -10,6 +10,7 @@ import numpy as np
 from ...exceptions import InputError
 from ...io.dead_reckoning import read_dead_reckoning
 from ...io.survey import Survey
+from ...io.tables import row_name
 from ...mixture.densities import uniform_logpdf
 
 #: Pings of one epoch whose dead-reckoned positions differ by more than this (m) are refused.
@@ -138,17 +139,6 @@ def _epoch_dr(survey: Survey, inverse: np.ndarray, k: int) -> np.ndarray:
             f"{2 * off[inverse == e].max():.3g} m apart; expected one position per ping time "
             "(columns 'x', 'y')")
     return mean
-
-
-def _dr_row_name(table, source, pos: int) -> str:
-    """Where row ``pos`` of a dead-reckoning table is: its file line, or its DataFrame row."""
-    lines = table.attrs.get("lines")
-    if lines is not None:
-        return f"line {int(lines[pos])}"
-    if hasattr(source, "index"):
-        return f"row {source.index[pos]!r}" if isinstance(source.index[pos], str) \
-            else f"row {source.index[pos]}"
-    return f"row {pos}"
 
 
 def dead_reckoning_gaps(t, pos, times, form: str):
@@ -285,8 +275,10 @@ def _table_dr(survey: Survey, times: np.ndarray, first_xy, source):
     if form == "velocity":  # integrated from the pings' first dead-reckoned position
         dr += np.asarray(first_xy, float) - dr[0]
     for g in gaps:
-        g.update(file=label, lines=[_dr_row_name(table, source, g["index"]),
-                                    _dr_row_name(table, source, g["index"] + 1)], form=form)
+        labels = source.index if hasattr(source, "columns") else None  # a DataFrame's rows
+        lines = table.attrs.get("lines")
+        g.update(file=label, lines=[row_name(g["index"], lines, labels),
+                                    row_name(g["index"] + 1, lines, labels)], form=form)
     far = [g for g in gaps if g["speed"] * (g["end"] - g["start"]) > MAX_VELOCITY_GAP_M]
     if form == "velocity" and far:
         g = far[0]

@@ -1757,10 +1757,10 @@ def penalised_gauss_newton(resid, jac, theta, Q, *, max_steps=50, rtol=1e-12, st
             J = jac(th)
             pre = (normal or normal_equations)(J, r)
         head = arrowhead([pre[0], Q])  # None: a dense factor
-        A = pre[0] + Q
+        A = pre[0] + Q if head is None else None  # the arrowhead reads its parts itself
         g = pre[1] + Q @ null_shifted(th, Q, blocks)
+        d = np.diag(pre[0]) + np.diag(Q)
         pre = None
-        d = np.diag(A).copy()
         d[d <= 0] = 1.0
         s = 1.0 / np.sqrt(d)
         for _ in range(12):
@@ -1795,7 +1795,8 @@ def _damped_solver(A, d, s, mu, head=None):
     """Return ``g -> (A + mu D)^-1 g`` (``D = diag(d)``, ``s = d^-1/2``), or None if not positive.
 
     Factored scaled to a unit diagonal: by the arrowhead ``head`` of ``A``'s parts where
-    there is one (:meth:`.arrowhead.Arrowhead.factor`), densely otherwise.
+    there is one (:meth:`.arrowhead.Arrowhead.factor`; ``A`` is then not needed, None),
+    densely otherwise.
     """
     if head is not None:
         factor = head.factor([1.0, 1.0], damping=mu)

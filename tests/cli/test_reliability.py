@@ -7,6 +7,7 @@ Each test guards a class of problem the issue lists (on f31dfee each failed).
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
 import re
@@ -235,4 +236,9 @@ def test_the_parser_repeats_the_library_constants_faithfully():
     from bayes_mpem.lbl.survey.survey import MIN_PINGS
 
     assert options.MIN_PINGS == MIN_PINGS and options.TABLE_FORMATS == TABLE_FORMATS
+    from bayes_mpem._validate import MIN_SAMPLED_CI  # sample --ci's lower bound, repeated
+
+    assert options.sampled_probability(repr(MIN_SAMPLED_CI)) == MIN_SAMPLED_CI
+    with pytest.raises(argparse.ArgumentTypeError):
+        options.sampled_probability(repr(np.nextafter(MIN_SAMPLED_CI, 0.0)))
 

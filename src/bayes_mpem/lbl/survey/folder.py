@@ -65,7 +65,7 @@ def survey_and_classes(folder: Path, summary: dict):
     entries = summary.get("beacons_table")
     if not isinstance(entries, dict) or not all(isinstance(v, dict) for v in entries.values()):
         raise InputError(f"{folder / MARKER}: beacons_table: expected an object of beacons, "
-                         f"each an object of x, y, depth; got {json_text(entries)}")
+                         f"each an object of x, y, depth; got {_shown(entries)}")
     beacons = pd.DataFrame([{"beacon": b, **v} for b, v in entries.items()])
     try:
         survey = load_survey(table, beacons)
@@ -141,11 +141,11 @@ def numbers(folder, entry, keys, where) -> None:
         v = entry.get(key)
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
             raise InputError(f"{Path(folder) / MARKER}: {where}.{key}: expected a finite "
-                             f"number, got {json_text(v)}; was it edited? Run the command "
+                             f"number, got {_shown(v)}; was it edited? Run the command "
                              "again")
 
 
-def json_text(v) -> str:
+def _shown(v) -> str:
     """``v`` as JSON writes it (``null``, quoted text), for messages."""
     import json
 

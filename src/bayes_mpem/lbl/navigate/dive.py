@@ -32,6 +32,11 @@ MIN_GAP_M = 1.0
 #: larger than this (m) is refused: every later position carries the offset, and from a
 #: start that far off the track's fit was not found again (3.3 km off after a 300-s gap).
 MAX_VELOCITY_GAP_M = 50.0
+#: An interval of a table of positions whose chord is slower than this share of the local
+#: fastest speed (the fastest chord of :data:`LOCAL_INTERVALS` intervals either side) holds a
+#: turn (or a slowing): a straight line between its rows is not trusted where epochs fall
+#: inside it and the vehicle could stray :data:`MIN_GAP_M` from the chord.
+TURN_SPEED_RATIO = 0.98
 
 
 @dataclass(frozen=True, eq=False)
@@ -142,20 +147,32 @@ def _epoch_dr(survey: Survey, inverse: np.ndarray, k: int) -> np.ndarray:
 
 
 def dead_reckoning_gaps(t, pos, times, form: str):
-    """Find the gaps of a dead-reckoning table and the random walk they add to the steps.
+    """Find where a dead-reckoning table's straight lines are not trusted, and the variance.
 
-    An interval of the table longer than :data:`GAP_FACTOR` times its local spacing
-    (:func:`local_spacing`) is a gap, unless the vehicle cannot stray :data:`MIN_GAP_M` from
-    the chord across it. Across a gap the table says nothing of the path: interpolating
-    positions draws a chord (wrong by up to half the gap times the speed where the vehicle
-    turned), and integrating velocities assumes the speed changed linearly (wrong by up to
-    the gap times the speed, for good; :func:`build_dive` refuses such a gap beyond
-    :data:`MAX_VELOCITY_GAP_M`, and the offset of a shorter one is a random-walk step like
-    the others). So each step between
-    epochs that meets a gap gets the variance ``v^2 u G`` per axis (``u`` the seconds of
-    the step inside the gap of length ``G``, ``v`` the table's fastest speed outside its
-    gaps): ``(v G)^2`` summed over the gap, the vehicle anywhere it could have reached.
-    For positions, a step whose two epochs are outside the gap keeps its exact
+    **Gaps.** An interval of the table longer than :data:`GAP_FACTOR` times its local
+    spacing (:func:`local_spacing`) is a gap, unless the vehicle cannot stray
+    :data:`MIN_GAP_M` from the chord across it. Across a gap the table says nothing of the
+    path: interpolating positions draws a chord (wrong by up to half the gap times the speed
+    where the vehicle turned), and integrating velocities assumes the speed changed linearly
+    (wrong by up to the gap times the speed, for good; :func:`build_dive` refuses such a gap
+    beyond :data:`MAX_VELOCITY_GAP_M`, and the offset of a shorter one is a random-walk step
+    like the others). So each step between epochs that meets a gap gets the variance
+    ``v^2 u G`` per axis (``u`` the seconds of the step inside the gap of length ``G``,
+    ``v`` the table's fastest speed outside its gaps): ``(v G)^2`` summed over the gap, the
+    vehicle anywhere it could have reached.
+
+    **Turns between rows** (positions only). A regular interval ``dt`` whose chord speed
+    ``c`` is below :data:`TURN_SPEED_RATIO` of the local fastest ``v`` (the fastest chord
+    of :data:`LOCAL_INTERVALS` intervals either side, itself included) holds a turn or a
+    slowing: a vehicle at most that fast, between the two rows, lies within the ellipse whose
+    half minor axis is ``b = (dt / 2) sqrt(v^2 - c^2)`` (the chord's foci; 0 on a straight
+    leg, ``v dt / 2`` where it turned back). Where epochs fall inside such an interval and
+    ``b`` exceeds :data:`MIN_GAP_M`, its steps get ``(v^2 - c^2) u dt`` per axis:
+    ``(2 b)^2`` summed over the interval, an epoch in its middle ``b`` from either row
+    (a gap is the case ``c = 0``). A table every 60 s of a vehicle making U-turns was
+    otherwise 209 m off at a 1 m sd (docs/navigate.md).
+
+    For positions, a step whose two epochs are outside the interval keeps its exact
     displacement and gets nothing.
 
     Parameters
@@ -171,11 +188,13 @@ def dead_reckoning_gaps(t, pos, times, form: str):
     Returns
     -------
     var : numpy.ndarray or None
-        ``(K - 1,)`` added variance of each step (m^2), or None when no gap meets a step.
+        ``(K - 1,)`` added variance of each step (m^2), or None when no interval meets a
+        step.
     gaps : list of dict
-        Per gap met: ``index`` (the table row before it), ``start``, ``end`` (s),
-        ``interval`` (the local spacing, s), ``speed`` (m/s), ``n_epochs`` (epochs
-        inside it).
+        Per interval met, in time order: ``kind`` (``"gap"`` or ``"turn"``), ``index`` (the
+        table row before it), ``start``, ``end`` (s), ``interval`` (the local spacing, s),
+        ``speed`` (m/s), ``n_epochs`` (epochs inside it); a turn also ``chord_speed``
+        (m/s) and ``deviation`` (``b``, m).
 
     Examples
     --------
@@ -183,33 +202,77 @@ def dead_reckoning_gaps(t, pos, times, form: str):
     >>> pos = np.column_stack([t, np.zeros(5)])       # 1 m/s east
     >>> var, gaps = dead_reckoning_gaps(t, pos, np.array([0.0, 15.0, 30.0, 45.0, 70.0]),
     ...                                 "position")
-    >>> var.tolist(), [(g["start"], g["end"], g["n_epochs"]) for g in gaps]
-    ([0.0, 400.0, 600.0, 600.0], [(20.0, 60.0, 2)])
+    >>> var.tolist(), [(g["kind"], g["start"], g["end"], g["n_epochs"]) for g in gaps]
+    ([0.0, 400.0, 600.0, 600.0], [('gap', 20.0, 60.0, 2)])
+    >>> t = np.arange(0.0, 61.0, 10.0)                # east, then back west from t = 35 s
+    >>> pos = np.column_stack([np.where(t < 35, t, 70 - t), np.zeros(t.size)])
+    >>> var, gaps = dead_reckoning_gaps(t, pos, np.arange(0.0, 61.0, 5.0), "position")
+    >>> [(g["kind"], g["start"], g["end"], round(g["deviation"], 2)) for g in gaps]
+    [('turn', 30.0, 40.0, 5.0)]
     """
     dt = np.diff(t)
+    if times.size < 2 or dt.size == 0:
+        return None, []
     spacing = local_spacing(dt)
     long = dt > GAP_FACTOR * spacing
-    if not long.any() or times.size < 2:
-        return None, []
-    if form == "position":
-        speed = np.hypot(*np.diff(pos, axis=0).T)[~long] / dt[~long]
-    else:
-        speed = np.hypot(pos[:, 0], pos[:, 1])
-    v = float(speed.max())
-    var, gaps = np.zeros(times.size - 1), []
-    for j in np.flatnonzero(long & (0.5 * v * dt > MIN_GAP_M)):
+    chord = np.hypot(*np.diff(pos, axis=0).T) / dt if form == "position" else None
+    speed = chord[~long] if form == "position" else np.hypot(pos[:, 0], pos[:, 1])
+    v = float(speed.max()) if speed.size else 0.0
+    var, found = np.zeros(times.size - 1), []
+
+    def add(j, rate):  # the steps meeting interval j: ``rate u dt`` each; False if none
         a, b = t[j], t[j + 1]
         u = np.clip(np.minimum(times[1:], b) - np.maximum(times[:-1], a), 0.0, None)
         inside = (times > a) & (times < b)
-        if form == "position":  # a step between epochs outside the gap is exact
+        if form == "position":  # a step between epochs outside the interval is exact
             u = np.where(inside[1:] | inside[:-1], u, 0.0)
         if not u.any():
-            continue
-        var += v * v * u * (b - a)
-        gaps.append({"index": int(j), "start": float(a), "end": float(b),
-                     "interval": float(spacing[j]), "speed": v,
-                     "n_epochs": int(inside.sum())})
-    return (var if gaps else None), gaps
+            return None
+        var[:] += rate * u * (b - a)
+        return {"index": int(j), "start": float(a), "end": float(b),
+                "interval": float(spacing[j]), "n_epochs": int(inside.sum())}
+
+    for j in np.flatnonzero(long & (0.5 * v * dt > MIN_GAP_M)):
+        entry = add(j, v * v)
+        if entry is not None:
+            found.append({"kind": "gap", **entry, "speed": v})
+    if form == "position":
+        reach = local_fastest(np.where(long, 0.0, chord))
+        slack = np.clip(reach**2 - chord**2, 0.0, None)
+        turned = ~long & (chord < TURN_SPEED_RATIO * reach) & (0.5 * dt * np.sqrt(slack)
+                                                                > MIN_GAP_M)
+        for j in np.flatnonzero(turned):
+            entry = add(j, slack[j])
+            if entry is not None:
+                found.append({"kind": "turn", **entry, "speed": float(reach[j]),
+                              "chord_speed": float(chord[j]),
+                              "deviation": float(0.5 * dt[j] * np.sqrt(slack[j]))})
+    found.sort(key=lambda g: g["start"])
+    return (var if found else None), found
+
+
+def local_fastest(speed):
+    """Return each interval's local fastest speed: the largest of its window's, itself too.
+
+    :data:`LOCAL_INTERVALS` intervals either side (fewer at the ends).
+
+    Parameters
+    ----------
+    speed : numpy.ndarray
+        ``(M - 1,)`` a table's chord speeds (m/s).
+
+    Returns
+    -------
+    numpy.ndarray
+
+    Examples
+    --------
+    >>> local_fastest(np.r_[[1.0] * 7, 3.0, [1.0] * 7]).tolist()
+    [1.0, 1.0, 3.0, 3.0, 3.0, 3.0, 3.0, 3.0, 3.0, 3.0, 3.0, 3.0, 3.0, 1.0, 1.0]
+    """
+    pad = np.full(LOCAL_INTERVALS, -np.inf)
+    return np.lib.stride_tricks.sliding_window_view(
+        np.r_[pad, np.asarray(speed, float), pad], 2 * LOCAL_INTERVALS + 1).max(axis=1)
 
 
 def local_spacing(dt):

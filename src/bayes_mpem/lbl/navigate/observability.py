@@ -72,20 +72,35 @@ def _ambiguous_in_gaps(dive, resp) -> np.ndarray:
 
 
 def _gap_flag(dive, sd, gap: dict) -> dict:
-    """Return the flag of a gap in the dead-reckoning table (``dive.dead_reckoning_gaps``)."""
+    """Return the flag of a gap or a turn of the dead-reckoning table (``dive.dr_gaps``)."""
     near = (dive.times >= gap["start"]) & (dive.times <= gap["end"])
     worst = float(sd[near].max()) if near.any() else None
     told = ("the ranges position the vehicle there" if worst is None
             else f"the ranges position the vehicle there (position sd up to {worst:.3g} m)")
-    return {"kind": "dead_reckoning_gap", "file": gap["file"], "lines": list(gap["lines"]),
+    where = (f"dead reckoning {gap['file']}", f"t = {gap['start']:g} and {gap['end']:g} s",
+             f"{gap['lines'][0]} and {gap['lines'][1]}")
+    if gap.get("kind") == "turn":
+        kind, reason = "dead_reckoning_turn", (
+            f"{where[0]} between {where[1]} ({where[2]}, {gap['end'] - gap['start']:g} s "
+            f"apart, {gap['n_epochs']} epoch(s) between them): the vehicle turned or slowed "
+            f"between the rows (their chord at {gap['chord_speed']:.3g} m/s, the table's "
+            f"fastest nearby {gap['speed']:.3g} m/s): not interpolated as a straight line; "
+            f"the position there is taken as unknown within {gap['deviation']:.3g} m of it, "
+            f"and {told}")
+    else:
+        kind, reason = "dead_reckoning_gap", (
+            f"{where[0]} has no row between {where[1]} ({where[2]}: a gap of "
+            f"{gap['end'] - gap['start']:g} s where its rows are {gap['interval']:g} s "
+            f"apart, {gap['n_epochs']} epoch(s) inside): not interpolated across; the "
+            f"motion there is taken as unknown (up to {gap['speed']:.3g} m/s, the "
+            f"table's fastest) and {told}")
+    return {"kind": kind, "file": gap["file"], "lines": list(gap["lines"]),
             "start": gap["start"], "end": gap["end"], "n_epochs": gap["n_epochs"],
-            "max_sd": worst, "reason": (
-                f"dead reckoning {gap['file']} has no row between t = {gap['start']:g} and "
-                f"{gap['end']:g} s ({gap['lines'][0]} and {gap['lines'][1]}: a gap of "
-                f"{gap['end'] - gap['start']:g} s where its rows are {gap['interval']:g} s "
-                f"apart, {gap['n_epochs']} epoch(s) inside): not interpolated across; the "
-                f"motion there is taken as unknown (up to {gap['speed']:.3g} m/s, the "
-                f"table's fastest) and {told}")}
+            "max_sd": worst, "reason": reason}
+
+
+#: The flags of :func:`_gap_flag`.
+TABLE_KINDS = ("dead_reckoning_gap", "dead_reckoning_turn")
 
 
 def assess(dive, cov, resp, nuisances: dict, *, max_sd: float) -> list:
@@ -105,9 +120,10 @@ def assess(dive, cov, resp, nuisances: dict, *, max_sd: float) -> list:
     Returns
     -------
     list of dict
-        ``kind`` (``"track"``, ``"dead_reckoning_gap"`` or the nuisance's name),
+        ``kind`` (``"track"``, ``"dead_reckoning_gap"``, ``"dead_reckoning_turn"`` or the
+        nuisance's name),
         ``reason`` and, for the track, ``start``, ``end`` (s), ``n_epochs`` and
-        ``max_sd`` (m); for a gap of the dead-reckoning table, its ``file``, the
+        ``max_sd`` (m); for a gap or a turn of the dead-reckoning table, its ``file``, the
         ``lines`` either side, ``start``, ``end``, ``n_epochs`` and ``max_sd``
         (the track's largest sd from one side of the gap to the other).
     """
@@ -117,8 +133,8 @@ def assess(dive, cov, resp, nuisances: dict, *, max_sd: float) -> list:
     for i0, i1 in _stretches((sd > max_sd) | ambiguous):
         why = _reason(dive, resp, i0, i1)
         if ambiguous[i0:i1].any():
-            why = ("inside a gap of the dead reckoning, where an epoch with replies from "
-                   "fewer than three beacons fits two positions; " + why)
+            why = ("inside a gap (or a turn) of the dead reckoning, where an epoch with "
+                   "replies from fewer than three beacons fits two positions; " + why)
         flags.append({"kind": "track", "start": float(dive.times[i0]),
                       "end": float(dive.times[i1 - 1]), "n_epochs": int(i1 - i0),
                       "max_sd": float(sd[i0:i1].max()), "reason": why})
@@ -154,8 +170,9 @@ def describe(flags: list) -> str:
              for f in track[:3]]
     if len(track) > 3:
         parts.append(f"and {len(track) - 3} more stretches")
-    gaps = [f["reason"] for f in flags if f["kind"] == "dead_reckoning_gap"]
-    parts += gaps[:3] + ([f"and {len(gaps) - 3} more gaps of the dead reckoning"]
-                         if len(gaps) > 3 else [])
-    parts += [f["reason"] for f in flags if f["kind"] not in ("track", "dead_reckoning_gap")]
+    for kind, what in zip(TABLE_KINDS, ("gaps", "turns between rows"), strict=True):
+        found = [f["reason"] for f in flags if f["kind"] == kind]
+        parts += found[:3] + ([f"and {len(found) - 3} more {what} of the dead reckoning"]
+                              if len(found) > 3 else [])
+    parts += [f["reason"] for f in flags if f["kind"] not in ("track", *TABLE_KINDS)]
     return "; ".join(parts)

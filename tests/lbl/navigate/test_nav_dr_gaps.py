@@ -165,3 +165,25 @@ def test_a_table_coarser_than_the_turns_is_not_trusted_as_straight_lines(sim):
     assert len(turns) >= 10 and all(f["n_epochs"] == 4 for f in turns)
     assert any("the vehicle turned or slowed between the rows" in s for s in said)
     assert "more turns between rows of the dead reckoning" in " ".join(said)
+
+
+@pytest.mark.parametrize("seed, every, when", [(6, 5, 924.0), (6, 10, 1560.0)])
+def test_an_epoch_a_spurious_reply_places_in_a_turn_is_not_corrected(seed, every, when):
+    """Across a turn the ranges alone place an epoch. At 924 s two beacons on either side of
+    the vehicle fix one direction and an outlier of a third, taken as true, the other: 176 m
+    off at a 4 m sd. At 1560 s (a row between two turns) one true reply and one outlier:
+    272 m off at a 4.8 m sd. Neither was flagged."""
+    other = simulate_dive("abe58", rng=seed, n_cycles=200)
+    tt = other.true_track
+    keep = sorted(set(range(0, len(tt), every)) | {len(tt) - 1})
+    dr = pd.DataFrame({"time": tt["time"], "x": tt["dr_x"], "y": tt["dr_y"]}).iloc[keep]
+    nav, _ = _navigate(other, dr)
+    err = nav.track - tt[["x", "y"]].to_numpy()
+    m2 = np.einsum("ki,kij,kj->k", err, np.linalg.inv(nav.cov), err)
+    flagged = np.zeros(nav.dive.n_epochs, bool)
+    for f in nav.flags:
+        if f["kind"] == "track":
+            flagged |= (nav.dive.times >= f["start"]) & (nav.dive.times <= f["end"])
+    k = int(np.flatnonzero(nav.dive.times == when)[0])
+    assert np.hypot(*err[k]) > 100.0 and flagged[k]
+    assert np.sqrt(m2[~flagged]).max() < 4.0

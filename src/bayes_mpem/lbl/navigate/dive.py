@@ -36,7 +36,7 @@ MAX_VELOCITY_GAP_M = 50.0
 #: fastest speed (the fastest chord of :data:`LOCAL_INTERVALS` intervals either side) holds a
 #: turn (or a slowing): a straight line between its rows is not trusted where epochs fall
 #: inside it and the vehicle could stray :data:`MIN_GAP_M` from the chord.
-TURN_SPEED_RATIO = 0.98
+TURN_SPEED_RATIO = 0.995
 
 
 @dataclass(frozen=True, eq=False)

@@ -657,7 +657,8 @@ def navigate(
     flags = observability.assess(
         dive, cov, run.resp,
         {"heading_bias": (np.rad2deg(gsd["beta"]), opts["heading_sd"], "deg"),
-         "speed_scale": (gsd["scale"], opts["scale_sd"], "")}, max_sd=opts["max_sd"])
+         "speed_scale": (gsd["scale"], opts["scale_sd"], "")}, max_sd=opts["max_sd"],
+        track=run.state.track)
     if flags:
         warnings.warn("navigate: " + observability.describe(flags), NavigationWarning,
                       stacklevel=2)

@@ -53,11 +53,34 @@ def _reason(dive, resp, i0, i1) -> str:
             "unresolved")
 
 
-def _ambiguous_in_gaps(dive, resp) -> np.ndarray:
-    """``(K,)`` epochs inside a dead-reckoning gap with useful replies from < 3 beacons.
+def _loose(dive) -> np.ndarray:
+    """``(K,)`` epochs whose every step to a neighbour crosses a gap or a turn.
 
-    There the motion model no longer holds the position, and two range circles cross
-    twice: the estimator may sit on either crossing with a small sd.
+    The epochs inside one, and an epoch at a row between two: the motion model does not
+    hold them.
+    """
+    var = dive.dr_gap_var
+    if var is None or var.size == 0:
+        return np.zeros(dive.n_epochs, bool)
+    loose = var > 0
+    return np.r_[loose[:1], loose[1:] & loose[:-1], loose[-1:]]
+
+
+#: Inside a gap or a turn, the replies of an epoch left without one leave a direction open
+#: where their bearings' information is this flat (its smallest over its largest eigenvalue:
+#: ``tan^2 15°``, two bearings within 30 degrees of parallel).
+OPEN_RATIO = float(np.tan(np.deg2rad(15.0)) ** 2)
+
+
+def _ambiguous_in_gaps(dive, resp, track=None) -> np.ndarray:
+    """``(K,)`` epochs inside a gap or a turn of the dead reckoning that their replies do not fix.
+
+    There (:func:`_loose`) the motion model no longer holds the position: an epoch with
+    useful replies from fewer than three beacons fits two positions (two circles cross twice). With
+    ``track``, also an epoch whose useful replies, any one beacon's left out, leave a
+    direction open (:data:`OPEN_RATIO`): that one reply alone places the vehicle across
+    it, and a spurious one is not told from a true one (simulated: two beacons on either
+    side of the vehicle and an outlier of a third taken as true, 176 m off at a 4 m sd).
     """
     out = np.zeros(dive.n_epochs, bool)
     gaps = getattr(dive, "dr_gaps", ())
@@ -66,8 +89,55 @@ def _ambiguous_in_gaps(dive, resp) -> np.ndarray:
     useful = resp[:, 0] + resp[:, 1] >= 0.5
     pairs = np.unique(np.column_stack([dive.epoch[useful], dive.beacon[useful]]), axis=0)
     n_beacons = np.bincount(pairs[:, 0], minlength=dive.n_epochs)
+    inside = _loose(dive)
+    out = inside & (n_beacons < 3)
+    if track is None:
+        return out
+    for k in np.flatnonzero(inside & (n_beacons >= 3)):
+        b = pairs[pairs[:, 0] == k, 1]
+        d = track[k] - dive.beacon_xyz[b, :2]
+        slant = np.sqrt((d**2).sum(axis=1) + (dive.depth[k] - dive.beacon_xyz[b, 2]) ** 2)
+        g = d / slant[:, None]  # a range's gradient in the horizontal
+        for i in range(b.size):
+            rest = np.delete(g, i, axis=0)
+            vals = np.linalg.eigvalsh(rest.T @ rest)
+            if vals[0] <= OPEN_RATIO * vals[1]:
+                out[k] = True
+                break
+    return out
+
+
+#: An epoch inside a gap or a turn of the dead reckoning is out of the vehicle's reach where
+#: its fitted position is farther from the fitted epochs either side of the interval than this
+#: many times the table's fastest speed times the time between them, plus three sds.
+REACH_MARGIN = 1.05
+
+
+def _out_of_reach(dive, track, sd) -> np.ndarray:
+    """``(K,)`` epochs inside a gap or a turn whose fitted position the vehicle cannot reach.
+
+    Across a gap or a turn of the table the steps are loose (the vehicle anywhere it could
+    go), so an epoch's own replies place it; where they are half spurious, the fit can sit
+    where a spurious reply agrees with the two crossings of two true ones (simulated: 110 to
+    200 m off at a 4 m sd). No vehicle at most the table's fastest speed (times
+    :data:`REACH_MARGIN`, for the speed scale's error) gets there from the epochs either
+    side of the interval and back: those epochs are not corrected.
+    """
+    out = np.zeros(dive.n_epochs, bool)
+    gaps = getattr(dive, "dr_gaps", ())
+    if track is None or not gaps:
+        return out
+    t = dive.times
     for g in gaps:
-        out |= (dive.times > g["start"]) & (dive.times < g["end"]) & (n_beacons < 3)
+        inside = np.flatnonzero((t > g["start"]) & (t < g["end"]))
+        for end in (np.flatnonzero(t <= g["start"])[-1:], np.flatnonzero(t >= g["end"])[:1]):
+            if not (inside.size and end.size):
+                continue
+            j = int(end[0])
+            far = np.hypot(*(track[inside] - track[j]).T)
+            reach = (REACH_MARGIN * g["speed"] * np.abs(t[inside] - t[j])
+                     + 3.0 * np.hypot(sd[inside], sd[j]))
+            out[inside[far > reach]] = True
     return out
 
 
@@ -103,7 +173,7 @@ def _gap_flag(dive, sd, gap: dict) -> dict:
 TABLE_KINDS = ("dead_reckoning_gap", "dead_reckoning_turn")
 
 
-def assess(dive, cov, resp, nuisances: dict, *, max_sd: float) -> list:
+def assess(dive, cov, resp, nuisances: dict, *, max_sd: float, track=None) -> list:
     """Flag where the ranges did not correct the navigation.
 
     Parameters
@@ -116,6 +186,10 @@ def assess(dive, cov, resp, nuisances: dict, *, max_sd: float) -> list:
         ``{name: (posterior sd, prior sd, unit)}`` of the dead-reckoning nuisances.
     max_sd : float
         An epoch whose major-axis position sd exceeds this (m) is not corrected.
+    track : numpy.ndarray, optional
+        ``(K, 2)`` the fitted track: an epoch inside a gap or a turn of the dead reckoning
+        whose position the vehicle cannot reach from the epochs either side is not
+        corrected (:func:`_out_of_reach`).
 
     Returns
     -------
@@ -129,12 +203,19 @@ def assess(dive, cov, resp, nuisances: dict, *, max_sd: float) -> list:
     """
     sd = major_sd(cov)
     flags = []
-    ambiguous = _ambiguous_in_gaps(dive, resp)
-    for i0, i1 in _stretches((sd > max_sd) | ambiguous):
+    ambiguous = _ambiguous_in_gaps(dive, resp, track)
+    unreachable = _out_of_reach(dive, track, sd)
+    for i0, i1 in _stretches((sd > max_sd) | ambiguous | unreachable):
         why = _reason(dive, resp, i0, i1)
-        if ambiguous[i0:i1].any():
+        if unreachable[i0:i1].any():
+            why = ("inside a gap (or a turn) of the dead reckoning, the fitted position is "
+                   "farther from the epochs either side than the vehicle can go at the "
+                   "table's fastest speed (replies spurious taken as true); " + why)
+        elif ambiguous[i0:i1].any():
             why = ("inside a gap (or a turn) of the dead reckoning, where an epoch with "
-                   "replies from fewer than three beacons fits two positions; " + why)
+                   "replies from fewer than three beacons fits two positions, or one whose "
+                   "replies, any one left out, leave a direction open (a spurious reply "
+                   "among them is not told from a true one); " + why)
         flags.append({"kind": "track", "start": float(dive.times[i0]),
                       "end": float(dive.times[i1 - 1]), "n_epochs": int(i1 - i0),
                       "max_sd": float(sd[i0:i1].max()), "reason": why})

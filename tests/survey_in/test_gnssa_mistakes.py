@@ -225,3 +225,72 @@ def test_a_companion_that_is_a_folder_is_named_as_that_companion(seagap):
     with pytest.raises(InputError, match=r"ss_prof.inp: is a folder; expected SeaGap's "
                                          r"ss_prof.inp file"):
         read_survey(seagap)
+
+
+def test_an_atd_offset_upward_is_refused_naming_the_line(campaign, tmp_path):
+    """A hunt (session 48): ATDoffset downward typed -12 for 12 put the transducer 22 m above
+    the sea and every transponder 24 m too shallow at 0.2 m sds, at exit 0; 0 (positions
+    already the transducer's) stays allowed."""
+    site = _copy(campaign[0], tmp_path)
+    lines = site.read_text().splitlines(keepends=True)
+    i = next(k for k, line in enumerate(lines) if line.lstrip().startswith("ATDoffset"))
+    key, values = lines[i].split("=")
+    parts = values.split()
+    lines[i] = f"{key}= {' '.join(parts[:2] + ['-' + parts[2]] + parts[3:])}\n"
+    site.write_text("".join(lines))
+    with pytest.raises(InputError, match=rf"line {i + 1} \(ATDoffset\): ATDoffset downward: "
+                                         r"expected a number in \[0, 100\], got '-12.*the "
+                                         r"transducer is under the water"):
+        read_garpos(site)
+    lines[i] = f"{key}= {' '.join(parts[:2] + ['0.0'] + parts[3:])}\n"
+    site.write_text("".join(lines))
+    assert read_garpos(site).header["atd_offset"][2] == 0.0
+
+
+def _swap_labels(site, share):
+    """Swap M01's and M02's labels in the last ``share`` of the shots file's lines."""
+    obs = next(site.parent.glob("*obs.csv"))
+    head, *rows = obs.read_text().splitlines(keepends=True)
+    columns = rows[0].strip().split(",")
+    mt = columns.index("MT")
+    first = int(len(rows[1:]) * (1 - share))
+    for i in range(1 + first, len(rows)):
+        cells = rows[i].rstrip("\n").split(",")
+        cells[mt] = {"M01": "M02", "M02": "M01"}.get(cells[mt], cells[mt])
+        rows[i] = ",".join(cells) + "\n"
+    obs.write_text(head + "".join(rows))
+
+
+@pytest.mark.parametrize("share", [0.7, 0.15])
+def test_labels_swapped_part_of_the_way_are_refused_naming_the_lines(campaign, tmp_path, share):
+    """A hunt (session 48): M01's and M02's labels swapped for the last 70 % of the shots
+    (a deck unit re-cabled): 29 % of their replies true, above the share refused, so M02 came
+    out 29 m off at sds under 1 m and the centre 5 m off, at exit 0 with no warning."""
+    site = _copy(campaign[0], tmp_path)
+    _swap_labels(site, share)
+    with pytest.raises(InputError, match=r"obs.csv: \d+ of the \d+ replies labelled M0[12] "
+                                         r"\(lines \d+ to \d+\) arrive when M0[12]'s would at "
+                                         r"the same transmit time"):
+        locate_array_survey(read_garpos(site))
+
+
+def test_a_transponder_mostly_spurious_is_warned_of(campaign, tmp_path):
+    """Replies that are no transponder's (another array's, concatenated): more than half of
+    one transponder's called spurious is said, where no other transponder explains them."""
+    site = _copy(campaign[0], tmp_path)
+    obs = next(site.parent.glob("*obs.csv"))
+    head, *rows = obs.read_text().splitlines(keepends=True)
+    columns = rows[0].strip().split(",")
+    mt, tt, rt = columns.index("MT"), columns.index("TT"), columns.index("RT")
+    gen = np.random.default_rng(0)
+    for i in range(1, len(rows)):
+        cells = rows[i].rstrip("\n").split(",")
+        if cells[mt] == "M03" and gen.random() < 0.7:
+            late = gen.uniform(0.3, 1.5)
+            cells[tt] = f"{float(cells[tt]) + late:.7f}"
+            cells[rt] = f"{float(cells[rt]) + late:.6f}"
+        rows[i] = ",".join(cells) + "\n"
+    obs.write_text(head + "".join(rows))
+    with pytest.warns(LocateWarning, match=r"transponder M03: \d+ of its \d+ replies called "
+                                           r"spurious \(more than 50 %\)"):
+        locate_array_survey(read_garpos(site))

@@ -423,9 +423,17 @@ def read_garpos(site_file, *, obs=None, svp=None, strict=False) -> RawSurvey:
             raise InputError(f"{at}: up + dCentPos up = {pos[st][2]:g} m; expected a seafloor "
                              "transponder, in [-12000, 0] m")
         sig[st] = _sigmas(ini, site_file, f"{st}_dPos")
-    atd = _values(ini, site_file, "Model-parameter", "ATDoffset", 3,
-                  ["forward", "rightward", "downward"],
-                  {k: {"lo": -100.0, "hi": 100.0} for k in ("forward", "rightward", "downward")})
+    try:  # downward below 0: the transducer above its antenna, out of the water
+        atd = _values(ini, site_file, "Model-parameter", "ATDoffset", 3,
+                      ["forward", "rightward", "downward"],
+                      {"forward": {"lo": -100.0, "hi": 100.0},
+                       "rightward": {"lo": -100.0, "hi": 100.0},
+                       "downward": {"lo": 0.0, "hi": 100.0}})
+    except InputError as exc:
+        if "downward" not in str(exc):
+            raise
+        raise InputError(f"{exc}: the transducer is under the water and the GNSS antenna above "
+                         "it, so the offset is positive downward (a sign slipped?)") from None
     obs_path = Path(obs) if obs is not None else _named_file(ini, site_file, "Data-file",
                                                               "datacsv")
     svp_path = Path(svp) if svp is not None else _named_file(ini, site_file, "Obs-parameter",

@@ -933,6 +933,77 @@ def _check_replies_explained(raw, fit) -> None:
             "(GARPOS's Stations, GNATSS's transponders)")
 
 
+#: A transponder whose fit calls more than this share of its replies spurious is warned of
+#: (:func:`_check_labels`).
+MAX_SPURIOUS_SHARE = 0.5
+#: A spurious reply arrives when another transponder's would where its travel time is within
+#: this (s) of the other's prediction at the same transmit time, or :data:`LABEL_MATCH_SIGMAS`
+#: of the fit's sigmas where more: the swapped replies pull both positions, so the fit's
+#: predictions of the pair were 3 and 13 ms from the replies swapped (a hunt's campaign),
+#: against 250-830 ms for the other transponders'.
+LABEL_MATCH_S = 0.02
+#: See :data:`LABEL_MATCH_S`.
+LABEL_MATCH_SIGMAS = 5.0
+
+
+def _check_labels(raw, fit, shots) -> None:
+    """Refuse replies of one transponder labelled another's.
+
+    A deck unit re-cabled mid-survey swaps two transponders' labels: the fit calls the
+    swapped replies spurious (not below :data:`MIN_TRUE_SHARE`, so not refused there) and
+    carries the other replies' positions, 29 m off at sds under 1 m, the centre 5 m off at
+    exit 0 (a hunt, session 48). A reply labelled A that arrives when B's would at the same
+    transmit time (within :data:`LABEL_MATCH_S` of B's prediction) is B's;
+    where most of A's spurious replies (10 at least) are so, the labels are refused, naming
+    the lines (:func:`_warn_spurious` warns of a transponder mostly spurious otherwise).
+    """
+    t_tx = shots["t_tx"].to_numpy(float)[fit.rows]
+    twtt = shots["twtt"].to_numpy(float)[fit.rows]
+    pred = twtt - fit.residual
+    lines = (shots["line"].to_numpy()[fit.rows] if "line" in shots.columns
+             else np.asarray(fit.rows) + 1)
+    keys, shot = np.unique(t_tx, return_inverse=True)
+    table = np.full((keys.size, len(fit.ids)), np.nan)  # prediction per shot and transponder
+    table[shot, fit.index] = pred
+    spurious = fit.p_true < 0.5
+    for k, tid in enumerate(fit.ids):
+        mine = np.flatnonzero((fit.index == k) & spurious)
+        n = int((fit.index == k).sum())
+        if mine.size < MIN_REPLIES_CHECKED:
+            continue
+        off = np.abs(twtt[mine, None] - table[shot[mine]])
+        off[:, k] = np.inf
+        with np.errstate(invalid="ignore"):
+            match = off <= max(LABEL_MATCH_S, LABEL_MATCH_SIGMAS * fit.sigma)
+        for j in np.flatnonzero(match.sum(axis=0) >= max(MIN_REPLIES_CHECKED,
+                                                         0.5 * mine.size)):
+            hit = mine[match[:, j]]
+            raise InputError(
+                f"{_shots_file(raw)}: {hit.size} of the {n} replies labelled {tid} (lines "
+                f"{lines[hit[0]]} to {lines[hit[-1]]}) arrive when {fit.ids[j]}'s would at the "
+                f"same transmit time (within {1e3 * LABEL_MATCH_S:g} ms), and the fit calls "
+                f"them spurious: replies of {fit.ids[j]} labelled {tid} (the labels swapped "
+                "part of the way, a deck unit re-cabled?); correct the labels, or locate the "
+                "parts before and after separately")
+
+
+def _warn_spurious(raw, fit) -> None:
+    """Warn of a transponder more than :data:`MAX_SPURIOUS_SHARE` of whose replies are spurious.
+
+    After :func:`_check_labels` and :func:`_check_replies_explained`, which refuse the
+    cases they explain.
+    """
+    for k, tid in enumerate(fit.ids):
+        n = int((fit.index == k).sum())
+        bad = fit.n_spurious(k)
+        if n and bad > MAX_SPURIOUS_SHARE * n:
+            warnings.warn(
+                f"{_shots_file(raw)}: transponder {tid}: {bad} of its {n} replies called "
+                f"spurious (more than {100 * MAX_SPURIOUS_SHARE:g} %): its position rests on "
+                "the rest; check that these replies are its own (another array's or "
+                "campaign's concatenated?)", LocateWarning, stacklevel=3)
+
+
 #: The farthest (in depths) a transponder may be located from its prior position.
 MAX_MOVE_DEPTHS = 0.2
 
@@ -1129,7 +1200,9 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
 
     fit, scaling = _fit_scaled(fit_with, position_prior)
     _check_below_transducer(raw, fit, shots)
+    _check_labels(raw, fit, shots)
     _check_replies_explained(raw, fit)
+    _warn_spurious(raw, fit)
     _check_moved(raw, fit)
     _check_intervals(raw, fit)
     origin = (h["lat"], h["lon"], h.get("height", 0.0)) if "lat" in h else None

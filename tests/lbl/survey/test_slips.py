@@ -49,6 +49,11 @@ SLIPS = {
                    "spelled differently"),
     "other_survey": (None, lambda b: _with(b, beacon=lambda s: "X" + (s * 7).astype(str)),
                      "different surveys"),
+    # a hunt (session 48): fitted at exit 0, d0 805-1543 m (truth 2392-2491), warned only as
+    # "no coherent multipath band"
+    "xy_swapped": (lambda p: p.rename(columns={"x": "y", "y": "x"}), None,
+                   "the pings' x and y swapped"),
+    "axis_sign": (lambda p: _with(p, x=lambda x: -x), None, "the pings' x with the wrong sign"),
 }
 
 
@@ -120,3 +125,18 @@ def test_ranges_shorter_than_the_vertical_distance_are_flagged_per_row(dive, tmp
     assert main(["fit", str(p), "--beacons", str(b), "--out", str(tmp_path / "o")]) == 0
     cls = pd.read_csv(tmp_path / "o" / "classified.csv", keep_default_na=False)
     assert cls.loc[rows, "reason"].str.contains("no acoustic path is that short").all()
+
+
+def test_every_length_in_kilometres_is_warned_of(dive, tmp_path):
+    """A hunt (session 48): ranges, positions and depths all in km fit the direct path as
+    well as metres; the fit gave d0 of 2.39 for 2,392 m, warned only of sigma_MP's floor."""
+    from bayes_mpem.exceptions import FitQualityWarning
+
+    root, pings, beacons = dive
+    km = {c: (lambda v: v / 1000.0) for c in ("range", "x", "y", "depth")}
+    p, b = _files(tmp_path, "km", _with(pings, **km),
+                  _with(beacons, **{c: km[c] for c in ("x", "y", "depth")}))
+    with pytest.warns(FitQualityWarning, match=r"every range \(up to [\d.]+\) and beacon depth "
+                                               r"\(up to [\d.]+\) is under 20 m: if these are "
+                                               "kilometres, give metres"):
+        load_checked(p, b)

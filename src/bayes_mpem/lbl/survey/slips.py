@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pandas as pd
 
-from ...exceptions import InputError
+from ...exceptions import FitQualityWarning, InputError
 from ...io.boundary import LIMITS
 from ...io.survey import Survey, load_survey
 from ...io.tables import as_beacon_id, load_table
@@ -40,7 +42,7 @@ class SlipError(InputError):
     ----------
     slip : str
         ``"seconds"``, ``"two_way_seconds"``, ``"km"``, ``"two_way"``, ``"depth_sign"``,
-        ``"beacon_ids"`` or ``"swapped"``.
+        ``"xy_swapped"``, ``"axis_sign"``, ``"beacon_ids"`` or ``"swapped"``.
     """
 
     def __init__(self, slip: str, message: str):
@@ -79,7 +81,29 @@ def load_checked(pings, beacons=None) -> Survey:
     slip = check_geometry(survey)
     if slip is not None:
         raise SlipError(*slip)
+    _warn_small(survey)
     return survey
+
+
+#: Every length of a survey below this (m): kilometres, perhaps (:func:`_warn_small`).
+SMALL_METRES = 20.0
+
+
+def _warn_small(survey: Survey) -> None:
+    """Warn where every range and beacon depth is under :data:`SMALL_METRES`.
+
+    Lengths all in kilometres fit the direct path as well as metres (the geometry check
+    cannot tell), and the fit ran with d0 of 2.39 for 2,392 m, warned only that sigma_MP
+    sat at its floor (a hunt, session 48): the floors are in metres. A tank is as small.
+    """
+    r = survey.range[np.isfinite(survey.range)]
+    depth = survey.beacons["depth"].to_numpy(float)
+    if r.size and r.max() < SMALL_METRES and np.abs(depth).max() < SMALL_METRES:
+        warnings.warn(f"{survey.pings_source}: every range (up to {r.max():g}) and beacon depth "
+                      f"(up to {np.abs(depth).max():g}) is under {SMALL_METRES:g} m: if these "
+                      "are kilometres, give metres (the fit's floors of sigma_DP and sigma_MP "
+                      "are in metres); a tank survey can ignore this", FitQualityWarning,
+                      stacklevel=3)
 
 
 # --------------------------------------------------------------------------- read time
@@ -211,10 +235,16 @@ def _replies(survey: Survey):
     return rep, pos
 
 
-def _direct(survey, rep, pos, flip_vehicle=False, flip_beacon=False):
+def _direct(survey, rep, pos, flip_vehicle=False, flip_beacon=False, plane=None):
+    """Return the direct paths' lengths, the depths' signs or the pings' x and y changed.
+
+    ``plane``: the pings' x and y ``"swap"``-ped, or ``"-x"`` or ``"-y"`` flipped.
+    """
     dz = pos[:, 2] * (-1.0 if flip_beacon else 1.0) - survey.depth[rep] * (
         -1.0 if flip_vehicle else 1.0)
-    return np.sqrt((pos[:, 0] - survey.x[rep]) ** 2 + (pos[:, 1] - survey.y[rep]) ** 2 + dz * dz)
+    x, y = survey.x[rep], survey.y[rep]
+    x, y = {None: (x, y), "swap": (y, x), "-x": (-x, y), "-y": (x, -y)}[plane]
+    return np.sqrt((pos[:, 0] - x) ** 2 + (pos[:, 1] - y) ** 2 + dz * dz)
 
 
 def _matches(t, g):
@@ -258,6 +288,11 @@ def check_geometry(survey: Survey):
                                                "(positive up)")):
         g2 = _direct(survey, rep, pos, flip_v, flip_b)
         tried.append((float(_matches(r, g2).mean()), "depth_sign", what, r, g2, None))
+    for plane, name, what in (("swap", "xy_swapped", "the pings' x and y swapped"),
+                              ("-x", "axis_sign", "the pings' x with the wrong sign"),
+                              ("-y", "axis_sign", "the pings' y with the wrong sign")):
+        g2 = _direct(survey, rep, pos, plane=plane)
+        tried.append((float(_matches(r, g2).mean()), name, what, r, g2, None))
     share, name, what, t, g_used, k = max(tried, key=lambda x: x[0])
     if share < SLIP_FIT or share < 2 * raw + 0.1:
         return None
@@ -270,26 +305,36 @@ def check_geometry(survey: Survey):
         examples.append(f"  {survey.pings_source} {survey.row_name(row)} (beacon "
                         f"{survey.beacon[row]}): {given}{turned}; the direct path is "
                         f"{g_used[i]:.1f} m")
-    fix = {"seconds": f"multiply by the sound speed (about {k:.0f} m/s) to give one-way ranges "
-                      f"in metres (fit: --travel-time --sound-speed {k:.0f})",
-           "two_way_seconds": f"give one-way ranges in metres: range = c * t / 2 (c about "
-                              f"{2 * k:.0f} m/s; fit: --ranges two-way --travel-time "
-                              f"--sound-speed {2 * k:.0f} --turnaround S)",
-           "milliseconds": f"give one-way ranges in metres: range = c * t / 1000 (c about "
-                           f"{k * 1000:g} m/s)",
-           "two_way_milliseconds": "give one-way ranges in metres: range = c * t / 2000 (c "
-                                   f"about {k * 2000:g} m/s)",
-           "km": "give ranges in metres (range * 1000)",
-           "two_way": "give one-way ranges (range / 2; fit: --ranges two-way)",
-           "depth_sign": "give depths in metres, positive down"}[name]
-    slip = "depth_sign" if name == "depth_sign" else name
+    fix = _fix(name, k, survey.pings_source)
+    slip = name
     text = (f"the ranges look like {what}: {share:.0%} of {rep.size} replies match the direct "
             f"path so read, {raw:.0%} as given; {fix}. For example:\n" + "\n".join(examples))
     if hit.size > MAX_EXAMPLES:
         text += f"\n  ... and {hit.size - MAX_EXAMPLES} more replies"
-    if name == "depth_sign":
+    if name in ("depth_sign", "xy_swapped", "axis_sign"):
         text = text.replace(f"the ranges look like {what}", f"the survey looks like {what}")
     return slip, text
+
+
+def _fix(name: str, k, source) -> str:
+    """Return what to do about the slip ``name`` (``k``: its speed or scale; None: geometry)."""
+    if name == "seconds":
+        return (f"multiply by the sound speed (about {k:.0f} m/s) to give one-way ranges in "
+                f"metres (fit: --travel-time --sound-speed {k:.0f})")
+    if name == "two_way_seconds":
+        return (f"give one-way ranges in metres: range = c * t / 2 (c about {2 * k:.0f} m/s; "
+                f"fit: --ranges two-way --travel-time --sound-speed {2 * k:.0f} --turnaround S)")
+    if name == "milliseconds":
+        return f"give one-way ranges in metres: range = c * t / 1000 (c about {k * 1000:g} m/s)"
+    if name == "two_way_milliseconds":
+        return f"give one-way ranges in metres: range = c * t / 2000 (c about {k * 2000:g} m/s)"
+    return {"km": "give ranges in metres (range * 1000)",
+            "two_way": "give one-way ranges (range / 2; fit: --ranges two-way)",
+            "depth_sign": "give depths in metres, positive down",
+            "xy_swapped": f"give x (east) and y (north) in their own columns of {source} (or "
+                          "swap the beacons' the same way: both tables in one frame)",
+            "axis_sign": "give both tables in one frame, x east and y north (an axis of the "
+                         "pings flipped, or the beacons')"}[name]
 
 
 def impossible_rows(survey: Survey) -> dict:

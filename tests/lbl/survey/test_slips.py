@@ -101,6 +101,20 @@ def test_fit_refuses_a_slip_with_one_short_message(dive, tmp_path, capsys):
     assert not (tmp_path / "o").exists()
 
 
+@pytest.mark.parametrize("command", ["compare", "sample"])
+@pytest.mark.parametrize("name", ["two_way", "two_way_seconds"])
+def test_compare_and_sample_name_the_slip_as_fit_does(dive, tmp_path, capsys, command, name):
+    """``compare`` (and ``sample``) on two-way ranges skipped every beacon ("the EM solution
+    ... is not a credible reflector") and wrote an empty result, exit 0, the slip unnamed."""
+    root, pings, beacons = dive
+    fp, _, words = SLIPS[name]
+    p, b = _files(tmp_path, name, fp(pings), beacons)
+    assert main([command, str(p), "--beacons", str(b), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert words in err and str(p) in err and "direct path" in err
+    assert "SkippedBeaconWarning" not in err and not (tmp_path / "o").exists()
+
+
 def test_a_slip_is_failed_not_done_in_batch(dive, tmp_path):
     root, pings, beacons = dive
     p, b = _files(tmp_path, "km", SLIPS["km"][0](pings), beacons)

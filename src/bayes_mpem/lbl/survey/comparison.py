@@ -9,11 +9,12 @@ import pandas as pd
 from ..._rng import RNGLike, as_generator
 from ...exceptions import UnusableStartError
 from ...io.results import write_csv, write_json, writing
-from ...io.survey import Survey, load_survey
+from ...io.survey import Survey
 from ..bayes.loo import CLEAR, MIN_DIFF, compare_beacon
 from ..bayes.posterior import check_sample_options
 from ..em.path_choice import AUTO, check_path_choice, choose_path
 from .model_checks import check_posterior, checks_record, warn_misfit
+from .slips import load_checked
 from .survey import check_min_pings, option_subset, over_beacons
 
 
@@ -161,6 +162,10 @@ def compare(pings, beacons=None, *, min_pings: int = 30, rng: RNGLike = None,
     ------
     ValueError
         For invalid options, before any sampling.
+    SlipError
+        Ranges that fit no direct path as given but do as a usual slip would (two-way
+        ranges or travel times, kilometres, depths positive up: :mod:`.slips`), as
+        :func:`bayes_mpem.fit`.
 
     Warns
     -----
@@ -170,7 +175,7 @@ def compare(pings, beacons=None, *, min_pings: int = 30, rng: RNGLike = None,
     path = check_path_choice(kwargs.pop("path", AUTO))
     check_sample_options(**option_subset(kwargs))
     check_min_pings(min_pings)
-    survey = load_survey(pings, beacons)
+    survey = load_checked(pings, beacons)  # load_survey, naming the usual slips (slips.py)
     gen = as_generator(rng)
     choices = {}
 

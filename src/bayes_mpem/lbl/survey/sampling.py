@@ -12,13 +12,14 @@ from ..._rng import RNGLike, as_generator
 from ..._validate import check_choice
 from ...exceptions import UnusableStartError
 from ...io.results import write_file, write_json, write_table, writing
-from ...io.survey import Survey, load_survey
+from ...io.survey import Survey
 from ...io.table_files import TABLE_FORMATS
 from ...mixture.densities import CLASSES
 from ..bayes.beacon_sampling import PosteriorResult, sample_beacon
 from ..bayes.posterior import check_sample_options
 from ..em.path_choice import AUTO, check_path_choice, choose_path
 from .model_checks import check_posterior, checks_record, warn_misfit
+from .slips import load_checked
 from .survey import (
     beacons_table,
     check_min_pings,
@@ -329,6 +330,10 @@ def sample(
     ------
     ValueError
         For invalid options, before any sampling.
+    SlipError
+        Ranges that fit no direct path as given but do as a usual slip would (two-way
+        ranges or travel times, kilometres, depths positive up: :mod:`.slips`), as
+        :func:`bayes_mpem.fit`.
 
     Warns
     -----
@@ -348,7 +353,7 @@ def sample(
     path = check_path_choice(kwargs.pop("path", AUTO))
     check_sample_options(priors=priors, ci=ci, **option_subset(kwargs))
     check_min_pings(min_pings)
-    survey = load_survey(pings, beacons)
+    survey = load_checked(pings, beacons)  # load_survey, naming the usual slips (slips.py)
     gen = as_generator(rng)
     choices = {}
 

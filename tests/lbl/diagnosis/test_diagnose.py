@@ -29,6 +29,7 @@ from bayes_mpem.io.survey import load_survey
 from bayes_mpem.lbl.diagnosis.driver import diagnose
 from bayes_mpem.lbl.diagnosis.ecm import fit_joint, heldout
 from bayes_mpem.lbl.diagnosis.model import ranges
+from bayes_mpem.lbl.diagnosis.result import Diagnosis
 from bayes_mpem.lbl.diagnosis.search import Search
 from bayes_mpem.lbl.diagnosis.starts import baseline_start, replant
 from bayes_mpem.lbl.em.em_mixture import fit_mixture_em
@@ -425,3 +426,23 @@ def test_an_offset_longer_than_every_range_is_not_an_effect():
         assert "longer than every range of the survey (5,400 m)" in not_credible(name, fit, d)
     fit = SimpleNamespace(magnitudes=lambda d: {"beacon_bias:3": 4.0})
     assert not_credible("beacon_bias:3", fit, d) is None
+
+
+def test_an_effect_on_a_beacon_whose_fit_is_not_credible_is_not_found(tmp_path):
+    """One beacon's ranges logged two-way: a 1.38 km "beacon moved" was reported as found,
+    beside "beacon 3: fit not credible"; it is now withheld, with its reason."""
+    sim = simulate_survey("abe58", rng=3, n_cycles=150)
+    table = sim.survey.table.copy()
+    table.loc[table["beacon"].astype(str) == "3", "range"] *= 2
+    result = diagnose(table, sim.survey.beacons.reset_index(), rng=0, progress=False)
+    assert result.beacon_flags["3"]
+    assert not any("3" in e.beacons and e.name.startswith("beacon_") for e in result.effects)
+    assert [(e["name"], e["beacons"]) for e in result.withheld] == [("beacon_position", ["3"])]
+    assert "not credible" in result.withheld[0]["withheld"]
+    text = result.summary()
+    assert "Effects found" not in text and "not found: beacon_position" in text
+    doc = result.to_dict()
+    assert doc["effects"] == [] and doc["withheld_effects"][0]["name"] == "beacon_position"
+    result.write(tmp_path)
+    assert Diagnosis.read(tmp_path).withheld == json.loads(
+        json.dumps(doc["withheld_effects"]))

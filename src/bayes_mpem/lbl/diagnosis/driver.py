@@ -14,7 +14,7 @@ from ..._rng import RNGLike, as_generator
 from ..._validate import check_choice, check_finite, check_int, check_range
 from ...io.survey import load_survey
 from ..model import geometry
-from ..simulation.effects import EFFECTS, UNITS, split_term
+from ..simulation.effects import EFFECTS, PER_BEACON, UNITS, split_term
 from ..survey.survey import check_min_pings, fittable_beacons
 from .ecm import fit_joint
 from .evidence import check_effect_names, effect_detail, effect_evidence, effect_magnitude_se
@@ -116,9 +116,45 @@ def diagnose(
                 "min_gain": float(min_gain),
                 "min_z": float(min_z), "max_effects": int(max_effects),
                 "candidates": list(effects), "min_pings": int(min_pings)}
+    flags = beacon_flags(current, d, kw["sigma_floor"])
+    found, withheld = withhold_not_credible(found, flags)
     return Diagnosis(effects=found, baseline=base, final=current, candidates=candidates,
                      residual_checks=checks, skipped=skipped, survey=survey, data=d,
-                     settings=settings, beacon_flags=beacon_flags(current, d, kw["sigma_floor"]))
+                     settings=settings, beacon_flags=flags, withheld=withheld)
+
+
+def withhold_not_credible(found, flags):
+    """Split the effects kept into those reported as found and those a flagged fit carries.
+
+    A beacon's own effect (``beacon_bias``, ``beacon_position``) is read off that beacon's
+    final fit: when that fit is not credible (``flags``), the effect is no finding. One
+    beacon's ranges logged two-way were reported as "beacon moved 1.35 km" beside "fit not
+    credible".
+
+    Parameters
+    ----------
+    found : list of Effect
+        The effects the search kept.
+    flags : dict
+        Beacon id to the reasons its final fit is not credible
+        (:func:`~.residuals.beacon_flags`).
+
+    Returns
+    -------
+    found : list of Effect
+    withheld : list of dict
+        :meth:`Effect.to_dict` of each effect left out, with its ``withheld`` reason.
+    """
+    kept, withheld = [], []
+    for e in found:
+        bad = [b for b in e.beacons if flags.get(b)] if e.name in PER_BEACON else []
+        if not bad:
+            kept.append(e)
+            continue
+        why = "; ".join(f"beacon {b}'s fit is not credible ({'; '.join(flags[b])})"
+                        for b in bad)
+        withheld.append({**e.to_dict(), "withheld": why})
+    return kept, withheld
 
 
 def _progress(msg):

@@ -82,7 +82,7 @@ class Diagnosis:
     Attributes
     ----------
     effects : list of Effect
-        Effects kept, in the order they were added; empty for clean data.
+        Effects found, in the order they were added; empty for clean data.
     baseline, final : JointFit
         The paper's model fitted to all beacons, and the model with the effects.
     candidates : list of dict
@@ -99,6 +99,10 @@ class Diagnosis:
     beacon_flags : dict
         Beacon id to the reasons its final fit is not credible
         (:func:`~bayes_mpem.lbl.diagnosis.residuals.beacon_flags`); empty lists when it is.
+    withheld : list of dict
+        Effects the search kept on a beacon whose final fit is not credible: not reported
+        as found (:func:`~bayes_mpem.lbl.diagnosis.driver.withhold_not_credible`); each
+        :meth:`Effect.to_dict` with the reason under ``withheld``.
     """
 
     effects: list
@@ -111,6 +115,7 @@ class Diagnosis:
     data: Ranges = field(repr=False)
     settings: dict = field(default_factory=dict)
     beacon_flags: dict = field(default_factory=dict)
+    withheld: list = field(default_factory=list)
     #: a diagnosis read back (:meth:`read`): ``diagnosis.json`` and ``replies.csv``, which
     #: :meth:`to_dict`, :meth:`replies` and :meth:`figure_info` then return
     saved: dict | None = field(default=None, repr=False)
@@ -130,6 +135,7 @@ class Diagnosis:
             entry["flags"] = list(self.beacon_flags.get(bid, []))
         return {
             "effects": [e.to_dict() for e in self.effects],
+            "withheld_effects": list(self.withheld),
             "beacons": self.baseline.beacons(d),
             "final_model": {"effects": self.final.magnitudes(d),
                             "beacons": final,
@@ -247,6 +253,7 @@ class Diagnosis:
             survey=None, data=data, settings=doc["settings"],
             beacon_flags={b: v.get("flags", []) for b, v in
                           doc["final_model"]["beacons"].items()},
+            withheld=doc.get("withheld_effects", []),
             saved={"document": doc, "replies": table}))
 
     def summary(self) -> str:
@@ -255,6 +262,9 @@ class Diagnosis:
         if not self.effects and not self.unexplained and not flagged:
             lines = ["No effect found: the paper's model explains these data "
                      f"({len(self.candidates)} extensions tried, none clearly better)."]
+        elif self.withheld and not self.effects:
+            lines = ["No effect found: what the search kept rests on fits that are not "
+                     "credible:"]
         elif not self.effects:
             lines = ["No effect of the vocabulary predicts these data better "
                      f"({len(self.candidates)} extensions tried), but "
@@ -264,6 +274,10 @@ class Diagnosis:
             lines = ["Effects found:"]
             for e in self.effects:
                 lines.append(f"  {e.name}: {e.magnitude:+.4g} {e.unit}  ({e.evidence})")
+        for e in self.withheld:
+            lines.append(f"  not found: {e['name']} {e['magnitude']:+.4g} {e['unit']} on beacon "
+                         f"{', '.join(e['beacons'])}: the search kept it, but from a fit that "
+                         "is not credible (below)")
         for c in self.unexplained:
             lines.append(f"  unexplained: {c['message']}")
         for bid, reasons in flagged.items():

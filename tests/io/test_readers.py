@@ -78,12 +78,34 @@ GOOD_SIO = (" 6306 msec. Lat: 4 52.9270 S  Lon: 132 41.4272 W  Alt: 29.42 "
 
 
 def test_sio_malformed_line_is_skipped_with_reason_or_strict_error(tmp_path):
-    p = _sio(tmp_path, GOOD_SIO + " 63O6 msec. Lat: garbled\n" + GOOD_SIO)
+    p = _sio(tmp_path, GOOD_SIO + " 63O6 msec. Lat: garbled\n" + GOOD_SIO.replace(":30\n", ":41\n"))
     raw = read_survey(p, "obsrange-sio")
     assert len(raw.pings) == 2 and list(raw.skipped["line"]) == [8]
     assert "not a ping line" in raw.skipped["reason"].iloc[0]
     with pytest.raises(InputError, match=r"sio.txt line 8: not a ping line.*63O6"):
         read_survey(p, "obsrange-sio", strict=True)
+
+
+@pytest.mark.parametrize("name", ["obsrange/SIO_CC03.txt", "obsrange/WHOI_S05.txt"])
+def test_a_deck_box_log_with_repeated_ping_lines_is_refused(tmp_path, name):
+    """Ping lines given twice were each counted as a reply (intervals narrower by up to
+    sqrt 2); now refused, the file, both lines of each pair and the count named."""
+    lines = (DATA / name).read_text(encoding="utf-8-sig").splitlines(keepends=True)
+    raw = read_survey(DATA / name)
+    first, second = (int(n) for n in raw.pings["line"].iloc[[0, 5]])
+    twice = lines[:first] + [lines[first - 1]] + lines[first:second] + [lines[second - 1]] \
+        + lines[second:]
+    p = tmp_path / Path(name).name
+    p.write_text("".join(twice), encoding="utf-8")
+    with pytest.raises(InputError) as err:
+        read_survey(p)
+    text = str(err.value)
+    assert text.startswith(f"{p}: 2 ping lines repeat an earlier one")
+    assert f"line {first + 1} repeats line {first}" in text
+    assert f"line {second + 2} repeats line {second + 1}" in text
+    # a time given twice with two travel times (SIO_WC03's lines 11 and 12) is two replies
+    raw = read_survey(DATA / "obsrange/SIO_WC03.txt")
+    assert list(raw.pings["line"].iloc[:2]) == [11, 12] and raw.pings["time"].iloc[1] == 0.0
 
 
 def test_sio_bad_header_number(tmp_path):
@@ -109,7 +131,7 @@ def test_whoi_malformed_lines(tmp_path):
            "2023-04-06 05:10:05,  2329,  -3, 01 35.6648 N, 091 48.5082 W, 05:10:03.00, 84.1\n",
            "2023-04-06 05:10:05,  2329,  3106, 1.5935 N, 091 48.5082 W, 05:10:03.00, 84.1\n"]
     p = tmp_path / "w.txt"
-    p.write_text(head + good + "".join(bad) + good)
+    p.write_text(head + good + "".join(bad) + good.replace("05:10:05", "05:10:17"))
     raw = read_survey(p, "obsrange-whoi")
     assert len(raw.pings) == 2 and list(raw.skipped["line"]) == [7, 8, 9]
     reasons = " | ".join(raw.skipped["reason"])

@@ -190,18 +190,59 @@ def finish(fmt, source, rows, header, skipped, transponder):
     Raises
     ------
     InputError
-        No ping line in the file.
+        No ping line in the file; a ping line repeated (:func:`check_repeated_pings`).
     """
     pings = pd.DataFrame(rows)
     if pings.empty:
         raise InputError(f"{source}: no ping lines found (expected the {fmt} format; "
                          f"{len(skipped)} lines skipped"
                          + (f": {skip_reasons(skipped)})" if skipped else ")"))
+    check_repeated_pings(source, pings)
     pings.insert(1, "transponder", transponder)
     epoch = pings.pop("_epoch")
     pings.insert(2, "time", epoch - epoch.iloc[0])
     skipped = pd.DataFrame(skipped, columns=["line", "text", "reason"])
     return RawSurvey(fmt, source, pings, header, skipped)
+
+
+#: The repeated lines a refusal of :func:`check_repeated_pings` lists.
+MAX_REPEATS_SHOWN = 5
+
+
+def check_repeated_pings(source, pings):
+    """Refuse a log in which a ping line is repeated: the same time and travel time twice.
+
+    A deck-box log pasted together from overlapping captures repeats its ping lines; each
+    repeat would count as a second reply and narrow the intervals (by up to sqrt 2). Which
+    copy to keep is the user's choice, so none is dropped here.
+
+    Parameters
+    ----------
+    source : str
+        The file, for the message.
+    pings : pandas.DataFrame
+        One row per ping line: ``line``, ``_epoch`` (s) and ``twtt`` (s); one transponder.
+
+    Raises
+    ------
+    InputError
+        Naming the file, the first repeats with the lines they repeat, and how many.
+    """
+    key = ["_epoch", "twtt"]
+    again = pings.duplicated(key, keep="first").to_numpy()
+    if not again.any():
+        return
+    first = pings.drop_duplicates(key).set_index(key)["line"]
+    pairs = [(int(first[(e, t)]), int(n))
+             for e, t, n in pings.loc[again, ["_epoch", "twtt", "line"]].itertuples(index=False)]
+    shown = "; ".join(f"line {n} repeats line {f}" for f, n in pairs[:MAX_REPEATS_SHOWN])
+    more = len(pairs) - MAX_REPEATS_SHOWN
+    count = f"{len(pairs)} ping lines repeat" if len(pairs) > 1 else "1 ping line repeats"
+    raise InputError(
+        f"{source}: {count} an earlier one (the same time and travel time): {shown}"
+        + (f"; and {more} more" if more > 0 else "")
+        + "; expected each ping once (a repeat would count as a second reply and narrow "
+          "the intervals); remove the repeated lines")
 
 
 def skip_reasons(skipped, limit: int = 3) -> str:

@@ -35,6 +35,9 @@ def test_gradients_by_default_and_seeded(tmp_path):
 @pytest.mark.parametrize(("extra", "message"), [
     (["--gnssa", "--navigation"], "--navigation"),
     (["--gnssa", "--preset", "random"], "--preset"),
+    # their defaults given were accepted and ignored
+    (["--gnssa", "--path", "triangle"], "--path: not with --gnssa"),
+    (["--gnssa", "--preset", "abe58"], "--preset: not with --gnssa"),
     (["--gnssa", "--n-cycles", "5"], "--n-cycles"),
     (["--gnssa", "--effect", "range_bias=2"], "--effect"),
     (["--gnssa", "--heading-bias", "1"], "--heading-bias"),

@@ -8,8 +8,12 @@ from .errors import OptionError
 GNSSA_ONLY = ("format", "gradients", "hours", "track")
 #: the track shapes (``bayes_mpem.survey_in.gnssa_simulate.TRACKS``, without numpy)
 TRACKS = ("star", "circle", "star+circle", "station")
-#: ``simulate`` options of the LBL surveys, refused with ``--gnssa``: name, default
-LBL_ONLY = (("preset", "abe58"), ("path", "triangle"), ("n_cycles", None), ("effect", []))
+#: ``simulate`` options of the LBL surveys, refused with ``--gnssa``: name, default (None
+#: for ``--preset`` and ``--path``, whose defaults are applied later: ``--path triangle``,
+#: the default given, was accepted and ignored)
+LBL_ONLY = (("preset", None), ("path", None), ("n_cycles", None), ("effect", []))
+#: What ``--preset`` and ``--path`` stand for when not given.
+LBL_DEFAULTS = {"preset": "abe58", "path": "triangle"}
 
 
 def add_simulate_gnssa(p) -> None:

@@ -242,7 +242,8 @@ def cmd_simulate(args) -> int:
             raise OptionError(f"--effect: expected NAME=NUMBER, got {item!r}") from None
         if not math.isfinite(effects[name.strip()]):
             raise OptionError(f"--effect: expected NAME=NUMBER (a finite number), got {item!r}")
-    sim = simulate_survey(args.preset, rng=args.seed, path=args.path, n_cycles=args.n_cycles,
+    sim = simulate_survey(args.preset or gnssa.LBL_DEFAULTS["preset"], rng=args.seed,
+                          path=args.path or gnssa.LBL_DEFAULTS["path"], n_cycles=args.n_cycles,
                           effects=effects or None)
     paths = sim.write(args.out)
     print(f"{len(sim.survey)} pings to {len(sim.truth)} beacons")

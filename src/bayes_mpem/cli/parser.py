@@ -72,10 +72,13 @@ def add_plot(sub):
 def add_simulate(sub):
     """Add ``simulate``'s sub-parser."""
     p = sub.add_parser("simulate", help="write a simulated survey (pings, beacons, truth)")
-    p.add_argument("--preset", choices=["abe58", "random"], default="abe58")
+    # --preset and --path default to None (abe58, triangle): --gnssa refuses them when given
+    p.add_argument("--preset", choices=["abe58", "random"], default=None,
+                   help="the survey's geometry (default abe58)")
     p.add_argument("--out", required=True, metavar="DIR")
     p.add_argument("--seed", type=opt.seed, default=0, help="random seed (default 0)")
-    p.add_argument("--path", choices=["triangle", "double"], default="triangle")
+    p.add_argument("--path", choices=["triangle", "double"], default=None,
+                   help="the multipath geometry (default triangle)")
     p.add_argument("--n-cycles", type=opt.at_least(1, 10**7), default=None, metavar="N",
                    help="number of ping cycles (default: the preset's)")
     p.add_argument("--effect", action="append", default=[], metavar="NAME=VALUE",

@@ -7,6 +7,10 @@ class InputError(ValueError):
     """Invalid user input (pings/beacons tables or arrays); the message says where and why."""
 
 
+class Interrupted(KeyboardInterrupt):
+    """Ctrl-C after part of a run's results were kept; the message says which (``batch``)."""
+
+
 class ConvergenceWarning(UserWarning):
     """An EM run stopped at ``max_iter`` before meeting its stopping rule."""
 

@@ -295,6 +295,29 @@ def test_an_interrupted_rerun_keeps_the_unfinished_surveys_and_no_stale_tables(
     assert table["hash"].tolist() == [c.key() for c in changed]
 
 
+def test_ctrl_c_names_the_surveys_kept(dives, scheduler, tmp_path, monkeypatch, capsys):
+    """After Ctrl-C the batch printed "interrupted; no result written" although the surveys
+    collected before it were kept (with their batch.json, for the next run)."""
+    import bayes_mpem.batch.runner as runner
+
+    real = runner._report
+
+    def interrupt(record, done, total):
+        real(record, done, total)
+        raise KeyboardInterrupt  # Ctrl-C after the first survey is put in place
+
+    monkeypatch.setattr(runner, "_report", interrupt)
+    out = tmp_path / "out"
+    assert main(["batch", str(dives / "manifest.csv"), "--out", str(out),
+                 "--scheduler", scheduler]) == 130
+    _wait_idle(scheduler)
+    err = capsys.readouterr().err
+    [kept] = [p.parent.name for p in (out / "surveys").glob("*/batch.json")]
+    assert "no result written" not in err and "Traceback" not in err
+    assert (f"interrupted; the 1 survey collected before it is kept in {out / 'surveys'}: "
+            f"{kept} (done); the 2 not collected keep their earlier folders") in err
+
+
 def test_a_task_cancelled_by_the_scheduler_is_not_a_failure(dives, scheduler, tmp_path):
     """A scheduler that cancels the tasks (restarted, closed) stops the batch with a message;
     the surveys not collected keep their earlier folders and none is recorded failed."""

@@ -16,7 +16,7 @@ from pathlib import Path
 import pandas as pd
 
 from ..commands import load
-from ..exceptions import InputError
+from ..exceptions import InputError, Interrupted
 from ..io.results import output_folder, write_json, write_parquet
 from .commands import COMMANDS, flatten, run
 from .tasks import BatchTask
@@ -350,6 +350,11 @@ def _submit(todo, out, scheduler, n_workers, report, n_done, total) -> dict:
     runs (:func:`_stage`), so that after Ctrl-C (the tasks cancelled, the cluster shutting
     down) every survey not yet collected keeps its earlier folder. The batch's earlier
     top-level files are removed before the first survey is put in place.
+
+    Raises
+    ------
+    Interrupted
+        Ctrl-C after a survey was put in place: the message names the surveys kept.
     """
     from distributed import as_completed
 
@@ -380,9 +385,26 @@ def _submit(todo, out, scheduler, n_workers, report, n_done, total) -> dict:
             n_done += 1
             if report:
                 report(record, n_done, total)
+    except KeyboardInterrupt:
+        if records:  # "no result written" would be false: say what was kept
+            raise Interrupted(_kept(out, records, len(todo))) from None
+        raise
     finally:
         client.close()
         if cluster is not None:
             cluster.close()
         shutil.rmtree(out / STAGING, ignore_errors=True)  # runs cut short, never put in place
     return records
+
+
+def _kept(out, records: dict, n_todo: int) -> str:
+    """Say what an interrupted batch kept: the surveys collected, and what the others keep."""
+    shown = ", ".join(f"{name} ({r['status']})" for name, r in list(records.items())[:10])
+    more = len(records) - 10
+    n, rest = len(records), n_todo - len(records)
+    return (f"the {n} survey{'s' if n > 1 else ''} collected before it "
+            f"{'are' if n > 1 else 'is'} kept in {Path(out) / 'surveys'}: {shown}"
+            + (f" and {more} more" if more > 0 else "")
+            + f"; the {rest} not collected keep their earlier folders, if any; no top-level "
+              "table written (surveys.parquet, beacons.parquet, failures.parquet, "
+              "summary.json): run the batch again to finish it")

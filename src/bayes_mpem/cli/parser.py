@@ -11,7 +11,7 @@ import warnings
 
 from .. import __version__
 from ..commands import COMMANDS, load, with_results
-from ..exceptions import InputError
+from ..exceptions import InputError, Interrupted
 from ..lbl.model.paths import PATH_CHOICES
 from . import gnssa, navigate
 from . import options as opt
@@ -732,8 +732,10 @@ def main(argv=None) -> int:
             print(f"bayes-mpem {args.command}: error: "
                   f"{config_origin(_message(exc), args.config_origin)}", file=sys.stderr)
             return 2
-        except KeyboardInterrupt:
-            print(f"bayes-mpem {args.command}: interrupted; no result written", file=sys.stderr)
+        except KeyboardInterrupt as exc:
+            # a batch keeps the surveys collected before Ctrl-C: its message names them
+            kept = str(exc) if isinstance(exc, Interrupted) else "no result written"
+            print(f"bayes-mpem {args.command}: interrupted; {kept}", file=sys.stderr)
             return 130
         except Exception as exc:
             if os.environ.get("BAYES_MPEM_TRACEBACK"):

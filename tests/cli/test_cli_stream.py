@@ -171,6 +171,44 @@ def test_udp_in_udp_out(dive, tmp_path):
     assert (tmp_path / "s.json").exists()
 
 
+def test_a_udp_send_that_fails_is_counted_unsent_and_said(dive, tmp_path, monkeypatch,
+                                                          capsys):
+    """A datagram ``--out udp://`` could not send was counted ``answered`` (and stopped the
+    stream, its counts line saying "end of input"); now ``unsent``, said on standard error,
+    and the stream goes on."""
+    import errno
+
+    folder, lines = dive
+    (tmp_path / "short.csv").write_text("\n".join(lines[:31]) + "\n")
+    real, calls = socket.socket.sendto, []
+
+    def flaky(self, data, address):
+        calls.append(address)
+        if len(calls) in (5, 6, 9):  # two failures in a row, then one more later
+            raise OSError(errno.ENETUNREACH, "Network is unreachable")
+        return real(self, data, address)
+
+    monkeypatch.setattr(socket.socket, "sendto", flaky)
+    rx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    rx.bind(("127.0.0.1", 0))
+    rx.settimeout(2)
+    out = f"udp://127.0.0.1:{rx.getsockname()[1]}"
+    try:
+        assert main(["stream", "--beacons", str(folder / "beacons.csv"), "--replay",
+                     str(tmp_path / "short.csv"), "--speed", "max", "--out", out]) == 0
+        received = [json.loads(rx.recv(65535)) for _ in range(27)]
+    finally:
+        rx.close()
+    err = capsys.readouterr().err
+    counts = json.loads(err.strip().splitlines()[-1])
+    assert counts["stream"] == "end of input" and counts["read"] == 31
+    assert counts["answered"] == len(received) == 27 and counts["unsent"] == 3
+    assert [a["line"] for a in received] == [n for n in range(2, 32) if n not in (6, 7, 10)]
+    said = [s for s in err.splitlines() if "answer not sent" in s]
+    assert [s.split(":")[1].strip() for s in said] == ["line 6", "line 10"]
+    assert all(out in s and "Network is unreachable" in s for s in said)
+
+
 def test_replay_and_option_errors(dive, tmp_path, capsys):
     folder, lines = dive
     (tmp_path / "short.csv").write_text("\n".join(lines[:41]) + "\n")

@@ -21,7 +21,8 @@ from .errors import OptionError
 # built: ``bayes-mpem --help`` loads no heavy module (tests/test_layout.py)
 
 #: The counts printed on exit, in order.
-COUNTS = ("read", "answered", "malformed", "header", "blank", "comment", "internal_errors")
+COUNTS = ("read", "answered", "malformed", "header", "blank", "comment", "internal_errors",
+          "unsent")
 
 
 def add_stream(sub) -> None:
@@ -161,26 +162,53 @@ def _source(args, stop, max_gap):
     return FdLines(stop)
 
 
-def _answer(nav, parser, counts, n, text):
-    """Return the JSON answer of line ``n``, or None for a line that gets none."""
+def _answer(nav, parser, n, text):
+    """Return line ``n``'s count (a key of :data:`COUNTS`) and JSON answer (None: it gets none).
+
+    The count of a line answered is the caller's to add, once the answer is sent.
+    """
     try:
         kind, ping = parser.parse(text, n)
         if kind != "ping":
-            counts[kind] += 1
-            return None
+            return kind, None
         try:
             out = {"line": n, **nav.update(ping).to_dict()}
         except InputError as err:  # the navigator's own checks: say which line
             raise InputError(f"line {n}: {err}") from None
     except InputError as err:
-        counts["malformed"] += 1
-        return {"line": n, "error": str(err)}
+        return "malformed", {"line": n, "error": str(err)}
     except Exception as err:  # noqa: BLE001 - a bug must not stop the stream
-        counts["internal_errors"] += 1
         traceback.print_exc(file=sys.stderr)
-        return {"line": n, "error": f"internal error: {type(err).__name__}: {err}"}
-    counts["answered"] += 1
-    return out
+        return "internal_errors", {"line": n, "error": f"internal error: {type(err).__name__}: "
+                                                       f"{err}"}
+    return "answered", out
+
+
+def _send(sink, answer, n, out, failing) -> str | None:
+    """Send line ``n``'s answer; return None, or why a UDP datagram could not be sent.
+
+    A failed send to ``udp://`` is said on standard error (once while it keeps failing the
+    same way) and the stream goes on; a file or standard output that fails stops it (its
+    ``OSError`` raised, :class:`BrokenPipeError` included).
+
+    Parameters
+    ----------
+    out : str
+        ``--out``, for the message.
+    failing : str or None
+        Why the previous send failed (None: it did not).
+    """
+    try:
+        sink.write(json.dumps(answer, allow_nan=False, separators=(",", ":")))
+    except OSError as err:
+        if sink.kind != "udp" or isinstance(err, BrokenPipeError):
+            raise
+        why = str(err)
+        if why != failing:
+            print(f"bayes-mpem stream: line {n}: answer not sent to {out}: {why} (counted in "
+                  "'unsent'; the stream goes on)", file=sys.stderr, flush=True)
+        return why
+    return None
 
 
 def _save(nav, path) -> None:
@@ -253,19 +281,28 @@ def cmd_stream(args) -> int:
     counts = dict.fromkeys(COUNTS, 0)
     previous = {s: signal.signal(s, lambda *_: stop.set()) for s in (signal.SIGTERM,
                                                                       signal.SIGINT)}
-    t0, why = time.monotonic(), "end of input"
+    t0, why, failing = time.monotonic(), "end of input", None
     try:
         for n, text in source:
             counts["read"] += 1
-            answer = _answer(nav, parser, counts, n, text)
+            kind, answer = _answer(nav, parser, n, text)
             if answer is not None:
-                sink.write(json.dumps(answer, allow_nan=False, separators=(",", ":")))
+                try:
+                    failing = _send(sink, answer, n, args.out, failing)
+                except OSError:
+                    counts["unsent"] += 1  # the line is read, its answer not delivered
+                    raise
+                kind = kind if failing is None else "unsent"
+            counts[kind] += 1
             if args.state and args.save_every and counts["read"] % args.save_every == 0:
                 _save(nav, args.state)
         if stop.is_set():
             why = "stopped by a signal"
     except BrokenPipeError:
         why = "the reader of the answers went away"
+    except OSError as err:  # --out FILE or standard output: the message is main's
+        why = f"the answers could not be written ({err.strerror or err})"
+        raise
     finally:
         for s, h in previous.items():
             signal.signal(s, h)

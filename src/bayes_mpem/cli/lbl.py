@@ -219,6 +219,9 @@ def cmd_simulate(args) -> int:
     chosen = gnssa.gnssa_handler(args)  # --gnssa: a GNSS-A campaign
     if chosen is not None:
         return chosen(args)
+    for name, default in gnssa.LBL_DEFAULTS.items():  # None until here: --gnssa refuses them
+        if getattr(args, name) is None:
+            setattr(args, name, default)
     if args.navigation:
         return navigate.cmd_simulate_navigation(args)
     given = [o for o in navigate.NAVIGATION_ONLY if getattr(args, o) is not None]
@@ -242,8 +245,7 @@ def cmd_simulate(args) -> int:
             raise OptionError(f"--effect: expected NAME=NUMBER, got {item!r}") from None
         if not math.isfinite(effects[name.strip()]):
             raise OptionError(f"--effect: expected NAME=NUMBER (a finite number), got {item!r}")
-    sim = simulate_survey(args.preset or gnssa.LBL_DEFAULTS["preset"], rng=args.seed,
-                          path=args.path or gnssa.LBL_DEFAULTS["path"], n_cycles=args.n_cycles,
+    sim = simulate_survey(args.preset, rng=args.seed, path=args.path, n_cycles=args.n_cycles,
                           effects=effects or None)
     paths = sim.write(args.out)
     print(f"{len(sim.survey)} pings to {len(sim.truth)} beacons")

@@ -8,7 +8,6 @@ from ..lbl.model.paths import PATH_CHOICES
 from ..lbl.navigate.options import MODELS, MULTIPATH
 from . import options as opt
 from .errors import OptionError
-from .gnssa import LBL_DEFAULTS
 from .output import print_written, write_result
 
 #: ``simulate`` options that only apply with ``--navigation``.
@@ -112,8 +111,7 @@ def cmd_simulate_navigation(args) -> int:
     kw = {k: getattr(args, k) for k in ("heading_bias", "speed_scale", "dr_noise",
                                         "start_error", "shadow_range")
           if getattr(args, k) is not None}
-    sim = simulate_dive(args.preset or LBL_DEFAULTS["preset"], rng=args.seed,
-                        path=args.path or LBL_DEFAULTS["path"], n_cycles=args.n_cycles,
+    sim = simulate_dive(args.preset, rng=args.seed, path=args.path, n_cycles=args.n_cycles,
                         shadow_windows=_windows(args.shadow_window), **kw)
     paths = sim.write(args.out).values()
     nav = sim.truth["navigation"]

@@ -344,3 +344,30 @@ def test_a_task_cancelled_by_the_scheduler_is_not_a_failure(dives, scheduler, tm
     for t in tasks:
         if t.name not in collected:
             assert _files(out / "surveys" / t.name) == before[t.name], t.name
+
+
+def test_an_array_in_a_batch_keeps_its_centre_and_says_when_one_is_missing(scheduler, tmp_path):
+    """A hunt (session 48): a campaign whose M04 never replied was 'done' with 0 warnings,
+    and no gathered table held the array centre or its 'not comparable' note (a centre
+    averaged from beacons.parquet was 250 m from the full array's)."""
+    from bayes_mpem.io.garpos import write_garpos
+    from bayes_mpem.survey_in.gnssa_simulate import simulate_gnssa
+
+    sim = simulate_gnssa(hours=0.5, rng=3)
+    full = write_garpos(tmp_path / "full", sim.pings, sim.header)
+    some = write_garpos(tmp_path / "some", sim.pings[sim.pings["transponder"] != "M04"],
+                        sim.header)
+    manifest = tmp_path / "m.csv"
+    manifest.write_text(f"name,survey,format\nfull,{full},garpos\nsome,{some},garpos\n")
+    result = run_batch(_tasks(manifest, "locate"), tmp_path / "out", scheduler=scheduler,
+                       progress=False)
+    s = result.surveys.set_index("name")
+    assert list(s["status"]) == ["done", "done"]
+    assert s.loc["full", "centre_note"] == "" and s.loc["full", "centre_transponders"] == (
+        "M01,M02,M03,M04")
+    assert s.loc["some", "centre_note"].startswith("the mean of M01, M02, M03 only (M04 not "
+                                                   "located): not comparable")
+    assert s.loc["some", "n_warnings"] >= 1
+    assert "1 transponder not located (M04: 0 shots" in s.loc["some", "warnings"]
+    assert abs(s.loc["full", "centre_enu_up_mean"]
+               - sim.truth_record()["array_centre"]["up"]) < 0.1

@@ -37,8 +37,24 @@ def survey_rows(result):
 
 
 def locate_rows(result):
-    """Per-transponder summaries and the classified table of a located survey."""
-    return result.summary["transponders"], result.classified
+    """Per-transponder summaries and the classified table of a located survey; an array's centre.
+
+    The third item holds the survey's own fields (``surveys.parquet``): an array survey's
+    centre (``centre_enu_east_mean`` ...; ``centre_transponders``) and ``centre_note`` where a
+    transponder was not located (the centre is then another point: averaged from the
+    transponders' rows, a campaign without M04 was 250 m from the full array's).
+    """
+    from ..survey_in.result import centre_note
+
+    s = result.summary
+    fields = {}
+    if "array_centre" in s:
+        c = s["array_centre"]
+        fields = {"centre": {"enu": c["enu"], "lat": c.get("lat"), "lon": c.get("lon"),
+                             "height": c.get("height"),
+                             "transponders": ",".join(map(str, c.get("transponders", [])))},
+                  "centre_note": centre_note(s) or ""}
+    return s["transponders"], result.classified, fields
 
 
 def diagnosis_rows(result):

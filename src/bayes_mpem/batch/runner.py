@@ -77,7 +77,7 @@ def _stage(task: BatchTask, out_dir: str, key: str | None = None) -> tuple:
             key = key or task.key()
             result = run(task.command, task.inputs, task.options)
             result.write(folder)
-            beacons, classified = rows_of(result)
+            beacons, classified, *own = rows_of(result)  # own: the survey's fields, if any
             rows = [{"name": task.name, "beacon": str(b), **flatten(v)}
                     for b, v in beacons.items()]
             if classified is not None:
@@ -93,6 +93,8 @@ def _stage(task: BatchTask, out_dir: str, key: str | None = None) -> tuple:
     record = {"name": task.name, "status": "done", "hash": key, "command": task.command,
               "seconds": time.perf_counter() - t0, "rows": rows,
               "warnings": [f"{w.category.__name__}: {w.message}" for w in caught]}
+    if own and own[0]:
+        record["fields"] = flatten(own[0])
     write_json(folder / "batch.json", record)  # last: its presence means the survey is complete
     return record, str(staging)
 
@@ -209,7 +211,9 @@ class BatchResult:
     surveys : pandas.DataFrame
         One row per survey: ``name``, ``status`` (``done``, ``complete``: skipped
         as already complete, ``failed``), ``seconds``, ``n_warnings``, ``warnings``,
-        ``hash``.
+        ``hash``; for ``locate`` on array surveys also the array centre (``centre_enu_*``,
+        ``centre_transponders``) and ``centre_note`` (empty where every transponder was
+        located).
     beacons : pandas.DataFrame
         One row per survey and beacon of every complete survey: ``name``,
         ``beacon`` and the flattened summary fields.
@@ -244,13 +248,14 @@ class BatchResult:
 
 
 def _gather(records: list, command: str, seconds: float) -> BatchResult:
+    columns = ["name", "status", "seconds", "n_warnings", "warnings", "hash"]
+    fields = list(dict.fromkeys(k for r in records for k in r.get("fields", {})))
     surveys = pd.DataFrame([{"name": r["name"], "status": r["status"],
                              "seconds": float(r.get("seconds", float("nan"))),
                              "n_warnings": len(r.get("warnings", [])),
                              "warnings": json.dumps(r.get("warnings", [])),
-                             "hash": r.get("hash")} for r in records],
-                           columns=["name", "status", "seconds", "n_warnings", "warnings",
-                                    "hash"])
+                             "hash": r.get("hash"), **r.get("fields", {})} for r in records],
+                           columns=columns + [f for f in fields if f not in columns])
     rows = [row for r in records if r["status"] != "failed" for row in r["rows"]]
     beacons = pd.DataFrame(rows) if rows else pd.DataFrame(columns=["name", "beacon"])
     failures = pd.DataFrame([{"name": r["name"], "reason": r["reason"]}

@@ -1004,6 +1004,25 @@ def _warn_spurious(raw, fit) -> None:
                 "campaign's concatenated?)", LocateWarning, stacklevel=3)
 
 
+def _warn_unlocated(raw, fit, shift=False) -> None:
+    """Warn of transponders of the prior positions not located (too few replies).
+
+    The array centre is then the mean of the others, another point of the seafloor: a batch
+    recorded such a campaign as done without a warning, and a centre averaged from its
+    transponders' rows was 250 m from the full array's (a hunt, session 48).
+    """
+    if not fit.skipped:
+        return
+    why = "; ".join(f"{t}: {w}" for t, w in fit.skipped.items())
+    n = len(fit.ids) + len(fit.skipped)
+    warnings.warn(f"{_positions_file(raw)}: {len(fit.skipped)} transponder"
+                  f"{'s' * (len(fit.skipped) != 1)} not located ({why}): the array centre is "
+                  f"the mean of {', '.join(map(str, fit.ids))} only, not comparable with a "
+                  f"centre of all {n}"
+                  + (f" (the rigid shift moves the prior geometry: positions.centre_of_all is "
+                     f"that of all {n})" if shift else ""), LocateWarning, stacklevel=3)
+
+
 #: The farthest (in depths) a transponder may be located from its prior position.
 MAX_MOVE_DEPTHS = 0.2
 
@@ -1203,6 +1222,7 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
     _check_labels(raw, fit, shots)
     _check_replies_explained(raw, fit)
     _warn_spurious(raw, fit)
+    _warn_unlocated(raw, fit, shift)
     _check_moved(raw, fit)
     _check_intervals(raw, fit)
     origin = (h["lat"], h["lon"], h.get("height", 0.0)) if "lat" in h else None

@@ -255,10 +255,11 @@ class ArrowheadFactor(NamedTuple):
 
 
 #: Read-only matrices seen lately, by identity: ``id -> (matrix, {what: value})`` (at most
-#: :data:`SEEN`; a fit decorated by :func:`forgetting` drops them when it returns).
+#: :data:`SEEN`, the least recently used dropped first: the penalties, used in every search,
+#: stay; a fit decorated by :func:`forgetting` drops them when it returns).
 _SEEN: dict = {}
 #: How many read-only matrices :data:`_SEEN` keeps.
-SEEN = 4
+SEEN = 8
 _SEEN_LOCK = threading.Lock()
 
 
@@ -274,11 +275,12 @@ def _remembered(M, what, make):
     if M.flags.writeable or M.base is not None:
         return make(M)
     with _SEEN_LOCK:
-        entry = _SEEN.get(id(M))
+        entry = _SEEN.pop(id(M), None)  # put back last: the least recently used goes first
         if entry is None or entry[0] is not M:
-            entry = _SEEN[id(M)] = (M, {})
-            while len(_SEEN) > SEEN:
-                _SEEN.pop(next(iter(_SEEN)))
+            entry = (M, {})
+        _SEEN[id(M)] = entry
+        while len(_SEEN) > SEEN:
+            _SEEN.pop(next(iter(_SEEN)))
         value = entry[1].get(what)
     if value is None:
         value = make(M)

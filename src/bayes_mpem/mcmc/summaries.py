@@ -225,8 +225,18 @@ def draw_moments(flat, fn, *, chunk: int = 64):
     return pointwise, m, np.sqrt(np.maximum(s2 / n_draws - m * m, 0.0))
 
 
+#: the root attribute ``diagnostics`` of a posterior file: how ``summary.json``'s ESS and
+#: R-hat are computed from its draws (``docs/bayes.md``, Diagnostics from the file)
+DIAGNOSTICS_NOTE = {
+    False: "summary.json's bulk ESS and R-hat: ArviZ's, the walkers (the chains) as chains",
+    True: ("summary.json's bulk ESS: ArviZ's, the walkers (the chains) as chains; its R-hat: "
+           "ArviZ's across the ensembles, each ensemble's walkers (the chain coordinate "
+           "'ensemble') pooled step by step into one chain"),
+}
+
+
 def to_datatree(groups: dict, *, dims: dict | None = None, coords: dict | None = None,
-                attrs: dict | None = None):
+                attrs: dict | None = None, n_ensembles: int | None = None):
     """ArviZ data (:func:`arviz_base.from_dict`), walkers (or chains) as chains.
 
     Parameters
@@ -240,13 +250,42 @@ def to_datatree(groups: dict, *, dims: dict | None = None, coords: dict | None =
         Dimension -> coordinate values.
     attrs : dict, optional
         Root attributes.
+    n_ensembles : int, optional
+        The chains are the walkers of this many ensembles, one ensemble after the other
+        (:func:`run_ensembles`): every group over ``chain`` gets the coordinate
+        ``ensemble`` (each walker's ensemble, from 0), and the root the attributes
+        ``n_ensembles`` and ``diagnostics`` (:data:`DIAGNOSTICS_NOTE`: how
+        :func:`ess_and_rhat` reads the draws).
 
     Returns
     -------
     xarray.DataTree
+
+    Examples
+    --------
+    >>> x = np.zeros((4, 3))
+    >>> tree = to_datatree({"posterior": {"a": x}, "sample_stats": {"lp": x}}, n_ensembles=2)
+    >>> tree["posterior"]["ensemble"].values.tolist(), tree.attrs["n_ensembles"]
+    ([0, 0, 1, 1], 2)
     """
     from arviz_base import from_dict
 
     tree = from_dict(groups, dims=dims, coords=coords, check_conventions=False)
     tree.attrs.update(attrs or {})
+    if n_ensembles is not None:
+        import xarray as xr
+
+        n = int(n_ensembles)
+        for name in list(tree.children):
+            ds = tree[name].to_dataset()
+            if "chain" not in ds.dims:
+                continue
+            if ds.sizes["chain"] % n:
+                raise ValueError(f"{ds.sizes['chain']} chains are not the walkers of {n} "
+                                 "ensembles of equal size")
+            ds = ds.assign_coords(ensemble=("chain", np.repeat(np.arange(n),
+                                                               ds.sizes["chain"] // n)))
+            ds["ensemble"].attrs["long_name"] = "the ensemble of each walker (chain)"
+            tree[name] = xr.DataTree(ds)
+        tree.attrs.update(n_ensembles=n, diagnostics=DIAGNOSTICS_NOTE[n > 1])
     return tree

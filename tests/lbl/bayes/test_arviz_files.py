@@ -119,3 +119,76 @@ def test_arviz_plots_draws_from_the_file(written, tmp_path):
         pc = getattr(azp, name)(tree, var_names=["d0", "sigma_mp"], backend="matplotlib")
         pc.savefig(tmp_path / f"{name}.png")
         assert (tmp_path / f"{name}.png").stat().st_size > 5_000, name
+
+
+def _summary_rhat(tree, x):
+    """docs/bayes.md, "Diagnostics from the file": summary.json's R-hat of a (chain, draw)
+    array of the file, the recipe as printed there."""
+    import arviz_stats as azs
+
+    ens = tree["posterior"]["ensemble"].values  # each walker's (chain's) ensemble
+    if tree.attrs["n_ensembles"] == 1:  # the walkers are the chains
+        return float(azs.rhat(x))
+    # each ensemble's walkers pooled step by step into one chain
+    return float(azs.rhat(np.stack([x[ens == e].T.ravel() for e in np.unique(ens)])))
+
+
+@pytest.fixture(scope="module")
+def ensembles(tmp_path_factory):
+    sim = bm.simulate_survey("abe58", rng=4, n_cycles=120)
+    post = bm.sample(sim.survey, rng=2, progress=False, min_ess=300, sampler="ensemble",
+                     n_ensembles=3)
+    out = tmp_path_factory.mktemp("ensembles")
+    post.write(out)
+    return post, out
+
+
+def test_the_summary_diagnostics_of_several_ensembles_come_back_from_the_file(ensembles):
+    """The summary's R-hat compares the ensembles, each one's walkers pooled; the file did not
+    say which walker was whose, and ArviZ on it gave R-hat 1.01-1.03 where the summary said
+    about 1.001 (session 47). Each chain's ensemble is now the coordinate ``ensemble``, and
+    the recipe of docs/bayes.md gives the summary's R-hat (the ESS: ArviZ's as it is)."""
+    import arviz_stats as azs
+
+    post, out = ensembles
+    summary = json.loads((out / "summary.json").read_text())
+    for bid, b in summary["beacons"].items():
+        assert b["diagnostics"]["n_ensembles"] == 3 and b["diagnostics"]["sampler"] == "ensemble"
+        tree = xr.open_datatree(out / b["file"])
+        assert tree.attrs["n_ensembles"] == 3 and "pooled" in tree.attrs["diagnostics"]
+        walkers = b["diagnostics"]["n_walkers"]
+        for group in ("posterior", "sample_stats"):
+            np.testing.assert_array_equal(tree[group]["ensemble"],
+                                          np.repeat(np.arange(3), walkers))
+        ess = azs.ess(tree, method="bulk")
+        for k, v in b["rhat"].items():
+            assert _summary_rhat(tree, tree["posterior"][k].values) == pytest.approx(
+                v, abs=1e-6), (bid, k)
+            assert float(ess[k]) == pytest.approx(b["ess"][k], rel=1e-9), (bid, k)
+
+
+def test_legacy_arviz_gives_the_summary_rhat_of_ensembles_too(ensembles):
+    az = pytest.importorskip("arviz", reason="legacy ArviZ (arviz<1) is in the test extra")
+    if int(az.__version__.split(".")[0]) >= 1:
+        pytest.skip("arviz >= 1 is the DataTree generation")
+
+    _, out = ensembles
+    summary = json.loads((out / "summary.json").read_text())
+    b = summary["beacons"]["4"]
+    post = az.from_netcdf(out / b["file"]).posterior
+    ens = post["ensemble"].values
+    for k, v in b["rhat"].items():
+        x = post[k].values
+        pooled = np.stack([x[ens == e].T.ravel() for e in np.unique(ens)])
+        assert float(az.rhat(pooled)) == pytest.approx(v, abs=1e-6), k
+        assert abs(float(az.rhat(x)) - v) > 1e-6  # walkers as chains: not the summary's
+
+
+def test_one_ensemble_files_say_so(written):
+    _, out, paths = written
+    tree = xr.open_datatree(paths["posterior_4"])
+    assert tree.attrs["n_ensembles"] == 1
+    assert (tree["posterior"]["ensemble"] == 0).all()
+    summary = json.loads((out / "summary.json").read_text())
+    for k, v in summary["beacons"]["4"]["rhat"].items():
+        assert _summary_rhat(tree, tree["posterior"][k].values) == pytest.approx(v, abs=1e-9)

@@ -28,7 +28,8 @@ class PosteriorResult:
     priors : {"learned", "equal"}
     path : str
     idata : xarray.DataTree
-        ArviZ data: ``posterior`` (chain = walker), ``sample_stats`` (``lp``),
+        ArviZ data: ``posterior`` (chain = walker, its ensemble the coordinate
+        ``ensemble``), ``sample_stats`` (``lp``),
         ``observed_data`` (``z`` over ``range``: the input row, with the ping ``time``
         as a coordinate; units as attributes); ``log_likelihood`` and
         ``posterior_predictive`` when asked for.
@@ -252,7 +253,7 @@ def sample_beacon(
         extra["log_likelihood"] = {"z": ll.reshape(*theta.shape[:2], -1)}
     if predictive:
         extra["posterior_predictive"] = {"z": _predict(post, nat, gen)}
-    idata = _datatree(post, data, nat, lp, chains.sampler, extra)
+    idata = _datatree(post, data, nat, lp, chains.sampler, extra, run.n_ensembles)
     names = sampled(post)
     if thin == 1 and idx.size == chains.chain.shape[0]:  # the draws written are those checked
         ess_, rhat_ = dict(run.ess_by), dict(run.rhat_by)
@@ -307,8 +308,8 @@ def _predict(post: BeaconPosterior, nat: dict, gen) -> np.ndarray:
 
 
 def _datatree(post: BeaconPosterior, data: BeaconData, nat: dict, lp, sampler: str,
-              extra: dict):
-    """ArviZ data of the kept draws, walkers as chains; units and ping times attached."""
+              extra: dict, n_ensembles: int):
+    """ArviZ data of the kept draws, walkers as chains; units, ping times and ensembles attached."""
     import emcee
     import xarray as xr
 
@@ -317,7 +318,8 @@ def _datatree(post: BeaconPosterior, data: BeaconData, nat: dict, lp, sampler: s
          "observed_data": {"z": post.geom.z}, **extra},
         dims={"z": ["range"]}, coords={"range": np.asarray(data.rows)},
         attrs={"beacon": post.beacon, "priors": post.priors, "path": post.path,
-               "sampler": f"emcee {emcee.__version__} ({sampler})"})
+               "sampler": f"emcee {emcee.__version__} ({sampler})"},
+        n_ensembles=n_ensembles)
     for name in idata.children:
         ds = idata[name].to_dataset()
         if "range" in ds.dims:

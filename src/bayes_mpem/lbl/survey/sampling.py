@@ -31,7 +31,8 @@ from .survey import (
 
 #: The root attribute ``contents`` of each ``posterior_<id>.nc``.
 CONTENTS = ("one beacon's posterior: the ArviZ groups posterior, sample_stats and "
-            "observed_data (log_likelihood and posterior_predictive when asked for); open it "
+            "observed_data (log_likelihood and posterior_predictive when asked for), the "
+            "walkers as chains, each one's ensemble the chain coordinate 'ensemble'; open it "
             "with xarray.open_datatree(path), arviz_base.convert_to_datatree(path) or legacy "
             "arviz.from_netcdf(path)")
 

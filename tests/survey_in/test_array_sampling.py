@@ -104,6 +104,7 @@ def test_datatree_has_real_coordinates_and_units(campaign, sampled):
     np.testing.assert_array_equal(tree["class_probabilities"]["p_true"], sampled.p_true)
     assert tree["posterior"]["sound_speed"].attrs["units"] == "m/s"
     assert tree["sample_stats"]["lp"].shape == pos.shape[:2]
+    assert tree.attrs["n_ensembles"] == 1 and (tree["posterior"]["ensemble"] == 0).all()
 
 
 def test_bad_options_fail_before_any_work(campaign):
@@ -132,7 +133,7 @@ def test_survey_summary_takes_the_posterior(campaign):
     assert int((cls.loc[used, "label"] == "spurious").sum()) == int(np.sum(post.p_true < 0.5))
 
 
-def test_one_transponder_posterior_is_written_the_same_way(tmp_path):
+def test_one_transponder_posterior_is_written_the_same_way(tmp_path, sampled):
     import pandas as pd
     import xarray as xr
 
@@ -142,14 +143,30 @@ def test_one_transponder_posterior_is_written_the_same_way(tmp_path):
 
     gen = np.random.default_rng(0)
     draws = {k: gen.normal(size=(8, 50)) for k in ("east", "north", "depth", "sound_speed",
-                                                  "sigma", "weight")}
-    post = LocationPosterior("T", ("east",), draws, np.ones(3), np.zeros(3), np.arange(3))
+                                                  "sigma", "weight", "lp")}
+    shots = pd.DataFrame({"line": [4, 5, 7], "time": [0.0, 10.0, 20.0],
+                          "transponder": ["T"] * 3, "twtt": [5.1, 5.2, 5.3]})
+    post = LocationPosterior("T", ("east",), draws, np.ones(3), np.zeros(3), np.arange(3),
+                             shots=shots, diagnostics={"n_ensembles": 2})
     res = SurveyInResult({"transponders": {}}, pd.DataFrame({"line": [1]}),
                          posteriors={"T": post})
     paths = res.write(tmp_path)
     assert paths["posterior_T"].name == posterior_file("T") == "posterior_T.nc"
     tree = xr.open_datatree(paths["posterior_T"])
     np.testing.assert_array_equal(tree["posterior"]["depth"], draws["depth"])
+    np.testing.assert_array_equal(tree["sample_stats"]["lp"], draws["lp"])
+    array = sampled.to_inference_data()
+    assert sorted(tree.children) == sorted(array.children)
+    for name in tree.children:  # the same coordinates, with the same units
+        for c in ("shot", "time", "line", "shot_transponder", "ensemble"):
+            if c in array[name].coords:
+                assert tree[name][c].attrs == array[name][c].attrs, (name, c)
+    np.testing.assert_array_equal(tree["observed_data"]["line"], [4, 5, 7])
+    assert tree["observed_data"]["twtt"].attrs["units"] == "s"
+    np.testing.assert_array_equal(tree["posterior"]["ensemble"], np.repeat([0, 1], 4))
+    lean = LocationPosterior("T", ("east",), draws, np.ones(3), np.zeros(3), np.arange(3))
+    with pytest.raises(ValueError, match="without its pings"):
+        lean.to_inference_data()
 
 
 def test_fixed_coordinates_stay_fixed(campaign):

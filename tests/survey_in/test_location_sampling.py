@@ -190,12 +190,20 @@ def test_ray_bending_correction_on_seagap():
 # ------------------------------------------------------------------ the command line
 
 
-def test_locate_command_with_sample(tmp_path):
+@pytest.fixture(scope="module")
+def located(tmp_path_factory):
+    """``bayes-mpem locate CC03 --sample``'s folder."""
     from bayes_mpem.cli import main
 
-    assert main(["locate", str(CC03), "--format", "obsrange", "--out", str(tmp_path),
+    out = tmp_path_factory.mktemp("located")
+    assert main(["locate", str(CC03), "--format", "obsrange", "--out", str(out),
                  "--sample", "--walkers", "16", "--min-ess", "200", "--seed", "3",
                  "--no-progress"]) == 0
+    return out
+
+
+def test_locate_command_with_sample(located):
+    tmp_path = located
     s = json.loads((tmp_path / "summary.json").read_text())
     t = s["transponders"]["CC03"]
     for k in ("east", "north", "depth", "sound_speed"):
@@ -221,6 +229,54 @@ def test_locate_command_with_sample(tmp_path):
     np.testing.assert_allclose(p_true + pinged["p_spurious"].astype(float), 1.0)
     assert ((p_true < 0.5) == (pinged["label"] == "spurious")).all()
     assert (p_sd >= 0).all() and (p_sd[p_true > 0.5] < 0.1).all()
+
+
+def test_locate_sample_file_is_laid_out_as_the_array_s(located):
+    """The one-transponder posterior file held only ``posterior``, without units (session 47);
+    now the array file's groups (``sample_stats``, ``observed_data``,
+    ``class_probabilities``), with units, written by the same code."""
+    import xarray as xr
+
+    tree = xr.open_datatree(located / "posterior_CC03.nc")
+    assert sorted(tree.children) == ["class_probabilities", "observed_data", "posterior",
+                                     "sample_stats"]
+    assert tree.attrs["transponder"] == "CC03" and tree.attrs["kind"] == "one transponder"
+    post = tree["posterior"]
+    units = {"east": "m", "north": "m", "depth": "m", "sound_speed": "m/s", "sigma": "s",
+             "weight": "1"}
+    assert {k: post[k].attrs.get("units") for k in post.data_vars} == units
+    assert tree["sample_stats"]["lp"].shape == post["depth"].shape
+    assert np.isfinite(tree["sample_stats"]["lp"]).all()
+    obs = tree["observed_data"]
+    assert obs["twtt"].attrs["units"] == "s" and obs["time"].attrs["units"] == "s"
+    assert (obs["shot_transponder"] == "CC03").all()
+    cls = pd.read_csv(located / "classified.csv", keep_default_na=False)
+    pinged = cls[cls["label"] != "skipped"].set_index("line")
+    lines = obs["line"].values
+    assert obs.sizes["shot"] == len(pinged) == 88
+    np.testing.assert_allclose(obs["twtt"], pinged.loc[lines, "twtt"].astype(float))
+    probs = tree["class_probabilities"]
+    np.testing.assert_allclose(probs["p_true"], pinged.loc[lines, "p_true"].astype(float))
+    assert probs["p_true_sd"].attrs["units"] == "1"
+
+
+def test_locate_sample_summary_diagnostics_come_back_from_the_file(located):
+    """Two ensembles: the summary's R-hat pools each one's walkers (docs/bayes.md,
+    Diagnostics from the file); the file did not say which walker was whose."""
+    import arviz_stats as azs
+    import xarray as xr
+
+    t = json.loads((located / "summary.json").read_text())["transponders"]["CC03"]
+    tree = xr.open_datatree(located / "posterior_CC03.nc")
+    assert tree.attrs["n_ensembles"] == t["posterior"]["diagnostics"]["n_ensembles"] == 2
+    ens = tree["posterior"]["ensemble"].values
+    np.testing.assert_array_equal(ens, np.repeat([0, 1], 16))
+    ess = azs.ess(tree, method="bulk")
+    for k, v in t["posterior"]["rhat"].items():
+        x = tree["posterior"][k].values
+        pooled = np.stack([x[ens == e].T.ravel() for e in np.unique(ens)])
+        assert float(azs.rhat(pooled)) == pytest.approx(v, abs=1e-6), k
+        assert float(ess[k]) == pytest.approx(t["posterior"]["ess"][k], rel=1e-9), k
 
 
 @pytest.mark.parametrize(("extra", "message"), [

@@ -19,7 +19,6 @@ from ..mcmc import (
     rhat,
     run_ensembles,
     thin_index,
-    to_datatree,
 )
 from .array import (
     WEIGHT_GRID,
@@ -31,7 +30,12 @@ from .array import (
 )
 from .classes import log_classes, true_probability
 from .noise import Whitener
-from .posterior import SIGMA_BOUNDS, SPEED_PRIOR_WIDTH, check_location_options
+from .posterior import (
+    SIGMA_BOUNDS,
+    SPEED_PRIOR_WIDTH,
+    check_location_options,
+    posterior_tree,
+)
 from .travel_times import speed_basis, speed_penalty
 
 #: the pilot keeps the independence move at or above this bulk ESS per draw (docs/gnssa.md)
@@ -880,21 +884,19 @@ class ArrayPosterior:
             (``p_true``, ``p_true_sd`` per shot, averaged over the draws).
         """
         import emcee
-        import xarray as xr
 
         d = self.draws
         post = {k: d[k] for k in ("position", "centre", "speed_coef", "sound_speed",
                                   "gradient", "sigma", "weight", "smoothing_weight") if k in d}
         dims = {"position": ["transponder", "axis"], "centre": ["axis"],
                 "speed_coef": ["knot"], "gradient": ["gradient_term"],
-                "weight": ["transponder"], "twtt": ["shot"]}
+                "weight": ["transponder"]}
         coords = {"transponder": list(self.ids), "axis": list(AXES),
                   "knot": np.arange(d["speed_coef"].shape[-1]),
-                  "gradient_term": list(self.em.gradient_terms), "shot": np.asarray(self.rows)}
-        tree = to_datatree(
-            {"posterior": post, "sample_stats": {"lp": d["lp"]},
-             "observed_data": {"twtt": self.shots["twtt"].to_numpy(float)}},
-            dims=dims, coords=coords,
+                  "gradient_term": list(self.em.gradient_terms)}
+        return posterior_tree(
+            post, d["lp"], self.shots, self.p_true, self.p_true_sd, self.rows, units=UNITS,
+            dims=dims, coords=coords, n_ensembles=1,
             attrs={"kind": "GNSS-A array", "transponders": ",".join(self.ids),
                    "sampler": f"emcee {emcee.__version__} ({self.diagnostics.get('moves')})",
                    "frame": "local east, north, up (m) of the survey",
@@ -902,22 +904,6 @@ class ArrayPosterior:
                    "noise": self.diagnostics.get("noise", ""),
                    "position_prior": self.diagnostics.get("position_prior", ""),
                    "ci": self.ci})
-        tree["class_probabilities"] = xr.DataTree(xr.Dataset(
-            {"p_true": ("shot", self.p_true), "p_true_sd": ("shot", self.p_true_sd)},
-            coords={"shot": coords["shot"]}))
-        for name in tree.children:
-            ds = tree[name].to_dataset()
-            if "shot" in ds.dims:
-                ds = ds.assign_coords(
-                    time=("shot", self.shots["time"].to_numpy(float)),
-                    shot_transponder=("shot", self.shots["transponder"].astype(str).to_numpy()),
-                    line=("shot", self.shots["line"].to_numpy()))
-                ds["shot"].attrs.update(long_name="input row")
-            for var in list(ds.data_vars) + list(ds.coords):
-                if var in UNITS:
-                    ds[var].attrs["units"] = UNITS[var]
-            tree[name] = xr.DataTree(ds)
-        return tree
 
     def to_dict(self, ci: float | None = None) -> dict:
         """JSON-ready summary: positions, centre, sound speed, gradients, diagnostics.

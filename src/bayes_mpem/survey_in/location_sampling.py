@@ -17,7 +17,6 @@ from ..mcmc import (
     rhat,
     run_ensembles,
     thin_index,
-    to_datatree,
 )
 from .classes import true_probability
 from .drift import drift_from_draws
@@ -28,10 +27,15 @@ from .posterior import (
     TAT_BOUNDS,
     LocationLogPosterior,
     check_location_options,
+    posterior_tree,
 )
 
 #: independent ensembles of differential evolution: the stopping rule's R-hat compares them
 N_ENSEMBLES = 2
+#: units of the variables written (``units`` attributes)
+UNITS = {"east": "m", "north": "m", "depth": "m", "sound_speed": "m/s", "tat": "s",
+         "sigma": "s", "weight": "1", "twtt": "s", "time": "s", "p_true": "1",
+         "p_true_sd": "1", "lp": "1"}
 
 
 @dataclass(frozen=True)
@@ -46,13 +50,17 @@ class LocationPosterior:
     draws : dict
         Thinned draws of each reported parameter (``east``, ``north``, ``depth``,
         ``sound_speed`` m/s, ``sigma`` s, ``weight``, ``tat`` when fitted), shape
-        ``(walker, draw)``, and ``theta``: ``(walker, draw, ndim)`` in the
-        sampler's coordinates; the walkers of both ensembles, one after the other.
+        ``(walker, draw)``, ``lp`` (their log density, the same shape) and ``theta``:
+        ``(walker, draw, ndim)`` in the sampler's coordinates; the walkers of both
+        ensembles, one after the other.
     p_true, p_true_sd : numpy.ndarray
         Per ping (table order of ``rows``): posterior mean and standard deviation
         over the draws of the probability of being a true arrival.
     rows : numpy.ndarray
         Positions of the pings in the input table.
+    shots : pandas.DataFrame
+        ``line``, ``time`` (s), ``transponder``, ``twtt`` (s) of those pings (the
+        file's ``observed_data``; as :class:`~.array_sampling.ArrayPosterior`'s).
     tau, ess, ess_bulk : dict
         Per reported parameter: ``steps x walkers / ESS`` (steps), and ArviZ's bulk ESS
         of :attr:`draws` (walkers as chains; the same dict under both names).
@@ -74,6 +82,7 @@ class LocationPosterior:
     p_true: np.ndarray = field(repr=False)
     p_true_sd: np.ndarray = field(repr=False)
     rows: np.ndarray = field(repr=False)
+    shots: pd.DataFrame = field(default=None, repr=False)
     tau: dict = field(default_factory=dict)
     ess: dict = field(default_factory=dict)
     ess_bulk: dict = field(default_factory=dict)
@@ -190,18 +199,38 @@ class LocationPosterior:
         return out
 
     def to_inference_data(self):
-        """ArviZ data: ``posterior`` (walkers as chains) of the reported parameters.
+        """ArviZ data of the kept draws, walkers as chains; units and ping times attached.
+
+        The layout of the array's (:meth:`.array_sampling.ArrayPosterior.to_inference_data`,
+        :func:`~.posterior.posterior_tree`).
 
         Returns
         -------
         xarray.DataTree
+            ``posterior`` (the reported parameters; each walker's ensemble the chain
+            coordinate ``ensemble``), ``sample_stats`` (``lp``), ``observed_data``
+            (``twtt`` over ``shot``: the input row, with the ping's ``time``,
+            ``shot_transponder`` and file ``line``) and ``class_probabilities``
+            (``p_true``, ``p_true_sd`` per ping, averaged over the draws).
+
+        Raises
+        ------
+        ValueError
+            For a posterior built without its pings (``shots``) or log densities (``lp``).
         """
         import emcee
 
-        return to_datatree({"posterior": {k: self.draws[k] for k in self.params}},
-                           attrs={"transponder": self.transponder,
-                                  "sampler": f"emcee {emcee.__version__}",
-                                  "travel_times": self.diagnostics.get("travel_times", "")})
+        if self.shots is None or "lp" not in self.draws:
+            raise ValueError(f"transponder {self.transponder}: a posterior without its pings "
+                             "(shots) or log densities (draws['lp']) cannot be written")
+        return posterior_tree(
+            {k: self.draws[k] for k in self.params}, self.draws["lp"], self.shots, self.p_true,
+            self.p_true_sd, self.rows, units=UNITS,
+            n_ensembles=int(self.diagnostics.get("n_ensembles", N_ENSEMBLES)),
+            attrs={"kind": "one transponder", "transponder": self.transponder,
+                   "sampler": f"emcee {emcee.__version__} ({self.diagnostics.get('moves')})",
+                   "frame": "local east, north (m) of the survey, depth (m) down",
+                   "travel_times": self.diagnostics.get("travel_times", ""), "ci": self.ci})
 
 
 def _true_probability(post: LocationLogPosterior, theta):
@@ -305,6 +334,7 @@ def sample_location(pings: pd.DataFrame, fit: LocateResult, *, n_walkers: int | 
     ess = bulk_ess(draws)
     tau = {k: float(idx.size * thin * N_ENSEMBLES * n_walkers / ess[k]) for k in draws}
     rhat_ = {k: _rhat_across(draws[k]) for k in ess}
+    draws["lp"] = np.ascontiguousarray(np.swapaxes(run.log_prob[idx], 0, 1))
     draws["theta"] = theta
     flat = theta.reshape(-1, post.ndim)
     _, p, p_sd = draw_moments(flat, lambda t: _true_probability(post, t))
@@ -312,7 +342,8 @@ def sample_location(pings: pd.DataFrame, fit: LocateResult, *, n_walkers: int | 
               "refracted rays: fixed ray-bending correction at the EM solution")
     return LocationPosterior(
         transponder=fit.transponder, names=post.names, draws=draws, p_true=p[:, 0],
-        p_true_sd=p_sd[:, 0], rows=np.asarray(fit.rows), tau=tau, ess=ess, ess_bulk=ess,
+        p_true_sd=p_sd[:, 0], rows=np.asarray(fit.rows), shots=_shots(pings, fit),
+        tau=tau, ess=ess, ess_bulk=ess,
         rhat=rhat_, em=fit,
         diagnostics={"n_walkers": n_walkers, "n_ensembles": N_ENSEMBLES,
                      "n_steps": run.n_steps, "burn": int(run.burn),
@@ -321,6 +352,17 @@ def sample_location(pings: pd.DataFrame, fit: LocateResult, *, n_walkers: int | 
                      "seconds": float(seconds), "min_ess": float(min_ess),
                      "moves": "DEMove 1.0 (differential evolution)", "travel_times": travel},
         ci=float(ci))
+
+
+def _shots(pings: pd.DataFrame, fit: LocateResult) -> pd.DataFrame:
+    """``line``, ``time``, ``transponder``, ``twtt`` of the pings ``fit`` used (the file's)."""
+    sub = pings.iloc[np.asarray(fit.rows)]
+    n = len(sub)
+    return pd.DataFrame({
+        "line": sub["line"].to_numpy() if "line" in sub.columns else np.asarray(fit.rows),
+        "time": sub["time"].to_numpy(float) if "time" in sub.columns else np.full(n, np.nan),
+        "transponder": np.full(n, str(fit.transponder)),
+        "twtt": sub["twtt"].to_numpy(float)})
 
 
 def _rhat_across(x) -> float:

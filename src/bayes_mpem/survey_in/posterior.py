@@ -416,6 +416,71 @@ def posterior_file(name) -> str:
     return f"posterior_{re.sub(r'[^A-Za-z0-9._-]', '_', str(name))}.nc"
 
 
+def posterior_tree(posterior: dict, lp, shots: pd.DataFrame, p_true, p_true_sd, rows, *,
+                   units: dict, dims: dict | None = None, coords: dict | None = None,
+                   attrs: dict | None = None, n_ensembles: int = 1):
+    """ArviZ data of a survey-in posterior (an array or one transponder), walkers as chains.
+
+    The one layout of :func:`write_posterior`'s files (``docs/gnssa.md``, The array
+    posterior).
+
+    Parameters
+    ----------
+    posterior : dict
+        Variable -> ``(walker, draw, ...)`` draws (the ``posterior`` group).
+    lp : numpy.ndarray
+        ``(walker, draw)`` log density of the draws (``sample_stats``).
+    shots : pandas.DataFrame
+        ``line``, ``time`` (s), ``transponder``, ``twtt`` (s) of the shots (pings) used.
+    p_true, p_true_sd : numpy.ndarray
+        Per shot: mean and sd over the draws of the probability of a true reply.
+    rows : numpy.ndarray
+        Positions of the shots in the input table (the ``shot`` coordinate).
+    units : dict
+        Variable or coordinate -> its ``units`` attribute.
+    dims, coords : dict, optional
+        Of the posterior's variables (:func:`~bayes_mpem.mcmc.to_datatree`).
+    attrs : dict, optional
+        Root attributes.
+    n_ensembles : int, default 1
+        Ensembles whose walkers the chains are (the chain coordinate ``ensemble``).
+
+    Returns
+    -------
+    xarray.DataTree
+        ``posterior``, ``sample_stats`` (``lp``), ``observed_data`` (``twtt`` over
+        ``shot``: the input row, with the shot's ``time``, ``shot_transponder`` and file
+        ``line``) and ``class_probabilities`` (``p_true``, ``p_true_sd`` per shot); units
+        as attributes.
+    """
+    import xarray as xr
+
+    from ..mcmc import to_datatree
+
+    rows = np.asarray(rows)
+    tree = to_datatree(
+        {"posterior": posterior, "sample_stats": {"lp": lp},
+         "observed_data": {"twtt": shots["twtt"].to_numpy(float)}},
+        dims={**(dims or {}), "twtt": ["shot"]}, coords={**(coords or {}), "shot": rows},
+        attrs=attrs, n_ensembles=n_ensembles)
+    tree["class_probabilities"] = xr.DataTree(xr.Dataset(
+        {"p_true": ("shot", np.asarray(p_true)), "p_true_sd": ("shot", np.asarray(p_true_sd))},
+        coords={"shot": rows}))
+    for name in tree.children:
+        ds = tree[name].to_dataset()
+        if "shot" in ds.dims:
+            ds = ds.assign_coords(
+                time=("shot", shots["time"].to_numpy(float)),
+                shot_transponder=("shot", shots["transponder"].astype(str).to_numpy()),
+                line=("shot", shots["line"].to_numpy()))
+            ds["shot"].attrs.update(long_name="input row")
+        for var in list(ds.data_vars) + list(ds.coords):
+            if var in units:
+                ds[var].attrs["units"] = units[var]
+        tree[name] = xr.DataTree(ds)
+    return tree
+
+
 def write_posterior(path, tree) -> None:
     """Write an ArviZ DataTree as NetCDF4 (h5netcdf), every variable gzip-compressed.
 

@@ -166,3 +166,80 @@ def test_ctrl_c_while_the_command_loads_says_interrupted_without_a_traceback(mon
     assert main(["locate", "nowhere.ini", "--out", "nowhere"]) == 130
     err = capsys.readouterr().err
     assert "interrupted; no result written" in err and "Traceback" not in err
+
+
+CC03 = Path(__file__).resolve().parents[2] / "data" / "obsrange" / "SIO_CC03.txt"
+
+
+@pytest.mark.parametrize("how", ["raised", "signal"])
+def test_ctrl_c_after_the_commit_reports_the_result_written(tmp_path, monkeypatch, capsys,
+                                                            how):
+    """A Ctrl-C in the last ~0.3 s of a run, once its files were in place, exited 130 with
+    "interrupted; no result written" over a complete new result (session 47). Now the state
+    and the status agree: the result is written, status 0; the caller's handler comes back."""
+    from bayes_mpem.cli import main
+    from bayes_mpem.io import results
+
+    argv = ["locate", str(CC03), "--format", "obsrange", "--out", str(tmp_path / "out")]
+    assert main(argv) == 0
+    earlier = (tmp_path / "out" / "summary.json").stat().st_mtime_ns
+    real = results._Run._clean_dead_partials
+
+    def after_the_commit(run):  # the commit's last step, every file in place
+        if how == "raised":
+            raise KeyboardInterrupt
+        signal.raise_signal(signal.SIGINT)  # a real Ctrl-C
+        real(run)
+
+    monkeypatch.setattr(results._Run, "_clean_dead_partials", after_the_commit)
+    capsys.readouterr()
+    assert main(argv) == 0
+    err = capsys.readouterr().err
+    assert "interrupted" not in err and "Traceback" not in err
+    assert (tmp_path / "out" / "summary.json").stat().st_mtime_ns > earlier
+    doc = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert all((tmp_path / "out" / f).exists() for f in doc["files"])
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_ctrl_c_before_the_commit_still_writes_nothing(tmp_path, monkeypatch, capsys):
+    from bayes_mpem.cli import main
+    from bayes_mpem.io import results
+
+    def before_the_commit(run):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(results._Run, "commit", before_the_commit)
+    argv = ["locate", str(CC03), "--format", "obsrange", "--out", str(tmp_path / "out")]
+    assert main(argv) == 130
+    assert "interrupted; no result written" in capsys.readouterr().err
+    assert not (tmp_path / "out" / "summary.json").exists()
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+@pytest.mark.slow
+def test_a_real_ctrl_c_as_the_process_ends_keeps_status_0(survey, tmp_path):
+    """The process outlives its commit by some 0.5 s (the interpreter's exit); a SIGINT there
+    killed it (status -2, 130 in a shell) or printed "interrupted; no result written" over the
+    new, complete folder. Each SIGINT here comes once the new summary.json is in place."""
+    out = tmp_path / "out"
+    argv = [*BIN, "sample", str(survey / "pings.csv"), "--beacons", str(survey / "beacons.csv"),
+            "--out", str(out), "--no-progress", "--min-pings", "30", "--min-ess", "200"]
+    subprocess.run(argv, check=True, capture_output=True)
+    for delay in (0.0, 0.05):
+        before = (out / "summary.json").stat().st_ino
+        proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+        while proc.poll() is None:
+            try:
+                if (out / "summary.json").stat().st_ino != before:
+                    break
+            except FileNotFoundError:  # unlinked for the commit
+                pass
+            time.sleep(0.0005)
+        time.sleep(delay)
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=120)
+        assert proc.returncode == 0, (delay, proc.returncode, err.decode())
+        assert b"interrupted" not in err and b"Traceback" not in err
+        assert (out / "summary.json").stat().st_ino != before

@@ -66,6 +66,50 @@ def test_a_failed_run_leaves_the_previous_results(tmp_path):
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
 
 
+def test_a_ctrl_c_among_the_renames_waits_for_the_last(tmp_path, monkeypatch):
+    """A Ctrl-C (a real SIGINT) at the first rename of a commit left the new files beside no
+    summary.json, the earlier run gone; it is held until every file is in place, then raised
+    (session 48)."""
+    import signal
+
+    from bayes_mpem.io import results
+
+    out = tmp_path / "run"
+    with writing(out) as d:
+        write_csv(d / "t.csv", pd.DataFrame({"a": [1]}))
+        write_json(d / "summary.json", {"run": 1})
+    real, calls = os.replace, []
+
+    def replace(src, dst):
+        calls.append(dst)
+        if len(calls) == 1:
+            signal.raise_signal(signal.SIGINT)  # Ctrl-C now
+        real(src, dst)
+
+    monkeypatch.setattr(results.os, "replace", replace)
+    with pytest.raises(KeyboardInterrupt), writing(out) as d:
+        write_csv(d / "t.csv", pd.DataFrame({"a": [2]}))
+        write_json(d / "summary.json", {"run": 2})
+    assert len(calls) == 2
+    assert read_marker(out)["run"] == 2 and pd.read_csv(out / "t.csv")["a"].tolist() == [2]
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_on_commit_is_called_once_every_file_is_in_place(tmp_path):
+    out, seen = tmp_path / "run", []
+
+    def hook(name):
+        return lambda: seen.append((name, (out / "summary.json").exists()))
+
+    with writing(out, on_commit=hook("outer")) as d, writing(d, on_commit=hook("nested")):
+        write_json(d / "summary.json", {"run": 1})
+        assert seen == []
+    assert seen == [("outer", True), ("nested", True)]
+    with pytest.raises(RuntimeError), writing(out, on_commit=hook("failed")):
+        raise RuntimeError("no commit")
+    assert seen[-1][0] == "nested"
+
+
 def test_a_full_disk_names_the_file_and_leaves_nothing_that_looks_done(tmp_path,
                                                                        monkeypatch):
     """Found by session 46's hunt: "[Errno 28] No space left on device" named no file, and

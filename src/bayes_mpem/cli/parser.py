@@ -456,16 +456,27 @@ class _ReaderGone:
         return getattr(self._stream, name)
 
 
-def _run(handler, args) -> int:
-    """Run ``handler`` with its output folder checked first and written all or nothing."""
+def _run(handler, args, done: dict) -> int:
+    """Run ``handler`` with its output folder checked first and written all or nothing.
+
+    ``done`` gets the handler's ``code`` and, once its files are in place, ``committed``;
+    from then on a Ctrl-C is ignored (it could only report as interrupted a run whose
+    result is complete: ``main`` puts the caller's handler back when it was called with
+    arguments).
+    """
     out = _output_folder(args)
     if out is None:
         return handler(args)
     from ..io.results import writing
 
+    def committed():
+        done["committed"] = True
+        with contextlib.suppress(ValueError):  # not the main thread: no handler
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+
     try:
-        with writing(out, create=False):
-            code = handler(args)
+        with writing(out, create=False, on_commit=committed):
+            code = done["code"] = handler(args)
             if code and args.command not in _COMMITS_ON_FAILURE:
                 raise _Failed(code)
     except _Failed as failed:
@@ -692,6 +703,14 @@ def main(argv=None) -> int:
     int
         Exit status: 0 on success, 2 on invalid input, 1 on an internal error,
         128 + signal number when terminated.
+
+    Notes
+    -----
+    A Ctrl-C once the result's files are in place is ignored: the status is the command's.
+    Called without ``argv`` (the program ``bayes-mpem``, whose process ends on return)
+    Ctrl-C stays ignored to the end of the process (an interpreter's exit takes some
+    0.5 s, and a Ctrl-C there killed it, status 130, over a complete result); called with
+    ``argv``, the caller's handler is put back.
     """
     args = _parse(build_parser(), argv)  # an invalid option exits here, with status 2
     # the command line only writes files; never opens a window (matplotlib itself is
@@ -715,7 +734,8 @@ def main(argv=None) -> int:
         from ..plots.style import palette_context
 
         colours = palette_context(args.palette)
-    previous = None
+    previous, done = None, {}
+    interrupt = signal.getsignal(signal.SIGINT)  # ignored once the files are in place
     with contextlib.suppress(ValueError):  # not the main thread: no handler
         previous = signal.signal(signal.SIGTERM, _on_sigterm)
     with colours, warnings.catch_warnings():  # restores the caller's filters and showwarning
@@ -727,12 +747,14 @@ def main(argv=None) -> int:
         if args.command != "stream":
             sys.stdout = _ReaderGone(stdout)
         try:
-            return _run(handler, args)
+            return _run(handler, args, done)
         except (InputError, ValueError, OSError) as exc:
             print(f"bayes-mpem {args.command}: error: "
                   f"{config_origin(_message(exc), args.config_origin)}", file=sys.stderr)
             return 2
         except KeyboardInterrupt as exc:
+            if done.get("committed"):  # after the files were put in place: they are the result
+                return done["code"]
             # a batch keeps the surveys collected before Ctrl-C: its message names them
             kept = str(exc) if isinstance(exc, Interrupted) else "no result written"
             print(f"bayes-mpem {args.command}: interrupted; {kept}", file=sys.stderr)
@@ -750,6 +772,9 @@ def main(argv=None) -> int:
             sys.stdout = stdout
             if previous is not None:
                 signal.signal(signal.SIGTERM, previous)
+            if argv is not None and interrupt is not None and done.get("committed"):
+                with contextlib.suppress(ValueError):
+                    signal.signal(signal.SIGINT, interrupt)
             if backend is None:
                 os.environ.pop("MPLBACKEND", None)
             else:

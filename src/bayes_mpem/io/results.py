@@ -9,7 +9,9 @@ import contextlib
 import contextvars
 import json
 import os
+import signal
 import tempfile
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -64,6 +66,34 @@ def check_output_folder(out_dir, option: str = "--out") -> Path:
     return out
 
 
+@contextlib.contextmanager
+def _interrupt_held():
+    """Hold a Ctrl-C (SIGINT) to the end of the block, then deliver it to the handler then set.
+
+    The renames of a commit are all or nothing: a Ctrl-C among them is delivered once
+    they are done, to the handler in place then (Python's raises ``KeyboardInterrupt``; one
+    that ``writing``'s ``on_commit`` set, e.g. ``SIG_IGN``, decides). Off the main thread
+    (no signal handlers there) the block runs as it is.
+    """
+    if (threading.current_thread() is not threading.main_thread()
+            or signal.getsignal(signal.SIGINT) is None):  # no handler of Python's to restore
+        yield
+        return
+    held = []
+
+    def hold(signum, frame):
+        held.append(signum)
+
+    previous = signal.signal(signal.SIGINT, hold)
+    try:
+        yield
+    finally:
+        if signal.getsignal(signal.SIGINT) is hold:  # else the block set its own
+            signal.signal(signal.SIGINT, previous)
+        if held:
+            signal.raise_signal(signal.SIGINT)
+
+
 class _Run:
     """The files staged by one ``writing()`` block, renamed into place at its commit."""
 
@@ -71,12 +101,15 @@ class _Run:
         self.root = root
         self.staged: dict[Path, Path] = {}  # final path -> temporary path
         self.markers: dict[Path, dict] = {}  # final path of a summary.json -> its document
+        self.on_commit: list = []  # called once every file is in place, Ctrl-C still held
+        self.committed = False
 
     def owns(self, path: Path) -> bool:
         return path.parent.resolve().is_relative_to(self.root.resolve())
 
     def commit(self) -> None:
         if not self.staged and not self.markers:
+            self._committed()
             return  # nothing written: nothing to mark
         for path, doc in list(self.markers.items()):
             doc, timings = split_timings(doc)
@@ -92,13 +125,20 @@ class _Run:
                 temps[path].write_text(text)
         except BaseException as exc:
             _discard(temps.values(), exc, path)
-        for path in temps:
-            path.unlink(missing_ok=True)  # the top one last: from here on not complete
-        for final, tmp in self.staged.items():
-            os.replace(tmp, final)
-        for path, tmp in temps.items():  # nested first, the top summary.json last
-            os.replace(tmp, path)
+        with _interrupt_held():  # a Ctrl-C among the renames would leave half a run
+            for path in temps:
+                path.unlink(missing_ok=True)  # the top one last: from here on not complete
+            for final, tmp in self.staged.items():
+                os.replace(tmp, final)
+            for path, tmp in temps.items():  # nested first, the top summary.json last
+                os.replace(tmp, path)
+            self._committed()
         self._clean_dead_partials()
+
+    def _committed(self) -> None:
+        self.committed = True
+        for hook in self.on_commit:
+            hook()
 
     def _marker_texts(self, marker: Path, old: dict | None) -> dict:
         """Return the run's ``summary.json`` texts (nested first), each listing its files."""
@@ -150,10 +190,12 @@ def _alive(pid: int) -> bool:
 
 
 @contextlib.contextmanager
-def writing(out_dir, *, option: str = "--out", create: bool = True):
+def writing(out_dir, *, option: str = "--out", create: bool = True, on_commit=None):
     """Write one run's files into ``out_dir``, all or nothing; nested blocks join the outer run.
 
     A run that writes no ``summary.json`` keeps the folder's (``bayes-mpem plot`` adds figures).
+    A Ctrl-C while the files are renamed into place is held until they all are (then
+    raised); one after that leaves them in place.
 
     Parameters
     ----------
@@ -162,6 +204,9 @@ def writing(out_dir, *, option: str = "--out", create: bool = True):
         The option named in messages.
     create : bool, default True
         Create the folder now, else at the first file written.
+    on_commit : callable, optional
+        Called without arguments once the run's files are all in place (the commit), a
+        Ctrl-C still held; in a nested block, at the outer run's commit.
 
     Yields
     ------
@@ -175,16 +220,22 @@ def writing(out_dir, *, option: str = "--out", create: bool = True):
     out = check_output_folder(out_dir, option)
     if create:
         out.mkdir(parents=True, exist_ok=True)
-    if any(run.owns(out / "x") for run in _RUNS.get()):
+    outer = next((run for run in _RUNS.get() if run.owns(out / "x")), None)
+    if outer is not None:
+        if on_commit is not None:
+            outer.on_commit.append(on_commit)
         yield out
         return
     run = _Run(out)
+    if on_commit is not None:
+        run.on_commit.append(on_commit)
     token = _RUNS.set((*_RUNS.get(), run))
     try:
         yield out
         run.commit()
     except BaseException:
-        run.abort()
+        if not run.committed:  # after the commit the files are the result, not temporaries
+            run.abort()
         raise
     finally:
         _RUNS.reset(token)

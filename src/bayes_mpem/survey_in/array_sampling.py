@@ -881,7 +881,9 @@ class ArrayPosterior:
             ``gradient_term`` when fitted, ``sigma``, ``weight``), ``sample_stats``
             (``lp``), ``observed_data`` (``twtt`` over ``shot``: the input row, with the
             shot's ``time``, ``transponder`` and file ``line``) and ``class_probabilities``
-            (``p_true``, ``p_true_sd`` per shot, averaged over the draws).
+            (``p_true``, ``p_true_sd`` per shot, averaged over the draws); the chain
+            coordinate ``ensemble`` (one ensemble: all 0), by
+            :func:`~.posterior.posterior_tree`.
         """
         import emcee
 

@@ -49,10 +49,7 @@ def one(seed: int, every: int) -> dict:
     seconds = time.perf_counter() - t0
     err = nav.track - tt[["x", "y"]].to_numpy()
     m2 = np.einsum("ki,kij,kj->k", err, np.linalg.inv(nav.cov), err)
-    flagged = np.zeros(nav.dive.n_epochs, bool)
-    for f in nav.flags:
-        if f["kind"] == "track":
-            flagged |= (nav.dive.times >= f["start"]) & (nav.dive.times <= f["end"])
+    flagged = nav.uncorrected
     dist = np.hypot(*err.T)
     return {"covered": float(np.mean(m2 < CHI2_95)), "max_err": float(dist.max()),
             "max_err_unflagged": float(dist[~flagged].max()),

@@ -106,16 +106,21 @@ def test_two_sessions_apart_are_not_isolated_and_a_stray_group_is():
     assert mask.sum() == 3 and len(set(why[mask])) == 2
 
 
+def _atd(site, change):
+    """Rewrite the site file's ``ATDoffset`` values by ``change(parts)``; return its index."""
+    lines = site.read_text().splitlines(keepends=True)
+    i = next(k for k, line in enumerate(lines) if line.lstrip().startswith("ATDoffset"))
+    key, values = lines[i].split("=")
+    lines[i] = f"{key}= {' '.join(change(values.split()))}\n"
+    site.write_text("".join(lines))
+    return i
+
+
 def test_atd_offset_sigmas_above_zero_are_said_to_be_held(campaign, tmp_path):
     """GARPOS estimates the antenna-transducer offset where its sigmas are above 0; locate
     holds it as given, which it now says (the sigmas were read and dropped in silence)."""
     site = _copy(campaign[0], tmp_path)
-    lines = site.read_text().splitlines(keepends=True)
-    i = next(k for k, line in enumerate(lines) if line.lstrip().startswith("ATDoffset"))
-    key, values = lines[i].split("=")
-    parts = values.split()
-    lines[i] = f"{key}= {' '.join(parts[:3] + ['0.5', '0.5', '0.5'] + parts[6:])}\n"
-    site.write_text("".join(lines))
+    _atd(site, lambda parts: parts[:3] + ["0.5", "0.5", "0.5"] + parts[6:])
     with pytest.warns(LocateWarning, match=r"ATDoffset sigmas 0.5, 0.5, 0.5: GARPOS estimates "
                                            r"the offset .* locate holds it"):
         res = locate_array_survey(read_garpos(site))
@@ -232,18 +237,12 @@ def test_an_atd_offset_upward_is_refused_naming_the_line(campaign, tmp_path):
     the sea and every transponder 24 m too shallow at 0.2 m sds, at exit 0; 0 (positions
     already the transducer's) stays allowed."""
     site = _copy(campaign[0], tmp_path)
-    lines = site.read_text().splitlines(keepends=True)
-    i = next(k for k, line in enumerate(lines) if line.lstrip().startswith("ATDoffset"))
-    key, values = lines[i].split("=")
-    parts = values.split()
-    lines[i] = f"{key}= {' '.join(parts[:2] + ['-' + parts[2]] + parts[3:])}\n"
-    site.write_text("".join(lines))
+    i = _atd(site, lambda parts: parts[:2] + ["-" + parts[2]] + parts[3:])
     with pytest.raises(InputError, match=rf"line {i + 1} \(ATDoffset\): ATDoffset downward: "
                                          r"expected a number in \[0, 100\], got '-12.*the "
                                          r"transducer is under the water"):
         read_garpos(site)
-    lines[i] = f"{key}= {' '.join(parts[:2] + ['0.0'] + parts[3:])}\n"
-    site.write_text("".join(lines))
+    _atd(site, lambda parts: parts[:2] + ["0.0"] + parts[3:])
     assert read_garpos(site).header["atd_offset"][2] == 0.0
 
 

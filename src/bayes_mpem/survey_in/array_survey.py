@@ -787,6 +787,17 @@ def _method(fit, rays, noise) -> str:
                if fit.model.get("smoothing") else ")"))
 
 
+def _check_fit(raw, fit, shots, shift) -> None:
+    """Refuse an array's fit that the checks below refuse; warn as they warn, in that order."""
+    _check_below_transducer(raw, fit, shots)
+    _check_labels(raw, fit, shots)
+    _check_replies_explained(raw, fit)
+    _warn_spurious(raw, fit)
+    _warn_unlocated(raw, fit, shift)
+    _check_moved(raw, fit)
+    _check_intervals(raw, fit)
+
+
 def _check_below_transducer(raw, fit, shots) -> None:
     """Refuse a fit that puts a transponder above the transducer: the ranges' mirror image.
 
@@ -1001,7 +1012,7 @@ def _warn_spurious(raw, fit) -> None:
                 f"{_shots_file(raw)}: transponder {tid}: {bad} of its {n} replies called "
                 f"spurious (more than {100 * MAX_SPURIOUS_SHARE:g} %): its position rests on "
                 "the rest; check that these replies are its own (another array's or "
-                "campaign's concatenated?)", LocateWarning, stacklevel=3)
+                "campaign's concatenated?)", LocateWarning, stacklevel=4)
 
 
 def _warn_unlocated(raw, fit, shift=False) -> None:
@@ -1020,7 +1031,7 @@ def _warn_unlocated(raw, fit, shift=False) -> None:
                   f"the mean of {', '.join(map(str, fit.ids))} only, not comparable with a "
                   f"centre of all {n}"
                   + (f" (the rigid shift moves the prior geometry: positions.centre_of_all is "
-                     f"that of all {n})" if shift else ""), LocateWarning, stacklevel=3)
+                     f"that of all {n})" if shift else ""), LocateWarning, stacklevel=4)
 
 
 #: The farthest (in depths) a transponder may be located from its prior position.
@@ -1218,13 +1229,7 @@ def locate_array_survey(raw, *, ci=0.95, outliers="uniform", ssp=None,
             raise InputError(f"{_shots_file(raw)}: {exc}") from None
 
     fit, scaling = _fit_scaled(fit_with, position_prior)
-    _check_below_transducer(raw, fit, shots)
-    _check_labels(raw, fit, shots)
-    _check_replies_explained(raw, fit)
-    _warn_spurious(raw, fit)
-    _warn_unlocated(raw, fit, shift)
-    _check_moved(raw, fit)
-    _check_intervals(raw, fit)
+    _check_fit(raw, fit, shots, shift)
     origin = (h["lat"], h["lon"], h.get("height", 0.0)) if "lat" in h else None
     counts = np.bincount(fit.index, minlength=len(fit.ids))
     out = {tid: _transponder_entry(fit, k, ci, origin, counts[k])

@@ -64,10 +64,7 @@ def test_a_gap_in_the_dead_reckoning_is_not_trusted_and_is_flagged(sim, tmp_path
     truth = sim.true_track[["x", "y"]].to_numpy()
     err = nav.track - truth
     m2 = np.einsum("ki,kij,kj->k", err, np.linalg.inv(nav.cov), err)
-    flagged = np.zeros(nav.dive.n_epochs, bool)
-    for f in nav.flags:
-        if f["kind"] == "track":
-            flagged |= (nav.dive.times >= f["start"]) & (nav.dive.times <= f["end"])
+    flagged = nav.uncorrected
     # interpolated across the U-turn, the track was 396 m off at a 1 m sd (exit 0, no flag)
     assert np.hypot(*err.T).max() < 20.0
     assert np.sqrt(m2[~flagged]).max() < 3.5
@@ -155,10 +152,7 @@ def test_a_table_coarser_than_the_turns_is_not_trusted_as_straight_lines(sim):
     nav, said = _navigate(sim, dr)
     err = nav.track - sim.true_track[["x", "y"]].to_numpy()
     m2 = np.einsum("ki,kij,kj->k", err, np.linalg.inv(nav.cov), err)
-    flagged = np.zeros(nav.dive.n_epochs, bool)
-    for f in nav.flags:
-        if f["kind"] == "track":
-            flagged |= (nav.dive.times >= f["start"]) & (nav.dive.times <= f["end"])
+    flagged = nav.uncorrected
     assert np.mean(m2 < CHI2_95) > 0.9
     assert np.sqrt(m2[~flagged]).max() < 4.0
     turns = [f for f in nav.flags if f["kind"] == "dead_reckoning_turn"]
@@ -180,10 +174,7 @@ def test_an_epoch_a_spurious_reply_places_in_a_turn_is_not_corrected(seed, every
     nav, _ = _navigate(other, dr)
     err = nav.track - tt[["x", "y"]].to_numpy()
     m2 = np.einsum("ki,kij,kj->k", err, np.linalg.inv(nav.cov), err)
-    flagged = np.zeros(nav.dive.n_epochs, bool)
-    for f in nav.flags:
-        if f["kind"] == "track":
-            flagged |= (nav.dive.times >= f["start"]) & (nav.dive.times <= f["end"])
+    flagged = nav.uncorrected
     k = int(np.flatnonzero(nav.dive.times == when)[0])
     assert np.hypot(*err[k]) > 100.0 and flagged[k]
     assert np.sqrt(m2[~flagged]).max() < 4.0

@@ -202,6 +202,16 @@ class Navigation:
         """True when no stretch of the track was left uncorrected (see :attr:`flags`)."""
         return not any(f["kind"] == "track" for f in self.flags)
 
+    @property
+    def uncorrected(self) -> np.ndarray:
+        """``(K,)`` bool: the epochs of the stretches flagged not corrected (:attr:`flags`)."""
+        t = self.dive.times
+        out = np.zeros(t.size, bool)
+        for f in self.flags:
+            if f["kind"] == "track":
+                out |= (t >= f["start"]) & (t <= f["end"])
+        return out
+
     def track_table(self) -> pd.DataFrame:
         """One row per epoch: ``time, x, y, depth, sd_x, sd_y, cov_xy, dr_x, dr_y, n_replies``.
 

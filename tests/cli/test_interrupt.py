@@ -202,6 +202,41 @@ def test_ctrl_c_after_the_commit_reports_the_result_written(tmp_path, monkeypatc
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
 
 
+@pytest.mark.parametrize("when", ["after", "before"])
+def test_sigterm_after_the_commit_reports_the_result_written(tmp_path, monkeypatch, capsys, when):
+    """A SIGTERM once the files were in place said "terminated; no result written" (143)
+    over the new, complete folder; before the commit it still does."""
+    from bayes_mpem.cli import main, parser
+    from bayes_mpem.io import results
+
+    def exit_(code):
+        raise SystemExit(code)
+
+    monkeypatch.setattr(parser.os, "_exit", exit_)
+    real = results._Run._clean_dead_partials if when == "after" else results._Run.commit
+
+    def term(run):
+        if when == "after":
+            real(run)
+        parser._on_sigterm(signal.SIGTERM, None)  # what the handler does on a SIGTERM
+
+    monkeypatch.setattr(results._Run, "_clean_dead_partials" if when == "after" else "commit",
+                        term)
+    out = tmp_path / "out"
+    with pytest.raises(SystemExit) as stop:
+        main(["locate", str(CC03), "--format", "obsrange", "--out", str(out)])
+    err = capsys.readouterr().err
+    if when == "after":
+        assert stop.value.code == 0
+        assert f"terminated after its result was written to {out}" in err
+        doc = json.loads((out / "summary.json").read_text())
+        assert all((out / f).exists() for f in doc["files"])
+    else:
+        assert stop.value.code == 128 + signal.SIGTERM
+        assert "terminated; no result written" in err
+        assert not (out / "summary.json").exists()
+
+
 def test_ctrl_c_before_the_commit_still_writes_nothing(tmp_path, monkeypatch, capsys):
     from bayes_mpem.cli import main
     from bayes_mpem.io import results

@@ -405,10 +405,19 @@ class _Failed(Exception):
 _COMMITS_ON_FAILURE = frozenset({"batch"})
 
 
+#: The run in progress, for the SIGTERM handler: ``code`` and ``out`` once its files are in
+#: place (``committed``).
+_DONE: dict = {}
+
+
 def _on_sigterm(signum, frame):
     # not an exception: third-party code on the stack (emcee) would print it as a traceback
     from ..io.results import abort_open_runs
 
+    if _DONE.get("committed"):  # the files are in place: they are the result
+        print(f"bayes-mpem: terminated after its result was written to {_DONE.get('out')}",
+              file=sys.stderr, flush=True)
+        os._exit(_DONE.get("code") or 0)
     abort_open_runs()
     print("bayes-mpem: terminated; no result written", file=sys.stderr, flush=True)
     os._exit(128 + signum)
@@ -468,6 +477,8 @@ def _run(handler, args, done: dict) -> int:
     if out is None:
         return handler(args)
     from ..io.results import writing
+
+    done["out"] = str(out)
 
     def committed():
         done["committed"] = True
@@ -734,7 +745,8 @@ def main(argv=None) -> int:
         from ..plots.style import palette_context
 
         colours = palette_context(args.palette)
-    previous, done = None, {}
+    previous, done = None, _DONE
+    done.clear()
     interrupt = signal.getsignal(signal.SIGINT)  # ignored once the files are in place
     with contextlib.suppress(ValueError):  # not the main thread: no handler
         previous = signal.signal(signal.SIGTERM, _on_sigterm)

@@ -236,6 +236,9 @@ def test_the_parser_repeats_the_library_constants_faithfully():
     from bayes_mpem.lbl.survey.survey import MIN_PINGS
 
     assert options.MIN_PINGS == MIN_PINGS and options.TABLE_FORMATS == TABLE_FORMATS
+    from bayes_mpem.survey_in.travel_times import KNOT_MINUTES_RANGE  # locate_survey's too
+
+    assert options.KNOT_MINUTES_RANGE == KNOT_MINUTES_RANGE
     from bayes_mpem._validate import MIN_SAMPLED_CI  # sample --ci's lower bound, repeated
 
     assert options.sampled_probability(repr(MIN_SAMPLED_CI)) == MIN_SAMPLED_CI

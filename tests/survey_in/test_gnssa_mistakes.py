@@ -293,3 +293,34 @@ def test_a_transponder_mostly_spurious_is_warned_of(campaign, tmp_path):
     with pytest.warns(LocateWarning, match=r"transponder M03: \d+ of its \d+ replies called "
                                            r"spurious \(more than 50 %\)"):
         locate_array_survey(read_garpos(site))
+
+
+@pytest.mark.parametrize("ci", [95, 1.0, 0.0, -0.5, float("nan"), "x", None])
+def test_locate_survey_refuses_a_ci_outside_0_1(campaign, ci):
+    """``ci=95``, NaN, 1, 0 or -0.5 gave NaN, infinite, zero-width or inverted intervals and
+    a "9500 % region" in solution.txt; now refused by the check ``sample`` uses."""
+    from bayes_mpem.survey_in.survey import locate_survey
+
+    with pytest.raises(InputError, match=r"^ci: expected a probability in \(0, 1\), got "):
+        locate_survey(read_garpos(campaign[0]), ci=ci)
+
+
+@pytest.mark.parametrize("knots", [1e-9, 0.001, 0.0999, 1441.0, float("inf"), float("nan")])
+def test_locate_survey_refuses_a_knot_spacing_the_command_line_refuses(campaign, knots):
+    """``knot_minutes=1e-9`` asked 445 GiB; 0.001 ran: both under ``--knot-minutes``' 0.1."""
+    from bayes_mpem.survey_in.survey import locate_survey
+
+    with pytest.raises(InputError, match=r"^knot_minutes: expected a number in \[0.1, 1440.0\], "
+                                         r"got .* only costs memory"):
+        locate_survey(read_garpos(campaign[0]), knot_minutes=knots)
+
+
+def test_locate_survey_given_a_path_says_to_read_it_first(campaign):
+    from bayes_mpem.survey_in.survey import locate_survey
+
+    for given in (campaign[0], str(campaign[0])):
+        with pytest.raises(InputError, match=r"^raw: expected a RawSurvey \(what .*read_survey "
+                                             r"returns\), got the path .*read_survey\(path\)"):
+            locate_survey(given)
+    with pytest.raises(InputError, match="got a DataFrame$"):
+        locate_survey(pd.DataFrame())

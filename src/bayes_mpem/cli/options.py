@@ -19,6 +19,8 @@ import math
 MIN_PINGS = 3
 #: :data:`bayes_mpem.io.table_files.TABLE_FORMATS`: the formats of a result's tables.
 TABLE_FORMATS = ("csv", "parquet")
+#: :data:`bayes_mpem.survey_in.travel_times.KNOT_MINUTES_RANGE`: ``locate --knot-minutes``'s.
+KNOT_MINUTES_RANGE = (0.1, 1440.0)
 
 
 def number(what: str, low: float = -math.inf, high: float = math.inf, *,
@@ -107,6 +109,10 @@ probability = number("a probability in (0, 1)", 0.0, 1.0, include_low=False,
 sampled_probability = number("a probability in [0.5, 1)", 0.5, 1.0, include_high=False)
 #: A number in (0, 1] (the paper's ``--alpha``).
 fraction = number("a number in (0, 1]", 0.0, 1.0, include_low=False)
+#: ``locate --knot-minutes``: below 0.1 min (6 s, under a shot cycle) a spacing only costs
+#: memory (1e-9: 445 GiB).
+knot_minutes = number(f"a knot spacing in minutes in [{KNOT_MINUTES_RANGE[0]:g}, "
+                      f"{KNOT_MINUTES_RANGE[1]:g}]", *KNOT_MINUTES_RANGE)
 #: A turn-around time in s (the limits of :data:`bayes_mpem.io.boundary.LIMITS`).
 turn_around = number("a turn-around time in [0, 10] s", 0.0, 10.0)
 #: ``--dr-noise`` of ``navigate`` and ``stream``: the dead reckoning's random walk, m/sqrt(s),

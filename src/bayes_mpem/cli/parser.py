@@ -164,9 +164,7 @@ def add_locate(sub):
                         "intervals (0: one speed); default: one speed for a single "
                         "transponder, and for an array (GARPOS, GNATSS, SeaGap) a smooth "
                         "spline, knots every 5 min, its smoothness chosen by the data")
-    # below 0.1 min (6 s, under a shot cycle) a knot spacing only costs memory (1e-9: 221 GiB)
-    p.add_argument("--knot-minutes", type=opt.number("a knot spacing in minutes in [0.1, 1440]",
-                                                     0.1, 1440.0),
+    p.add_argument("--knot-minutes", type=opt.knot_minutes,
                    default=None, metavar="M",
                    help="array surveys: the smooth sound speed's knot spacing (default 5)")
     p.add_argument("--gradients", choices=["auto", "on", "shallow", "off"], default=None,

@@ -2,19 +2,23 @@
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pandas as pd
 
+from .._validate import check_probability, check_range
 from ..exceptions import InputError
 from ..io.boundary import LIMITS
 from ..io.geodesy import MEAN_EARTH_RADIUS_M, earth_radius, enu_to_geodetic
-from ..io.raw import ARRAY_FORMATS
+from ..io.raw import ARRAY_FORMATS, RawSurvey
 from .array_survey import locate_array_survey
 from .drift import drift_from_fit
 from .heldout import lag_check as heldout_lag_check
 from .location import DEFAULT_TAT, locate
 from .result import SurveyInResult, classified_table
 from .ssp import survey_profile
+from .travel_times import KNOT_MINUTES_RANGE
 
 #: SeaGap's default depth of the ship's transducer below the sea surface (m)
 #: (``XDUCER_DEPTH`` in SeaGap); it places the profile against the ellipsoidal heights.
@@ -73,11 +77,13 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
     Parameters
     ----------
     raw : RawSurvey
+        A survey read by :func:`~bayes_mpem.io.formats.read_survey` (not its path).
     tat : float, optional
         Default: the file's TAT, else :data:`DEFAULT_TAT` for deck-box logs and 0
         for SeaGap (whose travel times are already corrected).
     fit_tat : bool, default False
     ci : float, default 0.95
+        The probability of the intervals, in ``(0, 1)``.
     outliers : {"uniform", "first_arrival"}
         The spurious-ping model (:func:`locate`).
     ssp : None, SoundSpeedProfile, str or path
@@ -103,7 +109,8 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
     gradients : {"auto", "on", "shallow", "off"}, default "auto"
         An array survey: its horizontal gradients (:func:`locate_array_survey`).
     knot_minutes : float, optional
-        An array survey: the smooth speed's knot spacing (default 5 min).
+        An array survey: the smooth speed's knot spacing (default 5 min), in
+        :data:`~bayes_mpem.survey_in.travel_times.KNOT_MINUTES_RANGE` (0.1-1440 min).
     flags : {"honour", "reclassify"}, default "honour"
         An array survey: GARPOS's flagged shots left out or classified
         (:func:`locate_array_survey`).
@@ -131,10 +138,12 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
     Raises
     ------
     InputError
-        A turn-around time or a lag asked of an array survey (GNSS-A travel times
-        are already corrected for delays), ``one_at_a_time`` for GARPOS or GNATSS, or a
-        ``correlation`` other than the default for a survey that is not an array.
+        ``raw`` not a RawSurvey (a path, say), ``ci`` not in ``(0, 1)``, ``knot_minutes``
+        outside 0.1-1440 min, a turn-around time or a lag asked of an array survey (GNSS-A
+        travel times are already corrected for delays), ``one_at_a_time`` for GARPOS or
+        GNATSS, or a ``correlation`` other than the default for a survey that is not an array.
     """
+    ci, knot_minutes = _check_arguments(raw, ci, knot_minutes)
     if one_at_a_time and raw.format in ARRAY_FORMATS:
         raise InputError(f"one_at_a_time: a {raw.format} survey is located as an array")
     if is_array(raw, one_at_a_time=one_at_a_time):
@@ -217,6 +226,39 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
     if "lat" in raw.header and raw.format != "seagap":
         summary["drop_point"] = {k: raw.header.get(k) for k in ("lat", "lon", "depth")}
     return SurveyInResult(summary=summary, classified=cls, fits=fits)
+
+
+def _check_arguments(raw, ci, knot_minutes):
+    """Return ``ci`` and ``knot_minutes`` as floats, refusing what ``locate`` refuses too.
+
+    Before any work: a ``raw`` that is not a survey read (a path), a ``ci`` outside (0, 1),
+    a ``knot_minutes`` outside :data:`KNOT_MINUTES_RANGE`. Unchecked, ``ci=95`` or NaN gave
+    intervals of NaN written as a "9500 % region", 0 or 1 zero-width or infinite ones,
+    ``"0.95"`` a TypeError deep inside (now read as 0.95, as every check of ``_validate``
+    reads a number); ``knot_minutes=1e-9`` asked 445 GiB before the fit's size check (which,
+    within these bounds, runs before any large array).
+    """
+    if not isinstance(raw, RawSurvey):
+        if isinstance(raw, (str, os.PathLike)):
+            got = (f"the path {os.fspath(raw)!r}; read it first: "
+                   "locate_survey(read_survey(path))")
+        else:
+            got = f"a {type(raw).__name__}"
+        raise InputError("raw: expected a RawSurvey (what bayes_mpem.io.formats.read_survey "
+                         f"returns), got {got}")
+    try:
+        ci = check_probability("ci", ci)
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
+    low, high = KNOT_MINUTES_RANGE
+    if knot_minutes is not None:
+        try:
+            knot_minutes = check_range("knot_minutes", knot_minutes, low=low, high=high,
+                                       include_low=True, include_high=True)
+        except ValueError as exc:
+            raise InputError(f"{exc} (a knot spacing in minutes; below {low:g} it only "
+                             "costs memory)") from None
+    return ci, knot_minutes
 
 
 def _check_located(raw, pings, tid, r) -> None:

@@ -377,6 +377,12 @@ def speed_breaks(times, time_range, n_intervals) -> np.ndarray:
     return edges[keep]
 
 
+#: The knot spacings (min) the smooth sound speed takes (``locate --knot-minutes``, repeated in
+#: ``cli/options.py``): below 0.1 min (6 s, under a shot cycle) a spacing only costs memory
+#: (1e-9 min asked 445 GiB before any check of the fit's size), above a day it is one speed.
+KNOT_MINUTES_RANGE = (0.1, 1440.0)
+
+
 def smooth_intervals(time_range, knot_minutes) -> int:
     """Return the number of equal B-spline intervals with knots at most ``knot_minutes`` apart.
 

@@ -257,3 +257,41 @@ def load_survey(pings: Any, beacons: Any = None) -> Survey:
     return Survey(table.frame, _frozen(arr["beacon"], object),
                   *(_frozen(arr[k]) for k in ("time", "range", "x", "y", "depth")),
                   beacon_table, table.source, beacons_source, lines, table.comments)
+
+
+def check_beacon_data(data: Any, name: str = "data") -> BeaconData:
+    """Return ``data`` if it is one beacon's replies; refuse a survey or a table, saying how.
+
+    The one-beacon functions (``fit_mixture_em``, ``fit_paper_em``, ``sample_beacon``,
+    ``compare_beacon``) stopped with an ``AttributeError`` on a :class:`Survey` or a
+    DataFrame.
+
+    Parameters
+    ----------
+    data : object
+    name : str, default "data"
+        The argument's name, for the message.
+
+    Returns
+    -------
+    BeaconData
+
+    Raises
+    ------
+    InputError
+        What arrived and how to get a :class:`BeaconData` from it.
+    """
+    if isinstance(data, BeaconData):
+        return data
+    if isinstance(data, Survey):
+        ids = data.beacon_ids
+        how = (": pass one beacon's, survey.for_beacon(id) (beacons "
+               f"{', '.join(ids[:6])}{', ...' if len(ids) > 6 else ''}), or fit every beacon "
+               "with bayes_mpem.fit or bayes_mpem.sample")
+    elif isinstance(data, pd.DataFrame):
+        how = (": load the tables first, bayes_mpem.load_survey(pings, beacons).for_beacon(id), "
+               "or build one with BeaconData.from_arrays")
+    else:
+        how = ""
+    raise InputError(f"{name}: expected a BeaconData (one beacon's replies), got a "
+                     f"{type(data).__name__}{how}")

@@ -125,6 +125,64 @@ def test_mixture_bad_options(kw, msg):
         fit_mixture_em(sim.survey.for_beacon("1"), **kw)
 
 
+@pytest.mark.parametrize(("kw", "msg"), [
+    ({"init": {"d0": np.nan, "sigma_mp": 5.0}}, r"init\['d0'\]: expected a finite number, got nan"),
+    ({"init": {"d0": "x"}}, r"init\['d0'\]: expected a finite number, got 'x'"),
+    ({"init": {"d0": 2472.0, "sigma_mp": -5.0}},
+     r"init\['sigma_mp'\]: expected a positive number, got -5.0"),
+    ({"init": {"sigma_mp": 5.0}}, r"init: expected a mapping with 'd0'.*got keys \['sigma_mp'\]"),
+    ({"init": 2472.0}, r"init: expected a mapping with 'd0'.*got a float"),
+    ({"init": {"d0": 2472.0, "weights": {"dp": 0, "mp": 0, "ol": 0}}},
+     r"init\['weights'\]: expected weights not all 0"),
+    ({"init": {"d0": 2472.0, "weights": {"mp": 1.5}}},
+     r"init\['weights'\]\['mp'\]: expected a probability in \[0, 1\], got 1.5"),
+    ({"subsample": 0}, r"^subsample: expected an integer >= 1, got 0$"),
+    ({"subsample": -1}, r"^subsample: expected an integer >= 1, got -1$"),
+])
+def test_mixture_bad_init_and_subsample_are_refused(kw, msg):
+    """Unchecked, NaN or a negative scale in ``init`` and ``subsample=0`` gave a fit of NaN
+    log-likelihood and zero weights (only a ConvergenceWarning), a missing ``d0`` a KeyError,
+    ``subsample=-1`` a NumPy error; through ``fit`` every beacon was "failed", blaming rows."""
+    sim = bm.simulate_survey("abe58", rng=0)
+    with pytest.raises(bm.InputError, match=msg):
+        fit_mixture_em(sim.survey.for_beacon("1"), **kw)
+    if "subsample" in kw:
+        with pytest.raises(bm.InputError, match=msg):
+            bm.fit(sim.survey, rng=0, **kw)
+
+
+def test_mixture_init_from_an_earlier_fit():
+    data = bm.simulate_survey("abe58", rng=1, n_cycles=300).survey.for_beacon("4")
+    first = fit_mixture_em(data, rng=0)
+    for init in (first, first.to_dict()):
+        again = fit_mixture_em(data, init=init, n_init=1, rng=0)
+        assert again.d0 == pytest.approx(first.d0, abs=0.05)
+
+
+def test_one_beacon_functions_refuse_a_survey_or_a_table():
+    """A Survey or a DataFrame gave an AttributeError ('Survey' object has no attribute 'n')."""
+    survey = bm.simulate_survey("abe58", rng=1, n_cycles=60).survey
+    for f in (fit_mixture_em, fit_paper_em, bm.sample_beacon):
+        with pytest.raises(bm.InputError, match=r"^data: expected a BeaconData \(one beacon's "
+                                                r"replies\), got a Survey: .*survey.for_beacon"
+                                                r"\(id\) \(beacons 1, 2, 3, 4\)"):
+            f(survey)
+    with pytest.raises(bm.InputError, match=r"got a DataFrame: load the tables first"):
+        bm.compare_beacon(survey.table)
+
+
+@pytest.mark.parametrize("n", [0, 1, 2])
+def test_both_ems_need_three_ranges(n):
+    """The paper's EM gave its start value with NaN weights on 0 ranges, and a 'converged' fit
+    of 1 range, where the mixture EM refused fewer than 3."""
+    d = bm.simulate_survey("abe58", rng=1, n_cycles=60).survey.for_beacon("4")
+    few = bm.BeaconData.from_arrays(d.range[:n], d.x[:n], d.y[:n], d.depth[:n], d.position)
+    for f in (fit_mixture_em, fit_paper_em):
+        with pytest.raises(bm.InputError, match=f"beacon 1: need at least 3 ranges to fit, "
+                                                f"got {n}$"):
+            f(few)
+
+
 # --- recovery of a known truth -------------------------------------------
 
 

@@ -13,7 +13,7 @@ from ...io.survey import BeaconData
 from ...mcmc import ess_and_rhat, hdi, thin_index, to_datatree
 from ...mixture.densities import CLASSES
 from ..em.em_mixture import fit_mixture_em
-from ..em.em_result import EMResult
+from ..em.em_result import EMResult, check_fit_data, options_as_input_errors
 from .beacon_chains import beacon_chains, sampled
 from .posterior import BeaconPosterior, check_sample_options
 
@@ -217,18 +217,21 @@ def sample_beacon(
     ------
     UnusableStartError
         When the EM solution lies outside the prior support or is flagged.
-    ValueError
-        For invalid options.
+    InputError
+        ``data`` not a BeaconData (a Survey: ``survey.for_beacon(id)``) or with fewer than 3
+        ranges, or an invalid option (an ``InputError`` is a ``ValueError``).
 
     Warns
     -----
     SamplingWarning
         When the sampler reaches ``max_steps`` first.
     """
-    check_sample_options(priors=priors, ci=ci, n_ensembles=n_ensembles, sampler=sampler,
-                         concentration=concentration, sigma_dp=sigma_dp, path=path,
-                         min_ess=min_ess, max_steps=max_steps, n_draws=n_draws,
-                         n_walkers=n_walkers)
+    data = check_fit_data(data)
+    with options_as_input_errors():
+        check_sample_options(priors=priors, ci=ci, n_ensembles=n_ensembles, sampler=sampler,
+                             concentration=concentration, sigma_dp=sigma_dp, path=path,
+                             min_ess=min_ess, max_steps=max_steps, n_draws=n_draws,
+                             n_walkers=n_walkers)
     gen = as_generator(rng)
     post = BeaconPosterior(data, priors=priors, sigma_dp=sigma_dp, path=path,
                            concentration=concentration, precision=precision)

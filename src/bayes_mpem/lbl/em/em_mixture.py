@@ -2,19 +2,28 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..._rng import RNGLike, as_generator
-from ..._validate import check_int, check_positive, check_range
+from ..._validate import check_finite, check_int, check_positive, check_probability, check_range
 from ...io.survey import BeaconData
 from ...mixture.densities import CLASSES
 from ...mixture.em import EMModel, best_run, run_em
 from ...mixture.gauss_newton import safeguarded_step
 from ..model.beacon_geometry import BeaconGeometry
 from ..model.likelihood import e_step
-from .em_result import EMResult, check_options, estimate_sigma_dp, wdot, with_flags
+from .em_result import (
+    EMResult,
+    check_fit_data,
+    check_options,
+    estimate_sigma_dp,
+    options_as_input_errors,
+    wdot,
+    with_flags,
+)
 
 # --------------------------------------------------------------------------
 # the mixture EM
@@ -171,8 +180,10 @@ def fit_mixture_em(
         Fix the direct-path scatter (m); estimated from the data if omitted.
     weights : {"learned", "equal"}
         Learn the mixing weights (default) or fix them at 1/3 (the paper's).
-    init : dict, optional
-        Extra starting point, e.g. ``result.to_dict()`` of an earlier fit.
+    init : dict or EMResult, optional
+        Extra starting point, e.g. ``result.to_dict()`` of an earlier fit: ``d0`` (m, finite)
+        and optionally ``sigma_dp``, ``sigma_mp`` (m, > 0) and ``weights`` (``{"dp", "mp",
+        "ol"}``, each in [0, 1]).
     n_init : int, default 4
         Data-driven starts: the strongest modes of the per-range plane heights.
     max_iter : int, default 500
@@ -181,7 +192,7 @@ def fit_mixture_em(
     sigma_floor : float, default 0.05
         Lower bound on the scales (m).
     subsample : int, default 20000
-        Starts are compared on a random subsample of at most this many ranges.
+        Starts are compared on a random subsample of at most this many ranges (>= 1).
     rng : None, int or numpy.random.Generator
     ssp : SoundSpeedProfile, optional
         Predict the ranges along refracted eigenrays through this profile instead of straight
@@ -195,9 +206,12 @@ def fit_mixture_em(
 
     Raises
     ------
+    InputError
+        ``data`` not a BeaconData (a Survey: ``survey.for_beacon(id)``), fewer than 3 ranges,
+        a bad option or ``init`` (naming it, what was expected and what arrived).
     ValueError, TypeError
-        A bad option, fewer than 3 ranges, ``ssp`` and ``sound_speed`` not given together, a
-        profile that does not reach the beacon or vehicle; ``ssp`` not a profile.
+        ``ssp`` and ``sound_speed`` not given together, a profile that does not reach the
+        beacon or vehicle; ``ssp`` not a profile.
 
     Warns
     -----
@@ -213,13 +227,15 @@ def fit_mixture_em(
     >>> abs(res.d0 - 2472) < 3
     True
     """
-    fixed_dp = check_options(path=path, weights=weights, sigma_dp=sigma_dp)
-    check_int("n_init", n_init, minimum=1)
-    check_int("max_iter", max_iter, minimum=1)
-    check_positive("tol", tol)
-    check_range("sigma_floor", sigma_floor, low=0, include_low=True)
-    if data.n < 3:
-        raise ValueError(f"beacon {data.beacon}: need at least 3 ranges to fit, got {data.n}")
+    data = check_fit_data(data)
+    with options_as_input_errors():
+        fixed_dp = check_options(path=path, weights=weights, sigma_dp=sigma_dp)
+        check_int("n_init", n_init, minimum=1)
+        check_int("max_iter", max_iter, minimum=1)
+        check_positive("tol", tol)
+        check_range("sigma_floor", sigma_floor, low=0, include_low=True)
+        check_int("subsample", subsample, minimum=1)
+        init = check_init(init)
     gen = as_generator(rng)
     geom = _geometry(data, ssp, sound_speed)
     s_dp0 = fixed_dp or estimate_sigma_dp(geom)
@@ -272,6 +288,52 @@ def _geometry(data, ssp, sound_speed):
     from ..model.refracted import RefractedBeaconGeometry
 
     return RefractedBeaconGeometry.from_data(data, ssp, sound_speed)
+
+
+def check_init(init) -> dict | None:
+    """Check ``fit_mixture_em``'s ``init``; return it as a dict of floats (None for none).
+
+    Unchecked, ``d0=NaN`` or ``sigma_mp=-5`` gave a fit of NaN log-likelihood and zero weights
+    (warned as not converged), a missing ``d0`` a ``KeyError``.
+
+    Parameters
+    ----------
+    init : dict, EMResult or None
+        ``d0`` (finite) and optionally ``sigma_dp``, ``sigma_mp`` (> 0), ``weights``
+        (``{"dp", "mp", "ol"}`` in [0, 1], not all 0).
+
+    Returns
+    -------
+    dict or None
+
+    Raises
+    ------
+    ValueError
+        Naming the key (``init['sigma_mp']``), what was expected and what arrived.
+    """
+    if init is None:
+        return None
+    if isinstance(init, EMResult):
+        init = init.to_dict()
+    if not isinstance(init, Mapping) or "d0" not in init:
+        got = (f"keys {sorted(map(str, init))}" if isinstance(init, Mapping)
+               else f"a {type(init).__name__}")
+        raise ValueError("init: expected a mapping with 'd0', the plane height to start from "
+                         f"(an EMResult or its to_dict()), got {got}")
+    out = {"d0": check_finite("init['d0']", init["d0"])}
+    for key in ("sigma_dp", "sigma_mp"):
+        if init.get(key) is not None:
+            out[key] = check_positive(f"init[{key!r}]", init[key])
+    w = init.get("weights")
+    if w is not None:
+        if not isinstance(w, Mapping):
+            raise ValueError("init['weights']: expected a mapping of 'dp', 'mp' and 'ol', got "
+                             f"{w!r}")
+        out["weights"] = {c: check_probability(f"init['weights'][{c!r}]", w[c],
+                                               open_interval=False) for c in CLASSES if c in w}
+        if not sum(out["weights"].get(c, 1 / 3) for c in CLASSES) > 0:
+            raise ValueError(f"init['weights']: expected weights not all 0, got {dict(w)!r}")
+    return out
 
 
 def _starts(geom, init, s_dp0, fixed_dp, weights, path, n_init, d0_bounds):

@@ -16,9 +16,11 @@ from ..model import geometry
 from ..model.beacon_geometry import BeaconGeometry
 from .em_result import (
     EMResult,
+    check_fit_data,
     check_options,
     estimate_sigma_dp,
     mean_resp_history,
+    options_as_input_errors,
     wdot,
     with_flags,
 )
@@ -162,6 +164,12 @@ def fit_paper_em(
     -------
     EMResult
 
+    Raises
+    ------
+    InputError
+        ``data`` not a BeaconData (a Survey: ``survey.for_beacon(id)``), fewer than 3 ranges
+        (as :func:`~bayes_mpem.lbl.em.em_mixture.fit_mixture_em`), or a bad option.
+
     Warns
     -----
     ConvergenceWarning, FitQualityWarning
@@ -176,11 +184,13 @@ def fit_paper_em(
     >>> abs(res.d0 - 2472) < 10
     True
     """
-    fixed_dp = check_options(path=path, pol=pol, alpha=alpha, sigma_dp=sigma_dp)
-    check_positive("sigma_mp2_init", sigma_mp2_init)
-    check_positive("tol", tol)
-    check_int("max_iter", max_iter, minimum=1)
-    check_finite("d0_init", d0_init)
+    data = check_fit_data(data)
+    with options_as_input_errors():
+        fixed_dp = check_options(path=path, pol=pol, alpha=alpha, sigma_dp=sigma_dp)
+        check_positive("sigma_mp2_init", sigma_mp2_init)
+        check_positive("tol", tol)
+        check_int("max_iter", max_iter, minimum=1)
+        check_finite("d0_init", d0_init)
     geom = BeaconGeometry.from_data(data)
     s_dp = fixed_dp or estimate_sigma_dp(geom)
 

@@ -4,16 +4,18 @@ from __future__ import annotations
 
 import dataclasses
 import warnings
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..._validate import check_choice, check_positive, check_range
-from ...exceptions import FitQualityWarning
-from ...io.survey import BeaconData
+from ...exceptions import FitQualityWarning, InputError
+from ...io.survey import BeaconData, check_beacon_data
 from ...mixture.densities import CLASSES
 from ..model import geometry
 from ..model.beacon_geometry import BeaconGeometry
+from ..survey.survey import MIN_PINGS
 
 #: The mixing weights of both EMs: learned, or the paper's equal thirds.
 WEIGHTS = ("learned", "equal")
@@ -229,6 +231,48 @@ def check_options(*, path="triangle", weights="learned", pol=0.05, alpha=0.5, si
     check_range("pol", pol, low=0, high=1)
     check_range("alpha", alpha, low=0, high=1, include_high=True)
     return check_positive("sigma_dp", sigma_dp, allow_none=True, what="a positive number")
+
+
+def check_fit_data(data) -> BeaconData:
+    """Return ``data`` if either EM can fit it: one beacon's replies, at least 3 ranges.
+
+    The paper's EM ran on 0 ranges (its start value back, with NaN weights) and called a fit
+    of 1 range converged, where the mixture EM refused fewer than 3.
+
+    Parameters
+    ----------
+    data : BeaconData
+
+    Returns
+    -------
+    BeaconData
+
+    Raises
+    ------
+    InputError
+        ``data`` not a :class:`BeaconData` (a Survey, a DataFrame), or fewer than
+        :data:`~bayes_mpem.lbl.survey.survey.MIN_PINGS` ranges.
+    """
+    data = check_beacon_data(data)
+    if data.n < MIN_PINGS:
+        raise InputError(f"beacon {data.beacon}: need at least {MIN_PINGS} ranges to fit, got "
+                         f"{data.n}")
+    return data
+
+
+@contextmanager
+def options_as_input_errors():
+    """Raise the ``ValueError`` of an option's check (``_validate``) as an ``InputError``.
+
+    Same message (the option, what was expected, what arrived); an ``InputError`` is a
+    ``ValueError``, so callers catching that still do.
+    """
+    try:
+        yield
+    except InputError:
+        raise
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
 
 
 def mean_resp_history(resp):

@@ -181,6 +181,22 @@ def test_read_marker_names_the_damage(tmp_path):
         read_marker(tmp_path)
 
 
+def test_a_write_method_names_its_argument_not_the_command_line_option(tmp_path):
+    """``SurveyFit.write(file)`` said "--out '...': is a file" to a Python caller."""
+    import bayes_mpem as bm
+
+    f = tmp_path / "file"
+    f.write_text("x")
+    res = bm.fit(bm.simulate_survey("abe58", rng=1, n_cycles=60).survey, path="triangle",
+                 rng=0)
+    for call in (lambda: res.write(f), lambda: writing(f).__enter__()):
+        with pytest.raises(InputError, match=rf"^out_dir {str(f)!r}: is a file; expected a "
+                                             r"folder$"):
+            call()
+    with pytest.raises(InputError, match=r"^--out "):
+        check_output_folder(f, "--out")  # the command line names its option
+
+
 def test_output_folder_is_checked_before_any_work(tmp_path):
     f = tmp_path / "file"
     f.write_text("x")

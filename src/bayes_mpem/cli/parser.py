@@ -390,8 +390,13 @@ def _output_folder(args):
         return None
     from ..io.results import check_output_folder  # not at import: `--help` loads no numpy
 
-    check_output_folder(out, "--out" if getattr(args, "out", None) is not None else "RESULT_DIR")
+    check_output_folder(out, _out_option(args))
     return out
+
+
+def _out_option(args) -> str:
+    """Return the option that named the output folder (``--out`` or ``RESULT_DIR``)."""
+    return "--out" if getattr(args, "out", None) is not None else "RESULT_DIR"
 
 
 class _Failed(Exception):
@@ -484,7 +489,7 @@ def _run(handler, args, done: dict) -> int:
             signal.signal(signal.SIGINT, signal.SIG_IGN)
 
     try:
-        with writing(out, create=False, on_commit=committed):
+        with writing(out, option=_out_option(args), create=False, on_commit=committed):
             code = done["code"] = handler(args)
             if code and args.command not in _COMMITS_ON_FAILURE:
                 raise _Failed(code)

@@ -25,14 +25,15 @@ TIMINGS = "timings.json"
 _RUNS: contextvars.ContextVar = contextvars.ContextVar("bayes_mpem_runs", default=())
 
 
-def check_output_folder(out_dir, option: str = "--out") -> Path:
+def check_output_folder(out_dir, option: str = "out_dir") -> Path:
     """Check that ``out_dir`` is (or can become) a writable folder, without creating it.
 
     Parameters
     ----------
     out_dir : str or os.PathLike
-    option : str, default "--out"
-        The option's name, for the message.
+    option : str, default "out_dir"
+        The argument's name, for the message: the Python one by default (every ``write``
+        method's), the option's (``"--out"``) from the command line.
 
     Returns
     -------
@@ -190,7 +191,7 @@ def _alive(pid: int) -> bool:
 
 
 @contextlib.contextmanager
-def writing(out_dir, *, option: str = "--out", create: bool = True, on_commit=None):
+def writing(out_dir, *, option: str = "out_dir", create: bool = True, on_commit=None):
     """Write one run's files into ``out_dir``, all or nothing; nested blocks join the outer run.
 
     A run that writes no ``summary.json`` keeps the folder's (``bayes-mpem plot`` adds figures).
@@ -200,8 +201,8 @@ def writing(out_dir, *, option: str = "--out", create: bool = True, on_commit=No
     Parameters
     ----------
     out_dir : str or os.PathLike
-    option : str, default "--out"
-        The option named in messages.
+    option : str, default "out_dir"
+        The argument named in messages (:func:`check_output_folder`).
     create : bool, default True
         Create the folder now, else at the first file written.
     on_commit : callable, optional

@@ -134,6 +134,7 @@ def test_the_command_line_draws_on_agg_and_gives_the_backend_back(tmp_path, give
 
     In a fresh interpreter: matplotlib is not imported until a command draws.
     """
+    (tmp_path / "none.csv").write_text("")  # the input files are checked before the command
     code = (
         "import os, sys\n"
         "import bayes_mpem.cli.survey_in as m\n"

@@ -1,6 +1,7 @@
 """``--config FILE.toml``: options from a file, checked as on the command line, overridden by it."""
 
 import json
+import os
 
 import pytest
 
@@ -106,3 +107,53 @@ def test_the_examples_of_docs_cli_md_parse(tmp_path):
         args = _parse(build_parser(), [command, *positional.get(command, []), "--config",
                                        str(cfg)])
         assert args.command == command
+
+
+def test_relative_paths_in_a_config_are_read_from_its_folder(tmp_path, monkeypatch):
+    """``ssp = "prof.txt"`` beside the config was read from the working folder: "not found",
+    or another file of that name used silently. The command line's paths stay as they are."""
+    from bayes_mpem.cli.parser import _parse
+
+    (tmp_path / "cfg").mkdir()
+    cfg = tmp_path / "cfg" / "run.toml"
+    cfg.write_text('beacons = "b.csv"\nout = "res"\nssp = "../prof.txt"\n'
+                   'dead_reckoning = "/abs/dr.csv"\n')
+    monkeypatch.chdir(tmp_path)
+    args = _parse(build_parser(), ["navigate", "p.csv", "--config", "cfg/run.toml"])
+    assert (args.beacons, args.out) == (os.path.join("cfg", "b.csv"), os.path.join("cfg", "res"))
+    assert args.travel_ssp == os.path.join("cfg", "../prof.txt")
+    assert args.dead_reckoning == "/abs/dr.csv" and args.pings == "p.csv"
+    args = _parse(build_parser(), ["navigate", "p.csv", "--config", "cfg/run.toml",
+                                   "--beacons", "here.csv"])
+    assert args.beacons == "here.csv"  # the command line's: from the working folder
+    cfg.write_text('ssp = "woa09"\nout = "o"\n')
+    assert _parse(build_parser(), ["locate", "s.txt", "--config", str(cfg)]).ssp == "woa09"
+    cfg.write_text('out = "-"\nbeacons = "b.csv"\nreplay = "p.csv"\n')
+    args = _parse(build_parser(), ["stream", "--config", str(cfg)])
+    assert args.out == "-" and args.replay == str(tmp_path / "cfg" / "p.csv")
+    cfg.write_text('out = "udp://localhost:5000"\nbeacons = "b.csv"\n')
+    assert _parse(build_parser(), ["stream", "--config", str(cfg)]).out == "udp://localhost:5000"
+
+
+def test_a_profile_beside_a_config_is_used_and_recorded(tmp_path, monkeypatch, capsys):
+    camp = tmp_path / "camp"
+    assert main(["simulate", "--gnssa", "--format", "garpos", "--hours", "0.5", "--seed", "1",
+                 "--out", str(camp)]) == 0
+    (tmp_path / "cfg").mkdir()
+    svp = (camp / "SIM.0000.sim-svp.csv").read_text().splitlines()[1:]
+    (tmp_path / "cfg" / "prof.txt").write_text("\n".join(ln.replace(",", " ") for ln in svp))
+    (tmp_path / "cfg" / "run.toml").write_text('ssp = "prof.txt"\nout = "res"\n')
+    (tmp_path / "cfg" / "bad.toml").write_text('ssp = "nothere.txt"\nout = "res2"\n')
+    monkeypatch.chdir(tmp_path)
+    site = "camp/SIM.0000.sim-initcfg.ini"
+    capsys.readouterr()
+    assert main(["locate", site, "--config", "cfg/bad.toml"]) == 2
+    bad = os.path.join("cfg", "nothere.txt")
+    assert (f"error: --ssp: sound-speed profile not found: {bad!r} (--ssp from --config "
+            "cfg/bad.toml, key 'ssp')") in capsys.readouterr().err
+    assert main(["locate", site, "--config", "cfg/run.toml"]) == 0
+    doc = json.loads((tmp_path / "cfg" / "res" / "summary.json").read_text())
+    prof = os.path.join("cfg", "prof.txt")
+    assert doc["ssp"] == prof and doc["input_files"]["ssp"] == prof
+    assert "svp" not in doc["input_files"]
+    assert doc["input_files"]["not_used"]["svp"].endswith("SIM.0000.sim-svp.csv")

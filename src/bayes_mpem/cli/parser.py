@@ -468,14 +468,49 @@ class _ReaderGone:
         return getattr(self._stream, name)
 
 
+#: Options whose value is a path, by ``dest``: a relative one in a ``--config`` file is read
+#: from that file's folder (docs/cli.md); the command line's stay relative to the working one.
+PATH_OPTIONS = ("beacons", "travel_ssp", "ssp", "dead_reckoning", "out", "state", "replay")
+#: Values of those options that are not paths: ``locate --ssp``'s keywords, ``stream``'s
+#: standard input and output (``-``); ``udp://HOST:PORT`` is not one either.
+NOT_PATHS = ("-", "woa09", "survey", "straight")
+#: Files a command reads, checked in this order before any work: ``dest -> (option, what the
+#: file is)``; a positional argument (no option) is named as its readers name it.
+INPUT_FILES = {"pings": (None, "pings file"), "survey": (None, "survey file"),
+               "beacons": ("--beacons", "beacons file"),
+               "travel_ssp": ("--ssp", "sound-speed profile"),
+               "ssp": ("--ssp", "sound-speed profile"),
+               "dead_reckoning": ("--dead-reckoning", "dead-reckoning file")}
+
+
+def _check_input_files(args) -> None:
+    """Refuse an input file that is missing or a folder, naming the option that gave it.
+
+    A ``--config`` file's ``ssp = "prof.txt"`` beside it said only "sound-speed profile not
+    found: 'prof.txt'", after the survey was read; the message now names ``--ssp`` (and
+    :func:`config_origin` the file and key it came from).
+    """
+    for dest, (option, what) in INPUT_FILES.items():
+        path = getattr(args, dest, None)
+        if not isinstance(path, str) or path in NOT_PATHS:
+            continue
+        lead = f"{option}: " if option else ""
+        if os.path.isdir(path):
+            raise InputError(f"{lead}{what} {path!r} is a folder; expected a file")
+        if not os.path.exists(path):
+            raise FileNotFoundError(f"{lead}{what} not found: {path!r}")
+
+
+
 def _run(handler, args, done: dict) -> int:
-    """Run ``handler`` with its output folder checked first and written all or nothing.
+    """Run ``handler`` with its files checked first and its output written all or nothing.
 
     ``done`` gets the handler's ``code`` and, once its files are in place, ``committed``;
     from then on a Ctrl-C is ignored (it could only report as interrupted a run whose
     result is complete: ``main`` puts the caller's handler back when it was called with
     arguments).
     """
+    _check_input_files(args)
     out = _output_folder(args)
     if out is None:
         return handler(args)
@@ -540,6 +575,7 @@ def _config_tokens(sub: argparse.ArgumentParser, path: str) -> list:
     except OSError as exc:
         refuse(f"cannot be read ({exc.strerror or exc})")
     options = {s: a for a in sub._actions for s in a.option_strings if s.startswith("--")}
+    folder = os.path.dirname(path)  # a relative path in the file is read from here
     tokens, spelt = [], {}
     for key, value in doc.items():
         name = "--" + str(key).replace("_", "-")
@@ -582,13 +618,25 @@ def _config_tokens(sub: argparse.ArgumentParser, path: str) -> list:
             if action.choices is not None and checked not in action.choices:
                 refuse(f"key {key!r} ({name}): expected one of "
                        f"{', '.join(map(str, action.choices))}, got {v!r}")
-            words.append(text)
+            words.append(_beside(folder, text) if action.dest in PATH_OPTIONS else text)
         if isinstance(action, argparse._AppendAction):
             for w in words:
                 tokens += [name, w]
         else:
             tokens += [name, *words]
     return tokens
+
+
+def _beside(folder: str, text: str) -> str:
+    """Return a path of a ``--config`` file as read from the file's ``folder``.
+
+    An absolute path, a value of :data:`NOT_PATHS` and ``udp://`` stay as they are; ``~/`` is
+    the home folder.
+    """
+    if text in NOT_PATHS or "://" in text:
+        return text
+    text = os.path.expanduser(text)
+    return text if os.path.isabs(text) else os.path.join(folder, text)
 
 
 def _closest(word: str, known):

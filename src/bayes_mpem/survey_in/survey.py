@@ -161,10 +161,12 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
                 ssp = "survey" if "ss_prof" in raw.header else "straight"
         if knot_minutes is not None:
             geo["knot_minutes"] = knot_minutes
-        return locate_array_survey(raw, ci=ci, outliers=outliers, ssp=ssp,
-                                   speed_intervals=speed_intervals, gradients=gradients,
-                                   flags=flags, correlation=correlation,
-                                   position_prior=position_prior, **geo)
+        res = locate_array_survey(raw, ci=ci, outliers=outliers, ssp=ssp,
+                                  speed_intervals=speed_intervals, gradients=gradients,
+                                  flags=flags, correlation=correlation,
+                                  position_prior=position_prior, **geo)
+        _profile_files(res.summary, ssp)
+        return res
     if correlation != "auto":
         raise InputError(f"correlation={correlation!r}: for array surveys only (GARPOS, "
                          "GNATSS, SeaGap with two transponders or more)")
@@ -259,6 +261,28 @@ def _check_arguments(raw, ci, knot_minutes):
             raise InputError(f"{exc} (a knot spacing in minutes; below {low:g} it only "
                              "costs memory)") from None
     return ci, knot_minutes
+
+
+#: The keys of ``input_files`` that name a survey's own sound-speed profile (GARPOS's
+#: ``svp.csv``, GNATSS's ``sound_speed`` files, SeaGap's ``ss_prof.inp``).
+SURVEY_PROFILE_FILES = ("svp", "sound_speed", "ss_prof")
+
+
+def _profile_files(summary: dict, ssp) -> None:
+    """Make an array summary's ``input_files`` name the profile the fit used.
+
+    With ``ssp`` other than the survey's own, the survey's profile file was read but not
+    used: it moves to ``input_files["not_used"]``, and a profile file ``ssp`` names is listed
+    as ``input_files["ssp"]`` (before, ``svp.csv`` was listed and the file used was not).
+    """
+    files = summary.get("input_files")
+    if not isinstance(files, dict) or ssp is None or str(ssp) == "survey":
+        return
+    unused = {k: files.pop(k) for k in SURVEY_PROFILE_FILES if files.get(k)}
+    if unused:
+        files["not_used"] = unused
+    if isinstance(ssp, (str, os.PathLike)) and str(ssp) not in ("straight", "woa09"):
+        files["ssp"] = os.fspath(ssp)
 
 
 def _check_located(raw, pings, tid, r) -> None:

@@ -324,3 +324,16 @@ def test_locate_survey_given_a_path_says_to_read_it_first(campaign):
             locate_survey(given)
     with pytest.raises(InputError, match="got a DataFrame$"):
         locate_survey(pd.DataFrame())
+
+
+@pytest.mark.parametrize("option", [{"gradients": "on"}, {"knot_minutes": 2.5},
+                                    {"flags": "reclassify"}, {"position_prior": "off"}])
+def test_locate_survey_refuses_array_options_for_one_transponder(option):
+    """The command line refused them; ``locate_survey`` read them and dropped them."""
+    from bayes_mpem.io.formats import sample_file
+    from bayes_mpem.survey_in.survey import locate_survey
+
+    raw = read_survey(sample_file("obsrange/SIO_CC03.txt"))
+    [(name, value)] = option.items()
+    with pytest.raises(InputError, match=rf"^{name}={value!r}: for array surveys only"):
+        locate_survey(raw, **option)

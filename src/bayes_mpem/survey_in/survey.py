@@ -141,7 +141,8 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
         ``raw`` not a RawSurvey (a path, say), ``ci`` not in ``(0, 1)``, ``knot_minutes``
         outside 0.1-1440 min, a turn-around time or a lag asked of an array survey (GNSS-A
         travel times are already corrected for delays), ``one_at_a_time`` for GARPOS or
-        GNATSS, or a ``correlation`` other than the default for a survey that is not an array.
+        GNATSS, or ``correlation``, ``gradients``, ``knot_minutes``, ``flags`` or
+        ``position_prior`` other than the default for a survey that is not an array.
     """
     ci, knot_minutes = _check_arguments(raw, ci, knot_minutes)
     if one_at_a_time and raw.format in ARRAY_FORMATS:
@@ -167,9 +168,14 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
                                   position_prior=position_prior, **geo)
         _profile_files(res.summary, ssp)
         return res
-    if correlation != "auto":
-        raise InputError(f"correlation={correlation!r}: for array surveys only (GARPOS, "
-                         "GNATSS, SeaGap with two transponders or more)")
+    for name, value, default in (("correlation", correlation, "auto"),
+                                 ("gradients", gradients, "auto"),
+                                 ("knot_minutes", knot_minutes, None),
+                                 ("flags", flags, "honour"),
+                                 ("position_prior", position_prior, "auto")):
+        if value != default:  # read and dropped in silence before
+            raise InputError(f"{name}={value!r}: for array surveys only (GARPOS, GNATSS, "
+                             "SeaGap with two transponders or more, not one at a time)")
     if speed_intervals is None:
         speed_intervals = 0
     if tat is None:

@@ -955,6 +955,10 @@ MAX_SPURIOUS_SHARE = 0.5
 LABEL_MATCH_S = 0.02
 #: See :data:`LABEL_MATCH_S`.
 LABEL_MATCH_SIGMAS = 5.0
+#: ... and only where it is this many times closer to the other's prediction than to its own:
+#: a late multipath reply (ms after its own) of a ship above the middle of the array, where
+#: every transponder's time is nearly the same, is not another's.
+LABEL_CLOSER = 4.0
 
 
 def _check_labels(raw, fit, shots) -> None:
@@ -964,7 +968,8 @@ def _check_labels(raw, fit, shots) -> None:
     swapped replies spurious (not below :data:`MIN_TRUE_SHARE`, so not refused there) and
     carries the other replies' positions, 29 m off at sds under 1 m, the centre 5 m off at
     exit 0 (a hunt, session 48). A reply labelled A that arrives when B's would at the same
-    transmit time (within :data:`LABEL_MATCH_S` of B's prediction) is B's;
+    transmit time (within :data:`LABEL_MATCH_S` of B's prediction, and :data:`LABEL_CLOSER`
+    times closer to it than to A's) is B's;
     where most of A's spurious replies (10 at least) are so, the labels are refused, naming
     the lines (:func:`_warn_spurious` warns of a transponder mostly spurious otherwise).
     """
@@ -984,8 +989,10 @@ def _check_labels(raw, fit, shots) -> None:
             continue
         off = np.abs(twtt[mine, None] - table[shot[mine]])
         off[:, k] = np.inf
+        own = np.abs(fit.residual[mine])[:, None]  # a late multipath is near its own
         with np.errstate(invalid="ignore"):
-            match = off <= max(LABEL_MATCH_S, LABEL_MATCH_SIGMAS * fit.sigma)
+            match = ((off <= max(LABEL_MATCH_S, LABEL_MATCH_SIGMAS * fit.sigma))
+                     & (LABEL_CLOSER * off < own))
         for j in np.flatnonzero(match.sum(axis=0) >= max(MIN_REPLIES_CHECKED,
                                                          0.5 * mine.size)):
             hit = mine[match[:, j]]

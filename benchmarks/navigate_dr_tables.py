@@ -2,7 +2,7 @@
 
 Run from the repository root::
 
-    nice python benchmarks/navigate_dr_tables.py   # seeds 1-8, writes docs/navigate.md
+    nice python benchmarks/navigate_dr_tables.py   # seeds 1-40, writes docs/navigate.md
     python benchmarks/navigate_dr_tables.py --seeds 2 --quick   # prints only
 
 Dives: ``simulate_dive("abe58", rng=seed, n_cycles=200)`` (four beacons, all
@@ -62,7 +62,7 @@ def one(seed: int, every: int) -> dict:
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="print only")
-    ap.add_argument("--seeds", type=int, default=8, help="seeds 1..N")
+    ap.add_argument("--seeds", type=int, default=40, help="seeds 1..N")
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
     seeds = range(1, args.seeds + 1)

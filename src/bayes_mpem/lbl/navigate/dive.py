@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -33,10 +34,22 @@ MIN_GAP_M = 1.0
 #: start that far off the track's fit was not found again (3.3 km off after a 300-s gap).
 MAX_VELOCITY_GAP_M = 50.0
 #: An interval of a table of positions whose chord is slower than this share of the local
-#: fastest speed (the fastest chord of :data:`LOCAL_INTERVALS` intervals either side) holds a
-#: turn (or a slowing): a straight line between its rows is not trusted where epochs fall
-#: inside it and the vehicle could stray :data:`MIN_GAP_M` from the chord.
-TURN_SPEED_RATIO = 0.995
+#: fastest speed (the fastest chord of :data:`LOCAL_INTERVALS` intervals either side), and
+#: than that by :data:`TURN_MADS` of the local spread, holds a turn (or a
+#: slowing): a straight line between its rows is not trusted where epochs fall inside it and
+#: the vehicle could stray :data:`MIN_GAP_M` from the chord.
+TURN_SPEED_RATIO = 0.98
+#: See :data:`TURN_SPEED_RATIO`: the chords' own jitter (a logger's noise, the dead
+#: reckoning's random walk) is not a turn. At 0.995 of the fastest alone, a 5-s table of a
+#: vehicle at 1.7 m/s had 280-644 "turns" and up to a third of its epochs flagged (a review).
+TURN_MADS = 10.0
+#: Intervals either side whose chords give the local spread :data:`TURN_MADS` is counted in.
+SPREAD_INTERVALS = 25
+#: A chord whose heading differs from both neighbours' by more than this (degrees) bends: a
+#: vehicle turning at a steady rate has chords of one speed (no deficit), each the chord of
+#: an arc whose sagitta is ``(c dt / 2) tan(theta / 4)`` (a circle of 50 m radius logged every
+#: 60 s: 18.9 m off the straight lines, unflagged).
+TURN_HEADING_DEG = 20.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -163,14 +176,18 @@ def dead_reckoning_gaps(t, pos, times, form: str):
 
     **Turns between rows** (positions only). A regular interval ``dt`` whose chord speed
     ``c`` is below :data:`TURN_SPEED_RATIO` of the local fastest ``v`` (the fastest chord
-    of :data:`LOCAL_INTERVALS` intervals either side, itself included) holds a turn or a
+    of :data:`LOCAL_INTERVALS` intervals either side, itself included), and below it by
+    more than :data:`TURN_MADS` of the chords' local spread (that of the faster half),
+    holds a turn or a
     slowing: a vehicle at most that fast, between the two rows, lies within the ellipse whose
     half minor axis is ``b = (dt / 2) sqrt(v^2 - c^2)`` (the chord's foci; 0 on a straight
-    leg, ``v dt / 2`` where it turned back). Where epochs fall inside such an interval and
-    ``b`` exceeds :data:`MIN_GAP_M`, its steps get ``(v^2 - c^2) u dt`` per axis:
-    ``(2 b)^2`` summed over the interval, an epoch in its middle ``b`` from either row
-    (a gap is the case ``c = 0``). A table every 60 s of a vehicle making U-turns was
-    otherwise 209 m off at a 1 m sd (docs/navigate.md).
+    leg, ``v dt / 2`` where it turned back). A chord whose heading turns from both its
+    neighbours' by ``theta`` above :data:`TURN_HEADING_DEG` bends at least as the arc of that chord,
+    ``b = (c dt / 2) tan(theta / 4)`` (a steady turn: chords of one speed). Where epochs
+    fall inside such an interval and ``b`` exceeds :data:`MIN_GAP_M`, its steps get
+    ``(2 b / dt)^2 u dt`` per axis: ``(2 b)^2`` summed over the interval, an epoch in its
+    middle ``b`` from either row (a gap is the case ``c = 0``). A table every 60 s of a
+    vehicle making U-turns was otherwise 209 m off at a 1 m sd (docs/navigate.md).
 
     For positions, a step whose two epochs are outside the interval keeps its exact
     displacement and gets nothing.
@@ -220,35 +237,76 @@ def dead_reckoning_gaps(t, pos, times, form: str):
     v = float(speed.max()) if speed.size else 0.0
     var, found = np.zeros(times.size - 1), []
 
-    def add(j, rate):  # the steps meeting interval j: ``rate u dt`` each; False if none
+    def add(j, rate):  # the steps meeting interval j: ``rate u dt`` each; None if none
         a, b = t[j], t[j + 1]
-        u = np.clip(np.minimum(times[1:], b) - np.maximum(times[:-1], a), 0.0, None)
-        inside = (times > a) & (times < b)
+        first, stop = np.searchsorted(times, a, "right"), np.searchsorted(times, b, "left")
+        k = np.arange(max(first - 1, 0), min(stop, times.size - 1))  # steps that may meet it
+        u = np.clip(np.minimum(times[k + 1], b) - np.maximum(times[k], a), 0.0, None)
         if form == "position":  # a step between epochs outside the interval is exact
-            u = np.where(inside[1:] | inside[:-1], u, 0.0)
+            u = np.where((k >= first) | (k + 1 < stop), u, 0.0)
         if not u.any():
             return None
-        var[:] += rate * u * (b - a)
+        var[k] += rate * u * (b - a)
         return {"index": int(j), "start": float(a), "end": float(b),
-                "interval": float(spacing[j]), "n_epochs": int(inside.sum())}
+                "interval": float(spacing[j]), "n_epochs": int(stop - first)}
 
     for j in np.flatnonzero(long & (0.5 * v * dt > MIN_GAP_M)):
         entry = add(j, v * v)
         if entry is not None:
             found.append({"kind": "gap", **entry, "speed": v})
     if form == "position":
-        reach = local_fastest(np.where(long, 0.0, chord))
-        slack = np.clip(reach**2 - chord**2, 0.0, None)
-        turned = ~long & (chord < TURN_SPEED_RATIO * reach) & (0.5 * dt * np.sqrt(slack)
-                                                                > MIN_GAP_M)
-        for j in np.flatnonzero(turned):
-            entry = add(j, slack[j])
+        dev, reach = _turn_deviation(pos, dt, chord, long)
+        for j in np.flatnonzero(dev > MIN_GAP_M):
+            entry = add(j, (2.0 * dev[j] / dt[j]) ** 2)  # (2 b)^2 over the interval
             if entry is not None:
                 found.append({"kind": "turn", **entry, "speed": float(reach[j]),
-                              "chord_speed": float(chord[j]),
-                              "deviation": float(0.5 * dt[j] * np.sqrt(slack[j]))})
+                              "chord_speed": float(chord[j]), "deviation": float(dev[j])})
     found.sort(key=lambda g: g["start"])
     return (var if found else None), found
+
+
+def _turn_deviation(pos, dt, chord, long):
+    """Return each interval's bound ``b`` off its chord (0: trusted) and the local fastest speed.
+
+    A chord slower than the local fastest ``v`` (:data:`TURN_SPEED_RATIO`, :data:`TURN_MADS`)
+    gets the ellipse's ``(dt / 2) sqrt(v^2 - c^2)``; one whose heading turns from both its
+    neighbours' by more than :data:`TURN_HEADING_DEG` at least the sagitta of its arc,
+    ``(c dt / 2) tan(theta / 4)``. Gaps (``long``) get 0: their own rule covers them.
+    """
+    c = np.where(long, np.nan, chord)
+    reach = local_fastest(np.where(long, 0.0, chord))
+    spread = _local_upper_spread(c)
+    slow = ~long & (chord < TURN_SPEED_RATIO * reach) & (reach - chord > TURN_MADS * spread)
+    dev = np.where(slow, 0.5 * dt * np.sqrt(np.clip(reach**2 - chord**2, 0.0, None)), 0.0)
+    step = np.diff(pos, axis=0)
+    heading = np.arctan2(step[:, 1], step[:, 0])
+    turn = np.abs(np.angle(np.exp(1j * np.diff(heading))))  # between chords j and j + 1
+    length = chord * dt  # a chord under a metre has no heading to speak of
+    turn[(length[1:] <= MIN_GAP_M) | (length[:-1] <= MIN_GAP_M)] = 0.0
+    theta = np.minimum(np.r_[0.0, turn], np.r_[turn, 0.0])  # bent from both: a steady turn
+    bent = ~long & (theta > np.deg2rad(TURN_HEADING_DEG))
+    arc = np.where(bent, 0.5 * chord * dt * np.tan(np.minimum(theta, np.pi) / 4.0), 0.0)
+    return np.maximum(dev, arc), reach
+
+
+def _local_upper_spread(x):
+    """Each interval's local spread of the chords: the scaled MAD of its window's upper half.
+
+    :data:`SPREAD_INTERVALS` either side (eleven chords gave an estimate too noisy: a
+    straight leg's jitter made "turns").
+
+    The chords at or above the window's median: a straight leg's jitter, without the turns'
+    (slower chords; on a table every 60 s of a vehicle turning every 150 s, a third of them).
+    NaN (gaps) ignored.
+    """
+    pad = np.full(SPREAD_INTERVALS, np.nan)
+    w = np.lib.stride_tricks.sliding_window_view(np.r_[pad, x, pad], 2 * SPREAD_INTERVALS + 1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # a window of NaN only
+        upper = np.where(w >= np.nanmedian(w, axis=1)[:, None], w, np.nan)
+        centre = np.nanmedian(upper, axis=1)
+        mad = 1.4826 * np.nanmedian(np.abs(upper - centre[:, None]), axis=1)
+    return np.nan_to_num(mad)
 
 
 def local_fastest(speed):

@@ -371,3 +371,17 @@ def test_an_array_in_a_batch_keeps_its_centre_and_says_when_one_is_missing(sched
     assert "1 transponder not located (M04: 0 shots" in s.loc["some", "warnings"]
     assert abs(s.loc["full", "centre_enu_up_mean"]
                - sim.truth_record()["array_centre"]["up"]) < 0.1
+    # a review: a rerun over the records of an earlier version (no fields) kept no centre
+    for name in ("full", "some"):
+        done = tmp_path / "out" / "surveys" / name / "batch.json"
+        record = json.loads(done.read_text())
+        del record["fields"]
+        done.write_text(json.dumps(record))
+    again = run_batch(_tasks(manifest, "locate"), tmp_path / "out", scheduler=scheduler,
+                      progress=False).surveys.set_index("name")
+    assert list(again["status"]) == ["done", "done"]  # run again, not taken as complete
+    assert again.loc["some", "centre_note"] == s.loc["some", "centre_note"]
+    third = run_batch(_tasks(manifest, "locate"), tmp_path / "out", scheduler=scheduler,
+                      progress=False).surveys.set_index("name")
+    assert list(third["status"]) == ["complete", "complete"]
+    assert third.loc["full", "centre_transponders"] == "M01,M02,M03,M04"

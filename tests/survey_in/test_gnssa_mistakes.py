@@ -242,6 +242,9 @@ def test_an_atd_offset_upward_is_refused_naming_the_line(campaign, tmp_path):
                                          r"expected a number in \[0, 100\], got '-12.*the "
                                          r"transducer is under the water"):
         read_garpos(site)
+    _atd(site, lambda parts: parts[:2] + ["150"] + parts[3:])  # out of range, no sign slip
+    with pytest.raises(InputError, match=r"got '150'$"):
+        read_garpos(site)
     _atd(site, lambda parts: parts[:2] + ["0.0"] + parts[3:])
     assert read_garpos(site).header["atd_offset"][2] == 0.0
 
@@ -337,3 +340,27 @@ def test_locate_survey_refuses_array_options_for_one_transponder(option):
     [(name, value)] = option.items()
     with pytest.raises(InputError, match=rf"^{name}={value!r}: for array surveys only"):
         locate_survey(raw, **option)
+
+
+def test_replies_near_another_transponders_whose_own_are_true_are_no_swap(campaign, tmp_path):
+    """A review: M02 placed 10-30 m from M01 and a quarter of M01's replies late by 1-10 ms
+    (multipath) was refused as labels swapped. A swap takes B's own reply away; here M02's
+    own replies at those shots stay true, so they are M01's late arrivals, not M02's."""
+    site = _copy(campaign[0], tmp_path)
+    obs = next(site.parent.glob("*obs.csv"))
+    head, *rows = obs.read_text().splitlines(keepends=True)
+    columns = rows[0].strip().split(",")
+    mt, tt, rt, st = (columns.index(c) for c in ("MT", "TT", "RT", "ST"))
+    cells = [r.rstrip("\n").split(",") for r in rows[1:]]
+    m02 = {c[st]: float(c[tt]) for c in cells if c[mt] == "M02"}
+    gen = np.random.default_rng(1)
+    for c in cells:
+        if c[mt] == "M01" and c[st] in m02 and gen.random() < 0.3:
+            late = m02[c[st]] + 1e-3 - float(c[tt])  # where M02's would arrive, 1 ms later
+            c[tt] = f"{float(c[tt]) + late:.7f}"
+            c[rt] = f"{float(c[rt]) + late:.6f}"
+    obs.write_text(head + rows[0] + "".join(",".join(c) + "\n" for c in cells))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LocateWarning)
+        res = locate_array_survey(read_garpos(site))  # not refused
+    assert res.summary["transponders"]["M01"]["n_spurious"] > 10

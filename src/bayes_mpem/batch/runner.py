@@ -182,7 +182,10 @@ def _failed_folder(folder: Path, record: dict) -> None:
 
 
 def _completed(task: BatchTask, out_dir, key: str | None) -> dict | None:
-    """Return the survey's record if complete with the hash ``key``, else None."""
+    """Return the survey's record if complete with the hash ``key``, else None.
+
+    An array's ``locate`` record without ``fields`` (an earlier version's) is not complete.
+    """
     done = Path(out_dir) / "surveys" / task.name / "batch.json"
     if key is None or not done.is_file():
         return None
@@ -190,7 +193,18 @@ def _completed(task: BatchTask, out_dir, key: str | None) -> dict | None:
         record = json.loads(done.read_text())
     except (OSError, ValueError):
         return None
-    return record if record.get("hash") == key else None
+    if record.get("hash") != key:
+        return None
+    if record.get("command") == "locate" and "fields" not in record:
+        # an array located by an earlier version: its centre is not in the record (a review:
+        # a rerun kept no centre columns and no note of a transponder not located); run again
+        try:
+            summary = json.loads((done.parent / "summary.json").read_text())
+        except (OSError, ValueError):
+            return None
+        if "array_centre" in summary:
+            return None
+    return record
 
 
 def _key_or_none(task: BatchTask):

@@ -430,8 +430,8 @@ def read_garpos(site_file, *, obs=None, svp=None, strict=False) -> RawSurvey:
                        "rightward": {"lo": -100.0, "hi": 100.0},
                        "downward": {"lo": 0.0, "hi": 100.0}})
     except InputError as exc:
-        if "downward" not in str(exc):
-            raise
+        if "ATDoffset downward: expected a number in [0, 100], got '-" not in str(exc):
+            raise  # not a negative downward (150, '12x', nan): the message says it all
         raise InputError(f"{exc}: the transducer is under the water and the GNSS antenna above "
                          "it, so the offset is positive downward (a sign slipped?)") from None
     obs_path = Path(obs) if obs is not None else _named_file(ini, site_file, "Data-file",

@@ -968,8 +968,9 @@ def _check_labels(raw, fit, shots) -> None:
     swapped replies spurious (not below :data:`MIN_TRUE_SHARE`, so not refused there) and
     carries the other replies' positions, 29 m off at sds under 1 m, the centre 5 m off at
     exit 0 (a hunt, session 48). A reply labelled A that arrives when B's would at the same
-    transmit time (within :data:`LABEL_MATCH_S` of B's prediction, and :data:`LABEL_CLOSER`
-    times closer to it than to A's) is B's;
+    transmit time (within :data:`LABEL_MATCH_S` of B's prediction, :data:`LABEL_CLOSER`
+    times closer to it than to A's, and B's own reply to that shot not true: a swap takes it
+    away, where a late multipath of A beside a close B leaves it) is B's;
     where most of A's spurious replies (10 at least) are so, the labels are refused, naming
     the lines (:func:`_warn_spurious` warns of a transponder mostly spurious otherwise).
     """
@@ -981,7 +982,10 @@ def _check_labels(raw, fit, shots) -> None:
     keys, shot = np.unique(t_tx, return_inverse=True)
     table = np.full((keys.size, len(fit.ids)), np.nan)  # prediction per shot and transponder
     table[shot, fit.index] = pred
+    heard = np.zeros((keys.size, len(fit.ids)), bool)  # the shot's own reply of each, true
+    heard[shot, fit.index] = fit.p_true >= 0.5
     spurious = fit.p_true < 0.5
+    tol = max(LABEL_MATCH_S, LABEL_MATCH_SIGMAS * fit.sigma)
     for k, tid in enumerate(fit.ids):
         mine = np.flatnonzero((fit.index == k) & spurious)
         n = int((fit.index == k).sum())
@@ -991,15 +995,15 @@ def _check_labels(raw, fit, shots) -> None:
         off[:, k] = np.inf
         own = np.abs(fit.residual[mine])[:, None]  # a late multipath is near its own
         with np.errstate(invalid="ignore"):
-            match = ((off <= max(LABEL_MATCH_S, LABEL_MATCH_SIGMAS * fit.sigma))
-                     & (LABEL_CLOSER * off < own))
+            match = ((off <= tol)
+                     & (LABEL_CLOSER * off < own) & ~heard[shot[mine]])
         for j in np.flatnonzero(match.sum(axis=0) >= max(MIN_REPLIES_CHECKED,
                                                          0.5 * mine.size)):
             hit = mine[match[:, j]]
             raise InputError(
                 f"{_shots_file(raw)}: {hit.size} of the {n} replies labelled {tid} (lines "
                 f"{lines[hit[0]]} to {lines[hit[-1]]}) arrive when {fit.ids[j]}'s would at the "
-                f"same transmit time (within {1e3 * LABEL_MATCH_S:g} ms), and the fit calls "
+                f"same transmit time (within {1e3 * tol:.3g} ms), and the fit calls "
                 f"them spurious: replies of {fit.ids[j]} labelled {tid} (the labels swapped "
                 "part of the way, a deck unit re-cabled?); correct the labels, or locate the "
                 "parts before and after separately")
@@ -1018,8 +1022,9 @@ def _warn_spurious(raw, fit) -> None:
             warnings.warn(
                 f"{_shots_file(raw)}: transponder {tid}: {bad} of its {n} replies called "
                 f"spurious (more than {100 * MAX_SPURIOUS_SHARE:g} %): its position rests on "
-                "the rest; check that these replies are its own (another array's or "
-                "campaign's concatenated?)", LocateWarning, stacklevel=4)
+                "the rest; check that these replies are its own (late multipath arrivals, "
+                "another array's or another campaign's concatenated?)", LocateWarning,
+                stacklevel=4)
 
 
 def _warn_unlocated(raw, fit, shift=False) -> None:

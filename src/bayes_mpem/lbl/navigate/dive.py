@@ -35,7 +35,7 @@ MIN_GAP_M = 1.0
 MAX_VELOCITY_GAP_M = 50.0
 #: An interval of a table of positions whose chord is slower than this share of the local
 #: fastest speed (the fastest chord of :data:`LOCAL_INTERVALS` intervals either side), and
-#: than that by :data:`TURN_MADS` of the local spread, holds a turn (or a
+#: slower than it by :data:`TURN_MADS` of the chords' local spread too, holds a turn (or a
 #: slowing): a straight line between its rows is not trusted where epochs fall inside it and
 #: the vehicle could stray :data:`MIN_GAP_M` from the chord.
 TURN_SPEED_RATIO = 0.98
@@ -178,12 +178,12 @@ def dead_reckoning_gaps(t, pos, times, form: str):
     ``c`` is below :data:`TURN_SPEED_RATIO` of the local fastest ``v`` (the fastest chord
     of :data:`LOCAL_INTERVALS` intervals either side, itself included), and below it by
     more than :data:`TURN_MADS` of the chords' local spread (that of the faster half),
-    holds a turn or a
-    slowing: a vehicle at most that fast, between the two rows, lies within the ellipse whose
-    half minor axis is ``b = (dt / 2) sqrt(v^2 - c^2)`` (the chord's foci; 0 on a straight
-    leg, ``v dt / 2`` where it turned back). A chord whose heading turns from both its
-    neighbours' by ``theta`` above :data:`TURN_HEADING_DEG` bends at least as the arc of that chord,
-    ``b = (c dt / 2) tan(theta / 4)`` (a steady turn: chords of one speed). Where epochs
+    holds a turn or a slowing: a vehicle at most that fast, between the two rows, lies
+    within the ellipse whose half minor axis is ``b = (dt / 2) sqrt(v^2 - c^2)`` (the
+    chord's foci; 0 on a straight leg, ``v dt / 2`` where it turned back). A chord whose
+    heading turns from both its neighbours' by ``theta`` above :data:`TURN_HEADING_DEG`
+    bends at least as the arc of that chord, ``b = (c dt / 2) tan(theta / 4)`` (a steady
+    turn: chords of one speed). Where epochs
     fall inside such an interval and ``b`` exceeds :data:`MIN_GAP_M`, its steps get
     ``(2 b / dt)^2 u dt`` per axis: ``(2 b)^2`` summed over the interval, an epoch in its
     middle ``b`` from either row (a gap is the case ``c = 0``). A table every 60 s of a
@@ -290,14 +290,12 @@ def _turn_deviation(pos, dt, chord, long):
 
 
 def _local_upper_spread(x):
-    """Each interval's local spread of the chords: the scaled MAD of its window's upper half.
+    """Return each interval's local spread of the chords: the scaled MAD of the faster half.
 
-    :data:`SPREAD_INTERVALS` either side (eleven chords gave an estimate too noisy: a
-    straight leg's jitter made "turns").
-
-    The chords at or above the window's median: a straight leg's jitter, without the turns'
-    (slower chords; on a table every 60 s of a vehicle turning every 150 s, a third of them).
-    NaN (gaps) ignored.
+    The chords at or above the median of a window of :data:`SPREAD_INTERVALS` either side:
+    a straight leg's jitter, without the turns' slower chords (on a table every 60 s of a
+    vehicle turning every 150 s, a third of them). Eleven chords gave an estimate too noisy
+    (a straight leg's jitter made "turns"). NaN (gaps) ignored.
     """
     pad = np.full(SPREAD_INTERVALS, np.nan)
     w = np.lib.stride_tricks.sliding_window_view(np.r_[pad, x, pad], 2 * SPREAD_INTERVALS + 1)

@@ -76,8 +76,8 @@ def _ambiguous_in_gaps(dive, resp, track=None) -> np.ndarray:
     """``(K,)`` epochs inside a gap or a turn of the dead reckoning that their replies do not fix.
 
     There (:func:`_loose`) the motion model no longer holds the position: an epoch with
-    useful replies from fewer than three beacons fits two positions (two circles cross twice). With
-    ``track``, also an epoch whose useful replies, any one beacon's left out, leave a
+    useful replies from fewer than three beacons fits two positions (two circles cross
+    twice). With ``track``, also an epoch whose useful replies, any one beacon's left out, leave a
     direction open (:data:`OPEN_RATIO`): that one reply alone places the vehicle across
     it, and a spurious one is not told from a true one (simulated: two beacons on either
     side of the vehicle and an outlier of a third taken as true, 176 m off at a 4 m sd).

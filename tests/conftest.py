@@ -8,10 +8,25 @@ import os
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
+import signal  # noqa: E402
+import threading  # noqa: E402
+
 import matplotlib  # noqa: E402
 import pytest  # noqa: E402
 
 matplotlib.use("Agg")
+
+
+def pytest_configure(config):
+    """Give the tests of Ctrl-C Python's SIGINT handler where the suite inherited it ignored.
+
+    A suite started in the background by a shell (``pytest &``) inherits SIGINT ignored, and
+    so would its subprocesses: the tests of Ctrl-C (a real SIGINT in-process, or sent to a
+    command they start) then saw nothing happen. A terminal's Ctrl-C gives the handler.
+    """
+    if (threading.current_thread() is threading.main_thread()
+            and signal.getsignal(signal.SIGINT) is signal.SIG_IGN):
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def pytest_addoption(parser):

@@ -38,10 +38,10 @@ MAX_VELOCITY_GAP_M = 50.0
 #: slower than it by :data:`TURN_MADS` of the chords' local spread too, holds a turn (or a
 #: slowing): a straight line between its rows is not trusted where epochs fall inside it and
 #: the vehicle could stray :data:`MIN_GAP_M` from the chord.
-TURN_SPEED_RATIO = 0.98
+TURN_SPEED_RATIO = 0.995
 #: See :data:`TURN_SPEED_RATIO`: the chords' own jitter (a logger's noise, the dead
-#: reckoning's random walk) is not a turn. At 0.995 of the fastest alone, a 5-s table of a
-#: vehicle at 1.7 m/s had 280-644 "turns" and up to a third of its epochs flagged (a review).
+#: reckoning's random walk) is not a turn. Without it, a 5-s table of a vehicle at 1.7 m/s
+#: had 280-644 "turns" and up to a third of its epochs flagged (a review).
 TURN_MADS = 10.0
 #: Intervals either side whose chords give the local spread :data:`TURN_MADS` is counted in.
 SPREAD_INTERVALS = 25

@@ -297,8 +297,7 @@ def _local_upper_spread(x):
     vehicle turning every 150 s, a third of them). Eleven chords gave an estimate too noisy
     (a straight leg's jitter made "turns"). NaN (gaps) ignored.
     """
-    pad = np.full(SPREAD_INTERVALS, np.nan)
-    w = np.lib.stride_tricks.sliding_window_view(np.r_[pad, x, pad], 2 * SPREAD_INTERVALS + 1)
+    w = _windows(x, SPREAD_INTERVALS, np.nan)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # a window of NaN only
         upper = np.where(w >= np.nanmedian(w, axis=1)[:, None], w, np.nan)
@@ -326,9 +325,17 @@ def local_fastest(speed):
     >>> local_fastest(np.r_[[1.0] * 7, 3.0, [1.0] * 7]).tolist()
     [1.0, 1.0, 3.0, 3.0, 3.0, 3.0, 3.0, 3.0, 3.0, 3.0, 3.0, 3.0, 3.0, 1.0, 1.0]
     """
-    pad = np.full(LOCAL_INTERVALS, -np.inf)
-    return np.lib.stride_tricks.sliding_window_view(
-        np.r_[pad, np.asarray(speed, float), pad], 2 * LOCAL_INTERVALS + 1).max(axis=1)
+    return _windows(speed, LOCAL_INTERVALS, -np.inf).max(axis=1)
+
+
+def _windows(x, half, fill):
+    """Return the windows of ``half`` values either side of each of ``x`` (a read-only view).
+
+    Past the ends the windows hold ``fill``; a day at 1 Hz needs no loop.
+    """
+    pad = np.full(half, fill)
+    return np.lib.stride_tricks.sliding_window_view(np.r_[pad, np.asarray(x, float), pad],
+                                                    2 * half + 1)
 
 
 def local_spacing(dt):
@@ -355,9 +362,7 @@ def local_spacing(dt):
     dt = np.asarray(dt, float)
     if dt.size < 2:
         return dt.copy()
-    pad = np.full(LOCAL_INTERVALS, np.nan)
-    windows = np.lib.stride_tricks.sliding_window_view(
-        np.r_[pad, dt, pad], 2 * LOCAL_INTERVALS + 1).copy()  # a day at 1 Hz: no loop
+    windows = _windows(dt, LOCAL_INTERVALS, np.nan).copy()
     windows[:, LOCAL_INTERVALS] = np.nan  # the interval itself left out
     return np.nanmedian(windows, axis=1)
 

@@ -72,7 +72,7 @@ def _loose(dive) -> np.ndarray:
 OPEN_RATIO = float(np.tan(np.deg2rad(15.0)) ** 2)
 
 
-def _ambiguous_in_gaps(dive, resp, track=None) -> np.ndarray:
+def _ambiguous_in_gaps(dive, resp, loose, track=None) -> np.ndarray:
     """``(K,)`` epochs inside a gap or a turn of the dead reckoning that their replies do not fix.
 
     There (:func:`_loose`) the motion model no longer holds the position: an epoch with
@@ -89,11 +89,10 @@ def _ambiguous_in_gaps(dive, resp, track=None) -> np.ndarray:
     useful = resp[:, 0] + resp[:, 1] >= 0.5
     pairs = np.unique(np.column_stack([dive.epoch[useful], dive.beacon[useful]]), axis=0)
     n_beacons = np.bincount(pairs[:, 0], minlength=dive.n_epochs)
-    inside = _loose(dive)
-    out = inside & (n_beacons < 3)
+    out = loose & (n_beacons < 3)
     if track is None:
         return out
-    for k in np.flatnonzero(inside & (n_beacons >= 3)):
+    for k in np.flatnonzero(loose & (n_beacons >= 3)):
         b = pairs[pairs[:, 0] == k, 1]
         d = track[k] - dive.beacon_xyz[b, :2]
         slant = np.sqrt((d**2).sum(axis=1) + (dive.depth[k] - dive.beacon_xyz[b, 2]) ** 2)
@@ -113,7 +112,7 @@ def _ambiguous_in_gaps(dive, resp, track=None) -> np.ndarray:
 REACH_MARGIN = 1.05
 
 
-def _out_of_reach(dive, track, sd) -> np.ndarray:
+def _out_of_reach(dive, track, sd, loose) -> np.ndarray:
     """``(K,)`` epochs inside a gap or a turn whose fitted position the vehicle cannot reach.
 
     Across a gap or a turn of the table the steps are loose (the vehicle anywhere it could
@@ -141,7 +140,6 @@ def _out_of_reach(dive, track, sd) -> np.ndarray:
             out[inside[far > reach]] = True
     # and each step between two loose epochs (a review: 149 m in 12 s, at 8.6 m/s, 72 m off
     # at a 7.5 m sd, the interval's ends 48 s away and within reach)
-    loose = _loose(dive)
     both = np.flatnonzero(loose[:-1] & loose[1:])
     fastest = max(g["speed"] for g in gaps)
     step = np.hypot(*(track[both + 1] - track[both]).T)
@@ -214,8 +212,9 @@ def assess(dive, cov, resp, nuisances: dict, *, max_sd: float, track=None) -> li
     """
     sd = major_sd(cov)
     flags = []
-    ambiguous = _ambiguous_in_gaps(dive, resp, track)
-    unreachable = _out_of_reach(dive, track, sd)
+    loose = _loose(dive)  # the epochs the motion model does not hold
+    ambiguous = _ambiguous_in_gaps(dive, resp, loose, track)
+    unreachable = _out_of_reach(dive, track, sd, loose)
     for i0, i1 in _stretches((sd > max_sd) | ambiguous | unreachable):
         why = _reason(dive, resp, i0, i1)
         if unreachable[i0:i1].any():

@@ -89,7 +89,7 @@ def locate_raw(raw, options: dict):
     """
     from ..survey_in.location_sampling import locate_survey_bayes
     from ..survey_in.result import SurveyInResult
-    from ..survey_in.survey import is_array, locate_survey
+    from ..survey_in.survey import ARRAY_ONLY_DEFAULTS, is_array, locate_survey
 
     options = dict(options)
     sampling = options.pop("sample", None)
@@ -109,10 +109,8 @@ def locate_raw(raw, options: dict):
         return locate_array_survey_bayes(raw, **array, **sampling)
     # a SeaGap survey read as an array may have one transponder: the array's options at
     # their defaults are dropped (one speed for the smooth one), any other refused
-    defaults = {"gradients": "auto", "knot_minutes": None, "flags": "honour",
-                "correlation": "auto", "position_prior": "auto"}
     given = []
-    for key, default in defaults.items():
+    for key, default in ARRAY_ONLY_DEFAULTS.items():
         if key in options and options.pop(key) != default:
             given.append(key)
     if given:

@@ -792,7 +792,6 @@ def _check_fit(raw, fit, shots, shift) -> None:
     _check_below_transducer(raw, fit, shots)
     _check_labels(raw, fit, shots)
     _check_replies_explained(raw, fit)
-    _warn_spurious(raw, fit)
     _warn_unlocated(raw, fit, shift)
     _check_moved(raw, fit)
     _check_intervals(raw, fit)
@@ -905,6 +904,9 @@ def _isolated(raw):
 #: A transponder of at least :data:`MIN_REPLIES_CHECKED` replies of which the fit calls fewer
 #: than this share true is refused (:func:`_check_replies_explained`).
 MIN_TRUE_SHARE = 0.1
+#: A transponder whose fit calls more than this share of its replies spurious is warned of
+#: (:func:`_check_replies_explained`).
+MAX_SPURIOUS_SHARE = 0.5
 #: Replies a transponder needs before :func:`_check_replies_explained` judges its share
 #: (below it, a transponder none of whose replies is true is refused).
 MIN_REPLIES_CHECKED = 10
@@ -924,13 +926,21 @@ def _check_replies_explained(raw, fit) -> None:
     hundreds of metres off, the robust start cannot reach the replies and the EM calls them
     all spurious, at exit 0 with a centre hundreds of metres off. Below
     :data:`MIN_REPLIES_CHECKED` replies only a transponder none of whose replies is true is
-    refused (six replies, all spurious, left a centre 259 m off).
+    refused (six replies, all spurious, left a centre 259 m off). A transponder not refused,
+    more than :data:`MAX_SPURIOUS_SHARE` of whose replies are spurious, is warned of.
     """
+    mostly = []  # not refused, but said once none is refused
     for k, tid in enumerate(fit.ids):
         sel = fit.index == k
         n = int(sel.sum())
         true = n - fit.n_spurious(k)  # as the transponder's line counts them
         if n == 0 or true >= MIN_TRUE_SHARE * n or (n < MIN_REPLIES_CHECKED and true > 0):
+            if n and n - true > MAX_SPURIOUS_SHARE * n:
+                mostly.append(f"{_shots_file(raw)}: transponder {tid}: {n - true} of its {n} "
+                              f"replies called spurious (more than {100 * MAX_SPURIOUS_SHARE:g}"
+                              " %): its position rests on the rest; check that these replies "
+                              "are its own (late multipath arrivals, another array's or "
+                              "another campaign's concatenated?)")
             continue
         med = float(np.median(fit.residual[sel]))
         e, nn, u = fit.start[k]
@@ -942,11 +952,10 @@ def _check_replies_explained(raw, fit) -> None:
             "Check that position (a sign or a digit slipped?) and that these replies are "
             f"{tid}'s; to locate the array without it, leave it out of the prior positions "
             "(GARPOS's Stations, GNATSS's transponders)")
+    for message in mostly:
+        warnings.warn(message, LocateWarning, stacklevel=4)
 
 
-#: A transponder whose fit calls more than this share of its replies spurious is warned of
-#: (:func:`_check_labels`).
-MAX_SPURIOUS_SHARE = 0.5
 #: A spurious reply arrives when another transponder's would where its travel time is within
 #: this (s) of the other's prediction at the same transmit time, or :data:`LABEL_MATCH_SIGMAS`
 #: of the fit's sigmas where more: the swapped replies pull both positions, so the fit's
@@ -972,7 +981,8 @@ def _check_labels(raw, fit, shots) -> None:
     times closer to it than to A's, and B's own reply to that shot not true: a swap takes it
     away, where a late multipath of A beside a close B leaves it) is B's;
     where most of A's spurious replies (10 at least) are so, the labels are refused, naming
-    the lines (:func:`_warn_spurious` warns of a transponder mostly spurious otherwise).
+    the lines (:func:`_check_replies_explained` warns of a transponder mostly spurious
+    otherwise).
     """
     t_tx = shots["t_tx"].to_numpy(float)[fit.rows]
     twtt = shots["twtt"].to_numpy(float)[fit.rows]
@@ -1007,24 +1017,6 @@ def _check_labels(raw, fit, shots) -> None:
                 f"them spurious: replies of {fit.ids[j]} labelled {tid} (the labels swapped "
                 "part of the way, a deck unit re-cabled?); correct the labels, or locate the "
                 "parts before and after separately")
-
-
-def _warn_spurious(raw, fit) -> None:
-    """Warn of a transponder more than :data:`MAX_SPURIOUS_SHARE` of whose replies are spurious.
-
-    After :func:`_check_labels` and :func:`_check_replies_explained`, which refuse the
-    cases they explain.
-    """
-    for k, tid in enumerate(fit.ids):
-        n = int((fit.index == k).sum())
-        bad = fit.n_spurious(k)
-        if n and bad > MAX_SPURIOUS_SHARE * n:
-            warnings.warn(
-                f"{_shots_file(raw)}: transponder {tid}: {bad} of its {n} replies called "
-                f"spurious (more than {100 * MAX_SPURIOUS_SHARE:g} %): its position rests on "
-                "the rest; check that these replies are its own (late multipath arrivals, "
-                "another array's or another campaign's concatenated?)", LocateWarning,
-                stacklevel=4)
 
 
 def _warn_unlocated(raw, fit, shift=False) -> None:

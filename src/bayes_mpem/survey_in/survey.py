@@ -68,6 +68,12 @@ def seagap_surface_depth(raw) -> float:
     return -0.5 * float(np.mean(up["tx"][2]) + np.mean(up["rx"][2])) - SEAGAP_TRANSDUCER_DEPTH
 
 
+#: The options only an array survey takes, at their defaults (a survey of one transponder
+#: refuses any other value: :func:`locate_survey`, and the batch's ``locate``).
+ARRAY_ONLY_DEFAULTS = {"gradients": "auto", "knot_minutes": None, "flags": "honour",
+                       "correlation": "auto", "position_prior": "auto"}
+
+
 def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", ssp=None,
                   speed_intervals=None, fit_lag=False, lag_check=False, one_at_a_time=False,
                   gradients="auto", knot_minutes=None, flags="honour", correlation="auto",
@@ -168,11 +174,10 @@ def locate_survey(raw, *, tat=None, fit_tat=False, ci=0.95, outliers="uniform", 
                                   position_prior=position_prior, **geo)
         _profile_files(res.summary, ssp)
         return res
-    for name, value, default in (("correlation", correlation, "auto"),
-                                 ("gradients", gradients, "auto"),
-                                 ("knot_minutes", knot_minutes, None),
-                                 ("flags", flags, "honour"),
-                                 ("position_prior", position_prior, "auto")):
+    given = {"correlation": correlation, "gradients": gradients, "knot_minutes": knot_minutes,
+             "flags": flags, "position_prior": position_prior}
+    for name, default in ARRAY_ONLY_DEFAULTS.items():
+        value = given[name]
         if value != default:  # read and dropped in silence before
             raise InputError(f"{name}={value!r}: for array surveys only (GARPOS, GNATSS, "
                              "SeaGap with two transponders or more, not one at a time)")
